@@ -1,0 +1,43 @@
+"""handeye: hand-eye calibration of a camera against a robot arm.
+
+>>> import handeye
+>>> result = handeye.calibrate_poses(flange2base, target2cam, setup="eye_in_hand")  # doctest: +SKIP
+>>> result.cam2flange  # doctest: +SKIP
+
+Conventions: a transform named ``a2b`` maps coordinates in frame ``a`` to frame ``b``; stacks
+are ``(N, 4, 4)``; lengths are metres inside the library.
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import PackageNotFoundError, version
+
+from . import metrics, simulate, solvers
+from .calibration import Calibration, calibrate_poses
+from .errors import DegenerateMotionError, HandEyeError, InputMismatchError, PoseFormatError
+from .geometry.dualquat import DualQuaternion
+from .motions import relative_motions
+from .poses import format_poses, parse_poses
+from .solvers import solve
+
+try:
+    __version__ = version("handeye")
+except PackageNotFoundError:  # running from a source tree
+    __version__ = "0+unknown"
+
+__all__ = [
+    "Calibration",
+    "DegenerateMotionError",
+    "DualQuaternion",
+    "HandEyeError",
+    "InputMismatchError",
+    "PoseFormatError",
+    "calibrate_poses",
+    "format_poses",
+    "metrics",
+    "parse_poses",
+    "relative_motions",
+    "simulate",
+    "solve",
+    "solvers",
+]

@@ -1,0 +1,160 @@
+"""``calibrate_poses``: from robot and camera poses to a :class:`Calibration`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+from .errors import InputMismatchError
+from .geometry.se3 import invert, make_transform
+from .metrics import rotation_error, translation_error
+from .motions import MotionSet, Pairs, check_setup, screw_congruence, validate_poses
+from . import solvers
+
+__all__ = ["Calibration", "calibrate_poses"]
+
+
+@dataclass
+class Calibration:
+    """The result of a hand-eye calibration.
+
+    Attributes
+    ----------
+    X : ndarray (4, 4)
+        ``cam2flange`` (eye_in_hand) or ``cam2base`` (eye_to_hand), metres.
+    Z : ndarray (4, 4)
+        ``target2base`` (eye_in_hand) or ``target2flange`` (eye_to_hand): the mean over poses.
+    setup, method : str
+    flange2base, target2cam : ndarray (N, 4, 4)
+        The (validated) inputs.
+    pairs : ndarray (K, 2)
+        The pose index pairs of the motions used.
+    cov : ndarray (6, 6) or None
+        Covariance of X over [rotation vector (rad), translation (m)]; None when not computed.
+    std : ndarray (6,) or None
+        Standard deviations of the same six, in degrees and millimetres.
+    motion_residuals : ndarray (K, 2)
+        Screw congruence per motion: ``|theta_A - theta_B|`` (deg), ``|d_A - d_B|`` (mm). Computed
+        on first access.
+    pose_residuals : ndarray (N, 2)
+        Per pose, how far its own ``Z_i`` (through X) is from Z: rotation (deg), translation (mm).
+    """
+
+    X: NDArray[np.float64]
+    Z: NDArray[np.float64]
+    setup: str
+    method: str
+    flange2base: NDArray[np.float64] = field(repr=False)
+    target2cam: NDArray[np.float64] = field(repr=False)
+    pairs: NDArray[np.intp] = field(repr=False)
+    cov: NDArray[np.float64] | None = None
+    std: NDArray[np.float64] | None = None
+    _motions: MotionSet | None = field(default=None, repr=False)
+
+    @cached_property
+    def motion_residuals(self) -> NDArray[np.float64]:
+        motions = self._motions
+        if motions is None:
+            motions = MotionSet.from_poses(self.flange2base, self.target2cam, self.setup, self.pairs)
+        dtheta, dd = screw_congruence(motions)
+        return np.stack([np.degrees(dtheta), 1e3 * dd], axis=1)
+
+    @cached_property
+    def pose_residuals(self) -> NDArray[np.float64]:
+        Zi = constant_transforms(self.X, self.flange2base, self.target2cam, self.setup)
+        return np.stack([np.degrees(rotation_error(Zi, self.Z)), 1e3 * translation_error(Zi, self.Z)], axis=1)
+
+    @property
+    def cam2flange(self) -> NDArray[np.float64]:
+        """X for an eye-in-hand calibration."""
+        if self.setup != "eye_in_hand":
+            raise AttributeError("cam2flange is the eye_in_hand result; this is eye_to_hand: use cam2base")
+        return self.X
+
+    @property
+    def cam2base(self) -> NDArray[np.float64]:
+        """X for an eye-to-hand calibration."""
+        if self.setup != "eye_to_hand":
+            raise AttributeError("cam2base is the eye_to_hand result; this is eye_in_hand: use cam2flange")
+        return self.X
+
+    @property
+    def target2base(self) -> NDArray[np.float64]:
+        """Z for an eye-in-hand calibration (where the target stands in the robot base frame)."""
+        if self.setup != "eye_in_hand":
+            raise AttributeError("target2base is the eye_in_hand Z; this is eye_to_hand: use target2flange")
+        return self.Z
+
+    @property
+    def target2flange(self) -> NDArray[np.float64]:
+        """Z for an eye-to-hand calibration (where the target sits on the flange)."""
+        if self.setup != "eye_to_hand":
+            raise AttributeError("target2flange is the eye_to_hand Z; this is eye_in_hand: use target2base")
+        return self.Z
+
+
+def constant_transforms(
+    X: NDArray[np.float64], flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str
+) -> NDArray[np.float64]:
+    """Per pose, the transform that must be constant given X: ``Z_i`` (DESIGN §2)."""
+    if setup == "eye_in_hand":
+        return flange2base @ X @ target2cam  # target2base
+    return invert(flange2base) @ X @ target2cam  # target2flange
+
+
+def mean_transform(T: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Chordal mean of rotations (scipy's ``Rotation.mean``) and arithmetic mean of translations."""
+    R = Rotation.from_matrix(T[:, :3, :3]).mean().as_matrix()
+    return make_transform(R, T[:, :3, 3].mean(axis=0))
+
+
+def calibrate_poses(
+    flange2base: ArrayLike,
+    target2cam: ArrayLike,
+    setup: str = "eye_in_hand",
+    method: str = "daniilidis",
+    refine: str = "none",
+    pairs: Pairs = "all",
+) -> Calibration:
+    """Hand-eye calibration from robot poses and camera-to-target poses.
+
+    Parameters
+    ----------
+    flange2base : array_like, shape (N, 4, 4)
+        Flange poses reported by the robot (metres); see :func:`handeye.parse_poses`.
+    target2cam : array_like, shape (N, 4, 4)
+        Target poses in the camera frame (``solvePnP``'s rvec/tvec), metres.
+    setup : {'eye_in_hand', 'eye_to_hand'}
+    method : str
+        A solver from ``handeye.solvers.available("hand_eye")``.
+    refine : {'none'}
+        Nonlinear refinement; only 'none' exists so far (pose and reprojection refinement come with
+        the refinement module).
+    pairs : {'all', 'consecutive'} or (K, 2) array
+        Which pose pairs form the motions.
+
+    Returns
+    -------
+    Calibration
+    """
+    check_setup(setup)
+    if refine not in ("none",):
+        raise InputMismatchError(f"refine={refine!r} is not available yet; use refine='none'")
+    flange2base, target2cam = validate_poses(flange2base, target2cam)
+    motions = MotionSet.from_poses(flange2base, target2cam, setup, pairs)
+    X = solvers.solve_motions(motions, method=method)
+    Z = mean_transform(constant_transforms(X, flange2base, target2cam, setup))
+    return Calibration(
+        X=X,
+        Z=Z,
+        setup=setup,
+        method=method,
+        flange2base=flange2base,
+        target2cam=target2cam,
+        pairs=motions.pairs,
+        _motions=motions,
+    )

@@ -1,0 +1,25 @@
+"""Exceptions raised by handeye.
+
+Every error says what is wrong, where, and what to do about it. They all derive from
+:class:`HandEyeError`, so a caller (and the CLI) can catch one type.
+"""
+
+from __future__ import annotations
+
+__all__ = ["HandEyeError", "PoseFormatError", "DegenerateMotionError", "InputMismatchError"]
+
+
+class HandEyeError(Exception):
+    """Base class of every error handeye raises on purpose."""
+
+
+class PoseFormatError(HandEyeError, ValueError):
+    """Pose values that cannot be read in the declared format (shape, NaN, non-unit, ...)."""
+
+
+class InputMismatchError(HandEyeError, ValueError):
+    """Inputs that do not fit together (different counts, wrong shapes, unknown setup)."""
+
+
+class DegenerateMotionError(HandEyeError):
+    """The robot motions do not determine the unknown transform (parallel axes, no rotation)."""

@@ -1,0 +1,208 @@
+"""Rigid transforms as stacks of 4x4 homogeneous matrices.
+
+Every function accepts a single transform ``(4, 4)`` or a stack ``(..., 4, 4)`` and works on the
+whole stack at once. A transform named ``a2b`` maps coordinates in frame ``a`` to frame ``b``.
+
+Rotation conversions go through :class:`scipy.spatial.transform.Rotation`; this module only adds
+what scipy does not have: batched rigid inverse and composition, and the screw parameters of a
+motion (Chasles' theorem; thesis §2.2.3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+__all__ = [
+    "make_transform",
+    "invert",
+    "compose",
+    "skew",
+    "rotation_angle",
+    "rotation_axis_angle",
+    "screw_parameters",
+    "from_rotvec_translation",
+    "to_rotvec_translation",
+    "orthonormality_error",
+    "random_rotations",
+]
+
+
+def make_transform(rotation: ArrayLike, translation: ArrayLike) -> NDArray[np.float64]:
+    """Assemble homogeneous transforms from rotation matrices and translations.
+
+    Parameters
+    ----------
+    rotation : array_like, shape (..., 3, 3)
+        Rotation matrices.
+    translation : array_like, shape (..., 3)
+        Translations.
+
+    Returns
+    -------
+    T : ndarray, shape (..., 4, 4)
+    """
+    R = np.asarray(rotation, dtype=float)
+    t = np.asarray(translation, dtype=float)
+    batch = np.broadcast_shapes(R.shape[:-2], t.shape[:-1])
+    T = np.zeros(batch + (4, 4))
+    T[..., :3, :3] = R
+    T[..., :3, 3] = t
+    T[..., 3, 3] = 1.0
+    return T
+
+
+def invert(T: ArrayLike) -> NDArray[np.float64]:
+    """Invert rigid transforms using the rotation transpose (exact and cheaper than ``inv``).
+
+    Parameters
+    ----------
+    T : array_like, shape (..., 4, 4)
+
+    Returns
+    -------
+    T_inv : ndarray, shape (..., 4, 4)
+    """
+    T = np.asarray(T, dtype=float)
+    Rt = np.swapaxes(T[..., :3, :3], -1, -2)
+    return make_transform(Rt, -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3]))
+
+
+def compose(*transforms: ArrayLike) -> NDArray[np.float64]:
+    """Compose transforms left to right: ``compose(a, b, c) == a @ b @ c`` (broadcast over stacks)."""
+    if not transforms:
+        raise ValueError("compose() needs at least one transform")
+    out = np.asarray(transforms[0], dtype=float)
+    for T in transforms[1:]:
+        out = out @ np.asarray(T, dtype=float)
+    return out
+
+
+def skew(v: ArrayLike) -> NDArray[np.float64]:
+    """Cross-product matrices: ``skew(v) @ w == cross(v, w)``.
+
+    Parameters
+    ----------
+    v : array_like, shape (..., 3)
+
+    Returns
+    -------
+    S : ndarray, shape (..., 3, 3)
+    """
+    v = np.asarray(v, dtype=float)
+    S = np.zeros(v.shape[:-1] + (3, 3))
+    S[..., 0, 1] = -v[..., 2]
+    S[..., 0, 2] = v[..., 1]
+    S[..., 1, 0] = v[..., 2]
+    S[..., 1, 2] = -v[..., 0]
+    S[..., 2, 0] = -v[..., 1]
+    S[..., 2, 1] = v[..., 0]
+    return S
+
+
+def _rotations(T_or_R: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The rotation blocks of transforms, or the matrices themselves when already 3x3."""
+    if T_or_R.shape[-2:] == (4, 4):
+        return T_or_R[..., :3, :3]
+    if T_or_R.shape[-2:] == (3, 3):
+        return T_or_R
+    raise ValueError(f"expected (...,3,3) rotations or (...,4,4) transforms, got shape {T_or_R.shape}")
+
+
+def rotation_axis_angle(T: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Rotation axis (unit) and angle in [0, pi] of rotations or transforms.
+
+    The angle is computed from the quaternion with ``2 atan2(|v|, |w|)``, which stays accurate near
+    0 and pi (``arccos`` of the trace loses half the digits near 0). For a zero rotation the axis is
+    returned as zeros.
+    """
+    R = _rotations(np.asarray(T, dtype=float))
+    batch = R.shape[:-2]
+    quat = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat(scalar_first=True)
+    quat *= np.where(quat[:, :1] < 0, -1.0, 1.0)
+    vnorm = np.linalg.norm(quat[:, 1:], axis=1)
+    angle = 2.0 * np.arctan2(vnorm, quat[:, 0])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        axis = np.where(vnorm[:, None] > 0, quat[:, 1:] / vnorm[:, None], 0.0)
+    return axis.reshape(batch + (3,)), angle.reshape(batch)
+
+
+def rotation_angle(T: ArrayLike) -> NDArray[np.float64]:
+    """Rotation angle in [0, pi] of rotations ``(..., 3, 3)`` or transforms ``(..., 4, 4)``."""
+    return rotation_axis_angle(T)[1]
+
+
+def screw_parameters(
+    T: ArrayLike, eps: float = 1e-12
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Screw parameters of rigid motions (thesis §2.2.3, Chasles' theorem).
+
+    A motion is a rotation by ``theta`` about a line (direction ``l``, moment ``m = c x l`` for any
+    point ``c`` on it) followed by a translation ``d`` along that line.
+
+    Parameters
+    ----------
+    T : array_like, shape (..., 4, 4)
+    eps : float
+        Below this rotation angle (rad) the screw axis is undefined; the motion is treated as a pure
+        translation: ``l`` is the translation direction, ``d = |t|`` and ``m = 0``.
+
+    Returns
+    -------
+    l : ndarray, shape (..., 3)
+        Unit axis direction.
+    m : ndarray, shape (..., 3)
+        Moment of the axis, ``m = c x l``; ``l . m = 0``.
+    theta : ndarray, shape (...)
+        Rotation angle in [0, pi].
+    d : ndarray, shape (...)
+        Translation along the axis (the pitch times theta), ``d = l . t``.
+    """
+    T = np.asarray(T, dtype=float)
+    t = T[..., :3, 3]
+    l, theta = rotation_axis_angle(T)
+    d = np.einsum("...i,...i->...", l, t)
+    # c is the point of the axis closest to the origin; m = c x l (thesis §2.2.3).
+    half = 0.5 * theta
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cot = np.where(theta > eps, np.cos(half) / np.sin(half), 0.0)
+    c = 0.5 * (t - d[..., None] * l + cot[..., None] * np.cross(l, t))
+    m = np.cross(c, l)
+    pure = theta <= eps
+    if np.any(pure):
+        tn = np.linalg.norm(t, axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            tdir = np.where(tn[..., None] > 0, t / tn[..., None], 0.0)
+        l = np.where(pure[..., None], tdir, l)
+        d = np.where(pure, tn, d)
+        m = np.where(pure[..., None], 0.0, m)
+    return l, m, theta, d
+
+
+def from_rotvec_translation(rotvec: ArrayLike, translation: ArrayLike) -> NDArray[np.float64]:
+    """Transforms from rotation vectors (axis * angle, rad) and translations."""
+    rotvec = np.asarray(rotvec, dtype=float)
+    R = Rotation.from_rotvec(rotvec.reshape(-1, 3)).as_matrix().reshape(rotvec.shape[:-1] + (3, 3))
+    return make_transform(R, translation)
+
+
+def to_rotvec_translation(T: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Rotation vectors (rad) and translations of transforms."""
+    T = np.asarray(T, dtype=float)
+    rv = Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_rotvec()
+    return rv.reshape(T.shape[:-2] + (3,)), T[..., :3, 3].copy()
+
+
+def orthonormality_error(R: ArrayLike) -> NDArray[np.float64]:
+    """Largest absolute entry of ``R^T R - I`` per matrix (0 for an exact rotation)."""
+    R = np.asarray(R, dtype=float)
+    gram = np.swapaxes(R, -1, -2) @ R
+    return np.abs(gram - np.eye(3)).max(axis=(-1, -2))
+
+
+def random_rotations(n: int, rng: np.random.Generator) -> NDArray[np.float64]:
+    """``n`` rotation matrices drawn uniformly from SO(3) (normalised Gaussian quaternions)."""
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return Rotation.from_quat(q).as_matrix()

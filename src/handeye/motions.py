@@ -1,0 +1,239 @@
+"""Absolute poses -> relative motions ``A X = X B``, and per-motion consistency residuals.
+
+Conventions (DESIGN §2; derived in the notes ``001_...txt`` for both setups):
+
+* eye-in-hand, ``X = cam2flange``: ``A = inv(flange2base_j) @ flange2base_i``,
+  ``B = target2cam_j @ inv(target2cam_i)``.
+* eye-to-hand, ``X = cam2base``: ``A = flange2base_j @ inv(flange2base_i)``, same ``B``.
+
+For ``i < j``, this is exactly what OpenCV's ``calibrateHandEye`` builds from its
+``R_gripper2base``/``R_target2cam`` inputs; eye-to-hand maps onto OpenCV by passing the inverted
+robot poses (``base2flange``) as ``gripper2base``, which then returns ``cam2base``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal, Union
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .errors import InputMismatchError
+from .geometry.dualquat import dq_conj, dq_from_matrix, dq_mul_pairs, qconj, qmul
+from .geometry.se3 import invert, screw_parameters
+from .poses import validate_transforms
+
+__all__ = ["relative_motions", "pair_indices", "screw_congruence", "MotionSet", "SETUPS"]
+
+SETUPS = ("eye_in_hand", "eye_to_hand")
+Pairs = Union[Literal["all", "consecutive"], ArrayLike]
+
+
+def check_setup(setup: str) -> str:
+    """Return ``setup`` if it is a known setup name, else raise a clear error."""
+    if setup not in SETUPS:
+        raise InputMismatchError(f"unknown setup {setup!r}; use 'eye_in_hand' (camera on the flange) "
+                                 f"or 'eye_to_hand' (camera fixed, target on the flange)")
+    return setup
+
+
+def pair_indices(n_poses: int, pairs: Pairs = "all") -> NDArray[np.intp]:
+    """Index pairs ``(i, j)`` of the motions built from ``n_poses`` poses.
+
+    Parameters
+    ----------
+    n_poses : int
+    pairs : {'all', 'consecutive'} or array_like of shape (K, 2)
+        ``all``: every ``i < j`` (as OpenCV); ``consecutive``: ``(i, i + 1)``; or explicit pairs.
+
+    Returns
+    -------
+    ij : ndarray, shape (K, 2)
+    """
+    if isinstance(pairs, str):
+        if pairs == "all":
+            i, j = np.triu_indices(n_poses, k=1)
+            return np.stack([i, j], axis=1)
+        if pairs == "consecutive":
+            i = np.arange(n_poses - 1)
+            return np.stack([i, i + 1], axis=1)
+        raise InputMismatchError(f"unknown pairs strategy {pairs!r}; use 'all', 'consecutive' or an (K, 2) index array")
+    ij = np.asarray(pairs)
+    if ij.ndim != 2 or ij.shape[1] != 2 or not np.issubdtype(ij.dtype, np.integer):
+        raise InputMismatchError(f"pairs must be 'all', 'consecutive' or an integer array (K, 2); got shape {ij.shape}")
+    if len(ij) and (ij.min() < 0 or ij.max() >= n_poses):
+        raise InputMismatchError(f"pairs index a pose outside 0..{n_poses - 1}")
+    if (ij[:, 0] == ij[:, 1]).any():
+        raise InputMismatchError("pairs contain a pose paired with itself")
+    return ij.astype(np.intp)
+
+
+def validate_poses(flange2base: ArrayLike, target2cam: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Validated copies of the two absolute pose stacks, which must pair up one to one."""
+    flange2base = validate_transforms(flange2base, what="flange2base")
+    target2cam = validate_transforms(target2cam, what="target2cam")
+    if len(flange2base) != len(target2cam):
+        raise InputMismatchError(
+            f"{len(flange2base)} robot poses but {len(target2cam)} camera poses: each robot pose needs "
+            f"the target pose seen at that moment"
+        )
+    if len(flange2base) < 2:
+        raise InputMismatchError(f"need at least 2 poses to form a motion, got {len(flange2base)}")
+    return flange2base, target2cam
+
+
+def relative_motions(
+    flange2base: ArrayLike,
+    target2cam: ArrayLike,
+    setup: str = "eye_in_hand",
+    pairs: Pairs = "all",
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Relative motions ``(A, B)`` with ``A @ X = X @ B`` from absolute poses.
+
+    Parameters
+    ----------
+    flange2base : array_like, shape (N, 4, 4)
+        Robot flange poses as the controller reports them.
+    target2cam : array_like, shape (N, 4, 4)
+        Target poses in the camera (what ``solvePnP`` returns).
+    setup : {'eye_in_hand', 'eye_to_hand'}
+    pairs : {'all', 'consecutive'} or array_like (K, 2)
+
+    Returns
+    -------
+    A, B : ndarray, shape (K, 4, 4)
+        Robot and camera motions, one per pair of :func:`pair_indices`.
+    """
+    check_setup(setup)
+    flange2base, target2cam = validate_poses(flange2base, target2cam)
+    ij = pair_indices(len(flange2base), pairs)
+    return _motion_matrices(flange2base, target2cam, setup, ij)
+
+
+def _motion_matrices(
+    flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str, ij: NDArray[np.intp]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    i, j = ij[:, 0], ij[:, 1]
+    if setup == "eye_in_hand":
+        A = invert(flange2base)[j] @ flange2base[i]
+    else:
+        A = flange2base[j] @ invert(flange2base)[i]
+    B = target2cam[j] @ invert(target2cam)[i]
+    return A, B
+
+
+def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Unit dual quaternions with real scalar part >= 0, and b's sign matched to a's.
+
+    ``q`` and ``-q`` are the same motion, but the equations of AX = XB hold only when a and b carry
+    the same sign: their scalar parts (cos(theta/2), -d/2 sin(theta/2)) are equal. ``w >= 0`` fixes
+    the sign except near theta = pi, where w ~ 0 and the dual scalar part decides. (OpenCV's
+    Daniilidis takes the signs its matrix-to-quaternion branch happens to give, which disagree for
+    some motions near 180 deg.)
+    """
+    dq_a = dq_a * np.where(dq_a[:, 0] < 0, -1.0, 1.0)[:, None]
+    dq_b = dq_b * np.where(dq_b[:, 0] < 0, -1.0, 1.0)[:, None]
+    agree = dq_a[:, 0] * dq_b[:, 0] + dq_a[:, 4] * dq_b[:, 4]
+    dq_b *= np.where(agree < 0, -1.0, 1.0)[:, None]
+    return dq_a, dq_b
+
+
+@dataclass
+class MotionSet:
+    """Motions ``A_k X = X B_k`` in the forms the solvers use.
+
+    Attributes
+    ----------
+    dq_a, dq_b : ndarray (K, 8)
+        Their unit dual quaternions ``[w x y z, w' x' y' z']`` with ``w >= 0`` and consistent signs
+        between each ``a`` and ``b`` (see :func:`_align_signs`).
+    pairs : ndarray (K, 2) or None
+        The pose indices of each motion, when built from absolute poses.
+    A, B : ndarray (K, 4, 4)
+        Robot and camera motions (properties).
+    """
+
+    dq_a: NDArray[np.float64]
+    dq_b: NDArray[np.float64]
+    pairs: NDArray[np.intp] | None = None
+    _AB: tuple[NDArray[np.float64], NDArray[np.float64]] | None = field(default=None, repr=False)
+    _poses: tuple | None = field(default=None, repr=False)
+
+    def __len__(self) -> int:
+        return len(self.dq_a)
+
+    @property
+    def A(self) -> NDArray[np.float64]:
+        """Robot motions (K, 4, 4); built on first use (Daniilidis needs only the dual quaternions)."""
+        return self._matrices()[0]
+
+    @property
+    def B(self) -> NDArray[np.float64]:
+        """Camera motions (K, 4, 4)."""
+        return self._matrices()[1]
+
+    def _matrices(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        if self._AB is None:
+            flange2base, target2cam, setup = self._poses
+            self._AB = _motion_matrices(flange2base, target2cam, setup, self.pairs)
+        return self._AB
+
+    @classmethod
+    def from_matrices(cls, A: NDArray[np.float64], B: NDArray[np.float64]) -> "MotionSet":
+        """From validated motion stacks (rotations exactly orthonormal)."""
+        dq_a, dq_b = _align_signs(dq_from_matrix(A), dq_from_matrix(B))
+        return cls(dq_a, dq_b, _AB=(A, B))
+
+    @classmethod
+    def from_poses(
+        cls, flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str, pairs: Pairs = "all"
+    ) -> "MotionSet":
+        """From validated absolute poses.
+
+        The motion dual quaternions are products of the N pose dual quaternions (cheap), not
+        conversions of the K motion matrices (K = N(N-1)/2 for all pairs).
+        """
+        check_setup(setup)
+        ij = pair_indices(len(flange2base), pairs)
+        i, j = ij[:, 0], ij[:, 1]
+        n = len(flange2base)
+        dq_fc = dq_from_matrix(np.concatenate([flange2base, target2cam]))
+        dq_f, dq_c = dq_fc[:n], dq_fc[n:]
+        if setup == "eye_in_hand":
+            dq_a = dq_mul_pairs(dq_conj(dq_f), dq_f, j, i)
+        else:
+            dq_a = dq_mul_pairs(dq_f, dq_conj(dq_f), j, i)
+        dq_b = dq_mul_pairs(dq_c, dq_conj(dq_c), j, i)
+        dq_a, dq_b = _align_signs(dq_a, dq_b)
+        return cls(dq_a, dq_b, ij, _poses=(flange2base, target2cam, setup))
+
+
+def _angle_and_pitch(dq: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Rotation angle and translation along the screw axis of unit dual quaternions (w >= 0)."""
+    v = dq[:, 1:4]
+    vn = np.linalg.norm(v, axis=1)
+    theta = 2.0 * np.arctan2(vn, np.abs(dq[:, 0]))
+    t = 2.0 * qmul(dq[:, 4:], qconj(dq[:, :4]))[:, 1:]
+    tn = np.linalg.norm(t, axis=1)
+    pure = theta <= 1e-12  # no screw axis: the motion is a translation of length |t|
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d = np.where(pure, tn, np.einsum("ni,ni->n", v, t) / np.where(pure, 1.0, vn))
+    return theta, d
+
+
+def screw_congruence(A: "ArrayLike | MotionSet", B: ArrayLike | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per-motion screw-congruence residuals ``|theta_A - theta_B|`` (rad) and ``|d_A - d_B|`` (m).
+
+    ``B = X^-1 A X`` has the same rotation angle and the same translation along its screw axis as
+    ``A`` whatever ``X`` is (the scalar parts of the two dual quaternions are equal, thesis §2.2.3),
+    so both must be near zero for consistent data; large values point to wrong conventions.
+    Takes motion stacks ``A, B`` or a :class:`MotionSet` (then from its dual quaternions).
+    """
+    if isinstance(A, MotionSet):
+        theta_a, d_a = _angle_and_pitch(A.dq_a)
+        theta_b, d_b = _angle_and_pitch(A.dq_b)
+    else:
+        _, _, theta_a, d_a = screw_parameters(A)
+        _, _, theta_b, d_b = screw_parameters(B)
+    return np.abs(theta_a - theta_b), np.abs(d_a - d_b)

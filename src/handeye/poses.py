@@ -1,0 +1,273 @@
+"""Robot pose formats: parse rows of numbers into ``flange2base`` stacks, and write them back.
+
+Formats (named explicitly, never guessed):
+
+=================  =======================================  ==================================
+format             columns                                  notes
+=================  =======================================  ==================================
+``matrix``         m00 m01 ... m33 (16, row-major)          last row must be 0 0 0 1
+``quat_wxyz``      x y z qw qx qy qz                        ROS-style order is ``quat_xyzw``
+``quat_xyzw``      x y z qx qy qz qw
+``rotvec``         x y z rx ry rz                           axis * angle (Universal Robots)
+``euler:SEQ``      x y z a b c                              scipy sequence: ``ZYX`` intrinsic
+                                                            (KUKA A,B,C), ``xyz`` extrinsic
+                                                            (Fanuc W,P,R)
+=================  =======================================  ==================================
+
+Lengths in ``m`` or ``mm`` (the library works in metres); angles in ``deg`` or ``rad`` (rotvec
+and euler only).
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+from .errors import PoseFormatError
+from .geometry.se3 import make_transform, orthonormality_error
+
+__all__ = ["parse_poses", "format_poses", "pose_columns", "validate_transforms", "FORMATS"]
+
+FORMATS = ("matrix", "quat_wxyz", "quat_xyzw", "rotvec", "euler:<SEQ>")
+LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}
+ANGLE_UNITS = ("rad", "deg")
+
+#: Largest deviation of a rotation matrix from orthonormality (max |R^T R - I|) that is accepted and
+#: re-orthonormalised. Controllers print 6 decimals (~1e-6); 1e-4 leaves room and still rejects junk.
+ORTHONORMAL_TOL = 1e-4
+#: Largest accepted deviation of a quaternion's norm from 1.
+QUAT_NORM_TOL = 1e-3
+
+_EULER_RE = re.compile(r"^euler:([xyzXYZ]{3})$")
+
+
+def _parse_format(fmt: str) -> tuple[str, str | None]:
+    if not isinstance(fmt, str):
+        raise PoseFormatError(f"pose format must be a string, got {fmt!r}; one of {', '.join(FORMATS)}")
+    if fmt in ("matrix", "quat_wxyz", "quat_xyzw", "rotvec"):
+        return fmt, None
+    m = _EULER_RE.match(fmt)
+    if m:
+        seq = m.group(1)
+        if not (seq.isupper() or seq.islower()):
+            raise PoseFormatError(
+                f"Euler sequence {seq!r} mixes cases: use upper case for intrinsic rotations "
+                f"(e.g. 'euler:ZYX', KUKA A,B,C) or lower case for extrinsic ones (e.g. 'euler:xyz', Fanuc W,P,R)"
+            )
+        s = seq.lower()
+        if s[0] == s[1] or s[1] == s[2]:
+            raise PoseFormatError(f"Euler sequence {seq!r} repeats an axis in consecutive rotations")
+        return "euler", seq
+    raise PoseFormatError(
+        f"unknown pose format {fmt!r}; use one of: matrix, quat_wxyz, quat_xyzw, rotvec, "
+        f"euler:<sequence> (e.g. euler:ZYX intrinsic, euler:xyz extrinsic)"
+    )
+
+
+def pose_columns(fmt: str) -> list[str]:
+    """The column names of a pose format, as written in ``poses.csv`` (DESIGN §4)."""
+    kind, _ = _parse_format(fmt)
+    if kind == "matrix":
+        return [f"m{i}{j}" for i in range(4) for j in range(4)]
+    rot = {
+        "quat_wxyz": ["qw", "qx", "qy", "qz"],
+        "quat_xyzw": ["qx", "qy", "qz", "qw"],
+        "rotvec": ["rx", "ry", "rz"],
+        "euler": ["a", "b", "c"],
+    }[kind]
+    return ["x", "y", "z"] + rot
+
+
+def _check_units(length_unit: str, angle_unit: str) -> float:
+    if length_unit not in LENGTH_UNITS:
+        raise PoseFormatError(f"unknown length unit {length_unit!r}; use 'm' or 'mm'")
+    if angle_unit not in ANGLE_UNITS:
+        raise PoseFormatError(f"unknown angle unit {angle_unit!r}; use 'rad' or 'deg'")
+    return LENGTH_UNITS[length_unit]
+
+
+def _as_rows(values: ArrayLike, kind: str, what: str) -> NDArray[np.float64]:
+    try:
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise PoseFormatError(f"{what}: values are not numbers ({exc})") from None
+    if kind == "matrix" and arr.ndim == 3 and arr.shape[1:] == (4, 4):
+        arr = arr.reshape(len(arr), 16)
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    if arr.ndim != 2:
+        raise PoseFormatError(f"{what}: expected a table of shape (N, columns), got shape {arr.shape}")
+    return arr
+
+
+def parse_poses(
+    values: ArrayLike,
+    format: str = "quat_wxyz",
+    length_unit: str = "m",
+    angle_unit: str = "rad",
+    *,
+    what: str = "robot poses",
+) -> NDArray[np.float64]:
+    """Parse rows of pose values into a stack of 4x4 transforms (lengths in metres).
+
+    Parameters
+    ----------
+    values : array_like, shape (N, k)
+        One pose per row, columns as in the module table. ``matrix`` also accepts ``(N, 4, 4)``.
+    format : str
+        ``matrix``, ``quat_wxyz``, ``quat_xyzw``, ``rotvec`` or ``euler:SEQ`` with a scipy sequence
+        (upper case = intrinsic, lower case = extrinsic).
+    length_unit : {'m', 'mm'}
+    angle_unit : {'rad', 'deg'}
+        Used by ``rotvec`` and ``euler``.
+    what : str
+        How the rows are named in error messages.
+
+    Returns
+    -------
+    T : ndarray, shape (N, 4, 4)
+
+    Raises
+    ------
+    PoseFormatError
+        Naming the row: wrong column count, NaN/inf, quaternion norm off by more than 1e-3,
+        rotation matrix not orthonormal (with its deviation), unknown format or unit, and values
+        that cannot be in the declared unit (e.g. metres of tens of metres, radians beyond 2 pi).
+    """
+    kind, seq = _parse_format(format)
+    scale = _check_units(length_unit, angle_unit)
+    rows = _as_rows(values, kind, what)
+    ncols = len(pose_columns(format))
+    if rows.shape[1] != ncols:
+        raise PoseFormatError(
+            f"{what}: format {format!r} needs {ncols} columns ({' '.join(pose_columns(format))}), "
+            f"got {rows.shape[1]}"
+        )
+    if len(rows) == 0:
+        raise PoseFormatError(f"{what}: no poses given")
+    bad = ~np.isfinite(rows)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise PoseFormatError(
+            f"{what}: row {i} column {pose_columns(format)[j]!r} is {rows[i, j]} (NaN or infinite); "
+            f"{int(bad.any(axis=1).sum())} row(s) affected"
+        )
+
+    if kind == "matrix":
+        M = rows.reshape(-1, 4, 4)
+        last = np.abs(M[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1)
+        if (last > 1e-9).any():
+            i = int(np.argmax(last > 1e-9))
+            raise PoseFormatError(f"{what}: row {i}: the last matrix row is {M[i, 3].tolist()}, must be [0, 0, 0, 1]")
+        T = validate_transforms(M, what=what)
+        T[:, :3, 3] *= scale
+    else:
+        t = rows[:, :3] * scale
+        rot = rows[:, 3:]
+        if kind in ("quat_wxyz", "quat_xyzw"):
+            norm = np.linalg.norm(rot, axis=1)
+            off = np.abs(norm - 1.0)
+            if (off > QUAT_NORM_TOL).any():
+                i = int(np.argmax(off))
+                raise PoseFormatError(
+                    f"{what}: row {i}: quaternion norm is {norm[i]:.6g}, not 1 (tolerance {QUAT_NORM_TOL}); "
+                    f"check the column order ({format}) and that all four components are present"
+                )
+            R = Rotation.from_quat(rot, scalar_first=(kind == "quat_wxyz")).as_matrix()
+        else:
+            ang = np.deg2rad(rot) if angle_unit == "deg" else rot
+            if angle_unit == "rad":
+                limit = 2 * np.pi + 1e-6
+                mag = np.linalg.norm(rot, axis=1) if kind == "rotvec" else np.abs(rot).max(axis=1)
+                if (mag > limit).any():
+                    i = int(np.argmax(mag))
+                    raise PoseFormatError(
+                        f"{what}: row {i}: rotation of {mag[i]:.4g} rad exceeds 2 pi; "
+                        f"the angles look like degrees: declare angle_unit 'deg'"
+                    )
+            if kind == "rotvec":
+                R = Rotation.from_rotvec(ang).as_matrix()
+            else:
+                R = Rotation.from_euler(seq, ang).as_matrix()
+        T = make_transform(R, t)
+    _check_lengths(T[:, :3, 3], length_unit, what)
+    return T
+
+
+def _check_lengths(t: NDArray[np.float64], length_unit: str, what: str) -> None:
+    """Reject translations that cannot be robot flange positions in the declared unit."""
+    dist = np.linalg.norm(t, axis=1)
+    if length_unit == "m" and np.median(dist) > 20.0:
+        raise PoseFormatError(
+            f"{what}: the median flange distance from the base is {np.median(dist):.4g} m, more than any "
+            f"robot arm reaches; the lengths look like millimetres: declare length_unit 'mm'"
+        )
+    if length_unit == "mm" and len(t) > 1 and dist.max() < 2e-3:
+        raise PoseFormatError(
+            f"{what}: every flange position is within {dist.max() * 1e3:.3g} mm of the base origin; "
+            f"the lengths look like metres: declare length_unit 'm'"
+        )
+
+
+def validate_transforms(T: ArrayLike, what: str = "transforms", tol: float = ORTHONORMAL_TOL) -> NDArray[np.float64]:
+    """Check a stack of 4x4 transforms and return a copy with exactly orthonormal rotations.
+
+    Raises :class:`PoseFormatError` naming the first bad entry: wrong shape, NaN/inf, a rotation
+    block that is not orthonormal within ``tol`` (max ``|R^T R - I|``) or that is a reflection.
+    """
+    try:
+        T = np.array(T, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise PoseFormatError(f"{what}: values are not numbers ({exc})") from None
+    if T.ndim == 2:
+        T = T[None]
+    if T.ndim != 3 or T.shape[1:] != (4, 4):
+        raise PoseFormatError(f"{what}: expected a stack of 4x4 transforms (N, 4, 4), got shape {T.shape}")
+    finite = np.isfinite(T).all(axis=(1, 2))
+    if not finite.all():
+        i = int(np.argmin(finite))
+        raise PoseFormatError(f"{what}: entry {i} contains NaN or infinite values")
+    R = T[:, :3, :3]
+    dev = orthonormality_error(R)
+    if (dev > tol).any():
+        i = int(np.argmax(dev))
+        raise PoseFormatError(
+            f"{what}: entry {i}: rotation is not orthonormal (max |R^T R - I| = {dev[i]:.3g}, tolerance {tol:g}); "
+            f"check the matrix layout (row-major 4x4) and the units"
+        )
+    det = np.einsum("ni,ni->n", np.cross(R[:, :, 0], R[:, :, 1]), R[:, :, 2])
+    if (det < 0).any():
+        i = int(np.argmax(det < 0))
+        raise PoseFormatError(f"{what}: entry {i}: rotation has determinant {det[i]:.4g}, a reflection, not a rotation")
+    inexact = dev > 1e-13
+    if inexact.any():  # replace by the nearest exact rotation; exact ones are left bit-for-bit
+        T[inexact, :3, :3] = Rotation.from_matrix(R[inexact]).as_matrix()
+    T[:, 3] = [0.0, 0.0, 0.0, 1.0]
+    return T
+
+
+def format_poses(
+    T: ArrayLike, format: str = "quat_wxyz", length_unit: str = "m", angle_unit: str = "rad"
+) -> NDArray[np.float64]:
+    """The inverse of :func:`parse_poses`: rows of values in the given format and units."""
+    kind, seq = _parse_format(format)
+    scale = _check_units(length_unit, angle_unit)
+    T = validate_transforms(T)
+    if kind == "matrix":
+        out = T.copy()
+        out[:, :3, 3] /= scale
+        return out.reshape(len(T), 16)
+    t = T[:, :3, 3] / scale
+    rot = Rotation.from_matrix(T[:, :3, :3])
+    if kind == "quat_wxyz":
+        r = rot.as_quat(scalar_first=True)
+    elif kind == "quat_xyzw":
+        r = rot.as_quat()
+    elif kind == "rotvec":
+        r = rot.as_rotvec(degrees=(angle_unit == "deg"))
+    else:
+        r = rot.as_euler(seq, degrees=(angle_unit == "deg"))
+    return np.hstack([t, r])

@@ -1,0 +1,97 @@
+"""Result files: what a calibration writes to disk (atomically, never over its inputs).
+
+The HTML report and the full result contents (uncertainty, verdict, ROS snippets) come with the
+reporting work; this module already writes the transform in the forms robot programs need.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+import yaml
+from scipy.spatial.transform import Rotation
+
+from .calibration import Calibration
+from .errors import HandEyeError
+
+__all__ = ["result_dict", "write_results", "atomic_write_text"]
+
+
+def _transform_dict(T: np.ndarray) -> dict[str, Any]:
+    rot = Rotation.from_matrix(T[:3, :3])
+    return {
+        "matrix": T.tolist(),
+        "translation_m": T[:3, 3].tolist(),
+        "translation_mm": (1e3 * T[:3, 3]).tolist(),
+        "quaternion_wxyz": rot.as_quat(canonical=True, scalar_first=True).tolist(),
+        "quaternion_xyzw": rot.as_quat(canonical=True).tolist(),
+        "rotvec_rad": rot.as_rotvec().tolist(),
+        "rotvec_deg": rot.as_rotvec(degrees=True).tolist(),
+    }
+
+
+def result_dict(cal: Calibration) -> dict[str, Any]:
+    """A plain, JSON/YAML-ready description of a calibration."""
+    from . import __version__
+
+    x_name = "cam2flange" if cal.setup == "eye_in_hand" else "cam2base"
+    z_name = "target2base" if cal.setup == "eye_in_hand" else "target2flange"
+    mres = cal.motion_residuals
+    pres = cal.pose_residuals
+    return {
+        "handeye_version": __version__,
+        "setup": cal.setup,
+        "method": cal.method,
+        "X_name": x_name,
+        "X": _transform_dict(cal.X),
+        "Z_name": z_name,
+        "Z": _transform_dict(cal.Z),
+        "n_poses": int(len(cal.flange2base)),
+        "n_motions": int(len(cal.pairs)),
+        "motion_residuals": {
+            "columns": ["angle_deg", "pitch_mm"],
+            "median": np.median(mres, axis=0).tolist(),
+            "max": mres.max(axis=0).tolist(),
+        },
+        "pose_residuals": {
+            "columns": ["rotation_deg", "translation_mm"],
+            "values": pres.tolist(),
+        },
+    }
+
+
+def atomic_write_text(path: Path, text: str, protect: Iterable[Path] = ()) -> None:
+    """Write ``text`` to ``path`` through a temporary file and a rename (no half-written files).
+
+    Refuses to write over any of the ``protect`` paths (the user's inputs).
+    """
+    path = Path(path)
+    target = path.resolve()
+    for p in protect:
+        if Path(p).resolve() == target:
+            raise HandEyeError(f"refusing to overwrite the input file {p}; choose another output folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_results(cal: Calibration, out_dir: str | Path, protect: Iterable[Path] = ()) -> list[Path]:
+    """Write ``result.json`` and ``result.yaml`` into ``out_dir``; returns their paths."""
+    out_dir = Path(out_dir)
+    data = result_dict(cal)
+    protect = list(protect)
+    paths = [out_dir / "result.json", out_dir / "result.yaml"]
+    atomic_write_text(paths[0], json.dumps(data, indent=2) + "\n", protect)
+    atomic_write_text(paths[1], yaml.safe_dump(data, sort_keys=False), protect)
+    return paths

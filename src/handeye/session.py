@@ -1,0 +1,173 @@
+"""Reading captures from disk.
+
+So far: *pose-pair folders*, for users who already have camera-to-target poses (from their own
+detector, or a ViSP/ROS export). A pose-pair folder holds ``posepairs.yaml``::
+
+    setup: eye_in_hand              # eye_in_hand | eye_to_hand
+    robot_poses:                    # flange2base as the controller reports it
+      file: robot_poses.csv
+      format: euler:ZYX             # matrix | quat_wxyz | quat_xyzw | rotvec | euler:<sequence>
+      length_unit: mm               # m | mm
+      angle_unit: deg               # deg | rad (rotvec and euler)
+    camera_poses:                   # target2cam, i.e. solvePnP's rvec/tvec
+      file: target2cam.csv
+      format: rotvec
+      length_unit: m
+      angle_unit: rad
+
+Each CSV has a header row naming the pose columns (see :func:`handeye.poses.pose_columns`),
+optionally preceded by an ``id`` (or ``image``) column. With ids in both files, rows pair by id;
+otherwise by order.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+
+from .errors import HandEyeError, InputMismatchError, PoseFormatError
+from .motions import check_setup
+from .poses import parse_poses, pose_columns
+
+__all__ = ["PosePairs", "load_pose_pairs", "read_pose_table", "SessionError"]
+
+POSEPAIRS_FILE = "posepairs.yaml"
+ID_COLUMNS = ("id", "image")
+
+
+class SessionError(HandEyeError):
+    """A capture folder that cannot be read: missing files or keys, malformed tables."""
+
+
+@dataclass(frozen=True)
+class PosePairs:
+    """Robot and camera poses read from a pose-pair folder, paired row by row."""
+
+    setup: str
+    flange2base: NDArray[np.float64]
+    target2cam: NDArray[np.float64]
+    ids: list[str]
+    source: Path
+
+
+def _load_yaml(path: Path) -> dict[str, Any]:
+    if not path.is_file():
+        raise SessionError(f"{path}: file not found")
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        raise SessionError(f"{path}: not valid YAML ({exc})") from None
+    if not isinstance(data, dict):
+        raise SessionError(f"{path}: expected a mapping of keys, got {type(data).__name__}")
+    return data
+
+
+def _require(mapping: dict[str, Any], key: str, where: str) -> Any:
+    if key not in mapping or mapping[key] is None:
+        raise SessionError(f"{where}: missing key '{key}'")
+    return mapping[key]
+
+
+def read_pose_table(path: Path, fmt: str) -> tuple[NDArray[np.float64], list[str] | None]:
+    """Read a CSV of poses with a header row; returns the pose values and the ids (or None).
+
+    Raises :class:`SessionError` naming the file, line and column of anything malformed.
+    """
+    if not path.is_file():
+        raise SessionError(f"{path}: file not found")
+    expected = pose_columns(fmt)
+    with path.open(newline="", encoding="utf-8") as fh:
+        rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
+    if not rows:
+        raise SessionError(f"{path}: empty file; expected a header row ({', '.join(expected)}) and one row per pose")
+    header = [c.strip() for c in rows[0]]
+    id_col = header[0] if header and header[0] in ID_COLUMNS else None
+    pose_header = header[1:] if id_col else header
+    if pose_header != expected:
+        raise SessionError(
+            f"{path}: header {header} does not match format {fmt!r}, which needs the columns "
+            f"{', '.join(expected)} (optionally after an 'id' column)"
+        )
+    ids: list[str] = []
+    values = np.empty((len(rows) - 1, len(expected)))
+    for k, row in enumerate(rows[1:]):
+        line = k + 2
+        cells = [c.strip() for c in row]
+        if len(cells) != len(header):
+            raise SessionError(f"{path}: line {line} has {len(cells)} values, the header has {len(header)}")
+        if id_col:
+            ids.append(cells[0])
+            cells = cells[1:]
+        for c, cell in enumerate(cells):
+            try:
+                values[k, c] = float(cell)
+            except ValueError:
+                raise SessionError(f"{path}: line {line}, column '{expected[c]}': {cell!r} is not a number") from None
+    if len(values) == 0:
+        raise SessionError(f"{path}: no pose rows after the header")
+    if id_col and len(set(ids)) != len(ids):
+        dup = sorted({i for i in ids if ids.count(i) > 1})
+        raise SessionError(f"{path}: duplicate {id_col} values {dup}")
+    return values, (ids if id_col else None)
+
+
+def _read_poses(folder: Path, spec: Any, key: str) -> tuple[NDArray[np.float64], list[str] | None, Path]:
+    where = f"{folder / POSEPAIRS_FILE}: {key}"
+    if not isinstance(spec, dict):
+        raise SessionError(f"{where}: expected a mapping with file, format, length_unit, angle_unit")
+    path = folder / str(_require(spec, "file", where))
+    fmt = str(_require(spec, "format", where))
+    length_unit = str(_require(spec, "length_unit", where))
+    angle_unit = str(spec.get("angle_unit", "rad"))
+    values, ids = read_pose_table(path, fmt)
+    try:
+        T = parse_poses(values, fmt, length_unit, angle_unit, what=str(path))
+    except PoseFormatError as exc:
+        raise PoseFormatError(f"{exc} (rows count from 0 after the header)") from None
+    return T, ids, path
+
+
+def load_pose_pairs(folder: str | Path) -> PosePairs:
+    """Load a pose-pair folder (see the module docstring).
+
+    Raises
+    ------
+    SessionError
+        Missing folder, file or key; malformed CSV.
+    PoseFormatError
+        Pose values that do not fit their declared format or units.
+    InputMismatchError
+        Unknown setup; robot and camera rows that do not pair up.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise SessionError(f"{folder}: no such folder")
+    spec = _load_yaml(folder / POSEPAIRS_FILE)
+    where = str(folder / POSEPAIRS_FILE)
+    setup = check_setup(str(_require(spec, "setup", where)))
+    f2b, robot_ids, robot_path = _read_poses(folder, _require(spec, "robot_poses", where), "robot_poses")
+    t2c, cam_ids, cam_path = _read_poses(folder, _require(spec, "camera_poses", where), "camera_poses")
+    if robot_ids is not None and cam_ids is not None:
+        missing = sorted(set(robot_ids) ^ set(cam_ids))
+        if missing:
+            raise InputMismatchError(
+                f"ids {missing} appear in only one of {robot_path.name} and {cam_path.name}; every robot pose "
+                f"needs its camera pose"
+            )
+        order = {k: n for n, k in enumerate(cam_ids)}
+        t2c = t2c[[order[k] for k in robot_ids]]
+        ids = robot_ids
+    else:
+        if len(f2b) != len(t2c):
+            raise InputMismatchError(
+                f"{robot_path.name} has {len(f2b)} poses but {cam_path.name} has {len(t2c)}; they pair row by row "
+                f"(or add an 'id' column to both)"
+            )
+        ids = robot_ids or cam_ids or [str(k) for k in range(len(f2b))]
+    return PosePairs(setup, f2b, t2c, ids, folder)

@@ -1,0 +1,66 @@
+"""Checks every solver runs before solving: input shapes, and whether the motions determine X."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..errors import DegenerateMotionError, InputMismatchError
+from ..motions import MotionSet
+from ..poses import validate_transforms
+
+#: A motion whose quaternion vector part |sin(theta/2) l| is below this rotates by < 0.57 deg.
+MIN_ROTATION = 5e-3
+#: Largest rotation "off" the dominant axis (sin(theta/2) times the sine of the axis deviation)
+#: below which all axes count as parallel: X's rotation about that axis is then undetermined.
+MIN_AXIS_SPREAD = 5e-3
+
+
+def validate_motions(A: ArrayLike, B: ArrayLike) -> MotionSet:
+    """A :class:`MotionSet` from motion stacks ``A``, ``B`` (same count, 4x4, finite, orthonormal)."""
+    A = validate_transforms(A, what="A (robot motions)")
+    B = validate_transforms(B, what="B (camera motions)")
+    if len(A) != len(B):
+        raise InputMismatchError(f"{len(A)} robot motions A but {len(B)} camera motions B; they come in pairs")
+    return MotionSet.from_matrices(A, B)
+
+
+def _rotation_spread(dq: NDArray[np.float64]) -> tuple[float, float, NDArray[np.float64]]:
+    """Largest rotation, largest off-dominant-axis rotation and the dominant axis of motions."""
+    v = dq[:, 1:4]  # sin(theta/2) * axis
+    sq = np.einsum("ni,ni->n", v, v)
+    # The dominant axis is the principal direction of the axis vectors (sign-free).
+    _, vecs = np.linalg.eigh(v.T @ v)
+    e1 = vecs[:, -1]
+    off_sq = np.clip(sq - (v @ e1) ** 2, 0.0, None)
+    return float(np.sqrt(sq.max())), float(np.sqrt(off_sq.max())), e1
+
+
+def check_observability(motions: MotionSet) -> None:
+    """Raise :class:`DegenerateMotionError` when the motions cannot determine ``X``.
+
+    ``AX = XB`` needs at least two motions whose rotation axes are not parallel (thesis §2.2.3:
+    the matrix T has rank 5 when all axes are parallel; pure translations leave the rotation free).
+    Both the robot and the camera motions are checked, so a consistent pair of inputs is required.
+    """
+    if len(motions) < 2:
+        raise DegenerateMotionError(
+            f"{len(motions)} motion(s): hand-eye calibration needs at least 2 motions (3 poses) with "
+            f"non-parallel rotation axes"
+        )
+    for name, dq in (("robot", motions.dq_a), ("camera", motions.dq_b)):
+        largest, spread, axis = _rotation_spread(dq)
+        if largest < MIN_ROTATION:
+            raise DegenerateMotionError(
+                f"the {name} motions are (nearly) pure translations: the largest rotation between two "
+                f"poses is {np.degrees(2 * np.arcsin(min(largest, 1.0))):.3g} deg; translations alone "
+                f"cannot determine the camera rotation. Rotate the flange by 20-45 deg about at least "
+                f"two different axes between poses"
+            )
+        if spread < MIN_AXIS_SPREAD:
+            ax = np.array2string(axis, precision=3, suppress_small=True)
+            raise DegenerateMotionError(
+                f"all {name} rotation axes are parallel (to {ax} in the {name} frame): the rotation "
+                f"about that axis and the translation along it are undetermined. Add rotations about "
+                f"a second axis, at least 30 deg away from it"
+            )

@@ -1,0 +1,59 @@
+"""The solver registry: every solver family registers its functions here under one signature.
+
+``AX = XB`` solvers take ``(A, B)`` stacks ``(K, 4, 4)`` of validated motions and return ``X``.
+Robot-world solvers take absolute stacks ``(N, 4, 4)`` with ``A_i X = Z B_i`` and return ``(X, Z)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Literal
+
+from ..errors import InputMismatchError
+
+Kind = Literal["hand_eye", "robot_world"]
+
+
+@dataclass(frozen=True)
+class SolverInfo:
+    """A registered solver: its name, kind, function and the paper/seed section it implements."""
+
+    name: str
+    kind: Kind
+    func: Callable
+    reference: str
+
+
+_REGISTRY: dict[str, SolverInfo] = {}
+
+
+def register(name: str, kind: Kind = "hand_eye", reference: str = "") -> Callable[[Callable], Callable]:
+    """Decorator that registers a solver function under ``name``."""
+
+    def deco(func: Callable) -> Callable:
+        if name in _REGISTRY:
+            raise RuntimeError(f"solver {name!r} registered twice")
+        _REGISTRY[name] = SolverInfo(name, kind, func, reference)
+        return func
+
+    return deco
+
+
+def available(kind: Kind | None = None) -> list[str]:
+    """Names of the registered solvers (of one kind when given), sorted."""
+    return sorted(n for n, s in _REGISTRY.items() if kind is None or s.kind == kind)
+
+
+def get(name: str, kind: Kind | None = None) -> SolverInfo:
+    """The registered solver ``name``; a clear error lists the valid names otherwise."""
+    info = _REGISTRY.get(name)
+    if info is None or (kind is not None and info.kind != kind):
+        names = ", ".join(available(kind))
+        what = {"hand_eye": "AX = XB solver", "robot_world": "robot-world solver", None: "solver"}[kind]
+        hint = ""
+        if info is not None and info.kind == "robot_world":
+            hint = f" ({name!r} solves A_i X = Z B_i: use solve_robot_world)"
+        elif info is not None:
+            hint = f" ({name!r} solves AX = XB: use solve)"
+        raise InputMismatchError(f"unknown {what} {name!r}{hint}; available: {names}")
+    return info

@@ -1,0 +1,170 @@
+"""Daniilidis (1999): hand-eye calibration with dual quaternions, in one SVD.
+
+K. Daniilidis, "Hand-eye calibration using dual quaternions", IJRR 18(3), 1999; thesis §2.2.3
+(derivation), §3.2 (the five steps) and §4.1.2 (implementation).
+
+With ``a``, ``a'`` the vector parts of the unit dual quaternion of the robot motion ``A`` and
+``b``, ``b'`` those of the camera motion ``B``, ``A X = X B`` becomes, for the dual quaternion
+``(q, q')`` of ``X``, six linear equations per motion (``a q - q b = 0`` and
+``(a' q - q b') + (a q' - q' b) = 0``)::
+
+    | a - b    [a + b]x    0      0       | (q )
+    | a'- b'   [a'+ b']x   a - b  [a + b]x| (q') = 0
+
+Stacking ``n`` motions gives ``T`` (6n x 8), of rank 6 for noise-free data with non-parallel axes;
+its null space is spanned by the last two right singular vectors ``v7 = (u1, v1)``,
+``v8 = (u2, v2)`` and ``(q, q') = l1 v7 + l2 v8`` with ``|q| = 1`` and ``q . q' = 0``.
+
+Notes on the seed's text, which has slips the implementation does not follow:
+
+* §2.2.3 writes the unit-norm constraint as ``l2 u1.u1 + 2 l1 l2 u1.u2 + l2^2 u2.u2 = 1`` and the
+  orthogonality constraint as ``l1 u1.v1 + ...``: both first terms need ``l1^2``. It then substitutes
+  ``s = l1/l2`` "into the first equation"; it is the second (``q . q' = 0``) that becomes the
+  quadratic ``s^2 u1.v1 + s (u1.v2 + u2.v1) + u2.v2 = 0``.
+* §4.1.2 defines ``s = l2/l1`` (the inverse of §2.2.3), computes ``l2 = sqrt(1/s+)`` where
+  ``l2 = 1/sqrt(s^2 u1.u1 + 2 s u1.u2 + u2.u2)`` belongs, and assembles ``q = l1 v7``,
+  ``q' = l2 v8`` where the solution is ``(q, q') = l1 v7 + l2 v8``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import DegenerateMotionError
+from ..geometry.dualquat import dq_to_matrix
+from ..motions import MotionSet
+from ._registry import register
+
+__all__ = ["solve", "system_matrix", "normal_matrix", "singular_values"]
+
+#: sigma_6 / sigma_1 below this means T has rank < 6 (thesis: rank 5 when all axes are parallel).
+RANK_TOL = 1e-9
+#: Up to this sigma_1 / sigma_6 the 8x8 normal matrix T^T T is accurate enough (its null vectors
+#: carry an error of about eps * cond^2 <= 1e-10); beyond it the SVD of T itself is used.
+NORMAL_COND_MAX = 1e3
+
+
+def system_matrix(motions: MotionSet) -> NDArray[np.float64]:
+    """The stacked 6n x 8 matrix ``T`` of the thesis (§2.2.3), one 6x8 block ``S_i`` per motion."""
+    diff = motions.dq_a - motions.dq_b
+    summ = motions.dq_a + motions.dq_b
+    n = len(diff)
+    S = np.zeros((n, 6, 8))
+    S[:, :3, 0] = diff[:, 1:4]
+    _fill_skew(S[:, :3, 1:4], summ[:, 1:4])
+    S[:, 3:, 0] = diff[:, 5:8]
+    _fill_skew(S[:, 3:, 1:4], summ[:, 5:8])
+    S[:, 3:, 4:] = S[:, :3, :4]
+    return S.reshape(6 * n, 8)
+
+
+def _fill_skew(out: NDArray[np.float64], v: NDArray[np.float64]) -> None:
+    """Write the cross-product matrices of ``v`` (n, 3) into the zeroed view ``out`` (n, 3, 3)."""
+    out[:, 0, 1] = -v[:, 2]
+    out[:, 0, 2] = v[:, 1]
+    out[:, 1, 0] = v[:, 2]
+    out[:, 1, 2] = -v[:, 0]
+    out[:, 2, 0] = -v[:, 1]
+    out[:, 2, 1] = v[:, 0]
+
+
+def _block_basis() -> NDArray[np.float64]:
+    """``F[m, n] = E_m^T E_n`` for the basis of 3x4 blocks ``M(d, s) = [d, [s]x] = sum_m u_m E_m``."""
+    E = np.zeros((6, 3, 4))
+    E[np.arange(3), np.arange(3), 0] = 1.0
+    _fill_skew(E[3:, :, 1:4], np.eye(3))
+    return np.einsum("mri,nrj->mnij", E, E)
+
+
+_F = _block_basis()
+
+
+def normal_matrix(motions: MotionSet) -> NDArray[np.float64]:
+    """``T^T T`` (8x8) without forming ``T``.
+
+    Each motion's block is ``S = [[M, 0], [M', M]]`` with ``M = [a - b, [a + b]x]`` and
+    ``M' = [a' - b', [a' + b']x]``, so ``S^T S = [[M^T M + M'^T M', M'^T M], [M^T M', M^T M]]``.
+    ``M`` is linear in ``u = (a - b, a + b)``, so each sum over motions is a fixed contraction of
+    a 6x6 moment matrix such as ``sum u u^T``: O(K) BLAS work, no 6K x 8 array.
+    """
+    diff = motions.dq_a - motions.dq_b
+    summ = motions.dq_a + motions.dq_b
+    u = np.concatenate([diff[:, 1:4], summ[:, 1:4]], axis=1)
+    ud = np.concatenate([diff[:, 5:8], summ[:, 5:8]], axis=1)
+    g_uu = np.tensordot(u.T @ u, _F, axes=2)
+    g_dd = np.tensordot(ud.T @ ud, _F, axes=2)
+    g_du = np.tensordot(ud.T @ u, _F, axes=2)
+    return np.block([[g_uu + g_dd, g_du], [g_du.T, g_uu]])
+
+
+def _null_space(motions: MotionSet) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Singular values (descending) and right singular vectors (rows) of ``T``."""
+    lam, V = np.linalg.eigh(normal_matrix(motions))
+    sigma = np.sqrt(np.clip(lam[::-1], 0.0, None))
+    if sigma[5] > sigma[0] / NORMAL_COND_MAX:
+        return sigma, V[:, ::-1].T
+    _, sigma, vt = np.linalg.svd(system_matrix(motions), full_matrices=False)
+    return sigma, vt
+
+
+def singular_values(motions: MotionSet) -> NDArray[np.float64]:
+    """The eight singular values of ``T``; two near zero are expected (thesis §3.2, step 2)."""
+    return np.linalg.svd(system_matrix(motions), compute_uv=False)
+
+
+@register("daniilidis", reference="Daniilidis 1999, IJRR 18(3); thesis §2.2.3, §4.1.2")
+def solve(motions: MotionSet) -> NDArray[np.float64]:
+    """Solve ``A X = X B`` for ``X`` with Daniilidis' dual-quaternion SVD.
+
+    Parameters
+    ----------
+    motions : MotionSet
+        Validated motions, at least two with non-parallel rotation axes.
+
+    Returns
+    -------
+    X : ndarray, shape (4, 4)
+
+    Raises
+    ------
+    DegenerateMotionError
+        When ``T`` has rank below 6 (e.g. all rotation axes parallel).
+    """
+    sigma, vt = _null_space(motions)
+    if sigma[5] <= RANK_TOL * sigma[0]:
+        raise DegenerateMotionError(
+            f"the Daniilidis system has rank < 6 (singular values {np.array2string(sigma, precision=2)}): "
+            f"the motions do not determine X; rotate about at least two non-parallel axes"
+        )
+    u1, v1 = vt[6, :4], vt[6, 4:]
+    u2, v2 = vt[7, :4], vt[7, 4:]
+    # q . q' = 0 with (q, q') = l1 v7 + l2 v8 and s = l1 / l2:
+    qa = u1 @ v1
+    qb = u1 @ v2 + u2 @ v1
+    qc = u2 @ v2
+    disc = max(qb * qb - 4.0 * qa * qc, 0.0)
+    # Both roots as directions (l1, l2), without dividing by a possibly tiny qa.
+    h = -0.5 * (qb + np.copysign(np.sqrt(disc), qb))
+    candidates = [(h, qa), (qc, h)]  # s = h/qa and s = qc/h
+    best, best_f = None, -np.inf
+    for l1, l2 in candidates:
+        if l1 == 0.0 and l2 == 0.0:
+            continue
+        q = l1 * u1 + l2 * u2
+        # The thesis's criterion s^2 u1.u1 + 2 s u1.u2 + u2.u2 = |q|^2 / l2^2: take the larger one;
+        # the other root is the spurious (0, q) solution.
+        f = np.inf if l2 == 0.0 else (q @ q) / (l2 * l2)
+        if f > best_f:
+            best, best_f = (l1, l2), f
+    if best is None:
+        raise DegenerateMotionError("the Daniilidis quadratic has no admissible root; the motions are inconsistent")
+    l1, l2 = best
+    dq = l1 * vt[6] + l2 * vt[7]
+    norm = np.linalg.norm(dq[:4])
+    if not np.isfinite(norm) or norm == 0.0:
+        raise DegenerateMotionError("the Daniilidis solution has a zero rotation part; the motions are inconsistent")
+    dq = dq / norm
+    if dq[0] < 0:
+        dq = -dq
+    return dq_to_matrix(dq)

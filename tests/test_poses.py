@@ -1,0 +1,127 @@
+"""parse_poses: every robot pose format, units, and a clear error for each kind of bad row."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from handeye import PoseFormatError, format_poses, parse_poses
+from handeye.geometry.se3 import make_transform, random_rotations
+from handeye.poses import pose_columns
+
+FORMATS = ["matrix", "quat_wxyz", "quat_xyzw", "rotvec", "euler:ZYX", "euler:xyz", "euler:ZYZ", "euler:zxy"]
+
+
+@pytest.fixture
+def poses(rng):
+    return make_transform(random_rotations(10, rng), rng.uniform(-1.0, 1.0, (10, 3)))
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+@pytest.mark.parametrize("length_unit", ["m", "mm"])
+@pytest.mark.parametrize("angle_unit", ["rad", "deg"])
+def test_round_trip_every_format(poses, fmt, length_unit, angle_unit):
+    rows = format_poses(poses, fmt, length_unit, angle_unit)
+    assert rows.shape == (10, len(pose_columns(fmt)))
+    back = parse_poses(rows, fmt, length_unit, angle_unit)
+    assert np.abs(back - poses).max() < 1e-12
+
+
+def rz(a):
+    return Rotation.from_euler("z", a).as_matrix()
+
+
+def ry(a):
+    return Rotation.from_euler("y", a).as_matrix()
+
+
+def rx(a):
+    return Rotation.from_euler("x", a).as_matrix()
+
+
+def test_kuka_abc_is_intrinsic_zyx():
+    # KUKA: A about z, then B about the new y, then C about the new x: R = Rz(A) Ry(B) Rx(C)
+    a, b, c = 30.0, -20.0, 45.0
+    T = parse_poses([[100.0, 200.0, 300.0, a, b, c]], "euler:ZYX", "mm", "deg")[0]
+    R = rz(np.radians(a)) @ ry(np.radians(b)) @ rx(np.radians(c))
+    assert np.allclose(T[:3, :3], R) and np.allclose(T[:3, 3], [0.1, 0.2, 0.3])
+
+
+def test_fanuc_wpr_is_extrinsic_xyz():
+    # Fanuc: W about the fixed x, then P about fixed y, then R about fixed z: R = Rz(R) Ry(P) Rx(W)
+    w, p, r = 10.0, 20.0, 30.0
+    T = parse_poses([[0.0, 0.0, 0.5, w, p, r]], "euler:xyz", "m", "deg")[0]
+    assert np.allclose(T[:3, :3], rz(np.radians(r)) @ ry(np.radians(p)) @ rx(np.radians(w)))
+
+
+def test_quaternion_orders_and_matrix_layout():
+    q = Rotation.from_rotvec([0.3, -0.2, 0.1])
+    wxyz = q.as_quat(scalar_first=True)
+    T1 = parse_poses([np.r_[1.0, 2.0, 3.0, wxyz]], "quat_wxyz")[0]
+    T2 = parse_poses([np.r_[1.0, 2.0, 3.0, np.roll(wxyz, -1)]], "quat_xyzw")[0]
+    T3 = parse_poses([make_transform(q.as_matrix(), [1.0, 2.0, 3.0]).ravel()], "matrix")[0]
+    T4 = parse_poses(make_transform(q.as_matrix(), [1.0, 2.0, 3.0])[None], "matrix")[0]
+    for T in (T2, T3, T4):
+        assert np.allclose(T, T1)
+    assert np.allclose(T1[:3, :3], q.as_matrix())
+
+
+@pytest.mark.parametrize(
+    "values, fmt, kwargs, message",
+    [
+        ([[0, 0, 0, 1, 0, 0]], "quat_wxyz", {}, "needs 7 columns"),
+        ([[0, 0, 0.5, 1, 0, 0, 0], [0, np.nan, 0.5, 1, 0, 0, 0]], "quat_wxyz", {}, "row 1 column 'y'"),
+        ([[0, 0, 0.5, 1, 0, 0, 0], [0, 0, 0.5, 1, 0.1, 0, 0]], "quat_wxyz", {}, "row 1: quaternion norm is 1.00499"),
+        ([[0, 0, 0.5, 0, 0, 0, 0]], "quat_xyzw", {}, "quaternion norm is 0"),
+        ([[0, 0, 0.5, 1, 2, 3]], "euler:XYz", {}, "mixes cases"),
+        ([[0, 0, 0.5, 1, 2, 3]], "euler:XXY", {}, "repeats an axis"),
+        ([[0, 0, 0.5, 1, 2, 3]], "euler:ABC", {}, "unknown pose format"),
+        ([[0, 0, 0.5, 1, 2, 3]], "kuka", {}, "unknown pose format"),
+        ([[0, 0, 0.5, 1, 2, 3]], "rotvec", {"length_unit": "cm"}, "unknown length unit"),
+        ([[0, 0, 0.5, 1, 2, 3]], "rotvec", {"angle_unit": "grad"}, "unknown angle unit"),
+        ([[0, 0, 0.5, 30, 45, 10]], "euler:ZYX", {"angle_unit": "rad"}, "look like degrees"),
+        ([[800, 100, 400, 0.1, 0.2, 0.3]] * 3, "rotvec", {"length_unit": "m"}, "look like millimetres"),
+        ([[0.8, 0.1, 0.4, 0.1, 0.2, 0.3], [0.7, 0.1, 0.4, 0.1, 0.2, 0.3]], "rotvec", {"length_unit": "mm"}, "look like metres"),
+        ("abc", "rotvec", {}, "not numbers"),
+        ([], "rotvec", {}, "6 columns"),
+    ],
+)
+def test_bad_input_is_named(values, fmt, kwargs, message):
+    with pytest.raises(PoseFormatError, match=message):
+        parse_poses(values, fmt, **kwargs)
+
+
+def test_non_orthonormal_matrix_reports_row_and_deviation():
+    good = np.eye(4)
+    good[:3, 3] = [0.5, 0.0, 0.3]
+    bad = good.copy()
+    bad[0, 0] = 1.01
+    with pytest.raises(PoseFormatError, match=r"entry 1: rotation is not orthonormal \(max \|R\^T R - I\| = 0.0201"):
+        parse_poses(np.stack([good, bad]).reshape(2, 16), "matrix")
+
+
+def test_matrix_with_bad_last_row_or_reflection():
+    T = np.eye(4)
+    T[3, 0] = 1.0
+    with pytest.raises(PoseFormatError, match="last matrix row"):
+        parse_poses(T.ravel()[None], "matrix")
+    T = np.diag([1.0, 1.0, -1.0, 1.0])
+    with pytest.raises(PoseFormatError, match="reflection"):
+        parse_poses(T.ravel()[None], "matrix")
+
+
+def test_slightly_off_rotations_are_reorthonormalised():
+    R = Rotation.from_rotvec([0.1, 0.2, 0.3]).as_matrix()
+    T = make_transform(np.round(R, 6), [0.1, 0.2, 0.3])  # as a controller prints them
+    out = parse_poses(T.ravel()[None], "matrix")[0]
+    assert np.abs(out[:3, :3].T @ out[:3, :3] - np.eye(3)).max() < 1e-15
+    assert np.abs(out[:3, :3] - R).max() < 2e-6
+
+
+def test_pose_columns_follow_design():
+    assert pose_columns("quat_wxyz") == ["x", "y", "z", "qw", "qx", "qy", "qz"]
+    assert pose_columns("quat_xyzw") == ["x", "y", "z", "qx", "qy", "qz", "qw"]
+    assert pose_columns("rotvec") == ["x", "y", "z", "rx", "ry", "rz"]
+    assert pose_columns("euler:ZYX") == ["x", "y", "z", "a", "b", "c"]
+    assert pose_columns("matrix")[:5] == ["m00", "m01", "m02", "m03", "m10"]
