@@ -132,10 +132,11 @@ def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[
     Daniilidis takes the signs its matrix-to-quaternion branch happens to give, which disagree for
     some motions near 180 deg.)
     """
-    dq_a = dq_a * np.where(dq_a[:, 0] < 0, -1.0, 1.0)[:, None]
-    dq_b = dq_b * np.where(dq_b[:, 0] < 0, -1.0, 1.0)[:, None]
-    agree = dq_a[:, 0] * dq_b[:, 0] + dq_a[:, 4] * dq_b[:, 4]
-    dq_b *= np.where(agree < 0, -1.0, 1.0)[:, None]
+    dq_a = np.array(dq_a, dtype=float)
+    dq_b = np.array(dq_b, dtype=float)
+    dq_a[dq_a[:, 0] < 0] *= -1.0
+    dq_b[dq_b[:, 0] < 0] *= -1.0
+    dq_b[dq_a[:, 0] * dq_b[:, 0] + dq_a[:, 4] * dq_b[:, 4] < 0] *= -1.0
     return dq_a, dq_b
 
 

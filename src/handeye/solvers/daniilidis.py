@@ -47,16 +47,7 @@ NORMAL_COND_MAX = 1e3
 
 def system_matrix(motions: MotionSet) -> NDArray[np.float64]:
     """The stacked 6n x 8 matrix ``T`` of the thesis (§2.2.3), one 6x8 block ``S_i`` per motion."""
-    diff = motions.dq_a - motions.dq_b
-    summ = motions.dq_a + motions.dq_b
-    n = len(diff)
-    S = np.zeros((n, 6, 8))
-    S[:, :3, 0] = diff[:, 1:4]
-    _fill_skew(S[:, :3, 1:4], summ[:, 1:4])
-    S[:, 3:, 0] = diff[:, 5:8]
-    _fill_skew(S[:, 3:, 1:4], summ[:, 5:8])
-    S[:, 3:, 4:] = S[:, :3, :4]
-    return S.reshape(6 * n, 8)
+    return _blocks(motions.dq_a, motions.dq_b).reshape(-1, 8)
 
 
 def _fill_skew(out: NDArray[np.float64], v: NDArray[np.float64]) -> None:
@@ -69,33 +60,42 @@ def _fill_skew(out: NDArray[np.float64], v: NDArray[np.float64]) -> None:
     out[:, 2, 1] = v[:, 0]
 
 
-def _block_basis() -> NDArray[np.float64]:
-    """``F[m, n] = E_m^T E_n`` for the basis of 3x4 blocks ``M(d, s) = [d, [s]x] = sum_m u_m E_m``."""
-    E = np.zeros((6, 3, 4))
-    E[np.arange(3), np.arange(3), 0] = 1.0
-    _fill_skew(E[3:, :, 1:4], np.eye(3))
+def _gram_basis() -> NDArray[np.float64]:
+    """``F[m, n] = E_m^T E_n`` where ``S = sum_m y_m E_m`` writes a motion's 6x8 block of ``T`` as a
+    linear function of ``y = [dq_a, dq_b]`` (16 numbers)."""
+    E = np.zeros((16, 6, 8))
+    for m in range(16):
+        y = np.zeros((1, 16))
+        y[0, m] = 1.0
+        E[m] = _blocks(y[:, :8], y[:, 8:])[0]
     return np.einsum("mri,nrj->mnij", E, E)
 
 
-_F = _block_basis()
+def _blocks(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The 6x8 blocks ``S_i`` of ``T``, shape (n, 6, 8)."""
+    diff = dq_a - dq_b
+    summ = dq_a + dq_b
+    S = np.zeros((len(diff), 6, 8))
+    S[:, :3, 0] = diff[:, 1:4]
+    _fill_skew(S[:, :3, 1:4], summ[:, 1:4])
+    S[:, 3:, 0] = diff[:, 5:8]
+    _fill_skew(S[:, 3:, 1:4], summ[:, 5:8])
+    S[:, 3:, 4:] = S[:, :3, :4]
+    return S
+
+
+_F = _gram_basis()
 
 
 def normal_matrix(motions: MotionSet) -> NDArray[np.float64]:
     """``T^T T`` (8x8) without forming ``T``.
 
-    Each motion's block is ``S = [[M, 0], [M', M]]`` with ``M = [a - b, [a + b]x]`` and
-    ``M' = [a' - b', [a' + b']x]``, so ``S^T S = [[M^T M + M'^T M', M'^T M], [M^T M', M^T M]]``.
-    ``M`` is linear in ``u = (a - b, a + b)``, so each sum over motions is a fixed contraction of
-    a 6x6 moment matrix such as ``sum u u^T``: O(K) BLAS work, no 6K x 8 array.
+    Each block ``S_i`` is linear in the 16 numbers ``y_i = [dq_a, dq_b]``, so
+    ``T^T T = sum_i S_i^T S_i`` is a fixed contraction of the 16x16 moment matrix ``sum_i y_i y_i^T``:
+    one BLAS product over the motions and no 6K x 8 array.
     """
-    diff = motions.dq_a - motions.dq_b
-    summ = motions.dq_a + motions.dq_b
-    u = np.concatenate([diff[:, 1:4], summ[:, 1:4]], axis=1)
-    ud = np.concatenate([diff[:, 5:8], summ[:, 5:8]], axis=1)
-    g_uu = np.tensordot(u.T @ u, _F, axes=2)
-    g_dd = np.tensordot(ud.T @ ud, _F, axes=2)
-    g_du = np.tensordot(ud.T @ u, _F, axes=2)
-    return np.block([[g_uu + g_dd, g_du], [g_du.T, g_uu]])
+    y = np.hstack([motions.dq_a, motions.dq_b])
+    return np.tensordot(y.T @ y, _F, axes=2)
 
 
 def _null_space(motions: MotionSet) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
