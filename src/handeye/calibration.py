@@ -106,6 +106,18 @@ def constant_transforms(
     return invert(flange2base) @ X @ target2cam  # target2flange
 
 
+def robot_world_inputs(
+    flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(A_i, B_i)`` of ``A_i X = Z B_i`` for a setup (DESIGN §2, robot-world form).
+
+    Eye-in-hand: ``flange2base_i X = Z inv(target2cam_i)`` (X = cam2flange, Z = target2base).
+    Eye-to-hand: ``inv(flange2base_i) X = Z inv(target2cam_i)`` (X = cam2base, Z = target2flange).
+    """
+    A = flange2base if setup == "eye_in_hand" else invert(flange2base)
+    return A, invert(target2cam)
+
+
 def mean_transform(T: NDArray[np.float64]) -> NDArray[np.float64]:
     """Chordal mean of rotations (scipy's ``Rotation.mean``) and arithmetic mean of translations."""
     R = Rotation.from_matrix(T[:, :3, :3]).mean().as_matrix()
@@ -130,7 +142,8 @@ def calibrate_poses(
         Target poses in the camera frame (``solvePnP``'s rvec/tvec), metres.
     setup : {'eye_in_hand', 'eye_to_hand'}
     method : str
-        A solver from ``handeye.solvers.available("hand_eye")``.
+        A solver from ``handeye.solvers.available()``: an AX = XB solver (Z is then the mean of
+        the per-pose Z_i), or a robot-world one (``shah``, ``li``), which estimates X and Z together.
     refine : {'none'}
         Nonlinear refinement; only 'none' exists so far (pose and reprojection refinement come with
         the refinement module).
@@ -146,8 +159,11 @@ def calibrate_poses(
         raise InputMismatchError(f"refine={refine!r} is not available yet; use refine='none'")
     flange2base, target2cam = validate_poses(flange2base, target2cam)
     motions = MotionSet.from_poses(flange2base, target2cam, setup, pairs)
-    X = solvers.solve_motions(motions, method=method)
-    Z = mean_transform(constant_transforms(X, flange2base, target2cam, setup))
+    if solvers.get(method).kind == "robot_world":
+        X, Z = solvers.solve_robot_world(*robot_world_inputs(flange2base, target2cam, setup), method=method)
+    else:
+        X = solvers.solve_motions(motions, method=method)
+        Z = mean_transform(constant_transforms(X, flange2base, target2cam, setup))
     return Calibration(
         X=X,
         Z=Z,

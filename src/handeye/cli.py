@@ -86,7 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("folder", nargs="?", help="folder with posepairs.yaml")
     p.add_argument("--example", action="store_true", help="run on the bundled example folder")
-    p.add_argument("--method", default="daniilidis", choices=solvers.available("hand_eye"), help="solver (default: daniilidis)")
+    p.add_argument("--method", default="daniilidis", choices=solvers.available(), help="solver (default: daniilidis)")
     p.add_argument("--pairs", default="all", choices=["all", "consecutive"], help="which pose pairs form motions")
     p.add_argument("--out", help="write result.json and result.yaml into this folder")
     p.set_defaults(func=_cmd_calibrate_poses)

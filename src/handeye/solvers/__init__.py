@@ -12,12 +12,15 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..errors import DegenerateMotionError, InputMismatchError
+from ..geometry.se3 import invert
 from ..motions import MotionSet
+from ..poses import validate_transforms
 from ._checks import check_observability, validate_motions
 from ._registry import SolverInfo, available, get, register
-from . import daniilidis  # noqa: F401  (registers)
+from . import andreff, daniilidis, horaud, park_martin, robot_world, tsai_lenz  # noqa: F401  (register themselves)
 
-__all__ = ["solve", "solve_motions", "available", "get", "register", "SolverInfo"]
+__all__ = ["solve", "solve_motions", "solve_robot_world", "available", "get", "register", "SolverInfo"]
 
 
 def solve(A: ArrayLike, B: ArrayLike, method: str = "daniilidis") -> NDArray[np.float64]:
@@ -54,3 +57,40 @@ def solve_motions(motions: MotionSet, method: str = "daniilidis") -> NDArray[np.
     info = get(method, kind="hand_eye")
     check_observability(motions)
     return info.func(motions)
+
+
+def solve_robot_world(
+    A_abs: ArrayLike, B_abs: ArrayLike, method: str = "shah"
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Solve ``A_i @ X = Z @ B_i`` for ``X`` and ``Z`` from absolute poses.
+
+    Parameters
+    ----------
+    A_abs, B_abs : array_like, shape (N, 4, 4)
+        For handeye's setups see :mod:`handeye.solvers.robot_world` (eye-in-hand:
+        ``A_i = flange2base_i``, ``B_i = inv(target2cam_i)``).
+    method : str
+        A name from ``handeye.solvers.available("robot_world")``.
+
+    Returns
+    -------
+    X, Z : ndarray, shape (4, 4)
+
+    Raises
+    ------
+    InputMismatchError, PoseFormatError, DegenerateMotionError
+        As :func:`solve`; the motions ``inv(A_0) A_i`` and ``inv(B_0) B_i`` must determine X.
+    """
+    info = get(method, kind="robot_world")
+    A_abs = validate_transforms(A_abs, what="A (absolute robot-side poses)")
+    B_abs = validate_transforms(B_abs, what="B (absolute camera-side poses)")
+    if len(A_abs) != len(B_abs):
+        raise InputMismatchError(f"{len(A_abs)} poses A but {len(B_abs)} poses B; they come in pairs")
+    if len(A_abs) < 3:
+        raise DegenerateMotionError(f"{len(A_abs)} pose pair(s): A_i X = Z B_i needs at least 3 with non-parallel rotation axes")
+    # Eliminating Z: (A_0^-1 A_i) X = X (B_0^-1 B_i). Axes parallel relative to pose 0 means
+    # parallel between every pair, so these N-1 motions decide observability.
+    A_rel = invert(A_abs[:1]) @ A_abs[1:]
+    B_rel = invert(B_abs[:1]) @ B_abs[1:]
+    check_observability(MotionSet.from_matrices(A_rel, B_rel))
+    return info.func(A_abs, B_abs)

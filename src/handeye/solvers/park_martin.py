@@ -1,0 +1,30 @@
+"""Park-Martin (1994): rotation from the log maps by orthogonal Procrustes, then translation.
+
+F. C. Park, B. J. Martin, "Robot sensor calibration: solving AX = XB on the Euclidean group",
+IEEE Trans. Robotics and Automation 10(5), 1994.
+
+With ``alpha = log R_A`` and ``beta = log R_B`` (rotation vectors), ``R_A R_X = R_X R_B`` gives
+``alpha = R_X beta``; ``R_X`` minimises ``sum |alpha - R_X beta|^2``: with ``M = sum beta alpha^T``,
+``R_X = (M^T M)^(-1/2) M^T``, computed here as the SVD polar factor (the same matrix whenever
+det > 0, and a proper rotation always). Translation as Tsai-Lenz (thesis eq. 2.4).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..motions import MotionSet
+from ._common import assemble, log_rotations, translation_least_squares
+from ._registry import register
+
+
+@register("park_martin", reference="Park & Martin 1994, IEEE TRA 10(5)")
+def solve(motions: MotionSet) -> NDArray[np.float64]:
+    """Solve ``A X = X B`` with Park and Martin's log-map Procrustes (see the module docstring)."""
+    alpha = log_rotations(motions.dq_a)
+    beta = log_rotations(motions.dq_b)
+    U, _, Vt = np.linalg.svd(alpha.T @ beta)  # sum alpha beta^T = M^T
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    R_X = U @ D @ Vt
+    return assemble(R_X, translation_least_squares(motions, R_X))
