@@ -2,10 +2,12 @@
 
     python benchmarks/bench_solvers.py [--repeat 30]
 
-Both sides start from the same absolute poses and form every pose pair (N(N-1)/2 motions, as
-cv2.calibrateHandEye does internally). Two handeye timings are printed:
+Both sides start from the same absolute poses. For the AX = XB methods both form every pose pair
+(N(N-1)/2 motions, as cv2.calibrateHandEye does internally); the robot-world methods (shah, li)
+work on the N poses directly, on both sides. Two handeye timings are printed:
 
-* ``solve``: validation + all-pairs motions + solver, the same work as cv2.calibrateHandEye;
+* ``solve``: validation + all-pairs motions + solver (robot-world: validation + solver), the same
+  work as OpenCV's call;
 * ``calibrate_poses``: the user-facing call, which also estimates Z (the target pose).
 
 Times are the best of ``--repeat`` runs (the least disturbed by the machine); ratio = OpenCV / ours.
@@ -20,11 +22,20 @@ import cv2
 import numpy as np
 
 import handeye
+from handeye.calibration import robot_world_inputs
 from handeye.motions import MotionSet, validate_poses
 from handeye.simulate import random_scene
-from handeye.solvers import solve_motions
+from handeye.solvers import solve_motions, solve_robot_world
 
-CV_METHODS = {"daniilidis": cv2.CALIB_HAND_EYE_DANIILIDIS}
+CV_METHODS = {
+    "tsai_lenz": ("hand_eye", "CALIB_HAND_EYE_TSAI"),
+    "park_martin": ("hand_eye", "CALIB_HAND_EYE_PARK"),
+    "horaud": ("hand_eye", "CALIB_HAND_EYE_HORAUD"),
+    "andreff": ("hand_eye", "CALIB_HAND_EYE_ANDREFF"),
+    "daniilidis": ("hand_eye", "CALIB_HAND_EYE_DANIILIDIS"),
+    "shah": ("robot_world", "CALIB_ROBOT_WORLD_HAND_EYE_SHAH"),
+    "li": ("robot_world", "CALIB_ROBOT_WORLD_HAND_EYE_LI"),
+}
 
 
 def best_time(fn, repeat: int) -> float:
@@ -44,19 +55,29 @@ def main() -> None:
     print(f"handeye {handeye.__version__}, OpenCV {cv2.__version__}, numpy {np.__version__}")
     print(f"{'method':<12} {'poses':>5} {'motions':>7} {'opencv ms':>10} {'solve ms':>9} {'ratio':>7}"
           f" {'calibrate_poses ms':>19} {'ratio':>7}")
-    for method, cv_flag in CV_METHODS.items():
+    for method, (kind, cv_name) in CV_METHODS.items():
+        cv_flag = getattr(cv2, cv_name)
         for n in (15, 100):
             scene = random_scene(n, "eye_in_hand", rng=n)
             f2b, t2c = scene.flange2base, scene.target2cam
-            R_g, t_g = list(f2b[:, :3, :3]), list(f2b[:, :3, 3])
-            R_c, t_c = list(t2c[:, :3, :3]), list(t2c[:, :3, 3])
+            if kind == "hand_eye":
+                args_cv = (list(f2b[:, :3, :3]), list(f2b[:, :3, 3]), list(t2c[:, :3, :3]), list(t2c[:, :3, 3]))
 
-            def run_cv() -> None:
-                cv2.calibrateHandEye(R_g, t_g, R_c, t_c, method=cv_flag)
+                def run_cv() -> None:
+                    cv2.calibrateHandEye(*args_cv, method=cv_flag)
 
-            def run_solve() -> None:
-                f, t = validate_poses(f2b, t2c)
-                solve_motions(MotionSet.from_poses(f, t, "eye_in_hand", "all"), method=method)
+                def run_solve() -> None:
+                    f, t = validate_poses(f2b, t2c)
+                    solve_motions(MotionSet.from_poses(f, t, "eye_in_hand", "all"), method=method)
+            else:
+                A, B = robot_world_inputs(f2b, t2c, "eye_in_hand")
+                args_cv = (list(A[:, :3, :3]), list(A[:, :3, 3]), list(B[:, :3, :3]), list(B[:, :3, 3]))
+
+                def run_cv() -> None:
+                    cv2.calibrateRobotWorldHandEye(*args_cv, method=cv_flag)
+
+                def run_solve() -> None:
+                    solve_robot_world(A, B, method=method)
 
             def run_calibrate() -> None:
                 handeye.calibrate_poses(f2b, t2c, setup="eye_in_hand", method=method)
@@ -64,8 +85,9 @@ def main() -> None:
             t_cv = best_time(run_cv, args.repeat)
             t_solve = best_time(run_solve, args.repeat)
             t_cal = best_time(run_calibrate, args.repeat)
+            motions = n * (n - 1) // 2 if kind == "hand_eye" else n
             print(
-                f"{method:<12} {n:>5} {n * (n - 1) // 2:>7} {1e3 * t_cv:>10.2f} {1e3 * t_solve:>9.2f} "
+                f"{method:<12} {n:>5} {motions:>7} {1e3 * t_cv:>10.2f} {1e3 * t_solve:>9.2f} "
                 f"{t_cv / t_solve:>6.1f}x {1e3 * t_cal:>19.2f} {t_cv / t_cal:>6.1f}x"
             )
 

@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .errors import InputMismatchError
 from .geometry.dualquat import dq_conj, dq_from_matrix, dq_mul_pairs, qconj, qmul
-from .geometry.se3 import invert, screw_parameters
+from .geometry.se3 import invert, pair_products, screw_parameters
 from .poses import validate_transforms
 
 __all__ = ["relative_motions", "pair_indices", "screw_congruence", "MotionSet", "SETUPS"]
@@ -116,10 +116,10 @@ def _motion_matrices(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     i, j = ij[:, 0], ij[:, 1]
     if setup == "eye_in_hand":
-        A = invert(flange2base)[j] @ flange2base[i]
+        A = pair_products(invert(flange2base), flange2base, j, i)
     else:
-        A = flange2base[j] @ invert(flange2base)[i]
-    B = target2cam[j] @ invert(target2cam)[i]
+        A = pair_products(flange2base, invert(flange2base), j, i)
+    B = pair_products(target2cam, invert(target2cam), j, i)
     return A, B
 
 

@@ -19,6 +19,7 @@ __all__ = [
     "invert",
     "compose",
     "skew",
+    "pair_products",
     "rotation_angle",
     "rotation_axis_angle",
     "screw_parameters",
@@ -77,6 +78,25 @@ def compose(*transforms: ArrayLike) -> NDArray[np.float64]:
     for T in transforms[1:]:
         out = out @ np.asarray(T, dtype=float)
     return out
+
+
+def pair_products(P: ArrayLike, Q: ArrayLike, ip: ArrayLike, iq: ArrayLike) -> NDArray[np.float64]:
+    """``P[ip] @ Q[iq]`` for many index pairs into two short stacks of 4x4 transforms.
+
+    With many pairs (e.g. all N(N-1)/2), every product ``P_a Q_b`` comes out of one matrix product
+    ``(4N x 4) @ (4 x 4N)`` and the wanted blocks are gathered: BLAS instead of K small products.
+    """
+    P = np.asarray(P, dtype=float)
+    Q = np.asarray(Q, dtype=float)
+    ip = np.asarray(ip)
+    iq = np.asarray(iq)
+    n_p, n_q = len(P), len(Q)
+    if len(ip) < 0.25 * n_p * n_q:
+        return P[ip] @ Q[iq]
+    # rows (a, r), columns (b, c): (P_a Q_b)[r, c]
+    prod = P.reshape(4 * n_p, 4) @ Q.transpose(1, 0, 2).reshape(4, 4 * n_q)
+    prod = prod.reshape(n_p, 4, n_q, 4).transpose(0, 2, 1, 3)
+    return prod[ip, iq]
 
 
 def skew(v: ArrayLike) -> NDArray[np.float64]:

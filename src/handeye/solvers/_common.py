@@ -13,13 +13,16 @@ def translation_least_squares(motions: MotionSet, R_X: NDArray[np.float64]) -> N
     """``t_X`` minimising ``sum |(R_A - I) t_X - (R_X t_B - t_A)|^2`` (thesis eq. 2.4).
 
     The "then translation" step of the rotation-first methods (Tsai-Lenz, Park-Martin, Horaud).
-    Solved through the 3x3 normal equations, summed over all motions with one BLAS product.
+    Solved through the 3x3 normal equations; for rotations ``(R - I)^T (R - I) = 2I - R - R^T``,
+    so the normal matrix is a plain sum over the motions.
     """
     A, B = motions.A, motions.B
-    C = A[:, :3, :3] - np.eye(3)
+    R_A = A[:, :3, :3]
     d = B[:, :3, 3] @ R_X.T - A[:, :3, 3]
-    Cs = C.reshape(-1, 3)
-    return np.linalg.solve(Cs.T @ Cs, Cs.T @ d.reshape(-1))
+    S = R_A.sum(axis=0)
+    normal = 2 * len(A) * np.eye(3) - S - S.T
+    rhs = np.einsum("kji,kj->i", R_A, d) - d.sum(axis=0)  # sum (R_A - I)^T d
+    return np.linalg.solve(normal, rhs)
 
 
 def nearest_rotation(M: NDArray[np.float64]) -> NDArray[np.float64]:

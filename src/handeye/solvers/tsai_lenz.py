@@ -32,9 +32,11 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
     """Solve ``A X = X B`` with Tsai and Lenz's two-step method (see the module docstring)."""
     P_A = 2.0 * motions.dq_a[:, 1:4]  # 2 sin(theta/2) n, signs aligned between A and B
     P_B = 2.0 * motions.dq_b[:, 1:4]
-    S = skew(P_A + P_B).reshape(-1, 3)
-    rhs = (P_B - P_A).reshape(-1)
-    p_prime = np.linalg.lstsq(S, rhs, rcond=None)[0] if len(motions) < 64 else np.linalg.solve(S.T @ S, S.T @ rhs)
+    s = P_A + P_B
+    d = P_B - P_A
+    # normal equations of skew(s) p' = d: skew(s)^T skew(s) = |s|^2 I - s s^T, skew(s)^T d = d x s
+    normal = np.einsum("ki,ki->", s, s) * np.eye(3) - s.T @ s
+    p_prime = np.linalg.solve(normal, np.cross(d, s).sum(axis=0))
     P_X = 2.0 * p_prime / np.sqrt(1.0 + p_prime @ p_prime)
     n2 = P_X @ P_X
     R_X = (1.0 - 0.5 * n2) * np.eye(3) + 0.5 * (np.outer(P_X, P_X) + np.sqrt(max(4.0 - n2, 0.0)) * skew(P_X))
