@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 import handeye
 from handeye import DegenerateMotionError, InputMismatchError
 from handeye.calibration import robot_world_inputs
-from handeye.geometry.se3 import from_rotvec_translation, invert, make_transform, rotation_angle
+from handeye.geometry.se3 import from_rotvec_translation, invert, make_transform
 from handeye.metrics import rotation_error, translation_error
 from handeye.motions import MotionSet
 from handeye.simulate import perturb_poses, random_scene
@@ -73,6 +73,13 @@ def test_solve_robot_world_api_and_errors():
         handeye.solvers.solve_robot_world(A_par, B_par, method="shah")
 
 
+def _horaud_f1_f2(m: MotionSet, X: np.ndarray) -> tuple[float, float]:
+    """Horaud-Dornaika's f1 (rotation) and f2 (translation) terms (thesis eqs. 2.8, 2.9)."""
+    r1 = m.dq_a[:, 1:4] - m.dq_b[:, 1:4] @ X[:3, :3].T
+    r2 = m.B[:, :3, 3] @ X[:3, :3].T - np.einsum("kij,j->ki", m.A[:, :3, :3] - np.eye(3), X[:3, 3]) - m.A[:, :3, 3]
+    return float(np.sum(r1**2)), float(np.sum(r2**2))
+
+
 def test_horaud_nonlinear_lowers_its_objective():
     """The nonlinear solution may not be worse than its closed-form start on lambda1 f1 + lambda2 f2."""
     rng = np.random.default_rng(3)
@@ -81,16 +88,9 @@ def test_horaud_nonlinear_lowers_its_objective():
         f = perturb_poses(s.flange2base, np.radians(0.1), 0.5e-3, rng)
         t = perturb_poses(s.target2cam, np.radians(0.2), 1e-3, rng)
         m = MotionSet.from_poses(f, t, "eye_in_hand")
-
-        def f1f2(X):
-            a, b = m.dq_a[:, 1:4], m.dq_b[:, 1:4]
-            r1 = a - b @ X[:3, :3].T
-            r2 = m.B[:, :3, 3] @ X[:3, :3].T - np.einsum("kij,j->ki", m.A[:, :3, :3] - np.eye(3), X[:3, 3]) - m.A[:, :3, 3]
-            return np.sum(r1**2), np.sum(r2**2)
-
         X0, X1 = horaud.solve(m), horaud.solve_nonlinear(m)
-        f1_0, f2_0 = f1f2(X0)
-        f1_1, f2_1 = f1f2(X1)
+        f1_0, f2_0 = _horaud_f1_f2(m, X0)
+        f1_1, f2_1 = _horaud_f1_f2(m, X1)
         # weights as the solver sets them: 1 / mean squared residual at the start
         assert f1_1 / f1_0 + f2_1 / f2_0 <= 2.0 + 1e-9
 

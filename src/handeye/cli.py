@@ -50,7 +50,7 @@ def print_calibration(cal: Calibration, out=None) -> None:
 
 def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
     from .report import write_results
-    from .session import POSEPAIRS_FILE, load_pose_pairs
+    from .session import load_pose_pairs
 
     if args.example == (args.folder is not None):
         raise HandEyeError("give a pose-pair folder, or --example for the bundled one (not both)")

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from .se3 import make_transform
+from .se3 import make_transform, pairwise_matmul
 
 __all__ = [
     "DualQuaternion",
@@ -70,24 +70,17 @@ def qmul_matrix(p: ArrayLike) -> NDArray[np.float64]:
 def dq_mul_pairs(p: ArrayLike, q: ArrayLike, ip: ArrayLike, iq: ArrayLike) -> NDArray[np.float64]:
     """``dq_mul(p[ip], q[iq])`` for many index pairs into two short stacks ``(N, 8)``.
 
-    When the pairs are many (e.g. all N(N-1)/2), every product ``p_a q_b`` is formed by three
-    matrix products ``(4N x 4) @ (4 x N)`` and the wanted ones are gathered: BLAS instead of
-    K separate quaternion products.
+    A dual-quaternion product is linear in its right factor, ``p q = L(p) q`` with the 8x8
+    ``L(p) = [[Q(p), 0], [Q(p'), Q(p)]]``, so all pairwise products go through one matrix product
+    (:func:`~handeye.geometry.se3.pairwise_matmul`).
     """
     p = np.asarray(p, dtype=float)
     q = np.asarray(q, dtype=float)
-    ip = np.asarray(ip)
-    iq = np.asarray(iq)
-    n_p, n_q = len(p), len(q)
-    if len(ip) < 0.25 * n_p * n_q:
-        return dq_mul(p[ip], q[iq])
-    # rows: (a, component) of the real part, then of the dual part; columns: b
-    L = np.zeros((n_p, 8, 8))
+    L = np.zeros((len(p), 8, 8))
     L[:, :4, :4] = qmul_matrix(p[:, :4])
     L[:, 4:, :4] = qmul_matrix(p[:, 4:])
     L[:, 4:, 4:] = L[:, :4, :4]
-    prod = q @ L.reshape(8 * n_p, 8).T  # (n_q, 8 n_p): row b holds p_a q_b for every a
-    return prod.reshape(n_q * n_p, 8)[iq * n_p + ip]
+    return pairwise_matmul(L, q[:, :, None], ip, iq)[:, :, 0]
 
 
 def qconj(q: ArrayLike) -> NDArray[np.float64]:

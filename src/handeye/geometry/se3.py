@@ -20,6 +20,7 @@ __all__ = [
     "compose",
     "skew",
     "pair_products",
+    "pairwise_matmul",
     "rotation_angle",
     "rotation_axis_angle",
     "screw_parameters",
@@ -80,23 +81,30 @@ def compose(*transforms: ArrayLike) -> NDArray[np.float64]:
     return out
 
 
-def pair_products(P: ArrayLike, Q: ArrayLike, ip: ArrayLike, iq: ArrayLike) -> NDArray[np.float64]:
-    """``P[ip] @ Q[iq]`` for many index pairs into two short stacks of 4x4 transforms.
+def pairwise_matmul(L: ArrayLike, R: ArrayLike, il: ArrayLike, ir: ArrayLike) -> NDArray[np.float64]:
+    """``L[il] @ R[ir]`` for many index pairs into two short stacks ``(n_l, r, c)``, ``(n_r, c, k)``.
 
-    With many pairs (e.g. all N(N-1)/2), every product ``P_a Q_b`` comes out of one matrix product
-    ``(4N x 4) @ (4 x 4N)`` and the wanted blocks are gathered: BLAS instead of K small products.
+    With many pairs (e.g. all N(N-1)/2 of N poses), every product ``L_a R_b`` comes out of one
+    matrix product ``(n_l r x c) @ (c x n_r k)`` and the wanted blocks are gathered: one BLAS call
+    instead of K small products. With few pairs, the products are formed directly.
     """
-    P = np.asarray(P, dtype=float)
-    Q = np.asarray(Q, dtype=float)
-    ip = np.asarray(ip)
-    iq = np.asarray(iq)
-    n_p, n_q = len(P), len(Q)
-    if len(ip) < 0.25 * n_p * n_q:
-        return P[ip] @ Q[iq]
-    # rows (a, r), columns (b, c): (P_a Q_b)[r, c]
-    prod = P.reshape(4 * n_p, 4) @ Q.transpose(1, 0, 2).reshape(4, 4 * n_q)
-    prod = prod.reshape(n_p, 4, n_q, 4).transpose(0, 2, 1, 3)
-    return prod[ip, iq]
+    L = np.asarray(L, dtype=float)
+    R = np.asarray(R, dtype=float)
+    il = np.asarray(il)
+    ir = np.asarray(ir)
+    (n_l, r, c), (n_r, _, k) = L.shape, R.shape
+    if len(il) < 0.25 * n_l * n_r:
+        return L[il] @ R[ir]
+    if k == 1:  # matrices times vectors: a layout whose gather reads contiguous rows
+        prod = R[:, :, 0] @ L.reshape(n_l * r, c).T  # (n_r, n_l r)
+        return prod.reshape(n_r * n_l, r)[ir * n_l + il][:, :, None]
+    prod = L.reshape(n_l * r, c) @ R.transpose(1, 0, 2).reshape(c, n_r * k)
+    return prod.reshape(n_l, r, n_r, k).transpose(0, 2, 1, 3)[il, ir]
+
+
+def pair_products(P: ArrayLike, Q: ArrayLike, ip: ArrayLike, iq: ArrayLike) -> NDArray[np.float64]:
+    """``P[ip] @ Q[iq]`` for index pairs into two stacks of 4x4 transforms (see pairwise_matmul)."""
+    return pairwise_matmul(P, Q, ip, iq)
 
 
 def skew(v: ArrayLike) -> NDArray[np.float64]:
