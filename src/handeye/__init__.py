@@ -13,7 +13,7 @@ from __future__ import annotations
 from importlib.metadata import PackageNotFoundError, version
 
 from . import metrics, simulate, solvers
-from .calibration import Calibration, calibrate_poses
+from .calibration import Calibration, calibrate, calibrate_poses
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError, PoseFormatError
 from .geometry.dualquat import DualQuaternion
 from .motions import relative_motions
@@ -32,6 +32,7 @@ __all__ = [
     "HandEyeError",
     "InputMismatchError",
     "PoseFormatError",
+    "calibrate",
     "calibrate_poses",
     "format_poses",
     "metrics",

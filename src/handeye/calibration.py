@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from functools import cached_property
 
 import numpy as np
@@ -15,7 +16,7 @@ from .metrics import rotation_error, translation_error
 from .motions import MotionSet, Pairs, check_setup, screw_congruence, validate_poses
 from . import solvers
 
-__all__ = ["Calibration", "calibrate_poses"]
+__all__ = ["Calibration", "calibrate", "calibrate_poses"]
 
 
 @dataclass
@@ -54,6 +55,15 @@ class Calibration:
     cov: NDArray[np.float64] | None = None
     std: NDArray[np.float64] | None = None
     _motions: MotionSet | None = field(default=None, repr=False)
+    # filled by calibrate() from images
+    image_names: list[str] | None = None
+    reprojection_rms: NDArray[np.float64] | None = None  #: per used image, px
+    skipped: list[tuple[str, str]] = field(default_factory=list)  #: (image, reason)
+    camera_matrix: NDArray[np.float64] | None = None
+    dist_coeffs: NDArray[np.float64] | None = None
+    intrinsics_source: str | None = None  #: "session.yaml" or "estimated"
+    intrinsics_rms: float | None = None
+    notes: list[str] = field(default_factory=list)
 
     @cached_property
     def motion_residuals(self) -> NDArray[np.float64]:
@@ -174,3 +184,97 @@ def calibrate_poses(
         pairs=motions.pairs,
         _motions=motions,
     )
+
+
+#: Fewest usable poses for a calibration (two motions, as the solvers need).
+MIN_POSES = 3
+#: Above this RMS (px) of the intrinsic calibration, the result is flagged.
+INTRINSICS_RMS_WARN = 1.0
+
+
+def calibrate(
+    session_dir: str | Path,
+    method: str = "daniilidis",
+    refine: str = "none",
+    jobs: int | None = None,
+    progress: bool = True,
+    pairs: Pairs = "all",
+) -> Calibration:
+    """Hand-eye calibration from a capture session folder (images + robot poses, DESIGN §4).
+
+    Detects the target in every image (in parallel), takes the intrinsics from session.yaml or
+    estimates them from the same images, solves PnP per image, and calibrates.
+
+    Parameters
+    ----------
+    session_dir : path
+    method, refine, pairs
+        As :func:`calibrate_poses`.
+    jobs : int, optional
+        Detection processes (default: the available cores).
+    progress : bool
+        Progress bar on stderr.
+
+    Returns
+    -------
+    Calibration
+        With ``image_names`` (the images used), ``skipped`` (image, reason), per-image
+        ``reprojection_rms``, the intrinsics used and ``notes`` (warnings).
+
+    Raises
+    ------
+    SessionError
+        Bad session folder; an unreadable image; fewer than 3 images with the target found.
+    """
+    from .session import SessionError, load_session
+    from .vision import calibrate_intrinsics, detect_images, resolve_symmetries, solve_pnp, target_from_spec
+
+    session = load_session(session_dir)
+    target = target_from_spec(session.target_spec)
+    results = detect_images(session.image_paths, target, jobs=jobs, progress=progress)
+    unreadable = [r.path.name for r in results if r.image_size is None]
+    if unreadable:
+        raise SessionError(f"{session.folder / 'images'}: cannot read image(s) {', '.join(unreadable)} (corrupt or not an image)")
+    sizes = {r.image_size for r in results}
+    if len(sizes) > 1:
+        raise SessionError(f"{session.folder / 'images'}: images differ in size {sorted(sizes)}; one camera and resolution per session")
+    image_size = sizes.pop()
+    skipped = [(name, r.error) for name, r in zip(session.image_names, results) if r.detection is None]
+    found = [k for k, r in enumerate(results) if r.detection is not None]
+    notes: list[str] = []
+
+    if len(found) < MIN_POSES:
+        raise SessionError(
+            f"the {target.type} target was found in only {len(found)} of {len(results)} images "
+            f"(at least {MIN_POSES} are needed); check the target description in session.yaml"
+        )
+    if session.camera_matrix is not None:
+        K, dist, source, k_rms = session.camera_matrix, session.dist_coeffs, "session.yaml", None
+    else:
+        K, dist, k_rms = calibrate_intrinsics([results[k].detection for k in found], image_size)
+        source = "estimated"
+        if k_rms > INTRINSICS_RMS_WARN:
+            notes.append(f"intrinsics estimated from the images have an RMS reprojection error of {k_rms:.2f} px "
+                         f"(> {INTRINSICS_RMS_WARN} px): calibrate the camera separately and put K and dist in session.yaml")
+    used, poses, rms = [], [], []
+    for k in found:
+        sol = solve_pnp(results[k].detection, K, dist)
+        if sol is None:
+            skipped.append((session.image_names[k], "pose could not be estimated (fewer than 4 features)"))
+            continue
+        used.append(k)
+        poses.append(sol[0])
+        rms.append(sol[1])
+    if len(used) < MIN_POSES:
+        raise SessionError(f"only {len(used)} usable images (at least {MIN_POSES} are needed)")
+    used_arr = np.array(used)
+    flange2base = session.flange2base[used_arr]
+    target2cam, _ = resolve_symmetries(np.array(poses), flange2base, session.setup, target.symmetries())
+    cal = calibrate_poses(flange2base, target2cam, setup=session.setup, method=method, refine=refine, pairs=pairs)
+    cal.image_names = [session.image_names[k] for k in used]
+    cal.reprojection_rms = np.array(rms)
+    cal.skipped = sorted(skipped, key=lambda item: session.image_names.index(item[0]))
+    cal.camera_matrix, cal.dist_coeffs = np.asarray(K, dtype=float), np.asarray(dist, dtype=float).ravel()
+    cal.intrinsics_source, cal.intrinsics_rms = source, k_rms
+    cal.notes.extend(notes)
+    return cal

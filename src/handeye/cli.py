@@ -16,6 +16,7 @@ from .calibration import Calibration, calibrate_poses
 from .errors import HandEyeError
 
 EXAMPLE_POSEPAIRS = "example_posepairs"
+SAMPLE_SESSION = "sample_session"
 
 
 def _fmt_vec(v: np.ndarray, digits: int = 6) -> str:
@@ -69,6 +70,58 @@ def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
     return 0
 
 
+def _print_image_summary(cal: Calibration) -> None:
+    n_used, n_skip = len(cal.image_names or []), len(cal.skipped)
+    print(f"images: {n_used} used, {n_skip} skipped")
+    for name, reason in cal.skipped:
+        print(f"  skipped {name}: {reason}")
+    if cal.intrinsics_source == "estimated":
+        print(f"intrinsics: estimated from the images, RMS reprojection error {cal.intrinsics_rms:.3f} px")
+    else:
+        print("intrinsics: from session.yaml")
+    rms = cal.reprojection_rms
+    worst = int(np.argmax(rms))
+    print(f"PnP reprojection RMS per image: median {np.median(rms):.3f} px, worst {cal.image_names[worst]} {rms[worst]:.3f} px")
+    for note in cal.notes:
+        print(f"warning: {note}")
+    print()
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from .calibration import calibrate
+    from .report import write_results
+
+    if args.session is None:
+        if not args.sample:
+            raise HandEyeError("give a session folder, or --sample for the bundled sample session")
+        with as_file(files("handeye") / "data" / SAMPLE_SESSION) as folder:
+            session = Path(folder)
+        print(f"bundled sample session: {session}\n")
+    elif args.sample:
+        raise HandEyeError("give a session folder or --sample, not both")
+    else:
+        session = Path(args.session)
+    cal = calibrate(session, method=args.method, jobs=args.jobs, progress=not args.no_progress)
+    _print_image_summary(cal)
+    print_calibration(cal)
+    if args.out:
+        protect = [p for p in session.rglob("*") if p.is_file()] if session.is_dir() else []
+        for path in write_results(cal, args.out, protect=protect):
+            print(f"wrote {path}")
+    return 0
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from .simulate import simulate_session
+
+    size = tuple(int(v) for v in args.image_size.lower().split("x"))
+    simulate_session(args.out, setup=args.setup, n_poses=args.poses, target=args.target, noise_px=args.noise_px,
+                     seed=args.seed, image_size=size, write_intrinsics=not args.no_intrinsics)
+    print(f"wrote session {args.out} ({args.poses} {args.target} images, {args.setup}); ground truth in "
+          f"{Path(args.out) / 'ground_truth.yaml'}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="handeye",
@@ -90,6 +143,36 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--pairs", default="all", choices=["all", "consecutive"], help="which pose pairs form motions")
     p.add_argument("--out", help="write result.json and result.yaml into this folder")
     p.set_defaults(func=_cmd_calibrate_poses)
+
+    p = sub.add_parser(
+        "calibrate",
+        help="calibrate from a capture session (images + robot poses)",
+        description="Detect the target in every image, estimate the camera poses and solve the hand-eye "
+        "transform. SESSION holds session.yaml, poses.csv and images/ (see the README).",
+    )
+    p.add_argument("session", nargs="?", help="session folder")
+    p.add_argument("--sample", action="store_true", help="run on the bundled sample session")
+    p.add_argument("--out", help="write result.json and result.yaml into this folder")
+    p.add_argument("--method", default="daniilidis", choices=solvers.available(), help="solver (default: daniilidis)")
+    p.add_argument("--jobs", type=int, default=None, help="parallel detection workers (default: all cores)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_calibrate)
+
+    p = sub.add_parser(
+        "simulate",
+        help="render a synthetic capture session with ground truth",
+        description="Render target images seen from simulated robot poses and write a complete session "
+        "with ground_truth.yaml (X, Z, K, dist).",
+    )
+    p.add_argument("--out", required=True, help="new session folder")
+    p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
+    p.add_argument("--poses", type=int, default=15)
+    p.add_argument("--target", default="chessboard", choices=["chessboard", "charuco", "circles", "asymmetric_circles", "apriltag"])
+    p.add_argument("--noise-px", type=float, default=0.2, help="feature position noise in pixels (default 0.2)")
+    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--image-size", default="640x480", help="WIDTHxHEIGHT (default 640x480)")
+    p.add_argument("--no-intrinsics", action="store_true", help="leave K and dist out of session.yaml")
+    p.set_defaults(func=_cmd_simulate)
     return parser
 
 

@@ -43,7 +43,7 @@ def result_dict(cal: Calibration) -> dict[str, Any]:
     z_name = "target2base" if cal.setup == "eye_in_hand" else "target2flange"
     mres = cal.motion_residuals
     pres = cal.pose_residuals
-    return {
+    out = {
         "handeye_version": __version__,
         "setup": cal.setup,
         "method": cal.method,
@@ -63,6 +63,20 @@ def result_dict(cal: Calibration) -> dict[str, Any]:
             "values": pres.tolist(),
         },
     }
+    if cal.image_names is not None:
+        out["images"] = {
+            "used": list(cal.image_names),
+            "reprojection_rms_px": cal.reprojection_rms.tolist(),
+            "skipped": [{"image": n, "reason": r} for n, r in cal.skipped],
+        }
+        out["camera"] = {
+            "source": cal.intrinsics_source,
+            "K": cal.camera_matrix.tolist(),
+            "dist": cal.dist_coeffs.tolist(),
+            "rms_px": cal.intrinsics_rms,
+        }
+        out["notes"] = list(cal.notes)
+    return out
 
 
 def atomic_write_text(path: Path, text: str, protect: Iterable[Path] = ()) -> None:

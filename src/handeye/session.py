@@ -1,6 +1,9 @@
 """Reading captures from disk.
 
-So far: *pose-pair folders*, for users who already have camera-to-target poses (from their own
+*Capture sessions* (DESIGN §4): ``session.yaml``, ``poses.csv`` (an ``image`` column, then the
+pose columns of the declared format) and ``images/``. See :func:`load_session`.
+
+*Pose-pair folders*, for users who already have camera-to-target poses (from their own
 detector, or a ViSP/ROS export). A pose-pair folder holds ``posepairs.yaml``::
 
     setup: eye_in_hand              # eye_in_hand | eye_to_hand
@@ -35,10 +38,12 @@ from .errors import HandEyeError, InputMismatchError, PoseFormatError
 from .motions import check_setup
 from .poses import parse_poses, pose_columns
 
-__all__ = ["PosePairs", "load_pose_pairs", "read_pose_table", "SessionError"]
+__all__ = ["PosePairs", "Session", "load_pose_pairs", "load_session", "read_pose_table", "SessionError"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
+SESSION_FILE = "session.yaml"
 ID_COLUMNS = ("id", "image")
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp"}
 
 
 class SessionError(HandEyeError):
@@ -54,6 +59,93 @@ class PosePairs:
     target2cam: NDArray[np.float64]
     ids: list[str]
     source: Path
+
+
+@dataclass(frozen=True)
+class Session:
+    """A capture session read from disk (DESIGN §4), validated."""
+
+    folder: Path
+    setup: str
+    target_spec: dict[str, Any]
+    flange2base: NDArray[np.float64]  #: (N, 4, 4), metres
+    image_names: list[str]
+    image_paths: list[Path]
+    camera_matrix: NDArray[np.float64] | None  #: K, or None to estimate from the images
+    dist_coeffs: NDArray[np.float64] | None
+    pose_format: str
+
+
+def _camera(spec: Any, where: str) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
+    if spec is None:
+        return None, None
+    if not isinstance(spec, dict):
+        raise SessionError(f"{where}: camera must be a mapping with K (3x3) and dist")
+    try:
+        K = np.asarray(_require(spec, "K", f"{where}: camera"), dtype=float)
+        dist = np.asarray(spec.get("dist", [0.0] * 5), dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise SessionError(f"{where}: camera K and dist must be numbers") from None
+    if K.shape != (3, 3) or not np.isfinite(K).all() or K[0, 0] <= 0 or K[1, 1] <= 0 or np.any(K[2] != [0, 0, 1]):
+        raise SessionError(f"{where}: camera K must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0; got {K.tolist()}")
+    if len(dist) not in (4, 5, 8, 12, 14) or not np.isfinite(dist).all():
+        raise SessionError(f"{where}: camera dist must hold 4, 5, 8, 12 or 14 OpenCV coefficients, got {len(dist)}")
+    return K, dist
+
+
+def load_session(folder: str | Path) -> Session:
+    """Load and validate a capture session folder (DESIGN §4).
+
+    Raises
+    ------
+    SessionError
+        Missing folder, session.yaml, key, poses file or image; duplicate image names; images in
+        ``images/`` that no pose row names (a pose count that differs from the image count).
+    PoseFormatError, InputMismatchError, TargetError
+        Bad pose values, unknown setup, unusable target description.
+    """
+    from .vision.targets import target_from_spec  # validates the target now, before any image work
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise SessionError(f"{folder}: no such session folder")
+    yml = folder / SESSION_FILE
+    spec = _load_yaml(yml)
+    where = str(yml)
+    setup = check_setup(str(_require(spec, "setup", where)))
+    target_spec = _require(spec, "target", where)
+    target_from_spec(target_spec, where=f"{where}: target")
+    K, dist = _camera(spec.get("camera"), where)
+    poses = _require(spec, "poses", where)
+    if not isinstance(poses, dict):
+        raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit, angle_unit")
+    csv_path = folder / str(_require(poses, "file", f"{where}: poses"))
+    fmt = str(_require(poses, "format", f"{where}: poses"))
+    length_unit = str(_require(poses, "length_unit", f"{where}: poses"))
+    angle_unit = str(poses.get("angle_unit", "rad"))
+    values, names = read_pose_table(csv_path, fmt, id_columns=("image",))
+    if names is None:
+        raise SessionError(f"{csv_path}: the first column must be 'image', naming each pose's image in images/")
+    try:
+        f2b = parse_poses(values, fmt, length_unit, angle_unit, what=str(csv_path))
+    except PoseFormatError as exc:
+        raise PoseFormatError(f"{exc} (rows count from 0 after the header)") from None
+    image_dir = folder / "images"
+    if not image_dir.is_dir():
+        raise SessionError(f"{image_dir}: no images folder; the images named in {csv_path.name} go there")
+    paths = [image_dir / n for n in names]
+    missing = [n for n, p in zip(names, paths) if not p.is_file()]
+    if missing:
+        raise SessionError(f"{image_dir}: image file(s) missing: {', '.join(missing[:10])}"
+                           + (f" and {len(missing) - 10} more" if len(missing) > 10 else ""))
+    on_disk = sorted(p.name for p in image_dir.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    unnamed = sorted(set(on_disk) - set(names))
+    if unnamed:
+        raise SessionError(
+            f"{csv_path.name} has {len(names)} poses but images/ holds {len(on_disk)} images; no pose for "
+            f"{', '.join(unnamed[:10])}: add their poses or move them out of images/"
+        )
+    return Session(folder, setup, dict(target_spec), f2b, list(names), paths, K, dist, fmt)
 
 
 def _load_yaml(path: Path) -> dict[str, Any]:
@@ -74,7 +166,9 @@ def _require(mapping: dict[str, Any], key: str, where: str) -> Any:
     return mapping[key]
 
 
-def read_pose_table(path: Path, fmt: str) -> tuple[NDArray[np.float64], list[str] | None]:
+def read_pose_table(
+    path: Path, fmt: str, id_columns: tuple[str, ...] = ID_COLUMNS
+) -> tuple[NDArray[np.float64], list[str] | None]:
     """Read a CSV of poses with a header row; returns the pose values and the ids (or None).
 
     Raises :class:`SessionError` naming the file, line and column of anything malformed.
@@ -87,12 +181,12 @@ def read_pose_table(path: Path, fmt: str) -> tuple[NDArray[np.float64], list[str
     if not rows:
         raise SessionError(f"{path}: empty file; expected a header row ({', '.join(expected)}) and one row per pose")
     header = [c.strip() for c in rows[0]]
-    id_col = header[0] if header and header[0] in ID_COLUMNS else None
+    id_col = header[0] if header and header[0] in id_columns else None
     pose_header = header[1:] if id_col else header
     if pose_header != expected:
         raise SessionError(
             f"{path}: header {header} does not match format {fmt!r}, which needs the columns "
-            f"{', '.join(expected)} (optionally after an 'id' column)"
+            f"{', '.join(expected)} (after an '{id_columns[0]}' column)"
         )
     ids: list[str] = []
     values = np.empty((len(rows) - 1, len(expected)))
@@ -111,6 +205,8 @@ def read_pose_table(path: Path, fmt: str) -> tuple[NDArray[np.float64], list[str
                 raise SessionError(f"{path}: line {line}, column '{expected[c]}': {cell!r} is not a number") from None
     if len(values) == 0:
         raise SessionError(f"{path}: no pose rows after the header")
+    if id_col and any(not i for i in ids):
+        raise SessionError(f"{path}: line {ids.index('') + 2} has an empty {id_col}")
     if id_col and len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})
         raise SessionError(f"{path}: duplicate {id_col} values {dup}")

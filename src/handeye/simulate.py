@@ -39,22 +39,26 @@ def look_at_viewpoints(
     distance: tuple[float, float] = (0.5, 1.0),
     tilt_max_deg: float = 45.0,
     aim_jitter: float = 0.05,
+    side: float = 1.0,
+    centre: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
-    """``cam2target`` poses of a camera looking at the target's origin.
+    """``cam2target`` poses of a camera looking at the target.
 
-    The viewing direction lies within ``tilt_max_deg`` of the target normal (+z), the distance is
-    uniform in ``distance`` (m), the roll about the optical axis is free, and the aim point is
-    jittered by ``aim_jitter`` (m) so that the target is not always in the image centre.
+    The viewing direction lies within ``tilt_max_deg`` of the target normal, the camera on the
+    ``side`` (+1: +z, -1: -z, where a printed target is seen from) at a distance uniform in
+    ``distance`` (m) from ``centre`` (default the origin), the roll about the optical axis is free,
+    and the aim point is jittered by ``aim_jitter`` (m) so the target is not always centred.
     """
     # Directions uniform over the spherical cap of half-angle tilt_max about +z.
     cos_max = np.cos(np.radians(tilt_max_deg))
     cz = rng.uniform(cos_max, 1.0, n)
     phi = rng.uniform(0.0, 2 * np.pi, n)
     sz = np.sqrt(1.0 - cz**2)
-    direction = np.stack([sz * np.cos(phi), sz * np.sin(phi), cz], axis=1)
-    centre = direction * rng.uniform(*distance, n)[:, None]
-    aim = rng.uniform(-aim_jitter, aim_jitter, (n, 3)) * [1.0, 1.0, 0.0]
-    z = aim - centre
+    direction = np.stack([sz * np.cos(phi), sz * np.sin(phi), side * cz], axis=1)
+    c0 = np.zeros(3) if centre is None else np.asarray(centre, dtype=float)
+    position = c0 + direction * rng.uniform(*distance, n)[:, None]
+    aim = c0 + rng.uniform(-aim_jitter, aim_jitter, (n, 3)) * [1.0, 1.0, 0.0]
+    z = aim - position
     z /= np.linalg.norm(z, axis=1, keepdims=True)
     # Any x orthogonal to z, then a free roll about z.
     helper = np.where(np.abs(z[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
@@ -63,7 +67,7 @@ def look_at_viewpoints(
     y = np.cross(z, x)
     R = np.stack([x, y, z], axis=2)
     roll = Rotation.from_rotvec(np.outer(rng.uniform(-np.pi, np.pi, n), [0.0, 0.0, 1.0])).as_matrix()
-    return make_transform(R @ roll, centre)
+    return make_transform(R @ roll, position)
 
 
 def random_scene(
@@ -92,6 +96,13 @@ def random_scene(
     check_setup(setup)
     rng = np.random.default_rng(rng)
     cam2target = look_at_viewpoints(n_poses, rng, distance=distance, tilt_max_deg=tilt_max_deg)
+    return scene_from_viewpoints(cam2target, setup, rng, x_translation=x_translation)
+
+
+def scene_from_viewpoints(
+    cam2target: NDArray[np.float64], setup: str, rng: np.random.Generator, x_translation: float = 0.05
+) -> Scene:
+    """A scene whose camera sees the target from ``cam2target``: random X and Z, robot poses from them."""
     target2cam = invert(cam2target)
     offset = make_transform(random_rotations(1, rng)[0], rng.uniform(-x_translation, x_translation, 3))
     if setup == "eye_in_hand":
@@ -119,3 +130,149 @@ def perturb_poses(
     noisy[:, :3, :3] = dR @ noisy[:, :3, :3]
     noisy[:, :3, 3] += rng.normal(0.0, trans_sigma_m, (n, 3))
     return noisy.reshape(T.shape)
+
+
+#: Targets that ``simulate_session`` renders by default (sizes in metres).
+DEFAULT_TARGETS: dict[str, dict] = {
+    "chessboard": {"type": "chessboard", "cols": 9, "rows": 6, "square": 0.03},
+    "charuco": {"type": "charuco", "cols": 7, "rows": 5, "square": 0.04, "marker": 0.03, "dictionary": "DICT_6X6_250"},
+    "circles": {"type": "circles", "cols": 7, "rows": 5, "square": 0.04},
+    "asymmetric_circles": {"type": "asymmetric_circles", "cols": 4, "rows": 11, "square": 0.025},
+    "apriltag": {"type": "apriltag", "square": 0.12, "id": 3, "dictionary": "DICT_APRILTAG_36h11"},
+}
+
+
+def default_camera(image_size: tuple[int, int]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """A plausible camera for an image size: ~50 deg horizontal field of view, mild distortion."""
+    w, h = image_size
+    f = 1.07 * w
+    K = np.array([[f, 0.0, 0.5 * w + 3.7], [0.0, f * 1.001, 0.5 * h - 2.9], [0.0, 0.0, 1.0]])
+    dist = np.array([-0.11, 0.09, 3e-4, -2e-4, 0.0])
+    return K, dist
+
+
+def visible_viewpoints(
+    n: int,
+    rng: np.random.Generator,
+    renderer,
+    outline: NDArray[np.float64],
+    tilt_max_deg: float = 40.0,
+    fill: tuple[float, float] = (0.45, 0.8),
+    margin_px: float = 20.0,
+) -> NDArray[np.float64]:
+    """``cam2target`` poses from which the whole target sheet is in the image, ``margin_px`` inside.
+
+    The distance makes the sheet span a fraction ``fill`` of the image width; the camera sees
+    the printed side (target -z), tilted up to ``tilt_max_deg``, any roll.
+    """
+    K = renderer.K
+    w, h = renderer.size
+    centre = outline.mean(axis=0)
+    extent = float(np.linalg.norm(outline.max(axis=0) - outline.min(axis=0)))
+    d_lo, d_hi = (K[0, 0] * extent / (fr * w) for fr in (fill[1], fill[0]))
+    out: list[NDArray[np.float64]] = []
+    for _ in range(200):
+        cand = look_at_viewpoints(4 * n, rng, distance=(d_lo, d_hi), tilt_max_deg=tilt_max_deg,
+                                  aim_jitter=0.1 * extent, side=-1.0, centre=centre)
+        for c2t in cand:
+            px = renderer.project(outline, invert(c2t))
+            if np.all(px > margin_px) and np.all(px[:, 0] < w - margin_px) and np.all(px[:, 1] < h - margin_px):
+                out.append(c2t)
+                if len(out) == n:
+                    return np.array(out)
+    raise RuntimeError("could not place the camera so that the target fits in the image; use a larger image")
+
+
+def simulate_session(
+    out_dir,
+    setup: str = "eye_in_hand",
+    n_poses: int = 15,
+    target: str | dict = "chessboard",
+    noise_px: float = 0.2,
+    seed: int | None = None,
+    image_size: tuple[int, int] = (640, 480),
+    pose_format: str = "quat_wxyz",
+    length_unit: str = "mm",
+    angle_unit: str = "deg",
+    write_intrinsics: bool = True,
+    image_ext: str = ".png",
+    blur: float = 0.0,
+    robot_noise: tuple[float, float] = (0.0, 0.0),
+):
+    """Render a complete capture session (DESIGN §4) with its ground truth.
+
+    Writes ``session.yaml``, ``poses.csv``, ``images/`` and ``ground_truth.yaml`` (X, Z, K, dist)
+    into ``out_dir``, which must not already hold a session. Returns the :class:`Scene`.
+
+    Parameters
+    ----------
+    target : str or dict
+        A key of :data:`DEFAULT_TARGETS` or a full target mapping as in session.yaml.
+    noise_px : float
+        Feature position noise in pixels (a smooth random displacement of each image).
+    write_intrinsics : bool
+        Put K and dist into session.yaml; otherwise handeye estimates them from the images.
+    robot_noise : (deg, mm)
+        Gaussian noise per axis on the written robot poses.
+    """
+    import csv
+    from pathlib import Path
+
+    import cv2
+    import yaml
+
+    from .errors import HandEyeError
+    from .poses import format_poses, pose_columns
+    from .vision.render import Renderer, target_texture
+    from .vision.targets import target_from_spec
+
+    out = Path(out_dir)
+    if (out / "session.yaml").exists() or (out / "images").exists():
+        raise HandEyeError(f"{out} already holds a session; choose an empty folder")
+    spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
+    tgt = target_from_spec(spec)
+    rng = np.random.default_rng(seed)
+    K, dist = default_camera(image_size)
+    renderer = Renderer(K, dist, image_size)
+    texture = target_texture(tgt)
+    cam2target = visible_viewpoints(n_poses, rng, renderer, texture.outline())
+    scene = scene_from_viewpoints(cam2target, setup, rng)
+    flange2base = scene.flange2base
+    if robot_noise[0] > 0 or robot_noise[1] > 0:
+        flange2base = perturb_poses(flange2base, np.radians(robot_noise[0]), robot_noise[1] * 1e-3, rng)
+    (out / "images").mkdir(parents=True, exist_ok=True)
+    names = []
+    for k, T in enumerate(scene.target2cam):
+        img = renderer.render(texture, T, rng=rng, noise_px=noise_px, blur=blur)
+        name = f"{k:03d}{image_ext}"
+        params = [cv2.IMWRITE_JPEG_QUALITY, 92] if image_ext.lower() in (".jpg", ".jpeg") else []
+        if not cv2.imwrite(str(out / "images" / name), img, params):
+            raise HandEyeError(f"cannot write {out / 'images' / name}")
+        names.append(name)
+    rows = format_poses(flange2base, pose_format, length_unit, angle_unit)
+    with (out / "poses.csv").open("w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(["image"] + pose_columns(pose_format))
+        for name, row in zip(names, rows):
+            w.writerow([name] + [f"{v:.9g}" for v in row])
+    session = {"setup": setup, "target": spec}
+    if write_intrinsics:
+        session["camera"] = {"K": K.tolist(), "dist": dist.tolist()}
+    session["poses"] = {"file": "poses.csv", "format": pose_format, "length_unit": length_unit, "angle_unit": angle_unit}
+    (out / "session.yaml").write_text(
+        "# Rendered by handeye simulate; ground truth in ground_truth.yaml\n" + yaml.safe_dump(session, sort_keys=False),
+        encoding="utf-8",
+    )
+    x_name, z_name = ("cam2flange", "target2base") if setup == "eye_in_hand" else ("cam2base", "target2flange")
+    truth = {
+        "setup": setup,
+        x_name: scene.X.tolist(),
+        z_name: scene.Z.tolist(),
+        "K": K.tolist(),
+        "dist": dist.tolist(),
+        "noise_px": float(noise_px),
+        "robot_noise_deg_mm": list(robot_noise),
+        "seed": seed,
+    }
+    (out / "ground_truth.yaml").write_text(yaml.safe_dump(truth, sort_keys=False), encoding="utf-8")
+    return scene

@@ -1,0 +1,17 @@
+"""From images to target poses: targets, parallel detection, intrinsics, PnP."""
+
+from .detect import ImageResult, detect_images
+from .pnp import calibrate_intrinsics, resolve_symmetries, solve_pnp
+from .targets import TARGET_TYPES, Detection, Target, target_from_spec
+
+__all__ = [
+    "Detection",
+    "ImageResult",
+    "TARGET_TYPES",
+    "Target",
+    "calibrate_intrinsics",
+    "detect_images",
+    "resolve_symmetries",
+    "solve_pnp",
+    "target_from_spec",
+]

