@@ -15,25 +15,16 @@ from __future__ import annotations
 
 import argparse
 import tempfile
-import time
 from pathlib import Path
 
 import cv2
 import numpy as np
+from _timing import best_time
 
 from handeye.session import load_session
 from handeye.simulate import simulate_session
 from handeye.vision import detect_images, solve_pnp, target_from_spec
 from handeye.vision.detect import default_jobs
-
-
-def best_time(fn, repeat: int) -> float:
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main() -> None:
@@ -68,11 +59,11 @@ def main() -> None:
         jobs = default_jobs()
         saved = cv2.getNumThreads()
         cv2.setNumThreads(1)
-        t_cv1 = best_time(opencv_loop, args.repeat)
+        t_cv1 = best_time(opencv_loop, args.repeat, warmup=False)
         cv2.setNumThreads(saved)
-        t_cv = best_time(opencv_loop, args.repeat)
-        t_one = best_time(handeye_pipeline(1), args.repeat)
-        t_par = best_time(handeye_pipeline(jobs), args.repeat)
+        t_cv = best_time(opencv_loop, args.repeat, warmup=False)
+        t_one = best_time(handeye_pipeline(1), args.repeat, warmup=False)
+        t_par = best_time(handeye_pipeline(jobs), args.repeat, warmup=False)
         print(f"cv2 {cv2.__version__}, {jobs} cores")
         print(f"opencv loop        {t_cv:7.3f} s   (one OpenCV thread: {t_cv1:.3f} s)")
         print(f"handeye jobs=1     {t_one:7.3f} s   overhead {100 * (t_one / t_cv - 1):+.1f}%")

@@ -16,10 +16,10 @@ Times are the best of ``--repeat`` runs (the least disturbed by the machine); ra
 from __future__ import annotations
 
 import argparse
-import time
 
 import cv2
 import numpy as np
+from _timing import best_time
 
 import handeye
 from handeye.calibration import robot_world_inputs
@@ -36,16 +36,6 @@ CV_METHODS = {
     "shah": ("robot_world", "CALIB_ROBOT_WORLD_HAND_EYE_SHAH"),
     "li": ("robot_world", "CALIB_ROBOT_WORLD_HAND_EYE_LI"),
 }
-
-
-def best_time(fn, repeat: int) -> float:
-    fn()  # warm-up
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main() -> None:

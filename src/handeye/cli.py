@@ -122,6 +122,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_solver_and_out(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--method", default="daniilidis", choices=solvers.available(), help="solver (default: daniilidis)")
+    p.add_argument("--out", help="write result.json and result.yaml into this folder")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="handeye",
@@ -139,9 +144,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("folder", nargs="?", help="folder with posepairs.yaml")
     p.add_argument("--example", action="store_true", help="run on the bundled example folder")
-    p.add_argument("--method", default="daniilidis", choices=solvers.available(), help="solver (default: daniilidis)")
+    _add_solver_and_out(p)
     p.add_argument("--pairs", default="all", choices=["all", "consecutive"], help="which pose pairs form motions")
-    p.add_argument("--out", help="write result.json and result.yaml into this folder")
     p.set_defaults(func=_cmd_calibrate_poses)
 
     p = sub.add_parser(
@@ -152,8 +156,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("session", nargs="?", help="session folder")
     p.add_argument("--sample", action="store_true", help="run on the bundled sample session")
-    p.add_argument("--out", help="write result.json and result.yaml into this folder")
-    p.add_argument("--method", default="daniilidis", choices=solvers.available(), help="solver (default: daniilidis)")
+    _add_solver_and_out(p)
     p.add_argument("--jobs", type=int, default=None, help="parallel detection workers (default: all cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_calibrate)
