@@ -124,7 +124,7 @@ def _motion_matrices(
 
 
 def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Unit dual quaternions with real scalar part >= 0, and b's sign matched to a's.
+    """Unit dual quaternions with real scalar part >= 0, and b's sign matched to a's (in place).
 
     ``q`` and ``-q`` are the same motion, but the equations of AX = XB hold only when a and b carry
     the same sign: their scalar parts (cos(theta/2), -d/2 sin(theta/2)) are equal. ``w >= 0`` fixes
@@ -132,8 +132,7 @@ def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[
     Daniilidis takes the signs its matrix-to-quaternion branch happens to give, which disagree for
     some motions near 180 deg.)
     """
-    dq_a = np.array(dq_a, dtype=float)
-    dq_b = np.array(dq_b, dtype=float)
+    # in place: both callers pass arrays they have just built
     dq_a[dq_a[:, 0] < 0] *= -1.0
     dq_b[dq_b[:, 0] < 0] *= -1.0
     dq_b[dq_a[:, 0] * dq_b[:, 0] + dq_a[:, 4] * dq_b[:, 4] < 0] *= -1.0

@@ -27,12 +27,12 @@ def validate_motions(A: ArrayLike, B: ArrayLike) -> MotionSet:
 
 def _rotation_spread(dq: NDArray[np.float64]) -> tuple[float, float, NDArray[np.float64]]:
     """Largest rotation, largest off-dominant-axis rotation and the dominant axis of motions."""
-    v = dq[:, 1:4]  # sin(theta/2) * axis
-    sq = np.einsum("ni,ni->n", v, v)
+    v = np.ascontiguousarray(dq[:, 1:4].T)  # (3, K): sin(theta/2) * axis, one row per component
+    sq = (v * v).sum(axis=0)
     # The dominant axis is the principal direction of the axis vectors (sign-free).
-    _, vecs = np.linalg.eigh(v.T @ v)
+    _, vecs = np.linalg.eigh(v @ v.T)
     e1 = vecs[:, -1]
-    off_sq = np.clip(sq - (v @ e1) ** 2, 0.0, None)
+    off_sq = np.clip(sq - (e1 @ v) ** 2, 0.0, None)
     return float(np.sqrt(sq.max())), float(np.sqrt(off_sq.max())), e1
 
 
