@@ -63,6 +63,8 @@ class Calibration:
     dist_coeffs: NDArray[np.float64] | None = None
     intrinsics_source: str | None = None  #: "session.yaml" or "estimated"
     intrinsics_rms: float | None = None
+    refinement: str = "none"  #: "none" or "reprojection"
+    refined_rms: float | None = None  #: RMS reprojection error (px) of all points after refinement
     notes: list[str] = field(default_factory=list)
 
     @cached_property
@@ -190,12 +192,16 @@ def calibrate_poses(
 MIN_POSES = 3
 #: Above this RMS (px) of the intrinsic calibration, the result is flagged.
 INTRINSICS_RMS_WARN = 1.0
+#: refine='auto' keeps the pixel refinement only if its RMS stays within this factor of the
+#: per-image PnP RMS (median), or below REFINE_RMS_FLOOR px: otherwise robot errors dominate.
+REFINE_RMS_FACTOR = 3.0
+REFINE_RMS_FLOOR = 1.0
 
 
 def calibrate(
     session_dir: str | Path,
     method: str = "daniilidis",
-    refine: str = "none",
+    refine: str = "auto",
     jobs: int | None = None,
     progress: bool = True,
     pairs: Pairs = "all",
@@ -208,8 +214,14 @@ def calibrate(
     Parameters
     ----------
     session_dir : path
-    method, refine, pairs
+    method, pairs
         As :func:`calibrate_poses`.
+    refine : {'auto', 'reprojection', 'none'}
+        'reprojection': X and Z (and the intrinsics, when estimated) refined jointly on the pixel
+        errors of every target point (:func:`handeye.solvers.refine.refine_reprojection`), starting
+        from ``method``, with the robot poses taken as exact. 'auto' (default) does the same but
+        keeps the closed form, with a note, when the refined fit is much worse than the per-image
+        PnP fits (robot pose errors dominate).
     jobs : int, optional
         Detection processes (default: the available cores).
     progress : bool
@@ -218,8 +230,9 @@ def calibrate(
     Returns
     -------
     Calibration
-        With ``image_names`` (the images used), ``skipped`` (image, reason), per-image
-        ``reprojection_rms``, the intrinsics used and ``notes`` (warnings).
+        With ``image_names`` (the images used), ``skipped`` (image, reason), per-image PnP
+        ``reprojection_rms``, ``refined_rms`` (all points, after refinement), the intrinsics used
+        (refined together with X and Z when they were estimated) and ``notes`` (warnings).
 
     Raises
     ------
@@ -229,6 +242,8 @@ def calibrate(
     from .session import SessionError, load_session
     from .vision import calibrate_intrinsics, detect_images, resolve_symmetries, solve_pnp, target_from_spec
 
+    if refine not in ("auto", "reprojection", "none"):
+        raise InputMismatchError(f"refine={refine!r}; use 'auto', 'reprojection' or 'none'")
     session = load_session(session_dir)
     target = target_from_spec(session.target_spec)
     results = detect_images(session.image_paths, target, jobs=jobs, progress=progress)
@@ -269,8 +284,39 @@ def calibrate(
         raise SessionError(f"only {len(used)} usable images (at least {MIN_POSES} are needed)")
     used_arr = np.array(used)
     flange2base = session.flange2base[used_arr]
-    target2cam, _ = resolve_symmetries(np.array(poses), flange2base, session.setup, target.symmetries())
-    cal = calibrate_poses(flange2base, target2cam, setup=session.setup, method=method, refine=refine, pairs=pairs)
+    symmetries = target.symmetries()
+    target2cam, choice = resolve_symmetries(np.array(poses), flange2base, session.setup, symmetries)
+    cal = calibrate_poses(flange2base, target2cam, setup=session.setup, method=method, pairs=pairs)
+    if refine in ("auto", "reprojection"):
+        from .solvers.refine import refine_reprojection
+
+        obj, img = [], []
+        for k, c in zip(used, choice):
+            det = results[k].detection
+            F_inv = invert(symmetries[c])  # the relabelled target frame: new coordinates = F^-1 old
+            obj.append(det.object_points @ F_inv[:3, :3].T + F_inv[:3, 3])
+            img.append(det.image_points)
+        ref = refine_reprojection(cal.X, cal.Z, flange2base, obj, img, K, dist, session.setup,
+                                  refine_intrinsics=(source == "estimated"))
+        # The refinement trusts the robot poses. If even the best X, Z leave the pixels far worse
+        # fitted than a free pose per image does, robot errors dominate and pixel refinement would
+        # trade them for a biased X: keep the closed form ('auto') and say so.
+        limit = max(REFINE_RMS_FACTOR * float(np.median(rms)), REFINE_RMS_FLOOR)
+        if ref.rms_px > limit:
+            notes.append(
+                f"the robot poses and the images disagree: with the robot poses taken as exact the best fit "
+                f"leaves {ref.rms_px:.2f} px RMS, while each image alone fits to {np.median(rms):.2f} px; the robot "
+                f"pose errors dominate" + ("; reprojection refinement not applied" if refine == "auto" else "")
+            )
+        if refine == "reprojection" or ref.rms_px <= limit:
+            cal.X, cal.Z = ref.X, ref.Z
+            K, dist = ref.K, ref.dist
+            cal.__dict__.pop("pose_residuals", None)  # cached for the closed-form X
+            cal.__dict__.pop("motion_residuals", None)
+            cal.refinement, cal.refined_rms = "reprojection", ref.rms_px
+            cal.method = f"{method}+reprojection"
+            if source == "estimated":
+                source = "estimated, refined with the robot poses"
     cal.image_names = [session.image_names[k] for k in used]
     cal.reprojection_rms = np.array(rms)
     cal.skipped = sorted(skipped, key=lambda item: session.image_names.index(item[0]))

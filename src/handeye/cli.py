@@ -75,13 +75,15 @@ def _print_image_summary(cal: Calibration) -> None:
     print(f"images: {n_used} used, {n_skip} skipped")
     for name, reason in cal.skipped:
         print(f"  skipped {name}: {reason}")
-    if cal.intrinsics_source == "estimated":
-        print(f"intrinsics: estimated from the images, RMS reprojection error {cal.intrinsics_rms:.3f} px")
+    if cal.intrinsics_source.startswith("estimated"):
+        print(f"intrinsics: {cal.intrinsics_source} (camera calibration RMS {cal.intrinsics_rms:.3f} px)")
     else:
         print("intrinsics: from session.yaml")
     rms = cal.reprojection_rms
     worst = int(np.argmax(rms))
     print(f"PnP reprojection RMS per image: median {np.median(rms):.3f} px, worst {cal.image_names[worst]} {rms[worst]:.3f} px")
+    if cal.refinement == "reprojection":
+        print(f"refined X and Z on all {cal.refinement} errors: RMS {cal.refined_rms:.3f} px")
     for note in cal.notes:
         print(f"warning: {note}")
     print()

@@ -75,6 +75,7 @@ def result_dict(cal: Calibration) -> dict[str, Any]:
             "dist": cal.dist_coeffs.tolist(),
             "rms_px": cal.intrinsics_rms,
         }
+        out["refinement"] = {"type": cal.refinement, "rms_px": cal.refined_rms}
         out["notes"] = list(cal.notes)
     return out
 

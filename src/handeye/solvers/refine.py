@@ -1,0 +1,133 @@
+"""Nonlinear refinement of a closed-form hand-eye solution.
+
+``refine_reprojection``: the thesis's "future work" (§6.1) and Horaud-Dornaika's lesson (estimate
+everything together): with target detections available, X and Z are refined jointly so that every
+target point projects onto its detection in every image. The camera pose of image i is not a
+free unknown but follows from the robot pose (DESIGN §2):
+
+* eye-in-hand: ``target2cam_i = inv(X) @ inv(flange2base_i) @ Z`` (X = cam2flange, Z = target2base);
+* eye-to-hand: ``target2cam_i = inv(X) @ flange2base_i @ Z`` (X = cam2base, Z = target2flange).
+
+12 unknowns (rotation-vector increments and translations of X and Z), two residuals per point;
+``scipy.optimize.least_squares`` with an optional robust loss (``soft_l1``, ``huber``...). With 12
+unknowns shared by every residual the Jacobian is dense, so no sparsity structure is declared.
+Uncertainty (covariance) and pose-space refinement are not here yet.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from ..geometry.se3 import invert, make_transform
+
+__all__ = ["ReprojectionResult", "refine_reprojection", "predicted_target2cam"]
+
+
+@dataclass(frozen=True)
+class ReprojectionResult:
+    X: NDArray[np.float64]
+    Z: NDArray[np.float64]
+    K: NDArray[np.float64]  #: the intrinsics used (refined when asked)
+    dist: NDArray[np.float64]
+    rms_px: float  #: RMS reprojection error over all points after refinement
+    rms_px_before: float  #: the same for the closed-form start
+    per_image_rms_px: NDArray[np.float64]
+    n_points: int
+    success: bool
+    message: str
+
+
+def predicted_target2cam(X, Z, flange2base, setup: str) -> NDArray[np.float64]:
+    """Camera-to-target poses implied by X, Z and the robot poses (see the module docstring)."""
+    robot = invert(flange2base) if setup == "eye_in_hand" else flange2base
+    return invert(X) @ robot @ Z
+
+
+def _project(T: NDArray[np.float64], obj: NDArray[np.float64], K, dist) -> NDArray[np.float64]:
+    rvec, _ = cv2.Rodrigues(T[:3, :3])
+    px, _ = cv2.projectPoints(obj, rvec, T[:3, 3], K, dist)
+    return px.reshape(-1, 2)
+
+
+def refine_reprojection(
+    X0: NDArray[np.float64],
+    Z0: NDArray[np.float64],
+    flange2base: NDArray[np.float64],
+    object_points: list[NDArray[np.float64]],
+    image_points: list[NDArray[np.float64]],
+    K: NDArray[np.float64],
+    dist: NDArray[np.float64],
+    setup: str,
+    loss: str = "linear",
+    f_scale: float = 1.0,
+    refine_intrinsics: bool = False,
+) -> ReprojectionResult:
+    """Refine X and Z by minimising the reprojection error of all target points in all images.
+
+    Parameters
+    ----------
+    X0, Z0 : (4, 4)
+        Start (a closed-form solution).
+    flange2base : (N, 4, 4)
+    object_points, image_points : lists of N arrays (M_i, 3) and (M_i, 2)
+        Target points (target frame, metres) and their detections (pixels), image by image.
+    K, dist
+        Camera intrinsics (held fixed).
+    setup : {'eye_in_hand', 'eye_to_hand'}
+    loss, f_scale
+        As ``scipy.optimize.least_squares`` (``f_scale`` in pixels): ``soft_l1`` or ``huber``
+        limit the pull of wrong detections.
+    refine_intrinsics : bool
+        Also refine fx, fy, cx, cy and five distortion terms (k1 k2 p1 p2 k3). The robot poses tie
+        all views together, so this is far better conditioned than a camera calibration alone:
+        use it when the intrinsics were estimated from the same images.
+    """
+    obj = [np.ascontiguousarray(o, dtype=np.float64) for o in object_points]
+    img = [np.asarray(i, dtype=np.float64) for i in image_points]
+    R_X0, R_Z0 = X0[:3, :3], Z0[:3, :3]
+    K0 = np.asarray(K, dtype=float)
+    d0 = np.zeros(5)
+    dist = np.asarray(dist, dtype=float).ravel()
+    d0[: min(5, len(dist))] = dist[:5]
+    extra_dist = dist[5:]  # higher-order terms, if any, are kept fixed
+
+    def unpack(x):
+        X = make_transform(Rotation.from_rotvec(x[:3]).as_matrix() @ R_X0, X0[:3, 3] + x[3:6])
+        Z = make_transform(Rotation.from_rotvec(x[6:9]).as_matrix() @ R_Z0, Z0[:3, 3] + x[9:12])
+        Kx, dx = K0, np.concatenate([d0, extra_dist])
+        if refine_intrinsics:
+            Kx = K0.copy()
+            Kx[0, 0] += x[12]
+            Kx[1, 1] += x[13]
+            Kx[0, 2] += x[14]
+            Kx[1, 2] += x[15]
+            dx = np.concatenate([d0 + x[16:21], extra_dist])
+        return X, Z, Kx, dx
+
+    def residuals(x):
+        X, Z, Kx, dx = unpack(x)
+        T = predicted_target2cam(X, Z, flange2base, setup)
+        return np.concatenate([(_project(Ti, o, Kx, dx) - im).ravel() for Ti, o, im in zip(T, obj, img)])
+
+    n = 21 if refine_intrinsics else 12
+    x0 = np.zeros(n)
+    r0 = residuals(x0)
+    # increments of ~1 mrad and ~1 mm move the pixels about as much as ~1 px of focal length or
+    # ~1e-3 of distortion
+    scale = np.r_[np.full(12, 1e-3), np.ones(4), np.full(5, 1e-3)][:n]
+    res = least_squares(residuals, x0, loss=loss, f_scale=f_scale, x_scale=scale, method="trf",
+                        xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    X, Z, K_out, d_out = unpack(res.x)
+    r = res.fun.reshape(-1, 2)
+    counts = np.cumsum([0] + [len(o) for o in obj])
+    per_image = np.array([np.sqrt(np.mean(np.sum(r[a:b] ** 2, axis=1))) for a, b in zip(counts[:-1], counts[1:])])
+    return ReprojectionResult(
+        X, Z, K_out, d_out, float(np.sqrt(np.mean(np.sum(r**2, axis=1)))), float(np.sqrt(np.mean(r0.reshape(-1, 2) ** 2) * 2)),
+        per_image, int(counts[-1]), bool(res.success), str(res.message),
+    )
