@@ -11,7 +11,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from .errors import InputMismatchError
-from .geometry.se3 import invert, make_transform
+from .geometry.se3 import invert, make_transform, skew
 from .metrics import rotation_error, translation_error
 from .motions import MotionSet, Pairs, check_setup, screw_congruence, validate_poses
 from . import solvers
@@ -79,6 +79,20 @@ class Calibration:
     def pose_residuals(self) -> NDArray[np.float64]:
         Zi = constant_transforms(self.X, self.flange2base, self.target2cam, self.setup)
         return np.stack([np.degrees(rotation_error(Zi, self.Z)), 1e3 * translation_error(Zi, self.Z)], axis=1)
+
+    def predict_error(self, point: ArrayLike) -> NDArray[np.float64]:
+        """Standard deviation (m, per axis) of a point mapped through X, from ``cov``.
+
+        ``point`` is in the camera frame (e.g. a point the camera sees); its image ``X @ point``
+        in the flange (or base) frame has the covariance ``J cov J^T`` with
+        ``J = [-[R p]x, I]``. Raises ValueError when no covariance was computed.
+        """
+        if self.cov is None:
+            raise ValueError("no covariance for this calibration (it comes with the reprojection refinement)")
+        p = np.asarray(point, dtype=float).reshape(3)
+        Rp = self.X[:3, :3] @ p
+        J = np.hstack([-skew(Rp), np.eye(3)])
+        return np.sqrt(np.diag(J @ self.cov @ J.T))
 
     @property
     def cam2flange(self) -> NDArray[np.float64]:
@@ -314,6 +328,9 @@ def calibrate(
             cal.__dict__.pop("pose_residuals", None)  # cached for the closed-form X
             cal.__dict__.pop("motion_residuals", None)
             cal.refinement, cal.refined_rms = "reprojection", ref.rms_px
+            if ref.cov_X is not None:
+                cal.cov = ref.cov_X
+                cal.std = np.r_[np.degrees(np.sqrt(np.diag(ref.cov_X)[:3])), 1e3 * np.sqrt(np.diag(ref.cov_X)[3:])]
             cal.method = f"{method}+reprojection"
             if source == "estimated":
                 source = "estimated, refined with the robot poses"

@@ -83,7 +83,10 @@ def _print_image_summary(cal: Calibration) -> None:
     worst = int(np.argmax(rms))
     print(f"PnP reprojection RMS per image: median {np.median(rms):.3f} px, worst {cal.image_names[worst]} {rms[worst]:.3f} px")
     if cal.refinement == "reprojection":
-        print(f"refined X and Z on all {cal.refinement} errors: RMS {cal.refined_rms:.3f} px")
+        print(f"refined X and Z on the pixel errors of all target points: RMS {cal.refined_rms:.3f} px")
+    if cal.std is not None:
+        print(f"std of X: rotation {np.array2string(cal.std[:3], precision=4)} deg, "
+              f"translation {np.array2string(cal.std[3:], precision=3)} mm")
     for note in cal.notes:
         print(f"warning: {note}")
     print()

@@ -41,6 +41,8 @@ class ReprojectionResult:
     n_points: int
     success: bool
     message: str
+    cov_X: NDArray[np.float64] | None = None  #: 6x6 over [rotation vector (rad), translation (m)] of X
+    sigma_px: float | None = None  #: pixel noise estimated from the residuals
 
 
 def predicted_target2cam(X, Z, flange2base, setup: str) -> NDArray[np.float64]:
@@ -124,10 +126,22 @@ def refine_reprojection(
     res = least_squares(residuals, x0, loss=loss, f_scale=f_scale, x_scale=scale, method="trf",
                         xtol=1e-12, ftol=1e-12, gtol=1e-12)
     X, Z, K_out, d_out = unpack(res.x)
+    # Covariance of the unknowns from the Jacobian at the optimum, scaled by the residual variance
+    # (Gauss-Newton): sigma^2 (J^T J)^-1. The rotation increments are global (left) perturbations,
+    # so the first block is the covariance of X's rotation vector error in the flange/base frame.
+    m = res.fun.size
+    sigma2 = float(res.fun @ res.fun) / max(m - n, 1)
+    cov_X = None
+    if loss == "linear":
+        try:
+            cov_all = sigma2 * np.linalg.inv(res.jac.T @ res.jac)
+            cov_X = cov_all[:6, :6]
+        except np.linalg.LinAlgError:
+            cov_X = None
     r = res.fun.reshape(-1, 2)
     counts = np.cumsum([0] + [len(o) for o in obj])
     per_image = np.array([np.sqrt(np.mean(np.sum(r[a:b] ** 2, axis=1))) for a, b in zip(counts[:-1], counts[1:])])
     return ReprojectionResult(
         X, Z, K_out, d_out, float(np.sqrt(np.mean(np.sum(r**2, axis=1)))), float(np.sqrt(np.mean(r0.reshape(-1, 2) ** 2) * 2)),
-        per_image, int(counts[-1]), bool(res.success), str(res.message),
+        per_image, int(counts[-1]), bool(res.success), str(res.message), cov_X, float(np.sqrt(sigma2)),
     )
