@@ -71,3 +71,41 @@ def test_calibration_reports_std_and_predicts_point_error(tmp_path):
     none = handeye.calibrate_poses(scene.flange2base, scene.target2cam)
     with pytest.raises(ValueError, match="no covariance"):
         none.predict_error([0, 0, 1])
+
+
+def test_refinement_gain_and_robust_loss():
+    """Pixel noise 0.3 px, 15 poses (40 runs): the refined X has a far lower RMS translation error
+    than Daniilidis alone (bar: >= 30% lower); with 10% of the points moved by 20 px, the robust
+    refinement stays within 1.5x of the clean-data error."""
+    rng = np.random.default_rng(5)
+    size = (640, 480)
+    K, dist = default_camera(size)
+    renderer = Renderer(K, dist, size, supersample=1)
+    target = target_from_spec({"type": "chessboard", "cols": 9, "rows": 6, "square": 0.03})
+    outline, obj = target_texture(target).outline(), target.object_points()
+    closed, clean, outl = [], [], []
+    for _ in range(40):
+        sc = scene_from_viewpoints(visible_viewpoints(15, rng, renderer, outline), "eye_in_hand", rng)
+        good = [renderer.project(obj, T) + rng.normal(0, 0.3, (len(obj), 2)) for T in sc.target2cam]
+        bad = []
+        for px in good:
+            q = px.copy()
+            idx = rng.choice(len(obj), len(obj) // 10, replace=False)
+            ang = rng.uniform(0, 2 * np.pi, len(idx))
+            q[idx] += 20.0 * np.c_[np.cos(ang), np.sin(ang)]
+            bad.append(q)
+        for pts, out in ((good, clean), (bad, outl)):
+            poses = np.array([solve_pnp(Detection(np.arange(len(obj)), p, obj), K, dist)[0] for p in pts])
+            cal = handeye.calibrate_poses(sc.flange2base, poses)
+            if pts is good:
+                closed.append(cal.X[:3, 3] - sc.X[:3, 3])
+            ref = refine_reprojection(cal.X, cal.Z, sc.flange2base, [obj] * len(pts), pts, K, dist, "eye_in_hand",
+                                      robust=pts is bad)
+            out.append(ref.X[:3, 3] - sc.X[:3, 3])
+            if pts is bad:
+                assert ref.n_rejected >= 0.9 * 15 * (len(obj) // 10)
+    rms = lambda e: float(np.sqrt(np.mean(np.sum(np.square(e), axis=1))))  # noqa: E731
+    print(f"translation RMS: Daniilidis {1e3 * rms(closed):.3f} mm, refined {1e3 * rms(clean):.3f} mm, "
+          f"refined robust with outliers {1e3 * rms(outl):.3f} mm")
+    assert rms(clean) <= 0.7 * rms(closed)
+    assert rms(outl) <= 1.5 * rms(clean)

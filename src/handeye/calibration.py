@@ -311,7 +311,10 @@ def calibrate(
             obj.append(det.object_points @ F_inv[:3, :3].T + F_inv[:3, 3])
             img.append(det.image_points)
         ref = refine_reprojection(cal.X, cal.Z, flange2base, obj, img, K, dist, session.setup,
-                                  refine_intrinsics=(source == "estimated"))
+                                  refine_intrinsics=(source == "estimated"), robust=True)
+        if ref.n_rejected:
+            notes.append(f"reprojection refinement set aside {ref.n_rejected} of {ref.n_points + ref.n_rejected} "
+                         f"detected points as outliers (beyond 5 sigma)")
         # The refinement trusts the robot poses. If even the best X, Z leave the pixels far worse
         # fitted than a free pose per image does, robot errors dominate and pixel refinement would
         # trade them for a biased X: keep the closed form ('auto') and say so.
