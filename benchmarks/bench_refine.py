@@ -1,0 +1,48 @@
+"""Reprojection refinement on 30 images x 54 points (goal < 1 s).
+
+    python benchmarks/bench_refine.py [--repeat 5]
+
+Every residual depends on all unknowns (X and Z, 12 numbers; 21 with the intrinsics), because
+the camera poses are not free but follow from the robot poses: the Jacobian is dense, so there
+is no sparsity structure to give the solver and no sparse-vs-dense ratio to print. Timed: plain
+least squares, the robust variant (two passes), and with the intrinsics refined too.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+from _timing import best_time
+
+import handeye
+from handeye.simulate import default_camera, scene_from_viewpoints, visible_viewpoints
+from handeye.solvers.refine import refine_reprojection
+from handeye.vision import Detection, solve_pnp, target_from_spec
+from handeye.vision.render import Renderer, target_texture
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=5)
+    args = parser.parse_args()
+    rng = np.random.default_rng(1)
+    size = (1280, 1024)
+    K, dist = default_camera(size)
+    renderer = Renderer(K, dist, size, supersample=1)
+    target = target_from_spec({"type": "chessboard", "cols": 9, "rows": 6, "square": 0.03})
+    obj = target.object_points()
+    scene = scene_from_viewpoints(visible_viewpoints(30, rng, renderer, target_texture(target).outline()), "eye_in_hand", rng)
+    img = [renderer.project(obj, T) + rng.normal(0, 0.3, (len(obj), 2)) for T in scene.target2cam]
+    poses = np.array([solve_pnp(Detection(np.arange(len(obj)), p, obj), K, dist)[0] for p in img])
+    cal = handeye.calibrate_poses(scene.flange2base, poses)
+    objs = [obj] * len(img)
+    for label, kw in (("least squares", {}), ("robust (2 passes)", {"robust": True}),
+                      ("with intrinsics", {"refine_intrinsics": True})):
+        t = best_time(lambda: refine_reprojection(cal.X, cal.Z, scene.flange2base, objs, img, K, dist,
+                                                  "eye_in_hand", **kw), args.repeat)
+        print(f"{label:<20} 30 images x {len(obj)} points: {t:.3f} s (goal < 1 s)")
+
+
+if __name__ == "__main__":
+    main()
