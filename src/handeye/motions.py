@@ -14,6 +14,7 @@ robot poses (``base2flange``) as ``gripper2base``, which then returns ``cam2base
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Literal, Union
 
 import numpy as np
@@ -38,6 +39,18 @@ def check_setup(setup: str) -> str:
     return setup
 
 
+@lru_cache(maxsize=64)
+def _standard_pairs(n_poses: int, pairs: str) -> NDArray[np.intp]:
+    if pairs == "all":
+        i, j = np.triu_indices(n_poses, k=1)
+    else:
+        i = np.arange(n_poses - 1)
+        j = i + 1
+    ij = np.stack([i, j], axis=1)
+    ij.setflags(write=False)  # shared between calls
+    return ij
+
+
 def pair_indices(n_poses: int, pairs: Pairs = "all") -> NDArray[np.intp]:
     """Index pairs ``(i, j)`` of the motions built from ``n_poses`` poses.
 
@@ -52,12 +65,8 @@ def pair_indices(n_poses: int, pairs: Pairs = "all") -> NDArray[np.intp]:
     ij : ndarray, shape (K, 2)
     """
     if isinstance(pairs, str):
-        if pairs == "all":
-            i, j = np.triu_indices(n_poses, k=1)
-            return np.stack([i, j], axis=1)
-        if pairs == "consecutive":
-            i = np.arange(n_poses - 1)
-            return np.stack([i, i + 1], axis=1)
+        if pairs in ("all", "consecutive"):
+            return _standard_pairs(n_poses, pairs)
         raise InputMismatchError(f"unknown pairs strategy {pairs!r}; use 'all', 'consecutive' or an (K, 2) index array")
     ij = np.asarray(pairs)
     if ij.ndim != 2 or ij.shape[1] != 2 or not np.issubdtype(ij.dtype, np.integer):

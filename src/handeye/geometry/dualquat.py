@@ -56,15 +56,12 @@ def qmul_matrix(p: ArrayLike) -> NDArray[np.float64]:
     """Left-multiplication matrices ``L(p)`` with ``L(p) @ q == qmul(p, q)``, shape (..., 4, 4)."""
     p = np.asarray(p, dtype=float)
     w, x, y, z = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
-    return np.stack(
-        [
-            np.stack([w, -x, -y, -z], axis=-1),
-            np.stack([x, w, -z, y], axis=-1),
-            np.stack([y, z, w, -x], axis=-1),
-            np.stack([z, -y, x, w], axis=-1),
-        ],
-        axis=-2,
-    )
+    L = np.empty(p.shape[:-1] + (4, 4))
+    L[..., 0, 0], L[..., 0, 1], L[..., 0, 2], L[..., 0, 3] = w, -x, -y, -z
+    L[..., 1, 0], L[..., 1, 1], L[..., 1, 2], L[..., 1, 3] = x, w, -z, y
+    L[..., 2, 0], L[..., 2, 1], L[..., 2, 2], L[..., 2, 3] = y, z, w, -x
+    L[..., 3, 0], L[..., 3, 1], L[..., 3, 2], L[..., 3, 3] = z, -y, x, w
+    return L
 
 
 def dq_mul_pairs(p: ArrayLike, q: ArrayLike, ip: ArrayLike, iq: ArrayLike) -> NDArray[np.float64]:
