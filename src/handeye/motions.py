@@ -14,14 +14,14 @@ robot poses (``base2flange``) as ``gripper2base``, which then returns ``cam2base
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from typing import Literal, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import InputMismatchError
-from .geometry.dualquat import dq_conj, dq_from_matrix, dq_mul_pairs, qconj, qmul
+from .geometry.dualquat import dq_conj, dq_from_matrix, dq_mul_pairs, dq_translation, qconj, qmul, quat_to_matrix
 from .geometry.se3 import invert, pair_products, screw_parameters
 from .poses import validate_transforms
 
@@ -181,6 +181,21 @@ class MotionSet:
     def B(self) -> NDArray[np.float64]:
         """Camera motions (K, 4, 4)."""
         return self._matrices()[1]
+
+    @cached_property
+    def R_A(self) -> NDArray[np.float64]:
+        """Robot motion rotations (K, 3, 3), from the dual quaternions (no motion matrices needed)."""
+        return self._AB[0][:, :3, :3] if self._AB is not None else quat_to_matrix(self.dq_a[:, :4])
+
+    @cached_property
+    def t_A(self) -> NDArray[np.float64]:
+        """Robot motion translations (K, 3)."""
+        return self._AB[0][:, :3, 3] if self._AB is not None else dq_translation(self.dq_a)
+
+    @cached_property
+    def t_B(self) -> NDArray[np.float64]:
+        """Camera motion translations (K, 3)."""
+        return self._AB[1][:, :3, 3] if self._AB is not None else dq_translation(self.dq_b)
 
     def _matrices(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         if self._AB is None:

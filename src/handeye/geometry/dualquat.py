@@ -32,6 +32,7 @@ __all__ = [
     "dq_conj",
     "dq_from_matrix",
     "dq_to_matrix",
+    "dq_translation",
     "dq_from_rotation_translation",
 ]
 
@@ -134,6 +135,18 @@ def dq_from_matrix(T: ArrayLike) -> NDArray[np.float64]:
     """Unit dual quaternions (real scalar part >= 0) of transforms ``(..., 4, 4)``."""
     T = np.asarray(T, dtype=float)
     return dq_from_rotation_translation(quat_from_matrix(T[..., :3, :3]), T[..., :3, 3])
+
+
+def dq_translation(a: ArrayLike) -> NDArray[np.float64]:
+    """Translations ``(N, 3)`` of unit dual quaternions ``(N, 8)``: the vector part of ``2 q' conj(q)``,
+    i.e. ``2 (w v' - w' v + v x v')``, computed on contiguous component rows."""
+    d = np.ascontiguousarray(np.asarray(a, dtype=float).T)
+    w, v, wd, vd = d[0], d[1:4], d[4], d[5:8]
+    c = np.empty_like(v)
+    c[0] = v[1] * vd[2] - v[2] * vd[1]
+    c[1] = v[2] * vd[0] - v[0] * vd[2]
+    c[2] = v[0] * vd[1] - v[1] * vd[0]
+    return (2.0 * (w * vd - wd * v + c)).T
 
 
 def dq_to_matrix(a: ArrayLike) -> NDArray[np.float64]:

@@ -16,11 +16,10 @@ def translation_least_squares(motions: MotionSet, R_X: NDArray[np.float64]) -> N
     Solved through the 3x3 normal equations; for rotations ``(R - I)^T (R - I) = 2I - R - R^T``,
     so the normal matrix is a plain sum over the motions.
     """
-    A, B = motions.A, motions.B
-    R_A = A[:, :3, :3]
-    d = B[:, :3, 3] @ R_X.T - A[:, :3, 3]
+    R_A = motions.R_A
+    d = motions.t_B @ R_X.T - motions.t_A
     S = R_A.sum(axis=0)
-    normal = 2 * len(A) * np.eye(3) - S - S.T
+    normal = 2 * len(R_A) * np.eye(3) - S - S.T
     rhs = np.einsum("kji,kj->i", R_A, d) - d.sum(axis=0)  # sum (R_A - I)^T d
     return np.linalg.solve(normal, rhs)
 

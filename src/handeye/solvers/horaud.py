@@ -77,9 +77,8 @@ def solve_nonlinear(motions: MotionSet) -> NDArray[np.float64]:
     X0 = solve(motions)
     R0, t0 = X0[:3, :3], X0[:3, 3]
     a, b = motions.dq_a[:, 1:4], motions.dq_b[:, 1:4]
-    A, B = motions.A, motions.B
-    C = A[:, :3, :3] - np.eye(3)
-    t_A, t_B = A[:, :3, 3], B[:, :3, 3]
+    C = motions.R_A - np.eye(3)
+    t_A, t_B = motions.t_A, motions.t_B
     n = len(motions)
 
     def parts(x):
