@@ -312,9 +312,6 @@ def calibrate(
             img.append(det.image_points)
         ref = refine_reprojection(cal.X, cal.Z, flange2base, obj, img, K, dist, session.setup,
                                   refine_intrinsics=(source == "estimated"), robust=True)
-        if ref.n_rejected:
-            notes.append(f"reprojection refinement set aside {ref.n_rejected} of {ref.n_points + ref.n_rejected} "
-                         f"detected points as outliers (beyond 5 sigma)")
         # The refinement trusts the robot poses. If even the best X, Z leave the pixels far worse
         # fitted than a free pose per image does, robot errors dominate and pixel refinement would
         # trade them for a biased X: keep the closed form ('auto') and say so.
@@ -329,8 +326,10 @@ def calibrate(
             cal.X, cal.Z = ref.X, ref.Z
             K, dist = ref.K, ref.dist
             cal.__dict__.pop("pose_residuals", None)  # cached for the closed-form X
-            cal.__dict__.pop("motion_residuals", None)
             cal.refinement, cal.refined_rms = "reprojection", ref.rms_px
+            if ref.n_rejected:
+                notes.append(f"reprojection refinement set aside {ref.n_rejected} of {ref.n_points + ref.n_rejected} "
+                             f"detected points as outliers (beyond 5 sigma)")
             if ref.cov_X is not None:
                 cal.cov = ref.cov_X
                 cal.std = np.r_[np.degrees(np.sqrt(np.diag(ref.cov_X)[:3])), 1e3 * np.sqrt(np.diag(ref.cov_X)[3:])]
