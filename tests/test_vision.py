@@ -289,3 +289,15 @@ def test_calibrate_writes_results_and_protects_inputs(session, tmp_path, capsys)
     (session / "result.json").write_text("{}")
     _one_line_error(["calibrate", str(session), "--no-progress", "--out", str(session)], capsys,
                     "refusing to overwrite the input file")
+
+
+@pytest.mark.parametrize("target", ["asymmetric_circles", "apriltag"])
+def test_other_targets_render_detect_and_calibrate(tmp_path, target):
+    """The remaining target types end to end (8 poses, 0.2 px): every image used, X close to truth.
+    A single AprilTag gives only 4 points per image, hence the looser bound."""
+    scene = simulate_session(tmp_path / "s", "eye_to_hand", 8, target, noise_px=0.2, seed=1)
+    cal = handeye.calibrate(tmp_path / "s", progress=False)
+    rot, trans = np.degrees(rotation_error(cal.X, scene.X)), 1e3 * translation_error(cal.X, scene.X)
+    print(f"{target}: {rot:.3f} deg {trans:.3f} mm")
+    assert len(cal.image_names) == 8 and not cal.skipped
+    assert rot < (0.3 if target == "apriltag" else 0.1) and trans < (2.0 if target == "apriltag" else 1.0)

@@ -102,7 +102,11 @@ class Renderer:
         uu, vv = np.meshgrid(u, v)
         pix = np.stack([uu.ravel(), vv.ravel()], axis=1).reshape(-1, 1, 2)
         crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-10)
-        xy = cv2.undistortPointsIter(pix, self.K, self.dist, None, None, crit).reshape(-1, 2)
+        if hasattr(cv2, "undistortPointsIter"):  # OpenCV 4
+            xy = cv2.undistortPointsIter(pix, self.K, self.dist, None, None, crit)
+        else:  # OpenCV 5 folded the criteria into undistortPoints
+            xy = cv2.undistortPoints(pix, self.K, self.dist, None, None, None, crit)
+        xy = xy.reshape(-1, 2)
         self.rays = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)  # camera frame, z = 1
 
     def project(self, points_target: NDArray[np.float64], target2cam: NDArray[np.float64]) -> NDArray[np.float64]:
