@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from importlib.resources import as_file, files
+from importlib.resources import files
 from pathlib import Path
 from typing import Sequence
 
@@ -49,24 +49,36 @@ def print_calibration(cal: Calibration, out=None) -> None:
       f"worst pose {worst}: {pres[worst, 0]:.3f} deg / {pres[worst, 1]:.3f} mm\n")
 
 
-def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
+def _input_folder(given: str | None, bundled: bool, bundled_name: str, usage: str) -> Path:
+    """The folder a command works on: the one given, or (flag set) the one bundled with handeye."""
+    if bundled == (given is not None):
+        raise HandEyeError(usage)
+    if given is not None:
+        return Path(given)
+    folder = Path(str(files("handeye") / "data" / bundled_name))  # handeye installs as plain files
+    print(f"bundled {bundled_name.replace('_', ' ')}: {folder}\n")
+    return folder
+
+
+def _write_outputs(cal: Calibration, out: str | None, inputs: Path) -> None:
+    """Write the result files, refusing to overwrite any file of the input folder."""
     from .report import write_results
+
+    if out:
+        protect = [p for p in inputs.rglob("*") if p.is_file()] if inputs.is_dir() else []
+        for path in write_results(cal, out, protect=protect):
+            print(f"wrote {path}")
+
+
+def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
     from .session import load_pose_pairs
 
-    if args.example == (args.folder is not None):
-        raise HandEyeError("give a pose-pair folder, or --example for the bundled one (not both)")
-    if args.example:
-        with as_file(files("handeye") / "data" / EXAMPLE_POSEPAIRS) as folder:
-            pairs = load_pose_pairs(folder)
-        print(f"bundled example: {pairs.source}\n")
-    else:
-        pairs = load_pose_pairs(args.folder)
+    folder = _input_folder(args.folder, args.example, EXAMPLE_POSEPAIRS,
+                           "give a pose-pair folder, or --example for the bundled one (not both)")
+    pairs = load_pose_pairs(folder)
     cal = calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, method=args.method, pairs=args.pairs)
     print_calibration(cal)
-    if args.out:
-        inputs = [p for p in Path(pairs.source).iterdir() if p.is_file()] if not args.example else []
-        for path in write_results(cal, args.out, protect=inputs):
-            print(f"wrote {path}")
+    _write_outputs(cal, args.out, folder)
     return 0
 
 
@@ -94,25 +106,13 @@ def _print_image_summary(cal: Calibration) -> None:
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from .calibration import calibrate
-    from .report import write_results
 
-    if args.session is None:
-        if not args.sample:
-            raise HandEyeError("give a session folder, or --sample for the bundled sample session")
-        with as_file(files("handeye") / "data" / SAMPLE_SESSION) as folder:
-            session = Path(folder)
-        print(f"bundled sample session: {session}\n")
-    elif args.sample:
-        raise HandEyeError("give a session folder or --sample, not both")
-    else:
-        session = Path(args.session)
+    session = _input_folder(args.session, args.sample, SAMPLE_SESSION,
+                            "give a session folder, or --sample for the bundled sample session (not both)")
     cal = calibrate(session, method=args.method, jobs=args.jobs, progress=not args.no_progress)
     _print_image_summary(cal)
     print_calibration(cal)
-    if args.out:
-        protect = [p for p in session.rglob("*") if p.is_file()] if session.is_dir() else []
-        for path in write_results(cal, args.out, protect=protect):
-            print(f"wrote {path}")
+    _write_outputs(cal, args.out, session)
     return 0
 
 

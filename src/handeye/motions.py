@@ -21,8 +21,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import InputMismatchError
-from .geometry.dualquat import dq_conj, dq_from_matrix, dq_mul_pairs, dq_translation, qconj, qmul, quat_to_matrix
-from .geometry.se3 import invert, pair_products, screw_parameters
+from .geometry.dualquat import dq_conj, dq_from_matrix, dq_mul_pairs, dq_translation, quat_to_matrix
+from .geometry.se3 import invert, pairwise_matmul, screw_parameters
 from .poses import validate_transforms
 
 __all__ = ["relative_motions", "pair_indices", "screw_congruence", "MotionSet", "SETUPS"]
@@ -125,10 +125,10 @@ def _motion_matrices(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     i, j = ij[:, 0], ij[:, 1]
     if setup == "eye_in_hand":
-        A = pair_products(invert(flange2base), flange2base, j, i)
+        A = pairwise_matmul(invert(flange2base), flange2base, j, i)
     else:
-        A = pair_products(flange2base, invert(flange2base), j, i)
-    B = pair_products(target2cam, invert(target2cam), j, i)
+        A = pairwise_matmul(flange2base, invert(flange2base), j, i)
+    B = pairwise_matmul(target2cam, invert(target2cam), j, i)
     return A, B
 
 
@@ -238,7 +238,7 @@ def _angle_and_pitch(dq: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDAr
     v = dq[:, 1:4]
     vn = np.linalg.norm(v, axis=1)
     theta = 2.0 * np.arctan2(vn, np.abs(dq[:, 0]))
-    t = 2.0 * qmul(dq[:, 4:], qconj(dq[:, :4]))[:, 1:]
+    t = dq_translation(dq)
     tn = np.linalg.norm(t, axis=1)
     pure = theta <= 1e-12  # no screw axis: the motion is a translation of length |t|
     with np.errstate(invalid="ignore", divide="ignore"):

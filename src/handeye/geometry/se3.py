@@ -19,7 +19,6 @@ __all__ = [
     "invert",
     "compose",
     "skew",
-    "pair_products",
     "pairwise_matmul",
     "rotation_angle",
     "rotation_axis_angle",
@@ -100,11 +99,6 @@ def pairwise_matmul(L: ArrayLike, R: ArrayLike, il: ArrayLike, ir: ArrayLike) ->
         return prod.reshape(n_r * n_l, r)[ir * n_l + il][:, :, None]
     prod = L.reshape(n_l * r, c) @ R.transpose(1, 0, 2).reshape(c, n_r * k)
     return prod.reshape(n_l, r, n_r, k).transpose(0, 2, 1, 3)[il, ir]
-
-
-def pair_products(P: ArrayLike, Q: ArrayLike, ip: ArrayLike, iq: ArrayLike) -> NDArray[np.float64]:
-    """``P[ip] @ Q[iq]`` for index pairs into two stacks of 4x4 transforms (see pairwise_matmul)."""
-    return pairwise_matmul(P, Q, ip, iq)
 
 
 def skew(v: ArrayLike) -> NDArray[np.float64]:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..geometry.se3 import make_transform
 from ..motions import MotionSet
 
 
@@ -40,10 +39,6 @@ def nearest_rotation(M: NDArray[np.float64]) -> NDArray[np.float64]:
     if np.linalg.det(R) < 0:
         R = U @ np.diag([1.0, 1.0, -1.0]) @ Vt
     return R
-
-
-def assemble(R_X: NDArray[np.float64], t_X: NDArray[np.float64]) -> NDArray[np.float64]:
-    return make_transform(R_X, t_X)
 
 
 def log_rotations(dq: NDArray[np.float64]) -> NDArray[np.float64]:

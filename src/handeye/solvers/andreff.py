@@ -17,8 +17,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ..geometry.se3 import make_transform
 from ..motions import MotionSet
-from ._common import assemble, nearest_rotation
+from ._common import nearest_rotation
 from ._registry import register
 
 
@@ -44,4 +45,4 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
     rhs[:9] = (t_A.T @ t_B).reshape(9)  # sum kron(I3, t_B) t_A: [3a+b] = sum t_A[a] t_B[b]
     rhs[9:] = t_A.sum(axis=0) - np.einsum("kji,kj->i", R_A, t_A)  # sum (I - R_A)^T t_A
     sol = np.linalg.solve(G, rhs)
-    return assemble(nearest_rotation(sol[:9].reshape(3, 3)), sol[9:])
+    return make_transform(nearest_rotation(sol[:9].reshape(3, 3)), sol[9:])

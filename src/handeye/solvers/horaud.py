@@ -27,9 +27,9 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from ..geometry.dualquat import quat_to_matrix, qmul_matrix
-from ..geometry.se3 import skew
+from ..geometry.se3 import make_transform, skew
 from ..motions import MotionSet
-from ._common import assemble, translation_least_squares
+from ._common import translation_least_squares
 from ._registry import register
 
 
@@ -59,7 +59,7 @@ def closed_form_rotation(motions: MotionSet) -> NDArray[np.float64]:
 def solve(motions: MotionSet) -> NDArray[np.float64]:
     """Solve ``A X = X B``: closed-form quaternion rotation, then translation."""
     R_X = closed_form_rotation(motions)
-    return assemble(R_X, translation_least_squares(motions, R_X))
+    return make_transform(R_X, translation_least_squares(motions, R_X))
 
 
 def _left_jacobian(phi: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -108,4 +108,4 @@ def solve_nonlinear(motions: MotionSet) -> NDArray[np.float64]:
 
     res = least_squares(fun, np.r_[np.zeros(3), t0], jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
     R, _, _ = parts(res.x)
-    return assemble(R, res.x[3:])
+    return make_transform(R, res.x[3:])

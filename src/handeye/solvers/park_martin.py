@@ -14,8 +14,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ..geometry.se3 import make_transform
 from ..motions import MotionSet
-from ._common import assemble, log_rotations, translation_least_squares
+from ._common import log_rotations, translation_least_squares
 from ._registry import register
 
 
@@ -27,4 +28,4 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
     U, _, Vt = np.linalg.svd(alpha.T @ beta)  # sum alpha beta^T = M^T
     D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
     R_X = U @ D @ Vt
-    return assemble(R_X, translation_least_squares(motions, R_X))
+    return make_transform(R_X, translation_least_squares(motions, R_X))

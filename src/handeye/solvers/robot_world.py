@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ..geometry.se3 import make_transform
 from ._common import nearest_rotation
 from ._registry import register
 
@@ -45,14 +46,6 @@ def _translations(A: NDArray[np.float64], B: NDArray[np.float64], R_Z: NDArray[n
     return sol[:3], sol[3:]
 
 
-def _assemble(R_X, t_X, R_Z, t_Z):
-    X = np.eye(4)
-    X[:3, :3], X[:3, 3] = R_X, t_X
-    Z = np.eye(4)
-    Z[:3, :3], Z[:3, 3] = R_Z, t_Z
-    return X, Z
-
-
 @register("shah", kind="robot_world", reference="Shah 2013, J. Mech. Robotics 5(3)")
 def solve_shah(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Solve ``A_i X = Z B_i`` with Shah's Kronecker-product method; returns ``(X, Z)``."""
@@ -63,7 +56,7 @@ def solve_shah(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[
     R_Z = nearest_rotation(U[:, 0].reshape(3, 3).T)
     # u and v share one arbitrary sign; nearest_rotation undoes it for each from its determinant.
     t_X, t_Z = _translations(A, B, R_Z)
-    return _assemble(R_X, t_X, R_Z, t_Z)
+    return make_transform(R_X, t_X), make_transform(R_Z, t_Z)
 
 
 @register("li", kind="robot_world", reference="Li, Wang & Wu 2010, Int. J. Phys. Sci. 5(10)")
@@ -88,4 +81,4 @@ def solve_li(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[np
     R_X = nearest_rotation(sol[:9].reshape(3, 3))
     R_Z = nearest_rotation(sol[9:18].reshape(3, 3))
     t_X, t_Z = _translations(A, B, R_Z)
-    return _assemble(R_X, t_X, R_Z, t_Z)
+    return make_transform(R_X, t_X), make_transform(R_Z, t_Z)

@@ -21,9 +21,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..geometry.se3 import skew
+from ..geometry.se3 import make_transform, skew
 from ..motions import MotionSet
-from ._common import assemble, translation_least_squares
+from ._common import translation_least_squares
 from ._registry import register
 
 
@@ -40,4 +40,4 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
     P_X = 2.0 * p_prime / np.sqrt(1.0 + p_prime @ p_prime)
     n2 = P_X @ P_X
     R_X = (1.0 - 0.5 * n2) * np.eye(3) + 0.5 * (np.outer(P_X, P_X) + np.sqrt(max(4.0 - n2, 0.0)) * skew(P_X))
-    return assemble(R_X, translation_least_squares(motions, R_X))
+    return make_transform(R_X, translation_least_squares(motions, R_X))
