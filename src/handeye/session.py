@@ -123,13 +123,9 @@ def load_session(folder: str | Path) -> Session:
     fmt = str(_require(poses, "format", f"{where}: poses"))
     length_unit = str(_require(poses, "length_unit", f"{where}: poses"))
     angle_unit = str(poses.get("angle_unit", "rad"))
-    values, names = read_pose_table(csv_path, fmt, id_columns=("image",))
+    f2b, names = _read_pose_file(csv_path, fmt, length_unit, angle_unit, id_columns=("image",))
     if names is None:
         raise SessionError(f"{csv_path}: the first column must be 'image', naming each pose's image in images/")
-    try:
-        f2b = parse_poses(values, fmt, length_unit, angle_unit, what=str(csv_path))
-    except PoseFormatError as exc:
-        raise PoseFormatError(f"{exc} (rows count from 0 after the header)") from None
     image_dir = folder / "images"
     if not image_dir.is_dir():
         raise SessionError(f"{image_dir}: no images folder; the images named in {csv_path.name} go there")
@@ -213,6 +209,17 @@ def read_pose_table(
     return values, (ids if id_col else None)
 
 
+def _read_pose_file(
+    path: Path, fmt: str, length_unit: str, angle_unit: str, id_columns: tuple[str, ...] = ID_COLUMNS
+) -> tuple[NDArray[np.float64], list[str] | None]:
+    """A pose CSV read and parsed into transforms (metres); errors name the file and row."""
+    values, ids = read_pose_table(path, fmt, id_columns=id_columns)
+    try:
+        return parse_poses(values, fmt, length_unit, angle_unit, what=str(path)), ids
+    except PoseFormatError as exc:
+        raise PoseFormatError(f"{exc} (rows count from 0 after the header)") from None
+
+
 def _read_poses(folder: Path, spec: Any, key: str) -> tuple[NDArray[np.float64], list[str] | None, Path]:
     where = f"{folder / POSEPAIRS_FILE}: {key}"
     if not isinstance(spec, dict):
@@ -221,11 +228,7 @@ def _read_poses(folder: Path, spec: Any, key: str) -> tuple[NDArray[np.float64],
     fmt = str(_require(spec, "format", where))
     length_unit = str(_require(spec, "length_unit", where))
     angle_unit = str(spec.get("angle_unit", "rad"))
-    values, ids = read_pose_table(path, fmt)
-    try:
-        T = parse_poses(values, fmt, length_unit, angle_unit, what=str(path))
-    except PoseFormatError as exc:
-        raise PoseFormatError(f"{exc} (rows count from 0 after the header)") from None
+    T, ids = _read_pose_file(path, fmt, length_unit, angle_unit)
     return T, ids, path
 
 

@@ -18,13 +18,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from ..geometry.se3 import invert, make_transform
+from ..vision.pnp import project_points
 
 __all__ = ["ReprojectionResult", "refine_reprojection", "predicted_target2cam"]
 
@@ -50,12 +50,6 @@ def predicted_target2cam(X, Z, flange2base, setup: str) -> NDArray[np.float64]:
     """Camera-to-target poses implied by X, Z and the robot poses (see the module docstring)."""
     robot = invert(flange2base) if setup == "eye_in_hand" else flange2base
     return invert(X) @ robot @ Z
-
-
-def _project(T: NDArray[np.float64], obj: NDArray[np.float64], K, dist) -> NDArray[np.float64]:
-    rvec, _ = cv2.Rodrigues(T[:3, :3])
-    px, _ = cv2.projectPoints(obj, rvec, T[:3, 3], K, dist)
-    return px.reshape(-1, 2)
 
 
 def refine_reprojection(
@@ -102,7 +96,7 @@ def refine_reprojection(
         first = refine_reprojection(X0, Z0, flange2base, object_points, image_points, K, dist, setup,
                                     loss="soft_l1", f_scale=f_scale, refine_intrinsics=refine_intrinsics)
         T = predicted_target2cam(first.X, first.Z, flange2base, setup)
-        norms = [np.linalg.norm(_project(Ti, np.ascontiguousarray(o, dtype=np.float64), first.K, first.dist)
+        norms = [np.linalg.norm(project_points(Ti, np.ascontiguousarray(o, dtype=np.float64), first.K, first.dist)
                                 - np.asarray(im, dtype=np.float64), axis=1)
                  for Ti, o, im in zip(T, object_points, image_points)]
         sigma = 1.4826 * float(np.median(np.concatenate(norms)))
@@ -141,7 +135,7 @@ def refine_reprojection(
     def residuals(x):
         X, Z, Kx, dx = unpack(x)
         T = predicted_target2cam(X, Z, flange2base, setup)
-        return np.concatenate([(_project(Ti, o, Kx, dx) - im).ravel() for Ti, o, im in zip(T, obj, img)])
+        return np.concatenate([(project_points(Ti, o, Kx, dx) - im).ravel() for Ti, o, im in zip(T, obj, img)])
 
     n = 21 if refine_intrinsics else 12
     x0 = np.zeros(n)

@@ -9,14 +9,22 @@ from numpy.typing import NDArray
 from ..geometry.se3 import from_rotvec_translation, invert, screw_parameters
 from .targets import Detection
 
-__all__ = ["solve_pnp", "calibrate_intrinsics", "resolve_symmetries", "reprojection_rms"]
+__all__ = ["solve_pnp", "calibrate_intrinsics", "resolve_symmetries", "reprojection_rms", "project_points"]
+
+
+def project_points(
+    target2cam: NDArray[np.float64], points: NDArray[np.float64], K: NDArray[np.float64], dist: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Pixel positions (M, 2) of target-frame points (M, 3) seen from pose ``target2cam``."""
+    rvec, _ = cv2.Rodrigues(target2cam[:3, :3])
+    px, _ = cv2.projectPoints(np.ascontiguousarray(points, dtype=np.float64), rvec, target2cam[:3, 3], K, dist)
+    return px.reshape(-1, 2)
 
 
 def reprojection_rms(det: Detection, target2cam: NDArray[np.float64], K: NDArray[np.float64], dist: NDArray[np.float64]) -> float:
     """RMS distance (px) between detected and reprojected feature points."""
-    rvec, _ = cv2.Rodrigues(target2cam[:3, :3])
-    proj, _ = cv2.projectPoints(det.object_points, rvec, target2cam[:3, 3], K, dist)
-    return float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - det.image_points) ** 2, axis=1))))
+    proj = project_points(target2cam, det.object_points, K, dist)
+    return float(np.sqrt(np.mean(np.sum((proj - det.image_points) ** 2, axis=1))))
 
 
 def solve_pnp(det: Detection, K: NDArray[np.float64], dist: NDArray[np.float64]) -> tuple[NDArray[np.float64], float] | None:

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..geometry.se3 import invert
+from .pnp import project_points
 from .targets import AprilTag, Charuco, Chessboard, CircleGrid, Target, _dictionary
 
 __all__ = ["Texture", "target_texture", "Renderer"]
@@ -111,9 +112,7 @@ class Renderer:
 
     def project(self, points_target: NDArray[np.float64], target2cam: NDArray[np.float64]) -> NDArray[np.float64]:
         """Pixel positions of target-frame points (with distortion)."""
-        rvec, _ = cv2.Rodrigues(target2cam[:3, :3])
-        px, _ = cv2.projectPoints(np.asarray(points_target, float), rvec, target2cam[:3, 3], self.K, self.dist)
-        return px.reshape(-1, 2)
+        return project_points(target2cam, points_target, self.K, self.dist)
 
     def render(
         self,
