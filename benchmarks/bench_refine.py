@@ -1,4 +1,4 @@
-"""Reprojection refinement on 30 images x 54 points (goal < 1 s).
+"""Reprojection refinement on 30 images x 54 points (goal < 1 s); pose refinement on 30 poses.
 
     python benchmarks/bench_refine.py [--repeat 5]
 
@@ -6,6 +6,10 @@ Every residual depends on all unknowns (X and Z, 12 numbers; 21 with the intrins
 the camera poses are not free but follow from the robot poses: the Jacobian is dense, so there
 is no sparsity structure to give the solver and no sparse-vs-dense ratio to print. Timed: plain
 least squares, the robust variant (two passes), and with the intrinsics refined too.
+
+Pose refinement (``refine_pose``, analytic Jacobian, noise re-estimated until stable) on the same
+30 poses with robot and camera pose noise, against OpenCV's closed-form calibrateHandEye
+(Daniilidis) on the same poses: what the optimal estimate and its uncertainty cost.
 """
 
 from __future__ import annotations
@@ -17,7 +21,8 @@ from _timing import best_time
 
 import handeye
 from handeye.simulate import default_camera, scene_from_viewpoints, visible_viewpoints
-from handeye.solvers.refine import refine_reprojection
+from handeye.simulate import perturb_poses
+from handeye.solvers.refine import refine_pose, refine_reprojection
 from handeye.vision import Detection, solve_pnp, target_from_spec
 from handeye.vision.render import Renderer, target_texture
 
@@ -35,13 +40,24 @@ def main() -> None:
     scene = scene_from_viewpoints(visible_viewpoints(30, rng, renderer, target_texture(target).outline()), "eye_in_hand", rng)
     img = [renderer.project(obj, T) + rng.normal(0, 0.3, (len(obj), 2)) for T in scene.target2cam]
     poses = np.array([solve_pnp(Detection(np.arange(len(obj)), p, obj), K, dist)[0] for p in img])
-    cal = handeye.calibrate_poses(scene.flange2base, poses)
+    cal = handeye.calibrate_poses(scene.flange2base, poses, refine="none")
     objs = [obj] * len(img)
     for label, kw in (("least squares", {}), ("robust (2 passes)", {"robust": True}),
                       ("with intrinsics", {"refine_intrinsics": True})):
         t = best_time(lambda: refine_reprojection(cal.X, cal.Z, scene.flange2base, objs, img, K, dist,
                                                   "eye_in_hand", **kw), args.repeat)
         print(f"{label:<20} 30 images x {len(obj)} points: {t:.3f} s (goal < 1 s)")
+
+    import cv2
+
+    f2b = perturb_poses(scene.flange2base, np.radians(0.05), 0.2e-3, rng)
+    t2c = perturb_poses(scene.target2cam, np.radians(0.1), 0.5e-3, rng)
+    cal = handeye.calibrate_poses(f2b, t2c, refine="none")
+    t_pose = best_time(lambda: refine_pose(cal.X, cal.Z, f2b, t2c, "eye_in_hand"), args.repeat)
+    t_cv = best_time(lambda: cv2.calibrateHandEye(list(f2b[:, :3, :3]), list(f2b[:, :3, 3]), list(t2c[:, :3, :3]),
+                                                  list(t2c[:, :3, 3]), method=cv2.CALIB_HAND_EYE_DANIILIDIS), args.repeat)
+    print(f"pose refinement      30 poses: {1e3 * t_pose:.1f} ms; OpenCV Daniilidis (closed form, no uncertainty) "
+          f"{1e3 * t_cv:.1f} ms: ratio {t_pose / t_cv:.1f}x its time")
 
 
 if __name__ == "__main__":

@@ -70,7 +70,7 @@ def main() -> None:
                     solve_robot_world(A, B, method=method)
 
             def run_calibrate() -> None:
-                handeye.calibrate_poses(f2b, t2c, setup="eye_in_hand", method=method)
+                handeye.calibrate_poses(f2b, t2c, setup="eye_in_hand", method=method, refine="none")
 
             t_cv = best_time(run_cv, args.repeat)
             t_solve = best_time(run_solve, args.repeat)

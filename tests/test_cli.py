@@ -29,10 +29,27 @@ def test_bundled_example_is_accurate():
     assert 1e3 * translation_error(cal.X, X_true) < 2.0
 
 
+def test_bundled_example_uncertainty_covers_the_error():
+    """The pose refinement's std against the known truth of the bundled example: the error, per
+    rotation and translation, is within 3 predicted standard deviations (norms)."""
+    pairs = load_pose_pairs(EXAMPLE)
+    truth = yaml.safe_load((EXAMPLE / "ground_truth.yaml").read_text())
+    cal = handeye.calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup)
+    X_true = np.array(truth["cam2flange"])
+    assert cal.refinement == "pose" and cal.method == "daniilidis+pose"
+    assert rotation_error(cal.X, X_true) < 3 * np.sqrt(np.trace(cal.cov[:3, :3]))
+    assert translation_error(cal.X, X_true) < 3 * np.sqrt(np.trace(cal.cov[3:, 3:]))
+    closed = handeye.calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, refine="none")
+    assert closed.cov is None and closed.method == "daniilidis"
+
+
 def test_example_command_prints_x(capsys):
     assert main(["calibrate-poses", "--example"]) == 0
     out = capsys.readouterr().out
     assert "cam2flange (4x4, metres)" in out and "quaternion    wxyz" in out and "rotation vec   deg" in out
+    assert "std of X (pose refinement)" in out and "pose noise estimated from the data" in out
+    assert main(["calibrate-poses", "--example", "--refine", "none"]) == 0
+    assert "std of X" not in capsys.readouterr().out
 
 
 def test_console_script_runs_as_subprocess(tmp_path):
@@ -44,6 +61,10 @@ def test_console_script_runs_as_subprocess(tmp_path):
     assert yaml.safe_load((tmp_path / "result.yaml").read_text())["X"]["matrix"] == data["X"]["matrix"]
     X = np.array(data["X"]["matrix"])
     assert np.allclose(X[:3, 3], data["X"]["translation_m"]) and data["X_name"] == "cam2flange"
+    assert data["refinement"]["type"] == "pose" and set(data["refinement"]["pose_noise"]) == {
+        "robot_rotation_deg", "camera_rotation_deg", "translation_mm"}
+    cov = np.array(data["uncertainty"]["cov"])
+    assert cov.shape == (6, 6) and np.allclose(data["uncertainty"]["std_translation_mm"], 1e3 * np.sqrt(np.diag(cov)[3:]))
 
 
 def _copy_example(tmp_path: Path) -> Path:

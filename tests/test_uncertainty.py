@@ -7,8 +7,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.simulate import default_camera, scene_from_viewpoints, visible_viewpoints
-from handeye.solvers.refine import refine_reprojection
+from handeye.metrics import rotation_error, translation_error
+from handeye.simulate import default_camera, perturb_poses, random_scene, scene_from_viewpoints, visible_viewpoints
+from handeye.solvers.refine import refine_pose, refine_reprojection
 from handeye.vision import Detection, solve_pnp, target_from_spec
 from handeye.vision.render import Renderer, target_texture
 
@@ -30,7 +31,7 @@ def _monte_carlo(runs: int, sigma_px: float, setup: str, seed: int):
             det = Detection(np.arange(len(obj)), px, obj)
             dets.append(det)
             poses.append(solve_pnp(det, K, dist)[0])
-        cal = handeye.calibrate_poses(scene.flange2base, np.array(poses), setup=setup)
+        cal = handeye.calibrate_poses(scene.flange2base, np.array(poses), setup=setup, refine="none")
         ref = refine_reprojection(cal.X, cal.Z, scene.flange2base, [d.object_points for d in dets],
                                   [d.image_points for d in dets], K, dist, setup)
         # errors in the covariance's own parameterisation: left rotation increment, translation
@@ -68,7 +69,7 @@ def test_calibration_reports_std_and_predicts_point_error(tmp_path):
     mapped = R @ p + cal.X[:3, 3] + d[:, 3:]
     assert np.allclose(mapped.std(axis=0), cal.predict_error(p), rtol=0.03)
     assert np.allclose(cal.predict_error([0.0, 0.0, 0.0]), np.sqrt(np.diag(cal.cov)[3:]))
-    none = handeye.calibrate_poses(scene.flange2base, scene.target2cam)
+    none = handeye.calibrate_poses(scene.flange2base, scene.target2cam, refine="none")
     with pytest.raises(ValueError, match="no covariance"):
         none.predict_error([0, 0, 1])
 
@@ -96,7 +97,7 @@ def test_refinement_gain_and_robust_loss():
             bad.append(q)
         for pts, out in ((good, clean), (bad, outl)):
             poses = np.array([solve_pnp(Detection(np.arange(len(obj)), p, obj), K, dist)[0] for p in pts])
-            cal = handeye.calibrate_poses(sc.flange2base, poses)
+            cal = handeye.calibrate_poses(sc.flange2base, poses, refine="none")
             if pts is good:
                 closed.append(cal.X[:3, 3] - sc.X[:3, 3])
             ref = refine_reprojection(cal.X, cal.Z, sc.flange2base, [obj] * len(pts), pts, K, dist, "eye_in_hand",
@@ -109,3 +110,121 @@ def test_refinement_gain_and_robust_loss():
           f"refined robust with outliers {1e3 * rms(outl):.3f} mm")
     assert rms(clean) <= 0.7 * rms(closed)
     assert rms(outl) <= 1.5 * rms(clean)
+
+
+# --- pose refinement (Strobl-Hirzinger, seed §2.2.4) ------------------------------------------
+
+POSE_NOISE = dict(robot_deg=0.05, robot_mm=0.2, cam_deg=0.1, cam_mm=0.5)  # the issue's setting
+CLOSED_FORMS = ["daniilidis", "tsai_lenz", "park_martin", "horaud", "horaud_nonlinear", "andreff", "shah", "li"]
+
+
+@pytest.fixture(scope="module", params=["eye_in_hand", "eye_to_hand"])
+def pose_monte_carlo(request):
+    """200 seeded runs, 15 poses, noise on robot and camera poses: per run the errors of the pose
+    refinement (as rotation vector and translation) and its predicted variances, and the error
+    angles and distances of every closed-form solver on the same data."""
+    setup = request.param
+    rng = np.random.default_rng(21)
+    err_rot, err_t, var_rot, var_t, noise = [], [], [], [], []
+    closed = {m: [] for m in CLOSED_FORMS}
+    for _ in range(200):
+        s = random_scene(15, setup, rng)
+        f = perturb_poses(s.flange2base, np.radians(POSE_NOISE["robot_deg"]), 1e-3 * POSE_NOISE["robot_mm"], rng)
+        t = perturb_poses(s.target2cam, np.radians(POSE_NOISE["cam_deg"]), 1e-3 * POSE_NOISE["cam_mm"], rng)
+        for m in CLOSED_FORMS:
+            c = handeye.calibrate_poses(f, t, setup=setup, method=m, refine="none")
+            closed[m].append((rotation_error(c.X, s.X), translation_error(c.X, s.X)))
+        cal = handeye.calibrate_poses(f, t, setup=setup)  # default: refine="auto" = pose
+        assert cal.refinement == "pose"
+        err_rot.append(Rotation.from_matrix(cal.X[:3, :3] @ s.X[:3, :3].T).as_rotvec())
+        err_t.append(cal.X[:3, 3] - s.X[:3, 3])
+        var_rot.append(np.trace(cal.cov[:3, :3]))
+        var_t.append(np.trace(cal.cov[3:, 3:]))
+        noise.append(list(cal.pose_noise.values()))
+    return setup, np.array(err_rot), np.array(err_t), np.array(var_rot), np.array(var_t), closed, np.array(noise)
+
+
+def test_pose_refinement_predicted_std_matches_monte_carlo(pose_monte_carlo):
+    """Robot 0.05 deg / 0.2 mm, camera 0.1 deg / 0.5 mm, 15 poses, 200 runs: the RMS error of X is
+    within 15% of the mean predicted standard deviation, for rotation and for translation; the
+    noise estimates find the simulated levels."""
+    setup, err_rot, err_t, var_rot, var_t, _, noise = pose_monte_carlo
+    rms_rot, pred_rot = np.sqrt(np.mean(np.sum(err_rot**2, axis=1))), np.sqrt(np.mean(var_rot))
+    rms_t, pred_t = np.sqrt(np.mean(np.sum(err_t**2, axis=1))), np.sqrt(np.mean(var_t))
+    med = np.median(noise, axis=0)
+    print(f"{setup}: rotation RMS {np.degrees(rms_rot):.4f} deg vs predicted {np.degrees(pred_rot):.4f}; translation RMS "
+          f"{1e3 * rms_t:.4f} mm vs predicted {1e3 * pred_t:.4f}; median noise estimates {np.round(med, 4)}")
+    assert abs(rms_rot / pred_rot - 1) < 0.15
+    assert abs(rms_t / pred_t - 1) < 0.15
+    # translation noise: robot and camera together, sqrt(0.2^2 + 0.5^2) = 0.54 mm per axis
+    assert abs(med[2] / np.hypot(POSE_NOISE["robot_mm"], POSE_NOISE["cam_mm"]) - 1) < 0.2
+    assert abs(np.hypot(med[0], med[1]) / np.hypot(POSE_NOISE["robot_deg"], POSE_NOISE["cam_deg"]) - 1) < 0.2
+
+
+def test_pose_refinement_no_worse_than_best_closed_form(pose_monte_carlo):
+    """On median error over the same 200 runs, the pose refinement against the best closed-form
+    solver (the best of eight, chosen after the fact). Translation: at least 15% lower (measured
+    21-34% over 1000 runs). Rotation: the closed forms are nearly efficient there (measured over
+    1000 runs: refined 2-7% lower), a gap 200 runs cannot resolve, so the bar is "not higher by
+    more than two bootstrap standard errors of the paired median difference"."""
+    setup, err_rot, err_t, _, _, closed, _ = pose_monte_carlo
+    ref = np.c_[np.linalg.norm(err_rot, axis=1), np.linalg.norm(err_t, axis=1)]
+    cf = {m: np.array(v) for m, v in closed.items()}
+    best_r = min(cf, key=lambda m: np.median(cf[m][:, 0]))
+    best_t = min(cf, key=lambda m: np.median(cf[m][:, 1]))
+    rng = np.random.default_rng(0)
+    boot = rng.integers(0, len(ref), (2000, len(ref)))
+    diff = np.median(ref[boot, 0], axis=1) - np.median(cf[best_r][boot, 0], axis=1)
+    print(f"{setup}: median rotation refined {np.degrees(np.median(ref[:, 0])):.4f} deg vs {best_r} "
+          f"{np.degrees(np.median(cf[best_r][:, 0])):.4f} (bootstrap SE {np.degrees(diff.std()):.4f}); median translation "
+          f"refined {1e3 * np.median(ref[:, 1]):.4f} mm vs {best_t} {1e3 * np.median(cf[best_t][:, 1]):.4f}")
+    assert np.median(ref[:, 1]) <= 0.85 * np.median(cf[best_t][:, 1])
+    assert np.median(ref[:, 0]) <= np.median(cf[best_r][:, 0]) + 2 * diff.std()
+
+
+@pytest.mark.parametrize("weighting", ["noise_model", "strobl"])
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+@pytest.mark.parametrize("n_poses", [3, 5, 40])
+def test_pose_refinement_keeps_noise_free_data_exact(weighting, setup, n_poses):
+    """Started off the truth (0.5 deg / 5 mm on X and Z), noise-free poses: back to < 1e-9."""
+    s = random_scene(n_poses, setup, rng=n_poses)
+    rng = np.random.default_rng(1)
+    X0, Z0 = perturb_poses(s.X, np.radians(0.5), 5e-3, rng), perturb_poses(s.Z, np.radians(0.5), 5e-3, rng)
+    ref = refine_pose(X0, Z0, s.flange2base, s.target2cam, setup, weighting=weighting)
+    assert rotation_error(ref.X, s.X) < 1e-9 and translation_error(ref.X, s.X) < 1e-9
+    assert rotation_error(ref.Z, s.Z) < 1e-9 and translation_error(ref.Z, s.Z) < 1e-9
+    assert ref.success and np.sqrt(np.diag(ref.cov_X)).max() < 1e-9
+
+
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+def test_pose_jacobian_matches_finite_differences(setup):
+    from handeye.geometry.se3 import make_transform
+    from handeye.solvers.refine import _left_jacobian, _pose_jacobian, _pose_residuals
+
+    rng = np.random.default_rng(0)
+    s = random_scene(6, setup, rng)
+    f, t = perturb_poses(s.flange2base, 0.05, 0.02, rng), perturb_poses(s.target2cam, 0.05, 0.02, rng)
+
+    def unpack(x):
+        return (make_transform(Rotation.from_rotvec(x[:3]).as_matrix() @ s.X[:3, :3], s.X[:3, 3] + x[3:6]),
+                make_transform(Rotation.from_rotvec(x[6:9]).as_matrix() @ s.Z[:3, :3], s.Z[:3, 3] + x[9:12]))
+
+    x = rng.normal(0, 0.3, 12)
+    fun = lambda x: _pose_residuals(*unpack(x), f, t, setup)[0].ravel()  # noqa: E731
+    h = 1e-6
+    J_num = np.stack([(fun(x + h * e) - fun(x - h * e)) / (2 * h) for e in np.eye(12)], axis=1)
+    X, Z = unpack(x)
+    J = _pose_jacobian(X, Z, f, t, setup, _pose_residuals(X, Z, f, t, setup)[0])
+    J[..., 0:3] = J[..., 0:3] @ _left_jacobian(x[:3])
+    J[..., 6:9] = J[..., 6:9] @ _left_jacobian(x[6:9])
+    assert np.abs(J.reshape(-1, 12) - J_num).max() < 1e-7
+
+
+def test_pose_refinement_bad_arguments():
+    s = random_scene(5, "eye_in_hand", rng=0)
+    with pytest.raises(ValueError, match="weighting"):
+        refine_pose(s.X, s.Z, s.flange2base, s.target2cam, "eye_in_hand", weighting="ml")
+    with pytest.raises(ValueError, match="at least 3 poses"):
+        refine_pose(s.X, s.Z, s.flange2base[:2], s.target2cam[:2], "eye_in_hand")
+    with pytest.raises(handeye.InputMismatchError, match="use handeye.calibrate on a session"):
+        handeye.calibrate_poses(s.flange2base, s.target2cam, refine="reprojection")

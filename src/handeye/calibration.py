@@ -63,8 +63,10 @@ class Calibration:
     dist_coeffs: NDArray[np.float64] | None = None
     intrinsics_source: str | None = None  #: "session.yaml" or "estimated"
     intrinsics_rms: float | None = None
-    refinement: str = "none"  #: "none" or "reprojection"
+    refinement: str = "none"  #: "none", "pose" or "reprojection"
     refined_rms: float | None = None  #: RMS reprojection error (px) of all points after refinement
+    #: pose refinement's noise estimates: robot rotation (deg), camera rotation (deg), translation (mm)
+    pose_noise: dict[str, float] | None = None
     notes: list[str] = field(default_factory=list)
 
     @cached_property
@@ -88,7 +90,7 @@ class Calibration:
         ``J = [-[R p]x, I]``. Raises ValueError when no covariance was computed.
         """
         if self.cov is None:
-            raise ValueError("no covariance for this calibration (it comes with the reprojection refinement)")
+            raise ValueError("no covariance for this calibration (it comes with refinement: refine='pose' or 'reprojection')")
         p = np.asarray(point, dtype=float).reshape(3)
         Rp = self.X[:3, :3] @ p
         J = np.hstack([-skew(Rp), np.eye(3)])
@@ -155,7 +157,7 @@ def calibrate_poses(
     target2cam: ArrayLike,
     setup: str = "eye_in_hand",
     method: str = "daniilidis",
-    refine: str = "none",
+    refine: str = "auto",
     pairs: Pairs = "all",
 ) -> Calibration:
     """Hand-eye calibration from robot poses and camera-to-target poses.
@@ -170,9 +172,11 @@ def calibrate_poses(
     method : str
         A solver from ``handeye.solvers.available()``: an AX = XB solver (Z is then the mean of
         the per-pose Z_i), or a robot-world one (``shah``, ``li``), which estimates X and Z together.
-    refine : {'none'}
-        Nonlinear refinement; only 'none' exists so far (pose and reprojection refinement come with
-        the refinement module).
+    refine : {'auto', 'pose', 'none'}
+        'pose' (and 'auto', the default, which is the same here): X and Z refined jointly from the
+        ``method`` solution by :func:`handeye.solvers.refine.refine_pose` (Strobl-Hirzinger's
+        optimal correction with noise variances estimated from the data), which also gives
+        ``cov``, ``std`` and ``pose_noise``. 'none': the closed form as is (no uncertainty).
     pairs : {'all', 'consecutive'} or (K, 2) array
         Which pose pairs form the motions.
 
@@ -181,8 +185,9 @@ def calibrate_poses(
     Calibration
     """
     check_setup(setup)
-    if refine not in ("none",):
-        raise InputMismatchError(f"refine={refine!r} is not available yet; use refine='none'")
+    if refine not in ("auto", "pose", "none"):
+        hint = " (pixel refinement needs the detections: use handeye.calibrate on a session)" if refine == "reprojection" else ""
+        raise InputMismatchError(f"refine={refine!r}; use 'auto', 'pose' or 'none'{hint}")
     flange2base, target2cam = validate_poses(flange2base, target2cam)
     motions = MotionSet.from_poses(flange2base, target2cam, setup, pairs)
     if solvers.get(method).kind == "robot_world":
@@ -190,7 +195,7 @@ def calibrate_poses(
     else:
         X = solvers.solve_motions(motions, method=method)
         Z = mean_transform(constant_transforms(X, flange2base, target2cam, setup))
-    return Calibration(
+    cal = Calibration(
         X=X,
         Z=Z,
         setup=setup,
@@ -200,6 +205,33 @@ def calibrate_poses(
         pairs=motions.pairs,
         _motions=motions,
     )
+    if refine != "none":
+        apply_pose_refinement(cal)
+    return cal
+
+
+def apply_pose_refinement(cal: Calibration) -> None:
+    """Refine ``cal.X`` and ``cal.Z`` on its poses (``refine_pose``) and set the uncertainty fields."""
+    from .solvers.refine import refine_pose
+
+    ref = refine_pose(cal.X, cal.Z, cal.flange2base, cal.target2cam, cal.setup)
+    cal.X, cal.Z = ref.X, ref.Z
+    cal.__dict__.pop("pose_residuals", None)  # cached for the closed-form X
+    set_covariance(cal, ref.cov_X)
+    cal.refinement, cal.method = "pose", f"{cal.method}+pose"
+    cal.pose_noise = {
+        "robot_rotation_deg": float(np.degrees(ref.noise["robot_rotation"])),
+        "camera_rotation_deg": float(np.degrees(ref.noise["camera_rotation"])),
+        "translation_mm": 1e3 * ref.noise["translation"],
+    }
+    if not ref.converged:
+        cal.notes.append(f"pose refinement: the noise estimates did not settle in {ref.rounds} rounds; "
+                         "the reported uncertainty is approximate")
+
+
+def set_covariance(cal: Calibration, cov_X: NDArray[np.float64]) -> None:
+    cal.cov = cov_X
+    cal.std = np.r_[np.degrees(np.sqrt(np.diag(cov_X)[:3])), 1e3 * np.sqrt(np.diag(cov_X)[3:])]
 
 
 #: Fewest usable poses for a calibration (two motions, as the solvers need).
@@ -230,12 +262,13 @@ def calibrate(
     session_dir : path
     method, pairs
         As :func:`calibrate_poses`.
-    refine : {'auto', 'reprojection', 'none'}
+    refine : {'auto', 'reprojection', 'pose', 'none'}
         'reprojection': X and Z (and the intrinsics, when estimated) refined jointly on the pixel
         errors of every target point (:func:`handeye.solvers.refine.refine_reprojection`), starting
-        from ``method``, with the robot poses taken as exact. 'auto' (default) does the same but
-        keeps the closed form, with a note, when the refined fit is much worse than the per-image
-        PnP fits (robot pose errors dominate).
+        from ``method``, with the robot poses taken as exact. 'pose': refined on the robot and PnP
+        poses (:func:`handeye.solvers.refine.refine_pose`), which allows for robot pose errors.
+        'auto' (default): 'reprojection', unless its fit is much worse than the per-image PnP
+        fits (robot pose errors dominate); then 'pose', with a note.
     jobs : int, optional
         Detection processes (default: the available cores).
     progress : bool
@@ -256,8 +289,8 @@ def calibrate(
     from .session import SessionError, load_session
     from .vision import calibrate_intrinsics, detect_images, resolve_symmetries, solve_pnp, target_from_spec
 
-    if refine not in ("auto", "reprojection", "none"):
-        raise InputMismatchError(f"refine={refine!r}; use 'auto', 'reprojection' or 'none'")
+    if refine not in ("auto", "reprojection", "pose", "none"):
+        raise InputMismatchError(f"refine={refine!r}; use 'auto', 'reprojection', 'pose' or 'none'")
     session = load_session(session_dir)
     target = target_from_spec(session.target_spec)
     results = detect_images(session.image_paths, target, jobs=jobs, progress=progress)
@@ -300,7 +333,9 @@ def calibrate(
     flange2base = session.flange2base[used_arr]
     symmetries = target.symmetries()
     target2cam, choice = resolve_symmetries(np.array(poses), flange2base, session.setup, symmetries)
-    cal = calibrate_poses(flange2base, target2cam, setup=session.setup, method=method, pairs=pairs)
+    cal = calibrate_poses(flange2base, target2cam, setup=session.setup, method=method, pairs=pairs, refine="none")
+    if refine == "pose":
+        apply_pose_refinement(cal)
     if refine in ("auto", "reprojection"):
         from .solvers.refine import refine_reprojection
 
@@ -320,8 +355,10 @@ def calibrate(
             notes.append(
                 f"the robot poses and the images disagree: with the robot poses taken as exact the best fit "
                 f"leaves {ref.rms_px:.2f} px RMS, while each image alone fits to {np.median(rms):.2f} px; the robot "
-                f"pose errors dominate" + ("; reprojection refinement not applied" if refine == "auto" else "")
+                f"pose errors dominate" + ("; refined on the poses instead of the pixels" if refine == "auto" else "")
             )
+            if refine == "auto":
+                apply_pose_refinement(cal)
         if refine == "reprojection" or ref.rms_px <= limit:
             cal.X, cal.Z = ref.X, ref.Z
             K, dist = ref.K, ref.dist
@@ -331,8 +368,7 @@ def calibrate(
                 notes.append(f"reprojection refinement set aside {ref.n_rejected} of {ref.n_points + ref.n_rejected} "
                              f"detected points as outliers (beyond 5 sigma)")
             if ref.cov_X is not None:
-                cal.cov = ref.cov_X
-                cal.std = np.r_[np.degrees(np.sqrt(np.diag(ref.cov_X)[:3])), 1e3 * np.sqrt(np.diag(ref.cov_X)[3:])]
+                set_covariance(cal, ref.cov_X)
             cal.method = f"{method}+reprojection"
             if source == "estimated":
                 source = "estimated, refined with the robot poses"

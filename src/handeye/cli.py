@@ -47,6 +47,15 @@ def print_calibration(cal: Calibration, out=None) -> None:
     worst = int(np.argmax(pres[:, 1]))
     w(f"{z_name} consistency per pose: median {np.median(pres[:, 0]):.3f} deg / {np.median(pres[:, 1]):.3f} mm, "
       f"worst pose {worst}: {pres[worst, 0]:.3f} deg / {pres[worst, 1]:.3f} mm\n")
+    if cal.std is not None:
+        w(f"std of X ({cal.refinement} refinement): rotation {_fmt_vec(cal.std[:3], 4)} deg, "
+          f"translation {_fmt_vec(cal.std[3:], 3)} mm\n")
+    if cal.pose_noise is not None:
+        nz = cal.pose_noise
+        w(f"pose noise estimated from the data (per axis): robot rotation {nz['robot_rotation_deg']:.4f} deg, "
+          f"camera rotation {nz['camera_rotation_deg']:.4f} deg, translation {nz['translation_mm']:.3f} mm\n")
+    for note in cal.notes:
+        w(f"warning: {note}\n")
 
 
 def _input_folder(given: str | None, bundled: bool, bundled_name: str, usage: str) -> Path:
@@ -76,7 +85,8 @@ def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
     folder = _input_folder(args.folder, args.example, EXAMPLE_POSEPAIRS,
                            "give a pose-pair folder, or --example for the bundled one (not both)")
     pairs = load_pose_pairs(folder)
-    cal = calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, method=args.method, pairs=args.pairs)
+    cal = calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, method=args.method, pairs=args.pairs,
+                          refine=args.refine)
     print_calibration(cal)
     _write_outputs(cal, args.out, folder)
     return 0
@@ -96,11 +106,6 @@ def _print_image_summary(cal: Calibration) -> None:
     print(f"PnP reprojection RMS per image: median {np.median(rms):.3f} px, worst {cal.image_names[worst]} {rms[worst]:.3f} px")
     if cal.refinement == "reprojection":
         print(f"refined X and Z on the pixel errors of all target points: RMS {cal.refined_rms:.3f} px")
-    if cal.std is not None:
-        print(f"std of X: rotation {np.array2string(cal.std[:3], precision=4)} deg, "
-              f"translation {np.array2string(cal.std[3:], precision=3)} mm")
-    for note in cal.notes:
-        print(f"warning: {note}")
     print()
 
 
@@ -109,7 +114,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
     session = _input_folder(args.session, args.sample, SAMPLE_SESSION,
                             "give a session folder, or --sample for the bundled sample session (not both)")
-    cal = calibrate(session, method=args.method, jobs=args.jobs, progress=not args.no_progress)
+    cal = calibrate(session, method=args.method, refine=args.refine, jobs=args.jobs, progress=not args.no_progress)
     _print_image_summary(cal)
     print_calibration(cal)
     _write_outputs(cal, args.out, session)
@@ -150,6 +155,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("folder", nargs="?", help="folder with posepairs.yaml")
     p.add_argument("--example", action="store_true", help="run on the bundled example folder")
     _add_solver_and_out(p)
+    p.add_argument("--refine", default="auto", choices=["auto", "pose", "none"],
+                   help="refine X and Z on the poses and estimate their uncertainty (default: auto = pose)")
     p.add_argument("--pairs", default="all", choices=["all", "consecutive"], help="which pose pairs form motions")
     p.set_defaults(func=_cmd_calibrate_poses)
 
@@ -162,6 +169,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("session", nargs="?", help="session folder")
     p.add_argument("--sample", action="store_true", help="run on the bundled sample session")
     _add_solver_and_out(p)
+    p.add_argument("--refine", default="auto", choices=["auto", "reprojection", "pose", "none"],
+                   help="auto (default): on the pixels of all target points, or on the poses when the robot "
+                   "poses disagree with the images")
     p.add_argument("--jobs", type=int, default=None, help="parallel detection workers (default: all cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_calibrate)

@@ -75,8 +75,19 @@ def result_dict(cal: Calibration) -> dict[str, Any]:
             "dist": cal.dist_coeffs.tolist(),
             "rms_px": cal.intrinsics_rms,
         }
-        out["refinement"] = {"type": cal.refinement, "rms_px": cal.refined_rms}
-        out["notes"] = list(cal.notes)
+    out["refinement"] = {"type": cal.refinement}
+    if cal.refined_rms is not None:
+        out["refinement"]["rms_px"] = cal.refined_rms
+    if cal.pose_noise is not None:
+        out["refinement"]["pose_noise"] = dict(cal.pose_noise)
+    if cal.cov is not None:
+        out["uncertainty"] = {
+            "std_rotation_deg": cal.std[:3].tolist(),
+            "std_translation_mm": cal.std[3:].tolist(),
+            "cov": cal.cov.tolist(),
+            "cov_parameters": "X: rotation vector increment (rad, left), translation (m)",
+        }
+    out["notes"] = list(cal.notes)
     return out
 
 

@@ -1,5 +1,9 @@
 """Nonlinear refinement of a closed-form hand-eye solution.
 
+``refine_pose``: X and Z refined on the poses alone (robot-world form, one residual per pose), the
+optimal correction of §2.2.4 (Strobl-Hirzinger): residuals weighted by a noise model whose
+variances are estimated from the data and re-estimated until stable. See its docstring.
+
 ``refine_reprojection``: the thesis's "future work" (§6.1) and Horaud-Dornaika's lesson (estimate
 everything together): with target detections available, X and Z are refined jointly so that every
 target point projects onto its detection in every image. The camera pose of image i is not a
@@ -11,7 +15,6 @@ free unknown but follows from the robot pose (DESIGN §2):
 12 unknowns (rotation-vector increments and translations of X and Z), two residuals per point;
 ``scipy.optimize.least_squares`` with an optional robust loss (``soft_l1``, ``huber``...). With 12
 unknowns shared by every residual the Jacobian is dense, so no sparsity structure is declared.
-Uncertainty (covariance) and pose-space refinement are not here yet.
 """
 
 from __future__ import annotations
@@ -23,10 +26,11 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ..geometry.se3 import invert, make_transform
+from ..geometry.se3 import invert, make_transform, skew
+from ..motions import check_setup
 from ..vision.pnp import project_points
 
-__all__ = ["ReprojectionResult", "refine_reprojection", "predicted_target2cam"]
+__all__ = ["PoseRefinementResult", "ReprojectionResult", "refine_pose", "refine_reprojection", "predicted_target2cam"]
 
 
 @dataclass(frozen=True)
@@ -164,4 +168,257 @@ def refine_reprojection(
     return ReprojectionResult(
         X, Z, K_out, d_out, float(np.sqrt(np.mean(np.sum(r**2, axis=1)))), float(np.sqrt(np.mean(r0.reshape(-1, 2) ** 2) * 2)),
         per_image, int(counts[-1]), bool(res.success), str(res.message), cov_X, float(np.sqrt(sigma2)),
+    )
+
+
+@dataclass(frozen=True)
+class PoseRefinementResult:
+    X: NDArray[np.float64]
+    Z: NDArray[np.float64]
+    cov_X: NDArray[np.float64]  #: 6x6 over [rotation vector (rad), translation (m)] of X
+    cov_Z: NDArray[np.float64]  #: the same for Z
+    #: estimated noise standard deviations per axis (rad, m): 'robot_rotation', 'camera_rotation',
+    #: 'translation' (robot and camera together) for the noise model; 'rotation', 'translation' for 'strobl'
+    noise: dict[str, float]
+    residuals: NDArray[np.float64]  #: (N, 6) per pose: rotation vector (rad), translation (m), target frame
+    rounds: int  #: weight re-estimation rounds
+    converged: bool  #: whether the noise estimates were stable (to 0.1%) within ``max_rounds``
+    weighting: str
+    success: bool
+    message: str
+
+
+def _pose_residuals(X, Z, flange2base, target2cam, setup):
+    """Per pose ``Z^-1 Z_i`` as [rotation vector, translation] in the target frame, and ``target2flange_i``."""
+    robot = flange2base if setup == "eye_in_hand" else invert(flange2base)
+    target2flange = X @ target2cam if setup == "eye_in_hand" else robot @ X @ target2cam
+    Zi = robot @ X @ target2cam
+    D = invert(Z) @ Zi
+    r = np.concatenate([Rotation.from_matrix(D[:, :3, :3]).as_rotvec(), D[:, :3, 3]], axis=1)
+    return r, target2flange, Zi
+
+
+def _right_jacobian_inv(phi):
+    """Inverse right Jacobians of SO(3) at rotation vectors ``phi`` (N, 3): ``d log(R exp(e)) / de``."""
+    theta = np.linalg.norm(phi, axis=1)
+    S = skew(phi)
+    small = theta < 1e-6
+    th = np.where(small, 1.0, theta)
+    c = np.where(small, 1.0 / 12.0, 1.0 / th**2 - (1.0 + np.cos(th)) / (2.0 * th * np.sin(th)))
+    return np.eye(3) + 0.5 * S + c[:, None, None] * (S @ S)
+
+
+def _left_jacobian(phi):
+    """Left Jacobian of SO(3) at one rotation vector: ``exp(phi + d) = exp(J_l d) exp(phi)``."""
+    theta = float(np.linalg.norm(phi))
+    S = skew(phi)
+    if theta < 1e-6:
+        return np.eye(3) + 0.5 * S + (S @ S) / 6.0
+    return np.eye(3) + (1 - np.cos(theta)) / theta**2 * S + (theta - np.sin(theta)) / theta**3 * (S @ S)
+
+
+def _pose_jacobian(X, Z, flange2base, target2cam, setup, r):
+    """Jacobian (N, 6, 12) of the pose residuals over [dX rotation, dX translation, dZ rotation, dZ
+    translation], left rotation increments as in ``refine_pose``'s parameterisation."""
+    robot = flange2base if setup == "eye_in_hand" else invert(flange2base)
+    n = len(robot)
+    R_A, R_B, t_B = robot[:, :3, :3], target2cam[:, :3, :3], target2cam[:, :3, 3]
+    R_X, R_Z = X[:3, :3], Z[:3, :3]
+    Zi = robot @ X @ target2cam
+    D_R = R_Z.T @ Zi[:, :3, :3]
+    Jinv = _right_jacobian_inv(r[:, :3])
+    J = np.zeros((n, 6, 12))
+    J[:, :3, 0:3] = Jinv @ np.swapaxes(R_X @ R_B, 1, 2)
+    J[:, :3, 6:9] = -Jinv @ np.swapaxes(D_R, 1, 2) @ R_Z.T
+    RzA = R_Z.T @ R_A
+    J[:, 3:, 0:3] = -RzA @ skew(t_B @ R_X.T)
+    J[:, 3:, 3:6] = RzA
+    J[:, 3:, 6:9] = R_Z.T @ skew(Zi[:, :3, 3] - Z[:3, 3])
+    J[:, 3:, 9:12] = -R_Z.T
+    return J
+
+
+def _noise_shapes(target2flange):
+    """Per pose, the residual covariance of unit robot rotation noise, unit camera rotation noise and
+    unit translation noise (3 x (N, 6, 6)).
+
+    Robot noise perturbs the flange pose about the flange origin, camera noise the target pose
+    about the target origin (``T -> T exp(xi)``). In the target frame the camera's enters as is, the
+    robot's through the adjoint of ``flange2target``: a flange rotation also moves the target by the
+    lever arm between the two origins.
+    """
+    n = len(target2flange)
+    R = np.swapaxes(target2flange[:, :3, :3], 1, 2)  # flange2target rotation
+    p = -R @ target2flange[:, :3, 3, None]  # flange2target translation
+    ad_rot = np.concatenate([R, skew(p[..., 0]) @ R], axis=1)  # (N, 6, 3): adjoint's rotation columns
+    robot = ad_rot @ np.swapaxes(ad_rot, 1, 2)
+    cam = np.zeros((n, 6, 6))
+    cam[:, [0, 1, 2], [0, 1, 2]] = 1.0
+    tra = np.zeros((n, 6, 6))
+    tra[:, [3, 4, 5], [3, 4, 5]] = 1.0
+    return robot, cam, tra
+
+
+def _fit_variances(r, shapes, theta0):
+    """Maximum-likelihood variances ``theta`` of ``r_i ~ N(0, sum_k theta_k shapes_k[i])``."""
+    from scipy.optimize import minimize
+
+    shapes = np.stack(shapes)  # (3, N, 6, 6)
+
+    def nll(log_t):
+        # -2 log-likelihood and its gradient over log theta
+        t = np.exp(log_t)
+        C = np.einsum("k,knij->nij", t, shapes)
+        Ci = np.linalg.inv(C)
+        u = np.einsum("nij,nj->ni", Ci, r)
+        value = float(np.sum(np.linalg.slogdet(C)[1]) + np.einsum("ni,ni->", r, u))
+        grad = t * (np.einsum("nij,knji->k", Ci, shapes) - np.einsum("ni,knij,nj->k", u, shapes, u))
+        return value, grad
+
+    # a variance the data do not support runs to the floor (1e-12 rad or m standard deviation)
+    lo, hi = np.log(VARIANCE_FLOOR), 0.0
+    res = minimize(nll, np.clip(np.log(theta0), lo, hi), jac=True, method="L-BFGS-B", bounds=[(lo, hi)] * len(theta0))
+    return np.exp(res.x)
+
+
+#: Smallest noise variance the pose refinement estimates (rad^2 or m^2): noise-free data stay exact.
+VARIANCE_FLOOR = 1e-24
+
+
+def refine_pose(
+    X0: NDArray[np.float64],
+    Z0: NDArray[np.float64],
+    flange2base: NDArray[np.float64],
+    target2cam: NDArray[np.float64],
+    setup: str,
+    weighting: str = "noise_model",
+    max_rounds: int = 20,
+) -> PoseRefinementResult:
+    """Refine X and Z on the poses: the optimal correction of Strobl and Hirzinger (seed §2.2.4).
+
+    Every pose i says where the target is, ``Z_i`` (target2base for eye-in-hand, target2flange for
+    eye-to-hand, through X); the residual is ``Z^-1 Z_i`` as a rotation vector (its norm is
+    Strobl-Hirzinger's rotation metric, the frame-invariant angle) and a translation, in the target
+    frame. Poses, not motions, carry the residuals: each measurement enters once, so residuals are
+    independent and the covariance is honest (all-pairs motions reuse every pose N-1 times).
+
+    Parameters
+    ----------
+    X0, Z0 : (4, 4)
+        Start, e.g. a closed-form solution and the mean of the ``Z_i``.
+    flange2base, target2cam : (N, 4, 4)
+    setup : {'eye_in_hand', 'eye_to_hand'}
+    weighting : {'noise_model', 'strobl'}
+        'noise_model' (default): the residual of pose i has the covariance
+        ``s_rr M_i + s_rc P_rot + s_t P_tra``, with robot rotation noise (``M_i``: through the lever
+        arm between flange and target, which differs from pose to pose), camera rotation noise and
+        translation noise; the three variances are estimated by maximum likelihood from the
+        residuals, the fit is repeated with the new weights, and so on until they are stable (the
+        "automatic weighting" of §2.2.4, extended to the lever arm, which couples rotation and
+        translation errors). 'strobl': Strobl-Hirzinger's metric as written: the rotation vector
+        over sigma_rot and the translation error in both the target and the base (or flange)
+        frame over sqrt(2) sigma_tra, with sigma_rot and sigma_tra re-estimated from the residuals
+        until stable; its covariance is the sandwich estimate (the two translation errors are not
+        independent).
+    max_rounds : int
+        Most weight re-estimation rounds.
+
+    Returns
+    -------
+    PoseRefinementResult
+        ``cov_X`` is scaled by the residual variance factor (chi-square over degrees of freedom).
+    """
+    check_setup(setup)
+    if weighting not in ("noise_model", "strobl"):
+        raise ValueError(f"weighting={weighting!r}; use 'noise_model' or 'strobl'")
+    flange2base = np.asarray(flange2base, dtype=float)
+    target2cam = np.asarray(target2cam, dtype=float)
+    n = len(flange2base)
+    if n < 3:
+        raise ValueError(f"pose refinement needs at least 3 poses, got {n}")
+    R_X0, R_Z0 = X0[:3, :3], Z0[:3, :3]
+
+    def unpack(x):
+        X = make_transform(Rotation.from_rotvec(x[:3]).as_matrix() @ R_X0, X0[:3, 3] + x[3:6])
+        Z = make_transform(Rotation.from_rotvec(x[6:9]).as_matrix() @ R_Z0, Z0[:3, 3] + x[9:12])
+        return X, Z
+
+    def raw(x):
+        X, Z = unpack(x)
+        r, _, Zi = _pose_residuals(X, Z, flange2base, target2cam, setup)
+        if weighting == "strobl":
+            # translation error also in the base (flange) frame: Z_i Z^-1
+            t_outer = (Zi @ invert(Z))[:, :3, 3]
+            return np.concatenate([r, t_outer], axis=1)
+        return r
+
+    x = np.zeros(12)
+    r, target2flange, _ = _pose_residuals(X0, Z0, flange2base, target2cam, setup)
+    dof = 6 * n - 12
+    if weighting == "noise_model":
+        shapes = _noise_shapes(target2flange)
+        s_rot, s_tra = float(np.mean(r[:, :3] ** 2)), float(np.mean(r[:, 3:] ** 2))
+        theta = np.maximum([0.5 * s_rot, 0.5 * s_rot, s_tra], VARIANCE_FLOOR)
+    else:
+        theta = np.maximum([np.mean(r[:, :3] ** 2), np.mean(r[:, 3:] ** 2)], VARIANCE_FLOOR)
+
+    def weights(theta, shapes=None):
+        if weighting == "strobl":
+            w = np.r_[np.full(3, 1 / np.sqrt(theta[0])), np.full(6, 1 / np.sqrt(2 * theta[1]))]
+            return np.broadcast_to(np.diag(w), (n, 9, 9))
+        C = np.einsum("k,knij->nij", theta, np.stack(shapes))
+        return np.linalg.inv(np.linalg.cholesky(C))  # whitening: L^-1 r has unit covariance
+
+    def weighted_jac(x, W):
+        if weighting == "strobl":  # central differences, 12 columns
+            h = 1e-6
+            cols = [np.einsum("nij,nj->ni", W, raw(x + h * e) - raw(x - h * e)).ravel() / (2 * h) for e in np.eye(12)]
+            return np.stack(cols, axis=1)
+        X, Z = unpack(x)
+        r, _, _ = _pose_residuals(X, Z, flange2base, target2cam, setup)
+        J = _pose_jacobian(X, Z, flange2base, target2cam, setup, r)
+        J[..., 0:3] = J[..., 0:3] @ _left_jacobian(x[0:3])  # the parameters are rotation vectors
+        J[..., 6:9] = J[..., 6:9] @ _left_jacobian(x[6:9])
+        return (W @ J).reshape(-1, 12)
+
+    converged, res = False, None
+    for rounds in range(1, max_rounds + 1):
+        W = weights(theta, shapes if weighting == "noise_model" else None)
+        res = least_squares(lambda x, W=W: np.einsum("nij,nj->ni", W, raw(x)).ravel(), x,
+                            jac=lambda x, W=W: weighted_jac(x, W), method="trf",
+                            x_scale=np.full(12, 1e-3), xtol=1e-10, ftol=1e-10, gtol=1e-10)
+        x = res.x
+        X, Z = unpack(x)
+        r, target2flange, _ = _pose_residuals(X, Z, flange2base, target2cam, setup)
+        if weighting == "noise_model":
+            shapes = _noise_shapes(target2flange)
+            new = _fit_variances(r, shapes, theta)
+        else:
+            rr = raw(x)
+            new = np.maximum([np.mean(rr[:, :3] ** 2), np.mean(rr[:, 3:] ** 2)], VARIANCE_FLOOR)
+        converged = bool(np.all(np.abs(np.log(new / theta)) < 1e-3))
+        theta = new
+        if converged:
+            break
+    W = weights(theta, shapes if weighting == "noise_model" else None)
+    f = np.einsum("nij,nj->ni", W, raw(x))
+    J = weighted_jac(x, W)
+    JtJ_inv = np.linalg.inv(J.T @ J)
+    if weighting == "noise_model":
+        # the variances are maximum-likelihood (low by the 12 fitted unknowns): chi-square over the
+        # degrees of freedom restores the scale of both the covariance and the reported noise
+        factor = float(np.sum(f**2)) / max(dof, 1)
+        cov = factor * JtJ_inv
+        theta = theta * factor
+        noise = {"robot_rotation": theta[0], "camera_rotation": theta[1], "translation": theta[2]}
+    else:
+        # sandwich: per-pose blocks of the (correlated) residuals, small-sample corrected
+        g = np.einsum("nki,nk->ni", J.reshape(n, -1, 12), f.reshape(n, -1))
+        cov = JtJ_inv @ (g.T @ g) @ JtJ_inv * (6 * n / max(dof, 1))
+        noise = {"rotation": theta[0], "translation": theta[1]}
+    X, Z = unpack(x)
+    return PoseRefinementResult(
+        X=X, Z=Z, cov_X=cov[:6, :6], cov_Z=cov[6:, 6:], noise={k: float(np.sqrt(v)) for k, v in noise.items()},
+        residuals=r, rounds=rounds, converged=converged, weighting=weighting,
+        success=bool(res.success), message=str(res.message),
     )
