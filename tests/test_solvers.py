@@ -42,7 +42,7 @@ def test_registry_lists_every_solver():
 @pytest.mark.parametrize("n_poses", [3, 8, 40])
 def test_noise_free_exact(method, setup, n_poses):
     s = random_scene(n_poses, setup, rng=hash((method, setup, n_poses)) % 2**32)
-    cal = handeye.calibrate_poses(s.flange2base, s.target2cam, setup=setup, method=method, refine="none")
+    cal = handeye.calibrate_poses(s.flange2base, s.target2cam, setup=setup, method=method, refine="none", check=False)
     assert rotation_error(cal.X, s.X) < 1e-9 and translation_error(cal.X, s.X) < 1e-9
     assert rotation_error(cal.Z, s.Z) < 1e-9 and translation_error(cal.Z, s.Z) < 1e-9
 
@@ -165,7 +165,7 @@ def test_against_opencv_on_noisy_scenes(method, noisy_scenes):
     """
     rows = []
     for s, f, t, near_180 in noisy_scenes:
-        X = handeye.calibrate_poses(f, t, method=method, refine="none").X
+        X = handeye.calibrate_poses(f, t, method=method, refine="none", check=False).X
         X_cv = opencv_solve(method, f, t)
         diff = max(rotation_error(X, X_cv), translation_error(X, X_cv))
         rows.append((diff < 1e-6, near_180, rotation_error(X, s.X), translation_error(X, s.X),
@@ -235,7 +235,7 @@ def test_opencv_regression_scenario(method):
         t2c = invert(X) @ invert(g2b) @ target2base
         t2c = np.array([_rotvec_noise(T, 0.002, 0.005, rng) for T in t2c])
         g2b = np.array([_rotvec_noise(T, 0.001, 0.001, rng) for T in g2b])
-        cal = handeye.calibrate_poses(g2b, t2c, method=method, refine="none")
+        cal = handeye.calibrate_poses(g2b, t2c, method=method, refine="none", check=False)
         worst = [max(worst[0], rotation_error(cal.X, X)), max(worst[1], translation_error(cal.X, X))]
     print(f"{method}: worst rotation error {worst[0]:.4f} rad, translation {worst[1]:.4f} m")
     assert worst[0] < rot_tol and worst[1] < 0.05

@@ -31,7 +31,7 @@ def _monte_carlo(runs: int, sigma_px: float, setup: str, seed: int):
             det = Detection(np.arange(len(obj)), px, obj)
             dets.append(det)
             poses.append(solve_pnp(det, K, dist)[0])
-        cal = handeye.calibrate_poses(scene.flange2base, np.array(poses), setup=setup, refine="none")
+        cal = handeye.calibrate_poses(scene.flange2base, np.array(poses), setup=setup, refine="none", check=False)
         ref = refine_reprojection(cal.X, cal.Z, scene.flange2base, [d.object_points for d in dets],
                                   [d.image_points for d in dets], K, dist, setup)
         # errors in the covariance's own parameterisation: left rotation increment, translation
@@ -97,7 +97,7 @@ def test_refinement_gain_and_robust_loss():
             bad.append(q)
         for pts, out in ((good, clean), (bad, outl)):
             poses = np.array([solve_pnp(Detection(np.arange(len(obj)), p, obj), K, dist)[0] for p in pts])
-            cal = handeye.calibrate_poses(sc.flange2base, poses, refine="none")
+            cal = handeye.calibrate_poses(sc.flange2base, poses, refine="none", check=False)  # closed-form start only
             if pts is good:
                 closed.append(cal.X[:3, 3] - sc.X[:3, 3])
             ref = refine_reprojection(cal.X, cal.Z, sc.flange2base, [obj] * len(pts), pts, K, dist, "eye_in_hand",
@@ -132,7 +132,7 @@ def pose_monte_carlo(request):
         f = perturb_poses(s.flange2base, np.radians(POSE_NOISE["robot_deg"]), 1e-3 * POSE_NOISE["robot_mm"], rng)
         t = perturb_poses(s.target2cam, np.radians(POSE_NOISE["cam_deg"]), 1e-3 * POSE_NOISE["cam_mm"], rng)
         for m in CLOSED_FORMS:
-            c = handeye.calibrate_poses(f, t, setup=setup, method=m, refine="none")
+            c = handeye.calibrate_poses(f, t, setup=setup, method=m, refine="none", check=False)
             closed[m].append((rotation_error(c.X, s.X), translation_error(c.X, s.X)))
         cal = handeye.calibrate_poses(f, t, setup=setup)  # default: refine="auto" = pose
         assert cal.refinement == "pose"

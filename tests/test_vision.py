@@ -219,7 +219,10 @@ def test_industrial_calibration_charuco_eye_to_hand(tmp_path):
     folder = _write_session(tmp_path / "s", "eye_to_hand", target, K, [0.0] * 5, names, images, np.array(f2b))
     cal = handeye.calibrate(folder, progress=False)
     print(f"industrial ChArUco: {len(cal.image_names)} images used, skipped {cal.skipped}")
-    assert len(cal.image_names) >= 14
+    # all 16 detected; the check leaves out the poses that disagree grossly with the rest (4 of 16
+    # measured: 1.2-3.5 deg / 9-47 mm against a median of ~0.9 deg / 5 mm), each listed with its reason
+    assert len(cal.image_names) + len(cal.skipped) == 16 and len(cal.image_names) >= 12
+    assert all(reason.startswith("outlier") for _, reason in cal.skipped)
     ours = _check_pose_refinement_on_real(cal, "industrial ChArUco")
     park, park_median = _opencv_park_spread(cal)
     print(f"OpenCV PARK spread RMS (median) {park:.3f} ({park_median:.3f}) mm")

@@ -2,19 +2,23 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from .errors import InputMismatchError
+from .errors import DegenerateMotionError, InputMismatchError
 from .geometry.se3 import invert, make_transform, skew
 from .metrics import rotation_error, translation_error
 from .motions import MotionSet, Pairs, check_setup, screw_congruence, validate_poses
 from . import solvers
+
+if TYPE_CHECKING:
+    from .diagnostics import Diagnostics, RobotPoseInput
 
 __all__ = ["Calibration", "calibrate", "calibrate_poses"]
 
@@ -67,6 +71,9 @@ class Calibration:
     refined_rms: float | None = None  #: RMS reprojection error (px) of all points after refinement
     #: pose refinement's noise estimates: robot rotation (deg), camera rotation (deg), translation (mm)
     pose_noise: dict[str, float] | None = None
+    diagnostics: "Diagnostics | None" = field(default=None, repr=False)  #: from handeye.diagnose (check=True)
+    #: indices (into the poses given) of the poses used: outliers are left out
+    pose_indices: NDArray[np.intp] | None = field(default=None, repr=False)
     notes: list[str] = field(default_factory=list)
 
     @cached_property
@@ -159,6 +166,8 @@ def calibrate_poses(
     method: str = "daniilidis",
     refine: str = "auto",
     pairs: Pairs = "all",
+    check: bool = True,
+    robot_input: "RobotPoseInput | None" = None,
 ) -> Calibration:
     """Hand-eye calibration from robot poses and camera-to-target poses.
 
@@ -179,16 +188,52 @@ def calibrate_poses(
         ``cov``, ``std`` and ``pose_noise``. 'none': the closed form as is (no uncertainty).
     pairs : {'all', 'consecutive'} or (K, 2) array
         Which pose pairs form the motions.
+    check : bool
+        Run :func:`handeye.diagnose` first (default): degenerate motions and inconsistent data
+        (with the convention that fixes them, when one does) raise an error; outlier poses are
+        left out, with a note; weak data get the advice as notes. ``check=False`` calibrates the
+        poses as they are.
+    robot_input : RobotPoseInput, optional
+        The robot poses as written, so that the check can try other Euler sequences, quaternion
+        orders and units (sessions pass it).
 
     Returns
     -------
     Calibration
+        With ``diagnostics`` (when checked) and ``pose_indices``, the input poses used.
+
+    Raises
+    ------
+    DegenerateMotionError
+        The motions cannot determine X (advice in the message).
+    InputMismatchError
+        The poses do not agree on one X; the message names the likely mistake.
     """
     check_setup(setup)
     if refine not in ("auto", "pose", "none"):
         hint = " (pixel refinement needs the detections: use handeye.calibrate on a session)" if refine == "reprojection" else ""
         raise InputMismatchError(f"refine={refine!r}; use 'auto', 'pose' or 'none'{hint}")
     flange2base, target2cam = validate_poses(flange2base, target2cam)
+    n_input = len(flange2base)
+    keep = np.arange(n_input)
+    diag, notes = None, []
+    if check:
+        from .diagnostics import diagnose
+
+        diag = diagnose(flange2base, target2cam, setup, robot_input=robot_input)
+        if diag.verdict == "degenerate":
+            raise DegenerateMotionError(" ".join(diag.advice))
+        if diag.verdict == "inconsistent":
+            raise InputMismatchError(f"{diag.advice[0]} (check=False calibrates the poses as given)")
+        if diag.outliers:
+            keep = np.setdiff1d(keep, diag.outliers)
+            flange2base, target2cam = flange2base[keep], target2cam[keep]
+            if not isinstance(pairs, str):  # explicit pairs: drop those with an outlier, renumber
+                old_to_new = np.full(n_input, -1)
+                old_to_new[keep] = np.arange(len(keep))
+                p = old_to_new[np.asarray(pairs)]
+                pairs = p[(p >= 0).all(axis=1)]
+        notes.extend(diag.advice)
     motions = MotionSet.from_poses(flange2base, target2cam, setup, pairs)
     if solvers.get(method).kind == "robot_world":
         X, Z = solvers.solve_robot_world(*robot_world_inputs(flange2base, target2cam, setup), method=method)
@@ -204,6 +249,9 @@ def calibrate_poses(
         target2cam=target2cam,
         pairs=motions.pairs,
         _motions=motions,
+        diagnostics=diag,
+        pose_indices=keep,
+        notes=notes,
     )
     if refine != "none":
         apply_pose_refinement(cal)
@@ -251,6 +299,7 @@ def calibrate(
     jobs: int | None = None,
     progress: bool = True,
     pairs: Pairs = "all",
+    check: bool = True,
 ) -> Calibration:
     """Hand-eye calibration from a capture session folder (images + robot poses, DESIGN §4).
 
@@ -260,8 +309,8 @@ def calibrate(
     Parameters
     ----------
     session_dir : path
-    method, pairs
-        As :func:`calibrate_poses`.
+    method, pairs, check
+        As :func:`calibrate_poses` (outlier poses' images are listed in ``skipped``).
     refine : {'auto', 'reprojection', 'pose', 'none'}
         'reprojection': X and Z (and the intrinsics, when estimated) refined jointly on the pixel
         errors of every target point (:func:`handeye.solvers.refine.refine_reprojection`), starting
@@ -333,12 +382,18 @@ def calibrate(
     flange2base = session.flange2base[used_arr]
     symmetries = target.symmetries()
     target2cam, choice = resolve_symmetries(np.array(poses), flange2base, session.setup, symmetries)
-    cal = calibrate_poses(flange2base, target2cam, setup=session.setup, method=method, pairs=pairs, refine="none")
-    if refine == "pose":
-        apply_pose_refinement(cal)
+    robot_input = session.robot_input
+    if robot_input is not None:
+        robot_input = replace(robot_input, values=robot_input.values[used_arr])
+    cal = calibrate_poses(flange2base, target2cam, setup=session.setup, method=method, pairs=pairs, refine="none",
+                          check=check, robot_input=robot_input)
+    pose_outliers = sorted(set(range(len(used))) - set(cal.pose_indices.tolist()))
+    pixels_decide = False
     if refine in ("auto", "reprojection"):
         from .solvers.refine import refine_reprojection
 
+        # all images, pose-level outliers included: a pose can be off because its PnP is weak (a
+        # far or fronto-parallel view) while its pixels fit; the robust pixel fit judges them
         obj, img = [], []
         for k, c in zip(used, choice):
             det = results[k].detection
@@ -349,17 +404,24 @@ def calibrate(
                                   refine_intrinsics=(source == "estimated"), robust=True)
         # The refinement trusts the robot poses. If even the best X, Z leave the pixels far worse
         # fitted than a free pose per image does, robot errors dominate and pixel refinement would
-        # trade them for a biased X: keep the closed form ('auto') and say so.
+        # trade them for a biased X: refine on the poses instead ('auto') and say so.
         limit = max(REFINE_RMS_FACTOR * float(np.median(rms)), REFINE_RMS_FLOOR)
+        pixels_decide = refine == "reprojection" or ref.rms_px <= limit
         if ref.rms_px > limit:
             notes.append(
                 f"the robot poses and the images disagree: with the robot poses taken as exact the best fit "
                 f"leaves {ref.rms_px:.2f} px RMS, while each image alone fits to {np.median(rms):.2f} px; the robot "
                 f"pose errors dominate" + ("; refined on the poses instead of the pixels" if refine == "auto" else "")
             )
-            if refine == "auto":
-                apply_pose_refinement(cal)
-        if refine == "reprojection" or ref.rms_px <= limit:
+        if pixels_decide:
+            if pose_outliers:  # back in: the pixel fit weighs them point by point
+                cal.notes = [n for n in cal.notes if "left out" not in n]
+                notes.append(f"image(s) {', '.join(session.image_names[used[k]] for k in pose_outliers)} looked like "
+                             f"outliers by their PnP poses but are kept: the robust pixel refinement judges their points")
+                motions = MotionSet.from_poses(flange2base, target2cam, session.setup, pairs)
+                cal.flange2base, cal.target2cam, cal.pairs, cal._motions = flange2base, target2cam, motions.pairs, motions
+                cal.pose_indices = np.arange(len(used))
+                cal.__dict__.pop("motion_residuals", None)
             cal.X, cal.Z = ref.X, ref.Z
             K, dist = ref.K, ref.dist
             cal.__dict__.pop("pose_residuals", None)  # cached for the closed-form X
@@ -372,6 +434,17 @@ def calibrate(
             cal.method = f"{method}+reprojection"
             if source == "estimated":
                 source = "estimated, refined with the robot poses"
+    if not pixels_decide:
+        if pose_outliers:  # the poses decide: outlier poses stay out, their images are listed as skipped
+            diag = cal.diagnostics
+            for k in pose_outliers:
+                r, t = diag.outlier_residuals[k]
+                skipped.append((session.image_names[used[k]], f"outlier: its robot pose and target pose disagree "
+                                f"with the others by {r:.2f} deg / {t:.1f} mm"))
+            used = [used[k] for k in cal.pose_indices]
+            rms = [rms[k] for k in cal.pose_indices]
+        if refine in ("auto", "pose"):
+            apply_pose_refinement(cal)
     cal.image_names = [session.image_names[k] for k in used]
     cal.reprojection_rms = np.array(rms)
     cal.skipped = sorted(skipped, key=lambda item: session.image_names.index(item[0]))

@@ -54,6 +54,9 @@ def print_calibration(cal: Calibration, out=None) -> None:
         nz = cal.pose_noise
         w(f"pose noise estimated from the data (per axis): robot rotation {nz['robot_rotation_deg']:.4f} deg, "
           f"camera rotation {nz['camera_rotation_deg']:.4f} deg, translation {nz['translation_mm']:.3f} mm\n")
+    if cal.diagnostics is not None:
+        w(f"check: {cal.diagnostics.verdict}"
+          + (f"; outlier poses left out: {cal.diagnostics.outliers}" if cal.diagnostics.outliers else "") + "\n")
     for note in cal.notes:
         w(f"warning: {note}\n")
 
@@ -121,6 +124,39 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+EXIT_STATUS = {"good": 0, "weak": 1, "degenerate": 2, "inconsistent": 2}
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    from .calibration import calibrate
+    from .diagnostics import diagnose
+    from .session import POSEPAIRS_FILE, load_pose_pairs
+
+    folder = _input_folder(args.folder, args.sample, SAMPLE_SESSION,
+                           "give a session or pose-pair folder, or --sample (not both)")
+    if (folder / POSEPAIRS_FILE).is_file():
+        pairs = load_pose_pairs(folder)
+        f2b, t2c, setup, robot_input, names = pairs.flange2base, pairs.target2cam, pairs.setup, pairs.robot_input, pairs.ids
+    else:
+        # detection and PnP as calibrate does them, then the checks on those poses
+        cal = calibrate(folder, refine="none", check=False, jobs=args.jobs, progress=not args.no_progress)
+        from dataclasses import replace
+
+        from .session import load_session
+
+        session = load_session(folder)
+        idx = [session.image_names.index(n) for n in cal.image_names]
+        robot_input = session.robot_input and replace(session.robot_input, values=session.robot_input.values[idx])
+        f2b, t2c, setup, names = cal.flange2base, cal.target2cam, cal.setup, cal.image_names
+        for name, reason in cal.skipped:
+            print(f"skipped {name}: {reason}")
+    diag = diagnose(f2b, t2c, setup, robot_input=robot_input)
+    print(diag.pose_table(names))
+    print()
+    print(diag.summary())
+    return EXIT_STATUS[diag.verdict]
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from .simulate import simulate_session
 
@@ -175,6 +211,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, default=None, help="parallel detection workers (default: all cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_calibrate)
+
+    p = sub.add_parser(
+        "check",
+        help="check whether the data can give a good calibration (exit 0 good, 1 weak, 2 degenerate/inconsistent)",
+        description="Observability, pose-convention mix-ups, outlier poses and leave-one-out stability of a "
+        "capture session or a pose-pair folder, with advice. Exit status: 0 good, 1 weak, 2 degenerate or "
+        "inconsistent (or bad input).",
+    )
+    p.add_argument("folder", nargs="?", help="session folder (session.yaml) or pose-pair folder (posepairs.yaml)")
+    p.add_argument("--sample", action="store_true", help="check the bundled sample session")
+    p.add_argument("--jobs", type=int, default=None, help="parallel detection workers (default: all cores)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_check)
 
     p = sub.add_parser(
         "simulate",

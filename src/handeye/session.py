@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 
 from .errors import HandEyeError, InputMismatchError, PoseFormatError
 from .motions import check_setup
+from .diagnostics import RobotPoseInput
 from .poses import parse_poses, pose_columns
 
 __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_session", "read_pose_table", "SessionError"]
@@ -59,6 +60,7 @@ class PosePairs:
     target2cam: NDArray[np.float64]
     ids: list[str]
     source: Path
+    robot_input: RobotPoseInput | None = None  #: the robot poses as written (for the convention check)
 
 
 @dataclass(frozen=True)
@@ -74,6 +76,7 @@ class Session:
     camera_matrix: NDArray[np.float64] | None  #: K, or None to estimate from the images
     dist_coeffs: NDArray[np.float64] | None
     pose_format: str
+    robot_input: RobotPoseInput | None = None  #: the robot poses as written (for the convention check)
 
 
 def _camera(spec: Any, where: str) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
@@ -123,7 +126,7 @@ def load_session(folder: str | Path) -> Session:
     fmt = str(_require(poses, "format", f"{where}: poses"))
     length_unit = str(_require(poses, "length_unit", f"{where}: poses"))
     angle_unit = str(poses.get("angle_unit", "rad"))
-    f2b, names = _read_pose_file(csv_path, fmt, length_unit, angle_unit, id_columns=("image",))
+    f2b, names, values = _read_pose_file(csv_path, fmt, length_unit, angle_unit, id_columns=("image",))
     if names is None:
         raise SessionError(f"{csv_path}: the first column must be 'image', naming each pose's image in images/")
     image_dir = folder / "images"
@@ -141,7 +144,8 @@ def load_session(folder: str | Path) -> Session:
             f"{csv_path.name} has {len(names)} poses but images/ holds {len(on_disk)} images; no pose for "
             f"{', '.join(unnamed[:10])}: add their poses or move them out of images/"
         )
-    return Session(folder, setup, dict(target_spec), f2b, list(names), paths, K, dist, fmt)
+    return Session(folder, setup, dict(target_spec), f2b, list(names), paths, K, dist, fmt,
+                   RobotPoseInput(values, fmt, length_unit, angle_unit))
 
 
 def _load_yaml(path: Path) -> dict[str, Any]:
@@ -211,16 +215,17 @@ def read_pose_table(
 
 def _read_pose_file(
     path: Path, fmt: str, length_unit: str, angle_unit: str, id_columns: tuple[str, ...] = ID_COLUMNS
-) -> tuple[NDArray[np.float64], list[str] | None]:
-    """A pose CSV read and parsed into transforms (metres); errors name the file and row."""
+) -> tuple[NDArray[np.float64], list[str] | None, NDArray[np.float64]]:
+    """A pose CSV read and parsed into transforms (metres), with its ids and raw values; errors name
+    the file and row."""
     values, ids = read_pose_table(path, fmt, id_columns=id_columns)
     try:
-        return parse_poses(values, fmt, length_unit, angle_unit, what=str(path)), ids
+        return parse_poses(values, fmt, length_unit, angle_unit, what=str(path)), ids, values
     except PoseFormatError as exc:
         raise PoseFormatError(f"{exc} (rows count from 0 after the header)") from None
 
 
-def _read_poses(folder: Path, spec: Any, key: str) -> tuple[NDArray[np.float64], list[str] | None, Path]:
+def _read_poses(folder: Path, spec: Any, key: str) -> tuple[NDArray[np.float64], list[str] | None, Path, RobotPoseInput]:
     where = f"{folder / POSEPAIRS_FILE}: {key}"
     if not isinstance(spec, dict):
         raise SessionError(f"{where}: expected a mapping with file, format, length_unit, angle_unit")
@@ -228,8 +233,8 @@ def _read_poses(folder: Path, spec: Any, key: str) -> tuple[NDArray[np.float64],
     fmt = str(_require(spec, "format", where))
     length_unit = str(_require(spec, "length_unit", where))
     angle_unit = str(spec.get("angle_unit", "rad"))
-    T, ids = _read_pose_file(path, fmt, length_unit, angle_unit)
-    return T, ids, path
+    T, ids, values = _read_pose_file(path, fmt, length_unit, angle_unit)
+    return T, ids, path, RobotPoseInput(values, fmt, length_unit, angle_unit)
 
 
 def load_pose_pairs(folder: str | Path) -> PosePairs:
@@ -250,8 +255,8 @@ def load_pose_pairs(folder: str | Path) -> PosePairs:
     spec = _load_yaml(folder / POSEPAIRS_FILE)
     where = str(folder / POSEPAIRS_FILE)
     setup = check_setup(str(_require(spec, "setup", where)))
-    f2b, robot_ids, robot_path = _read_poses(folder, _require(spec, "robot_poses", where), "robot_poses")
-    t2c, cam_ids, cam_path = _read_poses(folder, _require(spec, "camera_poses", where), "camera_poses")
+    f2b, robot_ids, robot_path, robot_input = _read_poses(folder, _require(spec, "robot_poses", where), "robot_poses")
+    t2c, cam_ids, cam_path, _ = _read_poses(folder, _require(spec, "camera_poses", where), "camera_poses")
     if robot_ids is not None and cam_ids is not None:
         missing = sorted(set(robot_ids) ^ set(cam_ids))
         if missing:
@@ -269,4 +274,4 @@ def load_pose_pairs(folder: str | Path) -> PosePairs:
                 f"(or add an 'id' column to both)"
             )
         ids = robot_ids or cam_ids or [str(k) for k in range(len(f2b))]
-    return PosePairs(setup, f2b, t2c, ids, folder)
+    return PosePairs(setup, f2b, t2c, ids, folder, robot_input)

@@ -30,7 +30,8 @@ from ..geometry.se3 import invert, make_transform, skew
 from ..motions import check_setup
 from ..vision.pnp import project_points
 
-__all__ = ["PoseRefinementResult", "ReprojectionResult", "refine_pose", "refine_reprojection", "predicted_target2cam"]
+__all__ = ["PoseRefinementResult", "ReprojectionResult", "pose_mahalanobis", "refine_pose", "refine_reprojection",
+           "predicted_target2cam"]
 
 
 @dataclass(frozen=True)
@@ -177,6 +178,7 @@ class PoseRefinementResult:
     Z: NDArray[np.float64]
     cov_X: NDArray[np.float64]  #: 6x6 over [rotation vector (rad), translation (m)] of X
     cov_Z: NDArray[np.float64]  #: the same for Z
+    cov: NDArray[np.float64]  #: 12x12 over [X rotation, X translation, Z rotation, Z translation]
     #: estimated noise standard deviations per axis (rad, m): 'robot_rotation', 'camera_rotation',
     #: 'translation' (robot and camera together) for the noise model; 'rotation', 'translation' for 'strobl'
     noise: dict[str, float]
@@ -418,7 +420,38 @@ def refine_pose(
         noise = {"rotation": theta[0], "translation": theta[1]}
     X, Z = unpack(x)
     return PoseRefinementResult(
-        X=X, Z=Z, cov_X=cov[:6, :6], cov_Z=cov[6:, 6:], noise={k: float(np.sqrt(v)) for k, v in noise.items()},
+        X=X, Z=Z, cov_X=cov[:6, :6], cov_Z=cov[6:, 6:], cov=cov, noise={k: float(np.sqrt(v)) for k, v in noise.items()},
         residuals=r, rounds=rounds, converged=converged, weighting=weighting,
         success=bool(res.success), message=str(res.message),
     )
+
+
+def pose_mahalanobis(
+    result: PoseRefinementResult,
+    flange2base: NDArray[np.float64],
+    target2cam: NDArray[np.float64],
+    setup: str,
+    fitted: NDArray[np.bool_] | None = None,
+) -> NDArray[np.float64]:
+    """Squared Mahalanobis distance of every pose's residual under a noise-model refinement.
+
+    The residual covariance is the noise model's ``C_i`` corrected for the fit: ``C_i - J_i S J_i^T``
+    for the poses the refinement used (``fitted``; they pulled X and Z towards themselves) and
+    ``C_i + J_i S J_i^T`` for the others (X and Z are uncertain too), with ``S`` the covariance of
+    X and Z. Divided by 6, poses that fit the model follow roughly an F(6, 6 n - 12) distribution.
+    """
+    if result.weighting != "noise_model":
+        raise ValueError("pose_mahalanobis needs a 'noise_model' refinement")
+    flange2base = np.asarray(flange2base, float)
+    target2cam = np.asarray(target2cam, float)
+    r, target2flange, _ = _pose_residuals(result.X, result.Z, flange2base, target2cam, setup)
+    nz = result.noise
+    theta = np.maximum([nz["robot_rotation"] ** 2, nz["camera_rotation"] ** 2, nz["translation"] ** 2], VARIANCE_FLOOR)
+    C = np.einsum("k,knij->nij", theta, np.stack(_noise_shapes(target2flange)))
+    J = _pose_jacobian(result.X, result.Z, flange2base, target2cam, setup, r)
+    P = J @ result.cov @ np.swapaxes(J, 1, 2)
+    sign = np.ones(len(r)) if fitted is None else np.where(fitted, -1.0, 1.0)
+    V = C + sign[:, None, None] * P
+    # a pose with (nearly) full leverage has no residual left to judge: keep a floor of C / 10
+    V = np.where(np.linalg.eigvalsh(V)[:, :1, None] > 0, V, 0.1 * C)
+    return np.einsum("ni,ni->n", r, np.linalg.solve(V, r[..., None])[..., 0])
