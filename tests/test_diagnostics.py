@@ -157,3 +157,28 @@ def test_small_rotations_are_weak_with_advice():
         d = diagnose(f, t, leave_one_out=False)
         assert d.verdict == "weak", d.summary()
         assert any("less than 5 deg" in a for a in d.advice)
+
+
+def test_public_name_and_check_command(tmp_path, capsys):
+    """``handeye.diagnose`` (DESIGN §6) and ``handeye check``: exit 0 on the bundled example, 2 with
+    the Euler sequence declared wrong (the right one named), and calibrate-poses refuses it."""
+    import shutil
+    from pathlib import Path
+
+    from handeye.cli import main
+
+    assert handeye.diagnose is diagnose
+    example = Path(handeye.__file__).parent / "data" / "example_posepairs"
+    assert main(["check", str(example)]) == 0
+    out = capsys.readouterr().out
+    assert "verdict: good" in out and "resid deg" in out
+    folder = tmp_path / "pairs"
+    shutil.copytree(example, folder)
+    spec = (folder / "posepairs.yaml").read_text().replace("format: euler:ZYX", "format: euler:XYZ")
+    (folder / "posepairs.yaml").write_text(spec)
+    assert main(["check", str(folder)]) == 2
+    out = capsys.readouterr().out
+    assert "verdict: inconsistent" in out and "convention hint: euler:ZYX" in out
+    assert main(["calibrate-poses", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert "Euler sequence ZYX" in err and len(err.strip().splitlines()) == 1

@@ -14,6 +14,7 @@ from importlib.metadata import PackageNotFoundError, version
 
 from . import metrics, simulate, solvers
 from .calibration import Calibration, calibrate, calibrate_poses
+from .diagnostics import Diagnostics, RobotPoseInput, diagnose
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError, PoseFormatError
 from .geometry.dualquat import DualQuaternion
 from .motions import relative_motions
@@ -28,12 +29,15 @@ except PackageNotFoundError:  # running from a source tree
 __all__ = [
     "Calibration",
     "DegenerateMotionError",
+    "Diagnostics",
     "DualQuaternion",
     "HandEyeError",
     "InputMismatchError",
     "PoseFormatError",
+    "RobotPoseInput",
     "calibrate",
     "calibrate_poses",
+    "diagnose",
     "format_poses",
     "metrics",
     "parse_poses",

@@ -89,7 +89,7 @@ def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
                            "give a pose-pair folder, or --example for the bundled one (not both)")
     pairs = load_pose_pairs(folder)
     cal = calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, method=args.method, pairs=args.pairs,
-                          refine=args.refine)
+                          refine=args.refine, robot_input=pairs.robot_input)
     print_calibration(cal)
     _write_outputs(cal, args.out, folder)
     return 0
