@@ -63,6 +63,8 @@ def test_console_script_runs_as_subprocess(tmp_path):
     assert np.allclose(X[:3, 3], data["X"]["translation_m"]) and data["X_name"] == "cam2flange"
     assert data["refinement"]["type"] == "pose" and set(data["refinement"]["pose_noise"]) == {
         "robot_rotation_deg", "camera_rotation_deg", "translation_mm"}
+    assert data["check"]["verdict"] == "good" and data["check"]["outliers"] == []
+    assert data["check"]["pose_indices_used"] == list(range(data["n_poses"]))
     cov = np.array(data["uncertainty"]["cov"])
     assert cov.shape == (6, 6) and np.allclose(data["uncertainty"]["std_translation_mm"], 1e3 * np.sqrt(np.diag(cov)[3:]))
 

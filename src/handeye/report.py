@@ -87,6 +87,15 @@ def result_dict(cal: Calibration) -> dict[str, Any]:
             "cov": cal.cov.tolist(),
             "cov_parameters": "X: rotation vector increment (rad, left), translation (m)",
         }
+    if cal.diagnostics is not None:
+        d = cal.diagnostics
+        out["check"] = {
+            "verdict": d.verdict,
+            "outliers": list(d.outliers),
+            "pose_indices_used": [int(i) for i in cal.pose_indices],
+            "consistency": float(d.consistency),
+            "advice": list(d.advice),
+        }
     out["notes"] = list(cal.notes)
     return out
 
