@@ -173,6 +173,11 @@ def _add_solver_and_out(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", help="write result.json and result.yaml into this folder")
 
 
+def _add_detection_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--jobs", type=int, default=None, help="parallel detection workers (default: all cores)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="handeye",
@@ -208,8 +213,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--refine", default="auto", choices=["auto", "reprojection", "pose", "none"],
                    help="auto (default): on the pixels of all target points, or on the poses when the robot "
                    "poses disagree with the images")
-    p.add_argument("--jobs", type=int, default=None, help="parallel detection workers (default: all cores)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_detection_options(p)
     p.set_defaults(func=_cmd_calibrate)
 
     p = sub.add_parser(
@@ -221,8 +225,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("folder", nargs="?", help="session folder (session.yaml) or pose-pair folder (posepairs.yaml)")
     p.add_argument("--sample", action="store_true", help="check the bundled sample session")
-    p.add_argument("--jobs", type=int, default=None, help="parallel detection workers (default: all cores)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_detection_options(p)
     p.set_defaults(func=_cmd_check)
 
     p = sub.add_parser(

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.stats import f as f_dist
 
+from .calibration import constant_transforms, mean_transform
 from .errors import DegenerateMotionError, HandEyeError
 from .geometry.se3 import invert
 from .metrics import rotation_error, translation_error
@@ -143,19 +144,11 @@ class Diagnostics:
         return "\n".join(lines)
 
 
-def _constant_transforms(X, flange2base, target2cam, setup):
-    robot = flange2base if setup == "eye_in_hand" else invert(flange2base)
-    return robot @ X @ target2cam
-
-
-def _solve(flange2base, target2cam, setup, check: bool = True) -> NDArray[np.float64]:
+def _solve(flange2base, target2cam, setup) -> NDArray[np.float64]:
+    """Daniilidis on all pose pairs (raises DegenerateMotionError when X is undetermined)."""
     from . import solvers
-    from .solvers._checks import check_observability
 
-    motions = MotionSet.from_poses(flange2base, target2cam, setup, "all")
-    if check:
-        check_observability(motions)
-    return solvers.get("daniilidis").func(motions)
+    return solvers.solve_motions(MotionSet.from_poses(flange2base, target2cam, setup, "all"), "daniilidis")
 
 
 def _motion_scale(target2cam: NDArray[np.float64]) -> float:
@@ -170,9 +163,7 @@ def consistency_score(flange2base, target2cam, setup: str) -> float:
         X = _solve(flange2base, target2cam, setup)
     except (HandEyeError, np.linalg.LinAlgError, ValueError):
         return float("inf")
-    Zi = _constant_transforms(X, flange2base, target2cam, setup)
-    from .calibration import mean_transform
-
+    Zi = constant_transforms(X, flange2base, target2cam, setup)
     try:
         Z = mean_transform(Zi)
     except ValueError:
@@ -221,14 +212,13 @@ def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None):
 
 def _refit_test(flange2base, target2cam, setup, inliers):
     """Pose refinement on ``inliers``; per pose its studentized distance test and residuals."""
-    from .calibration import mean_transform
     from .solvers.refine import pose_mahalanobis, refine_pose
 
     X = _solve(flange2base[inliers], target2cam[inliers], setup)
-    Z = mean_transform(_constant_transforms(X, flange2base[inliers], target2cam[inliers], setup))
+    Z = mean_transform(constant_transforms(X, flange2base[inliers], target2cam[inliers], setup))
     ref = refine_pose(X, Z, flange2base[inliers], target2cam[inliers], setup)
     d2 = pose_mahalanobis(ref, flange2base, target2cam, setup, fitted=inliers)
-    Zi = _constant_transforms(ref.X, flange2base, target2cam, setup)
+    Zi = constant_transforms(ref.X, flange2base, target2cam, setup)
     resid = np.c_[np.degrees(rotation_error(Zi, ref.Z)), 1e3 * translation_error(Zi, ref.Z)]
     # the noise was estimated from few poses: F rather than chi-square
     limit = 6.0 * f_dist.ppf(1.0 - OUTLIER_P, 6, 6 * int(inliers.sum()) - 12)
@@ -257,8 +247,6 @@ def find_outliers(
     residuals : ndarray (N, 2)
         Per pose: rotation (deg) and translation (mm) of its target pose from the consensus one.
     """
-    from .calibration import mean_transform
-
     n = len(flange2base)
     rng = np.random.default_rng(rng)
     if n < 5:  # a minimal set and too few others to vote
@@ -284,7 +272,7 @@ def find_outliers(
             X = _solve(flange2base[s], target2cam[s], setup)
         except (HandEyeError, np.linalg.LinAlgError):
             continue
-        Zi = _constant_transforms(X, flange2base, target2cam, setup)
+        Zi = constant_transforms(X, flange2base, target2cam, setup)
         Z = mean_transform(Zi[s])
         rot.append(rotation_error(Zi, Z))
         tra.append(translation_error(Zi, Z))

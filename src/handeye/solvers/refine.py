@@ -27,6 +27,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from ..geometry.se3 import invert, make_transform, skew
+from ..calibration import constant_transforms
 from ..motions import check_setup
 from ..vision.pnp import project_points
 
@@ -192,9 +193,8 @@ class PoseRefinementResult:
 
 def _pose_residuals(X, Z, flange2base, target2cam, setup):
     """Per pose ``Z^-1 Z_i`` as [rotation vector, translation] in the target frame, and ``target2flange_i``."""
-    robot = flange2base if setup == "eye_in_hand" else invert(flange2base)
-    target2flange = X @ target2cam if setup == "eye_in_hand" else robot @ X @ target2cam
-    Zi = robot @ X @ target2cam
+    Zi = constant_transforms(X, flange2base, target2cam, setup)
+    target2flange = X @ target2cam if setup == "eye_in_hand" else Zi  # eye-to-hand: Z_i is target2flange
     D = invert(Z) @ Zi
     r = np.concatenate([Rotation.from_matrix(D[:, :3, :3]).as_rotvec(), D[:, :3, 3]], axis=1)
     return r, target2flange, Zi
@@ -226,7 +226,7 @@ def _pose_jacobian(X, Z, flange2base, target2cam, setup, r):
     n = len(robot)
     R_A, R_B, t_B = robot[:, :3, :3], target2cam[:, :3, :3], target2cam[:, :3, 3]
     R_X, R_Z = X[:3, :3], Z[:3, :3]
-    Zi = robot @ X @ target2cam
+    Zi = constant_transforms(X, flange2base, target2cam, setup)
     D_R = R_Z.T @ Zi[:, :3, :3]
     Jinv = _right_jacobian_inv(r[:, :3])
     J = np.zeros((n, 6, 12))
