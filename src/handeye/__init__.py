@@ -19,7 +19,7 @@ from .errors import DegenerateMotionError, HandEyeError, InputMismatchError, Pos
 from .geometry.dualquat import DualQuaternion
 from .motions import relative_motions
 from .poses import format_poses, parse_poses
-from .solvers import solve
+from .solvers import solve, solve_batch, solve_robot_world, solve_robot_world_batch
 
 try:
     __version__ = version("handeye")
@@ -44,5 +44,8 @@ __all__ = [
     "relative_motions",
     "simulate",
     "solve",
+    "solve_batch",
+    "solve_robot_world",
+    "solve_robot_world_batch",
     "solvers",
 ]

@@ -168,6 +168,35 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_study(args: argparse.Namespace) -> int:
+    import time
+
+    from .study import preset, study, write_study
+
+    settings, figures = preset(args.preset, setup=args.setup)
+    if args.figures:
+        unknown = sorted(set(args.figures) - set(figures))
+        if unknown:
+            raise HandEyeError(f"unknown figure(s) {', '.join(unknown)} in preset {args.preset}; "
+                               f"available: {', '.join(figures)}")
+        wanted = set(args.figures)
+        # a histogram figure needs the curve figure its data come from
+        wanted |= {figures[f].source_figure for f in args.figures if figures[f].source_figure}
+        settings = [s for s in settings if s.figure in wanted]
+        figures = {k: v for k, v in figures.items() if k in wanted}
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise HandEyeError(f"--out {out} exists and is not a folder")
+    start = time.perf_counter()
+    result = study(settings, runs=args.runs, seed=args.seed, jobs=args.jobs, progress=not args.no_progress,
+                   figures=figures, preset_name=args.preset)
+    elapsed = time.perf_counter() - start
+    for path in write_study(result, out):
+        print(f"wrote {path}")
+    print(f"{len(settings)} settings x {args.runs} runs ({args.setup}, seed {args.seed}) in {elapsed:.1f} s")
+    return 0
+
+
 def _add_solver_and_out(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", default="daniilidis", choices=solvers.available(), help="solver (default: daniilidis)")
     p.add_argument("--out", help="write result.json and result.yaml into this folder")
@@ -243,6 +272,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--image-size", default="640x480", help="WIDTHxHEIGHT (default 640x480)")
     p.add_argument("--no-intrinsics", action="store_true", help="leave K and dist out of session.yaml")
     p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser(
+        "study",
+        help="the Monte-Carlo study of the thesis's chapter 5 (every solver, any noise)",
+        description="Simulate hand-eye captures with known X under a grid of noise levels and motion counts, "
+        "run every solver on the same data and write study.csv, study.md, study.json and one PNG per figure.",
+    )
+    p.add_argument("--preset", default="seed-chapter5", help="study grid (default: seed-chapter5)")
+    p.add_argument("--out", required=True, help="output folder (created; other files in it are left alone)")
+    p.add_argument("--runs", type=int, default=200, help="simulations per setting (default 200, as the thesis)")
+    p.add_argument("--seed", type=int, default=0, help="random seed: same seed, same numbers (default 0)")
+    p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
+    p.add_argument("--figures", nargs="+", metavar="ID", help="only these figures of the preset (e.g. 5.1 5.4)")
+    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_study)
     return parser
 
 

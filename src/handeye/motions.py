@@ -142,9 +142,9 @@ def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[
     some motions near 180 deg.)
     """
     # in place: both callers pass arrays they have just built
-    dq_a[dq_a[:, 0] < 0] *= -1.0
-    dq_b[dq_b[:, 0] < 0] *= -1.0
-    dq_b[dq_a[:, 0] * dq_b[:, 0] + dq_a[:, 4] * dq_b[:, 4] < 0] *= -1.0
+    dq_a[dq_a[..., 0] < 0] *= -1.0
+    dq_b[dq_b[..., 0] < 0] *= -1.0
+    dq_b[dq_a[..., 0] * dq_b[..., 0] + dq_a[..., 4] * dq_b[..., 4] < 0] *= -1.0
     return dq_a, dq_b
 
 
@@ -152,14 +152,17 @@ def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[
 class MotionSet:
     """Motions ``A_k X = X B_k`` in the forms the solvers use.
 
+    A batch of independent problems (e.g. Monte-Carlo runs) is a MotionSet whose arrays carry
+    leading axes, ``(S, K, 8)``; the vectorised solvers return one ``X`` per run.
+
     Attributes
     ----------
-    dq_a, dq_b : ndarray (K, 8)
+    dq_a, dq_b : ndarray (..., K, 8)
         Their unit dual quaternions ``[w x y z, w' x' y' z']`` with ``w >= 0`` and consistent signs
         between each ``a`` and ``b`` (see :func:`_align_signs`).
     pairs : ndarray (K, 2) or None
         The pose indices of each motion, when built from absolute poses.
-    A, B : ndarray (K, 4, 4)
+    A, B : ndarray (..., K, 4, 4)
         Robot and camera motions (properties).
     """
 
@@ -170,7 +173,17 @@ class MotionSet:
     _poses: tuple | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
-        return len(self.dq_a)
+        return self.dq_a.shape[-2]
+
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        """The leading (run) axes: ``()`` for a single problem."""
+        return self.dq_a.shape[:-2]
+
+    def run(self, index: int) -> "MotionSet":
+        """The single problem ``index`` of a batch of shape ``(S,)``."""
+        AB = None if self._AB is None else (self._AB[0][index], self._AB[1][index])
+        return MotionSet(self.dq_a[index], self.dq_b[index], self.pairs, _AB=AB)
 
     @property
     def A(self) -> NDArray[np.float64]:
@@ -184,18 +197,18 @@ class MotionSet:
 
     @cached_property
     def R_A(self) -> NDArray[np.float64]:
-        """Robot motion rotations (K, 3, 3), from the dual quaternions (no motion matrices needed)."""
-        return self._AB[0][:, :3, :3] if self._AB is not None else quat_to_matrix(self.dq_a[:, :4])
+        """Robot motion rotations (..., K, 3, 3), from the dual quaternions (no motion matrices needed)."""
+        return self._AB[0][..., :3, :3] if self._AB is not None else quat_to_matrix(self.dq_a[..., :4])
 
     @cached_property
     def t_A(self) -> NDArray[np.float64]:
-        """Robot motion translations (K, 3)."""
-        return self._AB[0][:, :3, 3] if self._AB is not None else dq_translation(self.dq_a)
+        """Robot motion translations (..., K, 3)."""
+        return self._AB[0][..., :3, 3] if self._AB is not None else dq_translation(self.dq_a)
 
     @cached_property
     def t_B(self) -> NDArray[np.float64]:
-        """Camera motion translations (K, 3)."""
-        return self._AB[1][:, :3, 3] if self._AB is not None else dq_translation(self.dq_b)
+        """Camera motion translations (..., K, 3)."""
+        return self._AB[1][..., :3, 3] if self._AB is not None else dq_translation(self.dq_b)
 
     def _matrices(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         if self._AB is None:
@@ -205,7 +218,7 @@ class MotionSet:
 
     @classmethod
     def from_matrices(cls, A: NDArray[np.float64], B: NDArray[np.float64]) -> "MotionSet":
-        """From validated motion stacks (rotations exactly orthonormal)."""
+        """From validated motion stacks ``(..., K, 4, 4)`` (rotations exactly orthonormal)."""
         dq_a, dq_b = _align_signs(dq_from_matrix(A), dq_from_matrix(B))
         return cls(dq_a, dq_b, _AB=(A, B))
 

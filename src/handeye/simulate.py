@@ -19,7 +19,8 @@ from scipy.spatial.transform import Rotation
 from .geometry.se3 import invert, make_transform, random_rotations
 from .motions import check_setup
 
-__all__ = ["Scene", "random_scene", "look_at_viewpoints", "perturb_poses"]
+__all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "look_at_viewpoints", "perturb_poses", "seed_viewpoints",
+           "seed_scenes", "add_noise"]
 
 
 @dataclass(frozen=True)
@@ -130,6 +131,140 @@ def perturb_poses(
     noisy[:, :3, :3] = dR @ noisy[:, :3, :3]
     noisy[:, :3, 3] += rng.normal(0.0, trans_sigma_m, (n, 3))
     return noisy.reshape(T.shape)
+
+
+# --- the thesis's chapter 5 set-up, batched over Monte-Carlo runs --------------------------------
+
+@dataclass(frozen=True)
+class SceneBatch:
+    """``S`` independent simulated captures of ``N`` poses each (ground truth, noise-free)."""
+
+    setup: str
+    X: NDArray[np.float64]  #: (S, 4, 4): cam2flange (eye_in_hand) or cam2base (eye_to_hand)
+    Z: NDArray[np.float64]  #: (S, 4, 4): target2base (eye_in_hand) or target2flange (eye_to_hand)
+    flange2base: NDArray[np.float64]  #: (S, N, 4, 4)
+    target2cam: NDArray[np.float64]  #: (S, N, 4, 4)
+
+    def __len__(self) -> int:
+        return len(self.X)
+
+
+def seed_viewpoints(
+    runs: int,
+    n_poses: int,
+    rng: np.random.Generator,
+    start_distance: float = 1.0,
+    cube: float = 1.0,
+    tilt_max_deg: float = 45.0,
+) -> NDArray[np.float64]:
+    """``cam2target`` poses ``(runs, n_poses, 4, 4)`` of the thesis's simulation (§5.2).
+
+    The robot starts with the camera ``start_distance`` (m) in front of the target, looking at it
+    along the target normal; it moves within a cube of side ``cube`` (m) centred there, tilting the
+    camera by up to ``tilt_max_deg`` about the two axes parallel to the image plane and freely
+    about the optical axis. As in the thesis, the camera is assumed to see the target from
+    everywhere (this generator is for pose-level studies; rendered sessions use
+    :func:`look_at_viewpoints`, which keeps the target in the image).
+    """
+    shape = (runs, n_poses)
+    position = np.array([0.0, 0.0, start_distance]) + rng.uniform(-0.5 * cube, 0.5 * cube, shape + (3,))
+    # Facing the target: camera z along -z of the target, x along the target's x.
+    facing = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+    tilt = np.radians(tilt_max_deg)
+    angles = np.stack([rng.uniform(-tilt, tilt, shape), rng.uniform(-tilt, tilt, shape),
+                       rng.uniform(-np.pi, np.pi, shape)], axis=-1)
+    # intrinsic X-Y-Z: tilt about the camera's x, then its (new) y, then spin about the optical axis
+    R = facing @ Rotation.from_euler("XYZ", angles.reshape(-1, 3)).as_matrix().reshape(shape + (3, 3))
+    return make_transform(R, position)
+
+
+def seed_scenes(
+    runs: int,
+    n_poses: int,
+    setup: str = "eye_in_hand",
+    rng: np.random.Generator | int | None = None,
+    *,
+    x_translation: float = 0.05,
+    start_distance: float = 1.0,
+    cube: float = 1.0,
+    tilt_max_deg: float = 45.0,
+) -> SceneBatch:
+    """``runs`` random noise-free scenes of the thesis's §5.2 set-up, generated all at once.
+
+    Parameters
+    ----------
+    runs, n_poses : int
+        Number of independent scenes and of poses in each (``n_poses - 1`` consecutive motions).
+    setup : {'eye_in_hand', 'eye_to_hand'}
+    rng : numpy Generator or seed
+    x_translation : float
+        The unknown offset on the flange has a uniformly random rotation and a translation uniform
+        in +-``x_translation`` (m) per axis (thesis: +-50 mm): ``X = cam2flange`` for eye-in-hand,
+        ``Z = target2flange`` for eye-to-hand (the other unknown is a random placement in the cell).
+    start_distance, cube, tilt_max_deg
+        See :func:`seed_viewpoints`.
+    """
+    check_setup(setup)
+    rng = np.random.default_rng(rng)
+    cam2target = seed_viewpoints(runs, n_poses, rng, start_distance, cube, tilt_max_deg)
+    target2cam = invert(cam2target)
+    offset = make_transform(random_rotations(runs, rng), rng.uniform(-x_translation, x_translation, (runs, 3)))
+    # the other unknown: the target ~0.6 m from the base (eye-in-hand) or the camera ~1 m (eye-to-hand)
+    centre = [0.6, 0.0, 0.0] if setup == "eye_in_hand" else [1.0, 0.0, 0.5]
+    cell = make_transform(random_rotations(runs, rng), rng.uniform(-0.5, 0.5, (runs, 3)) + centre)
+    if setup == "eye_in_hand":
+        X, Z = offset, cell
+        flange2base = Z[:, None] @ cam2target @ invert(X)[:, None]
+    else:
+        X, Z = cell, offset
+        flange2base = X[:, None] @ target2cam @ invert(Z)[:, None]
+    return SceneBatch(setup, X, Z, flange2base, target2cam)
+
+
+@dataclass(frozen=True)
+class Noise:
+    """Pose noise of the thesis's study (§5.2): per component, Gaussian with ``sigma = n``.
+
+    Orientation and position errors are independent, as a robot's data sheet states them: the
+    rotation error turns the pose about its own origin and the translation error moves the origin.
+    Their components are drawn in the frame the pose is given in (``frame='reference'``: the robot
+    base for ``flange2base``, the camera for ``target2cam``) or in the pose's own frame
+    (``frame='local'``: the flange or the target). Rotation-vector components ~ N(rot_bias_deg,
+    rot_deg) degrees, translation components ~ N(trans_bias_mm, trans_mm) millimetres; non-zero
+    biases are the thesis's systematic errors.
+    """
+
+    rot_deg: float = 0.0
+    trans_mm: float = 0.0
+    rot_bias_deg: float = 0.0
+    trans_bias_mm: float = 0.0
+    frame: str = "reference"
+
+    def __post_init__(self) -> None:
+        if self.frame not in ("reference", "local"):
+            raise ValueError(f"Noise.frame={self.frame!r}; use 'reference' or 'local'")
+        for name in ("rot_deg", "trans_mm"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"Noise.{name} must be >= 0, got {getattr(self, name)}")
+
+    @property
+    def is_zero(self) -> bool:
+        return not (self.rot_deg or self.trans_mm or self.rot_bias_deg or self.trans_bias_mm)
+
+
+def add_noise(T: NDArray[np.float64], noise: Noise, rng: np.random.Generator) -> NDArray[np.float64]:
+    """Poses ``(..., 4, 4)`` with :class:`Noise` applied independently to each; a new array."""
+    T = np.asarray(T, dtype=float)
+    if noise.is_zero:
+        return T.copy()
+    lead = T.shape[:-2]
+    rotvec = np.radians(rng.normal(noise.rot_bias_deg, noise.rot_deg, lead + (3,)))
+    dR = Rotation.from_rotvec(rotvec.reshape(-1, 3)).as_matrix().reshape(lead + (3, 3))
+    dt = 1e-3 * rng.normal(noise.trans_bias_mm, noise.trans_mm, lead + (3,))
+    R, t = T[..., :3, :3], T[..., :3, 3]
+    if noise.frame == "reference":
+        return make_transform(dR @ R, t + dt)
+    return make_transform(R @ dR, t + np.einsum("...ij,...j->...i", R, dt))
 
 
 #: Targets that ``simulate_session`` renders by default (sizes in metres).

@@ -138,15 +138,15 @@ def dq_from_matrix(T: ArrayLike) -> NDArray[np.float64]:
 
 
 def dq_translation(a: ArrayLike) -> NDArray[np.float64]:
-    """Translations ``(N, 3)`` of unit dual quaternions ``(N, 8)``: the vector part of ``2 q' conj(q)``,
+    """Translations ``(..., 3)`` of unit dual quaternions ``(..., 8)``: the vector part of ``2 q' conj(q)``,
     i.e. ``2 (w v' - w' v + v x v')``, computed on contiguous component rows."""
-    d = np.ascontiguousarray(np.asarray(a, dtype=float).T)
+    d = np.ascontiguousarray(np.moveaxis(np.asarray(a, dtype=float), -1, 0))
     w, v, wd, vd = d[0], d[1:4], d[4], d[5:8]
     c = np.empty_like(v)
     c[0] = v[1] * vd[2] - v[2] * vd[1]
     c[1] = v[2] * vd[0] - v[0] * vd[2]
     c[2] = v[0] * vd[1] - v[1] * vd[0]
-    return (2.0 * (w * vd - wd * v + c)).T
+    return np.moveaxis(2.0 * (w * vd - wd * v + c), 0, -1)
 
 
 def dq_to_matrix(a: ArrayLike) -> NDArray[np.float64]:

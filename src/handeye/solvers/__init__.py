@@ -9,10 +9,12 @@ Each family lives in its own module and registers itself on import.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..errors import DegenerateMotionError, InputMismatchError
+from ..errors import DegenerateMotionError, InputMismatchError, PoseFormatError
 from ..geometry.se3 import invert
 from ..motions import MotionSet
 from ..poses import validate_transforms
@@ -20,7 +22,7 @@ from ._checks import check_observability, validate_motions
 from ._registry import SolverInfo, available, get, register
 from . import andreff, daniilidis, horaud, park_martin, robot_world, tsai_lenz  # noqa: F401  (register themselves)
 
-__all__ = ["solve", "solve_motions", "solve_robot_world", "available", "get", "register", "SolverInfo"]
+__all__ = ["solve", "solve_batch", "solve_motions", "solve_robot_world", "solve_robot_world_batch", "available", "get", "register", "SolverInfo"]
 
 
 def solve(A: ArrayLike, B: ArrayLike, method: str = "daniilidis") -> NDArray[np.float64]:
@@ -50,6 +52,74 @@ def solve(A: ArrayLike, B: ArrayLike, method: str = "daniilidis") -> NDArray[np.
     """
     info = get(method, kind="hand_eye")
     return solve_motions(validate_motions(A, B), method=info.name)
+
+
+def _validate_batch(A: ArrayLike, B: ArrayLike, minimum: int = 2) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Validated (S, K, 4, 4) stacks: same shape, every 4x4 finite and rigid."""
+    A = np.asarray(A, dtype=float)
+    B = np.asarray(B, dtype=float)
+    for name, M in (("A", A), ("B", B)):
+        if M.ndim != 4 or M.shape[-2:] != (4, 4):
+            raise InputMismatchError(f"{name}: expected a batch of motion stacks (S runs, K motions, 4, 4), got shape {M.shape}")
+    if A.shape != B.shape:
+        raise InputMismatchError(f"A has shape {A.shape} but B has {B.shape}; runs and motions must pair up")
+    S, K = A.shape[:2]
+    if K < minimum:
+        what = "motion(s) per run: AX = XB" if minimum == 2 else "pose pair(s) per run: A_i X = Z B_i"
+        raise DegenerateMotionError(f"{K} {what} needs at least {minimum} with non-parallel rotation axes")
+    try:
+        A = validate_transforms(A.reshape(-1, 4, 4), what="A (robot motions)").reshape(S, K, 4, 4)
+        B = validate_transforms(B.reshape(-1, 4, 4), what="B (camera motions)").reshape(S, K, 4, 4)
+    except PoseFormatError as exc:
+        # name the run and motion rather than the flat index
+        msg = str(exc)
+        m = re.search(r"entry (\d+)", msg)
+        if m:
+            i = int(m.group(1))
+            msg = msg.replace(m.group(0), f"run {i // K}, {'motion' if minimum == 2 else 'pose'} {i % K}")
+        raise PoseFormatError(msg) from None
+    return A, B
+
+
+def solve_batch(A: ArrayLike, B: ArrayLike, method: str = "daniilidis") -> NDArray[np.float64]:
+    """Solve many independent ``A @ X = X @ B`` problems at once (e.g. Monte-Carlo runs).
+
+    The closed-form solvers (``tsai_lenz``, ``park_martin``, ``horaud``, ``daniilidis``,
+    ``andreff``) are vectorised over runs: one set of array operations for all of them, and the
+    same numbers as :func:`solve` run by run. Others (``horaud_nonlinear``) loop over the runs.
+
+    Parameters
+    ----------
+    A, B : array_like, shape (S, K, 4, 4)
+        ``S`` runs of ``K`` robot and camera motions each.
+    method : str
+        A name from ``handeye.solvers.available("hand_eye")``.
+
+    Returns
+    -------
+    X : ndarray, shape (S, 4, 4)
+        Unlike :func:`solve`, no run is checked for observability (a study wants to see what a
+        solver does with poor motions); a run the solver cannot solve at all is NaN.
+
+    Raises
+    ------
+    InputMismatchError
+        Unknown method, shapes that are not (S, K, 4, 4) or do not match.
+    PoseFormatError
+        A motion that is not a rigid transform (its run and index are named).
+    """
+    info = get(method, kind="hand_eye")
+    A, B = _validate_batch(A, B)
+    motions = MotionSet.from_matrices(A, B)
+    if info.batched:
+        return info.func(motions)
+    X = np.full((len(A), 4, 4), np.nan)
+    for s in range(len(A)):
+        try:
+            X[s] = info.func(motions.run(s))
+        except (DegenerateMotionError, np.linalg.LinAlgError):
+            pass  # stays NaN, as documented
+    return X
 
 
 def solve_motions(motions: MotionSet, method: str = "daniilidis") -> NDArray[np.float64]:
@@ -94,3 +164,34 @@ def solve_robot_world(
     B_rel = invert(B_abs[:1]) @ B_abs[1:]
     check_observability(MotionSet.from_matrices(A_rel, B_rel))
     return info.func(A_abs, B_abs)
+
+
+def solve_robot_world_batch(
+    A_abs: ArrayLike, B_abs: ArrayLike, method: str = "shah"
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Solve many independent ``A_i @ X = Z @ B_i`` problems at once, vectorised over runs.
+
+    Parameters
+    ----------
+    A_abs, B_abs : array_like, shape (S, N, 4, 4)
+        ``S`` runs of ``N`` absolute pose pairs (see :func:`solve_robot_world`).
+    method : str
+        A name from ``handeye.solvers.available("robot_world")``.
+
+    Returns
+    -------
+    X, Z : ndarray, shape (S, 4, 4)
+        As :func:`solve_batch`, no run is checked for observability; a run whose rotation
+        estimate is singular is NaN.
+    """
+    info = get(method, kind="robot_world")
+    A_abs, B_abs = _validate_batch(A_abs, B_abs, minimum=3)
+    if info.batched:
+        return info.func(A_abs, B_abs)
+    X, Z = np.full((2, len(A_abs), 4, 4), np.nan)
+    for s in range(len(A_abs)):
+        try:
+            X[s], Z[s] = info.func(A_abs[s], B_abs[s])
+        except (DegenerateMotionError, np.linalg.LinAlgError):
+            pass
+    return X, Z

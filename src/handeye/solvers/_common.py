@@ -1,4 +1,8 @@
-"""Pieces shared by the solver families: the translation least squares and rotation projection."""
+"""Pieces shared by the solver families: the translation least squares and rotation projection.
+
+Every function here works on one problem or on a batch of them (leading axes, e.g. Monte-Carlo
+runs), so a solver written with them is vectorised over runs for free.
+"""
 
 from __future__ import annotations
 
@@ -13,31 +17,33 @@ def translation_least_squares(motions: MotionSet, R_X: NDArray[np.float64]) -> N
 
     The "then translation" step of the rotation-first methods (Tsai-Lenz, Park-Martin, Horaud).
     Solved through the 3x3 normal equations; for rotations ``(R - I)^T (R - I) = 2I - R - R^T``,
-    so the normal matrix is a plain sum over the motions.
+    so the normal matrix is a plain sum over the motions. ``R_X`` is ``(..., 3, 3)``, one per run.
     """
     R_A = motions.R_A
-    d = motions.t_B @ R_X.T - motions.t_A
-    S = R_A.sum(axis=0)
-    normal = 2 * len(R_A) * np.eye(3) - S - S.T
-    rhs = np.einsum("kji,kj->i", R_A, d) - d.sum(axis=0)  # sum (R_A - I)^T d
-    return np.linalg.solve(normal, rhs)
+    d = np.einsum("...kj,...ij->...ki", motions.t_B, R_X) - motions.t_A
+    S = R_A.sum(axis=-3)
+    normal = 2 * len(motions) * np.eye(3) - S - np.swapaxes(S, -1, -2)
+    rhs = np.einsum("...kji,...kj->...i", R_A, d) - d.sum(axis=-2)  # sum (R_A - I)^T d
+    return np.linalg.solve(normal, rhs[..., None])[..., 0]
 
 
 def nearest_rotation(M: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The rotation closest (Frobenius) to a 3x3 estimate from a linear solve.
+    """The rotations closest (Frobenius) to 3x3 estimates ``(..., 3, 3)`` from a linear solve.
 
     As OpenCV's ``normalizeRotation``: scale to unit |det| keeping the sign of det (an estimate
     with negative determinant is the negated rotation), then project with the SVD and correct a
-    remaining reflection.
+    remaining reflection. A singular estimate raises for one matrix and gives NaN in a batch.
     """
     det = np.linalg.det(M)
-    if abs(det) < 1e-12:
+    singular = np.abs(det) < 1e-12
+    if M.ndim == 2 and singular:
         raise np.linalg.LinAlgError("rotation estimate is singular")
-    M = np.cbrt(np.sign(det) / abs(det)) * M
-    U, _, Vt = np.linalg.svd(M)
+    scale = np.cbrt(np.sign(det) / np.where(singular, 1.0, np.abs(det)))
+    U, _, Vt = np.linalg.svd(scale[..., None, None] * M)
+    reflect = np.linalg.det(U @ Vt) < 0
+    U[..., :, 2] *= np.where(reflect, -1.0, 1.0)[..., None]
     R = U @ Vt
-    if np.linalg.det(R) < 0:
-        R = U @ np.diag([1.0, 1.0, -1.0]) @ Vt
+    R[singular] = np.nan
     return R
 
 
@@ -48,9 +54,9 @@ def log_rotations(dq: NDArray[np.float64]) -> NDArray[np.float64]:
     purpose: scipy canonicalises each quaternion to w >= 0, which for a motion near 180 deg can
     flip the robot's rotation vector against the camera's; the aligned signs keep them paired.
     """
-    v = dq[:, 1:4]
-    vn = np.linalg.norm(v, axis=1)
-    angle = 2.0 * np.arctan2(vn, dq[:, 0])
+    v = dq[..., 1:4]
+    vn = np.linalg.norm(v, axis=-1)
+    angle = 2.0 * np.arctan2(vn, dq[..., 0])
     with np.errstate(invalid="ignore", divide="ignore"):
         scale = np.where(vn > 1e-15, angle / vn, 2.0)  # limit of 2 atan(x)/x at 0
-    return v * scale[:, None]
+    return v * scale[..., None]

@@ -22,18 +22,26 @@ class SolverInfo:
     kind: Kind
     func: Callable
     reference: str
+    #: the function also takes a batch of problems (leading axes) and returns one result per run
+    batched: bool = False
 
 
 _REGISTRY: dict[str, SolverInfo] = {}
 
 
-def register(name: str, kind: Kind = "hand_eye", reference: str = "") -> Callable[[Callable], Callable]:
-    """Decorator that registers a solver function under ``name``."""
+def register(
+    name: str, kind: Kind = "hand_eye", reference: str = "", batched: bool = False
+) -> Callable[[Callable], Callable]:
+    """Decorator that registers a solver function under ``name``.
+
+    ``batched=True`` declares that the function is vectorised over leading (run) axes of its
+    inputs, which :func:`handeye.solve_batch` then uses instead of a loop over runs.
+    """
 
     def deco(func: Callable) -> Callable:
         if name in _REGISTRY:
             raise RuntimeError(f"solver {name!r} registered twice")
-        _REGISTRY[name] = SolverInfo(name, kind, func, reference)
+        _REGISTRY[name] = SolverInfo(name, kind, func, reference, batched)
         return func
 
     return deco

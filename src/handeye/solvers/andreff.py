@@ -23,26 +23,32 @@ from ._common import nearest_rotation
 from ._registry import register
 
 
-@register("andreff", reference="Andreff, Horaud & Espiau 1999, 3DIM")
+@register("andreff", reference="Andreff, Horaud & Espiau 1999, 3DIM", batched=True)
 def solve(motions: MotionSet) -> NDArray[np.float64]:
-    """Solve ``A X = X B`` with Andreff's linear Kronecker formulation."""
+    """Solve ``A X = X B`` with Andreff's linear Kronecker formulation.
+
+    Vectorised: a batch of motion sets ``(..., K, 8)`` gives ``X`` of shape ``(..., 4, 4)``.
+    """
     A, B = motions.A, motions.B
-    n = len(A)
-    R_A, t_A, t_B = A[:, :3, :3], A[:, :3, 3], B[:, :3, 3]
+    n = len(motions)
+    R_A, R_B, t_A, t_B = A[..., :3, :3], B[..., :3, :3], A[..., :3, 3], B[..., :3, 3]
+    batch = R_A.shape[:-3]
     I3 = np.eye(3)
     # sum_k kron(R_A, R_B), row-major vec: [3i+a, 3j+b] = sum R_A[i,j] R_B[a,b]
-    sumK = (R_A.reshape(n, 9).T @ B[:, :3, :3].reshape(n, 9)).reshape(3, 3, 3, 3).transpose(0, 2, 1, 3).reshape(9, 9)
-    sumRA = R_A.sum(axis=0)
-    G = np.zeros((12, 12))
-    G[:9, :9] = 2 * n * np.eye(9) - sumK - sumK.T + np.kron(I3, t_B.T @ t_B)
+    sumK = np.einsum("...kij,...kab->...iajb", R_A, R_B).reshape(batch + (9, 9))
+    sumRA = R_A.sum(axis=-3)
+    G = np.zeros(batch + (12, 12))
+    tbtb = np.einsum("...ka,...kb->...ab", t_B, t_B)
+    G[..., :9, :9] = (2 * n * np.eye(9) - sumK - np.swapaxes(sumK, -1, -2)
+                      + np.einsum("ac,...bd->...abcd", I3, tbtb).reshape(batch + (9, 9)))  # + kron(I3, sum t_B t_B^T)
     # sum_k kron(I3, t_B) (I - R_A): [3a+b, c] = sum t_B[b] (delta_ac - R_A[a,c])
-    tb_ra = (t_B.T @ R_A.reshape(n, 9)).reshape(3, 3, 3)  # [b, a, c]
-    cross = np.einsum("b,ac->abc", t_B.sum(axis=0), I3) - tb_ra.transpose(1, 0, 2)
-    G[:9, 9:] = cross.reshape(9, 3)
-    G[9:, :9] = G[:9, 9:].T
-    G[9:, 9:] = 2 * n * I3 - sumRA - sumRA.T
-    rhs = np.zeros(12)
-    rhs[:9] = (t_A.T @ t_B).reshape(9)  # sum kron(I3, t_B) t_A: [3a+b] = sum t_A[a] t_B[b]
-    rhs[9:] = t_A.sum(axis=0) - np.einsum("kji,kj->i", R_A, t_A)  # sum (I - R_A)^T t_A
-    sol = np.linalg.solve(G, rhs)
-    return make_transform(nearest_rotation(sol[:9].reshape(3, 3)), sol[9:])
+    tb_ra = np.einsum("...kb,...kac->...abc", t_B, R_A)
+    cross = np.einsum("...b,ac->...abc", t_B.sum(axis=-2), I3) - tb_ra
+    G[..., :9, 9:] = cross.reshape(batch + (9, 3))
+    G[..., 9:, :9] = np.swapaxes(G[..., :9, 9:], -1, -2)
+    G[..., 9:, 9:] = 2 * n * I3 - sumRA - np.swapaxes(sumRA, -1, -2)
+    rhs = np.zeros(batch + (12,))
+    rhs[..., :9] = np.einsum("...ka,...kb->...ab", t_A, t_B).reshape(batch + (9,))  # sum kron(I3, t_B) t_A
+    rhs[..., 9:] = t_A.sum(axis=-2) - np.einsum("...kji,...kj->...i", R_A, t_A)  # sum (I - R_A)^T t_A
+    sol = np.linalg.solve(G, rhs[..., None])[..., 0]
+    return make_transform(nearest_rotation(sol[..., :9].reshape(batch + (3, 3))), sol[..., 9:])

@@ -20,12 +20,15 @@ from ._common import log_rotations, translation_least_squares
 from ._registry import register
 
 
-@register("park_martin", reference="Park & Martin 1994, IEEE TRA 10(5)")
+@register("park_martin", reference="Park & Martin 1994, IEEE TRA 10(5)", batched=True)
 def solve(motions: MotionSet) -> NDArray[np.float64]:
-    """Solve ``A X = X B`` with Park and Martin's log-map Procrustes (see the module docstring)."""
+    """Solve ``A X = X B`` with Park and Martin's log-map Procrustes (see the module docstring).
+
+    Vectorised: a batch of motion sets ``(..., K, 8)`` gives ``X`` of shape ``(..., 4, 4)``.
+    """
     alpha = log_rotations(motions.dq_a)
     beta = log_rotations(motions.dq_b)
-    U, _, Vt = np.linalg.svd(alpha.T @ beta)  # sum alpha beta^T = M^T
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    R_X = U @ D @ Vt
+    U, _, Vt = np.linalg.svd(np.einsum("...ki,...kj->...ij", alpha, beta))  # sum alpha beta^T = M^T
+    U[..., :, 2] *= np.sign(np.linalg.det(U @ Vt))[..., None]  # U diag(1, 1, det) Vt
+    R_X = U @ Vt
     return make_transform(R_X, translation_least_squares(motions, R_X))

@@ -271,7 +271,13 @@ def _fit_variances(r, shapes, theta0):
         # -2 log-likelihood and its gradient over log theta
         t = np.exp(log_t)
         C = np.einsum("k,knij->nij", t, shapes)
-        Ci = np.linalg.inv(C)
+        try:
+            Ci = np.linalg.inv(C)
+        except np.linalg.LinAlgError:
+            # a trial point with two variances at the floor can make C singular (e.g. a noise-free
+            # camera and a probe that also zeroes the robot rotation): an infinitely unlikely
+            # point, reported as a huge value so the line search steps back
+            return 1e300, np.zeros_like(log_t)
         u = np.einsum("nij,nj->ni", Ci, r)
         value = float(np.sum(np.linalg.slogdet(C)[1]) + np.einsum("ni,ni->", r, u))
         grad = t * (np.einsum("nij,knji->k", Ci, shapes) - np.einsum("ni,knij,nj->k", u, shapes, u))

@@ -36,49 +36,66 @@ from ._registry import register
 
 
 def _translations(A: NDArray[np.float64], B: NDArray[np.float64], R_Z: NDArray[np.float64]) -> tuple:
-    """``t_X, t_Z`` minimising ``sum |R_Ai t_X - t_Z - (R_Z t_Bi - t_Ai)|^2``."""
-    n = len(A)
-    M = np.zeros((n, 3, 6))
-    M[:, :, :3] = A[:, :3, :3]
-    M[:, :, 3:] = -np.eye(3)
-    rhs = B[:, :3, 3] @ R_Z.T - A[:, :3, 3]
-    sol = np.linalg.lstsq(M.reshape(-1, 6), rhs.reshape(-1), rcond=None)[0]
-    return sol[:3], sol[3:]
+    """``t_X, t_Z`` minimising ``sum |R_Ai t_X - t_Z - (R_Z t_Bi - t_Ai)|^2`` (per run of a batch).
+
+    Normal equations of the rows ``[R_Ai, -I]``: ``[[n I, -sum R_Ai^T], [-sum R_Ai, n I]]``.
+    """
+    n = A.shape[-3]
+    R_A = A[..., :3, :3]
+    r = np.einsum("...ij,...kj->...ki", R_Z, B[..., :3, 3]) - A[..., :3, 3]
+    S = R_A.sum(axis=-3)
+    batch = S.shape[:-2]
+    N = np.zeros(batch + (6, 6))
+    N[..., :3, :3] = N[..., 3:, 3:] = n * np.eye(3)
+    N[..., :3, 3:] = -np.swapaxes(S, -1, -2)
+    N[..., 3:, :3] = -S
+    rhs = np.concatenate([np.einsum("...kji,...kj->...i", R_A, r), -r.sum(axis=-2)], axis=-1)
+    sol = np.linalg.solve(N, rhs[..., None])[..., 0]
+    return sol[..., :3], sol[..., 3:]
 
 
-@register("shah", kind="robot_world", reference="Shah 2013, J. Mech. Robotics 5(3)")
+@register("shah", kind="robot_world", reference="Shah 2013, J. Mech. Robotics 5(3)", batched=True)
 def solve_shah(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Solve ``A_i X = Z B_i`` with Shah's Kronecker-product method; returns ``(X, Z)``."""
+    """Solve ``A_i X = Z B_i`` with Shah's Kronecker-product method; returns ``(X, Z)``.
+
+    Vectorised: stacks ``(..., N, 4, 4)`` give ``X, Z`` of shape ``(..., 4, 4)``.
+    """
+    batch = A.shape[:-3]
     # R_Ai R_X = R_Z R_Bi  <=>  vec(R_Z) = (R_Bi kron R_Ai) vec(R_X)  (column-major vec)
-    K = np.einsum("kij,kab->iajb", B[:, :3, :3], A[:, :3, :3]).reshape(9, 9)
+    K = np.einsum("...kij,...kab->...iajb", B[..., :3, :3], A[..., :3, :3]).reshape(batch + (9, 9))
     U, _, Vt = np.linalg.svd(K)
-    R_X = nearest_rotation(Vt[0].reshape(3, 3).T)
-    R_Z = nearest_rotation(U[:, 0].reshape(3, 3).T)
+    R_X = nearest_rotation(np.swapaxes(Vt[..., 0, :].reshape(batch + (3, 3)), -1, -2))
+    R_Z = nearest_rotation(np.swapaxes(U[..., :, 0].reshape(batch + (3, 3)), -1, -2))
     # u and v share one arbitrary sign; nearest_rotation undoes it for each from its determinant.
     t_X, t_Z = _translations(A, B, R_Z)
     return make_transform(R_X, t_X), make_transform(R_Z, t_Z)
 
 
-@register("li", kind="robot_world", reference="Li, Wang & Wu 2010, Int. J. Phys. Sci. 5(10)")
+@register("li", kind="robot_world", reference="Li, Wang & Wu 2010, Int. J. Phys. Sci. 5(10)", batched=True)
 def solve_li(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Solve ``A_i X = Z B_i`` with Li's linear Kronecker system; returns ``(X, Z)``."""
-    n = len(A)
-    R_A, R_B = A[:, :3, :3], B[:, :3, :3]
-    scale = float(np.sqrt(np.mean(np.sum(A[:, :3, 3] ** 2, axis=1)))) or 1.0
-    t_A, t_B = A[:, :3, 3] / scale, B[:, :3, 3] / scale
+    """Solve ``A_i X = Z B_i`` with Li's linear Kronecker system; returns ``(X, Z)``.
+
+    Vectorised: stacks ``(..., N, 4, 4)`` give ``X, Z`` of shape ``(..., 4, 4)``. The 24-unknown
+    system is solved through its normal equations (unit-free after the scaling below).
+    """
+    batch, n = A.shape[:-3], A.shape[-3]
+    R_A, R_B = A[..., :3, :3], B[..., :3, :3]
+    scale = np.sqrt(np.mean(np.sum(A[..., :3, 3] ** 2, axis=-1), axis=-1))
+    scale = np.where(scale > 0, scale, 1.0)[..., None, None]
+    t_A, t_B = A[..., :3, 3] / scale, B[..., :3, 3] / scale
     I3 = np.eye(3)
-    M = np.zeros((n, 12, 24))
+    M = np.zeros(batch + (n, 12, 24))
     # row-major vec: vec(R_A R_X) = (R_A kron I) vec(R_X), vec(R_Z R_B) = (I kron R_B^T) vec(R_Z)
-    M[:, :9, :9] = np.einsum("kij,ab->kiajb", R_A, I3).reshape(n, 9, 9)
-    M[:, :9, 9:18] = -np.einsum("ij,kba->kiajb", I3, R_B).reshape(n, 9, 9)
+    M[..., :9, :9] = np.einsum("...kij,ab->...kiajb", R_A, I3).reshape(batch + (n, 9, 9))
+    M[..., :9, 9:18] = -np.einsum("ij,...kba->...kiajb", I3, R_B).reshape(batch + (n, 9, 9))
     # R_Z t_B - R_A t_X + t_Z = t_A
-    M[:, 9:, 9:18] = np.einsum("ij,ka->kija", I3, t_B).reshape(n, 3, 9)
-    M[:, 9:, 18:21] = -R_A
-    M[:, 9:, 21:24] = I3
-    y = np.zeros((n, 12))
-    y[:, 9:] = t_A
-    sol = np.linalg.lstsq(M.reshape(-1, 24), y.reshape(-1), rcond=None)[0]
-    R_X = nearest_rotation(sol[:9].reshape(3, 3))
-    R_Z = nearest_rotation(sol[9:18].reshape(3, 3))
+    M[..., 9:, 9:18] = np.einsum("ij,...ka->...kija", I3, t_B).reshape(batch + (n, 3, 9))
+    M[..., 9:, 18:21] = -R_A
+    M[..., 9:, 21:24] = I3
+    normal = np.einsum("...kri,...krj->...ij", M, M)
+    rhs = np.einsum("...kri,...kr->...i", M[..., 9:, :], t_A)
+    sol = np.linalg.solve(normal, rhs[..., None])[..., 0]
+    R_X = nearest_rotation(sol[..., :9].reshape(batch + (3, 3)))
+    R_Z = nearest_rotation(sol[..., 9:18].reshape(batch + (3, 3)))
     t_X, t_Z = _translations(A, B, R_Z)
     return make_transform(R_X, t_X), make_transform(R_Z, t_Z)

@@ -27,17 +27,21 @@ from ._common import translation_least_squares
 from ._registry import register
 
 
-@register("tsai_lenz", reference="Tsai & Lenz 1989; thesis §2.2.1; notes 001")
+@register("tsai_lenz", reference="Tsai & Lenz 1989; thesis §2.2.1; notes 001", batched=True)
 def solve(motions: MotionSet) -> NDArray[np.float64]:
-    """Solve ``A X = X B`` with Tsai and Lenz's two-step method (see the module docstring)."""
-    P_A = 2.0 * motions.dq_a[:, 1:4]  # 2 sin(theta/2) n, signs aligned between A and B
-    P_B = 2.0 * motions.dq_b[:, 1:4]
+    """Solve ``A X = X B`` with Tsai and Lenz's two-step method (see the module docstring).
+
+    Vectorised: a batch of motion sets ``(..., K, 8)`` gives ``X`` of shape ``(..., 4, 4)``.
+    """
+    P_A = 2.0 * motions.dq_a[..., 1:4]  # 2 sin(theta/2) n, signs aligned between A and B
+    P_B = 2.0 * motions.dq_b[..., 1:4]
     s = P_A + P_B
     d = P_B - P_A
     # normal equations of skew(s) p' = d: skew(s)^T skew(s) = |s|^2 I - s s^T, skew(s)^T d = d x s
-    normal = np.einsum("ki,ki->", s, s) * np.eye(3) - s.T @ s
-    p_prime = np.linalg.solve(normal, np.cross(d, s).sum(axis=0))
-    P_X = 2.0 * p_prime / np.sqrt(1.0 + p_prime @ p_prime)
-    n2 = P_X @ P_X
-    R_X = (1.0 - 0.5 * n2) * np.eye(3) + 0.5 * (np.outer(P_X, P_X) + np.sqrt(max(4.0 - n2, 0.0)) * skew(P_X))
+    normal = np.einsum("...ki,...ki->...", s, s)[..., None, None] * np.eye(3) - np.einsum("...ki,...kj->...ij", s, s)
+    p_prime = np.linalg.solve(normal, np.cross(d, s).sum(axis=-2)[..., None])[..., 0]
+    P_X = 2.0 * p_prime / np.sqrt(1.0 + np.sum(p_prime * p_prime, axis=-1, keepdims=True))
+    n2 = np.sum(P_X * P_X, axis=-1)[..., None, None]
+    outer = P_X[..., :, None] * P_X[..., None, :]
+    R_X = (1.0 - 0.5 * n2) * np.eye(3) + 0.5 * (outer + np.sqrt(np.maximum(4.0 - n2, 0.0)) * skew(P_X))
     return make_transform(R_X, translation_least_squares(motions, R_X))

@@ -11,7 +11,6 @@ one thread per worker and restored afterwards.
 from __future__ import annotations
 
 import os
-import sys
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +18,7 @@ from typing import Iterable, Sequence
 
 import cv2
 
+from .._progress import Progress
 from .targets import Detection, Target
 
 __all__ = ["ImageResult", "detect_images", "default_jobs"]
@@ -50,28 +50,6 @@ def _detect_one(args: tuple[str, Target]) -> ImageResult:
     size = (gray.shape[1], gray.shape[0])
     det = target.detect(gray)
     return ImageResult(Path(path), det, size, None if det is not None else "target not found")
-
-
-class Progress:
-    """A one-line progress bar on stderr (redrawn in place on a terminal, else one final line)."""
-
-    def __init__(self, total: int, label: str, enabled: bool = True) -> None:
-        self.total, self.label, self.done = total, label, 0
-        self.enabled = enabled and total > 0
-        self.tty = sys.stderr.isatty()
-
-    def update(self, n: int = 1) -> None:
-        self.done += n
-        if self.enabled and self.tty:
-            width = 30
-            filled = int(width * self.done / self.total)
-            sys.stderr.write(f"\r{self.label} [{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total}")
-            sys.stderr.flush()
-
-    def close(self) -> None:
-        if self.enabled:
-            sys.stderr.write(("\n" if self.tty else f"{self.label}: {self.done}/{self.total}\n"))
-            sys.stderr.flush()
 
 
 def detect_images(

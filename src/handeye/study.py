@@ -1,0 +1,542 @@
+"""The Monte-Carlo study of the thesis's chapter 5, for every solver, batched over runs.
+
+A *setting* fixes the number of motions, the noise on the robot and on the camera and the setup;
+each setting is simulated ``runs`` times (200 in the thesis) from random scenes of the §5.2 set-up
+(:func:`handeye.simulate.seed_scenes`), every solver is run on the same noisy data, and the error
+of each estimate against the ground truth is measured with the metric of §5.1:
+
+* rotation: the angle of ``R_est^T R_true`` (degrees);
+* translation: ``|t_est - t_true|`` (millimetres). The thesis prints
+  ``(|t~_X| + |t~_X|) / 2``, a slip for the "simple Euclidean distance" its text describes.
+
+Statistics are reported both as the thesis did (outliers trimmed with the triangle method on a
+smoothed histogram, then mean and standard deviation) and untrimmed (median, 10th and 90th
+percentiles), with the acceptance rate of §5.2 (error < 5 mm and < 1 deg).
+
+Closed-form solvers run vectorised over all runs of a setting at once
+(:func:`handeye.solvers.solve_batch`); the nonlinear ones loop, and settings run in parallel
+processes. Every setting draws from its own seeded generator, so the numbers depend on the seed
+only, not on the number of processes or the order.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import tempfile
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._progress import Progress
+from .errors import HandEyeError, InputMismatchError
+from .geometry.se3 import invert
+from .motions import check_setup, pair_indices
+from .simulate import Noise, add_noise, seed_scenes
+from .solvers import available, solve_batch, solve_robot_world_batch
+
+__all__ = ["Setting", "Figure", "SettingResult", "StudyResult", "run_setting", "study", "preset", "PRESETS",
+           "triangle_threshold", "trim_outliers", "pose_errors", "write_study", "METHODS"]
+
+#: Every solver the study knows: the AX = XB solvers, the robot-world ones, and ``refined``
+#: (``calibrate_poses`` with the pose refinement from Daniilidis, what a handeye user gets).
+METHODS = ("tsai_lenz", "park_martin", "horaud", "horaud_nonlinear", "daniilidis", "andreff", "shah", "li", "refined")
+#: The thesis's acceptance limits (§5.2).
+ACCEPT_MM, ACCEPT_DEG = 5.0, 1.0
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One cell of a study grid."""
+
+    figure: str  #: the figure it belongs to, e.g. "5.4"
+    series: str  #: the curve it belongs to within the figure
+    x: float  #: its abscissa in that figure
+    n_motions: int  #: consecutive motions, i.e. ``n_motions + 1`` poses
+    robot: Noise = Noise()
+    camera: Noise = Noise()
+    setup: str = "eye_in_hand"
+    methods: tuple[str, ...] = METHODS
+
+    def __post_init__(self) -> None:
+        check_setup(self.setup)
+        if self.n_motions < 2:
+            raise InputMismatchError(f"n_motions={self.n_motions}: AX = XB needs at least 2 motions")
+        unknown = [m for m in self.methods if m not in METHODS]
+        if unknown:
+            raise InputMismatchError(f"unknown study method(s) {unknown}; available: {', '.join(METHODS)}")
+
+
+@dataclass(frozen=True)
+class Figure:
+    """How a figure of the preset is drawn."""
+
+    id: str
+    title: str
+    xlabel: str
+    kind: str = "curve"  #: "curve" (error vs x, one line per series) or "histogram"
+    log_x: bool = False
+    source: tuple[str, float] | None = None  #: histogram: (series, x) of the setting it shows, in figure ``source_figure``
+    source_figure: str | None = None
+
+
+# --- the error metric and the statistics -------------------------------------------------------
+
+def pose_errors(X_est: NDArray[np.float64], X_true: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Per run ``[translation error (mm), rotation error (deg)]`` (thesis §5.1), shape (S, 2).
+
+    A run without an estimate (NaN) gets ``inf`` for both.
+    """
+    R = np.einsum("sji,sjk->sik", X_est[:, :3, :3], X_true[:, :3, :3])  # R_est^T R_true
+    cos = np.clip((np.trace(R, axis1=1, axis2=2) - 1.0) / 2.0, -1.0, 1.0)
+    # arccos loses precision near 0: use the norm of the skew part for small angles
+    sin = 0.5 * np.linalg.norm(np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1), axis=1)
+    angle = np.degrees(np.arctan2(sin, cos))
+    trans = 1e3 * np.linalg.norm(X_est[:, :3, 3] - X_true[:, :3, 3], axis=1)
+    err = np.stack([trans, angle], axis=1)
+    err[~np.isfinite(err).all(axis=1)] = np.inf
+    return err
+
+
+def triangle_threshold(values: NDArray[np.float64], smooth: int = 5, max_bins: int = 400) -> float:
+    """The triangle-method threshold of a sample of errors (thesis §5.2, footnote 1).
+
+    A histogram of the values is smoothed with a centred moving average of ``smooth`` bins; a line
+    is drawn from its peak to the farthest non-empty bin (the largest value), and the bin whose
+    smoothed height lies farthest below that line gives the threshold (its upper edge). Values above
+    it are outliers. The thesis does not give the bin width or the axis scaling: bins follow the
+    Freedman-Diaconis rule (at most ``max_bins``) and distances are measured with both axes scaled
+    to [0, 1] between the peak and the far end (Zack et al.'s construction, made independent of
+    the units). Returns ``inf`` when there is nothing to cut (fewer than 10 finite values, no spread).
+    """
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if len(v) < 10 or not v.max() > v.min():
+        return np.inf
+    lo, hi = float(v.min()), float(v.max())
+    q75, q25 = np.percentile(v, [75, 25])
+    width = 2.0 * (q75 - q25) / len(v) ** (1 / 3)
+    bins = int(np.clip(np.ceil((hi - lo) / width) if width > 0 else max_bins, smooth, max_bins))
+    counts, edges = np.histogram(v, bins=bins, range=(lo, hi))
+    kernel = np.ones(smooth) / smooth
+    h = np.convolve(np.pad(counts.astype(float), smooth // 2, mode="edge"), kernel, mode="valid")
+    peak = int(np.argmax(h))
+    end = int(np.flatnonzero(counts)[-1])
+    if end - peak < 2:
+        return np.inf
+    i = np.arange(peak, end + 1)
+    xs = (i - peak) / (end - peak)
+    ys = (h[peak:end + 1] - h[end]) / max(h[peak] - h[end], 1e-300)
+    # distance below the line from (0, 1) to (1, 0): (1 - x - y) / sqrt(2), up to the constant
+    k = int(np.argmax(1.0 - xs - ys))
+    return float(edges[peak + k + 1])
+
+
+def trim_outliers(err: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Runs kept by the triangle method, applied to the translation and the rotation errors alike
+    (a run beyond either threshold is a wrong calibration)."""
+    keep = np.isfinite(err).all(axis=1)
+    for c in range(2):
+        keep &= err[:, c] <= triangle_threshold(err[keep, c])
+    return keep
+
+
+def summarize(err: NDArray[np.float64]) -> dict[str, float]:
+    """The statistics of one method in one setting (see the module docstring)."""
+    keep = trim_outliers(err)
+    kept = err[keep]
+    out: dict[str, float] = {}
+    for c, (name, unit) in enumerate((("trans", "mm"), ("rot", "deg"))):
+        e = err[:, c]
+        out[f"{name}_median_{unit}"] = float(np.median(e))
+        out[f"{name}_p10_{unit}"] = float(np.percentile(e, 10))
+        out[f"{name}_p90_{unit}"] = float(np.percentile(e, 90))
+        out[f"{name}_trimmed_mean_{unit}"] = float(kept[:, c].mean()) if len(kept) else np.nan
+        out[f"{name}_trimmed_std_{unit}"] = float(kept[:, c].std(ddof=1)) if len(kept) > 1 else np.nan
+    out["trimmed"] = int((~keep).sum())
+    out["accepted"] = float(np.mean((err[:, 0] < ACCEPT_MM) & (err[:, 1] < ACCEPT_DEG)))
+    out["failed"] = int((~np.isfinite(err).all(axis=1)).sum())
+    return out
+
+
+# --- running one setting -----------------------------------------------------------------------
+
+@dataclass
+class SettingResult:
+    setting: Setting
+    runs: int
+    errors: dict[str, NDArray[np.float64]]  #: method -> (runs, 2) [mm, deg]
+    stats: dict[str, dict[str, float]] = field(default_factory=dict)
+
+
+def _motions(flange2base, target2cam, setup, pairs="consecutive"):
+    ij = pair_indices(flange2base.shape[1], pairs)
+    i, j = ij[:, 0], ij[:, 1]
+    if setup == "eye_in_hand":
+        A = invert(flange2base[:, j]) @ flange2base[:, i]
+    else:
+        A = flange2base[:, j] @ invert(flange2base[:, i])
+    B = target2cam[:, j] @ invert(target2cam[:, i])
+    return A, B
+
+
+def _one_by_one(fn, runs: int) -> NDArray[np.float64]:
+    X = np.full((runs, 4, 4), np.nan)
+    for s in range(runs):
+        try:
+            X[s] = fn(s)
+        except (HandEyeError, np.linalg.LinAlgError, ValueError):
+            pass  # no estimate: counted as a failure
+    return X
+
+
+def run_setting(setting: Setting, runs: int = 200, seed: int | Sequence[int] = 0) -> SettingResult:
+    """Simulate one setting ``runs`` times and run every method of it on the same data.
+
+    ``seed`` seeds this setting's generator (the study passes ``(seed, index)``).
+    """
+    from .calibration import calibrate_poses  # the study sits downstream of calibration
+
+    rng = np.random.default_rng(seed)
+    scenes = seed_scenes(runs, setting.n_motions + 1, setting.setup, rng)
+    flange2base = add_noise(scenes.flange2base, setting.robot, rng)
+    target2cam = add_noise(scenes.target2cam, setting.camera, rng)
+    A, B = _motions(flange2base, target2cam, setting.setup)
+    robot_abs = flange2base if setting.setup == "eye_in_hand" else invert(flange2base)
+    cam_abs = invert(target2cam)
+    errors: dict[str, NDArray[np.float64]] = {}
+    for method in setting.methods:
+        if method == "refined":
+            def fn(s):
+                return calibrate_poses(flange2base[s], target2cam[s], setting.setup, method="daniilidis",
+                                       refine="pose", pairs="consecutive", check=False).X
+            X = _one_by_one(fn, runs)
+        elif method in available("robot_world"):
+            X = solve_robot_world_batch(robot_abs, cam_abs, method)[0]
+        else:
+            X = solve_batch(A, B, method)
+        errors[method] = pose_errors(X, scenes.X)
+    result = SettingResult(setting, runs, errors)
+    result.stats = {m: summarize(e) for m, e in errors.items()}
+    return result
+
+
+# --- the study --------------------------------------------------------------------------------
+
+@dataclass
+class StudyResult:
+    settings: list[SettingResult]
+    figures: dict[str, Figure]
+    runs: int
+    seed: int
+    preset: str | None = None
+
+    def table_rows(self) -> list[dict]:
+        """One row per (setting, method) with the setting's parameters and the statistics."""
+        rows = []
+        for r in self.settings:
+            s = r.setting
+            for m, st in r.stats.items():
+                rows.append({
+                    "figure": s.figure, "series": s.series, "x": s.x, "setup": s.setup, "n_motions": s.n_motions,
+                    "robot_rot_deg": s.robot.rot_deg, "robot_trans_mm": s.robot.trans_mm,
+                    "robot_rot_bias_deg": s.robot.rot_bias_deg, "robot_trans_bias_mm": s.robot.trans_bias_mm,
+                    "robot_noise_frame": s.robot.frame,
+                    "camera_rot_deg": s.camera.rot_deg, "camera_trans_mm": s.camera.trans_mm,
+                    "camera_rot_bias_deg": s.camera.rot_bias_deg, "camera_trans_bias_mm": s.camera.trans_bias_mm,
+                    "camera_noise_frame": s.camera.frame,
+                    "method": m, "runs": r.runs, **st,
+                })
+        return rows
+
+    def get(self, figure: str, series: str, x: float) -> SettingResult:
+        for r in self.settings:
+            if r.setting.figure == figure and r.setting.series == series and np.isclose(r.setting.x, x):
+                return r
+        raise KeyError(f"no setting {figure!r} / {series!r} / x={x}")
+
+
+def _single_threaded_blas() -> None:
+    """Worker initializer: the study's arrays are small, and two processes each running a
+    multi-threaded BLAS on two cores fight over them (measured: 1.3x slower overall)."""
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
+
+
+def _run_indexed(args):
+    index, setting, runs, seed = args
+    return index, run_setting(setting, runs, (seed, index))
+
+
+def study(
+    settings: Sequence[Setting],
+    runs: int = 200,
+    seed: int = 0,
+    jobs: int | None = 1,
+    progress: bool = True,
+    figures: dict[str, Figure] | None = None,
+    preset_name: str | None = None,
+) -> StudyResult:
+    """Run a grid of settings.
+
+    Parameters
+    ----------
+    settings : sequence of Setting
+        E.g. ``preset("seed-chapter5")[0]``.
+    runs : int
+        Simulations per setting (the thesis: 200).
+    seed : int
+        Same seed, same numbers (whatever ``jobs`` is).
+    jobs : int or None
+        Worker processes (None: all cores).
+    progress : bool
+        Progress bar on stderr.
+    """
+    if runs < 10:
+        raise InputMismatchError(f"runs={runs}: the statistics need at least 10 runs per setting")
+    settings = list(settings)
+    jobs = (os.cpu_count() or 1) if jobs is None else max(1, int(jobs))
+    results: list[SettingResult | None] = [None] * len(settings)
+    bar = Progress(len(settings), "simulating", progress)
+    tasks = [(k, s, runs, seed) for k, s in enumerate(settings)]
+    if jobs == 1:
+        for t in tasks:
+            k, res = _run_indexed(t)
+            results[k] = res
+            bar.update()
+    else:
+        # the heaviest settings (refined, many motions) first keeps both workers busy to the end
+        order = sorted(tasks, key=lambda t: -(("refined" in t[1].methods) * 100 + t[1].n_motions))
+        with ProcessPoolExecutor(max_workers=jobs, initializer=_single_threaded_blas) as pool:
+            for fut in as_completed([pool.submit(_run_indexed, t) for t in order]):
+                k, res = fut.result()
+                results[k] = res
+                bar.update()
+    bar.close()
+    return StudyResult(list(results), dict(figures or {}), runs, seed, preset_name)
+
+
+# --- presets ----------------------------------------------------------------------------------
+
+def _level(n: float) -> Noise:
+    return Noise(rot_deg=n, trans_mm=n)
+
+
+def _seed_chapter5(setup: str = "eye_in_hand") -> tuple[list[Setting], dict[str, Figure]]:
+    closed = ("tsai_lenz", "park_martin", "horaud", "horaud_nonlinear", "daniilidis", "andreff", "shah", "li")
+    motions = [2, 3, 4, 5, 6, 8, 10, 15, 20]
+    levels = [0.1, 0.25, 0.5, 1.0, 2.0]
+    S: list[Setting] = []
+
+    def add(fig, series, x, n, robot=Noise(), camera=Noise(), methods=closed):
+        S.append(Setting(fig, series, float(x), n, robot, camera, setup, tuple(methods)))
+
+    for n in motions:
+        add("5.1", "no noise", n, n)
+        add("5.1", "robot 0.3 mm / 0.3 deg", n, n, robot=_level(0.3))
+        add("5.3", "robot 0.5 mm / 0.5 deg", n, n, robot=_level(0.5))
+        add("5.3", "robot 1 mm / 1 deg", n, n, robot=_level(1.0))
+    for lv in [0.1, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0]:
+        # the pose refinement costs ~30 ms a run: on four of the levels only (the preset's time budget)
+        add("5.4", "robot only", lv, 15, robot=_level(lv), methods=METHODS if lv in (0.1, 0.3, 1.0, 2.0) else closed)
+    for lv in levels:
+        add("5.5", "robot only", lv, 15, robot=_level(lv))
+        add("5.5", "camera only", lv, 15, camera=_level(lv))
+        add("5.5", "both", lv, 15, robot=_level(lv), camera=_level(lv))
+        for fixed in (0.1, 0.5, 1.0):
+            add("5.6", f"camera {fixed:g} mm / {fixed:g} deg", lv, 15, robot=_level(lv), camera=_level(fixed))
+    for rot in (0.1, 0.5, 1.0):
+        for tr in [0.1, 0.5, 1.0, 2.0, 5.0, 10.0]:
+            add("5.7", f"robot rotation {rot:g} deg", tr, 15, robot=Noise(rot_deg=rot, trans_mm=tr))
+    for frame, label in (("reference", "bias in the base frame"), ("local", "bias in the flange frame")):
+        for bias in [0.0, 1.0, 2.0, 5.0, 10.0]:
+            add("S", label, bias, 15, robot=Noise(rot_deg=0.1, trans_mm=0.1, trans_bias_mm=bias, frame=frame))
+    figures = {
+        "5.1": Figure("5.1", "Error vs number of motions, no noise and robot noise 0.3 mm / 0.3 deg",
+                      "number of motions"),
+        "5.2": Figure("5.2", "Triangle-method outlier removal: 3 motions, robot noise 0.3 mm / 0.3 deg",
+                      "translation error (mm)", kind="histogram", source=("robot 0.3 mm / 0.3 deg", 3.0),
+                      source_figure="5.1"),
+        "5.3": Figure("5.3", "Error vs number of motions, larger robot noise", "number of motions"),
+        "5.4": Figure("5.4", "Error vs noise level (robot, mm and deg alike), 15 motions",
+                      "robot noise sigma (mm and deg)"),
+        "5.5": Figure("5.5", "Noise on the robot, the camera or both, 15 motions", "noise sigma (mm and deg)"),
+        "5.6": Figure("5.6", "Robot noise growing with the camera noise fixed, 15 motions",
+                      "robot noise sigma (mm and deg)"),
+        "5.7": Figure("5.7", "Translation noise vs rotation noise (robot), 15 motions",
+                      "robot translation noise sigma (mm)", log_x=True),
+        "S": Figure("S", "Systematic robot translation error (sigma 0.1 mm / 0.1 deg plus a bias), 15 motions",
+                    "bias per component (mm)"),
+    }
+    return S, figures
+
+
+PRESETS = {"seed-chapter5": _seed_chapter5}
+
+
+def preset(name: str, setup: str = "eye_in_hand") -> tuple[list[Setting], dict[str, Figure]]:
+    """The settings and figures of a named study (``seed-chapter5``: the thesis's chapter 5)."""
+    if name not in PRESETS:
+        raise InputMismatchError(f"unknown study preset {name!r}; available: {', '.join(PRESETS)}")
+    return PRESETS[name](setup)
+
+
+# --- output -----------------------------------------------------------------------------------
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual permissions
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _fmt(v: float) -> str:
+    if not np.isfinite(v):
+        return "inf" if v > 0 else "nan"
+    return f"{v:.3g}" if abs(v) >= 1e-3 or v == 0 else f"{v:.1e}"
+
+
+def markdown_table(result: StudyResult, methods: Sequence[str] | None = None) -> str:
+    """One markdown table per figure: per setting, each method's median (p10-p90) and acceptance."""
+    lines = [f"# Simulation study ({result.preset or 'custom'}): {result.runs} runs per setting, seed {result.seed}", "",
+             "Errors: translation mm / rotation deg (thesis §5.1). median [10th-90th percentile]; "
+             "trimmed = runs removed by the triangle method; ok = share under 5 mm and 1 deg.", ""]
+    by_fig: dict[str, list[SettingResult]] = {}
+    for r in result.settings:
+        by_fig.setdefault(r.setting.figure, []).append(r)
+    for fig, rs in by_fig.items():
+        title = result.figures[fig].title if fig in result.figures else fig
+        meths = [m for m in (methods or METHODS) if any(m in r.stats for r in rs)]
+        lines += [f"## Figure {fig}: {title}", "", "| series | x | " + " | ".join(meths) + " |",
+                  "|---|---|" + "---|" * len(meths)]
+        for r in rs:
+            cells = []
+            for m in meths:
+                st = r.stats.get(m)
+                if st is None:
+                    cells.append("")
+                    continue
+                cells.append(f"{_fmt(st['trans_median_mm'])} [{_fmt(st['trans_p10_mm'])}-{_fmt(st['trans_p90_mm'])}] / "
+                             f"{_fmt(st['rot_median_deg'])} [{_fmt(st['rot_p10_deg'])}-{_fmt(st['rot_p90_deg'])}]; "
+                             f"trimmed {st['trimmed']}, ok {100 * st['accepted']:.0f}%")
+            lines.append(f"| {r.setting.series} | {r.setting.x:g} | " + " | ".join(cells) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _plot(result: StudyResult, fig_id: str, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    spec = result.figures[fig_id]
+    if spec.kind == "histogram":
+        series, x = spec.source
+        r = result.get(spec.source_figure, series, x)
+        e = r.errors["daniilidis"][:, 0]
+        e = e[np.isfinite(e)]
+        thr = triangle_threshold(e)
+        fig, axes = plt.subplots(1, 3, figsize=(13, 3.6))
+        cap = np.percentile(e, 97)
+        bins = np.linspace(0, cap, 60)
+        axes[0].hist(e[e <= cap], bins=bins, color="0.5")
+        axes[0].set_title(f"(a) Daniilidis, {len(e)} runs ({int((e > cap).sum())} beyond the axis, max {e.max():.0f} mm)",
+                          fontsize=9)
+        counts, edges = np.histogram(e[e <= cap], bins=bins)
+        h = np.convolve(np.pad(counts.astype(float), 2, mode="edge"), np.ones(5) / 5, mode="valid")
+        axes[1].plot(0.5 * (edges[1:] + edges[:-1]), h, color="k")
+        axes[1].axvline(thr, color="r", ls="--", label=f"triangle threshold {thr:.1f} mm")
+        axes[1].set_title("(b) moving average, threshold", fontsize=9)
+        axes[1].legend(fontsize=8)
+        kept = e[e <= thr]
+        axes[2].hist(kept, bins=40, color="0.3")
+        axes[2].set_title(f"(c) after removing {len(e) - len(kept)} outliers", fontsize=9)
+        for ax in axes:
+            ax.set_xlabel(spec.xlabel)
+        fig.suptitle(f"Figure {fig_id}: {spec.title}", fontsize=10)
+        fig.tight_layout()
+    else:
+        rs = [r for r in result.settings if r.setting.figure == fig_id]
+        series = list(dict.fromkeys(r.setting.series for r in rs))
+        fig, axes = plt.subplots(2, 2, figsize=(12, 8))
+        for c, (unit, label) in enumerate((("mm", "translation error (mm)"), ("deg", "rotation error (deg)"))):
+            name = "trans" if c == 0 else "rot"
+            ax = axes[0, c]
+            for sname in series:
+                pts = sorted((r.setting.x, r.stats["daniilidis"]) for r in rs if r.setting.series == sname)
+                xs = np.array([p[0] for p in pts])
+                mean = np.array([p[1][f"{name}_trimmed_mean_{unit}"] for p in pts])
+                std = np.array([p[1][f"{name}_trimmed_std_{unit}"] for p in pts])
+                ax.errorbar(xs, mean, yerr=std, marker="o", ms=3, capsize=3, label=sname)
+            ax.set_title("Daniilidis (the thesis's method): trimmed mean +- std", fontsize=9)
+            ax.set_ylabel(label)
+            ax = axes[1, c]
+            first = series[0]
+            for m in METHODS:
+                pts = sorted((r.setting.x, r.stats[m]) for r in rs if r.setting.series == first and m in r.stats)
+                if not pts:
+                    continue
+                ax.plot([p[0] for p in pts], [p[1][f"{name}_median_{unit}"] for p in pts], marker="o", ms=3, label=m)
+            ax.set_title(f"every solver, median ({first})", fontsize=9)
+            ax.set_ylabel(label)
+            for a in (axes[0, c], axes[1, c]):
+                a.set_xlabel(spec.xlabel)
+                a.set_yscale("log")
+                if spec.log_x:
+                    a.set_xscale("log")
+                a.grid(True, which="both", alpha=0.3)
+        axes[0, 0].legend(fontsize=8)
+        axes[1, 0].legend(fontsize=7, ncol=2)
+        fig.suptitle(f"Figure {fig_id}: {spec.title}", fontsize=10)
+        fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    plt.close(fig)
+    _atomic_write(path, buf.getvalue())
+
+
+def write_study(result: StudyResult, out_dir: str | Path, plots: bool = True) -> list[Path]:
+    """Write ``study.csv`` (one row per setting and method), ``study.md`` (tables per figure),
+    ``study.json`` (the same rows plus run parameters) and one PNG per figure; returns the paths.
+    Files are written atomically; an existing ``out_dir`` is reused, other files in it untouched."""
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputMismatchError(f"--out {out} exists and is not a folder")
+    rows = result.table_rows()
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    written = []
+    for name, data in (
+        ("study.csv", buf.getvalue()),
+        ("study.md", markdown_table(result)),
+        ("study.json", json.dumps({"preset": result.preset, "runs": result.runs, "seed": result.seed,
+                                   "figures": {k: asdict(v) for k, v in result.figures.items()},
+                                   "rows": [{k: (v if not isinstance(v, float) or np.isfinite(v) else None)
+                                             for k, v in row.items()} for row in rows]}, indent=1)),
+    ):
+        _atomic_write(out / name, data.encode())
+        written.append(out / name)
+    if plots:
+        for fig_id in result.figures:
+            p = out / f"fig{fig_id.replace('.', '_')}.png"
+            _plot(result, fig_id, p)
+            written.append(p)
+    return written
