@@ -20,10 +20,11 @@ def translation_least_squares(motions: MotionSet, R_X: NDArray[np.float64]) -> N
     so the normal matrix is a plain sum over the motions. ``R_X`` is ``(..., 3, 3)``, one per run.
     """
     R_A = motions.R_A
-    d = np.einsum("...kj,...ij->...ki", motions.t_B, R_X) - motions.t_A
+    d = motions.t_B @ np.swapaxes(R_X, -1, -2) - motions.t_A
     S = R_A.sum(axis=-3)
     normal = 2 * len(motions) * np.eye(3) - S - np.swapaxes(S, -1, -2)
-    rhs = np.einsum("...kji,...kj->...i", R_A, d) - d.sum(axis=-2)  # sum (R_A - I)^T d
+    stacked = R_A.reshape(R_A.shape[:-3] + (-1, 3))  # rows 3k + j: sum_k R_A^T d = stacked^T vec(d)
+    rhs = (np.swapaxes(stacked, -1, -2) @ d.reshape(d.shape[:-2] + (-1, 1)))[..., 0] - d.sum(axis=-2)
     return np.linalg.solve(normal, rhs[..., None])[..., 0]
 
 

@@ -96,7 +96,7 @@ def normal_matrix(motions: MotionSet) -> NDArray[np.float64]:
     one BLAS product over the motions and no 6K x 8 array.
     """
     y = np.concatenate([motions.dq_a, motions.dq_b], axis=-1)
-    moments = np.einsum("...ki,...kj->...ij", y, y)
+    moments = np.swapaxes(y, -1, -2) @ y  # BLAS, also per run of a batch
     return np.tensordot(moments, _F, axes=2)
 
 

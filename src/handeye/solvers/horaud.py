@@ -50,7 +50,8 @@ def _qmul_right_matrix(q: NDArray[np.float64]) -> NDArray[np.float64]:
 def closed_form_rotation(motions: MotionSet) -> NDArray[np.float64]:
     """The closed-form rotation of Horaud-Dornaika (eigenvector of the summed 4x4 matrix)."""
     D = qmul_matrix(motions.dq_a[..., :4]) - _qmul_right_matrix(motions.dq_b[..., :4])
-    _, vecs = np.linalg.eigh(np.einsum("...kri,...krj->...ij", D, D))
+    Ds = D.reshape(D.shape[:-3] + (-1, 4))
+    _, vecs = np.linalg.eigh(np.swapaxes(Ds, -1, -2) @ Ds)
     return quat_to_matrix(vecs[..., :, 0])
 
 

@@ -28,7 +28,7 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
     """
     alpha = log_rotations(motions.dq_a)
     beta = log_rotations(motions.dq_b)
-    U, _, Vt = np.linalg.svd(np.einsum("...ki,...kj->...ij", alpha, beta))  # sum alpha beta^T = M^T
+    U, _, Vt = np.linalg.svd(np.swapaxes(alpha, -1, -2) @ beta)  # sum alpha beta^T = M^T
     U[..., :, 2] *= np.sign(np.linalg.det(U @ Vt))[..., None]  # U diag(1, 1, det) Vt
     R_X = U @ Vt
     return make_transform(R_X, translation_least_squares(motions, R_X))

@@ -38,7 +38,7 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
     s = P_A + P_B
     d = P_B - P_A
     # normal equations of skew(s) p' = d: skew(s)^T skew(s) = |s|^2 I - s s^T, skew(s)^T d = d x s
-    normal = np.einsum("...ki,...ki->...", s, s)[..., None, None] * np.eye(3) - np.einsum("...ki,...kj->...ij", s, s)
+    normal = np.einsum("...ki,...ki->...", s, s)[..., None, None] * np.eye(3) - np.swapaxes(s, -1, -2) @ s
     p_prime = np.linalg.solve(normal, np.cross(d, s).sum(axis=-2)[..., None])[..., 0]
     P_X = 2.0 * p_prime / np.sqrt(1.0 + np.sum(p_prime * p_prime, axis=-1, keepdims=True))
     n2 = np.sum(P_X * P_X, axis=-1)[..., None, None]
