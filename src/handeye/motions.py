@@ -123,13 +123,20 @@ def relative_motions(
 def _motion_matrices(
     flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str, ij: NDArray[np.intp]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Motions ``(A, B)`` of the pairs ``ij`` from poses ``(N, 4, 4)``, or from a batch of runs
+    ``(S, N, 4, 4)`` (then ``(S, K, 4, 4)``): the one place the conventions of each setup live."""
     i, j = ij[:, 0], ij[:, 1]
-    if setup == "eye_in_hand":
-        A = pairwise_matmul(invert(flange2base), flange2base, j, i)
+    if flange2base.ndim == 4:
+        def pairs_of(L, R):
+            return L[:, j] @ R[:, i]
     else:
-        A = pairwise_matmul(flange2base, invert(flange2base), j, i)
-    B = pairwise_matmul(target2cam, invert(target2cam), j, i)
-    return A, B
+        def pairs_of(L, R):
+            return pairwise_matmul(L, R, j, i)
+    if setup == "eye_in_hand":
+        A = pairs_of(invert(flange2base), flange2base)
+    else:
+        A = pairs_of(flange2base, invert(flange2base))
+    return A, pairs_of(target2cam, invert(target2cam))
 
 
 def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -179,11 +186,6 @@ class MotionSet:
     def batch_shape(self) -> tuple[int, ...]:
         """The leading (run) axes: ``()`` for a single problem."""
         return self.dq_a.shape[:-2]
-
-    def run(self, index: int) -> "MotionSet":
-        """The single problem ``index`` of a batch of shape ``(S,)``."""
-        AB = None if self._AB is None else (self._AB[0][index], self._AB[1][index])
-        return MotionSet(self.dq_a[index], self.dq_b[index], self.pairs, _AB=AB)
 
     @property
     def A(self) -> NDArray[np.float64]:

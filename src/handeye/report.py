@@ -7,8 +7,6 @@ reporting work; this module already writes the transform in the forms robot prog
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -16,10 +14,10 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
+from ._io import atomic_write
 from .calibration import Calibration
-from .errors import HandEyeError
 
-__all__ = ["result_dict", "write_results", "atomic_write_text"]
+__all__ = ["result_dict", "write_results"]
 
 
 def _transform_dict(T: np.ndarray) -> dict[str, Any]:
@@ -100,33 +98,12 @@ def result_dict(cal: Calibration) -> dict[str, Any]:
     return out
 
 
-def atomic_write_text(path: Path, text: str, protect: Iterable[Path] = ()) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename (no half-written files).
-
-    Refuses to write over any of the ``protect`` paths (the user's inputs).
-    """
-    path = Path(path)
-    target = path.resolve()
-    for p in protect:
-        if Path(p).resolve() == target:
-            raise HandEyeError(f"refusing to overwrite the input file {p}; choose another output folder")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def write_results(cal: Calibration, out_dir: str | Path, protect: Iterable[Path] = ()) -> list[Path]:
     """Write ``result.json`` and ``result.yaml`` into ``out_dir``; returns their paths."""
     out_dir = Path(out_dir)
     data = result_dict(cal)
     protect = list(protect)
     paths = [out_dir / "result.json", out_dir / "result.yaml"]
-    atomic_write_text(paths[0], json.dumps(data, indent=2) + "\n", protect)
-    atomic_write_text(paths[1], yaml.safe_dump(data, sort_keys=False), protect)
+    atomic_write(paths[0], json.dumps(data, indent=2) + "\n", protect)
+    atomic_write(paths[1], yaml.safe_dump(data, sort_keys=False), protect)
     return paths

@@ -25,7 +25,6 @@ import csv
 import io
 import json
 import os
-import tempfile
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -34,10 +33,11 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from ._io import atomic_write
 from ._progress import Progress
 from .errors import HandEyeError, InputMismatchError
 from .geometry.se3 import invert
-from .motions import check_setup, pair_indices
+from .motions import _motion_matrices, check_setup, pair_indices
 from .simulate import Noise, add_noise, seed_scenes
 from .solvers import available, solve_batch, solve_robot_world_batch
 
@@ -104,6 +104,11 @@ def pose_errors(X_est: NDArray[np.float64], X_true: NDArray[np.float64]) -> NDAr
     return err
 
 
+def _moving_average(counts: NDArray, window: int) -> NDArray[np.float64]:
+    """Centred moving average of histogram counts, edges extended (same length as ``counts``)."""
+    return np.convolve(np.pad(counts.astype(float), window // 2, mode="edge"), np.ones(window) / window, mode="valid")
+
+
 def triangle_threshold(values: NDArray[np.float64], smooth: int = 5, max_bins: int = 400) -> float:
     """The triangle-method threshold of a sample of errors (thesis §5.2, footnote 1).
 
@@ -124,8 +129,7 @@ def triangle_threshold(values: NDArray[np.float64], smooth: int = 5, max_bins: i
     width = 2.0 * (q75 - q25) / len(v) ** (1 / 3)
     bins = int(np.clip(np.ceil((hi - lo) / width) if width > 0 else max_bins, smooth, max_bins))
     counts, edges = np.histogram(v, bins=bins, range=(lo, hi))
-    kernel = np.ones(smooth) / smooth
-    h = np.convolve(np.pad(counts.astype(float), smooth // 2, mode="edge"), kernel, mode="valid")
+    h = _moving_average(counts, smooth)
     peak = int(np.argmax(h))
     end = int(np.flatnonzero(counts)[-1])
     if end - peak < 2:
@@ -176,14 +180,8 @@ class SettingResult:
 
 
 def _motions(flange2base, target2cam, setup, pairs="consecutive"):
-    ij = pair_indices(flange2base.shape[1], pairs)
-    i, j = ij[:, 0], ij[:, 1]
-    if setup == "eye_in_hand":
-        A = invert(flange2base[:, j]) @ flange2base[:, i]
-    else:
-        A = flange2base[:, j] @ invert(flange2base[:, i])
-    B = target2cam[:, j] @ invert(target2cam[:, i])
-    return A, B
+    """Motions ``(S, K, 4, 4)`` of every run of a batch of poses ``(S, N, 4, 4)``."""
+    return _motion_matrices(flange2base, target2cam, setup, pair_indices(flange2base.shape[1], pairs))
 
 
 def _one_by_one(fn, runs: int) -> NDArray[np.float64]:
@@ -390,21 +388,6 @@ def preset(name: str, setup: str = "eye_in_hand") -> tuple[list[Setting], dict[s
 
 # --- output -----------------------------------------------------------------------------------
 
-def _atomic_write(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.fchmod(fd, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual permissions
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def _fmt(v: float) -> str:
     if not np.isfinite(v):
         return "inf" if v > 0 else "nan"
@@ -459,7 +442,7 @@ def _plot(result: StudyResult, fig_id: str, path: Path) -> None:
         axes[0].set_title(f"(a) Daniilidis, {len(e)} runs ({int((e > cap).sum())} beyond the axis, max {e.max():.0f} mm)",
                           fontsize=9)
         counts, edges = np.histogram(e[e <= cap], bins=bins)
-        h = np.convolve(np.pad(counts.astype(float), 2, mode="edge"), np.ones(5) / 5, mode="valid")
+        h = _moving_average(counts, 5)
         axes[1].plot(0.5 * (edges[1:] + edges[:-1]), h, color="k")
         axes[1].axvline(thr, color="r", ls="--", label=f"triangle threshold {thr:.1f} mm")
         axes[1].set_title("(b) moving average, threshold", fontsize=9)
@@ -508,7 +491,7 @@ def _plot(result: StudyResult, fig_id: str, path: Path) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90)
     plt.close(fig)
-    _atomic_write(path, buf.getvalue())
+    atomic_write(path, buf.getvalue())
 
 
 def write_study(result: StudyResult, out_dir: str | Path, plots: bool = True) -> list[Path]:
@@ -532,7 +515,7 @@ def write_study(result: StudyResult, out_dir: str | Path, plots: bool = True) ->
                                    "rows": [{k: (v if not isinstance(v, float) or np.isfinite(v) else None)
                                              for k, v in row.items()} for row in rows]}, indent=1)),
     ):
-        _atomic_write(out / name, data.encode())
+        atomic_write(out / name, data)
         written.append(out / name)
     if plots:
         for fig_id in result.figures:

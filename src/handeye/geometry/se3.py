@@ -19,6 +19,7 @@ __all__ = [
     "invert",
     "compose",
     "skew",
+    "so3_left_jacobian",
     "pairwise_matmul",
     "rotation_angle",
     "rotation_axis_angle",
@@ -121,6 +122,22 @@ def skew(v: ArrayLike) -> NDArray[np.float64]:
     S[..., 2, 0] = -v[..., 1]
     S[..., 2, 1] = v[..., 0]
     return S
+
+
+def so3_left_jacobian(phi: ArrayLike) -> NDArray[np.float64]:
+    """Left Jacobians of SO(3) at rotation vectors ``phi`` (..., 3): ``exp(phi + d) = exp(J_l d) exp(phi)``
+    to first order, so ``d (exp(phi) v) / d phi = -[exp(phi) v]x J_l(phi)``.
+
+    Below 1e-6 rad the series ``I + K/2 + K^2/6`` is used: the closed form's ``1 - cos`` cancels there.
+    """
+    phi = np.asarray(phi, dtype=float)
+    theta = np.linalg.norm(phi, axis=-1)[..., None, None]
+    K = skew(phi)
+    small = theta < 1e-6
+    t = np.where(small, 1.0, theta)
+    c1 = np.where(small, 0.5, (1.0 - np.cos(t)) / t**2)
+    c2 = np.where(small, 1.0 / 6.0, (t - np.sin(t)) / t**3)
+    return np.eye(3) + c1 * K + c2 * (K @ K)
 
 
 def _rotations(T_or_R: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -84,9 +84,8 @@ def _validate_batch(A: ArrayLike, B: ArrayLike, minimum: int = 2) -> tuple[NDArr
 def solve_batch(A: ArrayLike, B: ArrayLike, method: str = "daniilidis") -> NDArray[np.float64]:
     """Solve many independent ``A @ X = X @ B`` problems at once (e.g. Monte-Carlo runs).
 
-    The closed-form solvers (``tsai_lenz``, ``park_martin``, ``horaud``, ``daniilidis``,
-    ``andreff``) are vectorised over runs: one set of array operations for all of them, and the
-    same numbers as :func:`solve` run by run. Others (``horaud_nonlinear``) loop over the runs.
+    Every solver is vectorised over runs (``horaud_nonlinear`` by a batched Levenberg-Marquardt):
+    one set of array operations for all of them, and the same numbers as :func:`solve` run by run.
 
     Parameters
     ----------
@@ -111,15 +110,7 @@ def solve_batch(A: ArrayLike, B: ArrayLike, method: str = "daniilidis") -> NDArr
     info = get(method, kind="hand_eye")
     A, B = _validate_batch(A, B)
     motions = MotionSet.from_matrices(A, B)
-    if info.batched:
-        return info.func(motions)
-    X = np.full((len(A), 4, 4), np.nan)
-    for s in range(len(A)):
-        try:
-            X[s] = info.func(motions.run(s))
-        except (DegenerateMotionError, np.linalg.LinAlgError):
-            pass  # stays NaN, as documented
-    return X
+    return info.func(motions)
 
 
 def solve_motions(motions: MotionSet, method: str = "daniilidis") -> NDArray[np.float64]:
@@ -186,12 +177,4 @@ def solve_robot_world_batch(
     """
     info = get(method, kind="robot_world")
     A_abs, B_abs = _validate_batch(A_abs, B_abs, minimum=3)
-    if info.batched:
-        return info.func(A_abs, B_abs)
-    X, Z = np.full((2, len(A_abs), 4, 4), np.nan)
-    for s in range(len(A_abs)):
-        try:
-            X[s], Z[s] = info.func(A_abs[s], B_abs[s])
-        except (DegenerateMotionError, np.linalg.LinAlgError):
-            pass
-    return X, Z
+    return info.func(A_abs, B_abs)

@@ -1,7 +1,10 @@
 """The solver registry: every solver family registers its functions here under one signature.
 
-``AX = XB`` solvers take ``(A, B)`` stacks ``(K, 4, 4)`` of validated motions and return ``X``.
-Robot-world solvers take absolute stacks ``(N, 4, 4)`` with ``A_i X = Z B_i`` and return ``(X, Z)``.
+``AX = XB`` solvers take a :class:`~handeye.motions.MotionSet` of validated motions and return
+``X``; robot-world solvers take absolute stacks ``(N, 4, 4)`` with ``A_i X = Z B_i`` and return
+``(X, Z)``. Every solver is vectorised over leading (run) axes of its inputs, ``(S, K, ...)`` in,
+one result per run out: :func:`handeye.solve_batch` relies on it, and a single problem is a batch
+of one.
 """
 
 from __future__ import annotations
@@ -22,26 +25,18 @@ class SolverInfo:
     kind: Kind
     func: Callable
     reference: str
-    #: the function also takes a batch of problems (leading axes) and returns one result per run
-    batched: bool = False
 
 
 _REGISTRY: dict[str, SolverInfo] = {}
 
 
-def register(
-    name: str, kind: Kind = "hand_eye", reference: str = "", batched: bool = False
-) -> Callable[[Callable], Callable]:
-    """Decorator that registers a solver function under ``name``.
-
-    ``batched=True`` declares that the function is vectorised over leading (run) axes of its
-    inputs, which :func:`handeye.solve_batch` then uses instead of a loop over runs.
-    """
+def register(name: str, kind: Kind = "hand_eye", reference: str = "") -> Callable[[Callable], Callable]:
+    """Decorator that registers a solver function under ``name`` (see the module docstring)."""
 
     def deco(func: Callable) -> Callable:
         if name in _REGISTRY:
             raise RuntimeError(f"solver {name!r} registered twice")
-        _REGISTRY[name] = SolverInfo(name, kind, func, reference, batched)
+        _REGISTRY[name] = SolverInfo(name, kind, func, reference)
         return func
 
     return deco

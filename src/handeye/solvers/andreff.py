@@ -42,7 +42,7 @@ def _stacked(R_A, R_B, t_A, t_B):
     return M.reshape(S, 12 * n, 12), y.reshape(S, 12 * n)
 
 
-@register("andreff", reference="Andreff, Horaud & Espiau 1999, 3DIM", batched=True)
+@register("andreff", reference="Andreff, Horaud & Espiau 1999, 3DIM")
 def solve(motions: MotionSet) -> NDArray[np.float64]:
     """Solve ``A X = X B`` with Andreff's linear Kronecker formulation.
 

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 
 from ..errors import DegenerateMotionError
 from ..geometry.dualquat import dq_to_matrix
+from ..geometry.se3 import skew
 from ..motions import MotionSet
 from ._registry import register
 
@@ -49,16 +50,6 @@ def system_matrix(motions: MotionSet) -> NDArray[np.float64]:
     """The stacked 6n x 8 matrix ``T`` of the thesis (§2.2.3), one 6x8 block ``S_i`` per motion."""
     blocks = _blocks(motions.dq_a, motions.dq_b)
     return blocks.reshape(blocks.shape[:-3] + (-1, 8))
-
-
-def _fill_skew(out: NDArray[np.float64], v: NDArray[np.float64]) -> None:
-    """Write the cross-product matrices of ``v`` (..., 3) into the zeroed view ``out`` (..., 3, 3)."""
-    out[..., 0, 1] = -v[..., 2]
-    out[..., 0, 2] = v[..., 1]
-    out[..., 1, 0] = v[..., 2]
-    out[..., 1, 2] = -v[..., 0]
-    out[..., 2, 0] = -v[..., 1]
-    out[..., 2, 1] = v[..., 0]
 
 
 def _gram_basis() -> NDArray[np.float64]:
@@ -78,9 +69,9 @@ def _blocks(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> NDArray[np.
     summ = dq_a + dq_b
     S = np.zeros(diff.shape[:-1] + (6, 8))
     S[..., :3, 0] = diff[..., 1:4]
-    _fill_skew(S[..., :3, 1:4], summ[..., 1:4])
+    S[..., :3, 1:4] = skew(summ[..., 1:4])
     S[..., 3:, 0] = diff[..., 5:8]
-    _fill_skew(S[..., 3:, 1:4], summ[..., 5:8])
+    S[..., 3:, 1:4] = skew(summ[..., 5:8])
     S[..., 3:, 4:] = S[..., :3, :4]
     return S
 
@@ -127,7 +118,7 @@ _FAILURES = {
 }
 
 
-@register("daniilidis", reference="Daniilidis 1999, IJRR 18(3); thesis §2.2.3, §4.1.2", batched=True)
+@register("daniilidis", reference="Daniilidis 1999, IJRR 18(3); thesis §2.2.3, §4.1.2")
 def solve(motions: MotionSet) -> NDArray[np.float64]:
     """Solve ``A X = X B`` for ``X`` with Daniilidis' dual-quaternion SVD.
 

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from ..geometry.dualquat import quat_to_matrix, qmul_matrix
-from ..geometry.se3 import make_transform, skew
+from ..geometry.se3 import make_transform, skew, so3_left_jacobian
 from ..motions import MotionSet
 from ._common import translation_least_squares
 from ._registry import register
@@ -55,7 +55,7 @@ def closed_form_rotation(motions: MotionSet) -> NDArray[np.float64]:
     return quat_to_matrix(vecs[..., :, 0])
 
 
-@register("horaud", reference="Horaud & Dornaika 1995, IJRR 14(3); thesis §2.2.2 (R then t)", batched=True)
+@register("horaud", reference="Horaud & Dornaika 1995, IJRR 14(3); thesis §2.2.2 (R then t)")
 def solve(motions: MotionSet) -> NDArray[np.float64]:
     """Solve ``A X = X B``: closed-form quaternion rotation, then translation.
 
@@ -65,23 +65,12 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
     return make_transform(R_X, translation_least_squares(motions, R_X))
 
 
-def _left_jacobian(phi: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Left Jacobians of SO(3) at rotation vectors ``phi`` (..., 3): ``d exp(phi) v / d phi = -[exp(phi) v]x J_l(phi)``."""
-    th = np.linalg.norm(phi, axis=-1)[..., None, None]
-    K = skew(phi)
-    small = th < 1e-8
-    t = np.where(small, 1.0, th)
-    c1 = np.where(small, 0.5, (1 - np.cos(t)) / t**2)
-    c2 = np.where(small, 1.0 / 6.0, (t - np.sin(t)) / t**3)
-    return np.eye(3) + c1 * K + c2 * (K @ K)
-
-
 #: Levenberg-Marquardt stops when a step changes the unknowns by less than this (relative).
 _XTOL = 1e-14
 _MAX_ITER = 100
 
 
-@register("horaud_nonlinear", reference="Horaud & Dornaika 1995, IJRR 14(3); thesis §2.2.2 (R and t)", batched=True)
+@register("horaud_nonlinear", reference="Horaud & Dornaika 1995, IJRR 14(3); thesis §2.2.2 (R and t)")
 def solve_nonlinear(motions: MotionSet) -> NDArray[np.float64]:
     """Solve ``A X = X B`` for rotation and translation together (see the module docstring).
 
@@ -122,7 +111,7 @@ def solve_nonlinear(motions: MotionSet) -> NDArray[np.float64]:
     for _ in range(_MAX_ITER):
         if not active.any():
             break
-        Jl = _left_jacobian(phi)[:, None]
+        Jl = so3_left_jacobian(phi)[:, None]
         J = np.zeros((S, k, 6, 6))
         # d(-R b)/dphi = [R b]x J_l ; d(R t_B)/dphi = -[R t_B]x J_l ; d r2/dt = -(R_A - I)
         J[:, :, :3, :3] = w1[..., None] * (skew(np.einsum("sij,skj->ski", R, b)) @ Jl)

@@ -20,7 +20,7 @@ from ._common import log_rotations, translation_least_squares
 from ._registry import register
 
 
-@register("park_martin", reference="Park & Martin 1994, IEEE TRA 10(5)", batched=True)
+@register("park_martin", reference="Park & Martin 1994, IEEE TRA 10(5)")
 def solve(motions: MotionSet) -> NDArray[np.float64]:
     """Solve ``A X = X B`` with Park and Martin's log-map Procrustes (see the module docstring).
 

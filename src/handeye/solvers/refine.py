@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ..geometry.se3 import invert, make_transform, skew
+from ..geometry.se3 import invert, make_transform, skew, so3_left_jacobian
 from ..calibration import constant_transforms
 from ..motions import check_setup
 from ..vision.pnp import project_points
@@ -210,15 +210,6 @@ def _right_jacobian_inv(phi):
     return np.eye(3) + 0.5 * S + c[:, None, None] * (S @ S)
 
 
-def _left_jacobian(phi):
-    """Left Jacobian of SO(3) at one rotation vector: ``exp(phi + d) = exp(J_l d) exp(phi)``."""
-    theta = float(np.linalg.norm(phi))
-    S = skew(phi)
-    if theta < 1e-6:
-        return np.eye(3) + 0.5 * S + (S @ S) / 6.0
-    return np.eye(3) + (1 - np.cos(theta)) / theta**2 * S + (theta - np.sin(theta)) / theta**3 * (S @ S)
-
-
 def _pose_jacobian(X, Z, flange2base, target2cam, setup, r):
     """Jacobian (N, 6, 12) of the pose residuals over [dX rotation, dX translation, dZ rotation, dZ
     translation], left rotation increments as in ``refine_pose``'s parameterisation."""
@@ -385,8 +376,8 @@ def refine_pose(
         X, Z = unpack(x)
         r, _, _ = _pose_residuals(X, Z, flange2base, target2cam, setup)
         J = _pose_jacobian(X, Z, flange2base, target2cam, setup, r)
-        J[..., 0:3] = J[..., 0:3] @ _left_jacobian(x[0:3])  # the parameters are rotation vectors
-        J[..., 6:9] = J[..., 6:9] @ _left_jacobian(x[6:9])
+        J[..., 0:3] = J[..., 0:3] @ so3_left_jacobian(x[0:3])  # the parameters are rotation vectors
+        J[..., 6:9] = J[..., 6:9] @ so3_left_jacobian(x[6:9])
         return (W @ J).reshape(-1, 12)
 
     converged, res = False, None

@@ -54,7 +54,7 @@ def _translations(A: NDArray[np.float64], B: NDArray[np.float64], R_Z: NDArray[n
     return sol[..., :3], sol[..., 3:]
 
 
-@register("shah", kind="robot_world", reference="Shah 2013, J. Mech. Robotics 5(3)", batched=True)
+@register("shah", kind="robot_world", reference="Shah 2013, J. Mech. Robotics 5(3)")
 def solve_shah(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Solve ``A_i X = Z B_i`` with Shah's Kronecker-product method; returns ``(X, Z)``.
 
@@ -71,7 +71,7 @@ def solve_shah(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[
     return make_transform(R_X, t_X), make_transform(R_Z, t_Z)
 
 
-@register("li", kind="robot_world", reference="Li, Wang & Wu 2010, Int. J. Phys. Sci. 5(10)", batched=True)
+@register("li", kind="robot_world", reference="Li, Wang & Wu 2010, Int. J. Phys. Sci. 5(10)")
 def solve_li(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Solve ``A_i X = Z B_i`` with Li's linear Kronecker system; returns ``(X, Z)``.
 

@@ -27,7 +27,7 @@ from ._common import translation_least_squares
 from ._registry import register
 
 
-@register("tsai_lenz", reference="Tsai & Lenz 1989; thesis §2.2.1; notes 001", batched=True)
+@register("tsai_lenz", reference="Tsai & Lenz 1989; thesis §2.2.1; notes 001")
 def solve(motions: MotionSet) -> NDArray[np.float64]:
     """Solve ``A X = X B`` with Tsai and Lenz's two-step method (see the module docstring).
 

@@ -1,0 +1,35 @@
+"""Writing output files: atomically (no half-written files), never over the user's inputs."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import Iterable
+
+from .errors import HandEyeError
+
+
+def atomic_write(path: str | Path, data: str | bytes, protect: Iterable[str | Path] = ()) -> None:
+    """Write ``data`` (text as UTF-8, or bytes) to ``path`` through a temporary file and a rename.
+
+    Refuses to write over any of the ``protect`` paths (the user's inputs). The file gets the
+    permissions a plain ``open`` would give (``mkstemp`` alone makes it private, 0600).
+    """
+    path = Path(path)
+    target = path.resolve()
+    for p in protect:
+        if Path(p).resolve() == target:
+            raise HandEyeError(f"refusing to overwrite the input file {p}; choose another output folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
