@@ -47,6 +47,33 @@ def test_noise_free_exact(method, setup, n_poses):
     assert rotation_error(cal.Z, s.Z) < 1e-9 and translation_error(cal.Z, s.Z) < 1e-9
 
 
+@pytest.mark.parametrize("method", ALL)
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+def test_noise_free_exact_with_half_turns_about_the_optical_axis(method, setup):
+    """Regression (found by the pose planner): a view repeated with the camera rolled by exactly
+    180 deg about its optical axis is a half turn with no pitch, so both scalar parts of its dual
+    quaternions are 0 and their relative sign cannot come from them. Daniilidis was 29 mm and
+    Tsai-Lenz 0.5 m off on such noise-free data; the sign now comes from the other motions."""
+    from handeye.simulate import look_at_viewpoints, scene_from_viewpoints
+
+    rng = np.random.default_rng(7)
+    views = look_at_viewpoints(5, rng, distance=(0.4, 0.6))
+    half = make_transform(Rotation.from_rotvec([0, 0, np.pi]).as_matrix(), np.zeros(3))
+    s = scene_from_viewpoints(np.concatenate([views, views[:3] @ half]), setup, rng)
+    A, B = handeye.relative_motions(s.flange2base, s.target2cam, setup)
+    assert np.isclose(np.degrees(handeye.geometry.se3.rotation_angle(A)), 180.0).sum() >= 3
+    for pairs in ("all", "consecutive"):
+        cal = handeye.calibrate_poses(s.flange2base, s.target2cam, setup=setup, method=method, refine="none",
+                                      check=False, pairs=pairs)
+        assert rotation_error(cal.X, s.X) < 1e-9 and translation_error(cal.X, s.X) < 1e-9
+    # batched: the same scene in a batch of two, one copy with the half turns first
+    if method in HAND_EYE:
+        order = np.r_[5:8, 0:5]
+        A2, B2 = handeye.relative_motions(s.flange2base[order], s.target2cam[order], setup)
+        Xb = handeye.solve_batch(np.stack([A, A2]), np.stack([B, B2]), method=method)
+        assert np.abs(Xb - s.X).max() < 1e-9
+
+
 def test_solve_rejects_robot_world_names_and_vice_versa():
     s = random_scene(5, "eye_in_hand", rng=0)
     A, B = handeye.relative_motions(s.flange2base, s.target2cam)

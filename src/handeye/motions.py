@@ -152,7 +152,27 @@ def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[
     dq_a[dq_a[..., 0] < 0] *= -1.0
     dq_b[dq_b[..., 0] < 0] *= -1.0
     dq_b[dq_a[..., 0] * dq_b[..., 0] + dq_a[..., 4] * dq_b[..., 4] < 0] *= -1.0
+    # At theta ~ pi both scalar parts can vanish (a half turn with no pitch, e.g. a 180 deg roll
+    # about the optical axis) and the rule above is a coin toss. The vector parts v = sin(theta/2) n
+    # obey v_a = s R_X v_b, with s = +1 for the right sign, so dot products with any correctly signed
+    # motion r agree: (v_a . v_a_r)(v_b . v_b_r) has the sign of s. Summed over the reliable motions
+    # that is v_a^T M v_b with M = sum_r v_a_r v_b_r^T: O(K), no X needed.
+    w = dq_a[..., 0]
+    near_pi = w < SIGN_FROM_SCALAR_MIN
+    if near_pi.any():
+        ref = (~near_pi)[..., None]
+        va, vb = dq_a[..., 1:4], dq_b[..., 1:4]
+        M = np.einsum("...ki,...kj->...ij", va * ref, vb)
+        score = np.einsum("...ki,...ij,...kj->...k", va, M, vb)
+        scale = np.einsum("...ii->...", np.abs(M))[..., None] * np.linalg.norm(va, axis=-1) * np.linalg.norm(vb, axis=-1)
+        decided = near_pi & (np.abs(score) > 1e-6 * scale)
+        dq_b[decided & (score < 0)] *= -1.0
     return dq_a, dq_b
+
+
+#: Below this scalar part (theta above ~174 deg) the sign of a motion's dual quaternion is taken from
+#: the other motions (see _align_signs), not from the scalar parts, which noise can flip.
+SIGN_FROM_SCALAR_MIN = 0.05
 
 
 @dataclass

@@ -1,0 +1,413 @@
+"""Pose planning: robot poses that make a good calibration, and how good it will be, before the robot moves.
+
+The thesis asks for "the path the robot should follow to get data that guarantee precision" (§3.1)
+and gives rules of thumb (§4.1.2: large rotations about axes that differ, the target always in
+view). We plan for the estimator handeye actually runs on images, the joint reprojection
+refinement of X and Z (:func:`handeye.solvers.refine.refine_reprojection`): its covariance for
+pixel noise sigma is ``sigma^2 (J^T J)^-1`` and J is known before any image is taken. So:
+
+1. Candidate camera viewpoints look at the target centre from the ``standoff`` distance (and
+   0.8x / 1.25x of it), tilted 0 to ``tilt_max`` from the target normal in 12 directions, with 8
+   rolls about the optical axis; those that keep every target point ``margin_px`` inside the image
+   (OpenCV's projection, with distortion) and, when a reach box is given, whose flange position
+   lies in it, stay.
+2. From these, N poses are chosen to minimise the predicted error of X (A-optimal design: the
+   trace of X's covariance, rotation weighted by the standoff so both are in metres): greedy
+   additions, then exchanges until no swap helps. Large rotations about spread axes — the
+   thesis's rules — come out of this criterion rather than being imposed.
+3. The poses are ordered to shorten the robot path (nearest neighbour, then 2-opt).
+
+:func:`easy_handeye_poses` builds the fixed 17-pose pattern of easy_handeye's automatic mover
+(rotations of +-25 and +-12.5 deg about the flange axes, moves of +-0.05 / +-0.1 / +0.033 m) for
+comparison; :func:`simulate_errors` measures either plan by Monte-Carlo through the real pipeline.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+from .errors import HandEyeError
+from .geometry.se3 import invert, make_transform, skew
+from .motions import check_setup
+from .simulate import look_at
+
+__all__ = ["Plan", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
+           "visible_mask", "simulate_errors", "write_plan", "order_path"]
+
+TILTS_DEG = (0.0, 10.0, 20.0, 30.0, 37.5, 45.0, 52.5, 60.0)
+AZIMUTHS = 12
+ROLLS = 8
+DISTANCE_FACTORS = (0.8, 1.0, 1.25)
+
+
+@dataclass
+class Plan:
+    """Planned robot poses and the accuracy they promise.
+
+    Attributes
+    ----------
+    flange2base : (N, 4, 4)
+        The poses to send the robot to, in order.
+    target2cam : (N, 4, 4)
+        What the camera should then see (from the assumed X and Z).
+    cov_X : (6, 6)
+        Predicted covariance of X (rotation vector rad, translation m) for ``noise_px``.
+    std_X : (6,)
+        Its standard deviations in degrees and millimetres.
+    noise_px : float
+    n_candidates : int
+        Viewpoints that passed the visibility and reach checks.
+    """
+
+    setup: str
+    X: NDArray[np.float64]
+    Z: NDArray[np.float64]
+    flange2base: NDArray[np.float64]
+    target2cam: NDArray[np.float64]
+    cov_X: NDArray[np.float64]
+    std_X: NDArray[np.float64]
+    noise_px: float
+    n_candidates: int
+    notes: list[str] = field(default_factory=list)
+
+
+def _flange_poses(cam2target: NDArray[np.float64], X: NDArray[np.float64], Z: NDArray[np.float64], setup: str):
+    if setup == "eye_in_hand":  # X = cam2flange, Z = target2base
+        return Z @ cam2target @ invert(X)
+    return X @ invert(cam2target) @ invert(Z)  # X = cam2base, Z = target2flange
+
+
+def _target2cam(flange2base: NDArray[np.float64], X: NDArray[np.float64], Z: NDArray[np.float64], setup: str):
+    robot = invert(flange2base) if setup == "eye_in_hand" else flange2base
+    return invert(X) @ robot @ Z
+
+
+def visible_mask(target2cam: NDArray[np.float64], object_points: NDArray[np.float64], K: NDArray[np.float64],
+                 dist: NDArray[np.float64], image_size: tuple[int, int], margin_px: float = 0.0) -> NDArray[np.bool_]:
+    """Per pose, whether every target point is in front of the camera and ``margin_px`` inside the image."""
+    from .vision.pnp import project_points
+
+    w, h = image_size
+    obj = np.ascontiguousarray(object_points, dtype=np.float64)
+    out = np.zeros(len(target2cam), dtype=bool)
+    for i, T in enumerate(target2cam):
+        depth = obj @ T[:3, :3].T[:, 2] + T[2, 3]
+        if np.any(depth <= 1e-3):
+            continue
+        px = project_points(T, obj, K, dist)
+        out[i] = bool(np.all(px >= margin_px) and np.all(px[:, 0] <= w - 1 - margin_px)
+                      and np.all(px[:, 1] <= h - 1 - margin_px))
+    return out
+
+
+def reprojection_information(flange2base: NDArray[np.float64], X: NDArray[np.float64], Z: NDArray[np.float64],
+                             setup: str, object_points: NDArray[np.float64], K: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Per pose, ``J^T J`` (N, 12, 12) of the pixel residuals of every target point with respect to
+    the 12 unknowns of :func:`handeye.solvers.refine.refine_reprojection` (left rotation-vector
+    increments and translation increments of X, then of Z), for unit pixel noise (pinhole model:
+    distortion changes the information little and is left out)."""
+    robot = invert(flange2base) if setup == "eye_in_hand" else flange2base  # W: base->flange or flange->base
+    R_X, t_X, R_Z, t_Z = X[:3, :3], X[:3, 3], Z[:3, :3], Z[:3, 3]
+    p = np.asarray(object_points, dtype=float)  # (M, 3)
+    Rp = p @ R_Z.T  # (M, 3)  R_Z p
+    q = Rp + t_Z
+    R_W, t_W = robot[:, :3, :3], robot[:, :3, 3]  # (N, 3, 3), (N, 3)
+    s = np.einsum("nij,mj->nmi", R_W, q) + t_W[:, None, :]  # (N, M, 3) point in the X frame's parent
+    pc = np.einsum("ji,nmj->nmi", R_X, s - t_X)  # R_X^T (s - t_X)
+    fx, fy = K[0, 0], K[1, 1]
+    x, y, z = pc[..., 0], pc[..., 1], pc[..., 2]
+    Jp = np.zeros(pc.shape[:2] + (2, 3))
+    Jp[..., 0, 0] = fx / z
+    Jp[..., 0, 2] = -fx * x / z**2
+    Jp[..., 1, 1] = fy / z
+    Jp[..., 1, 2] = -fy * y / z**2
+    RXt = R_X.T
+    # d pc / d(omega_X) = R_X^T [s - t_X]x ; d pc / d(v_X) = -R_X^T
+    dX_rot = np.einsum("ij,nmjk->nmik", RXt, skew(s - t_X))
+    dX_tra = np.broadcast_to(-RXt, pc.shape[:2] + (3, 3))
+    # d pc / d(omega_Z) = -R_X^T R_W [R_Z p]x ; d pc / d(v_Z) = R_X^T R_W
+    RXW = np.einsum("ij,njk->nik", RXt, R_W)  # (N, 3, 3)
+    dZ_rot = -np.einsum("nij,mjk->nmik", RXW, skew(Rp))
+    dZ_tra = np.broadcast_to(RXW[:, None], pc.shape[:2] + (3, 3))
+    D = np.concatenate([dX_rot, dX_tra, dZ_rot, dZ_tra], axis=3)  # (N, M, 3, 12)
+    J = np.einsum("nmij,nmjk->nmik", Jp, D)  # (N, M, 2, 12)
+    return np.einsum("nmai,nmaj->nij", J, J)
+
+
+def predicted_cov(information: NDArray[np.float64], noise_px: float) -> NDArray[np.float64]:
+    """Covariance (6, 6) of X from the summed information of the poses and the pixel noise."""
+    return noise_px**2 * np.linalg.inv(information)[:6, :6]
+
+
+def _criterion(info_inv: NDArray[np.float64], weight: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.einsum("...ii,i->...", info_inv[..., :6, :6], weight)
+
+
+def _choose(infos: NDArray[np.float64], n: int, weight: NDArray[np.float64], max_passes: int = 8) -> list[int]:
+    """A-optimal selection of ``n`` of the candidate informations: greedy, then exchanges."""
+    ridge = 1e-9 * float(np.mean(np.trace(infos, axis1=1, axis2=2))) * np.eye(12)
+    chosen: list[int] = []
+    total = ridge.copy()
+    for _ in range(n):
+        scores = _criterion(np.linalg.inv(total + infos), weight)
+        scores[chosen] = np.inf
+        k = int(np.argmin(scores))
+        chosen.append(k)
+        total = total + infos[k]
+    best = float(_criterion(np.linalg.inv(total), weight))
+    for _ in range(max_passes):
+        improved = False
+        for slot in range(n):
+            rest = total - infos[chosen[slot]]
+            scores = _criterion(np.linalg.inv(rest + infos), weight)
+            scores[chosen] = np.inf
+            k = int(np.argmin(scores))
+            if scores[k] < best * (1 - 1e-9):
+                chosen[slot], total, best, improved = k, rest + infos[k], float(scores[k]), True
+        if not improved:
+            break
+    return chosen
+
+
+def order_path(flange2base: NDArray[np.float64], metres_per_rad: float = 0.25) -> NDArray[np.intp]:
+    """An order of the poses that shortens the robot path: cost = distance + ``metres_per_rad`` x
+    rotation angle; nearest neighbour from the first pose, then 2-opt."""
+    n = len(flange2base)
+    if n < 3:
+        return np.arange(n)
+    t = flange2base[:, :3, 3]
+    R = flange2base[:, :3, :3]
+    dpos = np.linalg.norm(t[:, None] - t[None], axis=2)
+    cos = np.clip((np.einsum("aji,bji->ab", R, R) - 1) / 2, -1, 1)
+    cost = dpos + metres_per_rad * np.arccos(cos)
+    order = [0]
+    left = set(range(1, n))
+    while left:
+        k = min(left, key=lambda j: cost[order[-1], j])
+        order.append(k)
+        left.remove(k)
+    improved = True
+    while improved:
+        improved = False
+        for i in range(1, n - 1):
+            for j in range(i + 1, n):
+                a, b = order[i - 1], order[i]
+                c = order[j]
+                d = order[j + 1] if j + 1 < n else None
+                before = cost[a, b] + (cost[c, d] if d is not None else 0.0)
+                after = cost[a, c] + (cost[b, d] if d is not None else 0.0)
+                if after < before - 1e-12:
+                    order[i:j + 1] = order[i:j + 1][::-1]
+                    improved = True
+    return np.array(order)
+
+
+def _candidates(standoff: float, tilt_max_deg: float, centre: NDArray[np.float64]) -> NDArray[np.float64]:
+    tilts = np.radians([t for t in TILTS_DEG if t <= tilt_max_deg + 1e-9])
+    az = np.linspace(0, 2 * np.pi, AZIMUTHS, endpoint=False)
+    rolls = np.linspace(-np.pi, np.pi, ROLLS, endpoint=False)
+    T, A, Rl, D = np.meshgrid(tilts, az, rolls, DISTANCE_FACTORS, indexing="ij")
+    keep = ~((T == 0) & (A > 0))  # at zero tilt every azimuth is the same view
+    T, A, Rl, D = T[keep], A[keep], Rl[keep], D[keep]
+    # the camera on the printed side of the target (target -z), as the renderer and detectors expect
+    direction = np.stack([np.sin(T) * np.cos(A), np.sin(T) * np.sin(A), -np.cos(T)], axis=1)
+    position = centre + direction * (standoff * D)[:, None]
+    return look_at(position, np.broadcast_to(centre, position.shape), Rl + A)
+
+
+def plan_poses(
+    setup: str,
+    X: ArrayLike,
+    Z: ArrayLike,
+    object_points: ArrayLike,
+    K: ArrayLike,
+    image_size: tuple[int, int],
+    dist: ArrayLike | None = None,
+    n_poses: int = 12,
+    standoff: float = 0.5,
+    tilt_max_deg: float = 45.0,
+    margin_px: float = 20.0,
+    reach_box: ArrayLike | None = None,
+    noise_px: float = 0.3,
+) -> Plan:
+    """Plan ``n_poses`` robot poses for a calibration (see the module docstring).
+
+    Parameters
+    ----------
+    setup : {'eye_in_hand', 'eye_to_hand'}
+    X, Z : (4, 4)
+        The assumed (rough, e.g. from CAD) camera mounting and target placement: eye-in-hand
+        ``cam2flange`` and ``target2base``; eye-to-hand ``cam2base`` and ``target2flange``.
+        Errors of a few centimetres or degrees are absorbed by ``margin_px``.
+    object_points : (M, 3)
+        The target's points (metres, target frame; the camera sees the target from its -z side).
+    K, image_size, dist
+        The camera (``dist`` in OpenCV's order; default none).
+    n_poses : int
+        At least 3.
+    standoff : float
+        Camera-to-target distance (m) of the middle candidates (0.8x and 1.25x are tried too).
+    tilt_max_deg : float
+        Largest angle between the optical axis and the target normal.
+    margin_px : float
+        Every target point stays this far inside the image.
+    reach_box : (6,) array, optional
+        ``xmin, ymin, zmin, xmax, ymax, zmax`` (m, base frame): where the flange may go.
+    noise_px : float
+        Pixel noise assumed for the predicted uncertainty.
+
+    Raises
+    ------
+    HandEyeError
+        Bad arguments, or too few viewpoints see the whole target (with what to change).
+    """
+    check_setup(setup)
+    X = np.asarray(X, dtype=float)
+    Z = np.asarray(Z, dtype=float)
+    obj = np.asarray(object_points, dtype=float).reshape(-1, 3)
+    K = np.asarray(K, dtype=float)
+    dist = np.zeros(5) if dist is None else np.asarray(dist, dtype=float).ravel()
+    if n_poses < 3:
+        raise HandEyeError(f"--poses {n_poses}: at least 3 poses are needed (two motions); 10 to 20 are usual")
+    if not standoff > 0 or not np.isfinite(standoff):
+        raise HandEyeError(f"standoff {standoff}: give the camera-to-target distance in metres (> 0)")
+    if not 0 < tilt_max_deg <= 70:
+        raise HandEyeError(f"tilt_max {tilt_max_deg} deg: use a value in (0, 70]; detectors fail at grazing views")
+    centre = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
+    cam2target = _candidates(standoff, tilt_max_deg, centre)
+    target2cam = invert(cam2target)
+    keep = visible_mask(target2cam, obj, K, dist, image_size, margin_px)
+    notes = []
+    if keep.sum() < n_poses:
+        raise HandEyeError(
+            f"only {int(keep.sum())} of {len(keep)} candidate views keep the whole target {margin_px:g} px inside the "
+            f"image at a standoff of {standoff:g} m; increase the standoff or use a smaller target")
+    flange2base = _flange_poses(cam2target, X, Z, setup)
+    if reach_box is not None:
+        box = np.asarray(reach_box, dtype=float).ravel()
+        if box.size != 6 or np.any(box[:3] >= box[3:]):
+            raise HandEyeError("reach box: give xmin,ymin,zmin,xmax,ymax,zmax (m) with each min below its max")
+        t = flange2base[:, :3, 3]
+        inside = np.all((t >= box[:3]) & (t <= box[3:]), axis=1)
+        if (keep & inside).sum() < n_poses:
+            raise HandEyeError(
+                f"only {int((keep & inside).sum())} views that see the whole target put the flange inside the reach "
+                f"box; enlarge the box, move the target, or change the standoff")
+        keep &= inside
+    idx = np.flatnonzero(keep)
+    infos = reprojection_information(flange2base[idx], X, Z, setup, obj, K)
+    weight = np.r_[np.full(3, standoff**2), np.ones(3)]  # rotation error seen at the standoff, in metres
+    chosen = idx[_choose(infos, n_poses, weight)]
+    order = order_path(flange2base[chosen])
+    chosen = chosen[order]
+    info = reprojection_information(flange2base[chosen], X, Z, setup, obj, K).sum(axis=0)
+    cov = predicted_cov(info, noise_px)
+    std = np.r_[np.degrees(np.sqrt(np.diag(cov)[:3])), 1e3 * np.sqrt(np.diag(cov)[3:])]
+    return Plan(setup, X, Z, flange2base[chosen], target2cam[chosen], cov, std, float(noise_px), int(keep.sum()), notes)
+
+
+def easy_handeye_poses(start_flange2base: ArrayLike, angle_deg: float = 25.0, translation: float = 0.1) -> NDArray[np.float64]:
+    """easy_handeye's automatic movement pattern around a start pose (17 poses).
+
+    Its default parameters (``rotation_delta_degrees`` 25, ``translation_delta_meters`` 0.1): the
+    start orientation turned by +-angle and by +-angle/2 about each of the flange's own x, y, z
+    axes (12 poses), and the start position moved by +-translation/2 along base x, +-translation
+    along base y and +translation/3 along base z (5 poses).
+    """
+    T0 = np.asarray(start_flange2base, dtype=float)
+    out = []
+    for scale in (1.0, 0.5):
+        for k in range(3):
+            for sign in (1.0, -1.0):
+                rv = np.zeros(3)
+                rv[k] = sign * scale * np.radians(angle_deg)
+                out.append(T0 @ make_transform(Rotation.from_rotvec(rv).as_matrix(), np.zeros(3)))
+    for k, d in ((0, translation / 2), (0, -translation / 2), (1, translation), (1, -translation), (2, translation / 3)):
+        T = T0.copy()
+        T[k, 3] += d
+        out.append(T)
+    return np.array(out)
+
+
+def fronto_parallel_start(X: ArrayLike, Z: ArrayLike, object_points: ArrayLike, standoff: float, setup: str) -> NDArray[np.float64]:
+    """The flange pose from which the camera looks straight at the target centre from ``standoff``."""
+    obj = np.asarray(object_points, dtype=float).reshape(-1, 3)
+    centre = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
+    cam2target = look_at(centre - [0.0, 0.0, standoff], centre, np.zeros(1))
+    return _flange_poses(cam2target, np.asarray(X, float), np.asarray(Z, float), setup)[0]
+
+
+def simulate_errors(
+    flange2base: NDArray[np.float64],
+    X: NDArray[np.float64],
+    Z: NDArray[np.float64],
+    setup: str,
+    object_points: NDArray[np.float64],
+    K: NDArray[np.float64],
+    dist: NDArray[np.float64],
+    image_size: tuple[int, int],
+    noise_px: float,
+    runs: int,
+    rng: np.random.Generator | int | None = None,
+    method: str = "daniilidis",
+) -> tuple[NDArray[np.float64], int]:
+    """Errors of X (runs, 2: deg, mm) through the real pipeline, and how many poses could be used.
+
+    Per run: every target point projected (OpenCV, with distortion) and moved by Gaussian noise
+    of ``noise_px`` per axis; poses that do not keep every point inside the image are dropped (a
+    detector would not find the target); PnP per image; ``method``; then the joint reprojection
+    refinement, as ``handeye.calibrate`` runs it on a session with known intrinsics.
+    """
+    import cv2
+
+    from .calibration import calibrate_poses
+    from .metrics import rotation_error, translation_error
+    from .solvers.refine import refine_reprojection
+    from .vision.pnp import project_points
+
+    rng = np.random.default_rng(rng)
+    obj = np.ascontiguousarray(object_points, dtype=np.float64)
+    T_true = _target2cam(flange2base, X, Z, setup)
+    usable = visible_mask(T_true, obj, K, dist, image_size, 0.0)
+    if usable.sum() < 3:
+        raise HandEyeError(f"only {int(usable.sum())} poses see the whole target; no calibration possible")
+    f2b = flange2base[usable]
+    clean = [project_points(T, obj, K, dist) for T in T_true[usable]]
+    errors = np.empty((runs, 2))
+    for r in range(runs):
+        img = [c + rng.normal(0.0, noise_px, c.shape) for c in clean]
+        t2c = []
+        for im in img:
+            ok, rvec, tvec = cv2.solvePnP(obj, im, K, dist, flags=cv2.SOLVEPNP_IPPE)
+            rvec, tvec = cv2.solvePnPRefineLM(obj, im, K, dist, rvec, tvec)
+            t2c.append(make_transform(cv2.Rodrigues(rvec)[0], tvec.ravel()))
+        cal = calibrate_poses(f2b, np.array(t2c), setup=setup, method=method, refine="none", check=False)
+        ref = refine_reprojection(cal.X, cal.Z, f2b, [obj] * len(img), img, K, dist, setup)
+        errors[r] = np.degrees(rotation_error(ref.X, X)), 1e3 * translation_error(ref.X, X)
+    return errors, int(usable.sum())
+
+
+def write_plan(plan: Plan, path: str | Path, format: str = "quat_wxyz", length_unit: str = "m",
+               angle_unit: str = "rad", protect=()) -> Path:
+    """Write the planned flange poses as a session ``poses.csv`` (``image`` column first: the names the
+    images should get), in the robot's own pose format and units; atomically."""
+    import csv
+    import io
+
+    from ._io import atomic_write
+    from .poses import format_poses, pose_columns
+
+    rows = format_poses(plan.flange2base, format, length_unit, angle_unit)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["image"] + pose_columns(format))
+    for k, row in enumerate(rows):
+        w.writerow([f"{k:03d}.png"] + [repr(float(v)) for v in row])
+    path = Path(path)
+    atomic_write(path, buf.getvalue(), protect)
+    return path

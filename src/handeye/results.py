@@ -1,0 +1,200 @@
+"""Result files: a calibration in the forms robot programs and ROS need, written atomically.
+
+``result.json`` and ``result.yaml`` hold the same mapping (:func:`result_dict`): X and Z as 4x4
+matrices, translations in m and mm, quaternions in both orders (labelled), rotation vectors,
+Euler angles in the convention the robot poses were given in, the inverse of X, the uncertainty,
+the verdict and advice, per-pose residuals, the handeye version and a hash of the inputs — and two
+snippets that paste straight into a ROS 2 system (:func:`ros2_static_transform_command`,
+:func:`urdf_joint`). Numbers are written with full precision (shortest round-trip repr).
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from ._io import atomic_write
+from .calibration import Calibration
+from .geometry.se3 import invert
+
+__all__ = ["result_dict", "write_results", "ros2_static_transform_command", "urdf_joint", "default_frames"]
+
+
+def default_frames(setup: str) -> tuple[str, str]:
+    """``(parent, child)`` frame names for X: ROS-Industrial's ``tool0`` / ``base_link`` and the
+    camera's optical frame (OpenCV's camera frame: z forward, x right, y down, REP 103's *_optical_frame*)."""
+    return ("tool0" if setup == "eye_in_hand" else "base_link"), "camera_optical_frame"
+
+
+def _euler(rot: Rotation, seq: str, degrees: bool = False) -> NDArray[np.float64]:
+    # at gimbal lock scipy warns and sets the third angle to zero; the angles still give the rotation
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Gimbal lock", category=UserWarning)
+        return rot.as_euler(seq, degrees=degrees)
+
+
+def _num(v: float) -> str:
+    return repr(float(v))
+
+
+def ros2_static_transform_command(T: NDArray[np.float64], parent: str, child: str) -> str:
+    """The ``ros2 run tf2_ros static_transform_publisher`` line that publishes ``T = child2parent``.
+
+    ROS 2 (Foxy and later) named arguments; the quaternion is in ROS's x, y, z, w order.
+    """
+    q = Rotation.from_matrix(T[:3, :3]).as_quat(canonical=True)
+    x, y, z = T[:3, 3]
+    return (f"ros2 run tf2_ros static_transform_publisher --x {_num(x)} --y {_num(y)} --z {_num(z)} "
+            f"--qx {_num(q[0])} --qy {_num(q[1])} --qz {_num(q[2])} --qw {_num(q[3])} "
+            f"--frame-id {parent} --child-frame-id {child}")
+
+
+def urdf_joint(T: NDArray[np.float64], parent: str, child: str, name: str | None = None) -> str:
+    """A fixed URDF ``<joint>`` placing ``child`` in ``parent`` by ``T = child2parent``.
+
+    URDF's ``rpy`` is roll about x, then pitch about y, then yaw about z, all about the parent's
+    fixed axes: ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (scipy's extrinsic ``'xyz'``).
+    """
+    rpy = _euler(Rotation.from_matrix(T[:3, :3]), "xyz")
+    xyz = " ".join(_num(v) for v in T[:3, 3])
+    return (f'<joint name="{name or child + "_joint"}" type="fixed">\n'
+            f'  <parent link="{parent}"/>\n'
+            f'  <child link="{child}"/>\n'
+            f'  <origin xyz="{xyz}" rpy="{" ".join(_num(v) for v in rpy)}"/>\n'
+            f'</joint>')
+
+
+def _euler_of_input(rot: Rotation, cal: Calibration) -> dict[str, Any] | None:
+    ri = cal.robot_input
+    if ri is None or not ri.format.startswith("euler:"):
+        return None
+    seq, deg = ri.format.split(":", 1)[1], ri.angle_unit == "deg"
+    return {"sequence": seq, "unit": ri.angle_unit, "angles": _euler(rot, seq, deg).tolist(),
+            "note": "the convention of the robot poses given (upper case intrinsic, lower case extrinsic)"}
+
+
+def _transform_dict(T: NDArray[np.float64], cal: Calibration | None = None) -> dict[str, Any]:
+    rot = Rotation.from_matrix(T[:3, :3])
+    out = {
+        "matrix": T.tolist(),
+        "translation_m": T[:3, 3].tolist(),
+        "translation_mm": (1e3 * T[:3, 3]).tolist(),
+        "quaternion_wxyz": rot.as_quat(canonical=True, scalar_first=True).tolist(),
+        "quaternion_xyzw": rot.as_quat(canonical=True).tolist(),
+        "rotvec_rad": rot.as_rotvec().tolist(),
+        "rotvec_deg": rot.as_rotvec(degrees=True).tolist(),
+        "rpy_rad": _euler(rot, "xyz").tolist(),
+        "rpy_note": "roll, pitch, yaw about fixed x, y, z (scipy 'xyz', URDF/ROS rpy)",
+    }
+    if cal is not None:
+        euler = _euler_of_input(rot, cal)
+        if euler is not None:
+            out["euler_input_convention"] = euler
+    return out
+
+
+def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: str | None = None) -> dict[str, Any]:
+    """A plain, JSON/YAML-ready description of a calibration (see the module docstring).
+
+    ``parent_frame`` / ``child_frame`` name the frames in the ROS snippets (defaults:
+    :func:`default_frames`).
+    """
+    from . import __version__
+
+    x_name = "cam2flange" if cal.setup == "eye_in_hand" else "cam2base"
+    z_name = "target2base" if cal.setup == "eye_in_hand" else "target2flange"
+    inv_name = "flange2cam" if cal.setup == "eye_in_hand" else "base2cam"
+    parent, child = default_frames(cal.setup)
+    parent, child = parent_frame or parent, child_frame or child
+    mres = cal.motion_residuals
+    pres = cal.pose_residuals
+    out: dict[str, Any] = {
+        "handeye_version": __version__,
+        "inputs_sha256": cal.inputs_sha256,
+        "setup": cal.setup,
+        "method": cal.method,
+        "X_name": x_name,
+        "X": _transform_dict(cal.X, cal),
+        "X_inverse_name": inv_name,
+        "X_inverse": _transform_dict(invert(cal.X), cal),
+        "Z_name": z_name,
+        "Z": _transform_dict(cal.Z, cal),
+        "ros": {
+            "parent_frame": parent,
+            "child_frame": child,
+            "static_transform_publisher": ros2_static_transform_command(cal.X, parent, child),
+            "urdf_joint": urdf_joint(cal.X, parent, child),
+        },
+        "n_poses": int(len(cal.flange2base)),
+        "n_motions": int(len(cal.pairs)),
+        "motion_residuals": {
+            "columns": ["angle_deg", "pitch_mm"],
+            "median": np.median(mres, axis=0).tolist(),
+            "max": mres.max(axis=0).tolist(),
+        },
+        "pose_residuals": {
+            "columns": ["rotation_deg", "translation_mm"],
+            "pose_indices": [int(i) for i in (cal.pose_indices if cal.pose_indices is not None else range(len(pres)))],
+            "values": pres.tolist(),
+        },
+    }
+    if cal.image_names is not None:
+        out["pose_residuals"]["images"] = list(cal.image_names)
+        out["images"] = {
+            "used": list(cal.image_names),
+            "reprojection_rms_px": cal.reprojection_rms.tolist(),
+            "skipped": [{"image": n, "reason": r} for n, r in cal.skipped],
+        }
+        out["camera"] = {
+            "source": cal.intrinsics_source,
+            "K": cal.camera_matrix.tolist(),
+            "dist": cal.dist_coeffs.tolist(),
+            "rms_px": cal.intrinsics_rms,
+        }
+    out["refinement"] = {"type": cal.refinement}
+    if cal.refined_rms is not None:
+        out["refinement"]["rms_px"] = cal.refined_rms
+    if cal.pose_noise is not None:
+        out["refinement"]["pose_noise"] = dict(cal.pose_noise)
+    if cal.cov is not None:
+        out["uncertainty"] = {
+            "std_rotation_deg": cal.std[:3].tolist(),
+            "std_translation_mm": cal.std[3:].tolist(),
+            "cov": cal.cov.tolist(),
+            "cov_parameters": "X: rotation vector increment (rad, left), translation (m)",
+        }
+    if cal.diagnostics is not None:
+        d = cal.diagnostics
+        out["check"] = {
+            "verdict": d.verdict,
+            "outliers": list(d.outliers),
+            "pose_indices_used": [int(i) for i in cal.pose_indices],
+            "consistency": float(d.consistency),
+            "advice": list(d.advice),
+        }
+    else:
+        out["check"] = {"verdict": "not checked", "advice": []}
+    out["notes"] = list(cal.notes)
+    return out
+
+
+def write_results(cal: Calibration, out_dir: str | Path, protect: Iterable[Path] = (),
+                  parent_frame: str | None = None, child_frame: str | None = None) -> list[Path]:
+    """Write ``result.json`` and ``result.yaml`` into ``out_dir``; returns their paths.
+
+    Each file is written atomically; none of the ``protect`` paths (the inputs) is overwritten.
+    """
+    out_dir = Path(out_dir)
+    data = result_dict(cal, parent_frame, child_frame)
+    protect = list(protect)
+    paths = [out_dir / "result.json", out_dir / "result.yaml"]
+    atomic_write(paths[0], json.dumps(data, indent=2) + "\n", protect)
+    atomic_write(paths[1], yaml.safe_dump(data, sort_keys=False, width=1000), protect)
+    return paths

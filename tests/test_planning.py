@@ -1,0 +1,209 @@
+"""``handeye plan`` (issue 8): planned poses see the target, promise an accuracy they keep, and beat
+easy_handeye's fixed 17-pose pattern."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+from scipy.spatial.transform import Rotation
+
+from handeye.cli import main
+from handeye.diagnostics import diagnose
+from handeye.errors import HandEyeError
+from handeye.geometry.se3 import invert, make_transform
+from handeye.planning import (easy_handeye_poses, fronto_parallel_start, order_path, plan_poses, predicted_cov,
+                              reprojection_information, simulate_errors, visible_mask)
+from handeye.poses import parse_poses
+from handeye.session import read_pose_table
+from handeye.simulate import DEFAULT_TARGETS, default_camera
+from handeye.solvers.refine import predicted_target2cam
+from handeye.vision.pnp import project_points
+from handeye.vision.targets import target_from_spec
+
+SIZE = (1280, 1024)
+K, DIST = default_camera(SIZE)
+OBJ = target_from_spec({"type": "chessboard", "cols": 9, "rows": 6, "square": 0.025}).object_points()
+STANDOFF = 0.5
+
+
+def _mounting(setup):
+    """A rough camera mounting and target placement, as a user would give them."""
+    if setup == "eye_in_hand":
+        X = make_transform(Rotation.from_euler("z", 90, degrees=True).as_matrix(), [0.03, -0.05, 0.08])
+        Z = make_transform(Rotation.from_rotvec([np.pi, 0, 0]).as_matrix(), [0.6, 0.1, 0.0])
+    else:
+        X = make_transform(Rotation.from_euler("xyz", [170, 10, 5], degrees=True).as_matrix(), [0.8, 0.0, 0.9])
+        Z = make_transform(Rotation.from_rotvec([np.pi, 0, 0]).as_matrix(), [0.0, 0.02, 0.05])
+    return X, Z
+
+
+def test_information_matches_finite_differences_of_the_refinement_residuals():
+    """The analytic J^T J is that of refine_reprojection's 12 unknowns (pinhole camera)."""
+    for setup in ("eye_in_hand", "eye_to_hand"):
+        X, Z = _mounting(setup)
+        plan = plan_poses(setup, X, Z, OBJ, K, SIZE, n_poses=4, standoff=STANDOFF)
+        F = plan.flange2base
+
+        def residuals(x):
+            Xp = make_transform(Rotation.from_rotvec(x[:3]).as_matrix() @ X[:3, :3], X[:3, 3] + x[3:6])
+            Zp = make_transform(Rotation.from_rotvec(x[6:9]).as_matrix() @ Z[:3, :3], Z[:3, 3] + x[9:12])
+            T = predicted_target2cam(Xp, Zp, F, setup)
+            return np.concatenate([project_points(Ti, OBJ, K, np.zeros(5)).ravel() for Ti in T])
+
+        h = 1e-7
+        J = np.stack([(residuals(h * e) - residuals(-h * e)) / (2 * h) for e in np.eye(12)], axis=1)
+        info = reprojection_information(F, X, Z, setup, OBJ, K).sum(axis=0)
+        assert np.abs(info - J.T @ J).max() <= 1e-5 * np.abs(info).max()
+
+
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+def test_every_planned_pose_sees_every_target_point(setup):
+    X, Z = _mounting(setup)
+    plan = plan_poses(setup, X, Z, OBJ, K, SIZE, DIST, n_poses=12, standoff=STANDOFF, margin_px=20)
+    assert plan.flange2base.shape == (12, 4, 4)
+    T = predicted_target2cam(X, Z, plan.flange2base, setup)
+    assert np.allclose(T, plan.target2cam, atol=1e-12)
+    for Ti in T:
+        px = project_points(Ti, OBJ, K, DIST)
+        assert np.all(px >= 20) and np.all(px[:, 0] <= SIZE[0] - 21) and np.all(px[:, 1] <= SIZE[1] - 21)
+        assert np.all((OBJ @ Ti[:3, :3].T + Ti[:3, 3])[:, 2] > 0)  # in front of the camera
+    # distinct poses, views within the allowed tilt, rotations large enough to observe X
+    tilt = np.degrees(np.arccos(np.clip(T[:, 2, 2], -1, 1)))
+    assert np.all(tilt <= 45 + 1e-9)
+    rel = Rotation.from_matrix(T[1:, :3, :3]) * Rotation.from_matrix(T[0, :3, :3]).inv()
+    assert np.median(np.degrees(rel.magnitude())) > 20
+    assert len({tuple(np.round(f[:3, 3], 6)) for f in plan.flange2base}) == 12
+    diag = diagnose(plan.flange2base, plan.target2cam, setup)  # our own data check agrees
+    assert diag.verdict == "good" and min(diag.axis_shares) > 0.1
+
+
+def test_reach_box_is_respected_and_explained():
+    X, Z = _mounting("eye_in_hand")
+    box = np.array([0.4, -0.2, 0.2, 1.0, 0.6, 0.8])
+    plan = plan_poses("eye_in_hand", X, Z, OBJ, K, SIZE, DIST, n_poses=10, standoff=STANDOFF, reach_box=box)
+    t = plan.flange2base[:, :3, 3]
+    assert np.all(t >= box[:3]) and np.all(t <= box[3:])
+    with pytest.raises(HandEyeError, match="reach box"):
+        plan_poses("eye_in_hand", X, Z, OBJ, K, SIZE, DIST, n_poses=10, standoff=STANDOFF,
+                   reach_box=[5, 5, 5, 6, 6, 6])
+    with pytest.raises(HandEyeError, match="increase the standoff"):
+        plan_poses("eye_in_hand", X, Z, OBJ, K, SIZE, DIST, standoff=0.08)
+
+
+def test_plan_beats_easy_handeye_by_30_percent():
+    """Issue 8's bar: 12 planned poses, 0.3 px, 100 runs each through PnP + Daniilidis + reprojection
+    refinement: the RMS translation error of X is >= 30% lower than with easy_handeye's 17 poses
+    around a straight-on view at the same standoff. The comparison is also made against the
+    easy_handeye pattern as if every pose saw the whole target (predicted covariance), which is
+    kinder to it than reality: at this standoff 6 of its 17 poses lose part of the target."""
+    setup = "eye_in_hand"
+    X, Z = _mounting(setup)
+    plan = plan_poses(setup, X, Z, OBJ, K, SIZE, DIST, n_poses=12, standoff=STANDOFF, noise_px=0.3)
+    eh = easy_handeye_poses(fronto_parallel_start(X, Z, OBJ, STANDOFF, setup))
+    assert eh.shape == (17, 4, 4)
+    err_plan, n_plan = simulate_errors(plan.flange2base, X, Z, setup, OBJ, K, DIST, SIZE, 0.3, 100, rng=1)
+    err_eh, n_eh = simulate_errors(eh, X, Z, setup, OBJ, K, DIST, SIZE, 0.3, 100, rng=2)
+    rms_plan, rms_eh = np.sqrt(np.mean(err_plan**2, axis=0)), np.sqrt(np.mean(err_eh**2, axis=0))
+    print(f"\nplan: {n_plan} poses, RMS {rms_plan[0]:.4f} deg / {rms_plan[1]:.4f} mm; "
+          f"easy_handeye: {n_eh} of 17 usable, RMS {rms_eh[0]:.4f} deg / {rms_eh[1]:.4f} mm")
+    assert n_plan == 12
+    assert rms_plan[1] <= 0.7 * rms_eh[1]
+    assert rms_plan[0] <= 0.7 * rms_eh[0]
+    # kinder comparison: all 17 easy_handeye poses counted
+    std_eh_all = np.sqrt(np.diag(predicted_cov(reprojection_information(eh, X, Z, setup, OBJ, K).sum(axis=0), 0.3)))
+    assert np.linalg.norm(plan.std_X[3:]) <= 0.7 * 1e3 * np.linalg.norm(std_eh_all[3:])
+    # the printed prediction is honest: within 25% of the simulated RMS (pinhole information vs a
+    # distorting camera and a nonlinear estimator)
+    pred_t, pred_r = np.linalg.norm(plan.std_X[3:]), np.linalg.norm(plan.std_X[:3])
+    assert 0.75 < rms_plan[1] / pred_t < 1.25 and 0.75 < rms_plan[0] / pred_r < 1.25
+
+
+def test_easy_handeye_pattern():
+    T0 = make_transform(Rotation.from_euler("xyz", [180, 0, 30], degrees=True).as_matrix(), [0.5, 0.1, 0.4])
+    P = easy_handeye_poses(T0)
+    rel = invert(T0) @ P  # rotations about the flange's own axes
+    angles = np.degrees(Rotation.from_matrix(rel[:12, :3, :3]).magnitude())
+    assert np.allclose(angles, [25] * 6 + [12.5] * 6)
+    axes = Rotation.from_matrix(rel[:12, :3, :3]).as_rotvec()
+    assert np.allclose(np.abs(axes[:, :3]).argmax(axis=1), [0, 0, 1, 1, 2, 2] * 2)
+    moves = P[12:, :3, 3] - T0[:3, 3]  # moves along the base axes, orientation kept
+    assert np.allclose(moves, [[0.05, 0, 0], [-0.05, 0, 0], [0, 0.1, 0], [0, -0.1, 0], [0, 0, 0.1 / 3]])
+    assert np.allclose(P[12:, :3, :3], T0[:3, :3])
+
+
+def test_order_path_is_a_shorter_permutation():
+    rng = np.random.default_rng(0)
+    T = make_transform(Rotation.random(15, random_state=1).as_matrix(), rng.uniform(-0.5, 0.5, (15, 3)))
+
+    def length(order):
+        P = T[order]
+        d = np.linalg.norm(np.diff(P[:, :3, 3], axis=0), axis=1)
+        a = (Rotation.from_matrix(P[1:, :3, :3]) * Rotation.from_matrix(P[:-1, :3, :3]).inv()).magnitude()
+        return float(np.sum(d + 0.25 * a))
+
+    order = order_path(T)
+    assert sorted(order.tolist()) == list(range(15)) and order[0] == 0
+    assert length(order) < 0.8 * length(np.arange(15))
+
+
+def test_visible_mask_rejects_points_behind_or_outside():
+    T = invert(make_transform(np.eye(3), [0.1, 0.075, -0.5]))  # camera 0.5 m in front of the board centre
+    assert visible_mask(T[None], OBJ, K, DIST, SIZE)[0]
+    behind = invert(make_transform(Rotation.from_rotvec([np.pi, 0, 0]).as_matrix(), [0.1, 0.075, -0.5]))
+    aside = invert(make_transform(np.eye(3), [0.6, 0.075, -0.5]))
+    assert not visible_mask(np.array([behind, aside]), OBJ, K, DIST, SIZE).any()
+
+
+@pytest.fixture
+def camera_yaml(tmp_path):
+    p = tmp_path / "camera.yaml"
+    p.write_text(yaml.safe_dump({"K": K.tolist(), "dist": DIST.tolist(), "image_size": list(SIZE)}))
+    return p
+
+
+def test_cli_writes_poses_in_the_robot_format(tmp_path, camera_yaml, capsys):
+    out = tmp_path / "poses.csv"
+    code = main(["plan", "--intrinsics", str(camera_yaml), "--target-in-base", "0.6,0.1,0",
+                 "--cam-in-flange", "0.03,-0.05,0.08,0,0,90", "--standoff", "0.5", "--poses", "8",
+                 "--out", str(out), "--format", "euler:ZYX", "--length-unit", "mm"])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "predicted std of X" in text and "easy_handeye" in text
+    rows, names = read_pose_table(out, "euler:ZYX", ("image",))
+    assert names == [f"{k:03d}.png" for k in range(8)]
+    F = parse_poses(rows, "euler:ZYX", "mm", "deg")
+    X, Z = _mounting("eye_in_hand")
+    plan = plan_poses("eye_in_hand", X, Z, target_from_spec(DEFAULT_TARGETS["chessboard"]).object_points(),
+                      K, SIZE, DIST, n_poses=8, standoff=0.5)
+    assert F.shape == (8, 4, 4)
+    assert np.abs(F - plan.flange2base).max() < 1e-9  # the same plan, written and read back exactly
+    # never over an existing file (it may be a session's recorded poses)
+    assert main(["plan", "--intrinsics", str(camera_yaml), "--target-in-base", "0.6,0.1,0", "--standoff", "0.5",
+                 "--out", str(out)]) == 2
+    assert "exists" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, expect", [
+    (["--standoff", "0.5"], "--target-in-base is needed"),
+    (["--target-in-base", "1,2", "--standoff", "0.5"], "give 3 or 6"),
+    (["--target-in-base", "0.6,0,0", "--standoff", "0.5", "--camera-in-base", "1,0,1,0,0,0"], "are for eye_to_hand"),
+    (["--setup", "eye_to_hand", "--standoff", "0.5"], "--camera-in-base is needed"),
+    (["--target-in-base", "0.6,0,0", "--standoff", "0.5", "--poses", "2"], "at least 3 poses"),
+    (["--target-in-base", "0.6,0,0", "--standoff", "0.5", "--format", "euler:XYZz"], "euler"),
+    (["--target-in-base", "0.6,0,0", "--standoff", "0.5", "--reach-box", "1,1,1,0,0,0"], "reach box"),
+])
+def test_cli_bad_input(tmp_path, camera_yaml, capsys, argv, expect):
+    code = main(["plan", "--intrinsics", str(camera_yaml), "--out", str(tmp_path / "p.csv")] + argv)
+    err = capsys.readouterr().err
+    assert code == 2 and expect in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "p.csv").exists()
+
+
+def test_cli_bad_intrinsics(tmp_path, capsys):
+    bad = tmp_path / "cam.yaml"
+    bad.write_text("K: [[1, 0]]\nimage_size: [640, 480]\n")
+    for path, expect in ((tmp_path / "none.yaml", "no such file"), (bad, "K must be 3x3")):
+        code = main(["plan", "--intrinsics", str(path), "--target-in-base", "0.6,0,0", "--standoff", "0.5",
+                     "--out", str(tmp_path / "p.csv")])
+        assert code == 2 and expect in capsys.readouterr().err

@@ -1,0 +1,240 @@
+"""Result files (YAML/JSON, ROS and URDF snippets) and report.html (issue 8)."""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+import shlex
+import shutil
+import subprocess
+import xml.etree.ElementTree as ET
+from html.parser import HTMLParser
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+from scipy.spatial.transform import Rotation
+
+import handeye
+from handeye.cli import SAMPLE_SESSION, main
+from handeye.report import SECTIONS
+from handeye.results import result_dict, ros2_static_transform_command, urdf_joint
+from handeye.simulate import random_scene
+
+SAMPLE = Path(handeye.__file__).parent / "data" / SAMPLE_SESSION
+
+
+@pytest.fixture(scope="module")
+def sample_out(tmp_path_factory):
+    """The bundled sample session calibrated by the CLI with --out (the DESIGN §6 contract)."""
+    out = tmp_path_factory.mktemp("out")
+    assert main(["calibrate", str(SAMPLE), "--no-progress", "--out", str(out)]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def sample_cal():
+    return handeye.calibrate(SAMPLE, progress=False)
+
+
+def _rx(a):
+    return np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+
+
+def _ry(a):
+    return np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+
+
+def _rz(a):
+    return np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+
+
+def _parse_ros_line(line: str) -> tuple[np.ndarray, str, str]:
+    """The transform a ROS 2 static_transform_publisher command line publishes (quaternion by hand)."""
+    tok = shlex.split(line)
+    assert tok[:4] == ["ros2", "run", "tf2_ros", "static_transform_publisher"]
+    args = dict(zip(tok[4::2], tok[5::2]))
+    x, y, z, w = (float(args[k]) for k in ("--qx", "--qy", "--qz", "--qw"))
+    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, [float(args[k]) for k in ("--x", "--y", "--z")]
+    return T, args["--frame-id"], args["--child-frame-id"]
+
+
+def _parse_urdf(snippet: str) -> tuple[np.ndarray, str, str]:
+    """The transform a URDF fixed joint describes: R = Rz(yaw) Ry(pitch) Rx(roll) (URDF spec)."""
+    joint = ET.fromstring(snippet)
+    assert joint.get("type") == "fixed"
+    origin = joint.find("origin")
+    roll, pitch, yaw = (float(v) for v in origin.get("rpy").split())
+    T = np.eye(4)
+    T[:3, :3] = _rz(yaw) @ _ry(pitch) @ _rx(roll)
+    T[:3, 3] = [float(v) for v in origin.get("xyz").split()]
+    return T, joint.find("parent").get("link"), joint.find("child").get("link")
+
+
+def test_result_files_parse_back_to_the_same_X(sample_out, sample_cal):
+    js = json.loads((sample_out / "result.json").read_text())
+    ym = yaml.safe_load((sample_out / "result.yaml").read_text())
+    for data in (js, ym):
+        X = np.array(data["X"]["matrix"])
+        assert np.abs(X - sample_cal.X).max() <= 1e-12
+        Xi = np.array(data["X_inverse"]["matrix"])
+        assert np.abs(Xi @ X - np.eye(4)).max() < 1e-12
+        q_wxyz, q_xyzw = np.array(data["X"]["quaternion_wxyz"]), np.array(data["X"]["quaternion_xyzw"])
+        assert np.allclose(np.roll(q_wxyz, -1), q_xyzw, atol=0)
+        R = Rotation.from_quat(q_xyzw).as_matrix()
+        assert np.abs(R - X[:3, :3]).max() < 1e-12
+        assert np.allclose(np.array(data["X"]["translation_mm"]), 1e3 * X[:3, 3], rtol=0, atol=1e-9)
+        # the sample's robot poses are KUKA-style euler:ZYX in degrees: X is given that way too
+        eu = data["X"]["euler_input_convention"]
+        assert eu["sequence"] == "ZYX" and eu["unit"] == "deg"
+        assert np.abs(Rotation.from_euler("ZYX", eu["angles"], degrees=True).as_matrix() - X[:3, :3]).max() < 1e-12
+        assert len(data["inputs_sha256"]) == 64
+        assert data["check"]["verdict"] == "good" and data["handeye_version"] == handeye.__version__
+        std = np.r_[data["uncertainty"]["std_rotation_deg"], data["uncertainty"]["std_translation_mm"]]
+        assert np.all(std > 0) and np.allclose(std, sample_cal.std, rtol=1e-6)
+        res = np.array(data["pose_residuals"]["values"])
+        assert res.shape == (len(data["images"]["used"]), 2)
+
+
+def test_ros_line_and_urdf_joint_describe_X(sample_out):
+    data = json.loads((sample_out / "result.json").read_text())
+    X = np.array(data["X"]["matrix"])
+    T_ros, parent, child = _parse_ros_line(data["ros"]["static_transform_publisher"])
+    assert (parent, child) == ("tool0", "camera_optical_frame")  # eye_in_hand: X = cam2flange
+    assert np.abs(T_ros - X).max() < 1e-12
+    T_urdf, parent, child = _parse_urdf(data["ros"]["urdf_joint"])
+    assert (parent, child) == ("tool0", "camera_optical_frame")
+    assert np.abs(T_urdf - X).max() < 1e-12
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_snippets_for_any_rotation_and_both_setups(seed):
+    """Near-gimbal-lock pitch and 180-degree turns included; eye_to_hand names base_link."""
+    rng = np.random.default_rng(seed)
+    scene = random_scene(6, "eye_to_hand" if seed % 2 else "eye_in_hand", rng)
+    cal = handeye.calibrate_poses(scene.flange2base, scene.target2cam, scene.setup, refine="none", check=False)
+    if seed == 4:
+        cal.X[:3, :3] = Rotation.from_euler("xyz", [0.3, np.pi / 2 - 1e-9, -1.0]).as_matrix()
+    if seed == 5:
+        cal.X[:3, :3] = Rotation.from_rotvec([np.pi, 0, 0]).as_matrix()
+    d = result_dict(cal, parent_frame="flange", child_frame="cam")
+    assert np.abs(_parse_ros_line(d["ros"]["static_transform_publisher"])[0] - cal.X).max() < 1e-12
+    T, parent, child = _parse_urdf(d["ros"]["urdf_joint"])
+    assert (parent, child) == ("flange", "cam") and np.abs(T - cal.X).max() < 1e-9
+    assert ros2_static_transform_command(cal.X, "a", "b").endswith("--frame-id a --child-frame-id b")
+    assert "<parent link=\"a\"/>" in urdf_joint(cal.X, "a", "b")
+
+
+def test_inputs_hash_follows_the_inputs(tmp_path, sample_cal):
+    session = tmp_path / "s"
+    shutil.copytree(SAMPLE, session)
+    again = handeye.calibrate(session, progress=False)
+    assert again.inputs_sha256 == sample_cal.inputs_sha256  # names and bytes, not the folder's location
+    img = session / "images" / "003.jpg"
+    data = bytearray(img.read_bytes())
+    data[-3] ^= 1  # one bit of one image
+    img.write_bytes(bytes(data))
+    assert handeye.calibrate(session, progress=False).inputs_sha256 != sample_cal.inputs_sha256
+
+
+def test_calibration_write_never_overwrites_its_images(tmp_path, sample_cal):
+    images = tmp_path / "imgs"
+    images.mkdir()
+    cal = handeye.calibrate(SAMPLE, progress=False)
+    keep = images / "report.html"
+    keep.write_text("mine")
+    cal.image_paths = [keep]  # pretend an input image had that name
+    with pytest.raises(handeye.HandEyeError, match="refusing to overwrite"):
+        cal.write(images)
+    assert keep.read_text() == "mine"
+
+
+class _Page(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.sections, self.images, self.urls, self.tags = [], [], [], set()
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        self.tags.add(tag)
+        if tag == "section":
+            self.sections.append(a.get("id"))
+        if tag == "img":
+            self.images.append(a.get("src", ""))
+        for key in ("src", "href", "action", "data"):
+            if key in a and not (a[key].startswith("data:") or a[key].startswith("#")):
+                self.urls.append(a[key])
+
+
+def _check_page(text: str) -> _Page:
+    page = _Page()
+    page.feed(text)
+    assert page.sections == list(SECTIONS)
+    assert "://" not in text and not page.urls  # self-contained: nothing fetched from anywhere
+    assert not ({"link", "iframe", "object", "embed"} & page.tags)
+    for src in page.images:
+        m = re.match(r"data:image/(png|jpeg);base64,(.*)$", src, re.S)
+        assert m, src[:40]
+        img = cv2.imdecode(np.frombuffer(base64.b64decode(m.group(2), validate=True), np.uint8), cv2.IMREAD_COLOR)
+        assert img is not None and img.shape[0] > 20 and img.shape[1] > 20
+    return page
+
+
+def test_report_structure_from_images(sample_out, sample_cal):
+    text = (sample_out / "report.html").read_text(encoding="utf-8")
+    page = _check_page(text)
+    n_images = len(sample_cal.image_names)
+    assert len(page.images) == n_images + 3  # an overlay per image + residuals, 3D scene, rotation axes
+    assert "GOOD" in text.upper() and "static_transform_publisher" in text
+    for method in handeye.solvers.available():  # the solver comparison lists every solver
+        assert f">{method}<" in text
+    for name in sample_cal.image_names:
+        assert name in text
+
+
+def test_report_from_poses_only(tmp_path):
+    scene = random_scene(10, "eye_to_hand", np.random.default_rng(3))
+    rng = np.random.default_rng(4)
+    noisy = handeye.simulate.perturb_poses(scene.target2cam, np.radians(0.05), 0.2e-3, rng)
+    cal = handeye.calibrate_poses(scene.flange2base, noisy, "eye_to_hand")
+    paths = cal.write(tmp_path / "r")
+    assert [p.name for p in paths] == ["result.json", "result.yaml", "report.html"]
+    assert cal.report_path == tmp_path / "r" / "report.html"
+    page = _check_page(cal.report_path.read_text(encoding="utf-8"))
+    assert len(page.images) == 3
+    d = json.loads(paths[0].read_text())
+    assert d["ros"]["parent_frame"] == "base_link" and d["X_name"] == "cam2base"
+
+
+_CHROMIUM = next((shutil.which(b) for b in ("chromium", "chromium-browser", "google-chrome", "chrome") if shutil.which(b)), None)
+
+_PROBE = """<script>window.addEventListener('load', function () {
+  var imgs = document.images, bad = 0;
+  for (var i = 0; i < imgs.length; i++) { if (!(imgs[i].complete && imgs[i].naturalWidth > 0)) bad++; }
+  var b = document.body;
+  b.setAttribute('data-images', imgs.length); b.setAttribute('data-broken', bad);
+  b.setAttribute('data-sections', document.querySelectorAll('section').length);
+  b.setAttribute('data-height', document.documentElement.scrollHeight);
+});</script></body>"""
+
+
+@pytest.mark.skipif(_CHROMIUM is None, reason="no chromium binary on this machine")
+def test_report_renders_in_headless_chromium(sample_out, tmp_path):
+    """The page renders and the browser decodes every embedded image (a probe script added to a copy)."""
+    text = (sample_out / "report.html").read_text(encoding="utf-8")
+    probe = tmp_path / "probe.html"
+    probe.write_text(text.replace("</body>", _PROBE), encoding="utf-8")
+    res = subprocess.run([_CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=10000",
+                          "--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=120)
+    m = re.search(r'<body data-images="(\d+)" data-broken="(\d+)" data-sections="(\d+)" data-height="(\d+)"', res.stdout)
+    assert m, res.stdout[:300] + res.stderr[-500:]
+    n_img, broken, sections, height = (int(g) for g in m.groups())
+    assert n_img == text.count("<img ") and broken == 0
+    assert sections == len(SECTIONS) and height > 2000
