@@ -92,7 +92,9 @@ def test_refuses_to_overwrite_inputs(tmp_path, capsys):
     folder = _copy_example(tmp_path)
     (folder / "result.json").write_text("{}")  # pretend the user keeps a file of that name there
     code, _, err = _run(["calibrate-poses", str(folder), "--out", str(folder)], capsys)
-    assert code == 2 and "refusing to overwrite the input file" in err
+    assert code == 2 and "inside the input folder" in err
+    code, _, err = _run(["calibrate-poses", str(folder), "--out", str(folder / "sub")], capsys)
+    assert code == 2 and "inside the input folder" in err and not (folder / "sub").exists()
     assert (folder / "result.json").read_text() == "{}"
 
 

@@ -314,7 +314,8 @@ def test_calibrate_writes_results_and_protects_inputs(session, tmp_path, capsys)
     capsys.readouterr()
     (session / "result.json").write_text("{}")
     _one_line_error(["calibrate", str(session), "--no-progress", "--out", str(session)], capsys,
-                    "refusing to overwrite the input file")
+                    "inside the input folder")
+    assert (session / "result.json").read_text() == "{}"
 
 
 @pytest.mark.parametrize("target", ["asymmetric_circles", "apriltag"])

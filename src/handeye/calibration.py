@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from functools import cached_property
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, Iterable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -75,6 +76,16 @@ class Calibration:
     #: indices (into the poses given) of the poses used: outliers are left out
     pose_indices: NDArray[np.intp] | None = field(default=None, repr=False)
     notes: list[str] = field(default_factory=list)
+    #: the robot poses as written (format and units), for results in the user's own convention
+    robot_input: "RobotPoseInput | None" = field(default=None, repr=False)
+    #: SHA-256 of the inputs: the session's files (calibrate) or the pose arrays (calibrate_poses)
+    inputs_sha256: str | None = None
+    #: per used image: its path, and the target points (target frame, m) with their detections (px)
+    image_paths: list[Path] | None = field(default=None, repr=False)
+    object_points: list[NDArray[np.float64]] | None = field(default=None, repr=False)
+    image_points: list[NDArray[np.float64]] | None = field(default=None, repr=False)
+    image_size: tuple[int, int] | None = None
+    report_path: Path | None = None  #: report.html, once written (:meth:`write`)
 
     @cached_property
     def motion_residuals(self) -> NDArray[np.float64]:
@@ -102,6 +113,26 @@ class Calibration:
         Rp = self.X[:3, :3] @ p
         J = np.hstack([-skew(Rp), np.eye(3)])
         return np.sqrt(np.diag(J @ self.cov @ J.T))
+
+    def write(self, out_dir: str | Path, protect: "Iterable[str | Path]" = (), report: bool = True,
+              parent_frame: str | None = None, child_frame: str | None = None) -> list[Path]:
+        """Write ``result.json``, ``result.yaml`` and (``report``) ``report.html`` into ``out_dir``.
+
+        Every file is written atomically. ``protect``: paths never to overwrite; the input images
+        are always protected. ``parent_frame`` / ``child_frame`` name the frames of the ROS
+        snippets (default ``tool0`` or ``base_link``, and ``camera_optical_frame``). Sets
+        :attr:`report_path`; returns the paths written.
+        """
+        from .report import write_report
+        from .results import write_results
+
+        out_dir = Path(out_dir)
+        protect = list(protect) + list(self.image_paths or [])
+        paths = write_results(self, out_dir, protect, parent_frame, child_frame)
+        if report:
+            self.report_path = write_report(self, out_dir / "report.html", protect, parent_frame, child_frame)
+            paths.append(self.report_path)
+        return paths
 
     @property
     def cam2flange(self) -> NDArray[np.float64]:
@@ -214,6 +245,7 @@ def calibrate_poses(
         hint = " (pixel refinement needs the detections: use handeye.calibrate on a session)" if refine == "reprojection" else ""
         raise InputMismatchError(f"refine={refine!r}; use 'auto', 'pose' or 'none'{hint}")
     flange2base, target2cam = validate_poses(flange2base, target2cam)
+    flange2base_in, target2cam_in = flange2base, target2cam
     n_input = len(flange2base)
     keep = np.arange(n_input)
     diag, notes = None, []
@@ -252,10 +284,30 @@ def calibrate_poses(
         diagnostics=diag,
         pose_indices=keep,
         notes=notes,
+        robot_input=robot_input,
+        inputs_sha256=_array_digest(flange2base_in, target2cam_in),
     )
     if refine != "none":
         apply_pose_refinement(cal)
     return cal
+
+
+def _array_digest(*arrays: NDArray[np.float64]) -> str:
+    h = hashlib.sha256()
+    for a in arrays:
+        h.update(np.ascontiguousarray(a, dtype="<f8").tobytes())
+    return h.hexdigest()
+
+
+def files_digest(paths: list[Path], root: Path) -> str:
+    """SHA-256 over the names (relative to ``root``) and bytes of ``paths``, in the order given."""
+    h = hashlib.sha256()
+    for p in paths:
+        h.update(str(Path(p).relative_to(root)).encode("utf-8") + b"\0")
+        with open(p, "rb") as fh:
+            for chunk in iter(lambda: fh.read(1 << 20), b""):
+                h.update(chunk)
+    return h.hexdigest()
 
 
 def apply_pose_refinement(cal: Calibration) -> None:
@@ -382,6 +434,10 @@ def calibrate(
     flange2base = session.flange2base[used_arr]
     symmetries = target.symmetries()
     target2cam, choice = resolve_symmetries(np.array(poses), flange2base, session.setup, symmetries)
+    points = {}  # per image: target points in the relabelled target frame (new = F^-1 old), detections
+    for k, c in zip(used, choice):
+        det, F_inv = results[k].detection, invert(symmetries[c])
+        points[k] = (det.object_points @ F_inv[:3, :3].T + F_inv[:3, 3], det.image_points)
     robot_input = session.robot_input
     if robot_input is not None:
         robot_input = replace(robot_input, values=robot_input.values[used_arr])
@@ -394,12 +450,7 @@ def calibrate(
 
         # all images, pose-level outliers included: a pose can be off because its PnP is weak (a
         # far or fronto-parallel view) while its pixels fit; the robust pixel fit judges them
-        obj, img = [], []
-        for k, c in zip(used, choice):
-            det = results[k].detection
-            F_inv = invert(symmetries[c])  # the relabelled target frame: new coordinates = F^-1 old
-            obj.append(det.object_points @ F_inv[:3, :3].T + F_inv[:3, 3])
-            img.append(det.image_points)
+        obj, img = [points[k][0] for k in used], [points[k][1] for k in used]
         ref = refine_reprojection(cal.X, cal.Z, flange2base, obj, img, K, dist, session.setup,
                                   refine_intrinsics=(source == "estimated"), robust=True)
         # The refinement trusts the robot poses. If even the best X, Z leave the pixels far worse
@@ -450,5 +501,9 @@ def calibrate(
     cal.skipped = sorted(skipped, key=lambda item: session.image_names.index(item[0]))
     cal.camera_matrix, cal.dist_coeffs = np.asarray(K, dtype=float), np.asarray(dist, dtype=float).ravel()
     cal.intrinsics_source, cal.intrinsics_rms = source, k_rms
+    cal.image_size = image_size
+    cal.image_paths = [session.image_paths[k] for k in used]
+    cal.object_points, cal.image_points = [points[k][0] for k in used], [points[k][1] for k in used]
+    cal.inputs_sha256 = files_digest(session.input_files, session.folder)
     cal.notes.extend(notes)
     return cal

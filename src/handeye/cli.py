@@ -72,13 +72,17 @@ def _input_folder(given: str | None, bundled: bool, bundled_name: str, usage: st
     return folder
 
 
-def _write_outputs(cal: Calibration, out: str | None, inputs: Path) -> None:
-    """Write the result files, refusing to overwrite any file of the input folder."""
-    from .report import write_results
-
-    if out:
+def _write_outputs(cal: Calibration, args: argparse.Namespace, inputs: Path) -> None:
+    """Write the result files and the report, refusing to overwrite any file of the input folder."""
+    if args.out:
+        out = Path(args.out)
+        if out.exists() and not out.is_dir():
+            raise HandEyeError(f"--out {out} exists and is not a folder")
+        if inputs.is_dir() and (out.resolve() == inputs.resolve() or inputs.resolve() in out.resolve().parents):
+            raise HandEyeError(f"--out {out} is inside the input folder {inputs}; results never go among the inputs: "
+                               "choose a folder elsewhere")
         protect = [p for p in inputs.rglob("*") if p.is_file()] if inputs.is_dir() else []
-        for path in write_results(cal, out, protect=protect):
+        for path in cal.write(out, protect=protect, parent_frame=args.parent_frame, child_frame=args.child_frame):
             print(f"wrote {path}")
 
 
@@ -91,7 +95,7 @@ def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
     cal = calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, method=args.method, pairs=args.pairs,
                           refine=args.refine, robot_input=pairs.robot_input)
     print_calibration(cal)
-    _write_outputs(cal, args.out, folder)
+    _write_outputs(cal, args, folder)
     return 0
 
 
@@ -120,7 +124,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     cal = calibrate(session, method=args.method, refine=args.refine, jobs=args.jobs, progress=not args.no_progress)
     _print_image_summary(cal)
     print_calibration(cal)
-    _write_outputs(cal, args.out, session)
+    _write_outputs(cal, args, session)
     return 0
 
 
@@ -197,9 +201,146 @@ def _cmd_study(args: argparse.Namespace) -> int:
     return 0
 
 
+def _floats(text: str | None, name: str, sizes: tuple[int, ...]) -> np.ndarray | None:
+    if text is None:
+        return None
+    try:
+        v = np.array([float(t) for t in text.replace(" ", "").split(",")])
+    except ValueError:
+        raise HandEyeError(f"{name} {text!r}: give comma-separated numbers") from None
+    if v.size not in sizes or not np.all(np.isfinite(v)):
+        raise HandEyeError(f"{name} {text!r}: give {' or '.join(str(n) for n in sizes)} finite comma-separated numbers")
+    return v
+
+
+def _pose_arg(text: str | None, name: str, default_rot_deg=(0.0, 0.0, 0.0), required: bool = False) -> np.ndarray | None:
+    """x,y,z[,rx,ry,rz]: metres and a rotation vector in degrees, as a 4x4."""
+    from .geometry.se3 import make_transform
+
+    v = _floats(text, name, (3, 6))
+    if v is None:
+        if required:
+            raise HandEyeError(f"{name} is needed: x,y,z (m) and optionally rx,ry,rz (rotation vector, deg)")
+        v = np.r_[0.0, 0.0, 0.0, default_rot_deg]
+    rot = v[3:] if v.size == 6 else np.asarray(default_rot_deg, dtype=float)
+    return make_transform(Rotation.from_rotvec(rot, degrees=True).as_matrix(), v[:3])
+
+
+def _load_camera(path: str) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+    import yaml
+
+    p = Path(path)
+    if not p.is_file():
+        raise HandEyeError(f"--intrinsics {p}: no such file")
+    try:
+        data = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        raise HandEyeError(f"--intrinsics {p}: not valid YAML ({exc})") from None
+    if isinstance(data, dict) and isinstance(data.get("camera"), dict):
+        data = {**data["camera"], **{k: v for k, v in data.items() if k == "image_size"}}
+    if not isinstance(data, dict) or "K" not in data or "image_size" not in data:
+        raise HandEyeError(f"--intrinsics {p}: needs K: [[fx,0,cx],[0,fy,cy],[0,0,1]] and image_size: [width, height] "
+                           "(dist optional), at the top level or under camera:")
+    try:
+        K = np.array(data["K"], dtype=float).reshape(3, 3)
+        dist = np.array(data.get("dist") or [0.0] * 5, dtype=float).ravel()
+        w, h = (int(v) for v in data["image_size"])
+    except (TypeError, ValueError):
+        raise HandEyeError(f"--intrinsics {p}: K must be 3x3 numbers, dist a list, image_size [width, height]") from None
+    if not (K[0, 0] > 0 and K[1, 1] > 0 and w > 0 and h > 0):
+        raise HandEyeError(f"--intrinsics {p}: focal lengths and image size must be positive")
+    return K, dist, (w, h)
+
+
+def _cmd_plan(args: argparse.Namespace) -> int:
+    import yaml
+
+    from .geometry.se3 import invert
+    from .planning import (easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov,
+                           reprojection_information, simulate_errors, visible_mask, write_plan)
+    from .poses import pose_columns
+    from .simulate import DEFAULT_TARGETS
+    from .vision.targets import target_from_spec
+
+    pose_columns(args.format)  # a clear error for an unknown format before any work
+    if args.length_unit not in ("m", "mm") or args.angle_unit not in ("deg", "rad"):
+        raise HandEyeError("--length-unit must be m or mm, --angle-unit deg or rad")
+    K, dist, size = _load_camera(args.intrinsics)
+    if args.target_spec:
+        p = Path(args.target_spec)
+        if not p.is_file():
+            raise HandEyeError(f"--target-spec {p}: no such file")
+        spec = (yaml.safe_load(p.read_text(encoding="utf-8")) or {}).get("target")
+        if not isinstance(spec, dict):
+            raise HandEyeError(f"--target-spec {p}: no 'target:' mapping (as in session.yaml)")
+    else:
+        spec = DEFAULT_TARGETS[args.target]
+    obj = target_from_spec(spec).object_points()
+    if args.setup == "eye_in_hand":
+        if args.camera_in_base or args.target_in_flange:
+            raise HandEyeError("--camera-in-base and --target-in-flange are for eye_to_hand; eye_in_hand takes "
+                               "--target-in-base and --cam-in-flange")
+        X = _pose_arg(args.cam_in_flange, "--cam-in-flange")
+        Z = _pose_arg(args.target_in_base, "--target-in-base", (180.0, 0.0, 0.0), required=True)
+    else:
+        if args.target_in_base or args.cam_in_flange:
+            raise HandEyeError("--target-in-base and --cam-in-flange are for eye_in_hand; eye_to_hand takes "
+                               "--camera-in-base and --target-in-flange")
+        X = _pose_arg(args.camera_in_base, "--camera-in-base", required=True)
+        Z = _pose_arg(args.target_in_flange, "--target-in-flange", (180.0, 0.0, 0.0))
+    box = _floats(args.reach_box, "--reach-box", (6,))
+    out = Path(args.out)
+    if out.is_dir():
+        raise HandEyeError(f"--out {out} is a folder; give the file to write, e.g. {out / 'poses.csv'}")
+    if out.exists():
+        raise HandEyeError(f"--out {out} exists (it may be a session's recorded poses); give a new file name")
+    plan = plan_poses(args.setup, X, Z, obj, K, size, dist, n_poses=args.poses, standoff=args.standoff,
+                      tilt_max_deg=args.tilt_max, margin_px=args.margin_px, reach_box=box, noise_px=args.noise_px)
+    write_plan(plan, out, args.format, args.length_unit, args.angle_unit,
+               protect=[p for p in (args.intrinsics, args.target_spec) if p])
+    t2c = plan.target2cam
+    print(f"{len(plan.flange2base)} poses chosen from {plan.n_candidates} views that keep the target "
+          f"{args.margin_px:g} px inside the image; in path order:")
+    print("  pose   flange x, y, z (mm)            view tilt (deg)  distance to target centre (mm)")
+    centre = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
+    for k, (F, T) in enumerate(zip(plan.flange2base, t2c)):
+        tilt = np.degrees(np.arccos(np.clip(T[2, 2], -1, 1)))  # optical axis vs the target normal
+        print(f"  {k:3d}   {_fmt_vec(1e3 * F[:3, 3], 1):30s} {tilt:8.1f}        {1e3 * np.linalg.norm(T[:3, :3] @ centre + T[:3, 3]):8.1f}")
+    s = plan.std_X
+    print(f"\npredicted std of X at {plan.noise_px:g} px pixel noise (reprojection refinement): rotation "
+          f"{_fmt_vec(s[:3], 4)} deg, translation {_fmt_vec(s[3:], 3)} mm")
+    start = fronto_parallel_start(X, Z, obj, args.standoff, args.setup)
+    eh = easy_handeye_poses(start)
+    robot = invert(eh) if args.setup == "eye_in_hand" else eh
+    seen = visible_mask(invert(X) @ robot @ Z, obj, K, dist, size, 0.0)
+    if seen.sum() >= 3:
+        try:
+            c = predicted_cov(reprojection_information(eh[seen], X, Z, args.setup, obj, K).sum(axis=0), plan.noise_px)
+            print(f"for comparison, easy_handeye's 17-pose pattern from a straight-on view at the same standoff: "
+                  f"{int(seen.sum())} of 17 poses see the whole target, translation std "
+                  f"{_fmt_vec(1e3 * np.sqrt(np.diag(c)[3:]), 3)} mm")
+        except np.linalg.LinAlgError:
+            print(f"for comparison, easy_handeye's 17-pose pattern: only {int(seen.sum())} of 17 poses see the target "
+                  "and they cannot determine X")
+    else:
+        print(f"for comparison, easy_handeye's 17-pose pattern: only {int(seen.sum())} of 17 poses see the whole target")
+    if args.check_runs:
+        err, _ = simulate_errors(plan.flange2base, X, Z, args.setup, obj, K, dist, size, plan.noise_px,
+                                 args.check_runs, args.seed)
+        rms = np.sqrt(np.mean(err**2, axis=0))
+        print(f"simulated ({args.check_runs} runs: pixel noise, PnP, {'daniilidis'}, reprojection refinement): RMS error "
+              f"of X {rms[0]:.4f} deg / {rms[1]:.3f} mm (predicted {np.linalg.norm(s[:3]):.4f} deg / "
+              f"{np.linalg.norm(s[3:]):.3f} mm)")
+    print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): flange2base per image; "
+          "it is the poses.csv of the session to capture (replace each row by the pose the robot reports)")
+    return 0
+
+
 def _add_solver_and_out(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", default="daniilidis", choices=solvers.available(), help="solver (default: daniilidis)")
-    p.add_argument("--out", help="write result.json and result.yaml into this folder")
+    p.add_argument("--out", help="write result.json, result.yaml and report.html into this folder")
+    p.add_argument("--parent-frame", help="ROS frame X is given in (default: tool0 for eye_in_hand, base_link for eye_to_hand)")
+    p.add_argument("--child-frame", help="ROS frame of the camera (default: camera_optical_frame)")
 
 
 def _add_detection_options(p: argparse.ArgumentParser) -> None:
@@ -272,6 +413,41 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--image-size", default="640x480", help="WIDTHxHEIGHT (default 640x480)")
     p.add_argument("--no-intrinsics", action="store_true", help="leave K and dist out of session.yaml")
     p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser(
+        "plan",
+        help="plan robot poses for a good calibration and predict its accuracy",
+        description="Choose N robot poses that keep the whole target in the image, minimise the predicted "
+        "error of X (large rotations about spread axes) and make a short path; write them as a session "
+        "poses.csv in your robot's pose format; print the predicted std of X. Lengths in metres, "
+        "rotations as rotation vectors in degrees.",
+    )
+    p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
+    p.add_argument("--intrinsics", required=True,
+                   help="YAML with K, dist (optional) and image_size [width, height], top level or under camera:")
+    p.add_argument("--target", default="chessboard", choices=["chessboard", "charuco", "circles", "asymmetric_circles", "apriltag"],
+                   help="built-in target (the one 'handeye simulate' renders); see --target-spec")
+    p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (e.g. your session.yaml)")
+    p.add_argument("--target-in-base", metavar="X,Y,Z[,RX,RY,RZ]",
+                   help="eye_in_hand: where the target lies (m); default rotation 180,0,0 = printed side up")
+    p.add_argument("--cam-in-flange", metavar="X,Y,Z[,RX,RY,RZ]",
+                   help="eye_in_hand: rough camera mounting (default: at the flange, looking along flange z)")
+    p.add_argument("--camera-in-base", metavar="X,Y,Z,RX,RY,RZ", help="eye_to_hand: rough camera pose in the base frame")
+    p.add_argument("--target-in-flange", metavar="X,Y,Z[,RX,RY,RZ]",
+                   help="eye_to_hand: target on the flange (default 0,0,0 turned 180 deg about x: printed side outwards)")
+    p.add_argument("--standoff", type=float, required=True, help="camera-to-target distance (m)")
+    p.add_argument("--tilt-max", type=float, default=45.0, help="largest view angle from the target normal (deg, default 45)")
+    p.add_argument("--margin-px", type=float, default=20.0, help="keep every target point this far inside the image")
+    p.add_argument("--reach-box", metavar="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", help="where the flange may go (m, base frame)")
+    p.add_argument("--poses", type=int, default=12, help="number of poses (default 12)")
+    p.add_argument("--noise-px", type=float, default=0.3, help="pixel noise for the predicted std (default 0.3)")
+    p.add_argument("--check-runs", type=int, default=0, help="also simulate this many calibrations to check the prediction")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", required=True, help="poses.csv to write")
+    p.add_argument("--format", default="quat_wxyz", help="pose format: matrix, quat_wxyz, quat_xyzw, rotvec, euler:SEQ")
+    p.add_argument("--length-unit", default="m", help="m or mm (default m)")
+    p.add_argument("--angle-unit", default="deg", help="deg or rad for rotvec and euler (default deg)")
+    p.set_defaults(func=_cmd_plan)
 
     p = sub.add_parser(
         "study",

@@ -1,109 +1,394 @@
-"""Result files: what a calibration writes to disk (atomically, never over its inputs).
+"""``report.html``: one self-contained page that says at a glance whether a calibration can be trusted.
 
-The HTML report and the full result contents (uncertainty, verdict, ROS snippets) come with the
-reporting work; this module already writes the transform in the forms robot programs need.
+Sections (each a ``<section id=...>``): ``verdict`` (banner), ``result`` (X and Z with their
+uncertainty, ready-to-paste ROS lines), ``residuals`` (per-pose charts), ``overlays`` (detected vs
+reprojected target points on every image, when images were used), ``scene`` (3D view of robot,
+camera and target poses), ``axes`` (the motions' rotation axes on the unit sphere), ``solvers``
+(every solver on the same data) and ``advice``. Every picture is embedded as a base64 PNG or JPEG;
+the page loads nothing from anywhere.
 """
 
 from __future__ import annotations
 
-import json
+import base64
+import html
+import io
+import time
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Iterable
 
 import numpy as np
-import yaml
+from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from ._io import atomic_write
-from .calibration import Calibration
+from .calibration import Calibration, calibrate_poses
+from .errors import HandEyeError
+from .geometry.se3 import screw_parameters
+from .metrics import rotation_error, translation_error
+from .motions import MotionSet
+from .results import _euler, result_dict
+from . import solvers
 
-__all__ = ["result_dict", "write_results"]
+__all__ = ["report_html", "write_report", "solver_comparison", "SECTIONS"]
+
+#: The section ids of the page, in order.
+SECTIONS = ("verdict", "result", "residuals", "overlays", "scene", "axes", "solvers", "advice")
+#: Most images shown as overlays (the page stays a few MB at most).
+MAX_OVERLAYS = 60
+THUMB_WIDTH = 360
+
+_COLOURS = {"good": "#1e7b34", "weak": "#b36b00", "degenerate": "#b00020", "inconsistent": "#b00020",
+            "not checked": "#555555"}
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:0 auto;max-width:1100px;padding:0 16px 40px;color:#222}
+h1{font-size:1.5em;margin:18px 0 6px} h2{font-size:1.2em;border-bottom:1px solid #ddd;padding-bottom:4px;margin-top:28px}
+.banner{color:#fff;padding:14px 18px;border-radius:6px;font-size:1.15em}
+.banner b{font-size:1.3em;text-transform:uppercase;letter-spacing:.04em}
+table{border-collapse:collapse;margin:8px 0} td,th{border:1px solid #ddd;padding:3px 8px;text-align:right;font-variant-numeric:tabular-nums}
+th{background:#f4f4f4} td.l,th.l{text-align:left}
+pre{background:#f6f8fa;padding:8px;overflow-x:auto;font-size:.85em}
+.thumbs{display:flex;flex-wrap:wrap;gap:8px} figure{margin:0;font-size:.8em;text-align:center}
+img{max-width:100%} .note{color:#555;font-size:.9em}
+"""
 
 
-def _transform_dict(T: np.ndarray) -> dict[str, Any]:
-    rot = Rotation.from_matrix(T[:3, :3])
-    return {
-        "matrix": T.tolist(),
-        "translation_m": T[:3, 3].tolist(),
-        "translation_mm": (1e3 * T[:3, 3]).tolist(),
-        "quaternion_wxyz": rot.as_quat(canonical=True, scalar_first=True).tolist(),
-        "quaternion_xyzw": rot.as_quat(canonical=True).tolist(),
-        "rotvec_rad": rot.as_rotvec().tolist(),
-        "rotvec_deg": rot.as_rotvec(degrees=True).tolist(),
-    }
+def _png(fig) -> str:
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    plt.close(fig)
+    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def result_dict(cal: Calibration) -> dict[str, Any]:
-    """A plain, JSON/YAML-ready description of a calibration."""
-    from . import __version__
+def _img(src: str, alt: str, width: int | None = None) -> str:
+    w = f' width="{width}"' if width else ""
+    return f'<img src="{src}" alt="{html.escape(alt)}"{w}>'
 
-    x_name = "cam2flange" if cal.setup == "eye_in_hand" else "cam2base"
-    z_name = "target2base" if cal.setup == "eye_in_hand" else "target2flange"
-    mres = cal.motion_residuals
+
+def _e(s: object) -> str:
+    return html.escape(str(s))
+
+
+def _fmt(v, digits: int = 3) -> str:
+    return ", ".join(f"{x:.{digits}f}" for x in np.atleast_1d(v))
+
+
+# ----------------------------------------------------------------------------------------------------
+# data for the sections
+
+
+def solver_comparison(cal: Calibration) -> list[dict]:
+    """Every registered solver on the calibration's poses and motions (no refinement, no check).
+
+    Per solver: how far its X is from ``cal.X`` (deg, mm), the median per-pose consistency of Z
+    (deg, mm) and the time taken (ms); ``error`` instead when it cannot solve these data.
+    """
+    rows = []
+    for name in solvers.available():
+        start = time.perf_counter()
+        try:
+            c = calibrate_poses(cal.flange2base, cal.target2cam, setup=cal.setup, method=name, refine="none",
+                                check=False, pairs=cal.pairs)
+        except HandEyeError as exc:
+            rows.append({"method": name, "error": str(exc)})
+            continue
+        ms = 1e3 * (time.perf_counter() - start)
+        pres = c.pose_residuals
+        rows.append({
+            "method": name,
+            "dX_deg": float(np.degrees(rotation_error(c.X, cal.X))),
+            "dX_mm": float(1e3 * translation_error(c.X, cal.X)),
+            "median_pose_deg": float(np.median(pres[:, 0])),
+            "median_pose_mm": float(np.median(pres[:, 1])),
+            "ms": ms,
+        })
+    return rows
+
+
+def _camera2base(cal: Calibration) -> NDArray[np.float64]:
+    """Camera pose per image in the robot base frame."""
+    if cal.setup == "eye_in_hand":
+        return cal.flange2base @ cal.X
+    return np.broadcast_to(cal.X, cal.flange2base.shape)
+
+
+def _target2base(cal: Calibration) -> NDArray[np.float64]:
+    if cal.setup == "eye_in_hand":
+        return np.broadcast_to(cal.Z, cal.flange2base.shape)
+    return cal.flange2base @ cal.Z
+
+
+# ----------------------------------------------------------------------------------------------------
+# figures
+
+
+def _residual_figure(cal: Calibration) -> str:
+    import matplotlib.pyplot as plt
+
     pres = cal.pose_residuals
-    out = {
-        "handeye_version": __version__,
-        "setup": cal.setup,
-        "method": cal.method,
-        "X_name": x_name,
-        "X": _transform_dict(cal.X),
-        "Z_name": z_name,
-        "Z": _transform_dict(cal.Z),
-        "n_poses": int(len(cal.flange2base)),
-        "n_motions": int(len(cal.pairs)),
-        "motion_residuals": {
-            "columns": ["angle_deg", "pitch_mm"],
-            "median": np.median(mres, axis=0).tolist(),
-            "max": mres.max(axis=0).tolist(),
-        },
-        "pose_residuals": {
-            "columns": ["rotation_deg", "translation_mm"],
-            "values": pres.tolist(),
-        },
-    }
-    if cal.image_names is not None:
-        out["images"] = {
-            "used": list(cal.image_names),
-            "reprojection_rms_px": cal.reprojection_rms.tolist(),
-            "skipped": [{"image": n, "reason": r} for n, r in cal.skipped],
-        }
-        out["camera"] = {
-            "source": cal.intrinsics_source,
-            "K": cal.camera_matrix.tolist(),
-            "dist": cal.dist_coeffs.tolist(),
-            "rms_px": cal.intrinsics_rms,
-        }
-    out["refinement"] = {"type": cal.refinement}
-    if cal.refined_rms is not None:
-        out["refinement"]["rms_px"] = cal.refined_rms
-    if cal.pose_noise is not None:
-        out["refinement"]["pose_noise"] = dict(cal.pose_noise)
-    if cal.cov is not None:
-        out["uncertainty"] = {
-            "std_rotation_deg": cal.std[:3].tolist(),
-            "std_translation_mm": cal.std[3:].tolist(),
-            "cov": cal.cov.tolist(),
-            "cov_parameters": "X: rotation vector increment (rad, left), translation (m)",
-        }
-    if cal.diagnostics is not None:
-        d = cal.diagnostics
-        out["check"] = {
-            "verdict": d.verdict,
-            "outliers": list(d.outliers),
-            "pose_indices_used": [int(i) for i in cal.pose_indices],
-            "consistency": float(d.consistency),
-            "advice": list(d.advice),
-        }
-    out["notes"] = list(cal.notes)
+    labels = list(cal.image_names) if cal.image_names is not None else [str(i) for i in cal.pose_indices]
+    n_plots = 3 if cal.reprojection_rms is not None else 2
+    fig, axes = plt.subplots(n_plots, 1, figsize=(10, 2.2 * n_plots), sharex=True)
+    x = np.arange(len(pres))
+    axes[0].bar(x, pres[:, 0], color="#4a78b5")
+    axes[0].set_ylabel("rotation (deg)")
+    axes[0].set_title(f"per pose: how far its own {'target2base' if cal.setup == 'eye_in_hand' else 'target2flange'} "
+                      "(through X) is from the common one", fontsize=10)
+    axes[1].bar(x, pres[:, 1], color="#d08c30")
+    axes[1].set_ylabel("translation (mm)")
+    if n_plots == 3:
+        axes[2].bar(x, cal.reprojection_rms, color="#5c9e5c")
+        axes[2].set_ylabel("PnP RMS (px)")
+    for ax in axes:
+        ax.grid(axis="y", alpha=0.3)
+    axes[-1].set_xticks(x)
+    axes[-1].set_xticklabels(labels, rotation=90 if len(labels) > 12 else 0, fontsize=8)
+    return _png(fig)
+
+
+def _axis_triad(ax, T: NDArray[np.float64], length: float, lw: float = 1.5) -> None:
+    o = T[:3, 3]
+    for k, c in enumerate(("#d62728", "#2ca02c", "#1f77b4")):
+        e = o + length * T[:3, k]
+        ax.plot([o[0], e[0]], [o[1], e[1]], [o[2], e[2]], color=c, lw=lw)
+
+
+def _scene_figure(cal: Calibration) -> str:
+    import matplotlib.pyplot as plt
+
+    cam2base, tgt2base = _camera2base(cal), _target2base(cal)
+    flange = cal.flange2base[:, :3, 3]
+    pts = np.vstack([flange, cam2base[:, :3, 3], tgt2base[:, :3, 3], np.zeros((1, 3))])
+    extent = float(np.ptp(pts, axis=0).max()) or 1.0
+    L = 0.08 * extent
+    fig = plt.figure(figsize=(7.5, 6.5))
+    ax = fig.add_subplot(projection="3d")
+    _axis_triad(ax, np.eye(4), 1.5 * L, lw=3)
+    ax.text(0, 0, 0, " base", fontsize=8)
+    ax.plot(*flange.T, "-o", color="#777", ms=3, lw=0.8, label="flange positions (capture order)")
+    for T in cal.flange2base:
+        _axis_triad(ax, T, 0.5 * L, lw=0.8)
+    for T in (cam2base if cal.setup == "eye_in_hand" else cam2base[:1]):
+        _axis_triad(ax, T, L)
+    ax.scatter(*cam2base[:, :3, 3].T, color="#000", s=12, label="camera")
+    if cal.object_points:
+        obj = np.vstack(cal.object_points)
+        lo, hi = obj.min(axis=0), obj.max(axis=0)
+        corners = np.array([[lo[0], lo[1], 0, 1], [hi[0], lo[1], 0, 1], [hi[0], hi[1], 0, 1], [lo[0], hi[1], 0, 1],
+                            [lo[0], lo[1], 0, 1]])
+        for T in (tgt2base if cal.setup == "eye_to_hand" else tgt2base[:1]):
+            c = (T @ corners.T).T
+            ax.plot(*c[:, :3].T, color="#8b4513", lw=1.5)
+    for T in (tgt2base if cal.setup == "eye_to_hand" else tgt2base[:1]):
+        _axis_triad(ax, T, L, lw=2)
+    ax.scatter(*tgt2base[:, :3, 3].T, color="#8b4513", s=12, marker="s", label="target")
+    centre = pts.mean(axis=0)
+    half = 0.55 * (float(np.ptp(pts, axis=0).max()) or 1.0)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_zlabel("z (m)")
+    ax.legend(loc="upper left", fontsize=8)
+    ax.set_title("robot base frame: axes x red, y green, z blue", fontsize=10)
+    return _png(fig)
+
+
+def _axes_figure(cal: Calibration, motions: MotionSet) -> str:
+    import matplotlib.pyplot as plt
+
+    axis, _, theta, _ = screw_parameters(motions.B)
+    deg = np.degrees(theta)
+    fig = plt.figure(figsize=(6.5, 5.5))
+    ax = fig.add_subplot(projection="3d")
+    u, v = np.mgrid[0:2 * np.pi:24j, 0:np.pi:12j]
+    ax.plot_wireframe(np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="#ccc", lw=0.4)
+    pts = np.vstack([axis, -axis])  # an axis and its opposite are the same rotation axis
+    sc = ax.scatter(*pts.T, c=np.r_[deg, deg], cmap="viridis", s=14, vmin=0, vmax=max(90.0, deg.max()))
+    fig.colorbar(sc, ax=ax, shrink=0.6, label="rotation angle (deg)")
+    ax.set_xlabel("camera x")
+    ax.set_ylabel("camera y")
+    ax.set_zlabel("camera z")
+    ax.set_box_aspect((1, 1, 1))
+    ax.set_title("rotation axes of the camera motions (both ends of each)", fontsize=10)
+    return _png(fig)
+
+
+def _overlay_thumbs(cal: Calibration) -> list[tuple[str, str]]:
+    """(data URI, caption) per image: detected points (green rings) and the points reprojected
+    through X, Z and the robot pose (red crosses)."""
+    import cv2
+
+    from .solvers.refine import predicted_target2cam
+    from .vision.pnp import project_points
+
+    out = []
+    T = predicted_target2cam(cal.X, cal.Z, cal.flange2base, cal.setup)
+    for k, path in enumerate(cal.image_paths[:MAX_OVERLAYS]):
+        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if img is None:
+            continue
+        s = THUMB_WIDTH / img.shape[1]
+        thumb = cv2.resize(img, (THUMB_WIDTH, max(1, round(img.shape[0] * s))), interpolation=cv2.INTER_AREA)
+        det = np.asarray(cal.image_points[k], dtype=float)
+        proj = project_points(T[k], cal.object_points[k], cal.camera_matrix, cal.dist_coeffs)
+        rms = float(np.sqrt(np.mean(np.sum((proj - det) ** 2, axis=1))))
+        for p in det * s:
+            cv2.circle(thumb, (int(round(p[0])), int(round(p[1]))), 3, (0, 200, 0), 1, cv2.LINE_AA)
+        for p in proj * s:
+            if np.all(np.isfinite(p)):
+                cv2.drawMarker(thumb, (int(round(p[0])), int(round(p[1]))), (0, 0, 230), cv2.MARKER_CROSS, 5, 1,
+                               cv2.LINE_AA)
+        ok, buf = cv2.imencode(".jpg", thumb, [cv2.IMWRITE_JPEG_QUALITY, 80])
+        if ok:
+            out.append(("data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii"),
+                        f"{cal.image_names[k]}: {rms:.2f} px"))
     return out
 
 
-def write_results(cal: Calibration, out_dir: str | Path, protect: Iterable[Path] = ()) -> list[Path]:
-    """Write ``result.json`` and ``result.yaml`` into ``out_dir``; returns their paths."""
-    out_dir = Path(out_dir)
-    data = result_dict(cal)
-    protect = list(protect)
-    paths = [out_dir / "result.json", out_dir / "result.yaml"]
-    atomic_write(paths[0], json.dumps(data, indent=2) + "\n", protect)
-    atomic_write(paths[1], yaml.safe_dump(data, sort_keys=False), protect)
-    return paths
+# ----------------------------------------------------------------------------------------------------
+# the page
+
+
+def _transform_table(T: NDArray[np.float64], std: NDArray[np.float64] | None) -> str:
+    rot = Rotation.from_matrix(T[:3, :3])
+    t_mm = 1e3 * T[:3, 3]
+    rows = [("translation (mm)", _fmt(t_mm, 3), _fmt(std[3:], 3) if std is not None else "—")]
+    rows.append(("rotation vector (deg)", _fmt(rot.as_rotvec(degrees=True), 4), _fmt(std[:3], 4) if std is not None else "—"))
+    rows.append(("quaternion w, x, y, z", _fmt(rot.as_quat(canonical=True, scalar_first=True), 6), ""))
+    rows.append(("roll, pitch, yaw (deg, fixed x-y-z)", _fmt(_euler(rot, "xyz", True), 4), ""))
+    body = "".join(f'<tr><td class="l">{_e(a)}</td><td>{b}</td><td>{c}</td></tr>' for a, b, c in rows)
+    matrix = "\n".join("  ".join(f"{v: .6f}" for v in row) for row in T)
+    return (f'<table><tr><th class="l"></th><th>value</th><th>std (1 sigma)</th></tr>{body}</table>'
+            f"<pre>{_e(matrix)}</pre>")
+
+
+def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: str | None = None,
+                compare: bool = True) -> str:
+    """The report page for a calibration, as one self-contained HTML string."""
+    from . import __version__
+
+    data = result_dict(cal, parent_frame, child_frame)
+    x_name, z_name = data["X_name"], data["Z_name"]
+    verdict = data["check"]["verdict"]
+    motions = cal._motions or MotionSet.from_poses(cal.flange2base, cal.target2cam, cal.setup, cal.pairs)
+    pres = cal.pose_residuals
+    parts = [f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>handeye report: {_e(x_name)}</title>"
+             f"<style>{_CSS}</style></head><body>",
+             f"<h1>Hand-eye calibration ({_e(cal.setup.replace('_', '-'))})</h1>"
+             f"<p class=\"note\">handeye {_e(__version__)} · method {_e(cal.method)} · {len(cal.flange2base)} poses, "
+             f"{len(cal.pairs)} motions · inputs sha256 {_e((cal.inputs_sha256 or '')[:16])}…</p>"]
+
+    # verdict
+    std_txt = ""
+    if cal.std is not None:
+        std_txt = (f" · std of X: {np.linalg.norm(cal.std[3:]):.3f} mm (translation, all axes), "
+                   f"{np.linalg.norm(cal.std[:3]):.4f} deg (rotation)")
+    headline = {"good": "the data determine X well", "weak": "usable, but the data leave X poorly determined",
+                "degenerate": "the motions cannot determine X", "inconsistent": "the poses do not agree on one X",
+                "not checked": "the data were not checked"}.get(verdict, "")
+    parts.append(f'<section id="verdict"><div class="banner" style="background:{_COLOURS.get(verdict, "#555")}">'
+                 f"<b>{_e(verdict)}</b> — {_e(headline)}{_e(std_txt)}; median pose consistency "
+                 f"{np.median(pres[:, 0]):.3f} deg / {np.median(pres[:, 1]):.3f} mm</div></section>")
+
+    # numbers
+    parts.append(f'<section id="result"><h2>Result</h2><h3>X = {_e(x_name)}</h3>'
+                 f"<p>maps camera coordinates into the {'flange' if cal.setup == 'eye_in_hand' else 'robot base'} frame; "
+                 f"refinement: {_e(cal.refinement)}"
+                 + (f", RMS {cal.refined_rms:.3f} px over all target points" if cal.refined_rms is not None else "")
+                 + "</p>" + _transform_table(cal.X, cal.std)
+                 + f"<h3>Z = {_e(z_name)}</h3>" + _transform_table(cal.Z, None)
+                 + "<h3>Paste into ROS 2</h3>"
+                 + f"<pre>{_e(data['ros']['static_transform_publisher'])}</pre><pre>{_e(data['ros']['urdf_joint'])}</pre>")
+    if cal.pose_noise is not None:
+        nz = cal.pose_noise
+        parts.append(f"<p>noise estimated from the data (per axis): robot rotation {nz['robot_rotation_deg']:.4f} deg, "
+                     f"camera rotation {nz['camera_rotation_deg']:.4f} deg, translation {nz['translation_mm']:.3f} mm</p>")
+    if cal.camera_matrix is not None:
+        K = cal.camera_matrix
+        parts.append(f"<p>intrinsics ({_e(cal.intrinsics_source)}): fx {K[0, 0]:.2f}, fy {K[1, 1]:.2f}, "
+                     f"cx {K[0, 2]:.2f}, cy {K[1, 2]:.2f}, dist [{_fmt(cal.dist_coeffs, 4)}]"
+                     + (f"; camera calibration RMS {cal.intrinsics_rms:.3f} px" if cal.intrinsics_rms is not None else "")
+                     + "</p>")
+    parts.append("</section>")
+
+    # residuals
+    parts.append('<section id="residuals"><h2>Per-pose residuals</h2>' + _img(_residual_figure(cal), "per-pose residuals"))
+    mres = cal.motion_residuals
+    parts.append(f"<p>Screw congruence per motion (|angle_A − angle_B|, |pitch_A − pitch_B|; independent of X): median "
+                 f"{np.median(mres[:, 0]):.3f} deg / {np.median(mres[:, 1]):.3f} mm, max {mres[:, 0].max():.3f} deg / "
+                 f"{mres[:, 1].max():.3f} mm.</p>")
+    if cal.diagnostics is not None and cal.diagnostics.outliers:
+        d = cal.diagnostics
+        parts.append("<p>Left out as outliers: " + ", ".join(
+            f"pose {i} ({d.outlier_residuals[i][0]:.2f} deg / {d.outlier_residuals[i][1]:.1f} mm)"
+            if i in d.outlier_residuals else f"pose {i}" for i in d.outliers) + "</p>")
+    if cal.skipped:
+        parts.append("<p>Skipped images: " + "; ".join(f"{_e(n)} ({_e(r)})" for n, r in cal.skipped) + "</p>")
+    parts.append("</section>")
+
+    # overlays
+    parts.append('<section id="overlays"><h2>Target points: detected vs predicted by X</h2>')
+    if cal.image_paths:
+        parts.append("<p class=\"note\">Green rings: detected points. Red crosses: the same points projected through "
+                     "the robot pose, X and Z — where they part, the hand-eye model does not explain that image. "
+                     "Caption: RMS distance.</p><div class=\"thumbs\">")
+        for src, caption in _overlay_thumbs(cal):
+            parts.append(f"<figure>{_img(src, caption, THUMB_WIDTH)}<figcaption>{_e(caption)}</figcaption></figure>")
+        parts.append("</div>")
+        if len(cal.image_paths) > MAX_OVERLAYS:
+            parts.append(f"<p class=\"note\">first {MAX_OVERLAYS} of {len(cal.image_paths)} images shown</p>")
+    else:
+        parts.append("<p class=\"note\">No images: this calibration was made from poses.</p>")
+    parts.append("</section>")
+
+    # scene and axes
+    parts.append('<section id="scene"><h2>Robot, camera and target</h2>' + _img(_scene_figure(cal), "3D view") + "</section>")
+    obs = ""
+    if cal.diagnostics is not None and cal.diagnostics.axis_shares is not None:
+        sh = cal.diagnostics.axis_shares
+        obs = (f"<p>Spread of the rotation axes (eigenvalue shares, 1/3 each is ideal): {_fmt(sh, 2)}; rotation angles "
+               f"{np.min(cal.diagnostics.rotation_angles_deg):.1f}–{np.max(cal.diagnostics.rotation_angles_deg):.1f} deg.</p>")
+    parts.append('<section id="axes"><h2>Rotation axes</h2>' + _img(_axes_figure(cal, motions), "rotation axes") + obs
+                 + "</section>")
+
+    # solvers
+    parts.append('<section id="solvers"><h2>Every solver on the same data</h2>')
+    if compare:
+        rows = solver_comparison(cal)
+        parts.append("<table><tr><th class=\"l\">method</th><th>X vs result (deg)</th><th>X vs result (mm)</th>"
+                     "<th>median pose (deg)</th><th>median pose (mm)</th><th>time (ms)</th></tr>")
+        for r in rows:
+            if "error" in r:
+                parts.append(f'<tr><td class="l">{_e(r["method"])}</td><td class="l" colspan="5">{_e(r["error"])}</td></tr>')
+            else:
+                parts.append(f'<tr><td class="l">{_e(r["method"])}</td><td>{r["dX_deg"]:.4f}</td><td>{r["dX_mm"]:.3f}</td>'
+                             f'<td>{r["median_pose_deg"]:.4f}</td><td>{r["median_pose_mm"]:.3f}</td><td>{r["ms"]:.1f}</td></tr>')
+        parts.append("</table><p class=\"note\">Closed forms without refinement, all on the poses used above. Solvers "
+                     "that disagree by much more than the std of X point to noisy or inconsistent data.</p>")
+    else:
+        parts.append("<p class=\"note\">not computed</p>")
+    parts.append("</section>")
+
+    # advice
+    advice = list(data["check"]["advice"]) + [n for n in cal.notes if n not in data["check"]["advice"]]
+    if not advice:
+        advice = ["Nothing to fix: the motions rotate about well-spread axes and the poses agree."]
+    parts.append('<section id="advice"><h2>Advice</h2><ul>' + "".join(f"<li>{_e(a)}</li>" for a in advice) + "</ul></section>")
+    parts.append("</body></html>\n")
+    return "".join(parts)
+
+
+def write_report(cal: Calibration, path: str | Path, protect: Iterable[Path] = (), parent_frame: str | None = None,
+                 child_frame: str | None = None) -> Path:
+    """Write :func:`report_html` to ``path`` atomically (never over a ``protect`` path); returns the path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    path = Path(path)
+    atomic_write(path, report_html(cal, parent_frame, child_frame), protect)
+    return path

@@ -77,6 +77,12 @@ class Session:
     dist_coeffs: NDArray[np.float64] | None
     pose_format: str
     robot_input: RobotPoseInput | None = None  #: the robot poses as written (for the convention check)
+    poses_path: Path | None = None  #: the pose table file
+
+    @property
+    def input_files(self) -> list[Path]:
+        """Every file the session is read from: session.yaml, the pose table, the images."""
+        return [self.folder / SESSION_FILE] + ([self.poses_path] if self.poses_path else []) + list(self.image_paths)
 
 
 def _camera(spec: Any, where: str) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
@@ -145,7 +151,7 @@ def load_session(folder: str | Path) -> Session:
             f"{', '.join(unnamed[:10])}: add their poses or move them out of images/"
         )
     return Session(folder, setup, dict(target_spec), f2b, list(names), paths, K, dist, fmt,
-                   RobotPoseInput(values, fmt, length_unit, angle_unit))
+                   RobotPoseInput(values, fmt, length_unit, angle_unit), csv_path)
 
 
 def _load_yaml(path: Path) -> dict[str, Any]:

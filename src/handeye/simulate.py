@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 from .geometry.se3 import invert, make_transform, random_rotations
 from .motions import check_setup
 
-__all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "look_at_viewpoints", "perturb_poses", "seed_viewpoints",
+__all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "look_at", "look_at_viewpoints", "perturb_poses", "seed_viewpoints",
            "seed_scenes", "add_noise"]
 
 
@@ -59,16 +59,23 @@ def look_at_viewpoints(
     c0 = np.zeros(3) if centre is None else np.asarray(centre, dtype=float)
     position = c0 + direction * rng.uniform(*distance, n)[:, None]
     aim = c0 + rng.uniform(-aim_jitter, aim_jitter, (n, 3)) * [1.0, 1.0, 0.0]
+    return look_at(position, aim, rng.uniform(-np.pi, np.pi, n))
+
+
+def look_at(position: NDArray[np.float64], aim: NDArray[np.float64], roll: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``cam2target`` poses (N, 4, 4) of cameras at ``position`` (N, 3) whose optical axis (+z) points
+    at ``aim`` (N, 3), turned by ``roll`` (N,) rad about that axis from a reference orientation
+    (x along ``helper x z``, helper = target x, or y when the axis is near target x)."""
+    position, aim = np.atleast_2d(position).astype(float), np.atleast_2d(aim).astype(float)
     z = aim - position
     z /= np.linalg.norm(z, axis=1, keepdims=True)
-    # Any x orthogonal to z, then a free roll about z.
     helper = np.where(np.abs(z[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
     x = np.cross(helper, z)
     x /= np.linalg.norm(x, axis=1, keepdims=True)
     y = np.cross(z, x)
     R = np.stack([x, y, z], axis=2)
-    roll = Rotation.from_rotvec(np.outer(rng.uniform(-np.pi, np.pi, n), [0.0, 0.0, 1.0])).as_matrix()
-    return make_transform(R @ roll, position)
+    turn = Rotation.from_rotvec(np.outer(np.broadcast_to(roll, len(z)), [0.0, 0.0, 1.0])).as_matrix()
+    return make_transform(R @ turn, position)
 
 
 def random_scene(
