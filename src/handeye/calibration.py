@@ -352,6 +352,7 @@ def calibrate(
     progress: bool = True,
     pairs: Pairs = "all",
     check: bool = True,
+    robot_noise: tuple[float, float] | None = None,
 ) -> Calibration:
     """Hand-eye calibration from a capture session folder (images + robot poses, DESIGN §4).
 
@@ -370,6 +371,11 @@ def calibrate(
         poses (:func:`handeye.solvers.refine.refine_pose`), which allows for robot pose errors.
         'auto' (default): 'reprojection', unless its fit is much worse than the per-image PnP
         fits (robot pose errors dominate); then 'pose', with a note.
+    robot_noise : (deg, mm), optional
+        Standard deviation per axis of the robot's pose errors (its accuracy where the images were
+        taken; the data sheet's repeatability is a lower bound). The reprojection refinement then
+        gives every robot pose a small correction with that prior instead of taking the poses as
+        exact, so robot errors no longer bias X and the uncertainty accounts for them.
     jobs : int, optional
         Detection processes (default: the available cores).
     progress : bool
@@ -451,8 +457,14 @@ def calibrate(
         # all images, pose-level outliers included: a pose can be off because its PnP is weak (a
         # far or fronto-parallel view) while its pixels fit; the robust pixel fit judges them
         obj, img = [points[k][0] for k in used], [points[k][1] for k in used]
+        robot_sigma = None
+        if robot_noise is not None:
+            deg, mm = (float(v) for v in robot_noise)
+            if not (deg > 0 and mm > 0 and np.isfinite(deg) and np.isfinite(mm)):
+                raise InputMismatchError(f"robot_noise {robot_noise}: give positive standard deviations (deg, mm)")
+            robot_sigma = (np.radians(deg), 1e-3 * mm)
         ref = refine_reprojection(cal.X, cal.Z, flange2base, obj, img, K, dist, session.setup,
-                                  refine_intrinsics=(source == "estimated"), robust=True)
+                                  refine_intrinsics=(source == "estimated"), robust=True, robot_noise=robot_sigma)
         # The refinement trusts the robot poses. If even the best X, Z leave the pixels far worse
         # fitted than a free pose per image does, robot errors dominate and pixel refinement would
         # trade them for a biased X: refine on the poses instead ('auto') and say so.
@@ -482,7 +494,8 @@ def calibrate(
                              f"detected points as outliers (beyond 5 sigma)")
             if ref.cov_X is not None:
                 set_covariance(cal, ref.cov_X)
-            cal.method = f"{method}+reprojection"
+            cal.method = f"{method}+reprojection" + (
+                f" (robot poses corrected, prior {robot_noise[0]:g} deg / {robot_noise[1]:g} mm)" if robot_noise else "")
             if source == "estimated":
                 source = "estimated, refined with the robot poses"
     if not pixels_decide:

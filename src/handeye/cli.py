@@ -121,7 +121,11 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
     session = _input_folder(args.session, args.sample, SAMPLE_SESSION,
                             "give a session folder, or --sample for the bundled sample session (not both)")
-    cal = calibrate(session, method=args.method, refine=args.refine, jobs=args.jobs, progress=not args.no_progress)
+    robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))
+    if robot_noise is not None and not np.all(robot_noise > 0):
+        raise HandEyeError(f"--robot-noise {args.robot_noise}: give two positive numbers, degrees and millimetres")
+    cal = calibrate(session, method=args.method, refine=args.refine, jobs=args.jobs, progress=not args.no_progress,
+                    robot_noise=None if robot_noise is None else tuple(robot_noise))
     _print_image_summary(cal)
     print_calibration(cal)
     _write_outputs(cal, args, session)
@@ -383,6 +387,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--refine", default="auto", choices=["auto", "reprojection", "pose", "none"],
                    help="auto (default): on the pixels of all target points, or on the poses when the robot "
                    "poses disagree with the images")
+    p.add_argument("--robot-noise", metavar="DEG,MM",
+                   help="robot pose error per axis (e.g. 0.05,0.2): the pixel refinement then corrects each robot "
+                   "pose within it instead of taking the poses as exact")
     _add_detection_options(p)
     p.set_defaults(func=_cmd_calibrate)
 
