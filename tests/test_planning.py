@@ -203,7 +203,11 @@ def test_cli_bad_input(tmp_path, camera_yaml, capsys, argv, expect):
 def test_cli_bad_intrinsics(tmp_path, capsys):
     bad = tmp_path / "cam.yaml"
     bad.write_text("K: [[1, 0]]\nimage_size: [640, 480]\n")
-    for path, expect in ((tmp_path / "none.yaml", "no such file"), (bad, "K must be 3x3")):
+    broken = tmp_path / "broken.yaml"
+    broken.write_text("K: [[1, 0, 0]\n")
+    for path, expect in ((tmp_path / "none.yaml", "file not found"), (bad, "camera K must be"),
+                         (broken, "not valid YAML")):
         code = main(["plan", "--intrinsics", str(path), "--target-in-base", "0.6,0,0", "--standoff", "0.5",
                      "--out", str(tmp_path / "p.csv")])
-        assert code == 2 and expect in capsys.readouterr().err
+        err = capsys.readouterr().err
+        assert code == 2 and expect in err and len(err.strip().splitlines()) == 1

@@ -291,3 +291,12 @@ def test_robot_aware_sparse_jacobian_matches_dense():
     assert after < before
     with pytest.raises(ValueError, match="positive"):
         refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", robot_noise=(0.0, 1e-3))
+
+
+def test_robot_noise_is_never_silently_ignored(tmp_path):
+    session = tmp_path / "s"
+    handeye.simulate.simulate_session(session, n_poses=4, seed=3)
+    for kw, expect in (({"refine": "pose", "robot_noise": (0.05, 0.2)}, "would ignore it"),
+                       ({"robot_noise": (0.0, 0.2)}, "positive"), ({"robot_noise": "a"}, "degrees, millimetres")):
+        with pytest.raises(handeye.InputMismatchError, match=expect):
+            handeye.calibrate(session, progress=False, **kw)

@@ -84,7 +84,6 @@ class Calibration:
     image_paths: list[Path] | None = field(default=None, repr=False)
     object_points: list[NDArray[np.float64]] | None = field(default=None, repr=False)
     image_points: list[NDArray[np.float64]] | None = field(default=None, repr=False)
-    image_size: tuple[int, int] | None = None
     report_path: Path | None = None  #: report.html, once written (:meth:`write`)
 
     @cached_property
@@ -398,6 +397,18 @@ def calibrate(
 
     if refine not in ("auto", "reprojection", "pose", "none"):
         raise InputMismatchError(f"refine={refine!r}; use 'auto', 'reprojection', 'pose' or 'none'")
+    robot_sigma = None
+    if robot_noise is not None:
+        if refine not in ("auto", "reprojection"):
+            raise InputMismatchError(f"robot_noise is used by the pixel refinement; refine={refine!r} would ignore it "
+                                     "(use refine='auto' or 'reprojection', or leave robot_noise out)")
+        try:
+            deg, mm = (float(v) for v in robot_noise)
+        except (TypeError, ValueError):
+            raise InputMismatchError(f"robot_noise {robot_noise!r}: give (degrees, millimetres)") from None
+        if not (deg > 0 and mm > 0 and np.isfinite(deg) and np.isfinite(mm)):
+            raise InputMismatchError(f"robot_noise {robot_noise}: give positive standard deviations (deg, mm)")
+        robot_sigma = (np.radians(deg), 1e-3 * mm)
     session = load_session(session_dir)
     target = target_from_spec(session.target_spec)
     results = detect_images(session.image_paths, target, jobs=jobs, progress=progress)
@@ -457,12 +468,6 @@ def calibrate(
         # all images, pose-level outliers included: a pose can be off because its PnP is weak (a
         # far or fronto-parallel view) while its pixels fit; the robust pixel fit judges them
         obj, img = [points[k][0] for k in used], [points[k][1] for k in used]
-        robot_sigma = None
-        if robot_noise is not None:
-            deg, mm = (float(v) for v in robot_noise)
-            if not (deg > 0 and mm > 0 and np.isfinite(deg) and np.isfinite(mm)):
-                raise InputMismatchError(f"robot_noise {robot_noise}: give positive standard deviations (deg, mm)")
-            robot_sigma = (np.radians(deg), 1e-3 * mm)
         ref = refine_reprojection(cal.X, cal.Z, flange2base, obj, img, K, dist, session.setup,
                                   refine_intrinsics=(source == "estimated"), robust=True, robot_noise=robot_sigma)
         # The refinement trusts the robot poses. If even the best X, Z leave the pixels far worse
@@ -514,7 +519,6 @@ def calibrate(
     cal.skipped = sorted(skipped, key=lambda item: session.image_names.index(item[0]))
     cal.camera_matrix, cal.dist_coeffs = np.asarray(K, dtype=float), np.asarray(dist, dtype=float).ravel()
     cal.intrinsics_source, cal.intrinsics_rms = source, k_rms
-    cal.image_size = image_size
     cal.image_paths = [session.image_paths[k] for k in used]
     cal.object_points, cal.image_points = [points[k][0] for k in used], [points[k][1] for k in used]
     cal.inputs_sha256 = files_digest(session.input_files, session.folder)

@@ -231,34 +231,27 @@ def _pose_arg(text: str | None, name: str, default_rot_deg=(0.0, 0.0, 0.0), requ
 
 
 def _load_camera(path: str) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
-    import yaml
+    """K, dist and image size from a YAML file (top level, or under camera: as in session.yaml)."""
+    from .session import _camera, _load_yaml
 
     p = Path(path)
-    if not p.is_file():
-        raise HandEyeError(f"--intrinsics {p}: no such file")
-    try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        raise HandEyeError(f"--intrinsics {p}: not valid YAML ({exc})") from None
-    if isinstance(data, dict) and isinstance(data.get("camera"), dict):
-        data = {**data["camera"], **{k: v for k, v in data.items() if k == "image_size"}}
-    if not isinstance(data, dict) or "K" not in data or "image_size" not in data:
+    data = _load_yaml(p)
+    cam = data["camera"] if isinstance(data.get("camera"), dict) else data
+    size = cam.get("image_size", data.get("image_size"))
+    if "K" not in cam or size is None:
         raise HandEyeError(f"--intrinsics {p}: needs K: [[fx,0,cx],[0,fy,cy],[0,0,1]] and image_size: [width, height] "
                            "(dist optional), at the top level or under camera:")
+    K, dist = _camera({"K": cam["K"], "dist": cam.get("dist") or [0.0] * 5}, f"--intrinsics {p}")
     try:
-        K = np.array(data["K"], dtype=float).reshape(3, 3)
-        dist = np.array(data.get("dist") or [0.0] * 5, dtype=float).ravel()
-        w, h = (int(v) for v in data["image_size"])
+        w, h = (int(v) for v in size)
     except (TypeError, ValueError):
-        raise HandEyeError(f"--intrinsics {p}: K must be 3x3 numbers, dist a list, image_size [width, height]") from None
-    if not (K[0, 0] > 0 and K[1, 1] > 0 and w > 0 and h > 0):
-        raise HandEyeError(f"--intrinsics {p}: focal lengths and image size must be positive")
+        raise HandEyeError(f"--intrinsics {p}: image_size must be [width, height]") from None
+    if w <= 0 or h <= 0:
+        raise HandEyeError(f"--intrinsics {p}: image_size must be positive")
     return K, dist, (w, h)
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
-    import yaml
-
     from .geometry.se3 import invert
     from .planning import (easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov,
                            reprojection_information, simulate_errors, visible_mask, write_plan)
@@ -271,10 +264,10 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         raise HandEyeError("--length-unit must be m or mm, --angle-unit deg or rad")
     K, dist, size = _load_camera(args.intrinsics)
     if args.target_spec:
+        from .session import _load_yaml
+
         p = Path(args.target_spec)
-        if not p.is_file():
-            raise HandEyeError(f"--target-spec {p}: no such file")
-        spec = (yaml.safe_load(p.read_text(encoding="utf-8")) or {}).get("target")
+        spec = _load_yaml(p).get("target")
         if not isinstance(spec, dict):
             raise HandEyeError(f"--target-spec {p}: no 'target:' mapping (as in session.yaml)")
     else:
@@ -332,7 +325,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         err, _ = simulate_errors(plan.flange2base, X, Z, args.setup, obj, K, dist, size, plan.noise_px,
                                  args.check_runs, args.seed)
         rms = np.sqrt(np.mean(err**2, axis=0))
-        print(f"simulated ({args.check_runs} runs: pixel noise, PnP, {'daniilidis'}, reprojection refinement): RMS error "
+        print(f"simulated ({args.check_runs} runs: pixel noise, PnP, daniilidis, reprojection refinement): RMS error "
               f"of X {rms[0]:.4f} deg / {rms[1]:.3f} mm (predicted {np.linalg.norm(s[:3]):.4f} deg / "
               f"{np.linalg.norm(s[3:]):.3f} mm)")
     print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): flange2base per image; "

@@ -24,7 +24,7 @@ comparison; :func:`simulate_errors` measures either plan by Monte-Carlo through 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -73,7 +73,6 @@ class Plan:
     std_X: NDArray[np.float64]
     noise_px: float
     n_candidates: int
-    notes: list[str] = field(default_factory=list)
 
 
 def _flange_poses(cam2target: NDArray[np.float64], X: NDArray[np.float64], Z: NDArray[np.float64], setup: str):
@@ -282,7 +281,6 @@ def plan_poses(
     cam2target = _candidates(standoff, tilt_max_deg, centre)
     target2cam = invert(cam2target)
     keep = visible_mask(target2cam, obj, K, dist, image_size, margin_px)
-    notes = []
     if keep.sum() < n_poses:
         raise HandEyeError(
             f"only {int(keep.sum())} of {len(keep)} candidate views keep the whole target {margin_px:g} px inside the "
@@ -308,7 +306,7 @@ def plan_poses(
     info = reprojection_information(flange2base[chosen], X, Z, setup, obj, K).sum(axis=0)
     cov = predicted_cov(info, noise_px)
     std = np.r_[np.degrees(np.sqrt(np.diag(cov)[:3])), 1e3 * np.sqrt(np.diag(cov)[3:])]
-    return Plan(setup, X, Z, flange2base[chosen], target2cam[chosen], cov, std, float(noise_px), int(keep.sum()), notes)
+    return Plan(setup, X, Z, flange2base[chosen], target2cam[chosen], cov, std, float(noise_px), int(keep.sum()))
 
 
 def easy_handeye_poses(start_flange2base: ArrayLike, angle_deg: float = 25.0, translation: float = 0.1) -> NDArray[np.float64]:

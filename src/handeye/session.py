@@ -159,8 +159,11 @@ def _load_yaml(path: Path) -> dict[str, Any]:
         raise SessionError(f"{path}: file not found")
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as exc:
-        raise SessionError(f"{path}: not valid YAML ({exc})") from None
+    except yaml.YAMLError as exc:  # one line: the problem and where
+        mark = getattr(exc, "problem_mark", None)
+        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise SessionError(f"{path}: not valid YAML ({problem}{at})") from None
     if not isinstance(data, dict):
         raise SessionError(f"{path}: expected a mapping of keys, got {type(data).__name__}")
     return data
