@@ -72,12 +72,18 @@ def _input_folder(given: str | None, bundled: bool, bundled_name: str, usage: st
     return folder
 
 
+def _out_folder(out: str) -> Path:
+    """The --out folder of a command that writes several files; refused when it is a file."""
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise HandEyeError(f"--out {path} exists and is not a folder")
+    return path
+
+
 def _write_outputs(cal: Calibration, args: argparse.Namespace, inputs: Path) -> None:
     """Write the result files and the report, refusing to overwrite any file of the input folder."""
     if args.out:
-        out = Path(args.out)
-        if out.exists() and not out.is_dir():
-            raise HandEyeError(f"--out {out} exists and is not a folder")
+        out = _out_folder(args.out)
         if inputs.is_dir() and (out.resolve() == inputs.resolve() or inputs.resolve() in out.resolve().parents):
             raise HandEyeError(f"--out {out} is inside the input folder {inputs}; results never go among the inputs: "
                                "choose a folder elsewhere")
@@ -192,9 +198,7 @@ def _cmd_study(args: argparse.Namespace) -> int:
         wanted |= {figures[f].source_figure for f in args.figures if figures[f].source_figure}
         settings = [s for s in settings if s.figure in wanted]
         figures = {k: v for k, v in figures.items() if k in wanted}
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise HandEyeError(f"--out {out} exists and is not a folder")
+    out = _out_folder(args.out)
     start = time.perf_counter()
     result = study(settings, runs=args.runs, seed=args.seed, jobs=args.jobs, progress=not args.no_progress,
                    figures=figures, preset_name=args.preset)
@@ -252,11 +256,11 @@ def _load_camera(path: str) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
-    from .geometry.se3 import invert
     from .planning import (easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov,
                            reprojection_information, simulate_errors, visible_mask, write_plan)
     from .poses import pose_columns
     from .simulate import DEFAULT_TARGETS
+    from .solvers.refine import predicted_target2cam
     from .vision.targets import target_from_spec
 
     pose_columns(args.format)  # a clear error for an unknown format before any work
@@ -308,8 +312,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
           f"{_fmt_vec(s[:3], 4)} deg, translation {_fmt_vec(s[3:], 3)} mm")
     start = fronto_parallel_start(X, Z, obj, args.standoff, args.setup)
     eh = easy_handeye_poses(start)
-    robot = invert(eh) if args.setup == "eye_in_hand" else eh
-    seen = visible_mask(invert(X) @ robot @ Z, obj, K, dist, size, 0.0)
+    seen = visible_mask(predicted_target2cam(X, Z, eh, args.setup), obj, K, dist, size, 0.0)
     if seen.sum() >= 3:
         try:
             c = predicted_cov(reprojection_information(eh[seen], X, Z, args.setup, obj, K).sum(axis=0), plan.noise_px)

@@ -34,7 +34,8 @@ from scipy.spatial.transform import Rotation
 from .errors import HandEyeError
 from .geometry.se3 import invert, make_transform, skew
 from .motions import check_setup
-from .simulate import look_at
+from .simulate import flange_poses, look_at
+from .solvers.refine import predicted_target2cam
 
 __all__ = ["Plan", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
            "visible_mask", "simulate_errors", "write_plan", "order_path"]
@@ -73,17 +74,6 @@ class Plan:
     std_X: NDArray[np.float64]
     noise_px: float
     n_candidates: int
-
-
-def _flange_poses(cam2target: NDArray[np.float64], X: NDArray[np.float64], Z: NDArray[np.float64], setup: str):
-    if setup == "eye_in_hand":  # X = cam2flange, Z = target2base
-        return Z @ cam2target @ invert(X)
-    return X @ invert(cam2target) @ invert(Z)  # X = cam2base, Z = target2flange
-
-
-def _target2cam(flange2base: NDArray[np.float64], X: NDArray[np.float64], Z: NDArray[np.float64], setup: str):
-    robot = invert(flange2base) if setup == "eye_in_hand" else flange2base
-    return invert(X) @ robot @ Z
 
 
 def visible_mask(target2cam: NDArray[np.float64], object_points: NDArray[np.float64], K: NDArray[np.float64],
@@ -285,7 +275,7 @@ def plan_poses(
         raise HandEyeError(
             f"only {int(keep.sum())} of {len(keep)} candidate views keep the whole target {margin_px:g} px inside the "
             f"image at a standoff of {standoff:g} m; increase the standoff or use a smaller target")
-    flange2base = _flange_poses(cam2target, X, Z, setup)
+    flange2base = flange_poses(cam2target, X, Z, setup)
     if reach_box is not None:
         box = np.asarray(reach_box, dtype=float).ravel()
         if box.size != 6 or np.any(box[:3] >= box[3:]):
@@ -337,7 +327,7 @@ def fronto_parallel_start(X: ArrayLike, Z: ArrayLike, object_points: ArrayLike, 
     obj = np.asarray(object_points, dtype=float).reshape(-1, 3)
     centre = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
     cam2target = look_at(centre - [0.0, 0.0, standoff], centre, np.zeros(1))
-    return _flange_poses(cam2target, np.asarray(X, float), np.asarray(Z, float), setup)[0]
+    return flange_poses(cam2target, np.asarray(X, float), np.asarray(Z, float), setup)[0]
 
 
 def simulate_errors(
@@ -361,16 +351,16 @@ def simulate_errors(
     detector would not find the target); PnP per image; ``method``; then the joint reprojection
     refinement, as ``handeye.calibrate`` runs it on a session with known intrinsics.
     """
-    import cv2
-
     from .calibration import calibrate_poses
     from .metrics import rotation_error, translation_error
     from .solvers.refine import refine_reprojection
-    from .vision.pnp import project_points
+    from .vision.pnp import project_points, solve_pnp
+    from .vision.targets import Detection
 
     rng = np.random.default_rng(rng)
     obj = np.ascontiguousarray(object_points, dtype=np.float64)
-    T_true = _target2cam(flange2base, X, Z, setup)
+    ids = np.arange(len(obj))
+    T_true = predicted_target2cam(X, Z, flange2base, setup)
     usable = visible_mask(T_true, obj, K, dist, image_size, 0.0)
     if usable.sum() < 3:
         raise HandEyeError(f"only {int(usable.sum())} poses see the whole target; no calibration possible")
@@ -379,12 +369,8 @@ def simulate_errors(
     errors = np.empty((runs, 2))
     for r in range(runs):
         img = [c + rng.normal(0.0, noise_px, c.shape) for c in clean]
-        t2c = []
-        for im in img:
-            ok, rvec, tvec = cv2.solvePnP(obj, im, K, dist, flags=cv2.SOLVEPNP_IPPE)
-            rvec, tvec = cv2.solvePnPRefineLM(obj, im, K, dist, rvec, tvec)
-            t2c.append(make_transform(cv2.Rodrigues(rvec)[0], tvec.ravel()))
-        cal = calibrate_poses(f2b, np.array(t2c), setup=setup, method=method, refine="none", check=False)
+        t2c = np.array([solve_pnp(Detection(ids, im, obj), K, dist)[0] for im in img])
+        cal = calibrate_poses(f2b, t2c, setup=setup, method=method, refine="none", check=False)
         ref = refine_reprojection(cal.X, cal.Z, f2b, [obj] * len(img), img, K, dist, setup)
         errors[r] = np.degrees(rotation_error(ref.X, X)), 1e3 * translation_error(ref.X, X)
     return errors, int(usable.sum())

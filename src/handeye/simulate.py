@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 from .geometry.se3 import invert, make_transform, random_rotations
 from .motions import check_setup
 
-__all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "look_at", "look_at_viewpoints", "perturb_poses", "seed_viewpoints",
+__all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look_at", "look_at_viewpoints", "perturb_poses", "seed_viewpoints",
            "seed_scenes", "add_noise"]
 
 
@@ -116,12 +116,19 @@ def scene_from_viewpoints(
     if setup == "eye_in_hand":
         X = offset
         Z = make_transform(random_rotations(1, rng)[0], rng.uniform(-0.5, 0.5, 3) + [0.6, 0.0, 0.0])
-        flange2base = Z @ cam2target @ invert(X)
     else:
         Z = offset
         X = make_transform(random_rotations(1, rng)[0], rng.uniform(-0.5, 0.5, 3) + [1.0, 0.0, 0.5])
-        flange2base = X @ target2cam @ invert(Z)
-    return Scene(setup, X, Z, flange2base, target2cam)
+    return Scene(setup, X, Z, flange_poses(cam2target, X, Z, setup), target2cam)
+
+
+def flange_poses(cam2target: NDArray[np.float64], X: NDArray[np.float64], Z: NDArray[np.float64],
+                 setup: str) -> NDArray[np.float64]:
+    """The robot poses that show the target from ``cam2target`` (module docstring; batches broadcast):
+    eye-in-hand ``Z @ cam2target @ inv(X)``, eye-to-hand ``X @ inv(cam2target) @ inv(Z)``."""
+    if setup == "eye_in_hand":
+        return Z @ cam2target @ invert(X)
+    return X @ invert(cam2target) @ invert(Z)
 
 
 def perturb_poses(
@@ -219,13 +226,8 @@ def seed_scenes(
     # the other unknown: the target ~0.6 m from the base (eye-in-hand) or the camera ~1 m (eye-to-hand)
     centre = [0.6, 0.0, 0.0] if setup == "eye_in_hand" else [1.0, 0.0, 0.5]
     cell = make_transform(random_rotations(runs, rng), rng.uniform(-0.5, 0.5, (runs, 3)) + centre)
-    if setup == "eye_in_hand":
-        X, Z = offset, cell
-        flange2base = Z[:, None] @ cam2target @ invert(X)[:, None]
-    else:
-        X, Z = cell, offset
-        flange2base = X[:, None] @ target2cam @ invert(Z)[:, None]
-    return SceneBatch(setup, X, Z, flange2base, target2cam)
+    X, Z = (offset, cell) if setup == "eye_in_hand" else (cell, offset)
+    return SceneBatch(setup, X, Z, flange_poses(cam2target, X[:, None], Z[:, None], setup), target2cam)
 
 
 @dataclass(frozen=True)

@@ -226,16 +226,15 @@ def refine_reprojection(
 
 def _pixel_noise(obj, img, K, dist) -> float:
     """Per-axis pixel noise from free PnP fits of every image (6 unknowns each)."""
-    import cv2
+    from ..vision.pnp import solve_pnp
+    from ..vision.targets import Detection
 
     ss, dof = 0.0, 0
     for o, im in zip(obj, img):
-        ok, rvec, tvec = cv2.solvePnP(o, im, K, dist, flags=cv2.SOLVEPNP_IPPE if len(o) >= 4 else cv2.SOLVEPNP_ITERATIVE)
-        if not ok:
+        fit = solve_pnp(Detection(np.arange(len(o)), im, o), K, dist)
+        if fit is None:
             continue
-        rvec, tvec = cv2.solvePnPRefineLM(o, im, K, dist, rvec, tvec)
-        T = make_transform(Rotation.from_rotvec(rvec.ravel()).as_matrix(), tvec.ravel())
-        ss += float(np.sum((project_points(T, o, K, dist) - im) ** 2))
+        ss += fit[1] ** 2 * len(o)  # fit[1]: RMS over points of the 2D distance
         dof += 2 * len(o) - 6
     return float(np.sqrt(ss / dof)) if dof > 0 and ss > 0 else 0.1
 
