@@ -8,6 +8,8 @@ work on the N poses directly, on both sides. Two handeye timings are printed:
 
 * ``solve``: validation + all-pairs motions + solver (robot-world: validation + solver), the same
   work as OpenCV's call;
+* ``core``: the same without handeye's input checks (finite, orthonormal, enough rotation about
+  two axes), which OpenCV does not make: what the checks cost, shown apart;
 * ``calibrate_poses``: the user-facing call, which also estimates Z (the target pose).
 
 Times are the best of ``--repeat`` runs (the least disturbed by the machine); ratio = OpenCV / ours.
@@ -25,7 +27,7 @@ import handeye
 from handeye.calibration import robot_world_inputs
 from handeye.motions import MotionSet, validate_poses
 from handeye.simulate import random_scene
-from handeye.solvers import solve_motions, solve_robot_world
+from handeye.solvers import get, solve_motions, solve_robot_world
 
 CV_METHODS = {
     "tsai_lenz": ("hand_eye", "CALIB_HAND_EYE_TSAI"),
@@ -44,7 +46,7 @@ def main() -> None:
     args = parser.parse_args()
     print(f"handeye {handeye.__version__}, OpenCV {cv2.__version__}, numpy {np.__version__}")
     print(f"{'method':<12} {'poses':>5} {'motions':>7} {'opencv ms':>10} {'solve ms':>9} {'ratio':>7}"
-          f" {'calibrate_poses ms':>19} {'ratio':>7}")
+          f" {'core ms':>8} {'ratio':>7} {'calibrate_poses ms':>19} {'ratio':>7}")
     for method, (kind, cv_name) in CV_METHODS.items():
         cv_flag = getattr(cv2, cv_name)
         for n in (15, 100):
@@ -59,6 +61,9 @@ def main() -> None:
                 def run_solve() -> None:
                     f, t = validate_poses(f2b, t2c)
                     solve_motions(MotionSet.from_poses(f, t, "eye_in_hand", "all"), method=method)
+
+                def run_core() -> None:
+                    get(method).func(MotionSet.from_poses(f2b, t2c, "eye_in_hand", "all"))
             else:
                 A, B = robot_world_inputs(f2b, t2c, "eye_in_hand")
                 args_cv = (list(A[:, :3, :3]), list(A[:, :3, 3]), list(B[:, :3, :3]), list(B[:, :3, 3]))
@@ -69,16 +74,21 @@ def main() -> None:
                 def run_solve() -> None:
                     solve_robot_world(A, B, method=method)
 
+                def run_core() -> None:
+                    get(method, kind="robot_world").func(A, B)
+
             def run_calibrate() -> None:
                 handeye.calibrate_poses(f2b, t2c, setup="eye_in_hand", method=method, refine="none")
 
             t_cv = best_time(run_cv, args.repeat)
             t_solve = best_time(run_solve, args.repeat)
+            t_core = best_time(run_core, args.repeat)
             t_cal = best_time(run_calibrate, args.repeat)
             motions = n * (n - 1) // 2 if kind == "hand_eye" else n
             print(
                 f"{method:<12} {n:>5} {motions:>7} {1e3 * t_cv:>10.2f} {1e3 * t_solve:>9.2f} "
-                f"{t_cv / t_solve:>6.1f}x {1e3 * t_cal:>19.2f} {t_cv / t_cal:>6.1f}x"
+                f"{t_cv / t_solve:>6.1f}x {1e3 * t_core:>8.2f} {t_cv / t_core:>6.1f}x "
+                f"{1e3 * t_cal:>19.2f} {t_cv / t_cal:>6.1f}x"
             )
 
 

@@ -107,3 +107,51 @@ def test_calibrate_poses_accepts_explicit_pairs():
     cal = handeye.calibrate_poses(s.flange2base, s.target2cam, pairs=np.array([[0, 1], [1, 2], [0, 5]]), refine="none")
     assert cal.pairs.tolist() == [[0, 1], [1, 2], [0, 5]]
     assert handeye.metrics.rotation_error(cal.X, s.X) < 1e-9
+
+
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+def test_all_pairs_translation_in_o_n_equals_the_sum_over_motions(setup):
+    """The translation step over all N(N-1)/2 pairs by prefix sums over the poses equals the
+    normal equations summed motion by motion (noisy poses, so no term cancels by accident)."""
+    from handeye.geometry.se3 import random_rotations
+    from handeye.simulate import perturb_poses
+    from handeye.solvers._common import translation_least_squares
+
+    rng = np.random.default_rng(11)
+    scene = random_scene(25, setup, rng=rng)
+    f2b = perturb_poses(scene.flange2base, 0.01, 0.005, rng)
+    t2c = perturb_poses(scene.target2cam, 0.01, 0.005, rng)
+    fast = MotionSet.from_poses(f2b, t2c, setup, "all")
+    assert fast.all_pairs_factors is not None
+    slow = MotionSet(fast.dq_a, fast.dq_b, fast.pairs, _AB=fast._matrices())
+    assert slow.all_pairs_factors is None
+    for R_X in random_rotations(4, rng):
+        t_fast, t_slow = translation_least_squares(fast, R_X), translation_least_squares(slow, R_X)
+        assert np.abs(t_fast - t_slow).max() <= 1e-12 * max(1.0, np.abs(t_slow).max())
+    # other pairings keep the motion-by-motion sum
+    assert MotionSet.from_poses(f2b, t2c, setup, "consecutive").all_pairs_factors is None
+    shuffled = pair_indices(25, "all")[::-1].copy()
+    assert MotionSet.from_poses(f2b, t2c, setup, shuffled).all_pairs_factors is None
+
+
+def test_rotation_spread_from_matrices_equals_from_quaternions():
+    """The observability check of the robot-world solvers reads v v^T off the rotation matrices;
+    same numbers as from the quaternions, half turns included, parallel axes still caught."""
+    from scipy.spatial.transform import Rotation
+
+    from handeye.geometry.dualquat import dq_from_matrix
+    from handeye.geometry.se3 import make_transform, random_rotations
+    from handeye.solvers._checks import _rotation_spread, _rotation_spread_matrices
+
+    rng = np.random.default_rng(12)
+    R = random_rotations(40, rng)
+    R[5] = np.diag([1.0, -1.0, -1.0])  # exact half turn
+    axis = np.array([0.3, 0.4, 0.5]) / np.linalg.norm([0.3, 0.4, 0.5])
+    parallel = Rotation.from_rotvec(np.outer(np.linspace(0.1, np.pi, 9), axis)).as_matrix()
+    for rot in (R, parallel):
+        dq = dq_from_matrix(make_transform(rot, np.zeros((len(rot), 3))))
+        largest, spread, e1 = _rotation_spread(dq)
+        largest_m, spread_m, e1_m = _rotation_spread_matrices(rot)
+        assert abs(largest - largest_m) < 1e-12 and abs(spread - spread_m) < 1e-7
+        assert abs(abs(e1 @ e1_m) - 1.0) < 1e-12
+    assert _rotation_spread_matrices(parallel)[1] < 1e-7

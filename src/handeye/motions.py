@@ -120,23 +120,28 @@ def relative_motions(
     return _motion_matrices(flange2base, target2cam, setup, ij)
 
 
+def _pair_factors(
+    flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str
+) -> tuple[tuple[NDArray[np.float64], NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """``((G_A, H_A), (G_B, H_B))`` with the motion of pair ``(i, j)`` ``A = G_A[j] @ H_A[i]``,
+    ``B = G_B[j] @ H_B[i]``: the one place the conventions of each setup live."""
+    if setup == "eye_in_hand":
+        robot = (invert(flange2base), flange2base)
+    else:
+        robot = (flange2base, invert(flange2base))
+    return robot, (target2cam, invert(target2cam))
+
+
 def _motion_matrices(
     flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str, ij: NDArray[np.intp]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Motions ``(A, B)`` of the pairs ``ij`` from poses ``(N, 4, 4)``, or from a batch of runs
-    ``(S, N, 4, 4)`` (then ``(S, K, 4, 4)``): the one place the conventions of each setup live."""
+    ``(S, N, 4, 4)`` (then ``(S, K, 4, 4)``)."""
     i, j = ij[:, 0], ij[:, 1]
+    (G_A, H_A), (G_B, H_B) = _pair_factors(flange2base, target2cam, setup)
     if flange2base.ndim == 4:
-        def pairs_of(L, R):
-            return L[:, j] @ R[:, i]
-    else:
-        def pairs_of(L, R):
-            return pairwise_matmul(L, R, j, i)
-    if setup == "eye_in_hand":
-        A = pairs_of(invert(flange2base), flange2base)
-    else:
-        A = pairs_of(flange2base, invert(flange2base))
-    return A, pairs_of(target2cam, invert(target2cam))
+        return G_A[:, j] @ H_A[:, i], G_B[:, j] @ H_B[:, i]
+    return pairwise_matmul(G_A, H_A, j, i), pairwise_matmul(G_B, H_B, j, i)
 
 
 def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -148,10 +153,11 @@ def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[
     Daniilidis takes the signs its matrix-to-quaternion branch happens to give, which disagree for
     some motions near 180 deg.)
     """
-    # in place: both callers pass arrays they have just built
-    dq_a[dq_a[..., 0] < 0] *= -1.0
-    dq_b[dq_b[..., 0] < 0] *= -1.0
-    dq_b[dq_a[..., 0] * dq_b[..., 0] + dq_a[..., 4] * dq_b[..., 4] < 0] *= -1.0
+    # in place: both callers pass arrays they have just built. Signs are applied by multiplying
+    # with +-1 (a boolean-mask update gathers and scatters, ~2x slower at thousands of motions).
+    dq_a *= np.where(dq_a[..., :1] < 0, -1.0, 1.0)
+    dq_b *= np.where(dq_b[..., :1] < 0, -1.0, 1.0)
+    dq_b *= np.where(dq_a[..., :1] * dq_b[..., :1] + dq_a[..., 4:5] * dq_b[..., 4:5] < 0, -1.0, 1.0)
     # At theta ~ pi both scalar parts can vanish (a half turn with no pitch, e.g. a 180 deg roll
     # about the optical axis) and the rule above is a coin toss. The vector parts v = sin(theta/2) n
     # obey v_a = s R_X v_b, with s = +1 for the right sign, so dot products with any correctly signed
@@ -160,13 +166,14 @@ def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[
     w = dq_a[..., 0]
     near_pi = w < SIGN_FROM_SCALAR_MIN
     if near_pi.any():
-        ref = (~near_pi)[..., None]
         va, vb = dq_a[..., 1:4], dq_b[..., 1:4]
-        M = np.einsum("...ki,...kj->...ij", va * ref, vb)
-        score = np.einsum("...ki,...ij,...kj->...k", va, M, vb)
-        scale = np.einsum("...ii->...", np.abs(M))[..., None] * np.linalg.norm(va, axis=-1) * np.linalg.norm(vb, axis=-1)
+        M = np.swapaxes(va * (~near_pi)[..., None], -1, -2) @ vb
+        score = np.einsum("...ki,...ki->...k", va @ M, vb)
+        # |v| <= 1 for unit quaternions; the product of the norms scales the threshold
+        norms = np.sqrt(np.einsum("...ki,...ki->...k", va, va) * np.einsum("...ki,...ki->...k", vb, vb))
+        scale = np.einsum("...ii->...", np.abs(M))[..., None] * norms
         decided = near_pi & (np.abs(score) > 1e-6 * scale)
-        dq_b[decided & (score < 0)] *= -1.0
+        dq_b *= np.where(decided & (score < 0), -1.0, 1.0)[..., None]
     return dq_a, dq_b
 
 
@@ -231,6 +238,21 @@ class MotionSet:
     def t_B(self) -> NDArray[np.float64]:
         """Camera motion translations (..., K, 3)."""
         return self._AB[1][..., :3, 3] if self._AB is not None else dq_translation(self.dq_b)
+
+    @cached_property
+    def all_pairs_factors(self) -> tuple | None:
+        """``((G_A, H_A), (G_B, H_B))`` with ``A_ij = G_A[j] H_A[i]`` (see :func:`_pair_factors`)
+        when the motions are every pair ``i < j`` of absolute poses, else None.
+
+        Sums over all N(N-1)/2 pairs of terms that factor into a j-part and an i-part are then
+        O(N) with prefix sums (used by the translation step of the rotation-first solvers)."""
+        if self._poses is None:
+            return None
+        flange2base, target2cam, setup = self._poses
+        ij = _standard_pairs(len(flange2base), "all")
+        if self.pairs is not ij and not np.array_equal(self.pairs, ij):
+            return None
+        return _pair_factors(flange2base, target2cam, setup)
 
     def _matrices(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         if self._AB is None:

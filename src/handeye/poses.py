@@ -226,26 +226,26 @@ def validate_transforms(T: ArrayLike, what: str = "transforms", tol: float = ORT
         T = T[None]
     if T.ndim != 3 or T.shape[1:] != (4, 4):
         raise PoseFormatError(f"{what}: expected a stack of 4x4 transforms (N, 4, 4), got shape {T.shape}")
-    finite = np.isfinite(T).all(axis=(1, 2))
-    if not finite.all():
-        i = int(np.argmin(finite))
+    if not np.isfinite(T).all():
+        i = int(np.argmin(np.isfinite(T).all(axis=(1, 2))))
         raise PoseFormatError(f"{what}: entry {i} contains NaN or infinite values")
     R = T[:, :3, :3]
     dev = orthonormality_error(R)
-    if (dev > tol).any():
+    if len(dev) and dev.max() > tol:
         i = int(np.argmax(dev))
         raise PoseFormatError(
             f"{what}: entry {i}: rotation is not orthonormal (max |R^T R - I| = {dev[i]:.3g}, tolerance {tol:g}); "
             f"check the matrix layout (row-major 4x4) and the units"
         )
-    det = np.einsum("ni,ni->n", np.cross(R[:, :, 0], R[:, :, 1]), R[:, :, 2])
-    if (det < 0).any():
+    det = np.linalg.det(R)
+    if len(det) and det.min() < 0:
         i = int(np.argmax(det < 0))
         raise PoseFormatError(f"{what}: entry {i}: rotation has determinant {det[i]:.4g}, a reflection, not a rotation")
     inexact = dev > 1e-13
     if inexact.any():  # replace by the nearest exact rotation; exact ones are left bit-for-bit
         T[inexact, :3, :3] = Rotation.from_matrix(R[inexact]).as_matrix()
-    T[:, 3] = [0.0, 0.0, 0.0, 1.0]
+    T[:, 3, :3] = 0.0
+    T[:, 3, 3] = 1.0
     return T
 
 

@@ -95,9 +95,12 @@ def pairwise_matmul(L: ArrayLike, R: ArrayLike, il: ArrayLike, ir: ArrayLike) ->
     (n_l, r, c), (n_r, _, k) = L.shape, R.shape
     if len(il) < 0.25 * n_l * n_r:
         return L[il] @ R[ir]
-    if k == 1:  # matrices times vectors: a layout whose gather reads contiguous rows
-        prod = R[:, :, 0] @ L.reshape(n_l * r, c).T  # (n_r, n_l r)
-        return prod.reshape(n_r * n_l, r)[ir * n_l + il][:, :, None]
+    if k == 1:
+        # matrices times vectors: n_l products (n_r x c) @ (c x r), laid out (n_l, n_r, r) so the
+        # gather reads contiguous rows. Batched small products rather than one large one: OpenBLAS
+        # spreads a single (n_l r x c x n_r) product over its threads at a cost far above the work.
+        prod = np.matmul(R[:, :, 0], np.swapaxes(L, -1, -2))
+        return np.take(prod.reshape(n_l * n_r, r), il * n_r + ir, axis=0)[:, :, None]
     prod = L.reshape(n_l * r, c) @ R.transpose(1, 0, 2).reshape(c, n_r * k)
     return prod.reshape(n_l, r, n_r, k).transpose(0, 2, 1, 3)[il, ir]
 
@@ -233,11 +236,14 @@ def to_rotvec_translation(T: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np
     return rv.reshape(T.shape[:-2] + (3,)), T[..., :3, 3].copy()
 
 
+_EYE3_FLAT = np.eye(3).ravel()
+
+
 def orthonormality_error(R: ArrayLike) -> NDArray[np.float64]:
     """Largest absolute entry of ``R^T R - I`` per matrix (0 for an exact rotation)."""
     R = np.asarray(R, dtype=float)
-    gram = np.swapaxes(R, -1, -2) @ R
-    return np.abs(gram - np.eye(3)).max(axis=(-1, -2))
+    gram = (np.swapaxes(R, -1, -2) @ R).reshape(R.shape[:-2] + (9,))
+    return np.abs(gram - _EYE3_FLAT).max(axis=-1)
 
 
 def random_rotations(n: int, rng: np.random.Generator) -> NDArray[np.float64]:

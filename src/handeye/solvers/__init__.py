@@ -15,7 +15,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import DegenerateMotionError, InputMismatchError, PoseFormatError
-from ..geometry.se3 import invert
 from ..motions import MotionSet
 from ..poses import validate_transforms
 from ._checks import check_observability, validate_motions
@@ -151,9 +150,9 @@ def solve_robot_world(
         raise DegenerateMotionError(f"{len(A_abs)} pose pair(s): A_i X = Z B_i needs at least 3 with non-parallel rotation axes")
     # Eliminating Z: (A_0^-1 A_i) X = X (B_0^-1 B_i). Axes parallel relative to pose 0 means
     # parallel between every pair, so these N-1 motions decide observability.
-    A_rel = invert(A_abs[:1]) @ A_abs[1:]
-    B_rel = invert(B_abs[:1]) @ B_abs[1:]
-    check_observability(MotionSet.from_matrices(A_rel, B_rel))
+    # Only the rotations matter: R_0^T R_i.
+    rotations = tuple(np.swapaxes(T[:1, :3, :3], -1, -2) @ T[1:, :3, :3] for T in (A_abs, B_abs))
+    check_observability(rotations=rotations)
     return info.func(A_abs, B_abs)
 
 

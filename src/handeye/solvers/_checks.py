@@ -36,20 +36,45 @@ def _rotation_spread(dq: NDArray[np.float64]) -> tuple[float, float, NDArray[np.
     return float(np.sqrt(sq.max())), float(np.sqrt(off_sq.max())), e1
 
 
-def check_observability(motions: MotionSet) -> None:
+def _rotation_spread_matrices(R: NDArray[np.float64]) -> tuple[float, float, NDArray[np.float64]]:
+    """:func:`_rotation_spread` from rotation matrices ``(K, 3, 3)``, without quaternions.
+
+    With ``v = sin(theta/2) n``: ``|v|^2 = (3 - tr R) / 4`` and ``v v^T = (R + R^T) / 4 -
+    (tr R - 1) / 4 I`` (from ``R = cos(theta) I + 2 v v^T + 2 cos(theta/2) [v]x``); both are
+    exact for every angle, and the spread needs nothing else (it is sign-free).
+    """
+    tr = np.einsum("kii->k", R)
+    sq = (3.0 - tr) / 4.0
+    total = R.sum(axis=0)
+    _, vecs = np.linalg.eigh((total + total.T) / 4.0 - ((tr.sum() - len(R)) / 4.0) * np.eye(3))
+    e1 = vecs[:, -1]
+    # (e1 . v)^2 = e1^T v v^T e1 = e1^T R e1 / 2 - (tr R - 1) / 4
+    along_sq = R.reshape(-1, 9) @ np.outer(e1, e1).ravel() / 2.0 - (tr - 1.0) / 4.0
+    off_sq = np.clip(sq - along_sq, 0.0, None)
+    return float(np.sqrt(sq.max())), float(np.sqrt(off_sq.max())), e1
+
+
+def check_observability(motions: MotionSet | None = None, rotations: tuple | None = None) -> None:
     """Raise :class:`DegenerateMotionError` when the motions cannot determine ``X``.
 
     ``AX = XB`` needs at least two motions whose rotation axes are not parallel (thesis §2.2.3:
     the matrix T has rank 5 when all axes are parallel; pure translations leave the rotation free).
     Both the robot and the camera motions are checked, so a consistent pair of inputs is required.
+    Takes a :class:`MotionSet`, or ``rotations=(R_A, R_B)``: the motions' rotation matrices.
     """
-    if len(motions) < 2:
+    if rotations is not None:
+        count = len(rotations[0])
+        sides = (("robot", _rotation_spread_matrices, rotations[0]), ("camera", _rotation_spread_matrices, rotations[1]))
+    else:
+        count = len(motions)
+        sides = (("robot", _rotation_spread, motions.dq_a), ("camera", _rotation_spread, motions.dq_b))
+    if count < 2:
         raise DegenerateMotionError(
-            f"{len(motions)} motion(s): hand-eye calibration needs at least 2 motions (3 poses) with "
+            f"{count} motion(s): hand-eye calibration needs at least 2 motions (3 poses) with "
             f"non-parallel rotation axes"
         )
-    for name, dq in (("robot", motions.dq_a), ("camera", motions.dq_b)):
-        largest, spread, axis = _rotation_spread(dq)
+    for name, spread_of, data in sides:
+        largest, spread, axis = spread_of(data)
         if largest < MIN_ROTATION:
             raise DegenerateMotionError(
                 f"the {name} motions are (nearly) pure translations: the largest rotation between two "

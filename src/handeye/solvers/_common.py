@@ -19,6 +19,8 @@ def translation_least_squares(motions: MotionSet, R_X: NDArray[np.float64]) -> N
     Solved through the 3x3 normal equations; for rotations ``(R - I)^T (R - I) = 2I - R - R^T``,
     so the normal matrix is a plain sum over the motions. ``R_X`` is ``(..., 3, 3)``, one per run.
     """
+    if motions.all_pairs_factors is not None:
+        return _translation_all_pairs(motions.all_pairs_factors, R_X)
     R_A = motions.R_A
     d = motions.t_B @ np.swapaxes(R_X, -1, -2) - motions.t_A
     S = R_A.sum(axis=-3)
@@ -26,6 +28,49 @@ def translation_least_squares(motions: MotionSet, R_X: NDArray[np.float64]) -> N
     stacked = R_A.reshape(R_A.shape[:-3] + (-1, 3))  # rows 3k + j: sum_k R_A^T d = stacked^T vec(d)
     rhs = (np.swapaxes(stacked, -1, -2) @ d.reshape(d.shape[:-2] + (-1, 1)))[..., 0] - d.sum(axis=-2)
     return np.linalg.solve(normal, rhs[..., None])[..., 0]
+
+
+def _exclusive_cumsum(x: NDArray[np.float64], axis: int) -> NDArray[np.float64]:
+    """``out[n] = sum_{m < n} x[m]`` along ``axis``."""
+    c = np.cumsum(x, axis=axis)
+    return np.concatenate([np.zeros_like(np.take(c, [0], axis=axis)), np.delete(c, -1, axis=axis)], axis=axis)
+
+
+def _translation_all_pairs(factors: tuple, R_X: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`translation_least_squares` over every pair ``i < j`` of N poses in O(N).
+
+    With ``A_ij = G_j H_i`` and ``B_ij = G'_j H'_i`` (rotations ``g, h``, translations ``gamma,
+    tau``): ``R_A = g_j h_i``, ``t_A = g_j tau_i + gamma_j``, ``t_B = g'_j tau'_i + gamma'_j``, so
+
+    * ``sum R_A = sum_j g_j sum_{i<j} h_i``;
+    * ``sum d = R_X sum_j g'_j sum_{i<j} tau'_i + R_X sum_j j gamma'_j - sum_j g_j sum_{i<j} tau_i
+      - sum_j j gamma_j`` (``d = R_X t_B - t_A``);
+    * ``sum R_A^T d = sum_i h_i^T [(sum_{j>i} g_j^T R_X g'_j) tau'_i + sum_{j>i} g_j^T (R_X gamma'_j
+      - gamma_j) - (N - 1 - i) tau_i]`` (``g_j^T g_j = I``);
+
+    prefix sums over the poses replace the sums over the N(N-1)/2 motions.
+    """
+    (G_A, H_A), (G_B, H_B) = factors
+    g, gamma, h, tau = G_A[..., :3, :3], G_A[..., :3, 3], H_A[..., :3, :3], H_A[..., :3, 3]
+    gb, gamma_b, tau_b = G_B[..., :3, :3], G_B[..., :3, 3], H_B[..., :3, 3]
+    n = g.shape[-3]
+    R_X = R_X[..., None, :, :]  # broadcast over the poses
+    before = np.arange(n, dtype=float)[:, None]  # number of i < j for each j
+    after = (n - 1.0) - before  # number of j > i for each i
+    S = (g @ _exclusive_cumsum(h, axis=-3)).sum(axis=-3)
+    rb = (R_X @ gb)  # R_X g'_j
+    sum_d = ((rb @ _exclusive_cumsum(tau_b, axis=-2)[..., None])[..., 0] + before * (R_X @ gamma_b[..., None])[..., 0]
+             - (g @ _exclusive_cumsum(tau, axis=-2)[..., None])[..., 0] - before * gamma).sum(axis=-2)
+    gT = np.swapaxes(g, -1, -2)
+    M = gT @ rb  # g_j^T R_X g'_j
+    w = (gT @ ((R_X @ gamma_b[..., None])[..., 0] - gamma)[..., None])[..., 0]
+    M_after = np.flip(_exclusive_cumsum(np.flip(M, axis=-3), axis=-3), axis=-3)
+    w_after = np.flip(_exclusive_cumsum(np.flip(w, axis=-2), axis=-2), axis=-2)
+    inner = (M_after @ tau_b[..., None])[..., 0] + w_after - after * tau
+    sum_RAt_d = (np.swapaxes(h, -1, -2) @ inner[..., None])[..., 0].sum(axis=-2)
+    k = n * (n - 1) / 2
+    normal = 2 * k * np.eye(3) - S - np.swapaxes(S, -1, -2)
+    return np.linalg.solve(normal, (sum_RAt_d - sum_d)[..., None])[..., 0]
 
 
 def nearest_rotation(M: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -60,13 +60,15 @@ def solve_shah(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[
 
     Vectorised: stacks ``(..., N, 4, 4)`` give ``X, Z`` of shape ``(..., 4, 4)``.
     """
-    batch = A.shape[:-3]
-    # R_Ai R_X = R_Z R_Bi  <=>  vec(R_Z) = (R_Bi kron R_Ai) vec(R_X)  (column-major vec)
-    K = np.einsum("...kij,...kab->...iajb", B[..., :3, :3], A[..., :3, :3]).reshape(batch + (9, 9))
+    batch, n = A.shape[:-3], A.shape[-3]
+    # R_Ai R_X = R_Z R_Bi  <=>  vec(R_Z) = (R_Bi kron R_Ai) vec(R_X)  (column-major vec); the sum of
+    # the Kronecker products is one (9 x N) @ (N x 9) product of the flattened rotations, reordered.
+    flat_A = A[..., :3, :3].reshape(batch + (n, 9))
+    flat_B = B[..., :3, :3].reshape(batch + (n, 9))
+    K = np.swapaxes((np.swapaxes(flat_B, -1, -2) @ flat_A).reshape(batch + (3, 3, 3, 3)), -3, -2).reshape(batch + (9, 9))
     U, _, Vt = np.linalg.svd(K)
-    R_X = nearest_rotation(np.swapaxes(Vt[..., 0, :].reshape(batch + (3, 3)), -1, -2))
-    R_Z = nearest_rotation(np.swapaxes(U[..., :, 0].reshape(batch + (3, 3)), -1, -2))
     # u and v share one arbitrary sign; nearest_rotation undoes it for each from its determinant.
+    R_X, R_Z = nearest_rotation(np.swapaxes(np.stack([Vt[..., 0, :], U[..., :, 0]]).reshape((2,) + batch + (3, 3)), -1, -2))
     t_X, t_Z = _translations(A, B, R_Z)
     return make_transform(R_X, t_X), make_transform(R_Z, t_Z)
 
@@ -83,19 +85,36 @@ def solve_li(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[np
     scale = np.sqrt(np.mean(np.sum(A[..., :3, 3] ** 2, axis=-1), axis=-1))
     scale = np.where(scale > 0, scale, 1.0)[..., None, None]
     t_A, t_B = A[..., :3, 3] / scale, B[..., :3, 3] / scale
+    # Rows of pose k (row-major vec): (R_A kron I) vec(R_X) - (I kron R_B^T) vec(R_Z) = 0 and
+    # (I kron t_B^T) vec(R_Z) - R_A t_X + t_Z = t_A. Their normal equations are sums of products
+    # that are each one small product of the flattened poses (R^T R = I makes four blocks n I):
+    #   XZ = -sum R_A^T kron R_B^T,  ZZ = n I + I kron sum t_B t_B^T,  Z,tX = -sum (I kron t_B) R_A,
+    #   Z,tZ = I kron sum t_B,  tX,tZ = -sum R_A^T;  rhs = [0, vec(sum t_A t_B^T), -sum R_A^T t_A, sum t_A].
+    def moments(P, Q):  # sum_k P_k^T Q_k over the poses, P (..., n, p), Q (..., n, q)
+        return np.swapaxes(P, -1, -2) @ Q
+
+    flat_A, flat_B = R_A.reshape(batch + (n, 9)), R_B.reshape(batch + (n, 9))
     I3 = np.eye(3)
-    M = np.zeros(batch + (n, 12, 24))
-    # row-major vec: vec(R_A R_X) = (R_A kron I) vec(R_X), vec(R_Z R_B) = (I kron R_B^T) vec(R_Z)
-    M[..., :9, :9] = np.einsum("...kij,ab->...kiajb", R_A, I3).reshape(batch + (n, 9, 9))
-    M[..., :9, 9:18] = -np.einsum("ij,...kba->...kiajb", I3, R_B).reshape(batch + (n, 9, 9))
-    # R_Z t_B - R_A t_X + t_Z = t_A
-    M[..., 9:, 9:18] = np.einsum("ij,...ka->...kija", I3, t_B).reshape(batch + (n, 3, 9))
-    M[..., 9:, 18:21] = -R_A
-    M[..., 9:, 21:24] = I3
-    normal = np.einsum("...kri,...krj->...ij", M, M)
-    rhs = np.einsum("...kri,...kr->...i", M[..., 9:, :], t_A)
-    sol = np.linalg.solve(normal, rhs[..., None])[..., 0]
-    R_X = nearest_rotation(sol[..., :9].reshape(batch + (3, 3)))
-    R_Z = nearest_rotation(sol[..., 9:18].reshape(batch + (3, 3)))
+    sum_RA = R_A.sum(axis=-3)
+    sum_tB = t_B.sum(axis=-2)
+    N = np.zeros(batch + (24, 24))
+    N[..., :9, :9] = N[..., 9:18, 9:18] = n * np.eye(9)
+    # [(j,i),(b,a)] = sum R_A[j,i] R_B[b,a]  ->  [(i,a),(j,b)]
+    N[..., :9, 9:18] = -moments(flat_A, flat_B).reshape(batch + (3, 3, 3, 3)).transpose(
+        tuple(range(len(batch))) + tuple(len(batch) + np.array([1, 3, 0, 2]))).reshape(batch + (9, 9))
+    N[..., 9:18, 9:18] += np.einsum("ij,...ab->...iajb", I3, moments(t_B, t_B)).reshape(batch + (9, 9))
+    # [a,(m,c)] = sum t_B[a] R_A[m,c]  ->  [(m,a), c]
+    N[..., 9:18, 18:21] = -np.swapaxes(moments(t_B, flat_A).reshape(batch + (3, 3, 3)), -3, -2).reshape(batch + (9, 3))
+    N[..., 9:18, 21:24] = np.einsum("im,...a->...iam", I3, sum_tB).reshape(batch + (9, 3))
+    N[..., 18:21, 18:21] = N[..., 21:24, 21:24] = n * I3
+    N[..., 18:21, 21:24] = -np.swapaxes(sum_RA, -1, -2)
+    upper = np.triu(np.ones((24, 24), bool), 1)
+    N = np.where(upper, N, np.swapaxes(N, -1, -2))  # the lower triangle mirrors the upper
+    rhs = np.zeros(batch + (24,))
+    rhs[..., 9:18] = moments(t_A, t_B).reshape(batch + (9,))
+    rhs[..., 18:21] = -np.einsum("...kij,...ki->...j", R_A, t_A)
+    rhs[..., 21:24] = t_A.sum(axis=-2)
+    sol = np.linalg.solve(N, rhs[..., None])[..., 0]
+    R_X, R_Z = nearest_rotation(np.stack([sol[..., :9], sol[..., 9:18]]).reshape((2,) + batch + (3, 3)))
     t_X, t_Z = _translations(A, B, R_Z)
     return make_transform(R_X, t_X), make_transform(R_Z, t_Z)
