@@ -328,3 +328,43 @@ def test_other_targets_render_detect_and_calibrate(tmp_path, target):
     print(f"{target}: {rot:.3f} deg {trans:.3f} mm")
     assert len(cal.image_names) == 8 and not cal.skipped
     assert rot < (0.3 if target == "apriltag" else 0.1) and trans < (2.0 if target == "apriltag" else 1.0)
+
+
+def test_large_images_search_the_board_region_with_the_same_accuracy(tmp_path):
+    """Chessboards in images >= PYRAMID_MIN_SIDE are located on the half-size level and found by the
+    same findChessboardCornersSB call in the board's region: as close to the true corners as the
+    whole-image call (RMS within 5%), each corner within 0.5 px of it; no board, no detection."""
+    from handeye.session import load_session
+    from handeye.vision.targets import PYRAMID_MIN_SIDE, _chessboard_in_region
+
+    simulate_session(tmp_path / "s", "eye_in_hand", 3, "chessboard", noise_px=0.2, seed=5, image_size=(1000, 800))
+    session = load_session(tmp_path / "s")
+    gt = yaml.safe_load((tmp_path / "s" / "ground_truth.yaml").read_text())
+    target2cam = invert(np.array(gt["cam2flange"])) @ invert(session.flange2base) @ np.array(gt["target2base"])
+    target = target_from_spec(session.target_spec)
+    size, objp = (target.cols, target.rows), target.object_points()
+    assert 800 >= PYRAMID_MIN_SIDE
+    err_whole, err_region = [], []
+    for path, T in zip(session.image_paths, target2cam):
+        gray = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        ok, whole = cv2.findChessboardCornersSB(gray, size, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
+        region = _chessboard_in_region(gray, size)
+        detection = target.detect(gray)
+        assert ok and region is not None and detection is not None
+        assert np.array_equal(detection.image_points, region.reshape(-1, 2).astype(float))
+        truth = cv2.projectPoints(objp, cv2.Rodrigues(T[:3, :3])[0], T[:3, 3], session.camera_matrix,
+                                  session.dist_coeffs)[0].reshape(-1, 2)
+        whole, region = whole.reshape(-1, 2), region.reshape(-1, 2)
+        if np.abs(whole[::-1] - truth).max() < np.abs(whole - truth).max():
+            whole = whole[::-1]
+        if np.abs(region[::-1] - truth).max() < np.abs(region - truth).max():
+            region = region[::-1]
+        assert np.abs(region - whole).max() < 0.5
+        err_whole.append(np.linalg.norm(whole - truth, axis=1))
+        err_region.append(np.linalg.norm(region - truth, axis=1))
+    rms_whole = np.sqrt(np.mean(np.square(err_whole)))
+    rms_region = np.sqrt(np.mean(np.square(err_region)))
+    print(f"corner RMS from truth: whole image {rms_whole:.4f} px, board region {rms_region:.4f} px")
+    assert rms_region <= 1.05 * rms_whole
+    blank = np.full((800, 1000), 128, np.uint8)
+    assert _chessboard_in_region(blank, size) is None and target.detect(blank) is None

@@ -252,12 +252,15 @@ def find_outliers(
     if n < 5:  # a minimal set and too few others to vote
         return np.ones(n, bool), np.zeros((n, 2))
     everything = np.ones(n, bool)
-    try:
-        ok, resid = _refit_test(flange2base, target2cam, setup, everything)
-        if ok.all() and consistency_score(flange2base, target2cam, setup) <= CONSISTENT:
-            return everything, resid
-    except (HandEyeError, np.linalg.LinAlgError):
-        pass
+    # Inconsistent poses go to RANSAC whatever the refit says: test the cheap score first (a refit
+    # on poses with gross outliers is the slowest step: its noise weights barely settle).
+    if consistency_score(flange2base, target2cam, setup) <= CONSISTENT:
+        try:
+            ok, resid = _refit_test(flange2base, target2cam, setup, everything)
+            if ok.all():
+                return everything, resid
+        except (HandEyeError, np.linalg.LinAlgError):
+            pass
     # minimal sets: all triplets when few, else random distinct ones (40 draws miss an all-inlier
     # set with probability 5e-8 at 30% outliers)
     if comb(n, 3) <= hypotheses:

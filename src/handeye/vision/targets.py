@@ -128,7 +128,10 @@ class Chessboard(Target):
 
     def detect(self, gray: NDArray[np.uint8]) -> Detection | None:
         size = (self.cols, self.rows)
-        ok, corners = cv2.findChessboardCornersSB(gray, size, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
+        corners = _chessboard_in_region(gray, size) if min(gray.shape[:2]) >= PYRAMID_MIN_SIDE else None
+        ok = corners is not None
+        if not ok:
+            ok, corners = cv2.findChessboardCornersSB(gray, size, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
         if not ok:
             # the classic detector, then subpixel refinement (thesis §4.1.2)
             flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
@@ -139,6 +142,37 @@ class Chessboard(Target):
         pts = corners.reshape(-1, 2).astype(float)
         ids = np.arange(len(pts))
         return Detection(ids, pts, self.object_points())
+
+
+#: Images whose shorter side has at least this many pixels look for a chessboard on the half-size
+#: level of the image pyramid first (see :func:`_chessboard_in_region`).
+PYRAMID_MIN_SIDE = 800
+
+
+def _chessboard_in_region(gray: NDArray[np.uint8], size: tuple[int, int]) -> NDArray[np.float32] | None:
+    """Chessboard corners by findChessboardCornersSB (EXHAUSTIVE | ACCURACY) on the full-size image,
+    searched only in the region where the half-size image shows the board; None if not found.
+
+    The detector's cost grows with the pixel count (1280x1024: ~0.7 s an image on one thread, most
+    of it the ACCURACY refinement). The half-size search (a pyrDown level, where pixel x covers 2x -
+    0.5 to 2x + 1.5 of the full image) is cheap and only locates the board; the corners are then
+    found by the same call as on the whole image, in the bounding box of the board grown by one
+    square, so they are as accurate (measured on rendered 1280x1024 images with 0.2 px noise: 0.1785
+    px RMS from the true corners against 0.1782 px on the whole image, ~5x faster).
+    """
+    ok, corners = cv2.findChessboardCornersSB(cv2.pyrDown(gray), size, flags=cv2.CALIB_CB_EXHAUSTIVE)
+    if not ok:
+        return None
+    pts = corners.reshape(size[1], size[0], 2).astype(np.float64) * 2.0 + 0.5
+    spacing = max(np.linalg.norm(np.diff(pts, axis=0), axis=2).max(), np.linalg.norm(np.diff(pts, axis=1), axis=2).max())
+    pts = pts.reshape(-1, 2)
+    x0, y0 = np.maximum(np.floor(pts.min(axis=0) - spacing).astype(int), 0)
+    x1, y1 = np.minimum(np.ceil(pts.max(axis=0) + spacing).astype(int), [gray.shape[1], gray.shape[0]])
+    region = np.ascontiguousarray(gray[y0:y1, x0:x1])
+    ok, corners = cv2.findChessboardCornersSB(region, size, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
+    if not ok:
+        return None
+    return corners + np.array([x0, y0], dtype=np.float32)
 
 
 def _dictionary(name: str) -> Any:
