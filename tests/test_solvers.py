@@ -300,3 +300,29 @@ def test_tabb_robot_world_residuals(method):
           f"worst pair {int(np.argmax(res))} at {res.max():.1f} mm")
     assert np.median(res) <= ref + 1e-6
     assert int(np.argmax(res)) == 76
+
+
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+def test_li_normal_equations_equal_the_stacked_kronecker_system(setup):
+    """Li's 24x24 normal equations are assembled block by block from pose moments; the answer must
+    be that of the stacked 12-row-per-pose system of the paper, solved here by plain lstsq."""
+    from handeye.simulate import perturb_poses
+    from handeye.solvers._common import nearest_rotation
+    from handeye.solvers.robot_world import solve_li
+
+    rng = np.random.default_rng(31)
+    scene = random_scene(12, setup, rng=rng)
+    f2b = perturb_poses(scene.flange2base, 0.01, 0.005, rng)
+    A, B = robot_world_inputs(f2b, scene.target2cam, setup)
+    scale = np.sqrt(np.mean(np.sum(A[:, :3, 3] ** 2, axis=1)))
+    rows, rhs = [], []
+    for Ak, Bk in zip(A, B):
+        RA, RB, tA, tB = Ak[:3, :3], Bk[:3, :3], Ak[:3, 3] / scale, Bk[:3, 3] / scale
+        rot = np.hstack([np.kron(RA, np.eye(3)), -np.kron(np.eye(3), RB.T), np.zeros((9, 6))])
+        tra = np.hstack([np.zeros((3, 9)), np.kron(np.eye(3), tB[None]), -RA, np.eye(3)])
+        rows += [rot, tra]
+        rhs += [np.zeros(9), tA]
+    sol = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
+    X, Z = solve_li(A, B)
+    assert np.abs(X[:3, :3] - nearest_rotation(sol[:9].reshape(3, 3))).max() < 1e-10
+    assert np.abs(Z[:3, :3] - nearest_rotation(sol[9:18].reshape(3, 3))).max() < 1e-10

@@ -58,12 +58,13 @@ def _translation_all_pairs(factors: tuple, R_X: NDArray[np.float64]) -> NDArray[
     before = np.arange(n, dtype=float)[:, None]  # number of i < j for each j
     after = (n - 1.0) - before  # number of j > i for each i
     S = (g @ _exclusive_cumsum(h, axis=-3)).sum(axis=-3)
-    rb = (R_X @ gb)  # R_X g'_j
-    sum_d = ((rb @ _exclusive_cumsum(tau_b, axis=-2)[..., None])[..., 0] + before * (R_X @ gamma_b[..., None])[..., 0]
+    rb = R_X @ gb  # R_X g'_j
+    r_gamma_b = (R_X @ gamma_b[..., None])[..., 0]  # R_X gamma'_j
+    sum_d = ((rb @ _exclusive_cumsum(tau_b, axis=-2)[..., None])[..., 0] + before * r_gamma_b
              - (g @ _exclusive_cumsum(tau, axis=-2)[..., None])[..., 0] - before * gamma).sum(axis=-2)
     gT = np.swapaxes(g, -1, -2)
     M = gT @ rb  # g_j^T R_X g'_j
-    w = (gT @ ((R_X @ gamma_b[..., None])[..., 0] - gamma)[..., None])[..., 0]
+    w = (gT @ (r_gamma_b - gamma)[..., None])[..., 0]
     M_after = np.flip(_exclusive_cumsum(np.flip(M, axis=-3), axis=-3), axis=-3)
     w_after = np.flip(_exclusive_cumsum(np.flip(w, axis=-2), axis=-2), axis=-2)
     inner = (M_after @ tau_b[..., None])[..., 0] + w_after - after * tau

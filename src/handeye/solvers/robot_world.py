@@ -100,11 +100,10 @@ def solve_li(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[np
     N = np.zeros(batch + (24, 24))
     N[..., :9, :9] = N[..., 9:18, 9:18] = n * np.eye(9)
     # [(j,i),(b,a)] = sum R_A[j,i] R_B[b,a]  ->  [(i,a),(j,b)]
-    N[..., :9, 9:18] = -moments(flat_A, flat_B).reshape(batch + (3, 3, 3, 3)).transpose(
-        tuple(range(len(batch))) + tuple(len(batch) + np.array([1, 3, 0, 2]))).reshape(batch + (9, 9))
+    N[..., :9, 9:18] = -np.einsum("...jiba->...iajb", moments(flat_A, flat_B).reshape(batch + (3, 3, 3, 3))).reshape(batch + (9, 9))
     N[..., 9:18, 9:18] += np.einsum("ij,...ab->...iajb", I3, moments(t_B, t_B)).reshape(batch + (9, 9))
     # [a,(m,c)] = sum t_B[a] R_A[m,c]  ->  [(m,a), c]
-    N[..., 9:18, 18:21] = -np.swapaxes(moments(t_B, flat_A).reshape(batch + (3, 3, 3)), -3, -2).reshape(batch + (9, 3))
+    N[..., 9:18, 18:21] = -np.einsum("...amc->...mac", moments(t_B, flat_A).reshape(batch + (3, 3, 3))).reshape(batch + (9, 3))
     N[..., 9:18, 21:24] = np.einsum("im,...a->...iam", I3, sum_tB).reshape(batch + (9, 3))
     N[..., 18:21, 18:21] = N[..., 21:24, 21:24] = n * I3
     N[..., 18:21, 21:24] = -np.swapaxes(sum_RA, -1, -2)
