@@ -368,3 +368,24 @@ def test_large_images_search_the_board_region_with_the_same_accuracy(tmp_path):
     assert rms_region <= 1.05 * rms_whole
     blank = np.full((800, 1000), 128, np.uint8)
     assert _chessboard_in_region(blank, size) is None and target.detect(blank) is None
+
+
+def test_board_region_search_on_real_images_matches_the_whole_image_search():
+    """ViSP's real Franka chessboard images (640x480) scaled 2x to reach PYRAMID_MIN_SIDE: the
+    corners found in the board's region stay within 0.5 px of the whole-image search (in the
+    scaled pixels; that search itself moves corners by up to ~2 px between the two scales)."""
+    from handeye.vision.targets import PYRAMID_MIN_SIDE, _chessboard_in_region
+
+    src = require_real("visp-franka", "eye_in_hand_2025")
+    size = (9, 6)
+    for i in (1, 3, 5, 8):
+        gray = cv2.imread(str(src / f"franka_image-{i}.png"), cv2.IMREAD_GRAYSCALE)
+        big = cv2.resize(gray, None, fx=2, fy=2, interpolation=cv2.INTER_CUBIC)
+        assert min(big.shape) >= PYRAMID_MIN_SIDE
+        ok, whole = cv2.findChessboardCornersSB(big, size, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
+        region = _chessboard_in_region(big, size)
+        assert ok and region is not None, i
+        whole, region = whole.reshape(-1, 2), region.reshape(-1, 2)
+        diff = min(np.abs(region - whole).max(), np.abs(region[::-1] - whole).max())
+        print(f"image {i}: region vs whole image max {diff:.3f} px")
+        assert diff < 0.5, (i, diff)
