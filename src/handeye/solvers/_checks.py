@@ -25,33 +25,34 @@ def validate_motions(A: ArrayLike, B: ArrayLike) -> MotionSet:
     return MotionSet.from_matrices(A, B)
 
 
-def _rotation_spread(dq: NDArray[np.float64]) -> tuple[float, float, NDArray[np.float64]]:
-    """Largest rotation, largest off-dominant-axis rotation and the dominant axis of motions."""
-    v = np.ascontiguousarray(dq[:, 1:4].T)  # (3, K): sin(theta/2) * axis, one row per component
-    sq = (v * v).sum(axis=0)
-    # The dominant axis is the principal direction of the axis vectors (sign-free).
-    _, vecs = np.linalg.eigh(v @ v.T)
+def _spread(sq: NDArray[np.float64], moment: NDArray[np.float64], along_sq) -> tuple[float, float, NDArray[np.float64]]:
+    """Largest rotation, largest off-dominant-axis rotation and the dominant axis, from the motions'
+    ``|v|^2`` (``v = sin(theta/2) n``), ``sum v v^T`` and a function giving ``(e . v)^2`` per motion.
+    The dominant axis is the principal direction of the axis vectors (sign-free)."""
+    _, vecs = np.linalg.eigh(moment)
     e1 = vecs[:, -1]
-    off_sq = np.clip(sq - (e1 @ v) ** 2, 0.0, None)
+    off_sq = np.clip(sq - along_sq(e1), 0.0, None)
     return float(np.sqrt(sq.max())), float(np.sqrt(off_sq.max())), e1
 
 
+def _rotation_spread(dq: NDArray[np.float64]) -> tuple[float, float, NDArray[np.float64]]:
+    """:func:`_spread` of motions given as dual quaternions ``(K, 8)``."""
+    v = np.ascontiguousarray(dq[:, 1:4].T)  # (3, K): sin(theta/2) * axis, one row per component
+    return _spread((v * v).sum(axis=0), v @ v.T, lambda e: (e @ v) ** 2)
+
+
 def _rotation_spread_matrices(R: NDArray[np.float64]) -> tuple[float, float, NDArray[np.float64]]:
-    """:func:`_rotation_spread` from rotation matrices ``(K, 3, 3)``, without quaternions.
+    """:func:`_spread` of motions given as rotation matrices ``(K, 3, 3)``, without quaternions.
 
     With ``v = sin(theta/2) n``: ``|v|^2 = (3 - tr R) / 4`` and ``v v^T = (R + R^T) / 4 -
     (tr R - 1) / 4 I`` (from ``R = cos(theta) I + 2 v v^T + 2 cos(theta/2) [v]x``); both are
     exact for every angle, and the spread needs nothing else (it is sign-free).
     """
     tr = np.einsum("kii->k", R)
-    sq = (3.0 - tr) / 4.0
     total = R.sum(axis=0)
-    _, vecs = np.linalg.eigh((total + total.T) / 4.0 - ((tr.sum() - len(R)) / 4.0) * np.eye(3))
-    e1 = vecs[:, -1]
-    # (e1 . v)^2 = e1^T v v^T e1 = e1^T R e1 / 2 - (tr R - 1) / 4
-    along_sq = R.reshape(-1, 9) @ np.outer(e1, e1).ravel() / 2.0 - (tr - 1.0) / 4.0
-    off_sq = np.clip(sq - along_sq, 0.0, None)
-    return float(np.sqrt(sq.max())), float(np.sqrt(off_sq.max())), e1
+    moment = (total + total.T) / 4.0 - ((tr.sum() - len(R)) / 4.0) * np.eye(3)
+    # (e . v)^2 = e^T v v^T e = e^T R e / 2 - (tr R - 1) / 4
+    return _spread((3.0 - tr) / 4.0, moment, lambda e: R.reshape(-1, 9) @ np.outer(e, e).ravel() / 2.0 - (tr - 1.0) / 4.0)
 
 
 def check_observability(motions: MotionSet | None = None, rotations: tuple | None = None) -> None:

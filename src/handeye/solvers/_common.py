@@ -30,12 +30,6 @@ def translation_least_squares(motions: MotionSet, R_X: NDArray[np.float64]) -> N
     return np.linalg.solve(normal, rhs[..., None])[..., 0]
 
 
-def _exclusive_cumsum(x: NDArray[np.float64], axis: int) -> NDArray[np.float64]:
-    """``out[n] = sum_{m < n} x[m]`` along ``axis``."""
-    c = np.cumsum(x, axis=axis)
-    return np.concatenate([np.zeros_like(np.take(c, [0], axis=axis)), np.delete(c, -1, axis=axis)], axis=axis)
-
-
 def _translation_all_pairs(factors: tuple, R_X: NDArray[np.float64]) -> NDArray[np.float64]:
     """:func:`translation_least_squares` over every pair ``i < j`` of N poses in O(N).
 
@@ -57,21 +51,48 @@ def _translation_all_pairs(factors: tuple, R_X: NDArray[np.float64]) -> NDArray[
     R_X = R_X[..., None, :, :]  # broadcast over the poses
     before = np.arange(n, dtype=float)[:, None]  # number of i < j for each j
     after = (n - 1.0) - before  # number of j > i for each i
-    S = (g @ _exclusive_cumsum(h, axis=-3)).sum(axis=-3)
+    S = (g @ (np.cumsum(h, axis=-3) - h)).sum(axis=-3)  # sum_j g_j sum_{i<j} h_i
     rb = R_X @ gb  # R_X g'_j
     r_gamma_b = (R_X @ gamma_b[..., None])[..., 0]  # R_X gamma'_j
-    sum_d = ((rb @ _exclusive_cumsum(tau_b, axis=-2)[..., None])[..., 0] + before * r_gamma_b
-             - (g @ _exclusive_cumsum(tau, axis=-2)[..., None])[..., 0] - before * gamma).sum(axis=-2)
+    tau_b_before = np.cumsum(tau_b, axis=-2) - tau_b  # sum_{i<j}
+    tau_before = np.cumsum(tau, axis=-2) - tau
+    sum_d = ((rb @ tau_b_before[..., None])[..., 0] + before * r_gamma_b
+             - (g @ tau_before[..., None])[..., 0] - before * gamma).sum(axis=-2)
     gT = np.swapaxes(g, -1, -2)
     M = gT @ rb  # g_j^T R_X g'_j
     w = (gT @ (r_gamma_b - gamma)[..., None])[..., 0]
-    M_after = np.flip(_exclusive_cumsum(np.flip(M, axis=-3), axis=-3), axis=-3)
-    w_after = np.flip(_exclusive_cumsum(np.flip(w, axis=-2), axis=-2), axis=-2)
+    M_after = M.sum(axis=-3, keepdims=True) - np.cumsum(M, axis=-3)  # sum_{j > i}
+    w_after = w.sum(axis=-2, keepdims=True) - np.cumsum(w, axis=-2)
     inner = (M_after @ tau_b[..., None])[..., 0] + w_after - after * tau
     sum_RAt_d = (np.swapaxes(h, -1, -2) @ inner[..., None])[..., 0].sum(axis=-2)
     k = n * (n - 1) / 2
     normal = 2 * k * np.eye(3) - S - np.swapaxes(S, -1, -2)
     return np.linalg.solve(normal, (sum_RAt_d - sum_d)[..., None])[..., 0]
+
+
+def kron_sum(P: NDArray[np.float64], Q: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``sum_k kron(P_k, Q_k)`` of 3x3 stacks ``(..., K, 3, 3)``, shape ``(..., 9, 9)``.
+
+    Row-major: ``[3i + a, 3j + b] = sum P[i, j] Q[a, b]``; one (9 x K) @ (K x 9) product of the
+    flattened matrices, reordered (the Kronecker systems of Andreff, Shah and Li).
+    """
+    batch, k = P.shape[:-3], P.shape[-3]
+    moments = np.swapaxes(P.reshape(batch + (k, 9)), -1, -2) @ Q.reshape(batch + (k, 9))  # [(i,j), (a,b)]
+    return np.swapaxes(moments.reshape(batch + (3, 3, 3, 3)), -3, -2).reshape(batch + (9, 9))
+
+
+def kron_eye(M: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``kron(I3, M)`` of matrices ``(..., p, q)``, shape ``(..., 3p, 3q)``."""
+    p, q = M.shape[-2:]
+    return np.einsum("ac,...bd->...abcd", np.eye(3), M).reshape(M.shape[:-2] + (3 * p, 3 * q))
+
+
+def kron_eye_vec_sum(t: NDArray[np.float64], R: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``sum_k kron(I3, t_k) R_k`` of vectors ``(..., K, 3)`` and 3x3 stacks, shape ``(..., 9, 3)``:
+    ``[3a + b, c] = sum t[b] R[a, c]`` (one (3 x K) @ (K x 9) product, reordered)."""
+    batch, k = R.shape[:-3], R.shape[-3]
+    moments = np.swapaxes(t, -1, -2) @ R.reshape(batch + (k, 9))  # [b, (a,c)]
+    return np.swapaxes(moments.reshape(batch + (3, 3, 3)), -3, -2).reshape(batch + (9, 3))
 
 
 def nearest_rotation(M: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from ..geometry.se3 import make_transform
 from ..motions import MotionSet
-from ._common import nearest_rotation
+from ._common import kron_eye, kron_eye_vec_sum, kron_sum, nearest_rotation
 from ._registry import register
 
 
@@ -53,21 +53,14 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
     R_A, R_B, t_A, t_B = A[..., :3, :3], B[..., :3, :3], A[..., :3, 3], B[..., :3, 3]
     batch = R_A.shape[:-3]
     I3 = np.eye(3)
-    # sum_k kron(R_A, R_B), row-major vec: [3i+a, 3j+b] = sum R_A[i,j] R_B[a,b]
     T = lambda a: np.swapaxes(a, -1, -2)  # noqa: E731
-    flat9 = lambda R: R.reshape(batch + (n, 9))  # noqa: E731
     # sums over the motions as BLAS products (per run of a batch)
-    sumK = (T(flat9(R_A)) @ flat9(R_B)).reshape(batch + (3, 3, 3, 3))
-    sumK = np.swapaxes(sumK, -3, -2).reshape(batch + (9, 9))
+    sumK = kron_sum(R_A, R_B)
     sumRA = R_A.sum(axis=-3)
     G = np.zeros(batch + (12, 12))
-    tbtb = T(t_B) @ t_B
-    G[..., :9, :9] = (2 * n * np.eye(9) - sumK - np.swapaxes(sumK, -1, -2)
-                      + np.einsum("ac,...bd->...abcd", I3, tbtb).reshape(batch + (9, 9)))  # + kron(I3, sum t_B t_B^T)
-    # sum_k kron(I3, t_B) (I - R_A): [3a+b, c] = sum t_B[b] (delta_ac - R_A[a,c])
-    tb_ra = np.swapaxes((T(t_B) @ flat9(R_A)).reshape(batch + (3, 3, 3)), -3, -2)  # [a, b, c]
-    cross = np.einsum("...b,ac->...abc", t_B.sum(axis=-2), I3) - tb_ra
-    G[..., :9, 9:] = cross.reshape(batch + (9, 3))
+    G[..., :9, :9] = 2 * n * np.eye(9) - sumK - np.swapaxes(sumK, -1, -2) + kron_eye(T(t_B) @ t_B)
+    # sum_k kron(I3, t_B) (I - R_A)
+    G[..., :9, 9:] = kron_eye(t_B.sum(axis=-2)[..., :, None]) - kron_eye_vec_sum(t_B, R_A)
     G[..., 9:, :9] = np.swapaxes(G[..., :9, 9:], -1, -2)
     G[..., 9:, 9:] = 2 * n * I3 - sumRA - np.swapaxes(sumRA, -1, -2)
     rhs = np.zeros(batch + (12,))

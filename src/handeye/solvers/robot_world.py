@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..geometry.se3 import make_transform
-from ._common import nearest_rotation
+from ._common import kron_eye, kron_eye_vec_sum, kron_sum, nearest_rotation
 from ._registry import register
 
 
@@ -60,12 +60,9 @@ def solve_shah(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[
 
     Vectorised: stacks ``(..., N, 4, 4)`` give ``X, Z`` of shape ``(..., 4, 4)``.
     """
-    batch, n = A.shape[:-3], A.shape[-3]
-    # R_Ai R_X = R_Z R_Bi  <=>  vec(R_Z) = (R_Bi kron R_Ai) vec(R_X)  (column-major vec); the sum of
-    # the Kronecker products is one (9 x N) @ (N x 9) product of the flattened rotations, reordered.
-    flat_A = A[..., :3, :3].reshape(batch + (n, 9))
-    flat_B = B[..., :3, :3].reshape(batch + (n, 9))
-    K = np.swapaxes((np.swapaxes(flat_B, -1, -2) @ flat_A).reshape(batch + (3, 3, 3, 3)), -3, -2).reshape(batch + (9, 9))
+    batch = A.shape[:-3]
+    # R_Ai R_X = R_Z R_Bi  <=>  vec(R_Z) = (R_Bi kron R_Ai) vec(R_X)  (column-major vec)
+    K = kron_sum(B[..., :3, :3], A[..., :3, :3])
     U, _, Vt = np.linalg.svd(K)
     # u and v share one arbitrary sign; nearest_rotation undoes it for each from its determinant.
     R_X, R_Z = nearest_rotation(np.swapaxes(np.stack([Vt[..., 0, :], U[..., :, 0]]).reshape((2,) + batch + (3, 3)), -1, -2))
@@ -93,20 +90,14 @@ def solve_li(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[np
     def moments(P, Q):  # sum_k P_k^T Q_k over the poses, P (..., n, p), Q (..., n, q)
         return np.swapaxes(P, -1, -2) @ Q
 
-    flat_A, flat_B = R_A.reshape(batch + (n, 9)), R_B.reshape(batch + (n, 9))
-    I3 = np.eye(3)
-    sum_RA = R_A.sum(axis=-3)
-    sum_tB = t_B.sum(axis=-2)
     N = np.zeros(batch + (24, 24))
     N[..., :9, :9] = N[..., 9:18, 9:18] = n * np.eye(9)
-    # [(j,i),(b,a)] = sum R_A[j,i] R_B[b,a]  ->  [(i,a),(j,b)]
-    N[..., :9, 9:18] = -np.einsum("...jiba->...iajb", moments(flat_A, flat_B).reshape(batch + (3, 3, 3, 3))).reshape(batch + (9, 9))
-    N[..., 9:18, 9:18] += np.einsum("ij,...ab->...iajb", I3, moments(t_B, t_B)).reshape(batch + (9, 9))
-    # [a,(m,c)] = sum t_B[a] R_A[m,c]  ->  [(m,a), c]
-    N[..., 9:18, 18:21] = -np.einsum("...amc->...mac", moments(t_B, flat_A).reshape(batch + (3, 3, 3))).reshape(batch + (9, 3))
-    N[..., 9:18, 21:24] = np.einsum("im,...a->...iam", I3, sum_tB).reshape(batch + (9, 3))
-    N[..., 18:21, 18:21] = N[..., 21:24, 21:24] = n * I3
-    N[..., 18:21, 21:24] = -np.swapaxes(sum_RA, -1, -2)
+    N[..., :9, 9:18] = -np.swapaxes(kron_sum(R_A, R_B), -1, -2)  # kron(P, Q)^T = kron(P^T, Q^T)
+    N[..., 9:18, 9:18] += kron_eye(moments(t_B, t_B))
+    N[..., 9:18, 18:21] = -kron_eye_vec_sum(t_B, R_A)
+    N[..., 9:18, 21:24] = kron_eye(t_B.sum(axis=-2)[..., :, None])
+    N[..., 18:21, 18:21] = N[..., 21:24, 21:24] = n * np.eye(3)
+    N[..., 18:21, 21:24] = -np.swapaxes(R_A.sum(axis=-3), -1, -2)
     upper = np.triu(np.ones((24, 24), bool), 1)
     N = np.where(upper, N, np.swapaxes(N, -1, -2))  # the lower triangle mirrors the upper
     rhs = np.zeros(batch + (24,))
