@@ -189,6 +189,9 @@ def refine_reprojection(
 
     n = n_glob + (6 * n_img if robot_noise is not None else 0)
     x0 = np.zeros(n)
+    # least_squares evaluates at x0 again, and a Jacobian needs the value where it is taken, which
+    # the solver has just computed: both come from the memo
+    residuals = _remember_last(residuals)
     r0 = residuals(x0)
     # increments of ~1 mrad and ~1 mm move the pixels about as much as ~1 px of focal length or
     # ~1e-3 of distortion
@@ -256,6 +259,20 @@ def _robot_groups(counts: NDArray[np.intp], n_glob: int) -> list[tuple[NDArray[n
     return groups
 
 
+def _remember_last(fun):
+    """``fun`` that returns its previous value when called again at the same ``x``."""
+    last_x, last_f = None, None
+
+    def remembered(x):
+        nonlocal last_x, last_f
+        if last_x is None or not np.array_equal(x, last_x):
+            last_f = fun(x)
+            last_x = np.array(x, copy=True)
+        return last_f
+
+    return remembered
+
+
 def _grouped_jacobian(fun, groups):
     """A ``jac`` callable for ``least_squares``: forward differences that exploit the sparsity
     (one residual evaluation per group of columns with disjoint rows, instead of one per column),
@@ -265,7 +282,7 @@ def _grouped_jacobian(fun, groups):
     h0 = np.sqrt(np.finfo(float).eps)
 
     def jac(x):
-        f0 = fun(x)
+        f0 = fun(x)  # with _remember_last, the value the solver computed at x
         J = np.zeros((f0.size, x.size))
         for cols, rows in groups:
             h = h0 * np.maximum(1.0, np.abs(x[cols]))
