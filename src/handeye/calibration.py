@@ -407,7 +407,7 @@ def calibrate(
         except (TypeError, ValueError):
             raise InputMismatchError(f"robot_noise {robot_noise!r}: give (degrees, millimetres)") from None
         if not (deg > 0 and mm > 0 and np.isfinite(deg) and np.isfinite(mm)):
-            raise InputMismatchError(f"robot_noise {robot_noise}: give positive standard deviations (deg, mm)")
+            raise InputMismatchError(f"robot_noise ({deg:g}, {mm:g}): give positive standard deviations (deg, mm)")
         robot_sigma = (np.radians(deg), 1e-3 * mm)
     session = load_session(session_dir)
     target = target_from_spec(session.target_spec)

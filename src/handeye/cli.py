@@ -127,11 +127,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
     session = _input_folder(args.session, args.sample, SAMPLE_SESSION,
                             "give a session folder, or --sample for the bundled sample session (not both)")
-    robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))
-    if robot_noise is not None and not np.all(robot_noise > 0):
-        raise HandEyeError(f"--robot-noise {args.robot_noise}: give two positive numbers, degrees and millimetres")
+    robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))  # calibrate checks the values
     cal = calibrate(session, method=args.method, refine=args.refine, jobs=args.jobs, progress=not args.no_progress,
-                    robot_noise=None if robot_noise is None else tuple(robot_noise))
+                    robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()))
     _print_image_summary(cal)
     print_calibration(cal)
     _write_outputs(cal, args, session)
