@@ -134,24 +134,30 @@ def test_all_pairs_translation_in_o_n_equals_the_sum_over_motions(setup):
     assert MotionSet.from_poses(f2b, t2c, setup, shuffled).all_pairs_factors is None
 
 
-def test_rotation_spread_from_matrices_equals_from_quaternions():
-    """The observability check of the robot-world solvers reads v v^T off the rotation matrices;
-    same numbers as from the quaternions, half turns included, parallel axes still caught."""
+def test_rotation_spread_from_absolute_matrices_equals_from_quaternions():
+    """The observability check of the robot-world solvers reads v v^T of the motions R_0^T R_i off
+    the absolute rotation matrices; same numbers as from the motions' quaternions, half turns
+    included, parallel axes still caught, both sides in one batch."""
     from scipy.spatial.transform import Rotation
 
     from handeye.geometry.dualquat import dq_from_matrix
     from handeye.geometry.se3 import make_transform, random_rotations
-    from handeye.solvers._checks import _rotation_spread, _rotation_spread_matrices
+    from handeye.solvers._checks import _rotation_spread, _rotation_spread_absolute
 
     rng = np.random.default_rng(12)
     R = random_rotations(40, rng)
     R[5] = np.diag([1.0, -1.0, -1.0])  # exact half turn
     axis = np.array([0.3, 0.4, 0.5]) / np.linalg.norm([0.3, 0.4, 0.5])
     parallel = Rotation.from_rotvec(np.outer(np.linspace(0.1, np.pi, 9), axis)).as_matrix()
+    R0 = random_rotations(1, rng)[0]
     for rot in (R, parallel):
         dq = dq_from_matrix(make_transform(rot, np.zeros((len(rot), 3))))
         largest, spread, e1 = _rotation_spread(dq)
-        largest_m, spread_m, e1_m = _rotation_spread_matrices(rot)
-        assert abs(largest - largest_m) < 1e-12 and abs(spread - spread_m) < 1e-7
-        assert abs(abs(e1 @ e1_m) - 1.0) < 1e-12
-    assert _rotation_spread_matrices(parallel)[1] < 1e-7
+        # absolute poses whose motions R_0^T R_i are rot (translations play no part)
+        absolute = make_transform(R0 @ np.concatenate([np.eye(3)[None], rot]), rng.normal(size=(len(rot) + 1, 3)))
+        (largest_m, spread_m), e1_m = _rotation_spread_absolute(np.stack([absolute, absolute]))
+        for side in range(2):
+            assert abs(largest - largest_m[side]) < 1e-12 and abs(spread - spread_m[side]) < 1e-7
+            assert abs(abs(e1 @ e1_m[side]) - 1.0) < 1e-12
+    parallel_abs = make_transform(R0 @ np.concatenate([np.eye(3)[None], parallel]), np.ones(3))
+    assert _rotation_spread_absolute(parallel_abs)[0][1] < 1e-7

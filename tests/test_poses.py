@@ -125,3 +125,45 @@ def test_pose_columns_follow_design():
     assert pose_columns("rotvec") == ["x", "y", "z", "rx", "ry", "rz"]
     assert pose_columns("euler:ZYX") == ["x", "y", "z", "a", "b", "c"]
     assert pose_columns("matrix")[:5] == ["m00", "m01", "m02", "m03", "m10"]
+
+
+def test_transform_pair_validated_in_one_pass_as_one_by_one(rng):
+    """validate_transform_pair: the one-pass check (exact rotations) and the one-by-one fallback
+    give what validate_transforms gives each stack; every failure still names its stack and entry."""
+    from handeye import InputMismatchError
+    from handeye.poses import _rotations_exact, validate_transform_pair, validate_transforms
+
+    A = make_transform(random_rotations(6, rng), rng.normal(size=(6, 3)))
+    B = make_transform(random_rotations(6, rng), rng.normal(size=(6, 3)))
+    names, counted = ("A (robot)", "B (camera)"), ("poses A", "poses B")
+    pair = validate_transform_pair(A, B, names, counted)
+    assert pair.shape == (2, 6, 4, 4) and np.array_equal(pair[0], A) and np.array_equal(pair[1], B)
+    assert _rotations_exact(A)
+    # printed to 6 decimals: not exact, so each stack is re-orthonormalised as validate_transforms does
+    B6 = np.round(B, 6)
+    assert not _rotations_exact(B6)
+    pair = validate_transform_pair(A.tolist(), B6, names, counted)
+    assert np.array_equal(pair[1], validate_transforms(B6)) and np.array_equal(pair[0], A)
+    # the fast test misses nothing: a reflection, a 1e-10 slip, a NaN
+    for entry, change in (((2, 2, slice(0, 3)), -1.0), ((2, 0, 0), 1.0 + 1e-10)):
+        T = B.copy()
+        T[entry] *= change
+        assert not _rotations_exact(T)
+    T = B.copy()
+    T[2, 0, 0] = np.nan
+    assert not _rotations_exact(T)
+    bad = B.copy()
+    bad[2, 2, :3] *= -1.0
+    with pytest.raises(PoseFormatError, match=r"B \(camera\): entry 2: rotation has determinant -1, a reflection"):
+        validate_transform_pair(A, bad, names, counted)
+    bad = A.copy()
+    bad[4, 1, 3] = np.nan
+    with pytest.raises(PoseFormatError, match=r"A \(robot\): entry 4 contains NaN"):
+        validate_transform_pair(bad, B, names, counted)
+    with pytest.raises(InputMismatchError, match="6 poses A but 5 poses B; they come in pairs"):
+        validate_transform_pair(A, B[:5], names, counted)
+    # the bottom row is set to 0 0 0 1 on the copy; the caller's arrays are untouched
+    A_in = A.copy()
+    A_in[:, 3, :3] = 7.0
+    pair = validate_transform_pair(A_in, B, names, counted)
+    assert np.array_equal(pair[0], A) and np.all(A_in[:, 3, :3] == 7.0)

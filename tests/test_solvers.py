@@ -326,3 +326,32 @@ def test_li_normal_equations_equal_the_stacked_kronecker_system(setup):
     X, Z = solve_li(A, B)
     assert np.abs(X[:3, :3] - nearest_rotation(sol[:9].reshape(3, 3))).max() < 1e-10
     assert np.abs(Z[:3, :3] - nearest_rotation(sol[9:18].reshape(3, 3))).max() < 1e-10
+
+
+def test_linear_algebra_helpers_one_matrix_as_batch():
+    """_common's svd, solve and nearest_rotation call LAPACK directly for one matrix and
+    np.linalg for a batch: the same results (the same routines), the same failures."""
+    from handeye.solvers._common import nearest_rotation, solve, svd
+
+    rng = np.random.default_rng(3)
+    M = rng.normal(size=(6, 3, 3))
+    M[:3] *= -1.0  # both signs of the determinant
+    R = nearest_rotation(M)
+    for k in range(len(M)):
+        R_k = nearest_rotation(M[k])
+        assert np.abs(R_k - R[k]).max() < 1e-14
+        assert np.abs(R_k.T @ R_k - np.eye(3)).max() < 1e-14 and np.linalg.det(R_k) > 0
+        # the nearest rotation to M or to -M (a negated rotation), whichever has det > 0
+        U, _, Vt = np.linalg.svd(np.sign(np.linalg.det(M[k])) * M[k])
+        assert np.abs(R_k - U @ np.diag([1, 1, np.linalg.det(U @ Vt)]) @ Vt).max() < 1e-12
+    K = rng.normal(size=(9, 9))
+    for got, want in zip(svd(K), np.linalg.svd(K)):
+        assert np.abs(got - want).max() < 1e-12
+    b = rng.normal(size=9)
+    assert np.abs(solve(K, b) - np.linalg.solve(K, b)).max() < 1e-12
+    singular = np.outer([1.0, 2.0, 3.0], [1.0, 0.0, 1.0])
+    with pytest.raises(np.linalg.LinAlgError):
+        solve(singular, np.ones(3))
+    with pytest.raises(np.linalg.LinAlgError):
+        nearest_rotation(singular)
+    assert np.isnan(nearest_rotation(np.stack([singular, M[0]]))[0]).all()

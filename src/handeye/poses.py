@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from .errors import PoseFormatError
+from .errors import InputMismatchError, PoseFormatError
 from .geometry.se3 import make_transform, orthonormality_error
 
 __all__ = ["parse_poses", "format_poses", "pose_columns", "validate_transforms", "FORMATS"]
@@ -212,6 +212,60 @@ def _check_lengths(t: NDArray[np.float64], length_unit: str, what: str) -> None:
         )
 
 
+def _exact_rotation_products() -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:
+    """Column pairs and weights for :func:`_rotations_exact`: with ``x`` a row-major flattened 4x4
+    (rotation rows a, b, c; ``x[15] = 1``), ``(x[i] * x[j]) @ W`` is ``[a.a - 1, b.b - 1, c.c - 1,
+    a.b, a.c, b.c, a x b - c]``, all zero for an exact rotation."""
+    terms = []  # (output column, index, index, weight)
+    for col, (r, s) in enumerate([(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]):
+        terms += [(col, 4 * r + k, 4 * s + k, 1.0) for k in range(3)]
+        if r == s:
+            terms.append((col, 15, 15, -1.0))
+    for k, (p, q) in enumerate([(1, 2), (2, 0), (0, 1)]):  # (a x b)_k = a_p b_q - a_q b_p
+        terms += [(6 + k, p, 4 + q, 1.0), (6 + k, q, 4 + p, -1.0), (6 + k, 8 + k, 15, -1.0)]
+    W = np.zeros((len(terms), 9))
+    for row, (col, _, _, w) in enumerate(terms):
+        W[row, col] = w
+    return np.array([t[1] for t in terms]), np.array([t[2] for t in terms]), W
+
+
+_EXACT_I, _EXACT_J, _EXACT_W = _exact_rotation_products()
+
+
+def _rotations_exact(T: NDArray[np.float64], tol: float = 1e-13) -> bool:
+    """True when every rotation block of a stack ``(N, 4, 4)`` whose bottom rows are ``0 0 0 1``
+    is a proper rotation to within ``tol`` (rows orthonormal, third row the cross product of the
+    first two); NaN fails. One product of the flattened poses: the fast path of
+    :func:`validate_transforms`, several times cheaper than ``R^T R`` and ``det`` on stacks of
+    small matrices; inputs that fail it take the full checks."""
+    x = T.reshape(-1, 16)
+    return bool(np.abs((x[:, _EXACT_I] * x[:, _EXACT_J]) @ _EXACT_W).max(initial=0.0) <= tol)
+
+
+def validate_transform_pair(
+    A: ArrayLike, B: ArrayLike, what: tuple[str, str], counted: tuple[str, str], tol: float = ORTHONORMAL_TOL
+) -> NDArray[np.float64]:
+    """:func:`validate_transforms` of two stacks that pair up, returned as one ``(2, N, 4, 4)`` array.
+
+    One copy and one check when both are ``(N, 4, 4)`` and exact (the common case); otherwise
+    each stack is checked on its own, for its message (``what``). Different lengths raise
+    :class:`InputMismatchError` counting them as ``counted`` (e.g. ``("poses A", "poses B")``).
+    """
+    try:
+        T = np.array((A, B), dtype=float)
+    except (TypeError, ValueError):  # different lengths, ragged or non-numeric: checked one by one
+        T = None
+    if T is not None and T.ndim == 4 and T.shape[-2:] == (4, 4) and np.isfinite(T).all():
+        T[..., 3, :3] = 0.0
+        T[..., 3, 3] = 1.0
+        if _rotations_exact(T.reshape(-1, 4, 4)):
+            return T
+    A, B = validate_transforms(A, what[0], tol), validate_transforms(B, what[1], tol)
+    if len(A) != len(B):
+        raise InputMismatchError(f"{len(A)} {counted[0]} but {len(B)} {counted[1]}; they come in pairs")
+    return np.stack((A, B))
+
+
 def validate_transforms(T: ArrayLike, what: str = "transforms", tol: float = ORTHONORMAL_TOL) -> NDArray[np.float64]:
     """Check a stack of 4x4 transforms and return a copy with exactly orthonormal rotations.
 
@@ -229,6 +283,10 @@ def validate_transforms(T: ArrayLike, what: str = "transforms", tol: float = ORT
     if not np.isfinite(T).all():
         i = int(np.argmin(np.isfinite(T).all(axis=(1, 2))))
         raise PoseFormatError(f"{what}: entry {i} contains NaN or infinite values")
+    T[:, 3, :3] = 0.0
+    T[:, 3, 3] = 1.0
+    if _rotations_exact(T):
+        return T
     R = T[:, :3, :3]
     dev = orthonormality_error(R)
     if len(dev) and dev.max() > tol:
@@ -244,8 +302,6 @@ def validate_transforms(T: ArrayLike, what: str = "transforms", tol: float = ORT
     inexact = dev > 1e-13
     if inexact.any():  # replace by the nearest exact rotation; exact ones are left bit-for-bit
         T[inexact, :3, :3] = Rotation.from_matrix(R[inexact]).as_matrix()
-    T[:, 3, :3] = 0.0
-    T[:, 3, 3] = 1.0
     return T
 
 

@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..errors import DegenerateMotionError, InputMismatchError, PoseFormatError
 from ..motions import MotionSet
-from ..poses import validate_transforms
+from ..poses import validate_transform_pair, validate_transforms
 from ._checks import check_observability, validate_motions
 from ._registry import SolverInfo, available, get, register
 from . import andreff, daniilidis, horaud, park_martin, robot_world, tsai_lenz  # noqa: F401  (register themselves)
@@ -142,18 +142,14 @@ def solve_robot_world(
         As :func:`solve`; the motions ``inv(A_0) A_i`` and ``inv(B_0) B_i`` must determine X.
     """
     info = get(method, kind="robot_world")
-    A_abs = validate_transforms(A_abs, what="A (absolute robot-side poses)")
-    B_abs = validate_transforms(B_abs, what="B (absolute camera-side poses)")
-    if len(A_abs) != len(B_abs):
-        raise InputMismatchError(f"{len(A_abs)} poses A but {len(B_abs)} poses B; they come in pairs")
-    if len(A_abs) < 3:
-        raise DegenerateMotionError(f"{len(A_abs)} pose pair(s): A_i X = Z B_i needs at least 3 with non-parallel rotation axes")
-    # Eliminating Z: (A_0^-1 A_i) X = X (B_0^-1 B_i). Axes parallel relative to pose 0 means
-    # parallel between every pair, so these N-1 motions decide observability.
-    # Only the rotations matter: R_0^T R_i.
-    rotations = tuple(np.swapaxes(T[:1, :3, :3], -1, -2) @ T[1:, :3, :3] for T in (A_abs, B_abs))
-    check_observability(rotations=rotations)
-    return info.func(A_abs, B_abs)
+    pair = validate_transform_pair(
+        A_abs, B_abs, ("A (absolute robot-side poses)", "B (absolute camera-side poses)"), ("poses A", "poses B")
+    )
+    if pair.shape[1] < 3:
+        raise DegenerateMotionError(f"{pair.shape[1]} pose pair(s): A_i X = Z B_i needs at least 3 with non-parallel rotation axes")
+    # Eliminating Z: (A_0^-1 A_i) X = X (B_0^-1 B_i); these N-1 motions decide observability.
+    check_observability(absolute=pair)
+    return info.func(pair[0], pair[1])
 
 
 def solve_robot_world_batch(

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..errors import DegenerateMotionError, InputMismatchError
+from ..errors import DegenerateMotionError
 from ..motions import MotionSet
-from ..poses import validate_transforms
+from ..poses import validate_transform_pair
 
 #: A motion whose quaternion vector part |sin(theta/2) l| is below this rotates by < 0.57 deg.
 MIN_ROTATION = 5e-3
@@ -18,10 +18,7 @@ MIN_AXIS_SPREAD = 5e-3
 
 def validate_motions(A: ArrayLike, B: ArrayLike) -> MotionSet:
     """A :class:`MotionSet` from motion stacks ``A``, ``B`` (same count, 4x4, finite, orthonormal)."""
-    A = validate_transforms(A, what="A (robot motions)")
-    B = validate_transforms(B, what="B (camera motions)")
-    if len(A) != len(B):
-        raise InputMismatchError(f"{len(A)} robot motions A but {len(B)} camera motions B; they come in pairs")
+    A, B = validate_transform_pair(A, B, ("A (robot motions)", "B (camera motions)"), ("robot motions A", "camera motions B"))
     return MotionSet.from_matrices(A, B)
 
 
@@ -41,41 +38,63 @@ def _rotation_spread(dq: NDArray[np.float64]) -> tuple[float, float, NDArray[np.
     return _spread((v * v).sum(axis=0), v @ v.T, lambda e: (e @ v) ** 2)
 
 
-def _rotation_spread_matrices(R: NDArray[np.float64]) -> tuple[float, float, NDArray[np.float64]]:
-    """:func:`_spread` of motions given as rotation matrices ``(K, 3, 3)``, without quaternions.
+def _rotation_spread_absolute(T: NDArray[np.float64]) -> tuple:
+    """``(largest, spread), axis``: the largest rotation, the largest rotation off the dominant
+    axis (both as ``sin(theta/2)``) and that axis, of the motions ``R_0^T R_i`` of absolute poses
+    ``(..., N, 4, 4)``: what :func:`_spread` computes from quaternions, without forming the motions.
 
     With ``v = sin(theta/2) n``: ``|v|^2 = (3 - tr R) / 4`` and ``v v^T = (R + R^T) / 4 -
-    (tr R - 1) / 4 I`` (from ``R = cos(theta) I + 2 v v^T + 2 cos(theta/2) [v]x``); both are
-    exact for every angle, and the spread needs nothing else (it is sign-free).
+    (tr R - 1) / 4 I`` (from ``R = cos(theta) I + 2 v v^T + 2 cos(theta/2) [v]x``), exact for
+    every angle and sign-free. So the dominant axis is the top eigenvector of ``sum (R + R^T)``
+    and the rotation off it is ``|v|^2 - (e . v)^2 = (1 - e^T R e) / 2``. For ``R = R_0^T R_i``
+    each term is a product with the flattened poses: ``tr R = vec R_0 . vec R_i``, ``sum R =
+    R_0^T sum R_i``, ``e^T R e = vec(R_0 e e^T) . vec R_i``. ``i = 0`` is the identity: it adds
+    nothing. Leading axes: independent sets (robot and camera).
     """
-    tr = np.einsum("kii->k", R)
-    total = R.sum(axis=0)
-    moment = (total + total.T) / 4.0 - ((tr.sum() - len(R)) / 4.0) * np.eye(3)
-    # (e . v)^2 = e^T v v^T e = e^T R e / 2 - (tr R - 1) / 4
-    return _spread((3.0 - tr) / 4.0, moment, lambda e: R.reshape(-1, 9) @ np.outer(e, e).ravel() / 2.0 - (tr - 1.0) / 4.0)
+    x = T.reshape(T.shape[:-3] + (-1, 16))
+    x0 = x[..., 0, :]
+    R0 = x0.reshape(x0.shape[:-1] + (4, 4))[..., :3, :3]
+    total = np.swapaxes(R0, -1, -2) @ x.sum(axis=-2).reshape(R0.shape[:-2] + (4, 4))[..., :3, :3]
+    _, vecs = np.linalg.eigh(total + np.swapaxes(total, -1, -2))
+    e = vecs[..., :, -1]
+    # products with vec R_0 and vec(R_0 e e^T), zero outside the rotation block: one matmul
+    w = np.zeros(x0.shape[:-1] + (2, 4, 4))
+    w[..., 0, :3, :3] = R0
+    w[..., 1, :3, :3] = (R0 @ e[..., :, None]) * e[..., None, :]
+    smallest = (x @ np.swapaxes(w.reshape(w.shape[:-3] + (2, 16)), -1, -2)).min(axis=-2)  # min tr R, min e^T R e
+    # |v|^2 = (3 - tr R) / 4 and |v|^2 - (e . v)^2 = (1 - e^T R e) / 2
+    return np.sqrt(np.clip((_SPREAD_OFFSET - smallest) * _SPREAD_SCALE, 0.0, None)).T, e
 
 
-def check_observability(motions: MotionSet | None = None, rotations: tuple | None = None) -> None:
+_SPREAD_OFFSET = np.array([3.0, 1.0])
+_SPREAD_SCALE = np.array([0.25, 0.5])
+
+
+def check_observability(motions: MotionSet | None = None, absolute: NDArray[np.float64] | None = None) -> None:
     """Raise :class:`DegenerateMotionError` when the motions cannot determine ``X``.
 
     ``AX = XB`` needs at least two motions whose rotation axes are not parallel (thesis §2.2.3:
     the matrix T has rank 5 when all axes are parallel; pure translations leave the rotation free).
     Both the robot and the camera motions are checked, so a consistent pair of inputs is required.
-    Takes a :class:`MotionSet`, or ``rotations=(R_A, R_B)``: the motions' rotation matrices.
+    Takes a :class:`MotionSet`, or ``absolute``: the absolute poses ``A_i, B_i`` as one array
+    ``(2, N, 4, 4)``, whose motions ``inv(A_0) A_i`` decide (the robot-world solvers: axes parallel relative to
+    pose 0 means parallel between every pair).
     """
-    if rotations is not None:
-        count = len(rotations[0])
-        sides = (("robot", _rotation_spread_matrices, rotations[0]), ("camera", _rotation_spread_matrices, rotations[1]))
+    if absolute is not None:
+        count = absolute.shape[1] - 1
     else:
         count = len(motions)
-        sides = (("robot", _rotation_spread, motions.dq_a), ("camera", _rotation_spread, motions.dq_b))
     if count < 2:
         raise DegenerateMotionError(
             f"{count} motion(s): hand-eye calibration needs at least 2 motions (3 poses) with "
             f"non-parallel rotation axes"
         )
-    for name, spread_of, data in sides:
-        largest, spread, axis = spread_of(data)
+    if absolute is not None:
+        (largest, spread), axis = _rotation_spread_absolute(absolute)
+        sides = zip(("robot", "camera"), largest.tolist(), spread.tolist(), axis)
+    else:
+        sides = ((name, *_rotation_spread(dq)) for name, dq in (("robot", motions.dq_a), ("camera", motions.dq_b)))
+    for name, largest, spread, axis in sides:
         if largest < MIN_ROTATION:
             raise DegenerateMotionError(
                 f"the {name} motions are (nearly) pure translations: the largest rotation between two "
