@@ -182,3 +182,61 @@ def test_public_name_and_check_command(tmp_path, capsys):
     assert main(["calibrate-poses", str(folder)]) == 2
     err = capsys.readouterr().err
     assert "Euler sequence ZYX" in err and len(err.strip().splitlines()) == 1
+
+
+def _leave_one_out_by_loop(flange2base, target2cam, setup):
+    """The definition: a new Daniilidis solve per left-out pose (inf when it is refused)."""
+    from handeye.diagnostics import _solve
+    from handeye.errors import HandEyeError
+    from handeye.metrics import rotation_error
+
+    X = _solve(flange2base, target2cam, setup)
+    out = np.empty((len(flange2base), 2))
+    for k in range(len(flange2base)):
+        keep = np.arange(len(flange2base)) != k
+        try:
+            Xk = _solve(flange2base[keep], target2cam[keep], setup)
+        except HandEyeError:
+            out[k] = np.inf
+            continue
+        out[k] = np.degrees(rotation_error(Xk, X)), 1e3 * translation_error(Xk, X)
+    return out
+
+
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+def test_leave_one_out_in_one_batch_equals_the_loop(setup):
+    """diagnose's leave-one-out subtracts each pose's motions from the Daniilidis moment sum and
+    checks observability per run, all poses in one batch: the same moves as a solve per pose,
+    and inf for the same poses (a pose that alone gives the second rotation axis)."""
+    from handeye.diagnostics import _leave_one_out
+    from handeye.geometry.se3 import from_rotvec_translation
+
+    rng = np.random.default_rng(4)
+    s = random_scene(12, setup, rng=rng)
+    f = perturb_poses(s.flange2base, np.radians(0.05), 0.2e-3, rng)
+    t = perturb_poses(s.target2cam, np.radians(0.1), 0.5e-3, rng)
+    got = _leave_one_out(f, t, setup, np.ones(len(f), bool))
+    want = _leave_one_out_by_loop(f, t, setup)
+    assert np.all(np.isfinite(got)) and np.abs(got - want).max() < 1e-9
+    # only pose 5 rotates off the y axis: leaving it out leaves X undetermined
+    n = 8
+    rotvec = np.outer(np.radians(np.linspace(-40, 40, n)), [0.0, 1.0, 0.0])
+    rotvec[5] = np.radians([25.0, 10.0, 0.0])
+    flange2base = from_rotvec_translation(rotvec, rng.normal(scale=0.2, size=(n, 3)))
+    if setup == "eye_in_hand":  # X = cam2flange, Z = target2base
+        target2cam = invert(s.X) @ invert(flange2base) @ s.Z
+    else:  # X = cam2base, Z = target2flange
+        target2cam = invert(s.X) @ flange2base @ s.Z
+    got = _leave_one_out(flange2base, target2cam, setup, np.ones(n, bool))
+    want = _leave_one_out_by_loop(flange2base, target2cam, setup)
+    assert np.isinf(got[5]).all() and np.isinf(want[5]).all()
+    from handeye.motions import MotionSet
+    from handeye.solvers._checks import observable_leave_one_out
+    from handeye.solvers.daniilidis import motion_groups
+
+    motions = MotionSet.from_poses(flange2base, target2cam, setup, "all")
+    for block in (2_000_000, 60):  # one block, and blocks of two runs
+        assert np.flatnonzero(~observable_leave_one_out(motions, motion_groups(motions.pairs, n), block)).tolist() == [5]
+    finite = np.isfinite(want[:, 0])
+    assert finite.sum() == n - 1 and np.array_equal(np.isfinite(got[:, 0]), finite)
+    assert np.abs(got[finite] - want[finite]).max() < 1e-9

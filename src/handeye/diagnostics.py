@@ -460,13 +460,17 @@ def _leave_one_out(flange2base, target2cam, setup, inliers) -> NDArray[np.float6
     out = np.full((len(flange2base), 2), np.nan)
     if len(idx) < 4:
         return out
-    X = _solve(flange2base[idx], target2cam[idx], setup)
-    for k in idx:
-        keep = idx[idx != k]
-        try:
-            Xk = _solve(flange2base[keep], target2cam[keep], setup)
-        except HandEyeError:
-            out[k] = np.inf
-            continue
-        out[k] = np.degrees(rotation_error(Xk, X)), 1e3 * translation_error(Xk, X)
+    from . import solvers
+    from .solvers._checks import observable_leave_one_out
+    from .solvers.daniilidis import motion_groups, solve_leave_one_out
+
+    # as _solve on the inliers, then every pose left out in one batch: a run that check_observability
+    # would refuse, or that Daniilidis cannot solve, moves X infinitely far
+    motions = MotionSet.from_poses(flange2base[idx], target2cam[idx], setup, "all")
+    X = solvers.solve_motions(motions, "daniilidis")
+    Xk = solve_leave_one_out(motions, len(idx))
+    ok = observable_leave_one_out(motions, motion_groups(motions.pairs, len(idx))) & np.isfinite(Xk).all(axis=(1, 2))
+    Xk[~ok] = X
+    moves = np.stack([np.degrees(rotation_error(Xk, X)), 1e3 * translation_error(Xk, X)], axis=1)
+    out[idx] = np.where(ok[:, None], moves, np.inf)
     return out

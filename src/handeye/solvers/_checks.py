@@ -109,3 +109,36 @@ def check_observability(motions: MotionSet | None = None, absolute: NDArray[np.f
                 f"about that axis and the translation along it are undetermined. Add rotations about "
                 f"a second axis, at least 30 deg away from it"
             )
+
+
+def observable_leave_one_out(motions: MotionSet, groups: NDArray[np.intp], block: int = 2_000_000) -> NDArray[np.bool_]:
+    """Per pose ``p``: would :func:`check_observability` pass on the motions without those of
+    ``groups[p]`` (see :func:`handeye.solvers.daniilidis.motion_groups`)? All poses at once.
+
+    The same quantities as :func:`_rotation_spread`, each run's dominant axis from the moment
+    sum minus the left-out motions' moments; the largest rotations over the kept motions are
+    taken from (motions x runs) blocks of at most about ``block`` entries.
+    """
+    k = len(motions)
+    n_runs = len(groups)
+    kept = k - (groups < k).sum(axis=1)
+    ok = kept >= 2
+    chunk = max(1, block // (k + 1))
+    for dq in (motions.dq_a, motions.dq_b):
+        v = dq[:, 1:4]
+        sq = np.einsum("ki,ki->k", v, v)
+        vg = np.concatenate([v, np.zeros((1, 3))])[groups]
+        _, vecs = np.linalg.eigh(v.T @ v - np.swapaxes(vg, -1, -2) @ vg)
+        e = vecs[:, :, -1]  # (n_runs, 3)
+        for start in range(0, n_runs, chunk):
+            runs = np.arange(start, min(start + chunk, n_runs))
+            local = np.arange(len(runs))[:, None]
+            largest = np.empty((k + 1, len(runs)))
+            largest[:k] = sq[:, None]
+            off = np.empty((k + 1, len(runs)))
+            off[:k] = sq[:, None] - (v @ e[runs].T) ** 2
+            largest[groups[runs], local] = -np.inf  # the left-out motions (and the padding row)
+            off[groups[runs], local] = -np.inf
+            ok[runs] &= (np.sqrt(np.clip(largest.max(axis=0), 0.0, None)) >= MIN_ROTATION) & (
+                np.sqrt(np.clip(off.max(axis=0), 0.0, None)) >= MIN_AXIS_SPREAD)
+    return ok

@@ -91,18 +91,25 @@ def normal_matrix(motions: MotionSet) -> NDArray[np.float64]:
     return np.tensordot(moments, _F, axes=2)
 
 
-def _null_space(motions: MotionSet) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _null_space(normal: NDArray[np.float64], svd_of_runs) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Singular values (descending) and right singular vectors (rows) of ``T``, per run ``(S, 8)``,
-    ``(S, 8, 8)``, for a MotionSet whose batch axes are flattened to one."""
-    lam, V = np.linalg.eigh(normal_matrix(motions))
+    ``(S, 8, 8)``, from the normal matrices ``T^T T`` ``(S, 8, 8)``.
+
+    Ill-conditioned runs: the normal matrix squares the condition number; there the SVD of ``T``
+    itself is used, ``svd_of_runs(runs) -> (sigma, vt)``.
+    """
+    lam, V = np.linalg.eigh(normal)
     sigma = np.sqrt(np.clip(lam[..., ::-1], 0.0, None))
     vt = np.swapaxes(V[..., ::-1], -1, -2).copy()
-    # Ill-conditioned runs: the normal matrix squares the condition number; use the SVD of T there.
     redo = np.flatnonzero(sigma[:, 5] <= sigma[:, 0] / NORMAL_COND_MAX)
     if len(redo):
-        T = _blocks(motions.dq_a[redo], motions.dq_b[redo]).reshape(len(redo), -1, 8)
-        _, sigma[redo], vt[redo] = np.linalg.svd(T, full_matrices=False)
+        sigma[redo], vt[redo] = svd_of_runs(redo)
     return sigma, vt
+
+
+def _svd_of_system(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    T = _blocks(dq_a, dq_b)
+    return np.linalg.svd(T.reshape(T.shape[:-3] + (-1, 8)), full_matrices=False)[1:]
 
 
 def singular_values(motions: MotionSet) -> NDArray[np.float64]:
@@ -141,7 +148,62 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
     batch = motions.batch_shape
     k = len(motions)
     flat = MotionSet(motions.dq_a.reshape(-1, k, 8), motions.dq_b.reshape(-1, k, 8))
-    sigma, vt = _null_space(flat)
+    sigma, vt = _null_space(normal_matrix(flat), lambda runs: _svd_of_system(flat.dq_a[runs], flat.dq_b[runs]))
+    dq, status = _from_null_space(sigma, vt)
+    if batch == ():
+        if status[0]:
+            raise DegenerateMotionError(_FAILURES[int(status[0])].format(sigma=np.array2string(sigma[0], precision=2)))
+        return dq_to_matrix(dq[0])
+    X = dq_to_matrix(np.where(status[:, None] == 0, dq, 1.0))
+    X[status != 0] = np.nan
+    return X.reshape(batch + (4, 4))
+
+
+def solve_leave_one_out(motions: MotionSet, n_poses: int) -> NDArray[np.float64]:
+    """Daniilidis' ``X`` with each pose left out in turn: ``(n_poses, 4, 4)``, NaN where unsolvable.
+
+    ``motions`` is one set built from ``n_poses`` absolute poses (``motions.pairs`` known). Leaving pose ``p``
+    out removes the motions that involve it; their moments ``y y^T`` are subtracted from the
+    moment sum that :func:`normal_matrix` contracts, so all runs are one batch of 8x8 problems
+    instead of a new motion set each (O(K) instead of O(N K)). The motions keep the signs they
+    were given with every pose present. No observability check: see
+    :func:`handeye.solvers._checks.observable_leave_one_out`.
+    """
+    y = np.concatenate([motions.dq_a, motions.dq_b], axis=-1)
+    groups = motion_groups(motions.pairs, n_poses)
+    Y = np.concatenate([y, np.zeros((1, 16))])[groups]  # (n_poses, most motions of a pose, 16)
+    moments = y.T @ y - np.swapaxes(Y, -1, -2) @ Y
+    involved = np.zeros((len(groups), len(y) + 1), bool)
+    involved[np.arange(len(groups))[:, None], groups] = True
+
+    def svd_of_runs(runs):  # one at a time: runs may have different motion counts
+        out = [_svd_of_system(motions.dq_a[~involved[r, :-1]], motions.dq_b[~involved[r, :-1]]) for r in runs]
+        return np.stack([o[0] for o in out]), np.stack([o[1] for o in out])
+
+    sigma, vt = _null_space(np.tensordot(moments, _F, axes=2), svd_of_runs)
+    dq, status = _from_null_space(sigma, vt)
+    X = dq_to_matrix(np.where(status[:, None] == 0, dq, 1.0))
+    X[status != 0] = np.nan
+    return X
+
+
+def motion_groups(pairs: NDArray[np.intp], n_poses: int) -> NDArray[np.intp]:
+    """For motions between poses ``pairs (K, 2)``: ``groups[p]`` lists the motions that involve
+    pose ``p``, ``(n_poses, most motions of a pose)``, padded with ``K``."""
+    k = len(pairs)
+    poses = pairs.T.ravel()
+    order = np.argsort(poses, kind="stable")
+    poses, motion = poses[order], np.tile(np.arange(k), 2)[order]
+    counts = np.bincount(poses, minlength=n_poses)
+    starts = np.cumsum(counts) - counts
+    groups = np.full((n_poses, int(counts.max(initial=0))), k)
+    groups[poses, np.arange(2 * k) - starts[poses]] = motion
+    return groups
+
+
+def _from_null_space(sigma: NDArray[np.float64], vt: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """The unit dual quaternion of ``X`` per run ``(S, 8)`` from the null space of ``T`` and a
+    status per run (0: solved, else a key of ``_FAILURES``)."""
     status = np.where(sigma[:, 5] <= RANK_TOL * sigma[:, 0], 1, 0)
     u1, v1 = vt[:, 6, :4], vt[:, 6, 4:]
     u2, v2 = vt[:, 7, :4], vt[:, 7, 4:]
@@ -173,10 +235,4 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
     status = np.where((status == 0) & ~(np.isfinite(norm) & (norm > 0.0)), 3, status)
     with np.errstate(divide="ignore", invalid="ignore"):
         dq = dq / np.where(dq[:, 0] < 0, -norm, norm)[:, None]
-    if batch == ():
-        if status[0]:
-            raise DegenerateMotionError(_FAILURES[int(status[0])].format(sigma=np.array2string(sigma[0], precision=2)))
-        return dq_to_matrix(dq[0])
-    X = dq_to_matrix(np.where(status[:, None] == 0, dq, 1.0))
-    X[status != 0] = np.nan
-    return X.reshape(batch + (4, 4))
+    return dq, status
