@@ -77,8 +77,8 @@ def check_observability(motions: MotionSet | None = None, absolute: NDArray[np.f
     the matrix T has rank 5 when all axes are parallel; pure translations leave the rotation free).
     Both the robot and the camera motions are checked, so a consistent pair of inputs is required.
     Takes a :class:`MotionSet`, or ``absolute``: the absolute poses ``A_i, B_i`` as one array
-    ``(2, N, 4, 4)``, whose motions ``inv(A_0) A_i`` decide (the robot-world solvers: axes parallel relative to
-    pose 0 means parallel between every pair).
+    ``(2, N, 4, 4)``, whose motions ``inv(A_0) A_i`` decide (the robot-world solvers: axes
+    parallel relative to pose 0 means parallel between every pair).
     """
     if absolute is not None:
         count = absolute.shape[1] - 1

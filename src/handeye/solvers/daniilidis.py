@@ -37,7 +37,7 @@ from ..geometry.se3 import skew
 from ..motions import MotionSet
 from ._registry import register
 
-__all__ = ["solve", "system_matrix", "normal_matrix", "singular_values"]
+__all__ = ["solve", "solve_leave_one_out", "motion_groups", "system_matrix", "normal_matrix", "singular_values"]
 
 #: sigma_6 / sigma_1 below this means T has rank < 6 (thesis: rank 5 when all axes are parallel).
 RANK_TOL = 1e-9
@@ -154,9 +154,14 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
         if status[0]:
             raise DegenerateMotionError(_FAILURES[int(status[0])].format(sigma=np.array2string(sigma[0], precision=2)))
         return dq_to_matrix(dq[0])
+    return _matrices(dq, status).reshape(batch + (4, 4))
+
+
+def _matrices(dq: NDArray[np.float64], status: NDArray[np.intp]) -> NDArray[np.float64]:
+    """``X`` per run from :func:`_from_null_space`; NaN for the runs that failed."""
     X = dq_to_matrix(np.where(status[:, None] == 0, dq, 1.0))
     X[status != 0] = np.nan
-    return X.reshape(batch + (4, 4))
+    return X
 
 
 def solve_leave_one_out(motions: MotionSet, n_poses: int) -> NDArray[np.float64]:
@@ -170,21 +175,15 @@ def solve_leave_one_out(motions: MotionSet, n_poses: int) -> NDArray[np.float64]
     :func:`handeye.solvers._checks.observable_leave_one_out`.
     """
     y = np.concatenate([motions.dq_a, motions.dq_b], axis=-1)
-    groups = motion_groups(motions.pairs, n_poses)
-    Y = np.concatenate([y, np.zeros((1, 16))])[groups]  # (n_poses, most motions of a pose, 16)
+    Y = np.concatenate([y, np.zeros((1, 16))])[motion_groups(motions.pairs, n_poses)]  # (n_poses, c, 16)
     moments = y.T @ y - np.swapaxes(Y, -1, -2) @ Y
-    involved = np.zeros((len(groups), len(y) + 1), bool)
-    involved[np.arange(len(groups))[:, None], groups] = True
 
     def svd_of_runs(runs):  # one at a time: runs may have different motion counts
-        out = [_svd_of_system(motions.dq_a[~involved[r, :-1]], motions.dq_b[~involved[r, :-1]]) for r in runs]
+        kept = [(motions.pairs != r).all(axis=1) for r in runs]
+        out = [_svd_of_system(motions.dq_a[keep], motions.dq_b[keep]) for keep in kept]
         return np.stack([o[0] for o in out]), np.stack([o[1] for o in out])
 
-    sigma, vt = _null_space(np.tensordot(moments, _F, axes=2), svd_of_runs)
-    dq, status = _from_null_space(sigma, vt)
-    X = dq_to_matrix(np.where(status[:, None] == 0, dq, 1.0))
-    X[status != 0] = np.nan
-    return X
+    return _matrices(*_from_null_space(*_null_space(np.tensordot(moments, _F, axes=2), svd_of_runs)))
 
 
 def motion_groups(pairs: NDArray[np.intp], n_poses: int) -> NDArray[np.intp]:
