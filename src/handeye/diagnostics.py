@@ -468,8 +468,9 @@ def _leave_one_out(flange2base, target2cam, setup, inliers) -> NDArray[np.float6
     # would refuse, or that Daniilidis cannot solve, moves X infinitely far
     motions = MotionSet.from_poses(flange2base[idx], target2cam[idx], setup, "all")
     X = solvers.solve_motions(motions, "daniilidis")
-    Xk = solve_leave_one_out(motions, len(idx))
-    ok = observable_leave_one_out(motions, motion_groups(motions.pairs, len(idx))) & np.isfinite(Xk).all(axis=(1, 2))
+    groups = motion_groups(motions.pairs, len(idx))
+    Xk = solve_leave_one_out(motions, groups)
+    ok = observable_leave_one_out(motions, groups) & np.isfinite(Xk).all(axis=(1, 2))
     Xk[~ok] = X
     moves = np.stack([np.degrees(rotation_error(Xk, X)), 1e3 * translation_error(Xk, X)], axis=1)
     out[idx] = np.where(ok[:, None], moves, np.inf)

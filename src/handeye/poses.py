@@ -247,19 +247,19 @@ def validate_transform_pair(
 ) -> NDArray[np.float64]:
     """:func:`validate_transforms` of two stacks that pair up, returned as one ``(2, N, 4, 4)`` array.
 
-    One copy and one check when both are ``(N, 4, 4)`` and exact (the common case); otherwise
-    each stack is checked on its own, for its message (``what``). Different lengths raise
-    :class:`InputMismatchError` counting them as ``counted`` (e.g. ``("poses A", "poses B")``).
+    Both ``(N, 4, 4)``: one call on the two stacked (the common case); when that fails, or the
+    shapes differ, each stack is checked on its own, for its message (``what``). Different lengths
+    raise :class:`InputMismatchError` counting them as ``counted`` (e.g. ``("poses A", "poses B")``).
     """
     try:
         T = np.array((A, B), dtype=float)
     except (TypeError, ValueError):  # different lengths, ragged or non-numeric: checked one by one
         T = None
-    if T is not None and T.ndim == 4 and T.shape[-2:] == (4, 4) and np.isfinite(T).all():
-        T[..., 3, :3] = 0.0
-        T[..., 3, 3] = 1.0
-        if _rotations_exact(T.reshape(-1, 4, 4)):
-            return T
+    if T is not None and T.ndim == 4 and T.shape[-2:] == (4, 4):
+        try:
+            return validate_transforms(T.reshape(-1, 4, 4), tol=tol).reshape(T.shape)
+        except PoseFormatError:
+            pass  # checked one by one below, for a message naming the stack and its entry
     A, B = validate_transforms(A, what[0], tol), validate_transforms(B, what[1], tol)
     if len(A) != len(B):
         raise InputMismatchError(f"{len(A)} {counted[0]} but {len(B)} {counted[1]}; they come in pairs")

@@ -22,26 +22,23 @@ def validate_motions(A: ArrayLike, B: ArrayLike) -> MotionSet:
     return MotionSet.from_matrices(A, B)
 
 
-def _spread(sq: NDArray[np.float64], moment: NDArray[np.float64], along_sq) -> tuple[float, float, NDArray[np.float64]]:
-    """Largest rotation, largest off-dominant-axis rotation and the dominant axis, from the motions'
-    ``|v|^2`` (``v = sin(theta/2) n``), ``sum v v^T`` and a function giving ``(e . v)^2`` per motion.
-    The dominant axis is the principal direction of the axis vectors (sign-free)."""
-    _, vecs = np.linalg.eigh(moment)
-    e1 = vecs[:, -1]
-    off_sq = np.clip(sq - along_sq(e1), 0.0, None)
-    return float(np.sqrt(sq.max())), float(np.sqrt(off_sq.max())), e1
-
-
 def _rotation_spread(dq: NDArray[np.float64]) -> tuple[float, float, NDArray[np.float64]]:
-    """:func:`_spread` of motions given as dual quaternions ``(K, 8)``."""
-    v = np.ascontiguousarray(dq[:, 1:4].T)  # (3, K): sin(theta/2) * axis, one row per component
-    return _spread((v * v).sum(axis=0), v @ v.T, lambda e: (e @ v) ** 2)
+    """Largest rotation, largest off-dominant-axis rotation (both as ``sin(theta/2)``) and the
+    dominant axis of motions given as dual quaternions ``(K, 8)``. The dominant axis is the
+    principal direction of the axis vectors ``v = sin(theta/2) n`` (sign-free)."""
+    v = np.ascontiguousarray(dq[:, 1:4].T)  # (3, K): one row per component
+    sq = (v * v).sum(axis=0)
+    _, vecs = np.linalg.eigh(v @ v.T)
+    e1 = vecs[:, -1]
+    off_sq = np.clip(sq - (e1 @ v) ** 2, 0.0, None)
+    return float(np.sqrt(sq.max())), float(np.sqrt(off_sq.max())), e1
 
 
 def _rotation_spread_absolute(T: NDArray[np.float64]) -> tuple:
     """``(largest, spread), axis``: the largest rotation, the largest rotation off the dominant
-    axis (both as ``sin(theta/2)``) and that axis, of the motions ``R_0^T R_i`` of absolute poses
-    ``(..., N, 4, 4)``: what :func:`_spread` computes from quaternions, without forming the motions.
+    axis (both as ``sin(theta/2)``) and that axis, of the motions ``R_0^T R_i`` of absolute
+    poses ``(..., N, 4, 4)``: what :func:`_rotation_spread` computes from quaternions, without
+    forming the motions.
 
     With ``v = sin(theta/2) n``: ``|v|^2 = (3 - tr R) / 4`` and ``v v^T = (R + R^T) / 4 -
     (tr R - 1) / 4 I`` (from ``R = cos(theta) I + 2 v v^T + 2 cos(theta/2) [v]x``), exact for

@@ -164,18 +164,19 @@ def _matrices(dq: NDArray[np.float64], status: NDArray[np.intp]) -> NDArray[np.f
     return X
 
 
-def solve_leave_one_out(motions: MotionSet, n_poses: int) -> NDArray[np.float64]:
+def solve_leave_one_out(motions: MotionSet, groups: NDArray[np.intp]) -> NDArray[np.float64]:
     """Daniilidis' ``X`` with each pose left out in turn: ``(n_poses, 4, 4)``, NaN where unsolvable.
 
-    ``motions`` is one set built from ``n_poses`` absolute poses (``motions.pairs`` known). Leaving pose ``p``
-    out removes the motions that involve it; their moments ``y y^T`` are subtracted from the
+    ``motions`` is one set built from absolute poses, ``groups`` the motions of each pose
+    (:func:`motion_groups` of ``motions.pairs``). Leaving pose ``p`` out removes the motions
+    that involve it; their moments ``y y^T`` are subtracted from the
     moment sum that :func:`normal_matrix` contracts, so all runs are one batch of 8x8 problems
     instead of a new motion set each (O(K) instead of O(N K)). The motions keep the signs they
     were given with every pose present. No observability check: see
     :func:`handeye.solvers._checks.observable_leave_one_out`.
     """
     y = np.concatenate([motions.dq_a, motions.dq_b], axis=-1)
-    Y = np.concatenate([y, np.zeros((1, 16))])[motion_groups(motions.pairs, n_poses)]  # (n_poses, c, 16)
+    Y = np.concatenate([y, np.zeros((1, 16))])[groups]  # (n_poses, most motions of a pose, 16)
     moments = y.T @ y - np.swapaxes(Y, -1, -2) @ Y
 
     def svd_of_runs(runs):  # one at a time: runs may have different motion counts
