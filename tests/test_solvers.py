@@ -304,8 +304,9 @@ def test_tabb_robot_world_residuals(method):
 
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 def test_li_normal_equations_equal_the_stacked_kronecker_system(setup):
-    """Li's 24x24 normal equations are assembled block by block from pose moments; the answer must
-    be that of the stacked 12-row-per-pose system of the paper, solved here by plain lstsq."""
+    """Li's 24x24 normal equations are a fixed sparse map of the pose moments (derived at import
+    from the rows); the answer must be that of the stacked 12-row-per-pose system of the paper,
+    written out here with np.kron and solved by plain lstsq, and the same in a batch."""
     from handeye.simulate import perturb_poses
     from handeye.solvers._common import nearest_rotation
     from handeye.solvers.robot_world import solve_li
@@ -326,12 +327,16 @@ def test_li_normal_equations_equal_the_stacked_kronecker_system(setup):
     X, Z = solve_li(A, B)
     assert np.abs(X[:3, :3] - nearest_rotation(sol[:9].reshape(3, 3))).max() < 1e-10
     assert np.abs(Z[:3, :3] - nearest_rotation(sol[9:18].reshape(3, 3))).max() < 1e-10
+    X_b, Z_b = solve_li(np.stack([A, 2.0 * A]), np.stack([B, B]))  # the second run: not rotations
+    assert np.abs(X_b[0] - X).max() < 1e-12 and np.abs(Z_b[0] - Z).max() < 1e-12
+    assert not np.allclose(X_b[1], X)
 
 
 def test_linear_algebra_helpers_one_matrix_as_batch():
     """_common's svd, solve and nearest_rotation call LAPACK directly for one matrix and
-    np.linalg for a batch: the same results (the same routines), the same failures."""
-    from handeye.solvers._common import nearest_rotation, solve, svd
+    np.linalg for a batch: the same results (the same routines), the same failures;
+    top_eigenvector (LAPACK per matrix for a few, np.linalg for many) is eigh's last column."""
+    from handeye.solvers._common import nearest_rotation, solve, svd, top_eigenvector
 
     rng = np.random.default_rng(3)
     M = rng.normal(size=(6, 3, 3))
@@ -355,3 +360,12 @@ def test_linear_algebra_helpers_one_matrix_as_batch():
     with pytest.raises(np.linalg.LinAlgError):
         nearest_rotation(singular)
     assert np.isnan(nearest_rotation(np.stack([singular, M[0]]))[0]).all()
+    for count in (1, 3, 20):  # 20: the np.linalg path
+        S = rng.normal(size=(count, 3, 3))
+        S = S + np.swapaxes(S, -1, -2)
+        e = top_eigenvector(S)
+        lam, vecs = np.linalg.eigh(S)
+        assert e.shape == (count, 3)
+        assert np.abs(np.abs(np.einsum("ki,ki->k", e, vecs[:, :, -1])) - 1.0).max() < 1e-12
+        assert np.abs(np.einsum("kij,kj->ki", S, e) - lam[:, -1:] * e).max() < 1e-12
+    assert top_eigenvector(S[0]).shape == (3,)

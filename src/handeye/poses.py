@@ -213,20 +213,21 @@ def _check_lengths(t: NDArray[np.float64], length_unit: str, what: str) -> None:
 
 
 def _exact_rotation_products() -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:
-    """Column pairs and weights for :func:`_rotations_exact`: with ``x`` a row-major flattened 4x4
-    (rotation rows a, b, c; ``x[15] = 1``), ``(x[i] * x[j]) @ W`` is ``[a.a - 1, b.b - 1, c.c - 1,
-    a.b, a.c, b.c, a x b - c]``, all zero for an exact rotation."""
-    terms = []  # (output column, index, index, weight)
-    for col, (r, s) in enumerate([(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]):
-        terms += [(col, 4 * r + k, 4 * s + k, 1.0) for k in range(3)]
+    """Entry pairs and weights for :func:`_rotations_exact`: with ``x`` a row-major flattened 4x4
+    (rotation rows a, b, c; ``x[15] = 1``), ``W^T (x[i] * x[j])`` is ``[a.a - 1, b.b - 1, a.b,
+    a x b - c]``, all zero exactly when the rows are orthonormal and right-handed (``c = a x b``
+    then has unit length and is orthogonal to both)."""
+    terms = []  # (output row, index, index, weight)
+    for row, (r, s) in enumerate([(0, 0), (1, 1), (0, 1)]):
+        terms += [(row, 4 * r + k, 4 * s + k, 1.0) for k in range(3)]
         if r == s:
-            terms.append((col, 15, 15, -1.0))
+            terms.append((row, 15, 15, -1.0))
     for k, (p, q) in enumerate([(1, 2), (2, 0), (0, 1)]):  # (a x b)_k = a_p b_q - a_q b_p
-        terms += [(6 + k, p, 4 + q, 1.0), (6 + k, q, 4 + p, -1.0), (6 + k, 8 + k, 15, -1.0)]
-    W = np.zeros((len(terms), 9))
-    for row, (col, _, _, w) in enumerate(terms):
-        W[row, col] = w
-    return np.array([t[1] for t in terms]), np.array([t[2] for t in terms]), W
+        terms += [(3 + k, p, 4 + q, 1.0), (3 + k, q, 4 + p, -1.0), (3 + k, 8 + k, 15, -1.0)]
+    W = np.zeros((len(terms), 6))
+    for i, (row, _, _, w) in enumerate(terms):
+        W[i, row] = w
+    return np.array([t[1] for t in terms]), np.array([t[2] for t in terms]), W.T.copy()
 
 
 _EXACT_I, _EXACT_J, _EXACT_W = _exact_rotation_products()
@@ -234,12 +235,12 @@ _EXACT_I, _EXACT_J, _EXACT_W = _exact_rotation_products()
 
 def _rotations_exact(T: NDArray[np.float64], tol: float = 1e-13) -> bool:
     """True when every rotation block of a stack ``(N, 4, 4)`` whose bottom rows are ``0 0 0 1``
-    is a proper rotation to within ``tol`` (rows orthonormal, third row the cross product of the
-    first two); NaN fails. One product of the flattened poses: the fast path of
+    is a proper rotation to within ``tol`` (first two rows orthonormal, third their cross
+    product); NaN fails. One product of the flattened poses: the fast path of
     :func:`validate_transforms`, several times cheaper than ``R^T R`` and ``det`` on stacks of
     small matrices; inputs that fail it take the full checks."""
-    x = T.reshape(-1, 16)
-    return bool(np.abs((x[:, _EXACT_I] * x[:, _EXACT_J]) @ _EXACT_W).max(initial=0.0) <= tol)
+    x = np.ascontiguousarray(T.reshape(-1, 16).T)  # one row per entry: the gathers below take rows
+    return bool(np.abs(_EXACT_W @ (x[_EXACT_I] * x[_EXACT_J])).max(initial=0.0) <= tol)
 
 
 def validate_transform_pair(
@@ -257,7 +258,7 @@ def validate_transform_pair(
         T = None
     if T is not None and T.ndim == 4 and T.shape[-2:] == (4, 4):
         try:
-            return validate_transforms(T.reshape(-1, 4, 4), tol=tol).reshape(T.shape)
+            return _validated(T.reshape(-1, 4, 4), "", tol).reshape(T.shape)  # T is ours: checked in place
         except PoseFormatError:
             pass  # checked one by one below, for a message naming the stack and its entry
     A, B = validate_transforms(A, what[0], tol), validate_transforms(B, what[1], tol)
@@ -280,6 +281,11 @@ def validate_transforms(T: ArrayLike, what: str = "transforms", tol: float = ORT
         T = T[None]
     if T.ndim != 3 or T.shape[1:] != (4, 4):
         raise PoseFormatError(f"{what}: expected a stack of 4x4 transforms (N, 4, 4), got shape {T.shape}")
+    return _validated(T, what, tol)
+
+
+def _validated(T: NDArray[np.float64], what: str, tol: float) -> NDArray[np.float64]:
+    """:func:`validate_transforms` of a float stack ``(N, 4, 4)`` the caller owns: fixed in place."""
     if not np.isfinite(T).all():
         i = int(np.argmin(np.isfinite(T).all(axis=(1, 2))))
         raise PoseFormatError(f"{what}: entry {i} contains NaN or infinite values")

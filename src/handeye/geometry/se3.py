@@ -47,7 +47,9 @@ def make_transform(rotation: ArrayLike, translation: ArrayLike) -> NDArray[np.fl
     """
     R = np.asarray(rotation, dtype=float)
     t = np.asarray(translation, dtype=float)
-    batch = np.broadcast_shapes(R.shape[:-2], t.shape[:-1])
+    batch = R.shape[:-2]
+    if t.shape[:-1] != batch:
+        batch = np.broadcast_shapes(batch, t.shape[:-1])
     T = np.zeros(batch + (4, 4))
     T[..., :3, :3] = R
     T[..., :3, 3] = t

@@ -8,6 +8,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import DegenerateMotionError
 from ..motions import MotionSet
 from ..poses import validate_transform_pair
+from ._common import top_eigenvector
 
 #: A motion whose quaternion vector part |sin(theta/2) l| is below this rotates by < 0.57 deg.
 MIN_ROTATION = 5e-3
@@ -28,8 +29,7 @@ def _rotation_spread(dq: NDArray[np.float64]) -> tuple[float, float, NDArray[np.
     principal direction of the axis vectors ``v = sin(theta/2) n`` (sign-free)."""
     v = np.ascontiguousarray(dq[:, 1:4].T)  # (3, K): one row per component
     sq = (v * v).sum(axis=0)
-    _, vecs = np.linalg.eigh(v @ v.T)
-    e1 = vecs[:, -1]
+    e1 = top_eigenvector(v @ v.T)
     off_sq = np.clip(sq - (e1 @ v) ** 2, 0.0, None)
     return float(np.sqrt(sq.max())), float(np.sqrt(off_sq.max())), e1
 
@@ -49,18 +49,17 @@ def _rotation_spread_absolute(T: NDArray[np.float64]) -> tuple:
     nothing. Leading axes: independent sets (robot and camera).
     """
     x = T.reshape(T.shape[:-3] + (-1, 16))
-    x0 = x[..., 0, :]
-    R0 = x0.reshape(x0.shape[:-1] + (4, 4))[..., :3, :3]
-    total = np.swapaxes(R0, -1, -2) @ x.sum(axis=-2).reshape(R0.shape[:-2] + (4, 4))[..., :3, :3]
-    _, vecs = np.linalg.eigh(total + np.swapaxes(total, -1, -2))
-    e = vecs[..., :, -1]
+    R0 = T[..., 0, :3, :3]
+    # sums over the poses as products with ones: a reduction over a middle axis costs several times more
+    total = np.swapaxes(R0, -1, -2) @ (np.ones(x.shape[-2]) @ x).reshape(R0.shape[:-2] + (4, 4))[..., :3, :3]
+    e = top_eigenvector(total + np.swapaxes(total, -1, -2))
     # products with vec R_0 and vec(R_0 e e^T), zero outside the rotation block: one matmul
-    w = np.zeros(x0.shape[:-1] + (2, 4, 4))
+    w = np.zeros(R0.shape[:-2] + (2, 4, 4))
     w[..., 0, :3, :3] = R0
     w[..., 1, :3, :3] = (R0 @ e[..., :, None]) * e[..., None, :]
-    smallest = (x @ np.swapaxes(w.reshape(w.shape[:-3] + (2, 16)), -1, -2)).min(axis=-2)  # min tr R, min e^T R e
+    smallest = (w.reshape(w.shape[:-3] + (2, 16)) @ np.swapaxes(x, -1, -2)).min(axis=-1)  # min tr R, min e^T R e
     # |v|^2 = (3 - tr R) / 4 and |v|^2 - (e . v)^2 = (1 - e^T R e) / 2
-    return np.sqrt(np.clip((_SPREAD_OFFSET - smallest) * _SPREAD_SCALE, 0.0, None)).T, e
+    return np.sqrt(np.maximum((_SPREAD_OFFSET - smallest) * _SPREAD_SCALE, 0.0)).T, e
 
 
 _SPREAD_OFFSET = np.array([3.0, 1.0])

@@ -120,6 +120,24 @@ def solve(N: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]
     return x
 
 
+def top_eigenvector(M: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Unit eigenvector of the largest eigenvalue of symmetric matrices ``(..., n, n)``, ``(..., n)``.
+
+    A few matrices are decomposed one by one with LAPACK's ``dsyevd`` (as ``np.linalg.eigh``, which
+    costs about twice as much per call on 3x3 matrices); sign arbitrary.
+    """
+    flat = M.reshape((-1,) + M.shape[-2:])
+    if len(flat) > 8:
+        return np.linalg.eigh(M)[1][..., :, -1]
+    vecs = []
+    for m in flat:
+        _, v, info = _lapack.dsyevd(m)
+        if info != 0:
+            raise np.linalg.LinAlgError("eigenvalue decomposition did not converge")
+        vecs.append(v[:, -1])
+    return np.array(vecs).reshape(M.shape[:-1])
+
+
 def _det3(M: NDArray[np.float64]) -> float:
     (a, b, c), (d, e, f), (g, h, i) = M.tolist()
     return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
