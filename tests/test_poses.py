@@ -149,6 +149,10 @@ def test_transform_pair_validated_in_one_pass_as_one_by_one(rng):
         T = B.copy()
         T[entry] *= change
         assert not _rotations_exact(T)
+    for row in range(3):  # the third row is tested only through c = a x b: a slip there too
+        T = B.copy()
+        T[2, row, 1] += 1e-10
+        assert not _rotations_exact(T)
     T = B.copy()
     T[2, 0, 0] = np.nan
     assert not _rotations_exact(T)
