@@ -236,9 +236,10 @@ _EXACT_I, _EXACT_J, _EXACT_W = _exact_rotation_products()
 def _rotations_exact(T: NDArray[np.float64], tol: float = 5e-14) -> bool:
     """True when every rotation block of a stack ``(N, 4, 4)`` whose bottom rows are ``0 0 0 1``
     is a proper rotation to within ``tol`` (first two rows orthonormal, third their cross
-    product; the default keeps every entry of ``R^T R - I`` within 1e-13); NaN fails. One product of the flattened poses: the fast path of
-    :func:`validate_transforms`, several times cheaper than ``R^T R`` and ``det`` on stacks of
-    small matrices; inputs that fail it take the full checks."""
+    product; the default keeps every entry of ``R^T R - I`` within 1e-13); NaN fails. One
+    product of the flattened poses: the fast path of :func:`validate_transforms`, several times
+    cheaper than ``R^T R`` and ``det`` on stacks of small matrices; inputs that fail it take the
+    full checks."""
     x = np.ascontiguousarray(T.reshape(-1, 16).T)  # one row per entry: the gathers below take rows
     return bool(np.abs(_EXACT_W @ (x[_EXACT_I] * x[_EXACT_J])).max(initial=0.0) <= tol)
 
