@@ -124,8 +124,7 @@ def observable_leave_one_out(motions: MotionSet, groups: NDArray[np.intp], block
         v = dq[:, 1:4]
         sq = np.einsum("ki,ki->k", v, v)
         vg = np.concatenate([v, np.zeros((1, 3))])[groups]
-        _, vecs = np.linalg.eigh(v.T @ v - np.swapaxes(vg, -1, -2) @ vg)
-        e = vecs[:, :, -1]  # (n_runs, 3)
+        e = top_eigenvector(v.T @ v - np.swapaxes(vg, -1, -2) @ vg)  # (n_runs, 3)
         for start in range(0, n_runs, chunk):
             runs = np.arange(start, min(start + chunk, n_runs))
             local = np.arange(len(runs))[:, None]

@@ -75,7 +75,8 @@ def kron_sum(P: NDArray[np.float64], Q: NDArray[np.float64]) -> NDArray[np.float
     """``sum_k kron(P_k, Q_k)`` of 3x3 stacks ``(..., K, 3, 3)``, shape ``(..., 9, 9)``.
 
     Row-major: ``[3i + a, 3j + b] = sum P[i, j] Q[a, b]``; one (9 x K) @ (K x 9) product of the
-    flattened matrices, reordered (the Kronecker systems of Andreff, Shah and Li).
+    flattened matrices, reordered (Andreff's Kronecker system; Shah and Li read theirs off
+    :func:`handeye.solvers.robot_world._moments`).
     """
     batch, k = P.shape[:-3], P.shape[-3]
     moments = np.swapaxes(P.reshape(batch + (k, 9)), -1, -2) @ Q.reshape(batch + (k, 9))  # [(i,j), (a,b)]
