@@ -24,7 +24,7 @@ import numpy as np
 from _timing import best_time
 
 import handeye
-from handeye.calibration import robot_world_inputs
+from handeye.setups import robot_world_inputs
 from handeye.motions import MotionSet, validate_poses
 from handeye.simulate import random_scene
 from handeye.solvers import get, solve_motions, solve_robot_world

@@ -142,7 +142,7 @@ def test_rotation_spread_from_absolute_matrices_equals_from_quaternions():
 
     from handeye.geometry.dualquat import dq_from_matrix
     from handeye.geometry.se3 import make_transform, random_rotations
-    from handeye.solvers._checks import _rotation_spread, _rotation_spread_absolute
+    from handeye.solvers.observability import rotation_spread, rotation_spread_absolute
 
     rng = np.random.default_rng(12)
     R = random_rotations(40, rng)
@@ -152,12 +152,12 @@ def test_rotation_spread_from_absolute_matrices_equals_from_quaternions():
     R0 = random_rotations(1, rng)[0]
     for rot in (R, parallel):
         dq = dq_from_matrix(make_transform(rot, np.zeros((len(rot), 3))))
-        largest, spread, e1 = _rotation_spread(dq)
+        largest, spread, e1 = rotation_spread(dq)
         # absolute poses whose motions R_0^T R_i are rot (translations play no part)
         absolute = make_transform(R0 @ np.concatenate([np.eye(3)[None], rot]), rng.normal(size=(len(rot) + 1, 3)))
-        (largest_m, spread_m), e1_m = _rotation_spread_absolute(np.stack([absolute, absolute]))
+        (largest_m, spread_m), e1_m = rotation_spread_absolute(np.stack([absolute, absolute]))
         for side in range(2):
             assert abs(largest - largest_m[side]) < 1e-12 and abs(spread - spread_m[side]) < 1e-7
             assert abs(abs(e1 @ e1_m[side]) - 1.0) < 1e-12
     parallel_abs = make_transform(R0 @ np.concatenate([np.eye(3)[None], parallel]), np.ones(3))
-    assert _rotation_spread_absolute(parallel_abs)[0][1] < 1e-7
+    assert rotation_spread_absolute(parallel_abs)[0][1] < 1e-7

@@ -9,6 +9,7 @@ import shlex
 import shutil
 import subprocess
 import xml.etree.ElementTree as ET
+from dataclasses import replace
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -20,8 +21,7 @@ from scipy.spatial.transform import Rotation
 
 import handeye
 from handeye.cli import SAMPLE_SESSION, main
-from handeye.report import SECTIONS
-from handeye.results import result_dict, ros2_static_transform_command, urdf_joint
+from handeye.report import SECTIONS, result_dict, ros2_static_transform_command, urdf_joint, write_calibration
 from handeye.simulate import random_scene
 
 SAMPLE = Path(handeye.__file__).parent / "data" / SAMPLE_SESSION
@@ -150,9 +150,9 @@ def test_calibration_write_never_overwrites_its_images(tmp_path, sample_cal):
     cal = handeye.calibrate(SAMPLE, progress=False)
     keep = images / "report.html"
     keep.write_text("mine")
-    cal.image_paths = [keep]  # pretend an input image had that name
+    cal = replace(cal, image_paths=[keep])  # pretend an input image had that name
     with pytest.raises(handeye.HandEyeError, match="refusing to overwrite"):
-        cal.write(images)
+        write_calibration(cal, images)
     assert keep.read_text() == "mine"
 
 
@@ -204,10 +204,10 @@ def test_report_from_poses_only(tmp_path):
     rng = np.random.default_rng(4)
     noisy = handeye.simulate.perturb_poses(scene.target2cam, np.radians(0.05), 0.2e-3, rng)
     cal = handeye.calibrate_poses(scene.flange2base, noisy, "eye_to_hand")
-    paths = cal.write(tmp_path / "r")
+    paths = write_calibration(cal, tmp_path / "r")
     assert [p.name for p in paths] == ["result.json", "result.yaml", "report.html"]
-    assert cal.report_path == tmp_path / "r" / "report.html"
-    page = _check_page(cal.report_path.read_text(encoding="utf-8"))
+    assert paths[-1] == tmp_path / "r" / "report.html"
+    page = _check_page(paths[-1].read_text(encoding="utf-8"))
     assert len(page.images) == 3
     d = json.loads(paths[0].read_text())
     assert d["ros"]["parent_frame"] == "base_link" and d["X_name"] == "cam2base"

@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 
 import handeye
 from handeye import DegenerateMotionError, InputMismatchError
-from handeye.calibration import robot_world_inputs
+from handeye.setups import robot_world_inputs
 from handeye.geometry.se3 import from_rotvec_translation, invert, make_transform
 from handeye.metrics import rotation_error, translation_error
 from handeye.motions import MotionSet

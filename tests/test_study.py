@@ -50,7 +50,7 @@ def test_seed_scenes_follow_the_thesis_setup(setup):
     assert cos.min() >= np.cos(np.radians(45)) ** 2 - 1e-12
     assert np.degrees(np.arccos(cos)).max() > 40  # the tilts are used
     for s in range(0, 300, 37):
-        Zi = handeye.calibration.constant_transforms(sc.X[s], sc.flange2base[s], sc.target2cam[s], setup)
+        Zi = handeye.setups.constant_transforms(sc.X[s], sc.flange2base[s], sc.target2cam[s], setup)
         assert np.abs(Zi - sc.Z[s]).max() < 1e-12
 
 

@@ -131,8 +131,8 @@ def _visp(folder_name, tmp_path, setup, target):
 def _spread(X, cal):
     """RMS distance (mm) of the per-pose target positions ``Z_i`` through X from their mean: the
     least-squares spread, with one Z estimator (the mean) whatever produced X."""
-    Zi = handeye.calibration.constant_transforms(X, cal.flange2base, cal.target2cam, cal.setup)
-    d = 1e3 * translation_error(Zi, handeye.calibration.mean_transform(Zi))
+    Zi = handeye.setups.constant_transforms(X, cal.flange2base, cal.target2cam, cal.setup)
+    d = 1e3 * translation_error(Zi, handeye.geometry.se3.mean_transform(Zi))
     return float(np.sqrt(np.mean(d**2))), float(np.median(d))
 
 

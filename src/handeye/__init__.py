@@ -10,21 +10,17 @@ are ``(N, 4, 4)``; lengths are metres inside the library.
 
 from __future__ import annotations
 
-from importlib.metadata import PackageNotFoundError, version
-
-from . import metrics, simulate, solvers
-from .calibration import Calibration, calibrate, calibrate_poses
-from .diagnostics import Diagnostics, RobotPoseInput, diagnose
+from . import metrics, setups, simulate, solvers
+from ._version import __version__
+from .calibration import calibrate, calibrate_poses
+from .diagnostics import diagnose
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError, PoseFormatError
 from .geometry.dualquat import DualQuaternion
 from .motions import relative_motions
-from .poses import format_poses, parse_poses
+from .poses import RobotPoseInput, format_poses, parse_poses
+from .report import write_calibration
+from .result import Calibration, Diagnostics
 from .solvers import solve, solve_batch, solve_robot_world, solve_robot_world_batch
-
-try:
-    __version__ = version("handeye")
-except PackageNotFoundError:  # running from a source tree
-    __version__ = "0+unknown"
 
 __all__ = [
     "Calibration",
@@ -42,10 +38,13 @@ __all__ = [
     "metrics",
     "parse_poses",
     "relative_motions",
+    "setups",
     "simulate",
     "solve",
     "solve_batch",
     "solve_robot_world",
     "solve_robot_world_batch",
     "solvers",
+    "write_calibration",
+    "__version__",
 ]

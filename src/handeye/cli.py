@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from importlib.resources import files
 from pathlib import Path
 from typing import Sequence
@@ -11,9 +12,21 @@ from typing import Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from . import __version__, solvers
-from .calibration import Calibration, calibrate_poses
+from . import solvers
+from ._version import __version__
+from .calibration import calibrate, calibrate_poses, check_folder
 from .errors import HandEyeError
+from .geometry.se3 import make_transform
+from .planning import (easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov, reprojection_information,
+                       simulate_errors, visible_mask, write_plan)
+from .poses import pose_columns
+from .report import write_calibration
+from .result import Calibration
+from .session import load_pose_pairs, load_yaml, read_intrinsics
+from .setups import predicted_target2cam, setup_info
+from .simulate import DEFAULT_TARGETS, simulate_session
+from .study import preset, study, write_study
+from .vision.targets import target_from_spec
 
 EXAMPLE_POSEPAIRS = "example_posepairs"
 SAMPLE_SESSION = "sample_session"
@@ -25,12 +38,11 @@ def _fmt_vec(v: np.ndarray, digits: int = 6) -> str:
 
 def print_calibration(cal: Calibration, out=None) -> None:
     """Print X in the forms people paste into robot programs, and the residual summary."""
-    x_name = "cam2flange" if cal.setup == "eye_in_hand" else "cam2base"
-    z_name = "target2base" if cal.setup == "eye_in_hand" else "target2flange"
+    info = setup_info(cal.setup)
+    x_name, z_name = info.x_name, info.z_name
     rot = Rotation.from_matrix(cal.X[:3, :3])
     w = (out or sys.stdout).write
-    w(f"{cal.setup}: X = {x_name} (maps camera coordinates into the "
-      f"{'flange' if cal.setup == 'eye_in_hand' else 'robot base'} frame), method {cal.method}, "
+    w(f"{cal.setup}: X = {x_name} (maps camera coordinates into the {info.x_parent} frame), method {cal.method}, "
       f"{len(cal.flange2base)} poses, {len(cal.pairs)} motions\n\n")
     with np.printoptions(precision=6, suppress=True, floatmode="fixed", sign=" "):
         w(f"{x_name} (4x4, metres):\n{cal.X}\n\n")
@@ -88,13 +100,12 @@ def _write_outputs(cal: Calibration, args: argparse.Namespace, inputs: Path) -> 
             raise HandEyeError(f"--out {out} is inside the input folder {inputs}; results never go among the inputs: "
                                "choose a folder elsewhere")
         protect = [p for p in inputs.rglob("*") if p.is_file()] if inputs.is_dir() else []
-        for path in cal.write(out, protect=protect, parent_frame=args.parent_frame, child_frame=args.child_frame):
+        for path in write_calibration(cal, out, protect=protect, parent_frame=args.parent_frame,
+                                      child_frame=args.child_frame):
             print(f"wrote {path}")
 
 
 def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
-    from .session import load_pose_pairs
-
     folder = _input_folder(args.folder, args.example, EXAMPLE_POSEPAIRS,
                            "give a pose-pair folder, or --example for the bundled one (not both)")
     pairs = load_pose_pairs(folder)
@@ -123,8 +134,6 @@ def _print_image_summary(cal: Calibration) -> None:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from .calibration import calibrate
-
     session = _input_folder(args.session, args.sample, SAMPLE_SESSION,
                             "give a session folder, or --sample for the bundled sample session (not both)")
     robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))  # calibrate checks the values
@@ -140,38 +149,18 @@ EXIT_STATUS = {"good": 0, "weak": 1, "degenerate": 2, "inconsistent": 2}
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    from .calibration import calibrate
-    from .diagnostics import diagnose
-    from .session import POSEPAIRS_FILE, load_pose_pairs
-
     folder = _input_folder(args.folder, args.sample, SAMPLE_SESSION,
                            "give a session or pose-pair folder, or --sample (not both)")
-    if (folder / POSEPAIRS_FILE).is_file():
-        pairs = load_pose_pairs(folder)
-        f2b, t2c, setup, robot_input, names = pairs.flange2base, pairs.target2cam, pairs.setup, pairs.robot_input, pairs.ids
-    else:
-        # detection and PnP as calibrate does them, then the checks on those poses
-        cal = calibrate(folder, refine="none", check=False, jobs=args.jobs, progress=not args.no_progress)
-        from dataclasses import replace
-
-        from .session import load_session
-
-        session = load_session(folder)
-        idx = [session.image_names.index(n) for n in cal.image_names]
-        robot_input = session.robot_input and replace(session.robot_input, values=session.robot_input.values[idx])
-        f2b, t2c, setup, names = cal.flange2base, cal.target2cam, cal.setup, cal.image_names
-        for name, reason in cal.skipped:
-            print(f"skipped {name}: {reason}")
-    diag = diagnose(f2b, t2c, setup, robot_input=robot_input)
-    print(diag.pose_table(names))
+    found = check_folder(folder, jobs=args.jobs, progress=not args.no_progress)
+    for name, reason in found.skipped:
+        print(f"skipped {name}: {reason}")
+    print(found.diagnostics.pose_table(found.names))
     print()
-    print(diag.summary())
-    return EXIT_STATUS[diag.verdict]
+    print(found.diagnostics.summary())
+    return EXIT_STATUS[found.diagnostics.verdict]
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from .simulate import simulate_session
-
     size = tuple(int(v) for v in args.image_size.lower().split("x"))
     simulate_session(args.out, setup=args.setup, n_poses=args.poses, target=args.target, noise_px=args.noise_px,
                      seed=args.seed, image_size=size, write_intrinsics=not args.no_intrinsics)
@@ -181,10 +170,6 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_study(args: argparse.Namespace) -> int:
-    import time
-
-    from .study import preset, study, write_study
-
     settings, figures = preset(args.preset, setup=args.setup)
     if args.figures:
         unknown = sorted(set(args.figures) - set(figures))
@@ -221,8 +206,6 @@ def _floats(text: str | None, name: str, sizes: tuple[int, ...]) -> np.ndarray |
 
 def _pose_arg(text: str | None, name: str, default_rot_deg=(0.0, 0.0, 0.0), required: bool = False) -> np.ndarray | None:
     """x,y,z[,rx,ry,rz]: metres and a rotation vector in degrees, as a 4x4."""
-    from .geometry.se3 import make_transform
-
     v = _floats(text, name, (3, 6))
     if v is None:
         if required:
@@ -233,49 +216,27 @@ def _pose_arg(text: str | None, name: str, default_rot_deg=(0.0, 0.0, 0.0), requ
 
 
 def _load_camera(path: str) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
-    """K, dist and image size from a YAML file (top level, or under camera: as in session.yaml)."""
-    from .session import _camera, _load_yaml
-
-    p = Path(path)
-    data = _load_yaml(p)
-    cam = data["camera"] if isinstance(data.get("camera"), dict) else data
-    size = cam.get("image_size", data.get("image_size"))
-    if "K" not in cam or size is None:
-        raise HandEyeError(f"--intrinsics {p}: needs K: [[fx,0,cx],[0,fy,cy],[0,0,1]] and image_size: [width, height] "
-                           "(dist optional), at the top level or under camera:")
-    K, dist = _camera({"K": cam["K"], "dist": cam.get("dist") or [0.0] * 5}, f"--intrinsics {p}")
+    """K, dist and image size of ``--intrinsics`` (see :func:`handeye.session.read_intrinsics`)."""
     try:
-        w, h = (int(v) for v in size)
-    except (TypeError, ValueError):
-        raise HandEyeError(f"--intrinsics {p}: image_size must be [width, height]") from None
-    if w <= 0 or h <= 0:
-        raise HandEyeError(f"--intrinsics {p}: image_size must be positive")
-    return K, dist, (w, h)
+        return read_intrinsics(path)
+    except HandEyeError as exc:
+        raise HandEyeError(f"--intrinsics {exc}") from None
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
-    from .planning import (easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov,
-                           reprojection_information, simulate_errors, visible_mask, write_plan)
-    from .poses import pose_columns
-    from .simulate import DEFAULT_TARGETS
-    from .solvers.refine import predicted_target2cam
-    from .vision.targets import target_from_spec
-
     pose_columns(args.format)  # a clear error for an unknown format before any work
     if args.length_unit not in ("m", "mm") or args.angle_unit not in ("deg", "rad"):
         raise HandEyeError("--length-unit must be m or mm, --angle-unit deg or rad")
     K, dist, size = _load_camera(args.intrinsics)
     if args.target_spec:
-        from .session import _load_yaml
-
         p = Path(args.target_spec)
-        spec = _load_yaml(p).get("target")
+        spec = load_yaml(p).get("target")
         if not isinstance(spec, dict):
             raise HandEyeError(f"--target-spec {p}: no 'target:' mapping (as in session.yaml)")
     else:
         spec = DEFAULT_TARGETS[args.target]
     obj = target_from_spec(spec).object_points()
-    if args.setup == "eye_in_hand":
+    if setup_info(args.setup).camera_on_flange:
         if args.camera_in_base or args.target_in_flange:
             raise HandEyeError("--camera-in-base and --target-in-flange are for eye_to_hand; eye_in_hand takes "
                                "--target-in-base and --cam-in-flange")
@@ -346,15 +307,7 @@ def _add_detection_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="handeye",
-        description="Hand-eye calibration of a camera against a robot arm.",
-    )
-    parser.add_argument("--version", action="version", version=f"handeye {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    sub.required = True
-
+def _add_calibrate_poses(sub) -> None:
     p = sub.add_parser(
         "calibrate-poses",
         help="calibrate from robot poses and camera-to-target poses (a pose-pair folder)",
@@ -369,6 +322,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--pairs", default="all", choices=["all", "consecutive"], help="which pose pairs form motions")
     p.set_defaults(func=_cmd_calibrate_poses)
 
+
+def _add_calibrate(sub) -> None:
     p = sub.add_parser(
         "calibrate",
         help="calibrate from a capture session (images + robot poses)",
@@ -387,6 +342,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_detection_options(p)
     p.set_defaults(func=_cmd_calibrate)
 
+
+def _add_check(sub) -> None:
     p = sub.add_parser(
         "check",
         help="check whether the data can give a good calibration (exit 0 good, 1 weak, 2 degenerate/inconsistent)",
@@ -399,6 +356,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_detection_options(p)
     p.set_defaults(func=_cmd_check)
 
+
+def _add_simulate(sub) -> None:
     p = sub.add_parser(
         "simulate",
         help="render a synthetic capture session with ground truth",
@@ -415,6 +374,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-intrinsics", action="store_true", help="leave K and dist out of session.yaml")
     p.set_defaults(func=_cmd_simulate)
 
+
+def _add_plan(sub) -> None:
     p = sub.add_parser(
         "plan",
         help="plan robot poses for a good calibration and predict its accuracy",
@@ -450,6 +411,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--angle-unit", default="deg", help="deg or rad for rotvec and euler (default deg)")
     p.set_defaults(func=_cmd_plan)
 
+
+def _add_study(sub) -> None:
     p = sub.add_parser(
         "study",
         help="the Monte-Carlo study of the thesis's chapter 5 (every solver, any noise)",
@@ -465,6 +428,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_study)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="handeye",
+        description="Hand-eye calibration of a camera against a robot arm.",
+    )
+    parser.add_argument("--version", action="version", version=f"handeye {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    _add_calibrate_poses(sub)
+    _add_calibrate(sub)
+    _add_check(sub)
+    _add_simulate(sub)
+    _add_plan(sub)
+    _add_study(sub)
     return parser
 
 

@@ -20,21 +20,27 @@ samples. :func:`diagnose` tells which.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import time
+from itertools import combinations
 from math import comb
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.stats import f as f_dist
 
-from .calibration import constant_transforms, mean_transform
+from . import solvers
 from .errors import DegenerateMotionError, HandEyeError
-from .geometry.se3 import invert
+from .geometry.se3 import invert, mean_transform
 from .metrics import rotation_error, translation_error
-from .motions import MotionSet, check_setup, validate_poses
-from .poses import parse_poses
+from .motions import MotionSet, Pairs, validate_poses
+from .poses import RobotPoseInput, parse_poses
+from .result import Diagnostics
+from .setups import check_setup, constant_transforms, robot_world_inputs
+from .solvers.daniilidis import motion_groups, singular_values, solve_leave_one_out
+from .solvers.observability import check_observability, observable_leave_one_out, rotation_spread
+from .solvers.refine import pose_mahalanobis, refine_pose
 
-__all__ = ["Diagnostics", "RobotPoseInput", "diagnose", "find_outliers"]
+__all__ = ["Diagnostics", "RobotPoseInput", "diagnose", "find_outliers", "consistency_score", "closed_form",
+           "compare_solvers"]
 
 #: Consistency score (below) up to which data count as consistent.
 CONSISTENT = 3.0
@@ -53,101 +59,8 @@ FEW_POSES = 6
 FAR_TARGET_M = 1.2
 
 
-@dataclass(frozen=True)
-class RobotPoseInput:
-    """The robot poses as written (values, declared format and units), so that other readings can
-    be tried. ``values`` as for :func:`handeye.parse_poses`."""
-
-    values: NDArray[np.float64]
-    format: str
-    length_unit: str = "m"
-    angle_unit: str = "rad"
-
-
-@dataclass
-class Diagnostics:
-    """What :func:`diagnose` found (DESIGN §6).
-
-    Attributes
-    ----------
-    verdict : {'good', 'weak', 'degenerate', 'inconsistent'}
-    advice : list of str
-        Sentences saying what is wrong and what to do.
-    convention_hint : str or None
-        The reading that makes inconsistent data consistent: ``'invert_robot_poses'``,
-        ``'invert_camera_poses'``, ``'length_unit:mm'``, ``'length_unit:m'``, ``'angle_unit:deg'``,
-        ``'angle_unit:rad'``, ``'quat_xyzw'``, ``'quat_wxyz'`` or ``'euler:SEQ'``.
-    outliers : list of int
-        Indices of the poses judged bad.
-    outlier_residuals : dict
-        Per outlier: (rotation deg, translation mm) from the consensus target pose.
-    consistency : float
-        Unit-free score of the data (inliers) as given: the larger of the median per-pose rotation
-        residual over 1 deg and the median translation residual over 2% of the camera's motion
-        scale; up to 3 is consistent.
-    axis_shares : ndarray (3,)
-        Eigenvalues (descending, sum 1) of the scatter of the camera motions' rotation axes, weighted
-        by rotation; all near 1/3 is ideal, a small last one means a missing rotation axis.
-    weakest_axis : ndarray (3,)
-        The camera-frame direction with the least rotation about it.
-    rotation_angles_deg : ndarray (K,)
-        Rotation angle of every camera motion.
-    singular_values : ndarray (8,) or None
-        Of the Daniilidis system (two near zero expected).
-    translation_condition : float or None
-        Condition number of the translation system ``sum (I - R_A)^T (I - R_A)``.
-    leave_one_out : ndarray (N, 2) or None
-        How far X moves (deg, mm) when each pose is left out (NaN for outliers).
-    """
-
-    verdict: str
-    advice: list[str] = field(default_factory=list)
-    convention_hint: str | None = None
-    outliers: list[int] = field(default_factory=list)
-    outlier_residuals: dict[int, tuple[float, float]] = field(default_factory=dict)
-    consistency: float = float("nan")
-    axis_shares: NDArray[np.float64] | None = None
-    weakest_axis: NDArray[np.float64] | None = None
-    rotation_angles_deg: NDArray[np.float64] | None = None
-    singular_values: NDArray[np.float64] | None = None
-    translation_condition: float | None = None
-    leave_one_out: NDArray[np.float64] | None = None
-    pose_residuals: NDArray[np.float64] | None = None  #: (N, 2) deg, mm from the consensus target pose
-    n_poses: int = 0
-
-    def pose_table(self, names: list[str] | None = None) -> str:
-        """Per pose: residual from the consensus and how far X moves without it."""
-        rows = [f"{'pose':>5} {'name':<24} {'resid deg':>9} {'resid mm':>9} {'loo deg':>8} {'loo mm':>8}  flag"]
-        for i in range(self.n_poses):
-            name = names[i] if names else ""
-            r = self.pose_residuals[i] if self.pose_residuals is not None else (np.nan, np.nan)
-            lo = self.leave_one_out[i] if self.leave_one_out is not None else (np.nan, np.nan)
-            rows.append(f"{i:>5} {name:<24.24} {r[0]:>9.3f} {r[1]:>9.2f} {lo[0]:>8.3f} {lo[1]:>8.2f}  "
-                        f"{'OUTLIER' if i in self.outliers else ''}")
-        return "\n".join(rows)
-
-    def summary(self) -> str:
-        """A few lines for people: verdict, outliers, advice."""
-        lines = [f"verdict: {self.verdict} ({self.n_poses} poses, consistency {self.consistency:.2f}; "
-                 f"up to {CONSISTENT:g} is consistent)"]
-        if self.convention_hint:
-            lines.append(f"convention hint: {self.convention_hint}")
-        for i in self.outliers:
-            r, t = self.outlier_residuals.get(i, (float("nan"), float("nan")))
-            lines.append(f"outlier pose {i}: {r:.3f} deg / {t:.2f} mm from the consensus")
-        if self.leave_one_out is not None and np.isfinite(self.leave_one_out).any():
-            loo = np.where(np.isfinite(self.leave_one_out), self.leave_one_out, -1.0)
-            worst = np.argsort(-loo[:, 1])[:3]
-            lines.append("leaving one pose out moves X most for poses " + ", ".join(
-                f"{i} ({loo[i, 0]:.3f} deg / {loo[i, 1]:.2f} mm)" for i in worst))
-        lines += [f"advice: {a}" for a in self.advice]
-        return "\n".join(lines)
-
-
 def _solve(flange2base, target2cam, setup) -> NDArray[np.float64]:
     """Daniilidis on all pose pairs (raises DegenerateMotionError when X is undetermined)."""
-    from . import solvers
-
     return solvers.solve_motions(MotionSet.from_poses(flange2base, target2cam, setup, "all"), "daniilidis")
 
 
@@ -212,7 +125,7 @@ def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None):
 
 def _refit_test(flange2base, target2cam, setup, inliers):
     """Pose refinement on ``inliers``; per pose its studentized distance test and residuals."""
-    from .solvers.refine import pose_mahalanobis, refine_pose
+    from scipy.stats import f as f_dist  # scipy.stats takes ~0.5 s to import: only when a test runs
 
     X = _solve(flange2base[inliers], target2cam[inliers], setup)
     Z = mean_transform(constant_transforms(X, flange2base[inliers], target2cam[inliers], setup))
@@ -264,8 +177,6 @@ def find_outliers(
     # minimal sets: all triplets when few, else random distinct ones (40 draws miss an all-inlier
     # set with probability 5e-8 at 30% outliers)
     if comb(n, 3) <= hypotheses:
-        from itertools import combinations
-
         sets = np.array(list(combinations(range(n), 3)))
     else:
         sets = np.array([rng.choice(n, 3, replace=False) for _ in range(hypotheses)])
@@ -302,8 +213,6 @@ def find_outliers(
 
 
 def _observability(motions: MotionSet) -> dict:
-    from .solvers.daniilidis import singular_values
-
     v = motions.dq_b[:, 1:4]  # sin(theta/2) * axis of the camera motions
     S = v.T @ v
     total = float(np.trace(S)) + 1e-300
@@ -360,25 +269,12 @@ def diagnose(
     flange2base, target2cam = validate_poses(flange2base, target2cam)
     n = len(flange2base)
     motions = MotionSet.from_poses(flange2base, target2cam, setup, "all")
-    obs = _observability(motions)
-    diag = Diagnostics(verdict="good", n_poses=n, **obs)
-    from .solvers._checks import check_observability
-
+    diag = Diagnostics(verdict="good", n_poses=n, consistency_limit=CONSISTENT, **_observability(motions))
     try:
         check_observability(motions)
     except DegenerateMotionError as exc:
         diag.verdict = "degenerate"
-        if "parallel" in str(exc):
-            from .solvers._checks import _rotation_spread
-
-            axis = _rotation_spread(motions.dq_b)[2]
-            axis = axis * np.sign(axis[np.argmax(np.abs(axis))])
-            others = " and ".join(f"the camera's {c} axis" for k, c in enumerate("xyz") if abs(axis[k]) < 0.9)
-            diag.advice.append(
-                f"all rotations are about one axis, {_axis_name(axis)} ({np.array2string(axis, precision=3, suppress_small=True)} "
-                f"in the camera frame): the camera's rotation about it and its position along it are undetermined; "
-                f"add rotations of >= 30 deg about {others or 'a second axis'}")
-        diag.advice.append(str(exc))
+        diag.advice.extend(_degenerate_advice(motions, exc))
         return diag
 
     given = consistency_score(flange2base, target2cam, setup)
@@ -416,7 +312,31 @@ def diagnose(
             diag.verdict = "weak"
     if leave_one_out:
         diag.leave_one_out = _leave_one_out(flange2base, target2cam, setup, inliers)
+    weak = _weak_advice(diag, target2cam[inliers], int(inliers.sum()))
+    if weak:
+        diag.verdict = "weak"
+        diag.advice.extend(weak)
+    return diag
 
+
+def _degenerate_advice(motions: MotionSet, exc: DegenerateMotionError) -> list[str]:
+    """What to capture when the motions cannot determine X."""
+    advice = []
+    if "parallel" in str(exc):
+        axis = rotation_spread(motions.dq_b)[2]
+        axis = axis * np.sign(axis[np.argmax(np.abs(axis))])
+        others = " and ".join(f"the camera's {c} axis" for k, c in enumerate("xyz") if abs(axis[k]) < 0.9)
+        advice.append(
+            f"all rotations are about one axis, {_axis_name(axis)} ({np.array2string(axis, precision=3, suppress_small=True)} "
+            f"in the camera frame): the camera's rotation about it and its position along it are undetermined; "
+            f"add rotations of >= 30 deg about {others or 'a second axis'}")
+    advice.append(str(exc))
+    return advice
+
+
+def _weak_advice(diag: Diagnostics, target2cam: NDArray[np.float64], n_used: int) -> list[str]:
+    """Sentences for data that determine X, but poorly (small or one-sided rotations, few poses,
+    a far target)."""
     weak = []
     angles = diag.rotation_angles_deg
     if np.median(angles) < SMALL_ROTATION_DEG:
@@ -427,16 +347,13 @@ def diagnose(
         weak.append(
             f"little rotation about {_axis_name(diag.weakest_axis)} ({100 * diag.axis_shares[-1]:.1f}% of the "
             "rotation): add rotations of >= 30 deg about it")
-    if int(inliers.sum()) < FEW_POSES:
-        weak.append(f"only {int(inliers.sum())} usable poses: take 10-20 from varied viewpoints")
-    dist = np.median(np.linalg.norm(target2cam[inliers][:, :3, 3], axis=1))
+    if n_used < FEW_POSES:
+        weak.append(f"only {n_used} usable poses: take 10-20 from varied viewpoints")
+    dist = np.median(np.linalg.norm(target2cam[:, :3, 3], axis=1))
     if dist > FAR_TARGET_M:
         weak.append(f"the target is {dist:.2f} m from the camera (median): move closer, so that it fills the image "
                     "(camera rotation errors grow with the distance)")
-    if weak:
-        diag.verdict = "weak"
-        diag.advice.extend(weak)
-    return diag
+    return weak
 
 
 def _hint_advice(hint: str, given: float, fixed: float) -> str:
@@ -460,10 +377,6 @@ def _leave_one_out(flange2base, target2cam, setup, inliers) -> NDArray[np.float6
     out = np.full((len(flange2base), 2), np.nan)
     if len(idx) < 4:
         return out
-    from . import solvers
-    from .solvers._checks import observable_leave_one_out
-    from .solvers.daniilidis import motion_groups, solve_leave_one_out
-
     # as _solve on the inliers, then every pose left out in one batch: a run that check_observability
     # would refuse, or that Daniilidis cannot solve, moves X infinitely far
     motions = MotionSet.from_poses(flange2base[idx], target2cam[idx], setup, "all")
@@ -475,3 +388,45 @@ def _leave_one_out(flange2base, target2cam, setup, inliers) -> NDArray[np.float6
     moves = np.stack([np.degrees(rotation_error(Xk, X)), 1e3 * translation_error(Xk, X)], axis=1)
     out[idx] = np.where(ok[:, None], moves, np.inf)
     return out
+
+
+def closed_form(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str, method: str,
+                pairs: Pairs = "all") -> tuple[NDArray[np.float64], NDArray[np.float64], MotionSet]:
+    """``(X, Z, motions)`` of one solver on validated poses, without refinement or checks: an
+    AX = XB solver on the motions of ``pairs`` (Z the mean of the per-pose ``Z_i``), or a
+    robot-world one on the poses."""
+    motions = MotionSet.from_poses(flange2base, target2cam, setup, pairs)
+    if solvers.get(method).kind == "robot_world":
+        X, Z = solvers.solve_robot_world(*robot_world_inputs(flange2base, target2cam, setup), method=method)
+    else:
+        X = solvers.solve_motions(motions, method=method)
+        Z = mean_transform(constant_transforms(X, flange2base, target2cam, setup))
+    return X, Z, motions
+
+
+def compare_solvers(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str,
+                    X_ref: NDArray[np.float64], pairs: Pairs = "all") -> list[dict]:
+    """Every registered solver's closed form on the same poses (no refinement, no check).
+
+    Per solver: how far its X is from ``X_ref`` (deg, mm), the median per-pose consistency of Z
+    (deg, mm) and the time taken (ms); ``error`` instead when it cannot solve these data.
+    """
+    rows = []
+    for name in solvers.available():
+        start = time.perf_counter()
+        try:
+            X, Z, _ = closed_form(flange2base, target2cam, setup, name, pairs)
+        except HandEyeError as exc:
+            rows.append({"method": name, "error": str(exc)})
+            continue
+        Zi = constant_transforms(X, flange2base, target2cam, setup)
+        ms = 1e3 * (time.perf_counter() - start)
+        rows.append({
+            "method": name,
+            "dX_deg": float(np.degrees(rotation_error(X, X_ref))),
+            "dX_mm": float(1e3 * translation_error(X, X_ref)),
+            "median_pose_deg": float(np.median(np.degrees(rotation_error(Zi, Z)))),
+            "median_pose_mm": float(np.median(1e3 * translation_error(Zi, Z))),
+            "ms": ms,
+        })
+    return rows

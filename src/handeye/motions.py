@@ -24,19 +24,12 @@ from .errors import InputMismatchError
 from .geometry.dualquat import dq_conj, dq_from_matrix, dq_mul_pairs, dq_translation, quat_to_matrix
 from .geometry.se3 import invert, pairwise_matmul, screw_parameters
 from .poses import validate_transforms
+from .setups import check_setup, robot_world_A, robot_world_A_inv, robot_world_dq
 
-__all__ = ["relative_motions", "pair_indices", "screw_congruence", "MotionSet", "SETUPS"]
+__all__ = ["relative_motions", "pair_indices", "screw_congruence", "motion_matrices", "validate_poses", "MotionSet",
+           "Pairs"]
 
-SETUPS = ("eye_in_hand", "eye_to_hand")
 Pairs = Union[Literal["all", "consecutive"], ArrayLike]
-
-
-def check_setup(setup: str) -> str:
-    """Return ``setup`` if it is a known setup name, else raise a clear error."""
-    if setup not in SETUPS:
-        raise InputMismatchError(f"unknown setup {setup!r}; use 'eye_in_hand' (camera on the flange) "
-                                 f"or 'eye_to_hand' (camera fixed, target on the flange)")
-    return setup
 
 
 @lru_cache(maxsize=64)
@@ -117,22 +110,19 @@ def relative_motions(
     check_setup(setup)
     flange2base, target2cam = validate_poses(flange2base, target2cam)
     ij = pair_indices(len(flange2base), pairs)
-    return _motion_matrices(flange2base, target2cam, setup, ij)
+    return motion_matrices(flange2base, target2cam, setup, ij)
 
 
 def _pair_factors(
     flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str
 ) -> tuple[tuple[NDArray[np.float64], NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.float64]]]:
     """``((G_A, H_A), (G_B, H_B))`` with the motion of pair ``(i, j)`` ``A = G_A[j] @ H_A[i]``,
-    ``B = G_B[j] @ H_B[i]``: the one place the conventions of each setup live."""
-    if setup == "eye_in_hand":
-        robot = (invert(flange2base), flange2base)
-    else:
-        robot = (flange2base, invert(flange2base))
+    ``B = G_B[j] @ H_B[i]``; ``A_ij = inv(A_j) A_i`` with ``A_i`` of the robot-world form (setups)."""
+    robot = (robot_world_A_inv(flange2base, setup), robot_world_A(flange2base, setup))
     return robot, (target2cam, invert(target2cam))
 
 
-def _motion_matrices(
+def motion_matrices(
     flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str, ij: NDArray[np.intp]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Motions ``(A, B)`` of the pairs ``ij`` from poses ``(N, 4, 4)``, or from a batch of runs
@@ -257,7 +247,7 @@ class MotionSet:
     def _matrices(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         if self._AB is None:
             flange2base, target2cam, setup = self._poses
-            self._AB = _motion_matrices(flange2base, target2cam, setup, self.pairs)
+            self._AB = motion_matrices(flange2base, target2cam, setup, self.pairs)
         return self._AB
 
     @classmethod
@@ -281,10 +271,8 @@ class MotionSet:
         n = len(flange2base)
         dq_fc = dq_from_matrix(np.concatenate([flange2base, target2cam]))
         dq_f, dq_c = dq_fc[:n], dq_fc[n:]
-        if setup == "eye_in_hand":
-            dq_a = dq_mul_pairs(dq_conj(dq_f), dq_f, j, i)
-        else:
-            dq_a = dq_mul_pairs(dq_f, dq_conj(dq_f), j, i)
+        dq_robot = robot_world_dq(dq_f, setup)  # A_i; A_ij = inv(A_j) A_i
+        dq_a = dq_mul_pairs(dq_conj(dq_robot), dq_robot, j, i)
         dq_b = dq_mul_pairs(dq_c, dq_conj(dq_c), j, i)
         dq_a, dq_b = _align_signs(dq_a, dq_b)
         return cls(dq_a, dq_b, ij, _poses=(flange2base, target2cam, setup))

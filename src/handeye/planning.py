@@ -31,11 +31,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from .calibration import calibrate_poses
 from .errors import HandEyeError
 from .geometry.se3 import invert, make_transform, skew
-from .motions import check_setup
-from .simulate import flange_poses, look_at
-from .solvers.refine import predicted_target2cam
+from .metrics import rotation_error, translation_error
+from .session import write_pose_table
+from .setups import check_setup, flange_poses, predicted_target2cam, robot_world_A_inv
+from .simulate import look_at
+from .solvers.refine import refine_reprojection
+from .vision.pnp import project_points, solve_pnp
+from .vision.targets import Detection
 
 __all__ = ["Plan", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
            "visible_mask", "simulate_errors", "write_plan", "order_path"]
@@ -79,8 +84,6 @@ class Plan:
 def visible_mask(target2cam: NDArray[np.float64], object_points: NDArray[np.float64], K: NDArray[np.float64],
                  dist: NDArray[np.float64], image_size: tuple[int, int], margin_px: float = 0.0) -> NDArray[np.bool_]:
     """Per pose, whether every target point is in front of the camera and ``margin_px`` inside the image."""
-    from .vision.pnp import project_points
-
     w, h = image_size
     obj = np.ascontiguousarray(object_points, dtype=np.float64)
     out = np.zeros(len(target2cam), dtype=bool)
@@ -100,7 +103,7 @@ def reprojection_information(flange2base: NDArray[np.float64], X: NDArray[np.flo
     the 12 unknowns of :func:`handeye.solvers.refine.refine_reprojection` (left rotation-vector
     increments and translation increments of X, then of Z), for unit pixel noise (pinhole model:
     distortion changes the information little and is left out)."""
-    robot = invert(flange2base) if setup == "eye_in_hand" else flange2base  # W: base->flange or flange->base
+    robot = robot_world_A_inv(flange2base, setup)  # W: base->flange or flange->base
     R_X, t_X, R_Z, t_Z = X[:3, :3], X[:3, 3], Z[:3, :3], Z[:3, 3]
     p = np.asarray(object_points, dtype=float)  # (M, 3)
     Rp = p @ R_Z.T  # (M, 3)  R_Z p
@@ -351,12 +354,6 @@ def simulate_errors(
     detector would not find the target); PnP per image; ``method``; then the joint reprojection
     refinement, as ``handeye.calibrate`` runs it on a session with known intrinsics.
     """
-    from .calibration import calibrate_poses
-    from .metrics import rotation_error, translation_error
-    from .solvers.refine import refine_reprojection
-    from .vision.pnp import project_points, solve_pnp
-    from .vision.targets import Detection
-
     rng = np.random.default_rng(rng)
     obj = np.ascontiguousarray(object_points, dtype=np.float64)
     ids = np.arange(len(obj))
@@ -380,18 +377,5 @@ def write_plan(plan: Plan, path: str | Path, format: str = "quat_wxyz", length_u
                angle_unit: str = "rad", protect=()) -> Path:
     """Write the planned flange poses as a session ``poses.csv`` (``image`` column first: the names the
     images should get), in the robot's own pose format and units; atomically."""
-    import csv
-    import io
-
-    from ._io import atomic_write
-    from .poses import format_poses, pose_columns
-
-    rows = format_poses(plan.flange2base, format, length_unit, angle_unit)
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["image"] + pose_columns(format))
-    for k, row in enumerate(rows):
-        w.writerow([f"{k:03d}.png"] + [repr(float(v)) for v in row])
-    path = Path(path)
-    atomic_write(path, buf.getvalue(), protect)
-    return path
+    names = [f"{k:03d}.png" for k in range(len(plan.flange2base))]
+    return write_pose_table(path, names, plan.flange2base, format, length_unit, angle_unit, protect)

@@ -21,6 +21,7 @@ and euler only).
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -29,7 +30,7 @@ from scipy.spatial.transform import Rotation
 from .errors import InputMismatchError, PoseFormatError
 from .geometry.se3 import make_transform, orthonormality_error
 
-__all__ = ["parse_poses", "format_poses", "pose_columns", "validate_transforms", "FORMATS"]
+__all__ = ["parse_poses", "format_poses", "pose_columns", "validate_transforms", "RobotPoseInput", "FORMATS"]
 
 FORMATS = ("matrix", "quat_wxyz", "quat_xyzw", "rotvec", "euler:<SEQ>")
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}
@@ -42,6 +43,18 @@ ORTHONORMAL_TOL = 1e-4
 QUAT_NORM_TOL = 1e-3
 
 _EULER_RE = re.compile(r"^euler:([xyzXYZ]{3})$")
+
+
+@dataclass(frozen=True)
+class RobotPoseInput:
+    """The robot poses as written (values, declared format and units), so that other readings can
+    be tried (:func:`handeye.diagnose`) and results given in the same convention. ``values`` as
+    for :func:`parse_poses`."""
+
+    values: NDArray[np.float64]
+    format: str
+    length_unit: str = "m"
+    angle_unit: str = "rad"
 
 
 def _parse_format(fmt: str) -> tuple[str, str | None]:

@@ -1,4 +1,4 @@
-"""Reading captures from disk.
+"""Captures on disk, in both directions: reading and writing sessions and pose tables.
 
 *Capture sessions* (DESIGN §4): ``session.yaml``, ``poses.csv`` (an ``image`` column, then the
 pose columns of the declared format) and ``images/``. See :func:`load_session`.
@@ -26,20 +26,23 @@ otherwise by order.
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterable
 
 import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from ._shared.io import atomic_write
 from .errors import HandEyeError, InputMismatchError, PoseFormatError
-from .motions import check_setup
-from .diagnostics import RobotPoseInput
-from .poses import parse_poses, pose_columns
+from .poses import RobotPoseInput, format_poses, parse_poses, pose_columns
+from .setups import check_setup
+from .vision.targets import target_from_spec
 
-__all__ = ["PosePairs", "Session", "load_pose_pairs", "load_session", "read_pose_table", "SessionError"]
+__all__ = ["PosePairs", "Session", "load_pose_pairs", "load_session", "read_pose_table", "SessionError", "load_yaml",
+           "read_camera", "read_intrinsics", "write_pose_table", "write_session", "SESSION_FILE", "POSEPAIRS_FILE"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
 SESSION_FILE = "session.yaml"
@@ -85,7 +88,9 @@ class Session:
         return [self.folder / SESSION_FILE] + ([self.poses_path] if self.poses_path else []) + list(self.image_paths)
 
 
-def _camera(spec: Any, where: str) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
+def read_camera(spec: Any, where: str) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
+    """``K`` and ``dist`` from a ``camera:`` mapping (``(None, None)`` when absent), validated;
+    errors name ``where``."""
     if spec is None:
         return None, None
     if not isinstance(spec, dict):
@@ -113,18 +118,16 @@ def load_session(folder: str | Path) -> Session:
     PoseFormatError, InputMismatchError, TargetError
         Bad pose values, unknown setup, unusable target description.
     """
-    from .vision.targets import target_from_spec  # validates the target now, before any image work
-
     folder = Path(folder)
     if not folder.is_dir():
         raise SessionError(f"{folder}: no such session folder")
     yml = folder / SESSION_FILE
-    spec = _load_yaml(yml)
+    spec = load_yaml(yml)
     where = str(yml)
     setup = check_setup(str(_require(spec, "setup", where)))
     target_spec = _require(spec, "target", where)
-    target_from_spec(target_spec, where=f"{where}: target")
-    K, dist = _camera(spec.get("camera"), where)
+    target_from_spec(target_spec, where=f"{where}: target")  # a bad target fails now, before any image work
+    K, dist = read_camera(spec.get("camera"), where)
     poses = _require(spec, "poses", where)
     if not isinstance(poses, dict):
         raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit, angle_unit")
@@ -154,7 +157,8 @@ def load_session(folder: str | Path) -> Session:
                    RobotPoseInput(values, fmt, length_unit, angle_unit), csv_path)
 
 
-def _load_yaml(path: Path) -> dict[str, Any]:
+def load_yaml(path: Path) -> dict[str, Any]:
+    """A YAML mapping from ``path``; one-line errors that name the file and the position."""
     if not path.is_file():
         raise SessionError(f"{path}: file not found")
     try:
@@ -261,7 +265,7 @@ def load_pose_pairs(folder: str | Path) -> PosePairs:
     folder = Path(folder)
     if not folder.is_dir():
         raise SessionError(f"{folder}: no such folder")
-    spec = _load_yaml(folder / POSEPAIRS_FILE)
+    spec = load_yaml(folder / POSEPAIRS_FILE)
     where = str(folder / POSEPAIRS_FILE)
     setup = check_setup(str(_require(spec, "setup", where)))
     f2b, robot_ids, robot_path, robot_input = _read_poses(folder, _require(spec, "robot_poses", where), "robot_poses")
@@ -284,3 +288,65 @@ def load_pose_pairs(folder: str | Path) -> PosePairs:
             )
         ids = robot_ids or cam_ids or [str(k) for k in range(len(f2b))]
     return PosePairs(setup, f2b, t2c, ids, folder, robot_input)
+
+
+def read_intrinsics(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[int, int]]:
+    """K, dist and image size from a YAML file (top level, or under ``camera:`` as in session.yaml)."""
+    p = Path(path)
+    data = load_yaml(p)
+    cam = data["camera"] if isinstance(data.get("camera"), dict) else data
+    size = cam.get("image_size", data.get("image_size"))
+    if "K" not in cam or size is None:
+        raise SessionError(f"{p}: needs K: [[fx,0,cx],[0,fy,cy],[0,0,1]] and image_size: [width, height] "
+                           "(dist optional), at the top level or under camera:")
+    K, dist = read_camera({"K": cam["K"], "dist": cam.get("dist") or [0.0] * 5}, str(p))
+    try:
+        w, h = (int(v) for v in size)
+    except (TypeError, ValueError):
+        raise SessionError(f"{p}: image_size must be [width, height]") from None
+    if w <= 0 or h <= 0:
+        raise SessionError(f"{p}: image_size must be positive")
+    return K, dist, (w, h)
+
+
+def _number(v: float) -> str:
+    """The one number format of the files handeye writes: the shortest text that reads back exactly."""
+    return repr(float(v))
+
+
+def write_pose_table(path: str | Path, names: list[str], flange2base: NDArray[np.float64], format: str = "quat_wxyz",
+                     length_unit: str = "m", angle_unit: str = "rad", protect: Iterable[str | Path] = ()) -> Path:
+    """Write robot poses as a session ``poses.csv`` (``image`` column first) in the given format and
+    units, atomically and never over a ``protect`` path; returns the path."""
+    rows = format_poses(flange2base, format, length_unit, angle_unit)
+    if len(names) != len(rows):
+        raise InputMismatchError(f"{len(names)} image names for {len(rows)} poses")
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["image"] + pose_columns(format))
+    for name, row in zip(names, rows):
+        w.writerow([name] + [_number(v) for v in row])
+    path = Path(path)
+    atomic_write(path, buf.getvalue(), protect)
+    return path
+
+
+def write_session(folder: str | Path, setup: str, target_spec: dict[str, Any], names: list[str],
+                  flange2base: NDArray[np.float64], format: str = "quat_wxyz", length_unit: str = "mm",
+                  angle_unit: str = "deg", camera: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+                  comment: str | None = None) -> Path:
+    """Write ``session.yaml`` and ``poses.csv`` of a session (DESIGN §4) into ``folder``, atomically;
+    the images (``images/<name>``) are the caller's. ``camera``: ``(K, dist)`` to put in
+    session.yaml. Returns the session.yaml path."""
+    folder = Path(folder)
+    check_setup(setup)
+    target_from_spec(target_spec)
+    write_pose_table(folder / "poses.csv", names, flange2base, format, length_unit, angle_unit)
+    spec: dict[str, Any] = {"setup": setup, "target": dict(target_spec)}
+    if camera is not None:
+        spec["camera"] = {"K": np.asarray(camera[0], dtype=float).tolist(),
+                          "dist": np.asarray(camera[1], dtype=float).ravel().tolist()}
+    spec["poses"] = {"file": "poses.csv", "format": format, "length_unit": length_unit, "angle_unit": angle_unit}
+    text = (f"# {comment}\n" if comment else "") + yaml.safe_dump(spec, sort_keys=False)
+    atomic_write(folder / SESSION_FILE, text)
+    return folder / SESSION_FILE

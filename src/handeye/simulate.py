@@ -6,21 +6,33 @@ the ground-truth ``X`` and ``Z``:
 
 * eye-in-hand: ``X = cam2flange``, ``Z = target2base``; ``flange2base_i = Z @ cam2target_i @ inv(X)``.
 * eye-to-hand: ``X = cam2base``, ``Z = target2flange``; ``flange2base_i = X @ target2cam_i @ inv(Z)``.
+
+(:func:`handeye.setups.flange_poses`; sessions are written by :func:`handeye.session.write_session`.)
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from ._shared.io import atomic_write
+from ._shared.lazy import lazy_module
+from .errors import HandEyeError
 from .geometry.se3 import invert, make_transform, random_rotations
-from .motions import check_setup
+from .session import write_session
+from .setups import check_setup, flange_poses, setup_info
+from .vision.render import Renderer, target_texture
+from .vision.targets import target_from_spec
+
+cv2 = lazy_module("cv2")
 
 __all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look_at", "look_at_viewpoints", "perturb_poses", "seed_viewpoints",
-           "seed_scenes", "add_noise"]
+           "seed_scenes", "add_noise", "simulate_session"]
 
 
 @dataclass(frozen=True)
@@ -113,22 +125,13 @@ def scene_from_viewpoints(
     """A scene whose camera sees the target from ``cam2target``: random X and Z, robot poses from them."""
     target2cam = invert(cam2target)
     offset = make_transform(random_rotations(1, rng)[0], rng.uniform(-x_translation, x_translation, 3))
-    if setup == "eye_in_hand":
+    if setup_info(setup).camera_on_flange:
         X = offset
         Z = make_transform(random_rotations(1, rng)[0], rng.uniform(-0.5, 0.5, 3) + [0.6, 0.0, 0.0])
     else:
         Z = offset
         X = make_transform(random_rotations(1, rng)[0], rng.uniform(-0.5, 0.5, 3) + [1.0, 0.0, 0.5])
     return Scene(setup, X, Z, flange_poses(cam2target, X, Z, setup), target2cam)
-
-
-def flange_poses(cam2target: NDArray[np.float64], X: NDArray[np.float64], Z: NDArray[np.float64],
-                 setup: str) -> NDArray[np.float64]:
-    """The robot poses that show the target from ``cam2target`` (module docstring; batches broadcast):
-    eye-in-hand ``Z @ cam2target @ inv(X)``, eye-to-hand ``X @ inv(cam2target) @ inv(Z)``."""
-    if setup == "eye_in_hand":
-        return Z @ cam2target @ invert(X)
-    return X @ invert(cam2target) @ invert(Z)
 
 
 def perturb_poses(
@@ -224,9 +227,10 @@ def seed_scenes(
     target2cam = invert(cam2target)
     offset = make_transform(random_rotations(runs, rng), rng.uniform(-x_translation, x_translation, (runs, 3)))
     # the other unknown: the target ~0.6 m from the base (eye-in-hand) or the camera ~1 m (eye-to-hand)
-    centre = [0.6, 0.0, 0.0] if setup == "eye_in_hand" else [1.0, 0.0, 0.5]
+    on_flange = setup_info(setup).camera_on_flange
+    centre = [0.6, 0.0, 0.0] if on_flange else [1.0, 0.0, 0.5]
     cell = make_transform(random_rotations(runs, rng), rng.uniform(-0.5, 0.5, (runs, 3)) + centre)
-    X, Z = (offset, cell) if setup == "eye_in_hand" else (cell, offset)
+    X, Z = (offset, cell) if on_flange else (cell, offset)
     return SceneBatch(setup, X, Z, flange_poses(cam2target, X[:, None], Z[:, None], setup), target2cam)
 
 
@@ -359,17 +363,6 @@ def simulate_session(
     robot_noise : (deg, mm)
         Gaussian noise per axis on the written robot poses.
     """
-    import csv
-    from pathlib import Path
-
-    import cv2
-    import yaml
-
-    from .errors import HandEyeError
-    from .poses import format_poses, pose_columns
-    from .vision.render import Renderer, target_texture
-    from .vision.targets import target_from_spec
-
     out = Path(out_dir)
     if (out / "session.yaml").exists() or (out / "images").exists():
         raise HandEyeError(f"{out} already holds a session; choose an empty folder")
@@ -393,30 +386,20 @@ def simulate_session(
         if not cv2.imwrite(str(out / "images" / name), img, params):
             raise HandEyeError(f"cannot write {out / 'images' / name}")
         names.append(name)
-    rows = format_poses(flange2base, pose_format, length_unit, angle_unit)
-    with (out / "poses.csv").open("w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(["image"] + pose_columns(pose_format))
-        for name, row in zip(names, rows):
-            w.writerow([name] + [f"{v:.9g}" for v in row])
-    session = {"setup": setup, "target": spec}
-    if write_intrinsics:
-        session["camera"] = {"K": K.tolist(), "dist": dist.tolist()}
-    session["poses"] = {"file": "poses.csv", "format": pose_format, "length_unit": length_unit, "angle_unit": angle_unit}
-    (out / "session.yaml").write_text(
-        "# Rendered by handeye simulate; ground truth in ground_truth.yaml\n" + yaml.safe_dump(session, sort_keys=False),
-        encoding="utf-8",
-    )
-    x_name, z_name = ("cam2flange", "target2base") if setup == "eye_in_hand" else ("cam2base", "target2flange")
+    write_session(out, setup, spec, names, flange2base, pose_format, length_unit, angle_unit,
+                  camera=(K, dist) if write_intrinsics else None,
+                  comment="Rendered by handeye simulate; ground truth in ground_truth.yaml")
+    info = setup_info(setup)
     truth = {
         "setup": setup,
-        x_name: scene.X.tolist(),
-        z_name: scene.Z.tolist(),
+        info.x_name: scene.X.tolist(),
+        info.z_name: scene.Z.tolist(),
         "K": K.tolist(),
         "dist": dist.tolist(),
         "noise_px": float(noise_px),
         "robot_noise_deg_mm": list(robot_noise),
         "seed": seed,
     }
-    (out / "ground_truth.yaml").write_text(yaml.safe_dump(truth, sort_keys=False), encoding="utf-8")
+    atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return scene
+

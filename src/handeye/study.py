@@ -33,11 +33,13 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from ._io import atomic_write
-from ._progress import Progress
+from ._shared.io import atomic_write
+from ._shared.progress import Progress
+from .calibration import calibrate_poses
 from .errors import HandEyeError, InputMismatchError
 from .geometry.se3 import invert
-from .motions import _motion_matrices, check_setup, pair_indices
+from .motions import motion_matrices, pair_indices
+from .setups import check_setup, robot_world_A
 from .simulate import Noise, add_noise, seed_scenes
 from .solvers import available, solve_batch, solve_robot_world_batch
 
@@ -181,7 +183,7 @@ class SettingResult:
 
 def _motions(flange2base, target2cam, setup, pairs="consecutive"):
     """Motions ``(S, K, 4, 4)`` of every run of a batch of poses ``(S, N, 4, 4)``."""
-    return _motion_matrices(flange2base, target2cam, setup, pair_indices(flange2base.shape[1], pairs))
+    return motion_matrices(flange2base, target2cam, setup, pair_indices(flange2base.shape[1], pairs))
 
 
 def _one_by_one(fn, runs: int) -> NDArray[np.float64]:
@@ -199,14 +201,12 @@ def run_setting(setting: Setting, runs: int = 200, seed: int | Sequence[int] = 0
 
     ``seed`` seeds this setting's generator (the study passes ``(seed, index)``).
     """
-    from .calibration import calibrate_poses  # the study sits downstream of calibration
-
     rng = np.random.default_rng(seed)
     scenes = seed_scenes(runs, setting.n_motions + 1, setting.setup, rng)
     flange2base = add_noise(scenes.flange2base, setting.robot, rng)
     target2cam = add_noise(scenes.target2cam, setting.camera, rng)
     A, B = _motions(flange2base, target2cam, setting.setup)
-    robot_abs = flange2base if setting.setup == "eye_in_hand" else invert(flange2base)
+    robot_abs = robot_world_A(flange2base, setting.setup)
     cam_abs = invert(target2cam)
     errors: dict[str, NDArray[np.float64]] = {}
     for method in setting.methods:
@@ -423,10 +423,7 @@ def markdown_table(result: StudyResult, methods: Sequence[str] | None = None) ->
 
 
 def _plot(result: StudyResult, fig_id: str, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # off-screen, no pyplot: no backend chosen for the user
 
     spec = result.figures[fig_id]
     if spec.kind == "histogram":
@@ -435,7 +432,8 @@ def _plot(result: StudyResult, fig_id: str, path: Path) -> None:
         e = r.errors["daniilidis"][:, 0]
         e = e[np.isfinite(e)]
         thr = triangle_threshold(e)
-        fig, axes = plt.subplots(1, 3, figsize=(13, 3.6))
+        fig = Figure(figsize=(13, 3.6))
+        axes = fig.subplots(1, 3)
         cap = np.percentile(e, 97)
         bins = np.linspace(0, cap, 60)
         axes[0].hist(e[e <= cap], bins=bins, color="0.5")
@@ -457,7 +455,8 @@ def _plot(result: StudyResult, fig_id: str, path: Path) -> None:
     else:
         rs = [r for r in result.settings if r.setting.figure == fig_id]
         series = list(dict.fromkeys(r.setting.series for r in rs))
-        fig, axes = plt.subplots(2, 2, figsize=(12, 8))
+        fig = Figure(figsize=(12, 8))
+        axes = fig.subplots(2, 2)
         for c, (unit, label) in enumerate((("mm", "translation error (mm)"), ("deg", "rotation error (deg)"))):
             name = "trans" if c == 0 else "rot"
             ax = axes[0, c]
@@ -490,7 +489,6 @@ def _plot(result: StudyResult, fig_id: str, path: Path) -> None:
         fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90)
-    plt.close(fig)
     atomic_write(path, buf.getvalue())
 
 

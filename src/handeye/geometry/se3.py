@@ -253,3 +253,11 @@ def random_rotations(n: int, rng: np.random.Generator) -> NDArray[np.float64]:
     q = rng.normal(size=(n, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     return Rotation.from_quat(q).as_matrix()
+
+
+def mean_transform(T: ArrayLike) -> NDArray[np.float64]:
+    """Chordal mean of the rotations (scipy's ``Rotation.mean``) and arithmetic mean of the
+    translations of a stack ``(N, 4, 4)``."""
+    T = np.asarray(T, dtype=float)
+    R = Rotation.from_matrix(T[:, :3, :3]).mean().as_matrix()
+    return make_transform(R, T[:, :3, 3].mean(axis=0))

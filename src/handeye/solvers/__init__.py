@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import DegenerateMotionError, InputMismatchError, PoseFormatError
 from ..motions import MotionSet
 from ..poses import validate_transform_pair, validate_transforms
-from ._checks import check_observability, validate_motions
+from .observability import check_observability, validate_motions
 from ._registry import SolverInfo, available, get, register
 from . import andreff, daniilidis, horaud, park_martin, robot_world, tsai_lenz  # noqa: F401  (register themselves)
 

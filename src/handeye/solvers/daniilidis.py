@@ -173,7 +173,7 @@ def solve_leave_one_out(motions: MotionSet, groups: NDArray[np.intp]) -> NDArray
     moment sum that :func:`normal_matrix` contracts, so all runs are one batch of 8x8 problems
     instead of a new motion set each (O(K) instead of O(N K)). The motions keep the signs they
     were given with every pose present. No observability check: see
-    :func:`handeye.solvers._checks.observable_leave_one_out`.
+    :func:`handeye.solvers.observability.observable_leave_one_out`.
     """
     y = np.concatenate([motions.dq_a, motions.dq_b], axis=-1)
     Y = np.concatenate([y, np.zeros((1, 16))])[groups]  # (n_poses, most motions of a pose, 16)

@@ -26,13 +26,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
+from scipy.optimize import least_squares, minimize
 from scipy.spatial.transform import Rotation
 
 from ..geometry.se3 import invert, make_transform, skew, so3_left_jacobian
-from ..calibration import constant_transforms
-from ..motions import check_setup
-from ..vision.pnp import project_points
+from ..setups import check_setup, constant_transforms, predicted_target2cam, robot_world_A, setup_info
+from ..vision.pnp import project_points, solve_pnp
+from ..vision.targets import Detection
 
 __all__ = ["PoseRefinementResult", "ReprojectionResult", "pose_mahalanobis", "refine_pose", "refine_reprojection",
            "predicted_target2cam"]
@@ -55,12 +55,6 @@ class ReprojectionResult:
     n_rejected: int = 0  #: points dropped as outliers (robust=True)
     flange2base: NDArray[np.float64] | None = None  #: the robot poses, corrected when robot_noise was given
     n_evaluations: int = 0  #: residual evaluations the solver made
-
-
-def predicted_target2cam(X, Z, flange2base, setup: str) -> NDArray[np.float64]:
-    """Camera-to-target poses implied by X, Z and the robot poses (see the module docstring)."""
-    robot = invert(flange2base) if setup == "eye_in_hand" else flange2base
-    return invert(X) @ robot @ Z
 
 
 def refine_reprojection(
@@ -117,29 +111,10 @@ def refine_reprojection(
         benchmarks and checks.
     """
     if robust:
-        first = refine_reprojection(X0, Z0, flange2base, object_points, image_points, K, dist, setup,
-                                    loss="soft_l1", f_scale=f_scale, refine_intrinsics=refine_intrinsics,
-                                    robot_noise=robot_noise, sparse=sparse)
-        T = predicted_target2cam(first.X, first.Z, first.flange2base, setup)
-        norms = [np.linalg.norm(project_points(Ti, np.ascontiguousarray(o, dtype=np.float64), first.K, first.dist)
-                                - np.asarray(im, dtype=np.float64), axis=1)
-                 for Ti, o, im in zip(T, object_points, image_points)]
-        sigma = 1.4826 * float(np.median(np.concatenate(norms)))
-        keep = [nm <= 5.0 * sigma for nm in norms]
-        second = refine_reprojection(first.X, first.Z, flange2base,
-                                     [np.asarray(o)[k] for o, k in zip(object_points, keep)],
-                                     [np.asarray(im)[k] for im, k in zip(image_points, keep)],
-                                     first.K, first.dist, setup, refine_intrinsics=refine_intrinsics,
-                                     robot_noise=robot_noise, sparse=sparse)
-        rejected = int(sum(int((~k).sum()) for k in keep))
-        return ReprojectionResult(
-            second.X, second.Z, second.K, second.dist, second.rms_px, first.rms_px_before, second.per_image_rms_px,
-            second.n_points, second.success, second.message, second.cov_X, second.sigma_px, rejected,
-            second.flange2base, second.n_evaluations,
-        )
+        return _robust_reprojection(X0, Z0, flange2base, object_points, image_points, K, dist, setup, f_scale,
+                                    refine_intrinsics, robot_noise, sparse)
     obj = [np.ascontiguousarray(o, dtype=np.float64) for o in object_points]
     img = [np.asarray(i, dtype=np.float64) for i in image_points]
-    R_X0, R_Z0 = X0[:3, :3], Z0[:3, :3]
     K0 = np.asarray(K, dtype=float)
     d0 = np.zeros(5)
     dist = np.asarray(dist, dtype=float).ravel()
@@ -149,7 +124,6 @@ def refine_reprojection(
     n_img = len(obj)
     n_glob = 21 if refine_intrinsics else 12
     counts = np.cumsum([0] + [len(o) for o in obj])
-    m_px = 2 * int(counts[-1])
     if robot_noise is not None:
         sig_rot, sig_t = (float(v) for v in robot_noise)
         if not (sig_rot > 0 and sig_t > 0 and np.isfinite(sig_rot) and np.isfinite(sig_t)):
@@ -157,41 +131,16 @@ def refine_reprojection(
         # the pixel noise, from free per-image pose fits (they absorb any robot error)
         sigma_px = _pixel_noise(obj, img, K0, dist)
         prior_w = np.tile(np.r_[np.full(3, sigma_px / sig_rot), np.full(3, sigma_px / sig_t)], n_img)
-    R_F0, t_F0 = flange2base[:, :3, :3], flange2base[:, :3, 3]
-
-    def unpack(x):
-        X = make_transform(Rotation.from_rotvec(x[:3]).as_matrix() @ R_X0, X0[:3, 3] + x[3:6])
-        Z = make_transform(Rotation.from_rotvec(x[6:9]).as_matrix() @ R_Z0, Z0[:3, 3] + x[9:12])
-        Kx, dx = K0, np.concatenate([d0, extra_dist])
-        if refine_intrinsics:
-            Kx = K0.copy()
-            Kx[0, 0] += x[12]
-            Kx[1, 1] += x[13]
-            Kx[0, 2] += x[14]
-            Kx[1, 2] += x[15]
-            dx = np.concatenate([d0 + x[16:21], extra_dist])
-        F = flange2base
-        if robot_noise is not None:
-            d = x[n_glob:].reshape(n_img, 6)
-            F = make_transform(Rotation.from_rotvec(d[:, :3]).as_matrix() @ R_F0, t_F0 + d[:, 3:])
-        return X, Z, Kx, dx, F
+    unpack = _reprojection_unpacker(X0, Z0, K0, d0, extra_dist, flange2base, refine_intrinsics,
+                                    robot_noise is not None, n_glob)
 
     calls = [0]
-
-    def residuals(x):
-        calls[0] += 1
-        X, Z, Kx, dx, F = unpack(x)
-        T = predicted_target2cam(X, Z, F, setup)
-        px = [(project_points(Ti, o, Kx, dx) - im).ravel() for Ti, o, im in zip(T, obj, img)]
-        if robot_noise is not None:  # the prior on each robot pose correction, in pixel units
-            px.append(x[n_glob:] * prior_w)
-        return np.concatenate(px)
-
-    n = n_glob + (6 * n_img if robot_noise is not None else 0)
-    x0 = np.zeros(n)
     # least_squares evaluates at x0 again, and a Jacobian needs the value where it is taken, which
     # the solver has just computed: both come from the memo
-    residuals = _remember_last(residuals)
+    residuals = _remember_last(_reprojection_residuals(unpack, obj, img, setup, n_glob,
+                                                       prior_w if robot_noise is not None else None, calls))
+    n = n_glob + (6 * n_img if robot_noise is not None else 0)
+    x0 = np.zeros(n)
     r0 = residuals(x0)
     # increments of ~1 mrad and ~1 mm move the pixels about as much as ~1 px of focal length or
     # ~1e-3 of distortion
@@ -203,35 +152,120 @@ def refine_reprojection(
             kw["jac"] = _grouped_jacobian(residuals, _robot_groups(counts, n_glob))
     res = least_squares(residuals, x0, loss=loss, f_scale=f_scale, x_scale=scale, method="trf",
                         xtol=1e-12, ftol=1e-12, gtol=1e-12, **kw)
+    return _reprojection_result(res, unpack, r0, counts, n, loss, calls[0])
+
+
+def _xz_increment(x: NDArray[np.float64], X0: NDArray[np.float64], Z0: NDArray[np.float64]):
+    """X and Z moved by the first 12 unknowns: left rotation-vector increments and translation
+    increments of X, then of Z."""
+    X = make_transform(Rotation.from_rotvec(x[:3]).as_matrix() @ X0[:3, :3], X0[:3, 3] + x[3:6])
+    Z = make_transform(Rotation.from_rotvec(x[6:9]).as_matrix() @ Z0[:3, :3], Z0[:3, 3] + x[9:12])
+    return X, Z
+
+
+def _reprojection_unpacker(X0, Z0, K0, d0, extra_dist, flange2base, refine_intrinsics: bool, robot_corrections: bool,
+                           n_glob: int):
+    """``unpack(x) -> (X, Z, K, dist, flange2base)`` for the unknowns of :func:`refine_reprojection`:
+    rotation-vector (left) and translation increments of X and Z, then the intrinsics (fx, fy, cx,
+    cy, k1 k2 p1 p2 k3) when refined, then a 6-vector correction per robot pose when allowed."""
+    R_F0, t_F0 = flange2base[:, :3, :3], flange2base[:, :3, 3]
+    n_img = len(flange2base)
+
+    def unpack(x):
+        X, Z = _xz_increment(x, X0, Z0)
+        Kx, dx = K0, np.concatenate([d0, extra_dist])
+        if refine_intrinsics:
+            Kx = K0.copy()
+            Kx[0, 0] += x[12]
+            Kx[1, 1] += x[13]
+            Kx[0, 2] += x[14]
+            Kx[1, 2] += x[15]
+            dx = np.concatenate([d0 + x[16:21], extra_dist])
+        F = flange2base
+        if robot_corrections:
+            d = x[n_glob:].reshape(n_img, 6)
+            F = make_transform(Rotation.from_rotvec(d[:, :3]).as_matrix() @ R_F0, t_F0 + d[:, 3:])
+        return X, Z, Kx, dx, F
+
+    return unpack
+
+
+def _reprojection_residuals(unpack, obj, img, setup: str, n_glob: int, prior_w, calls: list[int]):
+    """The residual function of :func:`refine_reprojection`: pixel errors of every point of every
+    image, then (``prior_w`` given) the prior on each robot pose correction in pixel units.
+    ``calls[0]`` counts the evaluations."""
+
+    def residuals(x):
+        calls[0] += 1
+        X, Z, Kx, dx, F = unpack(x)
+        T = predicted_target2cam(X, Z, F, setup)
+        px = [(project_points(Ti, o, Kx, dx) - im).ravel() for Ti, o, im in zip(T, obj, img)]
+        if prior_w is not None:
+            px.append(x[n_glob:] * prior_w)
+        return np.concatenate(px)
+
+    return residuals
+
+
+def _reprojection_result(res, unpack, r0, counts, n: int, loss: str, n_calls: int) -> ReprojectionResult:
+    """The :class:`ReprojectionResult` of a finished ``least_squares`` run (``r0``: residuals at the start)."""
+    m_px = 2 * int(counts[-1])
     X, Z, K_out, d_out, F_out = unpack(res.x)
-    # Covariance of the unknowns from the Jacobian at the optimum, scaled by the residual variance
-    # (Gauss-Newton): sigma^2 (J^T J)^-1. The rotation increments are global (left) perturbations,
-    # so the first block is the covariance of X's rotation vector error in the flange/base frame.
-    m = res.fun.size
-    sigma2 = float(res.fun @ res.fun) / max(m - n, 1)
-    cov_X = None
-    if loss == "linear":
-        J = res.jac.toarray() if hasattr(res.jac, "toarray") else res.jac
-        try:
-            cov_all = sigma2 * np.linalg.inv(J.T @ J)
-            cov_X = cov_all[:6, :6]
-        except np.linalg.LinAlgError:
-            cov_X = None
+    cov_X, sigma2 = _gauss_newton_cov_X(res, n, loss)
     r = res.fun[:m_px].reshape(-1, 2)
-    r0 = r0[:m_px]
     per_image = np.array([np.sqrt(np.mean(np.sum(r[a:b] ** 2, axis=1))) for a, b in zip(counts[:-1], counts[1:])])
     return ReprojectionResult(
-        X, Z, K_out, d_out, float(np.sqrt(np.mean(np.sum(r**2, axis=1)))), float(np.sqrt(np.mean(r0.reshape(-1, 2) ** 2) * 2)),
+        X, Z, K_out, d_out, float(np.sqrt(np.mean(np.sum(r**2, axis=1)))),
+        float(np.sqrt(np.mean(r0[:m_px].reshape(-1, 2) ** 2) * 2)),
         per_image, int(counts[-1]), bool(res.success), str(res.message), cov_X, float(np.sqrt(sigma2)), 0,
-        F_out, calls[0],
+        F_out, n_calls,
+    )
+
+
+def _gauss_newton_cov_X(res, n: int, loss: str):
+    """Covariance of X's six parameters from the Jacobian at the optimum, scaled by the residual
+    variance (Gauss-Newton: sigma^2 (J^T J)^-1), and that variance. The rotation increments are
+    global (left) perturbations, so the first block is the covariance of X's rotation vector error
+    in the flange/base frame. None for a robust loss (no least-squares covariance)."""
+    m = res.fun.size
+    sigma2 = float(res.fun @ res.fun) / max(m - n, 1)
+    if loss != "linear":
+        return None, sigma2
+    J = res.jac.toarray() if hasattr(res.jac, "toarray") else res.jac
+    try:
+        return (sigma2 * np.linalg.inv(J.T @ J))[:6, :6], sigma2
+    except np.linalg.LinAlgError:
+        return None, sigma2
+
+
+def _robust_reprojection(X0, Z0, flange2base, object_points, image_points, K, dist, setup, f_scale,
+                         refine_intrinsics, robot_noise, sparse) -> ReprojectionResult:
+    """``refine_reprojection(robust=True)``: a ``soft_l1`` pass, every point beyond 5 sigma dropped,
+    then a least-squares refit of the inliers (so the covariance is that of a least-squares fit)."""
+    first = refine_reprojection(X0, Z0, flange2base, object_points, image_points, K, dist, setup,
+                                loss="soft_l1", f_scale=f_scale, refine_intrinsics=refine_intrinsics,
+                                robot_noise=robot_noise, sparse=sparse)
+    T = predicted_target2cam(first.X, first.Z, first.flange2base, setup)
+    norms = [np.linalg.norm(project_points(Ti, np.ascontiguousarray(o, dtype=np.float64), first.K, first.dist)
+                            - np.asarray(im, dtype=np.float64), axis=1)
+             for Ti, o, im in zip(T, object_points, image_points)]
+    sigma = 1.4826 * float(np.median(np.concatenate(norms)))
+    keep = [nm <= 5.0 * sigma for nm in norms]
+    second = refine_reprojection(first.X, first.Z, flange2base,
+                                 [np.asarray(o)[k] for o, k in zip(object_points, keep)],
+                                 [np.asarray(im)[k] for im, k in zip(image_points, keep)],
+                                 first.K, first.dist, setup, refine_intrinsics=refine_intrinsics,
+                                 robot_noise=robot_noise, sparse=sparse)
+    rejected = int(sum(int((~k).sum()) for k in keep))
+    return ReprojectionResult(
+        second.X, second.Z, second.K, second.dist, second.rms_px, first.rms_px_before, second.per_image_rms_px,
+        second.n_points, second.success, second.message, second.cov_X, second.sigma_px, rejected,
+        second.flange2base, second.n_evaluations,
     )
 
 
 def _pixel_noise(obj, img, K, dist) -> float:
     """Per-axis pixel noise from free PnP fits of every image (6 unknowns each)."""
-    from ..vision.pnp import solve_pnp
-    from ..vision.targets import Detection
-
     ss, dof = 0.0, 0
     for o, im in zip(obj, img):
         fit = solve_pnp(Detection(np.arange(len(o)), im, o), K, dist)
@@ -320,10 +354,10 @@ class PoseRefinementResult:
 def _pose_residuals(X, Z, flange2base, target2cam, setup):
     """Per pose ``Z^-1 Z_i`` as [rotation vector, translation] in the target frame, and ``target2flange_i``."""
     Zi = constant_transforms(X, flange2base, target2cam, setup)
-    target2flange = X @ target2cam if setup == "eye_in_hand" else Zi  # eye-to-hand: Z_i is target2flange
+    t2f = X @ target2cam if setup_info(setup).camera_on_flange else Zi  # eye-to-hand: Z_i is target2flange
     D = invert(Z) @ Zi
     r = np.concatenate([Rotation.from_matrix(D[:, :3, :3]).as_rotvec(), D[:, :3, 3]], axis=1)
-    return r, target2flange, Zi
+    return r, t2f, Zi
 
 
 def _right_jacobian_inv(phi):
@@ -339,7 +373,7 @@ def _right_jacobian_inv(phi):
 def _pose_jacobian(X, Z, flange2base, target2cam, setup, r):
     """Jacobian (N, 6, 12) of the pose residuals over [dX rotation, dX translation, dZ rotation, dZ
     translation], left rotation increments as in ``refine_pose``'s parameterisation."""
-    robot = flange2base if setup == "eye_in_hand" else invert(flange2base)
+    robot = robot_world_A(flange2base, setup)
     n = len(robot)
     R_A, R_B, t_B = robot[:, :3, :3], target2cam[:, :3, :3], target2cam[:, :3, 3]
     R_X, R_Z = X[:3, :3], Z[:3, :3]
@@ -380,8 +414,6 @@ def _noise_shapes(target2flange):
 
 def _fit_variances(r, shapes, theta0):
     """Maximum-likelihood variances ``theta`` of ``r_i ~ N(0, sum_k theta_k shapes_k[i])``."""
-    from scipy.optimize import minimize
-
     shapes = np.stack(shapes)  # (3, N, 6, 6)
 
     def nll(log_t):
@@ -404,6 +436,61 @@ def _fit_variances(r, shapes, theta0):
     lo, hi = np.log(VARIANCE_FLOOR), 0.0
     res = minimize(nll, np.clip(np.log(theta0), lo, hi), jac=True, method="L-BFGS-B", bounds=[(lo, hi)] * len(theta0))
     return np.exp(res.x)
+
+
+def _raw_pose_residuals(X, Z, flange2base, target2cam, setup: str, weighting: str) -> NDArray[np.float64]:
+    """Per pose the unweighted residual of :func:`refine_pose`: ``Z^-1 Z_i`` (6), and for 'strobl'
+    also the translation error in the base (flange) frame, ``Z_i Z^-1`` (3 more)."""
+    r, _, Zi = _pose_residuals(X, Z, flange2base, target2cam, setup)
+    if weighting == "strobl":
+        t_outer = (Zi @ invert(Z))[:, :3, 3]
+        return np.concatenate([r, t_outer], axis=1)
+    return r
+
+
+def _initial_variances(r: NDArray[np.float64], weighting: str) -> NDArray[np.float64]:
+    """Start of the variance estimates from the closed form's residuals: robot and camera rotation
+    (half of the rotation residual each) and translation; or rotation and translation ('strobl')."""
+    s_rot, s_tra = float(np.mean(r[:, :3] ** 2)), float(np.mean(r[:, 3:] ** 2))
+    if weighting == "noise_model":
+        return np.maximum([0.5 * s_rot, 0.5 * s_rot, s_tra], VARIANCE_FLOOR)
+    return np.maximum([s_rot, s_tra], VARIANCE_FLOOR)
+
+
+def _pose_weights(theta, shapes, weighting: str, n: int) -> NDArray[np.float64]:
+    """Per pose, the matrix that whitens its residual under the variances ``theta``."""
+    if weighting == "strobl":
+        w = np.r_[np.full(3, 1 / np.sqrt(theta[0])), np.full(6, 1 / np.sqrt(2 * theta[1]))]
+        return np.broadcast_to(np.diag(w), (n, 9, 9))
+    C = np.einsum("k,knij->nij", theta, np.stack(shapes))
+    return np.linalg.inv(np.linalg.cholesky(C))  # whitening: L^-1 r has unit covariance
+
+
+def _whitened_pose_jacobian(x, W, unpack, flange2base, target2cam, setup: str) -> NDArray[np.float64]:
+    """The analytic Jacobian of the whitened pose residuals over the 12 rotation-vector and
+    translation increments ``x``."""
+    X, Z = unpack(x)
+    r, _, _ = _pose_residuals(X, Z, flange2base, target2cam, setup)
+    J = _pose_jacobian(X, Z, flange2base, target2cam, setup, r)
+    J[..., 0:3] = J[..., 0:3] @ so3_left_jacobian(x[0:3])  # the parameters are rotation vectors
+    J[..., 6:9] = J[..., 6:9] @ so3_left_jacobian(x[6:9])
+    return (W @ J).reshape(-1, 12)
+
+
+def _pose_covariance(J, f, theta, weighting: str, n: int, dof: int) -> tuple[NDArray[np.float64], dict[str, float]]:
+    """Covariance of the 12 unknowns and the noise variances, from the whitened Jacobian ``J`` and
+    residuals ``f`` at the optimum."""
+    JtJ_inv = np.linalg.inv(J.T @ J)
+    if weighting == "noise_model":
+        # the variances are maximum-likelihood (low by the 12 fitted unknowns): chi-square over the
+        # degrees of freedom restores the scale of both the covariance and the reported noise
+        factor = float(np.sum(f**2)) / max(dof, 1)
+        theta = theta * factor
+        return factor * JtJ_inv, {"robot_rotation": theta[0], "camera_rotation": theta[1], "translation": theta[2]}
+    # sandwich: per-pose blocks of the (correlated) residuals, small-sample corrected
+    g = np.einsum("nki,nk->ni", J.reshape(n, -1, 12), f.reshape(n, -1))
+    cov = JtJ_inv @ (g.T @ g) @ JtJ_inv * (6 * n / max(dof, 1))
+    return cov, {"rotation": theta[0], "translation": theta[1]}
 
 
 #: Smallest noise variance the pose refinement estimates (rad^2 or m^2): noise-free data stay exact.
@@ -461,54 +548,29 @@ def refine_pose(
     n = len(flange2base)
     if n < 3:
         raise ValueError(f"pose refinement needs at least 3 poses, got {n}")
-    R_X0, R_Z0 = X0[:3, :3], Z0[:3, :3]
 
     def unpack(x):
-        X = make_transform(Rotation.from_rotvec(x[:3]).as_matrix() @ R_X0, X0[:3, 3] + x[3:6])
-        Z = make_transform(Rotation.from_rotvec(x[6:9]).as_matrix() @ R_Z0, Z0[:3, 3] + x[9:12])
-        return X, Z
+        return _xz_increment(x, X0, Z0)
 
     def raw(x):
-        X, Z = unpack(x)
-        r, _, Zi = _pose_residuals(X, Z, flange2base, target2cam, setup)
-        if weighting == "strobl":
-            # translation error also in the base (flange) frame: Z_i Z^-1
-            t_outer = (Zi @ invert(Z))[:, :3, 3]
-            return np.concatenate([r, t_outer], axis=1)
-        return r
+        return _raw_pose_residuals(*unpack(x), flange2base, target2cam, setup, weighting)
 
     x = np.zeros(12)
     r, target2flange, _ = _pose_residuals(X0, Z0, flange2base, target2cam, setup)
     dof = 6 * n - 12
-    if weighting == "noise_model":
-        shapes = _noise_shapes(target2flange)
-        s_rot, s_tra = float(np.mean(r[:, :3] ** 2)), float(np.mean(r[:, 3:] ** 2))
-        theta = np.maximum([0.5 * s_rot, 0.5 * s_rot, s_tra], VARIANCE_FLOOR)
-    else:
-        theta = np.maximum([np.mean(r[:, :3] ** 2), np.mean(r[:, 3:] ** 2)], VARIANCE_FLOOR)
-
-    def weights(theta, shapes=None):
-        if weighting == "strobl":
-            w = np.r_[np.full(3, 1 / np.sqrt(theta[0])), np.full(6, 1 / np.sqrt(2 * theta[1]))]
-            return np.broadcast_to(np.diag(w), (n, 9, 9))
-        C = np.einsum("k,knij->nij", theta, np.stack(shapes))
-        return np.linalg.inv(np.linalg.cholesky(C))  # whitening: L^-1 r has unit covariance
+    shapes = _noise_shapes(target2flange) if weighting == "noise_model" else None
+    theta = _initial_variances(r, weighting)
 
     def weighted_jac(x, W):
         if weighting == "strobl":  # central differences, 12 columns
             h = 1e-6
             cols = [np.einsum("nij,nj->ni", W, raw(x + h * e) - raw(x - h * e)).ravel() / (2 * h) for e in np.eye(12)]
             return np.stack(cols, axis=1)
-        X, Z = unpack(x)
-        r, _, _ = _pose_residuals(X, Z, flange2base, target2cam, setup)
-        J = _pose_jacobian(X, Z, flange2base, target2cam, setup, r)
-        J[..., 0:3] = J[..., 0:3] @ so3_left_jacobian(x[0:3])  # the parameters are rotation vectors
-        J[..., 6:9] = J[..., 6:9] @ so3_left_jacobian(x[6:9])
-        return (W @ J).reshape(-1, 12)
+        return _whitened_pose_jacobian(x, W, unpack, flange2base, target2cam, setup)
 
     converged, res = False, None
     for rounds in range(1, max_rounds + 1):
-        W = weights(theta, shapes if weighting == "noise_model" else None)
+        W = _pose_weights(theta, shapes, weighting, n)
         res = least_squares(lambda x, W=W: np.einsum("nij,nj->ni", W, raw(x)).ravel(), x,
                             jac=lambda x, W=W: weighted_jac(x, W), method="trf",
                             x_scale=np.full(12, 1e-3), xtol=1e-10, ftol=1e-10, gtol=1e-10)
@@ -525,22 +587,8 @@ def refine_pose(
         theta = new
         if converged:
             break
-    W = weights(theta, shapes if weighting == "noise_model" else None)
-    f = np.einsum("nij,nj->ni", W, raw(x))
-    J = weighted_jac(x, W)
-    JtJ_inv = np.linalg.inv(J.T @ J)
-    if weighting == "noise_model":
-        # the variances are maximum-likelihood (low by the 12 fitted unknowns): chi-square over the
-        # degrees of freedom restores the scale of both the covariance and the reported noise
-        factor = float(np.sum(f**2)) / max(dof, 1)
-        cov = factor * JtJ_inv
-        theta = theta * factor
-        noise = {"robot_rotation": theta[0], "camera_rotation": theta[1], "translation": theta[2]}
-    else:
-        # sandwich: per-pose blocks of the (correlated) residuals, small-sample corrected
-        g = np.einsum("nki,nk->ni", J.reshape(n, -1, 12), f.reshape(n, -1))
-        cov = JtJ_inv @ (g.T @ g) @ JtJ_inv * (6 * n / max(dof, 1))
-        noise = {"rotation": theta[0], "translation": theta[1]}
+    W = _pose_weights(theta, shapes, weighting, n)
+    cov, noise = _pose_covariance(weighted_jac(x, W), np.einsum("nij,nj->ni", W, raw(x)), theta, weighting, n, dof)
     X, Z = unpack(x)
     return PoseRefinementResult(
         X=X, Z=Z, cov_X=cov[:6, :6], cov_Z=cov[6:, 6:], cov=cov, noise={k: float(np.sqrt(v)) for k, v in noise.items()},

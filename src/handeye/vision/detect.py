@@ -16,10 +16,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Sequence
 
-import cv2
-
-from .._progress import Progress
+from .._shared.lazy import lazy_module
+from .._shared.progress import Progress
 from .targets import Detection, Target
+
+cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
 __all__ = ["ImageResult", "detect_images", "default_jobs"]
 

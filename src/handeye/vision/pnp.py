@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from .._shared.lazy import lazy_module
 from ..geometry.se3 import from_rotvec_translation, invert, screw_parameters
+from ..setups import robot_world_A, robot_world_A_inv
 from .targets import Detection
+
+cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
 __all__ = ["solve_pnp", "calibrate_intrinsics", "resolve_symmetries", "reprojection_rms", "project_points"]
 
@@ -78,8 +81,8 @@ def resolve_symmetries(
     choice = np.zeros(n, dtype=np.intp)
     if len(symmetries) == 1 or n < 2:
         return target2cam, choice
-    base2flange = invert(flange2base)
-    A = (base2flange[1:] @ flange2base[0]) if setup == "eye_in_hand" else (flange2base[1:] @ base2flange[0])
+    robot, robot_inv = robot_world_A(flange2base, setup), robot_world_A_inv(flange2base, setup)
+    A = robot_inv[1:] @ robot[0]  # the robot motion from the first pose, A_i0 = inv(A_i) A_0
     _, _, th_a, d_a = screw_parameters(A)
     inv0 = invert(target2cam[0])
     costs = []

@@ -11,13 +11,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from .._shared.lazy import lazy_module
 from ..geometry.se3 import invert
 from .pnp import project_points
-from .targets import AprilTag, Charuco, Chessboard, CircleGrid, Target, _dictionary
+from .targets import AprilTag, Charuco, Chessboard, CircleGrid, Target, aruco_dictionary
+
+cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
 __all__ = ["Texture", "target_texture", "Renderer"]
 
@@ -81,7 +83,7 @@ def target_texture(target: Target, texels_per_m: float = 4000.0) -> Texture:
         return Texture(img, -lo[0] * s, -lo[1] * s, s)
     if isinstance(target, AprilTag):
         side = int(round(target.square * s))
-        tag = cv2.aruco.generateImageMarker(_dictionary(target.dictionary), target.tag_id or 0, side, borderBits=1)
+        tag = cv2.aruco.generateImageMarker(aruco_dictionary(target.dictionary), target.tag_id or 0, side, borderBits=1)
         m = side // 3
         img = np.full((side + 2 * m, side + 2 * m), LIGHT, np.uint8)
         img[m : m + side, m : m + side] = np.where(tag > 127, LIGHT, DARK)

@@ -26,16 +26,18 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from .._shared.lazy import lazy_module
 from ..errors import HandEyeError
+
+cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
 __all__ = ["Detection", "Target", "Chessboard", "Charuco", "CircleGrid", "AprilTag", "target_from_spec", "TARGET_TYPES"]
 
 TARGET_TYPES = ("chessboard", "charuco", "circles", "asymmetric_circles", "apriltag")
-_SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)
+_SUBPIX_CRITERIA = (3, 50, 1e-4)  # cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER (2 + 1), 50 rounds, 1e-4 px
 
 
 class TargetError(HandEyeError):
@@ -175,7 +177,7 @@ def _chessboard_in_region(gray: NDArray[np.uint8], size: tuple[int, int]) -> NDA
     return corners + np.array([x0, y0], dtype=np.float32)
 
 
-def _dictionary(name: str) -> Any:
+def aruco_dictionary(name: str) -> Any:
     if not isinstance(name, str) or not name.startswith("DICT_") or not hasattr(cv2.aruco, name):
         raise TargetError(f"unknown aruco dictionary {name!r}; use an OpenCV name such as DICT_6X6_250 or DICT_APRILTAG_36h11")
     return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name))
@@ -194,7 +196,7 @@ class Charuco(Target):
         self._check_size(3, 3)
         if not (0 < self.marker < self.square):
             raise TargetError(f"charuco: marker side must be between 0 and the square side {self.square}, got {self.marker!r}")
-        board = cv2.aruco.CharucoBoard((int(self.cols), int(self.rows)), float(self.square), float(self.marker), _dictionary(self.dictionary))
+        board = cv2.aruco.CharucoBoard((int(self.cols), int(self.rows)), float(self.square), float(self.marker), aruco_dictionary(self.dictionary))
         object.__setattr__(self, "_board", board)
 
     def __reduce__(self):  # the cv2 board does not pickle: rebuild it (worker processes)
@@ -259,7 +261,7 @@ class AprilTag(Target):
     def __post_init__(self) -> None:
         if not (np.isfinite(self.square) and 0 < self.square < 1.0):
             raise TargetError(f"apriltag: square (the tag side) must be in metres between 0 and 1, got {self.square!r}")
-        _dictionary(self.dictionary)
+        aruco_dictionary(self.dictionary)
 
     def object_points(self) -> NDArray[np.float64]:
         s = self.square
@@ -269,7 +271,7 @@ class AprilTag(Target):
     def detect(self, gray: NDArray[np.uint8]) -> Detection | None:
         params = cv2.aruco.DetectorParameters()
         params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
-        detector = cv2.aruco.ArucoDetector(_dictionary(self.dictionary), params)
+        detector = cv2.aruco.ArucoDetector(aruco_dictionary(self.dictionary), params)
         corners, ids, _ = detector.detectMarkers(gray)
         if ids is None:
             return None

@@ -1,13 +1,17 @@
-"""Writing output files: atomically (no half-written files), never over the user's inputs."""
+"""Writing output files atomically (no half-written files, never over the user's inputs), and
+digests of inputs for the result files."""
 
 from __future__ import annotations
 
+import hashlib
 import os
 import tempfile
 from pathlib import Path
 from typing import Iterable
 
-from .errors import HandEyeError
+import numpy as np
+
+from ..errors import HandEyeError
 
 
 def atomic_write(path: str | Path, data: str | bytes, protect: Iterable[str | Path] = ()) -> None:
@@ -33,3 +37,22 @@ def atomic_write(path: str | Path, data: str | bytes, protect: Iterable[str | Pa
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def array_digest(*arrays: np.ndarray) -> str:
+    """SHA-256 over the little-endian float64 bytes of ``arrays``, in order."""
+    h = hashlib.sha256()
+    for a in arrays:
+        h.update(np.ascontiguousarray(a, dtype="<f8").tobytes())
+    return h.hexdigest()
+
+
+def files_digest(paths: list[Path], root: Path) -> str:
+    """SHA-256 over the names (relative to ``root``) and bytes of ``paths``, in the order given."""
+    h = hashlib.sha256()
+    for p in paths:
+        h.update(str(Path(p).relative_to(root)).encode("utf-8") + b"\0")
+        with open(p, "rb") as fh:
+            for chunk in iter(lambda: fh.read(1 << 20), b""):
+                h.update(chunk)
+    return h.hexdigest()

@@ -1,4 +1,5 @@
-"""Checks every solver runs before solving: input shapes, and whether the motions determine X."""
+"""Checks every solver runs before solving: input shapes, and whether the motions determine X
+(rotation spread of the motions, observability of X and of leave-one-out runs)."""
 
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ def validate_motions(A: ArrayLike, B: ArrayLike) -> MotionSet:
     return MotionSet.from_matrices(A, B)
 
 
-def _rotation_spread(dq: NDArray[np.float64]) -> tuple[float, float, NDArray[np.float64]]:
+def rotation_spread(dq: NDArray[np.float64]) -> tuple[float, float, NDArray[np.float64]]:
     """Largest rotation, largest off-dominant-axis rotation (both as ``sin(theta/2)``) and the
     dominant axis of motions given as dual quaternions ``(K, 8)``. The dominant axis is the
     principal direction of the axis vectors ``v = sin(theta/2) n`` (sign-free)."""
@@ -34,10 +35,10 @@ def _rotation_spread(dq: NDArray[np.float64]) -> tuple[float, float, NDArray[np.
     return float(np.sqrt(sq.max())), float(np.sqrt(off_sq.max())), e1
 
 
-def _rotation_spread_absolute(T: NDArray[np.float64]) -> tuple:
+def rotation_spread_absolute(T: NDArray[np.float64]) -> tuple:
     """``(largest, spread), axis``: the largest rotation, the largest rotation off the dominant
     axis (both as ``sin(theta/2)``) and that axis, of the motions ``R_0^T R_i`` of absolute
-    poses ``(..., N, 4, 4)``: what :func:`_rotation_spread` computes from quaternions, without
+    poses ``(..., N, 4, 4)``: what :func:`rotation_spread` computes from quaternions, without
     forming the motions.
 
     With ``v = sin(theta/2) n``: ``|v|^2 = (3 - tr R) / 4`` and ``v v^T = (R + R^T) / 4 -
@@ -86,10 +87,10 @@ def check_observability(motions: MotionSet | None = None, absolute: NDArray[np.f
             f"non-parallel rotation axes"
         )
     if absolute is not None:
-        (largest, spread), axis = _rotation_spread_absolute(absolute)
+        (largest, spread), axis = rotation_spread_absolute(absolute)
         sides = zip(("robot", "camera"), largest.tolist(), spread.tolist(), axis)
     else:
-        sides = ((name, *_rotation_spread(dq)) for name, dq in (("robot", motions.dq_a), ("camera", motions.dq_b)))
+        sides = ((name, *rotation_spread(dq)) for name, dq in (("robot", motions.dq_a), ("camera", motions.dq_b)))
     for name, largest, spread, axis in sides:
         if largest < MIN_ROTATION:
             raise DegenerateMotionError(
@@ -111,7 +112,7 @@ def observable_leave_one_out(motions: MotionSet, groups: NDArray[np.intp], block
     """Per pose ``p``: would :func:`check_observability` pass on the motions without those of
     ``groups[p]`` (see :func:`handeye.solvers.daniilidis.motion_groups`)? All poses at once.
 
-    The same quantities as :func:`_rotation_spread`, each run's dominant axis from the moment
+    The same quantities as :func:`rotation_spread`, each run's dominant axis from the moment
     sum minus the left-out motions' moments; the largest rotations over the kept motions are
     taken from (motions x runs) blocks of at most about ``block`` entries.
     """

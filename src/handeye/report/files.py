@@ -20,20 +20,25 @@ import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from ._io import atomic_write
-from .calibration import Calibration
-from .geometry.se3 import invert
+from .._shared.io import atomic_write
+from .._version import __version__
+from ..geometry.se3 import invert
+from ..result import Calibration
+from ..setups import setup_info
 
-__all__ = ["result_dict", "write_results", "ros2_static_transform_command", "urdf_joint", "default_frames"]
+__all__ = ["result_dict", "write_results", "ros2_static_transform_command", "urdf_joint", "default_frames",
+           "euler_angles"]
 
 
 def default_frames(setup: str) -> tuple[str, str]:
     """``(parent, child)`` frame names for X: ROS-Industrial's ``tool0`` / ``base_link`` and the
     camera's optical frame (OpenCV's camera frame: z forward, x right, y down, REP 103's *_optical_frame*)."""
-    return ("tool0" if setup == "eye_in_hand" else "base_link"), "camera_optical_frame"
+    info = setup_info(setup)
+    return info.ros_parent_frame, info.ros_child_frame
 
 
-def _euler(rot: Rotation, seq: str, degrees: bool = False) -> NDArray[np.float64]:
+def euler_angles(rot: Rotation, seq: str, degrees: bool = False) -> NDArray[np.float64]:
+    """``rot.as_euler(seq)`` without scipy's gimbal-lock warning (the angles still give the rotation)."""
     # at gimbal lock scipy warns and sets the third angle to zero; the angles still give the rotation
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="Gimbal lock", category=UserWarning)
@@ -62,7 +67,7 @@ def urdf_joint(T: NDArray[np.float64], parent: str, child: str, name: str | None
     URDF's ``rpy`` is roll about x, then pitch about y, then yaw about z, all about the parent's
     fixed axes: ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (scipy's extrinsic ``'xyz'``).
     """
-    rpy = _euler(Rotation.from_matrix(T[:3, :3]), "xyz")
+    rpy = euler_angles(Rotation.from_matrix(T[:3, :3]), "xyz")
     xyz = " ".join(_num(v) for v in T[:3, 3])
     return (f'<joint name="{name or child + "_joint"}" type="fixed">\n'
             f'  <parent link="{parent}"/>\n'
@@ -76,7 +81,7 @@ def _euler_of_input(rot: Rotation, cal: Calibration) -> dict[str, Any] | None:
     if ri is None or not ri.format.startswith("euler:"):
         return None
     seq, deg = ri.format.split(":", 1)[1], ri.angle_unit == "deg"
-    return {"sequence": seq, "unit": ri.angle_unit, "angles": _euler(rot, seq, deg).tolist(),
+    return {"sequence": seq, "unit": ri.angle_unit, "angles": euler_angles(rot, seq, deg).tolist(),
             "note": "the convention of the robot poses given (upper case intrinsic, lower case extrinsic)"}
 
 
@@ -90,7 +95,7 @@ def _transform_dict(T: NDArray[np.float64], cal: Calibration | None = None) -> d
         "quaternion_xyzw": rot.as_quat(canonical=True).tolist(),
         "rotvec_rad": rot.as_rotvec().tolist(),
         "rotvec_deg": rot.as_rotvec(degrees=True).tolist(),
-        "rpy_rad": _euler(rot, "xyz").tolist(),
+        "rpy_rad": euler_angles(rot, "xyz").tolist(),
         "rpy_note": "roll, pitch, yaw about fixed x, y, z (scipy 'xyz', URDF/ROS rpy)",
     }
     if cal is not None:
@@ -106,11 +111,8 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
     ``parent_frame`` / ``child_frame`` name the frames in the ROS snippets (defaults:
     :func:`default_frames`).
     """
-    from . import __version__
-
-    x_name = "cam2flange" if cal.setup == "eye_in_hand" else "cam2base"
-    z_name = "target2base" if cal.setup == "eye_in_hand" else "target2flange"
-    inv_name = "flange2cam" if cal.setup == "eye_in_hand" else "base2cam"
+    info = setup_info(cal.setup)
+    x_name, z_name, inv_name = info.x_name, info.z_name, info.x_inverse_name
     parent, child = default_frames(cal.setup)
     parent, child = parent_frame or parent, child_frame or child
     mres = cal.motion_residuals

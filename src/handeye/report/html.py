@@ -13,7 +13,6 @@ from __future__ import annotations
 import base64
 import html
 import io
-import time
 from pathlib import Path
 from typing import Iterable
 
@@ -21,16 +20,19 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from ._io import atomic_write
-from .calibration import Calibration, calibrate_poses
-from .errors import HandEyeError
-from .geometry.se3 import screw_parameters
-from .metrics import rotation_error, translation_error
-from .motions import MotionSet
-from .results import _euler, result_dict
-from . import solvers
+from .._shared.io import atomic_write
+from .._shared.lazy import lazy_module
+from .._version import __version__
+from ..geometry.se3 import screw_parameters
+from ..motions import MotionSet
+from ..result import Calibration
+from ..setups import camera2base, predicted_target2cam, setup_info, target2base
+from ..vision.pnp import project_points
+from .files import euler_angles, result_dict
 
-__all__ = ["report_html", "write_report", "solver_comparison", "SECTIONS"]
+cv2 = lazy_module("cv2")
+
+__all__ = ["report_html", "write_report", "SECTIONS"]
 
 #: The section ids of the page, in order.
 SECTIONS = ("verdict", "result", "residuals", "overlays", "scene", "axes", "solvers", "advice")
@@ -54,12 +56,16 @@ img{max-width:100%} .note{color:#555;font-size:.9em}
 """
 
 
-def _png(fig) -> str:
-    import matplotlib.pyplot as plt
+def _figure(figsize: tuple[float, float]):
+    """A matplotlib Figure drawn off-screen: no pyplot, so no backend is chosen for the user."""
+    from matplotlib.figure import Figure  # matplotlib loads only when a report is drawn
 
+    return Figure(figsize=figsize)
+
+
+def _png(fig) -> str:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    plt.close(fig)
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
@@ -77,65 +83,19 @@ def _fmt(v, digits: int = 3) -> str:
 
 
 # ----------------------------------------------------------------------------------------------------
-# data for the sections
-
-
-def solver_comparison(cal: Calibration) -> list[dict]:
-    """Every registered solver on the calibration's poses and motions (no refinement, no check).
-
-    Per solver: how far its X is from ``cal.X`` (deg, mm), the median per-pose consistency of Z
-    (deg, mm) and the time taken (ms); ``error`` instead when it cannot solve these data.
-    """
-    rows = []
-    for name in solvers.available():
-        start = time.perf_counter()
-        try:
-            c = calibrate_poses(cal.flange2base, cal.target2cam, setup=cal.setup, method=name, refine="none",
-                                check=False, pairs=cal.pairs)
-        except HandEyeError as exc:
-            rows.append({"method": name, "error": str(exc)})
-            continue
-        ms = 1e3 * (time.perf_counter() - start)
-        pres = c.pose_residuals
-        rows.append({
-            "method": name,
-            "dX_deg": float(np.degrees(rotation_error(c.X, cal.X))),
-            "dX_mm": float(1e3 * translation_error(c.X, cal.X)),
-            "median_pose_deg": float(np.median(pres[:, 0])),
-            "median_pose_mm": float(np.median(pres[:, 1])),
-            "ms": ms,
-        })
-    return rows
-
-
-def _camera2base(cal: Calibration) -> NDArray[np.float64]:
-    """Camera pose per image in the robot base frame."""
-    if cal.setup == "eye_in_hand":
-        return cal.flange2base @ cal.X
-    return np.broadcast_to(cal.X, cal.flange2base.shape)
-
-
-def _target2base(cal: Calibration) -> NDArray[np.float64]:
-    if cal.setup == "eye_in_hand":
-        return np.broadcast_to(cal.Z, cal.flange2base.shape)
-    return cal.flange2base @ cal.Z
-
-
-# ----------------------------------------------------------------------------------------------------
 # figures
 
 
 def _residual_figure(cal: Calibration) -> str:
-    import matplotlib.pyplot as plt
-
     pres = cal.pose_residuals
     labels = list(cal.image_names) if cal.image_names is not None else [str(i) for i in cal.pose_indices]
     n_plots = 3 if cal.reprojection_rms is not None else 2
-    fig, axes = plt.subplots(n_plots, 1, figsize=(10, 2.2 * n_plots), sharex=True)
+    fig = _figure((10, 2.2 * n_plots))
+    axes = fig.subplots(n_plots, 1, sharex=True)
     x = np.arange(len(pres))
     axes[0].bar(x, pres[:, 0], color="#4a78b5")
     axes[0].set_ylabel("rotation (deg)")
-    axes[0].set_title(f"per pose: how far its own {'target2base' if cal.setup == 'eye_in_hand' else 'target2flange'} "
+    axes[0].set_title(f"per pose: how far its own {setup_info(cal.setup).z_name} "
                       "(through X) is from the common one", fontsize=10)
     axes[1].bar(x, pres[:, 1], color="#d08c30")
     axes[1].set_ylabel("translation (mm)")
@@ -157,21 +117,20 @@ def _axis_triad(ax, T: NDArray[np.float64], length: float, lw: float = 1.5) -> N
 
 
 def _scene_figure(cal: Calibration) -> str:
-    import matplotlib.pyplot as plt
-
-    cam2base, tgt2base = _camera2base(cal), _target2base(cal)
+    cam2base, tgt2base = camera2base(cal.X, cal.flange2base, cal.setup), target2base(cal.Z, cal.flange2base, cal.setup)
+    on_flange = setup_info(cal.setup).camera_on_flange
     flange = cal.flange2base[:, :3, 3]
     pts = np.vstack([flange, cam2base[:, :3, 3], tgt2base[:, :3, 3], np.zeros((1, 3))])
     extent = float(np.ptp(pts, axis=0).max()) or 1.0
     L = 0.08 * extent
-    fig = plt.figure(figsize=(7.5, 6.5))
+    fig = _figure((7.5, 6.5))
     ax = fig.add_subplot(projection="3d")
     _axis_triad(ax, np.eye(4), 1.5 * L, lw=3)
     ax.text(0, 0, 0, " base", fontsize=8)
     ax.plot(*flange.T, "-o", color="#777", ms=3, lw=0.8, label="flange positions (capture order)")
     for T in cal.flange2base:
         _axis_triad(ax, T, 0.5 * L, lw=0.8)
-    for T in (cam2base if cal.setup == "eye_in_hand" else cam2base[:1]):
+    for T in (cam2base if on_flange else cam2base[:1]):
         _axis_triad(ax, T, L)
     ax.scatter(*cam2base[:, :3, 3].T, color="#000", s=12, label="camera")
     if cal.object_points:
@@ -179,10 +138,10 @@ def _scene_figure(cal: Calibration) -> str:
         lo, hi = obj.min(axis=0), obj.max(axis=0)
         corners = np.array([[lo[0], lo[1], 0, 1], [hi[0], lo[1], 0, 1], [hi[0], hi[1], 0, 1], [lo[0], hi[1], 0, 1],
                             [lo[0], lo[1], 0, 1]])
-        for T in (tgt2base if cal.setup == "eye_to_hand" else tgt2base[:1]):
+        for T in (tgt2base if not on_flange else tgt2base[:1]):
             c = (T @ corners.T).T
             ax.plot(*c[:, :3].T, color="#8b4513", lw=1.5)
-    for T in (tgt2base if cal.setup == "eye_to_hand" else tgt2base[:1]):
+    for T in (tgt2base if not on_flange else tgt2base[:1]):
         _axis_triad(ax, T, L, lw=2)
     ax.scatter(*tgt2base[:, :3, 3].T, color="#8b4513", s=12, marker="s", label="target")
     centre = pts.mean(axis=0)
@@ -199,11 +158,9 @@ def _scene_figure(cal: Calibration) -> str:
 
 
 def _axes_figure(cal: Calibration, motions: MotionSet) -> str:
-    import matplotlib.pyplot as plt
-
     axis, _, theta, _ = screw_parameters(motions.B)
     deg = np.degrees(theta)
-    fig = plt.figure(figsize=(6.5, 5.5))
+    fig = _figure((6.5, 5.5))
     ax = fig.add_subplot(projection="3d")
     u, v = np.mgrid[0:2 * np.pi:24j, 0:np.pi:12j]
     ax.plot_wireframe(np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="#ccc", lw=0.4)
@@ -221,11 +178,6 @@ def _axes_figure(cal: Calibration, motions: MotionSet) -> str:
 def _overlay_thumbs(cal: Calibration) -> list[tuple[str, str]]:
     """(data URI, caption) per image: detected points (green rings) and the points reprojected
     through X, Z and the robot pose (red crosses)."""
-    import cv2
-
-    from .solvers.refine import predicted_target2cam
-    from .vision.pnp import project_points
-
     out = []
     T = predicted_target2cam(cal.X, cal.Z, cal.flange2base, cal.setup)
     for k, path in enumerate(cal.image_paths[:MAX_OVERLAYS]):
@@ -260,30 +212,14 @@ def _transform_table(T: NDArray[np.float64], std: NDArray[np.float64] | None) ->
     rows = [("translation (mm)", _fmt(t_mm, 3), _fmt(std[3:], 3) if std is not None else "—")]
     rows.append(("rotation vector (deg)", _fmt(rot.as_rotvec(degrees=True), 4), _fmt(std[:3], 4) if std is not None else "—"))
     rows.append(("quaternion w, x, y, z", _fmt(rot.as_quat(canonical=True, scalar_first=True), 6), ""))
-    rows.append(("roll, pitch, yaw (deg, fixed x-y-z)", _fmt(_euler(rot, "xyz", True), 4), ""))
+    rows.append(("roll, pitch, yaw (deg, fixed x-y-z)", _fmt(euler_angles(rot, "xyz", True), 4), ""))
     body = "".join(f'<tr><td class="l">{_e(a)}</td><td>{b}</td><td>{c}</td></tr>' for a, b, c in rows)
     matrix = "\n".join("  ".join(f"{v: .6f}" for v in row) for row in T)
     return (f'<table><tr><th class="l"></th><th>value</th><th>std (1 sigma)</th></tr>{body}</table>'
             f"<pre>{_e(matrix)}</pre>")
 
 
-def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: str | None = None,
-                compare: bool = True) -> str:
-    """The report page for a calibration, as one self-contained HTML string."""
-    from . import __version__
-
-    data = result_dict(cal, parent_frame, child_frame)
-    x_name, z_name = data["X_name"], data["Z_name"]
-    verdict = data["check"]["verdict"]
-    motions = cal._motions or MotionSet.from_poses(cal.flange2base, cal.target2cam, cal.setup, cal.pairs)
-    pres = cal.pose_residuals
-    parts = [f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>handeye report: {_e(x_name)}</title>"
-             f"<style>{_CSS}</style></head><body>",
-             f"<h1>Hand-eye calibration ({_e(cal.setup.replace('_', '-'))})</h1>"
-             f"<p class=\"note\">handeye {_e(__version__)} · method {_e(cal.method)} · {len(cal.flange2base)} poses, "
-             f"{len(cal.pairs)} motions · inputs sha256 {_e((cal.inputs_sha256 or '')[:16])}…</p>"]
-
-    # verdict
+def _verdict_section(cal: Calibration, verdict: str, pres: NDArray[np.float64]) -> str:
     std_txt = ""
     if cal.std is not None:
         std_txt = (f" · std of X: {np.linalg.norm(cal.std[3:]):.3f} mm (translation, all axes), "
@@ -291,19 +227,20 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
     headline = {"good": "the data determine X well", "weak": "usable, but the data leave X poorly determined",
                 "degenerate": "the motions cannot determine X", "inconsistent": "the poses do not agree on one X",
                 "not checked": "the data were not checked"}.get(verdict, "")
-    parts.append(f'<section id="verdict"><div class="banner" style="background:{_COLOURS.get(verdict, "#555")}">'
-                 f"<b>{_e(verdict)}</b> — {_e(headline)}{_e(std_txt)}; median pose consistency "
-                 f"{np.median(pres[:, 0]):.3f} deg / {np.median(pres[:, 1]):.3f} mm</div></section>")
+    return (f'<section id="verdict"><div class="banner" style="background:{_COLOURS.get(verdict, "#555")}">'
+            f"<b>{_e(verdict)}</b> — {_e(headline)}{_e(std_txt)}; median pose consistency "
+            f"{np.median(pres[:, 0]):.3f} deg / {np.median(pres[:, 1]):.3f} mm</div></section>")
 
-    # numbers
-    parts.append(f'<section id="result"><h2>Result</h2><h3>X = {_e(x_name)}</h3>'
-                 f"<p>maps camera coordinates into the {'flange' if cal.setup == 'eye_in_hand' else 'robot base'} frame; "
-                 f"refinement: {_e(cal.refinement)}"
-                 + (f", RMS {cal.refined_rms:.3f} px over all target points" if cal.refined_rms is not None else "")
-                 + "</p>" + _transform_table(cal.X, cal.std)
-                 + f"<h3>Z = {_e(z_name)}</h3>" + _transform_table(cal.Z, None)
-                 + "<h3>Paste into ROS 2</h3>"
-                 + f"<pre>{_e(data['ros']['static_transform_publisher'])}</pre><pre>{_e(data['ros']['urdf_joint'])}</pre>")
+
+def _result_section(cal: Calibration, data: dict) -> str:
+    parts = [f'<section id="result"><h2>Result</h2><h3>X = {_e(data["X_name"])}</h3>'
+             f"<p>maps camera coordinates into the {setup_info(cal.setup).x_parent} frame; "
+             f"refinement: {_e(cal.refinement)}"
+             + (f", RMS {cal.refined_rms:.3f} px over all target points" if cal.refined_rms is not None else "")
+             + "</p>" + _transform_table(cal.X, cal.std)
+             + f"<h3>Z = {_e(data['Z_name'])}</h3>" + _transform_table(cal.Z, None)
+             + "<h3>Paste into ROS 2</h3>"
+             + f"<pre>{_e(data['ros']['static_transform_publisher'])}</pre><pre>{_e(data['ros']['urdf_joint'])}</pre>"]
     if cal.pose_noise is not None:
         nz = cal.pose_noise
         parts.append(f"<p>noise estimated from the data (per axis): robot rotation {nz['robot_rotation_deg']:.4f} deg, "
@@ -315,9 +252,11 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
                      + (f"; camera calibration RMS {cal.intrinsics_rms:.3f} px" if cal.intrinsics_rms is not None else "")
                      + "</p>")
     parts.append("</section>")
+    return "".join(parts)
 
-    # residuals
-    parts.append('<section id="residuals"><h2>Per-pose residuals</h2>' + _img(_residual_figure(cal), "per-pose residuals"))
+
+def _residuals_section(cal: Calibration) -> str:
+    parts = ['<section id="residuals"><h2>Per-pose residuals</h2>' + _img(_residual_figure(cal), "per-pose residuals")]
     mres = cal.motion_residuals
     parts.append(f"<p>Screw congruence per motion (|angle_A − angle_B|, |pitch_A − pitch_B|; independent of X): median "
                  f"{np.median(mres[:, 0]):.3f} deg / {np.median(mres[:, 1]):.3f} mm, max {mres[:, 0].max():.3f} deg / "
@@ -330,9 +269,11 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
     if cal.skipped:
         parts.append("<p>Skipped images: " + "; ".join(f"{_e(n)} ({_e(r)})" for n, r in cal.skipped) + "</p>")
     parts.append("</section>")
+    return "".join(parts)
 
-    # overlays
-    parts.append('<section id="overlays"><h2>Target points: detected vs predicted by X</h2>')
+
+def _overlays_section(cal: Calibration) -> str:
+    parts = ['<section id="overlays"><h2>Target points: detected vs predicted by X</h2>']
     if cal.image_paths:
         parts.append("<p class=\"note\">Green rings: detected points. Red crosses: the same points projected through "
                      "the robot pose, X and Z — where they part, the hand-eye model does not explain that image. "
@@ -345,21 +286,23 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
     else:
         parts.append("<p class=\"note\">No images: this calibration was made from poses.</p>")
     parts.append("</section>")
+    return "".join(parts)
 
-    # scene and axes
-    parts.append('<section id="scene"><h2>Robot, camera and target</h2>' + _img(_scene_figure(cal), "3D view") + "</section>")
+
+def _axes_section(cal: Calibration) -> str:
+    motions = cal.motions or MotionSet.from_poses(cal.flange2base, cal.target2cam, cal.setup, cal.pairs)
     obs = ""
     if cal.diagnostics is not None and cal.diagnostics.axis_shares is not None:
         sh = cal.diagnostics.axis_shares
         obs = (f"<p>Spread of the rotation axes (eigenvalue shares, 1/3 each is ideal): {_fmt(sh, 2)}; rotation angles "
                f"{np.min(cal.diagnostics.rotation_angles_deg):.1f}–{np.max(cal.diagnostics.rotation_angles_deg):.1f} deg.</p>")
-    parts.append('<section id="axes"><h2>Rotation axes</h2>' + _img(_axes_figure(cal, motions), "rotation axes") + obs
-                 + "</section>")
+    return ('<section id="axes"><h2>Rotation axes</h2>' + _img(_axes_figure(cal, motions), "rotation axes") + obs
+            + "</section>")
 
-    # solvers
-    parts.append('<section id="solvers"><h2>Every solver on the same data</h2>')
-    if compare:
-        rows = solver_comparison(cal)
+
+def _solvers_section(rows: list[dict] | None) -> str:
+    parts = ['<section id="solvers"><h2>Every solver on the same data</h2>']
+    if rows is not None:
         parts.append("<table><tr><th class=\"l\">method</th><th>X vs result (deg)</th><th>X vs result (mm)</th>"
                      "<th>median pose (deg)</th><th>median pose (mm)</th><th>time (ms)</th></tr>")
         for r in rows:
@@ -373,22 +316,48 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
     else:
         parts.append("<p class=\"note\">not computed</p>")
     parts.append("</section>")
+    return "".join(parts)
 
-    # advice
+
+def _advice_section(cal: Calibration, data: dict) -> str:
     advice = list(data["check"]["advice"]) + [n for n in cal.notes if n not in data["check"]["advice"]]
     if not advice:
         advice = ["Nothing to fix: the motions rotate about well-spread axes and the poses agree."]
-    parts.append('<section id="advice"><h2>Advice</h2><ul>' + "".join(f"<li>{_e(a)}</li>" for a in advice) + "</ul></section>")
-    parts.append("</body></html>\n")
+    return '<section id="advice"><h2>Advice</h2><ul>' + "".join(f"<li>{_e(a)}</li>" for a in advice) + "</ul></section>"
+
+
+def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: str | None = None,
+                solver_rows: list[dict] | None = None) -> str:
+    """The report page for a calibration, as one self-contained HTML string.
+
+    ``solver_rows``: the solver comparison to draw (:func:`handeye.diagnostics.compare_solvers`);
+    default ``cal.solver_comparison``; the section says "not computed" when there is none.
+    """
+    data = result_dict(cal, parent_frame, child_frame)
+    verdict = data["check"]["verdict"]
+    pres = cal.pose_residuals
+    if solver_rows is None:
+        solver_rows = cal.solver_comparison
+    parts = [f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>handeye report: {_e(data['X_name'])}</title>"
+             f"<style>{_CSS}</style></head><body>",
+             f"<h1>Hand-eye calibration ({_e(cal.setup.replace('_', '-'))})</h1>"
+             f"<p class=\"note\">handeye {_e(__version__)} · method {_e(cal.method)} · {len(cal.flange2base)} poses, "
+             f"{len(cal.pairs)} motions · inputs sha256 {_e((cal.inputs_sha256 or '')[:16])}…</p>",
+             _verdict_section(cal, verdict, pres),
+             _result_section(cal, data),
+             _residuals_section(cal),
+             _overlays_section(cal),
+             '<section id="scene"><h2>Robot, camera and target</h2>' + _img(_scene_figure(cal), "3D view") + "</section>",
+             _axes_section(cal),
+             _solvers_section(solver_rows),
+             _advice_section(cal, data),
+             "</body></html>\n"]
     return "".join(parts)
 
 
 def write_report(cal: Calibration, path: str | Path, protect: Iterable[Path] = (), parent_frame: str | None = None,
-                 child_frame: str | None = None) -> Path:
+                 child_frame: str | None = None, solver_rows: list[dict] | None = None) -> Path:
     """Write :func:`report_html` to ``path`` atomically (never over a ``protect`` path); returns the path."""
-    import matplotlib
-
-    matplotlib.use("Agg")
     path = Path(path)
-    atomic_write(path, report_html(cal, parent_frame, child_frame), protect)
+    atomic_write(path, report_html(cal, parent_frame, child_frame, solver_rows), protect)
     return path

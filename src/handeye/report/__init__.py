@@ -1,0 +1,46 @@
+"""Files for robots and people from a :class:`~handeye.result.Calibration`.
+
+* :mod:`handeye.report.files`: ``result.json`` / ``result.yaml`` (:func:`result_dict`) and the ROS 2
+  snippets (:func:`ros2_static_transform_command`, :func:`urdf_joint`);
+* :mod:`handeye.report.html`: the self-contained ``report.html`` (:func:`report_html`);
+* :func:`write_calibration`: all of them into one folder, atomically, never over an input.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterable
+
+from ..diagnostics import compare_solvers
+from ..errors import HandEyeError
+from ..result import Calibration
+from .files import default_frames, result_dict, ros2_static_transform_command, urdf_joint, write_results
+from .html import SECTIONS, report_html, write_report
+
+__all__ = ["write_calibration", "result_dict", "write_results", "report_html", "write_report", "default_frames",
+           "ros2_static_transform_command", "urdf_joint", "SECTIONS"]
+
+
+def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterable[str | Path] = (), report: bool = True,
+                      compare: bool = True, parent_frame: str | None = None,
+                      child_frame: str | None = None) -> list[Path]:
+    """Write ``result.json``, ``result.yaml`` and (``report``) ``report.html`` into ``out_dir``.
+
+    Every file is written atomically. ``protect``: paths never to overwrite; the input images are
+    always protected. ``compare``: draw every solver on the same data in the report (computed
+    here by :func:`handeye.diagnostics.compare_solvers` unless ``cal.solver_comparison`` holds
+    it). ``parent_frame`` / ``child_frame`` name the frames of the ROS snippets (default
+    ``tool0`` or ``base_link``, and ``camera_optical_frame``). Returns the paths written, the
+    report last.
+    """
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise HandEyeError(f"{out_dir} exists and is not a folder")
+    protect = list(protect) + list(cal.image_paths or [])
+    paths = write_results(cal, out_dir, protect, parent_frame, child_frame)
+    if report:
+        rows = cal.solver_comparison
+        if rows is None and compare:
+            rows = compare_solvers(cal.flange2base, cal.target2cam, cal.setup, cal.X, cal.pairs)
+        paths.append(write_report(cal, out_dir / "report.html", protect, parent_frame, child_frame, rows))
+    return paths

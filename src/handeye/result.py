@@ -1,0 +1,228 @@
+"""The results of handeye, as data: :class:`Calibration` and :class:`Diagnostics`.
+
+Nothing here computes a calibration or writes a file: the pipeline (``handeye.calibration``)
+builds these records step by step, each step returning a new one (``dataclasses.replace``), and
+``handeye.report`` turns them into files for robots and people.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .geometry.se3 import skew
+from .metrics import rotation_error, translation_error
+from .motions import MotionSet, screw_congruence
+from .poses import RobotPoseInput
+from .setups import constant_transforms, setup_info
+
+__all__ = ["Calibration", "Diagnostics"]
+
+
+@dataclass
+class Diagnostics:
+    """What :func:`diagnose` found (DESIGN §6).
+
+    Attributes
+    ----------
+    verdict : {'good', 'weak', 'degenerate', 'inconsistent'}
+    advice : list of str
+        Sentences saying what is wrong and what to do.
+    convention_hint : str or None
+        The reading that makes inconsistent data consistent: ``'invert_robot_poses'``,
+        ``'invert_camera_poses'``, ``'length_unit:mm'``, ``'length_unit:m'``, ``'angle_unit:deg'``,
+        ``'angle_unit:rad'``, ``'quat_xyzw'``, ``'quat_wxyz'`` or ``'euler:SEQ'``.
+    outliers : list of int
+        Indices of the poses judged bad.
+    outlier_residuals : dict
+        Per outlier: (rotation deg, translation mm) from the consensus target pose.
+    consistency : float
+        Unit-free score of the data (inliers) as given: the larger of the median per-pose rotation
+        residual over 1 deg and the median translation residual over 2% of the camera's motion
+        scale; up to 3 is consistent.
+    axis_shares : ndarray (3,)
+        Eigenvalues (descending, sum 1) of the scatter of the camera motions' rotation axes, weighted
+        by rotation; all near 1/3 is ideal, a small last one means a missing rotation axis.
+    weakest_axis : ndarray (3,)
+        The camera-frame direction with the least rotation about it.
+    rotation_angles_deg : ndarray (K,)
+        Rotation angle of every camera motion.
+    singular_values : ndarray (8,) or None
+        Of the Daniilidis system (two near zero expected).
+    translation_condition : float or None
+        Condition number of the translation system ``sum (I - R_A)^T (I - R_A)``.
+    leave_one_out : ndarray (N, 2) or None
+        How far X moves (deg, mm) when each pose is left out (NaN for outliers).
+    """
+
+    verdict: str
+    advice: list[str] = field(default_factory=list)
+    convention_hint: str | None = None
+    outliers: list[int] = field(default_factory=list)
+    outlier_residuals: dict[int, tuple[float, float]] = field(default_factory=dict)
+    consistency: float = float("nan")
+    axis_shares: NDArray[np.float64] | None = None
+    weakest_axis: NDArray[np.float64] | None = None
+    rotation_angles_deg: NDArray[np.float64] | None = None
+    singular_values: NDArray[np.float64] | None = None
+    translation_condition: float | None = None
+    leave_one_out: NDArray[np.float64] | None = None
+    pose_residuals: NDArray[np.float64] | None = None  #: (N, 2) deg, mm from the consensus target pose
+    n_poses: int = 0
+    #: consistency score up to which data count as consistent (handeye.diagnostics.CONSISTENT)
+    consistency_limit: float = 3.0
+
+    def pose_table(self, names: list[str] | None = None) -> str:
+        """Per pose: residual from the consensus and how far X moves without it."""
+        rows = [f"{'pose':>5} {'name':<24} {'resid deg':>9} {'resid mm':>9} {'loo deg':>8} {'loo mm':>8}  flag"]
+        for i in range(self.n_poses):
+            name = names[i] if names else ""
+            r = self.pose_residuals[i] if self.pose_residuals is not None else (np.nan, np.nan)
+            lo = self.leave_one_out[i] if self.leave_one_out is not None else (np.nan, np.nan)
+            rows.append(f"{i:>5} {name:<24.24} {r[0]:>9.3f} {r[1]:>9.2f} {lo[0]:>8.3f} {lo[1]:>8.2f}  "
+                        f"{'OUTLIER' if i in self.outliers else ''}")
+        return "\n".join(rows)
+
+    def summary(self) -> str:
+        """A few lines for people: verdict, outliers, advice."""
+        lines = [f"verdict: {self.verdict} ({self.n_poses} poses, consistency {self.consistency:.2f}; "
+                 f"up to {self.consistency_limit:g} is consistent)"]
+        if self.convention_hint:
+            lines.append(f"convention hint: {self.convention_hint}")
+        for i in self.outliers:
+            r, t = self.outlier_residuals.get(i, (float("nan"), float("nan")))
+            lines.append(f"outlier pose {i}: {r:.3f} deg / {t:.2f} mm from the consensus")
+        if self.leave_one_out is not None and np.isfinite(self.leave_one_out).any():
+            loo = np.where(np.isfinite(self.leave_one_out), self.leave_one_out, -1.0)
+            worst = np.argsort(-loo[:, 1])[:3]
+            lines.append("leaving one pose out moves X most for poses " + ", ".join(
+                f"{i} ({loo[i, 0]:.3f} deg / {loo[i, 1]:.2f} mm)" for i in worst))
+        lines += [f"advice: {a}" for a in self.advice]
+        return "\n".join(lines)
+
+
+@dataclass
+class Calibration:
+    """The result of a hand-eye calibration.
+
+    Attributes
+    ----------
+    X : ndarray (4, 4)
+        ``cam2flange`` (eye_in_hand) or ``cam2base`` (eye_to_hand), metres.
+    Z : ndarray (4, 4)
+        ``target2base`` (eye_in_hand) or ``target2flange`` (eye_to_hand): the mean over poses.
+    setup, method : str
+    flange2base, target2cam : ndarray (N, 4, 4)
+        The (validated) inputs.
+    pairs : ndarray (K, 2)
+        The pose index pairs of the motions used.
+    cov : ndarray (6, 6) or None
+        Covariance of X over [rotation vector (rad), translation (m)]; None when not computed.
+    std : ndarray (6,) or None
+        Standard deviations of the same six, in degrees and millimetres.
+    motion_residuals : ndarray (K, 2)
+        Screw congruence per motion: ``|theta_A - theta_B|`` (deg), ``|d_A - d_B|`` (mm). Computed
+        on first access.
+    pose_residuals : ndarray (N, 2)
+        Per pose, how far its own ``Z_i`` (through X) is from Z: rotation (deg), translation (mm).
+    """
+
+    X: NDArray[np.float64]
+    Z: NDArray[np.float64]
+    setup: str
+    method: str
+    flange2base: NDArray[np.float64] = field(repr=False)
+    target2cam: NDArray[np.float64] = field(repr=False)
+    pairs: NDArray[np.intp] = field(repr=False)
+    cov: NDArray[np.float64] | None = None
+    std: NDArray[np.float64] | None = None
+    #: the motions the solver saw (built from the poses and pairs when not given)
+    motions: MotionSet | None = field(default=None, repr=False)
+    # filled by calibrate() from images
+    image_names: list[str] | None = None
+    reprojection_rms: NDArray[np.float64] | None = None  #: per used image, px
+    skipped: list[tuple[str, str]] = field(default_factory=list)  #: (image, reason)
+    camera_matrix: NDArray[np.float64] | None = None
+    dist_coeffs: NDArray[np.float64] | None = None
+    intrinsics_source: str | None = None  #: "session.yaml" or "estimated"
+    intrinsics_rms: float | None = None
+    refinement: str = "none"  #: "none", "pose" or "reprojection"
+    refined_rms: float | None = None  #: RMS reprojection error (px) of all points after refinement
+    #: pose refinement's noise estimates: robot rotation (deg), camera rotation (deg), translation (mm)
+    pose_noise: dict[str, float] | None = None
+    diagnostics: Diagnostics | None = field(default=None, repr=False)  #: from handeye.diagnose (check=True)
+    #: indices (into the poses given) of the poses used: outliers are left out
+    pose_indices: NDArray[np.intp] | None = field(default=None, repr=False)
+    notes: list[str] = field(default_factory=list)
+    #: the robot poses as written (format and units), for results in the user's own convention
+    robot_input: RobotPoseInput | None = field(default=None, repr=False)
+    #: SHA-256 of the inputs: the session's files (calibrate) or the pose arrays (calibrate_poses)
+    inputs_sha256: str | None = None
+    #: per used image: its path, and the target points (target frame, m) with their detections (px)
+    image_paths: list[Path] | None = field(default=None, repr=False)
+    object_points: list[NDArray[np.float64]] | None = field(default=None, repr=False)
+    image_points: list[NDArray[np.float64]] | None = field(default=None, repr=False)
+    #: per solver: its closed-form X on the same poses, from handeye.diagnostics.compare_solvers
+    solver_comparison: list[dict] | None = field(default=None, repr=False)
+
+    @cached_property
+    def motion_residuals(self) -> NDArray[np.float64]:
+        motions = self.motions
+        if motions is None:
+            motions = MotionSet.from_poses(self.flange2base, self.target2cam, self.setup, self.pairs)
+        dtheta, dd = screw_congruence(motions)
+        return np.stack([np.degrees(dtheta), 1e3 * dd], axis=1)
+
+    @cached_property
+    def pose_residuals(self) -> NDArray[np.float64]:
+        Zi = constant_transforms(self.X, self.flange2base, self.target2cam, self.setup)
+        return np.stack([np.degrees(rotation_error(Zi, self.Z)), 1e3 * translation_error(Zi, self.Z)], axis=1)
+
+    def predict_error(self, point: ArrayLike) -> NDArray[np.float64]:
+        """Standard deviation (m, per axis) of a point mapped through X, from ``cov``.
+
+        ``point`` is in the camera frame (e.g. a point the camera sees); its image ``X @ point``
+        in the flange (or base) frame has the covariance ``J cov J^T`` with
+        ``J = [-[R p]x, I]``. Raises ValueError when no covariance was computed.
+        """
+        if self.cov is None:
+            raise ValueError("no covariance for this calibration (it comes with refinement: refine='pose' or 'reprojection')")
+        p = np.asarray(point, dtype=float).reshape(3)
+        Rp = self.X[:3, :3] @ p
+        J = np.hstack([-skew(Rp), np.eye(3)])
+        return np.sqrt(np.diag(J @ self.cov @ J.T))
+
+    def _named(self, wanted: str) -> NDArray[np.float64]:
+        info = setup_info(self.setup)
+        if wanted == info.x_name:
+            return self.X
+        if wanted == info.z_name:
+            return self.Z
+        other = setup_info("eye_to_hand" if info.camera_on_flange else "eye_in_hand")
+        kind = "X" if wanted == other.x_name else "Z"
+        raise AttributeError(f"{wanted} is the {other.name} {kind}; this is {self.setup}: use "
+                             f"{info.x_name if kind == 'X' else info.z_name}")
+
+    @property
+    def cam2flange(self) -> NDArray[np.float64]:
+        """X for an eye-in-hand calibration."""
+        return self._named("cam2flange")
+
+    @property
+    def cam2base(self) -> NDArray[np.float64]:
+        """X for an eye-to-hand calibration."""
+        return self._named("cam2base")
+
+    @property
+    def target2base(self) -> NDArray[np.float64]:
+        """Z for an eye-in-hand calibration (where the target stands in the robot base frame)."""
+        return self._named("target2base")
+
+    @property
+    def target2flange(self) -> NDArray[np.float64]:
+        """Z for an eye-to-hand calibration (where the target sits on the flange)."""
+        return self._named("target2flange")

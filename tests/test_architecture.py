@@ -1,0 +1,190 @@
+"""The package's shape (DESIGN §3): one-way imports by floors, no private names across modules,
+short functions, a data-only result, and a light ``import handeye``."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src" / "handeye"
+
+#: Floors from the ground up (DESIGN §3): a module imports only from lower floors, or from its own
+#: package. Keys are top-level modules or subpackages of handeye.
+FLOORS = {
+    "errors": 1, "_version": 1,
+    "geometry": 2, "_shared": 2,
+    "setups": 3, "poses": 3, "metrics": 3,
+    "vision": 4, "motions": 4,
+    "session": 5, "solvers": 5,
+    "result": 6, "simulate": 6,
+    "diagnostics": 7,
+    "calibration": 8,
+    "report": 9,
+    "planning": 10, "study": 10,
+    "cli": 11, "": 11,  # "" is handeye/__init__.py, the public face
+}
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(SRC.parent).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def _modules() -> dict[str, Path]:
+    return {_module_name(p): p for p in sorted(SRC.rglob("*.py"))}
+
+
+MODULES = _modules()
+
+
+def _imports(name: str, path: Path):
+    """(target module, imported names, lineno, local) for every import of handeye's own modules."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    is_pkg = path.name == "__init__.py"
+    local_nodes = {id(n) for f in ast.walk(tree) if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
+                   for n in ast.walk(f) if isinstance(n, (ast.Import, ast.ImportFrom))}
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = name.split(".") if is_pkg else name.split(".")[:-1]
+                base = base[: len(base) - (node.level - 1)]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if not target.startswith("handeye"):
+                continue
+            names = [a.name for a in node.names]
+            submodules = [f"{target}.{n}" for n in names if f"{target}.{n}" in MODULES]
+            for t in submodules or [target]:
+                out.append((t, names, node.lineno, id(node) in local_nodes))
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.startswith("handeye"):
+                    out.append((a.name, [], node.lineno, id(node) in local_nodes))
+    return out
+
+
+EDGES = {name: _imports(name, path) for name, path in MODULES.items()}
+
+
+def _top(name: str) -> str:
+    parts = name.split(".")
+    return parts[1] if len(parts) > 1 else ""
+
+
+def _package(name: str) -> str:
+    """The package a module belongs to (a package's __init__ belongs to itself)."""
+    return name if MODULES[name].name == "__init__.py" else name.rpartition(".")[0]
+
+
+def test_every_module_has_a_floor():
+    assert {_top(m) for m in MODULES} <= set(FLOORS), sorted({_top(m) for m in MODULES} - set(FLOORS))
+
+
+def test_imports_go_down_the_floors():
+    wrong = []
+    for src, edges in EDGES.items():
+        for dst, _, line, _ in edges:
+            if _top(src) == _top(dst) and _top(src):
+                continue  # inside one subpackage: checked for circles below
+            if FLOORS[_top(dst)] >= FLOORS[_top(src)]:
+                wrong.append(f"{src}:{line} imports {dst} (floor {FLOORS[_top(dst)]} >= {FLOORS[_top(src)]})")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_no_import_circle_counting_function_local_imports():
+    graph = {src: {dst for dst, *_ in edges if dst in MODULES and dst != src} for src, edges in EDGES.items()}
+    state: dict[str, int] = {}
+    cycles = []
+
+    def visit(node, stack):
+        state[node] = 1
+        for nxt in graph[node]:
+            if state.get(nxt) == 1:
+                cycles.append(" -> ".join(stack[stack.index(nxt):] + [nxt]))
+            elif nxt not in state:
+                visit(nxt, stack + [nxt])
+        state[node] = 2
+
+    for m in graph:
+        if m not in state:
+            visit(m, [m])
+    assert not cycles, "\n".join(cycles)
+
+
+def test_no_function_local_import_of_the_package():
+    local = [f"{src}:{line} imports {dst}" for src, edges in EDGES.items() for dst, _, line, is_local in edges if is_local]
+    assert not local, "\n".join(local)
+
+
+def test_no_private_name_crosses_a_package():
+    """A ``_name``, or a name from a ``_module``, is imported only inside the package that owns it."""
+    wrong = []
+    for src, edges in EDGES.items():
+        for dst, names, line, _ in edges:
+            if dst not in MODULES:
+                continue
+            owner = _package(dst)
+            if any(part.startswith("_") and not part.startswith("__") for part in dst.split(".")[1:]):
+                # a private module (solvers._common) or package (_shared): only from inside its parent
+                private_parent = dst.split(".")
+                idx = next(i for i, p in enumerate(private_parent) if i > 0 and p.startswith("_") and not p.startswith("__"))
+                scope = ".".join(private_parent[:idx])
+                if not (src == scope or src.startswith(scope + ".")):
+                    wrong.append(f"{src}:{line} imports from the private module {dst}")
+            private_names = [n for n in names if n.startswith("_") and not n.startswith("__")]
+            if private_names and _package(src) != owner:
+                wrong.append(f"{src}:{line} imports {private_names} from {dst}")
+            elif private_names and not dst.rpartition(".")[2].startswith("_"):
+                wrong.append(f"{src}:{line} imports {private_names} from {dst}, which is not a _module helper")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_no_function_over_100_lines():
+    long = []
+    for name, path in MODULES.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > 100:
+                    long.append(f"{name}.{node.name}: {n} lines")
+    assert not long, "\n".join(long)
+
+
+def test_the_result_type_writes_no_files():
+    import handeye.result as result
+
+    source = Path(result.__file__).read_text(encoding="utf-8")
+    assert not hasattr(result.Calibration, "write")
+    for word in ("open(", "atomic_write", "write_text", "write_bytes", "savefig", "mkdir"):
+        assert word not in source, word
+    assert {dst for dst, *_ in EDGES["handeye.result"]} <= {
+        m for m in MODULES if FLOORS[_top(m)] < FLOORS["result"]}
+
+
+@pytest.mark.parametrize("statement", ["import handeye", "import handeye.cli"])
+def test_import_loads_neither_opencv_matplotlib_nor_scipy_stats(statement):
+    code = (f"{statement}; import sys; "
+            "print(sorted(m for m in ('cv2', 'matplotlib', 'scipy.stats') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_setup_branches_live_in_setups():
+    """What differs between eye-in-hand and eye-to-hand is decided in setups.py alone."""
+    found = []
+    for name, path in MODULES.items():
+        if name == "handeye.setups":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Compare) and any(isinstance(c, ast.Constant) and c.value in ("eye_in_hand", "eye_to_hand")
+                                                     for c in node.comparators + [node.left]):
+                found.append(f"{name}:{node.lineno}")
+    assert not found, found
