@@ -119,13 +119,13 @@ def test_random_poses_are_named_and_left_out():
         bad = rng.choice(n, n_bad, replace=False)
         f_bad = f.copy()
         f_bad[bad] = make_transform(random_rotations(n_bad, rng), f[bad][:, :3, 3] + rng.uniform(-0.3, 0.3, (n_bad, 3)))
-        cal = handeye.calibrate_poses(f_bad, t)  # runs diagnose and leaves the outliers out
+        cal = handeye.calibrate_poses(f_bad, t, refine="pose")  # runs diagnose and leaves the outliers out
         d = cal.diagnostics
         assert set(bad.tolist()) <= set(d.outliers), (sorted(bad), d.outliers)
         assert sorted(set(range(n)) - set(d.outliers)) == cal.pose_indices.tolist()
         assert any("left out" in note for note in cal.notes)
         false_scenes += bool(set(d.outliers) - set(bad.tolist()))
-        err_clean.append(translation_error(handeye.calibrate_poses(f, t).X, s.X))
+        err_clean.append(translation_error(handeye.calibrate_poses(f, t, refine="pose").X, s.X))
         err_bad.append(translation_error(cal.X, s.X))
     rms = lambda e: float(np.sqrt(np.mean(np.square(e))))  # noqa: E731
     print(f"clean poses named in {false_scenes}/{SCENES} scenes; X translation RMS clean {1e3 * rms(err_clean):.3f} mm, "
@@ -161,7 +161,8 @@ def test_small_rotations_are_weak_with_advice():
 
 def test_public_name_and_check_command(tmp_path, capsys):
     """``handeye.diagnose`` (DESIGN §6) and ``handeye check``: exit 0 on the bundled example, 2 with
-    the Euler sequence declared wrong (the right one named), and calibrate-poses refuses it."""
+    the Euler sequence declared wrong (the right one named); calibrate-poses answers with that verdict
+    and refuses it in strict mode."""
     import shutil
     from pathlib import Path
 
@@ -179,7 +180,11 @@ def test_public_name_and_check_command(tmp_path, capsys):
     assert main(["check", str(folder)]) == 2
     out = capsys.readouterr().out
     assert "verdict: inconsistent" in out and "convention hint: euler:ZYX" in out
-    assert main(["calibrate-poses", str(folder)]) == 2
+    # calibrate-poses answers with the verdict and the fix (exit 1), or refuses with --strict (exit 2)
+    assert main(["calibrate-poses", str(folder)]) == 1
+    out = capsys.readouterr().out
+    assert "check: inconsistent" in out and "Euler sequence ZYX" in out
+    assert main(["calibrate-poses", str(folder), "--strict"]) == 2
     err = capsys.readouterr().err
     assert "Euler sequence ZYX" in err and len(err.strip().splitlines()) == 1
 

@@ -93,7 +93,10 @@ def test_screw_congruence_zero_for_consistent_and_large_for_wrong_convention():
     cal = handeye.calibrate_poses(invert(s.flange2base), s.target2cam, refine="none", check=False)
     assert np.median(cal.pose_residuals[:, 1]) > 10.0  # mm
     with pytest.raises(handeye.InputMismatchError, match="robot poses are inverted"):
-        handeye.calibrate_poses(invert(s.flange2base), s.target2cam)
+        handeye.calibrate_poses(invert(s.flange2base), s.target2cam, strict=True)
+    answered = handeye.calibrate_poses(invert(s.flange2base), s.target2cam)  # not strict: a verdict, not a refusal
+    assert answered.verdict == "inconsistent" and answered.diagnostics.convention_hint == "invert_robot_poses"
+    assert any("robot poses are inverted" in n for n in answered.notes)
     # Euler sequence mixed up: the rotation angles no longer match.
     from handeye.poses import format_poses, parse_poses
 

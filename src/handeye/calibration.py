@@ -17,18 +17,21 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._shared.io import array_digest, files_digest
 from .diagnostics import closed_form, diagnose
-from .errors import DegenerateMotionError, InputMismatchError
-from .geometry.se3 import invert
+from .errors import DegenerateMotionError, HandEyeError, InputMismatchError
+from .estimators import PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, Choice, choose, pixel_candidates, pixel_fit, pose_candidates
+from .geometry.se3 import invert, skew
 from .motions import MotionSet, Pairs, validate_poses
 from .poses import RobotPoseInput
 from .result import Calibration, Diagnostics
 from .session import POSEPAIRS_FILE, Session, SessionError, load_pose_pairs, load_session
 from .setups import check_setup
-from .solvers.refine import ReprojectionResult, refine_pose, refine_reprojection
+from .solvers.refine import PoseRefinementResult, ReprojectionResult, refine_pose
+from .validation import Views, jackknife_cov
 from .vision import calibrate_intrinsics, detect_images, resolve_symmetries, solve_pnp, target_from_spec
 
-__all__ = ["Calibration", "FolderCheck", "Observations", "calibrate", "calibrate_poses", "check_folder", "observe",
-           "pixel_fit", "refine_on_pixels", "refine_on_poses"]
+__all__ = ["Calibration", "FolderCheck", "Observations", "ROBOT_ACCURACY", "apply_choice", "calibrate",
+           "calibrate_observed", "calibrate_poses", "check_folder", "observe", "refine_on_pixels", "refine_on_poses",
+           "robot_accuracy_cov", "widened_uncertainty"]
 
 #: Fewest usable poses for a calibration (two motions, as the solvers need).
 MIN_POSES = 3
@@ -40,17 +43,23 @@ REFINE_RMS_FACTOR = 3.0
 REFINE_RMS_FLOOR = 1.0
 
 
-def _checked_poses(flange2base, target2cam, setup, pairs, check, robot_input):
+#: The robot's absolute accuracy assumed by default, per axis (deg, mm): a constant error of the robot
+#: poses moves X by as much, and no data can see it (it is absorbed into X).
+ROBOT_ACCURACY = (0.03, 0.3)
+
+
+def _checked_poses(flange2base, target2cam, setup, pairs, check, robot_input, strict=False):
     """The poses to calibrate on after :func:`handeye.diagnose` (outliers left out, explicit pairs
-    renumbered): ``(flange2base, target2cam, pairs, keep, diagnostics, notes)``."""
+    renumbered): ``(flange2base, target2cam, pairs, keep, diagnostics, notes)``. Raises only when X
+    cannot be determined, or (``strict``) when the data are inconsistent."""
     keep = np.arange(len(flange2base))
     if not check:
         return flange2base, target2cam, pairs, keep, None, []
     diag = diagnose(flange2base, target2cam, setup, robot_input=robot_input)
     if diag.verdict == "degenerate":
         raise DegenerateMotionError(" ".join(diag.advice))
-    if diag.verdict == "inconsistent":
-        raise InputMismatchError(f"{diag.advice[0]} (check=False calibrates the poses as given)")
+    if diag.verdict == "inconsistent" and strict:
+        raise InputMismatchError(f"{diag.advice[0]} (strict=False returns the best estimate with this verdict)")
     if diag.outliers:
         n_input = len(flange2base)
         keep = np.setdiff1d(keep, diag.outliers)
@@ -72,6 +81,9 @@ def calibrate_poses(
     pairs: Pairs = "all",
     check: bool = True,
     robot_input: RobotPoseInput | None = None,
+    strict: bool = False,
+    folds: int | None = None,
+    robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
 ) -> Calibration:
     """Hand-eye calibration from robot poses and camera-to-target poses.
 
@@ -86,32 +98,46 @@ def calibrate_poses(
         A solver from ``handeye.solvers.available()``: an AX = XB solver (Z is then the mean of
         the per-pose Z_i), or a robot-world one (``shah``, ``li``), which estimates X and Z together.
     refine : {'auto', 'pose', 'none'}
-        'pose' (and 'auto', the default, which is the same here): X and Z refined jointly from the
-        ``method`` solution by :func:`handeye.solvers.refine.refine_pose` (Strobl-Hirzinger's
-        optimal correction with noise variances estimated from the data), which also gives
-        ``cov``, ``std`` and ``pose_noise``. 'none': the closed form as is (no uncertainty).
+        'auto' (default): the estimator that predicts held-out poses best, by ``folds``-fold
+        cross-validation (:mod:`handeye.estimators`): every closed form, or the pose refinement;
+        the uncertainty covers both the refinement's noise model and the spread of the
+        cross-validation fits (``std_sources``). 'pose': X and Z refined jointly from the ``method``
+        solution by :func:`handeye.solvers.refine.refine_pose` (Strobl-Hirzinger's optimal
+        correction with noise variances estimated from the data), which gives ``cov``, ``std`` and
+        ``pose_noise``. 'none': the closed form as is (no uncertainty).
     pairs : {'all', 'consecutive'} or (K, 2) array
         Which pose pairs form the motions.
     check : bool
-        Run :func:`handeye.diagnose` first (default): degenerate motions and inconsistent data
-        (with the convention that fixes them, when one does) raise an error; outlier poses are
-        left out, with a note; weak data get the advice as notes. ``check=False`` calibrates the
-        poses as they are.
+        Run :func:`handeye.diagnose` first (default): degenerate motions raise an error; outlier
+        poses are left out, with a note; inconsistent data (with the convention that fixes them,
+        when one does) and weak data are calibrated all the same, with the verdict and the advice
+        (``verdict``, ``diagnostics``, ``notes``). ``check=False`` calibrates the poses as they are.
     robot_input : RobotPoseInput, optional
         The robot poses as written, so that the check can try other Euler sequences, quaternion
         orders and units (sessions pass it).
+    strict : bool
+        Raise :class:`InputMismatchError` instead of answering when the check calls the data
+        inconsistent.
+    folds : int, optional
+        Cross-validation folds of ``refine='auto'`` (default: one per pose up to 10 poses, else 5;
+        :func:`handeye.validation.default_folds`).
+    robot_accuracy : (deg, mm) or None
+        The robot's absolute accuracy per axis where the poses were taken (``refine='auto'``): a
+        constant robot error is absorbed into X whole and no data can see it, so it is added to X's
+        covariance. Default :data:`ROBOT_ACCURACY`; ``None`` (or zeros) for an exact robot.
 
     Returns
     -------
     Calibration
-        With ``diagnostics`` (when checked) and ``pose_indices``, the input poses used.
+        With ``diagnostics`` (when checked) and ``pose_indices``, the input poses used; with
+        'auto', ``estimator``, ``cross_validation`` and ``prediction_error``.
 
     Raises
     ------
     DegenerateMotionError
         The motions cannot determine X (advice in the message).
     InputMismatchError
-        The poses do not agree on one X; the message names the likely mistake.
+        ``strict`` and the poses do not agree on one X; the message names the likely mistake.
     """
     check_setup(setup)
     if refine not in ("auto", "pose", "none"):
@@ -119,14 +145,20 @@ def calibrate_poses(
         raise InputMismatchError(f"refine={refine!r}; use 'auto', 'pose' or 'none'{hint}")
     flange2base_in, target2cam_in = validate_poses(flange2base, target2cam)
     flange2base, target2cam, pairs, keep, diag, notes = _checked_poses(
-        flange2base_in, target2cam_in, setup, pairs, check, robot_input)
+        flange2base_in, target2cam_in, setup, pairs, check, robot_input, strict)
     X, Z, motions = closed_form(flange2base, target2cam, setup, method, pairs)
     cal = Calibration(
         X=X, Z=Z, setup=setup, method=method, flange2base=flange2base, target2cam=target2cam, pairs=motions.pairs,
         motions=motions, diagnostics=diag, pose_indices=keep, notes=notes, robot_input=robot_input,
-        inputs_sha256=array_digest(flange2base_in, target2cam_in),
+        inputs_sha256=array_digest(flange2base_in, target2cam_in), estimator=method,
     )
-    return refine_on_poses(cal) if refine != "none" else cal
+    if refine == "none":
+        return cal
+    if refine == "pose" or len(flange2base) < 5:
+        return refine_on_poses(cal)
+    views = Views(flange2base, target2cam, setup)
+    return apply_choice(cal, choose(views, pose_candidates(method, views), folds), views, pairs,
+                        robot_accuracy=_accuracy(robot_accuracy))
 
 
 def _std(cov_X: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -134,22 +166,144 @@ def _std(cov_X: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.r_[np.degrees(np.sqrt(np.diag(cov_X)[:3])), 1e3 * np.sqrt(np.diag(cov_X)[3:])]
 
 
-def refine_on_poses(cal: Calibration) -> Calibration:
-    """``cal`` with X and Z refined on its poses (:func:`~handeye.solvers.refine.refine_pose`) and the
-    uncertainty fields set."""
-    ref = refine_pose(cal.X, cal.Z, cal.flange2base, cal.target2cam, cal.setup)
+def refine_on_poses(cal: Calibration, ref: PoseRefinementResult | None = None) -> Calibration:
+    """``cal`` with X and Z refined on its poses (:func:`~handeye.solvers.refine.refine_pose`, or the
+    refinement ``ref`` of them already made) and the uncertainty fields set."""
+    if ref is None:
+        ref = refine_pose(cal.X, cal.Z, cal.flange2base, cal.target2cam, cal.setup)
     notes = list(cal.notes)
     if not ref.converged:
         notes.append(f"pose refinement: the noise estimates did not settle in {ref.rounds} rounds; "
                      "the reported uncertainty is approximate")
     return replace(
         cal, X=ref.X, Z=ref.Z, cov=ref.cov_X, std=_std(ref.cov_X), refinement="pose", method=f"{cal.method}+pose",
-        notes=notes, pose_noise={
+        notes=notes, estimator=POSE, pose_noise={
             "robot_rotation_deg": float(np.degrees(ref.noise["robot_rotation"])),
             "camera_rotation_deg": float(np.degrees(ref.noise["camera_rotation"])),
             "translation_mm": 1e3 * ref.noise["translation"],
         },
     )
+
+
+def robot_accuracy_cov(X: NDArray[np.float64], accuracy: tuple[float, float]) -> NDArray[np.float64]:
+    """Covariance of X (as ``Calibration.cov``) from a constant robot pose error of ``accuracy``
+    (deg, mm per axis), which X absorbs whole: ``X' = exp(d) X`` in the flange (eye-in-hand) or base
+    (eye-to-hand) frame, so X's translation also moves by ``d_rot x t_X``."""
+    s_rot, s_t = np.radians(accuracy[0]), 1e-3 * accuracy[1]
+    J = np.eye(6)
+    J[3:, :3] = -skew(X[:3, 3])
+    return J @ np.diag([s_rot**2] * 3 + [s_t**2] * 3) @ J.T
+
+
+def _accuracy(robot_accuracy) -> tuple[float, float] | None:
+    """``robot_accuracy`` checked: None, or two non-negative finite numbers (deg, mm); zeros mean None."""
+    if robot_accuracy is None:
+        return None
+    try:
+        deg, mm = (float(v) for v in robot_accuracy)
+    except (TypeError, ValueError):
+        raise InputMismatchError(f"robot_accuracy {robot_accuracy!r}: give (degrees, millimetres)") from None
+    if not (deg >= 0 and mm >= 0 and np.isfinite(deg) and np.isfinite(mm)):
+        raise InputMismatchError(f"robot_accuracy ({deg:g}, {mm:g}): give non-negative accuracies (deg, mm)")
+    return None if deg == mm == 0 else (deg, mm)
+
+
+def widened_uncertainty(cal: Calibration, cv_jack: NDArray[np.float64] | None,
+                        robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY) -> Calibration:
+    """``cal`` with a std that covers both sources: the refinement's noise model (``cal.cov``, None for
+    a closed form) and the jackknife spread (X refitted without each pose). Each of X's six
+    parameters gets the larger of the two (the model's correlations kept); a note says when the
+    spread widened the model's."""
+    model = cal.cov
+    robot = None if robot_accuracy is None else robot_accuracy_cov(cal.X, robot_accuracy)
+    sources = {"model": None if model is None else _std(model), "jackknife": None if cv_jack is None else _std(cv_jack),
+               "robot_accuracy": None if robot is None else _std(robot)}
+    notes = list(cal.notes)
+    if model is None or cv_jack is None:
+        cov = model if cv_jack is None else cv_jack
+    else:
+        ratio = np.sqrt(np.maximum(np.diag(cv_jack), 1e-300) / np.maximum(np.diag(model), 1e-300))
+        D = np.diag(np.maximum(ratio, 1.0))
+        cov = D @ model @ D
+        if ratio.max() > 1.5:
+            notes.append(f"the std of X is widened up to {ratio.max():.1f}x the noise model's: X moves more without "
+                         "one pose than the model predicts (robot errors that depend on the pose, such as kinematic "
+                         "errors, or outliers the check did not catch)")
+    if robot is not None:
+        cov = robot if cov is None else cov + robot
+        notes.append(f"the std of X includes the robot's absolute accuracy, assumed {robot_accuracy[0]:g} deg / "
+                     f"{robot_accuracy[1]:g} mm per axis (robot_accuracy=(deg, mm), --robot-accuracy DEG,MM): a "
+                     "constant robot error is invisible in the data and X takes it whole")
+    if cov is None:
+        return replace(cal, std_sources=sources, notes=notes)
+    return replace(cal, cov=cov, std=_std(cov), std_sources=sources, notes=notes)
+
+
+def apply_choice(cal: Calibration, choice: Choice, views: Views, pairs: Pairs = "all", obs: "Observations | None" = None,
+                 robot_noise: tuple[float, float] | None = None,
+                 robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY, uncertainty: bool = True) -> Calibration:
+    """``cal`` (a closed form on its poses) refitted by the estimator ``choice`` chose, on all of its
+    poses, with the cross-validation table and (``uncertainty``) the widened uncertainty."""
+    name = choice.name
+    if name == POSE:
+        done = getattr(choice.fits[POSE], "full", None)  # the refinement on these very poses, if made
+        cal = refine_on_poses(cal, done[0] if done else None)
+    elif name in (PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT):
+        cal = _final_pixel_fit(cal, obs, name, robot_noise, pairs)
+    elif name != cal.estimator:  # another closed form
+        X, Z, motions = closed_form(cal.flange2base, cal.target2cam, cal.setup, name, pairs)
+        cal = replace(cal, X=X, Z=Z, method=name, motions=motions, pairs=motions.pairs)
+    cal = replace(cal, estimator=name, cross_validation=choice.table())
+    if uncertainty:
+        cal = _verdict_from_std(widened_uncertainty(cal, jackknife_cov(choice.fits[name], views, cal.X), robot_accuracy))
+    notes = list(cal.notes) + [f"estimator {name}: chosen by {choice.best.folds}-fold cross-validation, held-out error "
+                               + _cv_text(choice.table()[name])]
+    return replace(cal, notes=notes)
+
+
+def _final_pixel_fit(cal: Calibration, obs: Observations, name: str, robot_noise, pairs: Pairs) -> Calibration:
+    """The pixel refinement ``name`` on every used image, the check's pose outliers back in: a pose
+    can look off because its PnP is weak (a far or fronto-parallel view) while its pixels fit, and
+    the robust pixel fit judges every point (an image whose points all disagree is named)."""
+    everything = np.arange(len(obs.used))
+    outliers = sorted(set(everything.tolist()) - set(cal.pose_indices.tolist()))
+    notes = list(cal.notes)
+    if outliers:
+        notes = [n for n in notes if "left out" not in n]
+        notes.append(f"image(s) {', '.join(obs.session.image_names[obs.used[k]] for k in outliers)} looked like "
+                     f"outliers by their PnP poses but are kept: the robust pixel refinement judges their points")
+        motions = MotionSet.from_poses(obs.flange2base, obs.target2cam, cal.setup, pairs)
+        cal = replace(cal, flange2base=obs.flange2base, target2cam=obs.target2cam, pairs=motions.pairs,
+                      motions=motions, pose_indices=everything, notes=notes)
+    sigma = _robot_sigma(robot_noise, "auto") if name == PIXEL_ROBOT else None
+    ref = pixel_fit(_views(obs, everything), everything, cal.X, cal.Z, name != PIXEL and obs.intrinsics_source == "estimated",
+                    sigma)
+    return refine_on_pixels(cal, obs, ref, robot_noise if name == PIXEL_ROBOT else None)
+
+
+#: X is "weak" when 3 std of it exceed the thesis's acceptance (§5: 5 mm and 1 deg).
+ACCEPT_MM, ACCEPT_DEG = 5.0, 1.0
+
+
+def _verdict_from_std(cal: Calibration) -> Calibration:
+    """A 'good' verdict becomes 'weak' when X's std cannot promise the thesis's acceptance: the data
+    do not pin X down (typically: leaving one pose out moves it far)."""
+    if cal.std is None or cal.diagnostics is None or cal.diagnostics.verdict != "good":
+        return cal
+    rot, mm = 3 * float(np.linalg.norm(cal.std[:3])), 3 * float(np.linalg.norm(cal.std[3:]))
+    if rot <= ACCEPT_DEG and mm <= ACCEPT_MM:
+        return cal
+    jack = (cal.std_sources or {}).get("jackknife")
+    why = (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg"
+           + (f" (leaving one pose out moves X by {np.linalg.norm(jack[3:]):.1f} mm / {np.linalg.norm(jack[:3]):.2f} deg "
+              "per std)" if jack is not None else "")
+           + ": the poses do not pin X down; take more (10-20), with rotations of 30 deg or more about varied axes")
+    diag = replace(cal.diagnostics, verdict="weak", advice=list(cal.diagnostics.advice) + [why])
+    return replace(cal, diagnostics=diag, notes=list(cal.notes) + [why])
+
+
+def _cv_text(row: dict[str, float | None]) -> str:
+    return (f"{row['px']:.3f} px, " if row.get("px") is not None else "") + f"{row['mm']:.3f} mm at the target"
 
 
 @dataclass(frozen=True)
@@ -173,6 +327,15 @@ class Observations:
     skipped: list[tuple[str, str]]  #: (image, reason)
     notes: list[str]
     robot_input: RobotPoseInput | None  #: the robot poses of the used images as written
+
+    def subset(self, idx) -> "Observations":
+        """The same observations restricted to the used images ``idx`` (indices into ``used``)."""
+        idx = [int(i) for i in idx]
+        ri = self.robot_input
+        return replace(self, used=[self.used[i] for i in idx], flange2base=self.flange2base[idx],
+                       target2cam=self.target2cam[idx], pnp_rms=[self.pnp_rms[i] for i in idx],
+                       object_points=[self.object_points[i] for i in idx], image_points=[self.image_points[i] for i in idx],
+                       robot_input=None if ri is None else replace(ri, values=ri.values[idx]))
 
 
 def _detect(session: Session, jobs: int | None, progress: bool):
@@ -258,44 +421,39 @@ def _robot_sigma(robot_noise, refine: str) -> tuple[float, float] | None:
     return np.radians(deg), 1e-3 * mm
 
 
-def pixel_fit(cal: Calibration, obs: Observations, robot_sigma: tuple[float, float] | None = None) -> ReprojectionResult:
-    """The robust reprojection refinement of ``cal``'s X and Z on every used image (pose-level
-    outliers included: a pose can be off because its PnP is weak, a far or fronto-parallel view,
-    while its pixels fit; the robust pixel fit judges them)."""
-    return refine_reprojection(cal.X, cal.Z, obs.flange2base, obs.object_points, obs.image_points, obs.K, obs.dist,
-                               cal.setup, refine_intrinsics=(obs.intrinsics_source == "estimated"), robust=True,
-                               robot_noise=robot_sigma)
+def _views(obs: Observations, idx: NDArray[np.intp]) -> Views:
+    """The observed images ``idx`` (into ``obs.used``) as cross-validation views."""
+    return Views(obs.flange2base[idx], obs.target2cam[idx], obs.session.setup, [obs.object_points[i] for i in idx],
+                 [obs.image_points[i] for i in idx], obs.K, obs.dist)
 
 
 def refine_on_pixels(cal: Calibration, obs: Observations, ref: ReprojectionResult,
-                     robot_noise: tuple[float, float] | None = None, pairs: Pairs = "all") -> Calibration:
-    """``cal`` with the pixel refinement ``ref`` (:func:`pixel_fit`) applied: X, Z, the intrinsics
-    and the uncertainty from it, and every used image back in (the pixel fit weighed their points)."""
-    notes = list(cal.notes)
-    n_used = len(obs.used)
-    pose_outliers = sorted(set(range(n_used)) - set(cal.pose_indices.tolist()))
-    fields: dict = {}
+                     robot_noise: tuple[float, float] | None = None) -> Calibration:
+    """``cal`` with the pixel refinement ``ref`` of its images applied (:func:`handeye.estimators.pixel_fit`):
+    X, Z, the intrinsics and the uncertainty from it."""
+    names = [obs.session.image_names[obs.used[k]] for k in cal.pose_indices]
     extra: list[str] = []
-    if pose_outliers:  # back in: the pixel fit weighs them point by point
-        notes = [n for n in notes if "left out" not in n]
-        extra.append(f"image(s) {', '.join(obs.session.image_names[obs.used[k]] for k in pose_outliers)} looked like "
-                     f"outliers by their PnP poses but are kept: the robust pixel refinement judges their points")
-        motions = MotionSet.from_poses(obs.flange2base, obs.target2cam, cal.setup, pairs)
-        fields = dict(flange2base=obs.flange2base, target2cam=obs.target2cam, pairs=motions.pairs, motions=motions,
-                      pose_indices=np.arange(n_used))
     if ref.n_rejected:
         extra.append(f"reprojection refinement set aside {ref.n_rejected} of {ref.n_points + ref.n_rejected} "
                      f"detected points as outliers (beyond 5 sigma)")
-    if ref.cov_X is not None:
-        fields.update(cov=ref.cov_X, std=_std(ref.cov_X))
+    if ref.rejected_images:
+        extra.append(f"image(s) {', '.join(names[k] for k in ref.rejected_images)}: every point set aside by the "
+                     "robust pixel fit (the robot pose and the image disagree): check or retake them")
+    pnp_median = float(np.median(obs.pnp_rms))
+    if ref.rms_px > max(REFINE_RMS_FACTOR * pnp_median, REFINE_RMS_FLOOR):
+        extra.append(f"the robot poses and the images disagree: with the robot poses taken as exact the best fit "
+                     f"leaves {ref.rms_px:.2f} px RMS, while each image alone fits to {pnp_median:.2f} px; the robot "
+                     "pose errors dominate")
+    fields = dict(cov=ref.cov_X, std=_std(ref.cov_X)) if ref.cov_X is not None else {}
     method = cal.method + "+reprojection" + (
         f" (robot poses corrected, prior {robot_noise[0]:g} deg / {robot_noise[1]:g} mm)" if robot_noise else "")
     source = obs.intrinsics_source
-    if source == "estimated":
+    if source == "estimated" and not np.array_equal(ref.K, obs.K):
         source = "estimated, refined with the robot poses"
     return replace(cal, X=ref.X, Z=ref.Z, refinement="reprojection", refined_rms=ref.rms_px, method=method,
-                   notes=notes + extra, camera_matrix=np.asarray(ref.K, dtype=float),
-                   dist_coeffs=np.asarray(ref.dist, dtype=float).ravel(), intrinsics_source=source, **fields)
+                   notes=list(cal.notes) + extra, camera_matrix=np.asarray(ref.K, dtype=float),
+                   dist_coeffs=np.asarray(ref.dist, dtype=float).ravel(), intrinsics_source=source,
+                   estimator=PIXEL_ROBOT if robot_noise else PIXEL, **fields)
 
 
 def _drop_pose_outliers(cal: Calibration, obs: Observations) -> tuple[list[int], list[tuple[str, str]]]:
@@ -337,6 +495,9 @@ def calibrate(
     pairs: Pairs = "all",
     check: bool = True,
     robot_noise: tuple[float, float] | None = None,
+    strict: bool = False,
+    folds: int | None = None,
+    robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
 ) -> Calibration:
     """Hand-eye calibration from a capture session folder (images + robot poses, DESIGN §4).
 
@@ -346,15 +507,16 @@ def calibrate(
     Parameters
     ----------
     session_dir : path
-    method, pairs, check
+    method, pairs, check, strict, folds, robot_accuracy
         As :func:`calibrate_poses` (outlier poses' images are listed in ``skipped``).
     refine : {'auto', 'reprojection', 'pose', 'none'}
         'reprojection': X and Z (and the intrinsics, when estimated) refined jointly on the pixel
         errors of every target point (:func:`handeye.solvers.refine.refine_reprojection`), starting
         from ``method``, with the robot poses taken as exact. 'pose': refined on the robot and PnP
         poses (:func:`handeye.solvers.refine.refine_pose`), which allows for robot pose errors.
-        'auto' (default): 'reprojection', unless its fit is much worse than the per-image PnP
-        fits (robot pose errors dominate); then 'pose', with a note.
+        'auto' (default): whichever of these, the closed forms and (with ``robot_noise``) the pixel
+        refinement with robot pose corrections predicts held-out images best, by ``folds``-fold
+        cross-validation (:mod:`handeye.estimators`); the std covers the spread of those fits too.
     robot_noise : (deg, mm), optional
         Standard deviation per axis of the robot's pose errors (its accuracy where the images were
         taken; the data sheet's repeatability is a lower bound). The reprojection refinement then
@@ -379,53 +541,107 @@ def calibrate(
     """
     if refine not in ("auto", "reprojection", "pose", "none"):
         raise InputMismatchError(f"refine={refine!r}; use 'auto', 'reprojection', 'pose' or 'none'")
-    robot_sigma = _robot_sigma(robot_noise, refine)
+    _robot_sigma(robot_noise, refine)  # bad options fail before any image work
+    _accuracy(robot_accuracy)
     obs = observe(load_session(session_dir), jobs=jobs, progress=progress)
-    notes = list(obs.notes)
+    return calibrate_observed(obs, method=method, refine=refine, pairs=pairs, check=check, robot_noise=robot_noise,
+                              strict=strict, folds=folds, robot_accuracy=robot_accuracy)
+
+
+def calibrate_observed(
+    obs: Observations,
+    method: str = "daniilidis",
+    refine: str = "auto",
+    pairs: Pairs = "all",
+    check: bool = True,
+    robot_noise: tuple[float, float] | None = None,
+    strict: bool = False,
+    folds: int | None = None,
+    robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
+    uncertainty: bool = True,
+) -> Calibration:
+    """:func:`calibrate` from what :func:`observe` made of a session's images (the same options).
+
+    ``uncertainty=False`` skips the jackknife refits that the reported std of ``refine='auto'``
+    needs (for repeated calibrations on parts of the same data, e.g. cross-validation).
+    """
+    if refine not in ("auto", "reprojection", "pose", "none"):
+        raise InputMismatchError(f"refine={refine!r}; use 'auto', 'reprojection', 'pose' or 'none'")
+    robot_sigma = _robot_sigma(robot_noise, refine)
+    accuracy = _accuracy(robot_accuracy)
     cal = calibrate_poses(obs.flange2base, obs.target2cam, setup=obs.session.setup, method=method, pairs=pairs,
-                          refine="none", check=check, robot_input=obs.robot_input)
-    if refine in ("auto", "reprojection"):
-        ref = pixel_fit(cal, obs, robot_sigma)
-        # The refinement trusts the robot poses. If even the best X, Z leave the pixels far worse
-        # fitted than a free pose per image does, robot errors dominate and pixel refinement would
-        # trade them for a biased X: refine on the poses instead ('auto') and say so.
-        pnp_median = float(np.median(obs.pnp_rms))
-        limit = max(REFINE_RMS_FACTOR * pnp_median, REFINE_RMS_FLOOR)
-        if ref.rms_px > limit:
-            notes.append(
-                f"the robot poses and the images disagree: with the robot poses taken as exact the best fit "
-                f"leaves {ref.rms_px:.2f} px RMS, while each image alone fits to {pnp_median:.2f} px; the robot "
-                f"pose errors dominate" + ("; refined on the poses instead of the pixels" if refine == "auto" else "")
-            )
-        if refine == "reprojection" or ref.rms_px <= limit:
-            # the session's notes before those of the pixel fit, as the steps ran
-            cal = refine_on_pixels(replace(cal, notes=cal.notes + notes), obs, ref, robot_noise, pairs)
-            return _with_images(cal, obs, list(range(len(obs.used))), [], [])
+                          refine="none", check=check, robot_input=obs.robot_input, strict=strict)
     kept, outlier_images = _drop_pose_outliers(cal, obs)
-    if refine in ("auto", "pose"):
+    idx = np.asarray(cal.pose_indices)
+    estimated = obs.intrinsics_source == "estimated"
+    if refine == "auto" and len(idx) >= 5:
+        views = _views(obs, idx)
+        candidates = pose_candidates(method, views) | pixel_candidates(views, method, estimated, robot_sigma)
+        cal = apply_choice(cal, choose(views, candidates, folds), views, pairs, obs, robot_noise, accuracy, uncertainty)
+    elif refine in ("auto", "pose"):
         cal = refine_on_poses(cal)
-    return _with_images(cal, obs, kept, outlier_images, notes)
+    elif refine == "reprojection":
+        name = PIXEL_ROBOT if robot_sigma is not None else (PIXEL_INTRINSICS if estimated else PIXEL)
+        cal = _final_pixel_fit(cal, obs, name, robot_noise, pairs)
+    if cal.refinement == "reprojection":  # every image back in (see _final_pixel_fit)
+        kept, outlier_images = list(range(len(obs.used))), []
+    return _with_images(cal, obs, kept, outlier_images, list(obs.notes))
 
 
 @dataclass(frozen=True)
 class FolderCheck:
-    """What :func:`check_folder` found: the diagnostics, the name of each pose checked, and the
-    images that gave no pose (image, reason)."""
+    """What :func:`check_folder` found: the diagnostics, the name of each pose checked, the images
+    that gave no pose (image, reason), and the held-out prediction error of each estimator on the
+    poses the check keeps (None when too few)."""
 
     diagnostics: Diagnostics
     names: list[str]
     skipped: list[tuple[str, str]]
+    choice: Choice | None = None
+
+    def cross_validation_table(self) -> str:
+        """The estimators' held-out errors, best first, for people."""
+        if self.choice is None:
+            return "held-out prediction error: not computed (fewer than 5 usable poses)"
+        rows = sorted(self.choice.table().items(), key=lambda kv: kv[1]["mm"])
+        lines = [f"held-out prediction error ({self.choice.best.folds}-fold cross-validation; each view predicted "
+                 "from its robot pose by X and Z fitted without it):"]
+        for name, r in rows:
+            px = f"{r['px']:8.3f} px" if r.get("px") is not None else "           "
+            lines.append(f"  {name:<24} {px} {r['mm']:8.3f} mm at the target" + ("   <- best" if name == self.choice.name else ""))
+        return "\n".join(lines)
 
 
-def check_folder(folder: str | Path, jobs: int | None = None, progress: bool = True) -> FolderCheck:
+def check_folder(folder: str | Path, jobs: int | None = None, progress: bool = True,
+                 folds: int | None = None) -> FolderCheck:
     """:func:`handeye.diagnose` on a capture session (detection and PnP as :func:`calibrate` does them)
-    or on a pose-pair folder (``posepairs.yaml``)."""
+    or on a pose-pair folder (``posepairs.yaml``), with the held-out prediction error of every
+    estimator :func:`calibrate` would choose from."""
     folder = Path(folder)
     if (folder / POSEPAIRS_FILE).is_file():
         pairs = load_pose_pairs(folder)
         diag = diagnose(pairs.flange2base, pairs.target2cam, pairs.setup, robot_input=pairs.robot_input)
-        return FolderCheck(diag, list(pairs.ids), [])
+        keep = _kept(diag)
+        views = Views(pairs.flange2base[keep], pairs.target2cam[keep], pairs.setup)
+        return FolderCheck(diag, list(pairs.ids), [], _check_choice(diag, views, {}, folds))
     obs = observe(load_session(folder), jobs=jobs, progress=progress)
     names = obs.session.image_names
     diag = diagnose(obs.flange2base, obs.target2cam, obs.session.setup, robot_input=obs.robot_input)
-    return FolderCheck(diag, [names[k] for k in obs.used], sorted(obs.skipped, key=lambda item: names.index(item[0])))
+    keep = _kept(diag)
+    views = _views(obs, keep)
+    pixels = pixel_candidates(views, "daniilidis", obs.intrinsics_source == "estimated")
+    return FolderCheck(diag, [names[k] for k in obs.used], sorted(obs.skipped, key=lambda item: names.index(item[0])),
+                       _check_choice(diag, views, pixels, folds))
+
+
+def _kept(diag: Diagnostics) -> NDArray[np.intp]:
+    return np.setdiff1d(np.arange(diag.n_poses), diag.outliers)
+
+
+def _check_choice(diag: Diagnostics, views: Views, extra: dict, folds: int | None) -> Choice | None:
+    if diag.verdict == "degenerate" or len(views) < 5:
+        return None
+    try:
+        return choose(views, pose_candidates("daniilidis", views) | extra, folds)
+    except HandEyeError:
+        return None

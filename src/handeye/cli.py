@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from . import solvers
 from ._version import __version__
-from .calibration import calibrate, calibrate_poses, check_folder
+from .calibration import ROBOT_ACCURACY, calibrate, calibrate_poses, check_folder
 from .errors import HandEyeError
 from .geometry.se3 import make_transform
 from .planning import (easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov, reprojection_information,
@@ -66,11 +66,15 @@ def print_calibration(cal: Calibration, out=None) -> None:
         nz = cal.pose_noise
         w(f"pose noise estimated from the data (per axis): robot rotation {nz['robot_rotation_deg']:.4f} deg, "
           f"camera rotation {nz['camera_rotation_deg']:.4f} deg, translation {nz['translation_mm']:.3f} mm\n")
+    if cal.prediction_error is not None:
+        pe = cal.prediction_error
+        w(f"held-out prediction error ({cal.estimator}, cross-validated): "
+          + (f"{pe['px']:.3f} px, " if pe.get("px") is not None else "") + f"{pe['mm']:.3f} mm at the target\n")
     if cal.diagnostics is not None:
         w(f"check: {cal.diagnostics.verdict}"
           + (f"; outlier poses left out: {cal.diagnostics.outliers}" if cal.diagnostics.outliers else "") + "\n")
     for note in cal.notes:
-        w(f"warning: {note}\n")
+        w(f"note: {note}\n")
 
 
 def _input_folder(given: str | None, bundled: bool, bundled_name: str, usage: str) -> Path:
@@ -110,10 +114,11 @@ def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
                            "give a pose-pair folder, or --example for the bundled one (not both)")
     pairs = load_pose_pairs(folder)
     cal = calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, method=args.method, pairs=args.pairs,
-                          refine=args.refine, robot_input=pairs.robot_input)
+                          refine=args.refine, robot_input=pairs.robot_input, strict=args.strict,
+                          robot_accuracy=_accuracy_arg(args.robot_accuracy))
     print_calibration(cal)
     _write_outputs(cal, args, folder)
-    return 0
+    return _verdict_status(cal)
 
 
 def _print_image_summary(cal: Calibration) -> None:
@@ -138,14 +143,21 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
                             "give a session folder, or --sample for the bundled sample session (not both)")
     robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))  # calibrate checks the values
     cal = calibrate(session, method=args.method, refine=args.refine, jobs=args.jobs, progress=not args.no_progress,
-                    robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()))
+                    robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()), strict=args.strict,
+                    robot_accuracy=_accuracy_arg(args.robot_accuracy))
     _print_image_summary(cal)
     print_calibration(cal)
     _write_outputs(cal, args, session)
-    return 0
+    return _verdict_status(cal)
 
 
 EXIT_STATUS = {"good": 0, "weak": 1, "degenerate": 2, "inconsistent": 2}
+
+
+def _verdict_status(cal: Calibration) -> int:
+    """Exit status of a calibration that answered: 0 when the check found the data good (or was not
+    run), 1 when it called them weak or inconsistent (the result is written all the same)."""
+    return 0 if cal.verdict in ("good", "not checked") else 1
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -155,6 +167,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
     for name, reason in found.skipped:
         print(f"skipped {name}: {reason}")
     print(found.diagnostics.pose_table(found.names))
+    print()
+    print(found.cross_validation_table())
     print()
     print(found.diagnostics.summary())
     return EXIT_STATUS[found.diagnostics.verdict]
@@ -295,11 +309,22 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     return 0
 
 
+def _accuracy_arg(text: str | None):
+    """--robot-accuracy DEG,MM (calibrate checks the values); absent: handeye's default."""
+    v = _floats(text, "--robot-accuracy", (2,))
+    return ROBOT_ACCURACY if v is None else tuple(v.tolist())
+
+
 def _add_solver_and_out(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", default="daniilidis", choices=solvers.available(), help="solver (default: daniilidis)")
     p.add_argument("--out", help="write result.json, result.yaml and report.html into this folder")
     p.add_argument("--parent-frame", help="ROS frame X is given in (default: tool0 for eye_in_hand, base_link for eye_to_hand)")
     p.add_argument("--child-frame", help="ROS frame of the camera (default: camera_optical_frame)")
+    p.add_argument("--robot-accuracy", metavar="DEG,MM",
+                   help=f"the robot's absolute accuracy per axis, added to the std of X (a constant robot error is "
+                   f"invisible in the data; default {ROBOT_ACCURACY[0]:g},{ROBOT_ACCURACY[1]:g}; 0,0 for an exact robot)")
+    p.add_argument("--strict", action="store_true",
+                   help="fail (exit 2) instead of answering when the check calls the data inconsistent")
 
 
 def _add_detection_options(p: argparse.ArgumentParser) -> None:

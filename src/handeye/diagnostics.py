@@ -288,6 +288,12 @@ def diagnose(
             diag.verdict, diag.convention_hint = "inconsistent", hint
             diag.advice.append(_hint_advice(hint, given, scores[hint]))
             return diag
+        scale = board_scale(flange2base, target2cam, setup)  # a wrong target size is the other usual mistake
+        if scale is not None and _scale_is_off(*scale):
+            diag.scale, diag.scale_std = scale
+            diag.verdict = "inconsistent"
+            diag.advice.append(_scale_advice(*scale))
+            return diag
     inliers = np.ones(n, bool)
     if outliers:
         inliers, resid = find_outliers(flange2base, target2cam, setup, rng=rng)
@@ -312,11 +318,80 @@ def diagnose(
             diag.verdict = "weak"
     if leave_one_out:
         diag.leave_one_out = _leave_one_out(flange2base, target2cam, setup, inliers)
+    scale = board_scale(flange2base[inliers], target2cam[inliers], setup)
+    if scale is not None:
+        diag.scale, diag.scale_std = scale
+        if _scale_is_off(*scale):
+            diag.verdict = "inconsistent"
+            diag.advice.append(_scale_advice(*scale))
+            return diag
     weak = _weak_advice(diag, target2cam[inliers], int(inliers.sum()))
     if weak:
         diag.verdict = "weak"
         diag.advice.extend(weak)
     return diag
+
+
+#: A board scale off by more than this fraction, and by more than SCALE_SIGMAS standard deviations,
+#: names the target's size (or the units) as the likely mistake.
+SCALE_TOLERANCE = 0.01
+SCALE_SIGMAS = 4.0
+
+
+def board_scale(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64],
+                setup: str) -> tuple[float, float] | None:
+    """The factor ``s`` that maps the camera's translations onto the robot's, with its std.
+
+    Rotations do not depend on the target's size, translations do: a wrong square size (or units)
+    scales every camera translation. With X's and Z's rotations from Daniilidis (scale-free), the
+    robot-world form ``A_i X = Z inv(target2cam_i)`` is linear in ``t_X``, ``t_Z`` and ``s``
+    (``R_Ai t_X - t_Z + s R_Ai R_X t_Ci = -t_Ai``, ``t_Ci`` the target's position in the camera):
+    least squares, one residual block per pose (poses 4x beyond the median residual left out once);
+    the std is the larger of the residual-variance one and the jackknife's. None when the poses cannot determine it (fewer than 4, or a singular system).
+    """
+    n = len(flange2base)
+    if n < 4:
+        return None
+    try:
+        X = _solve(flange2base, target2cam, setup)
+    except (HandEyeError, np.linalg.LinAlgError):
+        return None
+    A = robot_world_inputs(flange2base, target2cam, setup)[0]
+    R_A, t_A = A[:, :3, :3], A[:, :3, 3]
+    M = np.zeros((n, 3, 7))
+    M[:, :, :3] = R_A
+    M[:, :, 3:6] = -np.eye(3)
+    M[:, :, 6] = (R_A @ (X[:3, :3] @ target2cam[:, :3, 3, None]))[..., 0]
+    sol, *_ = np.linalg.lstsq(M.reshape(-1, 7), -t_A.reshape(-1), rcond=None)
+    # a grossly wrong pose (a flipped planar pose, a swapped image) would carry the fit: left out
+    per_pose = np.linalg.norm((M @ sol) + t_A, axis=1)
+    good = per_pose <= 4.0 * np.median(per_pose) + 1e-12
+    if good.sum() >= 4 and not good.all():
+        M, t_A, n = M[good], t_A[good], int(good.sum())
+        sol, *_ = np.linalg.lstsq(M.reshape(-1, 7), -t_A.reshape(-1), rcond=None)
+    J, y = M.reshape(-1, 7), -t_A.reshape(-1)
+    r = J @ sol - y
+    dof = len(y) - 7
+    JtJ = J.T @ J
+    if dof <= 0 or np.linalg.cond(JtJ) > 1e12:
+        return None
+    var = float(r @ r) / dof * np.linalg.inv(JtJ)[6, 6]
+    # robot errors that depend on the pose are not independent noise: the jackknife (the scale
+    # refitted without each pose) measures the spread whatever the errors are; the larger counts
+    loo = np.array([np.linalg.lstsq(np.delete(M, k, axis=0).reshape(-1, 7), np.delete(-t_A, k, axis=0).reshape(-1),
+                                    rcond=None)[0][6] for k in range(n)])
+    var_jack = (n - 1) / n * float(np.sum((loo - loo.mean()) ** 2))
+    return float(sol[6]), float(np.sqrt(max(var, var_jack)))
+
+
+def _scale_is_off(scale: float, std: float) -> bool:
+    return abs(scale - 1.0) > max(SCALE_TOLERANCE, SCALE_SIGMAS * std)
+
+
+def _scale_advice(scale: float, std: float) -> str:
+    return (f"the camera's translations are {1 / scale:.3f}x what the robot's motions say (scale {scale:.4f} +- "
+            f"{std:.4f}, 1 when right): the target's size (square, or the spacing of circles) is likely wrong by "
+            f"that factor: multiply it by {scale:.4f} (or check the robot's length unit)")
 
 
 def _degenerate_advice(motions: MotionSet, exc: DegenerateMotionError) -> list[str]:

@@ -75,6 +75,10 @@ class Diagnostics:
     n_poses: int = 0
     #: consistency score up to which data count as consistent (handeye.diagnostics.CONSISTENT)
     consistency_limit: float = 3.0
+    #: the factor that maps the camera's translations onto the robot's (1 when the target's size and
+    #: the units are right), and its standard deviation; None when not estimated
+    scale: float | None = None
+    scale_std: float | None = None
 
     def pose_table(self, names: list[str] | None = None) -> str:
         """Per pose: residual from the consensus and how far X moves without it."""
@@ -93,6 +97,9 @@ class Diagnostics:
                  f"up to {self.consistency_limit:g} is consistent)"]
         if self.convention_hint:
             lines.append(f"convention hint: {self.convention_hint}")
+        if self.scale is not None:
+            lines.append(f"scale of the camera translations to the robot's: {self.scale:.4f} +- {self.scale_std:.4f} "
+                         "(1 when the target size and the units are right)")
         for i in self.outliers:
             r, t = self.outlier_residuals.get(i, (float("nan"), float("nan")))
             lines.append(f"outlier pose {i}: {r:.3f} deg / {t:.2f} mm from the consensus")
@@ -168,6 +175,28 @@ class Calibration:
     image_points: list[NDArray[np.float64]] | None = field(default=None, repr=False)
     #: per solver: its closed-form X on the same poses, from handeye.diagnostics.compare_solvers
     solver_comparison: list[dict] | None = field(default=None, repr=False)
+    #: the estimator that gave X (a solver name, 'pose', 'reprojection', ...; see handeye.estimators)
+    estimator: str | None = None
+    #: held-out prediction error per estimator tried, from K-fold cross-validation: name ->
+    #: {'px': RMS pixels (None without images), 'mm': RMS at the target's distance}
+    cross_validation: dict[str, dict[str, float | None]] | None = None
+    #: the std of X's six parameters (deg, mm) from each source: 'model' (the refinement's noise
+    #: model, None for a closed form), 'jackknife' (the spread of X refitted without each pose)
+    std_sources: dict[str, NDArray[np.float64] | None] | None = None
+
+    @property
+    def verdict(self) -> str:
+        """The check's verdict ('good', 'weak', 'inconsistent'), or 'not checked'."""
+        return self.diagnostics.verdict if self.diagnostics is not None else "not checked"
+
+    @property
+    def prediction_error(self) -> dict[str, float | None] | None:
+        """The cross-validated held-out error of the estimator used: ``{'px', 'mm'}`` (see
+        :attr:`cross_validation`): how far off, from the robot pose alone, this calibration puts the
+        target in a view it was not fitted on. The number to trust."""
+        if self.cross_validation is None or self.estimator not in self.cross_validation:
+            return None
+        return self.cross_validation[self.estimator]
 
     @cached_property
     def motion_residuals(self) -> NDArray[np.float64]:

@@ -25,14 +25,16 @@ from ._shared.lazy import lazy_module
 from .errors import HandEyeError
 from .geometry.se3 import invert, make_transform, random_rotations
 from .session import write_session
-from .setups import check_setup, flange_poses, setup_info
+from .setups import check_setup, flange_poses, predicted_target2cam, setup_info
+from .vision.pnp import project_points
 from .vision.render import Renderer, target_texture
 from .vision.targets import target_from_spec
 
 cv2 = lazy_module("cv2")
 
 __all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look_at", "look_at_viewpoints", "perturb_poses", "seed_viewpoints",
-           "seed_scenes", "add_noise", "simulate_session"]
+           "seed_scenes", "add_noise", "simulate_session", "RealisticErrors", "RealisticScene", "REALISTIC", "EXACT",
+           "realistic_scene", "arm_forward_kinematics", "ARM_DH"]
 
 
 @dataclass(frozen=True)
@@ -403,3 +405,213 @@ def simulate_session(
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return scene
 
+
+# ----------------------------------------------------------------------------------------------------
+# A realistic simulator: the errors real robots and cameras have, not only Gaussian pose noise.
+
+#: A 6-axis arm (Universal Robots UR5's published standard DH parameters): per joint
+#: ``(a, alpha, d, theta offset)``, metres and radians.
+ARM_DH = np.array([
+    [0.0, np.pi / 2, 0.089159, 0.0],
+    [-0.425, 0.0, 0.0, 0.0],
+    [-0.39225, 0.0, 0.0, 0.0],
+    [0.0, np.pi / 2, 0.10915, 0.0],
+    [0.0, -np.pi / 2, 0.09465, 0.0],
+    [0.0, 0.0, 0.0823, 0.0],
+])
+#: Joint angles (rad) where the realistic scenes centre: the flange looks down (eye-in-hand, camera
+#: above a table target) or sideways (eye-to-hand, board towards a camera on a stand).
+ARM_HOME = {"eye_in_hand": np.radians([0.0, -110.0, 110.0, -90.0, -90.0, 0.0]),
+            "eye_to_hand": np.radians([0.0, -110.0, 110.0, -180.0, -90.0, 0.0])}
+
+
+def arm_forward_kinematics(q: NDArray[np.float64], dh: NDArray[np.float64] = ARM_DH) -> NDArray[np.float64]:
+    """``flange2base`` (..., 4, 4) of joint angles ``q`` (..., 6) for standard DH parameters
+    ``dh`` (6, 4) or (..., 6, 4) (``a, alpha, d, theta offset`` per joint)."""
+    q = np.asarray(q, dtype=float)
+    dh = np.broadcast_to(dh, q.shape + (4,))
+    th = q + dh[..., 3]
+    ct, st, ca, sa = np.cos(th), np.sin(th), np.cos(dh[..., 1]), np.sin(dh[..., 1])
+    A = np.zeros(q.shape + (4, 4))
+    A[..., 0, 0], A[..., 0, 1], A[..., 0, 2], A[..., 0, 3] = ct, -st * ca, st * sa, dh[..., 0] * ct
+    A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st, ct * ca, -ct * sa, dh[..., 0] * st
+    A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = sa, ca, dh[..., 2]
+    A[..., 3, 3] = 1.0
+    T = A[..., 0, :, :]
+    for k in range(1, 6):
+        T = T @ A[..., k, :, :]
+    return T
+
+
+@dataclass(frozen=True)
+class RealisticErrors:
+    """The errors of a real capture (defaults: a calibrated industrial arm, a good camera).
+
+    * kinematics: the robot reports the forward kinematics of its nominal DH parameters while the
+      arm follows perturbed ones (``dh_length_mm``, ``dh_angle_deg`` per parameter, joint zero
+      offsets included): a systematic error that depends on the pose, ~0.5-1 mm at the flange;
+    * ``robot_rot_deg``, ``robot_mm``: random pose noise on top, Student-t with ``robot_dof``
+      degrees of freedom (heavy tails; the scale is the t's, not a standard deviation);
+    * ``jitter_ms``: the pose is read that long (Gaussian, std) before or after the image while the
+      arm still moves at ``speed_mm_s`` / ``speed_deg_s`` along a random direction;
+    * camera: the target's points are projected with ``pixel_px`` Gaussian pixel noise and the pose
+      is solved by PnP (IPPE + Levenberg-Marquardt), so its error grows along the optical axis as a
+      real PnP's does; with probability ``flip_probability`` the other planar solution is kept (the
+      flipped-pose outlier of planar targets).
+    """
+
+    dh_length_mm: float = 0.3
+    dh_angle_deg: float = 0.02
+    robot_rot_deg: float = 0.01
+    robot_mm: float = 0.03
+    robot_dof: float = 3.0
+    jitter_ms: float = 3.0
+    speed_mm_s: float = 50.0
+    speed_deg_s: float = 10.0
+    pixel_px: float = 0.3
+    flip_probability: float = 0.02
+
+
+#: The preset that mixes every error above at its default level.
+REALISTIC = RealisticErrors()
+#: No error at all (the same scenes, for ground-truth checks).
+EXACT = RealisticErrors(0.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class RealisticScene:
+    """A simulated capture with realistic errors (:func:`realistic_scene`); ``*_true`` are exact."""
+
+    setup: str
+    X: NDArray[np.float64]
+    Z: NDArray[np.float64]
+    joints: NDArray[np.float64]  #: (N, 6) rad
+    flange2base_true: NDArray[np.float64]
+    flange2base: NDArray[np.float64]  #: what the robot reports
+    target2cam_true: NDArray[np.float64]
+    target2cam: NDArray[np.float64]  #: what PnP returns
+    object_points: NDArray[np.float64]  #: (M, 3) target frame
+    image_points: NDArray[np.float64]  #: (N, M, 2) noisy detections, px
+    K: NDArray[np.float64]
+    dist: NDArray[np.float64]
+    image_size: tuple[int, int]
+    flipped: NDArray[np.bool_]  #: (N,) poses where PnP kept the other planar solution
+
+
+def _scene_layout(setup: str, object_points: NDArray[np.float64], rng: np.random.Generator):
+    """X and Z of a realistic cell: the camera 5-10 cm off the flange looking along it (eye-in-hand)
+    or on a stand 0.6-0.8 m in front of the board on the flange (eye-to-hand)."""
+    home = arm_forward_kinematics(ARM_HOME[setup])
+    centre = 0.5 * (object_points.min(axis=0) + object_points.max(axis=0))
+    tilt = make_transform(Rotation.from_rotvec(rng.normal(0.0, np.radians(5.0), 3)).as_matrix(), np.zeros(3))
+    if setup_info(setup).camera_on_flange:
+        X = make_transform(Rotation.from_euler("z", rng.uniform(-180, 180), degrees=True).as_matrix()
+                           @ tilt[:3, :3], rng.uniform(-0.07, 0.07, 3) * [1, 1, 0.5])
+        cam = home @ X
+        standoff = rng.uniform(0.35, 0.5)
+        # the target centre on the optical axis, printed side towards the camera (z along the view)
+        R_t = cam[:3, :3] @ Rotation.from_euler("z", rng.uniform(-180, 180), degrees=True).as_matrix()
+        Z = make_transform(R_t, cam[:3, 3] + standoff * cam[:3, 2] - R_t @ centre)
+        return X, Z
+    Z = make_transform(Rotation.from_euler("x", 180, degrees=True).as_matrix() @ tilt[:3, :3],
+                       [rng.uniform(-0.03, 0.03), rng.uniform(-0.03, 0.03), 0.02])
+    target = home @ Z
+    R_c = target[:3, :3] @ Rotation.from_euler("z", rng.uniform(-180, 180), degrees=True).as_matrix()
+    c = target[:3, :3] @ centre + target[:3, 3]
+    X = make_transform(R_c, c - rng.uniform(0.6, 0.8) * R_c[:, 2])
+    return X, Z
+
+
+def _sample_joints(setup, X, Z, object_points, K, image_size, n, rng, margin_px=10.0, spread_deg=(25, 25, 25, 40, 40, 60)):
+    """Joint angles around the home pose whose views see the whole target, 0.25-1.2 m away and
+    less than 60 deg from face-on."""
+    w, h = image_size
+    out = []
+    for _ in range(50):
+        q = ARM_HOME[setup] + np.radians(rng.uniform(-1, 1, (400, 6)) * spread_deg)
+        t2c = predicted_target2cam(X, Z, arm_forward_kinematics(q), setup)
+        p = np.einsum("nij,mj->nmi", t2c[:, :3, :3], object_points) + t2c[:, None, :3, 3]
+        z = p[..., 2]
+        ok = (z.min(axis=1) > 0.25) & (z.max(axis=1) < 1.2) & (t2c[:, 2, 2] > np.cos(np.radians(60)))
+        uv = np.einsum("ij,nmj->nmi", K[:2, :2], p[..., :2] / np.where(z > 0, z, 1.0)[..., None]) + K[:2, 2]
+        ok &= ((uv[..., 0] > margin_px) & (uv[..., 0] < w - margin_px) & (uv[..., 1] > margin_px)
+               & (uv[..., 1] < h - margin_px)).all(axis=1)
+        out.extend(q[ok])
+        if len(out) >= n:
+            return np.array(out[:n])
+    raise HandEyeError(f"could not find {n} views of the target for the realistic {setup} scene")
+
+
+def _robot_reading(q, flange2base_true, errors: RealisticErrors, rng):
+    """What the controller reports: nominal kinematics at ``q`` (the arm follows perturbed ones:
+    the caller's ``flange2base_true``), read a little off in time, with heavy-tailed noise."""
+    reported = arm_forward_kinematics(q)  # nominal parameters
+    n = len(q)
+    if errors.jitter_ms > 0:
+        dt = 1e-3 * rng.normal(0.0, errors.jitter_ms, n)
+        direction = rng.normal(size=(n, 2, 3))
+        direction /= np.linalg.norm(direction, axis=2, keepdims=True)
+        dR = Rotation.from_rotvec(np.radians(errors.speed_deg_s) * dt[:, None] * direction[:, 0]).as_matrix()
+        reported = make_transform(dR @ reported[:, :3, :3],
+                                  reported[:, :3, 3] + 1e-3 * errors.speed_mm_s * dt[:, None] * direction[:, 1])
+    if errors.robot_rot_deg > 0 or errors.robot_mm > 0:
+        rot = np.radians(errors.robot_rot_deg) * rng.standard_t(errors.robot_dof, (n, 3))
+        tra = 1e-3 * errors.robot_mm * rng.standard_t(errors.robot_dof, (n, 3))
+        reported = make_transform(Rotation.from_rotvec(rot).as_matrix() @ reported[:, :3, :3], reported[:, :3, 3] + tra)
+    return reported
+
+
+def _camera_reading(target2cam_true, object_points, K, dist, errors: RealisticErrors, rng):
+    """Noisy detections, and the PnP pose of each (sometimes the flipped planar solution)."""
+    obj = np.ascontiguousarray(object_points, dtype=np.float64)
+    n = len(target2cam_true)
+    image_points = np.stack([project_points(T, obj, K, dist) for T in target2cam_true])
+    image_points = image_points + rng.normal(0.0, errors.pixel_px, image_points.shape)
+    flipped = rng.random(n) < errors.flip_probability
+    poses = np.empty((n, 4, 4))
+    for i in range(n):
+        img = np.ascontiguousarray(image_points[i])
+        if errors.pixel_px == 0 and not flipped[i]:
+            poses[i] = target2cam_true[i]
+            continue
+        _, rvecs, tvecs, _ = cv2.solvePnPGeneric(obj, img, K, dist, flags=cv2.SOLVEPNP_IPPE)
+        k = 1 if flipped[i] and len(rvecs) > 1 else 0
+        flipped[i] = k == 1
+        rvec, tvec = rvecs[k], tvecs[k]
+        if k == 0:  # refined from the other solution, LM would often slide back to this one
+            rvec, tvec = cv2.solvePnPRefineLM(obj, img, K, dist, rvec, tvec)
+        poses[i] = make_transform(Rotation.from_rotvec(rvec.ravel()).as_matrix(), tvec.ravel())
+    return poses, image_points, flipped
+
+
+def realistic_scene(
+    n_poses: int,
+    setup: str = "eye_in_hand",
+    rng: np.random.Generator | int | None = None,
+    errors: RealisticErrors = REALISTIC,
+    target: str | dict = "chessboard",
+    image_size: tuple[int, int] = (1280, 1024),
+) -> RealisticScene:
+    """A capture by a 6-axis arm (:data:`ARM_DH`) with the errors of :class:`RealisticErrors`.
+
+    Joint angles are drawn around a home pose until ``n_poses`` views see the whole target; the
+    arm's true kinematics are the nominal ones perturbed once per scene; the robot reports the
+    nominal forward kinematics (plus timing jitter and heavy-tailed noise); the camera's poses
+    come from PnP on noisy projections of the target's points (sometimes flipped).
+    """
+    check_setup(setup)
+    rng = np.random.default_rng(rng)
+    spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
+    obj = target_from_spec(spec).object_points()
+    K, dist = default_camera(image_size)
+    X, Z = _scene_layout(setup, obj, rng)
+    q = _sample_joints(setup, X, Z, obj, K, image_size, n_poses, rng)
+    dh = ARM_DH.copy()
+    dh[:, [0, 2]] += 1e-3 * rng.normal(0.0, errors.dh_length_mm, (6, 2))
+    dh[:, [1, 3]] += np.radians(rng.normal(0.0, errors.dh_angle_deg, (6, 2)))
+    f2b_true = arm_forward_kinematics(q, dh)
+    t2c_true = predicted_target2cam(X, Z, f2b_true, setup)
+    reported = _robot_reading(q, f2b_true, errors, rng)
+    t2c, image_points, flipped = _camera_reading(t2c_true, obj, K, dist, errors, rng)
+    return RealisticScene(setup, X, Z, q, f2b_true, reported, t2c_true, t2c, obj, image_points, K, dist,
+                          tuple(image_size), flipped)

@@ -172,6 +172,19 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
             "cov": cal.cov.tolist(),
             "cov_parameters": "X: rotation vector increment (rad, left), translation (m)",
         }
+        if cal.std_sources is not None:
+            out["uncertainty"]["sources"] = {
+                k: (None if v is None else {"rotation_deg": v[:3].tolist(), "translation_mm": v[3:].tolist()})
+                for k, v in cal.std_sources.items()}
+    if cal.cross_validation is not None:
+        out["cross_validation"] = {
+            "estimator": cal.estimator,
+            "prediction_error": cal.prediction_error,
+            "per_estimator": cal.cross_validation,
+            "meaning": "RMS error of the target's points in views held out of the fit, predicted from the robot "
+                       "pose alone: pixels (with images) and millimetres at the target's distance; the number to "
+                       "trust for how well X and Z predict new views",
+        }
     if cal.diagnostics is not None:
         d = cal.diagnostics
         out["check"] = {
@@ -179,6 +192,8 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
             "outliers": list(d.outliers),
             "pose_indices_used": [int(i) for i in cal.pose_indices],
             "consistency": float(d.consistency),
+            "scale": d.scale,
+            "scale_std": d.scale_std,
             "advice": list(d.advice),
         }
     else:

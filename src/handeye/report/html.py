@@ -241,6 +241,8 @@ def _result_section(cal: Calibration, data: dict) -> str:
              + f"<h3>Z = {_e(data['Z_name'])}</h3>" + _transform_table(cal.Z, None)
              + "<h3>Paste into ROS 2</h3>"
              + f"<pre>{_e(data['ros']['static_transform_publisher'])}</pre><pre>{_e(data['ros']['urdf_joint'])}</pre>"]
+    if cal.cross_validation is not None:
+        parts.append(_cross_validation_table(cal))
     if cal.pose_noise is not None:
         nz = cal.pose_noise
         parts.append(f"<p>noise estimated from the data (per axis): robot rotation {nz['robot_rotation_deg']:.4f} deg, "
@@ -253,6 +255,21 @@ def _result_section(cal: Calibration, data: dict) -> str:
                      + "</p>")
     parts.append("</section>")
     return "".join(parts)
+
+
+def _cross_validation_table(cal: Calibration) -> str:
+    """Held-out prediction error of every estimator tried, the one used first."""
+    rows = sorted(cal.cross_validation.items(), key=lambda kv: (kv[0] != cal.estimator, kv[1]["mm"]))
+    body = []
+    for name, r in rows:
+        px = "—" if r.get("px") is None else f"{r['px']:.3f}"
+        used = " (used)" if name == cal.estimator else ""
+        body.append(f'<tr><td class="l">{_e(name)}{used}</td><td>{px}</td><td>{r["mm"]:.3f}</td></tr>')
+    body = "".join(body)
+    return ("<h3>Held-out prediction error (cross-validated)</h3><p class=\"note\">Each view predicted from its robot "
+            "pose by X and Z fitted without it: where the target's points land against where the camera saw them. "
+            "The estimator with the smallest error is used.</p>"
+            f'<table><tr><th class="l">estimator</th><th>px</th><th>mm at the target</th></tr>{body}</table>')
 
 
 def _residuals_section(cal: Calibration) -> str:

@@ -31,11 +31,11 @@ from scipy.spatial.transform import Rotation
 
 from ..geometry.se3 import invert, make_transform, skew, so3_left_jacobian
 from ..setups import check_setup, constant_transforms, predicted_target2cam, robot_world_A, setup_info
-from ..vision.pnp import project_points, solve_pnp
+from ..vision.pnp import project_points, project_points_many, solve_pnp
 from ..vision.targets import Detection
 
-__all__ = ["PoseRefinementResult", "ReprojectionResult", "pose_mahalanobis", "refine_pose", "refine_reprojection",
-           "predicted_target2cam"]
+__all__ = ["PoseRefinementResult", "ReprojectionResult", "pose_mahalanobis", "refine_pose", "refit_pose",
+           "refine_reprojection", "predicted_target2cam"]
 
 
 @dataclass(frozen=True)
@@ -55,6 +55,10 @@ class ReprojectionResult:
     n_rejected: int = 0  #: points dropped as outliers (robust=True)
     flange2base: NDArray[np.float64] | None = None  #: the robot poses, corrected when robot_noise was given
     n_evaluations: int = 0  #: residual evaluations the solver made
+    #: images whose every point the robust pass set aside (they keep no pixel residual)
+    rejected_images: tuple[int, ...] = ()
+    #: per image, the points the fit kept (robust=True; all points otherwise)
+    kept: tuple[NDArray[np.bool_], ...] | None = None
 
 
 def refine_reprojection(
@@ -158,9 +162,9 @@ def refine_reprojection(
 def _xz_increment(x: NDArray[np.float64], X0: NDArray[np.float64], Z0: NDArray[np.float64]):
     """X and Z moved by the first 12 unknowns: left rotation-vector increments and translation
     increments of X, then of Z."""
-    X = make_transform(Rotation.from_rotvec(x[:3]).as_matrix() @ X0[:3, :3], X0[:3, 3] + x[3:6])
-    Z = make_transform(Rotation.from_rotvec(x[6:9]).as_matrix() @ Z0[:3, :3], Z0[:3, 3] + x[9:12])
-    return X, Z
+    dR = Rotation.from_rotvec(np.stack([x[:3], x[6:9]])).as_matrix()  # one scipy call for both
+    return (make_transform(dR[0] @ X0[:3, :3], X0[:3, 3] + x[3:6]),
+            make_transform(dR[1] @ Z0[:3, :3], Z0[:3, 3] + x[9:12]))
 
 
 def _reprojection_unpacker(X0, Z0, K0, d0, extra_dist, flange2base, refine_intrinsics: bool, robot_corrections: bool,
@@ -195,14 +199,20 @@ def _reprojection_residuals(unpack, obj, img, setup: str, n_glob: int, prior_w, 
     image, then (``prior_w`` given) the prior on each robot pose correction in pixel units.
     ``calls[0]`` counts the evaluations."""
 
+    # every point of every image in one array, with the image it belongs to (an image without
+    # points projects nothing)
+    points = np.concatenate([np.reshape(o, (-1, 3)) for o in obj])
+    detected = np.concatenate([np.reshape(i, (-1, 2)) for i in img]).ravel()
+    owner = np.repeat(np.arange(len(obj)), [len(o) for o in obj])
+
     def residuals(x):
         calls[0] += 1
         X, Z, Kx, dx, F = unpack(x)
         T = predicted_target2cam(X, Z, F, setup)
-        px = [(project_points(Ti, o, Kx, dx) - im).ravel() for Ti, o, im in zip(T, obj, img)]
+        px = project_points_many(T, points, owner, Kx, dx).ravel() - detected
         if prior_w is not None:
-            px.append(x[n_glob:] * prior_w)
-        return np.concatenate(px)
+            return np.concatenate([px, x[n_glob:] * prior_w])
+        return px
 
     return residuals
 
@@ -213,7 +223,8 @@ def _reprojection_result(res, unpack, r0, counts, n: int, loss: str, n_calls: in
     X, Z, K_out, d_out, F_out = unpack(res.x)
     cov_X, sigma2 = _gauss_newton_cov_X(res, n, loss)
     r = res.fun[:m_px].reshape(-1, 2)
-    per_image = np.array([np.sqrt(np.mean(np.sum(r[a:b] ** 2, axis=1))) for a, b in zip(counts[:-1], counts[1:])])
+    per_image = np.array([np.sqrt(np.mean(np.sum(r[a:b] ** 2, axis=1))) if b > a else np.nan
+                          for a, b in zip(counts[:-1], counts[1:])])
     return ReprojectionResult(
         X, Z, K_out, d_out, float(np.sqrt(np.mean(np.sum(r**2, axis=1)))),
         float(np.sqrt(np.mean(r0[:m_px].reshape(-1, 2) ** 2) * 2)),
@@ -257,10 +268,11 @@ def _robust_reprojection(X0, Z0, flange2base, object_points, image_points, K, di
                                  first.K, first.dist, setup, refine_intrinsics=refine_intrinsics,
                                  robot_noise=robot_noise, sparse=sparse)
     rejected = int(sum(int((~k).sum()) for k in keep))
+    emptied = tuple(i for i, k in enumerate(keep) if len(k) and not k.any())
     return ReprojectionResult(
         second.X, second.Z, second.K, second.dist, second.rms_px, first.rms_px_before, second.per_image_rms_px,
         second.n_points, second.success, second.message, second.cov_X, second.sigma_px, rejected,
-        second.flange2base, second.n_evaluations,
+        second.flange2base, second.n_evaluations, emptied, tuple(keep),
     )
 
 
@@ -595,6 +607,29 @@ def refine_pose(
         residuals=r, rounds=rounds, converged=converged, weighting=weighting,
         success=bool(res.success), message=str(res.message),
     )
+
+
+def refit_pose(X0: NDArray[np.float64], Z0: NDArray[np.float64], flange2base: NDArray[np.float64],
+               target2cam: NDArray[np.float64], setup: str, noise: dict[str, float]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """X and Z of :func:`refine_pose` on other poses with the noise of an earlier refinement held
+    fixed (``noise``: its ``PoseRefinementResult.noise``): one weighted least-squares fit started
+    at ``X0``, ``Z0``, no variance re-estimation, no covariance. For cross-validation and jackknife
+    refits, which differ from the full fit by a few poses."""
+    theta = np.maximum([noise["robot_rotation"] ** 2, noise["camera_rotation"] ** 2, noise["translation"] ** 2],
+                       VARIANCE_FLOOR)
+    n = len(flange2base)
+    _, t2f, _ = _pose_residuals(X0, Z0, flange2base, target2cam, setup)
+    W = _pose_weights(theta, _noise_shapes(t2f), "noise_model", n)
+
+    def unpack(x):
+        return _xz_increment(x, X0, Z0)
+
+    res = least_squares(
+        lambda x: np.einsum("nij,nj->ni", W, _raw_pose_residuals(*unpack(x), flange2base, target2cam, setup,
+                                                                 "noise_model")).ravel(),
+        np.zeros(12), jac=lambda x: _whitened_pose_jacobian(x, W, unpack, flange2base, target2cam, setup),
+        method="trf", x_scale=np.full(12, 1e-3), xtol=1e-10, ftol=1e-10, gtol=1e-10)
+    return unpack(res.x)
 
 
 def pose_mahalanobis(

@@ -1,0 +1,165 @@
+"""The estimators a calibration chooses from, and the choice: by what predicts held-out views best.
+
+Every closed form (AX = XB with Z the mean of the per-pose Z_i, and the robot-world ones), the pose
+refinement (Strobl-Hirzinger's weighting with a noise model, :func:`~handeye.solvers.refine.refine_pose`),
+and with images the pixel refinement (:func:`~handeye.solvers.refine.refine_reprojection`: robot
+poses exact, or corrected under a prior the user gives; intrinsics refined too when they were
+estimated from the same images). Fitting the training data better is not the test: on real
+captures a refinement can fit better and predict worse. :func:`choose` runs K-fold
+cross-validation (:mod:`handeye.validation`) of each on the user's own data and keeps the one with
+the smallest held-out error; the jackknife spread of X comes from refits of the chosen one without each pose
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import solvers
+from .diagnostics import closed_form
+from .errors import HandEyeError
+from .solvers.refine import ReprojectionResult, refine_pose, refine_reprojection, refit_pose
+from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices
+
+__all__ = ["Choice", "pose_candidates", "pixel_candidates", "choose", "POSE", "PIXEL", "PIXEL_INTRINSICS",
+           "PIXEL_ROBOT"]
+
+#: Closed forms left out of the choice: horaud_nonlinear costs 4x the others per fit and lands between
+#: horaud and the pose refinement, which are both candidates.
+SLOW_CLOSED_FORMS = ("horaud_nonlinear",)
+#: Names of the refinements (the closed forms go by their solver names).
+POSE = "pose"
+PIXEL = "reprojection"
+PIXEL_INTRINSICS = "reprojection+intrinsics"
+PIXEL_ROBOT = "reprojection+robot"
+
+
+def _closed(method: str) -> Fit:
+    def fit(flange2base, target2cam, setup, idx):
+        X, Z, _ = closed_form(flange2base, target2cam, setup, method)
+        return X, Z
+    return fit
+
+
+def _pose(method: str, views: Views | None) -> Fit:
+    """The pose refinement. With ``views`` (all the poses), it is refined on them once (kept as
+    ``fit.full``), and each fit on a subset starts there with the noise variances held
+    (:func:`~handeye.solvers.refine.refit_pose`): a cross-validation fold differs from the whole by a
+    few poses."""
+    full: list = []
+
+    def fit(flange2base, target2cam, setup, idx):
+        if views is None:
+            X, Z, _ = closed_form(flange2base, target2cam, setup, method)
+            ref = refine_pose(X, Z, flange2base, target2cam, setup)
+            return ref.X, ref.Z
+        if not full:
+            X, Z, _ = closed_form(views.flange2base, views.target2cam, setup, method)
+            full.append(refine_pose(X, Z, views.flange2base, views.target2cam, setup))
+        ref = full[0]
+        return refit_pose(ref.X, ref.Z, flange2base, target2cam, setup, ref.noise)
+
+    fit.full = full
+    return fit
+
+
+def pose_candidates(method: str = "daniilidis", views: Views | None = None) -> dict[str, Fit]:
+    """Every registered closed form, and the pose refinement started from ``method`` (warm-started
+    from the refinement on all of ``views`` when given)."""
+    out = {name: _closed(name) for name in solvers.available() if name not in SLOW_CLOSED_FORMS}
+    out[POSE] = _pose(method, views)
+    return out
+
+
+def pixel_fit(views: Views, idx: NDArray[np.intp], X0: NDArray[np.float64], Z0: NDArray[np.float64],
+              refine_intrinsics: bool = False, robot_sigma: tuple[float, float] | None = None) -> ReprojectionResult:
+    """The robust pixel refinement of X0, Z0 on the views ``idx``."""
+    return refine_reprojection(X0, Z0, views.flange2base[idx], [views.object_points[i] for i in idx],
+                               [views.image_points[i] for i in idx], views.K, views.dist, views.setup,
+                               refine_intrinsics=refine_intrinsics, robust=True, robot_noise=robot_sigma)
+
+
+def _pixel(views: Views, method: str, refine_intrinsics: bool, robot_sigma) -> Fit:
+    """The pixel refinement. It is fitted on all of ``views`` once (robustly, kept as ``fit.full``
+    with the points it kept); each fit on a subset starts there, on those points, by plain least
+    squares: a cross-validation fold differs from the whole by a few images."""
+    full: list = []
+
+    def fit(flange2base, target2cam, setup, idx):
+        if not full:
+            all_idx = np.arange(len(views))
+            X, Z, _ = closed_form(views.flange2base, views.target2cam, setup, method)
+            full.append(pixel_fit(views, all_idx, X, Z, refine_intrinsics, robot_sigma))
+        ref = full[0]
+        keep = [ref.kept[i] for i in idx]
+        sub = refine_reprojection(ref.X, ref.Z, views.flange2base[idx],
+                                  [np.asarray(views.object_points[i])[k] for i, k in zip(idx, keep)],
+                                  [np.asarray(views.image_points[i])[k] for i, k in zip(idx, keep)],
+                                  ref.K if refine_intrinsics else views.K, ref.dist if refine_intrinsics else views.dist,
+                                  setup, refine_intrinsics=refine_intrinsics, robot_noise=robot_sigma)
+        return (sub.X, sub.Z, sub.K, sub.dist) if refine_intrinsics else (sub.X, sub.Z)
+
+    fit.full = full
+    return fit
+
+
+def pixel_candidates(views: Views, method: str = "daniilidis", intrinsics_estimated: bool = False,
+                     robot_sigma: tuple[float, float] | None = None) -> dict[str, Fit]:
+    """The pixel refinements for ``views`` (which must have images): robot poses exact; with the
+    intrinsics refined too when they were estimated from these images; with robot pose corrections
+    when ``robot_sigma`` (rad, m) is given."""
+    out = {PIXEL: _pixel(views, method, False, None)}
+    if intrinsics_estimated:
+        out[PIXEL_INTRINSICS] = _pixel(views, method, True, None)
+    if robot_sigma is not None:
+        out[PIXEL_ROBOT] = _pixel(views, method, intrinsics_estimated, robot_sigma)
+    return out
+
+
+@dataclass(frozen=True)
+class Choice:
+    """What :func:`choose` found: the estimator with the smallest held-out error, and every one's."""
+
+    name: str
+    results: dict[str, CrossValidation]
+    fits: dict[str, Fit]  #: the candidates, by name
+
+    @property
+    def best(self) -> CrossValidation:
+        return self.results[self.name]
+
+    def table(self) -> dict[str, dict[str, float | None]]:
+        """Per estimator its held-out RMS error: ``px`` (None without images) and ``mm``."""
+        return {name: {"px": r.rms_px, "mm": r.rms_mm} for name, r in self.results.items()}
+
+
+def choose(views: Views, candidates: dict[str, Fit], folds: int | None = None, seed: int = 0,
+           prefer: str | None = None) -> Choice:
+    """Cross-validate every candidate on the same folds and keep the best (smallest RMS held-out
+    error: pixels with images, millimetres at the target's distance without).
+
+    With few views the held-out errors are noisy, and the smallest can win by chance: the
+    candidate with the smallest error replaces ``prefer`` (the pose refinement, which models the
+    noise of both robot and camera) only when it is better by more than one standard error of the
+    per-view differences (the "one standard error" rule of model selection). Raises
+    :class:`HandEyeError` when no candidate solves every fold.
+    """
+    held = fold_indices(len(views), default_folds(len(views)) if folds is None else folds, seed)
+    results = {name: cross_validate(fit, views, held, name) for name, fit in candidates.items()}
+    finite = {name: r.score for name, r in results.items() if np.isfinite(r.score)}
+    if not finite:
+        raise HandEyeError("no estimator could be fitted on every cross-validation fold (too few or degenerate poses)")
+    best = min(finite, key=finite.get)
+    if prefer is None:
+        prefer = next((p for p in (PIXEL_INTRINSICS, PIXEL, POSE) if p in candidates), POSE)
+    if prefer in finite and best != prefer:
+        d = _errors(results[best]) ** 2 - _errors(results[prefer]) ** 2
+        if d.mean() + d.std(ddof=1) / np.sqrt(len(d)) >= 0:
+            best = prefer
+    return Choice(best, results, dict(candidates))
+
+
+def _errors(r: CrossValidation) -> NDArray[np.float64]:
+    return r.px if r.px is not None else r.mm
