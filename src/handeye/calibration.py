@@ -249,7 +249,7 @@ def apply_choice(cal: Calibration, choice: Choice, views: Views, pairs: Pairs = 
         done = getattr(choice.fits[POSE], "full", None)  # the refinement on these very poses, if made
         cal = refine_on_poses(cal, done[0] if done else None)
     elif name in (PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT):
-        cal = _final_pixel_fit(cal, obs, name, robot_noise, pairs)
+        cal = _final_pixel_fit(cal, obs, name, robot_noise, pairs, choice.fits[name])
     elif name != cal.estimator:  # another closed form
         X, Z, motions = closed_form(cal.flange2base, cal.target2cam, cal.setup, name, pairs)
         cal = replace(cal, X=X, Z=Z, method=name, motions=motions, pairs=motions.pairs)
@@ -261,7 +261,8 @@ def apply_choice(cal: Calibration, choice: Choice, views: Views, pairs: Pairs = 
     return replace(cal, notes=notes)
 
 
-def _final_pixel_fit(cal: Calibration, obs: Observations, name: str, robot_noise, pairs: Pairs) -> Calibration:
+def _final_pixel_fit(cal: Calibration, obs: Observations, name: str, robot_noise, pairs: Pairs,
+                     fit=None) -> Calibration:
     """The pixel refinement ``name`` on every used image, the check's pose outliers back in: a pose
     can look off because its PnP is weak (a far or fronto-parallel view) while its pixels fit, and
     the robust pixel fit judges every point (an image whose points all disagree is named)."""
@@ -275,9 +276,13 @@ def _final_pixel_fit(cal: Calibration, obs: Observations, name: str, robot_noise
         motions = MotionSet.from_poses(obs.flange2base, obs.target2cam, cal.setup, pairs)
         cal = replace(cal, flange2base=obs.flange2base, target2cam=obs.target2cam, pairs=motions.pairs,
                       motions=motions, pose_indices=everything, notes=notes)
-    sigma = _robot_sigma(robot_noise, "auto") if name == PIXEL_ROBOT else None
-    ref = pixel_fit(_views(obs, everything), everything, cal.X, cal.Z, name != PIXEL and obs.intrinsics_source == "estimated",
-                    sigma)
+    done = getattr(fit, "full", None)
+    if done and not outliers:  # the candidate's robust fit on these very images
+        ref = done[0]
+    else:
+        sigma = _robot_sigma(robot_noise, "auto") if name == PIXEL_ROBOT else None
+        ref = pixel_fit(_views(obs, everything), everything, cal.X, cal.Z,
+                        name != PIXEL and obs.intrinsics_source == "estimated", sigma)
     return refine_on_pixels(cal, obs, ref, robot_noise if name == PIXEL_ROBOT else None)
 
 

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from . import solvers
 from .diagnostics import closed_form
 from .errors import HandEyeError
-from .solvers.refine import ReprojectionResult, refine_pose, refine_reprojection, refit_pose
+from .solvers.refine import ReprojectionResult, downdate_reprojection, refine_pose, refine_reprojection, refit_pose
 from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices
 
 __all__ = ["Choice", "pose_candidates", "pixel_candidates", "choose", "POSE", "PIXEL", "PIXEL_INTRINSICS",
@@ -29,6 +29,9 @@ __all__ = ["Choice", "pose_candidates", "pixel_candidates", "choose", "POSE", "P
 #: Closed forms left out of the choice: horaud_nonlinear costs 4x the others per fit and lands between
 #: horaud and the pose refinement, which are both candidates.
 SLOW_CLOSED_FORMS = ("horaud_nonlinear",)
+#: Tolerance of the refits on parts of the data (cross-validation, jackknife), which start at the
+#: fit on all of it: their X moves by far more between folds than this leaves unconverged.
+REFIT_TOL = 1e-8
 #: Names of the refinements (the closed forms go by their solver names).
 POSE = "pose"
 PIXEL = "reprojection"
@@ -83,8 +86,9 @@ def pixel_fit(views: Views, idx: NDArray[np.intp], X0: NDArray[np.float64], Z0: 
 
 def _pixel(views: Views, method: str, refine_intrinsics: bool, robot_sigma) -> Fit:
     """The pixel refinement. It is fitted on all of ``views`` once (robustly, kept as ``fit.full``
-    with the points it kept); each fit on a subset starts there, on those points, by plain least
-    squares: a cross-validation fold differs from the whole by a few images."""
+    with the points it kept); each fit on a subset is one Gauss-Newton downdate of it
+    (:func:`~handeye.solvers.refine.downdate_reprojection`), or with robot pose corrections a refit
+    started there on those points: a cross-validation fold differs from the whole by a few images."""
     full: list = []
 
     def fit(flange2base, target2cam, setup, idx):
@@ -93,12 +97,18 @@ def _pixel(views: Views, method: str, refine_intrinsics: bool, robot_sigma) -> F
             X, Z, _ = closed_form(views.flange2base, views.target2cam, setup, method)
             full.append(pixel_fit(views, all_idx, X, Z, refine_intrinsics, robot_sigma))
         ref = full[0]
+        if ref.jacobian is not None:  # one Gauss-Newton downdate instead of a refit
+            try:
+                X, Z, K, dist = downdate_reprojection(ref, np.setdiff1d(np.arange(len(views)), idx))
+                return (X, Z, K, dist) if refine_intrinsics else (X, Z)
+            except np.linalg.LinAlgError:
+                pass
         keep = [ref.kept[i] for i in idx]
         sub = refine_reprojection(ref.X, ref.Z, views.flange2base[idx],
                                   [np.asarray(views.object_points[i])[k] for i, k in zip(idx, keep)],
                                   [np.asarray(views.image_points[i])[k] for i, k in zip(idx, keep)],
                                   ref.K if refine_intrinsics else views.K, ref.dist if refine_intrinsics else views.dist,
-                                  setup, refine_intrinsics=refine_intrinsics, robot_noise=robot_sigma)
+                                  setup, refine_intrinsics=refine_intrinsics, robot_noise=robot_sigma, tol=REFIT_TOL)
         return (sub.X, sub.Z, sub.K, sub.dist) if refine_intrinsics else (sub.X, sub.Z)
 
     fit.full = full

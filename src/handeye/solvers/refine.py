@@ -22,7 +22,7 @@ columns with disjoint rows (12 + 6 residual evaluations instead of 12 + 6N).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,8 +34,8 @@ from ..setups import check_setup, constant_transforms, predicted_target2cam, rob
 from ..vision.pnp import project_points, project_points_many, solve_pnp
 from ..vision.targets import Detection
 
-__all__ = ["PoseRefinementResult", "ReprojectionResult", "pose_mahalanobis", "refine_pose", "refit_pose",
-           "refine_reprojection", "predicted_target2cam"]
+__all__ = ["PoseRefinementResult", "ReprojectionResult", "downdate_reprojection", "pose_mahalanobis", "refine_pose",
+           "refit_pose", "refine_reprojection", "predicted_target2cam"]
 
 
 @dataclass(frozen=True)
@@ -59,6 +59,11 @@ class ReprojectionResult:
     rejected_images: tuple[int, ...] = ()
     #: per image, the points the fit kept (robust=True; all points otherwise)
     kept: tuple[NDArray[np.bool_], ...] | None = None
+    #: the last least-squares fit at its optimum (for downdates): Jacobian, residuals and the first
+    #: pixel-residual row of each image (N + 1 entries); None for a robust loss or robot corrections
+    jacobian: NDArray[np.float64] | None = field(default=None, repr=False)
+    residual_vector: NDArray[np.float64] | None = field(default=None, repr=False)
+    rows: NDArray[np.intp] | None = field(default=None, repr=False)
 
 
 def refine_reprojection(
@@ -76,6 +81,7 @@ def refine_reprojection(
     robust: bool = False,
     robot_noise: tuple[float, float] | None = None,
     sparse: bool = True,
+    tol: float = 1e-12,
 ) -> ReprojectionResult:
     """Refine X and Z by minimising the reprojection error of all target points in all images.
 
@@ -113,6 +119,9 @@ def refine_reprojection(
         own correction only: the Jacobian's sparsity is given to the solver, which then needs
         ~18 residual evaluations per Jacobian instead of 12 + 6N. ``False`` (dense) is for
         benchmarks and checks.
+    tol : float
+        ``least_squares``' xtol, ftol and gtol (refits from a nearby start, as in cross-validation,
+        need far less than the default).
     """
     if robust:
         return _robust_reprojection(X0, Z0, flange2base, object_points, image_points, K, dist, setup, f_scale,
@@ -155,7 +164,7 @@ def refine_reprojection(
         if sparse:
             kw["jac"] = _grouped_jacobian(residuals, _robot_groups(counts, n_glob))
     res = least_squares(residuals, x0, loss=loss, f_scale=f_scale, x_scale=scale, method="trf",
-                        xtol=1e-12, ftol=1e-12, gtol=1e-12, **kw)
+                        xtol=tol, ftol=tol, gtol=tol, **kw)
     return _reprojection_result(res, unpack, r0, counts, n, loss, calls[0])
 
 
@@ -225,12 +234,41 @@ def _reprojection_result(res, unpack, r0, counts, n: int, loss: str, n_calls: in
     r = res.fun[:m_px].reshape(-1, 2)
     per_image = np.array([np.sqrt(np.mean(np.sum(r[a:b] ** 2, axis=1))) if b > a else np.nan
                           for a, b in zip(counts[:-1], counts[1:])])
+    plain = loss == "linear" and res.x.size == n and n in (12, 21)  # no robot corrections: downdates apply
+    J = (res.jac.toarray() if hasattr(res.jac, "toarray") else np.asarray(res.jac)) if plain else None
     return ReprojectionResult(
         X, Z, K_out, d_out, float(np.sqrt(np.mean(np.sum(r**2, axis=1)))),
         float(np.sqrt(np.mean(r0[:m_px].reshape(-1, 2) ** 2) * 2)),
         per_image, int(counts[-1]), bool(res.success), str(res.message), cov_X, float(np.sqrt(sigma2)), 0,
-        F_out, n_calls,
+        F_out, n_calls, jacobian=J, residual_vector=res.fun.copy() if plain else None,
+        rows=2 * np.asarray(counts) if plain else None,
     )
+
+
+def downdate_reprojection(ref: ReprojectionResult, drop) -> tuple[NDArray[np.float64], ...]:
+    """``(X, Z, K, dist)`` of :func:`refine_reprojection` without the images ``drop``, from one
+    Gauss-Newton step off the fit on all of them (the gradient of the kept residuals at the optimum
+    is ``-J_d^T r_d``): ``delta = (J^T J - J_d^T J_d)^-1 J_d^T r_d``. Exact for a linear problem and
+    close for a converged nonlinear one; what cross-validation and the jackknife need, at the cost
+    of a 12x12 (21x21) solve instead of a refit. Raises ``LinAlgError`` when the rest cannot
+    determine the unknowns, ``ValueError`` when ``ref`` keeps no Jacobian (robot corrections)."""
+    if ref.jacobian is None:
+        raise ValueError("no Jacobian kept for this refinement (robot pose corrections): refit instead")
+    J, r, rows = ref.jacobian, ref.residual_vector, ref.rows
+    sel = np.concatenate([np.arange(rows[i], rows[i + 1]) for i in np.atleast_1d(drop)]).astype(np.intp)
+    Jd, rd = J[sel], r[sel]
+    delta = np.linalg.solve(J.T @ J - Jd.T @ Jd, Jd.T @ rd)
+    X, Z = _xz_increment(delta, ref.X, ref.Z)
+    K, dist = ref.K, ref.dist
+    if delta.size == 21:
+        K = K.copy()
+        K[0, 0] += delta[12]
+        K[1, 1] += delta[13]
+        K[0, 2] += delta[14]
+        K[1, 2] += delta[15]
+        dist = np.asarray(dist, dtype=float).copy()
+        dist[:5] += delta[16:21]
+    return X, Z, K, dist
 
 
 def _gauss_newton_cov_X(res, n: int, loss: str):
@@ -272,7 +310,8 @@ def _robust_reprojection(X0, Z0, flange2base, object_points, image_points, K, di
     return ReprojectionResult(
         second.X, second.Z, second.K, second.dist, second.rms_px, first.rms_px_before, second.per_image_rms_px,
         second.n_points, second.success, second.message, second.cov_X, second.sigma_px, rejected,
-        second.flange2base, second.n_evaluations, emptied, tuple(keep),
+        second.flange2base, second.n_evaluations, emptied, tuple(keep), second.jacobian, second.residual_vector,
+        second.rows,
     )
 
 
@@ -628,7 +667,7 @@ def refit_pose(X0: NDArray[np.float64], Z0: NDArray[np.float64], flange2base: ND
         lambda x: np.einsum("nij,nj->ni", W, _raw_pose_residuals(*unpack(x), flange2base, target2cam, setup,
                                                                  "noise_model")).ravel(),
         np.zeros(12), jac=lambda x: _whitened_pose_jacobian(x, W, unpack, flange2base, target2cam, setup),
-        method="trf", x_scale=np.full(12, 1e-3), xtol=1e-10, ftol=1e-10, gtol=1e-10)
+        method="trf", x_scale=np.full(12, 1e-3), xtol=1e-8, ftol=1e-8, gtol=1e-8)
     return unpack(res.x)
 
 
