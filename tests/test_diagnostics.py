@@ -173,6 +173,7 @@ def test_public_name_and_check_command(tmp_path, capsys):
     assert main(["check", str(example)]) == 0
     out = capsys.readouterr().out
     assert "verdict: good" in out and "resid deg" in out
+    assert "held-out prediction error" in out and "<- chosen" in out and "mm at the target" in out
     folder = tmp_path / "pairs"
     shutil.copytree(example, folder)
     spec = (folder / "posepairs.yaml").read_text().replace("format: euler:ZYX", "format: euler:XYZ")

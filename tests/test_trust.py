@@ -228,5 +228,6 @@ def test_the_choice_predicts_no_worse_than_every_closed_form():
     assert np.all(cal.std >= cal.std_sources["jackknife"] - 1e-9)
     exact = handeye.calibrate_poses(sc.flange2base, sc.target2cam, "eye_to_hand", robot_accuracy=None)
     assert np.all(exact.std <= cal.std + 1e-12) and exact.std_sources["robot_accuracy"] is None
-    with pytest.raises(handeye.InputMismatchError, match="robot_accuracy"):
-        handeye.calibrate_poses(sc.flange2base, sc.target2cam, "eye_to_hand", robot_accuracy=(-1, 0.3))
+    for refine in ("auto", "pose"):  # checked whatever the refinement, before any work
+        with pytest.raises(handeye.InputMismatchError, match="robot_accuracy"):
+            handeye.calibrate_poses(sc.flange2base, sc.target2cam, "eye_to_hand", refine=refine, robot_accuracy=(-1, 0.3))

@@ -143,6 +143,7 @@ def calibrate_poses(
     if refine not in ("auto", "pose", "none"):
         hint = " (pixel refinement needs the detections: use handeye.calibrate on a session)" if refine == "reprojection" else ""
         raise InputMismatchError(f"refine={refine!r}; use 'auto', 'pose' or 'none'{hint}")
+    accuracy = _accuracy(robot_accuracy)
     flange2base_in, target2cam_in = validate_poses(flange2base, target2cam)
     flange2base, target2cam, pairs, keep, diag, notes = _checked_poses(
         flange2base_in, target2cam_in, setup, pairs, check, robot_input, strict)
@@ -157,8 +158,7 @@ def calibrate_poses(
     if refine == "pose" or len(flange2base) < 5:
         return refine_on_poses(cal)
     views = Views(flange2base, target2cam, setup)
-    return apply_choice(cal, choose(views, pose_candidates(method, views), folds), views, pairs,
-                        robot_accuracy=_accuracy(robot_accuracy))
+    return apply_choice(cal, choose(views, pose_candidates(method, views), folds), views, pairs, robot_accuracy=accuracy)
 
 
 def _std(cov_X: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -608,12 +608,13 @@ class FolderCheck:
         """The estimators' held-out errors, best first, for people."""
         if self.choice is None:
             return "held-out prediction error: not computed (fewer than 5 usable poses)"
-        rows = sorted(self.choice.table().items(), key=lambda kv: kv[1]["mm"])
+        rows = sorted(self.choice.table().items(), key=lambda kv: kv[1]["px"] if kv[1]["px"] is not None else kv[1]["mm"])
         lines = [f"held-out prediction error ({self.choice.best.folds}-fold cross-validation; each view predicted "
-                 "from its robot pose by X and Z fitted without it):"]
+                 "from its robot pose by X and Z fitted without it; a candidate replaces the preferred refinement "
+                 "only when better by more than one standard error):"]
         for name, r in rows:
             px = f"{r['px']:8.3f} px" if r.get("px") is not None else "           "
-            lines.append(f"  {name:<24} {px} {r['mm']:8.3f} mm at the target" + ("   <- best" if name == self.choice.name else ""))
+            lines.append(f"  {name:<24} {px} {r['mm']:8.3f} mm at the target" + ("   <- chosen" if name == self.choice.name else ""))
         return "\n".join(lines)
 
 

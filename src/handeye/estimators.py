@@ -130,7 +130,7 @@ def pixel_candidates(views: Views, method: str = "daniilidis", intrinsics_estima
 
 @dataclass(frozen=True)
 class Choice:
-    """What :func:`choose` found: the estimator with the smallest held-out error, and every one's."""
+    """What :func:`choose` found: the estimator chosen, and every candidate's held-out errors."""
 
     name: str
     results: dict[str, CrossValidation]
