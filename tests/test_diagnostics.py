@@ -246,3 +246,30 @@ def test_leave_one_out_in_one_batch_equals_the_loop(setup):
     finite = np.isfinite(want[:, 0])
     assert finite.sum() == n - 1 and np.array_equal(np.isfinite(got[:, 0]), finite)
     assert np.abs(got[finite] - want[finite]).max() < 1e-9
+
+
+def test_leave_one_out_observability_reads_no_uninitialised_memory(monkeypatch):
+    """The padding row of the per-run blocks was np.empty: with all-pairs motions (no padding used)
+    the largest rotation of a run was whatever the allocator handed back, and a run that leaves X
+    undetermined passed as observable about one time in six. Here every np.empty comes back full of
+    large numbers (the worst memory can hold): the answer must not change."""
+    from handeye.geometry.se3 import from_rotvec_translation
+    from handeye.motions import MotionSet
+    from handeye.solvers.daniilidis import motion_groups
+    from handeye.solvers.observability import observable_leave_one_out
+
+    rng = np.random.default_rng(4)
+    s = random_scene(12, "eye_to_hand", rng=rng)
+    n = 8
+    rotvec = np.outer(np.radians(np.linspace(-40, 40, n)), [0.0, 1.0, 0.0])
+    rotvec[5] = np.radians([25.0, 10.0, 0.0])  # the only pose off the y axis
+    flange2base = from_rotvec_translation(rotvec, rng.normal(scale=0.2, size=(n, 3)))
+    motions = MotionSet.from_poses(flange2base, invert(s.X) @ flange2base @ s.Z, "eye_to_hand", "all")
+    groups = motion_groups(motions.pairs, n)
+    empty = np.empty
+    monkeypatch.setattr(np, "empty", lambda shape, dtype=float, **kw: np.full(shape, 1e6, dtype=dtype))
+    try:
+        got = observable_leave_one_out(motions, groups)
+    finally:
+        monkeypatch.setattr(np, "empty", empty)
+    assert np.flatnonzero(~got).tolist() == [5]

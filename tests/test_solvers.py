@@ -3,6 +3,8 @@ regression scenario, robot-world on Tabb's real pairs."""
 
 from __future__ import annotations
 
+import zlib
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -41,7 +43,9 @@ def test_registry_lists_every_solver():
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 @pytest.mark.parametrize("n_poses", [3, 8, 40])
 def test_noise_free_exact(method, setup, n_poses):
-    s = random_scene(n_poses, setup, rng=hash((method, setup, n_poses)) % 2**32)
+    # a seed of its own per case, the same in every run (hash() of strings changes between runs, and
+    # one draw in some hundreds gives 3 poses with nearly parallel rotation axes)
+    s = random_scene(n_poses, setup, rng=zlib.crc32(f"{method}/{setup}/{n_poses}".encode()))
     cal = handeye.calibrate_poses(s.flange2base, s.target2cam, setup=setup, method=method, refine="none", check=False)
     assert rotation_error(cal.X, s.X) < 1e-9 and translation_error(cal.X, s.X) < 1e-9
     assert rotation_error(cal.Z, s.Z) < 1e-9 and translation_error(cal.Z, s.Z) < 1e-9

@@ -231,3 +231,20 @@ def test_the_choice_predicts_no_worse_than_every_closed_form():
     for refine in ("auto", "pose"):  # checked whatever the refinement, before any work
         with pytest.raises(handeye.InputMismatchError, match="robot_accuracy"):
             handeye.calibrate_poses(sc.flange2base, sc.target2cam, "eye_to_hand", refine=refine, robot_accuracy=(-1, 0.3))
+
+
+def test_solvers_far_apart_in_std_make_the_verdict_weak():
+    """The verdict looks at the spread between solvers: with the std the data support the realistic
+    session stays good; had the std promised 100x less, the closed forms would sit far outside it."""
+    from handeye.calibration import _verdict_from_spread
+    from handeye.estimators import choose, pose_candidates
+    from handeye.validation import Views
+
+    sc = realistic_scene(15, "eye_in_hand", 11)
+    cal = handeye.calibrate_poses(sc.flange2base, sc.target2cam, "eye_in_hand")
+    assert cal.verdict == "good"
+    views = Views(cal.flange2base, cal.target2cam, "eye_in_hand")
+    choice = choose(views, pose_candidates("daniilidis", views))
+    assert _verdict_from_spread(cal, choice).verdict == "good"
+    promised = _verdict_from_spread(replace(cal, std=cal.std / 100), choice)
+    assert promised.verdict == "weak" and any("closed-form solvers" in a for a in promised.diagnostics.advice)

@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 
 import handeye
 from handeye.cli import main
-from handeye.geometry.se3 import from_rotvec_translation, invert, make_transform
+from handeye.geometry.se3 import from_rotvec_translation, invert
 from handeye.metrics import rotation_error, translation_error
 from handeye.poses import pose_columns
 from handeye.simulate import random_scene, simulate_session
@@ -129,14 +129,6 @@ def _visp(folder_name, tmp_path, setup, target):
     return _write_session(tmp_path / "s", setup, target, K, [0.0] * 5, names, [src / n for n in names], f2b)
 
 
-def _spread(X, cal):
-    """RMS distance (mm) of the per-pose target positions ``Z_i`` through X from their mean: the
-    least-squares spread, with one Z estimator (the mean) whatever produced X."""
-    Zi = handeye.setups.constant_transforms(X, cal.flange2base, cal.target2cam, cal.setup)
-    d = 1e3 * translation_error(Zi, handeye.geometry.se3.mean_transform(Zi))
-    return float(np.sqrt(np.mean(d**2))), float(np.median(d))
-
-
 def _check_choice_on_real(cal, label):
     """'auto' chose its estimator by cross-validation: it must predict held-out views no worse
     than every closed form did on the same folds (10% slack: the one-standard-error rule may keep
@@ -202,15 +194,6 @@ def test_reprojection_refinement_gains_on_rendered_session(rendered):
     assert pose.refinement == "pose" and e2 < e0 and pose.std is not None
 
 
-def _opencv_park_spread(cal):
-    """Target-in-flange (eye-to-hand) spread of cv2.calibrateHandEye(PARK) on the same poses."""
-    g2b = invert(cal.flange2base)  # eye-to-hand: OpenCV's gripper2base is our base2flange
-    R, t = cv2.calibrateHandEye(list(g2b[:, :3, :3]), list(g2b[:, :3, 3]), list(cal.target2cam[:, :3, :3]),
-                                list(cal.target2cam[:, :3, 3]), method=cv2.CALIB_HAND_EYE_PARK)
-    return _spread(make_transform(R, t.ravel()), cal)
-
-
-@pytest.mark.skipif(not hasattr(cv2, "calibrateHandEye"), reason="OpenCV build without calibrateHandEye")
 def test_visp_eye_to_hand_2025_apriltag(tmp_path):
     """The AprilTag's four corners per image: the choice works on them too."""
     folder = _visp("eye_to_hand_2025", tmp_path, "eye_to_hand", {"type": "apriltag", "square": 0.048, "id": 10})
@@ -218,7 +201,6 @@ def test_visp_eye_to_hand_2025_apriltag(tmp_path):
     assert len(cal.image_names) == 8
 
 
-@pytest.mark.skipif(not hasattr(cv2, "calibrateHandEye"), reason="OpenCV build without calibrateHandEye")
 def test_industrial_calibration_charuco_eye_to_hand(tmp_path):
     src = require_real("industrial-calibration", "test_set_charuco")
     cal_data = yaml.safe_load((src / "cal_data.yaml").read_text())

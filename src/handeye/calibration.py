@@ -15,11 +15,13 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from . import solvers
 from ._shared.io import array_digest, files_digest
 from .diagnostics import closed_form, diagnose
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from .estimators import PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, Choice, choose, pixel_candidates, pixel_fit, pose_candidates
 from .geometry.se3 import invert, skew
+from .metrics import rotation_error, translation_error
 from .motions import MotionSet, Pairs, validate_poses
 from .poses import RobotPoseInput
 from .result import Calibration, Diagnostics
@@ -255,7 +257,8 @@ def apply_choice(cal: Calibration, choice: Choice, views: Views, pairs: Pairs = 
         cal = replace(cal, X=X, Z=Z, method=name, motions=motions, pairs=motions.pairs)
     cal = replace(cal, estimator=name, cross_validation=choice.table())
     if uncertainty:
-        cal = _verdict_from_std(widened_uncertainty(cal, jackknife_cov(choice.fits[name], views, cal.X), robot_accuracy))
+        cal = widened_uncertainty(cal, jackknife_cov(choice.fits[name], views, cal.X), robot_accuracy)
+        cal = _verdict_from_spread(_verdict_from_std(cal), choice)
     notes = list(cal.notes) + [f"estimator {name}: chosen by {choice.best.folds}-fold cross-validation, held-out error "
                                + _cv_text(choice.table()[name])]
     return replace(cal, notes=notes)
@@ -303,6 +306,33 @@ def _verdict_from_std(cal: Calibration) -> Calibration:
            + (f" (leaving one pose out moves X by {np.linalg.norm(jack[3:]):.1f} mm / {np.linalg.norm(jack[:3]):.2f} deg "
               "per std)" if jack is not None else "")
            + ": the poses do not pin X down; take more (10-20), with rotations of 30 deg or more about varied axes")
+    diag = replace(cal.diagnostics, verdict="weak", advice=list(cal.diagnostics.advice) + [why])
+    return replace(cal, diagnostics=diag, notes=list(cal.notes) + [why])
+
+
+def _verdict_from_spread(cal: Calibration, choice: Choice) -> Calibration:
+    """A 'good' verdict becomes 'weak' when the closed forms, each a fair estimate on these poses,
+    typically land further from X than 3 std: the std promises more than the data support."""
+    if cal.std is None or cal.diagnostics is None or cal.diagnostics.verdict != "good":
+        return cal
+    closed = [n for n in choice.fits if n in solvers.available()]
+    d_rot, d_t = [], []
+    for name in closed:
+        try:
+            X, _, _ = closed_form(cal.flange2base, cal.target2cam, cal.setup, name)
+        except HandEyeError:
+            continue
+        d_rot.append(float(np.degrees(rotation_error(X, cal.X))))
+        d_t.append(1e3 * float(translation_error(X, cal.X)))
+    if not d_t:
+        return cal
+    rot, mm = float(np.median(d_rot)), float(np.median(d_t))
+    lim_rot, lim_mm = 3 * float(np.linalg.norm(cal.std[:3])), 3 * float(np.linalg.norm(cal.std[3:]))
+    if rot <= lim_rot and mm <= lim_mm:
+        return cal
+    why = (f"the closed-form solvers land a median {mm:.2f} mm / {rot:.3f} deg from X, beyond its 3 std "
+           f"({lim_mm:.2f} mm / {lim_rot:.3f} deg): the solvers disagree more than the noise explains; check the "
+           "poses and take more, with larger rotations")
     diag = replace(cal.diagnostics, verdict="weak", advice=list(cal.diagnostics.advice) + [why])
     return replace(cal, diagnostics=diag, notes=list(cal.notes) + [why])
 

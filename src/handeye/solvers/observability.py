@@ -129,9 +129,11 @@ def observable_leave_one_out(motions: MotionSet, groups: NDArray[np.intp], block
         for start in range(0, n_runs, chunk):
             runs = np.arange(start, min(start + chunk, n_runs))
             local = np.arange(len(runs))[:, None]
-            largest = np.empty((k + 1, len(runs)))
+            # row k pads the groups of poses with fewer motions: it must never be the largest (it
+            # was left uninitialised, so a run without padding could read garbage)
+            largest = np.full((k + 1, len(runs)), -np.inf)
             largest[:k] = sq[:, None]
-            off = np.empty((k + 1, len(runs)))
+            off = np.full((k + 1, len(runs)), -np.inf)
             off[:k] = sq[:, None] - (v @ e[runs].T) ** 2
             largest[groups[runs], local] = -np.inf  # the left-out motions (and the padding row)
             off[groups[runs], local] = -np.inf
