@@ -15,13 +15,11 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import solvers
 from ._shared.io import array_digest, files_digest
-from .diagnostics import closed_form, diagnose
+from .diagnostics import closed_form, compare_solvers, diagnose
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from .estimators import PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, Choice, choose, pixel_candidates, pixel_fit, pose_candidates
 from .geometry.se3 import invert, skew
-from .metrics import rotation_error, translation_error
 from .motions import MotionSet, Pairs, validate_poses
 from .poses import RobotPoseInput
 from .result import Calibration, Diagnostics
@@ -64,7 +62,7 @@ def _checked_poses(flange2base, target2cam, setup, pairs, check, robot_input, st
         raise InputMismatchError(f"{diag.advice[0]} (strict=False returns the best estimate with this verdict)")
     if diag.outliers:
         n_input = len(flange2base)
-        keep = np.setdiff1d(keep, diag.outliers)
+        keep = _kept(diag)
         flange2base, target2cam = flange2base[keep], target2cam[keep]
         if not isinstance(pairs, str):  # explicit pairs: drop those with an outlier, renumber
             old_to_new = np.full(n_input, -1)
@@ -312,21 +310,17 @@ def _verdict_from_std(cal: Calibration) -> Calibration:
 
 def _verdict_from_spread(cal: Calibration, choice: Choice) -> Calibration:
     """A 'good' verdict becomes 'weak' when the closed forms, each a fair estimate on these poses,
-    typically land further from X than 3 std: the std promises more than the data support."""
+    typically land further from X than 3 std: the std promises more than the data support. The
+    solver comparison it computes is kept (``solver_comparison``: the report draws it)."""
     if cal.std is None or cal.diagnostics is None or cal.diagnostics.verdict != "good":
         return cal
-    closed = [n for n in choice.fits if n in solvers.available()]
-    d_rot, d_t = [], []
-    for name in closed:
-        try:
-            X, _, _ = closed_form(cal.flange2base, cal.target2cam, cal.setup, name)
-        except HandEyeError:
-            continue
-        d_rot.append(float(np.degrees(rotation_error(X, cal.X))))
-        d_t.append(1e3 * float(translation_error(X, cal.X)))
-    if not d_t:
+    rows = compare_solvers(cal.flange2base, cal.target2cam, cal.setup, cal.X, cal.pairs)
+    cal = replace(cal, solver_comparison=rows)
+    solved = [r for r in rows if r["method"] in choice.fits and "error" not in r]
+    if not solved:
         return cal
-    rot, mm = float(np.median(d_rot)), float(np.median(d_t))
+    rot = float(np.median([r["dX_deg"] for r in solved]))
+    mm = float(np.median([r["dX_mm"] for r in solved]))
     lim_rot, lim_mm = 3 * float(np.linalg.norm(cal.std[:3])), 3 * float(np.linalg.norm(cal.std[3:]))
     if rot <= lim_rot and mm <= lim_mm:
         return cal

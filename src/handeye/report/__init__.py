@@ -27,10 +27,10 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
     """Write ``result.json``, ``result.yaml`` and (``report``) ``report.html`` into ``out_dir``.
 
     Every file is written atomically. ``protect``: paths never to overwrite; the input images are
-    always protected. ``compare``: draw every solver on the same data in the report (computed
-    here by :func:`handeye.diagnostics.compare_solvers` unless ``cal.solver_comparison`` holds
-    it). ``parent_frame`` / ``child_frame`` name the frames of the ROS snippets (default
-    ``tool0`` or ``base_link``, and ``camera_optical_frame``). Returns the paths written, the
+    always protected. ``compare``: draw every solver on the same data in the report
+    (``cal.solver_comparison``, or computed here by :func:`handeye.diagnostics.compare_solvers`
+    when it holds none). ``parent_frame`` / ``child_frame`` name the frames of the ROS snippets
+    (default ``tool0`` or ``base_link``, and ``camera_optical_frame``). Returns the paths written, the
     report last.
     """
     out_dir = Path(out_dir)
@@ -39,8 +39,10 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
     protect = list(protect) + list(cal.image_paths or [])
     paths = write_results(cal, out_dir, protect, parent_frame, child_frame)
     if report:
-        rows = cal.solver_comparison
-        if rows is None and compare:
-            rows = compare_solvers(cal.flange2base, cal.target2cam, cal.setup, cal.X, cal.pairs)
+        rows = None
+        if compare:
+            rows = cal.solver_comparison
+            if rows is None:
+                rows = compare_solvers(cal.flange2base, cal.target2cam, cal.setup, cal.X, cal.pairs)
         paths.append(write_report(cal, out_dir / "report.html", protect, parent_frame, child_frame, rows))
     return paths

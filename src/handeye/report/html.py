@@ -259,7 +259,8 @@ def _result_section(cal: Calibration, data: dict) -> str:
 
 def _cross_validation_table(cal: Calibration) -> str:
     """Held-out prediction error of every estimator tried, the one used first."""
-    rows = sorted(cal.cross_validation.items(), key=lambda kv: (kv[0] != cal.estimator, kv[1]["mm"]))
+    rows = sorted(cal.cross_validation.items(),  # the score the choice was made by: px with images, else mm
+                  key=lambda kv: (kv[0] != cal.estimator, kv[1]["mm"] if kv[1]["px"] is None else kv[1]["px"]))
     body = []
     for name, r in rows:
         px = "—" if r.get("px") is None else f"{r['px']:.3f}"
