@@ -10,7 +10,13 @@ work on the N poses directly, on both sides. Two handeye timings are printed:
   work as OpenCV's call;
 * ``core``: the same without handeye's input checks (finite, orthonormal, enough rotation about
   two axes), which OpenCV does not make: what the checks cost, shown apart;
-* ``calibrate_poses``: the user-facing call, which also estimates Z (the target pose).
+* ``solve(A,B)``: the public ``handeye.solve`` on the motions as a user passes them (all pairs,
+  made beforehand by ``handeye.relative_motions``), against OpenCV's call on the poses;
+* ``calibrate_poses``: the user-facing call with ``refine='none'`` (validation, the check with its
+  outlier search and leave-one-out, the solve, Z), against OpenCV's call plus the mean target pose
+  (``Z``), which is what it returns.
+
+Then ``solve_batch`` on 200 runs x 15 poses (all 105 pairs each) against a loop of OpenCV calls.
 
 Times are the best of ``--repeat`` runs (the least disturbed by the machine); ratio = OpenCV / ours.
 """
@@ -24,7 +30,8 @@ import numpy as np
 from _timing import best_time
 
 import handeye
-from handeye.setups import robot_world_inputs
+from handeye.geometry.se3 import make_transform, mean_transform
+from handeye.setups import constant_transforms, robot_world_inputs
 from handeye.motions import MotionSet, validate_poses
 from handeye.simulate import random_scene
 from handeye.solvers import get, solve_motions, solve_robot_world
@@ -46,7 +53,7 @@ def main() -> None:
     args = parser.parse_args()
     print(f"handeye {handeye.__version__}, OpenCV {cv2.__version__}, numpy {np.__version__}")
     print(f"{'method':<12} {'poses':>5} {'motions':>7} {'opencv ms':>10} {'solve ms':>9} {'ratio':>7}"
-          f" {'core ms':>8} {'ratio':>7} {'calibrate_poses ms':>19} {'ratio':>7}")
+          f" {'core ms':>8} {'ratio':>7} {'solve(A,B) ms':>13} {'ratio':>7} {'calibrate_poses ms':>19} {'ratio*':>7}")
     for method, (kind, cv_name) in CV_METHODS.items():
         cv_flag = getattr(cv2, cv_name)
         for n in (15, 100):
@@ -64,6 +71,16 @@ def main() -> None:
 
                 def run_core() -> None:
                     get(method).func(MotionSet.from_poses(f2b, t2c, "eye_in_hand", "all"))
+
+                A_rel, B_rel = handeye.relative_motions(f2b, t2c, "eye_in_hand", "all")
+
+                def run_public() -> None:
+                    handeye.solve(A_rel, B_rel, method=method)
+
+                def run_cv_with_z() -> None:
+                    R, t = cv2.calibrateHandEye(*args_cv, method=cv_flag)
+                    X = make_transform(R, t.ravel())
+                    mean_transform(constant_transforms(X, f2b, t2c, "eye_in_hand"))
             else:
                 A, B = robot_world_inputs(f2b, t2c, "eye_in_hand")
                 args_cv = (list(A[:, :3, :3]), list(A[:, :3, 3]), list(B[:, :3, :3]), list(B[:, :3, 3]))
@@ -77,6 +94,11 @@ def main() -> None:
                 def run_core() -> None:
                     get(method, kind="robot_world").func(A, B)
 
+                run_public = run_solve
+
+                def run_cv_with_z() -> None:
+                    cv2.calibrateRobotWorldHandEye(*args_cv, method=cv_flag)  # returns X and Z
+
             def run_calibrate() -> None:
                 handeye.calibrate_poses(f2b, t2c, setup="eye_in_hand", method=method, refine="none")
 
@@ -84,12 +106,34 @@ def main() -> None:
             t_solve = best_time(run_solve, args.repeat)
             t_core = best_time(run_core, args.repeat)
             t_cal = best_time(run_calibrate, args.repeat)
+            t_public = best_time(run_public, args.repeat)
+            t_cv_z = best_time(run_cv_with_z, args.repeat)
             motions = n * (n - 1) // 2 if kind == "hand_eye" else n
             print(
                 f"{method:<12} {n:>5} {motions:>7} {1e3 * t_cv:>10.2f} {1e3 * t_solve:>9.2f} "
                 f"{t_cv / t_solve:>6.1f}x {1e3 * t_core:>8.2f} {t_cv / t_core:>6.1f}x "
-                f"{1e3 * t_cal:>19.2f} {t_cv / t_cal:>6.1f}x"
+                f"{1e3 * t_public:>13.2f} {t_cv / t_public:>6.1f}x "
+                f"{1e3 * t_cal:>19.2f} {t_cv_z / t_cal:>6.1f}x"
             )
+    print("* calibrate_poses against OpenCV's call plus the mean target pose Z (robot-world: its call, which gives Z)")
+    _batch(args.repeat)
+
+
+def _batch(repeat: int, runs: int = 200, n: int = 15) -> None:
+    """solve_batch on ``runs`` x ``n`` poses (all pairs) against a loop of OpenCV calls."""
+    scenes = [random_scene(n, "eye_in_hand", rng=1000 + k) for k in range(runs)]
+    motions = [handeye.relative_motions(sc.flange2base, sc.target2cam, "eye_in_hand", "all") for sc in scenes]
+    A = np.stack([m[0] for m in motions])
+    B = np.stack([m[1] for m in motions])
+    args_cv = [(list(sc.flange2base[:, :3, :3]), list(sc.flange2base[:, :3, 3]), list(sc.target2cam[:, :3, :3]),
+                list(sc.target2cam[:, :3, 3])) for sc in scenes]
+    print(f"\nsolve_batch: {runs} runs x {n} poses ({A.shape[1]} motions each), best of {repeat}")
+    print(f"{'method':<12} {'opencv loop ms':>15} {'solve_batch ms':>15} {'ratio':>7}")
+    for method in ("tsai_lenz", "park_martin", "horaud", "andreff", "daniilidis"):
+        cv_flag = getattr(cv2, CV_METHODS[method][1])
+        t_cv = best_time(lambda: [cv2.calibrateHandEye(*a, method=cv_flag) for a in args_cv], max(3, repeat // 5))
+        t_he = best_time(lambda: handeye.solve_batch(A, B, method=method), max(3, repeat // 5))
+        print(f"{method:<12} {1e3 * t_cv:>15.1f} {1e3 * t_he:>15.1f} {t_cv / t_he:>6.1f}x")
 
 
 if __name__ == "__main__":

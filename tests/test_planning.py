@@ -189,7 +189,7 @@ def test_cli_writes_poses_in_the_robot_format(tmp_path, camera_yaml, capsys):
     (["--target-in-base", "1,2", "--standoff", "0.5"], "give 3 or 6"),
     (["--target-in-base", "0.6,0,0", "--standoff", "0.5", "--camera-in-base", "1,0,1,0,0,0"], "are for eye_to_hand"),
     (["--setup", "eye_to_hand", "--standoff", "0.5"], "--camera-in-base is needed"),
-    (["--target-in-base", "0.6,0,0", "--standoff", "0.5", "--poses", "2"], "at least 3 poses"),
+    (["--target-in-base", "0.6,0,0", "--standoff", "0.5", "--poses", "2"], "argument --poses: 2 is too small: give a whole number >= 3"),
     (["--target-in-base", "0.6,0,0", "--standoff", "0.5", "--format", "euler:XYZz"], "euler"),
     (["--target-in-base", "0.6,0,0", "--standoff", "0.5", "--reach-box", "1,1,1,0,0,0"], "reach box"),
 ])

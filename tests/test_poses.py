@@ -104,7 +104,7 @@ def test_non_orthonormal_matrix_reports_row_and_deviation():
 def test_matrix_with_bad_last_row_or_reflection():
     T = np.eye(4)
     T[3, 0] = 1.0
-    with pytest.raises(PoseFormatError, match="last matrix row"):
+    with pytest.raises(PoseFormatError, match=r"bottom row is \[1.0, 0.0, 0.0, 1.0\]"):
         parse_poses(T.ravel()[None], "matrix")
     T = np.diag([1.0, 1.0, -1.0, 1.0])
     with pytest.raises(PoseFormatError, match="reflection"):
@@ -166,8 +166,15 @@ def test_transform_pair_validated_in_one_pass_as_one_by_one(rng):
         validate_transform_pair(bad, B, names, counted)
     with pytest.raises(InputMismatchError, match="6 poses A but 5 poses B; they come in pairs"):
         validate_transform_pair(A, B[:5], names, counted)
-    # the bottom row is set to 0 0 0 1 on the copy; the caller's arrays are untouched
+    # a bottom row off by rounding is set to 0 0 0 1 on the copy; the caller's arrays are untouched
     A_in = A.copy()
-    A_in[:, 3, :3] = 7.0
+    A_in[:, 3, :3] = 1e-12
     pair = validate_transform_pair(A_in, B, names, counted)
-    assert np.array_equal(pair[0], A) and np.all(A_in[:, 3, :3] == 7.0)
+    assert np.array_equal(pair[0], A) and np.all(A_in[:, 3, :3] == 1e-12)
+    # one that is not a homogeneous transform's is an error, never overwritten
+    A_in[:, 3, :3] = 7.0
+    with pytest.raises(PoseFormatError, match=r"A \(robot\): entry 0: the bottom row is \[7.0, 7.0, 7.0, 1.0\], must be"):
+        validate_transform_pair(A_in, B, names, counted)
+    # column-major matrices (translation in the bottom row) are named as transposed
+    with pytest.raises(PoseFormatError, match=r"B \(camera\): entry 0: .*look transposed"):
+        validate_transform_pair(A, np.swapaxes(B, -1, -2), names, counted)

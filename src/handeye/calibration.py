@@ -9,13 +9,14 @@ last the image fields.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._shared.io import array_digest, files_digest
+from ._shared.progress import Progress
 from .diagnostics import closed_form, compare_solvers, diagnose
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from .estimators import PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, Choice, choose, pixel_candidates, pixel_fit, pose_candidates
@@ -43,6 +44,8 @@ REFINE_RMS_FACTOR = 3.0
 REFINE_RMS_FLOOR = 1.0
 
 
+#: calibrate_poses shows its steps from this many poses (a second or more).
+PROGRESS_FROM_POSES = 200
 #: The robot's absolute accuracy assumed by default, per axis (deg, mm): a constant error of the robot
 #: poses moves X by as much, and no data can see it (it is absorbed into X).
 ROBOT_ACCURACY = (0.03, 0.3)
@@ -78,12 +81,13 @@ def calibrate_poses(
     setup: str = "eye_in_hand",
     method: str = "daniilidis",
     refine: str = "auto",
-    pairs: Pairs = "all",
+    pairs: Pairs = "auto",
     check: bool = True,
     robot_input: RobotPoseInput | None = None,
     strict: bool = False,
     folds: int | None = None,
     robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
+    progress: bool = True,
 ) -> Calibration:
     """Hand-eye calibration from robot poses and camera-to-target poses.
 
@@ -105,8 +109,9 @@ def calibrate_poses(
         solution by :func:`handeye.solvers.refine.refine_pose` (Strobl-Hirzinger's optimal
         correction with noise variances estimated from the data), which gives ``cov``, ``std`` and
         ``pose_noise``. 'none': the closed form as is (no uncertainty).
-    pairs : {'all', 'consecutive'} or (K, 2) array
-        Which pose pairs form the motions.
+    pairs : {'auto', 'all', 'consecutive'} or (K, 2) array
+        Which pose pairs form the motions (:func:`handeye.motions.pair_indices`); 'auto' (default):
+        every pair up to 141 poses, a spread of about 10,000 pairs beyond.
     check : bool
         Run :func:`handeye.diagnose` first (default): degenerate motions raise an error; outlier
         poses are left out, with a note; inconsistent data (with the convention that fixes them,
@@ -125,6 +130,8 @@ def calibrate_poses(
         The robot's absolute accuracy per axis where the poses were taken (``refine='auto'``): a
         constant robot error is absorbed into X whole and no data can see it, so it is added to X's
         covariance. Default :data:`ROBOT_ACCURACY`; ``None`` (or zeros) for an exact robot.
+    progress : bool
+        Show the steps on stderr when there are many poses (from :data:`PROGRESS_FROM_POSES`).
 
     Returns
     -------
@@ -145,20 +152,29 @@ def calibrate_poses(
         raise InputMismatchError(f"refine={refine!r}; use 'auto', 'pose' or 'none'{hint}")
     accuracy = _accuracy(robot_accuracy)
     flange2base_in, target2cam_in = validate_poses(flange2base, target2cam)
-    flange2base, target2cam, pairs, keep, diag, notes = _checked_poses(
-        flange2base_in, target2cam_in, setup, pairs, check, robot_input, strict)
-    X, Z, motions = closed_form(flange2base, target2cam, setup, method, pairs)
-    cal = Calibration(
-        X=X, Z=Z, setup=setup, method=method, flange2base=flange2base, target2cam=target2cam, pairs=motions.pairs,
-        motions=motions, diagnostics=diag, pose_indices=keep, notes=notes, robot_input=robot_input,
-        inputs_sha256=array_digest(flange2base_in, target2cam_in), estimator=method,
-    )
-    if refine == "none":
-        return cal
-    if refine == "pose" or len(flange2base) < 5:
-        return refine_on_poses(cal)
-    views = Views(flange2base, target2cam, setup)
-    return apply_choice(cal, choose(views, pose_candidates(method, views), folds), views, pairs, robot_accuracy=accuracy)
+    bar = Progress(3, f"calibrating {len(flange2base_in)} poses: check, estimators, uncertainty",
+                   progress and len(flange2base_in) >= PROGRESS_FROM_POSES)
+    try:
+        flange2base, target2cam, pairs, keep, diag, notes = _checked_poses(
+            flange2base_in, target2cam_in, setup, pairs, check, robot_input, strict)
+        bar.update()
+        X, Z, motions = closed_form(flange2base, target2cam, setup, method, pairs)
+        cal = Calibration(
+            X=X, Z=Z, setup=setup, method=method, flange2base=flange2base, target2cam=target2cam, pairs=motions.pairs,
+            motions=motions, diagnostics=diag, pose_indices=keep, notes=notes, robot_input=robot_input,
+            inputs_sha256=array_digest(flange2base_in, target2cam_in), estimator=method,
+        )
+        if refine == "pose" or (refine == "auto" and len(flange2base) < 5):
+            cal = refine_on_poses(cal)
+        elif refine == "auto":
+            views = Views(flange2base, target2cam, setup)
+            choice = choose(views, pose_candidates(method, views), folds)
+            bar.update()
+            cal = apply_choice(cal, choice, views, pairs, robot_accuracy=accuracy)
+        bar.update(bar.total - bar.done)
+    finally:
+        bar.close()
+    return cal
 
 
 def _std(cov_X: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -239,7 +255,7 @@ def widened_uncertainty(cal: Calibration, cv_jack: NDArray[np.float64] | None,
     return replace(cal, cov=cov, std=_std(cov), std_sources=sources, notes=notes)
 
 
-def apply_choice(cal: Calibration, choice: Choice, views: Views, pairs: Pairs = "all", obs: "Observations | None" = None,
+def apply_choice(cal: Calibration, choice: Choice, views: Views, pairs: Pairs = "auto", obs: "Observations | None" = None,
                  robot_noise: tuple[float, float] | None = None,
                  robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY, uncertainty: bool = True) -> Calibration:
     """``cal`` (a closed form on its poses) refitted by the estimator ``choice`` chose, on all of its
@@ -374,17 +390,20 @@ def _detect(session: Session, jobs: int | None, progress: bool):
     unreadable = [r.path.name for r in results if r.image_size is None]
     if unreadable:
         raise SessionError(f"{session.folder / 'images'}: cannot read image(s) {', '.join(unreadable)} (corrupt or not an image)")
-    sizes = {r.image_size for r in results}
-    if len(sizes) > 1:
-        raise SessionError(f"{session.folder / 'images'}: images differ in size {sorted(sizes)}; one camera and resolution per session")
     skipped = [(name, r.error) for name, r in zip(session.image_names, results) if r.detection is None]
     found = [k for k, r in enumerate(results) if r.detection is not None]
+    sizes = {results[k].image_size for k in found}  # the images that count: those with the target
+    if len(sizes) > 1:
+        by_size = {sz: [session.image_names[k] for k in found if results[k].image_size == sz] for sz in sorted(sizes)}
+        raise SessionError(f"{session.folder / 'images'}: images differ in size ("
+                           + "; ".join(f"{w}x{h}: {', '.join(n[:3])}{' ...' if len(n) > 3 else ''}" for (w, h), n in by_size.items())
+                           + "); one camera and resolution per session")
     if len(found) < MIN_POSES:
         raise SessionError(
             f"the {target.type} target was found in only {len(found)} of {len(results)} images "
             f"(at least {MIN_POSES} are needed); check the target description in session.yaml"
         )
-    return target, {k: results[k].detection for k in found}, sizes.pop(), skipped
+    return target, {k: results[k].detection for k in found}, (sizes.pop() if sizes else None), skipped
 
 
 def observe(session: Session, jobs: int | None = None, progress: bool = True) -> Observations:
@@ -398,7 +417,7 @@ def observe(session: Session, jobs: int | None = None, progress: bool = True) ->
         An unreadable image; images of different sizes; fewer than 3 images with the target found.
     """
     target, detections, image_size, skipped = _detect(session, jobs, progress)
-    notes: list[str] = []
+    notes = list(session.notes)
     if session.camera_matrix is not None:
         K, dist, source, k_rms = session.camera_matrix, session.dist_coeffs, "session.yaml", None
     else:
@@ -508,7 +527,7 @@ def _with_images(cal: Calibration, obs: Observations, kept: list[int], skipped: 
     return replace(
         cal, image_names=[names[obs.used[k]] for k in kept], reprojection_rms=np.array([obs.pnp_rms[k] for k in kept]),
         skipped=skipped, intrinsics_rms=obs.intrinsics_rms,
-        image_paths=[obs.session.image_paths[obs.used[k]] for k in kept],
+        image_paths=[obs.session.image_paths[obs.used[k]] for k in kept], input_folder=obs.session.folder,
         object_points=[obs.object_points[k] for k in kept], image_points=[obs.image_points[k] for k in kept],
         inputs_sha256=files_digest(obs.session.input_files, obs.session.folder), notes=list(cal.notes) + notes,
         **intrinsics,
@@ -521,7 +540,7 @@ def calibrate(
     refine: str = "auto",
     jobs: int | None = None,
     progress: bool = True,
-    pairs: Pairs = "all",
+    pairs: Pairs = "auto",
     check: bool = True,
     robot_noise: tuple[float, float] | None = None,
     strict: bool = False,
@@ -581,7 +600,7 @@ def calibrate_observed(
     obs: Observations,
     method: str = "daniilidis",
     refine: str = "auto",
-    pairs: Pairs = "all",
+    pairs: Pairs = "auto",
     check: bool = True,
     robot_noise: tuple[float, float] | None = None,
     strict: bool = False,
@@ -627,6 +646,7 @@ class FolderCheck:
     names: list[str]
     skipped: list[tuple[str, str]]
     choice: Choice | None = None
+    notes: list[str] = field(default_factory=list)  #: how the files were read, when not as plain UTF-8 CSV
 
     def cross_validation_table(self) -> str:
         """The estimators' held-out errors, best first, for people."""
@@ -653,7 +673,7 @@ def check_folder(folder: str | Path, jobs: int | None = None, progress: bool = T
         diag = diagnose(pairs.flange2base, pairs.target2cam, pairs.setup, robot_input=pairs.robot_input)
         keep = _kept(diag)
         views = Views(pairs.flange2base[keep], pairs.target2cam[keep], pairs.setup)
-        return FolderCheck(diag, list(pairs.ids), [], _check_choice(diag, views, {}, folds))
+        return FolderCheck(diag, list(pairs.ids), [], _check_choice(diag, views, {}, folds), list(pairs.notes))
     obs = observe(load_session(folder), jobs=jobs, progress=progress)
     names = obs.session.image_names
     diag = diagnose(obs.flange2base, obs.target2cam, obs.session.setup, robot_input=obs.robot_input)
@@ -661,7 +681,7 @@ def check_folder(folder: str | Path, jobs: int | None = None, progress: bool = T
     views = _views(obs, keep)
     pixels = pixel_candidates(views, "daniilidis", obs.intrinsics_source == "estimated")
     return FolderCheck(diag, [names[k] for k in obs.used], sorted(obs.skipped, key=lambda item: names.index(item[0])),
-                       _check_choice(diag, views, pixels, folds))
+                       _check_choice(diag, views, pixels, folds), list(obs.session.notes))
 
 
 def _kept(diag: Diagnostics) -> NDArray[np.intp]:

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
+from dataclasses import replace
 from importlib.resources import files
 from pathlib import Path
 from typing import Sequence
@@ -13,6 +15,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from . import solvers
+from ._shared.io import check_output_folder
 from ._version import __version__
 from .calibration import ROBOT_ACCURACY, calibrate, calibrate_poses, check_folder
 from .errors import HandEyeError
@@ -24,12 +27,51 @@ from .report import write_calibration
 from .result import Calibration
 from .session import load_pose_pairs, load_yaml, read_intrinsics
 from .setups import predicted_target2cam, setup_info
-from .simulate import DEFAULT_TARGETS, simulate_session
+from .simulate import DEFAULT_TARGETS, MIN_IMAGE_SIDE, simulate_session
 from .study import preset, study, write_study
 from .vision.targets import target_from_spec
 
 EXAMPLE_POSEPAIRS = "example_posepairs"
 SAMPLE_SESSION = "sample_session"
+
+
+def _whole(lo: int):
+    """argparse type: a whole number >= ``lo``."""
+    def whole(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"{v} is too small: give a whole number >= {lo}")
+        return v
+    return whole
+
+
+def _number(lo: float, hi: float = math.inf, above: bool = False):
+    """argparse type: a finite number in ``[lo, hi]`` (``(lo, hi]`` when ``above``)."""
+    def number(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not math.isfinite(v) or v < lo or (above and v == lo) or v > hi:
+            bound = (f"> {lo:g}" if above else f">= {lo:g}") + (f" and <= {hi:g}" if math.isfinite(hi) else "")
+            raise argparse.ArgumentTypeError(f"{text} is out of range: give a number {bound}")
+        return v
+    return number
+
+
+def _image_size(text: str) -> tuple[int, int]:
+    """argparse type: WIDTHxHEIGHT in pixels, each at least MIN_IMAGE_SIDE."""
+    parts = text.lower().replace(" ", "").split("x")
+    try:
+        w, h = (int(v) for v in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give WIDTHxHEIGHT in pixels, e.g. 640x480") from None
+    if min(w, h) < MIN_IMAGE_SIDE:
+        raise argparse.ArgumentTypeError(f"{text}: each side must be at least {MIN_IMAGE_SIDE} px")
+    return w, h
 
 
 def _fmt_vec(v: np.ndarray, digits: int = 6) -> str:
@@ -88,34 +130,34 @@ def _input_folder(given: str | None, bundled: bool, bundled_name: str, usage: st
     return folder
 
 
-def _out_folder(out: str) -> Path:
-    """The --out folder of a command that writes several files; refused when it is a file."""
-    path = Path(out)
-    if path.exists() and not path.is_dir():
-        raise HandEyeError(f"--out {path} exists and is not a folder")
-    return path
+def _out_folder(out: str | None, inputs: Sequence[Path] = ()) -> Path | None:
+    """The --out folder of a command, checked before any work (see
+    :func:`handeye._shared.io.check_output_folder`)."""
+    if out is None:
+        return None
+    try:
+        return check_output_folder(out, inputs)
+    except HandEyeError as exc:
+        raise HandEyeError(f"--out: {exc}") from None
 
 
 def _write_outputs(cal: Calibration, args: argparse.Namespace, inputs: Path) -> None:
-    """Write the result files and the report, refusing to overwrite any file of the input folder."""
+    """Write the result files and the report (never into the input folder: write_calibration)."""
     if args.out:
-        out = _out_folder(args.out)
-        if inputs.is_dir() and (out.resolve() == inputs.resolve() or inputs.resolve() in out.resolve().parents):
-            raise HandEyeError(f"--out {out} is inside the input folder {inputs}; results never go among the inputs: "
-                               "choose a folder elsewhere")
-        protect = [p for p in inputs.rglob("*") if p.is_file()] if inputs.is_dir() else []
-        for path in write_calibration(cal, out, protect=protect, parent_frame=args.parent_frame,
-                                      child_frame=args.child_frame):
+        cal = replace(cal, input_folder=inputs) if cal.input_folder is None else cal
+        for path in write_calibration(cal, args.out, parent_frame=args.parent_frame, child_frame=args.child_frame):
             print(f"wrote {path}")
 
 
 def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
     folder = _input_folder(args.folder, args.example, EXAMPLE_POSEPAIRS,
                            "give a pose-pair folder, or --example for the bundled one (not both)")
+    _out_folder(args.out, [folder])
     pairs = load_pose_pairs(folder)
     cal = calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, method=args.method, pairs=args.pairs,
                           refine=args.refine, robot_input=pairs.robot_input, strict=args.strict,
-                          robot_accuracy=_accuracy_arg(args.robot_accuracy))
+                          robot_accuracy=_accuracy_arg(args.robot_accuracy), progress=not args.no_progress)
+    cal = replace(cal, notes=list(pairs.notes) + list(cal.notes), input_folder=folder)
     print_calibration(cal)
     _write_outputs(cal, args, folder)
     return _verdict_status(cal)
@@ -141,6 +183,7 @@ def _print_image_summary(cal: Calibration) -> None:
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     session = _input_folder(args.session, args.sample, SAMPLE_SESSION,
                             "give a session folder, or --sample for the bundled sample session (not both)")
+    _out_folder(args.out, [session])
     robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))  # calibrate checks the values
     cal = calibrate(session, method=args.method, refine=args.refine, jobs=args.jobs, progress=not args.no_progress,
                     robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()), strict=args.strict,
@@ -164,6 +207,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
     folder = _input_folder(args.folder, args.sample, SAMPLE_SESSION,
                            "give a session or pose-pair folder, or --sample (not both)")
     found = check_folder(folder, jobs=args.jobs, progress=not args.no_progress)
+    for note in found.notes:
+        print(f"note: {note}")
     for name, reason in found.skipped:
         print(f"skipped {name}: {reason}")
     print(found.diagnostics.pose_table(found.names))
@@ -175,9 +220,9 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    size = tuple(int(v) for v in args.image_size.lower().split("x"))
+    _out_folder(args.out)
     simulate_session(args.out, setup=args.setup, n_poses=args.poses, target=args.target, noise_px=args.noise_px,
-                     seed=args.seed, image_size=size, write_intrinsics=not args.no_intrinsics)
+                     seed=args.seed, image_size=args.image_size, write_intrinsics=not args.no_intrinsics)
     print(f"wrote session {args.out} ({args.poses} {args.target} images, {args.setup}); ground truth in "
           f"{Path(args.out) / 'ground_truth.yaml'}")
     return 0
@@ -268,6 +313,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         raise HandEyeError(f"--out {out} is a folder; give the file to write, e.g. {out / 'poses.csv'}")
     if out.exists():
         raise HandEyeError(f"--out {out} exists (it may be a session's recorded poses); give a new file name")
+    _out_folder(str(out.parent))  # a folder that can take the file, before the planning
     plan = plan_poses(args.setup, X, Z, obj, K, size, dist, n_poses=args.poses, standoff=args.standoff,
                       tilt_max_deg=args.tilt_max, margin_px=args.margin_px, reach_box=box, noise_px=args.noise_px)
     write_plan(plan, out, args.format, args.length_unit, args.angle_unit,
@@ -328,7 +374,7 @@ def _add_solver_and_out(p: argparse.ArgumentParser) -> None:
 
 
 def _add_detection_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--jobs", type=int, default=None, help="parallel detection workers (default: all cores)")
+    p.add_argument("--jobs", type=_whole(1), default=None, help="parallel detection workers (default: all cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -344,7 +390,9 @@ def _add_calibrate_poses(sub) -> None:
     _add_solver_and_out(p)
     p.add_argument("--refine", default="auto", choices=["auto", "pose", "none"],
                    help="refine X and Z on the poses and estimate their uncertainty (default: auto = pose)")
-    p.add_argument("--pairs", default="all", choices=["all", "consecutive"], help="which pose pairs form motions")
+    p.add_argument("--pairs", default="auto", choices=["auto", "all", "consecutive"],
+                   help="which pose pairs form motions (auto: all up to 141 poses, else ~10,000 spread pairs)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (shown from 200 poses)")
     p.set_defaults(func=_cmd_calibrate_poses)
 
 
@@ -391,11 +439,11 @@ def _add_simulate(sub) -> None:
     )
     p.add_argument("--out", required=True, help="new session folder")
     p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
-    p.add_argument("--poses", type=int, default=15)
+    p.add_argument("--poses", type=_whole(1), default=15, help="number of images (default 15)")
     p.add_argument("--target", default="chessboard", choices=["chessboard", "charuco", "circles", "asymmetric_circles", "apriltag"])
-    p.add_argument("--noise-px", type=float, default=0.2, help="feature position noise in pixels (default 0.2)")
-    p.add_argument("--seed", type=int, default=None)
-    p.add_argument("--image-size", default="640x480", help="WIDTHxHEIGHT (default 640x480)")
+    p.add_argument("--noise-px", type=_number(0.0), default=0.2, help="feature position noise in pixels (default 0.2)")
+    p.add_argument("--seed", type=_whole(0), default=None)
+    p.add_argument("--image-size", type=_image_size, default=(640, 480), help="WIDTHxHEIGHT (default 640x480)")
     p.add_argument("--no-intrinsics", action="store_true", help="leave K and dist out of session.yaml")
     p.set_defaults(func=_cmd_simulate)
 
@@ -422,14 +470,14 @@ def _add_plan(sub) -> None:
     p.add_argument("--camera-in-base", metavar="X,Y,Z,RX,RY,RZ", help="eye_to_hand: rough camera pose in the base frame")
     p.add_argument("--target-in-flange", metavar="X,Y,Z[,RX,RY,RZ]",
                    help="eye_to_hand: target on the flange (default 0,0,0 turned 180 deg about x: printed side outwards)")
-    p.add_argument("--standoff", type=float, required=True, help="camera-to-target distance (m)")
-    p.add_argument("--tilt-max", type=float, default=45.0, help="largest view angle from the target normal (deg, default 45)")
-    p.add_argument("--margin-px", type=float, default=20.0, help="keep every target point this far inside the image")
+    p.add_argument("--standoff", type=_number(0.0, above=True), required=True, help="camera-to-target distance (m)")
+    p.add_argument("--tilt-max", type=_number(0.0, 89.0), default=45.0, help="largest view angle from the target normal (deg, default 45)")
+    p.add_argument("--margin-px", type=_number(0.0), default=20.0, help="keep every target point this far inside the image")
     p.add_argument("--reach-box", metavar="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", help="where the flange may go (m, base frame)")
-    p.add_argument("--poses", type=int, default=12, help="number of poses (default 12)")
-    p.add_argument("--noise-px", type=float, default=0.3, help="pixel noise for the predicted std (default 0.3)")
-    p.add_argument("--check-runs", type=int, default=0, help="also simulate this many calibrations to check the prediction")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--poses", type=_whole(3), default=12, help="number of poses (default 12)")
+    p.add_argument("--noise-px", type=_number(0.0, above=True), default=0.3, help="pixel noise for the predicted std (default 0.3)")
+    p.add_argument("--check-runs", type=_whole(0), default=0, help="also simulate this many calibrations to check the prediction")
+    p.add_argument("--seed", type=_whole(0), default=0)
     p.add_argument("--out", required=True, help="poses.csv to write")
     p.add_argument("--format", default="quat_wxyz", help="pose format: matrix, quat_wxyz, quat_xyzw, rotvec, euler:SEQ")
     p.add_argument("--length-unit", default="m", help="m or mm (default m)")
@@ -446,17 +494,24 @@ def _add_study(sub) -> None:
     )
     p.add_argument("--preset", default="seed-chapter5", help="study grid (default: seed-chapter5)")
     p.add_argument("--out", required=True, help="output folder (created; other files in it are left alone)")
-    p.add_argument("--runs", type=int, default=200, help="simulations per setting (default 200, as the thesis)")
-    p.add_argument("--seed", type=int, default=0, help="random seed: same seed, same numbers (default 0)")
+    p.add_argument("--runs", type=_whole(1), default=200, help="simulations per setting (default 200, as the thesis)")
+    p.add_argument("--seed", type=_whole(0), default=0, help="random seed: same seed, same numbers (default 0)")
     p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
     p.add_argument("--figures", nargs="+", metavar="ID", help="only these figures of the preset (e.g. 5.1 5.4)")
-    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    p.add_argument("--jobs", type=_whole(1), default=None, help="worker processes (default: all cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_study)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with its errors on one line (the fault and where to read more) instead of the usage."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="handeye",
         description="Hand-eye calibration of a camera against a robot arm.",
     )
@@ -475,7 +530,10 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``handeye`` console script; returns the exit status."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # a bad option (status 2, the error printed), --help or --version (0)
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     try:
         return args.func(args)
     except HandEyeError as exc:

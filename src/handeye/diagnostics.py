@@ -26,6 +26,7 @@ from math import comb
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.special import fdtri
 
 from . import solvers
 from .errors import DegenerateMotionError, HandEyeError
@@ -60,8 +61,8 @@ FAR_TARGET_M = 1.2
 
 
 def _solve(flange2base, target2cam, setup) -> NDArray[np.float64]:
-    """Daniilidis on all pose pairs (raises DegenerateMotionError when X is undetermined)."""
-    return solvers.solve_motions(MotionSet.from_poses(flange2base, target2cam, setup, "all"), "daniilidis")
+    """Daniilidis on the pose pairs of ``pairs='auto'`` (raises DegenerateMotionError when X is undetermined)."""
+    return solvers.solve_motions(MotionSet.from_poses(flange2base, target2cam, setup, "auto"), "daniilidis")
 
 
 def _motion_scale(target2cam: NDArray[np.float64]) -> float:
@@ -125,8 +126,6 @@ def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None):
 
 def _refit_test(flange2base, target2cam, setup, inliers):
     """Pose refinement on ``inliers``; per pose its studentized distance test and residuals."""
-    from scipy.stats import f as f_dist  # scipy.stats takes ~0.5 s to import: only when a test runs
-
     X = _solve(flange2base[inliers], target2cam[inliers], setup)
     Z = mean_transform(constant_transforms(X, flange2base[inliers], target2cam[inliers], setup))
     ref = refine_pose(X, Z, flange2base[inliers], target2cam[inliers], setup)
@@ -134,7 +133,7 @@ def _refit_test(flange2base, target2cam, setup, inliers):
     Zi = constant_transforms(ref.X, flange2base, target2cam, setup)
     resid = np.c_[np.degrees(rotation_error(Zi, ref.Z)), 1e3 * translation_error(Zi, ref.Z)]
     # the noise was estimated from few poses: F rather than chi-square
-    limit = 6.0 * f_dist.ppf(1.0 - OUTLIER_P, 6, 6 * int(inliers.sum()) - 12)
+    limit = 6.0 * fdtri(6, 6 * int(inliers.sum()) - 12, 1.0 - OUTLIER_P)  # the F quantile (scipy.stats is slow to import)
     # Real camera noise is not the model's (PnP errors are larger in depth than across, and couple
     # rotation with translation), so the test alone would flag clean poses: an outlier must also
     # be gross, beyond GROSS times the median residual of the consensus poses.
@@ -268,7 +267,11 @@ def diagnose(
     check_setup(setup)
     flange2base, target2cam = validate_poses(flange2base, target2cam)
     n = len(flange2base)
-    motions = MotionSet.from_poses(flange2base, target2cam, setup, "all")
+    if n < 3:  # one motion at most: nothing to observe
+        return Diagnostics(verdict="degenerate", n_poses=n, consistency_limit=CONSISTENT, advice=[
+            f"only {n} pose(s): hand-eye calibration needs at least 3 (two motions with different rotation axes); "
+            "take 10-20 from varied viewpoints, turning the flange by 30 deg or more about different axes"])
+    motions = MotionSet.from_poses(flange2base, target2cam, setup, "auto")
     diag = Diagnostics(verdict="good", n_poses=n, consistency_limit=CONSISTENT, **_observability(motions))
     try:
         check_observability(motions)
@@ -289,7 +292,7 @@ def diagnose(
             diag.advice.append(_hint_advice(hint, given, scores[hint]))
             return diag
         scale = board_scale(flange2base, target2cam, setup)  # a wrong target size is the other usual mistake
-        if scale is not None and _scale_is_off(*scale):
+        if scale is not None and _scale_is_off(*scale) and _scale_explains(flange2base, target2cam, setup, scale[0]):
             diag.scale, diag.scale_std = scale
             diag.verdict = "inconsistent"
             diag.advice.append(_scale_advice(*scale))
@@ -384,6 +387,16 @@ def board_scale(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64
     return float(sol[6]), float(np.sqrt(max(var, var_jack)))
 
 
+def _scale_explains(flange2base, target2cam, setup: str, scale: float) -> bool:
+    """Whether the camera translations rescaled by ``scale`` make inconsistent poses consistent: a
+    wrong target size does, a few wrong poses (whose scale fit is garbage, even negative) do not."""
+    if not scale > 0:
+        return False
+    scaled = target2cam.copy()
+    scaled[:, :3, 3] *= scale
+    return consistency_score(flange2base, scaled, setup) <= CONSISTENT
+
+
 def _scale_is_off(scale: float, std: float) -> bool:
     return abs(scale - 1.0) > max(SCALE_TOLERANCE, SCALE_SIGMAS * std)
 
@@ -454,7 +467,7 @@ def _leave_one_out(flange2base, target2cam, setup, inliers) -> NDArray[np.float6
         return out
     # as _solve on the inliers, then every pose left out in one batch: a run that check_observability
     # would refuse, or that Daniilidis cannot solve, moves X infinitely far
-    motions = MotionSet.from_poses(flange2base[idx], target2cam[idx], setup, "all")
+    motions = MotionSet.from_poses(flange2base[idx], target2cam[idx], setup, "auto")
     X = solvers.solve_motions(motions, "daniilidis")
     groups = motion_groups(motions.pairs, len(idx))
     Xk = solve_leave_one_out(motions, groups)
@@ -466,7 +479,7 @@ def _leave_one_out(flange2base, target2cam, setup, inliers) -> NDArray[np.float6
 
 
 def closed_form(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str, method: str,
-                pairs: Pairs = "all") -> tuple[NDArray[np.float64], NDArray[np.float64], MotionSet]:
+                pairs: Pairs = "auto") -> tuple[NDArray[np.float64], NDArray[np.float64], MotionSet]:
     """``(X, Z, motions)`` of one solver on validated poses, without refinement or checks: an
     AX = XB solver on the motions of ``pairs`` (Z the mean of the per-pose ``Z_i``), or a
     robot-world one on the poses."""
@@ -480,7 +493,7 @@ def closed_form(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64
 
 
 def compare_solvers(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str,
-                    X_ref: NDArray[np.float64], pairs: Pairs = "all") -> list[dict]:
+                    X_ref: NDArray[np.float64], pairs: Pairs = "auto") -> list[dict]:
     """Every registered solver's closed form on the same poses (no refinement, no check).
 
     Per solver: how far its X is from ``X_ref`` (deg, mm), the median per-pose consistency of Z

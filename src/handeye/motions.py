@@ -29,13 +29,28 @@ from .setups import check_setup, robot_world_A, robot_world_A_inv, robot_world_d
 __all__ = ["relative_motions", "pair_indices", "screw_congruence", "motion_matrices", "validate_poses", "MotionSet",
            "Pairs"]
 
-Pairs = Union[Literal["all", "consecutive"], ArrayLike]
+Pairs = Union[Literal["all", "auto", "consecutive"], ArrayLike]
+
+#: ``pairs='auto'`` takes every pair while they are at most this many motions (141 poses), and
+#: beyond that pairs each pose with about ``AUTO_MAX_MOTIONS / N`` others: all pairs grow as N^2
+#: (500,000 motions for 1,000 poses) while the information stays that of the N poses.
+AUTO_MAX_MOTIONS = 10_000
 
 
 @lru_cache(maxsize=64)
 def _standard_pairs(n_poses: int, pairs: str) -> NDArray[np.intp]:
+    if pairs == "auto" and n_poses * (n_poses - 1) // 2 <= AUTO_MAX_MOTIONS:
+        return _standard_pairs(n_poses, "all")  # the same array: the all-pairs fast paths recognise it
     if pairs == "all":
         i, j = np.triu_indices(n_poses, k=1)
+    elif pairs == "auto":
+        # each pose with the poses 1, 2, 4, ... n/2 places further in capture order (cyclic): near
+        # and far partners alike, so that large motions are among them whatever the capture order
+        strides = np.unique(np.round(np.geomspace(1, n_poses // 2, max(1, AUTO_MAX_MOTIONS // n_poses))).astype(np.intp))
+        i = np.repeat(np.arange(n_poses), len(strides))
+        j = (i + np.tile(strides, n_poses)) % n_poses
+        ij = np.unique(np.sort(np.stack([i, j], axis=1), axis=1), axis=0)  # n/2 apart: each pair once
+        i, j = ij[:, 0], ij[:, 1]
     else:
         i = np.arange(n_poses - 1)
         j = i + 1
@@ -50,20 +65,23 @@ def pair_indices(n_poses: int, pairs: Pairs = "all") -> NDArray[np.intp]:
     Parameters
     ----------
     n_poses : int
-    pairs : {'all', 'consecutive'} or array_like of shape (K, 2)
-        ``all``: every ``i < j`` (as OpenCV); ``consecutive``: ``(i, i + 1)``; or explicit pairs.
+    pairs : {'all', 'auto', 'consecutive'} or array_like of shape (K, 2)
+        ``all``: every ``i < j`` (as OpenCV); ``auto``: every pair up to :data:`AUTO_MAX_MOTIONS`
+        motions, else each pose with a spread of about ``AUTO_MAX_MOTIONS / N`` others (linear in
+        N); ``consecutive``: ``(i, i + 1)``; or explicit pairs.
 
     Returns
     -------
     ij : ndarray, shape (K, 2)
     """
     if isinstance(pairs, str):
-        if pairs in ("all", "consecutive"):
+        if pairs in ("all", "auto", "consecutive"):
             return _standard_pairs(n_poses, pairs)
-        raise InputMismatchError(f"unknown pairs strategy {pairs!r}; use 'all', 'consecutive' or an (K, 2) index array")
+        raise InputMismatchError(f"unknown pairs strategy {pairs!r}; use 'all', 'auto', 'consecutive' or an (K, 2) "
+                                 "index array")
     ij = np.asarray(pairs)
     if ij.ndim != 2 or ij.shape[1] != 2 or not np.issubdtype(ij.dtype, np.integer):
-        raise InputMismatchError(f"pairs must be 'all', 'consecutive' or an integer array (K, 2); got shape {ij.shape}")
+        raise InputMismatchError(f"pairs must be 'all', 'auto', 'consecutive' or an integer array (K, 2); got shape {ij.shape}")
     if len(ij) and (ij.min() < 0 or ij.max() >= n_poses):
         raise InputMismatchError(f"pairs index a pose outside 0..{n_poses - 1}")
     if (ij[:, 0] == ij[:, 1]).any():
@@ -100,7 +118,8 @@ def relative_motions(
     target2cam : array_like, shape (N, 4, 4)
         Target poses in the camera (what ``solvePnP`` returns).
     setup : {'eye_in_hand', 'eye_to_hand'}
-    pairs : {'all', 'consecutive'} or array_like (K, 2)
+    pairs : {'all', 'auto', 'consecutive'} or array_like (K, 2)
+        See :func:`pair_indices`.
 
     Returns
     -------
@@ -253,7 +272,7 @@ class MotionSet:
     @classmethod
     def from_matrices(cls, A: NDArray[np.float64], B: NDArray[np.float64]) -> "MotionSet":
         """From validated motion stacks ``(..., K, 4, 4)`` (rotations exactly orthonormal)."""
-        dq_a, dq_b = _align_signs(dq_from_matrix(A), dq_from_matrix(B))
+        dq_a, dq_b = _align_signs(dq_from_matrix(A, assume_valid=True), dq_from_matrix(B, assume_valid=True))
         return cls(dq_a, dq_b, _AB=(A, B))
 
     @classmethod
@@ -269,7 +288,7 @@ class MotionSet:
         ij = pair_indices(len(flange2base), pairs)
         i, j = ij[:, 0], ij[:, 1]
         n = len(flange2base)
-        dq_fc = dq_from_matrix(np.concatenate([flange2base, target2cam]))
+        dq_fc = dq_from_matrix(np.concatenate([flange2base, target2cam]), assume_valid=True)
         dq_f, dq_c = dq_fc[:n], dq_fc[n:]
         dq_robot = robot_world_dq(dq_f, setup)  # A_i; A_ij = inv(A_j) A_i
         dq_a = dq_mul_pairs(dq_conj(dq_robot), dq_robot, j, i)

@@ -94,11 +94,11 @@ def pose_columns(fmt: str) -> list[str]:
     return ["x", "y", "z"] + rot
 
 
-def _check_units(length_unit: str, angle_unit: str) -> float:
+def _check_units(length_unit: str, angle_unit: str, what: str = "poses") -> float:
     if length_unit not in LENGTH_UNITS:
-        raise PoseFormatError(f"unknown length unit {length_unit!r}; use 'm' or 'mm'")
+        raise PoseFormatError(f"{what}: unknown length unit {length_unit!r}; use 'm' or 'mm'")
     if angle_unit not in ANGLE_UNITS:
-        raise PoseFormatError(f"unknown angle unit {angle_unit!r}; use 'rad' or 'deg'")
+        raise PoseFormatError(f"{what}: unknown angle unit {angle_unit!r}; use 'rad' or 'deg'")
     return LENGTH_UNITS[length_unit]
 
 
@@ -151,7 +151,7 @@ def parse_poses(
         that cannot be in the declared unit (e.g. metres of tens of metres, radians beyond 2 pi).
     """
     kind, seq = _parse_format(format)
-    scale = _check_units(length_unit, angle_unit)
+    scale = _check_units(length_unit, angle_unit, what)
     rows = _as_rows(values, kind, what)
     ncols = len(pose_columns(format))
     if rows.shape[1] != ncols:
@@ -170,18 +170,14 @@ def parse_poses(
         )
 
     if kind == "matrix":
-        M = rows.reshape(-1, 4, 4)
-        last = np.abs(M[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1)
-        if (last > 1e-9).any():
-            i = int(np.argmax(last > 1e-9))
-            raise PoseFormatError(f"{what}: row {i}: the last matrix row is {M[i, 3].tolist()}, must be [0, 0, 0, 1]")
-        T = validate_transforms(M, what=what)
+        T = validate_transforms(rows.reshape(-1, 4, 4), what=what)  # names a transposed layout
         T[:, :3, 3] *= scale
     else:
         t = rows[:, :3] * scale
         rot = rows[:, 3:]
         if kind in ("quat_wxyz", "quat_xyzw"):
-            norm = np.linalg.norm(rot, axis=1)
+            with np.errstate(over="ignore"):  # components near 1e308: an infinite norm, refused below
+                norm = np.linalg.norm(rot, axis=1)
             off = np.abs(norm - 1.0)
             if (off > QUAT_NORM_TOL).any():
                 i = int(np.argmax(off))
@@ -298,12 +294,34 @@ def validate_transforms(T: ArrayLike, what: str = "transforms", tol: float = ORT
     return _validated(T, what, tol)
 
 
+#: How far a 4x4's bottom row may be from [0, 0, 0, 1] (rounding in a file, float32 storage).
+BOTTOM_ROW_TOL = 1e-6
+
+
+def _check_bottom_rows(T: NDArray[np.float64], what: str) -> None:
+    """A bottom row other than [0, 0, 0, 1] is an error; one holding the translation (with the last
+    column empty) is named as a transposed, column-major matrix."""
+    off = np.abs(T[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1)
+    if not (off > BOTTOM_ROW_TOL).any():
+        return
+    i = int(np.argmax(off > BOTTOM_ROW_TOL))
+    transposed = np.abs(T[:, :3, 3]).max(axis=1) <= BOTTOM_ROW_TOL
+    if transposed[off > BOTTOM_ROW_TOL].all():
+        raise PoseFormatError(
+            f"{what}: entry {i}: the bottom row is {T[i, 3].tolist()}, with the translation there and the last "
+            "column empty: the matrices look transposed (column-major, as Eigen or OpenGL store them); pass their "
+            "transposes (np.swapaxes(T, -1, -2)), with the translation in the last column")
+    raise PoseFormatError(f"{what}: entry {i}: the bottom row is {T[i, 3].tolist()}, must be [0, 0, 0, 1] "
+                          "(a 4x4 homogeneous transform, rotation top-left, translation in the last column)")
+
+
 def _validated(T: NDArray[np.float64], what: str, tol: float) -> NDArray[np.float64]:
     """:func:`validate_transforms` of a float stack ``(N, 4, 4)`` the caller owns: fixed in place."""
     if not np.isfinite(T).all():
         i = int(np.argmin(np.isfinite(T).all(axis=(1, 2))))
         raise PoseFormatError(f"{what}: entry {i} contains NaN or infinite values")
-    T[:, 3, :3] = 0.0
+    _check_bottom_rows(T, what)
+    T[:, 3, :3] = 0.0  # exact, after the check above allowed rounding
     T[:, 3, 3] = 1.0
     if _rotations_exact(T):
         return T

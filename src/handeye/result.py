@@ -93,8 +93,9 @@ class Diagnostics:
 
     def summary(self) -> str:
         """A few lines for people: verdict, outliers, advice."""
-        lines = [f"verdict: {self.verdict} ({self.n_poses} poses, consistency {self.consistency:.2f}; "
-                 f"up to {self.consistency_limit:g} is consistent)"]
+        consistency = (f"consistency {self.consistency:.2f}; up to {self.consistency_limit:g} is consistent"
+                       if np.isfinite(self.consistency) else "consistency not computed")
+        lines = [f"verdict: {self.verdict} ({self.n_poses} poses, {consistency})"]
         if self.convention_hint:
             lines.append(f"convention hint: {self.convention_hint}")
         if self.scale is not None:
@@ -171,6 +172,8 @@ class Calibration:
     inputs_sha256: str | None = None
     #: per used image: its path, and the target points (target frame, m) with their detections (px)
     image_paths: list[Path] | None = field(default=None, repr=False)
+    #: the folder the inputs were read from (a session, a pose-pair folder): results never go into it
+    input_folder: Path | None = field(default=None, repr=False)
     object_points: list[NDArray[np.float64]] | None = field(default=None, repr=False)
     image_points: list[NDArray[np.float64]] | None = field(default=None, repr=False)
     #: per solver: its closed-form X on the same poses, from handeye.diagnostics.compare_solvers

@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import csv
 import io
-from dataclasses import dataclass
+import unicodedata
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -35,7 +36,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from ._shared.io import atomic_write
+from ._shared.io import atomic_write, read_text
 from .errors import HandEyeError, InputMismatchError, PoseFormatError
 from .poses import RobotPoseInput, format_poses, parse_poses, pose_columns
 from .setups import check_setup
@@ -64,6 +65,7 @@ class PosePairs:
     ids: list[str]
     source: Path
     robot_input: RobotPoseInput | None = None  #: the robot poses as written (for the convention check)
+    notes: list[str] = field(default_factory=list)  #: how the files were read, when not as plain UTF-8 CSV
 
 
 @dataclass(frozen=True)
@@ -81,6 +83,7 @@ class Session:
     pose_format: str
     robot_input: RobotPoseInput | None = None  #: the robot poses as written (for the convention check)
     poses_path: Path | None = None  #: the pose table file
+    notes: list[str] = field(default_factory=list)  #: how the files were read, when not as plain UTF-8 CSV
 
     @property
     def input_files(self) -> list[Path]:
@@ -122,7 +125,8 @@ def load_session(folder: str | Path) -> Session:
     if not folder.is_dir():
         raise SessionError(f"{folder}: no such session folder")
     yml = folder / SESSION_FILE
-    spec = load_yaml(yml)
+    notes: list[str] = []
+    spec = load_yaml(yml, notes)
     where = str(yml)
     setup = check_setup(str(_require(spec, "setup", where)))
     target_spec = _require(spec, "target", where)
@@ -135,39 +139,74 @@ def load_session(folder: str | Path) -> Session:
     fmt = str(_require(poses, "format", f"{where}: poses"))
     length_unit = str(_require(poses, "length_unit", f"{where}: poses"))
     angle_unit = str(poses.get("angle_unit", "rad"))
-    f2b, names, values = _read_pose_file(csv_path, fmt, length_unit, angle_unit, id_columns=("image",))
+    f2b, names, values = _read_pose_file(csv_path, fmt, length_unit, angle_unit, id_columns=("image",), notes=notes)
     if names is None:
         raise SessionError(f"{csv_path}: the first column must be 'image', naming each pose's image in images/")
     image_dir = folder / "images"
     if not image_dir.is_dir():
         raise SessionError(f"{image_dir}: no images folder; the images named in {csv_path.name} go there")
-    paths = [image_dir / n for n in names]
-    missing = [n for n, p in zip(names, paths) if not p.is_file()]
+    on_disk = sorted(p.name for p in image_dir.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    files = _match_image_names(names, on_disk, notes)
+    missing = [n for n, f in zip(names, files) if f is None or not (image_dir / f).is_file()]
     if missing:
         raise SessionError(f"{image_dir}: image file(s) missing: {', '.join(missing[:10])}"
                            + (f" and {len(missing) - 10} more" if len(missing) > 10 else ""))
-    on_disk = sorted(p.name for p in image_dir.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
-    unnamed = sorted(set(on_disk) - set(names))
+    paths = [image_dir / f for f in files]
+    unnamed = sorted(set(on_disk) - set(files))
     if unnamed:
         raise SessionError(
             f"{csv_path.name} has {len(names)} poses but images/ holds {len(on_disk)} images; no pose for "
             f"{', '.join(unnamed[:10])}: add their poses or move them out of images/"
         )
     return Session(folder, setup, dict(target_spec), f2b, list(names), paths, K, dist, fmt,
-                   RobotPoseInput(values, fmt, length_unit, angle_unit), csv_path)
+                   RobotPoseInput(values, fmt, length_unit, angle_unit), csv_path, notes)
 
 
-def load_yaml(path: Path) -> dict[str, Any]:
-    """A YAML mapping from ``path``; one-line errors that name the file and the position."""
+def _match_image_names(names: list[str], on_disk: list[str], notes: list[str]) -> list[str | None]:
+    """The file in ``images/`` each pose row names: the same name, else the same name once
+    Unicode-normalised (macOS writes decomposed accents) or, when unique, once lower-cased (a
+    session made on Windows); None when there is none."""
+    disk = set(on_disk)
+    by_nfc = {unicodedata.normalize("NFC", n): n for n in on_disk}
+    by_lower: dict[str, list[str]] = {}
+    for n in on_disk:
+        by_lower.setdefault(unicodedata.normalize("NFC", n).lower(), []).append(n)
+    out, loose = [], []
+    for name in names:
+        key = unicodedata.normalize("NFC", name)
+        if name in disk:
+            out.append(name)
+        elif key in by_nfc:
+            out.append(by_nfc[key])
+        elif len(by_lower.get(key.lower(), [])) == 1:
+            out.append(by_lower[key.lower()][0])
+            loose.append(f"{name} -> {out[-1]}")
+        else:
+            out.append(None)
+    if loose:
+        notes.append(f"image names matched without regard to case: {', '.join(loose[:5])}"
+                     + (f" and {len(loose) - 5} more" if len(loose) > 5 else ""))
+    return out
+
+
+def load_yaml(path: Path, notes: list[str] | None = None) -> dict[str, Any]:
+    """A YAML mapping from ``path`` (any encoding :func:`handeye._shared.io.read_text` reads; how
+    it was read goes into ``notes``); one-line errors that name the file and the position."""
+    path = Path(path)
     if not path.is_file():
-        raise SessionError(f"{path}: file not found")
+        raise SessionError(f"{path}: " + ("is a folder, not a file" if path.is_dir() else "file not found"))
+    text, note = read_text(path)
+    if note and notes is not None:
+        notes.append(note)
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = yaml.safe_load(text)
     except yaml.YAMLError as exc:  # one line: the problem and where
         mark = getattr(exc, "problem_mark", None)
         at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise SessionError(f"{path}: not valid YAML ({problem}{at})") from None
+    if data is None:
+        raise SessionError(f"{path}: empty file; expected a mapping of keys (see the README)")
     if not isinstance(data, dict):
         raise SessionError(f"{path}: expected a mapping of keys, got {type(data).__name__}")
     return data
@@ -179,28 +218,49 @@ def _require(mapping: dict[str, Any], key: str, where: str) -> Any:
     return mapping[key]
 
 
+def _delimiter(text: str) -> str:
+    """The value separator of a pose table, from its header line: ',' unless the header has none
+    and ';' (a spreadsheet in a locale with decimal commas), a tab or spaces separate it."""
+    header = next((line for line in text.splitlines() if line.strip()), "")
+    if "," in header:
+        return ","
+    for d in (";", "\t"):
+        if d in header:
+            return d
+    return " " if len(header.split()) > 1 else ","
+
+
 def read_pose_table(
-    path: Path, fmt: str, id_columns: tuple[str, ...] = ID_COLUMNS
+    path: Path, fmt: str, id_columns: tuple[str, ...] = ID_COLUMNS, notes: list[str] | None = None
 ) -> tuple[NDArray[np.float64], list[str] | None]:
     """Read a CSV of poses with a header row; returns the pose values and the ids (or None).
 
-    Raises :class:`SessionError` naming the file, line and column of anything malformed.
+    Any encoding :func:`handeye._shared.io.read_text` reads; values separated by ',' or (a
+    header without commas) by ';' with decimal commas, tabs or spaces; header names in any case.
+    How the file was read, when not plain UTF-8 CSV, goes into ``notes``. Raises
+    :class:`SessionError` naming the file, line and column of anything malformed.
     """
     if not path.is_file():
-        raise SessionError(f"{path}: file not found")
+        raise SessionError(f"{path}: " + ("is a folder, not a file" if path.is_dir() else "file not found"))
     expected = pose_columns(fmt)
-    with path.open(newline="", encoding="utf-8") as fh:
-        rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
+    text, note = read_text(path)
+    delim = _delimiter(text)
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=delim, skipinitialspace=delim == " ")
+    try:
+        rows = [r for r in reader if r and any(c.strip() for c in r)]
+    except csv.Error as exc:
+        raise SessionError(f"{path}: not a readable CSV table ({exc})") from None
     if not rows:
         raise SessionError(f"{path}: empty file; expected a header row ({', '.join(expected)}) and one row per pose")
     header = [c.strip() for c in rows[0]]
-    id_col = header[0] if header and header[0] in id_columns else None
-    pose_header = header[1:] if id_col else header
+    id_col = header[0] if header and header[0].lower() in id_columns else None
+    pose_header = [c.lower() for c in (header[1:] if id_col else header)]
     if pose_header != expected:
         raise SessionError(
             f"{path}: header {header} does not match format {fmt!r}, which needs the columns "
             f"{', '.join(expected)} (after an '{id_columns[0]}' column)"
         )
+    decimal_comma = delim != "," and any("," in c for r in rows[1:] for c in r)
     ids: list[str] = []
     values = np.empty((len(rows) - 1, len(expected)))
     for k, row in enumerate(rows[1:]):
@@ -213,7 +273,7 @@ def read_pose_table(
             cells = cells[1:]
         for c, cell in enumerate(cells):
             try:
-                values[k, c] = float(cell)
+                values[k, c] = float(cell.replace(",", ".") if decimal_comma else cell)
             except ValueError:
                 raise SessionError(f"{path}: line {line}, column '{expected[c]}': {cell!r} is not a number") from None
     if len(values) == 0:
@@ -223,22 +283,30 @@ def read_pose_table(
     if id_col and len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})
         raise SessionError(f"{path}: duplicate {id_col} values {dup}")
+    if notes is not None:
+        if note:
+            notes.append(note)
+        if delim != ",":
+            sep = {";": "semicolons", "\t": "tabs"}.get(delim, "spaces")
+            notes.append(f"{path.name}: values read as separated by {sep}" + (", with decimal commas" if decimal_comma else ""))
     return values, (ids if id_col else None)
 
 
 def _read_pose_file(
-    path: Path, fmt: str, length_unit: str, angle_unit: str, id_columns: tuple[str, ...] = ID_COLUMNS
+    path: Path, fmt: str, length_unit: str, angle_unit: str, id_columns: tuple[str, ...] = ID_COLUMNS,
+    notes: list[str] | None = None,
 ) -> tuple[NDArray[np.float64], list[str] | None, NDArray[np.float64]]:
     """A pose CSV read and parsed into transforms (metres), with its ids and raw values; errors name
     the file and row."""
-    values, ids = read_pose_table(path, fmt, id_columns=id_columns)
+    values, ids = read_pose_table(path, fmt, id_columns=id_columns, notes=notes)
     try:
         return parse_poses(values, fmt, length_unit, angle_unit, what=str(path)), ids, values
     except PoseFormatError as exc:
-        raise PoseFormatError(f"{exc} (rows count from 0 after the header)") from None
+        raise PoseFormatError(f"{exc} (rows count from 0 after the header)" if "row " in str(exc) else str(exc)) from None
 
 
-def _read_poses(folder: Path, spec: Any, key: str) -> tuple[NDArray[np.float64], list[str] | None, Path, RobotPoseInput]:
+def _read_poses(folder: Path, spec: Any, key: str,
+                notes: list[str]) -> tuple[NDArray[np.float64], list[str] | None, Path, RobotPoseInput]:
     where = f"{folder / POSEPAIRS_FILE}: {key}"
     if not isinstance(spec, dict):
         raise SessionError(f"{where}: expected a mapping with file, format, length_unit, angle_unit")
@@ -246,7 +314,7 @@ def _read_poses(folder: Path, spec: Any, key: str) -> tuple[NDArray[np.float64],
     fmt = str(_require(spec, "format", where))
     length_unit = str(_require(spec, "length_unit", where))
     angle_unit = str(spec.get("angle_unit", "rad"))
-    T, ids, values = _read_pose_file(path, fmt, length_unit, angle_unit)
+    T, ids, values = _read_pose_file(path, fmt, length_unit, angle_unit, notes=notes)
     return T, ids, path, RobotPoseInput(values, fmt, length_unit, angle_unit)
 
 
@@ -265,11 +333,13 @@ def load_pose_pairs(folder: str | Path) -> PosePairs:
     folder = Path(folder)
     if not folder.is_dir():
         raise SessionError(f"{folder}: no such folder")
-    spec = load_yaml(folder / POSEPAIRS_FILE)
+    notes: list[str] = []
+    spec = load_yaml(folder / POSEPAIRS_FILE, notes)
     where = str(folder / POSEPAIRS_FILE)
     setup = check_setup(str(_require(spec, "setup", where)))
-    f2b, robot_ids, robot_path, robot_input = _read_poses(folder, _require(spec, "robot_poses", where), "robot_poses")
-    t2c, cam_ids, cam_path, _ = _read_poses(folder, _require(spec, "camera_poses", where), "camera_poses")
+    f2b, robot_ids, robot_path, robot_input = _read_poses(folder, _require(spec, "robot_poses", where), "robot_poses",
+                                                          notes)
+    t2c, cam_ids, cam_path, _ = _read_poses(folder, _require(spec, "camera_poses", where), "camera_poses", notes)
     if robot_ids is not None and cam_ids is not None:
         missing = sorted(set(robot_ids) ^ set(cam_ids))
         if missing:
@@ -287,7 +357,7 @@ def load_pose_pairs(folder: str | Path) -> PosePairs:
                 f"(or add an 'id' column to both)"
             )
         ids = robot_ids or cam_ids or [str(k) for k in range(len(f2b))]
-    return PosePairs(setup, f2b, t2c, ids, folder, robot_input)
+    return PosePairs(setup, f2b, t2c, ids, folder, robot_input, notes)
 
 
 def read_intrinsics(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[int, int]]:

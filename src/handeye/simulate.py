@@ -13,14 +13,13 @@ the ground-truth ``X`` and ``Z``:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from ._shared.io import atomic_write
+from ._shared.io import atomic_write, check_output_folder
 from ._shared.lazy import lazy_module
 from .errors import HandEyeError
 from .geometry.se3 import invert, make_transform, random_rotations
@@ -330,7 +329,37 @@ def visible_viewpoints(
                 out.append(c2t)
                 if len(out) == n:
                     return np.array(out)
-    raise RuntimeError("could not place the camera so that the target fits in the image; use a larger image")
+    raise HandEyeError(f"could not place the camera so that the whole target fits in a {w}x{h} image, {margin_px:g} px "
+                       "inside: use a larger image or a smaller target")
+
+
+#: The smallest image side simulate_session renders (a target must fit in it with a margin).
+MIN_IMAGE_SIDE = 64
+SIMULATED_IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+
+
+def _check_simulation_options(n_poses, noise_px, image_size, image_ext, blur, robot_noise) -> None:
+    """simulate_session's options, each checked with a message that names it."""
+    if isinstance(n_poses, bool) or not isinstance(n_poses, (int, np.integer)) or n_poses < 1:
+        raise HandEyeError(f"n_poses={n_poses!r}: give a whole number of poses >= 1")
+    for name, v in (("noise_px", noise_px), ("blur", blur)):
+        if not isinstance(v, (int, float, np.number)) or not np.isfinite(v) or v < 0:
+            raise HandEyeError(f"{name}={v!r}: give a finite number >= 0")
+    try:
+        w, h = image_size
+        ok = all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in (w, h))
+    except (TypeError, ValueError):
+        ok = False
+    if not ok or min(w, h) < MIN_IMAGE_SIDE:
+        raise HandEyeError(f"image_size={image_size!r}: give (width, height) in whole pixels, each >= {MIN_IMAGE_SIDE}")
+    if str(image_ext).lower() not in SIMULATED_IMAGE_SUFFIXES:
+        raise HandEyeError(f"image_ext={image_ext!r}: use one of {', '.join(SIMULATED_IMAGE_SUFFIXES)}")
+    try:
+        deg, mm = (float(v) for v in robot_noise)
+    except (TypeError, ValueError):
+        raise HandEyeError(f"robot_noise={robot_noise!r}: give (degrees, millimetres)") from None
+    if not (np.isfinite(deg) and np.isfinite(mm) and deg >= 0 and mm >= 0):
+        raise HandEyeError(f"robot_noise={robot_noise!r}: give finite standard deviations >= 0")
 
 
 def simulate_session(
@@ -365,9 +394,13 @@ def simulate_session(
     robot_noise : (deg, mm)
         Gaussian noise per axis on the written robot poses.
     """
-    out = Path(out_dir)
+    out = check_output_folder(out_dir)
     if (out / "session.yaml").exists() or (out / "images").exists():
         raise HandEyeError(f"{out} already holds a session; choose an empty folder")
+    check_setup(setup)
+    _check_simulation_options(n_poses, noise_px, image_size, image_ext, blur, robot_noise)
+    if isinstance(target, str) and target not in DEFAULT_TARGETS:
+        raise HandEyeError(f"unknown target {target!r}; use one of {', '.join(DEFAULT_TARGETS)} or a target mapping")
     spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
     tgt = target_from_spec(spec)
     rng = np.random.default_rng(seed)

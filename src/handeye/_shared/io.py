@@ -1,5 +1,6 @@
-"""Writing output files atomically (no half-written files, never over the user's inputs), and
-digests of inputs for the result files."""
+"""Files in and out: one reader for every text input (any usual encoding), one gate for every
+output folder (checked before the work starts), atomic writes (no half-written files, never over
+the user's inputs), and digests of inputs for the result files."""
 
 from __future__ import annotations
 
@@ -12,6 +13,72 @@ from typing import Iterable
 import numpy as np
 
 from ..errors import HandEyeError
+
+
+_BOMS = ((b"\xef\xbb\xbf", "utf-8"), (b"\xff\xfe", "utf-16-le"), (b"\xfe\xff", "utf-16-be"))
+
+
+def read_text(path: str | Path) -> tuple[str, str | None]:
+    """The text of ``path`` and, when it was not UTF-8, a note saying how it was read.
+
+    UTF-8 with or without a byte-order mark, UTF-16 with one (Excel's "Unicode text"); anything
+    else that is not valid UTF-8 is read as Windows-1252 / Latin-1 (a comment "Zelle Süd" written
+    by a Windows editor). Binary files, and UTF-16 without a byte-order mark, are refused.
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except IsADirectoryError:
+        raise HandEyeError(f"{path}: is a folder, not a file") from None
+    except OSError as exc:
+        raise HandEyeError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    for bom, codec in _BOMS:
+        if data.startswith(bom):
+            try:
+                return data[len(bom):].decode(codec), (None if codec == "utf-8" else f"{path.name} read as {codec.upper()}")
+            except UnicodeDecodeError as exc:
+                raise HandEyeError(f"{path}: starts with a {codec.upper()} byte-order mark but byte {exc.start + len(bom)} "
+                                   f"is not {codec.upper()}: save it as UTF-8") from None
+    if b"\x00" in data:
+        raise HandEyeError(f"{path}: holds NUL bytes at byte {data.index(0)}: not a text file (or UTF-16 without a "
+                           "byte-order mark): save it as UTF-8 text")
+    try:
+        return data.decode("utf-8"), None
+    except UnicodeDecodeError as exc:
+        at = exc.start
+    try:
+        text = data.decode("cp1252")
+    except UnicodeDecodeError:
+        text = data.decode("latin-1")  # every byte is a character
+    return text, (f"{path.name} is not UTF-8 (byte 0x{data[at]:02x} at {at}): read as Windows-1252 / Latin-1; "
+                  "save it as UTF-8 to be sure of its non-ASCII characters")
+
+
+def check_output_folder(out_dir: str | Path, inputs: Iterable[str | Path] = ()) -> Path:
+    """Refuse, before any work, an output folder that cannot take the results: a file, a folder
+    inside (or equal to) one of the ``inputs`` folders, or a place this process cannot write.
+    Creates nothing; returns the path."""
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise HandEyeError(f"output folder {out} exists and is not a folder")
+    resolved = out.resolve()
+    for folder in inputs:
+        folder = Path(folder).resolve()
+        if folder.is_dir() and (resolved == folder or folder in resolved.parents):
+            raise HandEyeError(f"output folder {out} is inside the input folder {folder}; results never go among "
+                               "the inputs: choose a folder elsewhere")
+    existing = resolved
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise HandEyeError(f"output folder {out} cannot be created: {existing} is a file")
+    try:  # os.access misses read-only mounts for root and ACLs: try it
+        with tempfile.TemporaryFile(dir=existing, prefix=".handeye-write-test"):
+            pass
+    except OSError as exc:
+        raise HandEyeError(f"output folder {out} cannot be written ({exc.strerror or exc} in {existing}): choose a "
+                           "folder you can write to") from None
+    return out
 
 
 def atomic_write(path: str | Path, data: str | bytes, protect: Iterable[str | Path] = ()) -> None:

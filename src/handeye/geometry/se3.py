@@ -255,9 +255,28 @@ def random_rotations(n: int, rng: np.random.Generator) -> NDArray[np.float64]:
     return Rotation.from_quat(q).as_matrix()
 
 
+def _takes_assume_valid() -> bool:
+    try:
+        Rotation.from_matrix(np.eye(3), assume_valid=True)
+        return True
+    except TypeError:  # scipy < 1.17
+        return False
+
+
+_ASSUME_VALID = {"assume_valid": True} if _takes_assume_valid() else {}
+
+
+def rotation_of_valid(R: ArrayLike) -> Rotation:
+    """``Rotation.from_matrix`` of matrices already orthonormal (validated inputs and products of
+    them): scipy >= 1.17 then skips its own orthonormalisation, ~20x faster (earlier scipy does it
+    all the same)."""
+    return Rotation.from_matrix(R, **_ASSUME_VALID)
+
+
 def mean_transform(T: ArrayLike) -> NDArray[np.float64]:
     """Chordal mean of the rotations (scipy's ``Rotation.mean``) and arithmetic mean of the
-    translations of a stack ``(N, 4, 4)``."""
+    translations of a stack ``(N, 4, 4)`` whose rotations are orthonormal (validated, or products
+    of validated ones)."""
     T = np.asarray(T, dtype=float)
-    R = Rotation.from_matrix(T[:, :3, :3]).mean().as_matrix()
+    R = rotation_of_valid(T[:, :3, :3]).mean().as_matrix()  # transforms are validated or built from validated ones
     return make_transform(R, T[:, :3, 3].mean(axis=0))

@@ -11,8 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Iterable
 
+from .._shared.io import check_output_folder
 from ..diagnostics import compare_solvers
-from ..errors import HandEyeError
 from ..result import Calibration
 from .files import default_frames, result_dict, ros2_static_transform_command, urdf_joint, write_results
 from .html import SECTIONS, report_html, write_report
@@ -26,16 +26,17 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
                       child_frame: str | None = None) -> list[Path]:
     """Write ``result.json``, ``result.yaml`` and (``report``) ``report.html`` into ``out_dir``.
 
-    Every file is written atomically. ``protect``: paths never to overwrite; the input images are
-    always protected. ``compare``: draw every solver on the same data in the report
+    Every file is written atomically. The folder is checked first
+    (:func:`handeye._shared.io.check_output_folder`): never a file, never inside the folder the
+    inputs came from (``cal.input_folder``), writable. ``protect``: paths never to overwrite; the
+    input images are always protected. ``compare``: draw every solver on the same data in the report
     (``cal.solver_comparison``, or computed here by :func:`handeye.diagnostics.compare_solvers`
     when it holds none). ``parent_frame`` / ``child_frame`` name the frames of the ROS snippets
     (default ``tool0`` or ``base_link``, and ``camera_optical_frame``). Returns the paths written, the
     report last.
     """
-    out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise HandEyeError(f"{out_dir} exists and is not a folder")
+    inputs = [cal.input_folder] if cal.input_folder is not None else []
+    out_dir = check_output_folder(out_dir, inputs)
     protect = list(protect) + list(cal.image_paths or [])
     paths = write_results(cal, out_dir, protect, parent_frame, child_frame)
     if report:

@@ -86,6 +86,10 @@ def _fmt(v, digits: int = 3) -> str:
 # figures
 
 
+#: Up to this many poses the residual figure draws a bar and a label per pose.
+MAX_LABELLED_POSES = 60
+
+
 def _residual_figure(cal: Calibration) -> str:
     pres = cal.pose_residuals
     labels = list(cal.image_names) if cal.image_names is not None else [str(i) for i in cal.pose_indices]
@@ -93,27 +97,41 @@ def _residual_figure(cal: Calibration) -> str:
     fig = _figure((10, 2.2 * n_plots))
     axes = fig.subplots(n_plots, 1, sharex=True)
     x = np.arange(len(pres))
-    axes[0].bar(x, pres[:, 0], color="#4a78b5")
+    many = len(x) > MAX_LABELLED_POSES
+
+    def bars(ax, values, colour):  # beyond a few dozen poses: one line collection, not a patch per bar
+        if many:
+            ax.vlines(x, 0.0, values, color=colour, lw=1.0)
+        else:
+            ax.bar(x, values, color=colour)
+
+    bars(axes[0], pres[:, 0], "#4a78b5")
     axes[0].set_ylabel("rotation (deg)")
     axes[0].set_title(f"per pose: how far its own {setup_info(cal.setup).z_name} "
                       "(through X) is from the common one", fontsize=10)
-    axes[1].bar(x, pres[:, 1], color="#d08c30")
+    bars(axes[1], pres[:, 1], "#d08c30")
     axes[1].set_ylabel("translation (mm)")
     if n_plots == 3:
-        axes[2].bar(x, cal.reprojection_rms, color="#5c9e5c")
+        bars(axes[2], cal.reprojection_rms, "#5c9e5c")
         axes[2].set_ylabel("PnP RMS (px)")
     for ax in axes:
         ax.grid(axis="y", alpha=0.3)
-    axes[-1].set_xticks(x)
-    axes[-1].set_xticklabels(labels, rotation=90 if len(labels) > 12 else 0, fontsize=8)
+    if many:
+        axes[-1].set_xlabel("pose (index in the order given)")
+    else:
+        axes[-1].set_xticks(x)
+        axes[-1].set_xticklabels(labels, rotation=90 if len(labels) > 12 else 0, fontsize=8)
     return _png(fig)
 
 
 def _axis_triad(ax, T: NDArray[np.float64], length: float, lw: float = 1.5) -> None:
-    o = T[:3, 3]
+    """The x, y, z axes (red, green, blue) of one frame ``(4, 4)`` or many ``(N, 4, 4)``: one line
+    per colour, broken by NaN between frames (a line per axis and frame takes minutes for 1,000)."""
+    T = np.asarray(T).reshape(-1, 4, 4)
+    o = T[:, :3, 3]
     for k, c in enumerate(("#d62728", "#2ca02c", "#1f77b4")):
-        e = o + length * T[:3, k]
-        ax.plot([o[0], e[0]], [o[1], e[1]], [o[2], e[2]], color=c, lw=lw)
+        seg = np.stack([o, o + length * T[:, :3, k], np.full_like(o, np.nan)], axis=1).reshape(-1, 3)
+        ax.plot(*seg.T, color=c, lw=lw)
 
 
 def _scene_figure(cal: Calibration) -> str:
@@ -128,10 +146,8 @@ def _scene_figure(cal: Calibration) -> str:
     _axis_triad(ax, np.eye(4), 1.5 * L, lw=3)
     ax.text(0, 0, 0, " base", fontsize=8)
     ax.plot(*flange.T, "-o", color="#777", ms=3, lw=0.8, label="flange positions (capture order)")
-    for T in cal.flange2base:
-        _axis_triad(ax, T, 0.5 * L, lw=0.8)
-    for T in (cam2base if on_flange else cam2base[:1]):
-        _axis_triad(ax, T, L)
+    _axis_triad(ax, cal.flange2base, 0.5 * L, lw=0.8)
+    _axis_triad(ax, cam2base if on_flange else cam2base[:1], L)
     ax.scatter(*cam2base[:, :3, 3].T, color="#000", s=12, label="camera")
     if cal.object_points:
         obj = np.vstack(cal.object_points)
@@ -141,8 +157,7 @@ def _scene_figure(cal: Calibration) -> str:
         for T in (tgt2base if not on_flange else tgt2base[:1]):
             c = (T @ corners.T).T
             ax.plot(*c[:, :3].T, color="#8b4513", lw=1.5)
-    for T in (tgt2base if not on_flange else tgt2base[:1]):
-        _axis_triad(ax, T, L, lw=2)
+    _axis_triad(ax, tgt2base if not on_flange else tgt2base[:1], L, lw=2)
     ax.scatter(*tgt2base[:, :3, 3].T, color="#8b4513", s=12, marker="s", label="target")
     centre = pts.mean(axis=0)
     half = 0.55 * (float(np.ptp(pts, axis=0).max()) or 1.0)

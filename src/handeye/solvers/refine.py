@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares, minimize
 from scipy.spatial.transform import Rotation
 
-from ..geometry.se3 import invert, make_transform, skew, so3_left_jacobian
+from ..geometry.se3 import invert, make_transform, rotation_of_valid, skew, so3_left_jacobian
 from ..setups import check_setup, constant_transforms, predicted_target2cam, robot_world_A, setup_info
 from ..vision.pnp import project_points, project_points_many, solve_pnp
 from ..vision.targets import Detection
@@ -407,7 +407,7 @@ def _pose_residuals(X, Z, flange2base, target2cam, setup):
     Zi = constant_transforms(X, flange2base, target2cam, setup)
     t2f = X @ target2cam if setup_info(setup).camera_on_flange else Zi  # eye-to-hand: Z_i is target2flange
     D = invert(Z) @ Zi
-    r = np.concatenate([Rotation.from_matrix(D[:, :3, :3]).as_rotvec(), D[:, :3, 3]], axis=1)
+    r = np.concatenate([rotation_of_valid(D[:, :3, :3]).as_rotvec(), D[:, :3, 3]], axis=1)  # products of rotations
     return r, t2f, Zi
 
 

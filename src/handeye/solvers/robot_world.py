@@ -28,6 +28,7 @@ equation with ``A_i = world2cam`` (target2cam), ``X = base2world``, ``Z = grippe
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -124,7 +125,12 @@ def _normal_map(rows: Callable[[NDArray[np.float64]], NDArray[np.float64]]) -> s
     return csr_array(np.einsum("mab,nac->bcmn", E, E).reshape(625, 1024))
 
 
-_LI_NORMAL = _normal_map(_li_rows)
+@cache
+def _li_normal() -> sparray:
+    """Li's normal map (:func:`_normal_map`), derived on first use: ``import handeye`` stays quick."""
+    return _normal_map(_li_rows)
+
+
 #: How many length entries each moment multiplies (0, 1 or 2): scaling lengths by 1/s scales the
 #: moment by s^-power.
 _LENGTH_POWER = np.add.outer(*(2 * [np.isin(np.arange(32) % 16, (3, 7, 11)).astype(int)])).reshape(1024)
@@ -143,7 +149,7 @@ def solve_li(A: NDArray[np.float64], B: NDArray[np.float64]) -> tuple[NDArray[np
     # Lengths divided by the RMS |t_A|: the moments of the scaled poses.
     scale = np.sqrt(np.einsum("...ii->...", Q[..., 0, :3, 3, 0, :3, 3]) / n)
     Qs = Q.reshape(batch + (1024,)) * (1.0 / np.where(scale > 0, scale, 1.0))[..., None] ** _LENGTH_POWER
-    M = (_LI_NORMAL @ Qs.reshape(-1, 1024).T).T.reshape(batch + (25, 25))
+    M = (_li_normal() @ Qs.reshape(-1, 1024).T).T.reshape(batch + (25, 25))
     N, rhs = M[..., :24, :24], M[..., :24, 24]
     sol = solve(N, rhs)
     R_X = nearest_rotation(sol[..., :9].reshape(batch + (3, 3)))

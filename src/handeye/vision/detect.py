@@ -32,7 +32,7 @@ class ImageResult:
     path: Path
     detection: Detection | None
     image_size: tuple[int, int] | None  #: (width, height); None when unreadable
-    error: str | None = None  #: "unreadable" or "target not found"
+    error: str | None = None  #: why there is no detection: unreadable, too small, detector failed, target not found
 
 
 def default_jobs() -> int:
@@ -43,13 +43,24 @@ def default_jobs() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+#: Images smaller than this on a side are not given to the detectors (OpenCV's asserts on them).
+MIN_IMAGE_SIDE = 32
+
+
 def _detect_one(args: tuple[str, Target]) -> ImageResult:
     path, target = args
     gray = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
     if gray is None:
         return ImageResult(Path(path), None, None, "unreadable (missing, corrupt, or not an image format OpenCV reads)")
     size = (gray.shape[1], gray.shape[0])
-    det = target.detect(gray)
+    if min(size) < MIN_IMAGE_SIDE:
+        return ImageResult(Path(path), None, size, f"image of {size[0]}x{size[1]} px: too small for the detector "
+                           f"(at least {MIN_IMAGE_SIDE} px a side)")
+    try:
+        det = target.detect(gray)
+    except cv2.error as exc:  # an image the detector cannot take: skipped with the reason, not a crash
+        reason = (str(exc).strip().splitlines() or ["OpenCV error"])[-1]
+        return ImageResult(Path(path), None, size, f"the detector failed on it ({reason})")
     return ImageResult(Path(path), det, size, None if det is not None else "target not found")
 
 

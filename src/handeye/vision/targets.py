@@ -310,5 +310,5 @@ def target_from_spec(spec: dict[str, Any], where: str = "target") -> Target:
         if kind == "charuco":
             return Charuco(cols, rows, square, marker=float(need("marker")), dictionary=str(need("dictionary")))
         return CircleGrid(cols, rows, square, asymmetric=(kind == "asymmetric_circles"))
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, TargetError) as exc:  # the size checks of the target classes: say where
         raise TargetError(f"{where}: {exc}") from None

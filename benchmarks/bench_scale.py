@@ -1,0 +1,108 @@
+"""Large inputs: ``handeye calibrate-poses`` and ``handeye check`` on 1,000 pose pairs (goal < 10 s
+on 2 cores, with progress), against OpenCV's Daniilidis on the same poses.
+
+    python benchmarks/bench_scale.py [--poses 1000] [--repeat 2]
+
+All pairs of 1,000 poses are 499,500 motions; handeye's default pairing (``pairs='auto'``) takes
+every pair up to 141 poses and a spread of ~10,000 beyond, so that the check, the cross-validation
+and the uncertainty stay linear in the poses. Timed end to end through the command line (reading
+the CSV files, the check, the estimator choice, the report), in this process. For a peer measured
+in the same run: ``cv2.calibrateHandEye`` (Daniilidis, all 499,500 pairs, the closed form alone, no
+check and no uncertainty) on the same poses, plus the mean target pose; and handeye's own closed
+form on all pairs (``calibrate_poses(pairs='all', refine='none', check=False)``), which is what
+OpenCV computes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import yaml
+from _timing import best_time
+
+import handeye
+from handeye.cli import main as cli
+from handeye.geometry.se3 import make_transform, mean_transform
+from handeye.metrics import rotation_error, translation_error
+from handeye.session import write_pose_table
+from handeye.setups import constant_transforms
+from handeye.simulate import perturb_poses, random_scene
+
+GOAL_S = 10.0
+
+
+def _folder(root: Path, F, T) -> Path:
+    folder = root / "pp"
+    folder.mkdir()
+    names = [f"p{k:04d}" for k in range(len(F))]
+    write_pose_table(folder / "robot.csv", names, F, "quat_wxyz", "m")
+    write_pose_table(folder / "cam.csv", names, T, "rotvec", "m", "rad")
+    (folder / "posepairs.yaml").write_text(yaml.safe_dump({
+        "setup": "eye_in_hand", "robot_poses": {"file": "robot.csv", "format": "quat_wxyz", "length_unit": "m"},
+        "camera_poses": {"file": "cam.csv", "format": "rotvec", "length_unit": "m", "angle_unit": "rad"}}))
+    return folder
+
+
+def _opencv(F, T):
+    R, t = cv2.calibrateHandEye(F[:, :3, :3], F[:, :3, 3], T[:, :3, :3], T[:, :3, 3],
+                                method=cv2.CALIB_HAND_EYE_DANIILIDIS)
+    X = make_transform(R, t.ravel())
+    return X, mean_transform(constant_transforms(X, F, T, "eye_in_hand"))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--poses", type=int, default=1000)
+    parser.add_argument("--repeat", type=int, default=2)
+    args = parser.parse_args()
+    rng = np.random.default_rng(11)
+    scene = random_scene(args.poses, rng=rng)
+    F = perturb_poses(scene.flange2base, np.radians(0.02), 2e-4, rng)
+    T = perturb_poses(scene.target2cam, np.radians(0.02), 2e-4, rng)
+    root = Path(tempfile.mkdtemp(prefix="handeye-bench-scale-"))
+    try:
+        folder = _folder(root, F, T)
+
+        def run(argv):
+            out = root / "out"
+            shutil.rmtree(out, ignore_errors=True)
+            with contextlib.redirect_stdout(io.StringIO()) as buf, contextlib.redirect_stderr(io.StringIO()):
+                status = cli(argv + (["--out", str(out)] if argv[0] == "calibrate-poses" else []))
+            return status, buf.getvalue()
+
+        t_cal = best_time(lambda: run(["calibrate-poses", str(folder)]), args.repeat, warmup=False)
+        status, text = run(["calibrate-poses", str(folder)])
+        t_check = best_time(lambda: run(["check", str(folder)]), args.repeat, warmup=False)
+        start = time.perf_counter()
+        X_cv, _ = _opencv(F, T)
+        t_cv = time.perf_counter() - start
+        t_solve = best_time(lambda: handeye.calibrate_poses(F, T, pairs="all", refine="none", check=False, progress=False), args.repeat)
+        X_he = handeye.calibrate_poses(F, T, progress=False).X
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+    err = lambda X: (np.degrees(rotation_error(X, scene.X)), 1e3 * translation_error(X, scene.X))  # noqa: E731
+    print(f"{args.poses} pose pairs ({args.poses * (args.poses - 1) // 2} pairs in all), eye-in-hand, "
+          f"robot and camera noise 0.02 deg / 0.2 mm; best of {args.repeat}")
+    print(f"  handeye calibrate-poses --out (check, estimators, uncertainty, report): {t_cal:6.2f} s "
+          f"(goal < {GOAL_S:g} s: {'met' if t_cal < GOAL_S else 'NOT met'}); exit {status}, "
+          f"{'good' if 'check: good' in text else 'not good'}")
+    print(f"  handeye check:                                                        {t_check:6.2f} s "
+          f"(goal < {GOAL_S:g} s: {'met' if t_check < GOAL_S else 'NOT met'})")
+    print(f"  OpenCV calibrateHandEye (Daniilidis, all pairs, closed form only):    {t_cv:6.2f} s")
+    print(f"  handeye calibrate_poses(pairs='all', refine='none', check=False):      {t_solve:6.2f} s "
+          f"({t_cv / t_solve:.1f}x faster than OpenCV)")
+    print(f"  ratio calibrate-poses / OpenCV closed form: {t_cal / t_cv:.2f}")
+    print("  error of X: handeye calibrate-poses {:.4f} deg / {:.3f} mm, OpenCV {:.4f} deg / {:.3f} mm".format(
+        *err(X_he), *err(X_cv)))
+
+
+if __name__ == "__main__":
+    main()
