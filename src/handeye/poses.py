@@ -221,36 +221,21 @@ def _check_lengths(t: NDArray[np.float64], length_unit: str, what: str) -> None:
         )
 
 
-def _exact_rotation_products() -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:
-    """Entry pairs and weights for :func:`_rotations_exact`: with ``x`` a row-major flattened 4x4
-    (rotation rows a, b, c; ``x[15] = 1``), ``W^T (x[i] * x[j])`` is ``[a.a - 1, b.b - 1, a.b,
-    a x b - c]``, all zero exactly when the rows are orthonormal and right-handed (``c = a x b``
-    then has unit length and is orthogonal to both)."""
-    terms = []  # (output row, index, index, weight)
-    for row, (r, s) in enumerate([(0, 0), (1, 1), (0, 1)]):
-        terms += [(row, 4 * r + k, 4 * s + k, 1.0) for k in range(3)]
-        if r == s:
-            terms.append((row, 15, 15, -1.0))
-    for k, (p, q) in enumerate([(1, 2), (2, 0), (0, 1)]):  # (a x b)_k = a_p b_q - a_q b_p
-        terms += [(3 + k, p, 4 + q, 1.0), (3 + k, q, 4 + p, -1.0), (3 + k, 8 + k, 15, -1.0)]
-    W = np.zeros((len(terms), 6))
-    for i, (row, _, _, w) in enumerate(terms):
-        W[i, row] = w
-    return np.array([t[1] for t in terms]), np.array([t[2] for t in terms]), W.T.copy()
-
-
-_EXACT_I, _EXACT_J, _EXACT_W = _exact_rotation_products()
-
-
 def _rotations_exact(T: NDArray[np.float64], tol: float = 5e-14) -> bool:
     """True when every rotation block of a stack ``(N, 4, 4)`` whose bottom rows are ``0 0 0 1``
     is a proper rotation to within ``tol`` (first two rows orthonormal, third their cross
-    product; the default keeps every entry of ``R^T R - I`` within 1e-13); NaN fails. One
-    product of the flattened poses: the fast path of :func:`validate_transforms`, several times
-    cheaper than ``R^T R`` and ``det`` on stacks of small matrices; inputs that fail it take the
-    full checks."""
-    x = np.ascontiguousarray(T.reshape(-1, 16).T)  # one row per entry: the gathers below take rows
-    return bool(np.abs(_EXACT_W @ (x[_EXACT_I] * x[_EXACT_J])).max(initial=0.0) <= tol)
+    product; the default keeps every entry of ``R^T R - I`` within 1e-13); NaN fails. The fast
+    path of :func:`validate_transforms`: with the rotation rows a, b, c and ``w = T[3, 3] = 1``,
+    ``[a.a - w^2, b.b - w^2, a.b, a x b - w c]`` are all zero exactly when the rows are orthonormal
+    and right-handed (``c = a x b`` then has unit length and is orthogonal to both); a few products
+    of whole columns, several times cheaper than ``R^T R`` and ``det`` on stacks of small matrices.
+    Inputs that fail it take the full checks."""
+    x = np.ascontiguousarray(T.reshape(-1, 16).T)  # one row per entry
+    a0, a1, a2, _, b0, b1, b2, _, c0, c1, c2, _, _, _, _, w = x
+    ww = w * w
+    r = np.stack([a0 * a0 + a1 * a1 + a2 * a2 - ww, b0 * b0 + b1 * b1 + b2 * b2 - ww, a0 * b0 + a1 * b1 + a2 * b2,
+                  a1 * b2 - a2 * b1 - c0 * w, a2 * b0 - a0 * b2 - c1 * w, a0 * b1 - a1 * b0 - c2 * w])
+    return bool(np.abs(r).max(initial=0.0) <= tol)
 
 
 def validate_transform_pair(
@@ -301,9 +286,11 @@ BOTTOM_ROW_TOL = 1e-6
 def _check_bottom_rows(T: NDArray[np.float64], what: str) -> None:
     """A bottom row other than [0, 0, 0, 1] is an error; one holding the translation (with the last
     column empty) is named as a transposed, column-major matrix."""
-    off = np.abs(T[:, 3] - [0.0, 0.0, 0.0, 1.0]).max(axis=1)
-    if not (off > BOTTOM_ROW_TOL).any():
-        return
+    bottom = T[:, 3]
+    if np.abs(bottom[:, :3]).max(initial=0.0) <= BOTTOM_ROW_TOL and np.abs(bottom[:, 3] - 1.0).max(initial=0.0) <= BOTTOM_ROW_TOL:
+        return  # the common case, in two reductions
+    off = np.abs(bottom - [0.0, 0.0, 0.0, 1.0]).max(axis=1)
+    off[np.isnan(off)] = np.inf
     i = int(np.argmax(off > BOTTOM_ROW_TOL))
     transposed = np.abs(T[:, :3, 3]).max(axis=1) <= BOTTOM_ROW_TOL
     if transposed[off > BOTTOM_ROW_TOL].all():
