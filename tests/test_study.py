@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 
 import handeye
 from handeye.cli import main
-from handeye.errors import InputMismatchError, PoseFormatError
+from handeye.errors import HandEyeError, InputMismatchError, PoseFormatError
 from handeye.geometry.se3 import invert, make_transform
 from handeye.motions import MotionSet
 from handeye.simulate import Noise, add_noise, seed_scenes
@@ -301,3 +301,24 @@ def test_nearly_parallel_axes_stay_exact():
     for m in HAND_EYE:
         err = pose_errors(handeye.solve_batch(A, B, m), sc.X)
         assert err[:, 0].max() * 1e-3 < 1e-9 and np.radians(err[:, 1].max()) < 1e-9, (m, err.max(axis=0))
+
+
+def test_study_on_a_local_dask_cluster_gives_the_local_numbers(tmp_path, capsys, monkeypatch):
+    """The study on a 2-worker Dask LocalCluster (the cluster extra): the same numbers as the local
+    processes with the same seed, bit for bit; through the CLI too."""
+    pytest.importorskip("distributed", reason="the cluster extra (pip install 'handeye[cluster]')")
+    settings, _ = _small_grid()
+    local = study(settings, runs=20, seed=3, jobs=2, progress=False)
+    dask = study(settings, runs=20, seed=3, jobs=2, progress=False, scheduler="local")
+    for a, b in zip(local.settings, dask.settings):
+        assert a.setting == b.setting
+        for m in a.errors:
+            assert np.array_equal(a.errors[m], b.errors[m]), (a.setting, m)
+    monkeypatch.setattr("handeye._shared.cluster.CONNECT_TIMEOUT", "1s")
+    with pytest.raises(HandEyeError, match="cannot reach the Dask scheduler at tcp://127.0.0.1:1"):
+        study(settings[:1], runs=10, seed=0, progress=False, scheduler="tcp://127.0.0.1:1")
+    # the CLI passes --scheduler on (a LocalCluster per call costs seconds: the unreachable one here)
+    assert main(["study", "--out", str(tmp_path / "s"), "--runs", "10", "--figures", "5.4", "--scheduler",
+                 "tcp://127.0.0.1:1", "--no-progress"]) == 2
+    assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()

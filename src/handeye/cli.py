@@ -243,7 +243,7 @@ def _cmd_study(args: argparse.Namespace) -> int:
     out = _out_folder(args.out)
     start = time.perf_counter()
     result = study(settings, runs=args.runs, seed=args.seed, jobs=args.jobs, progress=not args.no_progress,
-                   figures=figures, preset_name=args.preset)
+                   figures=figures, preset_name=args.preset, scheduler=args.scheduler)
     elapsed = time.perf_counter() - start
     for path in write_study(result, out):
         print(f"wrote {path}")
@@ -499,6 +499,9 @@ def _add_study(sub) -> None:
     p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
     p.add_argument("--figures", nargs="+", metavar="ID", help="only these figures of the preset (e.g. 5.1 5.4)")
     p.add_argument("--jobs", type=_whole(1), default=None, help="worker processes (default: all cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS|local",
+                   help="run on Dask distributed (pip install 'handeye[cluster]'): a scheduler's address, or 'local' "
+                   "for a LocalCluster of --jobs workers; same seed, same numbers as without")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_study)
 

@@ -33,6 +33,7 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from ._shared.cluster import dask_client, dask_completed
 from ._shared.io import atomic_write
 from ._shared.progress import Progress
 from .calibration import calibrate_poses
@@ -273,6 +274,14 @@ def _run_indexed(args):
     return index, run_setting(setting, runs, (seed, index))
 
 
+def _run_single_threaded(args):
+    """:func:`_run_indexed` on a Dask worker, with one BLAS thread (as the local worker processes)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(1):
+        return _run_indexed(args)
+
+
 def study(
     settings: Sequence[Setting],
     runs: int = 200,
@@ -281,6 +290,7 @@ def study(
     progress: bool = True,
     figures: dict[str, Figure] | None = None,
     preset_name: str | None = None,
+    scheduler: str | None = None,
 ) -> StudyResult:
     """Run a grid of settings.
 
@@ -293,9 +303,13 @@ def study(
     seed : int
         Same seed, same numbers (whatever ``jobs`` is).
     jobs : int or None
-        Worker processes (None: all cores).
+        Worker processes (None: all cores); with ``scheduler='local'``, the LocalCluster's workers.
     progress : bool
         Progress bar on stderr.
+    scheduler : str, optional
+        Run the settings on Dask distributed (``pip install handeye[cluster]``): ``'local'`` starts a
+        LocalCluster for the call, anything else is a scheduler's address (``tcp://host:8786``).
+        The numbers are the same as in local processes with the same seed.
     """
     if runs < 10:
         raise InputMismatchError(f"runs={runs}: the statistics need at least 10 runs per setting")
@@ -304,20 +318,29 @@ def study(
     results: list[SettingResult | None] = [None] * len(settings)
     bar = Progress(len(settings), "simulating", progress)
     tasks = [(k, s, runs, seed) for k, s in enumerate(settings)]
-    if jobs == 1:
-        for t in tasks:
-            k, res = _run_indexed(t)
-            results[k] = res
-            bar.update()
-    else:
-        # the heaviest settings (refined, many motions) first keeps both workers busy to the end
-        order = sorted(tasks, key=lambda t: -(("refined" in t[1].methods) * 100 + t[1].n_motions))
-        with ProcessPoolExecutor(max_workers=jobs, initializer=_single_threaded_blas) as pool:
-            for fut in as_completed([pool.submit(_run_indexed, t) for t in order]):
-                k, res = fut.result()
+    # the heaviest settings (refined, many motions) first keeps every worker busy to the end
+    order = sorted(tasks, key=lambda t: -(("refined" in t[1].methods) * 100 + t[1].n_motions))
+    try:
+        if scheduler is not None:
+            with dask_client(scheduler, jobs) as client:
+                futures = client.map(_run_single_threaded, order, pure=False)
+                for fut in dask_completed(futures):
+                    k, res = fut.result()
+                    results[k] = res
+                    bar.update()
+        elif jobs == 1:
+            for t in tasks:
+                k, res = _run_indexed(t)
                 results[k] = res
                 bar.update()
-    bar.close()
+        else:
+            with ProcessPoolExecutor(max_workers=jobs, initializer=_single_threaded_blas) as pool:
+                for fut in as_completed([pool.submit(_run_indexed, t) for t in order]):
+                    k, res = fut.result()
+                    results[k] = res
+                    bar.update()
+    finally:
+        bar.close()
     return StudyResult(list(results), dict(figures or {}), runs, seed, preset_name)
 
 

@@ -1,0 +1,61 @@
+"""Work beyond one machine: a Dask distributed client for the Monte-Carlo study.
+
+Dask is an optional extra (``pip install handeye[cluster]``): without it, and without a
+``scheduler``, the study runs in local processes as before. ``scheduler="local"`` starts a
+``LocalCluster`` of ``jobs`` worker processes for the call; any other value is the address of a
+running scheduler (``tcp://host:8786``). Each task carries its own seed, so the numbers are those
+of the local run whatever worker runs it.
+"""
+
+from __future__ import annotations
+
+import importlib
+from contextlib import contextmanager
+from typing import Any, Iterator
+
+from ..errors import HandEyeError
+
+__all__ = ["dask_client", "dask_completed", "CONNECT_TIMEOUT"]
+
+#: How long to try to reach a scheduler's address before saying it cannot be reached.
+CONNECT_TIMEOUT = "10s"
+
+
+def _distributed() -> Any:
+    try:
+        return importlib.import_module("distributed")
+    except ImportError:
+        raise HandEyeError("a Dask scheduler was asked for, but Dask distributed is not installed: "
+                           "pip install 'handeye[cluster]' (or leave the scheduler out to run in local processes)") from None
+
+
+@contextmanager
+def dask_client(scheduler: str, jobs: int | None = None) -> Iterator[Any]:
+    """A ``distributed.Client`` for ``scheduler`` ('local', or an address), closed afterwards (with
+    the LocalCluster it started)."""
+    distributed = _distributed()
+    if not isinstance(scheduler, str) or not scheduler.strip():
+        raise HandEyeError(f"scheduler={scheduler!r}: give 'local' or the address of a Dask scheduler (tcp://host:8786)")
+    if scheduler == "local":
+        cluster = distributed.LocalCluster(n_workers=jobs or None, threads_per_worker=1, processes=True,
+                                           dashboard_address=None)
+        try:
+            with distributed.Client(cluster) as client:
+                yield client
+        finally:
+            cluster.close()
+        return
+    try:
+        client = distributed.Client(scheduler, timeout=CONNECT_TIMEOUT)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise HandEyeError(f"cannot reach the Dask scheduler at {scheduler} ({exc}): start one "
+                           "(dask scheduler) or use 'local'") from None
+    try:
+        yield client
+    finally:
+        client.close()
+
+
+def dask_completed(futures: list[Any]) -> Iterator[Any]:
+    """The Dask ``futures`` in the order they finish."""
+    return _distributed().as_completed(futures)
