@@ -13,6 +13,7 @@ from __future__ import annotations
 import base64
 import html
 import io
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Iterable
 
@@ -27,6 +28,7 @@ from ..geometry.se3 import screw_parameters
 from ..motions import MotionSet
 from ..result import Calibration
 from ..setups import camera2base, predicted_target2cam, setup_info, target2base
+from ..vision.detect import default_jobs
 from ..vision.pnp import project_points
 from .files import euler_angles, result_dict
 
@@ -190,31 +192,36 @@ def _axes_figure(cal: Calibration, motions: MotionSet) -> str:
     return _png(fig)
 
 
+def _overlay_thumb(cal: Calibration, k: int, T: NDArray[np.float64]) -> tuple[str, str] | None:
+    """(data URI, caption) of image ``k``: detected points (green rings) and the points reprojected
+    through X, Z and the robot pose (red crosses); None when the image cannot be read."""
+    img = cv2.imread(str(cal.image_paths[k]), cv2.IMREAD_COLOR)
+    if img is None:
+        return None
+    s = THUMB_WIDTH / img.shape[1]
+    thumb = cv2.resize(img, (THUMB_WIDTH, max(1, round(img.shape[0] * s))), interpolation=cv2.INTER_AREA)
+    det = np.asarray(cal.image_points[k], dtype=float)
+    proj = project_points(T[k], cal.object_points[k], cal.camera_matrix, cal.dist_coeffs)
+    rms = float(np.sqrt(np.mean(np.sum((proj - det) ** 2, axis=1))))
+    for p in det * s:
+        cv2.circle(thumb, (int(round(p[0])), int(round(p[1]))), 3, (0, 200, 0), 1, cv2.LINE_AA)
+    for p in proj * s:
+        if np.all(np.isfinite(p)):
+            cv2.drawMarker(thumb, (int(round(p[0])), int(round(p[1]))), (0, 0, 230), cv2.MARKER_CROSS, 5, 1,
+                           cv2.LINE_AA)
+    ok, buf = cv2.imencode(".jpg", thumb, [cv2.IMWRITE_JPEG_QUALITY, 80])
+    if not ok:
+        return None
+    return ("data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii"), f"{cal.image_names[k]}: {rms:.2f} px")
+
+
 def _overlay_thumbs(cal: Calibration) -> list[tuple[str, str]]:
-    """(data URI, caption) per image: detected points (green rings) and the points reprojected
-    through X, Z and the robot pose (red crosses)."""
-    out = []
+    """:func:`_overlay_thumb` of the first MAX_OVERLAYS images, read and drawn in threads (OpenCV
+    releases the GIL: the images of a large capture are read again here)."""
     T = predicted_target2cam(cal.X, cal.Z, cal.flange2base, cal.setup)
-    for k, path in enumerate(cal.image_paths[:MAX_OVERLAYS]):
-        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        if img is None:
-            continue
-        s = THUMB_WIDTH / img.shape[1]
-        thumb = cv2.resize(img, (THUMB_WIDTH, max(1, round(img.shape[0] * s))), interpolation=cv2.INTER_AREA)
-        det = np.asarray(cal.image_points[k], dtype=float)
-        proj = project_points(T[k], cal.object_points[k], cal.camera_matrix, cal.dist_coeffs)
-        rms = float(np.sqrt(np.mean(np.sum((proj - det) ** 2, axis=1))))
-        for p in det * s:
-            cv2.circle(thumb, (int(round(p[0])), int(round(p[1]))), 3, (0, 200, 0), 1, cv2.LINE_AA)
-        for p in proj * s:
-            if np.all(np.isfinite(p)):
-                cv2.drawMarker(thumb, (int(round(p[0])), int(round(p[1]))), (0, 0, 230), cv2.MARKER_CROSS, 5, 1,
-                               cv2.LINE_AA)
-        ok, buf = cv2.imencode(".jpg", thumb, [cv2.IMWRITE_JPEG_QUALITY, 80])
-        if ok:
-            out.append(("data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii"),
-                        f"{cal.image_names[k]}: {rms:.2f} px"))
-    return out
+    with ThreadPoolExecutor(max_workers=default_jobs()) as pool:
+        thumbs = list(pool.map(lambda k: _overlay_thumb(cal, k, T), range(min(len(cal.image_paths), MAX_OVERLAYS))))
+    return [t for t in thumbs if t is not None]
 
 
 # ----------------------------------------------------------------------------------------------------
