@@ -296,8 +296,14 @@ CASES = [
     Case("row-counts-differ", "pp", both(text(ROBOT, lambda t: "\n".join(l.split(",", 1)[1] for l in t.splitlines()) + "\n"),
                                          text(CAMERA, lambda t: "\n".join(l.split(",", 1)[1] for l in t.splitlines()[:-2]) + "\n")),
          pp(), 2, r"robot_poses.csv has 12 poses but target2cam.csv has 10; they pair row by row"),
-    Case("rotation-degrees-as-radians", "pp", yaml_edit(SPEC, lambda d: d["camera_poses"].update(angle_unit="deg")), pp(*VERDICT, out=False),
-         1, r"check: (inconsistent|weak)"),
+    Case("camera-radians-declared-degrees", "pp", yaml_edit(SPEC, lambda d: d["camera_poses"].update(angle_unit="deg")),
+         pp(*VERDICT, out=False), 1,
+         r"check: inconsistent[\s\S]*the camera angles are in rad: declare angle_unit rad for camera_poses"),
+    Case("camera-mm-declared-metres", "pp", both(text(CAMERA, lambda t: "\n".join(
+        [t.splitlines()[0]] + [",".join([c[0]] + [repr(1e3 * float(v)) for v in c[1:4]] + c[4:])
+                               for c in (line.split(",") for line in t.splitlines()[1:])]) + "\n")),
+        pp(), 2, r"target2cam.csv: the median distance of the poses from their frame's origin is 7\d\d m.* look like "
+                 r"millimetres"),
     Case("degrees-declared-radians", "pp", yaml_edit(SPEC, lambda d: d["robot_poses"].update(angle_unit="rad")), pp(),
          2, r"exceeds 2 pi; the angles look like degrees: declare angle_unit 'deg'"),
     Case("mm-declared-metres", "pp", yaml_edit(SPEC, lambda d: d["robot_poses"].update(length_unit="m")), pp(),

@@ -51,14 +51,14 @@ PROGRESS_FROM_POSES = 200
 ROBOT_ACCURACY = (0.03, 0.3)
 
 
-def _checked_poses(flange2base, target2cam, setup, pairs, check, robot_input, strict=False):
+def _checked_poses(flange2base, target2cam, setup, pairs, check, robot_input, strict=False, camera_input=None):
     """The poses to calibrate on after :func:`handeye.diagnose` (outliers left out, explicit pairs
     renumbered): ``(flange2base, target2cam, pairs, keep, diagnostics, notes)``. Raises only when X
     cannot be determined, or (``strict``) when the data are inconsistent."""
     keep = np.arange(len(flange2base))
     if not check:
         return flange2base, target2cam, pairs, keep, None, []
-    diag = diagnose(flange2base, target2cam, setup, robot_input=robot_input)
+    diag = diagnose(flange2base, target2cam, setup, robot_input=robot_input, camera_input=camera_input)
     if diag.verdict == "degenerate":
         raise DegenerateMotionError(" ".join(diag.advice))
     if diag.verdict == "inconsistent" and strict:
@@ -88,6 +88,7 @@ def calibrate_poses(
     folds: int | None = None,
     robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
     progress: bool = True,
+    camera_input: RobotPoseInput | None = None,
 ) -> Calibration:
     """Hand-eye calibration from robot poses and camera-to-target poses.
 
@@ -110,16 +111,15 @@ def calibrate_poses(
         correction with noise variances estimated from the data), which gives ``cov``, ``std`` and
         ``pose_noise``. 'none': the closed form as is (no uncertainty).
     pairs : {'auto', 'all', 'consecutive'} or (K, 2) array
-        Which pose pairs form the motions (:func:`handeye.motions.pair_indices`); 'auto' (default):
-        every pair up to 141 poses, a spread of about 10,000 pairs beyond.
+        The pose pairs of the motions (:func:`handeye.motions.pair_indices`); 'auto': all up to 141.
     check : bool
         Run :func:`handeye.diagnose` first (default): degenerate motions raise an error; outlier
         poses are left out, with a note; inconsistent data (with the convention that fixes them,
         when one does) and weak data are calibrated all the same, with the verdict and the advice
         (``verdict``, ``diagnostics``, ``notes``). ``check=False`` calibrates the poses as they are.
-    robot_input : RobotPoseInput, optional
-        The robot poses as written, so that the check can try other Euler sequences, quaternion
-        orders and units (sessions pass it).
+    robot_input, camera_input : RobotPoseInput, optional
+        The robot (camera) poses as written, so that the check can try other Euler sequences,
+        quaternion orders and units (sessions pass the robot's, pose-pair folders both).
     strict : bool
         Raise :class:`InputMismatchError` instead of answering when the check calls the data
         inconsistent.
@@ -131,7 +131,7 @@ def calibrate_poses(
         constant robot error is absorbed into X whole and no data can see it, so it is added to X's
         covariance. Default :data:`ROBOT_ACCURACY`; ``None`` (or zeros) for an exact robot.
     progress : bool
-        Show the steps on stderr when there are many poses (from :data:`PROGRESS_FROM_POSES`).
+        Show the steps on stderr from :data:`PROGRESS_FROM_POSES` poses.
 
     Returns
     -------
@@ -156,7 +156,7 @@ def calibrate_poses(
                    progress and len(flange2base_in) >= PROGRESS_FROM_POSES)
     try:
         flange2base, target2cam, pairs, keep, diag, notes = _checked_poses(
-            flange2base_in, target2cam_in, setup, pairs, check, robot_input, strict)
+            flange2base_in, target2cam_in, setup, pairs, check, robot_input, strict, camera_input)
         bar.update()
         X, Z, motions = closed_form(flange2base, target2cam, setup, method, pairs)
         cal = Calibration(
@@ -670,7 +670,8 @@ def check_folder(folder: str | Path, jobs: int | None = None, progress: bool = T
     folder = Path(folder)
     if (folder / POSEPAIRS_FILE).is_file():
         pairs = load_pose_pairs(folder)
-        diag = diagnose(pairs.flange2base, pairs.target2cam, pairs.setup, robot_input=pairs.robot_input)
+        diag = diagnose(pairs.flange2base, pairs.target2cam, pairs.setup, robot_input=pairs.robot_input,
+                        camera_input=pairs.camera_input)
         keep = _kept(diag)
         views = Views(pairs.flange2base[keep], pairs.target2cam[keep], pairs.setup)
         return FolderCheck(diag, list(pairs.ids), [], _check_choice(diag, views, {}, folds), list(pairs.notes))

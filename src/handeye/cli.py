@@ -156,7 +156,8 @@ def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
     pairs = load_pose_pairs(folder)
     cal = calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, method=args.method, pairs=args.pairs,
                           refine=args.refine, robot_input=pairs.robot_input, strict=args.strict,
-                          robot_accuracy=_accuracy_arg(args.robot_accuracy), progress=not args.no_progress)
+                          robot_accuracy=_accuracy_arg(args.robot_accuracy), progress=not args.no_progress,
+                          camera_input=pairs.camera_input)
     cal = replace(cal, notes=list(pairs.notes) + list(cal.notes), input_folder=folder)
     print_calibration(cal)
     _write_outputs(cal, args, folder)

@@ -87,19 +87,10 @@ def consistency_score(flange2base, target2cam, setup: str) -> float:
     return float(max(rot / ROT_UNIT_DEG, tra / TRANS_UNIT))
 
 
-def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None):
-    """Other readings of the inputs: hint -> (flange2base, target2cam)."""
-    out = {
-        "invert_robot_poses": (invert(flange2base), target2cam),
-        "invert_camera_poses": (flange2base, invert(target2cam)),
-    }
-    if robot_input is None:
-        for hint, s in (("length_unit:mm", 1e-3), ("length_unit:m", 1e3)):
-            f = flange2base.copy()
-            f[:, :3, 3] *= s
-            out[hint] = (f, target2cam)
-        return out
-    fmt, lu, au = robot_input.format, robot_input.length_unit, robot_input.angle_unit
+def _alternatives(pose_input: RobotPoseInput) -> list[tuple[str, dict]]:
+    """The usual mistakes in declaring poses as written: the other length unit, angle unit,
+    quaternion order and Euler sequences: (hint, the changed declaration)."""
+    fmt, lu, au = pose_input.format, pose_input.length_unit, pose_input.angle_unit
     alternatives = [(f"length_unit:{u}", dict(length_unit=u)) for u in ("m", "mm") if u != lu]
     if fmt == "rotvec" or fmt.startswith("euler:"):
         alternatives += [(f"angle_unit:{u}", dict(angle_unit=u)) for u in ("rad", "deg") if u != au]
@@ -114,13 +105,41 @@ def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None):
                         for seq in (a + b + c, (a + b + c).upper()):
                             if f"euler:{seq}" != fmt:
                                 alternatives.append((f"euler:{seq}", dict(format=f"euler:{seq}")))
-    for hint, change in alternatives:
-        kw = dict(format=fmt, length_unit=lu, angle_unit=au) | change
-        try:
-            f = parse_poses(robot_input.values, kw["format"], kw["length_unit"], kw["angle_unit"])
-        except HandEyeError:
-            continue  # this reading is impossible (e.g. quaternions of the wrong norm)
-        out[hint] = (f, target2cam)
+    return alternatives
+
+
+def _reread(pose_input: RobotPoseInput, change: dict) -> NDArray[np.float64] | None:
+    """The poses as written, read with the declaration changed; None when impossible (e.g.
+    quaternions of the wrong norm)."""
+    kw = dict(format=pose_input.format, length_unit=pose_input.length_unit, angle_unit=pose_input.angle_unit) | change
+    try:
+        return parse_poses(pose_input.values, kw["format"], kw["length_unit"], kw["angle_unit"])
+    except HandEyeError:
+        return None
+
+
+def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None, camera_input: RobotPoseInput | None = None):
+    """Other readings of the inputs: hint -> (flange2base, target2cam). Camera hints start with
+    ``camera:``."""
+    out = {
+        "invert_robot_poses": (invert(flange2base), target2cam),
+        "invert_camera_poses": (flange2base, invert(target2cam)),
+    }
+    if robot_input is None:
+        for hint, s in (("length_unit:mm", 1e-3), ("length_unit:m", 1e3)):
+            f = flange2base.copy()
+            f[:, :3, 3] *= s
+            out[hint] = (f, target2cam)
+    else:
+        for hint, change in _alternatives(robot_input):
+            f = _reread(robot_input, change)
+            if f is not None:
+                out[hint] = (f, target2cam)
+    if camera_input is not None:
+        for hint, change in _alternatives(camera_input):
+            t = _reread(camera_input, change)
+            if t is not None:
+                out[f"camera:{hint}"] = (flange2base, t)
     return out
 
 
@@ -242,6 +261,7 @@ def diagnose(
     setup: str = "eye_in_hand",
     *,
     robot_input: RobotPoseInput | None = None,
+    camera_input: RobotPoseInput | None = None,
     outliers: bool = True,
     leave_one_out: bool = True,
     rng: np.random.Generator | int | None = 0,
@@ -252,9 +272,9 @@ def diagnose(
     ----------
     flange2base, target2cam : array_like (N, 4, 4)
     setup : {'eye_in_hand', 'eye_to_hand'}
-    robot_input : RobotPoseInput, optional
-        The robot poses as written: lets the check try other Euler sequences, the other
-        quaternion order and the other angle unit. Without it, inverted poses and mm/m are tried.
+    robot_input, camera_input : RobotPoseInput, optional
+        The robot (camera) poses as written: lets the check try other Euler sequences, quaternion
+        orders and units. Without them, inverted poses (and mm/m for the robot) are tried.
     outliers, leave_one_out : bool
         Run the outlier search and the leave-one-out check.
     rng
@@ -284,7 +304,7 @@ def diagnose(
     diag.consistency = given
     if given > CONSISTENT:
         # systematic trouble: try the usual mistakes
-        readings = _readings(flange2base, target2cam, robot_input)
+        readings = _readings(flange2base, target2cam, robot_input, camera_input)
         scores = {h: consistency_score(f, t, setup) for h, (f, t) in readings.items()}
         hint = min(scores, key=scores.get) if scores else None
         if hint is not None and scores[hint] <= CONSISTENT and scores[hint] < given / 3:
@@ -450,13 +470,16 @@ def _hint_advice(hint: str, given: float, fixed: float) -> str:
         "invert_camera_poses": "the camera poses are inverted (cam2target given where target2cam is expected): invert them",
     }.get(hint)
     if what is None:
-        key, _, value = hint.partition(":")
+        camera = hint.startswith("camera:")
+        who, where = ("camera", " for camera_poses") if camera else ("robot", "")
+        key, _, value = hint.removeprefix("camera:").partition(":")
         what = {
-            "length_unit": f"the robot positions are in {value}: declare length_unit {value}",
-            "angle_unit": f"the robot angles are in {value}: declare angle_unit {value}",
-            "euler": f"the robot angles follow the Euler sequence {value} "
-                     f"({'intrinsic' if value.isupper() else 'extrinsic'}): declare format euler:{value}",
-        }.get(key, f"the robot quaternions are in {hint} order: declare format {hint}")
+            "length_unit": f"the {who} positions are in {value}: declare length_unit {value}{where}",
+            "angle_unit": f"the {who} angles are in {value}: declare angle_unit {value}{where}",
+            "euler": f"the {who} angles follow the Euler sequence {value} "
+                     f"({'intrinsic' if value.isupper() else 'extrinsic'}): declare format euler:{value}{where}",
+        }.get(key, f"the {who} quaternions are in {hint.removeprefix('camera:')} order: declare format "
+                   f"{hint.removeprefix('camera:')}{where}")
     return f"{what} (consistency {given:.1f} as given, {fixed:.2f} so read)"
 
 

@@ -207,16 +207,18 @@ def parse_poses(
 
 
 def _check_lengths(t: NDArray[np.float64], length_unit: str, what: str) -> None:
-    """Reject translations that cannot be robot flange positions in the declared unit."""
+    """Reject translations that cannot be robot flange positions (or camera-to-target distances)
+    in the declared unit."""
     dist = np.linalg.norm(t, axis=1)
     if length_unit == "m" and np.median(dist) > 20.0:
         raise PoseFormatError(
-            f"{what}: the median flange distance from the base is {np.median(dist):.4g} m, more than any "
-            f"robot arm reaches; the lengths look like millimetres: declare length_unit 'mm'"
+            f"{what}: the median distance of the poses from their frame's origin is {np.median(dist):.4g} m, "
+            f"more than any robot arm reaches or camera sees a target at; the lengths look like millimetres: "
+            f"declare length_unit 'mm'"
         )
     if length_unit == "mm" and len(t) > 1 and dist.max() < 2e-3:
         raise PoseFormatError(
-            f"{what}: every flange position is within {dist.max() * 1e3:.3g} mm of the base origin; "
+            f"{what}: every position is within {dist.max() * 1e3:.3g} mm of its frame's origin; "
             f"the lengths look like metres: declare length_unit 'm'"
         )
 

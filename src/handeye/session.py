@@ -66,6 +66,7 @@ class PosePairs:
     source: Path
     robot_input: RobotPoseInput | None = None  #: the robot poses as written (for the convention check)
     notes: list[str] = field(default_factory=list)  #: how the files were read, when not as plain UTF-8 CSV
+    camera_input: RobotPoseInput | None = None  #: the camera poses as written (for the convention check)
 
 
 @dataclass(frozen=True)
@@ -339,7 +340,8 @@ def load_pose_pairs(folder: str | Path) -> PosePairs:
     setup = check_setup(str(_require(spec, "setup", where)))
     f2b, robot_ids, robot_path, robot_input = _read_poses(folder, _require(spec, "robot_poses", where), "robot_poses",
                                                           notes)
-    t2c, cam_ids, cam_path, _ = _read_poses(folder, _require(spec, "camera_poses", where), "camera_poses", notes)
+    t2c, cam_ids, cam_path, camera_input = _read_poses(folder, _require(spec, "camera_poses", where), "camera_poses",
+                                                       notes)
     if robot_ids is not None and cam_ids is not None:
         missing = sorted(set(robot_ids) ^ set(cam_ids))
         if missing:
@@ -347,8 +349,11 @@ def load_pose_pairs(folder: str | Path) -> PosePairs:
                 f"ids {missing} appear in only one of {robot_path.name} and {cam_path.name}; every robot pose "
                 f"needs its camera pose"
             )
-        order = {k: n for n, k in enumerate(cam_ids)}
-        t2c = t2c[[order[k] for k in robot_ids]]
+        row_of = {k: n for n, k in enumerate(cam_ids)}
+        order = [row_of[k] for k in robot_ids]
+        t2c = t2c[order]
+        camera_input = RobotPoseInput(camera_input.values[order], camera_input.format, camera_input.length_unit,
+                                      camera_input.angle_unit)
         ids = robot_ids
     else:
         if len(f2b) != len(t2c):
@@ -357,7 +362,7 @@ def load_pose_pairs(folder: str | Path) -> PosePairs:
                 f"(or add an 'id' column to both)"
             )
         ids = robot_ids or cam_ids or [str(k) for k in range(len(f2b))]
-    return PosePairs(setup, f2b, t2c, ids, folder, robot_input, notes)
+    return PosePairs(setup, f2b, t2c, ids, folder, robot_input, notes, camera_input)
 
 
 def read_intrinsics(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[int, int]]:
