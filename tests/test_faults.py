@@ -37,15 +37,11 @@ EXAMPLE = Path(handeye.__file__).parent / "data" / "example_posepairs"
 
 # --- the good inputs every case starts from ---------------------------------------------------------
 
-_SESSION_IMAGE: list[Path] = []  # an image of the base session, for the case that resizes one
-
-
 @pytest.fixture(scope="module")
 def bases(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("bases")
     shutil.copytree(EXAMPLE, root / "pp")
     simulate_session(root / "session", n_poses=9, image_size=(320, 240), seed=5)
-    _SESSION_IMAGE[:] = [root / "session" / "images" / "003.png"]
     return {"pp": root / "pp", "session": root / "session"}
 
 
@@ -200,6 +196,14 @@ def image(rel: str, make: Callable[[], np.ndarray]) -> Callable[[Path], None]:
     def mutate(folder: Path) -> None:
         import cv2
         assert cv2.imwrite(str(folder / rel), make())
+    return mutate
+
+
+def resized(rel: str, size: tuple[int, int]) -> Callable[[Path], None]:
+    """The image ``rel`` resized to ``size`` (width, height): same scene, another resolution."""
+    def mutate(folder: Path) -> None:
+        import cv2
+        assert cv2.imwrite(str(folder / rel), cv2.resize(cv2.imread(str(folder / rel)), size))
     return mutate
 
 
@@ -385,8 +389,7 @@ CASES = [
          r"skipped 005.png: image of 900x20 px: too small"),
     Case("blank-image", "session", image("images/006.png", lambda: np.full((240, 320), 255, np.uint8)), cal(out=False), 0,
          r"skipped 006.png: target not found"),
-    Case("image-of-other-size", "session", image("images/003.png", lambda: __import__("cv2").resize(
-        __import__("cv2").imread(str(_SESSION_IMAGE[0]), 0), (400, 300))), cal(), 2,
+    Case("image-of-other-size", "session", resized("images/003.png", (400, 300)), cal(), 2,
          r"images differ in size \(320x240: .*; 400x300: 003.png\)"),
     Case("wrong-board-size", "session", yaml_edit("session.yaml", lambda d: d["target"].update(cols=7, rows=7)), cal(), 2,
          r"target was found in only 0 of 9 images"),
@@ -407,6 +410,8 @@ CASES = [
     Case("cp1252-session-yaml", "session", text("session.yaml", lambda t: f"# {SYMBOLS_1252}\n{t}", "cp1252"), cal(out=False), 0,
          r"note: session.yaml is not UTF-8"),
     Case("accented-image-names", "session", unicode_names, cal(), 0, r"images: 9 used, 0 skipped"),
+    Case("image-with-odd-suffix", "session", rename_image("004.png", "004.image"), cal(out=False), 0,
+         r"images: 9 used, 0 skipped"),
     Case("image-name-case", "session", rename_image("002.png", "002.PNG", "002.png"), cal(out=False), 0,
          r"note: image names matched without regard to case: 002.PNG -> 002.png"),
     Case("check-latin1", "session", text("session.yaml", lambda t: f"# {SYMBOLS}\n{t}", "latin-1"), chk(), 0,

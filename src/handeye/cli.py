@@ -141,10 +141,9 @@ def _out_folder(out: str | None, inputs: Sequence[Path] = ()) -> Path | None:
         raise HandEyeError(f"--out: {exc}") from None
 
 
-def _write_outputs(cal: Calibration, args: argparse.Namespace, inputs: Path) -> None:
-    """Write the result files and the report (never into the input folder: write_calibration)."""
+def _write_outputs(cal: Calibration, args: argparse.Namespace) -> None:
+    """Write the result files and the report (never into ``cal.input_folder``: write_calibration)."""
     if args.out:
-        cal = replace(cal, input_folder=inputs) if cal.input_folder is None else cal
         for path in write_calibration(cal, args.out, parent_frame=args.parent_frame, child_frame=args.child_frame):
             print(f"wrote {path}")
 
@@ -160,7 +159,7 @@ def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
                           camera_input=pairs.camera_input)
     cal = replace(cal, notes=list(pairs.notes) + list(cal.notes), input_folder=folder)
     print_calibration(cal)
-    _write_outputs(cal, args, folder)
+    _write_outputs(cal, args)
     return _verdict_status(cal)
 
 
@@ -191,7 +190,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
                     robot_accuracy=_accuracy_arg(args.robot_accuracy))
     _print_image_summary(cal)
     print_calibration(cal)
-    _write_outputs(cal, args, session)
+    _write_outputs(cal, args)
     return _verdict_status(cal)
 
 

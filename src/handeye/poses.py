@@ -176,8 +176,7 @@ def parse_poses(
         t = rows[:, :3] * scale
         rot = rows[:, 3:]
         if kind in ("quat_wxyz", "quat_xyzw"):
-            with np.errstate(over="ignore"):  # components near 1e308: an infinite norm, refused below
-                norm = np.linalg.norm(rot, axis=1)
+            norm = _norms(rot)
             off = np.abs(norm - 1.0)
             if (off > QUAT_NORM_TOL).any():
                 i = int(np.argmax(off))
@@ -190,7 +189,7 @@ def parse_poses(
             ang = np.deg2rad(rot) if angle_unit == "deg" else rot
             if angle_unit == "rad":
                 limit = 2 * np.pi + 1e-6
-                mag = np.linalg.norm(rot, axis=1) if kind == "rotvec" else np.abs(rot).max(axis=1)
+                mag = _norms(rot) if kind == "rotvec" else np.abs(rot).max(axis=1)
                 if (mag > limit).any():
                     i = int(np.argmax(mag))
                     raise PoseFormatError(
@@ -206,10 +205,16 @@ def parse_poses(
     return T
 
 
+def _norms(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Row norms; values near 1e308 give an infinite norm (refused by the checks), not a warning."""
+    with np.errstate(over="ignore"):
+        return np.linalg.norm(v, axis=1)
+
+
 def _check_lengths(t: NDArray[np.float64], length_unit: str, what: str) -> None:
     """Reject translations that cannot be robot flange positions (or camera-to-target distances)
     in the declared unit."""
-    dist = np.linalg.norm(t, axis=1)
+    dist = _norms(t)
     if length_unit == "m" and np.median(dist) > 20.0:
         raise PoseFormatError(
             f"{what}: the median distance of the poses from their frame's origin is {np.median(dist):.4g} m, "

@@ -146,9 +146,10 @@ def load_session(folder: str | Path) -> Session:
     image_dir = folder / "images"
     if not image_dir.is_dir():
         raise SessionError(f"{image_dir}: no images folder; the images named in {csv_path.name} go there")
-    on_disk = sorted(p.name for p in image_dir.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
-    files = _match_image_names(names, on_disk, notes)
-    missing = [n for n, f in zip(names, files) if f is None or not (image_dir / f).is_file()]
+    all_files = sorted(p.name for p in image_dir.iterdir() if p.is_file())
+    on_disk = [n for n in all_files if Path(n).suffix.lower() in IMAGE_SUFFIXES]
+    files = _match_image_names(names, all_files, notes)  # a row may name an image of any suffix
+    missing = [n for n, f in zip(names, files) if f is None]
     if missing:
         raise SessionError(f"{image_dir}: image file(s) missing: {', '.join(missing[:10])}"
                            + (f" and {len(missing) - 10} more" if len(missing) > 10 else ""))
