@@ -13,7 +13,6 @@ cross-validation of that part alone), as a user would run it on those views.
 from __future__ import annotations
 
 import tempfile
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -47,7 +46,7 @@ def _evaluate(name: str) -> dict:
 def real_results():
     if not realdata.REAL_DATA.is_dir():
         pytest.skip(f"real data not available at {realdata.REAL_DATA}")
-    with ProcessPoolExecutor(2) as pool:
+    with realdata.worker_pool() as pool:
         return dict(zip(SETS, pool.map(_evaluate, SETS)))
 
 

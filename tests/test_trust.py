@@ -7,7 +7,6 @@ from __future__ import annotations
 import csv
 import re
 import shutil
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -24,6 +23,8 @@ from handeye.geometry.se3 import invert, make_transform
 from handeye.metrics import rotation_error, translation_error
 from handeye.simulate import EXACT, REALISTIC, arm_forward_kinematics, realistic_scene
 from handeye.solvers.refine import refine_reprojection
+
+import realdata
 
 SAMPLE = Path(handeye.__file__).parent / "data" / "sample_session"
 
@@ -90,7 +91,7 @@ def _one_session(args):
 def realistic_study():
     """200 realistic sessions (100 per setup, 15 poses each), on both cores."""
     tasks = [(seed, setup) for setup in ("eye_in_hand", "eye_to_hand") for seed in range(100)]
-    with ProcessPoolExecutor(2) as pool:
+    with realdata.worker_pool() as pool:
         return list(pool.map(_one_session, tasks, chunksize=10))
 
 
