@@ -21,7 +21,7 @@ FLOORS = {
     "vision": 4, "motions": 4,
     "session": 5, "solvers": 5,
     "result": 6, "simulate": 6,
-    "diagnostics": 7, "validation": 7, "estimators": 7.5,
+    "diagnostics": 7, "validation": 7, "estimators": 7.5, "partial": 7.5,
     "calibration": 8,
     "report": 9,
     "planning": 10, "study": 10,

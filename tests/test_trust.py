@@ -211,9 +211,8 @@ def test_inconsistent_data_are_answered_unless_strict():
         handeye.calibrate_poses(invert(sc.flange2base), sc.target2cam, strict=True)
     cal = handeye.calibrate_poses(invert(sc.flange2base), sc.target2cam)
     assert cal.verdict == "inconsistent" and cal.diagnostics.convention_hint == "invert_robot_poses"
-    with pytest.raises(handeye.DegenerateMotionError):  # X undetermined: still an error
-        rot = Rotation.from_euler("z", np.linspace(0, 90, 6)[:, None], degrees=True).as_matrix()
-        f = make_transform(rot, np.c_[np.linspace(0, 0.1, 6), np.zeros(6), np.zeros(6)])
+    with pytest.raises(handeye.DegenerateMotionError):  # not even X's rotation determined: still an error
+        f = make_transform(np.eye(3), np.c_[np.linspace(0, 0.1, 6), np.zeros(6), np.zeros(6)])
         handeye.calibrate_poses(f, invert(f))
 
 

@@ -22,10 +22,12 @@ from .errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from .estimators import PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, Choice, choose, pixel_candidates, pixel_fit, pose_candidates
 from .geometry.se3 import invert, skew
 from .motions import MotionSet, Pairs, validate_poses
+from .partial import calibrate_partial, known_on_complete, parse_known
 from .poses import RobotPoseInput
 from .result import Calibration, Diagnostics
 from .session import POSEPAIRS_FILE, Session, SessionError, load_pose_pairs, load_session
 from .setups import check_setup
+from .solvers.low_dof import partial_kind
 from .solvers.refine import PoseRefinementResult, ReprojectionResult, refine_pose
 from .validation import Views, jackknife_cov
 from .vision import calibrate_intrinsics, detect_images, resolve_symmetries, solve_pnp, target_from_spec
@@ -59,6 +61,8 @@ def _checked_poses(flange2base, target2cam, setup, pairs, check, robot_input, st
     if not check:
         return flange2base, target2cam, pairs, keep, None, []
     diag = diagnose(flange2base, target2cam, setup, robot_input=robot_input, camera_input=camera_input)
+    if diag.verdict == "partial":  # handled by calibrate_partial (no outlier search without a full X)
+        return flange2base, target2cam, pairs, keep, diag, []
     if diag.verdict == "degenerate":
         raise DegenerateMotionError(" ".join(diag.advice))
     if diag.verdict == "inconsistent" and strict:
@@ -89,6 +93,7 @@ def calibrate_poses(
     robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
     progress: bool = True,
     camera_input: RobotPoseInput | None = None,
+    known: dict | None = None,
 ) -> Calibration:
     """Hand-eye calibration from robot poses and camera-to-target poses.
 
@@ -132,12 +137,18 @@ def calibrate_poses(
         covariance. Default :data:`ROBOT_ACCURACY`; ``None`` (or zeros) for an exact robot.
     progress : bool
         Show the steps on stderr from :data:`PROGRESS_FROM_POSES` poses.
+    known : dict, optional
+        What the data cannot determine (SCARA, Cartesian robots; :mod:`handeye.partial`), e.g.
+        ``{'target2base.z': 0.012}`` or ``{'cam2flange.z': (0.085, 0.001)}``: translation components of
+        X or Z in metres (exact, ``(value, std)`` or ``'value+-std'``); values the data determine are
+        compared with them (a note), not used.
 
     Returns
     -------
     Calibration
         With ``diagnostics`` (when checked) and ``pose_indices``, the input poses used; with
-        'auto', ``estimator``, ``cross_validation`` and ``prediction_error``.
+        'auto', ``estimator``, ``cross_validation`` and ``prediction_error``. Motions about one axis
+        (or none): the pose refinement with the known values, ``unobservable`` naming the rest.
 
     Raises
     ------
@@ -146,11 +157,7 @@ def calibrate_poses(
     InputMismatchError
         ``strict`` and the poses do not agree on one X; the message names the likely mistake.
     """
-    check_setup(setup)
-    if refine not in ("auto", "pose", "none"):
-        hint = " (pixel refinement needs the detections: use handeye.calibrate on a session)" if refine == "reprojection" else ""
-        raise InputMismatchError(f"refine={refine!r}; use 'auto', 'pose' or 'none'{hint}")
-    accuracy = _accuracy(robot_accuracy)
+    accuracy, given = _pose_options(setup, refine, robot_accuracy, known)
     flange2base_in, target2cam_in = validate_poses(flange2base, target2cam)
     bar = Progress(3, f"calibrating {len(flange2base_in)} poses: check, estimators, uncertainty",
                    progress and len(flange2base_in) >= PROGRESS_FROM_POSES)
@@ -158,23 +165,58 @@ def calibrate_poses(
         flange2base, target2cam, pairs, keep, diag, notes = _checked_poses(
             flange2base_in, target2cam_in, setup, pairs, check, robot_input, strict, camera_input)
         bar.update()
+        if (kind := partial_kind(flange2base, target2cam, setup) if diag is None or diag.verdict == "partial" else None):
+            return _partial(flange2base, target2cam, setup, kind, pairs, given, refine, diag, keep, robot_input,
+                            array_digest(flange2base_in, target2cam_in), accuracy)
         X, Z, motions = closed_form(flange2base, target2cam, setup, method, pairs)
         cal = Calibration(
             X=X, Z=Z, setup=setup, method=method, flange2base=flange2base, target2cam=target2cam, pairs=motions.pairs,
             motions=motions, diagnostics=diag, pose_indices=keep, notes=notes, robot_input=robot_input,
             inputs_sha256=array_digest(flange2base_in, target2cam_in), estimator=method,
         )
-        if refine == "pose" or (refine == "auto" and len(flange2base) < 5):
-            cal = refine_on_poses(cal)
-        elif refine == "auto":
-            views = Views(flange2base, target2cam, setup)
-            choice = choose(views, pose_candidates(method, views), folds)
-            bar.update()
-            cal = apply_choice(cal, choice, views, pairs, robot_accuracy=accuracy)
+        cal = _refined(cal, refine, method, pairs, folds, accuracy, bar)
         bar.update(bar.total - bar.done)
     finally:
         bar.close()
+    return known_on_complete(cal, given)
+
+
+def _pose_options(setup: str, refine: str, robot_accuracy, known) -> tuple:
+    """:func:`calibrate_poses`' options checked: the robot accuracy and the known values."""
+    check_setup(setup)
+    if refine not in ("auto", "pose", "none"):
+        hint = " (pixel refinement needs the detections: use handeye.calibrate on a session)" if refine == "reprojection" else ""
+        raise InputMismatchError(f"refine={refine!r}; use 'auto', 'pose' or 'none'{hint}")
+    return _accuracy(robot_accuracy), parse_known(known, setup)
+
+
+def _refined(cal: Calibration, refine: str, method: str, pairs: Pairs, folds, accuracy, bar: Progress) -> Calibration:
+    """The closed form ``cal`` refined as ``refine`` says (:func:`calibrate_poses`)."""
+    if refine == "pose" or (refine == "auto" and len(cal.flange2base) < 5):
+        return refine_on_poses(cal)
+    if refine == "auto":
+        views = Views(cal.flange2base, cal.target2cam, cal.setup)
+        choice = choose(views, pose_candidates(method, views), folds)
+        bar.update()
+        return apply_choice(cal, choice, views, pairs, robot_accuracy=accuracy)
     return cal
+
+
+def _partial(flange2base, target2cam, setup, kind, pairs, given, refine, diag, keep, robot_input, digest, accuracy):
+    """:func:`calibrate_poses` on motions that determine only part of X (:mod:`handeye.partial`)."""
+    cal = calibrate_partial(flange2base, target2cam, setup, kind, pairs, given, refine=refine != "none")
+    if diag is None:  # unchecked: the verdict still says partial (Calibration.verdict)
+        diag = Diagnostics(verdict="partial", n_poses=len(flange2base))
+    if not cal.unobservable:  # complete with the known values: judged by its std as any calibration
+        diag = replace(diag, verdict="good")
+    cal = replace(cal, diagnostics=diag, pose_indices=keep, robot_input=robot_input, inputs_sha256=digest)
+    if cal.cov is not None and accuracy is not None:
+        cov = cal.cov + robot_accuracy_cov(cal.X, accuracy)
+        std = np.where(np.isinf(cal.std), np.inf, _std(cov))
+        cal = replace(cal, cov=cov, std=std, notes=cal.notes + [
+            f"the std of X includes the robot's absolute accuracy, assumed {accuracy[0]:g} deg / {accuracy[1]:g} mm "
+            "per axis (robot_accuracy=(deg, mm))"])
+    return _verdict_from_std(cal)
 
 
 def _std(cov_X: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -546,6 +588,7 @@ def calibrate(
     strict: bool = False,
     folds: int | None = None,
     robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
+    known: dict | None = None,
 ) -> Calibration:
     """Hand-eye calibration from a capture session folder (images + robot poses, DESIGN §4).
 
@@ -555,8 +598,10 @@ def calibrate(
     Parameters
     ----------
     session_dir : path
-    method, pairs, check, strict, folds, robot_accuracy
-        As :func:`calibrate_poses` (outlier poses' images are listed in ``skipped``).
+    method, pairs, check, strict, folds, robot_accuracy, known
+        As :func:`calibrate_poses` (outlier poses' images are listed in ``skipped``). On motions
+        that determine only part of X (SCARA, Cartesian robots), X comes from the PnP poses by the
+        pose refinement with the ``known`` values (the pixel refinement does not run there yet).
     refine : {'auto', 'reprojection', 'pose', 'none'}
         'reprojection': X and Z (and the intrinsics, when estimated) refined jointly on the pixel
         errors of every target point (:func:`handeye.solvers.refine.refine_reprojection`), starting
@@ -591,9 +636,11 @@ def calibrate(
         raise InputMismatchError(f"refine={refine!r}; use 'auto', 'reprojection', 'pose' or 'none'")
     _robot_sigma(robot_noise, refine)  # bad options fail before any image work
     _accuracy(robot_accuracy)
-    obs = observe(load_session(session_dir), jobs=jobs, progress=progress)
+    session = load_session(session_dir)
+    parse_known(known, session.setup)
+    obs = observe(session, jobs=jobs, progress=progress)
     return calibrate_observed(obs, method=method, refine=refine, pairs=pairs, check=check, robot_noise=robot_noise,
-                              strict=strict, folds=folds, robot_accuracy=robot_accuracy)
+                              strict=strict, folds=folds, robot_accuracy=robot_accuracy, known=known)
 
 
 def calibrate_observed(
@@ -607,6 +654,7 @@ def calibrate_observed(
     folds: int | None = None,
     robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
     uncertainty: bool = True,
+    known: dict | None = None,
 ) -> Calibration:
     """:func:`calibrate` from what :func:`observe` made of a session's images (the same options).
 
@@ -618,8 +666,15 @@ def calibrate_observed(
     robot_sigma = _robot_sigma(robot_noise, refine)
     accuracy = _accuracy(robot_accuracy)
     cal = calibrate_poses(obs.flange2base, obs.target2cam, setup=obs.session.setup, method=method, pairs=pairs,
-                          refine="none", check=check, robot_input=obs.robot_input, strict=strict)
+                          refine="none", check=check, robot_input=obs.robot_input, strict=strict, known=known)
     kept, outlier_images = _drop_pose_outliers(cal, obs)
+    if cal.motion_kind != "general":  # part of X undetermined: the pose refinement with the known values
+        if refine != "none":
+            cal = calibrate_poses(obs.flange2base, obs.target2cam, setup=obs.session.setup, pairs=pairs, refine="pose",
+                                  check=check, robot_input=obs.robot_input, known=known, robot_accuracy=robot_accuracy)
+            cal = replace(cal, notes=cal.notes + ["the pixel refinement does not run on motions that determine only "
+                                                  "part of X: X is refined on the PnP poses"])
+        return _with_images(cal, obs, kept, outlier_images, list(obs.notes))
     idx = np.asarray(cal.pose_indices)
     estimated = obs.intrinsics_source == "estimated"
     if refine == "auto" and len(idx) >= 5:
@@ -690,7 +745,7 @@ def _kept(diag: Diagnostics) -> NDArray[np.intp]:
 
 
 def _check_choice(diag: Diagnostics, views: Views, extra: dict, folds: int | None) -> Choice | None:
-    if diag.verdict == "degenerate" or len(views) < 5:
+    if diag.verdict in ("degenerate", "partial") or len(views) < 5:  # partial: no estimator sees all of X
         return None
     try:
         return choose(views, pose_candidates("daniilidis", views) | extra, folds)

@@ -103,7 +103,13 @@ def print_calibration(cal: Calibration, out=None) -> None:
       f"worst pose {worst}: {pres[worst, 0]:.3f} deg / {pres[worst, 1]:.3f} mm\n")
     if cal.std is not None:
         w(f"std of X ({cal.refinement} refinement): rotation {_fmt_vec(cal.std[:3], 4)} deg, "
-          f"translation {_fmt_vec(cal.std[3:], 3)} mm\n")
+          f"translation {_fmt_vec(cal.std[3:], 3)} mm" + (" (inf: not determined by the data)"
+                                                        if np.isinf(cal.std).any() else "") + "\n")
+    for u in cal.unobservable:
+        w(f"NOT DETERMINED: {u.parameter}; set to {u.choice}. {u.coupled[:1].upper() + u.coupled[1:]}. To fix: {u.fix}\n")
+    for name, k in cal.known.items():
+        w(f"known {name} = {k['value_m']:.5f} +- {k['std_m']:.5f} m: "
+          + ("used (the data cannot determine it)\n" if k["used"] else f"not used (the data give {k['data_m']:.5f} m)\n"))
     if cal.pose_noise is not None:
         nz = cal.pose_noise
         w(f"pose noise estimated from the data (per axis): robot rotation {nz['robot_rotation_deg']:.4f} deg, "
@@ -156,7 +162,7 @@ def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
     cal = calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, method=args.method, pairs=args.pairs,
                           refine=args.refine, robot_input=pairs.robot_input, strict=args.strict,
                           robot_accuracy=_accuracy_arg(args.robot_accuracy), progress=not args.no_progress,
-                          camera_input=pairs.camera_input)
+                          camera_input=pairs.camera_input, known=_known_arg(args.known))
     cal = replace(cal, notes=list(pairs.notes) + list(cal.notes), input_folder=folder)
     print_calibration(cal)
     _write_outputs(cal, args)
@@ -187,19 +193,19 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))  # calibrate checks the values
     cal = calibrate(session, method=args.method, refine=args.refine, jobs=args.jobs, progress=not args.no_progress,
                     robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()), strict=args.strict,
-                    robot_accuracy=_accuracy_arg(args.robot_accuracy))
+                    robot_accuracy=_accuracy_arg(args.robot_accuracy), known=_known_arg(args.known))
     _print_image_summary(cal)
     print_calibration(cal)
     _write_outputs(cal, args)
     return _verdict_status(cal)
 
 
-EXIT_STATUS = {"good": 0, "weak": 1, "degenerate": 2, "inconsistent": 2}
+EXIT_STATUS = {"good": 0, "weak": 1, "partial": 1, "degenerate": 2, "inconsistent": 2}
 
 
 def _verdict_status(cal: Calibration) -> int:
     """Exit status of a calibration that answered: 0 when the check found the data good (or was not
-    run), 1 when it called them weak or inconsistent (the result is written all the same)."""
+    run), 1 when it called them weak, partial or inconsistent (the result is written all the same)."""
     return 0 if cal.verdict in ("good", "not checked") else 1
 
 
@@ -222,8 +228,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     _out_folder(args.out)
     simulate_session(args.out, setup=args.setup, n_poses=args.poses, target=args.target, noise_px=args.noise_px,
-                     seed=args.seed, image_size=args.image_size, write_intrinsics=not args.no_intrinsics)
-    print(f"wrote session {args.out} ({args.poses} {args.target} images, {args.setup}); ground truth in "
+                     seed=args.seed, image_size=args.image_size, write_intrinsics=not args.no_intrinsics, robot=args.robot)
+    print(f"wrote session {args.out} ({args.poses} {args.target} images, {args.setup}, {args.robot}); ground truth in "
           f"{Path(args.out) / 'ground_truth.yaml'}")
     return 0
 
@@ -314,8 +320,10 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     if out.exists():
         raise HandEyeError(f"--out {out} exists (it may be a session's recorded poses); give a new file name")
     _out_folder(str(out.parent))  # a folder that can take the file, before the planning
+    z_range = _floats(args.z_range, "--z-range", (2,))
     plan = plan_poses(args.setup, X, Z, obj, K, size, dist, n_poses=args.poses, standoff=args.standoff,
-                      tilt_max_deg=args.tilt_max, margin_px=args.margin_px, reach_box=box, noise_px=args.noise_px)
+                      tilt_max_deg=args.tilt_max, margin_px=args.margin_px, reach_box=box, noise_px=args.noise_px,
+                      robot=args.robot, z_range=None if z_range is None else tuple(z_range.tolist()))
     write_plan(plan, out, args.format, args.length_unit, args.angle_unit,
                protect=[p for p in (args.intrinsics, args.target_spec) if p])
     t2c = plan.target2cam
@@ -329,6 +337,14 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     s = plan.std_X
     print(f"\npredicted std of X at {plan.noise_px:g} px pixel noise (reprojection refinement): rotation "
           f"{_fmt_vec(s[:3], 4)} deg, translation {_fmt_vec(s[3:], 3)} mm")
+    if plan.unobservable:
+        info = setup_info(args.setup)
+        print(f"warning: a {args.robot} robot cannot determine the {'; the '.join(plan.unobservable)} (std inf): "
+              f"measure it, or {info.z_name}'s matching component (e.g. the target's height), and give it to the "
+              f"calibration (--known {info.x_name}.z=METRES or --known {info.z_name}.z=METRES)")
+        print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): flange2base per image; "
+              "it is the poses.csv of the session to capture (replace each row by the pose the robot reports)")
+        return 0
     start = fronto_parallel_start(X, Z, obj, args.standoff, args.setup)
     eh = easy_handeye_poses(start)
     seen = visible_mask(predicted_target2cam(X, Z, eh, args.setup), obj, K, dist, size, 0.0)
@@ -355,6 +371,17 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     return 0
 
 
+def _known_arg(items: list[str]) -> dict[str, str]:
+    """--known NAME=VALUE (repeatable) as the ``known=`` dict (calibrate_poses checks names and values)."""
+    known = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip() or not value.strip():
+            raise HandEyeError(f"--known {item!r}: give TRANSFORM.AXIS=METRES, e.g. --known target2base.z=0.012")
+        known[name.strip()] = value.strip()
+    return known
+
+
 def _accuracy_arg(text: str | None):
     """--robot-accuracy DEG,MM (calibrate checks the values); absent: handeye's default."""
     v = _floats(text, "--robot-accuracy", (2,))
@@ -371,6 +398,10 @@ def _add_solver_and_out(p: argparse.ArgumentParser) -> None:
                    f"invisible in the data; default {ROBOT_ACCURACY[0]:g},{ROBOT_ACCURACY[1]:g}; 0,0 for an exact robot)")
     p.add_argument("--strict", action="store_true",
                    help="fail (exit 2) instead of answering when the check calls the data inconsistent")
+    p.add_argument("--known", action="append", metavar="TRANSFORM.AXIS=METRES[+-STD]", default=[],
+                   help="what the data cannot determine, given (SCARA and Cartesian robots): e.g. "
+                   "--known target2base.z=0.012 (the board's height), --known cam2flange.z=0.085+-0.001 (from the "
+                   "drawing); repeat for more")
 
 
 def _add_detection_options(p: argparse.ArgumentParser) -> None:
@@ -445,6 +476,9 @@ def _add_simulate(sub) -> None:
     p.add_argument("--seed", type=_whole(0), default=None)
     p.add_argument("--image-size", type=_image_size, default=(640, 480), help="WIDTHxHEIGHT (default 640x480)")
     p.add_argument("--no-intrinsics", action="store_true", help="leave K and dist out of session.yaml")
+    p.add_argument("--robot", default="arm", choices=["arm", "scara", "cartesian"],
+                   help="arm (default): views all around; scara: the flange turns about the vertical only; "
+                   "cartesian: it only translates (both determine only part of X: see --known of calibrate)")
     p.set_defaults(func=_cmd_simulate)
 
 
@@ -474,6 +508,10 @@ def _add_plan(sub) -> None:
     p.add_argument("--tilt-max", type=_number(0.0, 89.0), default=45.0, help="largest view angle from the target normal (deg, default 45)")
     p.add_argument("--margin-px", type=_number(0.0), default=20.0, help="keep every target point this far inside the image")
     p.add_argument("--reach-box", metavar="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", help="where the flange may go (m, base frame)")
+    p.add_argument("--robot", default="arm", choices=["arm", "scara", "cartesian"],
+                   help="arm (default): views all around; scara: the flange points down and turns about the vertical "
+                   "only; cartesian: it only translates (both leave part of X to --known at calibration)")
+    p.add_argument("--z-range", metavar="ZMIN,ZMAX", help="heights the flange can reach (m, base frame; a SCARA's stroke)")
     p.add_argument("--poses", type=_whole(3), default=12, help="number of poses (default 12)")
     p.add_argument("--noise-px", type=_number(0.0, above=True), default=0.3, help="pixel noise for the predicted std (default 0.3)")
     p.add_argument("--check-runs", type=_whole(0), default=0, help="also simulate this many calibrations to check the prediction")

@@ -35,8 +35,9 @@ from .metrics import rotation_error, translation_error
 from .motions import MotionSet, Pairs, validate_poses
 from .poses import RobotPoseInput, parse_poses
 from .result import Diagnostics
-from .setups import check_setup, constant_transforms, robot_world_inputs
+from .setups import check_setup, constant_transforms, robot_world_inputs, setup_info
 from .solvers.daniilidis import motion_groups, singular_values, solve_leave_one_out
+from .solvers.low_dof import ONE_AXIS, partial_kind
 from .solvers.observability import check_observability, observable_leave_one_out, rotation_spread
 from .solvers.refine import pose_mahalanobis, refine_pose
 
@@ -296,8 +297,10 @@ def diagnose(
     try:
         check_observability(motions)
     except DegenerateMotionError as exc:
-        diag.verdict = "degenerate"
-        diag.advice.extend(_degenerate_advice(motions, exc))
+        reasons: list[str] = []
+        kind = partial_kind(flange2base, target2cam, setup, reasons)
+        diag.verdict = "partial" if kind else "degenerate"
+        diag.advice.extend([_partial_advice(kind, setup)] if kind else _degenerate_advice(motions, exc) + reasons)
         return diag
 
     given = consistency_score(flange2base, target2cam, setup)
@@ -425,6 +428,19 @@ def _scale_advice(scale: float, std: float) -> str:
     return (f"the camera's translations are {1 / scale:.3f}x what the robot's motions say (scale {scale:.4f} +- "
             f"{std:.4f}, 1 when right): the target's size (square, or the spacing of circles) is likely wrong by "
             f"that factor: multiply it by {scale:.4f} (or check the robot's length unit)")
+
+
+def _partial_advice(kind: str, setup: str) -> str:
+    """What one-axis or translation-only motions determine, and how to complete X."""
+    info = setup_info(setup)
+    if kind == ONE_AXIS:
+        return (f"every rotation is about one axis (a SCARA, planar or 4-axis robot): X's rotation and its translation "
+                f"across that axis are determined, its translation along the axis is not; give known={{'{info.x_name}.z': "
+                f"metres}} or {{'{info.z_name}.z': metres}} (--known {info.z_name}.z=VALUE), or add rotations of >= 30 deg "
+                f"about a second axis")
+    return (f"the robot only translates (a Cartesian robot): X's rotation is determined, its translation is not; give "
+            f"known= values for {info.x_name}.x, .y and .z (or {info.z_name}'s), or add rotations of >= 30 deg about "
+            f"two axes")
 
 
 def _degenerate_advice(motions: MotionSet, exc: DegenerateMotionError) -> list[str]:

@@ -36,13 +36,13 @@ from .errors import HandEyeError
 from .geometry.se3 import invert, make_transform, skew
 from .metrics import rotation_error, translation_error
 from .session import write_pose_table
-from .setups import check_setup, flange_poses, predicted_target2cam, robot_world_A_inv
+from .setups import check_setup, flange_poses, predicted_target2cam, robot_world_A_inv, setup_info
 from .simulate import look_at
 from .solvers.refine import refine_reprojection
 from .vision.pnp import project_points, solve_pnp
 from .vision.targets import Detection
 
-__all__ = ["Plan", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
+__all__ = ["Plan", "ROBOTS", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
            "visible_mask", "simulate_errors", "write_plan", "order_path"]
 
 TILTS_DEG = (0.0, 10.0, 20.0, 30.0, 37.5, 45.0, 52.5, 60.0)
@@ -79,6 +79,49 @@ class Plan:
     std_X: NDArray[np.float64]
     noise_px: float
     n_candidates: int
+    robot: str = "arm"
+    #: what the chosen robot cannot determine (the std there is inf), in words
+    unobservable: list[str] | None = None
+
+
+#: Robots ``plan_poses`` plans for: a 6-axis arm (views all around), a SCARA (the flange turns about
+#: the vertical only) and a Cartesian gantry (translations only).
+ROBOTS = ("arm", "scara", "cartesian")
+#: SCARA candidates: yaws of the flange (deg) and lateral offsets (fractions of the standoff).
+SCARA_YAWS_DEG = np.arange(-165.0, 180.0, 15.0)
+LATERAL = np.linspace(-0.3, 0.3, 5)
+
+
+def _low_dof_candidates(robot: str, setup: str, X: NDArray[np.float64], Z: NDArray[np.float64],
+                        centre: NDArray[np.float64], standoff: float) -> NDArray[np.float64]:
+    """Flange poses of a robot whose flange points down (base -z) and turns about the vertical
+    (SCARA) or not at all (Cartesian): eye-in-hand, the camera above the target centre; eye-to-hand,
+    the target centre above the camera. Lateral offsets and three heights around ``standoff``."""
+    yaws = np.radians(SCARA_YAWS_DEG) if robot == "scara" else np.zeros(1)
+    Y, dx, dy, h = np.meshgrid(yaws, LATERAL * standoff, LATERAL * standoff, standoff * np.asarray(DISTANCE_FACTORS),
+                               indexing="ij")
+    down = Rotation.from_euler("x", 180, degrees=True).as_matrix()
+    R_f = Rotation.from_euler("z", Y.ravel()[:, None]).as_matrix() @ down
+    offset = np.stack([dx.ravel(), dy.ravel(), h.ravel()], axis=1)
+    if setup_info(setup).camera_on_flange:
+        p = (Z[:3, :3] @ centre + Z[:3, 3]) + offset - R_f @ X[:3, 3]
+    else:
+        p = X[:3, 3] + offset - R_f @ (Z[:3, :3] @ centre + Z[:3, 3])
+    return make_transform(R_f, p)
+
+
+def _gauge(robot: str, setup: str, scale: float) -> tuple[NDArray[np.float64], list[str]]:
+    """A prior (12, 12) on what ``robot`` cannot determine (X's translation along the vertical, or all
+    of it), so that the information can be inverted, and those parameters in words."""
+    info = setup_info(setup)
+    prior = np.zeros((12, 12))
+    if robot == "arm":
+        return prior, []
+    frame = "flange" if info.camera_on_flange else "base"
+    axes = [2] if robot == "scara" else [0, 1, 2]  # the flange z axis is the vertical (pointing down)
+    for k in axes:
+        prior[3 + k, 3 + k] = 1e6 * scale
+    return prior, [f"translation of {info.x_name} along the {frame} {'xyz'[k]} axis" for k in axes]
 
 
 def visible_mask(target2cam: NDArray[np.float64], object_points: NDArray[np.float64], K: NDArray[np.float64],
@@ -140,9 +183,13 @@ def _criterion(info_inv: NDArray[np.float64], weight: NDArray[np.float64]) -> ND
     return np.einsum("...ii,i->...", info_inv[..., :6, :6], weight)
 
 
-def _choose(infos: NDArray[np.float64], n: int, weight: NDArray[np.float64], max_passes: int = 8) -> list[int]:
-    """A-optimal selection of ``n`` of the candidate informations: greedy, then exchanges."""
+def _choose(infos: NDArray[np.float64], n: int, weight: NDArray[np.float64], max_passes: int = 8,
+            prior: NDArray[np.float64] | None = None) -> list[int]:
+    """A-optimal selection of ``n`` of the candidate informations: greedy, then exchanges; ``prior``
+    (12, 12) holds what no pose can determine (a SCARA's vertical) fixed."""
     ridge = 1e-9 * float(np.mean(np.trace(infos, axis1=1, axis2=2))) * np.eye(12)
+    if prior is not None:
+        ridge = ridge + prior
     chosen: list[int] = []
     total = ridge.copy()
     for _ in range(n):
@@ -226,6 +273,8 @@ def plan_poses(
     margin_px: float = 20.0,
     reach_box: ArrayLike | None = None,
     noise_px: float = 0.3,
+    robot: str = "arm",
+    z_range: tuple[float, float] | None = None,
 ) -> Plan:
     """Plan ``n_poses`` robot poses for a calibration (see the module docstring).
 
@@ -252,6 +301,14 @@ def plan_poses(
         ``xmin, ymin, zmin, xmax, ymax, zmax`` (m, base frame): where the flange may go.
     noise_px : float
         Pixel noise assumed for the predicted uncertainty.
+    robot : {'arm', 'scara', 'cartesian'}
+        'arm': views all around the target. 'scara': the flange points down and turns about the
+        vertical only (yaws every 15 deg, the camera above the target or the target above the
+        camera, lateral offsets, three heights); 'cartesian': the same without the turn. Neither
+        determines all of X (``Plan.unobservable``, std inf there): the calibration needs
+        ``known=`` values.
+    z_range : (zmin, zmax), optional
+        The heights (m, base frame) the flange can reach (a SCARA's z stroke).
 
     Raises
     ------
@@ -270,15 +327,28 @@ def plan_poses(
         raise HandEyeError(f"standoff {standoff}: give the camera-to-target distance in metres (> 0)")
     if not 0 < tilt_max_deg <= 70:
         raise HandEyeError(f"tilt_max {tilt_max_deg} deg: use a value in (0, 70]; detectors fail at grazing views")
+    if robot not in ROBOTS:
+        raise HandEyeError(f"robot {robot!r}; use one of {', '.join(ROBOTS)}")
     centre = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
-    cam2target = _candidates(standoff, tilt_max_deg, centre)
-    target2cam = invert(cam2target)
+    if robot == "arm":
+        cam2target = _candidates(standoff, tilt_max_deg, centre)
+        flange2base, target2cam = flange_poses(cam2target, X, Z, setup), invert(cam2target)
+    else:
+        flange2base = _low_dof_candidates(robot, setup, X, Z, centre, standoff)
+        target2cam = predicted_target2cam(X, Z, flange2base, setup)
     keep = visible_mask(target2cam, obj, K, dist, image_size, margin_px)
     if keep.sum() < n_poses:
         raise HandEyeError(
             f"only {int(keep.sum())} of {len(keep)} candidate views keep the whole target {margin_px:g} px inside the "
             f"image at a standoff of {standoff:g} m; increase the standoff or use a smaller target")
-    flange2base = flange_poses(cam2target, X, Z, setup)
+    if z_range is not None:
+        lo, hi = (float(v) for v in z_range)
+        if not lo < hi:
+            raise HandEyeError(f"z range {lo:g}, {hi:g}: give zmin,zmax (m) with zmin below zmax")
+        keep &= (flange2base[:, 2, 3] >= lo) & (flange2base[:, 2, 3] <= hi)
+        if keep.sum() < n_poses:
+            raise HandEyeError(f"only {int(keep.sum())} views that see the whole target put the flange within z "
+                               f"{lo:g}..{hi:g} m; widen the range or change the standoff")
     if reach_box is not None:
         box = np.asarray(reach_box, dtype=float).ravel()
         if box.size != 6 or np.any(box[:3] >= box[3:]):
@@ -293,13 +363,16 @@ def plan_poses(
     idx = np.flatnonzero(keep)
     infos = reprojection_information(flange2base[idx], X, Z, setup, obj, K)
     weight = np.r_[np.full(3, standoff**2), np.ones(3)]  # rotation error seen at the standoff, in metres
-    chosen = idx[_choose(infos, n_poses, weight)]
+    prior, unobservable = _gauge(robot, setup, float(np.mean(np.trace(infos, axis1=1, axis2=2))))
+    chosen = idx[_choose(infos, n_poses, weight, prior=prior)]
     order = order_path(flange2base[chosen])
     chosen = chosen[order]
     info = reprojection_information(flange2base[chosen], X, Z, setup, obj, K).sum(axis=0)
-    cov = predicted_cov(info, noise_px)
+    cov = predicted_cov(info + prior, noise_px)
     std = np.r_[np.degrees(np.sqrt(np.diag(cov)[:3])), 1e3 * np.sqrt(np.diag(cov)[3:])]
-    return Plan(setup, X, Z, flange2base[chosen], target2cam[chosen], cov, std, float(noise_px), int(keep.sum()))
+    std[3:][np.diag(prior)[3:6] > 0] = np.inf
+    return Plan(setup, X, Z, flange2base[chosen], target2cam[chosen], cov, std, float(noise_px), int(keep.sum()),
+                robot, unobservable)
 
 
 def easy_handeye_poses(start_flange2base: ArrayLike, angle_deg: float = 25.0, translation: float = 0.1) -> NDArray[np.float64]:

@@ -20,7 +20,45 @@ from .motions import MotionSet, screw_congruence
 from .poses import RobotPoseInput
 from .setups import constant_transforms, setup_info
 
-__all__ = ["Calibration", "Diagnostics"]
+__all__ = ["Calibration", "Diagnostics", "Unobservable"]
+
+
+@dataclass(frozen=True)
+class Unobservable:
+    """A part of X the data cannot determine (robots that cannot rotate freely: SCARA, planar,
+    Cartesian; :mod:`handeye.solvers.low_dof`).
+
+    Attributes
+    ----------
+    parameter : str
+        In words, e.g. "translation of cam2flange along the flange z axis".
+    transform, frame : str
+        The transform (``cam2flange``...) and the frame its direction is given in (``flange``...).
+    direction : ndarray (3,)
+        Unit vector in ``frame``: X's translation along it is undetermined.
+    value : float
+        The value chosen for it (m): X's translation along ``direction``.
+    choice : str
+        Why that value.
+    coupled : str
+        What the data do determine about it (e.g. its difference with the target's height).
+    fix : str
+        How to determine it: the ``known=`` keys that would, or what to capture.
+    """
+
+    parameter: str
+    transform: str
+    frame: str
+    direction: NDArray[np.float64]
+    value: float
+    choice: str
+    coupled: str
+    fix: str
+
+    def as_dict(self) -> dict:
+        return {"parameter": self.parameter, "transform": self.transform, "frame": self.frame,
+                "direction": [float(v) for v in self.direction], "value_m": float(self.value), "choice": self.choice,
+                "coupled": self.coupled, "fix": self.fix}
 
 
 @dataclass
@@ -29,7 +67,10 @@ class Diagnostics:
 
     Attributes
     ----------
-    verdict : {'good', 'weak', 'degenerate', 'inconsistent'}
+    verdict : {'good', 'weak', 'partial', 'degenerate', 'inconsistent'}
+        'partial': the motions determine only part of X (all rotations about one axis, or none at
+        all): :func:`handeye.calibrate_poses` returns that part and names the rest
+        (``Calibration.unobservable``).
     advice : list of str
         Sentences saying what is wrong and what to do.
     convention_hint : str or None
@@ -186,10 +227,20 @@ class Calibration:
     #: the std of X's six parameters (deg, mm) from each source: 'model' (the refinement's noise
     #: model, None for a closed form), 'jackknife' (the spread of X refitted without each pose)
     std_sources: dict[str, NDArray[np.float64] | None] | None = None
+    #: the robot's motions: 'general', 'one_axis' (SCARA, planar) or 'translation_only' (Cartesian)
+    motion_kind: str = "general"
+    #: what the data cannot determine of X (empty when X is complete); ``std`` is inf there
+    unobservable: list[Unobservable] = field(default_factory=list)
+    #: the values given with ``known=``: name -> {'value_m', 'std_m', 'used' (it fixed what the data could
+    #: not), 'data_m' (the data's own value when they determine it, else None)}
+    known: dict[str, dict] = field(default_factory=dict)
 
     @property
     def verdict(self) -> str:
-        """The check's verdict ('good', 'weak', 'inconsistent'), or 'not checked'."""
+        """The check's verdict ('good', 'weak', 'partial', 'inconsistent'), or 'not checked'; 'partial'
+        whenever part of X is undetermined (:attr:`unobservable`), checked or not."""
+        if self.unobservable:
+            return "partial"
         return self.diagnostics.verdict if self.diagnostics is not None else "not checked"
 
     @property

@@ -12,7 +12,7 @@ the ground-truth ``X`` and ``Z``:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import yaml
@@ -33,7 +33,8 @@ cv2 = lazy_module("cv2")
 
 __all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look_at", "look_at_viewpoints", "perturb_poses", "seed_viewpoints",
            "seed_scenes", "add_noise", "simulate_session", "RealisticErrors", "RealisticScene", "REALISTIC", "EXACT",
-           "realistic_scene", "arm_forward_kinematics", "ARM_DH"]
+           "realistic_scene", "arm_forward_kinematics", "ARM_DH",
+           "low_dof_scene", "LOW_DOF_ROBOTS"]
 
 
 @dataclass(frozen=True)
@@ -377,6 +378,7 @@ def simulate_session(
     image_ext: str = ".png",
     blur: float = 0.0,
     robot_noise: tuple[float, float] = (0.0, 0.0),
+    robot: str = "arm",
 ):
     """Render a complete capture session (DESIGN §4) with its ground truth.
 
@@ -393,6 +395,10 @@ def simulate_session(
         Put K and dist into session.yaml; otherwise handeye estimates them from the images.
     robot_noise : (deg, mm)
         Gaussian noise per axis on the written robot poses.
+    robot : {'arm', 'scara', 'cartesian'}
+        'arm' (default): viewpoints all around the target (a 6-axis arm); 'scara' or 'cartesian':
+        the poses of :func:`low_dof_scene` (the flange turns about the vertical only, or only
+        translates), which determine only part of X.
     """
     out = check_output_folder(out_dir)
     if (out / "session.yaml").exists() or (out / "images").exists():
@@ -407,8 +413,14 @@ def simulate_session(
     K, dist = default_camera(image_size)
     renderer = Renderer(K, dist, image_size)
     texture = target_texture(tgt)
-    cam2target = visible_viewpoints(n_poses, rng, renderer, texture.outline())
-    scene = scene_from_viewpoints(cam2target, setup, rng)
+    if robot == "arm":
+        scene = scene_from_viewpoints(visible_viewpoints(n_poses, rng, renderer, texture.outline()), setup, rng)
+    elif robot in LOW_DOF_ROBOTS:
+        low = low_dof_scene(n_poses, setup, robot, rng, robot_noise=(0.0, 0.0), pixel_px=0.0, target=spec,
+                            image_size=image_size)
+        scene = Scene(setup, low.X, low.Z, low.flange2base, low.target2cam)
+    else:
+        raise HandEyeError(f"unknown robot {robot!r}; use 'arm', {', '.join(map(repr, LOW_DOF_ROBOTS))}")
     flange2base = scene.flange2base
     if robot_noise[0] > 0 or robot_noise[1] > 0:
         flange2base = perturb_poses(flange2base, np.radians(robot_noise[0]), robot_noise[1] * 1e-3, rng)
@@ -433,6 +445,7 @@ def simulate_session(
         "dist": dist.tolist(),
         "noise_px": float(noise_px),
         "robot_noise_deg_mm": list(robot_noise),
+        "robot": robot,
         "seed": seed,
     }
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
@@ -518,7 +531,7 @@ class RealisticScene:
     setup: str
     X: NDArray[np.float64]
     Z: NDArray[np.float64]
-    joints: NDArray[np.float64]  #: (N, 6) rad
+    joints: NDArray[np.float64]  #: (N, 6) rad for the arm; (N, 4) x, y, z (m), yaw (rad) for low_dof_scene
     flange2base_true: NDArray[np.float64]
     flange2base: NDArray[np.float64]  #: what the robot reports
     target2cam_true: NDArray[np.float64]
@@ -558,21 +571,27 @@ def _scene_layout(setup: str, object_points: NDArray[np.float64], rng: np.random
 def _sample_joints(setup, X, Z, object_points, K, image_size, n, rng, margin_px=10.0, spread_deg=(25, 25, 25, 40, 40, 60)):
     """Joint angles around the home pose whose views see the whole target, 0.25-1.2 m away and
     less than 60 deg from face-on."""
-    w, h = image_size
     out = []
     for _ in range(50):
         q = ARM_HOME[setup] + np.radians(rng.uniform(-1, 1, (400, 6)) * spread_deg)
         t2c = predicted_target2cam(X, Z, arm_forward_kinematics(q), setup)
-        p = np.einsum("nij,mj->nmi", t2c[:, :3, :3], object_points) + t2c[:, None, :3, 3]
-        z = p[..., 2]
-        ok = (z.min(axis=1) > 0.25) & (z.max(axis=1) < 1.2) & (t2c[:, 2, 2] > np.cos(np.radians(60)))
-        uv = np.einsum("ij,nmj->nmi", K[:2, :2], p[..., :2] / np.where(z > 0, z, 1.0)[..., None]) + K[:2, 2]
-        ok &= ((uv[..., 0] > margin_px) & (uv[..., 0] < w - margin_px) & (uv[..., 1] > margin_px)
-               & (uv[..., 1] < h - margin_px)).all(axis=1)
-        out.extend(q[ok])
+        out.extend(q[_sees_target(t2c, object_points, K, image_size, margin_px)])
         if len(out) >= n:
             return np.array(out[:n])
     raise HandEyeError(f"could not find {n} views of the target for the realistic {setup} scene")
+
+
+def _sees_target(t2c: NDArray[np.float64], object_points: NDArray[np.float64], K: NDArray[np.float64],
+                 image_size: tuple[int, int], margin_px: float = 10.0) -> NDArray[np.bool_]:
+    """Per view: the whole target in the image (``margin_px`` from the border), 0.25-1.2 m away
+    and less than 60 deg from face-on."""
+    w, h = image_size
+    p = np.einsum("nij,mj->nmi", t2c[:, :3, :3], object_points) + t2c[:, None, :3, 3]
+    z = p[..., 2]
+    ok = (z.min(axis=1) > 0.25) & (z.max(axis=1) < 1.2) & (t2c[:, 2, 2] > np.cos(np.radians(60)))
+    uv = np.einsum("ij,nmj->nmi", K[:2, :2], p[..., :2] / np.where(z > 0, z, 1.0)[..., None]) + K[:2, 2]
+    return ok & ((uv[..., 0] > margin_px) & (uv[..., 0] < w - margin_px) & (uv[..., 1] > margin_px)
+                 & (uv[..., 1] < h - margin_px)).all(axis=1)
 
 
 def _robot_reading(q, flange2base_true, errors: RealisticErrors, rng):
@@ -647,4 +666,90 @@ def realistic_scene(
     reported = _robot_reading(q, f2b_true, errors, rng)
     t2c, image_points, flipped = _camera_reading(t2c_true, obj, K, dist, errors, rng)
     return RealisticScene(setup, X, Z, q, f2b_true, reported, t2c_true, t2c, obj, image_points, K, dist,
+                          tuple(image_size), flipped)
+
+
+#: Robots whose flange cannot rotate freely (:func:`low_dof_scene`): a SCARA turns its flange about
+#: the vertical only; a Cartesian gantry only translates it.
+LOW_DOF_ROBOTS = ("scara", "cartesian")
+
+
+def _low_dof_layout(setup: str, centre: NDArray[np.float64], rng: np.random.Generator):
+    """X and Z of a cell whose flange points down: eye-in-hand, a camera beside the flange looking
+    down at a table target; eye-to-hand, a camera on the floor looking up at a target under the flange."""
+    tilt = Rotation.from_rotvec(rng.normal(0.0, np.radians(4.0), 3)).as_matrix()
+    yaw = Rotation.from_euler("z", rng.uniform(-180, 180), degrees=True).as_matrix()
+    down = Rotation.from_euler("x", 180, degrees=True).as_matrix()  # z along -z of the base
+    if setup_info(setup).camera_on_flange:
+        # the camera looks along the flange z axis (down); its offset along that axis is what SCARA data cannot see
+        X = make_transform(yaw @ tilt, [rng.uniform(-0.06, 0.06), rng.uniform(-0.06, 0.06), rng.uniform(0.03, 0.09)])
+        R_t = down @ Rotation.from_euler("z", rng.uniform(-180, 180), degrees=True).as_matrix()
+        Z = make_transform(R_t, np.array([0.45, 0.0, rng.uniform(-0.05, 0.05)]) - R_t @ centre)
+        return X, Z
+    Z = make_transform(down @ tilt, [rng.uniform(-0.03, 0.03), rng.uniform(-0.03, 0.03), 0.02])
+    X = make_transform(yaw @ tilt.T, [0.45, 0.0, rng.uniform(-0.1, 0.0)])  # looking up (+z of the base)
+    return X, Z
+
+
+def low_dof_scene(
+    n_poses: int,
+    setup: str = "eye_in_hand",
+    robot: str = "scara",
+    rng: np.random.Generator | int | None = None,
+    robot_noise: tuple[float, float] = (0.05, 0.2),
+    pixel_px: float = 0.3,
+    target: str | dict = "chessboard",
+    image_size: tuple[int, int] = (1280, 1024),
+    yaw_range_deg: float = 150.0,
+) -> RealisticScene:
+    """A capture by a robot that cannot rotate its flange freely.
+
+    ``robot='scara'``: the flange points down and turns about the vertical only (a 4-axis SCARA:
+    x, y, z, yaw); ``'cartesian'``: a gantry whose flange only translates. The controller reports
+    exactly that form (``joints``: x, y, z in m and yaw in rad per pose); the true flange pose
+    differs from it by Gaussian noise of ``robot_noise`` (deg, mm per axis; the arm is not perfect,
+    so the true pose may tilt a little). The camera's poses come from PnP on projections of the
+    target with ``pixel_px`` Gaussian noise. Eye-in-hand: a camera beside the flange looks down at
+    a table target; eye-to-hand: a camera on the floor looks up at a target under the flange.
+    """
+    check_setup(setup)
+    if robot not in LOW_DOF_ROBOTS:
+        raise HandEyeError(f"unknown robot {robot!r}; use one of {', '.join(LOW_DOF_ROBOTS)}")
+    rng = np.random.default_rng(rng)
+    spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
+    obj = target_from_spec(spec).object_points()
+    K, dist = default_camera(image_size)
+    centre = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
+    X, Z = _low_dof_layout(setup, centre, rng)
+    down = Rotation.from_euler("x", 180, degrees=True).as_matrix()
+    yaw0 = rng.uniform(-np.pi, np.pi)
+    chosen = []
+    for _ in range(50):
+        m = 400
+        yaw = yaw0 + (np.radians(rng.uniform(-yaw_range_deg, yaw_range_deg, m)) if robot == "scara" else np.zeros(m))
+        R_f = Rotation.from_euler("z", yaw[:, None]).as_matrix() @ down
+        offset = np.stack([rng.uniform(-0.12, 0.12, m), rng.uniform(-0.12, 0.12, m), rng.uniform(0.3, 0.5, m)], axis=1)
+        if setup_info(setup).camera_on_flange:
+            # the camera above the target centre; the flange where that puts it
+            cam = (Z[:3, :3] @ centre + Z[:3, 3]) + offset
+            p = cam - R_f @ X[:3, 3]
+        else:
+            # the target centre above the camera
+            p = X[:3, 3] + offset - R_f @ (Z[:3, :3] @ centre + Z[:3, 3])
+        reported = make_transform(R_f, p)
+        ok = _sees_target(predicted_target2cam(X, Z, reported, setup), obj, K, image_size)
+        chosen.extend(np.concatenate([p, yaw[:, None]], axis=1)[ok])
+        if len(chosen) >= n_poses:
+            break
+    else:
+        raise HandEyeError(f"could not find {n_poses} views of the target for the {robot} {setup} scene")
+    joints = np.array(chosen[:n_poses])
+    reported = make_transform(Rotation.from_euler("z", joints[:, 3:]).as_matrix() @ down, joints[:, :3])
+    rot = np.radians(robot_noise[0]) * rng.normal(size=(n_poses, 3))
+    tra = 1e-3 * robot_noise[1] * rng.normal(size=(n_poses, 3))
+    f2b_true = make_transform(Rotation.from_rotvec(rot).as_matrix() @ reported[:, :3, :3], reported[:, :3, 3] + tra)
+    t2c_true = predicted_target2cam(X, Z, f2b_true, setup)
+    errors = replace(EXACT, pixel_px=pixel_px)
+    t2c, image_points, flipped = _camera_reading(t2c_true, obj, K, dist, errors, rng)
+    return RealisticScene(setup, X, Z, joints, f2b_true, reported, t2c_true, t2c, obj, image_points, K, dist,
                           tuple(image_size), flipped)

@@ -105,6 +105,39 @@ def _transform_dict(T: NDArray[np.float64], cal: Calibration | None = None) -> d
     return out
 
 
+def _finite_or_none(v: NDArray[np.float64]) -> list[float | None]:
+    """JSON has no infinity: an undetermined std is null (see ``unobservable``)."""
+    return [float(x) if np.isfinite(x) else None for x in v]
+
+
+def _determined(cal: Calibration) -> dict[str, str]:
+    """Per parameter of X (rotation, translation x, y, z in X's parent frame): 'data', 'given' (a
+    known value fixed it: named) or 'undetermined'."""
+    x_name = setup_info(cal.setup).x_name
+    out = {"rotation": "data"}
+    given = [name for name, k in cal.known.items() if k["used"]]
+    for k, axis in enumerate("xyz"):
+        if cal.std is not None and np.isinf(cal.std[3 + k]):
+            out[f"{x_name}.{axis}"] = "undetermined"
+        elif given and cal.motion_kind != "general" and _along_open(cal, k):
+            out[f"{x_name}.{axis}"] = "given (" + ", ".join(given) + ")"
+        else:
+            out[f"{x_name}.{axis}"] = "data"
+    return out
+
+
+def _along_open(cal: Calibration, k: int) -> bool:
+    """Whether X's translation component ``k`` lies along a direction the motions cannot see (the
+    robot's only rotation axis for one-axis motions; every direction for pure translations)."""
+    if cal.motion_kind == "translation_only":
+        return True
+    axis = cal.motions.dq_a[:, 1:4] if cal.motions is not None else None
+    if axis is None or not len(axis):
+        return False
+    e = np.linalg.eigh(axis.T @ axis)[1][:, -1]  # the robot's rotation axis, in X's parent frame
+    return abs(e[k]) > 0.35
+
+
 def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: str | None = None) -> dict[str, Any]:
     """A plain, JSON/YAML-ready description of a calibration (see the module docstring).
 
@@ -167,8 +200,8 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
         out["refinement"]["pose_noise"] = dict(cal.pose_noise)
     if cal.cov is not None:
         out["uncertainty"] = {
-            "std_rotation_deg": cal.std[:3].tolist(),
-            "std_translation_mm": cal.std[3:].tolist(),
+            "std_rotation_deg": _finite_or_none(cal.std[:3]),
+            "std_translation_mm": _finite_or_none(cal.std[3:]),
             "cov": cal.cov.tolist(),
             "cov_parameters": "X: rotation vector increment (rad, left), translation (m)",
         }
@@ -185,10 +218,15 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
                        "pose alone: pixels (with images) and millimetres at the target's distance; the number to "
                        "trust for how well X and Z predict new views",
         }
+    out["determined"] = _determined(cal)
+    if cal.unobservable:
+        out["unobservable"] = [u.as_dict() for u in cal.unobservable]
+    if cal.known:
+        out["known"] = {k: dict(v) for k, v in cal.known.items()}
     if cal.diagnostics is not None:
         d = cal.diagnostics
         out["check"] = {
-            "verdict": d.verdict,
+            "verdict": cal.verdict,
             "outliers": list(d.outliers),
             "pose_indices_used": [int(i) for i in cal.pose_indices],
             "consistency": float(d.consistency),

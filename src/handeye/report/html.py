@@ -42,7 +42,7 @@ SECTIONS = ("verdict", "result", "residuals", "overlays", "scene", "axes", "solv
 MAX_OVERLAYS = 60
 THUMB_WIDTH = 360
 
-_COLOURS = {"good": "#1e7b34", "weak": "#b36b00", "degenerate": "#b00020", "inconsistent": "#b00020",
+_COLOURS = {"good": "#1e7b34", "weak": "#b36b00", "partial": "#b36b00", "degenerate": "#b00020", "inconsistent": "#b00020",
             "not checked": "#555555"}
 
 _CSS = """
@@ -81,7 +81,7 @@ def _e(s: object) -> str:
 
 
 def _fmt(v, digits: int = 3) -> str:
-    return ", ".join(f"{x:.{digits}f}" for x in np.atleast_1d(v))
+    return ", ".join(f"{x:.{digits}f}" if np.isfinite(x) else "not determined" for x in np.atleast_1d(v))
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -243,10 +243,13 @@ def _transform_table(T: NDArray[np.float64], std: NDArray[np.float64] | None) ->
 
 def _verdict_section(cal: Calibration, verdict: str, pres: NDArray[np.float64]) -> str:
     std_txt = ""
-    if cal.std is not None:
+    if cal.std is not None and cal.unobservable:
+        std_txt = f" · {len(cal.unobservable)} direction(s) of X's translation not determined by the data (see Result)"
+    elif cal.std is not None:
         std_txt = (f" · std of X: {np.linalg.norm(cal.std[3:]):.3f} mm (translation, all axes), "
                    f"{np.linalg.norm(cal.std[:3]):.4f} deg (rotation)")
     headline = {"good": "the data determine X well", "weak": "usable, but the data leave X poorly determined",
+                "partial": "the motions determine only part of X",
                 "degenerate": "the motions cannot determine X", "inconsistent": "the poses do not agree on one X",
                 "not checked": "the data were not checked"}.get(verdict, "")
     return (f'<section id="verdict"><div class="banner" style="background:{_COLOURS.get(verdict, "#555")}">'
@@ -260,6 +263,7 @@ def _result_section(cal: Calibration, data: dict) -> str:
              f"refinement: {_e(cal.refinement)}"
              + (f", RMS {cal.refined_rms:.3f} px over all target points" if cal.refined_rms is not None else "")
              + "</p>" + _transform_table(cal.X, cal.std)
+             + _determined_table(cal, data)
              + f"<h3>Z = {_e(data['Z_name'])}</h3>" + _transform_table(cal.Z, None)
              + "<h3>Paste into ROS 2</h3>"
              + f"<pre>{_e(data['ros']['static_transform_publisher'])}</pre><pre>{_e(data['ros']['urdf_joint'])}</pre>"]
@@ -276,6 +280,23 @@ def _result_section(cal: Calibration, data: dict) -> str:
                      + (f"; camera calibration RMS {cal.intrinsics_rms:.3f} px" if cal.intrinsics_rms is not None else "")
                      + "</p>")
     parts.append("</section>")
+    return "".join(parts)
+
+
+def _determined_table(cal: Calibration, data: dict) -> str:
+    """Which parameters of X the data determine, which were given (``known=``), which stay open; only
+    for motions that determine part of X (SCARA, Cartesian robots)."""
+    if cal.motion_kind == "general" and not cal.known:
+        return ""
+    rows = "".join(f'<tr><td class="l">{_e(k)}</td><td class="l">{_e(v)}</td></tr>' for k, v in data["determined"].items())
+    parts = ["<h3>What the data determine</h3>",
+             f'<table><tr><th class="l">parameter of X</th><th class="l">from</th></tr>{rows}</table>']
+    for u in cal.unobservable:
+        parts.append(f"<p><b>Not determined:</b> {_e(u.parameter)} (direction [{_fmt(u.direction, 3)}] in the "
+                     f"{_e(u.frame)} frame); set to {_e(u.choice)}. {_e(u.coupled)}. To fix it: {_e(u.fix)}.</p>")
+    for name, k in cal.known.items():
+        use = "used: the data cannot determine it" if k["used"] else f"not used: the data give {k['data_m']:.5f} m"
+        parts.append(f"<p>known {_e(name)} = {k['value_m']:.5f} ± {k['std_m']:.5f} m ({_e(use)})</p>")
     return "".join(parts)
 
 

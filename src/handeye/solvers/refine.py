@@ -34,7 +34,7 @@ from ..setups import check_setup, constant_transforms, predicted_target2cam, rob
 from ..vision.pnp import project_points, project_points_many, solve_pnp
 from ..vision.targets import Detection
 
-__all__ = ["PoseRefinementResult", "ReprojectionResult", "downdate_reprojection", "pose_mahalanobis", "refine_pose",
+__all__ = ["PoseRefinementResult", "ReprojectionResult", "TranslationPriors", "downdate_reprojection", "pose_mahalanobis", "refine_pose",
            "refit_pose", "refine_reprojection", "predicted_target2cam"]
 
 
@@ -385,6 +385,32 @@ def _grouped_jacobian(fun, groups):
 
 
 @dataclass(frozen=True)
+class TranslationPriors:
+    """Linear measurements of the translations of X and Z for :func:`refine_pose`:
+    ``G @ [t_X, t_Z] = values`` with standard deviations ``stds`` (metres).
+
+    Attributes
+    ----------
+    G : ndarray (P, 6)
+        One row per measurement over ``[t_X (3), t_Z (3)]`` (X's translation in the frame X maps
+        into, Z's in Z's), e.g. ``[0, 0, 1, 0, 0, 0]`` for the z component of X's translation.
+    values, stds : ndarray (P,)
+    """
+
+    G: NDArray[np.float64]
+    values: NDArray[np.float64]
+    stds: NDArray[np.float64]
+
+    def rows(self, X0: NDArray[np.float64], Z0: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The whitened residual rows ``J @ x + f`` over the 12 increments of ``refine_pose``."""
+        G = np.asarray(self.G, float) / np.asarray(self.stds, float)[:, None]
+        J = np.zeros((len(G), 12))
+        J[:, 3:6], J[:, 9:12] = G[:, :3], G[:, 3:]
+        f = G @ np.concatenate([X0[:3, 3], Z0[:3, 3]]) - np.asarray(self.values, float) / np.asarray(self.stds, float)
+        return J, f
+
+
+@dataclass(frozen=True)
 class PoseRefinementResult:
     X: NDArray[np.float64]
     Z: NDArray[np.float64]
@@ -548,6 +574,19 @@ def _pose_covariance(J, f, theta, weighting: str, n: int, dof: int) -> tuple[NDA
 VARIANCE_FLOOR = 1e-24
 
 
+def _refine_pose_inputs(flange2base, target2cam, setup: str, weighting: str, priors) -> tuple:
+    check_setup(setup)
+    if weighting not in ("noise_model", "strobl"):
+        raise ValueError(f"weighting={weighting!r}; use 'noise_model' or 'strobl'")
+    flange2base = np.asarray(flange2base, dtype=float)
+    target2cam = np.asarray(target2cam, dtype=float)
+    if len(flange2base) < 3:
+        raise ValueError(f"pose refinement needs at least 3 poses, got {len(flange2base)}")
+    if priors is not None and weighting != "noise_model":
+        raise ValueError("priors need weighting='noise_model'")
+    return flange2base, target2cam, len(flange2base)
+
+
 def refine_pose(
     X0: NDArray[np.float64],
     Z0: NDArray[np.float64],
@@ -556,6 +595,7 @@ def refine_pose(
     setup: str,
     weighting: str = "noise_model",
     max_rounds: int = 20,
+    priors: TranslationPriors | None = None,
 ) -> PoseRefinementResult:
     """Refine X and Z on the poses: the optimal correction of Strobl and Hirzinger (seed §2.2.4).
 
@@ -585,20 +625,17 @@ def refine_pose(
         independent).
     max_rounds : int
         Most weight re-estimation rounds.
+    priors : TranslationPriors, optional
+        Linear measurements of the translations of X and Z (``G @ [t_X, t_Z] = value +- std``),
+        each one more residual: what fixes the directions the poses cannot see (a SCARA's camera
+        height, :mod:`handeye.solvers.low_dof`). 'noise_model' weighting only.
 
     Returns
     -------
     PoseRefinementResult
         ``cov_X`` is scaled by the residual variance factor (chi-square over degrees of freedom).
     """
-    check_setup(setup)
-    if weighting not in ("noise_model", "strobl"):
-        raise ValueError(f"weighting={weighting!r}; use 'noise_model' or 'strobl'")
-    flange2base = np.asarray(flange2base, dtype=float)
-    target2cam = np.asarray(target2cam, dtype=float)
-    n = len(flange2base)
-    if n < 3:
-        raise ValueError(f"pose refinement needs at least 3 poses, got {n}")
+    flange2base, target2cam, n = _refine_pose_inputs(flange2base, target2cam, setup, weighting, priors)
 
     def unpack(x):
         return _xz_increment(x, X0, Z0)
@@ -609,6 +646,9 @@ def refine_pose(
     x = np.zeros(12)
     r, target2flange, _ = _pose_residuals(X0, Z0, flange2base, target2cam, setup)
     dof = 6 * n - 12
+    # the priors: rows of their own, linear in the translation increments, whitened by their std
+    prior_J, prior_f = priors.rows(X0, Z0) if priors is not None else (np.zeros((0, 12)), np.zeros(0))
+    dof += len(prior_f)
     shapes = _noise_shapes(target2flange) if weighting == "noise_model" else None
     theta = _initial_variances(r, weighting)
 
@@ -617,12 +657,15 @@ def refine_pose(
             h = 1e-6
             cols = [np.einsum("nij,nj->ni", W, raw(x + h * e) - raw(x - h * e)).ravel() / (2 * h) for e in np.eye(12)]
             return np.stack(cols, axis=1)
-        return _whitened_pose_jacobian(x, W, unpack, flange2base, target2cam, setup)
+        return np.vstack([_whitened_pose_jacobian(x, W, unpack, flange2base, target2cam, setup), prior_J])
+
+    def weighted(x, W):
+        return np.concatenate([np.einsum("nij,nj->ni", W, raw(x)).ravel(), prior_J @ x + prior_f])
 
     converged, res = False, None
     for rounds in range(1, max_rounds + 1):
         W = _pose_weights(theta, shapes, weighting, n)
-        res = least_squares(lambda x, W=W: np.einsum("nij,nj->ni", W, raw(x)).ravel(), x,
+        res = least_squares(lambda x, W=W: weighted(x, W), x,
                             jac=lambda x, W=W: weighted_jac(x, W), method="trf",
                             x_scale=np.full(12, 1e-3), xtol=1e-10, ftol=1e-10, gtol=1e-10)
         x = res.x
@@ -639,13 +682,10 @@ def refine_pose(
         if converged:
             break
     W = _pose_weights(theta, shapes, weighting, n)
-    cov, noise = _pose_covariance(weighted_jac(x, W), np.einsum("nij,nj->ni", W, raw(x)), theta, weighting, n, dof)
+    cov, noise = _pose_covariance(weighted_jac(x, W), weighted(x, W), theta, weighting, n, dof)
     X, Z = unpack(x)
-    return PoseRefinementResult(
-        X=X, Z=Z, cov_X=cov[:6, :6], cov_Z=cov[6:, 6:], cov=cov, noise={k: float(np.sqrt(v)) for k, v in noise.items()},
-        residuals=r, rounds=rounds, converged=converged, weighting=weighting,
-        success=bool(res.success), message=str(res.message),
-    )
+    return PoseRefinementResult(X, Z, cov[:6, :6], cov[6:, 6:], cov, {k: float(np.sqrt(v)) for k, v in noise.items()},
+                                r, rounds, converged, weighting, bool(res.success), str(res.message))
 
 
 def refit_pose(X0: NDArray[np.float64], Z0: NDArray[np.float64], flange2base: NDArray[np.float64],
