@@ -184,7 +184,7 @@ def test_rank_check_in_solver_itself(rng):
 
 def test_unknown_method_is_named():
     s = random_scene(4, "eye_in_hand", rng=0)
-    with pytest.raises(InputMismatchError, match="unknown solver .tsai.; available: andreff, daniilidis"):
+    with pytest.raises(InputMismatchError, match="unknown solver .tsai.; available: andreff, certifiable, certifiable_robot_world, daniilidis"):
         handeye.calibrate_poses(s.flange2base, s.target2cam, method="tsai")
     assert "daniilidis" in handeye.solvers.available()
 

@@ -7,6 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import handeye
+import realdata
 from handeye.diagnostics import RobotPoseInput, diagnose
 from handeye.geometry.se3 import invert, make_transform, random_rotations
 from handeye.metrics import translation_error
@@ -108,25 +109,35 @@ def test_degrees_declared_as_radians_is_named():
         assert d.verdict == "inconsistent" and d.convention_hint == "angle_unit:deg", d.summary()
 
 
+def _random_poses_run(args):
+    X, f, f_bad, t, _ = args
+    cal = handeye.calibrate_poses(f_bad, t, refine="pose")  # runs diagnose and leaves the outliers out
+    clean = handeye.calibrate_poses(f, t, refine="pose")
+    return (cal.diagnostics.outliers, cal.pose_indices.tolist(), cal.notes, translation_error(clean.X, X),
+            translation_error(cal.X, X))
+
+
 def test_random_poses_are_named_and_left_out():
     """20% of the poses replaced by random ones: every replaced pose named, clean ones named in at
     most 5% of scenes, and the calibration on what is left within 1.5x of the clean-data error."""
     rng = np.random.default_rng(7)
     n, n_bad = 15, 3
-    false_scenes, err_clean, err_bad = 0, [], []
-    for _ in range(SCENES):
+    tasks = []
+    for _ in range(SCENES):  # the draws here, the calibrations on both cores
         s, f, t = _noisy(rng, n=n)
         bad = rng.choice(n, n_bad, replace=False)
         f_bad = f.copy()
         f_bad[bad] = make_transform(random_rotations(n_bad, rng), f[bad][:, :3, 3] + rng.uniform(-0.3, 0.3, (n_bad, 3)))
-        cal = handeye.calibrate_poses(f_bad, t, refine="pose")  # runs diagnose and leaves the outliers out
-        d = cal.diagnostics
-        assert set(bad.tolist()) <= set(d.outliers), (sorted(bad), d.outliers)
-        assert sorted(set(range(n)) - set(d.outliers)) == cal.pose_indices.tolist()
-        assert any("left out" in note for note in cal.notes)
-        false_scenes += bool(set(d.outliers) - set(bad.tolist()))
-        err_clean.append(translation_error(handeye.calibrate_poses(f, t, refine="pose").X, s.X))
-        err_bad.append(translation_error(cal.X, s.X))
+        tasks.append((s.X, f, f_bad, t, bad))
+    with realdata.worker_pool() as pool:
+        runs = list(pool.map(_random_poses_run, tasks))
+    false_scenes = 0
+    for (_, _, _, _, bad), (outliers, used, notes, _, _) in zip(tasks, runs):
+        assert set(bad.tolist()) <= set(outliers), (sorted(bad), outliers)
+        assert sorted(set(range(n)) - set(outliers)) == used
+        assert any("left out" in note for note in notes)
+        false_scenes += bool(set(outliers) - set(bad.tolist()))
+    err_clean, err_bad = [r[3] for r in runs], [r[4] for r in runs]
     rms = lambda e: float(np.sqrt(np.mean(np.square(e))))  # noqa: E731
     print(f"clean poses named in {false_scenes}/{SCENES} scenes; X translation RMS clean {1e3 * rms(err_clean):.3f} mm, "
           f"with 20% random poses {1e3 * rms(err_bad):.3f} mm")

@@ -7,6 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import handeye
+import realdata
 from handeye.metrics import rotation_error, translation_error
 from handeye.simulate import default_camera, perturb_poses, random_scene, scene_from_viewpoints, visible_viewpoints
 from handeye.solvers.refine import refine_pose, refine_reprojection
@@ -14,31 +15,42 @@ from handeye.vision import Detection, solve_pnp, target_from_spec
 from handeye.vision.render import Renderer, target_texture
 
 
-def _monte_carlo(runs: int, sigma_px: float, setup: str, seed: int):
-    rng = np.random.default_rng(seed)
+def _mc_camera():
     size = (640, 480)
     K, dist = default_camera(size)
-    renderer = Renderer(K, dist, size, supersample=1)
     target = target_from_spec({"type": "chessboard", "cols": 9, "rows": 6, "square": 0.03})
+    return size, K, dist, target
+
+
+def _mc_run(args):
+    """One run of :func:`_monte_carlo` on its drawn data: PnP, closed form, reprojection refinement."""
+    flange2base, X, pixels, setup = args
+    _, K, dist, target = _mc_camera()
+    obj = target.object_points()
+    dets = [Detection(np.arange(len(obj)), px, obj) for px in pixels]
+    poses = [solve_pnp(det, K, dist)[0] for det in dets]
+    cal = handeye.calibrate_poses(flange2base, np.array(poses), setup=setup, refine="none", check=False)
+    ref = refine_reprojection(cal.X, cal.Z, flange2base, [d.object_points for d in dets],
+                              [d.image_points for d in dets], K, dist, setup)
+    # errors in the covariance's own parameterisation: left rotation increment, translation
+    return (Rotation.from_matrix(ref.X[:3, :3] @ X[:3, :3].T).as_rotvec(), ref.X[:3, 3] - X[:3, 3],
+            np.trace(ref.cov_X[:3, :3]), np.trace(ref.cov_X[3:, 3:]))
+
+
+def _monte_carlo(runs: int, sigma_px: float, setup: str, seed: int):
+    """The random draws in this process (the same numbers whatever the workers), the fits on both cores."""
+    rng = np.random.default_rng(seed)
+    size, K, dist, target = _mc_camera()
+    renderer = Renderer(K, dist, size, supersample=1)
     outline = target_texture(target).outline()
     obj = target.object_points()
-    err_rot, err_t, var_rot, var_t = [], [], [], []
+    tasks = []
     for _ in range(runs):
         scene = scene_from_viewpoints(visible_viewpoints(15, rng, renderer, outline), setup, rng)
-        dets, poses = [], []
-        for T in scene.target2cam:
-            px = renderer.project(obj, T) + rng.normal(0.0, sigma_px, (len(obj), 2))
-            det = Detection(np.arange(len(obj)), px, obj)
-            dets.append(det)
-            poses.append(solve_pnp(det, K, dist)[0])
-        cal = handeye.calibrate_poses(scene.flange2base, np.array(poses), setup=setup, refine="none", check=False)
-        ref = refine_reprojection(cal.X, cal.Z, scene.flange2base, [d.object_points for d in dets],
-                                  [d.image_points for d in dets], K, dist, setup)
-        # errors in the covariance's own parameterisation: left rotation increment, translation
-        err_rot.append(Rotation.from_matrix(ref.X[:3, :3] @ scene.X[:3, :3].T).as_rotvec())
-        err_t.append(ref.X[:3, 3] - scene.X[:3, 3])
-        var_rot.append(np.trace(ref.cov_X[:3, :3]))
-        var_t.append(np.trace(ref.cov_X[3:, 3:]))
+        pixels = [renderer.project(obj, T) + rng.normal(0.0, sigma_px, (len(obj), 2)) for T in scene.target2cam]
+        tasks.append((scene.flange2base, scene.X, pixels, setup))
+    with realdata.worker_pool() as pool:
+        err_rot, err_t, var_rot, var_t = zip(*pool.map(_mc_run, tasks, chunksize=10))
     rms = lambda e: float(np.sqrt(np.mean(np.sum(np.square(e), axis=1))))  # noqa: E731
     return rms(err_rot), float(np.sqrt(np.mean(var_rot))), rms(err_t), float(np.sqrt(np.mean(var_t)))
 
@@ -125,24 +137,31 @@ def pose_monte_carlo(request):
     angles and distances of every closed-form solver on the same data."""
     setup = request.param
     rng = np.random.default_rng(21)
-    err_rot, err_t, var_rot, var_t, noise = [], [], [], [], []
-    closed = {m: [] for m in CLOSED_FORMS}
+    tasks = []
     for _ in range(200):
         s = random_scene(15, setup, rng)
         f = perturb_poses(s.flange2base, np.radians(POSE_NOISE["robot_deg"]), 1e-3 * POSE_NOISE["robot_mm"], rng)
         t = perturb_poses(s.target2cam, np.radians(POSE_NOISE["cam_deg"]), 1e-3 * POSE_NOISE["cam_mm"], rng)
-        for m in CLOSED_FORMS:
-            c = handeye.calibrate_poses(f, t, setup=setup, method=m, refine="none", check=False)
-            closed[m].append((rotation_error(c.X, s.X), translation_error(c.X, s.X)))
-        # check=False: the data are clean by construction, and what is measured is the refinement
-        cal = handeye.calibrate_poses(f, t, setup=setup, check=False, refine="pose")  # the refinement's own model
-        assert cal.refinement == "pose"
-        err_rot.append(Rotation.from_matrix(cal.X[:3, :3] @ s.X[:3, :3].T).as_rotvec())
-        err_t.append(cal.X[:3, 3] - s.X[:3, 3])
-        var_rot.append(np.trace(cal.cov[:3, :3]))
-        var_t.append(np.trace(cal.cov[3:, 3:]))
-        noise.append(list(cal.pose_noise.values()))
-    return setup, np.array(err_rot), np.array(err_t), np.array(var_rot), np.array(var_t), closed, np.array(noise)
+        tasks.append((s.X, f, t, setup))
+    with realdata.worker_pool() as pool:
+        runs = list(pool.map(_pose_run, tasks, chunksize=10))
+    closed = {m: [r[0][m] for r in runs] for m in CLOSED_FORMS}
+    err_rot, err_t, var_rot, var_t, noise = (np.array([r[k] for r in runs]) for k in range(1, 6))
+    return setup, err_rot, err_t, var_rot, var_t, closed, noise
+
+
+def _pose_run(args):
+    """One run of the pose Monte Carlo: every closed form, and the pose refinement with its own model."""
+    X, f, t, setup = args
+    closed = {}
+    for m in CLOSED_FORMS:
+        c = handeye.calibrate_poses(f, t, setup=setup, method=m, refine="none", check=False)
+        closed[m] = (rotation_error(c.X, X), translation_error(c.X, X))
+    # check=False: the data are clean by construction, and what is measured is the refinement
+    cal = handeye.calibrate_poses(f, t, setup=setup, check=False, refine="pose")  # the refinement's own model
+    assert cal.refinement == "pose"
+    return (closed, Rotation.from_matrix(cal.X[:3, :3] @ X[:3, :3].T).as_rotvec(), cal.X[:3, 3] - X[:3, 3],
+            np.trace(cal.cov[:3, :3]), np.trace(cal.cov[3:, 3:]), list(cal.pose_noise.values()))
 
 
 def test_pose_refinement_predicted_std_matches_monte_carlo(pose_monte_carlo):
@@ -250,6 +269,15 @@ def _robot_noise_scene(rng, n_poses=15, robot=(0.05, 0.2), sigma_px=0.3, outline
     return scene, f2b, poses, cal, [obj] * n_poses, img, K, dist
 
 
+def _robot_aware_run(args):
+    scene, f2b, poses, cal, obj, img, K, dist = args
+    plain = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand")
+    robot = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", robot_noise=(np.radians(0.05), 0.2e-3))
+    pose = handeye.calibrate_poses(f2b, poses, check=False)
+    errs = {key: 1e3 * translation_error(X, scene.X) for key, X in (("plain", plain.X), ("robot", robot.X), ("pose", pose.X))}
+    return errs, 1e6 * np.trace(robot.cov_X[3:, 3:])
+
+
 def test_robot_aware_reprojection_refinement_removes_the_robot_bias():
     """Robot poses off by 0.05 deg / 0.2 mm per axis, 0.3 px, 15 poses, 40 runs. Taking the robot
     poses as exact, the pixel refinement pulls X by the robot errors and claims 5x too small a
@@ -257,17 +285,10 @@ def test_robot_aware_reprojection_refinement_removes_the_robot_bias():
     plain pixel fit, closer than the pose refinement, and its predicted std is honest (within 30%
     of the RMS error; 40 runs estimate an RMS to ~11%)."""
     rng = np.random.default_rng(21)
-    errs = {"plain": [], "robot": [], "pose": []}
-    pred = []
-    for _ in range(40):
-        scene, f2b, poses, cal, obj, img, K, dist = _robot_noise_scene(rng)
-        plain = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand")
-        robot = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand",
-                                    robot_noise=(np.radians(0.05), 0.2e-3))
-        pose = handeye.calibrate_poses(f2b, poses, check=False)
-        for key, X in (("plain", plain.X), ("robot", robot.X), ("pose", pose.X)):
-            errs[key].append(1e3 * translation_error(X, scene.X))
-        pred.append(1e6 * np.trace(robot.cov_X[3:, 3:]))
+    with realdata.worker_pool() as pool:  # the scenes drawn here, the fits on both cores
+        runs = list(pool.map(_robot_aware_run, [_robot_noise_scene(rng) for _ in range(40)], chunksize=5))
+    errs = {key: [r[0][key] for r in runs] for key in ("plain", "robot", "pose")}
+    pred = [r[1] for r in runs]
     rms = {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in errs.items()}
     pred_t = float(np.sqrt(np.mean(pred)))
     print(f"\nRMS translation error of X (mm): plain {rms['plain']:.3f}, robot-aware {rms['robot']:.3f} "

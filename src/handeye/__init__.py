@@ -12,14 +12,14 @@ from __future__ import annotations
 
 from . import metrics, setups, simulate, solvers
 from ._version import __version__
-from .calibration import calibrate, calibrate_poses
+from .calibration import calibrate, calibrate_poses, certify_calibration
 from .diagnostics import diagnose
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError, PoseFormatError
 from .geometry.dualquat import DualQuaternion
 from .motions import relative_motions
 from .poses import RobotPoseInput, format_poses, parse_poses
 from .report import write_calibration
-from .result import Calibration, Diagnostics
+from .result import Calibration, Diagnostics, Unobservable
 from .solvers import solve, solve_batch, solve_robot_world, solve_robot_world_batch
 
 __all__ = [
@@ -31,8 +31,10 @@ __all__ = [
     "InputMismatchError",
     "PoseFormatError",
     "RobotPoseInput",
+    "Unobservable",
     "calibrate",
     "calibrate_poses",
+    "certify_calibration",
     "diagnose",
     "format_poses",
     "metrics",

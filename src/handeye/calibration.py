@@ -27,12 +27,13 @@ from .poses import RobotPoseInput
 from .result import Calibration, Diagnostics
 from .session import POSEPAIRS_FILE, Session, SessionError, load_pose_pairs, load_session
 from .setups import check_setup
+from .solvers.certifiable import certify
 from .solvers.low_dof import partial_kind
 from .solvers.refine import PoseRefinementResult, ReprojectionResult, refine_pose
 from .validation import Views, jackknife_cov
 from .vision import calibrate_intrinsics, detect_images, resolve_symmetries, solve_pnp, target_from_spec
 
-__all__ = ["Calibration", "FolderCheck", "Observations", "ROBOT_ACCURACY", "apply_choice", "calibrate",
+__all__ = ["Calibration", "FolderCheck", "Observations", "ROBOT_ACCURACY", "apply_choice", "calibrate", "certify_calibration",
            "calibrate_observed", "calibrate_poses", "check_folder", "observe", "refine_on_pixels", "refine_on_poses",
            "robot_accuracy_cov", "widened_uncertainty"]
 
@@ -179,6 +180,26 @@ def calibrate_poses(
     finally:
         bar.close()
     return known_on_complete(cal, given)
+
+
+def certify_calibration(cal: Calibration) -> Calibration:
+    """``cal`` with ``certificate``: whether its X is the global minimum of the stated AX = XB cost of
+    :mod:`handeye.solvers.certifiable` on its motions (the duality gap of the semidefinite
+    relaxation), and a note saying so. Needs ``handeye[certifiable]``. The estimator that chose X
+    may minimise another cost (the pose or pixel refinements do): a gap then says how far X is from
+    that cost's minimum, not that X is wrong."""
+    if cal.motion_kind != "general":  # the relaxation needs motions that determine all of X
+        return replace(cal, notes=list(cal.notes) + ["certificate: not computed (the motions determine only part of X)"])
+    motions = cal.motions if cal.motions is not None else MotionSet.from_poses(cal.flange2base, cal.target2cam,
+                                                                                cal.setup, cal.pairs)
+    cert = certify(motions, None, cal.X)
+    if cert.optimal:
+        note = f"certificate: X is the global minimum of the stated motion cost (gap {cert.gap:.3g})"
+    else:
+        note = (f"certificate: X is not the global minimum of the stated motion cost (gap {cert.gap:.3g} of "
+                f"{cert.cost:.3g}; {cal.estimator or cal.method} minimises "
+                f"{'that cost' if cal.method == 'certifiable' else 'another'})")
+    return replace(cal, certificate=cert.as_dict(), notes=list(cal.notes) + [note])
 
 
 def _pose_options(setup: str, refine: str, robot_accuracy, known) -> tuple:

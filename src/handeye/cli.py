@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 from . import solvers
 from ._shared.io import check_output_folder
 from ._version import __version__
-from .calibration import ROBOT_ACCURACY, calibrate, calibrate_poses, check_folder
+from .calibration import ROBOT_ACCURACY, calibrate, calibrate_poses, certify_calibration, check_folder
 from .errors import HandEyeError
 from .geometry.se3 import make_transform
 from .planning import (easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov, reprojection_information,
@@ -164,6 +164,8 @@ def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
                           robot_accuracy=_accuracy_arg(args.robot_accuracy), progress=not args.no_progress,
                           camera_input=pairs.camera_input, known=_known_arg(args.known))
     cal = replace(cal, notes=list(pairs.notes) + list(cal.notes), input_folder=folder)
+    if args.certify:
+        cal = certify_calibration(cal)
     print_calibration(cal)
     _write_outputs(cal, args)
     return _verdict_status(cal)
@@ -194,6 +196,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     cal = calibrate(session, method=args.method, refine=args.refine, jobs=args.jobs, progress=not args.no_progress,
                     robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()), strict=args.strict,
                     robot_accuracy=_accuracy_arg(args.robot_accuracy), known=_known_arg(args.known))
+    if args.certify:
+        cal = certify_calibration(cal)
     _print_image_summary(cal)
     print_calibration(cal)
     _write_outputs(cal, args)
@@ -398,6 +402,9 @@ def _add_solver_and_out(p: argparse.ArgumentParser) -> None:
                    f"invisible in the data; default {ROBOT_ACCURACY[0]:g},{ROBOT_ACCURACY[1]:g}; 0,0 for an exact robot)")
     p.add_argument("--strict", action="store_true",
                    help="fail (exit 2) instead of answering when the check calls the data inconsistent")
+    p.add_argument("--certify", action="store_true",
+                   help="certify whether X is the global minimum of the stated motion cost (a semidefinite relaxation; "
+                   "needs pip install 'handeye[certifiable]')")
     p.add_argument("--known", action="append", metavar="TRANSFORM.AXIS=METRES[+-STD]", default=[],
                    help="what the data cannot determine, given (SCARA and Cartesian robots): e.g. "
                    "--known target2base.z=0.012 (the board's height), --known cam2flange.z=0.085+-0.001 (from the "

@@ -539,7 +539,7 @@ def compare_solvers(flange2base: NDArray[np.float64], target2cam: NDArray[np.flo
     (deg, mm) and the time taken (ms); ``error`` instead when it cannot solve these data.
     """
     rows = []
-    for name in solvers.available():
+    for name in solvers.available(closed_forms=True):
         start = time.perf_counter()
         try:
             X, Z, _ = closed_form(flange2base, target2cam, setup, name, pairs)

@@ -71,7 +71,7 @@ def _pose(method: str, views: Views | None) -> Fit:
 def pose_candidates(method: str = "daniilidis", views: Views | None = None) -> dict[str, Fit]:
     """Every registered closed form, and the pose refinement started from ``method`` (warm-started
     from the refinement on all of ``views`` when given)."""
-    out = {name: _closed(name) for name in solvers.available() if name not in SLOW_CLOSED_FORMS}
+    out = {name: _closed(name) for name in solvers.available(closed_forms=True) if name not in SLOW_CLOSED_FORMS}
     out[POSE] = _pose(method, views)
     return out
 

@@ -259,6 +259,32 @@ def _candidates(standoff: float, tilt_max_deg: float, centre: NDArray[np.float64
     return look_at(position, np.broadcast_to(centre, position.shape), Rl + A)
 
 
+def _reachable(flange2base: NDArray[np.float64], keep: NDArray[np.bool_], n_poses: int, z_range, reach_box) -> NDArray[np.bool_]:
+    """The candidates whose flange lies in ``z_range`` and ``reach_box`` (each optional); raises when
+    fewer than ``n_poses`` of the visible ones (``keep``) are left."""
+    keep = keep.copy()
+    if z_range is not None:
+        lo, hi = (float(v) for v in z_range)
+        if not lo < hi:
+            raise HandEyeError(f"z range {lo:g}, {hi:g}: give zmin,zmax (m) with zmin below zmax")
+        keep &= (flange2base[:, 2, 3] >= lo) & (flange2base[:, 2, 3] <= hi)
+        if keep.sum() < n_poses:
+            raise HandEyeError(f"only {int(keep.sum())} views that see the whole target put the flange within z "
+                               f"{lo:g}..{hi:g} m; widen the range or change the standoff")
+    if reach_box is not None:
+        box = np.asarray(reach_box, dtype=float).ravel()
+        if box.size != 6 or np.any(box[:3] >= box[3:]):
+            raise HandEyeError("reach box: give xmin,ymin,zmin,xmax,ymax,zmax (m) with each min below its max")
+        t = flange2base[:, :3, 3]
+        inside = np.all((t >= box[:3]) & (t <= box[3:]), axis=1)
+        if (keep & inside).sum() < n_poses:
+            raise HandEyeError(
+                f"only {int((keep & inside).sum())} views that see the whole target put the flange inside the reach "
+                f"box; enlarge the box, move the target, or change the standoff")
+        keep &= inside
+    return keep
+
+
 def plan_poses(
     setup: str,
     X: ArrayLike,
@@ -341,25 +367,7 @@ def plan_poses(
         raise HandEyeError(
             f"only {int(keep.sum())} of {len(keep)} candidate views keep the whole target {margin_px:g} px inside the "
             f"image at a standoff of {standoff:g} m; increase the standoff or use a smaller target")
-    if z_range is not None:
-        lo, hi = (float(v) for v in z_range)
-        if not lo < hi:
-            raise HandEyeError(f"z range {lo:g}, {hi:g}: give zmin,zmax (m) with zmin below zmax")
-        keep &= (flange2base[:, 2, 3] >= lo) & (flange2base[:, 2, 3] <= hi)
-        if keep.sum() < n_poses:
-            raise HandEyeError(f"only {int(keep.sum())} views that see the whole target put the flange within z "
-                               f"{lo:g}..{hi:g} m; widen the range or change the standoff")
-    if reach_box is not None:
-        box = np.asarray(reach_box, dtype=float).ravel()
-        if box.size != 6 or np.any(box[:3] >= box[3:]):
-            raise HandEyeError("reach box: give xmin,ymin,zmin,xmax,ymax,zmax (m) with each min below its max")
-        t = flange2base[:, :3, 3]
-        inside = np.all((t >= box[:3]) & (t <= box[3:]), axis=1)
-        if (keep & inside).sum() < n_poses:
-            raise HandEyeError(
-                f"only {int((keep & inside).sum())} views that see the whole target put the flange inside the reach "
-                f"box; enlarge the box, move the target, or change the standoff")
-        keep &= inside
+    keep = _reachable(flange2base, keep, n_poses, z_range, reach_box)
     idx = np.flatnonzero(keep)
     infos = reprojection_information(flange2base[idx], X, Z, setup, obj, K)
     weight = np.r_[np.full(3, standoff**2), np.ones(3)]  # rotation error seen at the standoff, in metres

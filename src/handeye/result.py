@@ -234,6 +234,9 @@ class Calibration:
     #: the values given with ``known=``: name -> {'value_m', 'std_m', 'used' (it fixed what the data could
     #: not), 'data_m' (the data's own value when they determine it, else None)}
     known: dict[str, dict] = field(default_factory=dict)
+    #: from handeye.certify_calibration: whether X is the global minimum of the stated motion cost
+    #: ({'optimal', 'gap', 'cost', 'lower_bound', 'tight', 'cost_name'}); None when not certified
+    certificate: dict | None = None
 
     @property
     def verdict(self) -> str:

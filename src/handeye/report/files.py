@@ -138,6 +138,15 @@ def _along_open(cal: Calibration, k: int) -> bool:
     return abs(e[k]) > 0.35
 
 
+def _images_dict(cal: Calibration) -> dict[str, Any]:
+    return {
+        "images": {"used": list(cal.image_names), "reprojection_rms_px": cal.reprojection_rms.tolist(),
+                   "skipped": [{"image": n, "reason": r} for n, r in cal.skipped]},
+        "camera": {"source": cal.intrinsics_source, "K": cal.camera_matrix.tolist(), "dist": cal.dist_coeffs.tolist(),
+                   "rms_px": cal.intrinsics_rms},
+    }
+
+
 def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: str | None = None) -> dict[str, Any]:
     """A plain, JSON/YAML-ready description of a calibration (see the module docstring).
 
@@ -182,17 +191,7 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
     }
     if cal.image_names is not None:
         out["pose_residuals"]["images"] = list(cal.image_names)
-        out["images"] = {
-            "used": list(cal.image_names),
-            "reprojection_rms_px": cal.reprojection_rms.tolist(),
-            "skipped": [{"image": n, "reason": r} for n, r in cal.skipped],
-        }
-        out["camera"] = {
-            "source": cal.intrinsics_source,
-            "K": cal.camera_matrix.tolist(),
-            "dist": cal.dist_coeffs.tolist(),
-            "rms_px": cal.intrinsics_rms,
-        }
+        out.update(_images_dict(cal))
     out["refinement"] = {"type": cal.refinement}
     if cal.refined_rms is not None:
         out["refinement"]["rms_px"] = cal.refined_rms
@@ -223,6 +222,8 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
         out["unobservable"] = [u.as_dict() for u in cal.unobservable]
     if cal.known:
         out["known"] = {k: dict(v) for k, v in cal.known.items()}
+    if cal.certificate is not None:
+        out["certificate"] = dict(cal.certificate)
     if cal.diagnostics is not None:
         d = cal.diagnostics
         out["check"] = {

@@ -267,6 +267,11 @@ def _result_section(cal: Calibration, data: dict) -> str:
              + f"<h3>Z = {_e(data['Z_name'])}</h3>" + _transform_table(cal.Z, None)
              + "<h3>Paste into ROS 2</h3>"
              + f"<pre>{_e(data['ros']['static_transform_publisher'])}</pre><pre>{_e(data['ros']['urdf_joint'])}</pre>"]
+    if cal.certificate is not None:
+        c = cal.certificate
+        parts.append(f"<p><b>Certificate:</b> X is {'' if c['optimal'] else 'not '}the global minimum of the stated "
+                     f"cost ({_e(c['cost_name'])}): cost {c['cost']:.6g}, lower bound {c['lower_bound']:.6g}, gap "
+                     f"{c['gap']:.3g}{'' if c['tight'] else ' (relaxation not tight)'}</p>")
     if cal.cross_validation is not None:
         parts.append(_cross_validation_table(cal))
     if cal.pose_noise is not None:

@@ -19,9 +19,11 @@ from ..motions import MotionSet
 from ..poses import validate_transform_pair, validate_transforms
 from .observability import check_observability, validate_motions
 from ._registry import SolverInfo, available, get, register
-from . import andreff, daniilidis, horaud, park_martin, robot_world, tsai_lenz  # noqa: F401  (register themselves)
+from .certifiable import Certificate, certify, certify_robot_world
+from . import andreff, certifiable, daniilidis, horaud, park_martin, robot_world, tsai_lenz  # noqa: F401  (register themselves)
 
-__all__ = ["solve", "solve_batch", "solve_motions", "solve_robot_world", "solve_robot_world_batch", "available", "get", "register", "SolverInfo"]
+__all__ = ["solve", "solve_batch", "solve_motions", "solve_robot_world", "solve_robot_world_batch", "available", "get", "register", "SolverInfo",
+           "Certificate", "certify", "certify_robot_world"]
 
 
 def solve(A: ArrayLike, B: ArrayLike, method: str = "daniilidis") -> NDArray[np.float64]:

@@ -25,26 +25,31 @@ class SolverInfo:
     kind: Kind
     func: Callable
     reference: str
+    #: the optional extra it needs (``pip install handeye[extra]``), or None; such solvers run only
+    #: when asked for by name (not among the candidates of ``refine='auto'`` or the solver comparison)
+    extra: str | None = None
 
 
 _REGISTRY: dict[str, SolverInfo] = {}
 
 
-def register(name: str, kind: Kind = "hand_eye", reference: str = "") -> Callable[[Callable], Callable]:
+def register(name: str, kind: Kind = "hand_eye", reference: str = "", extra: str | None = None) -> Callable[[Callable], Callable]:
     """Decorator that registers a solver function under ``name`` (see the module docstring)."""
 
     def deco(func: Callable) -> Callable:
         if name in _REGISTRY:
             raise RuntimeError(f"solver {name!r} registered twice")
-        _REGISTRY[name] = SolverInfo(name, kind, func, reference)
+        _REGISTRY[name] = SolverInfo(name, kind, func, reference, extra)
         return func
 
     return deco
 
 
-def available(kind: Kind | None = None) -> list[str]:
-    """Names of the registered solvers (of one kind when given), sorted."""
-    return sorted(n for n, s in _REGISTRY.items() if kind is None or s.kind == kind)
+def available(kind: Kind | None = None, closed_forms: bool = False) -> list[str]:
+    """Names of the registered solvers (of one kind when given), sorted; ``closed_forms``: only
+    those that need no optional extra (the candidates and the comparison of a calibration)."""
+    return sorted(n for n, s in _REGISTRY.items()
+                  if (kind is None or s.kind == kind) and not (closed_forms and s.extra))
 
 
 def get(name: str, kind: Kind | None = None) -> SolverInfo:

@@ -6,7 +6,10 @@ When every robot rotation is about one axis ``a`` (a SCARA's vertical, a planar 
 * the rotation axes give one direction, ``a = R_X b`` (robot axis ``a``, camera axis ``b``); the
   rotation of X about ``a`` is fixed by the translations: writing ``R_X = Rot(a, phi) R_0`` with
   ``R_0 b = a``, the translation equation ``(R_A - I) t_X = R_X t_B - t_A`` is linear in ``t_X``
-  and in ``(cos phi, sin phi)`` (Ulrich and Steger's observation for SCARA robots, 2016);
+  and in ``(cos phi, sin phi)``, solved here by one linear least squares (Ulrich and Steger,
+  "Hand-eye calibration of SCARA robots using dual quaternions", PRIA 26(1), 2016, reach the
+  same determined part by extending Daniilidis' dual-quaternion method; as in their paper, a
+  nonlinear refinement follows: :mod:`handeye.partial`);
 * ``(R_A - I) a = 0`` for every motion, so the translation of X along ``a`` is undetermined: a
   camera shifted along the axis sees the same motions. In the robot-world form only the
   difference of that component and the matching component of Z (e.g. the target's height in the
