@@ -47,13 +47,13 @@ def _noisy(k, rng):
 
 
 def test_noisy_few_poses_global_minimum_and_honest_certificates():
-    """60 scenes (the benchmark runs 200): the certified cost is at most every closed form's and every
-    local refinement's from a closed form (1e-9 relative); certified optimal in >= 95%; a closed
-    form or refinement that is worse by more than twice the certificate's tolerance is named."""
+    """200 scenes: the certified cost is at most every closed form's and every local refinement's
+    from a closed form (1e-9 relative); certified optimal in >= 95%; a closed form or refinement
+    that is worse by more than twice the certificate's tolerance is named not optimal."""
     rng = np.random.default_rng(5)
     closed = available("hand_eye", closed_forms=True)
     optimal, flagged, worse = 0, 0, 0
-    for k in range(60):
+    for k in range(200):
         s, f2b = _noisy(k, rng)
         m = MotionSet.from_poses(f2b, s.target2cam, "eye_in_hand")
         rel = certifiable.relax(m)
@@ -68,8 +68,8 @@ def test_noisy_few_poses_global_minimum_and_honest_certificates():
                 if c.cost > best.cost + 2 * rel.tolerance(best.cost):
                     worse += 1
                     flagged += not c.optimal
-    assert optimal >= 57, optimal
-    assert worse > 100 and flagged == worse, (flagged, worse)  # the closed forms are often not optimal
+    assert optimal >= 190, optimal
+    assert worse > 300 and flagged == worse, (flagged, worse)  # the closed forms are often not optimal
 
 
 def test_noisy_robot_world_not_worse_than_shah_and_li():

@@ -42,7 +42,6 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from .._shared.lazy import lazy_module
@@ -293,19 +292,37 @@ def _extract(rel: Relaxation) -> list[NDArray[np.float64]]:
     return _polish(rel, rotations)
 
 
-def _polish(rel: Relaxation, rotations: list[NDArray[np.float64]]) -> list[NDArray[np.float64]]:
-    """A local minimum of ``u^T Q u`` over the rotations, from ``rotations`` (Gauss-Newton on
-    ``L^T u`` with ``Q = L L^T``)."""
+def _polish(rel: Relaxation, rotations: list[NDArray[np.float64]], iterations: int = 50) -> list[NDArray[np.float64]]:
+    """A local minimum of ``u^T Q u`` over the rotations, from ``rotations``: Gauss-Newton on
+    ``f = L^T u`` (``Q = L L^T``) with left rotation increments, whose Jacobian is exact:
+    ``d vec(exp([d]x) R) / d d_k = vec([e_k]x R)``; a step that does not lower the cost is halved."""
     w, V = np.linalg.eigh(rel.Q)
     L = V * np.sqrt(np.clip(w, 0.0, None))
-
-    def residual(x):
-        dR = Rotation.from_rotvec(x.reshape(-1, 3)).as_matrix()
-        return L.T @ _u_of([d @ R for d, R in zip(dR, rotations)])
-
-    res = least_squares(residual, np.zeros(3 * rel.n_rot), method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
-    dR = Rotation.from_rotvec(res.x.reshape(-1, 3)).as_matrix()
-    return [d @ R for d, R in zip(dR, rotations)]
+    n = rel.n_rot
+    generators = np.array([[[0, 0, 0], [0, 0, -1], [0, 1, 0]], [[0, 0, 1], [0, 0, 0], [-1, 0, 0]],
+                           [[0, -1, 0], [1, 0, 0], [0, 0, 0]]], dtype=float)
+    rotations = [np.asarray(R, float) for R in rotations]
+    f = L.T @ _u_of(rotations)
+    cost = float(f @ f)
+    for _ in range(iterations):
+        J = np.zeros((len(f), 3 * n))
+        for b, R in enumerate(rotations):
+            J[:, 3 * b:3 * b + 3] = L.T[:, 9 * b:9 * b + 9] @ (generators @ R).reshape(3, 9).T
+        step = -np.linalg.lstsq(J, f, rcond=None)[0]
+        for _ in range(30):
+            dR = Rotation.from_rotvec(step.reshape(-1, 3)).as_matrix()
+            trial = [d @ R for d, R in zip(dR, rotations)]
+            f_new = L.T @ _u_of(trial)
+            if float(f_new @ f_new) <= cost:
+                break
+            step = 0.5 * step
+        else:
+            break
+        done = cost - float(f_new @ f_new) <= 1e-15 * max(cost, 1e-300)
+        rotations, f, cost = trial, f_new, float(f_new @ f_new)
+        if done or np.abs(step).max() < 1e-13:
+            break
+    return rotations
 
 
 # --------------------------------------------------------------------------------------------------
