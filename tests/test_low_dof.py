@@ -238,3 +238,20 @@ def test_plan_cli_warns_what_a_scara_cannot_determine(tmp_path, capsys):
     assert "--known target2base.z=METRES" in out and (tmp_path / "poses.csv").is_file()
     assert main(argv[:-1] + [str(tmp_path / "p2.csv"), "--z-range", "0.9,0.2"]) == 2
     assert "zmin below zmax" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("robot", ["scara", "cartesian"])
+@pytest.mark.parametrize("setup", SETUPS)
+def test_swapped_poses_are_named_and_left_out(robot, setup):
+    """Two robot poses swapped (mislabelled images): the outlier search runs on low-DOF data too,
+    with the low-DOF solver, and the calibration leaves them out; clean data lose no pose."""
+    sc = low_dof_scene(15, setup, robot, 3)
+    f = sc.flange2base.copy()
+    f[[2, 7]] = f[[7, 2]]
+    cal = handeye.calibrate_poses(f, sc.target2cam, setup, known=_known(sc, robot, setup), robot_accuracy=None)
+    assert cal.diagnostics.outliers == [2, 7] and 2 not in cal.pose_indices and len(cal.pose_indices) == 13
+    assert any("2, 7 disagree" in n for n in cal.notes)
+    d_rot, d_t = _errors(cal, sc)
+    assert np.linalg.norm(d_t) <= 3 * np.linalg.norm(cal.std[3:]) and np.linalg.norm(d_rot) <= 3 * np.linalg.norm(cal.std[:3])
+    clean = handeye.diagnose(sc.flange2base, sc.target2cam, setup)
+    assert clean.verdict == "partial" and clean.outliers == []

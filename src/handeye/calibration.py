@@ -62,8 +62,6 @@ def _checked_poses(flange2base, target2cam, setup, pairs, check, robot_input, st
     if not check:
         return flange2base, target2cam, pairs, keep, None, []
     diag = diagnose(flange2base, target2cam, setup, robot_input=robot_input, camera_input=camera_input)
-    if diag.verdict == "partial":  # handled by calibrate_partial (no outlier search without a full X)
-        return flange2base, target2cam, pairs, keep, diag, []
     if diag.verdict == "degenerate":
         raise DegenerateMotionError(" ".join(diag.advice))
     if diag.verdict == "inconsistent" and strict:
@@ -230,7 +228,9 @@ def _partial(flange2base, target2cam, setup, kind, pairs, given, refine, diag, k
         diag = Diagnostics(verdict="partial", n_poses=len(flange2base))
     if not cal.unobservable:  # complete with the known values: judged by its std as any calibration
         diag = replace(diag, verdict="good")
-    cal = replace(cal, diagnostics=diag, pose_indices=keep, robot_input=robot_input, inputs_sha256=digest)
+    # the check's advice beyond the partial verdict's own sentence (calibrate_partial's note says it): outliers
+    cal = replace(cal, diagnostics=diag, pose_indices=keep, robot_input=robot_input, inputs_sha256=digest,
+                  notes=cal.notes + list(diag.advice[1:]))
     if cal.cov is not None and accuracy is not None:
         cov = cal.cov + robot_accuracy_cov(cal.X, accuracy)
         std = np.where(np.isinf(cal.std), np.inf, _std(cov))

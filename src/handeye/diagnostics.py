@@ -37,9 +37,9 @@ from .poses import RobotPoseInput, parse_poses
 from .result import Diagnostics
 from .setups import check_setup, constant_transforms, robot_world_inputs, setup_info
 from .solvers.daniilidis import motion_groups, singular_values, solve_leave_one_out
-from .solvers.low_dof import ONE_AXIS, partial_kind
+from .solvers.low_dof import ONE_AXIS, partial_kind, solve_low_dof
 from .solvers.observability import check_observability, observable_leave_one_out, rotation_spread
-from .solvers.refine import pose_mahalanobis, refine_pose
+from .solvers.refine import TranslationPriors, pose_mahalanobis, refine_pose
 
 __all__ = ["Diagnostics", "RobotPoseInput", "diagnose", "find_outliers", "consistency_score", "closed_form",
            "compare_solvers"]
@@ -61,9 +61,23 @@ FEW_POSES = 6
 FAR_TARGET_M = 1.2
 
 
-def _solve(flange2base, target2cam, setup) -> NDArray[np.float64]:
-    """Daniilidis on the pose pairs of ``pairs='auto'`` (raises DegenerateMotionError when X is undetermined)."""
-    return solvers.solve_motions(MotionSet.from_poses(flange2base, target2cam, setup, "auto"), "daniilidis")
+def _solve(flange2base, target2cam, setup, kind: str | None = None) -> NDArray[np.float64]:
+    """Daniilidis on the pose pairs of ``pairs='auto'`` (raises DegenerateMotionError when X is
+    undetermined); ``kind`` ('one_axis', 'translation_only'): the low-DOF solver's part of X."""
+    motions = MotionSet.from_poses(flange2base, target2cam, setup, "auto")
+    if kind is not None:
+        return solve_low_dof(motions, kind).X
+    return solvers.solve_motions(motions, "daniilidis")
+
+
+def _gauge(flange2base, target2cam, setup, kind: str | None, X: NDArray[np.float64]) -> TranslationPriors | None:
+    """For low-DOF data: X's translation held along the directions the motions cannot see, so that
+    the pose refinement (and its covariance) is defined."""
+    if kind is None:
+        return None
+    null = solve_low_dof(MotionSet.from_poses(flange2base, target2cam, setup, "auto"), kind).null_space
+    G = np.concatenate([null, np.zeros_like(null)], axis=1)
+    return TranslationPriors(G, null @ X[:3, 3], np.full(len(null), 1e-9))
 
 
 def _motion_scale(target2cam: NDArray[np.float64]) -> float:
@@ -144,11 +158,12 @@ def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None, camer
     return out
 
 
-def _refit_test(flange2base, target2cam, setup, inliers):
+def _refit_test(flange2base, target2cam, setup, inliers, kind: str | None = None):
     """Pose refinement on ``inliers``; per pose its studentized distance test and residuals."""
-    X = _solve(flange2base[inliers], target2cam[inliers], setup)
+    X = _solve(flange2base[inliers], target2cam[inliers], setup, kind)
     Z = mean_transform(constant_transforms(X, flange2base[inliers], target2cam[inliers], setup))
-    ref = refine_pose(X, Z, flange2base[inliers], target2cam[inliers], setup)
+    ref = refine_pose(X, Z, flange2base[inliers], target2cam[inliers], setup,
+                      priors=_gauge(flange2base[inliers], target2cam[inliers], setup, kind, X))
     d2 = pose_mahalanobis(ref, flange2base, target2cam, setup, fitted=inliers)
     Zi = constant_transforms(ref.X, flange2base, target2cam, setup)
     resid = np.c_[np.degrees(rotation_error(Zi, ref.Z)), 1e3 * translation_error(Zi, ref.Z)]
@@ -168,10 +183,13 @@ def find_outliers(
     setup: str,
     rng: np.random.Generator | int | None = 0,
     hypotheses: int = 40,
+    kind: str | None = None,
 ) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
     """Outlier poses: a noise-model test after a fit on all poses, and, when that fit finds any,
     RANSAC over minimal sets of 3 poses (least-median scoring) followed by the same test on the
-    consensus set, repeated until the set is stable.
+    consensus set, repeated until the set is stable. ``kind``: motions about one axis or none
+    (:mod:`handeye.solvers.low_dof`): the same with the low-DOF solver (the poses' residuals do
+    not depend on the undetermined part of X).
 
     Returns
     -------
@@ -186,9 +204,10 @@ def find_outliers(
     everything = np.ones(n, bool)
     # Inconsistent poses go to RANSAC whatever the refit says: test the cheap score first (a refit
     # on poses with gross outliers is the slowest step: its noise weights barely settle).
-    if consistency_score(flange2base, target2cam, setup) <= CONSISTENT:
+    # (low-DOF data have no consistency score: straight to RANSAC, whose minimal sets are cheap)
+    if kind is None and consistency_score(flange2base, target2cam, setup) <= CONSISTENT:
         try:
-            ok, resid = _refit_test(flange2base, target2cam, setup, everything)
+            ok, resid = _refit_test(flange2base, target2cam, setup, everything, kind)
             if ok.all():
                 return everything, resid
         except (HandEyeError, np.linalg.LinAlgError):
@@ -202,7 +221,7 @@ def find_outliers(
     rot, tra = [], []
     for s in sets:
         try:
-            X = _solve(flange2base[s], target2cam[s], setup)
+            X = _solve(flange2base[s], target2cam[s], setup, kind)
         except (HandEyeError, np.linalg.LinAlgError):
             continue
         Zi = constant_transforms(X, flange2base, target2cam, setup)
@@ -222,7 +241,7 @@ def find_outliers(
         if inliers.sum() < 4:
             break
         try:
-            new, resid = _refit_test(flange2base, target2cam, setup, inliers)
+            new, resid = _refit_test(flange2base, target2cam, setup, inliers, kind)
         except (HandEyeError, np.linalg.LinAlgError):
             break
         if np.array_equal(new, inliers):
@@ -297,11 +316,7 @@ def diagnose(
     try:
         check_observability(motions)
     except DegenerateMotionError as exc:
-        reasons: list[str] = []
-        kind = partial_kind(flange2base, target2cam, setup, reasons)
-        diag.verdict = "partial" if kind else "degenerate"
-        diag.advice.extend([_partial_advice(kind, setup)] if kind else _degenerate_advice(motions, exc) + reasons)
-        return diag
+        return _undetermined(diag, motions, exc, flange2base, target2cam, setup, outliers, rng)
 
     given = consistency_score(flange2base, target2cam, setup)
     diag.consistency = given
@@ -428,6 +443,33 @@ def _scale_advice(scale: float, std: float) -> str:
     return (f"the camera's translations are {1 / scale:.3f}x what the robot's motions say (scale {scale:.4f} +- "
             f"{std:.4f}, 1 when right): the target's size (square, or the spacing of circles) is likely wrong by "
             f"that factor: multiply it by {scale:.4f} (or check the robot's length unit)")
+
+
+def _undetermined(diag: Diagnostics, motions: MotionSet, exc: DegenerateMotionError, flange2base, target2cam,
+                  setup: str, outliers: bool, rng) -> Diagnostics:
+    """The verdict on motions the general solvers cannot use: 'partial' when the low-DOF solver
+    determines part of X (with its own outlier search), else 'degenerate' with what to capture."""
+    reasons: list[str] = []
+    kind = partial_kind(flange2base, target2cam, setup, reasons)
+    diag.verdict = "partial" if kind else "degenerate"
+    diag.advice.extend([_partial_advice(kind, setup)] if kind else _degenerate_advice(motions, exc) + reasons)
+    if kind and outliers:
+        _partial_outliers(diag, flange2base, target2cam, setup, kind, rng)
+    return diag
+
+
+def _partial_outliers(diag: Diagnostics, flange2base, target2cam, setup: str, kind: str, rng) -> None:
+    """The outlier search on low-DOF data (its own solver), into ``diag``; a minimal set that
+    determines nothing (3 poses on a line) is skipped by the search."""
+    inliers, resid = find_outliers(flange2base, target2cam, setup, rng=rng, kind=kind)
+    diag.pose_residuals = resid
+    if inliers.all() or inliers.sum() < max(0.6 * len(inliers), 3):
+        return
+    diag.outliers = [int(i) for i in np.flatnonzero(~inliers)]
+    diag.outlier_residuals = {i: (float(resid[i, 0]), float(resid[i, 1])) for i in diag.outliers}
+    diag.advice.append(f"pose(s) {', '.join(map(str, diag.outliers))} disagree with the others far beyond their noise "
+                       "(a wrong robot pose, a mislabelled image or a misdetected target): they are left out; check or "
+                       "retake them")
 
 
 def _partial_advice(kind: str, setup: str) -> str:
