@@ -205,7 +205,7 @@ def calibrate_partial(flange2base: NDArray[np.float64], target2cam: NDArray[np.f
     coupling = np.abs(np.array([k.row for k in known]) @ D.T).max(axis=1) if known else np.zeros(0)
     used = [k for k, c in zip(known, coupling) if c >= MIN_COUPLING]
     unused = [k for k, c in zip(known, coupling) if c < MIN_COUPLING]
-    fixed, open_ = _open_directions(D, used)
+    _, open_ = _open_directions(D, used)
     X0 = sol.X
     Z0 = mean_transform(constant_transforms(X0, flange2base, target2cam, setup))
     G = np.concatenate([np.array([k.row for k in used]).reshape(-1, 6), open_ @ np.concatenate([null_x, np.zeros_like(null_x)], axis=1)])
