@@ -37,9 +37,9 @@ from .poses import RobotPoseInput, parse_poses
 from .result import Diagnostics
 from .setups import check_setup, constant_transforms, robot_world_inputs, setup_info
 from .solvers.daniilidis import motion_groups, singular_values, solve_leave_one_out
-from .solvers.low_dof import ONE_AXIS, partial_kind, solve_low_dof
+from .solvers.low_dof import ONE_AXIS, gauge_priors, partial_kind, solve_low_dof
 from .solvers.observability import check_observability, observable_leave_one_out, rotation_spread
-from .solvers.refine import TranslationPriors, pose_mahalanobis, refine_pose
+from .solvers.refine import pose_mahalanobis, refine_pose
 
 __all__ = ["Diagnostics", "RobotPoseInput", "diagnose", "find_outliers", "consistency_score", "closed_form",
            "compare_solvers"]
@@ -68,16 +68,6 @@ def _solve(flange2base, target2cam, setup, kind: str | None = None) -> NDArray[n
     if kind is not None:
         return solve_low_dof(motions, kind).X
     return solvers.solve_motions(motions, "daniilidis")
-
-
-def _gauge(flange2base, target2cam, setup, kind: str | None, X: NDArray[np.float64]) -> TranslationPriors | None:
-    """For low-DOF data: X's translation held along the directions the motions cannot see, so that
-    the pose refinement (and its covariance) is defined."""
-    if kind is None:
-        return None
-    null = solve_low_dof(MotionSet.from_poses(flange2base, target2cam, setup, "auto"), kind).null_space
-    G = np.concatenate([null, np.zeros_like(null)], axis=1)
-    return TranslationPriors(G, null @ X[:3, 3], np.full(len(null), 1e-9))
 
 
 def _motion_scale(target2cam: NDArray[np.float64]) -> float:
@@ -160,10 +150,13 @@ def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None, camer
 
 def _refit_test(flange2base, target2cam, setup, inliers, kind: str | None = None):
     """Pose refinement on ``inliers``; per pose its studentized distance test and residuals."""
-    X = _solve(flange2base[inliers], target2cam[inliers], setup, kind)
+    if kind is None:
+        X, priors = _solve(flange2base[inliers], target2cam[inliers], setup), None
+    else:  # low-DOF data: X's undetermined part held (the residuals do not depend on it)
+        sol = solve_low_dof(MotionSet.from_poses(flange2base[inliers], target2cam[inliers], setup, "auto"), kind)
+        X, priors = sol.X, gauge_priors(sol.null_space, sol.X)
     Z = mean_transform(constant_transforms(X, flange2base[inliers], target2cam[inliers], setup))
-    ref = refine_pose(X, Z, flange2base[inliers], target2cam[inliers], setup,
-                      priors=_gauge(flange2base[inliers], target2cam[inliers], setup, kind, X))
+    ref = refine_pose(X, Z, flange2base[inliers], target2cam[inliers], setup, priors=priors)
     d2 = pose_mahalanobis(ref, flange2base, target2cam, setup, fitted=inliers)
     Zi = constant_transforms(ref.X, flange2base, target2cam, setup)
     resid = np.c_[np.degrees(rotation_error(Zi, ref.Z)), 1e3 * translation_error(Zi, ref.Z)]

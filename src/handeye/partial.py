@@ -22,15 +22,13 @@ from .geometry.se3 import mean_transform
 from .motions import MotionSet, Pairs
 from .result import Calibration, Unobservable
 from .setups import constant_transforms, robot_world_A, setup_info
-from .solvers.low_dof import ONE_AXIS, TRANSLATION_ONLY, solve_low_dof
+from .solvers.low_dof import GAUGE_STD, ONE_AXIS, TRANSLATION_ONLY, gauge_rows, solve_low_dof
 from .solvers.refine import TranslationPriors, refine_pose
 
 __all__ = ["KNOWN_EXACT_STD", "Known", "calibrate_partial", "known_on_complete", "parse_known"]
 
 #: A known value given without a std is taken as exact to this (m).
 KNOWN_EXACT_STD = 1e-6
-#: The std (m) that holds an undetermined direction at its chosen value during the refinement.
-_GAUGE_STD = 1e-9
 #: A known value fixes an undetermined direction when its axis is within ~70 deg of it (|cos| above this).
 MIN_COUPLING = 0.35
 #: A translation component of X whose axis is within this cosine of an undetermined direction gets an infinite std.
@@ -208,9 +206,9 @@ def calibrate_partial(flange2base: NDArray[np.float64], target2cam: NDArray[np.f
     _, open_ = _open_directions(D, used)
     X0 = sol.X
     Z0 = mean_transform(constant_transforms(X0, flange2base, target2cam, setup))
-    G = np.concatenate([np.array([k.row for k in used]).reshape(-1, 6), open_ @ np.concatenate([null_x, np.zeros_like(null_x)], axis=1)])
+    G = np.concatenate([np.array([k.row for k in used]).reshape(-1, 6), open_ @ gauge_rows(null_x)])
     values = np.concatenate([[k.value for k in used], np.zeros(len(open_))])
-    stds = np.concatenate([[k.std for k in used], np.full(len(open_), _GAUGE_STD)])
+    stds = np.concatenate([[k.std for k in used], np.full(len(open_), GAUGE_STD)])
     if refine:
         ref = refine_pose(X0, Z0, flange2base, target2cam, setup, priors=TranslationPriors(G, values, stds))
         X, Z, cov = ref.X, ref.Z, ref.cov_X

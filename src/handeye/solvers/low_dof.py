@@ -36,10 +36,11 @@ from ..geometry.se3 import invert, make_transform
 from ..motions import MotionSet
 from ._common import top_eigenvector
 from ..setups import robot_world_A
+from .refine import TranslationPriors
 from .observability import MIN_AXIS_SPREAD, MIN_ROTATION, rotation_spread, rotation_spread_absolute
 
-__all__ = ["GENERAL", "LowDofSolution", "ONE_AXIS", "TRANSLATION_ONLY", "motion_kind", "partial_kind", "pose_motion_kind",
-           "solve_low_dof"]
+__all__ = ["GAUGE_STD", "GENERAL", "LowDofSolution", "ONE_AXIS", "TRANSLATION_ONLY", "gauge_priors", "gauge_rows",
+           "motion_kind", "partial_kind", "pose_motion_kind", "solve_low_dof"]
 
 GENERAL, ONE_AXIS, TRANSLATION_ONLY = "general", "one_axis", "translation_only"
 #: Below this reciprocal condition number the system that fixes the determined part of X is
@@ -198,6 +199,22 @@ def _translation_only(motions: MotionSet) -> LowDofSolution:
     X = np.where(~(condition > MIN_CONDITION)[..., None, None], np.nan, X)
     null = np.broadcast_to(np.eye(3), R_X.shape).copy()
     return LowDofSolution(X, TRANSLATION_ONLY, null, None, condition)
+
+
+#: The std (m) that holds an undetermined direction of X's translation at its value in a refinement.
+GAUGE_STD = 1e-9
+
+
+def gauge_rows(null_space: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rows over ``[t_X, t_Z]`` (:class:`~handeye.solvers.refine.TranslationPriors`) measuring X's
+    translation along each undetermined direction."""
+    return np.concatenate([null_space, np.zeros_like(null_space)], axis=1)
+
+
+def gauge_priors(null_space: NDArray[np.float64], X: NDArray[np.float64]) -> TranslationPriors:
+    """X's translation held at its value along the undetermined directions, so that the pose
+    refinement (and its covariance) is defined on low-DOF data."""
+    return TranslationPriors(gauge_rows(null_space), null_space @ X[:3, 3], np.full(len(null_space), GAUGE_STD))
 
 
 def pose_motion_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str) -> tuple[str, str]:
