@@ -153,3 +153,27 @@ def test_degenerate_data_is_an_error_not_an_answer(tmp_path, capsys):
 
 def test_example_and_folder_are_exclusive(capsys):
     _one_line_error(["calibrate-poses"], capsys, "give a pose-pair folder")
+
+
+def test_no_check_no_out_and_honest_outlier_lines(capsys):
+    """--no-check reaches check=False; without --out the command says it wrote nothing; the check
+    line names poses left out and poses kept (by the pixel refinement) apart; the consistency score
+    says what it measures."""
+    from dataclasses import replace
+
+    from handeye.cli import print_calibration
+
+    assert main(["calibrate-poses", "--example", "--no-check", "--refine", "none"]) == 0
+    out = capsys.readouterr().out
+    assert "check:" not in out and "no --out: nothing written" in out
+    pairs = load_pose_pairs(Path(handeye.__file__).parent / "data" / "example_posepairs")
+    cal = handeye.calibrate_poses(pairs.flange2base, pairs.target2cam, refine="none")
+    n = len(cal.flange2base)
+    kept = replace(cal, diagnostics=replace(cal.diagnostics, outliers=[1]), pose_indices=np.arange(n))
+    print_calibration(kept)
+    text = capsys.readouterr().out
+    assert "kept for the pixel refinement: [1]" in text and "left out" not in text
+    left = replace(cal, diagnostics=replace(cal.diagnostics, outliers=[1]), pose_indices=np.delete(np.arange(n), 1))
+    print_calibration(left)
+    assert "outlier poses left out: [1]" in capsys.readouterr().out
+    assert "median pose residual in units of 1 deg or 2% of the camera's motion" in cal.diagnostics.summary()

@@ -119,8 +119,12 @@ def print_calibration(cal: Calibration, out=None) -> None:
         w(f"held-out prediction error ({cal.estimator}, cross-validated): "
           + (f"{pe['px']:.3f} px, " if pe.get("px") is not None else "") + f"{pe['mm']:.3f} mm at the target\n")
     if cal.diagnostics is not None:
-        w(f"check: {cal.diagnostics.verdict}"
-          + (f"; outlier poses left out: {cal.diagnostics.outliers}" if cal.diagnostics.outliers else "") + "\n")
+        used = set(cal.pose_indices.tolist()) if cal.pose_indices is not None else set()
+        left = [i for i in cal.diagnostics.outliers if i not in used]
+        kept = [i for i in cal.diagnostics.outliers if i in used]  # put back: the pixel refinement judges their points
+        w(f"check: {cal.diagnostics.verdict}" + (f"; outlier poses left out: {left}" if left else "")
+          + (f"; poses that looked like outliers by their PnP poses, kept for the pixel refinement: {kept}" if kept else "")
+          + "\n")
     for note in cal.notes:
         w(f"note: {note}\n")
 
@@ -152,6 +156,8 @@ def _write_outputs(cal: Calibration, args: argparse.Namespace) -> None:
     if args.out:
         for path in write_calibration(cal, args.out, parent_frame=args.parent_frame, child_frame=args.child_frame):
             print(f"wrote {path}")
+    else:
+        print("no --out: nothing written (--out FOLDER writes result.json, result.yaml and report.html)")
 
 
 def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
@@ -162,7 +168,7 @@ def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
     cal = calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, method=args.method, pairs=args.pairs,
                           refine=args.refine, robot_input=pairs.robot_input, strict=args.strict,
                           robot_accuracy=_accuracy_arg(args.robot_accuracy), progress=not args.no_progress,
-                          camera_input=pairs.camera_input, known=_known_arg(args.known))
+                          camera_input=pairs.camera_input, known=_known_arg(args.known), check=not args.no_check)
     cal = replace(cal, notes=list(pairs.notes) + list(cal.notes), input_folder=folder)
     if args.certify:
         cal = certify_calibration(cal)
@@ -195,7 +201,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))  # calibrate checks the values
     cal = calibrate(session, method=args.method, refine=args.refine, jobs=args.jobs, progress=not args.no_progress,
                     robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()), strict=args.strict,
-                    robot_accuracy=_accuracy_arg(args.robot_accuracy), known=_known_arg(args.known))
+                    robot_accuracy=_accuracy_arg(args.robot_accuracy), known=_known_arg(args.known), check=not args.no_check)
     if args.certify:
         cal = certify_calibration(cal)
     _print_image_summary(cal)
@@ -402,6 +408,8 @@ def _add_solver_and_out(p: argparse.ArgumentParser) -> None:
                    f"invisible in the data; default {ROBOT_ACCURACY[0]:g},{ROBOT_ACCURACY[1]:g}; 0,0 for an exact robot)")
     p.add_argument("--strict", action="store_true",
                    help="fail (exit 2) instead of answering when the check calls the data inconsistent")
+    p.add_argument("--no-check", action="store_true",
+                   help="calibrate the poses as they are: no check of the data, no outlier removal (the API's check=False)")
     p.add_argument("--certify", action="store_true",
                    help="certify whether X is the global minimum of the stated motion cost (a semidefinite relaxation; "
                    "needs pip install 'handeye[certifiable]')")

@@ -134,7 +134,8 @@ class Diagnostics:
 
     def summary(self) -> str:
         """A few lines for people: verdict, outliers, advice."""
-        consistency = (f"consistency {self.consistency:.2f}; up to {self.consistency_limit:g} is consistent"
+        consistency = (f"consistency {self.consistency:.2f}: the median pose residual in units of 1 deg or 2% of the "
+                       f"camera's motion, whichever is larger; up to {self.consistency_limit:g} is consistent"
                        if np.isfinite(self.consistency) else "consistency not computed")
         lines = [f"verdict: {self.verdict} ({self.n_poses} poses, {consistency})"]
         if self.convention_hint:
