@@ -18,6 +18,8 @@ from handeye.poses import parse_poses
 from handeye.session import read_pose_table
 from handeye.simulate import DEFAULT_TARGETS, default_camera
 from handeye.solvers.refine import predicted_target2cam
+
+import realdata
 from handeye.vision.pnp import project_points
 from handeye.vision.targets import target_from_spec
 
@@ -102,8 +104,10 @@ def test_plan_beats_easy_handeye_by_30_percent():
     plan = plan_poses(setup, X, Z, OBJ, K, SIZE, DIST, n_poses=12, standoff=STANDOFF, noise_px=0.3)
     eh = easy_handeye_poses(fronto_parallel_start(X, Z, OBJ, STANDOFF, setup))
     assert eh.shape == (17, 4, 4)
-    err_plan, n_plan = simulate_errors(plan.flange2base, X, Z, setup, OBJ, K, DIST, SIZE, 0.3, 100, rng=1)
-    err_eh, n_eh = simulate_errors(eh, X, Z, setup, OBJ, K, DIST, SIZE, 0.3, 100, rng=2)
+    with realdata.worker_pool() as pool:  # the two simulations side by side (each seeded: the same numbers)
+        runs = [pool.submit(simulate_errors, F, X, Z, setup, OBJ, K, DIST, SIZE, 0.3, 100, rng=seed)
+                for F, seed in ((plan.flange2base, 1), (eh, 2))]
+        (err_plan, n_plan), (err_eh, n_eh) = (r.result() for r in runs)
     rms_plan, rms_eh = np.sqrt(np.mean(err_plan**2, axis=0)), np.sqrt(np.mean(err_eh**2, axis=0))
     print(f"\nplan: {n_plan} poses, RMS {rms_plan[0]:.4f} deg / {rms_plan[1]:.4f} mm; "
           f"easy_handeye: {n_eh} of 17 usable, RMS {rms_eh[0]:.4f} deg / {rms_eh[1]:.4f} mm")
