@@ -20,7 +20,7 @@ from ._version import __version__
 from .calibration import ROBOT_ACCURACY, calibrate, calibrate_poses, certify_calibration, check_folder
 from .errors import HandEyeError
 from .geometry.se3 import make_transform
-from .planning import (easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov, reprojection_information,
+from .planning import (ROBOTS, easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov, reprojection_information,
                        simulate_errors, visible_mask, write_plan)
 from .poses import pose_columns
 from .report import write_calibration
@@ -351,10 +351,19 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         info = setup_info(args.setup)
         print(f"warning: a {args.robot} robot cannot determine the {'; the '.join(plan.unobservable)} (std inf): "
               f"measure it, or {info.z_name}'s matching component (e.g. the target's height), and give it to the "
-              f"calibration (--known {info.x_name}.z=METRES or --known {info.z_name}.z=METRES)")
-        print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): flange2base per image; "
-              "it is the poses.csv of the session to capture (replace each row by the pose the robot reports)")
-        return 0
+              f"calibration (--known {info.x_name}.z=METRES or --known {info.z_name}.z=METRES)"
+              + ("; --check-runs is not simulated for it" if args.check_runs else ""))
+    else:  # the comparison and the simulation are for arms that determine all of X
+        _plan_comparison(plan, X, Z, obj, K, dist, size, args)
+    print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): flange2base per image; "
+          "it is the poses.csv of the session to capture (replace each row by the pose the robot reports)")
+    return 0
+
+
+def _plan_comparison(plan, X, Z, obj, K, dist, size, args: argparse.Namespace) -> None:
+    """easy_handeye's pattern at the same standoff for comparison and (``--check-runs``) simulated
+    calibrations of the plan."""
+    s = plan.std_X
     start = fronto_parallel_start(X, Z, obj, args.standoff, args.setup)
     eh = easy_handeye_poses(start)
     seen = visible_mask(predicted_target2cam(X, Z, eh, args.setup), obj, K, dist, size, 0.0)
@@ -376,9 +385,6 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         print(f"simulated ({args.check_runs} runs: pixel noise, PnP, daniilidis, reprojection refinement): RMS error "
               f"of X {rms[0]:.4f} deg / {rms[1]:.3f} mm (predicted {np.linalg.norm(s[:3]):.4f} deg / "
               f"{np.linalg.norm(s[3:]):.3f} mm)")
-    print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): flange2base per image; "
-          "it is the poses.csv of the session to capture (replace each row by the pose the robot reports)")
-    return 0
 
 
 def _known_arg(items: list[str]) -> dict[str, str]:
@@ -491,7 +497,7 @@ def _add_simulate(sub) -> None:
     p.add_argument("--seed", type=_whole(0), default=None)
     p.add_argument("--image-size", type=_image_size, default=(640, 480), help="WIDTHxHEIGHT (default 640x480)")
     p.add_argument("--no-intrinsics", action="store_true", help="leave K and dist out of session.yaml")
-    p.add_argument("--robot", default="arm", choices=["arm", "scara", "cartesian"],
+    p.add_argument("--robot", default="arm", choices=ROBOTS,
                    help="arm (default): views all around; scara: the flange turns about the vertical only; "
                    "cartesian: it only translates (both determine only part of X: see --known of calibrate)")
     p.set_defaults(func=_cmd_simulate)
@@ -523,7 +529,7 @@ def _add_plan(sub) -> None:
     p.add_argument("--tilt-max", type=_number(0.0, 89.0), default=45.0, help="largest view angle from the target normal (deg, default 45)")
     p.add_argument("--margin-px", type=_number(0.0), default=20.0, help="keep every target point this far inside the image")
     p.add_argument("--reach-box", metavar="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", help="where the flange may go (m, base frame)")
-    p.add_argument("--robot", default="arm", choices=["arm", "scara", "cartesian"],
+    p.add_argument("--robot", default="arm", choices=ROBOTS,
                    help="arm (default): views all around; scara: the flange points down and turns about the vertical "
                    "only; cartesian: it only translates (both leave part of X to --known at calibration)")
     p.add_argument("--z-range", metavar="ZMIN,ZMAX", help="heights the flange can reach (m, base frame; a SCARA's stroke)")

@@ -187,7 +187,7 @@ def robot_world_quadratic(A_abs: NDArray[np.float64], B_abs: NDArray[np.float64]
     return _gram(rot, 1 / rotation_scale**2) + _gram(tra, 1 / translation_scale**2)
 
 
-def _reduce(Q_full: NDArray[np.float64], n_rot: int, homogeneous_last: bool = True):
+def _reduce(Q_full: NDArray[np.float64], n_rot: int):
     """Minimise out the variables between the rotations and the constant: ``(Q, recover)``."""
     d = len(Q_full)
     keep = np.r_[np.arange(9 * n_rot), d - 1]
@@ -279,6 +279,18 @@ def _relax(Q_full: NDArray[np.float64], n_rot: int, cost_name: str) -> Relaxatio
     return Relaxation(Q_full, Q, recover, n_rot, bound, W, bool(w[-2] <= TIGHT_RATIO * w[-1]), cost_name)
 
 
+def _y_hand_eye(X: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``y = [vec R, t, 1]`` of an X, the variables of :func:`hand_eye_quadratic`."""
+    X = np.asarray(X, float)
+    return np.r_[_row_vec(X[:3, :3]), X[:3, 3], 1.0]
+
+
+def _y_robot_world(X: NDArray[np.float64], Z: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``y = [vec R_X, vec R_Z, t_X, t_Z, 1]``, the variables of :func:`robot_world_quadratic`."""
+    X, Z = np.asarray(X, float), np.asarray(Z, float)
+    return np.r_[_row_vec(X[:3, :3]), _row_vec(Z[:3, :3]), X[:3, 3], Z[:3, 3], 1.0]
+
+
 def _u_of(rotations: list[NDArray[np.float64]]) -> NDArray[np.float64]:
     return np.r_[np.concatenate([_row_vec(R) for R in rotations]), 1.0]
 
@@ -289,16 +301,15 @@ def _extract(rel: Relaxation) -> list[NDArray[np.float64]]:
     u = V[:, -1] * np.sqrt(max(w[-1], 0.0))
     u = u / u[-1] if abs(u[-1]) > 1e-12 else u
     rotations = [nearest_rotation(u[9 * b:9 * b + 9].reshape(3, 3)) for b in range(rel.n_rot)]
-    return _polish(rel, rotations)
+    return _polish(rel.Q, rel.n_rot, rotations)
 
 
-def _polish(rel: Relaxation, rotations: list[NDArray[np.float64]], iterations: int = 50) -> list[NDArray[np.float64]]:
+def _polish(Q: NDArray[np.float64], n: int, rotations: list[NDArray[np.float64]], iterations: int = 50) -> list[NDArray[np.float64]]:
     """A local minimum of ``u^T Q u`` over the rotations, from ``rotations``: Gauss-Newton on
     ``f = L^T u`` (``Q = L L^T``) with left rotation increments, whose Jacobian is exact:
     ``d vec(exp([d]x) R) / d d_k = vec([e_k]x R)``; a step that does not lower the cost is halved."""
-    w, V = np.linalg.eigh(rel.Q)
+    w, V = np.linalg.eigh(Q)
     L = V * np.sqrt(np.clip(w, 0.0, None))
-    n = rel.n_rot
     generators = np.array([[[0, 0, 0], [0, 0, -1], [0, 1, 0]], [[0, 0, 1], [0, 0, 0], [-1, 0, 0]],
                            [[0, -1, 0], [1, 0, 0], [0, 0, 0]]], dtype=float)
     rotations = [np.asarray(R, float) for R in rotations]
@@ -356,14 +367,14 @@ def _solution(rel: Relaxation) -> tuple[list[NDArray[np.float64]], NDArray[np.fl
 def hand_eye_cost(motions: MotionSet, X: NDArray[np.float64], rotation_scale: float = ROTATION_SCALE,
                   translation_scale: float = TRANSLATION_SCALE) -> float:
     """The certified cost ``C(X)`` of AX = XB (module docstring)."""
-    y = np.r_[_row_vec(X[:3, :3]), X[:3, 3], 1.0]
+    y = _y_hand_eye(X)
     return float(y @ hand_eye_quadratic(motions, rotation_scale, translation_scale) @ y)
 
 
 def robot_world_cost(A_abs, B_abs, X, Z, rotation_scale: float = ROTATION_SCALE,
                      translation_scale: float = TRANSLATION_SCALE) -> float:
     """The certified cost of ``A_i X = Z B_i``."""
-    y = np.r_[_row_vec(X[:3, :3]), _row_vec(Z[:3, :3]), X[:3, 3], Z[:3, 3], 1.0]
+    y = _y_robot_world(X, Z)
     return float(y @ robot_world_quadratic(np.asarray(A_abs, float), np.asarray(B_abs, float), rotation_scale,
                                            translation_scale) @ y)
 
@@ -404,8 +415,7 @@ def certify(A, B, X, rotation_scale: float = ROTATION_SCALE, translation_scale: 
     """
     motions = A if isinstance(A, MotionSet) else validate_motions(A, B)
     rel = relaxation or relax(motions, rotation_scale, translation_scale)
-    X = np.asarray(X, float)
-    return rel.certificate(np.r_[_row_vec(X[:3, :3]), X[:3, 3], 1.0])
+    return rel.certificate(_y_hand_eye(X))
 
 
 def certify_robot_world(A_abs, B_abs, X, Z, rotation_scale: float = ROTATION_SCALE,
@@ -413,16 +423,14 @@ def certify_robot_world(A_abs, B_abs, X, Z, rotation_scale: float = ROTATION_SCA
     """Whether ``(X, Z)`` is the global minimum of the stated robot-world cost."""
     rel = relaxation or relax_robot_world(np.asarray(A_abs, float), np.asarray(B_abs, float), rotation_scale,
                                           translation_scale)
-    X, Z = np.asarray(X, float), np.asarray(Z, float)
-    return rel.certificate(np.r_[_row_vec(X[:3, :3]), _row_vec(Z[:3, :3]), X[:3, 3], Z[:3, 3], 1.0])
+    return rel.certificate(_y_robot_world(X, Z))
 
 
 def local_minimum(motions: MotionSet, X0: NDArray[np.float64], rotation_scale: float = ROTATION_SCALE,
                   translation_scale: float = TRANSLATION_SCALE) -> NDArray[np.float64]:
     """The local minimum of the stated AX = XB cost reached from ``X0``'s rotation (no SDP)."""
     Q, recover = _reduce(hand_eye_quadratic(motions, rotation_scale, translation_scale), 1)
-    rel = Relaxation(np.zeros((0, 0)), Q, recover, 1, np.nan, np.zeros((0, 0)), False, "")
-    (R,) = _polish(rel, [np.asarray(X0, float)[:3, :3]])
+    (R,) = _polish(Q, 1, [np.asarray(X0, float)[:3, :3]])
     return make_transform(R, recover @ _u_of([R]))
 
 
