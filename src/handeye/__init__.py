@@ -21,6 +21,7 @@ from .poses import RobotPoseInput, format_poses, parse_poses
 from .report import write_calibration
 from .result import Calibration, Diagnostics, Unobservable
 from .solvers import solve, solve_batch, solve_robot_world, solve_robot_world_batch
+from .streams import calibrate_streams
 
 __all__ = [
     "Calibration",
@@ -34,6 +35,7 @@ __all__ = [
     "Unobservable",
     "calibrate",
     "calibrate_poses",
+    "calibrate_streams",
     "certify_calibration",
     "diagnose",
     "format_poses",

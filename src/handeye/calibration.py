@@ -17,19 +17,22 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._shared.io import array_digest, files_digest
 from ._shared.progress import Progress
+from ._shared.text import summarize
 from .diagnostics import closed_form, compare_solvers, diagnose
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from .estimators import PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, Choice, choose, pixel_candidates, pixel_fit, pose_candidates
 from .geometry.se3 import invert, skew
 from .motions import MotionSet, Pairs, validate_poses
 from .partial import calibrate_partial, known_on_complete, parse_known
-from .poses import RobotPoseInput
+from .poses import RobotPoseInput, format_poses
 from .result import Calibration, Diagnostics
 from .session import POSEPAIRS_FILE, Session, SessionError, load_pose_pairs, load_session
 from .setups import check_setup
 from .solvers.certifiable import certify
 from .solvers.low_dof import partial_kind
 from .solvers.refine import PoseRefinementResult, ReprojectionResult, refine_pose
+from .sync import (KEYFRAMES, MIN_SAMPLES, PoseStream, Synchronisation, check_stream, interpolate, keyframes_at,
+                   offset_cov, synchronise, timing_cost)
 from .validation import Views, jackknife_cov
 from .vision import calibrate_intrinsics, detect_images, resolve_symmetries, solve_pnp, target_from_spec
 
@@ -351,7 +354,7 @@ def _final_pixel_fit(cal: Calibration, obs: Observations, name: str, robot_noise
     notes = list(cal.notes)
     if outliers:
         notes = [n for n in notes if "left out" not in n]
-        notes.append(f"image(s) {', '.join(obs.session.image_names[obs.used[k]] for k in outliers)} looked like "
+        notes.append(f"image(s) {summarize(obs.session.image_names[obs.used[k]] for k in outliers)} looked like "
                      f"outliers by their PnP poses but are kept: the robust pixel refinement judges their points")
         motions = MotionSet.from_poses(obs.flange2base, obs.target2cam, cal.setup, pairs)
         cal = replace(cal, flange2base=obs.flange2base, target2cam=obs.target2cam, pairs=motions.pairs,
@@ -452,7 +455,7 @@ def _detect(session: Session, jobs: int | None, progress: bool):
     results = detect_images(session.image_paths, target, jobs=jobs, progress=progress)
     unreadable = [r.path.name for r in results if r.image_size is None]
     if unreadable:
-        raise SessionError(f"{session.folder / 'images'}: cannot read image(s) {', '.join(unreadable)} (corrupt or not an image)")
+        raise SessionError(f"{session.folder / 'images'}: cannot read image(s) {summarize(unreadable)} (corrupt or not an image)")
     skipped = [(name, r.error) for name, r in zip(session.image_names, results) if r.detection is None]
     found = [k for k, r in enumerate(results) if r.detection is not None]
     sizes = {results[k].image_size for k in found}  # the images that count: those with the target
@@ -548,7 +551,7 @@ def refine_on_pixels(cal: Calibration, obs: Observations, ref: ReprojectionResul
         extra.append(f"reprojection refinement set aside {ref.n_rejected} of {ref.n_points + ref.n_rejected} "
                      f"detected points as outliers (beyond 5 sigma)")
     if ref.rejected_images:
-        extra.append(f"image(s) {', '.join(names[k] for k in ref.rejected_images)}: every point set aside by the "
+        extra.append(f"image(s) {summarize(names[k] for k in ref.rejected_images)}: every point set aside by the "
                      "robust pixel fit (the robot pose and the image disagree): check or retake them")
     pnp_median = float(np.median(obs.pnp_rms))
     if ref.rms_px > max(REFINE_RMS_FACTOR * pnp_median, REFINE_RMS_FLOOR):
@@ -610,6 +613,9 @@ def calibrate(
     folds: int | None = None,
     robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
     known: dict | None = None,
+    keyframes: int = KEYFRAMES,
+    offset_range: tuple[float, float] | None = None,
+    time_offset: float | None = None,
 ) -> Calibration:
     """Hand-eye calibration from a capture session folder (images + robot poses, DESIGN §4).
 
@@ -640,6 +646,11 @@ def calibrate(
         Detection workers (default: the available cores).
     progress : bool
         Progress bar on stderr.
+    keyframes, offset_range, time_offset
+        For a session whose poses are a robot stream (poses.csv with a time column, the images'
+        times in an ``images:`` table): as :func:`handeye.calibrate_streams`; the images are the
+        camera stream (the clock offset is estimated from 20 or more images of a video; a few
+        scattered images meet the robot at their own times, or at ``time_offset``).
 
     Returns
     -------
@@ -660,8 +671,69 @@ def calibrate(
     session = load_session(session_dir)
     parse_known(known, session.setup)
     obs = observe(session, jobs=jobs, progress=progress)
-    return calibrate_observed(obs, method=method, refine=refine, pairs=pairs, check=check, robot_noise=robot_noise,
-                              strict=strict, folds=folds, robot_accuracy=robot_accuracy, known=known)
+    sync = None
+    if session.robot_stream is not None:  # a robot stream: the images meet the robot at the clock offset
+        obs, sync, robot, camera = _synchronised(obs, offset_range, time_offset, keyframes)
+    cal = calibrate_observed(obs, method=method, refine=refine, pairs=pairs, check=check, robot_noise=robot_noise,
+                             strict=strict, folds=folds, robot_accuracy=robot_accuracy, known=known)
+    return cal if sync is None else _with_sync(cal, sync, robot, camera, obs)
+
+
+#: Images with times count as a stream (the clock offset estimated) from this many, at most this far apart (s).
+STREAM_MIN_IMAGES, STREAM_MAX_PERIOD = 20, 0.5
+
+
+def _synchronised(obs: Observations, offset_range, time_offset, keyframes: int):
+    """The observations of a session with a robot stream, paired with the robot at the clock offset.
+
+    Images of a video (:data:`STREAM_MIN_IMAGES` or more, :data:`STREAM_MAX_PERIOD` apart at
+    most): the offset is estimated (:func:`handeye.sync.synchronise`) and ``keyframes`` of them
+    kept. A few scattered images (a stop-and-go capture) cannot show the offset: the robot is
+    interpolated at their times (offset 0, or ``time_offset``) and a note says how fast it moved
+    there. Returns the observations, the synchronisation, and both streams."""
+    session = obs.session
+    setup = session.setup
+    robot = check_stream(session.robot_times, session.robot_stream, "robot stream")
+    times = session.image_times[np.asarray(obs.used)]
+    order = np.argsort(times, kind="stable")
+    obs, times = obs.subset(order), times[order]
+    if len(times) >= max(STREAM_MIN_IMAGES, MIN_SAMPLES) and np.median(np.diff(times)) <= STREAM_MAX_PERIOD:
+        camera = check_stream(times, obs.target2cam, "images")
+        sync = synchronise(robot, camera, setup, offset_range, time_offset, keyframes)
+        kf, f2b, _ = keyframes_at(robot, camera, sync.offset, keyframes, setup, sync.fit)
+        obs = obs.subset(kf)
+    else:
+        camera = PoseStream(times, obs.target2cam, "images")
+        offset = 0.0 if time_offset is None else float(time_offset)
+        f2b, inside = interpolate(robot, times - offset)
+        if not inside.all():
+            raise SessionError(f"image(s) {summarize(np.asarray(session.image_names)[np.asarray(obs.used)][~inside])} "
+                               "were taken outside the robot stream's time span (or in a gap of it)")
+        cost = timing_cost(robot, times - offset)
+        note = (f"{len(times)} images are too few or too far apart to estimate the clock offset: the robot was "
+                f"interpolated at their times{'' if time_offset is None else f' minus the given {offset * 1e3:.1f} ms'}"
+                f"; it moved up to {np.nanmax(cost):.2f} deg/s + cm/s there, so each 10 ms of offset costs up to "
+                f"{np.nanmax(cost) / 100:.3f} deg + mm")
+        sync = Synchronisation(offset, 0.0, (offset, offset), None, None, [note])
+    ri = obs.robot_input
+    if ri is not None:  # the interpolated poses as the robot would write them
+        ri = replace(ri, values=format_poses(invert(f2b) if ri.inverted else f2b, ri.format, ri.length_unit, ri.angle_unit))
+    return replace(obs, flange2base=f2b, robot_input=ri), sync, robot, camera
+
+
+def _with_sync(cal: Calibration, sync: Synchronisation, robot: PoseStream, camera: PoseStream,
+               obs: Observations) -> Calibration:
+    """``cal`` (from the synchronised images ``obs``) with the clock offset, its uncertainty in X's
+    and the stream fields."""
+    session = obs.session
+    name_to_time = dict(zip(session.image_names, session.image_times))
+    used_times = np.array([name_to_time[n] for n in cal.image_names])
+    if sync.offset_std > 0 and cal.cov is not None and np.isfinite(cal.cov).all():
+        cov = cal.cov + offset_cov(cal.X, cal.Z, cal.setup, robot, used_times, cal.target2cam, sync.offset,
+                                   sync.offset_std)
+        cal = replace(cal, cov=cov, std=_std(cov))
+    return replace(cal, time_offset=sync.offset, time_offset_std=sync.offset_std,
+                   streams=sync.info(robot, camera, used_times), notes=list(sync.notes) + list(cal.notes))
 
 
 def calibrate_observed(

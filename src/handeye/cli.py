@@ -16,18 +16,21 @@ from scipy.spatial.transform import Rotation
 
 from . import solvers
 from ._shared.io import check_output_folder
+from ._shared.text import summarize
 from ._version import __version__
 from .calibration import ROBOT_ACCURACY, calibrate, calibrate_poses, certify_calibration, check_folder
 from .errors import HandEyeError
 from .geometry.se3 import make_transform
 from .planning import (ROBOTS, easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov, reprojection_information,
                        simulate_errors, visible_mask, write_plan)
-from .poses import pose_columns
+from .poses import ANGLE_UNITS, LENGTH_UNITS, pose_columns
 from .report import write_calibration
+from .importers import import_easy_handeye, import_rosbag
 from .result import Calibration
-from .session import load_pose_pairs, load_yaml, read_intrinsics
-from .setups import predicted_target2cam, setup_info
+from .session import POSE_KINDS, TIME_UNITS, load_pose_pairs, load_pose_streams, load_yaml, read_intrinsics
+from .setups import SETUPS, predicted_target2cam, setup_info
 from .simulate import DEFAULT_TARGETS, MIN_IMAGE_SIDE, simulate_session
+from .streams import KEYFRAMES, calibrate_streams, paired_delay_note
 from .study import preset, study, write_study
 from .vision.targets import target_from_spec
 
@@ -110,6 +113,10 @@ def print_calibration(cal: Calibration, out=None) -> None:
     for name, k in cal.known.items():
         w(f"known {name} = {k['value_m']:.5f} +- {k['std_m']:.5f} m: "
           + ("used (the data cannot determine it)\n" if k["used"] else f"not used (the data give {k['data_m']:.5f} m)\n"))
+    if cal.time_offset is not None:
+        w(f"clock offset (camera minus robot): {1e3 * cal.time_offset:.2f} +- {1e3 * cal.time_offset_std:.2f} ms "
+          f"({len(cal.streams['keyframe_camera_times_s'])} keyframes of {cal.streams['camera_samples']} camera and "
+          f"{cal.streams['robot_samples']} robot samples)\n")
     if cal.pose_noise is not None:
         nz = cal.pose_noise
         w(f"pose noise estimated from the data (per axis): robot rotation {nz['robot_rotation_deg']:.4f} deg, "
@@ -122,8 +129,9 @@ def print_calibration(cal: Calibration, out=None) -> None:
         used = set(cal.pose_indices.tolist()) if cal.pose_indices is not None else set()
         left = [i for i in cal.diagnostics.outliers if i not in used]
         kept = [i for i in cal.diagnostics.outliers if i in used]  # put back: the pixel refinement judges their points
-        w(f"check: {cal.diagnostics.verdict}" + (f"; outlier poses left out: {left}" if left else "")
-          + (f"; poses that looked like outliers by their PnP poses, kept for the pixel refinement: {kept}" if kept else "")
+        w(f"check: {cal.diagnostics.verdict}" + (f"; outlier poses left out: [{summarize(left)}]" if left else "")
+          + (f"; poses that looked like outliers by their PnP poses, kept for the pixel refinement: [{summarize(kept)}]"
+             if kept else "")
           + "\n")
     for note in cal.notes:
         w(f"note: {note}\n")
@@ -160,21 +168,66 @@ def _write_outputs(cal: Calibration, args: argparse.Namespace) -> None:
         print("no --out: nothing written (--out FOLDER writes result.json, result.yaml and report.html)")
 
 
-def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
-    folder = _input_folder(args.folder, args.example, EXAMPLE_POSEPAIRS,
-                           "give a pose-pair folder, or --example for the bundled one (not both)")
-    _out_folder(args.out, [folder])
-    pairs = load_pose_pairs(folder)
-    cal = calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, method=args.method, pairs=args.pairs,
-                          refine=args.refine, robot_input=pairs.robot_input, strict=args.strict,
-                          robot_accuracy=_accuracy_arg(args.robot_accuracy), progress=not args.no_progress,
-                          camera_input=pairs.camera_input, known=_known_arg(args.known), check=not args.no_check)
-    cal = replace(cal, notes=list(pairs.notes) + list(cal.notes), input_folder=folder)
+def _stream_options(args: argparse.Namespace) -> dict:
+    """calibrate_streams' own options from the command line."""
+    rng = _floats(args.offset_range, "--offset-range", (2,))
+    return dict(keyframes=args.keyframes, offset_range=None if rng is None else tuple(rng.tolist()),
+                time_offset=args.time_offset)
+
+
+def _calibrate_pose_streams(pairs, args: argparse.Namespace) -> Calibration:
+    """calibrate_streams on the two streams of a pose-pair folder or of calibrate-streams' files."""
+    cal = calibrate_streams(pairs.robot_times, pairs.flange2base, pairs.camera_times, pairs.target2cam,
+                            setup=pairs.setup, method=args.method, refine=args.refine, pairs=args.pairs,
+                            check=not args.no_check, robot_accuracy=_accuracy_arg(args.robot_accuracy),
+                            robot_input=pairs.robot_input, strict=args.strict, **_stream_options(args))
+    warning = paired_delay_note(pairs.paired_delays, cal.time_offset, cal.time_offset_std)
+    return replace(cal, notes=list(pairs.notes) + ([warning] if warning else []) + list(cal.notes),
+                   input_folder=pairs.source)
+
+
+def _finish_poses(cal: Calibration, args: argparse.Namespace) -> int:
     if args.certify:
         cal = certify_calibration(cal)
     print_calibration(cal)
     _write_outputs(cal, args)
     return _verdict_status(cal)
+
+
+def _cmd_calibrate_streams(args: argparse.Namespace) -> int:
+    robot, camera = Path(args.robot), Path(args.camera)
+    _out_folder(args.out, [robot.parent, camera.parent])
+    rl, ra = _units_arg(args.robot_units, "--robot-units")
+    cl, ca = _units_arg(args.camera_units, "--camera-units")
+    pairs = load_pose_streams(
+        {"file": str(robot), "format": args.robot_format, "length_unit": rl, "angle_unit": ra, "pose": args.robot_pose,
+         "time_unit": args.time_unit},
+        {"file": str(camera), "format": args.camera_format, "length_unit": cl, "angle_unit": ca,
+         "pose": args.camera_pose, "time_unit": args.time_unit}, args.setup)
+    return _finish_poses(_calibrate_pose_streams(pairs, args), args)
+
+
+def _units_arg(text: str, name: str) -> tuple[str, str]:
+    length, _, angle = text.partition(",")
+    if length not in LENGTH_UNITS or angle not in ANGLE_UNITS:
+        raise HandEyeError(f"{name} {text!r}: give LENGTH,ANGLE with LENGTH one of {', '.join(LENGTH_UNITS)} and ANGLE "
+                           f"one of {', '.join(ANGLE_UNITS)}, e.g. m,rad or mm,deg")
+    return length, angle
+
+
+def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
+    folder = _input_folder(args.folder, args.example, EXAMPLE_POSEPAIRS,
+                           "give a pose-pair folder, or --example for the bundled one (not both)")
+    _out_folder(args.out, [folder])
+    pairs = load_pose_pairs(folder)
+    if pairs.is_stream:
+        return _finish_poses(_calibrate_pose_streams(pairs, args), args)
+    cal = calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, method=args.method, pairs=args.pairs,
+                          refine=args.refine, robot_input=pairs.robot_input, strict=args.strict,
+                          robot_accuracy=_accuracy_arg(args.robot_accuracy), progress=not args.no_progress,
+                          camera_input=pairs.camera_input, known=_known_arg(args.known), check=not args.no_check)
+    cal = replace(cal, notes=list(pairs.notes) + list(cal.notes), input_folder=folder)
+    return _finish_poses(cal, args)
 
 
 def _print_image_summary(cal: Calibration) -> None:
@@ -201,7 +254,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))  # calibrate checks the values
     cal = calibrate(session, method=args.method, refine=args.refine, jobs=args.jobs, progress=not args.no_progress,
                     robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()), strict=args.strict,
-                    robot_accuracy=_accuracy_arg(args.robot_accuracy), known=_known_arg(args.known), check=not args.no_check)
+                    robot_accuracy=_accuracy_arg(args.robot_accuracy), known=_known_arg(args.known), check=not args.no_check,
+                    **_stream_options(args))
     if args.certify:
         cal = certify_calibration(cal)
     _print_image_summary(cal)
@@ -445,7 +499,109 @@ def _add_calibrate_poses(sub) -> None:
     p.add_argument("--pairs", default="auto", choices=["auto", "all", "consecutive"],
                    help="which pose pairs form motions (auto: all up to 141 poses, else ~10,000 spread pairs)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (shown from 200 poses)")
+    _add_stream_options(p)
     p.set_defaults(func=_cmd_calibrate_poses)
+
+
+def _add_stream_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("streams (files with a time column: two clocks, paired by time)")
+    g.add_argument("--keyframes", type=_whole(3), default=KEYFRAMES,
+                   help=f"camera samples to calibrate on, well spread where the robot moves slowly (default {KEYFRAMES})")
+    g.add_argument("--offset-range", metavar="LO,HI",
+                   help="clock offsets to search, seconds, camera clock minus robot clock (default -1,1; around the "
+                   "difference of the streams' middles when their stamps do not overlap)")
+    g.add_argument("--time-offset", type=_number(-math.inf), metavar="SECONDS",
+                   help="the clock offset when known (camera minus robot): no estimate")
+
+
+def _target_spec_arg(path: str | None) -> dict | None:
+    """--target-spec FILE: the target: mapping of a YAML file (a session.yaml, or the mapping alone)."""
+    if path is None:
+        return None
+    data = load_yaml(Path(path))
+    spec = data.get("target", data)
+    if not isinstance(spec, dict) or "type" not in spec:
+        raise HandEyeError(f"--target-spec {path}: no target mapping (type, cols, rows, square, ... as in session.yaml)")
+    target_from_spec(spec, where=f"--target-spec {path}")
+    return spec
+
+
+def _cmd_import(args: argparse.Namespace) -> int:
+    if args.kind == "easy-handeye":
+        summary = import_easy_handeye(args.source, args.out, setup=args.setup)
+    else:
+        frames = None
+        if args.robot_topic is None:
+            base, sep, tool = args.robot_frames.partition(",")
+            if not sep or not base.strip() or not tool.strip():
+                raise HandEyeError(f"--robot-frames {args.robot_frames!r}: give BASE,TOOL, e.g. base_link,tool0")
+            frames = (base.strip(), tool.strip())
+        summary = import_rosbag(args.source, args.out, setup=args.setup or "eye_in_hand", robot_frames=frames,
+                                robot_topic=args.robot_topic, image_topic=args.image_topic,
+                                camera_pose_topic=args.camera_pose_topic, camera_pose=args.camera_pose,
+                                camera_info_topic=args.camera_info_topic, target=_target_spec_arg(args.target_spec),
+                                every=args.every)
+    what = "a session (robot stream, images with their times)" if summary.kind == "session" else "a pose-pair folder"
+    print(f"wrote {what} to {summary.folder}: {summary.robot_samples} robot and {summary.camera_samples} camera samples")
+    command = "calibrate" if summary.kind == "session" else "calibrate-poses"
+    print(f"next: handeye {command} {summary.folder} --out RESULTS")
+    return 0
+
+
+def _add_import(sub) -> None:
+    p = sub.add_parser(
+        "import",
+        help="turn a ROS bag or easy_handeye samples into a handeye session or pose-pair folder",
+        description="rosbag: the robot from /tf (BASE,TOOL frames) or a pose topic, the camera from an image topic "
+        "(a session; --target-spec needed) or a pose topic (two pose streams); header stamps are kept, so handeye "
+        "estimates the clock offset. easy-handeye: easy_handeye2's .samples file as a pose-pair folder.",
+    )
+    p.add_argument("kind", choices=["rosbag", "easy-handeye"])
+    p.add_argument("source", help="the bag (ROS 2 folder, .db3/.mcap, or ROS 1 .bag) or the .samples file")
+    p.add_argument("--out", required=True, help="folder to write (new or empty)")
+    p.add_argument("--setup", choices=["eye_in_hand", "eye_to_hand"],
+                   help="default eye_in_hand (rosbag); easy-handeye reads it from the file's calibration_type")
+    p.add_argument("--robot-frames", default="base_link,tool0", metavar="BASE,TOOL",
+                   help="tf frames of the robot's base and flange (default base_link,tool0)")
+    p.add_argument("--robot-topic", help="instead of tf: a PoseStamped/TransformStamped/Odometry topic of the flange")
+    p.add_argument("--image-topic", help="an Image or CompressedImage topic")
+    p.add_argument("--camera-pose-topic", help="instead of images: a pose topic of the target in the camera")
+    p.add_argument("--camera-pose", default="target2cam", choices=["target2cam", "cam2target"],
+                   help="what --camera-pose-topic holds (default target2cam)")
+    p.add_argument("--camera-info-topic", help="a CameraInfo topic: the intrinsics (else estimated from the images)")
+    p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (needed with --image-topic)")
+    p.add_argument("--every", type=_whole(1), default=1, help="keep every n-th image (default 1)")
+    p.set_defaults(func=_cmd_import)
+
+
+def _add_calibrate_streams(sub) -> None:
+    p = sub.add_parser(
+        "calibrate-streams",
+        help="calibrate from a robot pose stream and a camera pose stream with separate clocks",
+        description="Pair two time-stamped pose recordings by time: estimate the clock offset (camera minus robot) "
+        "from the motion, interpolate the robot at the camera's times, choose well-spread keyframes and calibrate. "
+        "Each file: a header 'time' (or t, stamp, timestamp) then the pose columns of its format, or no header "
+        "with the columns in that order (e.g. ETH/TUM trajectories: t x y z qx qy qz qw = quat_xyzw).",
+    )
+    p.add_argument("robot", help="CSV of robot poses with times (flange2base unless --robot-pose base2flange)")
+    p.add_argument("camera", help="CSV of camera poses with times (target2cam unless --camera-pose cam2target)")
+    p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS), help="default: eye_in_hand")
+    p.add_argument("--robot-format", required=True, metavar="FORMAT",
+                   help="pose columns of the robot file: matrix, quat_wxyz, quat_xyzw, rotvec or euler:SEQ")
+    p.add_argument("--camera-format", required=True, metavar="FORMAT", help="pose columns of the camera file (as --robot-format)")
+    p.add_argument("--robot-units", default="m,rad", metavar="LENGTH,ANGLE", help="units of the robot file (default m,rad)")
+    p.add_argument("--camera-units", default="m,rad", metavar="LENGTH,ANGLE", help="units of the camera file (default m,rad)")
+    p.add_argument("--robot-pose", default="flange2base", choices=list(POSE_KINDS["robot_poses"]),
+                   help="what the robot rows are (default flange2base)")
+    p.add_argument("--camera-pose", default="target2cam", choices=list(POSE_KINDS["camera_poses"]),
+                   help="what the camera rows are (default target2cam, solvePnP's; cam2target for a camera pose in "
+                   "the target frame)")
+    p.add_argument("--time-unit", default="s", choices=list(TIME_UNITS), help="unit of both time columns (default s)")
+    _add_solver_and_out(p)
+    p.add_argument("--refine", default="auto", choices=["auto", "pose", "none"], help="as calibrate-poses (default auto)")
+    p.add_argument("--pairs", default="auto", choices=["auto", "all", "consecutive"], help="as calibrate-poses")
+    _add_stream_options(p)
+    p.set_defaults(func=_cmd_calibrate_streams)
 
 
 def _add_calibrate(sub) -> None:
@@ -465,6 +621,7 @@ def _add_calibrate(sub) -> None:
                    help="robot pose error per axis (e.g. 0.05,0.2): the pixel refinement then corrects each robot "
                    "pose within it instead of taking the poses as exact")
     _add_detection_options(p)
+    _add_stream_options(p)
     p.set_defaults(func=_cmd_calibrate)
 
 
@@ -581,8 +738,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     _add_calibrate_poses(sub)
+    _add_calibrate_streams(sub)
     _add_calibrate(sub)
     _add_check(sub)
+    _add_import(sub)
     _add_simulate(sub)
     _add_plan(sub)
     _add_study(sub)

@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.special import fdtri
 
 from . import solvers
+from ._shared.text import summarize
 from .errors import DegenerateMotionError, HandEyeError
 from .geometry.se3 import invert, mean_transform
 from .metrics import rotation_error, translation_error
@@ -118,9 +119,10 @@ def _reread(pose_input: RobotPoseInput, change: dict) -> NDArray[np.float64] | N
     quaternions of the wrong norm)."""
     kw = dict(format=pose_input.format, length_unit=pose_input.length_unit, angle_unit=pose_input.angle_unit) | change
     try:
-        return parse_poses(pose_input.values, kw["format"], kw["length_unit"], kw["angle_unit"])
+        T = parse_poses(pose_input.values, kw["format"], kw["length_unit"], kw["angle_unit"])
     except HandEyeError:
         return None
+    return invert(T) if pose_input.inverted else T
 
 
 def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None, camera_input: RobotPoseInput | None = None):
@@ -345,7 +347,7 @@ def diagnose(
         diag.outliers = [int(i) for i in np.flatnonzero(~inliers)]
         diag.outlier_residuals = {i: (float(resid[i, 0]), float(resid[i, 1])) for i in diag.outliers}
         diag.advice.append(
-            f"pose(s) {', '.join(map(str, diag.outliers))} disagree with the others far beyond their noise "
+            f"pose(s) {summarize(diag.outliers)} disagree with the others far beyond their noise "
             "(a wrong robot pose, a mislabelled image or a misdetected target): they are left out; "
             "check or retake them")
         if len(diag.outliers) > 0.2 * n:
@@ -460,7 +462,7 @@ def _partial_outliers(diag: Diagnostics, flange2base, target2cam, setup: str, ki
         return
     diag.outliers = [int(i) for i in np.flatnonzero(~inliers)]
     diag.outlier_residuals = {i: (float(resid[i, 0]), float(resid[i, 1])) for i in diag.outliers}
-    diag.advice.append(f"pose(s) {', '.join(map(str, diag.outliers))} disagree with the others far beyond their noise "
+    diag.advice.append(f"pose(s) {summarize(diag.outliers)} disagree with the others far beyond their noise "
                        "(a wrong robot pose, a mislabelled image or a misdetected target): they are left out; check or "
                        "retake them")
 

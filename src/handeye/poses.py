@@ -55,6 +55,8 @@ class RobotPoseInput:
     format: str
     length_unit: str = "m"
     angle_unit: str = "rad"
+    #: the rows are the inverse of the poses used (base2flange rows for flange2base, cam2target rows for target2cam)
+    inverted: bool = False
 
 
 def _parse_format(fmt: str) -> tuple[str, str | None]:

@@ -238,6 +238,12 @@ class Calibration:
     #: from handeye.certify_calibration: whether X is the global minimum of the stated motion cost
     #: ({'optimal', 'gap', 'cost', 'lower_bound', 'tight', 'cost_name'}); None when not certified
     certificate: dict | None = None
+    #: from handeye.calibrate_streams: the camera clock minus the robot clock (s), and its std; None for pairs
+    time_offset: float | None = None
+    time_offset_std: float | None = None
+    #: how the streams were synchronised (handeye.calibrate_streams): rates, samples, the coarse offset and its
+    #: correlation, the joint fit, and the keyframes' camera times
+    streams: dict | None = None
 
     @property
     def verdict(self) -> str:

@@ -20,7 +20,14 @@ detector, or a ViSP/ROS export). A pose-pair folder holds ``posepairs.yaml``::
 
 Each CSV has a header row naming the pose columns (see :func:`handeye.poses.pose_columns`),
 optionally preceded by an ``id`` (or ``image``) column. With ids in both files, rows pair by id;
-otherwise by order.
+otherwise by order. Either side may hold the inverse poses, said with ``pose: base2flange`` or
+``pose: cam2target`` (defaults ``flange2base``, ``target2cam``).
+
+*Streams*: with a ``time`` column (after the id, if any) in both files, the files are two
+recordings on separate clocks, not pairs (``handeye.calibrate_streams`` pairs them by time and
+estimates the clock offset). ``time_unit: s | ms | us | ns`` (default s) per side. A stream file
+may have no header: its columns are then the time and the pose columns, in that order (ETH's
+and TUM's trajectory files: ``t x y z qx qy qz qw`` with ``format: quat_xyzw``).
 """
 
 from __future__ import annotations
@@ -28,7 +35,7 @@ from __future__ import annotations
 import csv
 import io
 import unicodedata
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -37,17 +44,24 @@ import yaml
 from numpy.typing import NDArray
 
 from ._shared.io import atomic_write, read_text
+from ._shared.text import summarize
 from .errors import HandEyeError, InputMismatchError, PoseFormatError
+from .geometry.se3 import invert
 from .poses import RobotPoseInput, format_poses, parse_poses, pose_columns
 from .setups import check_setup
 from .vision.targets import target_from_spec
 
-__all__ = ["PosePairs", "Session", "load_pose_pairs", "load_session", "read_pose_table", "SessionError", "load_yaml",
-           "read_camera", "read_intrinsics", "write_pose_table", "write_session", "SESSION_FILE", "POSEPAIRS_FILE"]
+__all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session", "read_pose_table", "SessionError", "load_yaml",
+           "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
+           "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
 SESSION_FILE = "session.yaml"
 ID_COLUMNS = ("id", "image")
+#: Names of a time column (streams: the poses of one clock, seconds unless time_unit says otherwise).
+TIME_COLUMNS = ("time", "t", "stamp", "timestamp")
+#: Time units of stream files, in seconds.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp"}
 
 
@@ -67,6 +81,16 @@ class PosePairs:
     robot_input: RobotPoseInput | None = None  #: the robot poses as written (for the convention check)
     notes: list[str] = field(default_factory=list)  #: how the files were read, when not as plain UTF-8 CSV
     camera_input: RobotPoseInput | None = None  #: the camera poses as written (for the convention check)
+    #: streams (a time column in both files): seconds on each clock; the rows are then not paired
+    robot_times: NDArray[np.float64] | None = None
+    camera_times: NDArray[np.float64] | None = None
+    #: streams whose rows also carry ids: per id in both, camera time minus robot time (the user's pairing)
+    paired_delays: NDArray[np.float64] | None = None
+
+    @property
+    def is_stream(self) -> bool:
+        """Two time-stamped streams rather than pose pairs."""
+        return self.robot_times is not None
 
 
 @dataclass(frozen=True)
@@ -85,11 +109,19 @@ class Session:
     robot_input: RobotPoseInput | None = None  #: the robot poses as written (for the convention check)
     poses_path: Path | None = None  #: the pose table file
     notes: list[str] = field(default_factory=list)  #: how the files were read, when not as plain UTF-8 CSV
+    #: a robot stream (poses.csv with a time column): its times (s, robot clock) and poses; ``flange2base``
+    #: then holds the robot sample nearest each image's time, until the clock offset is estimated
+    robot_times: NDArray[np.float64] | None = None
+    robot_stream: NDArray[np.float64] | None = None
+    #: with a robot stream: each image's time (s, camera clock), from the ``images:`` table
+    image_times: NDArray[np.float64] | None = None
+    image_times_path: Path | None = None
 
     @property
     def input_files(self) -> list[Path]:
-        """Every file the session is read from: session.yaml, the pose table, the images."""
-        return [self.folder / SESSION_FILE] + ([self.poses_path] if self.poses_path else []) + list(self.image_paths)
+        """Every file the session is read from: session.yaml, the pose table(s), the images."""
+        tables = [p for p in (self.poses_path, self.image_times_path) if p is not None]
+        return [self.folder / SESSION_FILE] + tables + list(self.image_paths)
 
 
 def read_camera(spec: Any, where: str) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
@@ -140,9 +172,21 @@ def load_session(folder: str | Path) -> Session:
     fmt = str(_require(poses, "format", f"{where}: poses"))
     length_unit = str(_require(poses, "length_unit", f"{where}: poses"))
     angle_unit = str(poses.get("angle_unit", "rad"))
-    f2b, names, values = _read_pose_file(csv_path, fmt, length_unit, angle_unit, id_columns=("image",), notes=notes)
+    values, names, robot_times = read_pose_table(csv_path, fmt, id_columns=("image",), notes=notes, times=True)
+    f2b = _parsed(values, fmt, length_unit, angle_unit, csv_path)
+    stream = None
+    if robot_times is not None:  # a robot stream: the images carry their own times
+        if names is not None:
+            raise SessionError(f"{csv_path}: an 'image' and a time column: give either image names (poses paired with "
+                               "images) or times (a robot stream, with the images' times in an images: table)")
+        robot_times = robot_times * _time_unit(poses, f"{where}: poses")
+        names, image_times, times_path = _read_image_times(folder, spec.get("images"), where, notes)
+        stream = (robot_times, f2b, image_times, times_path)
+        nearest = _nearest(robot_times, image_times)
+        f2b, values = f2b[nearest], values[nearest]
     if names is None:
-        raise SessionError(f"{csv_path}: the first column must be 'image', naming each pose's image in images/")
+        raise SessionError(f"{csv_path}: the first column must be 'image', naming each pose's image in images/ "
+                           "(or 'time', for a robot stream with an images: table of image times)")
     image_dir = folder / "images"
     if not image_dir.is_dir():
         raise SessionError(f"{image_dir}: no images folder; the images named in {csv_path.name} go there")
@@ -160,8 +204,59 @@ def load_session(folder: str | Path) -> Session:
             f"{csv_path.name} has {len(names)} poses but images/ holds {len(on_disk)} images; no pose for "
             f"{', '.join(unnamed[:10])}: add their poses or move them out of images/"
         )
-    return Session(folder, setup, dict(target_spec), f2b, list(names), paths, K, dist, fmt,
-                   RobotPoseInput(values, fmt, length_unit, angle_unit), csv_path, notes)
+    session = Session(folder, setup, dict(target_spec), f2b, list(names), paths, K, dist, fmt,
+                      RobotPoseInput(values, fmt, length_unit, angle_unit), csv_path, notes)
+    if stream is not None:
+        session = replace(session, robot_times=stream[0], robot_stream=stream[1], image_times=stream[2],
+                          image_times_path=stream[3])
+    return session
+
+
+def _time_unit(spec: dict[str, Any], where: str) -> float:
+    unit = str(spec.get("time_unit", "s"))
+    if unit not in TIME_UNITS:
+        raise SessionError(f"{where}: time_unit {unit!r}; use one of {', '.join(TIME_UNITS)}")
+    return TIME_UNITS[unit]
+
+
+def _nearest(times: NDArray[np.float64], query: NDArray[np.float64]) -> NDArray[np.intp]:
+    """Per query time, the index of the nearest of the (increasing) ``times``."""
+    k = np.clip(np.searchsorted(times, query), 1, len(times) - 1)
+    return np.where(np.abs(query - times[k - 1]) <= np.abs(times[k] - query), k - 1, k)
+
+
+def _read_image_times(folder: Path, spec: Any, where: str, notes: list[str]
+                      ) -> tuple[list[str], NDArray[np.float64], Path]:
+    """The ``images:`` table of a session with a robot stream: a CSV with a header ``image, time``
+    (the camera's clock), in ``time_unit`` (default s)."""
+    if not isinstance(spec, dict) or "file" not in spec:
+        raise SessionError(f"{where}: the poses are a robot stream (a time column), so the images need their times: "
+                           "add images: {file: images.csv} with columns image, time")
+    path = folder / str(spec["file"])
+    if not path.is_file():
+        raise SessionError(f"{path}: " + ("is a folder, not a file" if path.is_dir() else "file not found"))
+    text, note = read_text(path)
+    if note:
+        notes.append(note)
+    rows = [r for r in csv.reader(io.StringIO(text, newline=""), delimiter=_delimiter(text), skipinitialspace=True)
+            if r and any(c.strip() for c in r)]
+    header = [c.strip().lower() for c in rows[0]] if rows else []
+    if len(header) != 2 or header[0] != "image" or header[1] not in TIME_COLUMNS:
+        raise SessionError(f"{path}: header {header}; expected image, time")
+    names, times = [], []
+    for k, row in enumerate(rows[1:]):
+        if len(row) != 2:
+            raise SessionError(f"{path}: line {k + 2} has {len(row)} values, the header has 2")
+        try:
+            times.append(float(row[1]))
+        except ValueError:
+            raise SessionError(f"{path}: line {k + 2}, column 'time': {row[1].strip()!r} is not a number") from None
+        names.append(row[0].strip())
+    if not names:
+        raise SessionError(f"{path}: no rows after the header")
+    if len(set(names)) != len(names):
+        raise SessionError(f"{path}: duplicate image names {summarize(sorted({n for n in names if names.count(n) > 1}))}")
+    return names, np.asarray(times) * _time_unit(spec, f"{where}: images"), path
 
 
 def _match_image_names(names: list[str], on_disk: list[str], notes: list[str]) -> list[str | None]:
@@ -233,14 +328,20 @@ def _delimiter(text: str) -> str:
 
 
 def read_pose_table(
-    path: Path, fmt: str, id_columns: tuple[str, ...] = ID_COLUMNS, notes: list[str] | None = None
-) -> tuple[NDArray[np.float64], list[str] | None]:
-    """Read a CSV of poses with a header row; returns the pose values and the ids (or None).
+    path: Path, fmt: str, id_columns: tuple[str, ...] = ID_COLUMNS, notes: list[str] | None = None,
+    times: bool = False, headerless: bool = False,
+):
+    """Read a CSV of poses with a header row; returns the pose values and the ids (or None), and
+    with ``times=True`` the time column too (or None): ``(values, ids, times)``.
 
     Any encoding :func:`handeye._shared.io.read_text` reads; values separated by ',' or (a
     header without commas) by ';' with decimal commas, tabs or spaces; header names in any case.
-    How the file was read, when not plain UTF-8 CSV, goes into ``notes``. Raises
-    :class:`SessionError` naming the file, line and column of anything malformed.
+    Columns: an optional id column (``id_columns``), with ``times=True`` an optional time column
+    (``time``, ``t``, ``stamp`` or ``timestamp``), then the pose columns of ``fmt``. With
+    ``headerless=True`` (streams, named explicitly) a first row of numbers is data: the columns are
+    then the time and the pose columns, in that order (ETH's and TUM's trajectory files). How the
+    file was read, when not plain UTF-8 CSV, goes into ``notes``. Raises :class:`SessionError`
+    naming the file, line and column of anything malformed.
     """
     if not path.is_file():
         raise SessionError(f"{path}: " + ("is a folder, not a file" if path.is_dir() else "file not found"))
@@ -249,24 +350,35 @@ def read_pose_table(
     delim = _delimiter(text)
     reader = csv.reader(io.StringIO(text, newline=""), delimiter=delim, skipinitialspace=delim == " ")
     try:
-        rows = [r for r in reader if r and any(c.strip() for c in r)]
+        rows = [r for r in reader if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
     except csv.Error as exc:
         raise SessionError(f"{path}: not a readable CSV table ({exc})") from None
     if not rows:
         raise SessionError(f"{path}: empty file; expected a header row ({', '.join(expected)}) and one row per pose")
     header = [c.strip() for c in rows[0]]
+    implicit = headerless and _numeric_row(header)
+    if implicit:  # no header: time, then the pose columns
+        header = [TIME_COLUMNS[0]] + expected
+        rows = [header] + rows
+        if notes is not None:
+            notes.append(f"{path.name}: no header row; columns read as {', '.join(header)}")
     id_col = header[0] if header and header[0].lower() in id_columns else None
-    pose_header = [c.lower() for c in (header[1:] if id_col else header)]
+    rest = [c.lower() for c in (header[1:] if id_col else header)]
+    time_col = rest[0] if times and rest and rest[0] in TIME_COLUMNS else None
+    pose_header = rest[1:] if time_col else rest
     if pose_header != expected:
+        stream = not times and rest and rest[0] in TIME_COLUMNS
         raise SessionError(
             f"{path}: header {header} does not match format {fmt!r}, which needs the columns "
             f"{', '.join(expected)} (after an '{id_columns[0]}' column)"
-        )
+            + (f"; its '{rest[0]}' column makes it a stream, which this file's place does not take" if stream else ""))
     decimal_comma = delim != "," and any("," in c for r in rows[1:] for c in r)
     ids: list[str] = []
-    values = np.empty((len(rows) - 1, len(expected)))
+    n_num = len(expected) + (1 if time_col else 0)
+    numbers = np.empty((len(rows) - 1, n_num))
+    names = ([time_col] if time_col else []) + expected
     for k, row in enumerate(rows[1:]):
-        line = k + 2
+        line = k + (1 if implicit else 2)
         cells = [c.strip() for c in row]
         if len(cells) != len(header):
             raise SessionError(f"{path}: line {line} has {len(cells)} values, the header has {len(header)}")
@@ -275,23 +387,34 @@ def read_pose_table(
             cells = cells[1:]
         for c, cell in enumerate(cells):
             try:
-                values[k, c] = float(cell.replace(",", ".") if decimal_comma else cell)
+                numbers[k, c] = float(cell.replace(",", ".") if decimal_comma else cell)
             except ValueError:
-                raise SessionError(f"{path}: line {line}, column '{expected[c]}': {cell!r} is not a number") from None
-    if len(values) == 0:
+                raise SessionError(f"{path}: line {line}, column '{names[c]}': {cell!r} is not a number") from None
+    if len(numbers) == 0:
         raise SessionError(f"{path}: no pose rows after the header")
     if id_col and any(not i for i in ids):
         raise SessionError(f"{path}: line {ids.index('') + 2} has an empty {id_col}")
     if id_col and len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})
-        raise SessionError(f"{path}: duplicate {id_col} values {dup}")
+        raise SessionError(f"{path}: duplicate {id_col} values [{summarize(map(repr, dup))}]")
     if notes is not None:
         if note:
             notes.append(note)
         if delim != ",":
             sep = {";": "semicolons", "\t": "tabs"}.get(delim, "spaces")
             notes.append(f"{path.name}: values read as separated by {sep}" + (", with decimal commas" if decimal_comma else ""))
-    return values, (ids if id_col else None)
+    values = numbers[:, 1:] if time_col else numbers
+    if not times:
+        return values, (ids if id_col else None)
+    return values, (ids if id_col else None), (numbers[:, 0].copy() if time_col else None)
+
+
+def _numeric_row(cells: list[str]) -> bool:
+    try:
+        [float(c) for c in cells]
+    except ValueError:
+        return False
+    return bool(cells)
 
 
 def _read_pose_file(
@@ -301,32 +424,93 @@ def _read_pose_file(
     """A pose CSV read and parsed into transforms (metres), with its ids and raw values; errors name
     the file and row."""
     values, ids = read_pose_table(path, fmt, id_columns=id_columns, notes=notes)
+    return _parsed(values, fmt, length_unit, angle_unit, path), ids, values
+
+
+def _parsed(values, fmt: str, length_unit: str, angle_unit: str, path: Path) -> NDArray[np.float64]:
     try:
-        return parse_poses(values, fmt, length_unit, angle_unit, what=str(path)), ids, values
+        return parse_poses(values, fmt, length_unit, angle_unit, what=str(path))
     except PoseFormatError as exc:
         raise PoseFormatError(f"{exc} (rows count from 0 after the header)" if "row " in str(exc) else str(exc)) from None
 
 
-def _read_poses(folder: Path, spec: Any, key: str,
-                notes: list[str]) -> tuple[NDArray[np.float64], list[str] | None, Path, RobotPoseInput]:
-    where = f"{folder / POSEPAIRS_FILE}: {key}"
+#: What the rows of each pose file may hold: the pose handeye uses, or its inverse.
+POSE_KINDS = {"robot_poses": ("flange2base", "base2flange"), "camera_poses": ("target2cam", "cam2target")}
+
+
+@dataclass(frozen=True)
+class _Side:
+    poses: NDArray[np.float64]  #: as handeye uses them (flange2base, target2cam), metres
+    ids: list[str] | None
+    times: NDArray[np.float64] | None  #: seconds, when the file has a time column
+    path: Path
+    input: RobotPoseInput
+
+
+def _read_poses(folder: Path, spec: Any, key: str, notes: list[str], where_file: str = POSEPAIRS_FILE) -> _Side:
+    """One side of a pose-pair folder (``key``: robot_poses or camera_poses): the file, its
+    declared format and units, ``pose`` (the rows may be the inverse of what handeye uses) and,
+    for streams, ``time_unit``."""
+    where = f"{folder / where_file}: {key}"
     if not isinstance(spec, dict):
         raise SessionError(f"{where}: expected a mapping with file, format, length_unit, angle_unit")
     path = folder / str(_require(spec, "file", where))
     fmt = str(_require(spec, "format", where))
     length_unit = str(_require(spec, "length_unit", where))
     angle_unit = str(spec.get("angle_unit", "rad"))
-    T, ids, values = _read_pose_file(path, fmt, length_unit, angle_unit, notes=notes)
-    return T, ids, path, RobotPoseInput(values, fmt, length_unit, angle_unit)
+    kinds = POSE_KINDS[key]
+    kind = str(spec.get("pose", kinds[0]))
+    if kind not in kinds:
+        raise SessionError(f"{where}: pose {kind!r}; use {kinds[0]} (the default) or {kinds[1]} (rows of the inverse)")
+    scale = _time_unit(spec, where)
+    values, ids, times = read_pose_table(path, fmt, notes=notes, times=True, headerless=True)
+    T = _parsed(values, fmt, length_unit, angle_unit, path)
+    inverted = kind == kinds[1]
+    if inverted:
+        T = invert(T)
+    return _Side(T, ids, None if times is None else times * scale, path,
+                 RobotPoseInput(values, fmt, length_unit, angle_unit, inverted))
+
+
+def _paired(robot: _Side, camera: _Side) -> tuple[NDArray[np.float64], RobotPoseInput, list[str]]:
+    """The camera poses in the robot rows' order (by id when both have ids, else by row), their
+    input as written in that order, and the ids."""
+    if robot.ids is not None and camera.ids is not None:
+        missing = sorted(set(robot.ids) ^ set(camera.ids))
+        if missing:
+            raise InputMismatchError(
+                f"ids [{summarize(map(repr, missing))}] appear in only one of {robot.path.name} and {camera.path.name}; every "
+                f"robot pose needs its camera pose")
+        row_of = {k: n for n, k in enumerate(camera.ids)}
+        order = [row_of[k] for k in robot.ids]
+        return camera.poses[order], replace(camera.input, values=camera.input.values[order]), robot.ids
+    if len(robot.poses) != len(camera.poses):
+        raise InputMismatchError(
+            f"{robot.path.name} has {len(robot.poses)} poses but {camera.path.name} has {len(camera.poses)}; they pair "
+            f"row by row (or add an 'id' column to both, or a time column to both for streams)")
+    return camera.poses, camera.input, robot.ids or camera.ids or [str(k) for k in range(len(robot.poses))]
+
+
+def _paired_delays(robot: _Side, camera: _Side) -> NDArray[np.float64] | None:
+    """For streams whose rows also carry ids: per id in both, the camera time minus the robot time
+    (how the user paired them)."""
+    if robot.ids is None or camera.ids is None:
+        return None
+    t_robot = dict(zip(robot.ids, robot.times))
+    common = [(k, t) for k, t in zip(camera.ids, camera.times) if k in t_robot]
+    if not common:
+        return None
+    return np.array([t - t_robot[k] for k, t in common])
 
 
 def load_pose_pairs(folder: str | Path) -> PosePairs:
-    """Load a pose-pair folder (see the module docstring).
+    """Load a pose-pair folder (see the module docstring); with a time column in both files, two
+    streams (:attr:`PosePairs.robot_times`, :attr:`PosePairs.camera_times`; rows not paired).
 
     Raises
     ------
     SessionError
-        Missing folder, file or key; malformed CSV.
+        Missing folder, file or key; malformed CSV; a time column in only one file.
     PoseFormatError
         Pose values that do not fit their declared format or units.
     InputMismatchError
@@ -339,31 +523,37 @@ def load_pose_pairs(folder: str | Path) -> PosePairs:
     spec = load_yaml(folder / POSEPAIRS_FILE, notes)
     where = str(folder / POSEPAIRS_FILE)
     setup = check_setup(str(_require(spec, "setup", where)))
-    f2b, robot_ids, robot_path, robot_input = _read_poses(folder, _require(spec, "robot_poses", where), "robot_poses",
-                                                          notes)
-    t2c, cam_ids, cam_path, camera_input = _read_poses(folder, _require(spec, "camera_poses", where), "camera_poses",
-                                                       notes)
-    if robot_ids is not None and cam_ids is not None:
-        missing = sorted(set(robot_ids) ^ set(cam_ids))
-        if missing:
-            raise InputMismatchError(
-                f"ids {missing} appear in only one of {robot_path.name} and {cam_path.name}; every robot pose "
-                f"needs its camera pose"
-            )
-        row_of = {k: n for n, k in enumerate(cam_ids)}
-        order = [row_of[k] for k in robot_ids]
-        t2c = t2c[order]
-        camera_input = RobotPoseInput(camera_input.values[order], camera_input.format, camera_input.length_unit,
-                                      camera_input.angle_unit)
-        ids = robot_ids
-    else:
-        if len(f2b) != len(t2c):
-            raise InputMismatchError(
-                f"{robot_path.name} has {len(f2b)} poses but {cam_path.name} has {len(t2c)}; they pair row by row "
-                f"(or add an 'id' column to both)"
-            )
-        ids = robot_ids or cam_ids or [str(k) for k in range(len(f2b))]
-    return PosePairs(setup, f2b, t2c, ids, folder, robot_input, notes, camera_input)
+    robot = _read_poses(folder, _require(spec, "robot_poses", where), "robot_poses", notes)
+    camera = _read_poses(folder, _require(spec, "camera_poses", where), "camera_poses", notes)
+    return _pairs_or_streams(setup, robot, camera, folder, notes)
+
+
+def load_pose_streams(robot_spec: dict[str, Any], camera_spec: dict[str, Any], setup: str,
+                      folder: str | Path = ".") -> PosePairs:
+    """Two stream files described as in ``posepairs.yaml`` (``file`` relative to ``folder``), e.g.
+    from the command line; both must have a time column (or no header: time, then the pose columns)."""
+    folder = Path(folder)
+    notes: list[str] = []
+    check_setup(setup)
+    robot = _read_poses(folder, robot_spec, "robot_poses", notes, where_file="(robot stream)")
+    camera = _read_poses(folder, camera_spec, "camera_poses", notes, where_file="(camera stream)")
+    for side in (robot, camera):
+        if side.times is None:
+            raise SessionError(f"{side.path}: no time column; a stream needs one (header 'time', then the pose columns)")
+    return _pairs_or_streams(setup, robot, camera, robot.path.parent, notes)
+
+
+def _pairs_or_streams(setup: str, robot: _Side, camera: _Side, folder: Path, notes: list[str]) -> PosePairs:
+    if (robot.times is None) != (camera.times is None):
+        has, lacks = (robot, camera) if robot.times is not None else (camera, robot)
+        raise SessionError(f"{has.path.name} has a time column but {lacks.path.name} has none: give both times "
+                           "(two streams, paired by time) or neither (poses paired by id or row)")
+    if robot.times is not None:
+        ids = robot.ids if robot.ids is not None else [f"{t:.6f}" for t in robot.times]
+        return PosePairs(setup, robot.poses, camera.poses, ids, folder, robot.input, notes, camera.input,
+                         robot.times, camera.times, _paired_delays(robot, camera))
+    t2c, camera_input, ids = _paired(robot, camera)
+    return PosePairs(setup, robot.poses, t2c, ids, folder, robot.input, notes, camera_input)
 
 
 def read_intrinsics(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[int, int]]:
@@ -391,15 +581,16 @@ def _number(v: float) -> str:
 
 
 def write_pose_table(path: str | Path, names: list[str], flange2base: NDArray[np.float64], format: str = "quat_wxyz",
-                     length_unit: str = "m", angle_unit: str = "rad", protect: Iterable[str | Path] = ()) -> Path:
-    """Write robot poses as a session ``poses.csv`` (``image`` column first) in the given format and
-    units, atomically and never over a ``protect`` path; returns the path."""
+                     length_unit: str = "m", angle_unit: str = "rad", protect: Iterable[str | Path] = (),
+                     id_column: str = "image") -> Path:
+    """Write poses as a session ``poses.csv`` (``image`` column first, or ``id_column``) in the given
+    format and units, atomically and never over a ``protect`` path; returns the path."""
     rows = format_poses(flange2base, format, length_unit, angle_unit)
     if len(names) != len(rows):
         raise InputMismatchError(f"{len(names)} image names for {len(rows)} poses")
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["image"] + pose_columns(format))
+    w.writerow([id_column] + pose_columns(format))
     for name, row in zip(names, rows):
         w.writerow([name] + [_number(v) for v in row])
     path = Path(path)
@@ -426,3 +617,80 @@ def write_session(folder: str | Path, setup: str, target_spec: dict[str, Any], n
     text = (f"# {comment}\n" if comment else "") + yaml.safe_dump(spec, sort_keys=False)
     atomic_write(folder / SESSION_FILE, text)
     return folder / SESSION_FILE
+
+
+def write_pose_stream(path: str | Path, times: NDArray[np.float64], poses: NDArray[np.float64], format: str = "quat_xyzw",
+                      length_unit: str = "m", angle_unit: str = "rad", ids: list[str] | None = None) -> Path:
+    """Write time-stamped poses (a stream, seconds) as a CSV with a ``time`` column (after an ``id``
+    column when ``ids`` are given), atomically; returns the path."""
+    rows = format_poses(poses, format, length_unit, angle_unit)
+    times = np.asarray(times, dtype=float)
+    if len(times) != len(rows) or (ids is not None and len(ids) != len(rows)):
+        raise InputMismatchError(f"{len(times)} times{'' if ids is None else f', {len(ids)} ids'} for {len(rows)} poses")
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow((["id"] if ids is not None else []) + ["time"] + pose_columns(format))
+    for k, row in enumerate(rows):
+        w.writerow(([ids[k]] if ids is not None else []) + [_number(times[k])] + [_number(v) for v in row])
+    path = Path(path)
+    atomic_write(path, buf.getvalue())
+    return path
+
+
+def write_stream_session(folder: str | Path, setup: str, target_spec: dict[str, Any], robot_times: NDArray[np.float64],
+                         flange2base: NDArray[np.float64], image_names: list[str], image_times: NDArray[np.float64],
+                         format: str = "quat_xyzw", length_unit: str = "m", angle_unit: str = "rad",
+                         camera: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+                         comment: str | None = None) -> Path:
+    """Write ``session.yaml`` of a session whose poses are a robot stream: ``robot.csv`` (time, then
+    the pose columns) and ``images.csv`` (image, time on the camera's clock); the images are the
+    caller's. Returns the session.yaml path."""
+    folder = Path(folder)
+    check_setup(setup)
+    target_from_spec(target_spec)
+    if len(image_names) != len(image_times):
+        raise InputMismatchError(f"{len(image_names)} image names for {len(image_times)} image times")
+    write_pose_stream(folder / "robot.csv", robot_times, flange2base, format, length_unit, angle_unit)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["image", "time"])
+    for name, t in zip(image_names, image_times):
+        w.writerow([name, _number(t)])
+    atomic_write(folder / "images.csv", buf.getvalue())
+    spec: dict[str, Any] = {"setup": setup, "target": dict(target_spec)}
+    if camera is not None:
+        spec["camera"] = {"K": np.asarray(camera[0], dtype=float).tolist(),
+                          "dist": np.asarray(camera[1], dtype=float).ravel().tolist()}
+    spec["poses"] = {"file": "robot.csv", "format": format, "length_unit": length_unit, "angle_unit": angle_unit,
+                     "time_unit": "s"}
+    spec["images"] = {"file": "images.csv", "time_unit": "s"}
+    text = (f"# {comment}\n" if comment else "") + yaml.safe_dump(spec, sort_keys=False)
+    atomic_write(folder / SESSION_FILE, text)
+    return folder / SESSION_FILE
+
+
+def write_pose_pairs(folder: str | Path, setup: str, flange2base: NDArray[np.float64], target2cam: NDArray[np.float64],
+                     robot_times: NDArray[np.float64] | None = None, camera_times: NDArray[np.float64] | None = None,
+                     ids: list[str] | None = None, comment: str | None = None) -> Path:
+    """Write a pose-pair folder (``posepairs.yaml``, ``robot_poses.csv``, ``camera_poses.csv``; poses
+    as quat_xyzw in metres): pairs by id (``ids``, default row numbers) or, with both ``*_times``,
+    two streams. Returns the posepairs.yaml path."""
+    folder = Path(folder)
+    check_setup(setup)
+    if (robot_times is None) != (camera_times is None):
+        raise InputMismatchError("give both robot_times and camera_times (streams) or neither (pairs)")
+    if robot_times is not None:
+        write_pose_stream(folder / "robot_poses.csv", robot_times, flange2base)
+        write_pose_stream(folder / "camera_poses.csv", camera_times, target2cam)
+    else:
+        if len(flange2base) != len(target2cam):
+            raise InputMismatchError(f"{len(flange2base)} robot poses for {len(target2cam)} camera poses")
+        names = ids if ids is not None else [f"{k:04d}" for k in range(len(flange2base))]
+        write_pose_table(folder / "robot_poses.csv", names, flange2base, "quat_xyzw", "m", "rad", id_column="id")
+        write_pose_table(folder / "camera_poses.csv", names, target2cam, "quat_xyzw", "m", "rad", id_column="id")
+    side = {"format": "quat_xyzw", "length_unit": "m", "angle_unit": "rad"}
+    spec = {"setup": setup, "robot_poses": {"file": "robot_poses.csv", **side},
+            "camera_poses": {"file": "camera_poses.csv", **side}}
+    text = (f"# {comment}\n" if comment else "") + yaml.safe_dump(spec, sort_keys=False)
+    atomic_write(folder / POSEPAIRS_FILE, text)
+    return folder / POSEPAIRS_FILE

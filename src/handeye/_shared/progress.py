@@ -1,27 +1,31 @@
-"""A one-line progress bar on stderr, for the long jobs (image detection, the simulation study)."""
+"""Progress of the long jobs (image detection, the simulation study, large calibrations): tqdm's bar
+with rate and time left on a terminal; elsewhere (a log, a pipe) one line when the job ends."""
 
 from __future__ import annotations
 
 import sys
 
+from tqdm import tqdm
+
 
 class Progress:
-    """A one-line progress bar on stderr (redrawn in place on a terminal, else one final line)."""
+    """A progress bar on stderr over ``total`` steps named ``label``: ``update(n)``, then ``close()``."""
 
     def __init__(self, total: int, label: str, enabled: bool = True) -> None:
         self.total, self.label, self.done = total, label, 0
         self.enabled = enabled and total > 0
         self.tty = sys.stderr.isatty()
+        self._bar = (tqdm(total=total, desc=label, file=sys.stderr, unit="step", dynamic_ncols=True, leave=True)
+                     if self.enabled and self.tty else None)
 
     def update(self, n: int = 1) -> None:
         self.done += n
-        if self.enabled and self.tty:
-            width = 30
-            filled = int(width * self.done / self.total)
-            sys.stderr.write(f"\r{self.label} [{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total}")
-            sys.stderr.flush()
+        if self._bar is not None:
+            self._bar.update(n)
 
     def close(self) -> None:
-        if self.enabled:
-            sys.stderr.write(("\n" if self.tty else f"{self.label}: {self.done}/{self.total}\n"))
+        if self._bar is not None:
+            self._bar.close()
+        elif self.enabled:  # not a terminal: no redrawn bar, one line for the log
+            sys.stderr.write(f"{self.label}: {self.done}/{self.total}\n")
             sys.stderr.flush()

@@ -224,6 +224,11 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
         out["known"] = {k: dict(v) for k, v in cal.known.items()}
     if cal.certificate is not None:
         out["certificate"] = dict(cal.certificate)
+    if cal.time_offset is not None:
+        out["time_sync"] = {"time_offset_s": cal.time_offset, "time_offset_std_s": cal.time_offset_std,
+                            "meaning": "camera clock minus robot clock: the camera sample stamped t shows the robot "
+                                       "at robot time t - time_offset",
+                            **(cal.streams or {})}
     if cal.diagnostics is not None:
         d = cal.diagnostics
         out["check"] = {

@@ -272,6 +272,12 @@ def _result_section(cal: Calibration, data: dict) -> str:
         parts.append(f"<p><b>Certificate:</b> X is {'' if c['optimal'] else 'not '}the global minimum of the stated "
                      f"cost ({_e(c['cost_name'])}): cost {c['cost']:.6g}, lower bound {c['lower_bound']:.6g}, gap "
                      f"{c['gap']:.3g}{'' if c['tight'] else ' (relaxation not tight)'}</p>")
+    if cal.time_offset is not None:
+        st = cal.streams or {}
+        parts.append(f"<p><b>Clock offset</b> (camera minus robot): {1e3 * cal.time_offset:.2f} &plusmn; "
+                     f"{1e3 * cal.time_offset_std:.2f} ms; {len(st.get('keyframe_camera_times_s', []))} keyframes of "
+                     f"{st.get('camera_samples', '?')} camera and {st.get('robot_samples', '?')} robot samples, the robot "
+                     "interpolated at each keyframe's time minus the offset</p>")
     if cal.cross_validation is not None:
         parts.append(_cross_validation_table(cal))
     if cal.pose_noise is not None:

@@ -111,6 +111,9 @@ class Renderer:
             xy = cv2.undistortPoints(pix, self.K, self.dist, None, None, None, crit)
         xy = xy.reshape(-1, 2)
         self.rays = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)  # camera frame, z = 1
+        # the ray components in float32 (texture coordinates need ~1e-4 px, float32 gives ~1e-7 relative)
+        self._rx = np.ascontiguousarray(xy[:, 0], dtype=np.float32)
+        self._ry = np.ascontiguousarray(xy[:, 1], dtype=np.float32)
 
     def project(self, points_target: NDArray[np.float64], target2cam: NDArray[np.float64]) -> NDArray[np.float64]:
         """Pixel positions of target-frame points (with distortion)."""
@@ -128,16 +131,20 @@ class Renderer:
     ) -> NDArray[np.uint8]:
         """The grayscale image of the textured target plane at pose ``target2cam``."""
         cam2target = invert(target2cam)
-        R, o = cam2target[:3, :3], cam2target[:3, 3]
-        d = self.rays @ R.T
+        R, o = cam2target[:3, :3].astype(np.float32), cam2target[:3, 3].astype(np.float32)
+        x, y = self._rx, self._ry
+        # where each ray (x, y, 1), turned into the target frame, meets the target plane z = 0
         with np.errstate(divide="ignore", invalid="ignore"):
-            lam = -o[2] / d[:, 2]
-        hit = lam > 0
-        p = o + lam[:, None] * d
+            lam = -o[2] / (R[2, 0] * x + R[2, 1] * y + R[2, 2])
+        miss = ~(lam > 0)
         w, h = self.size
         ss = self.ss
-        mu = np.where(hit, texture.u0 + p[:, 0] * texture.scale, -10.0).astype(np.float32).reshape(h * ss, w * ss)
-        mv = np.where(hit, texture.v0 + p[:, 1] * texture.scale, -10.0).astype(np.float32).reshape(h * ss, w * ss)
+        s = np.float32(texture.scale)
+        mu = np.float32(texture.u0) + s * (o[0] + lam * (R[0, 0] * x + R[0, 1] * y + R[0, 2]))
+        mv = np.float32(texture.v0) + s * (o[1] + lam * (R[1, 0] * x + R[1, 1] * y + R[1, 2]))
+        mu[miss] = -10.0
+        mv[miss] = -10.0
+        mu, mv = mu.reshape(h * ss, w * ss), mv.reshape(h * ss, w * ss)
         hi = cv2.remap(texture.image, mu, mv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=background)
         img = cv2.resize(hi, self.size, interpolation=cv2.INTER_AREA).astype(np.float32)
         if blur > 0:

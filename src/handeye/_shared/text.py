@@ -1,0 +1,14 @@
+"""Text for people: long lists cut to a readable length."""
+
+from __future__ import annotations
+
+from typing import Iterable
+
+
+def summarize(items: Iterable[object], shown: int = 5) -> str:
+    """``items`` as ``'a, b, c, d, e and 4,495 more'``: a list of thousands of ids never fills a
+    screen (or one line of an error message)."""
+    items = [str(i) for i in items]
+    if len(items) <= shown + 1:
+        return ", ".join(items)
+    return f"{', '.join(items[:shown])} and {len(items) - shown:,} more"

@@ -1,0 +1,356 @@
+"""Recordings made by other tools, written as handeye folders.
+
+* :func:`import_rosbag`: a ROS 2 (or ROS 1) bag, read with the ``rosbags`` package (no ROS
+  install): the robot's pose from ``/tf`` (the chain from the base frame to the tool frame,
+  ``/tf_static`` included) or from a pose topic, and the camera from an image topic (a session
+  whose poses are a robot stream, the images with their stamps) or from a pose topic of the
+  target in the camera (two pose streams). Stamps are the messages' header stamps (each sensor's
+  clock), not the times the recorder received them.
+* :func:`import_easy_handeye`: the ``.samples`` file easy_handeye2 saves (robot and tracking
+  transforms per sample), written as a pose-pair folder.
+
+The folders are ordinary handeye inputs: ``handeye calibrate`` / ``calibrate-poses`` read them.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from ._shared.io import check_output_folder
+from ._shared.lazy import lazy_module
+from ._shared.text import summarize
+from .errors import HandEyeError, InputMismatchError
+from .geometry.se3 import invert, make_transform
+from .session import POSEPAIRS_FILE, SESSION_FILE, SessionError, load_yaml, write_pose_pairs, write_stream_session
+from .setups import check_setup, robot_world_A
+from .vision.targets import target_from_spec
+
+cv2 = lazy_module("cv2")
+
+__all__ = ["import_rosbag", "import_easy_handeye", "ImportSummary", "ROSBAGS_MISSING"]
+
+#: What to say when the optional ``rosbags`` package is absent.
+ROSBAGS_MISSING = "reading bag files needs the rosbags package: pip install 'handeye[ros]'"
+
+
+@dataclass(frozen=True)
+class ImportSummary:
+    """What an import wrote: the folder, its kind ('session' or 'posepairs') and what it holds."""
+
+    folder: Path
+    kind: str
+    robot_samples: int
+    camera_samples: int
+    notes: list[str]
+
+
+def _rosbags():
+    try:
+        from rosbags.highlevel import AnyReader  # noqa: PLC0415  (an optional extra)
+        from rosbags.typesys import Stores, get_typestore  # noqa: PLC0415
+    except ImportError:
+        raise HandEyeError(ROSBAGS_MISSING) from None
+    return AnyReader, Stores, get_typestore
+
+
+def _stamp(msg) -> float:
+    """A message's header stamp in seconds (ROS 2 ``sec``/``nanosec``, ROS 1 ``secs``/``nsecs``)."""
+    st = msg.header.stamp
+    sec = getattr(st, "sec", None)
+    return float(sec if sec is not None else st.secs) + 1e-9 * float(getattr(st, "nanosec", getattr(st, "nsecs", 0)))
+
+
+def _transform_of(t) -> NDArray[np.float64]:
+    """A geometry_msgs Transform (translation, rotation) or Pose (position, orientation) as 4x4."""
+    p = getattr(t, "translation", None) or t.position
+    q = getattr(t, "rotation", None) or t.orientation
+    return make_transform(Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix(), [p.x, p.y, p.z])
+
+
+def _pose_topic(reader, topic: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Stamps and poses of a PoseStamped, TransformStamped or Odometry topic, in stamp order."""
+    conns = [c for c in reader.connections if c.topic == topic]
+    if not conns:
+        raise InputMismatchError(f"no topic {topic} in the bag; it has {summarize(sorted(reader.topics))}")
+    times, poses = [], []
+    for conn, _, raw in reader.messages(connections=conns):
+        msg = reader.deserialize(raw, conn.msgtype)
+        body = getattr(msg, "pose", None) or getattr(msg, "transform", None)
+        if body is not None and hasattr(body, "pose"):  # Odometry: PoseWithCovariance
+            body = body.pose
+        if body is None:
+            raise InputMismatchError(f"{topic}: {conn.msgtype} holds no pose; use a PoseStamped, TransformStamped or "
+                                     "Odometry topic")
+        times.append(_stamp(msg))
+        poses.append(_transform_of(body))
+    return _ordered(np.array(times), np.array(poses), topic)
+
+
+def _ordered(times, poses, what: str):
+    if len(times) == 0:
+        raise InputMismatchError(f"{what}: no messages in the bag")
+    order = np.argsort(times, kind="stable")
+    times, poses = times[order], poses[order]
+    keep = np.r_[True, np.diff(times) > 0]  # a stamp published twice: the first
+    return times[keep], poses[keep]
+
+
+def _tf_edges(reader) -> tuple[dict, dict]:
+    """Per (parent, child) edge of /tf: stamps and child2parent transforms; of /tf_static: one transform."""
+    dynamic: dict[tuple[str, str], list] = defaultdict(list)
+    static: dict[tuple[str, str], NDArray[np.float64]] = {}
+    conns = [c for c in reader.connections if c.topic in ("/tf", "/tf_static")]
+    for conn, _, raw in reader.messages(connections=conns):
+        msg = reader.deserialize(raw, conn.msgtype)
+        for tr in msg.transforms:
+            edge = (tr.header.frame_id.lstrip("/"), tr.child_frame_id.lstrip("/"))
+            T = _transform_of(tr.transform)
+            if conn.topic == "/tf_static":
+                static[edge] = T
+            else:
+                dynamic[edge].append((_stamp(tr), T))
+    return dynamic, static
+
+
+def _frame_path(edges: set, start: str, goal: str) -> list[tuple[str, str, bool]]:
+    """The edges from ``start`` to ``goal`` (breadth first over tf's tree, either direction):
+    (parent, child, forward) where forward means the edge maps child into parent along the path."""
+    nbrs: dict[str, list] = defaultdict(list)
+    for parent, child in edges:
+        nbrs[parent].append((child, (parent, child, True)))
+        nbrs[child].append((parent, (parent, child, False)))
+    seen, queue = {start: []}, [start]
+    while queue:
+        f = queue.pop(0)
+        for g, edge in nbrs[f]:
+            if g not in seen:
+                seen[g] = seen[f] + [edge]
+                queue.append(g)
+    if goal not in seen:
+        raise InputMismatchError(f"tf has no chain from {start} to {goal}; its frames: {summarize(sorted(nbrs))}")
+    return seen[goal]
+
+
+def _tf_stream(reader, base: str, tool: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``tool2base`` over time from /tf and /tf_static: the chain's transforms composed at the
+    stamps of its moving edges (robot_state_publisher stamps them alike; 0.5 ms apart at most)."""
+    dynamic, static = _tf_edges(reader)
+    path = _frame_path(set(dynamic) | set(static), base, tool)
+    moving = [(p, c) for p, c, _ in path if (p, c) in dynamic]
+    if not moving:
+        raise InputMismatchError(f"the tf chain {base} -> {tool} never moves (only /tf_static): no robot motion")
+    ref_t = np.array(sorted({t for t, _ in dynamic[moving[0]]}))
+    series = {}
+    for edge in moving:
+        t, T = _ordered(np.array([s for s, _ in dynamic[edge]]), np.array([m for _, m in dynamic[edge]]), f"tf {edge}")
+        k = np.clip(np.searchsorted(t, ref_t), 1, len(t) - 1)
+        k = np.where(np.abs(ref_t - t[k - 1]) <= np.abs(t[k] - ref_t), k - 1, k)
+        ok = np.abs(t[k] - ref_t) <= 5e-4
+        series[edge] = (T[k], ok)
+    ok = np.logical_and.reduce([o for _, o in series.values()])
+    if ok.sum() < 2:
+        raise InputMismatchError(f"the moving edges of the tf chain {base} -> {tool} ({summarize(moving)}) are never "
+                                 "stamped alike; record the tool pose as one topic (--robot-topic)")
+    tool2base = np.tile(np.eye(4), (int(ok.sum()), 1, 1))
+    for parent, child, forward in path:  # base -> ... -> tool: each step maps the next frame into the current
+        T = series[(parent, child)][0][ok] if (parent, child) in series else static[(parent, child)]
+        tool2base = tool2base @ (T if forward else invert(T))
+    return ref_t[ok], tool2base
+
+
+_ENCODINGS = {"mono8": (1, np.uint8), "bgr8": (3, np.uint8), "rgb8": (3, np.uint8), "bgra8": (4, np.uint8),
+              "rgba8": (4, np.uint8), "mono16": (1, np.uint16)}
+
+
+def _image_of(msg, msgtype: str) -> NDArray[np.uint8]:
+    """A grayscale 8-bit image from a sensor_msgs Image or CompressedImage."""
+    if msgtype.endswith("CompressedImage"):
+        img = cv2.imdecode(np.frombuffer(bytes(msg.data), np.uint8), cv2.IMREAD_GRAYSCALE)
+        if img is None:
+            raise InputMismatchError(f"a {msg.format!r} compressed image could not be decoded")
+        return img
+    if msg.encoding not in _ENCODINGS:
+        raise InputMismatchError(f"image encoding {msg.encoding!r}; handeye reads {', '.join(_ENCODINGS)}")
+    channels, dtype = _ENCODINGS[msg.encoding]
+    raw = np.frombuffer(bytes(msg.data), np.uint8).reshape(msg.height, msg.step)
+    img = raw[:, : msg.width * channels * np.dtype(dtype).itemsize].copy().view(dtype)
+    img = img.reshape(msg.height, msg.width, channels)
+    if dtype == np.uint16:
+        img = (img.astype(np.float64) / max(1, img.max()) * 255).astype(np.uint8)
+    if channels == 1:
+        return img[..., 0]
+    code = {"bgr8": cv2.COLOR_BGR2GRAY, "rgb8": cv2.COLOR_RGB2GRAY, "bgra8": cv2.COLOR_BGRA2GRAY,
+            "rgba8": cv2.COLOR_RGBA2GRAY}[msg.encoding]
+    return cv2.cvtColor(np.ascontiguousarray(img), code)
+
+
+def _write_images(reader, topic: str, folder: Path, every: int) -> tuple[list[str], NDArray[np.float64]]:
+    conns = [c for c in reader.connections if c.topic == topic]
+    if not conns:
+        raise InputMismatchError(f"no topic {topic} in the bag; it has {summarize(sorted(reader.topics))}")
+    (folder / "images").mkdir(parents=True, exist_ok=True)
+    names, times = [], []
+    for k, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
+        if k % every:
+            continue
+        msg = reader.deserialize(raw, conn.msgtype)
+        name = f"{len(names):06d}.png"
+        if not cv2.imwrite(str(folder / "images" / name), _image_of(msg, conn.msgtype)):
+            raise HandEyeError(f"cannot write {folder / 'images' / name}")
+        names.append(name)
+        times.append(_stamp(msg))
+    if not names:
+        raise InputMismatchError(f"{topic}: no images in the bag")
+    return names, np.array(times)
+
+
+def _camera_info(reader, topic: str | None) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    if topic is None:
+        return None
+    conns = [c for c in reader.connections if c.topic == topic]
+    if not conns:
+        raise InputMismatchError(f"no topic {topic} in the bag; it has {summarize(sorted(reader.topics))}")
+    for conn, _, raw in reader.messages(connections=conns):
+        msg = reader.deserialize(raw, conn.msgtype)
+        K = np.asarray(getattr(msg, "k", None) if hasattr(msg, "k") else msg.K, dtype=float).reshape(3, 3)
+        d = np.asarray(getattr(msg, "d", None) if hasattr(msg, "d") else msg.D, dtype=float).ravel()
+        return K, (d if len(d) in (4, 5, 8, 12, 14) else np.zeros(5))
+    raise InputMismatchError(f"{topic}: no CameraInfo message in the bag")
+
+
+def import_rosbag(
+    bag: str | Path,
+    out: str | Path,
+    setup: str = "eye_in_hand",
+    robot_frames: tuple[str, str] | None = ("base_link", "tool0"),
+    robot_topic: str | None = None,
+    image_topic: str | None = None,
+    camera_pose_topic: str | None = None,
+    camera_pose: str = "target2cam",
+    camera_info_topic: str | None = None,
+    target: dict[str, Any] | None = None,
+    every: int = 1,
+) -> ImportSummary:
+    """Write a ROS bag's robot and camera recordings as a handeye folder in ``out``.
+
+    Parameters
+    ----------
+    bag : path
+        A ROS 2 bag folder (or its ``.db3``/``.mcap``) or a ROS 1 ``.bag``.
+    setup : {'eye_in_hand', 'eye_to_hand'}
+    robot_frames : (base, tool)
+        tf frames: the robot's pose is ``tool2base`` (``flange2base``) from /tf and /tf_static.
+    robot_topic : str, optional
+        Instead of tf: a PoseStamped, TransformStamped or Odometry topic of the flange in the base.
+    image_topic : str, optional
+        An Image or CompressedImage topic: writes a session (``images/``, ``images.csv`` with the
+        header stamps, ``robot.csv`` the robot stream); needs ``target`` (a session.yaml target
+        mapping). ``every``: keep every n-th image.
+    camera_pose_topic : str, optional
+        Instead of images: the target's pose from the camera (``camera_pose='target2cam'``, or
+        ``'cam2target'``): writes a pose-pair folder of two streams.
+    camera_info_topic : str, optional
+        A CameraInfo topic: K and dist into session.yaml (else handeye estimates them).
+
+    Returns
+    -------
+    ImportSummary
+
+    Raises
+    ------
+    HandEyeError
+        rosbags not installed; a topic or frame missing; an image encoding handeye does not read.
+    """
+    check_setup(setup)
+    if (image_topic is None) == (camera_pose_topic is None):
+        raise InputMismatchError("give the camera as image_topic (images) or camera_pose_topic (poses), one of them")
+    if (robot_topic is None) == (robot_frames is None):
+        raise InputMismatchError("give the robot as robot_frames (tf) or robot_topic (a pose topic), one of them")
+    if image_topic is not None:
+        if target is None:
+            raise InputMismatchError("images need the target's description (target=, as in session.yaml)")
+        target_from_spec(target)
+    if camera_pose not in ("target2cam", "cam2target"):
+        raise InputMismatchError(f"camera_pose={camera_pose!r}; use 'target2cam' or 'cam2target'")
+    if not (isinstance(every, int) and every >= 1):
+        raise InputMismatchError(f"every={every!r}: give a whole number >= 1")
+    bag = Path(bag)
+    if not bag.exists():
+        raise SessionError(f"{bag}: no such bag")
+    folder = check_output_folder(out, [bag] if bag.is_dir() else [])  # never inside a ROS 2 bag's folder
+    if (folder / SESSION_FILE).exists() or (folder / POSEPAIRS_FILE).exists():
+        raise HandEyeError(f"{folder} already holds a session or pose pairs; choose an empty folder")
+    AnyReader, Stores, get_typestore = _rosbags()
+    try:
+        with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+            if robot_topic is not None:
+                t_robot, f2b = _pose_topic(reader, robot_topic)
+            else:
+                t_robot, f2b = _tf_stream(reader, *robot_frames)
+            if image_topic is not None:
+                names, t_img = _write_images(reader, image_topic, folder, every)
+                camera = _camera_info(reader, camera_info_topic)
+                write_stream_session(folder, setup, dict(target), t_robot, f2b, names, t_img, camera=camera,
+                                     comment=f"imported by handeye from {bag.name}")
+                return ImportSummary(folder, "session", len(t_robot), len(names), [])
+            t_cam, poses = _pose_topic(reader, camera_pose_topic)
+    except HandEyeError:
+        raise
+    except Exception as exc:  # rosbags' own errors: an unreadable or unknown bag
+        raise SessionError(f"{bag}: cannot read the bag ({type(exc).__name__}: {exc})") from None
+    t2c = poses if camera_pose == "target2cam" else invert(poses)
+    write_pose_pairs(folder, setup, f2b, t2c, t_robot, t_cam, comment=f"imported by handeye from {bag.name}")
+    return ImportSummary(folder, "posepairs", len(t_robot), len(t_cam), [])
+
+
+def import_easy_handeye(samples: str | Path, out: str | Path, setup: str | None = None) -> ImportSummary:
+    """Write easy_handeye2's saved samples (a ``.samples`` YAML: per sample the ``robot`` and
+    ``tracking`` transforms as translation + quaternion) as a pose-pair folder in ``out``.
+
+    easy_handeye2 samples ``robot`` as the effector in the robot base (eye-in-hand; for eye-on-base
+    the base in the effector) and ``tracking`` as the marker in the tracking (camera) frame, i.e.
+    ``target2cam``. ``setup`` is read from the file's ``calibration_type`` unless given.
+    """
+    samples = Path(samples)
+    data = load_yaml(samples)
+    params = data.get("parameters") or {}
+    kind = str(params.get("calibration_type") or "")
+    if setup is None:
+        setup = {"eye_in_hand": "eye_in_hand", "eye_on_base": "eye_to_hand"}.get(kind)
+        if setup is None:
+            raise InputMismatchError(f"{samples}: calibration_type {kind!r} does not say the setup; give setup "
+                                     "('eye_in_hand' or 'eye_to_hand', --setup)")
+    check_setup(setup)
+    rows = data.get("samples")
+    if not isinstance(rows, list) or len(rows) < 3:
+        raise SessionError(f"{samples}: expected a list 'samples' of at least 3 robot/tracking pairs")
+    robot, tracking = [], []
+    for k, row in enumerate(rows):
+        try:
+            robot.append(_yaml_transform(row["robot"]))
+            tracking.append(_yaml_transform(row["tracking"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise SessionError(f"{samples}: sample {k}: expected robot and tracking with translation x, y, z and "
+                               f"rotation x, y, z, w ({type(exc).__name__}: {exc})") from None
+    f2b = robot_world_A(np.array(robot), setup)  # the sample is A (flange2base, or base2flange eye-on-base): A(A) = f2b
+    folder = check_output_folder(out)  # one input file: it is never written over (write_pose_pairs writes new names)
+    if (folder / POSEPAIRS_FILE).exists():
+        raise HandEyeError(f"{folder} already holds pose pairs; choose an empty folder")
+    write_pose_pairs(folder, setup, f2b, np.array(tracking), comment=f"imported by handeye from {samples.name} (easy_handeye2)")
+    return ImportSummary(folder, "posepairs", len(rows), len(rows), [])
+
+
+def _yaml_transform(d: dict) -> NDArray[np.float64]:
+    t, q = d["translation"], d["rotation"]
+    quat = np.array([float(q["x"]), float(q["y"]), float(q["z"]), float(q["w"])])
+    if not np.all(np.isfinite(quat)) or abs(np.linalg.norm(quat) - 1) > 1e-3:
+        raise ValueError(f"rotation {quat.tolist()} is not a unit quaternion")
+    return make_transform(Rotation.from_quat(quat).as_matrix(), [float(t["x"]), float(t["y"]), float(t["z"])])
+

@@ -1,0 +1,128 @@
+"""Calibration from continuous recordings: a robot stream and a camera stream, each on its own clock.
+
+:func:`calibrate_streams` estimates the clock offset (:func:`handeye.sync.synchronise`: coarse
+from the angular velocities, refined jointly with X and Z on the camera samples), picks
+well-spread keyframes where the robot moves slowly, interpolates the robot at their camera times
+corrected by the offset, and calibrates them as :func:`handeye.calibrate_poses` does (check,
+estimator by cross-validation, honest std). The offset's own uncertainty is added to X's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ._shared.text import summarize
+from .calibration import ROBOT_ACCURACY, calibrate_poses
+from .errors import InputMismatchError
+from .geometry.se3 import invert
+from .motions import Pairs
+from .poses import RobotPoseInput, format_poses
+from .result import Calibration
+from .setups import check_setup
+from .sync import KEYFRAMES, check_stream, keyframes_at, offset_cov, synchronise
+
+__all__ = ["calibrate_streams", "paired_delay_note", "KEYFRAMES"]
+
+
+def calibrate_streams(
+    t_robot: ArrayLike,
+    flange2base: ArrayLike,
+    t_cam: ArrayLike,
+    target2cam: ArrayLike,
+    setup: str = "eye_in_hand",
+    method: str = "daniilidis",
+    refine: str = "auto",
+    keyframes: int = KEYFRAMES,
+    offset_range: tuple[float, float] | None = None,
+    time_offset: float | None = None,
+    pairs: Pairs = "auto",
+    check: bool = True,
+    robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
+    robot_input: RobotPoseInput | None = None,
+    strict: bool = False,
+) -> Calibration:
+    """Hand-eye calibration from a robot stream and a camera stream with separate clocks.
+
+    Parameters
+    ----------
+    t_robot : array_like, shape (N,)
+        Stamps of the robot poses, seconds on the robot's clock, strictly increasing.
+    flange2base : array_like, shape (N, 4, 4)
+        The robot poses (metres), e.g. 100-500 Hz from the controller.
+    t_cam : array_like, shape (M,)
+        Stamps of the camera poses, seconds on the camera's clock, strictly increasing.
+    target2cam : array_like, shape (M, 4, 4)
+        The target's pose in the camera frame per camera sample (PnP), metres.
+    setup : {'eye_in_hand', 'eye_to_hand'}
+    method, refine, pairs, check, robot_accuracy, strict
+        As :func:`handeye.calibrate_poses`, for the keyframes.
+    keyframes : int
+        How many camera samples to calibrate on (well spread, where the robot moves slowly).
+    offset_range : (lo, hi), optional
+        Offsets (s, camera clock minus robot clock) to search; default +-1 s, or around the
+        difference of the streams' middles when their stamps do not overlap.
+    time_offset : float, optional
+        The offset, when known: no estimate (``time_offset_std`` is then 0).
+    robot_input : RobotPoseInput, optional
+        The robot stream as written (format and units): the result files give X in its convention,
+        and the check tries its other readings on the keyframes.
+
+    Returns
+    -------
+    Calibration
+        As :func:`handeye.calibrate_poses` on the keyframes (the robot interpolated at their camera
+        times minus the offset), with ``time_offset`` (s), ``time_offset_std`` and ``streams``; X's
+        covariance includes the offset's uncertainty.
+
+    Raises
+    ------
+    InputMismatchError
+        Streams that are too short, unordered, do not overlap in time, or whose angular
+        velocities align best at the end of the searched range.
+    DegenerateMotionError
+        The keyframes cannot determine X.
+    """
+    check_setup(setup)
+    if not (isinstance(keyframes, (int, np.integer)) and not isinstance(keyframes, bool) and keyframes >= 3):
+        raise InputMismatchError(f"keyframes={keyframes!r}: give a whole number of at least 3")
+    robot = check_stream(t_robot, flange2base, "robot stream")
+    camera = check_stream(t_cam, target2cam, "camera stream")
+    sync = synchronise(robot, camera, setup, offset_range, time_offset, keyframes)
+    kf, f2b, n_candidates = keyframes_at(robot, camera, sync.offset, keyframes, setup, sync.fit)
+    if robot_input is not None:  # the interpolated poses as the robot would write them (the check re-reads them)
+        rows = invert(f2b) if robot_input.inverted else f2b
+        robot_input = replace(robot_input, values=format_poses(rows, robot_input.format, robot_input.length_unit,
+                                                               robot_input.angle_unit))
+    cal = calibrate_poses(f2b, camera.poses[kf], setup, method=method, refine=refine, pairs=pairs, check=check,
+                          robot_accuracy=robot_accuracy, strict=strict, progress=False, robot_input=robot_input)
+    notes = list(sync.notes) + [f"{len(kf)} keyframes calibrated, chosen among {n_candidates} camera samples where the "
+                                "robot moves slowly"]
+    if cal.diagnostics is not None and cal.diagnostics.outliers:
+        left = [f"{camera.times[kf][i]:.3f} s" for i in cal.diagnostics.outliers]
+        notes.append(f"keyframes left out as outliers (camera times): {summarize(left)}")
+    if sync.offset_std > 0 and cal.cov is not None and np.isfinite(cal.cov).all():
+        used = kf[cal.pose_indices]
+        cov = cal.cov + offset_cov(cal.X, cal.Z, setup, robot, camera.times[used], camera.poses[used], sync.offset,
+                                   sync.offset_std)
+        cal = replace(cal, cov=cov, std=np.r_[np.degrees(np.sqrt(np.diag(cov)[:3])), 1e3 * np.sqrt(np.diag(cov)[3:])])
+    return replace(cal, time_offset=sync.offset, time_offset_std=sync.offset_std,
+                   streams=sync.info(robot, camera, camera.times[kf]), notes=notes + list(cal.notes))
+
+
+def paired_delay_note(paired_delays: ArrayLike | None, offset: float, offset_std: float) -> str | None:
+    """A warning when rows paired by id (``paired_delays``: per pair, camera time minus robot time)
+    disagree with the clock offset the data show: each pair then matches a view with where the
+    robot was ``offset - delay`` earlier or later. None when they agree (within 3 std, or 1 ms)."""
+    if paired_delays is None or len(paired_delays) == 0:
+        return None
+    delay = float(np.median(paired_delays))
+    miss = offset - delay
+    if abs(miss) <= max(3.0 * offset_std, 1e-3):
+        return None
+    return (f"the ids pair camera and robot rows {delay * 1e3:.1f} ms apart (median), but the streams show the camera "
+            f"clock {offset * 1e3:.1f} +- {offset_std * 1e3:.1f} ms ahead of the robot's: paired by id, each view would "
+            f"get the robot pose {abs(miss) * 1e3:.1f} ms {'after' if miss > 0 else 'before'} the one it shows; handeye "
+            "paired the streams by time at the estimated offset instead")
