@@ -177,3 +177,15 @@ def test_no_check_no_out_and_honest_outlier_lines(capsys):
     print_calibration(left)
     assert "outlier poses left out: [1]" in capsys.readouterr().out
     assert "median pose residual in units of 1 deg or 2% of the camera's motion" in cal.diagnostics.summary()
+
+
+def test_mistyped_options_and_commands_get_the_subcommand_usage_and_a_hint(capsys):
+    assert main(["calibrate", "--outt", "x", "--sample"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert err.startswith("handeye calibrate: error: unrecognized argument(s) --outt (did you mean --out?)")
+    assert "usage: handeye calibrate [-h]" in err  # the sub-command's usage, not the top level's
+    assert main(["calibrat", "--sample"]) == 2
+    assert "unknown command 'calibrat'; did you mean 'calibrate'?" in capsys.readouterr().err
+    assert main(["check", "a-folder", "another-folder"]) == 2
+    assert "unrecognized argument(s) 'another-folder'" in capsys.readouterr().err

@@ -284,3 +284,18 @@ def test_leave_one_out_observability_reads_no_uninitialised_memory(monkeypatch):
     finally:
         monkeypatch.setattr(np, "empty", empty)
     assert np.flatnonzero(~got).tolist() == [5]
+
+
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+def test_the_wrong_setup_is_named_before_inverted_poses(setup):
+    """Eye-in-hand data declared eye-to-hand reads exactly as inverted robot poses: both readings
+    are named, ranked by where they put the camera and the target (a camera 1.3 m from the flange
+    it rides on is unlikely)."""
+    from handeye.simulate import realistic_scene
+
+    sc = realistic_scene(12, setup, 1)
+    other = "eye_to_hand" if setup == "eye_in_hand" else "eye_in_hand"
+    d = handeye.diagnose(sc.flange2base, sc.target2cam, other)
+    assert d.verdict == "inconsistent" and d.convention_hint == f"setup:{setup}", d.summary()
+    assert d.advice[0].index(f"the setup is {setup}") < d.advice[0].index("the robot poses are inverted")
+    assert f"declare setup: {setup}" in d.advice[0]

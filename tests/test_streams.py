@@ -20,7 +20,7 @@ from conftest import require_real
 from handeye.cli import main
 from handeye.errors import HandEyeError, InputMismatchError
 from handeye.geometry.se3 import invert, make_transform, to_rotvec_translation
-from handeye.importers import import_easy_handeye, import_rosbag
+from handeye.importers import import_rosbag
 from handeye.metrics import rotation_error, translation_error
 from handeye.session import SessionError, load_pose_pairs, load_session, write_pose_pairs
 from handeye.simulate import random_scene, simulate_stream_session, stream_scene
@@ -179,6 +179,9 @@ def test_pose_pair_folder_with_times_is_two_streams_and_a_wrong_pairing_is_named
     out = capsys.readouterr().out
     assert status in (0, 1), out[-1500:]
     assert "the ids pair camera and robot rows" in out and "handeye paired the streams by time" in out
+    status = main(["check", str(folder), "--keyframes", "30"])  # the keyframes calibrate-poses would use
+    out = capsys.readouterr().out
+    assert status in (0, 1) and "note: clock offset (camera minus robot)" in out and "t=" in out, out[-1500:]
 
 
 def test_time_in_one_file_only_is_an_error(tmp_path):
@@ -295,30 +298,3 @@ def test_ros2_bag_round_trips_into_a_session_that_calibrates(stream_session, tmp
     with pytest.raises(HandEyeError, match="no chain from base_link to gripper"):
         import_rosbag(bag, tmp_path / "y", robot_frames=("base_link", "gripper"), image_topic="/camera/image_raw",
                       target=session.target_spec)
-
-
-def test_easy_handeye_samples_import(tmp_path, capsys):
-    """easy_handeye2's samples: the effector in the base (eye-on-base: the base in the effector)
-    and the marker in the tracking frame; imported as pose pairs that calibrate to the truth."""
-    for setup, kind in (("eye_in_hand", "eye_in_hand"), ("eye_to_hand", "eye_on_base")):
-        sc = random_scene(10, setup=setup, rng=5)
-        robot = sc.flange2base if kind == "eye_in_hand" else invert(sc.flange2base)
-
-        def tr(T):
-            q = Rotation.from_matrix(T[:3, :3]).as_quat()
-            return {"translation": dict(zip("xyz", map(float, T[:3, 3]))),
-                    "rotation": dict(zip("xyzw", map(float, q)))}
-        data = {"parameters": {"name": "cell", "calibration_type": kind},
-                "samples": [{"robot": tr(a), "tracking": tr(b)} for a, b in zip(robot, sc.target2cam)]}
-        path = tmp_path / f"{kind}.samples"
-        path.write_text(yaml.safe_dump(data))
-        out = tmp_path / f"{kind}_pairs"
-        assert main(["import", "easy-handeye", str(path), "--out", str(out)]) == 0
-        pairs = load_pose_pairs(out)
-        assert pairs.setup == setup
-        cal = handeye.calibrate_poses(pairs.flange2base, pairs.target2cam, pairs.setup, refine="none")
-        assert rotation_error(cal.X, sc.X) < 1e-9 and translation_error(cal.X, sc.X) < 1e-9
-    data["parameters"]["calibration_type"] = ""
-    path.write_text(yaml.safe_dump(data))
-    with pytest.raises(InputMismatchError, match="does not say the setup"):
-        import_easy_handeye(path, tmp_path / "none")

@@ -811,26 +811,38 @@ class FolderCheck:
 
 
 def check_folder(folder: str | Path, jobs: int | None = None, progress: bool = True,
-                 folds: int | None = None) -> FolderCheck:
+                 folds: int | None = None, keyframes: int = KEYFRAMES) -> FolderCheck:
     """:func:`handeye.diagnose` on a capture session (detection and PnP as :func:`calibrate` does them)
     or on a pose-pair folder (``posepairs.yaml``), with the held-out prediction error of every
     estimator :func:`calibrate` would choose from."""
     folder = Path(folder)
     if (folder / POSEPAIRS_FILE).is_file():
         pairs = load_pose_pairs(folder)
-        diag = diagnose(pairs.flange2base, pairs.target2cam, pairs.setup, robot_input=pairs.robot_input,
-                        camera_input=pairs.camera_input)
+        f2b, t2c, ids, notes = pairs.flange2base, pairs.target2cam, list(pairs.ids), list(pairs.notes)
+        robot_input = pairs.robot_input
+        if pairs.is_stream:  # two clocks: the keyframes at the estimated offset are what calibrate-poses uses
+            robot = check_stream(pairs.robot_times, f2b, "robot stream")
+            camera = check_stream(pairs.camera_times, t2c, "camera stream")
+            sync = synchronise(robot, camera, pairs.setup)
+            kf, f2b, _ = keyframes_at(robot, camera, sync.offset, keyframes, pairs.setup, sync.fit)
+            t2c, ids, robot_input = camera.poses[kf], [f"t={t:.3f}" for t in camera.times[kf]], None
+            notes += sync.notes
+        diag = diagnose(f2b, t2c, pairs.setup, robot_input=robot_input,
+                        camera_input=None if pairs.is_stream else pairs.camera_input)
         keep = _kept(diag)
-        views = Views(pairs.flange2base[keep], pairs.target2cam[keep], pairs.setup)
-        return FolderCheck(diag, list(pairs.ids), [], _check_choice(diag, views, {}, folds), list(pairs.notes))
+        views = Views(f2b[keep], t2c[keep], pairs.setup)
+        return FolderCheck(diag, ids, [], _check_choice(diag, views, {}, folds), notes)
     obs = observe(load_session(folder), jobs=jobs, progress=progress)
+    if obs.session.robot_stream is not None:
+        obs, sync, _, _ = _synchronised(obs, None, None, keyframes)
+        obs = replace(obs, notes=list(obs.notes) + sync.notes)
     names = obs.session.image_names
     diag = diagnose(obs.flange2base, obs.target2cam, obs.session.setup, robot_input=obs.robot_input)
     keep = _kept(diag)
     views = _views(obs, keep)
     pixels = pixel_candidates(views, "daniilidis", obs.intrinsics_source == "estimated")
     return FolderCheck(diag, [names[k] for k in obs.used], sorted(obs.skipped, key=lambda item: names.index(item[0])),
-                       _check_choice(diag, views, pixels, folds), list(obs.session.notes))
+                       _check_choice(diag, views, pixels, folds), list(obs.notes))
 
 
 def _kept(diag: Diagnostics) -> NDArray[np.intp]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import difflib
 import math
 import sys
 import time
@@ -25,7 +26,7 @@ from .planning import (ROBOTS, easy_handeye_poses, fronto_parallel_start, plan_p
                        simulate_errors, visible_mask, write_plan)
 from .poses import ANGLE_UNITS, LENGTH_UNITS, pose_columns
 from .report import write_calibration
-from .importers import import_easy_handeye, import_rosbag
+from .importers import import_easy_handeye, import_industrial_calibration, import_rosbag, import_visp
 from .result import Calibration
 from .session import POSE_KINDS, TIME_UNITS, load_pose_pairs, load_pose_streams, load_yaml, read_intrinsics
 from .setups import SETUPS, predicted_target2cam, setup_info
@@ -276,7 +277,7 @@ def _verdict_status(cal: Calibration) -> int:
 def _cmd_check(args: argparse.Namespace) -> int:
     folder = _input_folder(args.folder, args.sample, SAMPLE_SESSION,
                            "give a session or pose-pair folder, or --sample (not both)")
-    found = check_folder(folder, jobs=args.jobs, progress=not args.no_progress)
+    found = check_folder(folder, jobs=args.jobs, progress=not args.no_progress, keyframes=args.keyframes)
     for note in found.notes:
         print(f"note: {note}")
     for name, reason in found.skipped:
@@ -529,6 +530,11 @@ def _target_spec_arg(path: str | None) -> dict | None:
 def _cmd_import(args: argparse.Namespace) -> int:
     if args.kind == "easy-handeye":
         summary = import_easy_handeye(args.source, args.out, setup=args.setup)
+    elif args.kind == "visp":
+        summary = import_visp(args.source, args.out, setup=args.setup or "eye_in_hand",
+                              target=_target_spec_arg(args.target_spec))
+    elif args.kind == "industrial-calibration":
+        summary = import_industrial_calibration(args.source, args.out)
     else:
         frames = None
         if args.robot_topic is None:
@@ -541,9 +547,11 @@ def _cmd_import(args: argparse.Namespace) -> int:
                                 camera_pose_topic=args.camera_pose_topic, camera_pose=args.camera_pose,
                                 camera_info_topic=args.camera_info_topic, target=_target_spec_arg(args.target_spec),
                                 every=args.every)
-    what = "a session (robot stream, images with their times)" if summary.kind == "session" else "a pose-pair folder"
+    what = {"session": "a session", "posepairs": "a pose-pair folder",
+            "stream session": "a session (a robot stream, images with their times)",
+            "stream posepairs": "a pose-pair folder of two streams"}[summary.kind]
     print(f"wrote {what} to {summary.folder}: {summary.robot_samples} robot and {summary.camera_samples} camera samples")
-    command = "calibrate" if summary.kind == "session" else "calibrate-poses"
+    command = "calibrate" if summary.kind.endswith("session") else "calibrate-poses"
     print(f"next: handeye {command} {summary.folder} --out RESULTS")
     return 0
 
@@ -551,13 +559,16 @@ def _cmd_import(args: argparse.Namespace) -> int:
 def _add_import(sub) -> None:
     p = sub.add_parser(
         "import",
-        help="turn a ROS bag or easy_handeye samples into a handeye session or pose-pair folder",
+        help="turn a ROS bag, easy_handeye samples, a ViSP or an industrial_calibration dataset into a handeye folder",
         description="rosbag: the robot from /tf (BASE,TOOL frames) or a pose topic, the camera from an image topic "
         "(a session; --target-spec needed) or a pose topic (two pose streams); header stamps are kept, so handeye "
-        "estimates the clock offset. easy-handeye: easy_handeye2's .samples file as a pose-pair folder.",
+        "estimates the clock offset. easy-handeye: easy_handeye2's .samples file as a pose-pair folder. visp: a "
+        "folder of ViSP's hand-eye tutorial (rPe/fPe poses, images, camera.xml, chessboard-/apriltag-data.txt; or "
+        "cPo poses). industrial-calibration: ROS-Industrial's cal_data.yaml (or its folder).",
     )
-    p.add_argument("kind", choices=["rosbag", "easy-handeye"])
-    p.add_argument("source", help="the bag (ROS 2 folder, .db3/.mcap, or ROS 1 .bag) or the .samples file")
+    p.add_argument("kind", choices=["rosbag", "easy-handeye", "visp", "industrial-calibration"])
+    p.add_argument("source", help="the bag (ROS 2 folder, .db3/.mcap, or ROS 1 .bag), the .samples file, the ViSP "
+                   "folder, or cal_data.yaml")
     p.add_argument("--out", required=True, help="folder to write (new or empty)")
     p.add_argument("--setup", choices=["eye_in_hand", "eye_to_hand"],
                    help="default eye_in_hand (rosbag); easy-handeye reads it from the file's calibration_type")
@@ -569,7 +580,8 @@ def _add_import(sub) -> None:
     p.add_argument("--camera-pose", default="target2cam", choices=["target2cam", "cam2target"],
                    help="what --camera-pose-topic holds (default target2cam)")
     p.add_argument("--camera-info-topic", help="a CameraInfo topic: the intrinsics (else estimated from the images)")
-    p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (needed with --image-topic)")
+    p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (needed with --image-topic; "
+                   "for ViSP folders without chessboard-/apriltag-data.txt)")
     p.add_argument("--every", type=_whole(1), default=1, help="keep every n-th image (default 1)")
     p.set_defaults(func=_cmd_import)
 
@@ -636,6 +648,8 @@ def _add_check(sub) -> None:
     p.add_argument("folder", nargs="?", help="session folder (session.yaml) or pose-pair folder (posepairs.yaml)")
     p.add_argument("--sample", action="store_true", help="check the bundled sample session")
     _add_detection_options(p)
+    p.add_argument("--keyframes", type=_whole(3), default=KEYFRAMES,
+                   help=f"streams (files with times): the keyframes to check (default {KEYFRAMES}, as calibrate)")
     p.set_defaults(func=_cmd_check)
 
 
@@ -748,13 +762,48 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))  # noqa: SLF001
+    return dict(action.choices)
+
+
+def _unknown_options(parser: argparse.ArgumentParser, argv: list[str], extras: list[str]) -> str:
+    """One line for arguments no option takes: the sub-command's own usage, and for a mistyped option
+    the nearest ones it has ("did you mean")."""
+    subs = _subparsers(parser)
+    command = next((a for a in argv if a in subs), None)
+    target = subs.get(command, parser)
+    options = [o for a in target._actions for o in a.option_strings if o.startswith("--")]  # noqa: SLF001
+    hints = []
+    for extra in extras:
+        if extra.startswith("-"):
+            near = difflib.get_close_matches(extra.split("=")[0], options, n=1, cutoff=0.6)
+            hints.append(f"{extra}" + (f" (did you mean {' or '.join(near)}?)" if near else ""))
+        else:
+            hints.append(repr(extra))
+    usage = " ".join(target.format_usage().split())
+    return f"{target.prog}: error: unrecognized argument(s) {', '.join(hints)}; {usage[0].lower() + usage[1:]}"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``handeye`` console script; returns the exit status."""
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    subs = _subparsers(parser)
+    first = next((a for a in argv if not a.startswith("-")), None)
+    if first is not None and first not in subs:
+        near = difflib.get_close_matches(first, list(subs), n=1, cutoff=0.5)
+        if near:
+            print(f"handeye: error: unknown command {first!r}; did you mean {near[0]!r}? (see 'handeye --help')",
+                  file=sys.stderr)
+            return 2
     try:
-        args = parser.parse_args(argv)
+        args, extras = parser.parse_known_args(argv)
     except SystemExit as exc:  # a bad option (status 2, the error printed), --help or --version (0)
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    if extras:
+        print(_unknown_options(parser, argv, extras), file=sys.stderr)
+        return 2
     try:
         return args.func(args)
     except HandEyeError as exc:

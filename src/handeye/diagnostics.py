@@ -36,7 +36,7 @@ from .metrics import rotation_error, translation_error
 from .motions import MotionSet, Pairs, validate_poses
 from .poses import RobotPoseInput, parse_poses
 from .result import Diagnostics
-from .setups import check_setup, constant_transforms, robot_world_inputs, setup_info
+from .setups import SETUPS, check_setup, constant_transforms, robot_world_inputs, setup_info
 from .solvers.daniilidis import motion_groups, singular_values, solve_leave_one_out
 from .solvers.low_dof import ONE_AXIS, gauge_priors, partial_kind, solve_low_dof
 from .solvers.observability import check_observability, observable_leave_one_out, rotation_spread
@@ -322,7 +322,11 @@ def diagnose(
         hint = min(scores, key=scores.get) if scores else None
         if hint is not None and scores[hint] <= CONSISTENT and scores[hint] < given / 3:
             diag.verdict, diag.convention_hint = "inconsistent", hint
-            diag.advice.append(_hint_advice(hint, given, scores[hint]))
+            advice = _hint_advice(hint, given, scores[hint])
+            if hint == "invert_robot_poses":  # the same equations as the other setup: rank the two readings
+                diag.convention_hint, advice = _setup_or_inverted(readings[hint][0], target2cam, setup, given,
+                                                                  scores[hint])
+            diag.advice.append(advice)
             return diag
         scale = board_scale(flange2base, target2cam, setup)  # a wrong target size is the other usual mistake
         if scale is not None and _scale_is_off(*scale) and _scale_explains(flange2base, target2cam, setup, scale[0]):
@@ -515,6 +519,49 @@ def _weak_advice(diag: Diagnostics, target2cam: NDArray[np.float64], n_used: int
         weak.append(f"the target is {dist:.2f} m from the camera (median): move closer, so that it fills the image "
                     "(camera rotation errors grow with the distance)")
     return weak
+
+
+#: Where cameras and targets plausibly are (m): a camera on the flange within this of it, a target on the
+#: flange within this of it; a fixed camera, or a target beside the robot, at least MIN_FAR from the base.
+NEAR_FLANGE_M, MIN_FAR_M = 0.35, 0.15
+
+
+def _plausibility(X: NDArray[np.float64], Z: NDArray[np.float64], setup: str) -> tuple[int, str]:
+    """How many of a reading's placements are implausible (a camera 2 m from the flange it rides
+    on...), and the placements in words."""
+    info = setup_info(setup)
+    x, z = float(np.linalg.norm(X[:3, 3])), float(np.linalg.norm(Z[:3, 3]))
+    if info.camera_on_flange:  # X: camera on the flange; Z: the target beside the robot
+        bad = int(x > NEAR_FLANGE_M) + int(z < MIN_FAR_M)
+        words = f"the camera {x:.2f} m from the flange, the target {z:.2f} m from the robot base"
+    else:  # X: a camera beside the robot; Z: the target on the flange
+        bad = int(x < MIN_FAR_M) + int(z > NEAR_FLANGE_M)
+        words = f"the camera {x:.2f} m from the robot base, the target {z:.2f} m from the flange"
+    return bad, words
+
+
+def _setup_or_inverted(flange2base_inverted, target2cam, setup: str, given: float, fixed: float) -> tuple[str, str]:
+    """Inverted robot poses in ``setup`` and the poses as given in the other setup are the same
+    equations: both readings fit. The hint and a sentence that names both, ranked by where each
+    puts the camera and the target."""
+    other = next(s for s in SETUPS if s != setup)
+    try:
+        X = _solve(flange2base_inverted, target2cam, setup)
+    except (HandEyeError, np.linalg.LinAlgError):
+        return "invert_robot_poses", _hint_advice("invert_robot_poses", given, fixed)
+    Z = mean_transform(constant_transforms(X, flange2base_inverted, target2cam, setup))
+    bad_inv, words_inv = _plausibility(X, Z, setup)
+    bad_other, words_other = _plausibility(X, Z, other)  # the same numbers, the other frames
+    first = other if bad_other <= bad_inv else setup
+    readings = {other: f"the setup is {other}, not {setup}, with the robot poses as given ({words_other}: "
+                       f"{'plausible' if not bad_other else 'unlikely'})",
+                setup: f"the robot poses are inverted, base2flange given where flange2base is expected, in {setup} "
+                       f"({words_inv}: {'plausible' if not bad_inv else 'unlikely'})"}
+    ranked = [readings[first], readings[other if first == setup else setup]]
+    fix = (f"declare setup: {other}" if first == other else "invert the robot poses")
+    return (f"setup:{other}" if first == other else "invert_robot_poses",
+            f"two readings make the poses consistent (consistency {given:.1f} as given, {fixed:.2f} so read): "
+            f"most likely {ranked[0]}; else {ranked[1]}: {fix}")
 
 
 def _hint_advice(hint: str, given: float, fixed: float) -> str:

@@ -8,12 +8,19 @@
   clock), not the times the recorder received them.
 * :func:`import_easy_handeye`: the ``.samples`` file easy_handeye2 saves (robot and tracking
   transforms per sample), written as a pose-pair folder.
+* :func:`import_visp`: a folder of ViSP's hand-eye tutorial (``*_rPe_<i>.yaml`` / ``*_fPe_<i>.yaml``
+  robot poses as vpPoseVector, ``*image-<i>.png``, ``camera.xml``, ``chessboard-data.txt`` or
+  ``apriltag-data.txt``; or ``pose_cPo_<i>.yaml`` camera poses without images).
+* :func:`import_industrial_calibration`: ROS-Industrial industrial_calibration's ``cal_data.yaml``
+  (image and pose files paired by name, the target finder, the intrinsics, ``static_camera``).
 
 The folders are ordinary handeye inputs: ``handeye calibrate`` / ``calibrate-poses`` read them.
 """
 
 from __future__ import annotations
 
+import re
+import xml.etree.ElementTree as ET
 from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,13 +35,16 @@ from ._shared.lazy import lazy_module
 from ._shared.text import summarize
 from .errors import HandEyeError, InputMismatchError
 from .geometry.se3 import invert, make_transform
-from .session import POSEPAIRS_FILE, SESSION_FILE, SessionError, load_yaml, write_pose_pairs, write_stream_session
+from .geometry.se3 import from_rotvec_translation
+from .session import (POSEPAIRS_FILE, SESSION_FILE, SessionError, load_yaml, write_pose_pairs, write_session,
+                      write_stream_session)
 from .setups import check_setup, robot_world_A
 from .vision.targets import target_from_spec
 
 cv2 = lazy_module("cv2")
 
-__all__ = ["import_rosbag", "import_easy_handeye", "ImportSummary", "ROSBAGS_MISSING"]
+__all__ = ["import_rosbag", "import_easy_handeye", "import_visp", "import_industrial_calibration", "ImportSummary",
+           "ROSBAGS_MISSING"]
 
 #: What to say when the optional ``rosbags`` package is absent.
 ROSBAGS_MISSING = "reading bag files needs the rosbags package: pip install 'handeye[ros]'"
@@ -42,7 +52,8 @@ ROSBAGS_MISSING = "reading bag files needs the rosbags package: pip install 'han
 
 @dataclass(frozen=True)
 class ImportSummary:
-    """What an import wrote: the folder, its kind ('session' or 'posepairs') and what it holds."""
+    """What an import wrote: the folder, its kind ('session', 'posepairs', or 'stream session' /
+    'stream posepairs' for recordings on two clocks) and how many samples of each side."""
 
     folder: Path
     kind: str
@@ -299,7 +310,7 @@ def import_rosbag(
                 camera = _camera_info(reader, camera_info_topic)
                 write_stream_session(folder, setup, dict(target), t_robot, f2b, names, t_img, camera=camera,
                                      comment=f"imported by handeye from {bag.name}")
-                return ImportSummary(folder, "session", len(t_robot), len(names), [])
+                return ImportSummary(folder, "stream session", len(t_robot), len(names), [])
             t_cam, poses = _pose_topic(reader, camera_pose_topic)
     except HandEyeError:
         raise
@@ -307,7 +318,7 @@ def import_rosbag(
         raise SessionError(f"{bag}: cannot read the bag ({type(exc).__name__}: {exc})") from None
     t2c = poses if camera_pose == "target2cam" else invert(poses)
     write_pose_pairs(folder, setup, f2b, t2c, t_robot, t_cam, comment=f"imported by handeye from {bag.name}")
-    return ImportSummary(folder, "posepairs", len(t_robot), len(t_cam), [])
+    return ImportSummary(folder, "stream posepairs", len(t_robot), len(t_cam), [])
 
 
 def import_easy_handeye(samples: str | Path, out: str | Path, setup: str | None = None) -> ImportSummary:
@@ -354,3 +365,184 @@ def _yaml_transform(d: dict) -> NDArray[np.float64]:
         raise ValueError(f"rotation {quat.tolist()} is not a unit quaternion")
     return make_transform(Rotation.from_quat(quat).as_matrix(), [float(t["x"]), float(t["y"]), float(t["z"])])
 
+
+
+def _new_folder(out: str | Path, inputs: list[Path]) -> Path:
+    folder = check_output_folder(out, inputs)
+    if (folder / SESSION_FILE).exists() or (folder / POSEPAIRS_FILE).exists() or (folder / "images").exists():
+        raise HandEyeError(f"{folder} already holds a session or pose pairs; choose an empty folder")
+    return folder
+
+
+def _copy_images(images: list[Path], folder: Path) -> list[str]:
+    """The images copied into ``folder/images`` (a session holds its own images); their names."""
+    (folder / "images").mkdir(parents=True, exist_ok=True)
+    names = []
+    for src in images:
+        if not src.is_file():
+            raise SessionError(f"{src}: image file not found")
+        (folder / "images" / src.name).write_bytes(src.read_bytes())
+        names.append(src.name)
+    return names
+
+
+def _visp_pose(path: Path) -> NDArray[np.float64]:
+    """A ViSP vpPoseVector YAML (``data``: tx, ty, tz, theta-u x, y, z; metres and radians) as 4x4."""
+    try:
+        v = np.array(load_yaml(path)["data"], dtype=float).ravel()
+    except (KeyError, TypeError, ValueError):
+        raise SessionError(f"{path}: expected a ViSP vpPoseVector (data: 6 rows tx, ty, tz, tux, tuy, tuz)") from None
+    if v.shape != (6,) or not np.isfinite(v).all():
+        raise SessionError(f"{path}: expected 6 finite numbers under data, got {v.tolist()}")
+    return from_rotvec_translation(v[3:], v[:3])
+
+
+def _numbered(folder: Path, pattern: str) -> dict[int, Path]:
+    """The files of ``folder`` whose names match ``pattern`` (a regular expression whose one group
+    is the number), by number."""
+    out = {}
+    for p in folder.iterdir():
+        m = re.fullmatch(pattern, p.name)
+        if m and p.is_file():
+            out[int(m[1])] = p
+    return out
+
+
+def _visp_camera(folder: Path) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """K and dist from ViSP's camera XML (px, py, u0, v0; kud is OpenCV's k1: ViSP distorts
+    normalised points by ``1 + kud r^2``)."""
+    files = sorted(folder.glob("*camera*.xml"))
+    if not files:
+        return None
+    try:
+        model = ET.parse(files[0]).getroot().find("camera/model")
+        get = {c.tag: float(c.text) for c in model if c.tag in ("px", "py", "u0", "v0", "kud")}
+    except (ET.ParseError, AttributeError, TypeError, ValueError):
+        raise SessionError(f"{files[0]}: not a ViSP camera XML (camera/model with px, py, u0, v0)") from None
+    if not {"px", "py", "u0", "v0"} <= set(get):
+        raise SessionError(f"{files[0]}: camera/model lacks px, py, u0 or v0")
+    K = np.array([[get["px"], 0, get["u0"]], [0, get["py"], get["v0"]], [0, 0, 1.0]])
+    return K, np.array([get.get("kud", 0.0), 0, 0, 0, 0])
+
+
+def _visp_target(folder: Path) -> dict[str, Any] | None:
+    """The target of ``chessboard-data.txt`` ("9 x 6", "square size: 0.0236 m") or
+    ``apriltag-data.txt`` ("36h11", "size: 0.048 m"), or None."""
+    board, tag = folder / "chessboard-data.txt", folder / "apriltag-data.txt"
+    if board.is_file():
+        text = board.read_text(errors="replace")
+        dims, size = re.search(r"(\d+)\s*x\s*(\d+)", text), re.search(r"size:\s*([0-9.eE+-]+)\s*m", text)
+        if dims and size:
+            return {"type": "chessboard", "cols": int(dims[1]), "rows": int(dims[2]), "square": float(size[1])}
+        raise SessionError(f"{board}: expected 'C x R' inner corners and 'square size: S m'")
+    if tag.is_file():
+        text = tag.read_text(errors="replace")
+        family, size = re.search(r"(\d+h\d+)", text), re.search(r"size:\s*([0-9.eE+-]+)\s*m", text)
+        if family and size:
+            return {"type": "apriltag", "square": float(size[1]), "dictionary": f"DICT_APRILTAG_{family[1]}"}
+        raise SessionError(f"{tag}: expected the tag family (e.g. 36h11) and 'size: S m'")
+    return None
+
+
+def import_visp(folder: str | Path, out: str | Path, setup: str = "eye_in_hand",
+                target: dict[str, Any] | None = None) -> ImportSummary:
+    """A folder of ViSP's hand-eye tutorial as a session (images) or a pose-pair folder (``cPo``
+    camera poses, no images), in ``out``.
+
+    Robot poses ``*_rPe_<i>.yaml`` / ``*_fPe_<i>.yaml`` (the flange in the base), images
+    ``*image-<i>.png`` paired by number, the intrinsics of ``*camera*.xml``, the target of
+    ``chessboard-data.txt`` / ``apriltag-data.txt`` unless ``target`` is given (ViSP's 2022 set
+    names its 26.2 mm board only in the tutorial's text). ViSP's files do not say the setup:
+    ``setup`` (default eye-in-hand; the check names inverted robot poses when it is wrong).
+    """
+    src = Path(folder)
+    if not src.is_dir():
+        raise SessionError(f"{src}: no such folder")
+    check_setup(setup)
+    poses = _numbered(src, r"(?:.*_)?[rf]Pe_(\d+)\.yaml")
+    if len(poses) < 3:
+        raise SessionError(f"{src}: fewer than 3 robot poses (*_rPe_<i>.yaml or *_fPe_<i>.yaml)")
+    cams = _numbered(src, r"(?:.*_)?cPo_(\d+)\.yaml")
+    images = _numbered(src, r".*image-(\d+)\.png")
+    dest = _new_folder(out, [src])
+    if not images and cams:
+        common = sorted(set(poses) & set(cams))
+        f2b = np.array([_visp_pose(poses[k]) for k in common])
+        t2c = np.array([_visp_pose(cams[k]) for k in common])
+        write_pose_pairs(dest, setup, f2b, t2c, ids=[str(k) for k in common], comment=f"imported by handeye from {src}")
+        return ImportSummary(dest, "posepairs", len(common), len(common), [])
+    common = sorted(set(poses) & set(images))
+    if len(common) < 3:
+        raise SessionError(f"{src}: fewer than 3 images (*image-<i>.png) with a robot pose of the same number")
+    spec = target if target is not None else _visp_target(src)
+    if spec is None:
+        raise SessionError(f"{src}: no chessboard-data.txt or apriltag-data.txt; give the target (--target-spec)")
+    target_from_spec(spec)
+    names = _copy_images([images[k] for k in common], dest)
+    f2b = np.array([_visp_pose(poses[k]) for k in common])
+    write_session(dest, setup, spec, names, f2b, "rotvec", "m", "rad", camera=_visp_camera(src),
+                  comment=f"imported by handeye from ViSP's {src}")
+    return ImportSummary(dest, "session", len(common), len(common), [])
+
+
+def _aruco_name(code: Any) -> str:
+    """An OpenCV aruco dictionary given by number (industrial_calibration's) or name, as its name."""
+    if isinstance(code, str):
+        return code if code.startswith("DICT_") else f"DICT_{code}"
+    names = {getattr(cv2.aruco, n): n for n in dir(cv2.aruco) if n.startswith("DICT_") and isinstance(getattr(cv2.aruco, n), int)}
+    if int(code) not in names:
+        raise SessionError(f"aruco dictionary {code!r} is not one of OpenCV's")
+    return names[int(code)]
+
+
+def import_industrial_calibration(cal_data: str | Path, out: str | Path) -> ImportSummary:
+    """ROS-Industrial industrial_calibration's dataset (``cal_data.yaml``, or its folder) as a session.
+
+    ``data`` pairs image and pose files by name (pose YAMLs with x, y, z, qx, qy, qz, qw: the flange
+    in the base); ``target_finder`` gives the target (CharucoGridTargetFinder: ``cols`` x ``rows``
+    squares, ``chessboard_dim``, ``aruco_marker_dim``, ``dictionary``; circle grids: ``rows``, ``cols``,
+    ``spacing``); ``intrinsics`` fx, fy, cx, cy (no distortion in its model); ``static_camera: true``
+    means eye-to-hand.
+    """
+    path = Path(cal_data)
+    if path.is_dir():
+        path = path / "cal_data.yaml"
+    data = load_yaml(path)
+    root = path.parent
+    rows = data.get("data")
+    if not isinstance(rows, list) or len(rows) < 3:
+        raise SessionError(f"{path}: expected a list 'data' of at least 3 image/pose entries")
+    finder = data.get("target_finder") or {}
+    kind = str(finder.get("type", ""))
+    try:
+        if "Charuco" in kind:
+            spec = {"type": "charuco", "cols": int(finder["cols"]), "rows": int(finder["rows"]),
+                    "square": float(finder["chessboard_dim"]), "marker": float(finder["aruco_marker_dim"]),
+                    "dictionary": _aruco_name(finder["dictionary"])}
+        elif "Circle" in kind:
+            spec = {"type": "circles", "cols": int(finder["cols"]), "rows": int(finder["rows"]),
+                    "square": float(finder["spacing"])}
+        else:
+            raise SessionError(f"{path}: target_finder type {kind!r}; handeye imports Charuco and circle grid finders")
+    except (KeyError, TypeError, ValueError) as exc:
+        raise SessionError(f"{path}: target_finder lacks {exc}") from None
+    intr = data.get("intrinsics") or {}
+    camera = None
+    if {"fx", "fy", "cx", "cy"} <= set(intr):
+        camera = (np.array([[intr["fx"], 0, intr["cx"]], [0, intr["fy"], intr["cy"]], [0, 0, 1.0]], dtype=float),
+                  np.zeros(5))
+    f2b, images = [], []
+    for k, item in enumerate(rows):
+        try:
+            p = load_yaml(root / str(item["pose"]))
+            q = [float(p[c]) for c in ("qx", "qy", "qz", "qw")]
+            f2b.append(make_transform(Rotation.from_quat(q).as_matrix(), [float(p[c]) for c in "xyz"]))
+            images.append(root / str(item["image"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise SessionError(f"{path}: data entry {k}: expected image and pose (x, y, z, qx, qy, qz, qw; {exc})") from None
+    setup = "eye_to_hand" if data.get("static_camera") else "eye_in_hand"
+    dest = _new_folder(out, [root])
+    names = _copy_images(images, dest)
+    write_session(dest, setup, spec, names, np.array(f2b), "quat_xyzw", "m", "rad", camera=camera,
+                  comment=f"imported by handeye from industrial_calibration's {path}")
+    return ImportSummary(dest, "session", len(names), len(names), [])

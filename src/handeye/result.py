@@ -76,7 +76,10 @@ class Diagnostics:
     convention_hint : str or None
         The reading that makes inconsistent data consistent: ``'invert_robot_poses'``,
         ``'invert_camera_poses'``, ``'length_unit:mm'``, ``'length_unit:m'``, ``'angle_unit:deg'``,
-        ``'angle_unit:rad'``, ``'quat_xyzw'``, ``'quat_wxyz'`` or ``'euler:SEQ'``.
+        ``'angle_unit:rad'``, ``'quat_xyzw'``, ``'quat_wxyz'``, ``'euler:SEQ'``, ``'camera:...'`` (the
+        same for the camera poses) or ``'setup:eye_in_hand'`` / ``'setup:eye_to_hand'`` (the other setup,
+        which reads the same data as inverted robot poses; chosen when it places the camera and the
+        target more plausibly).
     outliers : list of int
         Indices of the poses judged bad.
     outlier_residuals : dict
