@@ -189,3 +189,18 @@ def test_mistyped_options_and_commands_get_the_subcommand_usage_and_a_hint(capsy
     assert "unknown command 'calibrat'; did you mean 'calibrate'?" in capsys.readouterr().err
     assert main(["check", "a-folder", "another-folder"]) == 2
     assert "unrecognized argument(s) 'another-folder'" in capsys.readouterr().err
+
+
+def test_wrong_euler_sequence_is_named_for_an_image_session(tmp_path, capsys):
+    """The sample session (a symmetric chessboard) declared euler:XYZ instead of ZYX: the images
+    were labelled against the wrongly read robot poses, so each other reading relabels them anew;
+    check and calibrate name the sequence."""
+    session = tmp_path / "session"
+    shutil.copytree(Path(handeye.__file__).parent / "data" / "sample_session", session)
+    spec = session / "session.yaml"
+    spec.write_text(spec.read_text().replace("format: euler:ZYX", "format: euler:XYZ"))
+    assert main(["check", str(session), "--no-progress"]) == 2
+    out = capsys.readouterr().out
+    assert "convention hint: euler:ZYX" in out and "declare format euler:ZYX" in out, out[-1500:]
+    assert main(["calibrate", str(session), "--no-progress"]) == 1
+    assert "check: inconsistent" in capsys.readouterr().out

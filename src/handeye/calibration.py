@@ -57,14 +57,16 @@ PROGRESS_FROM_POSES = 200
 ROBOT_ACCURACY = (0.03, 0.3)
 
 
-def _checked_poses(flange2base, target2cam, setup, pairs, check, robot_input, strict=False, camera_input=None):
+def _checked_poses(flange2base, target2cam, setup, pairs, check, robot_input, strict=False, camera_input=None,
+                   symmetries=None):
     """The poses to calibrate on after :func:`handeye.diagnose` (outliers left out, explicit pairs
     renumbered): ``(flange2base, target2cam, pairs, keep, diagnostics, notes)``. Raises only when X
     cannot be determined, or (``strict``) when the data are inconsistent."""
     keep = np.arange(len(flange2base))
     if not check:
         return flange2base, target2cam, pairs, keep, None, []
-    diag = diagnose(flange2base, target2cam, setup, robot_input=robot_input, camera_input=camera_input)
+    diag = diagnose(flange2base, target2cam, setup, robot_input=robot_input, camera_input=camera_input,
+                    symmetries=symmetries)
     if diag.verdict == "degenerate":
         raise DegenerateMotionError(" ".join(diag.advice))
     if diag.verdict == "inconsistent" and strict:
@@ -96,6 +98,7 @@ def calibrate_poses(
     progress: bool = True,
     camera_input: RobotPoseInput | None = None,
     known: dict | None = None,
+    symmetries: list | None = None,
 ) -> Calibration:
     """Hand-eye calibration from robot poses and camera-to-target poses.
 
@@ -144,6 +147,9 @@ def calibrate_poses(
         ``{'target2base.z': 0.012}`` or ``{'cam2flange.z': (0.085, 0.001)}``: translation components of
         X or Z in metres (exact, ``(value, std)`` or ``'value+-std'``); values the data determine are
         compared with them (a note), not used.
+    symmetries : list of (4, 4), optional
+        The symmetries of a symmetric target whose poses were labelled against the robot poses as
+        declared (:func:`handeye.calibrate` passes them): the check relabels under each other reading.
 
     Returns
     -------
@@ -165,7 +171,7 @@ def calibrate_poses(
                    progress and len(flange2base_in) >= PROGRESS_FROM_POSES)
     try:
         flange2base, target2cam, pairs, keep, diag, notes = _checked_poses(
-            flange2base_in, target2cam_in, setup, pairs, check, robot_input, strict, camera_input)
+            flange2base_in, target2cam_in, setup, pairs, check, robot_input, strict, camera_input, symmetries)
         bar.update()
         if (kind := partial_kind(flange2base, target2cam, setup) if diag is None or diag.verdict == "partial" else None):
             return _partial(flange2base, target2cam, setup, kind, pairs, given, refine, diag, keep, robot_input,
@@ -759,7 +765,8 @@ def calibrate_observed(
     robot_sigma = _robot_sigma(robot_noise, refine)
     accuracy = _accuracy(robot_accuracy)
     cal = calibrate_poses(obs.flange2base, obs.target2cam, setup=obs.session.setup, method=method, pairs=pairs,
-                          refine="none", check=check, robot_input=obs.robot_input, strict=strict, known=known)
+                          refine="none", check=check, robot_input=obs.robot_input, strict=strict, known=known,
+                          symmetries=_symmetries(obs))
     kept, outlier_images = _drop_pose_outliers(cal, obs)
     if cal.motion_kind != "general":  # part of X undetermined: the pose refinement with the known values
         if refine != "none":
@@ -837,12 +844,18 @@ def check_folder(folder: str | Path, jobs: int | None = None, progress: bool = T
         obs, sync, _, _ = _synchronised(obs, None, None, keyframes)
         obs = replace(obs, notes=list(obs.notes) + sync.notes)
     names = obs.session.image_names
-    diag = diagnose(obs.flange2base, obs.target2cam, obs.session.setup, robot_input=obs.robot_input)
+    diag = diagnose(obs.flange2base, obs.target2cam, obs.session.setup, robot_input=obs.robot_input,
+                    symmetries=_symmetries(obs))
     keep = _kept(diag)
     views = _views(obs, keep)
     pixels = pixel_candidates(views, "daniilidis", obs.intrinsics_source == "estimated")
     return FolderCheck(diag, [names[k] for k in obs.used], sorted(obs.skipped, key=lambda item: names.index(item[0])),
                        _check_choice(diag, views, pixels, folds), list(obs.notes))
+
+
+def _symmetries(obs: Observations) -> list[NDArray[np.float64]]:
+    """The symmetries of the session's target (the images were labelled against the declared robot poses)."""
+    return target_from_spec(obs.session.target_spec).symmetries()
 
 
 def _kept(diag: Diagnostics) -> NDArray[np.intp]:

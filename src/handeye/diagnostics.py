@@ -41,6 +41,7 @@ from .solvers.daniilidis import motion_groups, singular_values, solve_leave_one_
 from .solvers.low_dof import ONE_AXIS, gauge_priors, partial_kind, solve_low_dof
 from .solvers.observability import check_observability, observable_leave_one_out, rotation_spread
 from .solvers.refine import pose_mahalanobis, refine_pose
+from .vision import resolve_symmetries
 
 __all__ = ["Diagnostics", "RobotPoseInput", "diagnose", "find_outliers", "consistency_score", "closed_form",
            "compare_solvers"]
@@ -125,23 +126,31 @@ def _reread(pose_input: RobotPoseInput, change: dict) -> NDArray[np.float64] | N
     return invert(T) if pose_input.inverted else T
 
 
-def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None, camera_input: RobotPoseInput | None = None):
+def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None, camera_input: RobotPoseInput | None = None,
+              setup: str = "eye_in_hand", symmetries: list | None = None):
     """Other readings of the inputs: hint -> (flange2base, target2cam). Camera hints start with
-    ``camera:``."""
+    ``camera:``. With the ``symmetries`` of a symmetric target, each robot reading relabels the
+    images anew (:func:`handeye.vision.resolve_symmetries`): the labels chosen against the robot
+    poses as declared are wrong under another reading."""
+    def relabelled(f):
+        return target2cam if not symmetries or len(symmetries) < 2 else resolve_symmetries(target2cam, f, setup,
+                                                                                            symmetries)[0]
+
+    inverted = invert(flange2base)
     out = {
-        "invert_robot_poses": (invert(flange2base), target2cam),
+        "invert_robot_poses": (inverted, relabelled(inverted)),
         "invert_camera_poses": (flange2base, invert(target2cam)),
     }
     if robot_input is None:
         for hint, s in (("length_unit:mm", 1e-3), ("length_unit:m", 1e3)):
             f = flange2base.copy()
             f[:, :3, 3] *= s
-            out[hint] = (f, target2cam)
+            out[hint] = (f, relabelled(f))
     else:
         for hint, change in _alternatives(robot_input):
             f = _reread(robot_input, change)
             if f is not None:
-                out[hint] = (f, target2cam)
+                out[hint] = (f, relabelled(f))
     if camera_input is not None:
         for hint, change in _alternatives(camera_input):
             t = _reread(camera_input, change)
@@ -280,6 +289,7 @@ def diagnose(
     outliers: bool = True,
     leave_one_out: bool = True,
     rng: np.random.Generator | int | None = 0,
+    symmetries: list | None = None,
 ) -> Diagnostics:
     """Check whether poses can give a good hand-eye calibration, and say why not.
 
@@ -294,6 +304,9 @@ def diagnose(
         Run the outlier search and the leave-one-out check.
     rng
         Seed of the RANSAC sampling (results are reproducible).
+    symmetries : list of (4, 4), optional
+        A symmetric target's symmetries (``target.symmetries()``; images labelled against the robot
+        poses as declared): each other reading of the robot poses relabels the images anew.
 
     Returns
     -------
@@ -317,15 +330,14 @@ def diagnose(
     diag.consistency = given
     if given > CONSISTENT:
         # systematic trouble: try the usual mistakes
-        readings = _readings(flange2base, target2cam, robot_input, camera_input)
+        readings = _readings(flange2base, target2cam, robot_input, camera_input, setup, symmetries)
         scores = {h: consistency_score(f, t, setup) for h, (f, t) in readings.items()}
         hint = min(scores, key=scores.get) if scores else None
         if hint is not None and scores[hint] <= CONSISTENT and scores[hint] < given / 3:
             diag.verdict, diag.convention_hint = "inconsistent", hint
             advice = _hint_advice(hint, given, scores[hint])
             if hint == "invert_robot_poses":  # the same equations as the other setup: rank the two readings
-                diag.convention_hint, advice = _setup_or_inverted(readings[hint][0], target2cam, setup, given,
-                                                                  scores[hint])
+                diag.convention_hint, advice = _setup_or_inverted(*readings[hint], setup, given, scores[hint])
             diag.advice.append(advice)
             return diag
         scale = board_scale(flange2base, target2cam, setup)  # a wrong target size is the other usual mistake
