@@ -19,7 +19,7 @@ FLOORS = {
     "geometry": 2, "_shared": 2,
     "setups": 3, "poses": 3, "metrics": 3,
     "vision": 4, "motions": 4,
-    "session": 5, "solvers": 5,
+    "session": 5, "solvers": 5, "printing": 5,
     "result": 6, "simulate": 6, "importers": 6,
     "diagnostics": 7, "validation": 7, "estimators": 7.5, "partial": 7.5, "sync": 7.5,
     "calibration": 8, "streams": 8.5,

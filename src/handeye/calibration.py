@@ -121,35 +121,31 @@ def calibrate_poses(
         correction with noise variances estimated from the data), which gives ``cov``, ``std`` and
         ``pose_noise``. 'none': the closed form as is (no uncertainty).
     pairs : {'auto', 'all', 'consecutive'} or (K, 2) array
-        The pose pairs of the motions (:func:`handeye.motions.pair_indices`); 'auto': all up to 141.
+        The pose pairs of the motions (:func:`handeye.motions.pair_indices`).
     check : bool
         Run :func:`handeye.diagnose` first (default): degenerate motions raise an error; outlier
         poses are left out, with a note; inconsistent data (with the convention that fixes them,
         when one does) and weak data are calibrated all the same, with the verdict and the advice
         (``verdict``, ``diagnostics``, ``notes``). ``check=False`` calibrates the poses as they are.
-    robot_input, camera_input : RobotPoseInput, optional
-        The robot (camera) poses as written, so that the check can try other Euler sequences,
-        quaternion orders and units (sessions pass the robot's, pose-pair folders both).
+    robot_input, camera_input, symmetries
+        The robot (camera) poses as written (:class:`RobotPoseInput`), and a symmetric target's
+        symmetries (sessions pass them): the check tries other Euler sequences, quaternion orders,
+        units, and relabels the images under each reading.
     strict : bool
-        Raise :class:`InputMismatchError` instead of answering when the check calls the data
-        inconsistent.
+        Raise :class:`InputMismatchError` instead of answering inconsistent data.
     folds : int, optional
         Cross-validation folds of ``refine='auto'`` (default: one per pose up to 10 poses, else 5;
         :func:`handeye.validation.default_folds`).
     robot_accuracy : (deg, mm) or None
-        The robot's absolute accuracy per axis where the poses were taken (``refine='auto'``): a
-        constant robot error is absorbed into X whole and no data can see it, so it is added to X's
-        covariance. Default :data:`ROBOT_ACCURACY`; ``None`` (or zeros) for an exact robot.
+        The robot's absolute accuracy per axis (``refine='auto'``): a constant robot error is absorbed
+        into X whole, so it is added to X's covariance. ``None`` (or zeros) for an exact robot.
     progress : bool
-        Show the steps on stderr from :data:`PROGRESS_FROM_POSES` poses.
+        Show the steps on stderr (from :data:`PROGRESS_FROM_POSES` poses).
     known : dict, optional
         What the data cannot determine (SCARA, Cartesian robots; :mod:`handeye.partial`), e.g.
         ``{'target2base.z': 0.012}`` or ``{'cam2flange.z': (0.085, 0.001)}``: translation components of
         X or Z in metres (exact, ``(value, std)`` or ``'value+-std'``); values the data determine are
         compared with them (a note), not used.
-    symmetries : list of (4, 4), optional
-        The symmetries of a symmetric target whose poses were labelled against the robot poses as
-        declared (:func:`handeye.calibrate` passes them): the check relabels under each other reading.
 
     Returns
     -------

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+import yaml
 from scipy.spatial.transform import Rotation
 
 from . import solvers
@@ -25,6 +26,7 @@ from .geometry.se3 import make_transform
 from .planning import (ROBOTS, easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov, reprojection_information,
                        simulate_errors, visible_mask, write_plan)
 from .poses import ANGLE_UNITS, LENGTH_UNITS, pose_columns
+from .printing import PAPERS, write_target
 from .report import write_calibration
 from .importers import import_easy_handeye, import_industrial_calibration, import_rosbag, import_visp
 from .result import Calibration
@@ -586,6 +588,63 @@ def _add_import(sub) -> None:
     p.set_defaults(func=_cmd_import)
 
 
+#: handeye target: per printable kind, the session.yaml type and the defaults (mm, counts, dictionary).
+TARGET_KINDS = {
+    "chessboard": ("chessboard", dict(cols=9, rows=6, square=20.0)),
+    "charuco": ("charuco", dict(cols=7, rows=5, square=25.0, marker=18.0, dictionary="DICT_5X5_100")),
+    "circles": ("circles", dict(cols=7, rows=6, square=20.0)),
+    "asymmetric-circles": ("asymmetric_circles", dict(cols=4, rows=11, square=20.0)),
+    "aruco-grid": ("aruco_grid", dict(cols=5, rows=7, square=25.0, separation=5.0, dictionary="DICT_5X5_100")),
+    "apriltag-grid": ("aruco_grid", dict(cols=4, rows=5, square=35.0, separation=7.0, dictionary="DICT_APRILTAG_36h11")),
+    "apriltag": ("apriltag", dict(square=100.0, dictionary="DICT_APRILTAG_36h11", id=0)),
+}
+
+
+def _cmd_target(args: argparse.Namespace) -> int:
+    kind, defaults = TARGET_KINDS[args.type]
+    given = {"cols": args.cols, "rows": args.rows, "square": args.square_mm, "marker": args.marker_mm,
+             "separation": args.separation_mm, "dictionary": args.dictionary, "id": args.id}
+    values = {k: given[k] if given[k] is not None else v for k, v in defaults.items()}
+    unused = [f"--{k.replace('_', '-')}" + ("-mm" if k in ("square", "marker", "separation") else "")
+              for k, v in given.items() if v is not None and k not in defaults]
+    if unused:
+        raise HandEyeError(f"{args.type} takes no {', '.join(unused)}")
+    spec = {"type": kind}
+    for k, v in values.items():
+        spec[k] = round(v / 1e3, 9) if k in ("square", "marker", "separation") else v
+    path = write_target(spec, args.out, args.paper)
+    print(f"wrote {path}: print it at 100% (no 'fit to page') and check the ruler measures 100 mm")
+    print("for session.yaml:")
+    print("  " + yaml.safe_dump({"target": spec}, sort_keys=False).replace("\n", "\n  ").rstrip())
+    return 0
+
+
+def _add_target(sub) -> None:
+    p = sub.add_parser(
+        "target",
+        help="write a printable calibration target (PDF or SVG, true to scale) and its session.yaml block",
+        description="A board to print, drawn as vector shapes at its true size (ChArUco and marker grids from "
+        "OpenCV's own layout), with a 100 mm ruler to check the print and the target: block for session.yaml. "
+        "Sizes in millimetres. cols/rows count: chessboard inner corners; charuco squares; circle grids circles "
+        "(asymmetric: circles per row, rows); grids markers. Symmetric boards (chessboard, circles) can be read "
+        "from either end: handeye resolves that from the robot motion, but a ChArUco board, a marker grid or an "
+        "asymmetric circle grid removes the doubt.",
+    )
+    p.add_argument("--type", required=True, choices=list(TARGET_KINDS))
+    p.add_argument("--out", required=True, help="board.pdf or board.svg")
+    p.add_argument("--cols", type=_whole(1), help="see above (default per type: chessboard 9, charuco 7, ...)")
+    p.add_argument("--rows", type=_whole(1), help="see above (default per type: chessboard 6, charuco 5, ...)")
+    p.add_argument("--square-mm", type=_number(0.0, above=True),
+                   help="square side (chessboard, charuco), circle spacing, marker side (grids) or tag side, mm")
+    p.add_argument("--marker-mm", type=_number(0.0, above=True), help="charuco: marker side, mm")
+    p.add_argument("--separation-mm", type=_number(0.0, above=True), help="marker grids: gap between markers, mm")
+    p.add_argument("--dictionary", help="charuco and marker grids: an OpenCV aruco dictionary (e.g. DICT_5X5_100)")
+    p.add_argument("--id", type=_whole(0), help="apriltag: the tag id (default 0)")
+    p.add_argument("--paper", default="A4", help=f"{', '.join(PAPERS)} or WIDTHxHEIGHT in mm (default A4; landscape "
+                   "when the board needs it)")
+    p.set_defaults(func=_cmd_target)
+
+
 def _add_calibrate_streams(sub) -> None:
     p = sub.add_parser(
         "calibrate-streams",
@@ -756,6 +815,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_calibrate(sub)
     _add_check(sub)
     _add_import(sub)
+    _add_target(sub)
     _add_simulate(sub)
     _add_plan(sub)
     _add_study(sub)

@@ -330,14 +330,9 @@ def diagnose(
     diag.consistency = given
     if given > CONSISTENT:
         # systematic trouble: try the usual mistakes
-        readings = _readings(flange2base, target2cam, robot_input, camera_input, setup, symmetries)
-        scores = {h: consistency_score(f, t, setup) for h, (f, t) in readings.items()}
-        hint = min(scores, key=scores.get) if scores else None
-        if hint is not None and scores[hint] <= CONSISTENT and scores[hint] < given / 3:
-            diag.verdict, diag.convention_hint = "inconsistent", hint
-            advice = _hint_advice(hint, given, scores[hint])
-            if hint == "invert_robot_poses":  # the same equations as the other setup: rank the two readings
-                diag.convention_hint, advice = _setup_or_inverted(*readings[hint], setup, given, scores[hint])
+        found = _convention(flange2base, target2cam, setup, given, robot_input, camera_input, symmetries)
+        if found is not None:
+            diag.verdict, (diag.convention_hint, advice) = "inconsistent", found
             diag.advice.append(advice)
             return diag
         scale = board_scale(flange2base, target2cam, setup)  # a wrong target size is the other usual mistake
@@ -531,6 +526,20 @@ def _weak_advice(diag: Diagnostics, target2cam: NDArray[np.float64], n_used: int
         weak.append(f"the target is {dist:.2f} m from the camera (median): move closer, so that it fills the image "
                     "(camera rotation errors grow with the distance)")
     return weak
+
+
+def _convention(flange2base, target2cam, setup: str, given: float, robot_input, camera_input, symmetries
+                ) -> tuple[str, str] | None:
+    """The reading of the inputs that makes them consistent (a third of the score as given, and
+    consistent), as (hint, advice); None when no usual mistake explains the data."""
+    readings = _readings(flange2base, target2cam, robot_input, camera_input, setup, symmetries)
+    scores = {h: consistency_score(f, t, setup) for h, (f, t) in readings.items()}
+    hint = min(scores, key=scores.get) if scores else None
+    if hint is None or scores[hint] > CONSISTENT or scores[hint] >= given / 3:
+        return None
+    if hint == "invert_robot_poses":  # the same equations as the other setup: rank the two readings
+        return _setup_or_inverted(*readings[hint], setup, given, scores[hint])
+    return hint, _hint_advice(hint, given, scores[hint])
 
 
 #: Where cameras and targets plausibly are (m): a camera on the flange within this of it, a target on the

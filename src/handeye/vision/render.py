@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from .._shared.lazy import lazy_module
 from ..geometry.se3 import invert
 from .pnp import project_points
-from .targets import AprilTag, Charuco, Chessboard, CircleGrid, Target, aruco_dictionary
+from .targets import AprilTag, ArucoGrid, Charuco, Chessboard, CircleGrid, Target, aruco_dictionary
 
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
@@ -69,6 +69,13 @@ def target_texture(target: Target, texels_per_m: float = 4000.0) -> Texture:
         img = np.where(img > 127, LIGHT, DARK).astype(np.uint8)
         scale = (w - 2 * m) / bw
         return Texture(img, float(m), float(m), scale)
+    if isinstance(target, ArucoGrid):
+        margin = target.square / 2
+        w, h = int(round((target.width + 2 * margin) * s)), int(round((target.height + 2 * margin) * s))
+        m = int(round(margin * s))
+        img = target.board.generateImage((w, h), marginSize=m, borderBits=1)
+        img = np.where(img > 127, LIGHT, DARK).astype(np.uint8)
+        return Texture(img, float(m), float(m), (w - 2 * m) / target.width)
     if isinstance(target, CircleGrid):
         pts = target.object_points()[:, :2]
         r = 0.3 * target.square

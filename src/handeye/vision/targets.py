@@ -15,6 +15,10 @@ asymmetric_circles     OpenCV's asymmetric grid, ``cols`` per row, ``rows`` rows
                        the spacing of OpenCV's pattern unit (centres at ((2j + i % 2) s, i s))
 apriltag               one tag (AprilTag 36h11 unless ``dictionary`` says otherwise), its four
                        corners; ``square`` = tag side (outer black border), ``id`` optional
+aruco_grid             a grid of ``cols`` x ``rows`` markers (OpenCV's GridBoard: ids 0.. row by
+                       row from the top left), their corners; ``square`` = marker side,
+                       ``separation`` = the gap between markers, ``dictionary`` (an AprilTag
+                       family makes an AprilTag grid); no symmetry: every marker is unique
 =====================  ====================================================================
 
 ``detect`` returns a :class:`Detection` (feature ids, subpixel image points, object points) or
@@ -34,9 +38,10 @@ from ..errors import HandEyeError
 
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
-__all__ = ["Detection", "Target", "Chessboard", "Charuco", "CircleGrid", "AprilTag", "target_from_spec", "TARGET_TYPES"]
+__all__ = ["Detection", "Target", "Chessboard", "Charuco", "CircleGrid", "AprilTag", "ArucoGrid", "target_from_spec",
+           "TARGET_TYPES"]
 
-TARGET_TYPES = ("chessboard", "charuco", "circles", "asymmetric_circles", "apriltag")
+TARGET_TYPES = ("chessboard", "charuco", "circles", "asymmetric_circles", "apriltag", "aruco_grid")
 _SUBPIX_CRITERIA = (3, 50, 1e-4)  # cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER (2 + 1), 50 rounds, 1e-4 px
 
 
@@ -286,6 +291,63 @@ class AprilTag(Target):
         return Detection(np.arange(4), pts, self.object_points())
 
 
+@dataclass(frozen=True)
+class ArucoGrid(Target):
+    """A grid of ``cols`` x ``rows`` markers (OpenCV's GridBoard); features are the corners of every
+    marker (id ``4 * marker + corner``)."""
+
+    type: ClassVar[str] = "aruco_grid"
+    separation: float = 0.0
+    dictionary: str = "DICT_6X6_250"
+    _board: Any = field(default=None, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if not (int(self.cols) >= 1 and int(self.rows) >= 1 and int(self.cols) * int(self.rows) >= 2):
+            raise TargetError(f"aruco_grid: cols and rows count markers; give at least 2 markers, got {self.cols} x {self.rows}")
+        if not (np.isfinite(self.square) and 0 < self.square < 1.0):
+            raise TargetError(f"aruco_grid: square (the marker side) must be in metres between 0 and 1, got {self.square!r}")
+        if not (np.isfinite(self.separation) and 0 < self.separation < 1.0):
+            raise TargetError(f"aruco_grid: separation (the gap between markers) must be in metres between 0 and 1, "
+                              f"got {self.separation!r}")
+        d = aruco_dictionary(self.dictionary)
+        if int(self.cols) * int(self.rows) > len(d.bytesList):
+            raise TargetError(f"aruco_grid: {self.cols * self.rows} markers, but {self.dictionary} has {len(d.bytesList)}")
+        board = cv2.aruco.GridBoard((int(self.cols), int(self.rows)), float(self.square), float(self.separation), d)
+        object.__setattr__(self, "_board", board)
+
+    def __reduce__(self):  # the cv2 board does not pickle: rebuild it (worker processes)
+        return (type(self), (self.cols, self.rows, self.square, self.separation, self.dictionary))
+
+    @property
+    def board(self) -> Any:
+        return self._board
+
+    @property
+    def width(self) -> float:
+        return self.cols * self.square + (self.cols - 1) * self.separation
+
+    @property
+    def height(self) -> float:
+        return self.rows * self.square + (self.rows - 1) * self.separation
+
+    def object_points(self) -> NDArray[np.float64]:
+        return np.asarray(self._board.getObjPoints(), dtype=float).reshape(-1, 3)
+
+    def detect(self, gray: NDArray[np.uint8]) -> Detection | None:
+        params = cv2.aruco.DetectorParameters()
+        params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+        corners, ids, _ = cv2.aruco.ArucoDetector(aruco_dictionary(self.dictionary), params).detectMarkers(gray)
+        if ids is None:
+            return None
+        ids = ids.ravel()
+        keep = [k for k in np.argsort(ids) if 0 <= ids[k] < self.cols * self.rows]
+        if not keep:
+            return None
+        feature = np.concatenate([4 * int(ids[k]) + np.arange(4) for k in keep])
+        pts = np.concatenate([corners[k].reshape(4, 2) for k in keep]).astype(float)
+        return Detection(feature.astype(np.intp), pts, self.object_points()[feature])
+
+
 def target_from_spec(spec: dict[str, Any], where: str = "target") -> Target:
     """A :class:`Target` from the ``target:`` mapping of session.yaml (DESIGN §4)."""
     if not isinstance(spec, dict):
@@ -305,6 +367,9 @@ def target_from_spec(spec: dict[str, Any], where: str = "target") -> Target:
             return AprilTag(0, 0, float(need("square")), dictionary=str(spec.get("dictionary", "DICT_APRILTAG_36h11")),
                             tag_id=None if tag_id is None else int(tag_id))
         cols, rows, square = need("cols"), need("rows"), float(need("square"))
+        if kind == "aruco_grid":
+            return ArucoGrid(int(cols), int(rows), square, separation=float(need("separation")),
+                             dictionary=str(need("dictionary")))
         if kind == "chessboard":
             return Chessboard(cols, rows, square)
         if kind == "charuco":

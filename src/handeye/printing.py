@@ -1,0 +1,270 @@
+"""Targets to print, true to scale: SVG or PDF (vector), with a ruler to check the print and the
+``target:`` block to paste into session.yaml.
+
+Chessboards, circle grids and single tags are drawn as vector shapes from their geometry. ChArUco
+boards and marker grids are drawn from OpenCV's own board image (``generateImage``, rendered at a
+resolution where every square, or every marker bit, spans whole pixels, then turned into
+rectangles), so that the printed layout is exactly the one OpenCV's detector expects.
+
+A page holds the board in the top-left corner (10 mm margins), then a 100 mm ruler with
+centimetre ticks, the instruction to print at 100 % and the ``target:`` block.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+
+from ._shared.io import atomic_write, check_output_folder
+from ._shared.lazy import lazy_module
+from .errors import HandEyeError
+from .vision.targets import ArucoGrid, AprilTag, Charuco, Chessboard, CircleGrid, Target, aruco_dictionary, target_from_spec
+
+cv2 = lazy_module("cv2")
+
+__all__ = ["PAPERS", "Page", "target_page", "write_target", "board_size_mm"]
+
+#: Paper sizes (width, height) in millimetres, portrait.
+PAPERS = {"A4": (210.0, 297.0), "A3": (297.0, 420.0), "A2": (420.0, 594.0), "letter": (215.9, 279.4),
+          "tabloid": (279.4, 431.8)}
+MARGIN_MM = 10.0
+#: Below the board: the ruler (mm), then lines of text this far apart (mm).
+RULER_MM, LINE_MM = 12.0, 3.4
+
+
+@dataclass(frozen=True)
+class Page:
+    """A page to print: its size (mm) and its shapes, in millimetres with y down: ``('rect', x, y,
+    w, h)``, ``('circle', cx, cy, r)``, ``('line', x1, y1, x2, y2, width)``, ``('text', x, y, size_pt,
+    string)``."""
+
+    width: float
+    height: float
+    shapes: list[tuple]
+
+
+def _chessboard(t: Chessboard) -> tuple[list[tuple], float, float]:
+    sq = 1e3 * t.square
+    nx, ny = t.cols + 1, t.rows + 1
+    shapes = [("rect", a * sq, b * sq, sq, sq) for b in range(ny) for a in range(nx) if (a + b) % 2 == 0]
+    return shapes, nx * sq, ny * sq
+
+
+def _circles(t: CircleGrid) -> tuple[list[tuple], float, float]:
+    pts = 1e3 * t.object_points()[:, :2]
+    s = 1e3 * t.square
+    margin = s  # a quiet zone of one spacing around the outer circles
+    shapes = [("circle", x + margin, y + margin, 0.3 * s) for x, y in pts]
+    return shapes, pts[:, 0].max() + 2 * margin, pts[:, 1].max() + 2 * margin
+
+
+def _raster_rects(img: NDArray[np.uint8], mm_per_px: float) -> list[tuple]:
+    """The dark pixels of a binary image as rectangles: runs along each row, merged down the rows
+    while they stay the same."""
+    dark = img < 128
+    shapes: list[tuple] = []
+    open_runs: dict[tuple[int, int], int] = {}  # (x0, x1) -> first row
+    for y in range(dark.shape[0] + 1):
+        runs = set()
+        if y < dark.shape[0]:
+            row = np.r_[False, dark[y], False].astype(np.int8)
+            edges = np.flatnonzero(np.diff(row))
+            runs = {(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])}
+        for run in list(open_runs):
+            if run not in runs:
+                y0 = open_runs.pop(run)
+                shapes.append(("rect", run[0] * mm_per_px, y0 * mm_per_px, (run[1] - run[0]) * mm_per_px,
+                               (y - y0) * mm_per_px))
+        for run in runs:
+            open_runs.setdefault(run, y)
+    return shapes
+
+
+def _board_image(t: Charuco | ArucoGrid) -> tuple[NDArray[np.uint8], float]:
+    """OpenCV's image of the board at a resolution where each square (ChArUco) or each marker bit
+    (grids) spans whole pixels; and the millimetres per pixel."""
+    bits = aruco_dictionary(t.dictionary).markerSize + 2
+    if isinstance(t, Charuco):
+        px = 40 * bits  # pixels per square
+        mm_per_px = 1e3 * t.square / px
+        size = (t.cols * px, t.rows * px)
+    else:  # square = the marker side: whole pixels per bit, and the gap as near whole pixels as can be
+        k = min(range(12, 61), key=lambda k: abs((v := t.separation / t.square * bits * k) - round(v)))
+        mm_per_px = 1e3 * t.square / (bits * k)
+        size = (int(round(1e3 * t.width / mm_per_px)), int(round(1e3 * t.height / mm_per_px)))
+    return t.board.generateImage(size, marginSize=0, borderBits=1), mm_per_px
+
+
+def _tag(t: AprilTag) -> tuple[list[tuple], float, float]:
+    d = aruco_dictionary(t.dictionary)
+    bits = d.markerSize + 2
+    cells = cv2.aruco.generateImageMarker(d, t.tag_id or 0, bits, borderBits=1)  # one pixel per bit
+    cell = 1e3 * t.square / bits
+    quiet = 2 * cell
+    shapes = [(kind, x + quiet, y + quiet, w, h) for kind, x, y, w, h in _raster_rects(cells, cell)]
+    return shapes, t.square * 1e3 + 2 * quiet, t.square * 1e3 + 2 * quiet
+
+
+def board_shapes(target: Target) -> tuple[list[tuple], float, float]:
+    """The board's shapes (mm, y down, origin at its top-left) and its width and height (mm)."""
+    if isinstance(target, Chessboard):
+        return _chessboard(target)
+    if isinstance(target, CircleGrid):
+        return _circles(target)
+    if isinstance(target, AprilTag):
+        return _tag(target)
+    if isinstance(target, (Charuco, ArucoGrid)):
+        img, mm_per_px = _board_image(target)
+        return _raster_rects(img, mm_per_px), img.shape[1] * mm_per_px, img.shape[0] * mm_per_px
+    raise HandEyeError(f"cannot print a {type(target).__name__}")
+
+
+def board_size_mm(target: Target) -> tuple[float, float]:
+    """Width and height of the printed board (mm, quiet zones of circle grids and tags included)."""
+    _, w, h = board_shapes(target)
+    return w, h
+
+
+def _paper(paper: str | tuple[float, float], need: tuple[float, float]) -> tuple[float, float]:
+    if isinstance(paper, str):
+        if paper in PAPERS:
+            w, h = PAPERS[paper]
+        else:
+            try:
+                w, h = (float(v) for v in paper.lower().split("x"))
+            except ValueError:
+                raise HandEyeError(f"paper {paper!r}: use one of {', '.join(PAPERS)} or WIDTHxHEIGHT in mm") from None
+    else:
+        w, h = (float(v) for v in paper)
+    if not (w > 0 and h > 0):
+        raise HandEyeError(f"paper {w:g} x {h:g} mm: give positive sizes")
+    if need[0] <= w and need[1] <= h:
+        return w, h
+    if need[0] <= h and need[1] <= w:  # landscape
+        return h, w
+    raise HandEyeError(f"the board needs {need[0]:.0f} x {need[1]:.0f} mm with margins, ruler and text; the paper is "
+                       f"{w:g} x {h:g} mm: choose a larger paper (--paper A3) or smaller squares")
+
+
+def target_page(spec: dict[str, Any], paper: str | tuple[float, float] = "A4") -> Page:
+    """The page that prints the target of ``spec`` (a session.yaml ``target:`` mapping), true to scale."""
+    target = target_from_spec(spec)
+    shapes, bw, bh = board_shapes(target)
+    block = ["  " + ln for ln in yaml.safe_dump({"target": spec}, sort_keys=False).splitlines()]
+    footer = RULER_MM + LINE_MM * (len(block) + 2)
+    width, height = _paper(paper, (max(bw, 100.0) + 2 * MARGIN_MM, bh + 2 * MARGIN_MM + footer))
+    page = [(kind, *(v + MARGIN_MM for v in rest[:2]), *rest[2:]) for kind, *rest in shapes]
+    y = MARGIN_MM + bh + 6.0
+    ruler = 100.0
+    page.append(("line", MARGIN_MM, y, MARGIN_MM + ruler, y, 0.3))
+    for cm in range(int(ruler // 10) + 1):
+        x = MARGIN_MM + 10.0 * cm
+        page.append(("line", x, y - (3.0 if cm % 5 else 5.0), x, y, 0.3))
+        page.append(("text", x - 1.0, y + 4.0, 7, str(cm)))
+    page.append(("text", MARGIN_MM + ruler + 3.0, y + 1.0, 7, "cm"))
+    lines = [f"handeye target: {_describe(spec)}. Print at 100% (no 'fit to page'): the ruler must measure "
+             f"{ruler:.0f} mm.", "For session.yaml (if the print is scaled, measure and correct 'square'):"] + block
+    for k, text in enumerate(lines):
+        page.append(("text", MARGIN_MM, y + RULER_MM - 2.0 + LINE_MM * k, 7, text))
+    return Page(width, height, page)
+
+
+def _describe(spec: dict[str, Any]) -> str:
+    kind = spec["type"]
+    mm = 1e3 * float(spec["square"])
+    if kind == "chessboard":
+        return f"chessboard of {spec['cols']} x {spec['rows']} inner corners, squares {mm:.2f} mm"
+    if kind == "charuco":
+        return (f"ChArUco board of {spec['cols']} x {spec['rows']} squares, squares {mm:.2f} mm, markers "
+                f"{1e3 * float(spec['marker']):.2f} mm, {spec['dictionary']}")
+    if kind in ("circles", "asymmetric_circles"):
+        return f"{kind.replace('_', ' ')} grid of {spec['cols']} x {spec['rows']}, spacing {mm:.2f} mm"
+    if kind == "aruco_grid":
+        return (f"grid of {spec['cols']} x {spec['rows']} markers, markers {mm:.2f} mm, gaps "
+                f"{1e3 * float(spec['separation']):.2f} mm, {spec.get('dictionary', 'DICT_APRILTAG_36h11')}")
+    return f"tag {spec.get('id', 0)} of {spec.get('dictionary', 'DICT_APRILTAG_36h11')}, side {mm:.2f} mm"
+
+
+def _svg(page: Page) -> str:
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{page.width:g}mm" height="{page.height:g}mm" '
+           f'viewBox="0 0 {page.width:g} {page.height:g}">', f'<rect width="{page.width:g}" height="{page.height:g}" fill="white"/>']
+    # every rectangle in one path: abutting rectangles filled one by one leave anti-aliased seams
+    rects = [v for kind, *v in page.shapes if kind == "rect"]
+    if rects:
+        out.append('<path fill="black" d="' + " ".join(f"M{x:.4f} {y:.4f}h{w:.4f}v{h:.4f}h{-w:.4f}z"
+                                                         for x, y, w, h in rects) + '"/>')
+    for kind, *v in page.shapes:
+        if kind == "rect":
+            continue
+        if kind == "circle":
+            out.append(f'<circle cx="{v[0]:.4f}" cy="{v[1]:.4f}" r="{v[2]:.4f}" fill="black"/>')
+        elif kind == "line":
+            out.append(f'<line x1="{v[0]:.4f}" y1="{v[1]:.4f}" x2="{v[2]:.4f}" y2="{v[3]:.4f}" stroke="black" '
+                       f'stroke-width="{v[4]:g}"/>')
+        else:
+            text = str(v[3]).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+            out.append(f'<text x="{v[0]:.3f}" y="{v[1]:.3f}" font-family="Helvetica, Arial, sans-serif" '
+                       f'font-size="{v[2] * 25.4 / 72:.3f}" xml:space="preserve">{text}</text>')
+    out.append("</svg>")
+    return "\n".join(out) + "\n"
+
+
+def _pdf(page: Page) -> bytes:
+    """A one-page PDF (vector; the standard Helvetica font, not embedded)."""
+    k = 72.0 / 25.4  # points per millimetre
+    H = page.height * k
+    ops = ["0 g"]
+    # every rectangle in one path, filled once: abutting rectangles filled one by one leave seams
+    rects = [f"{v[0] * k:.4f} {H - (v[1] + v[3]) * k:.4f} {v[2] * k:.4f} {v[3] * k:.4f} re"
+             for kind, *v in page.shapes if kind == "rect"]
+    if rects:
+        ops += rects + ["f"]
+    for kind, *v in page.shapes:
+        if kind == "rect":
+            continue
+        if kind == "circle":
+            cx, cy, r = v[0] * k, H - v[1] * k, v[2] * k
+            c = 0.5522847498 * r  # four cubic Beziers
+            ops.append(f"{cx + r:.3f} {cy:.3f} m {cx + r:.3f} {cy + c:.3f} {cx + c:.3f} {cy + r:.3f} {cx:.3f} {cy + r:.3f} c "
+                       f"{cx - c:.3f} {cy + r:.3f} {cx - r:.3f} {cy + c:.3f} {cx - r:.3f} {cy:.3f} c "
+                       f"{cx - r:.3f} {cy - c:.3f} {cx - c:.3f} {cy - r:.3f} {cx:.3f} {cy - r:.3f} c "
+                       f"{cx + c:.3f} {cy - r:.3f} {cx + r:.3f} {cy - c:.3f} {cx + r:.3f} {cy:.3f} c f")
+        elif kind == "line":
+            ops.append(f"{v[4] * k:.3f} w {v[0] * k:.3f} {H - v[1] * k:.3f} m {v[2] * k:.3f} {H - v[3] * k:.3f} l S")
+        else:
+            text = str(v[3]).encode("latin-1", "replace").decode("latin-1")
+            text = text.replace("\\", "\\\\").replace("(", "\\(").replace(")", "\\)")
+            ops.append(f"BT /F1 {v[2]} Tf {v[0] * k:.3f} {H - v[1] * k:.3f} Td ({text}) Tj ET")
+    content = "\n".join(ops).encode("latin-1")
+    objects = [b"<< /Type /Catalog /Pages 2 0 R >>", b"<< /Type /Pages /Kids [3 0 R] /Count 1 >>",
+               (f"<< /Type /Page /Parent 2 0 R /MediaBox [0 0 {page.width * k:.3f} {H:.3f}] "
+                "/Resources << /Font << /F1 5 0 R >> >> /Contents 4 0 R >>").encode(),
+               b"<< /Length " + str(len(content)).encode() + b" >>\nstream\n" + content + b"\nendstream",
+               b"<< /Type /Font /Subtype /Type1 /BaseFont /Helvetica /Encoding /WinAnsiEncoding >>"]
+    out = bytearray(b"%PDF-1.4\n%\xe2\xe3\xcf\xd3\n")
+    offsets = []
+    for n, body in enumerate(objects, start=1):
+        offsets.append(len(out))
+        out += f"{n} 0 obj\n".encode() + body + b"\nendobj\n"
+    xref = len(out)
+    out += f"xref\n0 {len(objects) + 1}\n0000000000 65535 f \n".encode()
+    out += b"".join(f"{o:010d} 00000 n \n".encode() for o in offsets)
+    out += f"trailer\n<< /Size {len(objects) + 1} /Root 1 0 R >>\nstartxref\n{xref}\n%%EOF\n".encode()
+    return bytes(out)
+
+
+def write_target(spec: dict[str, Any], out: str | Path, paper: str | tuple[float, float] = "A4") -> Path:
+    """Write the printable target of ``spec`` to ``out`` (``.svg`` or ``.pdf``), atomically; returns the path."""
+    path = Path(out)
+    if path.suffix.lower() not in (".svg", ".pdf"):
+        raise HandEyeError(f"{path}: write .svg or .pdf")
+    check_output_folder(path.parent if str(path.parent) else ".")
+    page = target_page(spec, paper)
+    data: str | bytes = _svg(page) if path.suffix.lower() == ".svg" else _pdf(page)
+    atomic_write(path, data)
+    return path
