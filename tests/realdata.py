@@ -188,12 +188,22 @@ def handeye_fit(rs: RealSet) -> Fit:
     return fit
 
 
-def worker_pool(workers: int = 2):
-    """A process pool whose workers run one BLAS thread each: two processes each running a
-    multi-threaded BLAS on two cores fight over them (measured: a 200-session fixture 68 -> ~35 s)."""
-    from concurrent.futures import ProcessPoolExecutor
-
+def _one_thread() -> None:
+    """Worker initializer: BLAS and OpenCV on one thread each. It runs after this module's imports
+    (numpy, scipy, OpenCV) in the worker, so the limit reaches every library already loaded."""
     from threadpoolctl import threadpool_limits
 
-    return ProcessPoolExecutor(workers, initializer=threadpool_limits, initargs=(1,))
+    threadpool_limits(1)
+    cv2.setNumThreads(1)
 
+
+def worker_pool(workers: int = 2):
+    """A process pool whose workers run one BLAS thread each: two processes each running a
+    multi-threaded BLAS on two cores fight over them (measured: a 200-session fixture 68 -> ~35 s).
+    Workers start from a fork server, not from this process: a test that ran OpenCV's detectors
+    here leaves OpenCV's thread pool behind, and a child forked from it hangs in its next OpenCV
+    call (seen: the real-data fixture after the printing tests)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver"), initializer=_one_thread)

@@ -238,3 +238,47 @@ def test_report_renders_in_headless_chromium(sample_out, tmp_path):
     n_img, broken, sections, height = (int(g) for g in m.groups())
     assert n_img == text.count("<img ") and broken == 0
     assert sections == len(SECTIONS) and height > 2000
+
+
+def test_exports_for_robot_software_describe_X(tmp_path, sample_cal):
+    """--export all: a ROS 2 launch file, a ROS 1 (MoveIt Calibration) launch file and easy_handeye2's
+    .calib, each giving X back; --tool: the camera relative to the tool frame; Z in the robot's own
+    pose format (to teach a work object)."""
+    import ast
+
+    tool = handeye.geometry.se3.make_transform(Rotation.from_rotvec([0, 0, 30], degrees=True).as_matrix(), [0, 0, 0.15])
+    paths = write_calibration(sample_cal, tmp_path / "x", exports=["all"], tool2flange=tool, report=False)
+    names = [p.name for p in paths]
+    assert names == ["result.json", "result.yaml", "handeye_static_tf.launch.py", "handeye_static_tf.launch",
+                     "handeye.calib"]
+    X = sample_cal.X
+    # ROS 2: the Node's arguments
+    tree = ast.parse(paths[2].read_text())
+    args = next(n for n in ast.walk(tree) if isinstance(n, ast.keyword) and n.arg == "arguments").value
+    values = [ast.literal_eval(e) for e in args.elts]
+    kv = dict(zip(values[::2], values[1::2]))
+    R = Rotation.from_quat([float(kv[f"--q{c}"]) for c in "xyzw"]).as_matrix()
+    assert np.abs(R - X[:3, :3]).max() < 1e-12 and np.abs([float(kv[f"--{c}"]) for c in "xyz"] - X[:3, 3]).max() < 1e-15
+    assert kv["--frame-id"] == "tool0" and kv["--child-frame-id"] == "camera_optical_frame"
+    # ROS 1: x y z qx qy qz qw parent child
+    node = ET.fromstring(paths[3].read_text()).find("node")
+    a = node.get("args").split()
+    assert np.abs(np.array(a[:3], float) - X[:3, 3]).max() < 1e-15 and a[7:] == ["tool0", "camera_optical_frame"]
+    assert np.abs(Rotation.from_quat(np.array(a[3:7], float)).as_matrix() - X[:3, :3]).max() < 1e-12
+    # easy_handeye2
+    calib = yaml.safe_load(paths[4].read_text())
+    assert calib["parameters"]["calibration_type"] == "eye_in_hand" and calib["parameters"]["robot_effector_frame"] == "tool0"
+    t, q = calib["transform"]["translation"], calib["transform"]["rotation"]
+    assert np.abs([t["x"], t["y"], t["z"]] - X[:3, 3]).max() < 1e-15
+    # the tool frame and the robot's own format
+    data = json.loads(paths[0].read_text())
+    assert data["tool"]["name"] == "cam2tool"
+    cam2tool = np.array(data["tool"]["transform"]["matrix"])
+    assert np.abs(tool @ cam2tool - X).max() < 1e-12
+    z = data["Z"]["robot_format"]
+    assert z["format"] == "euler:ZYX" and z["columns"] == ["x", "y", "z", "a", "b", "c"]
+    Z_back = handeye.parse_poses([z["values"]], z["format"], z["length_unit"], z["angle_unit"])[0]
+    assert np.abs(Z_back - sample_cal.Z).max() < 1e-12
+    with pytest.raises(handeye.HandEyeError, match="unknown export"):
+        write_calibration(sample_cal, tmp_path / "y", exports=["urdf-xacro"], report=False)
+    assert not (tmp_path / "y").exists()  # nothing written before the error

@@ -27,7 +27,7 @@ from .planning import (ROBOTS, easy_handeye_poses, fronto_parallel_start, plan_p
                        simulate_errors, visible_mask, write_plan)
 from .poses import ANGLE_UNITS, LENGTH_UNITS, pose_columns
 from .printing import PAPERS, write_target
-from .report import write_calibration
+from .report import EXPORTS, write_calibration
 from .importers import import_easy_handeye, import_industrial_calibration, import_rosbag, import_visp
 from .result import Calibration
 from .session import POSE_KINDS, TIME_UNITS, load_pose_pairs, load_pose_streams, load_yaml, read_intrinsics
@@ -165,7 +165,9 @@ def _out_folder(out: str | None, inputs: Sequence[Path] = ()) -> Path | None:
 def _write_outputs(cal: Calibration, args: argparse.Namespace) -> None:
     """Write the result files and the report (never into ``cal.input_folder``: write_calibration)."""
     if args.out:
-        for path in write_calibration(cal, args.out, parent_frame=args.parent_frame, child_frame=args.child_frame):
+        tool = _pose_arg(args.tool, "--tool") if args.tool else None
+        for path in write_calibration(cal, args.out, parent_frame=args.parent_frame, child_frame=args.child_frame,
+                                      exports=args.export, tool2flange=tool):
             print(f"wrote {path}")
     else:
         print("no --out: nothing written (--out FOLDER writes result.json, result.yaml and report.html)")
@@ -466,6 +468,12 @@ def _add_solver_and_out(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", help="write result.json, result.yaml and report.html into this folder")
     p.add_argument("--parent-frame", help="ROS frame X is given in (default: tool0 for eye_in_hand, base_link for eye_to_hand)")
     p.add_argument("--child-frame", help="ROS frame of the camera (default: camera_optical_frame)")
+    p.add_argument("--export", action="append", default=[], choices=list(EXPORTS) + ["all"],
+                   help="with --out, also write: ros2-launch (a ROS 2 launch file publishing X), ros1-launch (the "
+                   "ROS 1 launch file MoveIt Calibration writes), easy-handeye (easy_handeye2's .calib); repeat or all")
+    p.add_argument("--tool", metavar="X,Y,Z[,RX,RY,RZ]",
+                   help="your robot's tool (TCP) frame in the flange frame (m; rotation vector in deg): the result "
+                   "files also give the camera (eye-in-hand) or the target (eye-to-hand) relative to the tool")
     p.add_argument("--robot-accuracy", metavar="DEG,MM",
                    help=f"the robot's absolute accuracy per axis, added to the std of X (a constant robot error is "
                    f"invisible in the data; default {ROBOT_ACCURACY[0]:g},{ROBOT_ACCURACY[1]:g}; 0,0 for an exact robot)")

@@ -24,6 +24,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
@@ -261,6 +262,12 @@ class StudyResult:
         raise KeyError(f"no setting {figure!r} / {series!r} / x={x}")
 
 
+def _clean_context():
+    """Worker processes from a fork server where there is one: a child forked from a process whose
+    OpenCV thread pool runs (after any detection there) hangs in its first OpenCV call."""
+    return multiprocessing.get_context("forkserver") if "forkserver" in multiprocessing.get_all_start_methods() else None
+
+
 def _single_threaded_blas() -> None:
     """Worker initializer: the study's arrays are small, and two processes each running a
     multi-threaded BLAS on two cores fight over them (measured: 1.3x slower overall)."""
@@ -334,7 +341,7 @@ def study(
                 results[k] = res
                 bar.update()
         else:
-            with ProcessPoolExecutor(max_workers=jobs, initializer=_single_threaded_blas) as pool:
+            with ProcessPoolExecutor(max_workers=jobs, initializer=_single_threaded_blas, mp_context=_clean_context()) as pool:
                 for fut in as_completed([pool.submit(_run_indexed, t) for t in order]):
                     k, res = fut.result()
                     results[k] = res

@@ -11,19 +11,23 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Iterable
 
+import numpy as np
+from numpy.typing import NDArray
+
 from .._shared.io import check_output_folder
 from ..diagnostics import compare_solvers
 from ..result import Calibration
-from .files import default_frames, result_dict, ros2_static_transform_command, urdf_joint, write_results
+from .files import EXPORTS, check_exports, default_frames, result_dict, ros2_static_transform_command, urdf_joint, write_exports, write_results
 from .html import SECTIONS, report_html, write_report
 
 __all__ = ["write_calibration", "result_dict", "write_results", "report_html", "write_report", "default_frames",
-           "ros2_static_transform_command", "urdf_joint", "SECTIONS"]
+           "ros2_static_transform_command", "urdf_joint", "SECTIONS", "EXPORTS", "write_exports"]
 
 
 def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterable[str | Path] = (), report: bool = True,
                       compare: bool = True, parent_frame: str | None = None,
-                      child_frame: str | None = None) -> list[Path]:
+                      child_frame: str | None = None, exports: Iterable[str] = (),
+                      tool2flange: NDArray[np.float64] | None = None) -> list[Path]:
     """Write ``result.json``, ``result.yaml`` and (``report``) ``report.html`` into ``out_dir``.
 
     Every file is written atomically. The folder is checked first
@@ -32,13 +36,18 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
     input images are always protected. ``compare``: draw every solver on the same data in the report
     (``cal.solver_comparison``, or computed here by :func:`handeye.diagnostics.compare_solvers`
     when it holds none). ``parent_frame`` / ``child_frame`` name the frames of the ROS snippets
-    (default ``tool0`` or ``base_link``, and ``camera_optical_frame``). Returns the paths written, the
-    report last.
+    (default ``tool0`` or ``base_link``, and ``camera_optical_frame``). ``exports``: more files for
+    robot software (keys of :data:`EXPORTS`: a ROS 2 launch file, a ROS 1 / MoveIt launch file,
+    easy_handeye2's .calib; 'all'). ``tool2flange``: the robot's tool (TCP) frame, so that the
+    result files also give the camera (eye-in-hand) or the target (eye-to-hand) relative to it.
+    Returns the paths written, the report last.
     """
     inputs = [cal.input_folder] if cal.input_folder is not None else []
+    exports = check_exports(exports)  # before any file is written
     out_dir = check_output_folder(out_dir, inputs)
     protect = list(protect) + list(cal.image_paths or [])
-    paths = write_results(cal, out_dir, protect, parent_frame, child_frame)
+    paths = write_results(cal, out_dir, protect, parent_frame, child_frame, tool2flange)
+    paths += write_exports(cal, out_dir, exports, protect, parent_frame, child_frame) if exports else []
     if report:
         rows = None
         if compare:

@@ -22,12 +22,15 @@ from scipy.spatial.transform import Rotation
 
 from .._shared.io import atomic_write
 from .._version import __version__
+from ..errors import HandEyeError
 from ..geometry.se3 import invert
+from ..poses import format_poses, pose_columns
 from ..result import Calibration
 from ..setups import setup_info
 
 __all__ = ["result_dict", "write_results", "ros2_static_transform_command", "urdf_joint", "default_frames",
-           "euler_angles"]
+           "euler_angles", "ros2_launch_file", "ros1_launch_file", "easy_handeye_calibration", "in_tool_frame",
+           "write_exports", "check_exports", "EXPORTS"]
 
 
 def default_frames(setup: str) -> tuple[str, str]:
@@ -76,6 +79,98 @@ def urdf_joint(T: NDArray[np.float64], parent: str, child: str, name: str | None
             f'</joint>')
 
 
+def ros2_launch_file(T: NDArray[np.float64], parent: str, child: str) -> str:
+    """A ROS 2 Python launch file that publishes ``T = child2parent`` as a static transform."""
+    q = Rotation.from_matrix(T[:3, :3]).as_quat(canonical=True)
+    args = [f"'--x', '{_num(T[0, 3])}'", f"'--y', '{_num(T[1, 3])}'", f"'--z', '{_num(T[2, 3])}'",
+            f"'--qx', '{_num(q[0])}'", f"'--qy', '{_num(q[1])}'", f"'--qz', '{_num(q[2])}'", f"'--qw', '{_num(q[3])}'",
+            f"'--frame-id', '{parent}'", f"'--child-frame-id', '{child}'"]
+    return ("# Written by handeye: the hand-eye calibration as a static transform.\n"
+            "# ros2 launch ./handeye_static_tf.launch.py\n"
+            "from launch import LaunchDescription\nfrom launch_ros.actions import Node\n\n\n"
+            "def generate_launch_description():\n    return LaunchDescription([Node(\n"
+            "        package='tf2_ros', executable='static_transform_publisher', name='handeye_static_tf',\n"
+            f"        arguments=[{', '.join(args)}],\n    )])\n")
+
+
+def ros1_launch_file(T: NDArray[np.float64], parent: str, child: str) -> str:
+    """A ROS 1 launch file (as MoveIt Calibration exports) publishing ``T = child2parent``:
+    tf2_ros's static_transform_publisher with ``x y z qx qy qz qw parent child``."""
+    q = Rotation.from_matrix(T[:3, :3]).as_quat(canonical=True)
+    values = " ".join(_num(v) for v in (*T[:3, 3], *q))
+    return ('<launch>\n  <!-- Written by handeye: the hand-eye calibration as a static transform -->\n'
+            f'  <node pkg="tf2_ros" type="static_transform_publisher" name="handeye_static_tf" '
+            f'args="{values} {parent} {child}"/>\n</launch>\n')
+
+
+def easy_handeye_calibration(cal: Calibration, parent: str, child: str, name: str = "handeye") -> dict[str, Any]:
+    """The calibration as easy_handeye2 saves it (its ``.calib`` YAML): the parameters (frames,
+    ``eye_in_hand`` or ``eye_on_base``) and ``transform``, X as translation and quaternion (x, y, z, w)."""
+    info = setup_info(cal.setup)
+    q = Rotation.from_matrix(cal.X[:3, :3]).as_quat(canonical=True)
+    return {
+        "parameters": {"name": name, "calibration_type": "eye_in_hand" if info.camera_on_flange else "eye_on_base",
+                       "robot_base_frame": parent if not info.camera_on_flange else "base_link",
+                       "robot_effector_frame": parent if info.camera_on_flange else "tool0",
+                       "tracking_base_frame": child, "tracking_marker_frame": "calibration_target",
+                       "freehand_robot_movement": True, "move_group_namespace": "/", "move_group": "manipulator"},
+        "transform": {"translation": dict(zip("xyz", map(float, cal.X[:3, 3]))),
+                      "rotation": dict(zip("xyzw", map(float, q)))},
+    }
+
+
+def in_tool_frame(cal: Calibration, tool2flange: NDArray[np.float64]) -> tuple[str, NDArray[np.float64]]:
+    """The transform a robot program wants relative to its tool (TCP) frame rather than the flange,
+    given ``tool2flange``: eye-in-hand the camera in the tool frame (``inv(tool2flange) @ X``),
+    eye-to-hand the target in the tool frame (``inv(tool2flange) @ Z``). Returns its name and value."""
+    if setup_info(cal.setup).camera_on_flange:
+        return "cam2tool", invert(tool2flange) @ cal.X
+    return "target2tool", invert(tool2flange) @ cal.Z
+
+
+#: What ``write_exports`` can write besides result.json/yaml and report.html: name -> file name.
+EXPORTS = {"ros2-launch": "handeye_static_tf.launch.py", "ros1-launch": "handeye_static_tf.launch",
+           "easy-handeye": "handeye.calib"}
+
+
+def check_exports(exports: Iterable[str]) -> list[str]:
+    """``exports`` checked (keys of :data:`EXPORTS`, or 'all'), in order, each once."""
+    exports = list(exports)
+    exports = list(EXPORTS) if "all" in exports else list(dict.fromkeys(exports))
+    unknown = [e for e in exports if e not in EXPORTS]
+    if unknown:
+        raise HandEyeError(f"unknown export(s) {', '.join(map(str, unknown))}; use {', '.join(EXPORTS)} or all")
+    return exports
+
+
+def write_exports(cal: Calibration, out_dir: str | Path, exports: Iterable[str], protect: Iterable[Path] = (),
+                  parent_frame: str | None = None, child_frame: str | None = None) -> list[Path]:
+    """Write the ``exports`` (keys of :data:`EXPORTS`; 'all' for every one) into ``out_dir``, atomically."""
+    exports = check_exports(exports)
+    parent, child = default_frames(cal.setup)
+    parent, child = parent_frame or parent, child_frame or child
+    paths = []
+    for e in exports:
+        path = Path(out_dir) / EXPORTS[e]
+        text = {"ros2-launch": lambda: ros2_launch_file(cal.X, parent, child),
+                "ros1-launch": lambda: ros1_launch_file(cal.X, parent, child),
+                "easy-handeye": lambda: yaml.safe_dump(easy_handeye_calibration(cal, parent, child), sort_keys=False)}[e]()
+        atomic_write(path, text, protect)
+        paths.append(path)
+    return paths
+
+
+def _robot_format(T: NDArray[np.float64], cal: Calibration) -> dict[str, Any] | None:
+    """``T`` written as the robot's own pose rows are (format and units of the robot poses given):
+    to teach a work object or a tool from it."""
+    ri = cal.robot_input
+    if ri is None:
+        return None
+    return {"format": ri.format, "length_unit": ri.length_unit, "angle_unit": ri.angle_unit,
+            "columns": pose_columns(ri.format),
+            "values": format_poses(T[None], ri.format, ri.length_unit, ri.angle_unit)[0].tolist()}
+
+
 def _euler_of_input(rot: Rotation, cal: Calibration) -> dict[str, Any] | None:
     ri = cal.robot_input
     if ri is None or not ri.format.startswith("euler:"):
@@ -102,6 +197,9 @@ def _transform_dict(T: NDArray[np.float64], cal: Calibration | None = None) -> d
         euler = _euler_of_input(rot, cal)
         if euler is not None:
             out["euler_input_convention"] = euler
+        robot = _robot_format(T, cal)
+        if robot is not None:
+            out["robot_format"] = robot
     return out
 
 
@@ -147,11 +245,26 @@ def _images_dict(cal: Calibration) -> dict[str, Any]:
     }
 
 
-def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: str | None = None) -> dict[str, Any]:
+def _uncertainty_dict(cal: Calibration) -> dict[str, Any]:
+    out = {
+        "std_rotation_deg": _finite_or_none(cal.std[:3]),
+        "std_translation_mm": _finite_or_none(cal.std[3:]),
+        "cov": cal.cov.tolist(),
+        "cov_parameters": "X: rotation vector increment (rad, left), translation (m)",
+    }
+    if cal.std_sources is not None:
+        out["sources"] = {k: (None if v is None else {"rotation_deg": v[:3].tolist(), "translation_mm": v[3:].tolist()})
+                          for k, v in cal.std_sources.items()}
+    return out
+
+
+def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: str | None = None,
+                tool2flange: NDArray[np.float64] | None = None) -> dict[str, Any]:
     """A plain, JSON/YAML-ready description of a calibration (see the module docstring).
 
     ``parent_frame`` / ``child_frame`` name the frames in the ROS snippets (defaults:
-    :func:`default_frames`).
+    :func:`default_frames`). ``tool2flange``: the robot's tool (TCP) frame in the flange frame;
+    adds the camera (eye-in-hand) or the target (eye-to-hand) relative to that tool (``tool``).
     """
     info = setup_info(cal.setup)
     x_name, z_name, inv_name = info.x_name, info.z_name, info.x_inverse_name
@@ -175,7 +288,9 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
             "child_frame": child,
             "static_transform_publisher": ros2_static_transform_command(cal.X, parent, child),
             "urdf_joint": urdf_joint(cal.X, parent, child),
+            "ros1_launch": ros1_launch_file(cal.X, parent, child),
         },
+        "easy_handeye": easy_handeye_calibration(cal, parent, child),
         "n_poses": int(len(cal.flange2base)),
         "n_motions": int(len(cal.pairs)),
         "motion_residuals": {
@@ -198,16 +313,7 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
     if cal.pose_noise is not None:
         out["refinement"]["pose_noise"] = dict(cal.pose_noise)
     if cal.cov is not None:
-        out["uncertainty"] = {
-            "std_rotation_deg": _finite_or_none(cal.std[:3]),
-            "std_translation_mm": _finite_or_none(cal.std[3:]),
-            "cov": cal.cov.tolist(),
-            "cov_parameters": "X: rotation vector increment (rad, left), translation (m)",
-        }
-        if cal.std_sources is not None:
-            out["uncertainty"]["sources"] = {
-                k: (None if v is None else {"rotation_deg": v[:3].tolist(), "translation_mm": v[3:].tolist()})
-                for k, v in cal.std_sources.items()}
+        out["uncertainty"] = _uncertainty_dict(cal)
     if cal.cross_validation is not None:
         out["cross_validation"] = {
             "estimator": cal.estimator,
@@ -217,6 +323,9 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
                        "pose alone: pixels (with images) and millimetres at the target's distance; the number to "
                        "trust for how well X and Z predict new views",
         }
+    if tool2flange is not None:
+        name, T = in_tool_frame(cal, tool2flange)
+        out["tool"] = {"tool2flange": _transform_dict(tool2flange), "name": name, "transform": _transform_dict(T, cal)}
     out["determined"] = _determined(cal)
     if cal.unobservable:
         out["unobservable"] = [u.as_dict() for u in cal.unobservable]
@@ -247,13 +356,14 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
 
 
 def write_results(cal: Calibration, out_dir: str | Path, protect: Iterable[Path] = (),
-                  parent_frame: str | None = None, child_frame: str | None = None) -> list[Path]:
+                  parent_frame: str | None = None, child_frame: str | None = None,
+                  tool2flange: NDArray[np.float64] | None = None) -> list[Path]:
     """Write ``result.json`` and ``result.yaml`` into ``out_dir``; returns their paths.
 
     Each file is written atomically; none of the ``protect`` paths (the inputs) is overwritten.
     """
     out_dir = Path(out_dir)
-    data = result_dict(cal, parent_frame, child_frame)
+    data = result_dict(cal, parent_frame, child_frame, tool2flange)
     protect = list(protect)
     paths = [out_dir / "result.json", out_dir / "result.yaml"]
     atomic_write(paths[0], json.dumps(data, indent=2) + "\n", protect)
