@@ -215,3 +215,20 @@ def test_cli_bad_intrinsics(tmp_path, capsys):
                      "--out", str(tmp_path / "p.csv")])
         err = capsys.readouterr().err
         assert code == 2 and expect in err and len(err.strip().splitlines()) == 1
+
+
+def test_plan_takes_a_session_yaml_as_intrinsics(tmp_path, capsys):
+    """A session.yaml has K but no image_size: plan reads the size from the session's images."""
+    import handeye
+    from pathlib import Path
+
+    sample = Path(handeye.__file__).parent / "data" / "sample_session" / "session.yaml"
+    out = tmp_path / "poses.csv"
+    assert main(["plan", "--intrinsics", str(sample), "--target-spec", str(sample), "--target-in-base", "0.6,0.1,0",
+                 "--standoff", "0.5", "--poses", "6", "--out", str(out)]) == 0
+    assert out.is_file() and len(out.read_text().splitlines()) == 7
+    lone = tmp_path / "lone.yaml"  # K without images beside it: the error says what is missing
+    lone.write_text(sample.read_text())
+    assert main(["plan", "--intrinsics", str(lone), "--target-in-base", "0.6,0.1,0", "--standoff", "0.5",
+                 "--out", str(tmp_path / "p.csv")]) == 2
+    assert "image_size" in capsys.readouterr().err

@@ -34,7 +34,7 @@ from .solvers.refine import PoseRefinementResult, ReprojectionResult, refine_pos
 from .sync import (KEYFRAMES, MIN_SAMPLES, PoseStream, Synchronisation, check_stream, interpolate, keyframes_at,
                    offset_cov, synchronise, timing_cost)
 from .validation import Views, jackknife_cov
-from .vision import calibrate_intrinsics, detect_images, resolve_symmetries, solve_pnp, target_from_spec
+from .vision import ambiguous_labels, calibrate_intrinsics, detect_images, resolve_symmetries, solve_pnp, target_from_spec
 
 __all__ = ["Calibration", "FolderCheck", "Observations", "ROBOT_ACCURACY", "apply_choice", "calibrate", "certify_calibration",
            "calibrate_observed", "calibrate_poses", "check_folder", "observe", "refine_on_pixels", "refine_on_poses",
@@ -509,6 +509,12 @@ def observe(session: Session, jobs: int | None = None, progress: bool = True) ->
     flange2base = session.flange2base[used_arr]
     symmetries = target.symmetries()
     target2cam, choice = resolve_symmetries(np.array(poses), flange2base, session.setup, symmetries)
+    unsure = ambiguous_labels(np.array(poses), flange2base, session.setup, symmetries)
+    if unsure.any():  # flagged, not dropped: the check and the robust fits judge them
+        notes.append(f"image(s) {summarize(session.image_names[used[k]] for k in np.flatnonzero(unsure))}: the "
+                     f"symmetric {target.type} target reads almost as well turned about its centre, so which end is which was "
+                     "decided by a thin margin from the robot motion; a board that cannot be read from the wrong end "
+                     "(ChArUco, a marker grid, asymmetric circles: handeye target) removes the doubt")
     obj, img = [], []  # per image: target points in the relabelled target frame (new = F^-1 old), detections
     for k, c in zip(used, choice):
         det, F_inv = detections[k], invert(symmetries[c])

@@ -44,12 +44,15 @@ import yaml
 from numpy.typing import NDArray
 
 from ._shared.io import atomic_write, read_text
+from ._shared.lazy import lazy_module
 from ._shared.text import summarize
 from .errors import HandEyeError, InputMismatchError, PoseFormatError
 from .geometry.se3 import invert
 from .poses import RobotPoseInput, format_poses, parse_poses, pose_columns
 from .setups import check_setup
 from .vision.targets import target_from_spec
+
+cv2 = lazy_module("cv2")  # only to read an image's size
 
 __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session", "read_pose_table", "SessionError", "load_yaml",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
@@ -562,9 +565,12 @@ def read_intrinsics(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.f
     data = load_yaml(p)
     cam = data["camera"] if isinstance(data.get("camera"), dict) else data
     size = cam.get("image_size", data.get("image_size"))
+    if size is None and "K" in cam and (p.parent / "images").is_dir():  # a session.yaml: the images' size
+        size = _image_size(p.parent / "images")
     if "K" not in cam or size is None:
         raise SessionError(f"{p}: needs K: [[fx,0,cx],[0,fy,cy],[0,0,1]] and image_size: [width, height] "
-                           "(dist optional), at the top level or under camera:")
+                           "(dist optional), at the top level or under camera: (a session.yaml with K and "
+                           "images/ beside it will do)")
     K, dist = read_camera({"K": cam["K"], "dist": cam.get("dist") or [0.0] * 5}, str(p))
     try:
         w, h = (int(v) for v in size)
@@ -573,6 +579,16 @@ def read_intrinsics(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.f
     if w <= 0 or h <= 0:
         raise SessionError(f"{p}: image_size must be positive")
     return K, dist, (w, h)
+
+
+def _image_size(folder: Path) -> tuple[int, int] | None:
+    """The size (width, height) of the first image in ``folder`` that OpenCV can read, or None."""
+    for p in sorted(folder.iterdir()):
+        if p.suffix.lower() in IMAGE_SUFFIXES:
+            img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+            if img is not None:
+                return img.shape[1], img.shape[0]
+    return None
 
 
 def _number(v: float) -> str:

@@ -12,7 +12,7 @@ from .targets import Detection
 
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
-__all__ = ["solve_pnp", "calibrate_intrinsics", "resolve_symmetries", "reprojection_rms", "project_points",
+__all__ = ["ambiguous_labels", "solve_pnp", "calibrate_intrinsics", "resolve_symmetries", "reprojection_rms", "project_points",
            "project_points_many"]
 
 
@@ -93,6 +93,34 @@ def calibrate_intrinsics(
     return K, dist.ravel(), float(rms)
 
 
+def _symmetry_costs(target2cam, flange2base, setup: str, symmetries) -> NDArray[np.float64]:
+    """(S, N - 1): per symmetry and image after the first, how far the camera motion from the first
+    image, so relabelled, is from the robot's in rotation angle and pitch (rad; 0.1 m of pitch ~ 1 rad)."""
+    robot, robot_inv = robot_world_A(flange2base, setup), robot_world_A_inv(flange2base, setup)
+    A = robot_inv[1:] @ robot[0]  # the robot motion from the first pose, A_i0 = inv(A_i) A_0
+    _, _, th_a, d_a = screw_parameters(A)
+    inv0 = invert(target2cam[0])
+    costs = []
+    for F in symmetries:
+        _, _, th_b, d_b = screw_parameters((target2cam[1:] @ F) @ inv0)
+        costs.append(np.abs(th_a - th_b) + np.abs(d_a - d_b) / 0.1)
+    return np.stack(costs)
+
+
+def ambiguous_labels(target2cam: NDArray[np.float64], flange2base: NDArray[np.float64], setup: str,
+                     symmetries: list[NDArray[np.float64]], factor: float = 3.0) -> NDArray[np.bool_]:
+    """Per image, whether :func:`resolve_symmetries` chose its labelling by a thin margin: another
+    symmetric reading fits the robot motion within ``factor`` times the typical misfit of the chosen
+    ones (the first image defines the target frame and is never ambiguous)."""
+    out = np.zeros(len(target2cam), bool)
+    if len(symmetries) < 2 or len(target2cam) < 3:
+        return out
+    costs = np.sort(_symmetry_costs(target2cam, flange2base, setup, symmetries), axis=0)
+    typical = max(float(np.median(costs[0])), 1e-3)
+    out[1:] = costs[1] - costs[0] < factor * typical
+    return out
+
+
 def resolve_symmetries(
     target2cam: NDArray[np.float64],
     flange2base: NDArray[np.float64],
@@ -113,16 +141,7 @@ def resolve_symmetries(
     choice = np.zeros(n, dtype=np.intp)
     if len(symmetries) == 1 or n < 2:
         return target2cam, choice
-    robot, robot_inv = robot_world_A(flange2base, setup), robot_world_A_inv(flange2base, setup)
-    A = robot_inv[1:] @ robot[0]  # the robot motion from the first pose, A_i0 = inv(A_i) A_0
-    _, _, th_a, d_a = screw_parameters(A)
-    inv0 = invert(target2cam[0])
-    costs = []
-    for F in symmetries:
-        B = (target2cam[1:] @ F) @ inv0
-        _, _, th_b, d_b = screw_parameters(B)
-        costs.append(np.abs(th_a - th_b) + np.abs(d_a - d_b) / 0.1)  # 0.1 m of pitch ~ 1 rad
-    choice[1:] = np.argmin(np.stack(costs), axis=0)
+    choice[1:] = np.argmin(_symmetry_costs(target2cam, flange2base, setup, symmetries), axis=0)
     fixed = target2cam.copy()
     for k, F in enumerate(symmetries):
         sel = choice == k
