@@ -218,26 +218,41 @@ _CHROMIUM = next((shutil.which(b) for b in ("chromium", "chromium-browser", "goo
 _PROBE = """<script>window.addEventListener('load', function () {
   var imgs = document.images, bad = 0;
   for (var i = 0; i < imgs.length; i++) { if (!(imgs[i].complete && imgs[i].naturalWidth > 0)) bad++; }
+  var wide = 0, all = document.querySelectorAll('section, section *');
+  for (var j = 0; j < all.length; j++) { if (all[j].scrollWidth > all[j].clientWidth + 1 && all[j].clientWidth > 0) wide++; }
   var b = document.body;
   b.setAttribute('data-images', imgs.length); b.setAttribute('data-broken', bad);
   b.setAttribute('data-sections', document.querySelectorAll('section').length);
   b.setAttribute('data-height', document.documentElement.scrollHeight);
+  b.setAttribute('data-overflow', wide + (document.documentElement.scrollWidth > window.innerWidth ? 1 : 0));
+  b.setAttribute('data-errors', (window.__errors || []).length);
 });</script></body>"""
+#: collects script errors and console.error calls from the start of the page
+_ERRORS = """<head><script>window.__errors = [];
+window.addEventListener('error', function (e) { window.__errors.push(String(e.message)); });
+(function () { var ce = console.error; console.error = function () { window.__errors.push([].join.call(arguments, ' '));
+  ce.apply(console, arguments); }; })();</script>"""
 
 
 @pytest.mark.skipif(_CHROMIUM is None, reason="no chromium binary on this machine")
 def test_report_renders_in_headless_chromium(sample_out, tmp_path):
-    """The page renders and the browser decodes every embedded image (a probe script added to a copy)."""
+    """The page renders at 1200 px, the browser decodes every embedded image, nothing overflows
+    its box sideways (the ROS line was cut off) and no script error or console error is logged
+    (a probe script added to a copy)."""
     text = (sample_out / "report.html").read_text(encoding="utf-8")
     probe = tmp_path / "probe.html"
-    probe.write_text(text.replace("</body>", _PROBE), encoding="utf-8")
-    res = subprocess.run([_CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--virtual-time-budget=10000",
-                          "--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=120)
-    m = re.search(r'<body data-images="(\d+)" data-broken="(\d+)" data-sections="(\d+)" data-height="(\d+)"', res.stdout)
+    probe.write_text(text.replace("<head>", _ERRORS, 1).replace("</body>", _PROBE), encoding="utf-8")
+    res = subprocess.run([_CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                          "--disable-component-update", "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}",
+                          "--window-size=1200,900", "--virtual-time-budget=10000", "--dump-dom", probe.as_uri()],
+                         capture_output=True, text=True, timeout=120)
+    m = re.search(r'<body data-images="(\d+)" data-broken="(\d+)" data-sections="(\d+)" data-height="(\d+)" '
+                  r'data-overflow="(\d+)" data-errors="(\d+)"', res.stdout)
     assert m, res.stdout[:300] + res.stderr[-500:]
-    n_img, broken, sections, height = (int(g) for g in m.groups())
+    n_img, broken, sections, height, overflow, errors = (int(g) for g in m.groups())
     assert n_img == text.count("<img ") and broken == 0
     assert sections == len(SECTIONS) and height > 2000
+    assert overflow == 0 and errors == 0
 
 
 def test_exports_for_robot_software_describe_X(tmp_path, sample_cal):
@@ -282,3 +297,38 @@ def test_exports_for_robot_software_describe_X(tmp_path, sample_cal):
     with pytest.raises(handeye.HandEyeError, match="unknown export"):
         write_calibration(sample_cal, tmp_path / "y", exports=["urdf-xacro"], report=False)
     assert not (tmp_path / "y").exists()  # nothing written before the error
+
+
+def test_gallery_flags_large_errors_and_shows_rejected_images(tmp_path, sample_cal):
+    """An image whose predicted points lie far from the detected ones gets a red frame and a caption
+    saying so; images that were not used appear with the reason; thumbnails enlarge on a click."""
+    from handeye.report import report_html
+
+    shifted = [p + (25.0 if k == 4 else 0.0) for k, p in enumerate(sample_cal.image_points)]
+    folder = tmp_path / "session"
+    shutil.copytree(SAMPLE, folder)
+    cv2.imwrite(str(folder / "images" / "blank.png"), np.full((480, 640), 200, np.uint8))
+    cal = replace(sample_cal, image_points=shifted, input_folder=folder,
+                  skipped=[("blank.png", "target not found")])
+    text = report_html(cal)
+    assert text.count('<figure class="flag">') == 1
+    assert "<figcaption>004.jpg" in text.split('<figure class="flag">')[1].split("</figure>")[0]
+    assert "check this view" in text
+    rejected = text.split('<figure class="rejected">')
+    assert len(rejected) == 2 and "not used — blank.png: target not found" in rejected[1]
+    assert text.count('class="zoom" tabindex="0"') == len(sample_cal.image_names) + 1
+
+
+def test_advice_names_what_could_be_better(sample_cal):
+    """A good verdict with rotation axes that are not well spread, or solvers far apart compared with
+    X's std, gets advice instead of 'nothing to fix'."""
+    from handeye.report import report_html
+
+    diag = replace(sample_cal.diagnostics, axis_shares=np.array([0.82, 0.09, 0.09]), advice=[],
+                   weakest_axis=np.array([0.0, 0.0, 1.0]))
+    rows = [{"method": m, "dX_deg": 0.5, "dX_mm": 10 * float(np.linalg.norm(sample_cal.std[3:])), "median_pose_deg": 0.1,
+             "median_pose_mm": 1.0, "ms": 1.0} for m in ("tsai_lenz", "park_martin")]
+    text = report_html(replace(sample_cal, diagnostics=diag, notes=[]), solver_rows=rows)
+    advice = text.split('<section id="advice">')[1]
+    assert "Nothing to fix" not in advice
+    assert "rotation axes are not well spread" in advice and "land a median 10.0 std of X away" in advice

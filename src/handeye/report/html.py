@@ -41,6 +41,11 @@ SECTIONS = ("verdict", "result", "residuals", "overlays", "scene", "axes", "solv
 #: Most images shown as overlays (the page stays a few MB at most).
 MAX_OVERLAYS = 60
 THUMB_WIDTH = 360
+#: Thumbnails are stored this wide and shown at THUMB_WIDTH; a click (focus) shows them at this size.
+ZOOM_WIDTH = 900
+#: An image whose predicted points lie further than this many times the median from the detected
+#: ones is flagged in the gallery.
+FLAG_FACTOR = 3.0
 
 _COLOURS = {"good": "#1e7b34", "weak": "#b36b00", "partial": "#b36b00", "degenerate": "#b00020", "inconsistent": "#b00020",
             "not checked": "#555555"}
@@ -52,9 +57,12 @@ h1{font-size:1.5em;margin:18px 0 6px} h2{font-size:1.2em;border-bottom:1px solid
 .banner b{font-size:1.3em;text-transform:uppercase;letter-spacing:.04em}
 table{border-collapse:collapse;margin:8px 0} td,th{border:1px solid #ddd;padding:3px 8px;text-align:right;font-variant-numeric:tabular-nums}
 th{background:#f4f4f4} td.l,th.l{text-align:left}
-pre{background:#f6f8fa;padding:8px;overflow-x:auto;font-size:.85em}
-.thumbs{display:flex;flex-wrap:wrap;gap:8px} figure{margin:0;font-size:.8em;text-align:center}
-img{max-width:100%} .note{color:#555;font-size:.9em}
+pre{background:#f6f8fa;padding:8px;font-size:.85em;white-space:pre-wrap;overflow-wrap:anywhere}
+.thumbs{display:flex;flex-wrap:wrap;gap:8px} figure{margin:0;font-size:.8em;text-align:center;max-width:100%}
+figure img.zoom{cursor:zoom-in;width:360px} figure img.zoom:focus{width:min(900px,100%);cursor:zoom-out;outline:none}
+figure.flag img{border:3px solid #b00020} figure.flag figcaption{color:#b00020;font-weight:bold}
+figure.rejected img{opacity:.55;border:3px dashed #888}
+img{max-width:100%} .note{color:#555;font-size:.9em} section{overflow-wrap:anywhere}
 """
 
 
@@ -143,23 +151,24 @@ def _scene_figure(cal: Calibration) -> str:
     pts = np.vstack([flange, cam2base[:, :3, 3], tgt2base[:, :3, 3], np.zeros((1, 3))])
     extent = float(np.ptp(pts, axis=0).max()) or 1.0
     L = 0.08 * extent
-    fig = _figure((7.5, 6.5))
+    few = np.unique(np.linspace(0, len(cal.flange2base) - 1, min(len(cal.flange2base), 12)).astype(int))  # not crowded
+    fig = _figure((10.0, 8.5))
     ax = fig.add_subplot(projection="3d")
     _axis_triad(ax, np.eye(4), 1.5 * L, lw=3)
     ax.text(0, 0, 0, " base", fontsize=8)
     ax.plot(*flange.T, "-o", color="#777", ms=3, lw=0.8, label="flange positions (capture order)")
-    _axis_triad(ax, cal.flange2base, 0.5 * L, lw=0.8)
-    _axis_triad(ax, cam2base if on_flange else cam2base[:1], L)
+    _axis_triad(ax, cal.flange2base[few], 0.5 * L, lw=0.8)
+    _axis_triad(ax, cam2base[few] if on_flange else cam2base[:1], L)
     ax.scatter(*cam2base[:, :3, 3].T, color="#000", s=12, label="camera")
     if cal.object_points:
         obj = np.vstack(cal.object_points)
         lo, hi = obj.min(axis=0), obj.max(axis=0)
         corners = np.array([[lo[0], lo[1], 0, 1], [hi[0], lo[1], 0, 1], [hi[0], hi[1], 0, 1], [lo[0], hi[1], 0, 1],
                             [lo[0], lo[1], 0, 1]])
-        for T in (tgt2base if not on_flange else tgt2base[:1]):
+        for T in (tgt2base[few] if not on_flange else tgt2base[:1]):
             c = (T @ corners.T).T
             ax.plot(*c[:, :3].T, color="#8b4513", lw=1.5)
-    _axis_triad(ax, tgt2base if not on_flange else tgt2base[:1], L, lw=2)
+    _axis_triad(ax, tgt2base[few] if not on_flange else tgt2base[:1], L, lw=2)
     ax.scatter(*tgt2base[:, :3, 3].T, color="#8b4513", s=12, marker="s", label="target")
     centre = pts.mean(axis=0)
     half = 0.55 * (float(np.ptp(pts, axis=0).max()) or 1.0)
@@ -170,7 +179,8 @@ def _scene_figure(cal: Calibration) -> str:
     ax.set_ylabel("y (m)")
     ax.set_zlabel("z (m)")
     ax.legend(loc="upper left", fontsize=8)
-    ax.set_title("robot base frame: axes x red, y green, z blue", fontsize=10)
+    shown = "" if len(few) == len(cal.flange2base) else f"; frames of {len(few)} of {len(cal.flange2base)} poses"
+    ax.set_title(f"robot base frame: axes x red, y green, z blue{shown}", fontsize=10)
     return _png(fig)
 
 
@@ -198,30 +208,49 @@ def _overlay_thumb(cal: Calibration, k: int, T: NDArray[np.float64]) -> tuple[st
     img = cv2.imread(str(cal.image_paths[k]), cv2.IMREAD_COLOR)
     if img is None:
         return None
-    s = THUMB_WIDTH / img.shape[1]
-    thumb = cv2.resize(img, (THUMB_WIDTH, max(1, round(img.shape[0] * s))), interpolation=cv2.INTER_AREA)
+    s = min(1.0, ZOOM_WIDTH / img.shape[1])
+    thumb = cv2.resize(img, (max(1, round(img.shape[1] * s)), max(1, round(img.shape[0] * s))), interpolation=cv2.INTER_AREA)
     det = np.asarray(cal.image_points[k], dtype=float)
     proj = project_points(T[k], cal.object_points[k], cal.camera_matrix, cal.dist_coeffs)
     rms = float(np.sqrt(np.mean(np.sum((proj - det) ** 2, axis=1))))
+    r = max(3, round(3 * thumb.shape[1] / THUMB_WIDTH))  # marks that stay visible at the small size
     for p in det * s:
-        cv2.circle(thumb, (int(round(p[0])), int(round(p[1]))), 3, (0, 200, 0), 1, cv2.LINE_AA)
+        cv2.circle(thumb, (int(round(p[0])), int(round(p[1]))), r, (0, 200, 0), max(1, r // 3), cv2.LINE_AA)
     for p in proj * s:
         if np.all(np.isfinite(p)):
-            cv2.drawMarker(thumb, (int(round(p[0])), int(round(p[1]))), (0, 0, 230), cv2.MARKER_CROSS, 5, 1,
-                           cv2.LINE_AA)
-    ok, buf = cv2.imencode(".jpg", thumb, [cv2.IMWRITE_JPEG_QUALITY, 80])
-    if not ok:
-        return None
-    return ("data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii"), f"{cal.image_names[k]}: {rms:.2f} px")
+            cv2.drawMarker(thumb, (int(round(p[0])), int(round(p[1]))), (0, 0, 230), cv2.MARKER_CROSS, 2 * r,
+                           max(1, r // 3), cv2.LINE_AA)
+    return _jpeg(thumb), f"{cal.image_names[k]}: {rms:.2f} px", rms
 
 
-def _overlay_thumbs(cal: Calibration) -> list[tuple[str, str]]:
+def _jpeg(img: NDArray[np.uint8]) -> str:
+    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 80])
+    return "data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii") if ok else ""
+
+
+def _overlay_thumbs(cal: Calibration) -> list[tuple[str, str, float]]:
     """:func:`_overlay_thumb` of the first MAX_OVERLAYS images, read and drawn in threads (OpenCV
     releases the GIL: the images of a large capture are read again here)."""
     T = predicted_target2cam(cal.X, cal.Z, cal.flange2base, cal.setup)
     with ThreadPoolExecutor(max_workers=default_jobs()) as pool:
         thumbs = list(pool.map(lambda k: _overlay_thumb(cal, k, T), range(min(len(cal.image_paths), MAX_OVERLAYS))))
     return [t for t in thumbs if t is not None]
+
+
+def _rejected_thumbs(cal: Calibration) -> list[tuple[str, str]]:
+    """(data URI, caption with the reason) of each skipped image that can be read, from the input folder."""
+    if cal.input_folder is None:
+        return []
+    out = []
+    for name, reason in cal.skipped[:MAX_OVERLAYS]:
+        img = cv2.imread(str(Path(cal.input_folder) / "images" / name), cv2.IMREAD_COLOR)
+        if img is None or img.shape[0] < 2 or img.shape[1] < 2:
+            out.append(("", f"{name}: {reason}"))
+            continue
+        s = min(1.0, ZOOM_WIDTH / img.shape[1])
+        out.append((_jpeg(cv2.resize(img, (max(1, round(img.shape[1] * s)), max(1, round(img.shape[0] * s))),
+                                     interpolation=cv2.INTER_AREA)), f"{name}: {reason}"))
+    return out
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -349,9 +378,19 @@ def _overlays_section(cal: Calibration) -> str:
     if cal.image_paths:
         parts.append("<p class=\"note\">Green rings: detected points. Red crosses: the same points projected through "
                      "the robot pose, X and Z — where they part, the hand-eye model does not explain that image. "
-                     "Caption: RMS distance.</p><div class=\"thumbs\">")
-        for src, caption in _overlay_thumbs(cal):
-            parts.append(f"<figure>{_img(src, caption, THUMB_WIDTH)}<figcaption>{_e(caption)}</figcaption></figure>")
+                     f"Caption: RMS distance; red frame: more than {FLAG_FACTOR:g}x the median. Click an image to "
+                     "enlarge it.</p><div class=\"thumbs\">")
+        thumbs = _overlay_thumbs(cal)
+        median = float(np.median([t[2] for t in thumbs])) if thumbs else 0.0
+        for src, caption, rms in thumbs:
+            flag = rms > FLAG_FACTOR * max(median, 0.1)
+            caption += f" (over {FLAG_FACTOR:g}x the median {median:.2f} px: check this view)" if flag else ""
+            cls = ' class="flag"' if flag else ""
+            parts.append(f'<figure{cls}><img class="zoom" tabindex="0" src="{src}" alt="{_e(caption)}">'
+                         f"<figcaption>{_e(caption)}</figcaption></figure>")
+        for src, caption in _rejected_thumbs(cal):
+            img = (f'<img class="zoom" tabindex="0" src="{src}" alt="{_e(caption)}">' if src else "")
+            parts.append(f'<figure class="rejected">{img}<figcaption>not used — {_e(caption)}</figcaption></figure>')
         parts.append("</div>")
         if len(cal.image_paths) > MAX_OVERLAYS:
             parts.append(f"<p class=\"note\">first {MAX_OVERLAYS} of {len(cal.image_paths)} images shown</p>")
@@ -391,8 +430,34 @@ def _solvers_section(rows: list[dict] | None) -> str:
     return "".join(parts)
 
 
-def _advice_section(cal: Calibration, data: dict) -> str:
+#: The report suggests more rotation about an axis whose share of the rotation axes is below this
+#: (1/3 is ideal; the check calls the data weak only below AXIS_SHARE_WEAK), and a look at the data when
+#: the closed forms land further from X than this many std.
+AXIS_SHARE_HINT, SOLVER_SPREAD_HINT = 0.15, 3.0
+
+
+def _could_be_better(cal: Calibration, rows: list[dict] | None) -> list[str]:
+    """What is not wrong enough to change the verdict but worth knowing: rotation axes that are not
+    well spread, solvers that disagree by more than the std of X."""
+    out = []
+    d = cal.diagnostics
+    if d is not None and d.axis_shares is not None and d.axis_shares.min() < AXIS_SHARE_HINT:
+        out.append(f"The rotation axes are not well spread (shares {_fmt(d.axis_shares, 2)}; 1/3 each is ideal): "
+                   "the next capture should turn the camera more about its weakest axis "
+                   f"({_fmt(d.weakest_axis, 2)} in the camera frame).")
+    solved = [r for r in (rows or []) if "error" not in r]
+    if solved and cal.std is not None and np.isfinite(cal.std).all():
+        spread = float(np.median([r["dX_mm"] for r in solved])) / max(float(np.linalg.norm(cal.std[3:])), 1e-9)
+        if spread > SOLVER_SPREAD_HINT:
+            out.append(f"The closed-form solvers land a median {spread:.1f} std of X away from it: their "
+                       "disagreement says the poses are noisier than a good capture's; more poses with larger "
+                       "rotations would pin X down better.")
+    return out
+
+
+def _advice_section(cal: Calibration, data: dict, rows: list[dict] | None = None) -> str:
     advice = list(data["check"]["advice"]) + [n for n in cal.notes if n not in data["check"]["advice"]]
+    advice += [a for a in _could_be_better(cal, rows) if a not in advice]
     if not advice:
         advice = ["Nothing to fix: the motions rotate about well-spread axes and the poses agree."]
     return '<section id="advice"><h2>Advice</h2><ul>' + "".join(f"<li>{_e(a)}</li>" for a in advice) + "</ul></section>"
@@ -422,7 +487,7 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
              '<section id="scene"><h2>Robot, camera and target</h2>' + _img(_scene_figure(cal), "3D view") + "</section>",
              _axes_section(cal),
              _solvers_section(solver_rows),
-             _advice_section(cal, data),
+             _advice_section(cal, data, solver_rows),
              "</body></html>\n"]
     return "".join(parts)
 
