@@ -285,6 +285,7 @@ def test_exports_for_robot_software_describe_X(tmp_path, sample_cal):
     assert calib["parameters"]["calibration_type"] == "eye_in_hand" and calib["parameters"]["robot_effector_frame"] == "tool0"
     t, q = calib["transform"]["translation"], calib["transform"]["rotation"]
     assert np.abs([t["x"], t["y"], t["z"]] - X[:3, 3]).max() < 1e-15
+    assert np.abs(Rotation.from_quat([q["x"], q["y"], q["z"], q["w"]]).as_matrix() - X[:3, :3]).max() < 1e-12
     # the tool frame and the robot's own format
     data = json.loads(paths[0].read_text())
     assert data["tool"]["name"] == "cam2tool"

@@ -20,21 +20,23 @@ from . import solvers
 from ._shared.io import check_output_folder
 from ._shared.text import summarize
 from ._version import __version__
+from .acquire import SimWorld, acquire, capture_views, make_camera, make_robot
 from .calibration import ROBOT_ACCURACY, calibrate, calibrate_poses, certify_calibration, check_folder
 from .errors import HandEyeError
 from .geometry.se3 import make_transform
-from .planning import (ROBOTS, easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov, reprojection_information,
+from .planning import (ROBOTS, candidate_views, easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov, reprojection_information,
                        simulate_errors, visible_mask, write_plan)
 from .poses import ANGLE_UNITS, LENGTH_UNITS, pose_columns
 from .printing import PAPERS, write_target
-from .report import EXPORTS, write_calibration
+from .report import EXPORTS, write_calibration, write_verification
 from .importers import import_easy_handeye, import_industrial_calibration, import_rosbag, import_visp
 from .result import Calibration
 from .session import POSE_KINDS, TIME_UNITS, load_pose_pairs, load_pose_streams, load_yaml, read_intrinsics
-from .setups import SETUPS, predicted_target2cam, setup_info
+from .setups import SETUPS, flange_poses, predicted_target2cam, setup_info
 from .simulate import DEFAULT_TARGETS, MIN_IMAGE_SIDE, simulate_session
 from .streams import KEYFRAMES, calibrate_streams, paired_delay_note
 from .study import preset, study, write_study
+from .verification import verify
 from .vision.targets import target_from_spec
 
 EXAMPLE_POSEPAIRS = "example_posepairs"
@@ -357,6 +359,95 @@ def _load_camera(path: str) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
         raise HandEyeError(f"--intrinsics {exc}") from None
 
 
+def _placements(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray]:
+    """Rough X and Z from --cam-in-flange / --target-in-base (eye-in-hand) or --camera-in-base /
+    --target-in-flange (eye-to-hand)."""
+    if setup_info(args.setup).camera_on_flange:
+        if args.camera_in_base or args.target_in_flange:
+            raise HandEyeError("--camera-in-base and --target-in-flange are for eye_to_hand; eye_in_hand takes "
+                               "--target-in-base and --cam-in-flange")
+        return (_pose_arg(args.cam_in_flange, "--cam-in-flange"),
+                _pose_arg(args.target_in_base, "--target-in-base", (180.0, 0.0, 0.0), required=True))
+    if args.target_in_base or args.cam_in_flange:
+        raise HandEyeError("--target-in-base and --cam-in-flange are for eye_in_hand; eye_to_hand takes "
+                           "--camera-in-base and --target-in-flange")
+    return (_pose_arg(args.camera_in_base, "--camera-in-base", required=True),
+            _pose_arg(args.target_in_flange, "--target-in-flange", (180.0, 0.0, 0.0)))
+
+
+def _add_placements(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--target-in-base", metavar="X,Y,Z[,RX,RY,RZ]",
+                   help="eye_in_hand: where the target lies (m); default rotation 180,0,0 = printed side up")
+    p.add_argument("--cam-in-flange", metavar="X,Y,Z[,RX,RY,RZ]",
+                   help="eye_in_hand: rough camera mounting (default: at the flange, looking along flange z)")
+    p.add_argument("--camera-in-base", metavar="X,Y,Z,RX,RY,RZ", help="eye_to_hand: rough camera pose in the base frame")
+    p.add_argument("--target-in-flange", metavar="X,Y,Z[,RX,RY,RZ]",
+                   help="eye_to_hand: target on the flange (default 0,0,0 turned 180 deg about x: printed side outwards)")
+
+
+def _cmd_acquire(args: argparse.Namespace) -> int:
+    out = Path(args.out)
+    results = Path(args.results) if args.results else out.with_name(out.name + "-results")
+    _out_folder(str(results), [out])
+    target_std = _floats(args.target_std, "--target-std", (2,))
+    if args.robot == "sim":
+        if args.camera != "sim":
+            raise HandEyeError("--robot sim goes with --camera sim (the simulated cell)")
+        world = SimWorld.default(args.setup, seed=args.seed)
+        rough = make_transform(Rotation.from_rotvec(np.radians([1.5, -1.0, 1.0])).as_matrix(), [0.01, -0.008, 0.005])
+        X0, Z0 = rough @ world.X, rough @ world.Z  # as from a drawing: ~1 cm and 2 deg off
+        spec, (K, dist, size) = world.target_spec, (world.K, world.dist, world.image_size)
+    else:
+        world = None
+        if not args.intrinsics:
+            raise HandEyeError("--intrinsics is needed with a real camera (a YAML with K, dist, image_size)")
+        K, dist, size = _load_camera(args.intrinsics)
+        spec = _target_spec_arg(args.target_spec)
+        if spec is None:
+            raise HandEyeError("--target-spec is needed with a real camera (your session.yaml or a target: mapping)")
+        X0, Z0 = _placements(args)
+    rl, ra = _units_arg(args.robot_units, "--robot-units")
+    robot = make_robot(args.robot, world, args.robot_format, rl, ra, speed=args.speed, yes=args.yes, dry_run=args.dry_run) \
+        if args.robot.startswith("ur") else make_robot(args.robot, world, args.robot_format, rl, ra)
+    camera = make_camera(args.camera, world, robot)
+    acq = acquire(robot, camera, out, args.setup, spec, K, dist, size, X0, Z0,
+                  target_std=tuple(target_std.tolist()) if target_std is not None else (0.05, 0.5),
+                  max_poses=args.max_poses, min_poses=args.min_poses, standoff=args.standoff,
+                  robot_accuracy=_accuracy_arg(args.robot_accuracy), settle_s=args.settle, progress=not args.no_progress)
+    if acq.resumed_from:
+        print(f"resumed a capture of {acq.resumed_from} views")
+    print(f"{acq.n_views} views in {acq.folder}; stopped: {acq.stopped}")
+    for s in acq.skipped:
+        print(f"  skipped {s}")
+    if acq.stopped == "interrupted" or acq.calibration is None:
+        print(f"run the same command again to resume, or: handeye calibrate {acq.folder} --out RESULTS")
+        return 1
+    cal = replace(acq.calibration, notes=[f"captured by handeye acquire: {acq.n_views} views, stopped: {acq.stopped}"]
+                  + list(acq.calibration.notes))
+    print_calibration(cal)
+    for path in write_calibration(cal, results):
+        print(f"wrote {path}")
+    status = _verdict_status(cal)
+    if args.verify:
+        status = max(status, _acquire_verify(args, robot, camera, out, results, spec, K, dist, size, cal))
+    return status
+
+
+def _acquire_verify(args, robot, camera, out: Path, results: Path, spec, K, dist, size, cal) -> int:
+    """--verify N: N more views at candidate poses the calibration did not use, then handeye verify."""
+    obj = target_from_spec(spec).object_points()
+    cam2target = candidate_views(obj, K, size, dist, args.standoff)
+    rng = np.random.default_rng(args.seed + 1000)
+    pick = rng.choice(len(cam2target), size=min(args.verify, len(cam2target)), replace=False)
+    folder = capture_views(robot, camera, out.with_name(out.name + "-verify"), args.setup, spec, K, dist,
+                           flange_poses(cam2target[pick], cal.X, cal.Z, args.setup))
+    v = verify(results, folder, progress=False)
+    print(v.summary())
+    for path in write_verification(v, results):
+        print(f"wrote {path}")
+    return 1 if v.verdict == "worse than promised" else 0
+
+
 def _cmd_plan(args: argparse.Namespace) -> int:
     pose_columns(args.format)  # a clear error for an unknown format before any work
     if args.length_unit not in ("m", "mm") or args.angle_unit not in ("deg", "rad"):
@@ -370,18 +461,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     else:
         spec = DEFAULT_TARGETS[args.target]
     obj = target_from_spec(spec).object_points()
-    if setup_info(args.setup).camera_on_flange:
-        if args.camera_in_base or args.target_in_flange:
-            raise HandEyeError("--camera-in-base and --target-in-flange are for eye_to_hand; eye_in_hand takes "
-                               "--target-in-base and --cam-in-flange")
-        X = _pose_arg(args.cam_in_flange, "--cam-in-flange")
-        Z = _pose_arg(args.target_in_base, "--target-in-base", (180.0, 0.0, 0.0), required=True)
-    else:
-        if args.target_in_base or args.cam_in_flange:
-            raise HandEyeError("--target-in-base and --cam-in-flange are for eye_in_hand; eye_to_hand takes "
-                               "--camera-in-base and --target-in-flange")
-        X = _pose_arg(args.camera_in_base, "--camera-in-base", required=True)
-        Z = _pose_arg(args.target_in_flange, "--target-in-flange", (180.0, 0.0, 0.0))
+    X, Z = _placements(args)
     box = _floats(args.reach_box, "--reach-box", (6,))
     out = Path(args.out)
     if out.is_dir():
@@ -653,6 +733,77 @@ def _add_target(sub) -> None:
     p.set_defaults(func=_cmd_target)
 
 
+def _cmd_verify(args: argparse.Namespace) -> int:
+    session = Path(args.session)
+    _out_folder(args.out, [session])
+    v = verify(args.result, session, jobs=args.jobs, progress=not args.no_progress)
+    for name, reason in v.skipped:
+        print(f"skipped {name}: {reason}")
+    print(v.table())
+    print()
+    print(v.summary())
+    if args.out:
+        for path in write_verification(v, args.out):
+            print(f"wrote {path}")
+    return 1 if v.verdict == "worse than promised" else 0
+
+
+def _add_verify(sub) -> None:
+    p = sub.add_parser(
+        "verify",
+        help="check a calibration on a second capture: each view predicted from its robot pose",
+        description="Predict where the target appears in every image of SESSION from its robot pose through the "
+        "calibration in RESULT (a result folder, result.json or result.yaml), and compare with the detections: "
+        "per view the RMS pixel error and the error in millimetres at the target. Exit 0 when the errors stay "
+        "within 2x of what the calibration's own cross-validation promised, 1 when they do not.",
+    )
+    p.add_argument("result", help="result folder, result.json or result.yaml written by handeye calibrate --out")
+    p.add_argument("session", help="a session folder (images + robot poses) the calibration has not seen")
+    p.add_argument("--out", help="write verify.json and verify.html into this folder")
+    _add_detection_options(p)
+    p.set_defaults(func=_cmd_verify)
+
+
+def _add_acquire(sub) -> None:
+    p = sub.add_parser(
+        "acquire",
+        help="capture a session: the robot moves, the camera shoots, handeye chooses each next pose and stops "
+        "when X is known well enough",
+        description="Move the robot to the view that reduces the predicted error of X most (X, Z and the pixel "
+        "noise learnt from the views so far), grab, detect the target at once (retake, then skip), record the pose "
+        "the robot reports; stop when the std calibrate reports reaches --target-std, or at --max-poses. The session "
+        "is written after every view: Ctrl-C keeps it, the same command resumes. Then it is calibrated (results in "
+        "--results, default OUT-results). Backends: --robot sim|manual[:POSE_FILE]|ur:HOST, --camera "
+        "sim|opencv:INDEX|URL|FILE|genicam:PRODUCER.cti|folder:PATH. Only sim, manual and folder are exercised by "
+        "handeye's tests; ur and genicam against stand-ins of their libraries, never on hardware.",
+    )
+    p.add_argument("--robot", required=True, metavar="BACKEND", help="sim, manual[:POSE_FILE] or ur:HOST")
+    p.add_argument("--camera", required=True, metavar="BACKEND", help="sim, opencv:INDEX|URL|FILE, genicam:CTI, folder:PATH")
+    p.add_argument("--out", required=True, help="the session folder to write (new, or a stopped capture to resume)")
+    p.add_argument("--results", help="where the calibration goes (default: OUT-results beside OUT)")
+    p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
+    p.add_argument("--target-std", metavar="DEG,MM", help="stop when the std of X per axis is within these "
+                   "(default 0.05,0.5; the robot's accuracy sets a floor, checked first)")
+    p.add_argument("--max-poses", type=_whole(3), default=20, help="at most this many views (default 20)")
+    p.add_argument("--min-poses", type=_whole(3), default=6, help="at least this many views (default 6)")
+    p.add_argument("--standoff", type=_number(0.0, above=True), default=0.5, help="camera-to-target distance (m, default 0.5)")
+    p.add_argument("--settle", type=_number(0.0), default=0.0, help="seconds to wait after each move before the grab")
+    p.add_argument("--verify", type=_whole(0), default=0, metavar="N",
+                   help="then capture N more views at other poses and check the calibration on them (handeye verify)")
+    p.add_argument("--intrinsics", help="real cameras: YAML with K, dist and image_size (a session.yaml will do)")
+    p.add_argument("--target-spec", help="real cameras: YAML with the target: mapping")
+    _add_placements(p)
+    p.add_argument("--robot-format", default="euler:ZYX", help="manual: the format the robot reports its pose in")
+    p.add_argument("--robot-units", default="mm,deg", metavar="LENGTH,ANGLE", help="manual: its units (default mm,deg)")
+    p.add_argument("--robot-accuracy", metavar="DEG,MM", help="the robot's absolute accuracy (as calibrate)")
+    p.add_argument("--speed", type=_number(0.0, above=True), default=0.1, help="ur: linear speed, m/s (capped at 0.25)")
+    p.add_argument("--yes", action="store_true", help="ur: move without asking before each move")
+    p.add_argument("--dry-run", action="store_true", help="ur: print the moves, do not make them")
+    p.add_argument("--seed", type=_whole(0), default=0, help="sim: the simulated cell and its noise")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_acquire)
+
+
 def _add_calibrate_streams(sub) -> None:
     p = sub.add_parser(
         "calibrate-streams",
@@ -756,13 +907,7 @@ def _add_plan(sub) -> None:
     p.add_argument("--target", default="chessboard", choices=["chessboard", "charuco", "circles", "asymmetric_circles", "apriltag"],
                    help="built-in target (the one 'handeye simulate' renders); see --target-spec")
     p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (e.g. your session.yaml)")
-    p.add_argument("--target-in-base", metavar="X,Y,Z[,RX,RY,RZ]",
-                   help="eye_in_hand: where the target lies (m); default rotation 180,0,0 = printed side up")
-    p.add_argument("--cam-in-flange", metavar="X,Y,Z[,RX,RY,RZ]",
-                   help="eye_in_hand: rough camera mounting (default: at the flange, looking along flange z)")
-    p.add_argument("--camera-in-base", metavar="X,Y,Z,RX,RY,RZ", help="eye_to_hand: rough camera pose in the base frame")
-    p.add_argument("--target-in-flange", metavar="X,Y,Z[,RX,RY,RZ]",
-                   help="eye_to_hand: target on the flange (default 0,0,0 turned 180 deg about x: printed side outwards)")
+    _add_placements(p)
     p.add_argument("--standoff", type=_number(0.0, above=True), required=True, help="camera-to-target distance (m)")
     p.add_argument("--tilt-max", type=_number(0.0, 89.0), default=45.0, help="largest view angle from the target normal (deg, default 45)")
     p.add_argument("--margin-px", type=_number(0.0), default=20.0, help="keep every target point this far inside the image")
@@ -822,6 +967,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_calibrate_streams(sub)
     _add_calibrate(sub)
     _add_check(sub)
+    _add_verify(sub)
+    _add_acquire(sub)
     _add_import(sub)
     _add_target(sub)
     _add_simulate(sub)

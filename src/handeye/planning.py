@@ -43,7 +43,7 @@ from .vision.pnp import project_points, solve_pnp
 from .vision.targets import Detection
 
 __all__ = ["Plan", "ROBOTS", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
-           "visible_mask", "simulate_errors", "write_plan", "order_path"]
+           "visible_mask", "simulate_errors", "write_plan", "order_path", "candidate_views", "choose_next"]
 
 TILTS_DEG = (0.0, 10.0, 20.0, 30.0, 37.5, 45.0, 52.5, 60.0)
 AZIMUTHS = 12
@@ -381,6 +381,36 @@ def plan_poses(
     std[3:][np.diag(prior)[3:6] > 0] = np.inf
     return Plan(setup, X, Z, flange2base[chosen], target2cam[chosen], cov, std, float(noise_px), int(keep.sum()),
                 robot, unobservable)
+
+
+def candidate_views(object_points: ArrayLike, K: ArrayLike, image_size: tuple[int, int], dist: ArrayLike | None = None,
+                    standoff: float = 0.5, tilt_max_deg: float = 45.0, margin_px: float = 20.0) -> NDArray[np.float64]:
+    """The candidate viewpoints of :func:`plan_poses` that keep the whole target ``margin_px`` inside
+    the image, as ``cam2target`` (C, 4, 4): they do not depend on X and Z, so a capture that learns
+    X and Z as it goes turns them into robot poses anew (:func:`handeye.setups.flange_poses`)."""
+    obj = np.asarray(object_points, dtype=float).reshape(-1, 3)
+    K = np.asarray(K, dtype=float)
+    dist = np.zeros(5) if dist is None else np.asarray(dist, dtype=float).ravel()
+    centre = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
+    cam2target = _candidates(standoff, tilt_max_deg, centre)
+    keep = visible_mask(invert(cam2target), obj, K, dist, image_size, margin_px)
+    if not keep.any():
+        raise HandEyeError(f"no candidate view keeps the whole target {margin_px:g} px inside the image at a standoff "
+                           f"of {standoff:g} m; increase the standoff or use a smaller target")
+    return cam2target[keep]
+
+
+def choose_next(information: NDArray[np.float64], candidates: NDArray[np.float64], weight: NDArray[np.float64],
+                exclude: NDArray[np.bool_] | None = None) -> int | None:
+    """The candidate (index into ``candidates``, (C, 12, 12) informations) whose view, added to the
+    views of ``information`` (12, 12), leaves the smallest predicted error of X (the A-optimal
+    criterion of :func:`plan_poses`, ``weight`` over X's six parameters); None when all are excluded."""
+    ridge = 1e-9 * max(float(np.mean(np.trace(candidates, axis1=1, axis2=2))), 1e-12) * np.eye(12)
+    scores = _criterion(np.linalg.inv(information + ridge + candidates), weight)
+    if exclude is not None:
+        scores = np.where(exclude, np.inf, scores)
+    k = int(np.argmin(scores))
+    return None if not np.isfinite(scores[k]) else k
 
 
 def easy_handeye_poses(start_flange2base: ArrayLike, angle_deg: float = 25.0, translation: float = 0.1) -> NDArray[np.float64]:

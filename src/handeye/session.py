@@ -56,7 +56,7 @@ cv2 = lazy_module("cv2")  # only to read an image's size
 
 __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session", "read_pose_table", "SessionError", "load_yaml",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
-           "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE"]
+           "write_pose_pairs", "read_result", "SESSION_FILE", "POSEPAIRS_FILE"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
 SESSION_FILE = "session.yaml"
@@ -596,12 +596,18 @@ def _number(v: float) -> str:
     return repr(float(v))
 
 
-def write_pose_table(path: str | Path, names: list[str], flange2base: NDArray[np.float64], format: str = "quat_wxyz",
-                     length_unit: str = "m", angle_unit: str = "rad", protect: Iterable[str | Path] = (),
-                     id_column: str = "image") -> Path:
+def write_pose_table(path: str | Path, names: list[str], flange2base: NDArray[np.float64] | None,
+                     format: str = "quat_wxyz", length_unit: str = "m", angle_unit: str = "rad",
+                     protect: Iterable[str | Path] = (), id_column: str = "image",
+                     rows: NDArray[np.float64] | None = None) -> Path:
     """Write poses as a session ``poses.csv`` (``image`` column first, or ``id_column``) in the given
-    format and units, atomically and never over a ``protect`` path; returns the path."""
-    rows = format_poses(flange2base, format, length_unit, angle_unit)
+    format and units, atomically and never over a ``protect`` path; returns the path. ``rows``: the
+    values as written already (a robot's own report), instead of ``flange2base``."""
+    if rows is None:
+        rows = format_poses(flange2base, format, length_unit, angle_unit)
+    else:
+        rows = np.asarray(rows, dtype=float)
+        parse_poses(rows, format, length_unit, angle_unit)  # they must read back
     if len(names) != len(rows):
         raise InputMismatchError(f"{len(names)} image names for {len(rows)} poses")
     buf = io.StringIO()
@@ -615,16 +621,16 @@ def write_pose_table(path: str | Path, names: list[str], flange2base: NDArray[np
 
 
 def write_session(folder: str | Path, setup: str, target_spec: dict[str, Any], names: list[str],
-                  flange2base: NDArray[np.float64], format: str = "quat_wxyz", length_unit: str = "mm",
+                  flange2base: NDArray[np.float64] | None, format: str = "quat_wxyz", length_unit: str = "mm",
                   angle_unit: str = "deg", camera: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
-                  comment: str | None = None) -> Path:
+                  comment: str | None = None, rows: NDArray[np.float64] | None = None) -> Path:
     """Write ``session.yaml`` and ``poses.csv`` of a session (DESIGN §4) into ``folder``, atomically;
     the images (``images/<name>``) are the caller's. ``camera``: ``(K, dist)`` to put in
     session.yaml. Returns the session.yaml path."""
     folder = Path(folder)
     check_setup(setup)
     target_from_spec(target_spec)
-    write_pose_table(folder / "poses.csv", names, flange2base, format, length_unit, angle_unit)
+    write_pose_table(folder / "poses.csv", names, flange2base, format, length_unit, angle_unit, rows=rows)
     spec: dict[str, Any] = {"setup": setup, "target": dict(target_spec)}
     if camera is not None:
         spec["camera"] = {"K": np.asarray(camera[0], dtype=float).tolist(),
@@ -710,3 +716,26 @@ def write_pose_pairs(folder: str | Path, setup: str, flange2base: NDArray[np.flo
     text = (f"# {comment}\n" if comment else "") + yaml.safe_dump(spec, sort_keys=False)
     atomic_write(folder / POSEPAIRS_FILE, text)
     return folder / POSEPAIRS_FILE
+
+
+def read_result(path: str | Path) -> dict[str, Any]:
+    """A calibration written by handeye (``result.json`` / ``result.yaml``, or the folder holding
+    them): ``setup``, ``X``, ``Z`` (4x4), the intrinsics it used (``K``, ``dist``, None without images)
+    and its cross-validated ``prediction_error`` (``{'px', 'mm'}`` or None)."""
+    p = Path(path)
+    if p.is_dir():
+        p = next((p / n for n in ("result.json", "result.yaml") if (p / n).is_file()), p / "result.json")
+    data = load_yaml(p)  # JSON is YAML
+    try:
+        setup = check_setup(str(data["setup"]))
+        X, Z = (np.array(data[k]["matrix"], dtype=float) for k in ("X", "Z"))
+    except (KeyError, TypeError, ValueError):
+        raise SessionError(f"{p}: not a handeye result (setup, X and Z with their matrix)") from None
+    if X.shape != (4, 4) or Z.shape != (4, 4) or not (np.isfinite(X).all() and np.isfinite(Z).all()):
+        raise SessionError(f"{p}: X and Z must be finite 4x4 matrices")
+    K = dist = None
+    if isinstance(data.get("camera"), dict) and data["camera"].get("K") is not None:
+        K, dist = read_camera({"K": data["camera"]["K"], "dist": data["camera"].get("dist") or [0.0] * 5}, str(p))
+    cv = data.get("cross_validation") or {}
+    return {"path": p, "setup": setup, "X": X, "Z": Z, "K": K, "dist": dist,
+            "prediction_error": cv.get("prediction_error")}

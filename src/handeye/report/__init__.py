@@ -19,9 +19,11 @@ from ..diagnostics import compare_solvers
 from ..result import Calibration
 from .files import EXPORTS, check_exports, default_frames, result_dict, ros2_static_transform_command, urdf_joint, write_exports, write_results
 from .html import SECTIONS, report_html, write_report
+from .verification import verification_html, write_verification
 
 __all__ = ["write_calibration", "result_dict", "write_results", "report_html", "write_report", "default_frames",
-           "ros2_static_transform_command", "urdf_joint", "SECTIONS", "EXPORTS", "write_exports"]
+           "ros2_static_transform_command", "urdf_joint", "SECTIONS", "EXPORTS", "write_exports",
+           "verification_html", "write_verification"]
 
 
 def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterable[str | Path] = (), report: bool = True,

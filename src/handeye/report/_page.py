@@ -1,0 +1,53 @@
+"""What the report pages share: the style sheet, the verdict colours, figures as embedded PNGs."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+
+import numpy as np
+
+_COLOURS = {"good": "#1e7b34", "weak": "#b36b00", "partial": "#b36b00", "degenerate": "#b00020", "inconsistent": "#b00020",
+            "not checked": "#555555"}
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:0 auto;max-width:1100px;padding:0 16px 40px;color:#222}
+h1{font-size:1.5em;margin:18px 0 6px} h2{font-size:1.2em;border-bottom:1px solid #ddd;padding-bottom:4px;margin-top:28px}
+.banner{color:#fff;padding:14px 18px;border-radius:6px;font-size:1.15em}
+.banner b{font-size:1.3em;text-transform:uppercase;letter-spacing:.04em}
+table{border-collapse:collapse;margin:8px 0} td,th{border:1px solid #ddd;padding:3px 8px;text-align:right;font-variant-numeric:tabular-nums}
+th{background:#f4f4f4} td.l,th.l{text-align:left}
+pre{background:#f6f8fa;padding:8px;font-size:.85em;white-space:pre-wrap;overflow-wrap:anywhere}
+.thumbs{display:flex;flex-wrap:wrap;gap:8px} figure{margin:0;font-size:.8em;text-align:center;max-width:100%}
+figure img.zoom{cursor:zoom-in;width:360px} figure img.zoom:focus{width:min(900px,100%);cursor:zoom-out;outline:none}
+figure.flag img{border:3px solid #b00020} figure.flag figcaption{color:#b00020;font-weight:bold}
+figure.rejected img{opacity:.55;border:3px dashed #888}
+img{max-width:100%} .note{color:#555;font-size:.9em} section{overflow-wrap:anywhere}
+"""
+
+
+def _figure(figsize: tuple[float, float]):
+    """A matplotlib Figure drawn off-screen: no pyplot, so no backend is chosen for the user."""
+    from matplotlib.figure import Figure  # matplotlib loads only when a report is drawn
+
+    return Figure(figsize=figsize)
+
+
+def _png(fig) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _img(src: str, alt: str, width: int | None = None) -> str:
+    w = f' width="{width}"' if width else ""
+    return f'<img src="{src}" alt="{html.escape(alt)}"{w}>'
+
+
+def _e(s: object) -> str:
+    return html.escape(str(s))
+
+
+def _fmt(v, digits: int = 3) -> str:
+    return ", ".join(f"{x:.{digits}f}" if np.isfinite(x) else "not determined" for x in np.atleast_1d(v))

@@ -1,0 +1,63 @@
+"""Files of a verification (:func:`handeye.verification.verify`): ``verify.json`` and a
+self-contained ``verify.html`` with the per-view errors and their distribution."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from .._shared.io import atomic_write, check_output_folder
+from .._version import __version__
+from ..verification import Verification
+from ._page import _COLOURS, _CSS, _e, _figure, _png
+
+__all__ = ["verification_html", "write_verification"]
+
+
+def _histogram(v: Verification) -> str:
+    fig = _figure((9, 3.2))
+    axes = fig.subplots(1, 2)
+    for ax, values, unit in ((axes[0], v.px, "px"), (axes[1], v.mm, "mm at the target")):
+        ax.hist(values, bins=min(20, max(5, len(values) // 2)), color="#4a78b5")
+        ax.axvline(float(np.sqrt(np.mean(values**2))), color="#b00020", lw=1.5, label="RMS")
+        if v.promised is not None and v.promised.get(unit.split()[0]) is not None:
+            ax.axvline(v.promised[unit.split()[0]], color="#1e7b34", ls="--", lw=1.5, label="promised (cross-validated)")
+        ax.set_xlabel(f"error per view ({unit})")
+        ax.legend(fontsize=8)
+    axes[0].set_ylabel("views")
+    return _png(fig)
+
+
+def verification_html(v: Verification) -> str:
+    """The verification as one self-contained HTML page."""
+    colour = {"good": _COLOURS["good"], "worse than promised": _COLOURS["inconsistent"]}.get(v.verdict, "#555555")
+    rows = "".join(f'<tr><td class="l">{_e(n)}</td><td>{p:.3f}</td><td>{m:.3f}</td><td class="l">'
+                   f'{"far off" if n in v.flagged else ""}</td></tr>' for n, p, m in zip(v.names, v.px, v.mm))
+    skipped = "".join(f"<li>{_e(n)}: {_e(r)}</li>" for n, r in v.skipped)
+    return (f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>handeye verification</title>"
+            f"<style>{_CSS}</style></head><body><h1>Verification on a new capture</h1>"
+            f"<p class=\"note\">handeye {_e(__version__)} · result {_e(v.result_path)} · session {_e(v.session_folder)}</p>"
+            f'<section id="verdict"><div class="banner" style="background:{colour}"><b>{_e(v.verdict)}</b> — '
+            f"{len(v.names)} views predicted from their robot poses: RMS {v.rms_px:.3f} px, {v.rms_mm:.3f} mm at the "
+            f"target</div></section>"
+            f'<section id="distribution"><h2>Distribution</h2><img src="{_histogram(v)}" alt="errors per view"></section>'
+            f'<section id="views"><h2>Per view</h2><table><tr><th class="l">view</th><th>px</th><th>mm</th><th></th></tr>'
+            f"{rows}</table>" + (f"<p>Not used: </p><ul>{skipped}</ul>" if skipped else "") + "</section>"
+            '<section id="advice"><h2>Advice</h2><ul>'
+            + "".join(f"<li>{_e(a)}</li>" for a in (v.advice or ["Nothing to fix: the calibration predicts the new "
+                                                                  "views as well as it promised."]))
+            + "</ul></section></body></html>\n")
+
+
+def write_verification(v: Verification, out_dir: str | Path, protect: Iterable[Path] = ()) -> list[Path]:
+    """Write ``verify.json`` and ``verify.html`` into ``out_dir`` (checked first, never inside the
+    session folder), atomically; returns their paths."""
+    inputs = [v.session_folder] if v.session_folder is not None else []
+    out = check_output_folder(out_dir, inputs)
+    paths = [out / "verify.json", out / "verify.html"]
+    atomic_write(paths[0], json.dumps(v.as_dict(), indent=2) + "\n", protect)
+    atomic_write(paths[1], verification_html(v), protect)
+    return paths

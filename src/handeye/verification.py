@@ -1,0 +1,134 @@
+"""Verification on views the calibration has not seen: predict each from its robot pose through X
+and Z and compare with where the camera finds the target.
+
+A calibration's own cross-validation (``result.prediction_error``) predicts views held out of its
+own capture. A second, independent capture is the stronger test (the thesis's §6.1 asks for tests
+on real data before a result is trusted; Zivid's projection check does the same): other poses,
+another day, the robot warmed up or not. :func:`verify` reads a result and a session, detects the
+target, and gives per view the RMS pixel error and the error in millimetres at the target's
+distance (:func:`handeye.validation.view_errors`), with a verdict against what the calibration
+promised.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._shared.text import summarize
+from .calibration import observe
+from .errors import InputMismatchError
+from .session import Session, SessionError, load_session, read_result
+from .validation import Views, view_errors
+
+__all__ = ["Verification", "verify", "PROMISE_FACTOR", "FLAG_FACTOR"]
+
+#: A verification passes when its RMS error stays within this factor of the calibration's own
+#: cross-validated prediction error (a new capture differs more from the calibration's than its
+#: folds differ from each other, so some excess is expected).
+PROMISE_FACTOR = 2.0
+#: Views whose error exceeds this many times the median are named.
+FLAG_FACTOR = 3.0
+
+
+@dataclass(frozen=True)
+class Verification:
+    """What :func:`verify` found."""
+
+    setup: str
+    names: list[str]  #: the views checked (images with the target)
+    px: NDArray[np.float64]  #: per view, RMS pixel error of the predicted target points
+    mm: NDArray[np.float64]  #: per view, the same in millimetres at the target's distance
+    verdict: str  #: 'good', 'worse than promised' or 'not compared' (no promise in the result)
+    advice: list[str] = field(default_factory=list)
+    promised: dict | None = None  #: the calibration's cross-validated prediction error ({'px', 'mm'})
+    skipped: list[tuple[str, str]] = field(default_factory=list)  #: (image, reason)
+    flagged: list[str] = field(default_factory=list)  #: views far worse than the others
+    result_path: Path | None = None
+    session_folder: Path | None = None
+
+    @property
+    def rms_px(self) -> float:
+        return float(np.sqrt(np.mean(self.px**2)))
+
+    @property
+    def rms_mm(self) -> float:
+        return float(np.sqrt(np.mean(self.mm**2)))
+
+    def table(self) -> str:
+        rows = [f"{'view':<24} {'px':>8} {'mm':>8}"]
+        rows += [f"{n:<24.24} {p:>8.3f} {m:>8.3f}" + ("  <- far off" if n in self.flagged else "")
+                 for n, p, m in zip(self.names, self.px, self.mm)]
+        return "\n".join(rows)
+
+    def summary(self) -> str:
+        promise = ("" if self.promised is None else f"; the calibration promised {self.promised.get('px') or 0:.3f} px, "
+                   f"{self.promised['mm']:.3f} mm (cross-validated)")
+        lines = [f"verification: {self.verdict} ({len(self.names)} views: RMS {self.rms_px:.3f} px, {self.rms_mm:.3f} mm "
+                 f"at the target; median {np.median(self.px):.3f} px, worst {self.px.max():.3f} px{promise})"]
+        lines += [f"advice: {a}" for a in self.advice]
+        return "\n".join(lines)
+
+    def as_dict(self) -> dict:
+        return {"setup": self.setup, "verdict": self.verdict, "rms_px": self.rms_px, "rms_mm": self.rms_mm,
+                "promised": self.promised, "advice": list(self.advice), "flagged": list(self.flagged),
+                "views": [{"image": n, "px": float(p), "mm": float(m)} for n, p, m in zip(self.names, self.px, self.mm)],
+                "skipped": [{"image": n, "reason": r} for n, r in self.skipped],
+                "result": None if self.result_path is None else str(self.result_path),
+                "session": None if self.session_folder is None else str(self.session_folder)}
+
+
+def _with_intrinsics(session: Session, result: dict) -> Session:
+    """The session with the intrinsics the calibration used (refined with X and Z, when it came
+    from images); else the session's own; a session with neither cannot be verified in pixels."""
+    if result["K"] is not None:
+        return replace(session, camera_matrix=result["K"], dist_coeffs=result["dist"])
+    if session.camera_matrix is None:
+        raise SessionError(f"{session.folder}: no intrinsics: the result holds none (a calibration from poses) and "
+                           "session.yaml has no camera: K, dist")
+    return session
+
+
+def verify(result: str | Path, session: str | Path, jobs: int | None = None, progress: bool = True) -> Verification:
+    """Predict every view of ``session`` (images + robot poses) from the calibration in ``result``
+    (result.json / result.yaml or their folder) and compare with the detections.
+
+    Raises
+    ------
+    SessionError
+        Unreadable result or session; fewer than 3 images with the target.
+    InputMismatchError
+        The session's setup differs from the result's.
+    """
+    res = read_result(result)
+    sess = load_session(session)
+    if sess.setup != res["setup"]:
+        raise InputMismatchError(f"the result is {res['setup']} but {sess.folder} is {sess.setup}")
+    obs = observe(_with_intrinsics(sess, res), jobs=jobs, progress=progress)
+    views = Views(obs.flange2base, obs.target2cam, sess.setup, obs.object_points, obs.image_points, obs.K, obs.dist)
+    px, mm = view_errors(res["X"], res["Z"], views)
+    names = [sess.image_names[k] for k in obs.used]
+    median = float(np.median(px))
+    flagged = [n for n, p in zip(names, px) if p > FLAG_FACTOR * max(median, 0.1)]
+    advice = []
+    if flagged:
+        advice.append(f"view(s) {summarize(flagged)} are predicted over {FLAG_FACTOR:g}x worse than the median: check "
+                      "their robot poses (a wrong pose, a tool that moved) or their images")
+    promised = res["prediction_error"]
+    rms = float(np.sqrt(np.mean(px**2)))
+    if promised is None or promised.get("px") is None:
+        verdict = "not compared"
+        advice.append("the result holds no cross-validated prediction error to compare with (a calibration from poses, "
+                      "or refine='none'): judge the errors against your application's tolerance")
+    elif rms <= PROMISE_FACTOR * promised["px"]:
+        verdict = "good"
+    else:
+        verdict = "worse than promised"
+        advice.append(f"the new views are predicted {rms / promised['px']:.1f}x worse than the calibration's own "
+                      "held-out views: the camera or the target moved since, the robot's errors differ in this part of "
+                      "its workspace, or the calibration's poses did not cover it; recalibrate with poses like these")
+    return Verification(sess.setup, names, px, mm, verdict, advice, promised, list(obs.skipped), flagged,
+                        res["path"], sess.folder)
