@@ -592,77 +592,117 @@ def acquire(
     """
     check_setup(setup)
     _check_target_std(target_std, X0, robot_accuracy)
-    folder = check_output_folder(out)
-    target = target_from_spec(target_spec)
-    obj = target.object_points()
-    K, dist = np.asarray(K, dtype=float), np.asarray(dist, dtype=float).ravel()
-    names, rows = _resume(folder, setup, robot)
-    tried, skipped = _load_state(folder, names)
-    measured = []
-    for name, row in zip(names, rows):  # the views of a resumed capture, observed again from their images
-        seen = _observe_one(target, cv2.imread(str(folder / "images" / name), cv2.IMREAD_UNCHANGED), K, dist)
-        if seen is None:
-            raise SessionError(f"{folder / 'images' / name}: the target is no longer found in a captured view")
-        measured.append((parse_poses(np.atleast_2d(row), robot.pose_format, robot.length_unit, robot.angle_unit)[0],
-                         *seen))
-    cam2target = candidate_views(obj, K, image_size, dist, standoff, tilt_max_deg, margin_px)
+    cap = _Capture.open(out, setup, target_spec, robot, camera, K, dist)
+    cam2target = candidate_views(cap.obj, cap.K, image_size, cap.dist, standoff, tilt_max_deg, margin_px)
     weight = np.r_[np.full(3, standoff**2), np.ones(3)]
-    history: list[list[float]] = []
-    stopped, cal, next_check = "max poses", None, 0
+    stopped, cal, next_check, resumed = "max poses", None, 0, len(cap.names)
     bar = Progress(max_poses, "capturing", progress)
-    bar.update(len(names))
-    resumed = len(names)
+    bar.update(resumed)
     within = lambda std: std[:3].max() <= target_std[0] and std[3:].max() <= target_std[1]  # noqa: E731
     try:
-        while len(measured) < max_poses:
-            X, Z, sigma = _model(measured, setup, X0, Z0, noise_px, len(obj))
-            info = (reprojection_information(np.array([m[0] for m in measured]), X, Z, setup, obj, K).sum(axis=0)
-                    if measured else np.zeros((12, 12)))
-            if len(measured) >= 3:
+        while len(cap.measured) < max_poses:
+            X, Z, sigma = _model(cap.measured, setup, X0, Z0, noise_px, len(cap.obj))
+            info = cap.information(X, Z)
+            if len(cap.measured) >= 3:
                 std = _predicted_std(info, sigma, X, robot_accuracy)
-                history.append([float(v) for v in std])
-                if len(measured) >= max(min_poses, next_check) and within(std):
+                cap.history.append([float(v) for v in std])
+                if len(cap.measured) >= max(min_poses, next_check) and within(std):
                     # the prediction says enough: calibrate, and stop when the std calibrate reports agrees
-                    cal = calibrate(folder, progress=False, robot_accuracy=robot_accuracy) if calibrate_session else None
+                    cal = calibrate(cap.folder, progress=False, robot_accuracy=robot_accuracy) if calibrate_session else None
                     if cal is None or cal.std is None or within(cal.std):
                         stopped = "target std reached"
                         break
-                    cal, next_check = None, len(measured) + RECHECK_AFTER  # the spread of the data says more is needed
+                    cal, next_check = None, len(cap.measured) + RECHECK_AFTER  # the data's spread asks for more
             flange2base = flange_poses(cam2target, X, Z, setup)
             exclude = np.zeros(len(cam2target), bool)
-            exclude[tried] = True
-            k = choose_next(info, reprojection_information(flange2base, X, Z, setup, obj, K), weight, exclude)
+            exclude[cap.tried] = True
+            k = choose_next(info, reprojection_information(flange2base, X, Z, setup, cap.obj, cap.K), weight, exclude)
             if k is None:
                 stopped = "no candidate left"
                 break
-            tried.append(k)
-            robot.move_to(format_poses(flange2base[k][None], robot.pose_format, robot.length_unit, robot.angle_unit)[0])
-            if settle_s > 0:
-                time.sleep(settle_s)
-            got = _grab_target(camera, target, K, dist, retakes)
-            if got is None:
-                skipped.append(f"candidate {k}: the target was not found in {1 + retakes} image(s)")
-                _save_state(folder, tried, skipped, history)
-                continue
-            reported = np.asarray(robot.current_pose(), dtype=float)
-            name = f"{len(names):03d}.png"
-            _save_image(folder, name, got[0])
-            names.append(name)
-            rows.append(list(reported))
-            measured.append((parse_poses(reported[None], robot.pose_format, robot.length_unit, robot.angle_unit)[0],
-                             *got[1]))
-            _write_state(folder, setup, target_spec, names, rows, robot, K, dist)
-            _save_state(folder, tried, skipped, history)
-            bar.update()
-            if on_view is not None:
-                on_view(len(names))
+            cap.tried.append(k)
+            if cap.view(flange2base[k], k, retakes, settle_s):
+                bar.update()
+                if on_view is not None:
+                    on_view(len(cap.names))
     except KeyboardInterrupt:
         stopped = "interrupted"
     finally:
         bar.close()
-    if cal is None and calibrate_session and stopped != "interrupted" and len(names) >= 3:
-        cal = calibrate(folder, progress=False, robot_accuracy=robot_accuracy)
-    return Acquisition(folder, len(names), stopped, history, skipped, cal, resumed)
+    if cal is None and calibrate_session and stopped != "interrupted" and len(cap.names) >= 3:
+        cal = calibrate(cap.folder, progress=False, robot_accuracy=robot_accuracy)
+    return Acquisition(cap.folder, len(cap.names), stopped, cap.history, cap.skipped, cal, resumed)
+
+
+@dataclass
+class _Capture:
+    """A capture in progress: the session folder, the views so far (names, poses as reported, and
+    per view the parsed pose, the PnP pose and its RMS), the candidates tried, the views skipped."""
+
+    folder: Path
+    setup: str
+    target_spec: dict
+    robot: Robot
+    camera: Camera
+    K: NDArray[np.float64]
+    dist: NDArray[np.float64]
+    target: Any = None
+    obj: NDArray[np.float64] = None
+    names: list[str] = field(default_factory=list)
+    rows: list = field(default_factory=list)
+    measured: list = field(default_factory=list)
+    tried: list[int] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    history: list[list[float]] = field(default_factory=list)
+
+    @classmethod
+    def open(cls, out, setup, target_spec, robot, camera, K, dist) -> "_Capture":
+        """A new capture in ``out``, or the stopped one there, its views observed again from their images."""
+        folder = check_output_folder(out)
+        target = target_from_spec(target_spec)
+        cap = cls(folder, setup, target_spec, robot, camera, np.asarray(K, dtype=float),
+                  np.asarray(dist, dtype=float).ravel(), target, target.object_points())
+        cap.names, cap.rows = _resume(folder, setup, robot)
+        cap.tried, cap.skipped = _load_state(folder, cap.names)
+        for name, row in zip(cap.names, cap.rows):
+            seen = _observe_one(target, cv2.imread(str(folder / "images" / name), cv2.IMREAD_UNCHANGED), cap.K, cap.dist)
+            if seen is None:
+                raise SessionError(f"{folder / 'images' / name}: the target is no longer found in a captured view")
+            cap.measured.append((cap._parsed(row), *seen))
+        return cap
+
+    def _parsed(self, row) -> NDArray[np.float64]:
+        r = self.robot
+        return parse_poses(np.atleast_2d(row), r.pose_format, r.length_unit, r.angle_unit)[0]
+
+    def information(self, X, Z) -> NDArray[np.float64]:
+        """The pixel refinement's information (12, 12) of the views so far, under X and Z."""
+        if not self.measured:
+            return np.zeros((12, 12))
+        f2b = np.array([m[0] for m in self.measured])
+        return reprojection_information(f2b, X, Z, self.setup, self.obj, self.K).sum(axis=0)
+
+    def view(self, flange2base: NDArray[np.float64], k: int, retakes: int, settle_s: float) -> bool:
+        """Move to ``flange2base`` (candidate ``k``), grab until the target is found (or skip the
+        view), record image and reported pose; the session and the state are written at once."""
+        r = self.robot
+        r.move_to(format_poses(flange2base[None], r.pose_format, r.length_unit, r.angle_unit)[0])
+        if settle_s > 0:
+            time.sleep(settle_s)
+        got = _grab_target(self.camera, self.target, self.K, self.dist, retakes)
+        if got is None:
+            self.skipped.append(f"candidate {k}: the target was not found in {1 + retakes} image(s)")
+            _save_state(self.folder, self.tried, self.skipped, self.history)
+            return False
+        reported = np.asarray(r.current_pose(), dtype=float)
+        name = f"{len(self.names):03d}.png"
+        _save_image(self.folder, name, got[0])
+        self.names.append(name)
+        self.rows.append(list(reported))
+        self.measured.append((self._parsed(reported), *got[1]))
+        _write_state(self.folder, self.setup, self.target_spec, self.names, self.rows, r, self.K, self.dist)
+        _save_state(self.folder, self.tried, self.skipped, self.history)
+        return True
 
 
 def capture_views(robot: Robot, camera: Camera, out: str | Path, setup: str, target_spec: dict,
