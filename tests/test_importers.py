@@ -90,3 +90,26 @@ def test_industrial_calibration_sets_import_and_calibrate(tmp_path):
     assert dmm < 20 and ddeg < 1.0
     with pytest.raises(HandEyeError, match="already holds a session"):
         import_industrial_calibration(src, summary.folder)
+
+
+def test_visp_2025_eye_in_hand_imports_and_its_board_scale_is_named(tmp_path):
+    """ViSP's 2025 eye-in-hand folder names a 23.6 mm board in chessboard-data.txt; its images show the
+    26.2 mm one (found in session 8): imported as it is, the calibration answers and names the scale."""
+    summary = import_visp(require_real("visp-franka", "eye_in_hand_2025"), tmp_path / "out")
+    cal = handeye.calibrate(summary.folder, progress=False, refine="none")
+    assert cal.verdict == "inconsistent" and cal.diagnostics.scale == pytest.approx(1.11, abs=0.03)
+    assert any("multiply it by 1.1" in a for a in cal.diagnostics.advice)
+
+
+def test_industrial_calibration_circle_grid_set_imports_and_calibrates(tmp_path):
+    """ROS-Industrial's 10x10 circle grid (eye-in-hand, nominal intrinsics, a square symmetric grid):
+    imported, it calibrates with a verdict; the four images whose camera motion no labelling of the
+    grid reconciles with the robot's are named (they fit at 2.5 rad where the others fit at 0.1)."""
+    summary = import_industrial_calibration(require_real("industrial-calibration", "test_set_10x10"), tmp_path / "c")
+    session = load_session(summary.folder)
+    assert session.setup == "eye_in_hand" and session.target_spec["type"] == "circles"
+    cal = handeye.calibrate(summary.folder, progress=False, refine="none")
+    print(f"industrial 10x10: X {np.round(1e3 * cal.X[:3, 3], 1)} mm, verdict {cal.verdict}")
+    assert cal.verdict in ("good", "weak") and np.isfinite(cal.X).all()
+    named = [n for n in cal.notes if "no labelling of the symmetric circles target" in n]
+    assert len(named) == 1 and all(f"{k}.png" in named[0] for k in (1, 2, 3, 4))

@@ -12,7 +12,7 @@ from .targets import Detection
 
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
-__all__ = ["ambiguous_labels", "solve_pnp", "calibrate_intrinsics", "resolve_symmetries", "reprojection_rms", "project_points",
+__all__ = ["ambiguous_labels", "unmatched_labels", "solve_pnp", "calibrate_intrinsics", "resolve_symmetries", "reprojection_rms", "project_points",
            "project_points_many"]
 
 
@@ -118,6 +118,20 @@ def ambiguous_labels(target2cam: NDArray[np.float64], flange2base: NDArray[np.fl
     costs = np.sort(_symmetry_costs(target2cam, flange2base, setup, symmetries), axis=0)
     typical = max(float(np.median(costs[0])), 1e-3)
     out[1:] = costs[1] - costs[0] < factor * typical
+    return out
+
+
+def unmatched_labels(target2cam: NDArray[np.float64], flange2base: NDArray[np.float64], setup: str,
+                     symmetries: list[NDArray[np.float64]], factor: float = 10.0,
+                     floor_rad: float = 0.2) -> NDArray[np.bool_]:
+    """Per image, whether even its best labelling leaves its camera motion far from the robot's
+    (``factor`` times the typical best misfit, and over ``floor_rad``): a misdetected grid or a wrong
+    robot pose, which no choice of labels explains."""
+    out = np.zeros(len(target2cam), bool)
+    if len(symmetries) < 2 or len(target2cam) < 3:
+        return out
+    best = _symmetry_costs(target2cam, flange2base, setup, symmetries).min(axis=0)
+    out[1:] = best > max(factor * float(np.median(best)), floor_rad)
     return out
 
 
