@@ -22,6 +22,7 @@ from ._shared.text import summarize
 from ._version import __version__
 from .acquire import SimWorld, acquire, capture_views, make_camera, make_robot
 from .calibration import ROBOT_ACCURACY, calibrate, calibrate_poses, certify_calibration, check_folder
+from .fleet import calibrate_many
 from .errors import HandEyeError
 from .geometry.se3 import make_transform
 from .planning import (ROBOTS, candidate_views, easy_handeye_poses, fronto_parallel_start, plan_poses, predicted_cov, reprojection_information,
@@ -254,8 +255,37 @@ def _print_image_summary(cal: Calibration) -> None:
     print()
 
 
+def _cmd_calibrate_many(args: argparse.Namespace) -> int:
+    """calibrate with several session folders: each into --out/<name>/, on local processes or Dask."""
+    if not args.out:
+        raise HandEyeError("several sessions need --out: each session's files go into a folder of its own there")
+    robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))
+    items = calibrate_many(args.session, args.out, scheduler=args.scheduler, jobs=args.jobs,
+                           progress=not args.no_progress, method=args.method, refine=args.refine,
+                           robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()),
+                           robot_accuracy=_accuracy_arg(args.robot_accuracy), check=not args.no_check)
+    status = 0
+    print(f"{'session':<32} {'verdict':<13} {'X translation (mm)':<30} std (mm)")
+    for it in items:
+        if it.error is not None:
+            print(f"{it.session:<32.32} {'FAILED':<13} {it.error}")
+            status = 2
+            continue
+        std = "—" if it.std_mm is None else _fmt_vec(np.array(it.std_mm), 3)
+        print(f"{it.session:<32.32} {it.verdict:<13} {_fmt_vec(np.array(it.translation_mm), 2):<30} {std}")
+        status = max(status, 0 if it.verdict in ("good", "not checked") else 1)
+    print(f"wrote {Path(args.out) / 'fleet.json'} and a folder per session")
+    return status
+
+
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    session = _input_folder(args.session, args.sample, SAMPLE_SESSION,
+    if len(args.session) > 1:
+        if args.sample:
+            raise HandEyeError("give session folders or --sample, not both")
+        return _cmd_calibrate_many(args)
+    if args.scheduler:
+        raise HandEyeError("--scheduler runs several sessions at once: give more than one session folder")
+    session = _input_folder(args.session[0] if args.session else None, args.sample, SAMPLE_SESSION,
                             "give a session folder, or --sample for the bundled sample session (not both)")
     _out_folder(args.out, [session])
     robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))  # calibrate checks the values
@@ -841,8 +871,10 @@ def _add_calibrate(sub) -> None:
         description="Detect the target in every image, estimate the camera poses and solve the hand-eye "
         "transform. SESSION holds session.yaml, poses.csv and images/ (see the README).",
     )
-    p.add_argument("session", nargs="?", help="session folder")
+    p.add_argument("session", nargs="*", help="session folder; several calibrate each into --out/<name>/ (a fleet)")
     p.add_argument("--sample", action="store_true", help="run on the bundled sample session")
+    p.add_argument("--scheduler", help="several sessions on Dask: 'local' (a LocalCluster of --jobs workers) or a "
+                   "scheduler's address (pip install 'handeye[cluster]'); default local processes")
     _add_solver_and_out(p)
     p.add_argument("--refine", default="auto", choices=["auto", "reprojection", "pose", "none"],
                    help="auto (default): on the pixels of all target points, or on the poses when the robot "

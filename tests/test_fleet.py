@@ -1,0 +1,44 @@
+"""Many sessions at once (issue 19): handeye calibrate S1 S2 ... --out DIR, in local processes and on a
+Dask LocalCluster with the same results; a failing session reported, the others done."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from handeye.cli import main
+from handeye.fleet import calibrate_many
+from handeye.simulate import simulate_session
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory):
+    root = tmp_path_factory.mktemp("fleet")
+    for k in range(3):
+        simulate_session(root / f"cell{k}", seed=k, n_poses=6, robot_noise=(0.02, 0.1))
+    (root / "broken").mkdir()
+    return root
+
+
+def test_fleet_local_and_dask_give_the_same_calibrations(fleet, capsys):
+    cells = [str(fleet / f"cell{k}") for k in range(3)]
+    status = main(["calibrate", *cells, str(fleet / "broken"), "--out", str(fleet / "local"), "--jobs", "2",
+                   "--no-progress"])
+    text = capsys.readouterr().out
+    assert status == 2 and "FAILED" in text and "session.yaml: file not found" in text  # the others are done
+    summary = json.loads((fleet / "local" / "fleet.json").read_text())
+    assert [s["error"] is None for s in summary] == [True, True, True, False]
+    dask = calibrate_many(cells, fleet / "dask", scheduler="local", jobs=2, progress=False)
+    for k, item in enumerate(dask):
+        a = json.loads((fleet / "local" / f"cell{k}" / "result.json").read_text())["X"]["matrix"]
+        b = json.loads((fleet / "dask" / f"cell{k}" / "result.json").read_text())["X"]["matrix"]
+        assert np.array_equal(a, b) and item.verdict == summary[k]["verdict"]
+
+
+def test_fleet_needs_out_and_scheduler_needs_several(fleet, capsys):
+    assert main(["calibrate", str(fleet / "cell0"), str(fleet / "cell1")]) == 2
+    assert "several sessions need --out" in capsys.readouterr().err
+    assert main(["calibrate", str(fleet / "cell0"), "--scheduler", "local"]) == 2
+    assert "give more than one session folder" in capsys.readouterr().err
