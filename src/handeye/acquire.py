@@ -48,6 +48,7 @@ from ._shared.progress import Progress
 from .calibration import ROBOT_ACCURACY, Calibration, calibrate, calibrate_poses, robot_accuracy_cov
 from .errors import HandEyeError
 from .geometry.se3 import make_transform
+from .metrics import std_deg_mm
 from .planning import candidate_views, choose_next, reprojection_information
 from .poses import format_poses, parse_poses, pose_columns
 from .session import SESSION_FILE, SessionError, load_session, write_session
@@ -423,7 +424,7 @@ def _predicted_std(info: NDArray[np.float64], sigma_px: float, X: NDArray[np.flo
     cov = sigma_px**2 * np.linalg.inv(info + ridge)[:6, :6]
     if accuracy is not None:
         cov = cov + robot_accuracy_cov(X, accuracy)
-    return np.r_[np.degrees(np.sqrt(np.diag(cov)[:3])), 1e3 * np.sqrt(np.diag(cov)[3:])]
+    return std_deg_mm(cov)
 
 
 def _write_state(folder: Path, setup: str, spec: dict, names: list[str], rows: list, robot: Robot,
@@ -473,7 +474,7 @@ def _check_target_std(target_std, X0, accuracy) -> None:
     if accuracy is None:
         return
     cov = robot_accuracy_cov(np.asarray(X0, dtype=float), accuracy)
-    floor = np.r_[np.degrees(np.sqrt(np.diag(cov)[:3])), 1e3 * np.sqrt(np.diag(cov)[3:])]
+    floor = std_deg_mm(cov)
     if floor[:3].max() > deg or floor[3:].max() > mm:
         raise HandEyeError(
             f"the target std {deg:g} deg / {mm:g} mm is below what the robot's absolute accuracy allows here "

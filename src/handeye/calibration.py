@@ -22,6 +22,7 @@ from .diagnostics import closed_form, compare_solvers, diagnose
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from .estimators import PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, Choice, choose, pixel_candidates, pixel_fit, pose_candidates
 from .geometry.se3 import invert, skew
+from .metrics import std_deg_mm
 from .motions import MotionSet, Pairs, validate_poses
 from .partial import calibrate_partial, known_on_complete, parse_known
 from .poses import RobotPoseInput, format_poses
@@ -248,7 +249,7 @@ def _partial(flange2base, target2cam, setup, kind, pairs, given, refine, diag, k
 
 def _std(cov_X: NDArray[np.float64]) -> NDArray[np.float64]:
     """Standard deviations of X's six parameters in degrees and millimetres."""
-    return np.r_[np.degrees(np.sqrt(np.diag(cov_X)[:3])), 1e3 * np.sqrt(np.diag(cov_X)[3:])]
+    return std_deg_mm(cov_X)
 
 
 def refine_on_poses(cal: Calibration, ref: PoseRefinementResult | None = None) -> Calibration:

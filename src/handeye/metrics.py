@@ -7,7 +7,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .geometry.se3 import rotation_angle
 
-__all__ = ["rotation_error", "translation_error"]
+__all__ = ["rotation_error", "translation_error", "std_deg_mm"]
 
 
 def rotation_error(T_est: ArrayLike, T_ref: ArrayLike) -> NDArray[np.float64] | float:
@@ -29,3 +29,10 @@ def translation_error(T_est: ArrayLike, T_ref: ArrayLike) -> NDArray[np.float64]
     t2 = np.asarray(T_ref, dtype=float)[..., :3, 3]
     err = np.linalg.norm(t1 - t2, axis=-1)
     return float(err) if np.ndim(err) == 0 else err
+
+
+def std_deg_mm(cov: ArrayLike) -> NDArray[np.float64]:
+    """Standard deviations (6,) of a covariance over [rotation vector (rad), translation (m)]: the
+    rotation in degrees, the translation in millimetres (``Calibration.std``'s units)."""
+    d = np.sqrt(np.diag(np.asarray(cov, dtype=float)))
+    return np.r_[np.degrees(d[:3]), 1e3 * d[3:]]

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from .errors import InputMismatchError
 from .geometry.se3 import mean_transform
+from .metrics import std_deg_mm
 from .motions import MotionSet, Pairs
 from .result import Calibration, Unobservable
 from .setups import constant_transforms, robot_world_A, setup_info
@@ -228,7 +229,7 @@ def calibrate_partial(flange2base: NDArray[np.float64], target2cam: NDArray[np.f
     unobservable = [_unobservable(a, b, X, setup, kind) for a, b in zip(u_x, u_z)]
     std = None
     if cov is not None:
-        std = np.r_[np.degrees(np.sqrt(np.diag(cov)[:3])), 1e3 * np.sqrt(np.diag(cov)[3:])]
+        std = std_deg_mm(cov)
         if len(u_x):
             std[3:][np.abs(u_x).max(axis=0) > _OPEN_COMPONENT] = np.inf
     notes, table = _known_notes(unused, X, Z, cov, setup)

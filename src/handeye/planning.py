@@ -34,7 +34,7 @@ from scipy.spatial.transform import Rotation
 from .calibration import calibrate_poses
 from .errors import HandEyeError
 from .geometry.se3 import invert, make_transform, skew
-from .metrics import rotation_error, translation_error
+from .metrics import rotation_error, std_deg_mm, translation_error
 from .session import write_pose_table
 from .setups import check_setup, flange_poses, predicted_target2cam, robot_world_A_inv, setup_info
 from .simulate import look_at
@@ -377,7 +377,7 @@ def plan_poses(
     chosen = chosen[order]
     info = reprojection_information(flange2base[chosen], X, Z, setup, obj, K).sum(axis=0)
     cov = predicted_cov(info + prior, noise_px)
-    std = np.r_[np.degrees(np.sqrt(np.diag(cov)[:3])), 1e3 * np.sqrt(np.diag(cov)[3:])]
+    std = std_deg_mm(cov)
     std[3:][np.diag(prior)[3:6] > 0] = np.inf
     return Plan(setup, X, Z, flange2base[chosen], target2cam[chosen], cov, std, float(noise_px), int(keep.sum()),
                 robot, unobservable)

@@ -18,6 +18,7 @@ from ._shared.text import summarize
 from .calibration import ROBOT_ACCURACY, calibrate_poses
 from .errors import InputMismatchError
 from .geometry.se3 import invert
+from .metrics import std_deg_mm
 from .motions import Pairs
 from .poses import RobotPoseInput, format_poses
 from .result import Calibration
@@ -107,7 +108,7 @@ def calibrate_streams(
         used = kf[cal.pose_indices]
         cov = cal.cov + offset_cov(cal.X, cal.Z, setup, robot, camera.times[used], camera.poses[used], sync.offset,
                                    sync.offset_std)
-        cal = replace(cal, cov=cov, std=np.r_[np.degrees(np.sqrt(np.diag(cov)[:3])), 1e3 * np.sqrt(np.diag(cov)[3:])])
+        cal = replace(cal, cov=cov, std=std_deg_mm(cov))
     return replace(cal, time_offset=sync.offset, time_offset_std=sync.offset_std,
                    streams=sync.info(robot, camera, camera.times[kf]), notes=notes + list(cal.notes))
 
