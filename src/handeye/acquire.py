@@ -362,9 +362,10 @@ class URRobot:
 
 
 def make_robot(spec: str, world: SimWorld | None = None, pose_format: str = "quat_wxyz", length_unit: str = "mm",
-               angle_unit: str = "deg", **kw) -> Robot:
-    """A robot from a backend name: ``sim`` (needs ``world``), ``manual`` or ``manual:POSE_FILE``,
-    ``ur:HOST`` (``kw``: speed, accel, yes, dry_run)."""
+               angle_unit: str = "deg", speed: float = 0.1, yes: bool = False, dry_run: bool = False) -> Robot:
+    """A robot from a backend name: ``sim`` (needs ``world``), ``manual`` or ``manual:POSE_FILE`` (in
+    ``pose_format`` and the units), ``ur:HOST`` (at ``speed`` m/s, capped; ``yes``: no confirmation
+    before each move; ``dry_run``: print the moves only)."""
     kind, _, arg = spec.partition(":")
     if kind == "sim":
         if world is None:
@@ -375,7 +376,7 @@ def make_robot(spec: str, world: SimWorld | None = None, pose_format: str = "qua
     if kind == "ur":
         if not arg:
             raise HandEyeError("--robot ur:HOST: give the controller's address, e.g. ur:192.168.1.10")
-        return URRobot(arg, **kw)
+        return URRobot(arg, speed=speed, yes=yes, dry_run=dry_run)
     raise HandEyeError(f"robot backend {spec!r}; use sim, manual[:POSE_FILE] or ur:HOST")
 
 

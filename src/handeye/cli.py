@@ -437,8 +437,7 @@ def _cmd_acquire(args: argparse.Namespace) -> int:
             raise HandEyeError("--target-spec is needed with a real camera (your session.yaml or a target: mapping)")
         X0, Z0 = _placements(args)
     rl, ra = _units_arg(args.robot_units, "--robot-units")
-    robot = make_robot(args.robot, world, args.robot_format, rl, ra, speed=args.speed, yes=args.yes, dry_run=args.dry_run) \
-        if args.robot.startswith("ur") else make_robot(args.robot, world, args.robot_format, rl, ra)
+    robot = make_robot(args.robot, world, args.robot_format, rl, ra, speed=args.speed, yes=args.yes, dry_run=args.dry_run)
     camera = make_camera(args.camera, world, robot)
     acq = acquire(robot, camera, out, args.setup, spec, K, dist, size, X0, Z0,
                   target_std=tuple(target_std.tolist()) if target_std is not None else (0.05, 0.5),

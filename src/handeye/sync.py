@@ -25,6 +25,7 @@ what is left of the timing error costs little, for an ordinary calibration.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -66,7 +67,7 @@ FINE_SPAN = 0.25
 WEAK_ALIGNMENT = 0.5
 
 
-@dataclass(frozen=True)
+@dataclass(eq=False)
 class PoseStream:
     """Time-stamped poses of one clock: ``times`` (N,) strictly increasing seconds, ``poses`` (N, 4, 4)."""
 
@@ -78,6 +79,11 @@ class PoseStream:
     def period(self) -> float:
         """The median time between samples (s)."""
         return float(np.median(np.diff(self.times)))
+
+    @cached_property
+    def slerp(self) -> Slerp:
+        """scipy's Slerp of the rotations, built once (the joint fit interpolates often)."""
+        return Slerp(self.times, rotation_of_valid(self.poses[:, :3, :3]))
 
     def __len__(self) -> int:
         return len(self.times)
@@ -123,25 +129,10 @@ def interpolate(stream: PoseStream, t: ArrayLike, max_gap: float | None = None
     k = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
     ok = (t >= ts[0]) & (t <= ts[-1]) & (ts[k + 1] - ts[k] <= gap)
     tc = np.clip(t, ts[0], ts[-1])
-    R = _slerp(stream)(tc).as_matrix()
+    R = stream.slerp(tc).as_matrix()
     u = ((tc - ts[k]) / (ts[k + 1] - ts[k]))[:, None]
     p = (1.0 - u) * stream.poses[k, :3, 3] + u * stream.poses[k + 1, :3, 3]
     return make_transform(R, p), ok
-
-
-_SLERPS: dict[int, tuple[PoseStream, Slerp]] = {}
-
-
-def _slerp(stream: PoseStream) -> Slerp:
-    """scipy's Slerp of a stream's rotations, built once per stream (the joint fit calls it often)."""
-    hit = _SLERPS.get(id(stream))
-    if hit is not None and hit[0] is stream:
-        return hit[1]
-    if len(_SLERPS) > 8:
-        _SLERPS.clear()
-    s = Slerp(stream.times, rotation_of_valid(stream.poses[:, :3, :3]))
-    _SLERPS[id(stream)] = (stream, s)
-    return s
 
 
 def rotation_speed(stream: PoseStream, t: ArrayLike, window: float) -> NDArray[np.float64]:
