@@ -298,3 +298,13 @@ def test_ros2_bag_round_trips_into_a_session_that_calibrates(stream_session, tmp
     with pytest.raises(HandEyeError, match="no chain from base_link to gripper"):
         import_rosbag(bag, tmp_path / "y", robot_frames=("base_link", "gripper"), image_topic="/camera/image_raw",
                       target=session.target_spec)
+
+
+def test_a_headerless_table_that_is_not_a_stream_is_named(tmp_path):
+    folder = tmp_path / "pairs"
+    write_pose_pairs(folder, "eye_in_hand", random_scene(5, rng=3).flange2base, random_scene(5, rng=3).target2cam)
+    for name in ("robot_poses.csv", "camera_poses.csv"):  # drop the header and the id column
+        rows = (folder / name).read_text().splitlines()[1:]
+        (folder / name).write_text("\n".join(r.split(",", 1)[1] for r in rows) + "\n")
+    with pytest.raises(SessionError, match="no header row, and its 7 values per row are not a time and the 7 columns"):
+        load_pose_pairs(folder)

@@ -361,6 +361,10 @@ def read_pose_table(
     header = [c.strip() for c in rows[0]]
     implicit = headerless and _numeric_row(header)
     if implicit:  # no header: time, then the pose columns
+        if len(header) != len(expected) + 1:
+            raise SessionError(f"{path}: no header row, and its {len(header)} values per row are not a time and the "
+                               f"{len(expected)} columns of {fmt!r}: add a header ({', '.join(expected)}, after an "
+                               "'id' or a 'time' column)")
         header = [TIME_COLUMNS[0]] + expected
         rows = [header] + rows
         if notes is not None:
