@@ -25,7 +25,7 @@ from .geometry.se3 import invert, skew
 from .metrics import std_deg_mm
 from .motions import MotionSet, Pairs, validate_poses
 from .partial import calibrate_partial, known_on_complete, parse_known
-from .poses import RobotPoseInput, format_poses
+from .poses import RobotPoseInput
 from .result import Calibration, Diagnostics
 from .session import POSEPAIRS_FILE, Session, SessionError, load_pose_pairs, load_session
 from .setups import check_setup
@@ -733,9 +733,7 @@ def _synchronised(obs: Observations, offset_range, time_offset, keyframes: int):
                 f"{np.nanmax(cost) / 100:.3f} deg + mm")
         sync = Synchronisation(offset, 0.0, (offset, offset), None, None, [note])
     ri = obs.robot_input
-    if ri is not None:  # the interpolated poses as the robot would write them
-        ri = replace(ri, values=format_poses(invert(f2b) if ri.inverted else f2b, ri.format, ri.length_unit, ri.angle_unit))
-    return replace(obs, flange2base=f2b, robot_input=ri), sync, robot, camera
+    return replace(obs, flange2base=f2b, robot_input=None if ri is None else ri.rewritten(f2b)), sync, robot, camera
 
 
 def _with_sync(cal: Calibration, sync: Synchronisation, robot: PoseStream, camera: PoseStream,

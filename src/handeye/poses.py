@@ -21,14 +21,14 @@ and euler only).
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from .errors import InputMismatchError, PoseFormatError
-from .geometry.se3 import make_transform, orthonormality_error
+from .geometry.se3 import invert, make_transform, orthonormality_error
 
 __all__ = ["parse_poses", "format_poses", "pose_columns", "validate_transforms", "RobotPoseInput", "FORMATS"]
 
@@ -57,6 +57,13 @@ class RobotPoseInput:
     angle_unit: str = "rad"
     #: the rows are the inverse of the poses used (base2flange rows for flange2base, cam2target rows for target2cam)
     inverted: bool = False
+
+    def rewritten(self, T: ArrayLike) -> "RobotPoseInput":
+        """The same declaration with the poses ``T`` (as handeye uses them) written as its rows: for poses
+        that were derived from the rows (interpolated between them), so that the check re-reads them."""
+        T = np.asarray(T, dtype=float)
+        rows = format_poses(invert(T) if self.inverted else T, self.format, self.length_unit, self.angle_unit)
+        return replace(self, values=rows)
 
 
 def _parse_format(fmt: str) -> tuple[str, str | None]:

@@ -17,10 +17,9 @@ from numpy.typing import ArrayLike
 from ._shared.text import summarize
 from .calibration import ROBOT_ACCURACY, calibrate_poses
 from .errors import InputMismatchError
-from .geometry.se3 import invert
 from .metrics import std_deg_mm
 from .motions import Pairs
-from .poses import RobotPoseInput, format_poses
+from .poses import RobotPoseInput
 from .result import Calibration
 from .setups import check_setup
 from .sync import KEYFRAMES, check_stream, keyframes_at, offset_cov, synchronise
@@ -94,9 +93,7 @@ def calibrate_streams(
     sync = synchronise(robot, camera, setup, offset_range, time_offset, keyframes)
     kf, f2b, n_candidates = keyframes_at(robot, camera, sync.offset, keyframes, setup, sync.fit)
     if robot_input is not None:  # the interpolated poses as the robot would write them (the check re-reads them)
-        rows = invert(f2b) if robot_input.inverted else f2b
-        robot_input = replace(robot_input, values=format_poses(rows, robot_input.format, robot_input.length_unit,
-                                                               robot_input.angle_unit))
+        robot_input = robot_input.rewritten(f2b)
     cal = calibrate_poses(f2b, camera.poses[kf], setup, method=method, refine=refine, pairs=pairs, check=check,
                           robot_accuracy=robot_accuracy, strict=strict, progress=False, robot_input=robot_input)
     notes = list(sync.notes) + [f"{len(kf)} keyframes calibrated, chosen among {n_candidates} camera samples where the "

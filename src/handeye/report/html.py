@@ -164,8 +164,7 @@ def _overlay_thumb(cal: Calibration, k: int, T: NDArray[np.float64]) -> tuple[st
     img = cv2.imread(str(cal.image_paths[k]), cv2.IMREAD_COLOR)
     if img is None:
         return None
-    s = min(1.0, ZOOM_WIDTH / img.shape[1])
-    thumb = cv2.resize(img, (max(1, round(img.shape[1] * s)), max(1, round(img.shape[0] * s))), interpolation=cv2.INTER_AREA)
+    thumb, s = _zoom_size(img)
     det = np.asarray(cal.image_points[k], dtype=float)
     proj = project_points(T[k], cal.object_points[k], cal.camera_matrix, cal.dist_coeffs)
     rms = float(np.sqrt(np.mean(np.sum((proj - det) ** 2, axis=1))))
@@ -177,6 +176,13 @@ def _overlay_thumb(cal: Calibration, k: int, T: NDArray[np.float64]) -> tuple[st
             cv2.drawMarker(thumb, (int(round(p[0])), int(round(p[1]))), (0, 0, 230), cv2.MARKER_CROSS, 2 * r,
                            max(1, r // 3), cv2.LINE_AA)
     return _jpeg(thumb), f"{cal.image_names[k]}: {rms:.2f} px", rms
+
+
+def _zoom_size(img: NDArray[np.uint8]) -> tuple[NDArray[np.uint8], float]:
+    """The image at most ZOOM_WIDTH wide (the size a click shows), and the scale applied."""
+    s = min(1.0, ZOOM_WIDTH / img.shape[1])
+    return cv2.resize(img, (max(1, round(img.shape[1] * s)), max(1, round(img.shape[0] * s))),
+                      interpolation=cv2.INTER_AREA), s
 
 
 def _jpeg(img: NDArray[np.uint8]) -> str:
@@ -203,9 +209,7 @@ def _rejected_thumbs(cal: Calibration) -> list[tuple[str, str]]:
         if img is None or img.shape[0] < 2 or img.shape[1] < 2:
             out.append(("", f"{name}: {reason}"))
             continue
-        s = min(1.0, ZOOM_WIDTH / img.shape[1])
-        out.append((_jpeg(cv2.resize(img, (max(1, round(img.shape[1] * s)), max(1, round(img.shape[0] * s))),
-                                     interpolation=cv2.INTER_AREA)), f"{name}: {reason}"))
+        out.append((_jpeg(_zoom_size(img)[0]), f"{name}: {reason}"))
     return out
 
 
