@@ -19,7 +19,7 @@ from handeye.geometry.se3 import from_rotvec_translation, invert
 from handeye.metrics import rotation_error, translation_error
 from handeye.poses import pose_columns
 from handeye.simulate import random_scene, simulate_session
-from handeye.vision import ambiguous_labels, detect_images, resolve_symmetries, target_from_spec
+from handeye.vision import detect_images, label_doubts, resolve_symmetries, symmetry_costs, target_from_spec
 
 from conftest import require_real
 
@@ -77,8 +77,10 @@ def test_symmetric_labelling_is_resolved_by_the_robot_motion():
     square = target_from_spec({"type": "chessboard", "cols": 6, "rows": 6, "square": 0.03})
     assert len(square.symmetries()) == 8  # a square grid also turns by quarter turns
     # clear-cut labels are not flagged; with no margin to spare every image after the first is
-    assert not ambiguous_labels(scrambled, s.flange2base, "eye_in_hand", sym).any()
-    assert ambiguous_labels(scrambled, s.flange2base, "eye_in_hand", sym, factor=1e12)[1:].all()
+    costs = symmetry_costs(scrambled, s.flange2base, "eye_in_hand", sym)
+    assert np.array_equal(resolve_symmetries(scrambled, s.flange2base, "eye_in_hand", sym, costs)[1], choice)
+    assert not any(flags.any() for flags in label_doubts(costs))
+    assert label_doubts(costs, thin=1e12)[0][1:].all()
 
 
 def test_parallel_detection_equals_sequential(rendered):

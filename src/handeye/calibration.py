@@ -35,8 +35,8 @@ from .solvers.refine import PoseRefinementResult, ReprojectionResult, refine_pos
 from .sync import (KEYFRAMES, MIN_SAMPLES, PoseStream, Synchronisation, check_stream, interpolate, keyframes_at,
                    offset_cov, synchronise, timing_cost)
 from .validation import Views, jackknife_cov
-from .vision import (ambiguous_labels, calibrate_intrinsics, detect_images, resolve_symmetries, solve_pnp, target_from_spec,
-                     unmatched_labels)
+from .vision import (calibrate_intrinsics, detect_images, label_doubts, resolve_symmetries, solve_pnp, symmetry_costs,
+                     target_from_spec)
 
 __all__ = ["Calibration", "FolderCheck", "Observations", "ROBOT_ACCURACY", "apply_choice", "calibrate", "certify_calibration",
            "calibrate_observed", "calibrate_poses", "check_folder", "observe", "refine_on_pixels", "refine_on_poses",
@@ -509,16 +509,18 @@ def observe(session: Session, jobs: int | None = None, progress: bool = True) ->
         raise SessionError(f"only {len(used)} usable images (at least {MIN_POSES} are needed)")
     used_arr = np.array(used)
     flange2base = session.flange2base[used_arr]
-    symmetries = target.symmetries()
-    target2cam, choice = resolve_symmetries(np.array(poses), flange2base, session.setup, symmetries)
-    unsure = ambiguous_labels(np.array(poses), flange2base, session.setup, symmetries)
-    unmatched = unmatched_labels(np.array(poses), flange2base, session.setup, symmetries)
+    symmetries, poses = target.symmetries(), np.array(poses)
+    unsure = unmatched = np.zeros(len(poses), bool)
+    costs = None
+    if len(symmetries) > 1 and len(poses) > 1:
+        costs = symmetry_costs(poses, flange2base, session.setup, symmetries)
+        unsure, unmatched = label_doubts(costs)
+    target2cam, choice = resolve_symmetries(poses, flange2base, session.setup, symmetries, costs)
     if unmatched.any():  # flagged, not dropped: the check and the robust fits judge them
         notes.append(f"image(s) {summarize(session.image_names[used[k]] for k in np.flatnonzero(unmatched))}: no "
                      f"labelling of the symmetric {target.type} target makes the camera's motion agree with the robot's "
                      "(a misdetected grid, or a wrong robot pose): check them; a board that cannot be read from the wrong "
                      "end avoids the first")
-        unsure &= ~unmatched
     if unsure.any():  # flagged, not dropped: the check and the robust fits judge them
         notes.append(f"image(s) {summarize(session.image_names[used[k]] for k in np.flatnonzero(unsure))}: the "
                      f"symmetric {target.type} target reads almost as well turned about its centre, so which end is which was "

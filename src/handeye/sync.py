@@ -42,7 +42,7 @@ from .poses import validate_transforms
 from .setups import constant_transforms, robot_world_A, setup_info
 from .solvers.refine import refine_pose
 
-__all__ = ["PoseStream", "CoarseOffset", "OffsetFit", "Synchronisation", "check_stream", "interpolate", "rotation_speed",
+__all__ = ["PoseStream", "CoarseOffset", "OffsetFit", "Synchronisation", "check_stream", "interpolate",
            "motion_speeds", "coarse_offset", "refine_offset", "select_keyframes", "search_range", "synchronise",
            "keyframes_at", "offset_cov", "MIN_SAMPLES", "DEFAULT_SEARCH", "KEYFRAMES", "FINE_SPAN", "WEAK_ALIGNMENT"]
 
@@ -135,19 +135,21 @@ def interpolate(stream: PoseStream, t: ArrayLike, max_gap: float | None = None
     return make_transform(R, p), ok
 
 
-def rotation_speed(stream: PoseStream, t: ArrayLike, window: float) -> NDArray[np.float64]:
-    """Rotation speed (rad/s) at times ``t``: the angle turned between ``t - window/2`` and
-    ``t + window/2`` over ``window``; NaN where that span leaves the stream or crosses a gap."""
-    return motion_speeds(stream, t, window)[0]
-
-
-def motion_speeds(stream: PoseStream, t: ArrayLike, window: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Rotation (rad/s) and translation (m/s) speeds at times ``t`` over ``window`` (see
-    :func:`rotation_speed`); NaN where undefined."""
+def _window_ends(stream: PoseStream, t: ArrayLike, window: float
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """The stream's poses at ``t - window/2`` and ``t + window/2``, and where both are defined
+    (inside the stream, not across a gap)."""
     t = np.asarray(t, dtype=float)
     a, ok_a = interpolate(stream, t - 0.5 * window)
     b, ok_b = interpolate(stream, t + 0.5 * window)
-    ok = ok_a & ok_b
+    return a, b, ok_a & ok_b
+
+
+def motion_speeds(stream: PoseStream, t: ArrayLike, window: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Rotation (rad/s) and translation (m/s) speeds at times ``t``: the angle turned and the
+    distance moved between ``t - window/2`` and ``t + window/2``, over ``window``; NaN where that
+    span leaves the stream or crosses a gap."""
+    a, b, ok = _window_ends(stream, t, window)
     w = np.where(ok, rotation_error(b, a) / window, np.nan)
     v = np.where(ok, np.linalg.norm(b[:, :3, 3] - a[:, :3, 3], axis=1) / window, np.nan)
     return w, v
@@ -193,14 +195,13 @@ def _alignment(a: NDArray[np.float64], b: NDArray[np.float64], max_lag: int) -> 
 def _body_velocity(stream: PoseStream, t: NDArray[np.float64], window: float, inverse: bool = False
                    ) -> NDArray[np.float64]:
     """Angular velocity (rad/s, (G, 3)) of the stream's rotations (or of their inverses) in their
-    own moving frame, over ``window`` about each time; NaN where undefined (:func:`rotation_speed`)."""
-    a, ok_a = interpolate(stream, t - 0.5 * window)
-    b, ok_b = interpolate(stream, t + 0.5 * window)
+    own moving frame, over ``window`` about each time; NaN where undefined (:func:`motion_speeds`)."""
+    a, b, ok = _window_ends(stream, t, window)
     Ra, Rb = a[:, :3, :3], b[:, :3, :3]
     if inverse:
         Ra, Rb = np.swapaxes(Ra, 1, 2), np.swapaxes(Rb, 1, 2)
     w = rotation_of_valid(np.swapaxes(Ra, 1, 2) @ Rb).as_rotvec() / window
-    w[~(ok_a & ok_b)] = np.nan
+    w[~ok] = np.nan
     return w
 
 

@@ -1,7 +1,7 @@
 """From images to target poses: targets, parallel detection, intrinsics, PnP."""
 
 from .detect import ImageResult, detect_images
-from .pnp import ambiguous_labels, calibrate_intrinsics, resolve_symmetries, solve_pnp, unmatched_labels
+from .pnp import calibrate_intrinsics, label_doubts, resolve_symmetries, solve_pnp, symmetry_costs
 from .targets import TARGET_TYPES, Detection, Target, target_from_spec
 
 __all__ = [
@@ -12,8 +12,8 @@ __all__ = [
     "calibrate_intrinsics",
     "detect_images",
     "resolve_symmetries",
-    "ambiguous_labels",
-    "unmatched_labels",
+    "symmetry_costs",
+    "label_doubts",
     "solve_pnp",
     "target_from_spec",
 ]

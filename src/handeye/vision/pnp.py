@@ -12,7 +12,7 @@ from .targets import Detection
 
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
-__all__ = ["ambiguous_labels", "unmatched_labels", "solve_pnp", "calibrate_intrinsics", "resolve_symmetries", "reprojection_rms", "project_points",
+__all__ = ["symmetry_costs", "label_doubts", "solve_pnp", "calibrate_intrinsics", "resolve_symmetries", "reprojection_rms", "project_points",
            "project_points_many"]
 
 
@@ -93,7 +93,8 @@ def calibrate_intrinsics(
     return K, dist.ravel(), float(rms)
 
 
-def _symmetry_costs(target2cam, flange2base, setup: str, symmetries) -> NDArray[np.float64]:
+def symmetry_costs(target2cam: NDArray[np.float64], flange2base: NDArray[np.float64], setup: str,
+                   symmetries: list[NDArray[np.float64]]) -> NDArray[np.float64]:
     """(S, N - 1): per symmetry and image after the first, how far the camera motion from the first
     image, so relabelled, is from the robot's in rotation angle and pitch (rad; 0.1 m of pitch ~ 1 rad)."""
     robot, robot_inv = robot_world_A(flange2base, setup), robot_world_A_inv(flange2base, setup)
@@ -107,32 +108,22 @@ def _symmetry_costs(target2cam, flange2base, setup: str, symmetries) -> NDArray[
     return np.stack(costs)
 
 
-def ambiguous_labels(target2cam: NDArray[np.float64], flange2base: NDArray[np.float64], setup: str,
-                     symmetries: list[NDArray[np.float64]], factor: float = 3.0) -> NDArray[np.bool_]:
-    """Per image, whether :func:`resolve_symmetries` chose its labelling by a thin margin: another
-    symmetric reading fits the robot motion within ``factor`` times the typical misfit of the chosen
-    ones (the first image defines the target frame and is never ambiguous)."""
-    out = np.zeros(len(target2cam), bool)
-    if len(symmetries) < 2 or len(target2cam) < 3:
-        return out
-    costs = np.sort(_symmetry_costs(target2cam, flange2base, setup, symmetries), axis=0)
-    typical = max(float(np.median(costs[0])), 1e-3)
-    out[1:] = costs[1] - costs[0] < factor * typical
-    return out
-
-
-def unmatched_labels(target2cam: NDArray[np.float64], flange2base: NDArray[np.float64], setup: str,
-                     symmetries: list[NDArray[np.float64]], factor: float = 10.0,
-                     floor_rad: float = 0.2) -> NDArray[np.bool_]:
-    """Per image, whether even its best labelling leaves its camera motion far from the robot's
-    (``factor`` times the typical best misfit, and over ``floor_rad``): a misdetected grid or a wrong
-    robot pose, which no choice of labels explains."""
-    out = np.zeros(len(target2cam), bool)
-    if len(symmetries) < 2 or len(target2cam) < 3:
-        return out
-    best = _symmetry_costs(target2cam, flange2base, setup, symmetries).min(axis=0)
-    out[1:] = best > max(factor * float(np.median(best)), floor_rad)
-    return out
+def label_doubts(costs: NDArray[np.float64], thin: float = 3.0, unmatched: float = 10.0,
+                 floor_rad: float = 0.2) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """Per image (the first, which defines the target frame, never), from :func:`symmetry_costs`:
+    whether its labelling was chosen by a thin margin (another reading fits within ``thin`` times
+    the typical best misfit), and whether even its best labelling leaves its motion far from the
+    robot's (``unmatched`` times the typical best misfit, and over ``floor_rad``: a misdetected
+    grid or a wrong robot pose, which no labels explain). An image is one or the other."""
+    n = costs.shape[1] + 1
+    unsure, off = np.zeros(n, bool), np.zeros(n, bool)
+    if costs.shape[0] < 2 or n < 3:
+        return unsure, off
+    ranked = np.sort(costs, axis=0)
+    typical = float(np.median(ranked[0]))
+    off[1:] = ranked[0] > max(unmatched * typical, floor_rad)
+    unsure[1:] = (ranked[1] - ranked[0] < thin * max(typical, 1e-3)) & ~off[1:]
+    return unsure, off
 
 
 def resolve_symmetries(
@@ -140,8 +131,10 @@ def resolve_symmetries(
     flange2base: NDArray[np.float64],
     setup: str,
     symmetries: list[NDArray[np.float64]],
+    costs: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
-    """Choose, per image, which symmetric variant ``T @ F`` of a pose the robot motion agrees with.
+    """Choose, per image, which symmetric variant ``T @ F`` of a pose the robot motion agrees with
+    (``costs``: :func:`symmetry_costs` of these poses, when already computed).
 
     A symmetric pattern (chessboard, symmetric circle grid) looks the same after a half turn, so a
     detector may label it from either end: the PnP pose is ``T`` or ``T @ F``. The rotation angle
@@ -155,7 +148,9 @@ def resolve_symmetries(
     choice = np.zeros(n, dtype=np.intp)
     if len(symmetries) == 1 or n < 2:
         return target2cam, choice
-    choice[1:] = np.argmin(_symmetry_costs(target2cam, flange2base, setup, symmetries), axis=0)
+    if costs is None:
+        costs = symmetry_costs(target2cam, flange2base, setup, symmetries)
+    choice[1:] = np.argmin(costs, axis=0)
     fixed = target2cam.copy()
     for k, F in enumerate(symmetries):
         sel = choice == k
