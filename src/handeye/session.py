@@ -236,11 +236,7 @@ def _read_image_times(folder: Path, spec: Any, where: str, notes: list[str]
         raise SessionError(f"{where}: the poses are a robot stream (a time column), so the images need their times: "
                            "add images: {file: images.csv} with columns image, time")
     path = folder / str(spec["file"])
-    if not path.is_file():
-        raise SessionError(f"{path}: " + ("is a folder, not a file" if path.is_dir() else "file not found"))
-    text, note = read_text(path)
-    if note:
-        notes.append(note)
+    text = _text_of(path, notes)
     rows = [r for r in csv.reader(io.StringIO(text, newline=""), delimiter=_delimiter(text), skipinitialspace=True)
             if r and any(c.strip() for c in r)]
     header = [c.strip().lower() for c in rows[0]] if rows else []
@@ -289,15 +285,22 @@ def _match_image_names(names: list[str], on_disk: list[str], notes: list[str]) -
     return out
 
 
-def load_yaml(path: Path, notes: list[str] | None = None) -> dict[str, Any]:
-    """A YAML mapping from ``path`` (any encoding :func:`handeye._shared.io.read_text` reads; how
-    it was read goes into ``notes``); one-line errors that name the file and the position."""
-    path = Path(path)
+def _text_of(path: Path, notes: list[str] | None) -> str:
+    """The text of an input file (:func:`handeye._shared.io.read_text`: any usual encoding, how it was
+    read into ``notes``), or a one-line error for a missing file or a folder."""
     if not path.is_file():
         raise SessionError(f"{path}: " + ("is a folder, not a file" if path.is_dir() else "file not found"))
     text, note = read_text(path)
     if note and notes is not None:
         notes.append(note)
+    return text
+
+
+def load_yaml(path: Path, notes: list[str] | None = None) -> dict[str, Any]:
+    """A YAML mapping from ``path`` (any encoding :func:`handeye._shared.io.read_text` reads; how
+    it was read goes into ``notes``); one-line errors that name the file and the position."""
+    path = Path(path)
+    text = _text_of(path, notes)
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:  # one line: the problem and where
@@ -346,10 +349,8 @@ def read_pose_table(
     file was read, when not plain UTF-8 CSV, goes into ``notes``. Raises :class:`SessionError`
     naming the file, line and column of anything malformed.
     """
-    if not path.is_file():
-        raise SessionError(f"{path}: " + ("is a folder, not a file" if path.is_dir() else "file not found"))
     expected = pose_columns(fmt)
-    text, note = read_text(path)
+    text = _text_of(path, notes)
     delim = _delimiter(text)
     reader = csv.reader(io.StringIO(text, newline=""), delimiter=delim, skipinitialspace=delim == " ")
     try:
@@ -405,8 +406,6 @@ def read_pose_table(
         dup = sorted({i for i in ids if ids.count(i) > 1})
         raise SessionError(f"{path}: duplicate {id_col} values [{summarize(map(repr, dup))}]")
     if notes is not None:
-        if note:
-            notes.append(note)
         if delim != ",":
             sep = {";": "semicolons", "\t": "tabs"}.get(delim, "spaces")
             notes.append(f"{path.name}: values read as separated by {sep}" + (", with decimal commas" if decimal_comma else ""))
@@ -635,11 +634,20 @@ def write_session(folder: str | Path, setup: str, target_spec: dict[str, Any], n
     check_setup(setup)
     target_from_spec(target_spec)
     write_pose_table(folder / "poses.csv", names, flange2base, format, length_unit, angle_unit, rows=rows)
+    poses = {"file": "poses.csv", "format": format, "length_unit": length_unit, "angle_unit": angle_unit}
+    return _write_session_yaml(folder, setup, target_spec, camera, poses, None, comment)
+
+
+def _write_session_yaml(folder: Path, setup: str, target_spec: dict[str, Any], camera, poses: dict[str, Any],
+                        images: dict[str, Any] | None, comment: str | None) -> Path:
+    """session.yaml with its keys in DESIGN §4's order, atomically; returns its path."""
     spec: dict[str, Any] = {"setup": setup, "target": dict(target_spec)}
     if camera is not None:
         spec["camera"] = {"K": np.asarray(camera[0], dtype=float).tolist(),
                           "dist": np.asarray(camera[1], dtype=float).ravel().tolist()}
-    spec["poses"] = {"file": "poses.csv", "format": format, "length_unit": length_unit, "angle_unit": angle_unit}
+    spec["poses"] = poses
+    if images is not None:
+        spec["images"] = images
     text = (f"# {comment}\n" if comment else "") + yaml.safe_dump(spec, sort_keys=False)
     atomic_write(folder / SESSION_FILE, text)
     return folder / SESSION_FILE
@@ -683,16 +691,9 @@ def write_stream_session(folder: str | Path, setup: str, target_spec: dict[str, 
     for name, t in zip(image_names, image_times):
         w.writerow([name, _number(t)])
     atomic_write(folder / "images.csv", buf.getvalue())
-    spec: dict[str, Any] = {"setup": setup, "target": dict(target_spec)}
-    if camera is not None:
-        spec["camera"] = {"K": np.asarray(camera[0], dtype=float).tolist(),
-                          "dist": np.asarray(camera[1], dtype=float).ravel().tolist()}
-    spec["poses"] = {"file": "robot.csv", "format": format, "length_unit": length_unit, "angle_unit": angle_unit,
-                     "time_unit": "s"}
-    spec["images"] = {"file": "images.csv", "time_unit": "s"}
-    text = (f"# {comment}\n" if comment else "") + yaml.safe_dump(spec, sort_keys=False)
-    atomic_write(folder / SESSION_FILE, text)
-    return folder / SESSION_FILE
+    poses = {"file": "robot.csv", "format": format, "length_unit": length_unit, "angle_unit": angle_unit, "time_unit": "s"}
+    return _write_session_yaml(folder, setup, target_spec, camera, poses, {"file": "images.csv", "time_unit": "s"},
+                               comment)
 
 
 def write_pose_pairs(folder: str | Path, setup: str, flange2base: NDArray[np.float64], target2cam: NDArray[np.float64],
