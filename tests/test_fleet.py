@@ -42,3 +42,14 @@ def test_fleet_needs_out_and_scheduler_needs_several(fleet, capsys):
     assert "several sessions need --out" in capsys.readouterr().err
     assert main(["calibrate", str(fleet / "cell0"), "--scheduler", "local"]) == 2
     assert "give more than one session folder" in capsys.readouterr().err
+
+
+def test_fleet_passes_the_write_options_to_every_session(fleet, capsys):
+    cells = [str(fleet / f"cell{k}") for k in range(2)]
+    status = main(["calibrate", *cells, "--out", str(fleet / "named"), "--jobs", "1", "--no-progress",
+                   "--child-frame", "wrist_cam_optical", "--export", "ros2-launch"])
+    assert status in (0, 1) and "FAILED" not in capsys.readouterr().out  # 1: a weak verdict, not a failure
+    for k in range(2):
+        folder = fleet / "named" / f"cell{k}"
+        assert "wrist_cam_optical" in (folder / "result.yaml").read_text()
+        assert any("launch" in p.name for p in folder.iterdir())

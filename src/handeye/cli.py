@@ -168,9 +168,7 @@ def _out_folder(out: str | None, inputs: Sequence[Path] = ()) -> Path | None:
 def _write_outputs(cal: Calibration, args: argparse.Namespace) -> None:
     """Write the result files and the report (never into ``cal.input_folder``: write_calibration)."""
     if args.out:
-        tool = _pose_arg(args.tool, "--tool") if args.tool else None
-        for path in write_calibration(cal, args.out, parent_frame=args.parent_frame, child_frame=args.child_frame,
-                                      exports=args.export, tool2flange=tool):
+        for path in write_calibration(cal, args.out, **_write_options(args)):
             print(f"wrote {path}")
     else:
         print("no --out: nothing written (--out FOLDER writes result.json, result.yaml and report.html)")
@@ -255,15 +253,27 @@ def _print_image_summary(cal: Calibration) -> None:
     print()
 
 
+def _calibrate_options(args: argparse.Namespace) -> dict:
+    """handeye.calibrate's options from the calibrate command's arguments (the values are checked there)."""
+    robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))
+    return dict(method=args.method, refine=args.refine, robot_noise=None if robot_noise is None else
+                tuple(robot_noise.tolist()), strict=args.strict, robot_accuracy=_accuracy_arg(args.robot_accuracy),
+                known=_known_arg(args.known), check=not args.no_check, **_stream_options(args))
+
+
+def _write_options(args: argparse.Namespace) -> dict:
+    """write_calibration's options from the command's arguments."""
+    return dict(parent_frame=args.parent_frame, child_frame=args.child_frame, exports=args.export,
+                tool2flange=_pose_arg(args.tool, "--tool") if args.tool else None)
+
+
 def _cmd_calibrate_many(args: argparse.Namespace) -> int:
     """calibrate with several session folders: each into --out/<name>/, on local processes or Dask."""
     if not args.out:
         raise HandEyeError("several sessions need --out: each session's files go into a folder of its own there")
-    robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))
     items = calibrate_many(args.session, args.out, scheduler=args.scheduler, jobs=args.jobs,
-                           progress=not args.no_progress, method=args.method, refine=args.refine,
-                           robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()),
-                           robot_accuracy=_accuracy_arg(args.robot_accuracy), check=not args.no_check)
+                           progress=not args.no_progress, certify=args.certify, write_options=_write_options(args),
+                           **_calibrate_options(args))
     status = 0
     print(f"{'session':<32} {'verdict':<13} {'X translation (mm)':<30} std (mm)")
     for it in items:
@@ -288,11 +298,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     session = _input_folder(args.session[0] if args.session else None, args.sample, SAMPLE_SESSION,
                             "give a session folder, or --sample for the bundled sample session (not both)")
     _out_folder(args.out, [session])
-    robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))  # calibrate checks the values
-    cal = calibrate(session, method=args.method, refine=args.refine, jobs=args.jobs, progress=not args.no_progress,
-                    robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()), strict=args.strict,
-                    robot_accuracy=_accuracy_arg(args.robot_accuracy), known=_known_arg(args.known), check=not args.no_check,
-                    **_stream_options(args))
+    cal = calibrate(session, jobs=args.jobs, progress=not args.no_progress, **_calibrate_options(args))
     if args.certify:
         cal = certify_calibration(cal)
     _print_image_summary(cal)

@@ -20,7 +20,7 @@ from typing import Any, Sequence
 from ._shared.cluster import dask_client, dask_completed
 from ._shared.io import atomic_write, check_output_folder
 from ._shared.progress import Progress
-from .calibration import calibrate
+from .calibration import calibrate, certify_calibration
 from .errors import HandEyeError
 from .report import write_calibration
 
@@ -39,12 +39,14 @@ class FleetItem:
     error: str | None = None  #: why it failed
 
 
-def _one(task: tuple[str, str, dict]) -> dict:
+def _one(task: tuple[str, str, dict, dict, bool]) -> dict:
     """Calibrate one session and write its files (runs in a worker: plain values in and out)."""
-    folder, out, options = task
+    folder, out, options, write_options, certify = task
     try:
         cal = calibrate(folder, progress=False, jobs=1, **options)
-        write_calibration(cal, out)
+        if certify:
+            cal = certify_calibration(cal)
+        write_calibration(cal, out, **write_options)
     except HandEyeError as exc:
         return asdict(FleetItem(folder, None, None, None, None, str(exc)))
     return asdict(FleetItem(folder, out, cal.verdict, [1e3 * float(v) for v in cal.X[:3, 3]],
@@ -58,7 +60,8 @@ def _names(folders: Sequence[Path]) -> list[str]:
 
 
 def calibrate_many(folders: Sequence[str | Path], out_dir: str | Path, scheduler: str | None = None,
-                   jobs: int | None = None, progress: bool = True, **options: Any) -> list[FleetItem]:
+                   jobs: int | None = None, progress: bool = True, write_options: dict | None = None,
+                   certify: bool = False, **options: Any) -> list[FleetItem]:
     """Calibrate every session in ``folders``; each one's files go to ``out_dir/<name>/`` and a
     summary to ``out_dir/fleet.json``.
 
@@ -71,6 +74,10 @@ def calibrate_many(folders: Sequence[str | Path], out_dir: str | Path, scheduler
         worker processes.
     jobs : int, optional
         Worker processes (default: the cores).
+    write_options : dict, optional
+        :func:`handeye.write_calibration`'s options for every session (frames, exports, tool).
+    certify : bool
+        Certify each calibration (:func:`handeye.certify_calibration`; ``handeye[certifiable]``).
     options
         :func:`handeye.calibrate`'s options (method, refine, robot_accuracy, ...).
 
@@ -83,7 +90,8 @@ def calibrate_many(folders: Sequence[str | Path], out_dir: str | Path, scheduler
     if not folders:
         raise HandEyeError("no session folders given")
     out = check_output_folder(out_dir, folders)
-    tasks = [(str(f), str(out / name), dict(options)) for f, name in zip(folders, _names(folders))]
+    tasks = [(str(f), str(out / name), dict(options), dict(write_options or {}), certify)
+             for f, name in zip(folders, _names(folders))]
     jobs = (os.cpu_count() or 1) if jobs is None else max(1, int(jobs))
     results: list[dict | None] = [None] * len(tasks)
     bar = Progress(len(tasks), "calibrating sessions", progress)
