@@ -20,6 +20,16 @@ def test_invert_is_inverse_for_stacks(rng):
     assert np.abs(se3.invert(T) - np.linalg.inv(T)).max() < 1e-13
 
 
+def test_perturb_rotates_about_the_reference_axes_and_shifts_the_origin(rng):
+    T = se3.make_transform(se3.random_rotations(4, rng), rng.normal(size=(4, 3)))
+    rotvec, shift = 0.1 * rng.normal(size=(4, 3)), rng.normal(size=(4, 3))
+    moved = se3.perturb(T, rotvec, shift)
+    dR = Rotation.from_rotvec(rotvec).as_matrix()
+    assert np.allclose(moved[:, :3, :3], dR @ T[:, :3, :3]) and np.allclose(moved[:, :3, 3], T[:, :3, 3] + shift)
+    assert np.allclose(se3.perturb(T[0], rotvec[0], shift[0]), moved[0])  # one pose as a stack of one
+    assert np.array_equal(se3.perturb(T, np.zeros(3), np.zeros(3)), T)
+
+
 def test_compose_matches_matmul_and_broadcasts(rng):
     A = se3.make_transform(se3.random_rotations(5, rng), rng.normal(size=(5, 3)))
     B = se3.make_transform(se3.random_rotations(1, rng)[0], rng.normal(size=3))

@@ -47,7 +47,7 @@ from ._shared.lazy import lazy_module
 from ._shared.progress import Progress
 from .calibration import ROBOT_ACCURACY, Calibration, calibrate, calibrate_poses, robot_accuracy_cov
 from .errors import HandEyeError
-from .geometry.se3 import make_transform
+from .geometry.se3 import make_transform, perturb
 from .metrics import std_deg_mm
 from .planning import candidate_views, choose_next, reprojection_information
 from .poses import format_poses, parse_poses, pose_columns
@@ -146,15 +146,13 @@ class SimWorld:
         feat = np.r_[commanded[:3, 3], Rotation.from_matrix(commanded[:3, :3]).as_rotvec() / np.pi]
         e = np.tanh(self._kin @ feat)  # smooth in the pose, within +-1
         rot = np.radians(self.kinematic_deg) * e[:3]
-        return make_transform(Rotation.from_rotvec(rot).as_matrix() @ commanded[:3, :3],
-                              commanded[:3, 3] + 1e-3 * self.kinematic_mm * e[3:])
+        return perturb(commanded, rot, 1e-3 * self.kinematic_mm * e[3:])
 
     def reported(self, commanded: NDArray[np.float64]) -> NDArray[np.float64]:
         """What the controller reports at ``commanded``: the command with heavy-tailed noise."""
         rng = _digest_rng(self.seed, commanded)
         rot = np.radians(self.noise_deg) * rng.standard_t(3, 3)
-        return make_transform(Rotation.from_rotvec(rot).as_matrix() @ commanded[:3, :3],
-                              commanded[:3, 3] + 1e-3 * self.noise_mm * rng.standard_t(3, 3))
+        return perturb(commanded, rot, 1e-3 * self.noise_mm * rng.standard_t(3, 3))
 
 
 class SimRobot:

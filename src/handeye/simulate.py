@@ -22,7 +22,7 @@ from scipy.spatial.transform import Rotation
 from ._shared.io import atomic_write, check_output_folder
 from ._shared.lazy import lazy_module
 from .errors import HandEyeError
-from .geometry.se3 import invert, make_transform, random_rotations
+from .geometry.se3 import invert, make_transform, perturb, random_rotations
 from .session import write_session, write_stream_session
 from .setups import check_setup, flange_poses, predicted_target2cam, setup_info
 from .vision.pnp import project_points
@@ -604,13 +604,12 @@ def _robot_reading(q, flange2base_true, errors: RealisticErrors, rng):
         dt = 1e-3 * rng.normal(0.0, errors.jitter_ms, n)
         direction = rng.normal(size=(n, 2, 3))
         direction /= np.linalg.norm(direction, axis=2, keepdims=True)
-        dR = Rotation.from_rotvec(np.radians(errors.speed_deg_s) * dt[:, None] * direction[:, 0]).as_matrix()
-        reported = make_transform(dR @ reported[:, :3, :3],
-                                  reported[:, :3, 3] + 1e-3 * errors.speed_mm_s * dt[:, None] * direction[:, 1])
+        reported = perturb(reported, np.radians(errors.speed_deg_s) * dt[:, None] * direction[:, 0],
+                           1e-3 * errors.speed_mm_s * dt[:, None] * direction[:, 1])
     if errors.robot_rot_deg > 0 or errors.robot_mm > 0:
         rot = np.radians(errors.robot_rot_deg) * rng.standard_t(errors.robot_dof, (n, 3))
         tra = 1e-3 * errors.robot_mm * rng.standard_t(errors.robot_dof, (n, 3))
-        reported = make_transform(Rotation.from_rotvec(rot).as_matrix() @ reported[:, :3, :3], reported[:, :3, 3] + tra)
+        reported = perturb(reported, rot, tra)
     return reported
 
 
@@ -748,7 +747,7 @@ def low_dof_scene(
     reported = make_transform(Rotation.from_euler("z", joints[:, 3:]).as_matrix() @ down, joints[:, :3])
     rot = np.radians(robot_noise[0]) * rng.normal(size=(n_poses, 3))
     tra = 1e-3 * robot_noise[1] * rng.normal(size=(n_poses, 3))
-    f2b_true = make_transform(Rotation.from_rotvec(rot).as_matrix() @ reported[:, :3, :3], reported[:, :3, 3] + tra)
+    f2b_true = perturb(reported, rot, tra)
     t2c_true = predicted_target2cam(X, Z, f2b_true, setup)
     errors = replace(EXACT, pixel_px=pixel_px)
     t2c, image_points, flipped = _camera_reading(t2c_true, obj, K, dist, errors, rng)

@@ -36,7 +36,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from ._shared.text import summarize
 from .diagnostics import closed_form, diagnose
 from .errors import DegenerateMotionError, InputMismatchError
-from .geometry.se3 import invert, make_transform, rotation_of_valid, to_rotvec_translation
+from .geometry.se3 import invert, make_transform, perturb, rotation_of_valid, to_rotvec_translation
 from .metrics import rotation_error
 from .poses import validate_transforms
 from .setups import constant_transforms, robot_world_A, setup_info
@@ -321,9 +321,7 @@ class _Residuals:
         return self._cache[1]
 
     def transforms(self, x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
-        X = make_transform(Rotation.from_rotvec(x[0:3]).as_matrix() @ self.X0[:3, :3], self.X0[:3, 3] + x[3:6])
-        Z = make_transform(Rotation.from_rotvec(x[6:9]).as_matrix() @ self.Z0[:3, :3], self.Z0[:3, 3] + x[9:12])
-        return X, Z, self.offset0 + x[12]
+        return perturb(self.X0, x[0:3], x[3:6]), perturb(self.Z0, x[6:9], x[9:12]), self.offset0 + x[12]
 
     def raw(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """(M, 6): rotation vector (rad) and translation (m) of each sample's mismatch."""

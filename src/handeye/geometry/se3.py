@@ -25,6 +25,7 @@ __all__ = [
     "rotation_axis_angle",
     "screw_parameters",
     "from_rotvec_translation",
+    "perturb",
     "to_rotvec_translation",
     "orthonormality_error",
     "random_rotations",
@@ -224,11 +225,25 @@ def screw_parameters(
     return l, m, theta, d
 
 
+def _rotvec_matrices(rotvec: ArrayLike) -> NDArray[np.float64]:
+    rotvec = np.asarray(rotvec, dtype=float)
+    return Rotation.from_rotvec(rotvec.reshape(-1, 3)).as_matrix().reshape(rotvec.shape[:-1] + (3, 3))
+
+
 def from_rotvec_translation(rotvec: ArrayLike, translation: ArrayLike) -> NDArray[np.float64]:
     """Transforms from rotation vectors (axis * angle, rad) and translations."""
-    rotvec = np.asarray(rotvec, dtype=float)
-    R = Rotation.from_rotvec(rotvec.reshape(-1, 3)).as_matrix().reshape(rotvec.shape[:-1] + (3, 3))
-    return make_transform(R, translation)
+    return make_transform(_rotvec_matrices(rotvec), translation)
+
+
+def perturb(T: ArrayLike, rotvec: ArrayLike, translation: ArrayLike) -> NDArray[np.float64]:
+    """Transforms ``T`` moved by small steps: the rotation ``exp(rotvec)`` applied on the left (about
+    the axes of T's reference frame) and ``translation`` added to the origin.
+
+    This is the local parametrisation of every pose update and pose-noise model in handeye:
+    ``R' = exp([rotvec]x) R``, ``t' = t + translation`` (broadcast over stacks).
+    """
+    T = np.asarray(T, dtype=float)
+    return make_transform(_rotvec_matrices(rotvec) @ T[..., :3, :3], T[..., :3, 3] + np.asarray(translation, float))
 
 
 def to_rotvec_translation(T: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares, minimize
 from scipy.spatial.transform import Rotation
 
-from ..geometry.se3 import invert, make_transform, rotation_of_valid, skew, so3_left_jacobian
+from ..geometry.se3 import invert, make_transform, perturb, rotation_of_valid, skew, so3_left_jacobian
 from ..setups import check_setup, constant_transforms, predicted_target2cam, robot_world_A, setup_info
 from ..vision.pnp import project_points, project_points_many, solve_pnp
 from ..vision.targets import Detection
@@ -181,7 +181,6 @@ def _reprojection_unpacker(X0, Z0, K0, d0, extra_dist, flange2base, refine_intri
     """``unpack(x) -> (X, Z, K, dist, flange2base)`` for the unknowns of :func:`refine_reprojection`:
     rotation-vector (left) and translation increments of X and Z, then the intrinsics (fx, fy, cx,
     cy, k1 k2 p1 p2 k3) when refined, then a 6-vector correction per robot pose when allowed."""
-    R_F0, t_F0 = flange2base[:, :3, :3], flange2base[:, :3, 3]
     n_img = len(flange2base)
 
     def unpack(x):
@@ -197,7 +196,7 @@ def _reprojection_unpacker(X0, Z0, K0, d0, extra_dist, flange2base, refine_intri
         F = flange2base
         if robot_corrections:
             d = x[n_glob:].reshape(n_img, 6)
-            F = make_transform(Rotation.from_rotvec(d[:, :3]).as_matrix() @ R_F0, t_F0 + d[:, 3:])
+            F = perturb(flange2base, d[:, :3], d[:, 3:])
         return X, Z, Kx, dx, F
 
     return unpack
