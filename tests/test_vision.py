@@ -4,6 +4,7 @@ symmetric targets, parallel detection, and one-line errors for bad sessions."""
 from __future__ import annotations
 
 import csv
+import pickle
 import shutil
 from pathlib import Path
 
@@ -387,3 +388,15 @@ def test_board_region_search_on_real_images_matches_the_whole_image_search():
         diff = min(np.abs(region - whole).max(), np.abs(region[::-1] - whole).max())
         print(f"image {i}: region vs whole image max {diff:.3f} px")
         assert diff < 0.5, (i, diff)
+
+
+@pytest.mark.parametrize("spec", [
+    {"type": "charuco", "cols": 7, "rows": 5, "square": 0.04, "marker": 0.03, "dictionary": "DICT_5X5_100"},
+    {"type": "aruco_grid", "cols": 4, "rows": 3, "square": 0.05, "separation": 0.01, "dictionary": "DICT_4X4_50"},
+])
+def test_board_targets_pickle_for_worker_processes(spec):
+    """cv2's boards do not pickle: the targets rebuild theirs from every public field."""
+    target = target_from_spec(spec)
+    copy = pickle.loads(pickle.dumps(target))
+    assert copy == target and type(copy.board) is type(target.board)
+    assert np.array_equal(copy.object_points(), target.object_points())

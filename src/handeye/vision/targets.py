@@ -27,7 +27,7 @@ None when the target is not found. Works with OpenCV 4.x (>= 4.7, the aruco dete
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar
 
 import numpy as np
@@ -188,8 +188,20 @@ def aruco_dictionary(name: str) -> Any:
     return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name))
 
 
+class _OpenCVBoard:
+    """A target backed by an OpenCV board object (``_board``, built in ``__post_init__``)."""
+
+    def __reduce__(self):  # the cv2 board does not pickle: rebuild it from the public fields (worker processes)
+        return (type(self), tuple(getattr(self, f.name) for f in fields(self) if not f.name.startswith("_")))
+
+    @property
+    def board(self) -> Any:
+        """The OpenCV board (``cv2.aruco.CharucoBoard`` or ``cv2.aruco.GridBoard``)."""
+        return self._board
+
+
 @dataclass(frozen=True)
-class Charuco(Target):
+class Charuco(_OpenCVBoard, Target):
     """A ChArUco board of ``cols`` x ``rows`` squares; features are its inner chessboard corners."""
 
     type: ClassVar[str] = "charuco"
@@ -203,13 +215,6 @@ class Charuco(Target):
             raise TargetError(f"charuco: marker side must be between 0 and the square side {self.square}, got {self.marker!r}")
         board = cv2.aruco.CharucoBoard((int(self.cols), int(self.rows)), float(self.square), float(self.marker), aruco_dictionary(self.dictionary))
         object.__setattr__(self, "_board", board)
-
-    def __reduce__(self):  # the cv2 board does not pickle: rebuild it (worker processes)
-        return (type(self), (self.cols, self.rows, self.square, self.marker, self.dictionary))
-
-    @property
-    def board(self) -> Any:
-        return self._board
 
     def object_points(self) -> NDArray[np.float64]:
         return np.asarray(self._board.getChessboardCorners(), dtype=float).reshape(-1, 3)
@@ -292,7 +297,7 @@ class AprilTag(Target):
 
 
 @dataclass(frozen=True)
-class ArucoGrid(Target):
+class ArucoGrid(_OpenCVBoard, Target):
     """A grid of ``cols`` x ``rows`` markers (OpenCV's GridBoard); features are the corners of every
     marker (id ``4 * marker + corner``)."""
 
@@ -314,13 +319,6 @@ class ArucoGrid(Target):
             raise TargetError(f"aruco_grid: {self.cols * self.rows} markers, but {self.dictionary} has {len(d.bytesList)}")
         board = cv2.aruco.GridBoard((int(self.cols), int(self.rows)), float(self.square), float(self.separation), d)
         object.__setattr__(self, "_board", board)
-
-    def __reduce__(self):  # the cv2 board does not pickle: rebuild it (worker processes)
-        return (type(self), (self.cols, self.rows, self.square, self.separation, self.dictionary))
-
-    @property
-    def board(self) -> Any:
-        return self._board
 
     @property
     def width(self) -> float:
