@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import InputMismatchError
-from .geometry.dualquat import dq_conj, dq_from_matrix, dq_mul_pairs, dq_translation, quat_to_matrix
+from .geometry.dualquat import dq_conj, dq_from_matrix, dq_mul_pairs, dq_to_matrix, dq_translation, quat_to_matrix
 from .geometry.se3 import invert, pairwise_matmul, screw_parameters
 from .poses import validate_transforms
 from .setups import check_setup, robot_world_A, robot_world_A_inv, robot_world_dq
@@ -153,8 +153,10 @@ def motion_matrices(
     return pairwise_matmul(G_A, H_A, j, i), pairwise_matmul(G_B, H_B, j, i)
 
 
-def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64],
+                 nonnegative: bool = False) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Unit dual quaternions with real scalar part >= 0, and b's sign matched to a's (in place).
+    ``nonnegative``: both already have real scalar parts >= 0 (as converted from matrices).
 
     ``q`` and ``-q`` are the same motion, but the equations of AX = XB hold only when a and b carry
     the same sign: their scalar parts (cos(theta/2), -d/2 sin(theta/2)) are equal. ``w >= 0`` fixes
@@ -164,25 +166,34 @@ def _align_signs(dq_a: NDArray[np.float64], dq_b: NDArray[np.float64]) -> tuple[
     """
     # in place: both callers pass arrays they have just built. Signs are applied by multiplying
     # with +-1 (a boolean-mask update gathers and scatters, ~2x slower at thousands of motions).
-    dq_a *= np.where(dq_a[..., :1] < 0, -1.0, 1.0)
-    dq_b *= np.where(dq_b[..., :1] < 0, -1.0, 1.0)
-    dq_b *= np.where(dq_a[..., :1] * dq_b[..., :1] + dq_a[..., 4:5] * dq_b[..., 4:5] < 0, -1.0, 1.0)
+    if not nonnegative:
+        dq_a *= np.where(dq_a[..., :1] < 0, -1.0, 1.0)
+        dq_b *= np.where(dq_b[..., :1] < 0, -1.0, 1.0)
+    flip = dq_a[..., 0] * dq_b[..., 0] + dq_a[..., 4] * dq_b[..., 4] < 0
+    if flip.any():
+        dq_b *= np.where(flip, -1.0, 1.0)[..., None]
     # At theta ~ pi both scalar parts can vanish (a half turn with no pitch, e.g. a 180 deg roll
     # about the optical axis) and the rule above is a coin toss. The vector parts v = sin(theta/2) n
     # obey v_a = s R_X v_b, with s = +1 for the right sign, so dot products with any correctly signed
     # motion r agree: (v_a . v_a_r)(v_b . v_b_r) has the sign of s. Summed over the reliable motions
-    # that is v_a^T M v_b with M = sum_r v_a_r v_b_r^T: O(K), no X needed.
-    w = dq_a[..., 0]
-    near_pi = w < SIGN_FROM_SCALAR_MIN
+    # that is v_a^T M v_b with M = sum_r v_a_r v_b_r^T: O(K), no X needed; evaluated for the
+    # motions near pi only (a few in a thousand among random motions).
+    near_pi = dq_a[..., 0] < SIGN_FROM_SCALAR_MIN
     if near_pi.any():
-        va, vb = dq_a[..., 1:4], dq_b[..., 1:4]
-        M = np.swapaxes(va * (~near_pi)[..., None], -1, -2) @ vb
-        score = np.einsum("...ki,...ki->...k", va @ M, vb)
+        k = dq_a.shape[-2]
+        va, vb = dq_a.reshape(-1, k, 8)[..., 1:4], dq_b.reshape(-1, k, 8)[..., 1:4]
+        near = near_pi.reshape(-1, k)
+        M = np.swapaxes(va, -1, -2) @ (vb * (~near)[..., None])  # per run
+        run, idx = np.nonzero(near)
+        a, b, M = va[run, idx], vb[run, idx], M[run]
+        score = np.einsum("ni,nij,nj->n", a, M, b)
         # |v| <= 1 for unit quaternions; the product of the norms scales the threshold
-        norms = np.sqrt(np.einsum("...ki,...ki->...k", va, va) * np.einsum("...ki,...ki->...k", vb, vb))
-        scale = np.einsum("...ii->...", np.abs(M))[..., None] * norms
-        decided = near_pi & (np.abs(score) > 1e-6 * scale)
-        dq_b *= np.where(decided & (score < 0), -1.0, 1.0)[..., None]
+        scale = np.einsum("nii->n", np.abs(M)) * np.sqrt(np.einsum("ni,ni->n", a, a) * np.einsum("ni,ni->n", b, b))
+        wrong = (np.abs(score) > 1e-6 * scale) & (score < 0)
+        if wrong.any():
+            sign = np.ones(near.shape)
+            sign[run[wrong], idx[wrong]] = -1.0
+            dq_b *= sign.reshape(near_pi.shape)[..., None]
     return dq_a, dq_b
 
 
@@ -249,6 +260,31 @@ class MotionSet:
         return self._AB[1][..., :3, 3] if self._AB is not None else dq_translation(self.dq_b)
 
     @cached_property
+    def dq_moments(self) -> NDArray[np.float64]:
+        """``sum_k y_k y_k^T`` over the motions of ``y = [dq_a, dq_b]``, ``(..., 16, 16)``.
+
+        Every closed-form solver that is quadratic in the dual quaternions (Tsai-Lenz, Horaud,
+        Daniilidis) and the observability check read their sums off this one matrix: three BLAS
+        products over the motions, computed once per motion set."""
+        a, b = self.dq_a, self.dq_b
+        aT, bT = np.swapaxes(a, -1, -2), np.swapaxes(b, -1, -2)
+        ab = aT @ b
+        return np.concatenate([np.concatenate([aT @ a, ab], axis=-1),
+                               np.concatenate([np.swapaxes(ab, -1, -2), bT @ b], axis=-1)], axis=-2)
+
+    @cached_property
+    def matrix_moments(self) -> NDArray[np.float64]:
+        """``sum_k z_k z_k^T`` over the motions of ``z = [vec A, vec B]`` (row-major 4x4s),
+        ``(..., 32, 32)``; with ``A[3, 3] = 1`` row 15 holds the plain sums. The translation step
+        of the rotation-first solvers and Andreff's system read their sums off it."""
+        A = self.A.reshape(self.A.shape[:-2] + (16,))
+        B = self.B.reshape(self.B.shape[:-2] + (16,))
+        AT, BT = np.swapaxes(A, -1, -2), np.swapaxes(B, -1, -2)
+        ab = AT @ B
+        return np.concatenate([np.concatenate([AT @ A, ab], axis=-1),
+                               np.concatenate([np.swapaxes(ab, -1, -2), BT @ B], axis=-1)], axis=-2)
+
+    @cached_property
     def all_pairs_factors(self) -> tuple | None:
         """``((G_A, H_A), (G_B, H_B))`` with ``A_ij = G_A[j] H_A[i]`` (see :func:`_pair_factors`)
         when the motions are every pair ``i < j`` of absolute poses, else None.
@@ -265,14 +301,18 @@ class MotionSet:
 
     def _matrices(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         if self._AB is None:
-            flange2base, target2cam, setup = self._poses
-            self._AB = motion_matrices(flange2base, target2cam, setup, self.pairs)
+            if self._poses is not None:
+                flange2base, target2cam, setup = self._poses
+                self._AB = motion_matrices(flange2base, target2cam, setup, self.pairs)
+            else:  # a set made of dual quaternions alone
+                self._AB = (dq_to_matrix(self.dq_a), dq_to_matrix(self.dq_b))
         return self._AB
 
     @classmethod
     def from_matrices(cls, A: NDArray[np.float64], B: NDArray[np.float64]) -> "MotionSet":
         """From validated motion stacks ``(..., K, 4, 4)`` (rotations exactly orthonormal)."""
-        dq_a, dq_b = _align_signs(dq_from_matrix(A, assume_valid=True), dq_from_matrix(B, assume_valid=True))
+        dq_a, dq_b = _align_signs(dq_from_matrix(A, assume_valid=True), dq_from_matrix(B, assume_valid=True),
+                                  nonnegative=True)
         return cls(dq_a, dq_b, _AB=(A, B))
 
     @classmethod

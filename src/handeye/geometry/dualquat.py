@@ -96,9 +96,12 @@ def quat_from_matrix(R: ArrayLike, assume_valid: bool = False) -> NDArray[np.flo
     faster; scipy >= 1.17, ignored before)."""
     R = np.asarray(R, dtype=float)
     rot = rotation_of_valid(R.reshape(-1, 3, 3)) if assume_valid else Rotation.from_matrix(R.reshape(-1, 3, 3))
-    q = rot.as_quat(scalar_first=True)
-    q *= np.where(q[:, :1] < 0, -1.0, 1.0)
+    xyzw = rot.as_quat()  # scipy's own array; scalar_first=True would copy it once more
+    q = xyzw[:, _WXYZ] * np.where(xyzw[:, 3:] < 0, -1.0, 1.0)
     return q.reshape(R.shape[:-2] + (4,))
+
+
+_WXYZ = np.array([3, 0, 1, 2])
 
 
 def quat_to_matrix(q: ArrayLike) -> NDArray[np.float64]:
@@ -128,12 +131,23 @@ def dq_conj(a: ArrayLike) -> NDArray[np.float64]:
 
 
 def dq_from_rotation_translation(q: ArrayLike, t: ArrayLike) -> NDArray[np.float64]:
-    """Unit dual quaternions from unit quaternions ``(..., 4)`` and translations ``(..., 3)``."""
+    """Unit dual quaternions from unit quaternions ``(..., 4)`` and translations ``(..., 3)``:
+    ``q' = (0, t) q / 2``."""
     q = np.asarray(q, dtype=float)
     t = np.asarray(t, dtype=float)
-    tq = np.concatenate([np.zeros(t.shape[:-1] + (1,)), t], axis=-1)
-    q, tq = np.broadcast_arrays(q, tq)
-    return np.concatenate([q, 0.5 * qmul(tq, q)], axis=-1)
+    lead = np.broadcast_shapes(q.shape[:-1], t.shape[:-1])
+    q = np.broadcast_to(q, lead + (4,)).reshape(-1, 4)
+    t = np.broadcast_to(t, lead + (3,)).reshape(-1, 3)
+    # on contiguous component rows: numpy's passes over (M, 4) columns cost several times more
+    out = np.empty((8, len(q)))
+    out[:4] = q.T
+    w, x, y, z = 0.5 * out[:4]
+    tx, ty, tz = np.ascontiguousarray(t.T)
+    out[4] = -(tx * x + ty * y + tz * z)
+    out[5] = w * tx + ty * z - tz * y
+    out[6] = w * ty + tz * x - tx * z
+    out[7] = w * tz + tx * y - ty * x
+    return np.ascontiguousarray(out.T).reshape(lead + (8,))
 
 
 def dq_from_matrix(T: ArrayLike, assume_valid: bool = False) -> NDArray[np.float64]:

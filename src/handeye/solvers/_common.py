@@ -22,12 +22,18 @@ def translation_least_squares(motions: MotionSet, R_X: NDArray[np.float64]) -> N
     """
     if motions.all_pairs_factors is not None:
         return _translation_all_pairs(motions.all_pairs_factors, R_X)
-    R_A = motions.R_A
-    d = motions.t_B @ np.swapaxes(R_X, -1, -2) - motions.t_A
-    S = R_A.sum(axis=-3)
+    # sum R_A^T d = sum R_A^T R_X t_B - sum R_A^T t_A, and the plain sums: entries of the moments of
+    # the flattened motions, [i, c, j, e] = sum A[i, c] B[j, e] (row 3, column 3 of A is 1)
+    M = motions.matrix_moments
+    lead = M.shape[:-2]
+    M_aa = M[..., :16, :16].reshape(lead + (4, 4, 4, 4))
+    M_ab = M[..., :16, 16:].reshape(lead + (4, 4, 4, 4))
+    sum_A, sum_B = M_aa[..., 3, 3, :, :], M_ab[..., 3, 3, :, :]
+    S = sum_A[..., :3, :3]
+    sum_d = (R_X @ sum_B[..., :3, 3, None])[..., 0] - sum_A[..., :3, 3]
+    rhs = (np.einsum("...ij,...icj->...c", R_X, M_ab[..., :3, :3, :3, 3])
+           - np.einsum("...ici->...c", M_aa[..., :3, :3, :3, 3]) - sum_d)
     normal = 2 * len(motions) * np.eye(3) - S - np.swapaxes(S, -1, -2)
-    stacked = R_A.reshape(R_A.shape[:-3] + (-1, 3))  # rows 3k + j: sum_k R_A^T d = stacked^T vec(d)
-    rhs = (np.swapaxes(stacked, -1, -2) @ d.reshape(d.shape[:-2] + (-1, 1)))[..., 0] - d.sum(axis=-2)
     return np.linalg.solve(normal, rhs[..., None])[..., 0]
 
 
@@ -71,30 +77,10 @@ def _translation_all_pairs(factors: tuple, R_X: NDArray[np.float64]) -> NDArray[
     return np.linalg.solve(normal, (sum_RAt_d - sum_d)[..., None])[..., 0]
 
 
-def kron_sum(P: NDArray[np.float64], Q: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``sum_k kron(P_k, Q_k)`` of 3x3 stacks ``(..., K, 3, 3)``, shape ``(..., 9, 9)``.
-
-    Row-major: ``[3i + a, 3j + b] = sum P[i, j] Q[a, b]``; one (9 x K) @ (K x 9) product of the
-    flattened matrices, reordered (Andreff's Kronecker system; Shah and Li read theirs off
-    :func:`handeye.solvers.robot_world._moments`).
-    """
-    batch, k = P.shape[:-3], P.shape[-3]
-    moments = np.swapaxes(P.reshape(batch + (k, 9)), -1, -2) @ Q.reshape(batch + (k, 9))  # [(i,j), (a,b)]
-    return np.swapaxes(moments.reshape(batch + (3, 3, 3, 3)), -3, -2).reshape(batch + (9, 9))
-
-
 def kron_eye(M: NDArray[np.float64]) -> NDArray[np.float64]:
     """``kron(I3, M)`` of matrices ``(..., p, q)``, shape ``(..., 3p, 3q)``."""
     p, q = M.shape[-2:]
     return np.einsum("ac,...bd->...abcd", np.eye(3), M).reshape(M.shape[:-2] + (3 * p, 3 * q))
-
-
-def kron_eye_vec_sum(t: NDArray[np.float64], R: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``sum_k kron(I3, t_k) R_k`` of vectors ``(..., K, 3)`` and 3x3 stacks, shape ``(..., 9, 3)``:
-    ``[3a + b, c] = sum t[b] R[a, c]`` (one (3 x K) @ (K x 9) product, reordered)."""
-    batch, k = R.shape[:-3], R.shape[-3]
-    moments = np.swapaxes(t, -1, -2) @ R.reshape(batch + (k, 9))  # [b, (a,c)]
-    return np.swapaxes(moments.reshape(batch + (3, 3, 3)), -3, -2).reshape(batch + (9, 3))
 
 
 # One matrix goes to LAPACK directly: np.linalg calls the same routines (dgesdd, dgesv), but its

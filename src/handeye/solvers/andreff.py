@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from ..geometry.se3 import make_transform
 from ..motions import MotionSet
-from ._common import kron_eye, kron_eye_vec_sum, kron_sum, nearest_rotation
+from ._common import kron_eye, nearest_rotation
 from ._registry import register
 
 
@@ -48,28 +48,33 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
 
     Vectorised: a batch of motion sets ``(..., K, 8)`` gives ``X`` of shape ``(..., 4, 4)``.
     """
-    A, B = motions.A, motions.B
     n = len(motions)
-    R_A, R_B, t_A, t_B = A[..., :3, :3], B[..., :3, :3], A[..., :3, 3], B[..., :3, 3]
-    batch = R_A.shape[:-3]
+    # every sum over the motions is an entry of the moments of the flattened motions,
+    # [i, c, j, e] = sum A[i, c] B[j, e] (A[3, 3] = B[3, 3] = 1: the plain sums)
+    M = motions.matrix_moments
+    batch = M.shape[:-2]
+    M_aa = M[..., :16, :16].reshape(batch + (4, 4, 4, 4))
+    M_ab = M[..., :16, 16:].reshape(batch + (4, 4, 4, 4))
+    M_bb = M[..., 16:, 16:].reshape(batch + (4, 4, 4, 4))
+    sumRA = M_aa[..., 3, 3, :3, :3]
+    sum_tA, sum_tB = M_aa[..., 3, 3, :3, 3], M_ab[..., 3, 3, :3, 3]
+    sumK = np.swapaxes(M_ab[..., :3, :3, :3, :3], -3, -2).reshape(batch + (9, 9))  # sum kron(R_A, R_B)
     I3 = np.eye(3)
-    T = lambda a: np.swapaxes(a, -1, -2)  # noqa: E731
-    # sums over the motions as BLAS products (per run of a batch)
-    sumK = kron_sum(R_A, R_B)
-    sumRA = R_A.sum(axis=-3)
     G = np.zeros(batch + (12, 12))
-    G[..., :9, :9] = 2 * n * np.eye(9) - sumK - np.swapaxes(sumK, -1, -2) + kron_eye(T(t_B) @ t_B)
-    # sum_k kron(I3, t_B) (I - R_A)
-    G[..., :9, 9:] = kron_eye(t_B.sum(axis=-2)[..., :, None]) - kron_eye_vec_sum(t_B, R_A)
+    G[..., :9, :9] = 2 * n * np.eye(9) - sumK - np.swapaxes(sumK, -1, -2) + kron_eye(M_bb[..., :3, 3, :3, 3])
+    # sum_k kron(I3, t_B) (I - R_A): [3a + b, c] = sum t_B[b] (I - R_A)[a, c]
+    G[..., :9, 9:] = kron_eye(sum_tB[..., :, None]) - np.swapaxes(M_ab[..., :3, :3, :3, 3], -1, -2).reshape(batch + (9, 3))
     G[..., 9:, :9] = np.swapaxes(G[..., :9, 9:], -1, -2)
     G[..., 9:, 9:] = 2 * n * I3 - sumRA - np.swapaxes(sumRA, -1, -2)
     rhs = np.zeros(batch + (12,))
-    rhs[..., :9] = (T(t_A) @ t_B).reshape(batch + (9,))  # sum kron(I3, t_B) t_A
-    rhs[..., 9:] = t_A.sum(axis=-2) - (T(R_A.reshape(batch + (3 * n, 3))) @ t_A.reshape(batch + (3 * n, 1)))[..., 0]  # sum (I - R_A)^T t_A
+    rhs[..., :9] = M_ab[..., :3, 3, :3, 3].reshape(batch + (9,))  # sum kron(I3, t_B) t_A
+    rhs[..., 9:] = sum_tA - np.einsum("...ici->...c", M_aa[..., :3, :3, :3, 3])  # sum (I - R_A)^T t_A
     sol = np.linalg.solve(G, rhs[..., None])[..., 0]
     lam = np.linalg.eigvalsh(G)
     ill = (lam[..., 0] * NORMAL_COND_MAX < lam[..., -1]).reshape(-1)
     if ill.any():
+        A, B = motions.A, motions.B
+        R_A, R_B, t_A, t_B = A[..., :3, :3], B[..., :3, :3], A[..., :3, 3], B[..., :3, 3]
         flat = lambda a: a.reshape((-1,) + a.shape[len(batch):])  # noqa: E731
         M, y = _stacked(*(flat(a)[ill] for a in (R_A, R_B, t_A, t_B)))
         Q, R = np.linalg.qr(M)

@@ -83,12 +83,10 @@ def normal_matrix(motions: MotionSet) -> NDArray[np.float64]:
     """``T^T T`` (8x8, or (..., 8, 8) for a batch) without forming ``T``.
 
     Each block ``S_i`` is linear in the 16 numbers ``y_i = [dq_a, dq_b]``, so
-    ``T^T T = sum_i S_i^T S_i`` is a fixed contraction of the 16x16 moment matrix ``sum_i y_i y_i^T``:
-    one BLAS product over the motions and no 6K x 8 array.
+    ``T^T T = sum_i S_i^T S_i`` is a fixed contraction of the 16x16 moment matrix ``sum_i y_i y_i^T``
+    (:attr:`~handeye.motions.MotionSet.dq_moments`): BLAS products over the motions and no 6K x 8 array.
     """
-    y = np.concatenate([motions.dq_a, motions.dq_b], axis=-1)
-    moments = np.swapaxes(y, -1, -2) @ y  # BLAS, also per run of a batch
-    return np.tensordot(moments, _F, axes=2)
+    return np.tensordot(motions.dq_moments, _F, axes=2)
 
 
 def _null_space(normal: NDArray[np.float64], svd_of_runs) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -147,8 +145,8 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
     """
     batch = motions.batch_shape
     k = len(motions)
-    flat = MotionSet(motions.dq_a.reshape(-1, k, 8), motions.dq_b.reshape(-1, k, 8))
-    sigma, vt = _null_space(normal_matrix(flat), lambda runs: _svd_of_system(flat.dq_a[runs], flat.dq_b[runs]))
+    dq_a, dq_b = motions.dq_a.reshape(-1, k, 8), motions.dq_b.reshape(-1, k, 8)
+    sigma, vt = _null_space(normal_matrix(motions).reshape(-1, 8, 8), lambda runs: _svd_of_system(dq_a[runs], dq_b[runs]))
     dq, status = _from_null_space(sigma, vt)
     if batch == ():
         if status[0]:

@@ -54,12 +54,12 @@ _QW_BASIS = np.einsum("cki,dkj->cdij", qmul_matrix(np.eye(4)), _qmul_right_matri
 
 def closed_form_rotation(motions: MotionSet) -> NDArray[np.float64]:
     """The closed-form rotation of Horaud-Dornaika (eigenvector of the summed 4x4 matrix)."""
-    a, b = motions.dq_a[..., :4], motions.dq_b[..., :4]
-    # sum D^T D with D = Q(a) - W(b): Q(a)^T Q(a) = |a|^2 I (and W likewise), and Q(a)^T W(b) is
-    # bilinear, so the cross term is the 4x4 moment sum a b^T contracted with a constant tensor:
-    # O(K) and one small product instead of K 4x4 products.
-    cross = np.einsum("...cd,cdij->...ij", np.swapaxes(a, -1, -2) @ b, _QW_BASIS)
-    norms = np.einsum("...ki,...ki->...", a, a) + np.einsum("...ki,...ki->...", b, b)
+    # sum D^T D with D = Q(a) - W(b) (a, b: the rotation quaternions): Q(a)^T Q(a) = |a|^2 I (and
+    # W likewise), and Q(a)^T W(b) is bilinear, so the cross term is the 4x4 moment sum a b^T
+    # contracted with a constant tensor: both read off the motions' moment matrix.
+    Y = motions.dq_moments
+    cross = np.einsum("...cd,cdij->...ij", Y[..., :4, 8:12], _QW_BASIS)
+    norms = np.trace(Y[..., :4, :4], axis1=-2, axis2=-1) + np.trace(Y[..., 8:12, 8:12], axis1=-2, axis2=-1)
     _, vecs = np.linalg.eigh(norms[..., None, None] * np.eye(4) - cross - np.swapaxes(cross, -1, -2))
     return quat_to_matrix(vecs[..., :, 0])
 

@@ -33,13 +33,16 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
 
     Vectorised: a batch of motion sets ``(..., K, 8)`` gives ``X`` of shape ``(..., 4, 4)``.
     """
-    P_A = 2.0 * motions.dq_a[..., 1:4]  # 2 sin(theta/2) n, signs aligned between A and B
-    P_B = 2.0 * motions.dq_b[..., 1:4]
-    s = P_A + P_B
-    d = P_B - P_A
-    # normal equations of skew(s) p' = d: skew(s)^T skew(s) = |s|^2 I - s s^T, skew(s)^T d = d x s
-    normal = np.einsum("...ki,...ki->...", s, s)[..., None, None] * np.eye(3) - np.swapaxes(s, -1, -2) @ s
-    p_prime = np.linalg.solve(normal, np.cross(d, s).sum(axis=-2)[..., None])[..., 0]
+    # With P = 2 v (v: the aligned quaternion vector parts), s = P_A + P_B and d = P_B - P_A, the
+    # normal equations of skew(s) p' = d are sum(|s|^2 I - s s^T) p' = sum d x s = 8 sum v_B x v_A:
+    # all sums of products of v_A and v_B, read off the motions' moment matrix
+    Y = motions.dq_moments
+    M_ab = Y[..., 1:4, 9:12]  # sum v_A v_B^T
+    M_ss = 4.0 * (Y[..., 1:4, 1:4] + Y[..., 9:12, 9:12] + M_ab + np.swapaxes(M_ab, -1, -2))
+    normal = np.trace(M_ss, axis1=-2, axis2=-1)[..., None, None] * np.eye(3) - M_ss
+    rhs = 8.0 * np.stack([M_ab[..., 2, 1] - M_ab[..., 1, 2], M_ab[..., 0, 2] - M_ab[..., 2, 0],
+                          M_ab[..., 1, 0] - M_ab[..., 0, 1]], axis=-1)
+    p_prime = np.linalg.solve(normal, rhs[..., None])[..., 0]
     P_X = 2.0 * p_prime / np.sqrt(1.0 + np.sum(p_prime * p_prime, axis=-1, keepdims=True))
     n2 = np.sum(P_X * P_X, axis=-1)[..., None, None]
     outer = P_X[..., :, None] * P_X[..., None, :]
