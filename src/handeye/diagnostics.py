@@ -21,6 +21,7 @@ samples. :func:`diagnose` tells which.
 from __future__ import annotations
 
 import time
+from contextvars import ContextVar
 from itertools import combinations
 from math import comb
 
@@ -65,11 +66,26 @@ FAR_TARGET_M = 1.2
 
 def _solve(flange2base, target2cam, setup, kind: str | None = None) -> NDArray[np.float64]:
     """Daniilidis on the pose pairs of ``pairs='auto'`` (raises DegenerateMotionError when X is
-    undetermined); ``kind`` ('one_axis', 'translation_only'): the low-DOF solver's part of X."""
+    undetermined); ``kind`` ('one_axis', 'translation_only'): the low-DOF solver's part of X.
+
+    Within :func:`diagnose`, whose checks ask for X on the same poses several times (the
+    consistency score, the outlier refit, the board scale, the leave-one-out), each answer is
+    computed once (keyed by the poses' bytes)."""
+    memo = _SOLVE_MEMO.get()
+    key = None
+    if memo is not None:
+        key = (np.asarray(flange2base, float).tobytes(), np.asarray(target2cam, float).tobytes(), setup, kind)
+        if key in memo:
+            return memo[key].copy()
     motions = MotionSet.from_poses(flange2base, target2cam, setup, "auto")
-    if kind is not None:
-        return solve_low_dof(motions, kind).X
-    return solvers.solve_motions(motions, "daniilidis")
+    X = solve_low_dof(motions, kind).X if kind is not None else solvers.solve_motions(motions, "daniilidis")
+    if key is not None:
+        memo[key] = X.copy()
+    return X
+
+
+#: The answers of :func:`_solve` during one :func:`diagnose` call (None outside).
+_SOLVE_MEMO: ContextVar[dict | None] = ContextVar("_SOLVE_MEMO", default=None)
 
 
 def _motion_scale(target2cam: NDArray[np.float64]) -> float:
@@ -312,6 +328,16 @@ def diagnose(
     -------
     Diagnostics
     """
+    token = _SOLVE_MEMO.set({})
+    try:
+        return _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outliers, leave_one_out, rng,
+                         symmetries)
+    finally:
+        _SOLVE_MEMO.reset(token)
+
+
+def _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outliers, leave_one_out, rng,
+              symmetries) -> Diagnostics:
     check_setup(setup)
     flange2base, target2cam = validate_poses(flange2base, target2cam)
     n = len(flange2base)
@@ -425,8 +451,14 @@ def board_scale(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64
     var = float(r @ r) / dof * np.linalg.inv(JtJ)[6, 6]
     # robot errors that depend on the pose are not independent noise: the jackknife (the scale
     # refitted without each pose) measures the spread whatever the errors are; the larger counts
-    loo = np.array([np.linalg.lstsq(np.delete(M, k, axis=0).reshape(-1, 7), np.delete(-t_A, k, axis=0).reshape(-1),
-                                    rcond=None)[0][6] for k in range(n)])
+    # (all refits at once: the normal equations without pose k's 3 rows, a downdate of J^T J;
+    # one by one when a pose's absence leaves them singular)
+    Mt = np.swapaxes(M, 1, 2)
+    try:
+        loo = np.linalg.solve(JtJ - Mt @ M, (J.T @ y + (Mt @ t_A[..., None])[..., 0])[..., None])[:, 6, 0]
+    except np.linalg.LinAlgError:
+        loo = np.array([np.linalg.lstsq(np.delete(M, k, axis=0).reshape(-1, 7), np.delete(-t_A, k, axis=0).reshape(-1),
+                                        rcond=None)[0][6] for k in range(n)])
     var_jack = (n - 1) / n * float(np.sum((loo - loo.mean()) ** 2))
     return float(sol[6]), float(np.sqrt(max(var, var_jack)))
 

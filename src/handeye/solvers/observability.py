@@ -24,14 +24,15 @@ def validate_motions(A: ArrayLike, B: ArrayLike) -> MotionSet:
     return MotionSet.from_matrices(A, B)
 
 
-def rotation_spread(dq: NDArray[np.float64]) -> tuple[float, float, NDArray[np.float64]]:
+def rotation_spread(dq: NDArray[np.float64], moment: NDArray[np.float64] | None = None) -> tuple[float, float, NDArray[np.float64]]:
     """Largest rotation, largest off-dominant-axis rotation (both as ``sin(theta/2)``) and the
     dominant axis of motions given as dual quaternions ``(K, 8)``. The dominant axis is the
-    principal direction of the axis vectors ``v = sin(theta/2) n`` (sign-free)."""
-    v = np.ascontiguousarray(dq[:, 1:4].T)  # (3, K): one row per component
-    sq = (v * v).sum(axis=0)
-    e1 = top_eigenvector(v @ v.T)
-    off_sq = np.clip(sq - (e1 @ v) ** 2, 0.0, None)
+    principal direction of the axis vectors ``v = sin(theta/2) n`` (sign-free). ``moment``:
+    ``sum v v^T`` when known (:attr:`~handeye.motions.MotionSet.dq_moments`)."""
+    v = dq[:, 1:4]
+    e1 = top_eigenvector(v.T @ v if moment is None else moment)
+    sq = np.einsum("ki,ki->k", v, v)
+    off_sq = np.clip(sq - (v @ e1) ** 2, 0.0, None)
     return float(np.sqrt(sq.max())), float(np.sqrt(off_sq.max())), e1
 
 
@@ -90,7 +91,9 @@ def check_observability(motions: MotionSet | None = None, absolute: NDArray[np.f
         (largest, spread), axis = rotation_spread_absolute(absolute)
         sides = zip(("robot", "camera"), largest.tolist(), spread.tolist(), axis)
     else:
-        sides = ((name, *rotation_spread(dq)) for name, dq in (("robot", motions.dq_a), ("camera", motions.dq_b)))
+        Y = motions.dq_moments
+        sides = ((name, *rotation_spread(dq, Y[o + 1:o + 4, o + 1:o + 4]))
+                 for name, dq, o in (("robot", motions.dq_a, 0), ("camera", motions.dq_b, 8)))
     for name, largest, spread, axis in sides:
         if largest < MIN_ROTATION:
             raise DegenerateMotionError(
@@ -112,31 +115,33 @@ def observable_leave_one_out(motions: MotionSet, groups: NDArray[np.intp], block
     """Per pose ``p``: would :func:`check_observability` pass on the motions without those of
     ``groups[p]`` (see :func:`handeye.solvers.daniilidis.motion_groups`)? All poses at once.
 
-    The same quantities as :func:`rotation_spread`, each run's dominant axis from the moment
-    sum minus the left-out motions' moments; the largest rotations over the kept motions are
-    taken from (motions x runs) blocks of at most about ``block`` entries.
+    The same tests as :func:`rotation_spread`, each run's dominant axis from the moment sum minus
+    the left-out motions' moments. A test passes when some kept motion passes it, so each run
+    counts the motions that pass (against its own axis) and subtracts those it leaves out: no
+    (motions x runs) array of values to mask, and the counts over all motions come from
+    (motions x runs) blocks of at most about ``block`` entries.
     """
     k = len(motions)
     n_runs = len(groups)
     kept = k - (groups < k).sum(axis=1)
     ok = kept >= 2
     chunk = max(1, block // (k + 1))
+    runs_all = np.arange(n_runs)[:, None]
     for dq in (motions.dq_a, motions.dq_b):
         v = dq[:, 1:4]
         sq = np.einsum("ki,ki->k", v, v)
         vg = np.concatenate([v, np.zeros((1, 3))])[groups]
         e = top_eigenvector(v.T @ v - np.swapaxes(vg, -1, -2) @ vg)  # (n_runs, 3)
+        # the largest rotation: the same for every run's axis
+        rotates = np.append(np.sqrt(sq) >= MIN_ROTATION, False)  # row k pads the groups
+        ok &= rotates[:-1].sum() - rotates[groups].sum(axis=1) > 0
+        # the rotation off each run's axis (row k of the padding never passes)
+        spread = np.zeros((n_runs, k + 1), bool)
+        room = sq - MIN_AXIS_SPREAD**2  # off the axis: |v|^2 - (e . v)^2 >= MIN_AXIS_SPREAD^2
         for start in range(0, n_runs, chunk):
-            runs = np.arange(start, min(start + chunk, n_runs))
-            local = np.arange(len(runs))[:, None]
-            # row k pads the groups of poses with fewer motions: it must never be the largest (it
-            # was left uninitialised, so a run without padding could read garbage)
-            largest = np.full((k + 1, len(runs)), -np.inf)
-            largest[:k] = sq[:, None]
-            off = np.full((k + 1, len(runs)), -np.inf)
-            off[:k] = sq[:, None] - (v @ e[runs].T) ** 2
-            largest[groups[runs], local] = -np.inf  # the left-out motions (and the padding row)
-            off[groups[runs], local] = -np.inf
-            ok[runs] &= (np.sqrt(np.clip(largest.max(axis=0), 0.0, None)) >= MIN_ROTATION) & (
-                np.sqrt(np.clip(off.max(axis=0), 0.0, None)) >= MIN_AXIS_SPREAD)
+            runs = slice(start, min(start + chunk, n_runs))
+            along = e[runs] @ v.T
+            along *= along
+            np.less_equal(along, room, out=spread[runs, :k])
+        ok &= np.count_nonzero(spread, axis=1) - np.count_nonzero(spread[runs_all, groups], axis=1) > 0
     return ok
