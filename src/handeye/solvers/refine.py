@@ -30,8 +30,8 @@ from scipy.optimize import least_squares, minimize
 from scipy.spatial.transform import Rotation
 
 from ..geometry.se3 import invert, make_transform, perturb, rotation_of_valid, skew, so3_left_jacobian
-from ..setups import check_setup, constant_transforms, predicted_target2cam, robot_world_A, setup_info
-from ..vision.pnp import project_points, project_points_many, solve_pnp
+from ..setups import check_setup, constant_transforms, predicted_target2cam, robot_world_A, robot_world_A_inv, setup_info
+from ..vision.pnp import project_points, project_points_many, projection_jacobians, solve_pnp
 from ..vision.targets import Detection
 
 __all__ = ["PoseRefinementResult", "ReprojectionResult", "TranslationPriors", "downdate_reprojection", "pose_mahalanobis", "refine_pose",
@@ -115,10 +115,10 @@ def refine_reprojection(
         estimated from free per-image PnP fits. X and Z then stop absorbing the robot's errors.
         The corrected robot poses are returned (``flange2base``).
     sparse : bool
-        With ``robot_noise``, image i's residuals depend on X, Z (and the intrinsics) and on its
-        own correction only: the Jacobian's sparsity is given to the solver, which then needs
-        ~18 residual evaluations per Jacobian instead of 12 + 6N. ``False`` (dense) is for
-        benchmarks and checks.
+        Use the analytic Jacobian (:func:`_reprojection_jacobian`; with more than 8 distortion
+        coefficients, forward differences grouped by image: image i's residuals depend on X, Z
+        (and the intrinsics) and on its own correction only). ``False`` with ``robot_noise``:
+        scipy's plain finite differences, for benchmarks and checks.
     tol : float
         ``least_squares``' xtol, ftol and gtol (refits from a nearby start, as in cross-validation,
         need far less than the default).
@@ -159,10 +159,13 @@ def refine_reprojection(
     # ~1e-3 of distortion
     scale = np.r_[np.full(12, 1e-3), np.ones(4), np.full(5, 1e-3)][:n_glob]
     kw = {}
+    analytic = len(extra_dist) <= 3  # up to 8 coefficients: OpenCV's rational model
     if robot_noise is not None:
         scale = np.r_[scale, np.tile(np.r_[np.full(3, sig_rot), np.full(3, sig_t)], n_img)]
-        if sparse:
+        if sparse and not analytic:
             kw["jac"] = _grouped_jacobian(residuals, _robot_groups(counts, n_glob))
+    if analytic and (robot_noise is None or sparse):
+        kw["jac"] = _reprojection_jacobian(unpack, obj, setup, n_glob, prior_w if robot_noise is not None else None)
     res = least_squares(residuals, x0, loss=loss, f_scale=f_scale, x_scale=scale, method="trf",
                         xtol=tol, ftol=tol, gtol=tol, **kw)
     return _reprojection_result(res, unpack, r0, counts, n, loss, calls[0])
@@ -223,6 +226,72 @@ def _reprojection_residuals(unpack, obj, img, setup: str, n_glob: int, prior_w, 
         return px
 
     return residuals
+
+
+def _cross_rows(a: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``a[m, r] x p[m]`` for rows ``a (M, R, 3)`` and points ``p (M, 3)``: ``a^T [p]x`` row by row."""
+    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    px, py, pz = p[:, None, 0], p[:, None, 1], p[:, None, 2]
+    return np.stack([ay * pz - az * py, az * px - ax * pz, ax * py - ay * px], axis=-1)
+
+
+def _reprojection_jacobian(unpack, obj, setup: str, n_glob: int, prior_w):
+    """The analytic Jacobian of :func:`_reprojection_residuals` (dense), for ``least_squares``.
+
+    With ``H_i = inv(A_i)`` (:func:`~handeye.setups.robot_world_A_inv`) a target point ``P`` is seen
+    at ``p = R_X^T (H_i Z P - t_X)``. For the left rotation increments and added translations of
+    the unknowns: ``dp/dw_X = [p]x R_X^T``, ``dp/dv_X = -R_X^T``, ``dp/dw_Z = -G_i [R_Z P]x``,
+    ``dp/dv_Z = G_i`` with ``G_i = R_X^T R_Hi``; a robot correction of ``flange2base_i`` (rotation
+    ``w``, translation ``v``, ``q = Z P``) moves ``H_i q`` by ``-[R_F q]x w + v`` (eye-to-hand,
+    ``H = F``) or ``R_F^T [q - t_F]x w - R_F^T v`` (eye-in-hand, ``H = inv(F)``). The pixels
+    follow by :func:`~handeye.vision.pnp.projection_jacobians`. One pass over the points instead
+    of one residual evaluation per unknown (or per group of them)."""
+    points = np.concatenate([np.reshape(o, (-1, 3)) for o in obj])
+    owner = np.repeat(np.arange(len(obj)), [len(o) for o in obj])
+    m, n_img = len(points), len(obj)
+    on_flange = setup_info(setup).camera_on_flange
+
+    def jac(x):
+        X, Z, Kx, dx, F = unpack(x)
+        R_Xt = X[:3, :3].T
+        H = robot_world_A_inv(F, setup)
+        G = (R_Xt @ H[:, :3, :3])[owner]  # (M, 3, 3)
+        zp = points @ Z[:3, :3].T  # R_Z P
+        q = zp + Z[:3, 3]  # Z P
+        p = np.einsum("mij,mj->mi", G, q) + (R_Xt @ (H[:, :3, 3] - X[:3, 3]).T).T[owner]
+        d_point, d_intr = projection_jacobians(p, Kx, dx)
+        # the unknowns are rotation vectors composed on the left of the start: exp(w) R_0, whose
+        # derivative is the left increment's times the left Jacobian at w
+        J_lx, J_lz = so3_left_jacobian(np.stack([x[0:3], x[6:9]]))
+        d_G = d_point @ G
+        J_px = np.empty((m, 2, n_glob))
+        # rows a^T [p]x = (a x p)^T: cross products, then one product with a 3x3 for all rows
+        J_px[:, :, 0:3] = (_cross_rows(d_point, p).reshape(-1, 3) @ (R_Xt @ J_lx)).reshape(m, 2, 3)
+        J_px[:, :, 3:6] = -(d_point.reshape(-1, 3) @ R_Xt).reshape(m, 2, 3)
+        J_px[:, :, 6:9] = -(_cross_rows(d_G, zp).reshape(-1, 3) @ J_lz).reshape(m, 2, 3)
+        J_px[:, :, 9:12] = d_G
+        if n_glob > 12:
+            J_px[:, :, 12:] = d_intr
+        if prior_w is None:
+            return J_px.reshape(2 * m, n_glob)
+        # robot corrections: image i's points depend on its own six, and prior row k on correction k
+        R_F, t_F = F[owner, :3, :3], F[owner, :3, 3]
+        if on_flange:  # H = inv(F)
+            R_Ft = np.swapaxes(R_F, -1, -2)
+            dh = np.concatenate([R_Ft @ skew(q - t_F), -R_Ft], axis=2)
+        else:  # H = F: R_F q, with q in the flange frame
+            dh = np.concatenate([-skew(np.einsum("mij,mj->mi", R_F, q)), np.broadcast_to(np.eye(3), (m, 3, 3))], axis=2)
+        dh[:, :, :3] = dh[:, :, :3] @ so3_left_jacobian(x[n_glob:].reshape(n_img, 6)[:, :3])[owner]
+        J = np.zeros((2 * m + 6 * n_img, n_glob + 6 * n_img))
+        J[:2 * m, :n_glob] = J_px.reshape(2 * m, n_glob)
+        local = (d_point.reshape(-1, 3) @ R_Xt).reshape(m, 2, 3) @ dh  # (M, 2, 6)
+        rows = np.arange(2 * m).reshape(m, 2)
+        cols = n_glob + 6 * owner[:, None] + np.arange(6)
+        J[rows[:, :, None], cols[:, None, :]] = local
+        J[2 * m + np.arange(6 * n_img), n_glob + np.arange(6 * n_img)] = prior_w
+        return J
+
+    return jac
 
 
 def _reprojection_result(res, unpack, r0, counts, n: int, loss: str, n_calls: int) -> ReprojectionResult:

@@ -13,7 +13,7 @@ from .targets import Detection
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
 __all__ = ["symmetry_costs", "label_doubts", "solve_pnp", "calibrate_intrinsics", "resolve_symmetries", "reprojection_rms", "project_points",
-           "project_points_many"]
+           "project_points_many", "projection_jacobians"]
 
 
 def project_points(
@@ -54,6 +54,64 @@ def project_points_many(target2cam: NDArray[np.float64], points: NDArray[np.floa
     xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
     yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
     return np.stack([K[0, 0] * xd + K[0, 2], K[1, 1] * yd + K[1, 2]], axis=1)  # OpenCV ignores a skew term
+
+
+def projection_jacobians(points_cam: NDArray[np.float64], K: NDArray[np.float64],
+                         dist: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Derivatives of the pixel positions of camera-frame points ``(M, 3)`` under OpenCV's camera
+    model (as :func:`project_points_many`, up to 8 distortion coefficients).
+
+    Returns
+    -------
+    d_point : ndarray (M, 2, 3)
+        d(u, v) / d(point in the camera frame).
+    d_intrinsics : ndarray (M, 2, 9)
+        d(u, v) / d(fx, fy, cx, cy, k1, k2, p1, p2, k3).
+    """
+    dist = np.asarray(dist, dtype=float).ravel()
+    if len(dist) > 8:
+        raise ValueError(f"{len(dist)} distortion coefficients: the analytic derivatives cover up to 8")
+    d = np.zeros(8)
+    d[: len(dist)] = dist
+    k1, k2, p1, p2, k3, k4, k5, k6 = d
+    fx, fy = K[0, 0], K[1, 1]
+    inv_z = 1.0 / points_cam[:, 2]
+    x, y = points_cam[:, 0] * inv_z, points_cam[:, 1] * inv_z
+    r2 = x * x + y * y
+    num = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    den = 1 + r2 * (k4 + r2 * (k5 + r2 * k6))
+    radial = num / den
+    d_radial = ((k1 + r2 * (2 * k2 + 3 * k3 * r2)) * den - num * (k4 + r2 * (2 * k5 + 3 * k6 * r2))) / (den * den)
+    xy = x * y
+    # the distorted normalised point (xd, yd) against the undistorted one (x, y)
+    dxd_dx = radial + 2 * x * x * d_radial + 2 * p1 * y + 6 * p2 * x
+    dxd_dy = 2 * xy * d_radial + 2 * p1 * x + 2 * p2 * y
+    dyd_dy = radial + 2 * y * y * d_radial + 6 * p1 * y + 2 * p2 * x
+    m = len(points_cam)
+    d_point = np.empty((m, 2, 3))
+    # (x, y) against the point: [[1/z, 0, -x/z], [0, 1/z, -y/z]]
+    d_point[:, 0, 0] = fx * dxd_dx * inv_z
+    d_point[:, 0, 1] = fx * dxd_dy * inv_z
+    d_point[:, 0, 2] = -fx * (dxd_dx * x + dxd_dy * y) * inv_z
+    d_point[:, 1, 0] = fy * dxd_dy * inv_z  # dyd/dx = dxd/dy
+    d_point[:, 1, 1] = fy * dyd_dy * inv_z
+    d_point[:, 1, 2] = -fy * (dxd_dy * x + dyd_dy * y) * inv_z
+    xd = x * radial + 2 * p1 * xy + p2 * (r2 + 2 * x * x)
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * xy
+    d_intrinsics = np.zeros((m, 2, 9))
+    d_intrinsics[:, 0, 0] = xd
+    d_intrinsics[:, 1, 1] = yd
+    d_intrinsics[:, 0, 2] = 1.0
+    d_intrinsics[:, 1, 3] = 1.0
+    for col, power in ((4, 1), (5, 2), (8, 3)):  # k1, k2, k3
+        g = r2**power / den
+        d_intrinsics[:, 0, col] = fx * x * g
+        d_intrinsics[:, 1, col] = fy * y * g
+    d_intrinsics[:, 0, 6] = fx * 2 * xy
+    d_intrinsics[:, 1, 6] = fy * (r2 + 2 * y * y)
+    d_intrinsics[:, 0, 7] = fx * (r2 + 2 * x * x)
+    d_intrinsics[:, 1, 7] = fy * 2 * xy
+    return d_point, d_intrinsics
 
 
 def reprojection_rms(det: Detection, target2cam: NDArray[np.float64], K: NDArray[np.float64], dist: NDArray[np.float64]) -> float:
