@@ -13,7 +13,7 @@ from .targets import Detection
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
 __all__ = ["symmetry_costs", "label_doubts", "solve_pnp", "calibrate_intrinsics", "resolve_symmetries", "reprojection_rms", "project_points",
-           "project_points_many", "projection_jacobians"]
+           "project_points_many", "project_camera_points", "projection_jacobians"]
 
 
 def project_points(
@@ -43,11 +43,19 @@ def project_points_many(target2cam: NDArray[np.float64], points: NDArray[np.floa
             sel = owner == i
             out[sel] = project_points(target2cam[i], points[sel], K, dist)
         return out
+    R, t = target2cam[owner, :3, :3], target2cam[owner, :3, 3]
+    return project_camera_points(np.einsum("mij,mj->mi", R, points) + t, K, dist)
+
+
+def project_camera_points(p: NDArray[np.float64], K: NDArray[np.float64], dist: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Pixel positions (M, 2) of camera-frame points (M, 3): OpenCV's camera model with up to 8
+    distortion coefficients (see :func:`project_points_many`)."""
+    dist = np.asarray(dist, dtype=float).ravel()
+    if len(dist) > 8:
+        raise ValueError(f"{len(dist)} distortion coefficients: this projection covers up to 8")
     d = np.zeros(8)
     d[: len(dist)] = dist
     k1, k2, p1, p2, k3, k4, k5, k6 = d
-    R, t = target2cam[owner, :3, :3], target2cam[owner, :3, 3]
-    p = np.einsum("mij,mj->mi", R, points) + t
     x, y = p[:, 0] / p[:, 2], p[:, 1] / p[:, 2]
     r2 = x * x + y * y
     radial = (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
