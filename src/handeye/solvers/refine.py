@@ -116,10 +116,8 @@ def refine_reprojection(
         estimated from free per-image PnP fits. X and Z then stop absorbing the robot's errors.
         The corrected robot poses are returned (``flange2base``).
     sparse : bool
-        Use the analytic Jacobian (:func:`_reprojection_jacobian`; with more than 8 distortion
-        coefficients, forward differences grouped by image: image i's residuals depend on X, Z
-        (and the intrinsics) and on its own correction only). ``False`` with ``robot_noise``:
-        scipy's plain finite differences, for benchmarks and checks.
+        Analytic Jacobians, corrections eliminated (beyond 8 distortion terms: differences grouped
+        by image); ``False`` with ``robot_noise``: the joint problem by scipy's plain differences.
     tol : float
         ``least_squares``' xtol, ftol and gtol (refits from a nearby start, as in cross-validation,
         need far less than the default).
@@ -139,12 +137,7 @@ def refine_reprojection(
     n_glob = 21 if refine_intrinsics else 12
     counts = np.cumsum([0] + [len(o) for o in obj])
     if robot_noise is not None:
-        sig_rot, sig_t = (float(v) for v in robot_noise)
-        if not (sig_rot > 0 and sig_t > 0 and np.isfinite(sig_rot) and np.isfinite(sig_t)):
-            raise ValueError(f"robot_noise {robot_noise}: give positive standard deviations (rad, m)")
-        # the pixel noise, from free per-image pose fits (they absorb any robot error)
-        sigma_px = _pixel_noise(obj, img, K0, dist)
-        prior_w = np.tile(np.r_[np.full(3, sigma_px / sig_rot), np.full(3, sigma_px / sig_t)], n_img)
+        (sig_rot, sig_t), prior_w = _robot_prior(robot_noise, obj, img, K0, dist)
     analytic = len(extra_dist) <= 3  # up to 8 coefficients: OpenCV's rational model
     if robot_noise is not None and sparse and analytic:
         return _refine_with_corrections(X0, Z0, K0, d0, extra_dist, flange2base, obj, img, setup, n_glob, counts,
@@ -173,6 +166,17 @@ def refine_reprojection(
     res = least_squares(residuals, x0, loss=loss, f_scale=f_scale, x_scale=scale, method="trf",
                         xtol=tol, ftol=tol, gtol=tol, **kw)
     return _reprojection_result(res, unpack, r0, counts, n, loss, calls[0])
+
+
+def _robot_prior(robot_noise, obj, img, K, dist) -> tuple[tuple[float, float], NDArray[np.float64]]:
+    """The robot pose corrections' prior: their stds (rad, m), checked, and the weights of their
+    residual rows in pixel units, the pixel noise taken from free per-image pose fits (which absorb
+    any robot error)."""
+    sig_rot, sig_t = (float(v) for v in robot_noise)
+    if not (sig_rot > 0 and sig_t > 0 and np.isfinite(sig_rot) and np.isfinite(sig_t)):
+        raise ValueError(f"robot_noise {robot_noise}: give positive standard deviations (rad, m)")
+    sigma_px = _pixel_noise(obj, img, K, dist)
+    return (sig_rot, sig_t), np.tile(np.r_[np.full(3, sigma_px / sig_rot), np.full(3, sigma_px / sig_t)], len(obj))
 
 
 def _xz_increment(x: NDArray[np.float64], X0: NDArray[np.float64], Z0: NDArray[np.float64]):
