@@ -183,6 +183,20 @@ def test_visp_eye_in_hand_2025_matches_visp(tmp_path):
     assert np.median(cal26.pose_residuals[:, 1]) < 0.6 * np.median(closed.pose_residuals[:, 1])
 
 
+def test_calibrate_shows_the_steps_after_detection(rendered, monkeypatch, capsys):
+    """Large captures spend seconds after detection (check, the estimators' cross-validation, the
+    uncertainty): from PROGRESS_FROM_IMAGES views they are shown too (one line each off a terminal)."""
+    from handeye import calibration
+
+    folder, _ = rendered("chessboard", "eye_in_hand", True)
+    handeye.calibrate(folder, progress=True)
+    assert "views: check, estimators, uncertainty" not in capsys.readouterr().err  # 15 views: below the threshold
+    monkeypatch.setattr(calibration, "PROGRESS_FROM_IMAGES", 10)
+    handeye.calibrate(folder, progress=True)
+    err = capsys.readouterr().err
+    assert "detecting: 15/15" in err and "calibrating 15 views: check, estimators, uncertainty: 3/3" in err
+
+
 def test_reprojection_refinement_gains_on_rendered_session(rendered):
     folder, scene = rendered("chessboard", "eye_in_hand", True)
     closed = handeye.calibrate(folder, progress=False, refine="none")

@@ -54,6 +54,8 @@ REFINE_RMS_FLOOR = 1.0
 
 #: calibrate_poses shows its steps from this many poses (a second or more).
 PROGRESS_FROM_POSES = 200
+#: calibrate shows its steps after detection from this many views (several seconds for large boards).
+PROGRESS_FROM_IMAGES = 50
 #: The robot's absolute accuracy assumed by default, per axis (deg, mm): a constant error of the robot
 #: poses moves X by as much, and no data can see it (it is absorbed into X).
 ROBOT_ACCURACY = (0.03, 0.3)
@@ -694,7 +696,7 @@ def calibrate(
     if session.robot_stream is not None:  # a robot stream: the images meet the robot at the clock offset
         obs, sync, robot, camera = _synchronised(obs, offset_range, time_offset, keyframes)
     cal = calibrate_observed(obs, method=method, refine=refine, pairs=pairs, check=check, robot_noise=robot_noise,
-                             strict=strict, folds=folds, robot_accuracy=robot_accuracy, known=known)
+                             strict=strict, folds=folds, robot_accuracy=robot_accuracy, known=known, progress=progress)
     return cal if sync is None else _with_sync(cal, sync, robot, camera, obs)
 
 
@@ -765,12 +767,25 @@ def calibrate_observed(
     robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
     uncertainty: bool = True,
     known: dict | None = None,
+    progress: bool = False,
 ) -> Calibration:
     """:func:`calibrate` from what :func:`observe` made of a session's images (the same options).
 
     ``uncertainty=False`` skips the jackknife refits that the reported std of ``refine='auto'``
-    needs (for repeated calibrations on parts of the same data, e.g. cross-validation).
+    needs (for repeated calibrations on parts of the same data, e.g. cross-validation);
+    ``progress``: show the steps after detection on stderr (from :data:`PROGRESS_FROM_IMAGES` views).
     """
+    bar = Progress(3, f"calibrating {len(obs.flange2base)} views: check, estimators, uncertainty",
+                   progress and len(obs.flange2base) >= PROGRESS_FROM_IMAGES)
+    try:
+        return _calibrate_observed(obs, method, refine, pairs, check, robot_noise, strict, folds, robot_accuracy,
+                                   uncertainty, known, bar)
+    finally:
+        bar.close()
+
+
+def _calibrate_observed(obs, method, refine, pairs, check, robot_noise, strict, folds, robot_accuracy, uncertainty,
+                        known, bar: Progress) -> Calibration:
     if refine not in ("auto", "reprojection", "pose", "none"):
         raise InputMismatchError(f"refine={refine!r}; use 'auto', 'reprojection', 'pose' or 'none'")
     robot_sigma = _robot_sigma(robot_noise, refine)
@@ -778,6 +793,7 @@ def calibrate_observed(
     cal = calibrate_poses(obs.flange2base, obs.target2cam, setup=obs.session.setup, method=method, pairs=pairs,
                           refine="none", check=check, robot_input=obs.robot_input, strict=strict, known=known,
                           symmetries=_symmetries(obs))
+    bar.update()
     kept, outlier_images = _drop_pose_outliers(cal, obs)
     if cal.motion_kind != "general":  # part of X undetermined: the pose refinement with the known values
         if refine != "none":
@@ -791,7 +807,10 @@ def calibrate_observed(
     if refine == "auto" and len(idx) >= 5:
         views = _views(obs, idx)
         candidates = pose_candidates(method, views) | pixel_candidates(views, method, estimated, robot_sigma)
-        cal = apply_choice(cal, choose(views, candidates, folds), views, pairs, obs, robot_noise, accuracy, uncertainty)
+        choice = choose(views, candidates, folds)
+        bar.update()
+        cal = apply_choice(cal, choice, views, pairs, obs, robot_noise, accuracy, uncertainty)
+        bar.update()
     elif refine in ("auto", "pose"):
         cal = refine_on_poses(cal)
     elif refine == "reprojection":
