@@ -1,6 +1,10 @@
-"""Detection + PnP on a rendered 30-image 1280x1024 chessboard session, against plain OpenCV.
+"""Detection + PnP on rendered chessboard sessions, against plain OpenCV.
 
-    python benchmarks/bench_images.py [--repeat 3]
+    python benchmarks/bench_images.py [--repeat 3] [--skip-large]
+
+Two cases: 30 images of 1280x1024 (a 9x6 board), and a large one, 12 images of 4000x3000 (12 MP)
+with a 28x17 board of 8 mm squares (timed once; the peak memory of a fresh process running each
+side is printed too: neither holds more than the images in work).
 
 Timings on the same images, best of ``--repeat``:
 
@@ -50,11 +54,53 @@ def corner_rms(found: list, truth: list) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--skip-large", action="store_true", help="only the 30-image 1280x1024 case")
     args = parser.parse_args()
+    _case(30, (1280, 1024), "chessboard", args.repeat)
+    if not args.skip_large:
+        # high resolution and a large board: 12 MP, 28 x 17 inner corners of 8 mm squares
+        _case(12, (4000, 3000), {"type": "chessboard", "cols": 28, "rows": 17, "square": 0.008}, 1)
+
+
+_CHILD = """
+import sys, json, cv2, numpy as np
+from handeye.vision import detect_images, solve_pnp, target_from_spec
+paths, spec, K, dist, which = json.loads(sys.stdin.read())
+target, K, dist = target_from_spec(spec), np.array(K), np.array(dist)
+if which == "handeye":
+    for r in detect_images(paths, target, progress=False):
+        solve_pnp(r.detection, K, dist)
+else:
+    objp = target.object_points().astype(np.float64)
+    for p in paths:
+        gray = cv2.imread(p, cv2.IMREAD_GRAYSCALE)
+        _, c = cv2.findChessboardCornersSB(gray, (target.cols, target.rows), flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
+        img = c.reshape(-1, 2).astype(np.float64)
+        _, rvec, tvec = cv2.solvePnP(objp, img, K, dist, flags=cv2.SOLVEPNP_IPPE)
+        cv2.solvePnPRefineLM(objp, img, K, dist, rvec, tvec)
+with open("/proc/self/status") as f:  # VmHWM: this process's peak resident memory (kB)
+    print(next(int(line.split()[1]) for line in f if line.startswith("VmHWM")))
+"""
+
+
+def _child_peak_mib(which: str, paths: list[str], spec: dict, K, dist) -> float:
+    """Peak resident memory (MiB) of a fresh process running handeye's detection + PnP on all
+    cores (``which='handeye'``) or the plain sequential OpenCV loop on ``paths``; read by the
+    child itself (a child's ``ru_maxrss`` starts from its parent's on Linux)."""
+    import json
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _CHILD], check=True, capture_output=True, text=True,
+                         input=json.dumps([paths, spec, np.asarray(K).tolist(), np.asarray(dist).tolist(), which]))
+    return int(out.stdout.split()[-1]) / 1024
+
+
+def _case(n: int, size: tuple[int, int], target_spec, repeat: int) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp) / "session"
-        print("rendering 30 images 1280x1024 ...")
-        simulate_session(folder, "eye_in_hand", 30, "chessboard", noise_px=0.2, seed=1, image_size=(1280, 1024))
+        print(f"\nrendering {n} images {size[0]}x{size[1]} ...")
+        simulate_session(folder, "eye_in_hand", n, target_spec, noise_px=0.2, seed=1, image_size=size)
         session = load_session(folder)
         target = target_from_spec(session.target_spec)
         K, dist = session.camera_matrix, session.dist_coeffs
@@ -102,12 +148,17 @@ def main() -> None:
         jobs = default_jobs()
         saved = cv2.getNumThreads()
         cv2.setNumThreads(1)
-        t_cv1 = best_time(opencv_loop(find_full), args.repeat, warmup=False)
+        t_cv1 = best_time(opencv_loop(find_full), repeat, warmup=False)
         cv2.setNumThreads(saved)
-        t_cv = best_time(opencv_loop(find_full), args.repeat, warmup=False)
-        t_bare = best_time(opencv_loop(find_in_region), args.repeat, warmup=False)
-        t_one = best_time(handeye_pipeline(1), args.repeat, warmup=False)
-        t_par = best_time(handeye_pipeline(jobs), args.repeat, warmup=False)
+        t_cv = best_time(opencv_loop(find_full), repeat, warmup=False)
+        t_bare = best_time(opencv_loop(find_in_region), repeat, warmup=False)
+        t_one = best_time(handeye_pipeline(1), repeat, warmup=False)
+        t_par = best_time(handeye_pipeline(jobs), repeat, warmup=False)
+        if min(size) > 2000:  # memory, each in a fresh process: the plain loop holds one image at a time
+            mem_cv = _child_peak_mib("opencv", paths, session.target_spec, K, dist)
+            mem_he = _child_peak_mib("handeye", paths, session.target_spec, K, dist)
+            print(f"peak memory of a fresh process: opencv loop {mem_cv:.0f} MiB, handeye on {jobs} cores {mem_he:.0f} MiB "
+                  f"(the {n} grey images alone: {n * size[0] * size[1] / 2**20:.0f} MiB)")
         print(f"cv2 {cv2.__version__}, {jobs} cores, images rendered with 0.2 px noise")
         print(f"opencv loop                   {t_cv:7.3f} s   (one OpenCV thread: {t_cv1:.3f} s); "
               f"corner RMS from truth {corner_rms(found_cv, truth):.4f} px")

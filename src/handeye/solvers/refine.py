@@ -141,7 +141,7 @@ def refine_reprojection(
     analytic = len(extra_dist) <= 3  # up to 8 coefficients: OpenCV's rational model
     if robot_noise is not None and sparse and analytic:
         return _refine_with_corrections(X0, Z0, K0, d0, extra_dist, flange2base, obj, img, setup, n_glob, counts,
-                                        prior_w, (sig_rot, sig_t), loss, f_scale, tol)
+                                        prior_w, loss, f_scale, tol)
     unpack = _reprojection_unpacker(X0, Z0, K0, d0, extra_dist, flange2base, refine_intrinsics,
                                     robot_noise is not None, n_glob)
 
@@ -303,6 +303,14 @@ def _reprojection_jacobian(unpack, obj, setup: str, n_glob: int):
     return jac
 
 
+#: ``rho'(z)`` of scipy's robust losses (``least_squares``' definitions).
+_LOSS_WEIGHTS = {
+    "soft_l1": lambda z: 1.0 / np.sqrt(1.0 + z),
+    "huber": lambda z: np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(np.maximum(z, 1.0))),
+    "cauchy": lambda z: 1.0 / (1.0 + z),
+    "arctan": lambda z: 1.0 / (1.0 + z * z),
+}
+
 #: Gauss-Newton steps for the robot corrections per evaluation, and when they have settled (the
 #: step against the prior's std).
 _INNER_STEPS = 12
@@ -310,7 +318,7 @@ _INNER_TOL = 1e-10
 
 
 def _refine_with_corrections(X0, Z0, K0, d0, extra_dist, flange2base, obj, img, setup, n_glob, counts, prior_w,
-                             robot_sigma, loss, f_scale, tol) -> ReprojectionResult:
+                             loss, f_scale, tol) -> ReprojectionResult:
     """:func:`refine_reprojection` with robot pose corrections, the corrections eliminated.
 
     For given X, Z (and intrinsics) each image's correction is a 6-unknown problem of its own
@@ -333,11 +341,11 @@ def _refine_with_corrections(X0, Z0, K0, d0, extra_dist, flange2base, obj, img, 
     state = {"c": np.zeros((n_img, 6)), "x": None, "A": None, "J": None, "W": None}
     calls = [0]
 
-    def robust_weights(r):
+    def robust_weights(r):  # rho'(z), z = (r / f_scale)^2: the loss's weights of the squared residuals
         if loss == "linear":
             return None
         z = (r / f_scale) ** 2
-        return 1.0 / np.sqrt(1.0 + z) if loss == "soft_l1" else np.where(z <= 1.0, 1.0, 1.0 / np.sqrt(z))
+        return _LOSS_WEIGHTS[loss](z)
 
     def evaluate(x):
         if state["x"] is not None and np.array_equal(x, state["x"]):
