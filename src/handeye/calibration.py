@@ -792,13 +792,14 @@ def _calibrate_observed(obs, method, refine, pairs, check, robot_noise, strict, 
     accuracy = _accuracy(robot_accuracy)
     cal = calibrate_poses(obs.flange2base, obs.target2cam, setup=obs.session.setup, method=method, pairs=pairs,
                           refine="none", check=check, robot_input=obs.robot_input, strict=strict, known=known,
-                          symmetries=_symmetries(obs))
+                          symmetries=_symmetries(obs), progress=False)  # the caller's bar counts this step
     bar.update()
     kept, outlier_images = _drop_pose_outliers(cal, obs)
     if cal.motion_kind != "general":  # part of X undetermined: the pose refinement with the known values
         if refine != "none":
             cal = calibrate_poses(obs.flange2base, obs.target2cam, setup=obs.session.setup, pairs=pairs, refine="pose",
-                                  check=check, robot_input=obs.robot_input, known=known, robot_accuracy=robot_accuracy)
+                                  check=check, robot_input=obs.robot_input, known=known, robot_accuracy=robot_accuracy,
+                                  progress=False)
             cal = replace(cal, notes=cal.notes + ["the pixel refinement does not run on motions that determine only "
                                                   "part of X: X is refined on the PnP poses"])
         return _with_images(cal, obs, kept, outlier_images, list(obs.notes))
