@@ -273,16 +273,15 @@ class MotionSet:
                                np.concatenate([np.swapaxes(ab, -1, -2), bT @ b], axis=-1)], axis=-2)
 
     @cached_property
-    def matrix_moments(self) -> NDArray[np.float64]:
-        """``sum_k z_k z_k^T`` over the motions of ``z = [vec A, vec B]`` (row-major 4x4s),
-        ``(..., 32, 32)``; with ``A[3, 3] = 1`` row 15 holds the plain sums. The translation step
-        of the rotation-first solvers and Andreff's system read their sums off it."""
+    def translation_moments(self) -> NDArray[np.float64]:
+        """``sum_k vec(A_k) [a_k, b_k]^T`` over the motions, ``(..., 16, 8)``, with ``vec`` the
+        row-major 4x4 and ``a``, ``b`` the last columns ``(t, 1)`` of ``A`` and ``B``: entry
+        ``[4i + c, j]`` is ``sum A[i, c] A[j, 3]``, ``[4i + c, 4 + j]`` is ``sum A[i, c] B[j, 3]``
+        (``A[3, 3] = 1``: row 15 and columns 3, 7 hold the plain sums). The translation step of
+        the rotation-first solvers reads its sums off it (a product with 8 columns, not 32)."""
         A = self.A.reshape(self.A.shape[:-2] + (16,))
         B = self.B.reshape(self.B.shape[:-2] + (16,))
-        AT, BT = np.swapaxes(A, -1, -2), np.swapaxes(B, -1, -2)
-        ab = AT @ B
-        return np.concatenate([np.concatenate([AT @ A, ab], axis=-1),
-                               np.concatenate([np.swapaxes(ab, -1, -2), BT @ B], axis=-1)], axis=-2)
+        return np.swapaxes(A, -1, -2) @ np.concatenate([A[..., 3::4], B[..., 3::4]], axis=-1)
 
     @cached_property
     def all_pairs_factors(self) -> tuple | None:

@@ -22,17 +22,14 @@ def translation_least_squares(motions: MotionSet, R_X: NDArray[np.float64]) -> N
     """
     if motions.all_pairs_factors is not None:
         return _translation_all_pairs(motions.all_pairs_factors, R_X)
-    # sum R_A^T d = sum R_A^T R_X t_B - sum R_A^T t_A, and the plain sums: entries of the moments of
-    # the flattened motions, [i, c, j, e] = sum A[i, c] B[j, e] (row 3, column 3 of A is 1)
-    M = motions.matrix_moments
-    lead = M.shape[:-2]
-    M_aa = M[..., :16, :16].reshape(lead + (4, 4, 4, 4))
-    M_ab = M[..., :16, 16:].reshape(lead + (4, 4, 4, 4))
-    sum_A, sum_B = M_aa[..., 3, 3, :, :], M_ab[..., 3, 3, :, :]
-    S = sum_A[..., :3, :3]
-    sum_d = (R_X @ sum_B[..., :3, 3, None])[..., 0] - sum_A[..., :3, 3]
-    rhs = (np.einsum("...ij,...icj->...c", R_X, M_ab[..., :3, :3, :3, 3])
-           - np.einsum("...ici->...c", M_aa[..., :3, :3, :3, 3]) - sum_d)
+    # sum R_A^T d = sum R_A^T R_X t_B - sum R_A^T t_A, and the plain sums: entries of
+    # MotionSet.translation_moments, [i, c, j] = sum A[i, c] A[j, 3] and [i, c, 4 + j] = sum A[i, c] B[j, 3]
+    M = motions.translation_moments
+    M = M.reshape(M.shape[:-2] + (4, 4, 8))
+    S = M[..., :3, :3, 3]  # sum R_A
+    sum_d = (R_X @ M[..., 3, 3, 4:7, None])[..., 0] - M[..., 3, 3, :3]
+    rhs = (np.einsum("...ij,...icj->...c", R_X, M[..., :3, :3, 4:7]) - np.einsum("...ici->...c", M[..., :3, :3, :3])
+           - sum_d)
     normal = 2 * len(motions) * np.eye(3) - S - np.swapaxes(S, -1, -2)
     return np.linalg.solve(normal, rhs[..., None])[..., 0]
 

@@ -49,31 +49,33 @@ def solve(motions: MotionSet) -> NDArray[np.float64]:
     Vectorised: a batch of motion sets ``(..., K, 8)`` gives ``X`` of shape ``(..., 4, 4)``.
     """
     n = len(motions)
-    # every sum over the motions is an entry of the moments of the flattened motions,
-    # [i, c, j, e] = sum A[i, c] B[j, e] (A[3, 3] = B[3, 3] = 1: the plain sums)
-    M = motions.matrix_moments
-    batch = M.shape[:-2]
-    M_aa = M[..., :16, :16].reshape(batch + (4, 4, 4, 4))
-    M_ab = M[..., :16, 16:].reshape(batch + (4, 4, 4, 4))
-    M_bb = M[..., 16:, 16:].reshape(batch + (4, 4, 4, 4))
-    sumRA = M_aa[..., 3, 3, :3, :3]
-    sum_tA, sum_tB = M_aa[..., 3, 3, :3, 3], M_ab[..., 3, 3, :3, 3]
+    # every sum over the motions is an entry of moments of the flattened motions (row-major 4x4s,
+    # A[3, 3] = B[3, 3] = 1 giving the plain sums): [i, c, j] = sum A[i, c] A[j, 3] and
+    # [i, c, 4 + j] = sum A[i, c] B[j, 3] (MotionSet.translation_moments), and sum A[i, c] B[j, e]
+    T = motions.translation_moments
+    batch = T.shape[:-2]
+    T = T.reshape(batch + (4, 4, 8))
+    A, B = motions.A, motions.B
+    A_flat, B_flat = A.reshape(A.shape[:-2] + (16,)), B.reshape(B.shape[:-2] + (16,))
+    M_ab = (np.swapaxes(A_flat, -1, -2) @ B_flat).reshape(batch + (4, 4, 4, 4))
+    t_B = B_flat[..., 3:12:4]
+    sumRA = T[..., :3, :3, 3]
+    sum_tA, sum_tB = T[..., 3, 3, :3], T[..., 3, 3, 4:7]
     sumK = np.swapaxes(M_ab[..., :3, :3, :3, :3], -3, -2).reshape(batch + (9, 9))  # sum kron(R_A, R_B)
     I3 = np.eye(3)
     G = np.zeros(batch + (12, 12))
-    G[..., :9, :9] = 2 * n * np.eye(9) - sumK - np.swapaxes(sumK, -1, -2) + kron_eye(M_bb[..., :3, 3, :3, 3])
+    G[..., :9, :9] = 2 * n * np.eye(9) - sumK - np.swapaxes(sumK, -1, -2) + kron_eye(np.swapaxes(t_B, -1, -2) @ t_B)
     # sum_k kron(I3, t_B) (I - R_A): [3a + b, c] = sum t_B[b] (I - R_A)[a, c]
-    G[..., :9, 9:] = kron_eye(sum_tB[..., :, None]) - np.swapaxes(M_ab[..., :3, :3, :3, 3], -1, -2).reshape(batch + (9, 3))
+    G[..., :9, 9:] = kron_eye(sum_tB[..., :, None]) - np.swapaxes(T[..., :3, :3, 4:7], -1, -2).reshape(batch + (9, 3))
     G[..., 9:, :9] = np.swapaxes(G[..., :9, 9:], -1, -2)
     G[..., 9:, 9:] = 2 * n * I3 - sumRA - np.swapaxes(sumRA, -1, -2)
     rhs = np.zeros(batch + (12,))
-    rhs[..., :9] = M_ab[..., :3, 3, :3, 3].reshape(batch + (9,))  # sum kron(I3, t_B) t_A
-    rhs[..., 9:] = sum_tA - np.einsum("...ici->...c", M_aa[..., :3, :3, :3, 3])  # sum (I - R_A)^T t_A
+    rhs[..., :9] = T[..., :3, 3, 4:7].reshape(batch + (9,))  # sum kron(I3, t_B) t_A
+    rhs[..., 9:] = sum_tA - np.einsum("...ici->...c", T[..., :3, :3, :3])  # sum (I - R_A)^T t_A
     sol = np.linalg.solve(G, rhs[..., None])[..., 0]
     lam = np.linalg.eigvalsh(G)
     ill = (lam[..., 0] * NORMAL_COND_MAX < lam[..., -1]).reshape(-1)
     if ill.any():
-        A, B = motions.A, motions.B
         R_A, R_B, t_A, t_B = A[..., :3, :3], B[..., :3, :3], A[..., :3, 3], B[..., :3, 3]
         flat = lambda a: a.reshape((-1,) + a.shape[len(batch):])  # noqa: E731
         M, y = _stacked(*(flat(a)[ill] for a in (R_A, R_B, t_A, t_B)))
