@@ -81,6 +81,9 @@ def test_quaternion_orders_and_matrix_layout():
         ([[0, 0, 0.5, 1, 2, 3]], "rotvec", {"length_unit": "cm"}, "unknown length unit"),
         ([[0, 0, 0.5, 1, 2, 3]], "rotvec", {"angle_unit": "grad"}, "unknown angle unit"),
         ([[0, 0, 0.5, 30, 45, 10]], "euler:ZYX", {"angle_unit": "rad"}, "look like degrees"),
+        # hypothesis found it: 7.7e155 deg made a NaN rotation that came back as a pose
+        ([[0, 0, 0.5, 7.682108069077478e155, 0, 0]], "rotvec", {"angle_unit": "deg"}, "7.682e\\+155 deg or more exceeds 360 deg"),
+        ([[0, 0, 0.5, 30, 400, 10]], "euler:ZYX", {"angle_unit": "deg"}, "400 deg or more exceeds 360 deg"),
         ([[800, 100, 400, 0.1, 0.2, 0.3]] * 3, "rotvec", {"length_unit": "m"}, "look like millimetres"),
         ([[0.8, 0.1, 0.4, 0.1, 0.2, 0.3], [0.7, 0.1, 0.4, 0.1, 0.2, 0.3]], "rotvec", {"length_unit": "mm"}, "look like metres"),
         ("abc", "rotvec", {}, "not numbers"),

@@ -196,15 +196,19 @@ def parse_poses(
             R = Rotation.from_quat(rot, scalar_first=(kind == "quat_wxyz")).as_matrix()
         else:
             ang = np.deg2rad(rot) if angle_unit == "deg" else rot
-            if angle_unit == "rad":
-                limit = 2 * np.pi + 1e-6
-                mag = _norms(rot) if kind == "rotvec" else np.abs(rot).max(axis=1)
-                if (mag > limit).any():
-                    i = int(np.argmax(mag))
-                    raise PoseFormatError(
-                        f"{what}: row {i}: rotation of {mag[i]:.4g} rad exceeds 2 pi; "
-                        f"the angles look like degrees: declare angle_unit 'deg'"
-                    )
+            mag = _norms(rot) if kind == "rotvec" else np.abs(rot).max(axis=1)
+            if angle_unit == "rad" and (mag > 2 * np.pi + 1e-6).any():
+                i = int(np.argmax(mag))
+                raise PoseFormatError(
+                    f"{what}: row {i}: rotation of {mag[i]:.4g} rad exceeds 2 pi; "
+                    f"the angles look like degrees: declare angle_unit 'deg'"
+                )
+            if angle_unit == "deg" and (mag > 360.0 + 1e-4).any():  # 1e155 deg gave NaN rotations
+                i = int(np.argmax(mag))
+                raise PoseFormatError(
+                    f"{what}: row {i}: rotation of {np.abs(rot[i]).max():.4g} deg or more exceeds 360 deg, not the angle of a pose; "
+                    f"check the column order ({format}) and the units"
+                )
             if kind == "rotvec":
                 R = Rotation.from_rotvec(ang).as_matrix()
             else:
