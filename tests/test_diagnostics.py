@@ -286,6 +286,36 @@ def test_leave_one_out_observability_reads_no_uninitialised_memory(monkeypatch):
     assert np.flatnonzero(~got).tolist() == [5]
 
 
+def test_leave_one_out_observability_matches_the_check_on_each_subset():
+    """All poses at once (counting the motions that pass each test) against check_observability on
+    the motions left after dropping each pose, on random, one-axis-but-a-few and small-rotation poses."""
+    from handeye.errors import DegenerateMotionError
+    from handeye.geometry.se3 import from_rotvec_translation
+    from handeye.motions import MotionSet
+    from handeye.solvers.daniilidis import motion_groups
+    from handeye.solvers.observability import check_observability, observable_leave_one_out
+
+    rng = np.random.default_rng(8)
+    for trial in range(24):
+        n = int(rng.integers(4, 12))
+        s = random_scene(n, "eye_in_hand", rng=trial)
+        rotvec = rng.normal(size=(n, 3)) * [0.02, 0.02, 0.6] if trial % 3 else rng.normal(scale=0.4, size=(n, 3))
+        rotvec[: trial % 3] = rng.normal(scale=0.5, size=(trial % 3, 3))  # a few poses off the z axis
+        if trial % 4 == 3:
+            rotvec *= 0.01  # rotations too small
+        flange2base = from_rotvec_translation(rotvec, rng.normal(scale=0.2, size=(n, 3)))
+        motions = MotionSet.from_poses(flange2base, invert(s.X) @ invert(flange2base) @ s.Z, "eye_in_hand", "all")
+        got = observable_leave_one_out(motions, motion_groups(motions.pairs, n))
+        for p in range(n):
+            keep = (motions.pairs != p).all(axis=1)
+            try:
+                check_observability(MotionSet(motions.dq_a[keep], motions.dq_b[keep]))
+                expected = True
+            except DegenerateMotionError:
+                expected = False
+            assert got[p] == expected, (trial, p)
+
+
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 def test_the_wrong_setup_is_named_before_inverted_poses(setup):
     """Eye-in-hand data declared eye-to-hand reads exactly as inverted robot poses: both readings
