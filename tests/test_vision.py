@@ -95,6 +95,29 @@ def test_parallel_detection_equals_sequential(rendered):
         assert np.array_equal(a.detection.image_points, b.detection.image_points)
 
 
+def test_detection_workers_fit_the_available_memory(rendered, monkeypatch, capsys):
+    """By default as many workers as cores, but no more than the available memory holds for images
+    the size of the first (detected first, alone): with room for one 640x480 image only, one
+    worker, said on stderr, and the same detections in the same order."""
+    from handeye.vision import detect
+
+    assert detect.workers_for_memory(8, (4000, 3000), 64 * 12_000_000 * 3) == 3
+    assert detect.workers_for_memory(8, (4000, 3000), 1) == 1
+    assert detect.workers_for_memory(8, (640, 480), None) == 8
+    folder, _ = rendered("circles", "eye_in_hand", True)
+    paths = sorted((folder / "images").iterdir())
+    tgt = target_from_spec(yaml.safe_load((folder / "session.yaml").read_text())["target"])
+    monkeypatch.setattr(detect, "default_jobs", lambda: 2)
+    full = detect_images(paths, tgt, progress=True)
+    assert "instead of" not in capsys.readouterr().err  # this machine has room for two
+    monkeypatch.setattr(detect, "available_memory", lambda: detect.BYTES_PER_PIXEL * 640 * 480)
+    tight = detect_images(paths, tgt, progress=True)
+    assert "detecting with 1 worker(s) instead of 2: images of 640x480" in capsys.readouterr().err
+    assert [r.path for r in tight] == [r.path for r in full] == paths
+    for a, b in zip(tight, full):
+        assert np.array_equal(a.detection.image_points, b.detection.image_points)
+
+
 def test_bundled_sample_session():
     folder = Path(handeye.__file__).parent / "data" / "sample_session"
     truth = yaml.safe_load((folder / "ground_truth.yaml").read_text())

@@ -11,10 +11,11 @@ one thread per worker and restored afterwards.
 from __future__ import annotations
 
 import os
+import sys
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import Sequence
 
 from .._shared.lazy import lazy_module
 from .._shared.progress import Progress
@@ -22,7 +23,7 @@ from .targets import Detection, Target
 
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
-__all__ = ["ImageResult", "detect_images", "default_jobs"]
+__all__ = ["ImageResult", "detect_images", "default_jobs", "available_memory", "workers_for_memory"]
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,34 @@ def default_jobs() -> int:
 
 #: Images smaller than this on a side are not given to the detectors (OpenCV's asserts on them).
 MIN_IMAGE_SIDE = 32
+
+#: Resident memory a detection worker may need per image pixel: measured ~630 MB for a 12 MP image
+#: of a 28x17 board (findChessboardCornersSB's buffers), ~52 bytes a pixel; with margin.
+BYTES_PER_PIXEL = 64
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to new work (Linux ``MemAvailable``, else the free pages), or None
+    when the system does not say."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def workers_for_memory(jobs: int, image_size: tuple[int, int], available: int | None) -> int:
+    """At most ``jobs`` workers, as many as the available memory holds for images of ``image_size``
+    (at least one): many cores with large images must not run the machine out of memory."""
+    if available is None:
+        return jobs
+    return max(1, min(jobs, available // (BYTES_PER_PIXEL * image_size[0] * image_size[1])))
 
 
 def _detect_one(args: tuple[str, Target]) -> ImageResult:
@@ -74,17 +103,32 @@ def detect_images(
     paths : sequence of paths
     target : Target
     jobs : int, optional
-        Worker threads (default: the available cores); 1 runs in the calling thread with
+        Worker threads (default: the available cores, as many as the available memory holds for
+        images the size of the first, which is detected first); 1 runs in the calling thread with
         OpenCV's default internal threading.
     progress : bool
         Show a progress bar on stderr.
     """
+    chosen = jobs is None
     jobs = default_jobs() if jobs is None else max(1, int(jobs))
-    work: Iterable[tuple[str, Target]] = [(str(p), target) for p in paths]
+    work: list[tuple[str, Target]] = [(str(p), target) for p in paths]
     bar = Progress(len(paths), "detecting", progress)
     results: list[ImageResult] = []
     try:
-        if jobs == 1 or len(paths) < 2:
+        if chosen and jobs > 1 and len(paths) > jobs:
+            # the first image alone says how large the images are, and so how many fit in memory
+            results.append(_detect_one(work[0]))
+            bar.update()
+            work = work[1:]
+            available = available_memory()
+            if results[0].image_size is not None and available is not None:
+                fit = workers_for_memory(jobs, results[0].image_size, available)
+                if fit < jobs and progress:
+                    w, h = results[0].image_size
+                    sys.stderr.write(f"detecting with {fit} worker(s) instead of {jobs}: images of {w}x{h} need about "
+                                     f"{BYTES_PER_PIXEL * w * h / 2**30:.1f} GB each, {available / 2**30:.1f} GB available\n")
+                jobs = fit
+        if jobs == 1 or len(work) < 2:
             for item in work:
                 results.append(_detect_one(item))
                 bar.update()
