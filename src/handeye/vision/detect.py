@@ -50,6 +50,9 @@ MIN_IMAGE_SIDE = 32
 #: Resident memory a detection worker may need per image pixel: measured ~630 MB for a 12 MP image
 #: of a 28x17 board (findChessboardCornersSB's buffers), ~52 bytes a pixel; with margin.
 BYTES_PER_PIXEL = 64
+#: Below ``BYTES_PER_PIXEL`` times this many pixels (50 MP) of available memory per core, the
+#: default number of workers is decided after the first image (detected alone) shows the size.
+LARGEST_IMAGE_PIXELS = 50_000_000
 
 
 def available_memory() -> int | None:
@@ -103,9 +106,9 @@ def detect_images(
     paths : sequence of paths
     target : Target
     jobs : int, optional
-        Worker threads (default: the available cores, as many as the available memory holds for
-        images the size of the first, which is detected first); 1 runs in the calling thread with
-        OpenCV's default internal threading.
+        Worker threads (default: the available cores, and when memory is short no more than it
+        holds for images the size of the first, which is then detected first); 1 runs in the
+        calling thread with OpenCV's default internal threading.
     progress : bool
         Show a progress bar on stderr.
     """
@@ -115,13 +118,14 @@ def detect_images(
     bar = Progress(len(paths), "detecting", progress)
     results: list[ImageResult] = []
     try:
-        if chosen and jobs > 1 and len(paths) > jobs:
-            # the first image alone says how large the images are, and so how many fit in memory
+        available = available_memory() if chosen and jobs > 1 and len(paths) > jobs else None
+        if available is not None and available < jobs * BYTES_PER_PIXEL * LARGEST_IMAGE_PIXELS:
+            # memory may not hold every worker: the first image alone says how large the images
+            # are, and so how many fit
             results.append(_detect_one(work[0]))
             bar.update()
             work = work[1:]
-            available = available_memory()
-            if results[0].image_size is not None and available is not None:
+            if results[0].image_size is not None:
                 fit = workers_for_memory(jobs, results[0].image_size, available)
                 if fit < jobs and progress:
                     w, h = results[0].image_size
