@@ -324,6 +324,24 @@ def test_robot_aware_sparse_jacobian_matches_dense():
         refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", robot_noise=(0.0, 1e-3))
 
 
+def test_robot_aware_robust_fit_drops_a_view_its_robot_pose_contradicts():
+    """A whole view 40 px off (a wrong robot pose, a swapped image): the soft-L1 pass bends that
+    pose far beyond its prior instead of giving up the points, and pulled X by millimetres; the
+    view now goes whole, and X is what the other views give."""
+    scene, f2b, poses, cal, obj, img, K, dist = _robot_noise_scene(np.random.default_rng(9), n_poses=10)
+    kw = dict(robot_noise=(np.radians(0.05), 0.2e-3), robust=True)
+    bad = [im.copy() for im in img]
+    bad[6] += 40.0
+    got = refine_reprojection(cal.X, cal.Z, f2b, obj, bad, K, dist, "eye_in_hand", **kw)
+    keep = np.arange(10) != 6
+    without = refine_reprojection(cal.X, cal.Z, f2b[keep], [o for o, k in zip(obj, keep) if k],
+                                  [im for im, k in zip(img, keep) if k], K, dist, "eye_in_hand", **kw)
+    assert got.rejected_images == (6,) and got.n_rejected == len(obj[6])
+    assert translation_error(got.X, without.X) < 1e-6 and rotation_error(got.X, without.X) < 1e-8
+    clean = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", **kw)
+    assert clean.rejected_images == () and clean.n_rejected == 0
+
+
 def test_robot_aware_refinement_with_a_long_distortion_model():
     """Beyond 8 distortion terms (thin prism, tilt) the analytic path does not apply: the joint
     problem is differenced image by image (12 + 6 groups of columns); with the extra terms zero it

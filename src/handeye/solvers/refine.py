@@ -479,6 +479,13 @@ def _robust_reprojection(X0, Z0, flange2base, object_points, image_points, K, di
              for Ti, o, im in zip(T, object_points, image_points)]
     sigma = 1.4826 * float(np.median(np.concatenate(norms)))
     keep = [nm <= 5.0 * sigma for nm in norms]
+    if robot_noise is not None:
+        # a view its robot pose contradicts (a wrong pose, a swapped image): the soft-L1 pass bends
+        # that pose far beyond its prior rather than give up the view's points, and pulls X with
+        # it (measured: a view shifted by 200 px moved X 14 mm). Such views go whole.
+        moved = _corrections_in_sigmas(first.flange2base, flange2base, robot_noise)
+        contradicted = (moved > CORRECTION_SIGMAS) & (moved > 3.0 * np.median(moved))
+        keep = [k & ~bad for k, bad in zip(keep, contradicted)]
     second = refine_reprojection(first.X, first.Z, flange2base,
                                  [np.asarray(o)[k] for o, k in zip(object_points, keep)],
                                  [np.asarray(im)[k] for im, k in zip(image_points, keep)],
@@ -492,6 +499,18 @@ def _robust_reprojection(X0, Z0, flange2base, object_points, image_points, K, di
         second.flange2base, second.n_evaluations, emptied, tuple(keep), second.jacobian, second.residual_vector,
         second.rows,
     )
+
+
+#: A robot pose the robust pass corrects by more than this many prior stds (on some axis), and by
+#: more than 3x the median pose's, marks its view as contradicting it (see _robust_reprojection).
+CORRECTION_SIGMAS = 6.0
+
+
+def _corrections_in_sigmas(corrected, given, robot_noise) -> NDArray[np.float64]:
+    """Per robot pose, the largest component of its correction (left rotation vector, translation)
+    in units of the prior's std ``robot_noise = (rad, m)``."""
+    rot = rotation_of_valid(corrected[:, :3, :3] @ np.swapaxes(given[:, :3, :3], 1, 2)).as_rotvec() / robot_noise[0]
+    return np.abs(np.c_[rot, (corrected[:, :3, 3] - given[:, :3, 3]) / robot_noise[1]]).max(axis=1)
 
 
 def _pixel_noise(obj, img, K, dist) -> float:
