@@ -32,7 +32,7 @@ from scipy.spatial.transform import Rotation
 
 from ..geometry.se3 import invert, make_transform, perturb, rotation_of_valid, skew, so3_left_jacobian
 from ..setups import check_setup, constant_transforms, predicted_target2cam, robot_world_A, robot_world_A_inv, setup_info
-from ..vision.pnp import project_camera_points, project_points, project_points_many, projection_jacobians, solve_pnp
+from ..vision.pnp import project_points, project_points_many, projection_jacobians, solve_pnp
 from ..vision.targets import Detection
 
 __all__ = ["PoseRefinementResult", "ReprojectionResult", "TranslationPriors", "downdate_reprojection", "pose_mahalanobis", "refine_pose",
@@ -264,7 +264,7 @@ def _pixel_blocks(X, Z, Kx, dx, F, points, owner, setup: str, n_glob: int, x_rot
     zp = points @ Z[:3, :3].T  # R_Z P
     q = zp + Z[:3, 3]  # Z P
     p = np.einsum("mij,mj->mi", G, q) + (R_Xt @ (H[:, :3, 3] - X[:3, 3]).T).T[owner]
-    d_point, d_intr = projection_jacobians(p, Kx, dx)
+    pixels, d_point, d_intr = projection_jacobians(p, Kx, dx)
     J_lx, J_lz = so3_left_jacobian(x_rot)
     d_G = d_point @ G
     J_glob = np.empty((m, 2, n_glob))
@@ -275,7 +275,6 @@ def _pixel_blocks(X, Z, Kx, dx, F, points, owner, setup: str, n_glob: int, x_rot
     J_glob[:, :, 9:12] = d_G
     if n_glob > 12:
         J_glob[:, :, 12:] = d_intr
-    pixels = project_camera_points(p, Kx, dx)
     if c_rot is None:
         return pixels, J_glob, None
     R_F, t_F = F[owner, :3, :3], F[owner, :3, 3]
@@ -347,6 +346,13 @@ def _refine_with_corrections(X0, Z0, K0, d0, extra_dist, flange2base, obj, img, 
         z = (r / f_scale) ** 2
         return _LOSS_WEIGHTS[loss](z)
 
+    def weighted_normal(A, W):
+        """The loss-weighted rows ``A W`` and each image's 6x6 normal matrix ``A^T W A + P``."""
+        Aw = A if W is None else A * W[:, :, None]
+        normal = (by_image @ np.einsum("mri,mrj->mij", Aw, A).reshape(m, 36)).reshape(n_img, 6, 6)
+        normal[:, np.arange(6), np.arange(6)] += w2
+        return Aw, normal
+
     def evaluate(x):
         if state["x"] is not None and np.array_equal(x, state["x"]):
             return
@@ -358,10 +364,7 @@ def _refine_with_corrections(X0, Z0, K0, d0, extra_dist, flange2base, obj, img, 
             F = perturb(flange2base, c[:, :3], c[:, 3:])
             px, J_glob, A = _pixel_blocks(X, Z, Kx, dx, F, points, owner, setup, n_glob, x_rot, c[:, :3])
             r = px - detected
-            W = robust_weights(r)
-            Aw = A if W is None else A * W[:, :, None]
-            normal = (by_image @ np.einsum("mri,mrj->mij", Aw, A).reshape(m, 36)).reshape(n_img, 6, 6)
-            normal[:, np.arange(6), np.arange(6)] += w2
+            Aw, normal = weighted_normal(A, robust_weights(r))
             grad = by_image @ np.einsum("mri,mr->mi", Aw, r) + w2 * c
             step = np.linalg.solve(normal, grad[..., None])[..., 0]
             c -= step
@@ -377,10 +380,8 @@ def _refine_with_corrections(X0, Z0, K0, d0, extra_dist, flange2base, obj, img, 
 
     def jac(x):
         evaluate(x)
-        A, J_glob, W = state["A"], state["J"], state["W"]
-        Aw = A if W is None else A * W[:, :, None]
-        normal = (by_image @ np.einsum("mri,mrj->mij", Aw, A).reshape(m, 36)).reshape(n_img, 6, 6)
-        normal[:, np.arange(6), np.arange(6)] += w2
+        A, J_glob = state["A"], state["J"]
+        Aw, normal = weighted_normal(A, state["W"])
         cross = (by_image @ np.einsum("mri,mrj->mij", Aw, J_glob).reshape(m, 6 * n_glob)).reshape(n_img, 6, n_glob)
         dc = -np.linalg.solve(normal, cross)  # d(correction)/d(globals) along the optimum
         J = np.empty((2 * m + 6 * n_img, n_glob))

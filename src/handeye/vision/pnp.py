@@ -47,47 +47,50 @@ def project_points_many(target2cam: NDArray[np.float64], points: NDArray[np.floa
     return project_camera_points(np.einsum("mij,mj->mi", R, points) + t, K, dist)
 
 
-def project_camera_points(p: NDArray[np.float64], K: NDArray[np.float64], dist: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Pixel positions (M, 2) of camera-frame points (M, 3): OpenCV's camera model with up to 8
-    distortion coefficients (see :func:`project_points_many`)."""
+def _rational_model(p: NDArray[np.float64], dist: NDArray[np.float64]) -> tuple:
+    """OpenCV's distortion of camera-frame points ``(M, 3)`` with up to 8 coefficients (k1 k2 p1
+    p2 k3 k4 k5 k6): ``(coefficients, x, y, r2, num, den, xd, yd)``, the normalised point, its
+    squared radius, the radial factor's numerator and denominator and the distorted point."""
     dist = np.asarray(dist, dtype=float).ravel()
     if len(dist) > 8:
-        raise ValueError(f"{len(dist)} distortion coefficients: this projection covers up to 8")
+        raise ValueError(f"{len(dist)} distortion coefficients: the vectorised camera model covers up to 8")
     d = np.zeros(8)
     d[: len(dist)] = dist
     k1, k2, p1, p2, k3, k4, k5, k6 = d
     x, y = p[:, 0] / p[:, 2], p[:, 1] / p[:, 2]
     r2 = x * x + y * y
-    radial = (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
+    num = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    den = 1 + r2 * (k4 + r2 * (k5 + r2 * k6))
+    radial = num / den
     xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
     yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    return d, x, y, r2, num, den, xd, yd
+
+
+def project_camera_points(p: NDArray[np.float64], K: NDArray[np.float64], dist: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Pixel positions (M, 2) of camera-frame points (M, 3): OpenCV's camera model with up to 8
+    distortion coefficients (see :func:`project_points_many`)."""
+    *_, xd, yd = _rational_model(p, dist)
     return np.stack([K[0, 0] * xd + K[0, 2], K[1, 1] * yd + K[1, 2]], axis=1)  # OpenCV ignores a skew term
 
 
 def projection_jacobians(points_cam: NDArray[np.float64], K: NDArray[np.float64],
-                         dist: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Derivatives of the pixel positions of camera-frame points ``(M, 3)`` under OpenCV's camera
-    model (as :func:`project_points_many`, up to 8 distortion coefficients).
+                         dist: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Pixel positions of camera-frame points ``(M, 3)`` and their derivatives under OpenCV's
+    camera model (as :func:`project_camera_points`, up to 8 distortion coefficients).
 
     Returns
     -------
+    pixels : ndarray (M, 2)
+        :func:`project_camera_points` of the points (the same numbers).
     d_point : ndarray (M, 2, 3)
         d(u, v) / d(point in the camera frame).
     d_intrinsics : ndarray (M, 2, 9)
         d(u, v) / d(fx, fy, cx, cy, k1, k2, p1, p2, k3).
     """
-    dist = np.asarray(dist, dtype=float).ravel()
-    if len(dist) > 8:
-        raise ValueError(f"{len(dist)} distortion coefficients: the analytic derivatives cover up to 8")
-    d = np.zeros(8)
-    d[: len(dist)] = dist
-    k1, k2, p1, p2, k3, k4, k5, k6 = d
+    (k1, k2, p1, p2, k3, k4, k5, k6), x, y, r2, num, den, xd, yd = _rational_model(points_cam, dist)
     fx, fy = K[0, 0], K[1, 1]
     inv_z = 1.0 / points_cam[:, 2]
-    x, y = points_cam[:, 0] * inv_z, points_cam[:, 1] * inv_z
-    r2 = x * x + y * y
-    num = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    den = 1 + r2 * (k4 + r2 * (k5 + r2 * k6))
     radial = num / den
     d_radial = ((k1 + r2 * (2 * k2 + 3 * k3 * r2)) * den - num * (k4 + r2 * (2 * k5 + 3 * k6 * r2))) / (den * den)
     xy = x * y
@@ -104,8 +107,6 @@ def projection_jacobians(points_cam: NDArray[np.float64], K: NDArray[np.float64]
     d_point[:, 1, 0] = fy * dxd_dy * inv_z  # dyd/dx = dxd/dy
     d_point[:, 1, 1] = fy * dyd_dy * inv_z
     d_point[:, 1, 2] = -fy * (dxd_dy * x + dyd_dy * y) * inv_z
-    xd = x * radial + 2 * p1 * xy + p2 * (r2 + 2 * x * x)
-    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * xy
     d_intrinsics = np.zeros((m, 2, 9))
     d_intrinsics[:, 0, 0] = xd
     d_intrinsics[:, 1, 1] = yd
@@ -119,7 +120,8 @@ def projection_jacobians(points_cam: NDArray[np.float64], K: NDArray[np.float64]
     d_intrinsics[:, 1, 6] = fy * (r2 + 2 * y * y)
     d_intrinsics[:, 0, 7] = fx * (r2 + 2 * x * x)
     d_intrinsics[:, 1, 7] = fy * 2 * xy
-    return d_point, d_intrinsics
+    pixels = np.stack([fx * xd + K[0, 2], fy * yd + K[1, 2]], axis=1)
+    return pixels, d_point, d_intrinsics
 
 
 def reprojection_rms(det: Detection, target2cam: NDArray[np.float64], K: NDArray[np.float64], dist: NDArray[np.float64]) -> float:
