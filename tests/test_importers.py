@@ -101,6 +101,20 @@ def test_visp_2025_eye_in_hand_imports_and_its_board_scale_is_named(tmp_path):
     assert any("multiply it by 1.1" in a for a in cal.diagnostics.advice)
 
 
+def test_visp_import_says_the_setup_it_assumed(tmp_path, capsys):
+    """ViSP's folders do not record the setup: the import says it took eye-in-hand and how to
+    change it (the eye-to-hand folder calibrates 'inconsistent' under that assumption), and says
+    nothing of the kind when --setup was given. ``-o`` is ``--out``."""
+    src = str(require_real("visp-franka", "eye_to_hand_2025"))
+    assert main(["import", "visp", src, "-o", str(tmp_path / "a")]) == 0
+    out = capsys.readouterr().out
+    assert "eye_in_hand assumed" in out and "--setup eye_to_hand" in out
+    assert load_session(tmp_path / "a").setup == "eye_in_hand"
+    assert main(["import", "visp", src, "--out", str(tmp_path / "b"), "--setup", "eye_to_hand"]) == 0
+    assert "assumed" not in capsys.readouterr().out
+    assert load_session(tmp_path / "b").setup == "eye_to_hand"
+
+
 def test_industrial_calibration_circle_grid_set_imports_and_calibrates(tmp_path):
     """ROS-Industrial's 10x10 circle grid (eye-in-hand, nominal intrinsics, a square symmetric grid):
     imported, it calibrates with a verdict; the four images whose camera motion no labelling of the

@@ -580,7 +580,7 @@ def _accuracy_arg(text: str | None):
 
 def _add_solver_and_out(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", default="daniilidis", choices=solvers.available(), help="solver (default: daniilidis)")
-    p.add_argument("--out", help="write result.json, result.yaml and report.html into this folder")
+    p.add_argument("-o", "--out", help="write result.json, result.yaml and report.html into this folder")
     p.add_argument("--parent-frame", help="ROS frame X is given in (default: tool0 for eye_in_hand, base_link for eye_to_hand)")
     p.add_argument("--child-frame", help="ROS frame of the camera (default: camera_optical_frame)")
     p.add_argument("--export", action="append", default=[], choices=list(EXPORTS) + ["all"],
@@ -676,6 +676,10 @@ def _cmd_import(args: argparse.Namespace) -> int:
             "stream session": "a session (a robot stream, images with their times)",
             "stream posepairs": "a pose-pair folder of two streams"}[summary.kind]
     print(f"wrote {what} to {summary.folder}: {summary.robot_samples} robot and {summary.camera_samples} camera samples")
+    if args.setup is None and args.kind in ("visp", "rosbag"):
+        # these sources do not record the setup: say what was assumed, before a calibration says it is inconsistent
+        print("setup: eye_in_hand assumed (the source does not say); for a camera fixed beside the robot, import "
+              "again with --setup eye_to_hand")
     command = "calibrate" if summary.kind.endswith("session") else "calibrate-poses"
     print(f"next: handeye {command} {summary.folder} --out RESULTS")
     return 0
@@ -694,7 +698,7 @@ def _add_import(sub) -> None:
     p.add_argument("kind", choices=["rosbag", "easy-handeye", "visp", "industrial-calibration"])
     p.add_argument("source", help="the bag (ROS 2 folder, .db3/.mcap, or ROS 1 .bag), the .samples file, the ViSP "
                    "folder, or cal_data.yaml")
-    p.add_argument("--out", required=True, help="folder to write (new or empty)")
+    p.add_argument("-o", "--out", required=True, help="folder to write (new or empty)")
     p.add_argument("--setup", choices=["eye_in_hand", "eye_to_hand"],
                    help="default eye_in_hand (rosbag); easy-handeye reads it from the file's calibration_type")
     p.add_argument("--robot-frames", default="base_link,tool0", metavar="BASE,TOOL",
@@ -754,7 +758,7 @@ def _add_target(sub) -> None:
         "asymmetric circle grid removes the doubt.",
     )
     p.add_argument("--type", required=True, choices=list(TARGET_KINDS))
-    p.add_argument("--out", required=True, help="board.pdf or board.svg")
+    p.add_argument("-o", "--out", required=True, help="board.pdf or board.svg")
     p.add_argument("--cols", type=_whole(1), help="see above (default per type: chessboard 9, charuco 7, ...)")
     p.add_argument("--rows", type=_whole(1), help="see above (default per type: chessboard 6, charuco 5, ...)")
     p.add_argument("--square-mm", type=_number(0.0, above=True),
@@ -794,7 +798,7 @@ def _add_verify(sub) -> None:
     )
     p.add_argument("result", help="result folder, result.json or result.yaml written by handeye calibrate --out")
     p.add_argument("session", help="a session folder (images + robot poses) the calibration has not seen")
-    p.add_argument("--out", help="write verify.json and verify.html into this folder")
+    p.add_argument("-o", "--out", help="write verify.json and verify.html into this folder")
     _add_detection_options(p)
     p.set_defaults(func=_cmd_verify)
 
@@ -814,7 +818,7 @@ def _add_acquire(sub) -> None:
     )
     p.add_argument("--robot", required=True, metavar="BACKEND", help="sim, manual[:POSE_FILE] or ur:HOST")
     p.add_argument("--camera", required=True, metavar="BACKEND", help="sim, opencv:INDEX|URL|FILE, genicam:CTI, folder:PATH")
-    p.add_argument("--out", required=True, help="the session folder to write (new, or a stopped capture to resume)")
+    p.add_argument("-o", "--out", required=True, help="the session folder to write (new, or a stopped capture to resume)")
     p.add_argument("--results", help="where the calibration goes (default: OUT-results beside OUT)")
     p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
     p.add_argument("--target-std", metavar="DEG,MM", help="stop when the std of X per axis is within these "
@@ -915,7 +919,7 @@ def _add_simulate(sub) -> None:
         description="Render target images seen from simulated robot poses and write a complete session "
         "with ground_truth.yaml (X, Z, K, dist).",
     )
-    p.add_argument("--out", required=True, help="new session folder")
+    p.add_argument("-o", "--out", required=True, help="new session folder")
     p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
     p.add_argument("--poses", type=_whole(1), default=15, help="number of images (default 15)")
     p.add_argument("--target", default="chessboard", choices=["chessboard", "charuco", "circles", "asymmetric_circles", "apriltag"])
@@ -957,7 +961,7 @@ def _add_plan(sub) -> None:
     p.add_argument("--noise-px", type=_number(0.0, above=True), default=0.3, help="pixel noise for the predicted std (default 0.3)")
     p.add_argument("--check-runs", type=_whole(0), default=0, help="also simulate this many calibrations to check the prediction")
     p.add_argument("--seed", type=_whole(0), default=0)
-    p.add_argument("--out", required=True, help="poses.csv to write")
+    p.add_argument("-o", "--out", required=True, help="poses.csv to write")
     p.add_argument("--format", default="quat_wxyz", help="pose format: matrix, quat_wxyz, quat_xyzw, rotvec, euler:SEQ")
     p.add_argument("--length-unit", default="m", help="m or mm (default m)")
     p.add_argument("--angle-unit", default="deg", help="deg or rad for rotvec and euler (default deg)")
@@ -972,7 +976,7 @@ def _add_study(sub) -> None:
         "run every solver on the same data and write study.csv, study.md, study.json and one PNG per figure.",
     )
     p.add_argument("--preset", default="seed-chapter5", help="study grid (default: seed-chapter5)")
-    p.add_argument("--out", required=True, help="output folder (created; other files in it are left alone)")
+    p.add_argument("-o", "--out", required=True, help="output folder (created; other files in it are left alone)")
     p.add_argument("--runs", type=_whole(1), default=200, help="simulations per setting (default 200, as the thesis)")
     p.add_argument("--seed", type=_whole(0), default=0, help="random seed: same seed, same numbers (default 0)")
     p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
