@@ -113,7 +113,10 @@ def test_missing_folder(tmp_path, capsys):
 def test_missing_yaml_and_key(tmp_path, capsys):
     folder = _copy_example(tmp_path)
     (folder / "posepairs.yaml").unlink()
-    _one_line_error(["calibrate-poses", str(folder)], capsys, "posepairs.yaml: file not found")
+    _one_line_error(["calibrate-poses", str(folder)], capsys, "no posepairs.yaml. The folder must hold pose pairs")
+    (folder / "session.yaml").write_text("setup: eye_in_hand\n")  # a session's file: the folder's kind named, with its command
+    _one_line_error(["calibrate-poses", str(folder)], capsys, "it is a capture session; calibrate it with `handeye calibrate`")
+    (folder / "session.yaml").unlink()
     spec = yaml.safe_load((EXAMPLE / "posepairs.yaml").read_text())
     del spec["robot_poses"]["length_unit"]
     (folder / "posepairs.yaml").write_text(yaml.safe_dump(spec))

@@ -267,7 +267,7 @@ SYMBOLS_1252 = "Zelle Süd – Roboter ÄÖÜ €"  # Windows-1252 (the dash and
 CASES = [
     # --- folders and files --------------------------------------------------------------------
     Case("missing-folder", "pp", nothing, cmd("calibrate-poses", "{in}/nowhere"), 2, r"nowhere: no such folder"),
-    Case("missing-posepairs-yaml", "pp", remove(SPEC), pp(), 2, r"posepairs.yaml: file not found"),
+    Case("missing-posepairs-yaml", "pp", remove(SPEC), pp(), 2, r"no posepairs.yaml\. The folder must hold pose pairs"),
     Case("posepairs-yaml-is-folder", "pp", both(remove(SPEC), lambda f: (f / SPEC).mkdir()), pp(), 2,
          r"posepairs.yaml: is a folder"),
     Case("empty-yaml", "pp", raw(SPEC, b""), pp(), 2, r"posepairs.yaml: empty file"),
@@ -386,7 +386,7 @@ CASES = [
     Case("no-folder", None, nothing, lambda f, o: ["calibrate-poses"], 2, r"give a pose-pair folder, or --example"),
     Case("unknown-pairs", "pp", nothing, pp("--pairs", "some"), 2, r"argument --pairs: invalid choice"),
     # --- capture sessions -----------------------------------------------------------------------
-    Case("missing-session-yaml", "session", remove("session.yaml"), cal(), 2, r"session.yaml: file not found"),
+    Case("missing-session-yaml", "session", remove("session.yaml"), cal(), 2, r"no session.yaml\. The folder must hold a capture session"),
     Case("missing-images-folder", "session", remove("images"), cal(), 2, r"images: no images folder"),
     Case("missing-image", "session", remove("images/003.png"), cal(), 2, r"image file\(s\) missing: 003.png"),
     Case("image-without-pose", "session", lambda f: shutil.copy(f / "images/000.png", f / "images/extra.png"), cal(), 2,

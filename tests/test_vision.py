@@ -289,7 +289,9 @@ def _spec(session):
 
 def test_missing_session_yaml(session, capsys):
     (session / "session.yaml").unlink()
-    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "session.yaml: file not found")
+    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "no session.yaml. The folder must hold a capture session")
+    (session / "posepairs.yaml").write_text("setup: eye_in_hand\n")  # the other kind of folder: named, with its command
+    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "it is a pose-pair folder; calibrate it with `handeye calibrate-poses`")
 
 
 def test_missing_key(session, capsys):

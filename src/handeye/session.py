@@ -161,6 +161,8 @@ def load_session(folder: str | Path) -> Session:
     if not folder.is_dir():
         raise SessionError(f"{folder}: no such session folder")
     yml = folder / SESSION_FILE
+    if not yml.is_file():
+        _missing_folder_file(folder, SESSION_FILE)
     notes: list[str] = []
     spec = load_yaml(yml, notes)
     where = str(yml)
@@ -509,6 +511,25 @@ def _paired_delays(robot: _Side, camera: _Side) -> NDArray[np.float64] | None:
     return np.array([t - t_robot[k] for k, t in common])
 
 
+def _missing_folder_file(folder: Path, name: str) -> None:
+    """Raise :class:`SessionError` for a folder without its description file ``name``, saying
+    which kind of folder it is when it holds the other kind's file, and how to make one if not."""
+    if (folder / name).is_dir():
+        raise SessionError(f"{folder / name}: is a folder, not a file")
+    other = POSEPAIRS_FILE if name == SESSION_FILE else SESSION_FILE
+    if (folder / other).is_file():
+        kind, call = (("a pose-pair folder", "`handeye calibrate-poses` (Python: load_pose_pairs, then calibrate_poses)")
+                      if other == POSEPAIRS_FILE else ("a capture session", "`handeye calibrate` (Python: handeye.calibrate)"))
+        raise SessionError(f"{folder}: holds {other}, not {name}: it is {kind}; calibrate it with {call}")
+    what, example = (("a capture session: session.yaml (setup, target, camera, poses file), the robot poses and "
+                      "images/", "sample_session") if name == SESSION_FILE else
+                     ("pose pairs: posepairs.yaml (setup, robot_poses, camera_poses) and the two pose files",
+                      "example_posepairs"))
+    raise SessionError(f"{folder}: no {name}. The folder must hold {what} (the README shows the layout; an "
+                       f"example is the package's data/{example}); `handeye import` makes one from a ROS bag, ViSP, "
+                       "easy_handeye or industrial_calibration data")
+
+
 def load_pose_pairs(folder: str | Path) -> PosePairs:
     """Load a pose-pair folder (see the module docstring); with a time column in both files, two
     streams (:attr:`PosePairs.robot_times`, :attr:`PosePairs.camera_times`; rows not paired).
@@ -525,6 +546,8 @@ def load_pose_pairs(folder: str | Path) -> PosePairs:
     folder = Path(folder)
     if not folder.is_dir():
         raise SessionError(f"{folder}: no such folder")
+    if not (folder / POSEPAIRS_FILE).is_file():
+        _missing_folder_file(folder, POSEPAIRS_FILE)
     notes: list[str] = []
     spec = load_yaml(folder / POSEPAIRS_FILE, notes)
     where = str(folder / POSEPAIRS_FILE)
