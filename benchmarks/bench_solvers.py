@@ -16,7 +16,9 @@ work on the N poses directly, on both sides. Two handeye timings are printed:
   outlier search and leave-one-out, the solve, Z), against OpenCV's call plus the mean target pose
   (``Z``), which is what it returns.
 
-Then ``solve_batch`` on 200 runs x 15 poses (all 105 pairs each) against a loop of OpenCV calls.
+Then ``solve(A,B)`` at 100 poses stage by stage (input checks, conversion to dual quaternions,
+observability check + solver) beside the budget a 20x ratio leaves, and ``solve_batch`` on 200
+runs x 15 poses (all 105 pairs each) against a loop of OpenCV calls.
 
 Times are the best of ``--repeat`` runs (the least disturbed by the machine); ratio = OpenCV / ours.
 """
@@ -33,8 +35,10 @@ import handeye
 from handeye.geometry.se3 import make_transform, mean_transform
 from handeye.setups import constant_transforms, robot_world_inputs
 from handeye.motions import MotionSet, validate_poses
+from handeye.poses import validate_transform_pair
 from handeye.simulate import random_scene
 from handeye.solvers import get, solve_motions, solve_robot_world
+from handeye.solvers.observability import check_observability
 
 CV_METHODS = {
     "tsai_lenz": ("hand_eye", "CALIB_HAND_EYE_TSAI"),
@@ -54,6 +58,7 @@ def main() -> None:
     print(f"handeye {handeye.__version__}, OpenCV {cv2.__version__}, numpy {np.__version__}")
     print(f"{'method':<12} {'poses':>5} {'motions':>7} {'opencv ms':>10} {'solve ms':>9} {'ratio':>7}"
           f" {'core ms':>8} {'ratio':>7} {'solve(A,B) ms':>13} {'ratio':>7} {'calibrate_poses ms':>19} {'ratio*':>7}")
+    budgets = {}
     for method, (kind, cv_name) in CV_METHODS.items():
         cv_flag = getattr(cv2, cv_name)
         for n in (15, 100):
@@ -109,6 +114,8 @@ def main() -> None:
             t_public = best_time(run_public, args.repeat)
             t_cv_z = best_time(run_cv_with_z, args.repeat)
             motions = n * (n - 1) // 2 if kind == "hand_eye" else n
+            if kind == "hand_eye" and n == 100:
+                budgets[method] = t_cv / 20
             print(
                 f"{method:<12} {n:>5} {motions:>7} {1e3 * t_cv:>10.2f} {1e3 * t_solve:>9.2f} "
                 f"{t_cv / t_solve:>6.1f}x {1e3 * t_core:>8.2f} {t_cv / t_core:>6.1f}x "
@@ -117,7 +124,32 @@ def main() -> None:
             )
     print("* calibrate_poses against OpenCV's call plus the mean target pose Z (robot-world: its call, which gives Z);\n"
           "  issue 19's bar is the daniilidis row at 100 poses (no slower than OpenCV's Daniilidis + Z: ratio >= 1)")
+    _breakdown(args.repeat, budgets)
     _batch(args.repeat)
+
+
+def _breakdown(repeat: int, budgets: dict[str, float], n: int = 100) -> None:
+    """Where the time of ``handeye.solve(A, B)`` goes on all pairs of ``n`` poses, stage by stage
+    (each stage timed on its own, on fresh objects), beside the budget of a 20x ratio."""
+    scene = random_scene(n, "eye_in_hand", rng=n)
+    A, B = handeye.relative_motions(scene.flange2base, scene.target2cam, "eye_in_hand", "all")
+    names = ("A (robot motions)", "B (camera motions)"), ("robot motions A", "camera motions B")
+    T = validate_transform_pair(A, B, *names)
+    motions = MotionSet.from_matrices(T[0], T[1])
+    t_val = best_time(lambda: validate_transform_pair(A, B, *names), repeat)
+    t_conv = best_time(lambda: MotionSet.from_matrices(T[0], T[1]), repeat)
+    print(f"\nsolve(A, B) stage by stage on {len(A)} motions (ms): the input checks (finite, 4x4 rigid: {2 * len(A)} "
+          f"matrices), the conversion to dual quaternions (scipy's from_matrix, assume_valid), the observability check "
+          f"and the solver; budget = OpenCV's time / 20")
+    print(f"{'method':<12} {'checks':>7} {'convert':>8} {'observe+solve':>14} {'total':>7} {'budget':>7}")
+    for method, budget in budgets.items():
+        def run() -> None:
+            fresh = MotionSet(motions.dq_a, motions.dq_b, _AB=motions._AB)  # no cached sums
+            check_observability(fresh)
+            get(method).func(fresh)
+        t_solve = best_time(run, repeat)
+        print(f"{method:<12} {1e3 * t_val:>7.2f} {1e3 * t_conv:>8.2f} {1e3 * t_solve:>14.2f} "
+              f"{1e3 * (t_val + t_conv + t_solve):>7.2f} {1e3 * budget:>7.2f}")
 
 
 def _batch(repeat: int, runs: int = 200, n: int = 15) -> None:
