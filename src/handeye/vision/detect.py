@@ -10,6 +10,7 @@ one thread per worker and restored afterwards.
 
 from __future__ import annotations
 
+import ctypes
 import os
 import sys
 from concurrent.futures import ThreadPoolExecutor
@@ -77,6 +78,19 @@ def workers_for_memory(jobs: int, image_size: tuple[int, int], available: int | 
     if available is None:
         return jobs
     return max(1, min(jobs, available // (BYTES_PER_PIXEL * image_size[0] * image_size[1])))
+
+
+def release_freed_memory() -> None:
+    """Hand memory freed by image work back to the system (glibc's ``malloc_trim``; nothing
+    elsewhere). Each worker thread's glibc arena keeps the pages of the images it decoded: after
+    detecting 100 images of 5 MP on 2 threads ~550 MB stayed resident in the calling process (a
+    ROS node, a notebook) until it exited; trimmed, what remains is what is still in use."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        ctypes.CDLL(None).malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc (musl has no malloc_trim): nothing to do
+        pass
 
 
 def _detect_one(args: tuple[str, Target]) -> ImageResult:
@@ -148,4 +162,5 @@ def detect_images(
                 cv2.setNumThreads(saved)
     finally:
         bar.close()
+        release_freed_memory()
     return results
