@@ -377,3 +377,44 @@ def test_linear_algebra_helpers_one_matrix_as_batch():
         assert np.abs(np.abs(np.einsum("ki,ki->k", e, vecs[:, :, -1])) - 1.0).max() < 1e-12
         assert np.abs(np.einsum("kij,kj->ki", S, e) - lam[:, -1:] * e).max() < 1e-12
     assert top_eigenvector(S[0]).shape == (3,)
+
+
+def _unrelated_poses(seed: int, n: int = 12):
+    """Robot and camera poses that do not belong together, the robot's in millimetres read as
+    metres: data a linear solver can fail on (found by fuzzing calibrate_poses)."""
+    rng = np.random.default_rng(seed)
+    f2b = make_transform(Rotation.random(n, random_state=rng).as_matrix(), rng.normal(0, 0.002, (n, 3)))
+    t2c = make_transform(Rotation.random(n, random_state=rng).as_matrix(), rng.normal(0, 1.5, (n, 3)))
+    return f2b, t2c
+
+
+@pytest.mark.parametrize("method, seed", [("andreff", 12), ("li", 5)])
+def test_a_solver_that_cannot_solve_the_motions_says_so(method, seed):
+    """A singular linear estimate of the rotation was a bare numpy LinAlgError from
+    calibrate_poses and solve; it is a DegenerateMotionError naming the method, the likely cause
+    and another method to try."""
+    f2b, t2c = _unrelated_poses(seed)
+    with pytest.raises(DegenerateMotionError, match=rf"{method} cannot solve these motions .*try method 'daniilidis'"):
+        handeye.calibrate_poses(f2b, t2c, "eye_to_hand", method=method, refine="none")
+    if method == "andreff":
+        A, B = handeye.relative_motions(f2b, t2c, "eye_to_hand")
+        with pytest.raises(DegenerateMotionError, match="andreff cannot solve"):
+            handeye.solve(A, B, method="andreff")
+    # the default answers the same data, with its verdict
+    assert handeye.calibrate_poses(f2b, t2c, "eye_to_hand", refine="none").verdict == "inconsistent"
+
+
+def test_three_noisy_poses_are_answered_with_a_finite_std():
+    """Three poses (the fewest) with robot noise from 0.06 deg / 0.1 mm to 29 deg / 300 mm: the pose
+    refinement's noise variances could end 1e13 apart, and then the whitening (Cholesky of a
+    covariance positive definite only on paper) raised LinAlgError in 7 of these 50 and the
+    covariance (inverse of a J^T J squared past double precision) came out with negative variances.
+    Every one is now answered, with a std that is a number (or inf), never NaN."""
+    for seed in range(50):
+        rng = np.random.default_rng(seed)
+        sc = random_scene(3, "eye_in_hand", rng=seed)
+        rot, tra = [(1e-3, 1e-4), (0.05, 0.01), (0.5, 0.3), (0.5, 1e-4), (1e-3, 0.3)][seed % 5]
+        noise = make_transform(Rotation.from_rotvec(rng.normal(0, rot, (3, 3))).as_matrix(), rng.normal(0, tra, (3, 3)))
+        cal = handeye.calibrate_poses(sc.flange2base @ noise, sc.target2cam, "eye_in_hand", method="tsai_lenz")
+        assert np.isfinite(cal.X).all() and not np.isnan(cal.std).any() and (cal.std > 0).all(), seed
+        assert np.allclose(cal.cov, cal.cov.T, equal_nan=True) and (np.diag(cal.cov) >= 0).all(), seed

@@ -118,7 +118,21 @@ def solve_motions(motions: MotionSet, method: str = "daniilidis") -> NDArray[np.
     """Solve ``A X = X B`` on an already validated :class:`~handeye.motions.MotionSet`."""
     info = get(method, kind="hand_eye")
     check_observability(motions)
-    return info.func(motions)
+    return _solved(info, motions)
+
+
+def _solved(info: SolverInfo, *args):
+    """``info.func(*args)``, with a linear algebra failure (a singular rotation estimate, a normal
+    matrix that is not positive definite) said as what it means for the user."""
+    try:
+        return info.func(*args)
+    except np.linalg.LinAlgError as exc:
+        raise DegenerateMotionError(
+            f"{info.name} cannot solve these motions ({exc}), although they rotate about several axes: the robot "
+            f"and camera motions disagree badly (inverted poses, the other setup, mixed-up pairs: handeye check, or "
+            f"handeye.diagnose, names them), or this method fails on them; try method "
+            f"'{'tsai_lenz' if info.name == 'daniilidis' else 'daniilidis'}'"
+        ) from None
 
 
 def solve_robot_world(
@@ -151,7 +165,7 @@ def solve_robot_world(
         raise DegenerateMotionError(f"{pair.shape[1]} pose pair(s): A_i X = Z B_i needs at least 3 with non-parallel rotation axes")
     # Eliminating Z: (A_0^-1 A_i) X = X (B_0^-1 B_i); these N-1 motions decide observability.
     check_observability(absolute=pair)
-    return info.func(pair[0], pair[1])
+    return _solved(info, pair[0], pair[1])
 
 
 def solve_robot_world_batch(
