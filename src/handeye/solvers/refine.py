@@ -739,7 +739,13 @@ def _pose_weights(theta, shapes, weighting: str, n: int) -> NDArray[np.float64]:
         w = np.r_[np.full(3, 1 / np.sqrt(theta[0])), np.full(6, 1 / np.sqrt(2 * theta[1]))]
         return np.broadcast_to(np.diag(w), (n, 9, 9))
     C = np.einsum("k,knij->nij", theta, np.stack(shapes))
-    return np.linalg.inv(np.linalg.cholesky(C))  # whitening: L^-1 r has unit covariance
+    try:
+        return np.linalg.inv(np.linalg.cholesky(C))  # whitening: L^-1 r has unit covariance
+    except np.linalg.LinAlgError:
+        # variances 1e13 apart (one at its floor while another is large: data far from the noise
+        # model) leave C positive definite only on paper; a ridge 1e-12 of its scale keeps it so
+        ridge = 1e-12 * np.trace(C, axis1=1, axis2=2).max() / C.shape[-1]
+        return np.linalg.inv(np.linalg.cholesky(C + ridge * np.eye(C.shape[-1])))
 
 
 def _whitened_pose_jacobian(x, W, unpack, flange2base, target2cam, setup: str) -> NDArray[np.float64]:
@@ -756,7 +762,7 @@ def _whitened_pose_jacobian(x, W, unpack, flange2base, target2cam, setup: str) -
 def _pose_covariance(J, f, theta, weighting: str, n: int, dof: int) -> tuple[NDArray[np.float64], dict[str, float]]:
     """Covariance of the 12 unknowns and the noise variances, from the whitened Jacobian ``J`` and
     residuals ``f`` at the optimum."""
-    JtJ_inv = np.linalg.inv(J.T @ J)
+    JtJ_inv = _normal_inverse(J)
     if weighting == "noise_model":
         # the variances are maximum-likelihood (low by the 12 fitted unknowns): chi-square over the
         # degrees of freedom restores the scale of both the covariance and the reported noise
@@ -767,6 +773,19 @@ def _pose_covariance(J, f, theta, weighting: str, n: int, dof: int) -> tuple[NDA
     g = np.einsum("nki,nk->ni", J.reshape(n, -1, 12), f.reshape(n, -1))
     cov = JtJ_inv @ (g.T @ g) @ JtJ_inv * (6 * n / max(dof, 1))
     return cov, {"rotation": theta[0], "translation": theta[1]}
+
+
+def _normal_inverse(J: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``inv(J^T J)`` from the SVD of ``J``: symmetric and positive semi-definite however poorly
+    conditioned ``J`` is (whitened by variances 1e13 apart, ``J^T J`` squares a 1e12 condition
+    number past double precision and its inverse came out with negative variances); a direction
+    ``J`` does not constrain at all has infinite variance."""
+    _, s, Vt = np.linalg.svd(J, full_matrices=False)
+    if not s.min() > 0.0:
+        out = np.zeros((J.shape[1], J.shape[1]))
+        np.fill_diagonal(out, np.inf)
+        return out
+    return (Vt.T / s**2) @ Vt
 
 
 #: Smallest noise variance the pose refinement estimates (rad^2 or m^2): noise-free data stay exact.
