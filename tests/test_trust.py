@@ -21,7 +21,7 @@ from handeye.cli import main
 from handeye.diagnostics import board_scale
 from handeye.geometry.se3 import invert, make_transform
 from handeye.metrics import rotation_error, translation_error
-from handeye.simulate import EXACT, REALISTIC, arm_forward_kinematics, realistic_scene
+from handeye.simulate import EXACT, REALISTIC, arm_forward_kinematics, random_scene, realistic_scene
 from handeye.solvers.refine import refine_reprojection
 
 import realdata
@@ -248,3 +248,22 @@ def test_solvers_far_apart_in_std_make_the_verdict_weak():
     assert _verdict_from_spread(cal, choice).verdict == "good"
     promised = _verdict_from_spread(replace(cal, std=cal.std / 100), choice)
     assert promised.verdict == "weak" and any("closed-form solvers" in a for a in promised.diagnostics.advice)
+
+
+def test_a_view_with_the_camera_at_the_target_origin_scores_a_number():
+    """Pose pairs are scored on a virtual target whose first point is its origin; a camera pose at
+    that origin (zero camera-to-target translation: a tracker's bad sample) divided 0 by 0 and
+    warned (found by fuzzing calibrate_poses). The point at the camera centre adds no error; the
+    others score as usual."""
+    import warnings
+
+    from handeye.validation import view_errors, Views
+
+    sc = random_scene(6, "eye_in_hand", rng=3)
+    t2c = sc.target2cam.copy()
+    t2c[2, :3, 3] = 0.0
+    views = Views(sc.flange2base, t2c, "eye_in_hand")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _, mm = view_errors(sc.X, sc.Z, views, np.arange(6))
+    assert np.isfinite(mm).all() and mm[2] > 0 and np.allclose(np.delete(mm, 2), 0.0, atol=1e-9)

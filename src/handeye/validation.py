@@ -81,6 +81,9 @@ def fold_indices(n: int, folds: int = 5, seed: int = 0) -> list[NDArray[np.intp]
     return [np.sort(order[k::folds]) for k in range(folds)]
 
 
+_TINY = np.finfo(float).tiny
+
+
 def view_errors(X: NDArray[np.float64], Z: NDArray[np.float64], views: Views,
                 idx: NDArray[np.intp] | None = None, K: NDArray[np.float64] | None = None,
                 dist: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64] | None, NDArray[np.float64]]:
@@ -99,7 +102,7 @@ def view_errors(X: NDArray[np.float64], Z: NDArray[np.float64], views: Views,
     for k, i in enumerate(idx):
         p = np.asarray(views.object_points[i] if views.object_points is not None else VIRTUAL_TARGET, dtype=float)
         measured = p @ views.target2cam[i, :3, :3].T + views.target2cam[i, :3, 3]
-        depth = np.linalg.norm(measured, axis=1)
+        depth = np.linalg.norm(measured, axis=1)  # 0 only for a point at the camera centre: it adds no error
         if px is not None:
             d = project_points(T[k], p, K, dist) - np.asarray(views.image_points[i], dtype=float)
             px[k] = np.sqrt(np.mean(np.sum(d**2, axis=1)))
@@ -107,8 +110,8 @@ def view_errors(X: NDArray[np.float64], Z: NDArray[np.float64], views: Views,
             mm[k] = 1e3 * np.sqrt(np.mean(np.sum(d**2, axis=1) * (depth / f) ** 2))
         else:
             predicted = p @ T[k, :3, :3].T + T[k, :3, 3]
-            u = measured / depth[:, None]
-            v = predicted / np.linalg.norm(predicted, axis=1, keepdims=True)
+            u = measured / np.maximum(depth, _TINY)[:, None]
+            v = predicted / np.maximum(np.linalg.norm(predicted, axis=1, keepdims=True), _TINY)
             angle = 2.0 * np.arcsin(np.clip(0.5 * np.linalg.norm(u - v, axis=1), 0.0, 1.0))
             mm[k] = 1e3 * np.sqrt(np.mean((angle * depth) ** 2))
     return px, mm
