@@ -24,7 +24,7 @@ from handeye.importers import import_rosbag
 from handeye.metrics import rotation_error, translation_error
 from handeye.session import SessionError, load_pose_pairs, load_session, write_pose_pairs
 from handeye.simulate import random_scene, simulate_stream_session, stream_scene
-from handeye.sync import check_stream, coarse_offset, interpolate, select_keyframes
+from handeye.sync import check_stream, coarse_offset, interpolate, search_range, select_keyframes
 
 ETH = ("ethz-robot-arm-posepairs", "robot_arm_complete_bag_color_and_ir_base_link_sr300_hinge.csv",
        "robot_arm_complete_bag_color_and_ir_target_ir.csv")
@@ -84,6 +84,18 @@ def test_coarse_offset_on_noise_free_streams_is_within_a_grid_step():
     camera = check_stream(sc.camera_times, sc.target2cam, "camera")
     coarse = coarse_offset(robot, camera, "eye_to_hand")
     assert abs(coarse.offset + 0.123) < coarse.step and coarse.correlation > 0.99
+
+
+@pytest.mark.parametrize("shift, search", [(1e6, None), (-50.0, None), (1e6, (1e6 - 1.0, 1e6 + 0.5))])
+def test_clocks_far_apart_are_searched_around_their_difference(shift, search):
+    """A camera clock 1e6 s (or -50 s) off the robot's, the range found from the stamps or given
+    far from 0: the search counted its lags from 0 out to the range (a 30 GB cross-correlation, or
+    a shape error) and now counts them from the middle of the range; the offset is found."""
+    sc = stream_scene(20, "eye_to_hand", rng=7, errors=handeye.simulate.EXACT, time_offset=-0.123, jitter_ms=0.0)
+    robot = check_stream(sc.robot_times, sc.flange2base, "robot")
+    camera = check_stream(sc.camera_times + shift, sc.target2cam, "camera")
+    coarse = coarse_offset(robot, camera, "eye_to_hand", search_range(robot, camera, search)[0])
+    assert abs(coarse.offset - (shift - 0.123)) < coarse.step and coarse.correlation > 0.99
 
 
 # --- the issue's bars -----------------------------------------------------------------------------

@@ -227,20 +227,25 @@ def coarse_offset(robot: PoseStream, camera: PoseStream, setup: str, search: tup
         raise InputMismatchError(f"offset search range ({lo:g}, {hi:g}) s: the lower end must be below the upper")
     step = min(robot.period, camera.period) / 4.0
     window = max(6.0 * camera.period, 0.1)
+    # lags count from the middle of the range: a range far from 0 (clocks with different origins,
+    # 1e6 s apart) would otherwise need lags from 0 out to there (a 30 GB cross-correlation)
+    centre = 0.5 * (lo + hi)
+    shifted = PoseStream(camera.times - centre, camera.poses, camera.name)
+    half = hi - centre
     origin = robot.times[0]  # Unix stamps: the grid is built relative to one origin
-    start = min(robot.times[0], camera.times[0] - hi) - origin
-    stop = max(robot.times[-1], camera.times[-1] - lo) - origin
+    start = min(robot.times[0], shifted.times[0] - half) - origin
+    stop = max(robot.times[-1], shifted.times[-1] + half) - origin
     if (stop - start) / step > 2_000_000:
         raise InputMismatchError(f"offset search over {(stop - start):.3g} s at {step * 1e3:.3g} ms steps is too long; "
                                  "give a narrower offset range")
     grid = origin + np.arange(start, stop, step)
     robot_inverse = not setup_info(setup).camera_on_flange  # A = inv(flange2base) eye-to-hand
     w_robot = _clipped(_body_velocity(_despiked(robot), grid, window, inverse=robot_inverse))
-    w_camera = _clipped(_body_velocity(_despiked(camera), grid, window, inverse=True))
+    w_camera = _clipped(_body_velocity(_despiked(shifted), grid, window, inverse=True))
     # camera(t) ~ robot(t - offset): the camera grid shifted by L steps against the robot's, L = offset / step
-    max_lag = int(np.ceil(max(abs(lo), abs(hi)) / step))
+    max_lag = int(np.ceil(half / step))
     r = _alignment(w_robot, w_camera, max_lag)
-    lags = np.arange(-max_lag, max_lag + 1) * step
+    lags = centre + np.arange(-max_lag, max_lag + 1) * step
     r = np.where((lags >= lo - 0.5 * step) & (lags <= hi + 0.5 * step), r, -np.inf)
     k = int(np.argmax(r))
     if not np.isfinite(r[k]):
