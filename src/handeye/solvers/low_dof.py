@@ -217,13 +217,23 @@ def gauge_priors(null_space: NDArray[np.float64], X: NDArray[np.float64]) -> Tra
     return TranslationPriors(gauge_rows(null_space), null_space @ X[:3, 3], np.full(len(null_space), GAUGE_STD))
 
 
-def pose_motion_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str) -> tuple[str, str]:
+def pose_motion_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str,
+                     camera_noise: float = 1.0) -> tuple[str, str]:
     """The rotations of the robot and of the camera motions: ``'general'``, ``'one_axis'`` or
-    ``'translation_only'`` each (the thresholds of ``check_observability``), from the poses."""
+    ``'translation_only'`` each (the thresholds of ``check_observability``), from the poses.
+    ``camera_noise`` scales the camera's thresholds (see :func:`partial_kind`)."""
     pair = np.stack([robot_world_A(flange2base, setup), invert(target2cam)])
     (largest, spread), _ = rotation_spread_absolute(pair)
-    return tuple(TRANSLATION_ONLY if lo < MIN_ROTATION else ONE_AXIS if sp < MIN_AXIS_SPREAD else GENERAL
-                 for lo, sp in zip(largest.tolist(), spread.tolist()))
+    scale = (1.0, camera_noise)
+    return tuple(TRANSLATION_ONLY if lo < MIN_ROTATION * f else ONE_AXIS if sp < MIN_AXIS_SPREAD * f else GENERAL
+                 for lo, sp, f in zip(largest.tolist(), spread.tolist(), scale))
+
+
+#: How far beyond the robot's thresholds the camera's rotations may stray and still show the
+#: robot's low-DOF motion: the robot reads its joints to hundredths of a degree, while PnP on a
+#: single AprilTag or a far board is off by a degree or more (a SCARA seen that way looked
+#: 'general' to the camera and was refused). 10x the 0.57 deg thresholds: ~5.7 deg.
+CAMERA_ROTATION_NOISE = 10.0
 
 
 def partial_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str,
@@ -232,8 +242,11 @@ def partial_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float6
     low-DOF solver determines its part of X; else None (general data, or data that determine
     nothing: then the solver's reason is appended to ``reasons``)."""
     robot, camera = pose_motion_kind(flange2base, target2cam, setup)
-    if robot == GENERAL or robot != camera:
+    if robot == GENERAL:
         return None
+    if camera != robot:  # the camera's rotations may stray from the robot's kind by its noise
+        if pose_motion_kind(flange2base, target2cam, setup, CAMERA_ROTATION_NOISE)[1] != robot:
+            return None
     try:
         solve_low_dof(MotionSet.from_poses(flange2base, target2cam, setup, "auto"), robot)
     except DegenerateMotionError as exc:
