@@ -151,7 +151,7 @@ def test_degenerate_data_is_an_error_not_an_answer(tmp_path, capsys):
     cam = (folder / "target2cam.csv").read_text().splitlines()
     (folder / "robot_poses.csv").write_text("\n".join(robot[:3]) + "\n")
     (folder / "target2cam.csv").write_text("\n".join(cam[:3]) + "\n")
-    _one_line_error(["calibrate-poses", str(folder)], capsys, "only 2 pose(s): hand-eye calibration needs at least 3")
+    _one_line_error(["calibrate-poses", str(folder)], capsys, "Only 2 pose(s): hand-eye calibration needs at least 3")
 
 
 def test_example_and_folder_are_exclusive(capsys):

@@ -351,7 +351,7 @@ CASES = [
     Case("crlf-line-ends", "pp", text(ROBOT, lambda t: t.replace("\n", "\r\n")), pp(out=False), 0, r"check: good"),
     # --- poses that cannot determine X, or disagree ---------------------------------------------
     Case("two-poses", "pp", both(keep_rows(ROBOT, 2), keep_rows(CAMERA, 2)), pp(), 2,
-         r"only 2 pose\(s\): hand-eye calibration needs at least 3"),
+         r"Only 2 pose\(s\): hand-eye calibration needs at least 3"),
     Case("check-two-poses", "pp", both(keep_rows(ROBOT, 2), keep_rows(CAMERA, 2)), chk(), 2,
          r"verdict: degenerate \(2 poses, consistency not computed\)[\s\S]*only 2 pose\(s\)", answer=True),
     # a SCARA's or a Cartesian robot's data: the determined part, the rest named (issue 20)

@@ -470,3 +470,16 @@ def test_board_targets_pickle_for_worker_processes(spec):
     copy = pickle.loads(pickle.dumps(target))
     assert copy == target and type(copy.board) is type(target.board)
     assert np.array_equal(copy.object_points(), target.object_points())
+
+
+def test_too_few_points_to_estimate_the_intrinsics_are_named(tmp_path):
+    """No intrinsics in session.yaml and a single AprilTag (4 points an image): with 4 images
+    there are fewer equations than unknowns, which OpenCV's calibrateCamera answered with a bare
+    cv2.error (found by fuzzing calibrate); it is a SessionError that says what to give. With 7
+    images the estimate runs and a note says it is poorly determined."""
+    simulate_session(tmp_path / "four", "eye_in_hand", 4, "apriltag", seed=5, write_intrinsics=False)
+    with pytest.raises(handeye.session.SessionError, match=r"16 points: 32 equations for the 33 unknowns.*K and dist"):
+        handeye.calibrate(tmp_path / "four", progress=False, refine="none")
+    simulate_session(tmp_path / "seven", "eye_in_hand", 7, "apriltag", seed=5, write_intrinsics=False)
+    cal = handeye.calibrate(tmp_path / "seven", progress=False, refine="none")
+    assert any("poorly determined" in n for n in cal.notes)

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._shared.io import array_digest, files_digest
 from ._shared.progress import Progress
-from ._shared.text import summarize
+from ._shared.text import sentences, summarize
 from .diagnostics import closed_form, compare_solvers, diagnose
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from .estimators import PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, Choice, choose, pixel_candidates, pixel_fit, pose_candidates
@@ -72,7 +72,7 @@ def _checked_poses(flange2base, target2cam, setup, pairs, check, robot_input, st
     diag = diagnose(flange2base, target2cam, setup, robot_input=robot_input, camera_input=camera_input,
                     symmetries=symmetries)
     if diag.verdict == "degenerate":
-        raise DegenerateMotionError(" ".join(diag.advice))
+        raise DegenerateMotionError(sentences(diag.advice))
     if diag.verdict == "inconsistent" and strict:
         raise InputMismatchError(f"{diag.advice[0]} (strict=False returns the best estimate with this verdict)")
     if diag.outliers:
@@ -478,6 +478,28 @@ def _detect(session: Session, jobs: int | None, progress: bool):
     return target, {k: results[k].detection for k in found}, (sizes.pop() if sizes else None), skipped
 
 
+#: Unknowns of the intrinsics estimate beside the view poses: fx, fy, cx, cy, k1, k2, p1, p2, k3.
+INTRINSIC_UNKNOWNS = 9
+
+
+def _intrinsics_counts(detections: dict) -> tuple[int, int]:
+    """Points detected, and unknowns of estimating the intrinsics from them (with the view poses)."""
+    return sum(len(d) for d in detections.values()), INTRINSIC_UNKNOWNS + 6 * len(detections)
+
+
+def _check_intrinsics_data(detections: dict, target: str) -> None:
+    """Raise :class:`SessionError` when the detections hold fewer equations (two per point) than
+    the intrinsics estimate has unknowns (nine, and six per view): OpenCV would stop with a bare
+    'less vars to optimize' error (a few images of one AprilTag: four points each)."""
+    points, unknowns = _intrinsics_counts(detections)
+    if 2 * points <= unknowns:
+        raise SessionError(
+            f"session.yaml gives no camera intrinsics, and the {len(detections)} images with the {target} found hold "
+            f"{points} points: {2 * points} equations for the {unknowns} unknowns of estimating them (9, and 6 per "
+            f"image). Give the camera's K and dist in session.yaml (camera:), or take more images (or a target with "
+            f"more points, e.g. a chessboard or ChArUco board)")
+
+
 def observe(session: Session, jobs: int | None = None, progress: bool = True) -> Observations:
     """Detect the target in every image of ``session`` (in parallel), take the intrinsics from
     session.yaml or estimate them from the same images, solve PnP per image and relabel symmetric
@@ -486,15 +508,22 @@ def observe(session: Session, jobs: int | None = None, progress: bool = True) ->
     Raises
     ------
     SessionError
-        An unreadable image; images of different sizes; fewer than 3 images with the target found.
+        An unreadable image; images of different sizes; fewer than 3 images with the target found;
+        no intrinsics in session.yaml and too few points to estimate them.
     """
     target, detections, image_size, skipped = _detect(session, jobs, progress)
     notes = list(session.notes)
     if session.camera_matrix is not None:
         K, dist, source, k_rms = session.camera_matrix, session.dist_coeffs, "session.yaml", None
     else:
+        _check_intrinsics_data(detections, session.target_spec.get("type", "target"))
         K, dist, k_rms = calibrate_intrinsics(list(detections.values()), image_size)
         source = "estimated"
+        points, unknowns = _intrinsics_counts(detections)
+        if 2 * points < 3 * unknowns:  # fewer than 3 equations per unknown: the fit follows the noise
+            notes.append(f"intrinsics estimated from {points} points ({2 * points} equations for {unknowns} unknowns): "
+                         "poorly determined, and X with them; calibrate the camera separately and put K and dist in "
+                         "session.yaml, or take more images")
         if k_rms > INTRINSICS_RMS_WARN:
             notes.append(f"intrinsics estimated from the images have an RMS reprojection error of {k_rms:.2f} px "
                          f"(> {INTRINSICS_RMS_WARN} px): calibrate the camera separately and put K and dist in session.yaml")

@@ -33,7 +33,7 @@ from scipy.optimize import least_squares
 from scipy.special import ndtri, stdtrit
 from scipy.spatial.transform import Rotation, Slerp
 
-from ._shared.text import summarize
+from ._shared.text import sentences, summarize
 from .diagnostics import closed_form, diagnose
 from .errors import DegenerateMotionError, InputMismatchError
 from .geometry.se3 import invert, make_transform, perturb, rotation_of_valid, to_rotvec_translation
@@ -573,7 +573,7 @@ def synchronise(robot: PoseStream, camera: PoseStream, setup: str, offset_range:
     t2c = camera.poses[kf]
     diag = diagnose(f2b, t2c, setup)
     if diag.verdict == "degenerate":
-        raise DegenerateMotionError(" ".join(diag.advice))
+        raise DegenerateMotionError(sentences(diag.advice))
     keep = np.setdiff1d(np.arange(len(kf)), diag.outliers)
     X0, Z0, _ = closed_form(f2b[keep], t2c[keep], setup, "daniilidis", "auto")
     fit = refine_offset(robot, camera, X0, Z0, setup, coarse.offset, span=FINE_SPAN)

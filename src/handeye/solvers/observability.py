@@ -94,11 +94,21 @@ def check_observability(motions: MotionSet | None = None, absolute: NDArray[np.f
         Y = motions.dq_moments
         sides = ((name, *rotation_spread(dq, Y[o + 1:o + 4, o + 1:o + 4]))
                  for name, dq, o in (("robot", motions.dq_a, 0), ("camera", motions.dq_b, 8)))
+    sides = list(sides)
     for name, largest, spread, axis in sides:
         if largest < MIN_ROTATION:
+            other, other_largest = next((n, lg) for n, lg, _, _ in sides if n != name)
+            if other_largest >= 5 * MIN_ROTATION:  # one side rotates, the other does not: inconsistent data
+                raise DegenerateMotionError(
+                    f"the {name} motions are (nearly) pure translations (the largest rotation between two poses is "
+                    f"{_degrees(largest):.3g} deg) while the {other} motions rotate by up to {_degrees(other_largest):.3g} "
+                    f"deg: the {name} poses do not show the rotations the {other} poses do. Check that the camera is "
+                    f"fixed where the setup says, that both pose sets come from the same run, and, for a robot that "
+                    f"only translates (a gantry), that its rotation readings are not noise"
+                )
             raise DegenerateMotionError(
                 f"the {name} motions are (nearly) pure translations: the largest rotation between two "
-                f"poses is {np.degrees(2 * np.arcsin(min(largest, 1.0))):.3g} deg; translations alone "
+                f"poses is {_degrees(largest):.3g} deg; translations alone "
                 f"cannot determine the camera rotation. Rotate the flange by 20-45 deg about at least "
                 f"two different axes between poses"
             )
@@ -109,6 +119,11 @@ def check_observability(motions: MotionSet | None = None, absolute: NDArray[np.f
                 f"about that axis and the translation along it are undetermined. Add rotations about "
                 f"a second axis, at least 30 deg away from it"
             )
+
+
+def _degrees(sin_half: float) -> float:
+    """The rotation angle (deg) of a quaternion vector part's norm ``sin(theta/2)``."""
+    return float(np.degrees(2 * np.arcsin(min(sin_half, 1.0))))
 
 
 def observable_leave_one_out(motions: MotionSet, groups: NDArray[np.intp], block: int = 2_000_000) -> NDArray[np.bool_]:
