@@ -333,3 +333,19 @@ def test_advice_names_what_could_be_better(sample_cal):
     advice = text.split('<section id="advice">')[1]
     assert "Nothing to fix" not in advice
     assert "rotation axes are not well spread" in advice and "land a median 10.0 std of X away" in advice
+
+
+def test_gallery_of_a_view_predicted_into_the_camera_plane(sample_cal):
+    """A robot pose that puts the target in the camera's own plane projects its points to ~1e10 px
+    (found by fuzzing calibrate: OpenCV's drawMarker took them for no position and the report
+    failed): the marks off the image are left out and the report is written."""
+    from handeye.geometry.se3 import invert, make_transform
+    from handeye.report import report_html
+    from handeye.setups import predicted_target2cam
+
+    in_plane = make_transform(np.eye(3), [0.0, 0.0, 1e-9])  # the target's plane through the camera centre
+    f2b = sample_cal.flange2base.copy()
+    f2b[0] = sample_cal.Z @ invert(in_plane) @ invert(sample_cal.X)
+    assert np.allclose(predicted_target2cam(sample_cal.X, sample_cal.Z, f2b, "eye_in_hand")[0], in_plane, atol=1e-9)
+    text = report_html(replace(sample_cal, flange2base=f2b))
+    assert text.count('<figure class="flag">') >= 1 and "<figcaption>000.jpg" in text

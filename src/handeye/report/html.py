@@ -172,7 +172,8 @@ def _overlay_thumb(cal: Calibration, k: int, T: NDArray[np.float64]) -> tuple[st
     for p in det * s:
         cv2.circle(thumb, (int(round(p[0])), int(round(p[1]))), r, (0, 200, 0), max(1, r // 3), cv2.LINE_AA)
     for p in proj * s:
-        if np.all(np.isfinite(p)):
+        # far off the image (or NaN): not drawn; OpenCV takes int positions, and a bad prediction's 1e20 is not one
+        if np.all(np.abs(p) < 1e5):
             cv2.drawMarker(thumb, (int(round(p[0])), int(round(p[1]))), (0, 0, 230), cv2.MARKER_CROSS, 2 * r,
                            max(1, r // 3), cv2.LINE_AA)
     return _jpeg(thumb), f"{cal.image_names[k]}: {rms:.2f} px", rms
