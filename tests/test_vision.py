@@ -131,16 +131,21 @@ def test_memory_freed_by_worker_threads_goes_back_to_the_system(rendered, monkey
     def resident() -> int:
         return next(int(line.split()[1]) * 1024 for line in open("/proc/self/status") if line.startswith("VmRSS"))
 
+    pin = []
+
     def work() -> None:  # 64 KB blocks: below glibc's mmap threshold, so in the thread's own arena
         blocks = [np.ones(8000) for _ in range(5000)]
+        pin.append(np.ones(8000))  # allocated last and kept: the arena cannot shrink from its top by itself
         del blocks
 
+    baseline = resident()
     thread = threading.Thread(target=work)
     thread.start()
     thread.join()
     before = resident()
     detect.release_freed_memory()
-    assert before - resident() > 200 * 2**20  # 320 MB freed by the thread; most of it returned
+    # 320 MB freed by the thread stay resident until trimmed; then at most a third of it remains
+    assert before - baseline > 250 * 2**20 and resident() - baseline < (before - baseline) / 3
     calls = []
     monkeypatch.setattr(detect, "release_freed_memory", lambda: calls.append(1))
     folder, _ = rendered("circles", "eye_in_hand", True)
