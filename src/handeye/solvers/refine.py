@@ -778,8 +778,8 @@ def _pose_covariance(J, f, theta, weighting: str, n: int, dof: int) -> tuple[NDA
 def _normal_inverse(J: NDArray[np.float64]) -> NDArray[np.float64]:
     """``inv(J^T J)`` from the SVD of ``J``: symmetric and positive semi-definite however poorly
     conditioned ``J`` is (whitened by variances 1e13 apart, ``J^T J`` squares a 1e12 condition
-    number past double precision and its inverse came out with negative variances); a direction
-    ``J`` does not constrain at all has infinite variance."""
+    number past double precision and its inverse came out with negative variances); a ``J`` with
+    a direction it does not constrain at all gives every variance infinite."""
     _, s, Vt = np.linalg.svd(J, full_matrices=False)
     if not s.min() > 0.0:
         out = np.zeros((J.shape[1], J.shape[1]))
