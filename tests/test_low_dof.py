@@ -269,3 +269,24 @@ def test_a_noisy_camera_does_not_hide_the_robots_low_dof_motion(robot):
         assert cal.verdict == "partial" and cal.motion_kind == {"scara": "one_axis"}.get(robot, "translation_only")
         d_rot, _ = _errors(cal, sc)
         assert np.linalg.norm(d_rot) <= 3 * np.linalg.norm(cal.std[:3]), (seed, d_rot, cal.std[:3])
+
+
+def test_a_gantry_with_one_flipped_camera_pose_is_answered_and_names_it():
+    """One camera pose 20 deg off (a flipped planar PnP solution) among 12 views of a gantry made
+    the camera look rotating, and the session was refused; the camera counts as still when 3/4 of
+    its views agree, and the partial path's outlier search names the odd one. Camera poses of
+    another scene (rotating freely) are still refused."""
+    from handeye.geometry.se3 import make_transform
+
+    for seed in range(4):
+        sc = low_dof_scene(12, "eye_in_hand", "cartesian", seed)
+        t2c = sc.target2cam.copy()
+        t2c[4] = t2c[4] @ make_transform(Rotation.from_rotvec(np.radians(20.0) * np.array([1.0, 0.3, 0.0])).as_matrix(),
+                                         np.zeros(3))
+        cal = handeye.calibrate_poses(sc.flange2base, t2c, "eye_in_hand", progress=False)
+        assert cal.verdict == "partial" and cal.diagnostics.outliers == [4]
+        d_rot, _ = _errors(cal, sc)
+        assert np.all(np.abs(d_rot) <= 3 * cal.std[:3]), (seed, d_rot, cal.std[:3])
+    other = realistic_scene(12, "eye_in_hand", 3)
+    with pytest.raises(handeye.DegenerateMotionError):
+        handeye.calibrate_poses(sc.flange2base, other.target2cam, "eye_in_hand", progress=False)

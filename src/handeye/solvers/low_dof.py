@@ -236,6 +236,27 @@ def pose_motion_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.fl
 CAMERA_ROTATION_NOISE = 10.0
 
 
+#: The share of views whose camera orientation must agree (within the noise allowance) for a
+#: translating robot's camera to count as not rotating; the rest go to the outlier search.
+STILL_SHARE = 0.75
+
+
+def _camera_mostly_still(target2cam: NDArray[np.float64], candidates: int = 50) -> bool:
+    """Whether at least :data:`STILL_SHARE` of the views (and 3) see the target in one orientation,
+    to within the camera's noise allowance: a gantry's camera only translates, and a flipped
+    planar PnP solution in one view (10 deg and more off) must not make it look rotating. The
+    reference orientation is the view (among up to ``candidates`` spread ones) that most others
+    agree with."""
+    n = len(target2cam)
+    R = target2cam[:, :3, :3]
+    refs = R[np.unique(np.linspace(0, n - 1, min(n, candidates)).round().astype(int))]
+    # |v| = sin(theta/2) of R_ref^T R_i from the trace, against the threshold of check_observability scaled
+    trace = np.einsum("rji,nji->rn", refs, R)
+    sin_half = np.sqrt(np.clip((3.0 - trace) / 4.0, 0.0, 1.0))
+    agree = (sin_half < MIN_ROTATION * CAMERA_ROTATION_NOISE).sum(axis=1).max()
+    return bool(agree >= max(3, STILL_SHARE * n))
+
+
 def partial_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str,
                  reasons: list[str] | None = None) -> str | None:
     """The low-DOF kind of these poses when both the robot and the camera motions show it and the
@@ -245,7 +266,8 @@ def partial_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float6
     if robot == GENERAL:
         return None
     if camera != robot:  # the camera's rotations may stray from the robot's kind by its noise
-        if pose_motion_kind(flange2base, target2cam, setup, CAMERA_ROTATION_NOISE)[1] != robot:
+        if (pose_motion_kind(flange2base, target2cam, setup, CAMERA_ROTATION_NOISE)[1] != robot
+                and not (robot == TRANSLATION_ONLY and _camera_mostly_still(target2cam))):
             return None
     try:
         solve_low_dof(MotionSet.from_poses(flange2base, target2cam, setup, "auto"), robot)
