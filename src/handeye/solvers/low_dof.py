@@ -236,25 +236,38 @@ def pose_motion_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.fl
 CAMERA_ROTATION_NOISE = 10.0
 
 
-#: The share of views whose camera orientation must agree (within the noise allowance) for a
-#: translating robot's camera to count as not rotating; the rest go to the outlier search.
-STILL_SHARE = 0.75
+#: The share of views that must agree with the robot's low-DOF kind (within the camera's noise
+#: allowance) for the camera to count as showing it; the rest go to the outlier search.
+AGREE_SHARE = 0.75
 
 
-def _camera_mostly_still(target2cam: NDArray[np.float64], candidates: int = 50) -> bool:
-    """Whether at least :data:`STILL_SHARE` of the views (and 3) see the target in one orientation,
-    to within the camera's noise allowance: a gantry's camera only translates, and a flipped
-    planar PnP solution in one view (10 deg and more off) must not make it look rotating. The
-    reference orientation is the view (among up to ``candidates`` spread ones) that most others
-    agree with."""
+def _camera_agreeing(target2cam: NDArray[np.float64], kind: str, candidates: int = 50) -> NDArray[np.bool_] | None:
+    """The views whose camera rotations show the robot's ``kind`` (a gantry: one orientation; a
+    SCARA: rotations about one axis) to within the camera's noise allowance, when they are at least
+    :data:`AGREE_SHARE` of the views (and 3); else None. A flipped planar PnP solution in one view
+    (10 deg and more off) must not make a gantry's or a SCARA's camera look rotating freely.
+
+    Relative to a reference view r, ``M_i = R_r^T R_i`` (the target's rotations in the camera);
+    with ``v`` its quaternion vector part, ``|v|^2 = (3 - tr M) / 4`` and the part off an axis
+    ``e`` is ``(1 - e^T M e) / 2`` (sign-free, as in
+    :func:`~handeye.solvers.observability.rotation_spread_absolute`); ``e`` is the top eigenvector
+    of ``sum (M + M^T)``. The reference is the view, among up to ``candidates`` spread ones, that
+    most views agree with."""
     n = len(target2cam)
     R = target2cam[:, :3, :3]
     refs = R[np.unique(np.linspace(0, n - 1, min(n, candidates)).round().astype(int))]
-    # |v| = sin(theta/2) of R_ref^T R_i from the trace, against the threshold of check_observability scaled
-    trace = np.einsum("rji,nji->rn", refs, R)
-    sin_half = np.sqrt(np.clip((3.0 - trace) / 4.0, 0.0, 1.0))
-    agree = (sin_half < MIN_ROTATION * CAMERA_ROTATION_NOISE).sum(axis=1).max()
-    return bool(agree >= max(3, STILL_SHARE * n))
+    M = np.einsum("rji,njk->rnik", refs, R)
+    if kind == TRANSLATION_ONLY:
+        off2 = (3.0 - np.trace(M, axis1=2, axis2=3)) / 4.0
+        limit = MIN_ROTATION * CAMERA_ROTATION_NOISE
+    else:
+        S = M.sum(axis=1)
+        e = top_eigenvector(S + np.swapaxes(S, -1, -2))
+        off2 = (1.0 - np.einsum("rj,rnjk,rk->rn", e, M, e)) / 2.0
+        limit = MIN_AXIS_SPREAD * CAMERA_ROTATION_NOISE
+    agree = off2 < limit**2
+    best = agree[np.argmax(agree.sum(axis=1))]
+    return best if best.sum() >= max(3, AGREE_SHARE * n) else None
 
 
 def partial_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str,
@@ -265,12 +278,14 @@ def partial_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float6
     robot, camera = pose_motion_kind(flange2base, target2cam, setup)
     if robot == GENERAL:
         return None
-    if camera != robot:  # the camera's rotations may stray from the robot's kind by its noise
-        if (pose_motion_kind(flange2base, target2cam, setup, CAMERA_ROTATION_NOISE)[1] != robot
-                and not (robot == TRANSLATION_ONLY and _camera_mostly_still(target2cam))):
+    keep = np.ones(len(target2cam), bool)
+    # the camera's rotations may stray from the robot's kind by its noise, and a few views by more
+    if camera != robot and pose_motion_kind(flange2base, target2cam, setup, CAMERA_ROTATION_NOISE)[1] != robot:
+        keep = _camera_agreeing(target2cam, robot)
+        if keep is None:
             return None
-    try:
-        solve_low_dof(MotionSet.from_poses(flange2base, target2cam, setup, "auto"), robot)
+    try:  # on the views that show the kind: the others are for the outlier search to name
+        solve_low_dof(MotionSet.from_poses(flange2base[keep], target2cam[keep], setup, "auto"), robot)
     except DegenerateMotionError as exc:
         if reasons is not None:
             reasons.append(str(exc))
