@@ -487,14 +487,13 @@ def _intrinsics_counts(detections: dict) -> tuple[int, int]:
     return sum(len(d) for d in detections.values()), INTRINSIC_UNKNOWNS + 6 * len(detections)
 
 
-def _check_intrinsics_data(detections: dict, target: str) -> None:
+def _check_intrinsics_data(points: int, unknowns: int, images: int, target: str) -> None:
     """Raise :class:`SessionError` when the detections hold fewer equations (two per point) than
-    the intrinsics estimate has unknowns (nine, and six per view): OpenCV would stop with a bare
-    'less vars to optimize' error (a few images of one AprilTag: four points each)."""
-    points, unknowns = _intrinsics_counts(detections)
+    the intrinsics estimate has unknowns (nine, and six per view; :func:`_intrinsics_counts`):
+    OpenCV would stop with a bare 'less vars to optimize' error (a few images of one AprilTag)."""
     if 2 * points <= unknowns:
         raise SessionError(
-            f"session.yaml gives no camera intrinsics, and the {len(detections)} images with the {target} found hold "
+            f"session.yaml gives no camera intrinsics, and the {images} images with the {target} found hold "
             f"{points} points: {2 * points} equations for the {unknowns} unknowns of estimating them (9, and 6 per "
             f"image). Give the camera's K and dist in session.yaml (camera:), or take more images (or a target with "
             f"more points, e.g. a chessboard or ChArUco board)")
@@ -516,10 +515,10 @@ def observe(session: Session, jobs: int | None = None, progress: bool = True) ->
     if session.camera_matrix is not None:
         K, dist, source, k_rms = session.camera_matrix, session.dist_coeffs, "session.yaml", None
     else:
-        _check_intrinsics_data(detections, session.target_spec.get("type", "target"))
+        points, unknowns = _intrinsics_counts(detections)
+        _check_intrinsics_data(points, unknowns, len(detections), session.target_spec.get("type", "target"))
         K, dist, k_rms = calibrate_intrinsics(list(detections.values()), image_size)
         source = "estimated"
-        points, unknowns = _intrinsics_counts(detections)
         if 2 * points < 3 * unknowns:  # fewer than 3 equations per unknown: the fit follows the noise
             notes.append(f"intrinsics estimated from {points} points ({2 * points} equations for {unknowns} unknowns): "
                          "poorly determined, and X with them; calibrate the camera separately and put K and dist in "

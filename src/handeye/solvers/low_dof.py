@@ -81,7 +81,7 @@ def motion_kind(motions: MotionSet) -> str:
     kinds = []
     for dq in (motions.dq_a, motions.dq_b):
         largest, spread, _ = rotation_spread(dq)
-        kinds.append(TRANSLATION_ONLY if largest < MIN_ROTATION else ONE_AXIS if spread < MIN_AXIS_SPREAD else GENERAL)
+        kinds.append(_kind(largest, spread))
     order = (GENERAL, ONE_AXIS, TRANSLATION_ONLY)
     return max(kinds, key=order.index)
 
@@ -217,16 +217,24 @@ def gauge_priors(null_space: NDArray[np.float64], X: NDArray[np.float64]) -> Tra
     return TranslationPriors(gauge_rows(null_space), null_space @ X[:3, 3], np.full(len(null_space), GAUGE_STD))
 
 
-def pose_motion_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str,
-                     camera_noise: float = 1.0) -> tuple[str, str]:
+def pose_motion_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str) -> tuple[str, str]:
     """The rotations of the robot and of the camera motions: ``'general'``, ``'one_axis'`` or
-    ``'translation_only'`` each (the thresholds of ``check_observability``), from the poses.
-    ``camera_noise`` scales the camera's thresholds (see :func:`partial_kind`)."""
+    ``'translation_only'`` each (the thresholds of ``check_observability``), from the poses."""
+    largest, spread = _pose_rotation_spread(flange2base, target2cam, setup)
+    return _kind(largest[0], spread[0]), _kind(largest[1], spread[1])
+
+
+def _pose_rotation_spread(flange2base, target2cam, setup: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The largest rotation and the largest rotation off the dominant axis (``sin(theta/2)``) of the
+    robot's and of the camera's motions, ``(2,)`` each (:func:`rotation_spread_absolute`)."""
     pair = np.stack([robot_world_A(flange2base, setup), invert(target2cam)])
     (largest, spread), _ = rotation_spread_absolute(pair)
-    scale = (1.0, camera_noise)
-    return tuple(TRANSLATION_ONLY if lo < MIN_ROTATION * f else ONE_AXIS if sp < MIN_AXIS_SPREAD * f else GENERAL
-                 for lo, sp, f in zip(largest.tolist(), spread.tolist(), scale))
+    return largest, spread
+
+
+def _kind(largest: float, spread: float, scale: float = 1.0) -> str:
+    """The kind of motions with these rotations, the thresholds of ``check_observability`` times ``scale``."""
+    return TRANSLATION_ONLY if largest < MIN_ROTATION * scale else ONE_AXIS if spread < MIN_AXIS_SPREAD * scale else GENERAL
 
 
 #: How far beyond the robot's thresholds the camera's rotations may stray and still show the
@@ -275,12 +283,13 @@ def partial_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float6
     """The low-DOF kind of these poses when both the robot and the camera motions show it and the
     low-DOF solver determines its part of X; else None (general data, or data that determine
     nothing: then the solver's reason is appended to ``reasons``)."""
-    robot, camera = pose_motion_kind(flange2base, target2cam, setup)
+    largest, spread = _pose_rotation_spread(flange2base, target2cam, setup)
+    robot = _kind(largest[0], spread[0])
     if robot == GENERAL:
         return None
     keep = np.ones(len(target2cam), bool)
     # the camera's rotations may stray from the robot's kind by its noise, and a few views by more
-    if camera != robot and pose_motion_kind(flange2base, target2cam, setup, CAMERA_ROTATION_NOISE)[1] != robot:
+    if robot not in (_kind(largest[1], spread[1]), _kind(largest[1], spread[1], CAMERA_ROTATION_NOISE)):
         keep = _camera_agreeing(target2cam, robot)
         if keep is None:
             return None
