@@ -20,10 +20,10 @@ from numpy.typing import NDArray
 from . import solvers
 from .diagnostics import closed_form
 from .errors import HandEyeError
-from .solvers.refine import ReprojectionResult, downdate_reprojection, refine_pose, refine_reprojection, refit_pose
+from .solvers.refine import PoseRefinementResult, ReprojectionResult, downdate_reprojection, refine_pose, refine_reprojection, refit_pose
 from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices
 
-__all__ = ["Choice", "pose_candidates", "pixel_candidates", "choose", "POSE", "PIXEL", "PIXEL_INTRINSICS",
+__all__ = ["Choice", "pose_candidates", "pose_fit", "pixel_candidates", "choose", "POSE", "PIXEL", "PIXEL_INTRINSICS",
            "PIXEL_ROBOT"]
 
 #: Closed forms left out of the choice: horaud_nonlinear costs 4x the others per fit and lands between
@@ -46,12 +46,12 @@ def _closed(method: str) -> Fit:
     return fit
 
 
-def _pose(method: str, views: Views | None) -> Fit:
+def pose_fit(method: str, views: Views | None, start: PoseRefinementResult | None = None) -> Fit:
     """The pose refinement. With ``views`` (all the poses), it is refined on them once (kept as
-    ``fit.full``), and each fit on a subset starts there with the noise variances held
-    (:func:`~handeye.solvers.refine.refit_pose`): a cross-validation fold differs from the whole by a
-    few poses."""
-    full: list = []
+    ``fit.full``; ``start``: that refinement, already made), and each fit on a subset starts there
+    with the noise variances held (:func:`~handeye.solvers.refine.refit_pose`): a cross-validation
+    fold differs from the whole by a few poses."""
+    full: list = [] if start is None else [start]
 
     def fit(flange2base, target2cam, setup, idx):
         if views is None:
@@ -72,7 +72,7 @@ def pose_candidates(method: str = "daniilidis", views: Views | None = None) -> d
     """Every registered closed form, and the pose refinement started from ``method`` (warm-started
     from the refinement on all of ``views`` when given)."""
     out = {name: _closed(name) for name in solvers.available(closed_forms=True) if name not in SLOW_CLOSED_FORMS}
-    out[POSE] = _pose(method, views)
+    out[POSE] = pose_fit(method, views)
     return out
 
 
