@@ -142,8 +142,8 @@ def calibrate_poses(
         Cross-validation folds of ``refine='auto'`` (default: one per pose up to 10 poses, else 5;
         :func:`handeye.validation.default_folds`).
     robot_accuracy : (deg, mm) or None
-        The robot's absolute accuracy per axis (``refine='auto'``): a constant robot error is absorbed
-        into X whole, so it is added to X's covariance. ``None`` (or zeros) for an exact robot.
+        The robot's absolute accuracy per axis (every ``refine`` but ``'none'``): a constant robot error
+        is absorbed into X whole, so it is added to X's covariance. ``None`` (or zeros) for an exact robot.
     progress : bool
         Show the steps on stderr (from :data:`PROGRESS_FROM_POSES` poses).
     known : dict, optional
@@ -821,8 +821,9 @@ def calibrate_observed(
 ) -> Calibration:
     """:func:`calibrate` from what :func:`observe` made of a session's images (the same options).
 
-    ``uncertainty=False`` skips the jackknife refits that the reported std of ``refine='auto'``
-    needs (for repeated calibrations on parts of the same data, e.g. cross-validation);
+    ``uncertainty=False`` skips the jackknife refits that the reported std needs, and the robot's
+    accuracy with them: the std is the noise model's (for repeated calibrations on parts of the same
+    data, e.g. cross-validation);
     ``progress``: show the steps after detection on stderr (from :data:`PROGRESS_FROM_IMAGES` views).
     """
     bar = Progress(3, f"calibrating {len(obs.flange2base)} views: check, estimators, uncertainty",
