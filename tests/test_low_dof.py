@@ -292,3 +292,25 @@ def test_one_flipped_camera_pose_of_a_low_dof_robot_is_answered_and_named(robot)
     other = realistic_scene(12, "eye_in_hand", 3)
     with pytest.raises(handeye.DegenerateMotionError):
         handeye.calibrate_poses(sc.flange2base, other.target2cam, "eye_in_hand", progress=False)
+
+
+@pytest.mark.parametrize("robot", ["scara", "cartesian"])
+@pytest.mark.parametrize("setup", SETUPS)
+def test_another_scenes_low_dof_camera_poses_are_inconsistent_not_partial(robot, setup):
+    """A SCARA's (or gantry's) robot poses paired with the camera poses of another session of the
+    same robot: the camera shows the robot's kind of motion, so the partial path took them and
+    answered 'partial' (pose residuals of 50-140 deg). Judged as general data are, by the
+    consistency score of the low-DOF solver: 'inconsistent' with what to check, refused with
+    strict; each session's own poses stay 'partial' with the score it was judged by."""
+    kind = {"scara": "one_axis", "cartesian": "translation_only"}[robot]
+    for seed in range(3):
+        own = low_dof_scene(12, setup, robot, seed, robot_noise=(0.05, 0.2), pixel_px=0.3)
+        other = low_dof_scene(12, setup, robot, seed + 100, robot_noise=(0.05, 0.2), pixel_px=0.3)
+        good = handeye.calibrate_poses(own.flange2base, own.target2cam, setup, progress=False)
+        assert good.verdict == "partial" and good.diagnostics.consistency <= 3.0
+        cal = handeye.calibrate_poses(own.flange2base, other.target2cam, setup, progress=False)
+        assert cal.verdict == "inconsistent" and cal.motion_kind == kind and cal.unobservable
+        assert cal.diagnostics.consistency > 3.0
+        assert any("do not agree on one camera mounting" in a for a in cal.diagnostics.advice)
+        with pytest.raises(InputMismatchError, match="do not agree"):
+            handeye.calibrate_poses(own.flange2base, other.target2cam, setup, strict=True, progress=False)

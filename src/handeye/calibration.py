@@ -174,7 +174,7 @@ def calibrate_poses(
         flange2base, target2cam, pairs, keep, diag, notes = _checked_poses(
             flange2base_in, target2cam_in, setup, pairs, check, robot_input, strict, camera_input, symmetries)
         bar.update()
-        if (kind := partial_kind(flange2base, target2cam, setup) if diag is None or diag.verdict == "partial" else None):
+        if (kind := partial_kind(flange2base, target2cam, setup) if diag is None or diag.motion_kind != "general" else None):
             return _partial(flange2base, target2cam, setup, kind, pairs, given, refine, diag, keep, robot_input,
                             array_digest(flange2base_in, target2cam_in), accuracy)
         X, Z, motions = closed_form(flange2base, target2cam, setup, method, pairs)
@@ -236,7 +236,7 @@ def _partial(flange2base, target2cam, setup, kind, pairs, given, refine, diag, k
     cal = calibrate_partial(flange2base, target2cam, setup, kind, pairs, given, refine=refine != "none")
     if diag is None:  # unchecked: the verdict still says partial (Calibration.verdict)
         diag = Diagnostics(verdict="partial", n_poses=len(flange2base))
-    if not cal.unobservable:  # complete with the known values: judged by its std as any calibration
+    if not cal.unobservable and diag.verdict == "partial":  # complete with the known values: judged by its std
         diag = replace(diag, verdict="good")
     # the check's advice beyond the partial verdict's own sentence (calibrate_partial's note says it): outliers
     cal = replace(cal, diagnostics=diag, pose_indices=keep, robot_input=robot_input, inputs_sha256=digest,
@@ -949,7 +949,7 @@ def _kept(diag: Diagnostics) -> NDArray[np.intp]:
 
 
 def _check_choice(diag: Diagnostics, views: Views, extra: dict, folds: int | None) -> Choice | None:
-    if diag.verdict in ("degenerate", "partial") or len(views) < 5:  # partial: no estimator sees all of X
+    if diag.verdict == "degenerate" or diag.motion_kind != "general" or len(views) < 5:  # low-DOF: none sees all of X
         return None
     try:
         return choose(views, pose_candidates("daniilidis", views) | extra, folds)

@@ -94,10 +94,12 @@ def _motion_scale(target2cam: NDArray[np.float64]) -> float:
     return float(np.sqrt(np.mean(np.sum((cam_in_target - cam_in_target.mean(axis=0)) ** 2, axis=1)))) + 1e-12
 
 
-def consistency_score(flange2base, target2cam, setup: str) -> float:
-    """Unit-free consistency of poses (see :class:`Diagnostics`); ``inf`` when unsolvable."""
+def consistency_score(flange2base, target2cam, setup: str, kind: str | None = None) -> float:
+    """Unit-free consistency of poses (see :class:`Diagnostics`); ``inf`` when unsolvable. ``kind``
+    ('one_axis', 'translation_only'): X from the low-DOF solver; the part of X it cannot determine
+    moves every pose's target pose alike, so the score does not depend on it."""
     try:
-        X = _solve(flange2base, target2cam, setup)
+        X = _solve(flange2base, target2cam, setup, kind)
     except (HandEyeError, np.linalg.LinAlgError, ValueError):
         return float("inf")
     Zi = constant_transforms(X, flange2base, target2cam, setup)
@@ -372,21 +374,10 @@ def _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outlier
         inliers, resid = find_outliers(flange2base, target2cam, setup, rng=rng)
         diag.pose_residuals = resid
         diag.consistency = consistency_score(flange2base[inliers], target2cam[inliers], setup)
-    if diag.consistency > CONSISTENT or inliers.sum() < max(0.6 * n, 3):
-        diag.verdict = "inconsistent"
-        diag.advice.append(
-            f"the poses do not agree on one camera mounting (consistency {given:.1f}, up to {CONSISTENT:g} is "
-            "consistent) and no usual mistake explains it: check that each robot pose belongs to its image, "
-            "that the robot reports the flange (not a tool) pose, the pose format and units, and the "
-            "target description")
+    if _disagree(diag, given, inliers):
         return diag
     if outliers and not inliers.all():
-        diag.outliers = [int(i) for i in np.flatnonzero(~inliers)]
-        diag.outlier_residuals = {i: (float(resid[i, 0]), float(resid[i, 1])) for i in diag.outliers}
-        diag.advice.append(
-            f"pose(s) {summarize(diag.outliers)} disagree with the others far beyond their noise "
-            "(a wrong robot pose, a mislabelled image or a misdetected target): they are left out; "
-            "check or retake them")
+        _name_outliers(diag, inliers, resid)
         if len(diag.outliers) > 0.2 * n:
             diag.verdict = "weak"
     if leave_one_out:
@@ -491,18 +482,46 @@ def _undetermined(diag: Diagnostics, motions: MotionSet, exc: DegenerateMotionEr
     kind = partial_kind(flange2base, target2cam, setup, reasons)
     diag.verdict = "partial" if kind else "degenerate"
     diag.advice.extend([_partial_advice(kind, setup)] if kind else _degenerate_advice(motions, exc) + reasons)
-    if kind and outliers:
-        _partial_outliers(diag, flange2base, target2cam, setup, kind, rng)
+    if kind:
+        diag.motion_kind = kind
+        _partial_checks(diag, flange2base, target2cam, setup, kind, outliers, rng)
     return diag
 
 
-def _partial_outliers(diag: Diagnostics, flange2base, target2cam, setup: str, kind: str, rng) -> None:
-    """The outlier search on low-DOF data (its own solver), into ``diag``; a minimal set that
-    determines nothing (3 poses on a line) is skipped by the search."""
-    inliers, resid = find_outliers(flange2base, target2cam, setup, rng=rng, kind=kind)
-    diag.pose_residuals = resid
-    if inliers.all() or inliers.sum() < max(0.6 * len(inliers), 3):
+def _partial_checks(diag: Diagnostics, flange2base, target2cam, setup: str, kind: str, outliers: bool, rng) -> None:
+    """The outlier search and the consistency score on low-DOF data (its own solver), into
+    ``diag``, judged as general data are: robot poses paired with another scene's camera poses are
+    'inconsistent', not a partial answer. A score that cannot be computed (a minimal set that
+    determines nothing, 3 poses on a line) leaves the verdict to the solver."""
+    given = consistency_score(flange2base, target2cam, setup, kind)
+    diag.consistency = given
+    inliers = np.ones(len(flange2base), bool)
+    if outliers:
+        inliers, diag.pose_residuals = find_outliers(flange2base, target2cam, setup, rng=rng, kind=kind)
+        if not inliers.all():
+            diag.consistency = consistency_score(flange2base[inliers], target2cam[inliers], setup, kind)
+    if np.isfinite(diag.consistency) and _disagree(diag, given, inliers):
         return
+    if not inliers.all():
+        _name_outliers(diag, inliers, diag.pose_residuals)
+
+
+def _disagree(diag: Diagnostics, given: float, inliers: NDArray[np.bool_]) -> bool:
+    """Whether the poses (the inliers) disagree beyond their noise, or too many are outliers: then
+    the verdict 'inconsistent' and what to check, first (``strict`` quotes it)."""
+    if diag.consistency <= CONSISTENT and inliers.sum() >= max(0.6 * len(inliers), 3):
+        return False
+    diag.verdict = "inconsistent"
+    diag.advice.insert(0, 
+        f"the poses do not agree on one camera mounting (consistency {given:.1f}, up to {CONSISTENT:g} is "
+        "consistent) and no usual mistake explains it: check that each robot pose belongs to its image, "
+        "that the robot reports the flange (not a tool) pose, the pose format and units, and the "
+        "target description")
+    return True
+
+
+def _name_outliers(diag: Diagnostics, inliers: NDArray[np.bool_], resid: NDArray[np.float64]) -> None:
+    """The outliers, their residuals and the advice to check them, into ``diag``."""
     diag.outliers = [int(i) for i in np.flatnonzero(~inliers)]
     diag.outlier_residuals = {i: (float(resid[i, 0]), float(resid[i, 1])) for i in diag.outliers}
     diag.advice.append(f"pose(s) {summarize(diag.outliers)} disagree with the others far beyond their noise "

@@ -123,6 +123,9 @@ class Diagnostics:
     #: the units are right), and its standard deviation; None when not estimated
     scale: float | None = None
     scale_std: float | None = None
+    #: 'general', or the low-DOF motions the check found ('one_axis', 'translation_only'; see
+    #: :mod:`handeye.partial`), which stay so when the verdict is 'inconsistent'
+    motion_kind: str = "general"
 
     def pose_table(self, names: list[str] | None = None) -> str:
         """Per pose: residual from the consensus and how far X moves without it."""
@@ -251,8 +254,9 @@ class Calibration:
     @property
     def verdict(self) -> str:
         """The check's verdict ('good', 'weak', 'partial', 'inconsistent'), or 'not checked'; 'partial'
-        whenever part of X is undetermined (:attr:`unobservable`), checked or not."""
-        if self.unobservable:
+        whenever part of X is undetermined (:attr:`unobservable`), checked or not, unless the check
+        found the data inconsistent."""
+        if self.unobservable and (self.diagnostics is None or self.diagnostics.verdict != "inconsistent"):
             return "partial"
         return self.diagnostics.verdict if self.diagnostics is not None else "not checked"
 
