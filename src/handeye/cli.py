@@ -114,6 +114,8 @@ def print_calibration(cal: Calibration, out=None) -> None:
         w(f"std of X ({cal.refinement} refinement): rotation {_fmt_vec(cal.std[:3], 4)} deg, "
           f"translation {_fmt_vec(cal.std[3:], 3)} mm" + (" (inf: not determined by the data)"
                                                         if np.isinf(cal.std).any() else "") + "\n")
+    else:  # a closed form alone (--refine none) has no noise model: say so rather than print nothing
+        w(f"std of X: not computed ({cal.method} closed form alone; --refine auto or pose gives it)\n")
     for u in cal.unobservable:
         w(f"NOT DETERMINED: {u.parameter}; set to {u.choice}. {u.coupled[:1].upper() + u.coupled[1:]}. To fix: {u.fix}\n")
     for name, k in cal.known.items():
