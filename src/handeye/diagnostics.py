@@ -512,11 +512,10 @@ def _disagree(diag: Diagnostics, given: float, inliers: NDArray[np.bool_]) -> bo
     if diag.consistency <= CONSISTENT and inliers.sum() >= max(0.6 * len(inliers), 3):
         return False
     diag.verdict = "inconsistent"
-    diag.advice.insert(0, 
-        f"the poses do not agree on one camera mounting (consistency {given:.1f}, up to {CONSISTENT:g} is "
-        "consistent) and no usual mistake explains it: check that each robot pose belongs to its image, "
-        "that the robot reports the flange (not a tool) pose, the pose format and units, and the "
-        "target description")
+    diag.advice.insert(0, f"the poses do not agree on one camera mounting (consistency {given:.1f}, up to "
+                          f"{CONSISTENT:g} is consistent) and no usual mistake explains it: check that each robot pose "
+                          "belongs to its image, that the robot reports the flange (not a tool) pose, the pose format "
+                          "and units, and the target description")
     return True
 
 

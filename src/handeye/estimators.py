@@ -20,7 +20,8 @@ from numpy.typing import NDArray
 from . import solvers
 from .diagnostics import closed_form
 from .errors import HandEyeError
-from .solvers.refine import PoseRefinementResult, ReprojectionResult, downdate_reprojection, refine_pose, refine_reprojection, refit_pose
+from .solvers.refine import (PoseRefinementResult, ReprojectionResult, downdate_reprojection, refine_pose,
+                             refine_reprojection, refit_pose)
 from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices
 
 __all__ = ["Choice", "pose_candidates", "pose_fit", "pixel_candidates", "choose", "POSE", "PIXEL", "PIXEL_INTRINSICS",
