@@ -20,8 +20,8 @@ from ._shared.progress import Progress
 from ._shared.text import sentences, summarize
 from .diagnostics import closed_form, compare_solvers, diagnose
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError
-from .estimators import (PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, Choice, choose, pixel_candidates, pixel_fit,
-                         pose_candidates, pose_fit)
+from .estimators import (PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, Choice, choose, intrinsics_cov, pixel_candidates,
+                         pixel_fit, pose_candidates, pose_fit)
 from .geometry.se3 import invert, skew
 from .metrics import std_deg_mm
 from .motions import MotionSet, Pairs, validate_poses
@@ -298,15 +298,20 @@ def _accuracy(robot_accuracy) -> tuple[float, float] | None:
 
 
 def widened_uncertainty(cal: Calibration, cv_jack: NDArray[np.float64] | None,
-                        robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY) -> Calibration:
+                        robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
+                        intrinsics: NDArray[np.float64] | None = None) -> Calibration:
     """``cal`` with a std that covers both sources: the refinement's noise model (``cal.cov``, None for
     a closed form) and the jackknife spread (X refitted without each pose). Each of X's six
     parameters gets the larger of the two (the model's correlations kept); a note says when the
-    spread widened the model's."""
+    spread widened the model's. Errors common to every pose, which neither sees, are added: the
+    robot's absolute accuracy, and ``intrinsics`` (X's covariance from intrinsics estimated from
+    the same images, :func:`handeye.estimators.intrinsics_cov`)."""
     model = cal.cov
     robot = None if robot_accuracy is None else robot_accuracy_cov(cal.X, robot_accuracy)
     sources = {"model": None if model is None else _std(model), "jackknife": None if cv_jack is None else _std(cv_jack),
                "robot_accuracy": None if robot is None else _std(robot)}
+    if intrinsics is not None:
+        sources["intrinsics"] = _std(intrinsics)
     notes = list(cal.notes)
     if model is None or cv_jack is None:
         cov = model if cv_jack is None else cv_jack
@@ -323,6 +328,12 @@ def widened_uncertainty(cal: Calibration, cv_jack: NDArray[np.float64] | None,
         notes.append(f"the std of X includes the robot's absolute accuracy, assumed {robot_accuracy[0]:g} deg / "
                      f"{robot_accuracy[1]:g} mm per axis (robot_accuracy=(deg, mm), --robot-accuracy DEG,MM): a "
                      "constant robot error is invisible in the data and X takes it whole")
+    if intrinsics is not None and cov is not None:
+        cov = cov + intrinsics
+        notes.append(f"the std of X includes the error of the intrinsics estimated from these images (up to "
+                     f"{np.max(sources['intrinsics'][:3]):.3g} deg / {np.max(sources['intrinsics'][3:]):.3g} mm), "
+                     f"which the {cal.estimator or cal.method} estimate holds fixed: give K and dist in session.yaml "
+                     "from a calibration of their own to remove it")
     if cov is None:
         return replace(cal, std_sources=sources, notes=notes)
     return replace(cal, cov=cov, std=_std(cov), std_sources=sources, notes=notes)
@@ -344,21 +355,26 @@ def apply_choice(cal: Calibration, choice: Choice, views: Views, pairs: Pairs = 
         cal = replace(cal, X=X, Z=Z, method=name, motions=motions, pairs=motions.pairs)
     cal = replace(cal, estimator=name, cross_validation=choice.table())
     if uncertainty:
-        cal = _verdict_from_spread(_uncertain(cal, choice.fits[name], views, robot_accuracy), choice)
+        cal = _verdict_from_spread(_uncertain(cal, choice.fits[name], views, robot_accuracy, obs), choice)
     notes = list(cal.notes) + [f"estimator {name}: chosen by {choice.best.folds}-fold cross-validation, held-out error "
                                + _cv_text(choice.table()[name])]
     return replace(cal, notes=notes)
 
 
-def _uncertain(cal: Calibration, fit, views: Views, robot_accuracy: tuple[float, float] | None) -> Calibration:
+def _uncertain(cal: Calibration, fit, views: Views, robot_accuracy: tuple[float, float] | None,
+               obs: "Observations | None" = None) -> Calibration:
     """``cal``, fitted by the estimator ``fit`` on ``views``, with the std every estimator reports (the
-    noise model widened by the jackknife spread of ``fit``, plus the robot's accuracy) and its verdict
-    weakened when that std is too wide: the same whether the estimator was chosen or named."""
-    return _verdict_from_std(widened_uncertainty(cal, jackknife_cov(fit, views, cal.X), robot_accuracy))
+    noise model widened by the jackknife spread of ``fit``, plus the robot's accuracy, plus the
+    intrinsics' error when ``obs`` estimated them from these images) and its verdict weakened when
+    that std is too wide: the same whether the estimator was chosen or named."""
+    intrinsics = None
+    if obs is not None and obs.intrinsics_source == "estimated":
+        intrinsics = intrinsics_cov(cal.estimator, fit, views, cal.X, cal.Z)
+    return _verdict_from_std(widened_uncertainty(cal, jackknife_cov(fit, views, cal.X), robot_accuracy, intrinsics))
 
 
 def _pose_refined(cal: Calibration, method: str, robot_accuracy: tuple[float, float] | None,
-                  uncertainty: bool = True) -> Calibration:
+                  uncertainty: bool = True, obs: "Observations | None" = None) -> Calibration:
     """``cal`` (the closed form ``method`` on its poses) refined on its poses, as named (``refine='pose'``)
     or with too few poses to choose (fewer than 5): its std as :func:`_uncertain` (with 4 poses the
     jackknife refits 3). The noise model alone, its three variances estimated from few residuals,
@@ -368,8 +384,8 @@ def _pose_refined(cal: Calibration, method: str, robot_accuracy: tuple[float, fl
     cal = refine_on_poses(cal, ref)
     if not uncertainty:
         return cal
-    views = Views(cal.flange2base, cal.target2cam, cal.setup)
-    return _uncertain(cal, pose_fit(method, views, ref), views, robot_accuracy)
+    views = Views(cal.flange2base, cal.target2cam, cal.setup) if obs is None else _views(obs, np.asarray(cal.pose_indices))
+    return _uncertain(cal, pose_fit(method, views, ref), views, robot_accuracy, obs)
 
 
 def _final_pixel_fit(cal: Calibration, obs: Observations, name: str, robot_noise, pairs: Pairs,
@@ -394,7 +410,7 @@ def _final_pixel_fit(cal: Calibration, obs: Observations, name: str, robot_noise
         sigma = _robot_sigma(robot_noise, "auto") if name == PIXEL_ROBOT else None
         ref = pixel_fit(_views(obs, everything), everything, cal.X, cal.Z,
                         name != PIXEL and obs.intrinsics_source == "estimated", sigma)
-    return refine_on_pixels(cal, obs, ref, robot_noise if name == PIXEL_ROBOT else None)
+    return replace(refine_on_pixels(cal, obs, ref, robot_noise if name == PIXEL_ROBOT else None), estimator=name)
 
 
 #: X is "weak" when 3 std of it exceed the thesis's acceptance (§5: 5 mm and 1 deg).
@@ -864,14 +880,14 @@ def _calibrate_observed(obs, method, refine, pairs, check, robot_noise, strict, 
         cal = apply_choice(cal, choice, views, pairs, obs, robot_noise, accuracy, uncertainty)
         bar.update()
     elif refine in ("auto", "pose"):
-        cal = _pose_refined(cal, method, accuracy, uncertainty)
+        cal = _pose_refined(cal, method, accuracy, uncertainty, obs)
     elif refine == "reprojection":
         name = PIXEL_ROBOT if robot_sigma is not None else (PIXEL_INTRINSICS if estimated else PIXEL)
         views = _views(obs, idx)
         fit = pixel_candidates(views, method, estimated, robot_sigma)[name]
         cal = _final_pixel_fit(cal, obs, name, robot_noise, pairs, fit)
         if uncertainty:
-            cal = _uncertain(cal, fit, views, accuracy)
+            cal = _uncertain(cal, fit, views, accuracy, obs)
     if cal.refinement == "reprojection":  # every image back in (see _final_pixel_fit)
         kept, outlier_images = list(range(len(obs.used))), []
     return _with_images(cal, obs, kept, outlier_images, list(obs.notes))

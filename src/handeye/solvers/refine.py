@@ -434,8 +434,11 @@ def downdate_reprojection(ref: ReprojectionResult, drop) -> tuple[NDArray[np.flo
     determine the unknowns, ``ValueError`` when ``ref`` keeps no Jacobian (robot corrections)."""
     if ref.jacobian is None:
         raise ValueError("no Jacobian kept for this refinement (robot pose corrections): refit instead")
+    drop = np.atleast_1d(np.asarray(drop, dtype=np.intp))
+    if drop.size == 0:  # nothing left out: the fit itself
+        return ref.X, ref.Z, ref.K, ref.dist
     J, r, rows = ref.jacobian, ref.residual_vector, ref.rows
-    sel = np.concatenate([np.arange(rows[i], rows[i + 1]) for i in np.atleast_1d(drop)]).astype(np.intp)
+    sel = np.concatenate([np.arange(rows[i], rows[i + 1]) for i in drop]).astype(np.intp)
     Jd, rd = J[sel], r[sel]
     delta = np.linalg.solve(J.T @ J - Jd.T @ Jd, Jd.T @ rd)
     X, Z = _xz_increment(delta, ref.X, ref.Z)

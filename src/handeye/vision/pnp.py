@@ -12,8 +12,9 @@ from .targets import Detection
 
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
-__all__ = ["symmetry_costs", "label_doubts", "solve_pnp", "calibrate_intrinsics", "resolve_symmetries", "reprojection_rms", "project_points",
-           "project_points_many", "project_camera_points", "projection_jacobians"]
+__all__ = ["symmetry_costs", "label_doubts", "solve_pnp", "refine_pnp", "calibrate_intrinsics", "intrinsics_covariance",
+           "INTRINSICS", "resolve_symmetries", "reprojection_rms", "project_points", "project_points_many",
+           "project_camera_points", "projection_jacobians"]
 
 
 def project_points(
@@ -148,6 +149,17 @@ def solve_pnp(det: Detection, K: NDArray[np.float64], dist: NDArray[np.float64])
     return T, reprojection_rms(det, T, K, dist)
 
 
+def refine_pnp(target2cam: NDArray[np.float64], object_points: NDArray[np.float64], image_points: NDArray[np.float64],
+               K: NDArray[np.float64], dist: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``target2cam`` refitted to its points under other intrinsics: Levenberg-Marquardt from the
+    pose given, which keeps its planar solution (a fresh IPPE could take the other one)."""
+    rvec = cv2.Rodrigues(np.ascontiguousarray(target2cam[:3, :3]))[0]
+    tvec = np.ascontiguousarray(target2cam[:3, 3]).reshape(3, 1)
+    rvec, tvec = cv2.solvePnPRefineLM(np.ascontiguousarray(object_points, dtype=np.float64),
+                                      np.ascontiguousarray(image_points, dtype=np.float64), K, dist, rvec, tvec)
+    return from_rotvec_translation(rvec.ravel(), tvec.ravel())
+
+
 def calibrate_intrinsics(
     detections: list[Detection], image_size: tuple[int, int]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
@@ -159,6 +171,43 @@ def calibrate_intrinsics(
     img = [np.ascontiguousarray(d.image_points, dtype=np.float32) for d in detections]
     rms, K, dist, _, _ = cv2.calibrateCamera(obj, img, image_size, None, None)
     return K, dist.ravel(), float(rms)
+
+
+#: The intrinsics :func:`calibrate_intrinsics` estimates, in the order of :func:`projection_jacobians`.
+INTRINSICS = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
+
+
+def intrinsics_covariance(object_points: list[NDArray[np.float64]], image_points: list[NDArray[np.float64]],
+                          target2cam: NDArray[np.float64], K: NDArray[np.float64],
+                          dist: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Covariance (9, 9) of the intrinsics (:data:`INTRINSICS`) estimated from these views by
+    :func:`calibrate_intrinsics`: the Gauss-Newton covariance of the reprojection fit over the
+    intrinsics and every view's pose, the poses eliminated (Schur complement), scaled by the
+    residual variance. Its diagonal is OpenCV's ``stdDeviationsIntrinsics`` squared; the
+    correlations (fx with fy, the principal point with the tilt of the views) are what a
+    propagation to X needs."""
+    S = np.zeros((9, 9))
+    rss, residuals = 0.0, 0
+    for P, uv, T in zip(object_points, image_points, target2cam):
+        RP = np.asarray(P, dtype=float) @ T[:3, :3].T
+        px, d_point, d_intr = projection_jacobians(RP + T[:3, 3], K, dist)
+        r = np.asarray(uv, dtype=float) - px
+        rss += float(np.sum(r * r))
+        residuals += r.size
+        # the view's pose: a left rotation increment w (d point = w x RP) and the translation
+        d_pose = np.empty((len(RP), 3, 6))
+        d_pose[:, :, 3:] = np.eye(3)
+        d_pose[:, 0, :3] = np.c_[np.zeros(len(RP)), RP[:, 2], -RP[:, 1]]
+        d_pose[:, 1, :3] = np.c_[-RP[:, 2], np.zeros(len(RP)), RP[:, 0]]
+        d_pose[:, 2, :3] = np.c_[RP[:, 1], -RP[:, 0], np.zeros(len(RP))]
+        A = d_intr.reshape(-1, 9)
+        B = (d_point @ d_pose).reshape(-1, 6)
+        BA = B.T @ A
+        S += A.T @ A - BA.T @ np.linalg.solve(B.T @ B, BA)
+    dof = residuals - 9 - 6 * len(target2cam)
+    if dof <= 0:
+        raise ValueError(f"{residuals} residuals cannot give the covariance of 9 intrinsics and {len(target2cam)} poses")
+    return rss / dof * np.linalg.pinv(S)
 
 
 def symmetry_costs(target2cam: NDArray[np.float64], flange2base: NDArray[np.float64], setup: str,
