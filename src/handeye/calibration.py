@@ -426,10 +426,16 @@ def _verdict_from_std(cal: Calibration) -> Calibration:
     if rot <= ACCEPT_DEG and mm <= ACCEPT_MM:
         return cal
     jack = (cal.std_sources or {}).get("jackknife")
+    intr = (cal.std_sources or {}).get("intrinsics")
     why = (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg"
            + (f" (leaving one pose out moves X by {np.linalg.norm(jack[3:]):.1f} mm / {np.linalg.norm(jack[:3]):.2f} deg "
-              "per std)" if jack is not None else "")
-           + ": the poses do not pin X down; take more (10-20), with rotations of 30 deg or more about varied axes")
+              "per std)" if jack is not None else ""))
+    if intr is not None and (3 * np.linalg.norm(intr[3:]) > ACCEPT_MM or 3 * np.linalg.norm(intr[:3]) > ACCEPT_DEG):
+        why += (f"; the intrinsics estimated from these images alone give {np.linalg.norm(intr[3:]):.1f} mm / "
+                f"{np.linalg.norm(intr[:3]):.2f} deg per std: calibrate the camera on its own (views filling the "
+                "image, the target tilted) and give K and dist in session.yaml, or take more views that do")
+    else:
+        why += ": the poses do not pin X down; take more (10-20), with rotations of 30 deg or more about varied axes"
     diag = replace(cal.diagnostics, verdict="weak", advice=list(cal.diagnostics.advice) + [why])
     return replace(cal, diagnostics=diag, notes=list(cal.notes) + [why])
 
