@@ -508,7 +508,7 @@ def test_intrinsics_error_is_propagated_to_x():
     assert max(r[1] for r in results) > 0.5
 
 
-def test_calibrate_with_estimated_intrinsics_reports_their_error(tmp_path):
+def test_calibrate_with_estimated_intrinsics_reports_their_error(tmp_path, monkeypatch):
     handeye.simulate.simulate_session(tmp_path / "s", "eye_in_hand", 8, seed=2, write_intrinsics=False)
     cal = handeye.calibrate(tmp_path / "s", progress=False, refine="pose")
     assert cal.intrinsics_source == "estimated" and cal.std_sources["intrinsics"] is not None
@@ -516,6 +516,13 @@ def test_calibrate_with_estimated_intrinsics_reports_their_error(tmp_path):
     assert np.all(cal.std >= cal.std_sources["intrinsics"] - 1e-12)
     # 8 images of 640x480 pin the intrinsics down to ~4 mm per std of X: the verdict says where to act
     assert cal.verdict == "weak" and any("calibrate the camera on its own" in a for a in cal.diagnostics.advice)
+    def fails(*args):
+        raise ValueError("no pose")
+
+    with monkeypatch.context() as m:  # a refit that fails: answered, and the missing term said
+        m.setattr("handeye.estimators.refine_pnp", fails)
+        cal = handeye.calibrate(tmp_path / "s", progress=False, refine="pose")
+        assert "intrinsics" not in cal.std_sources and any("could not be propagated" in n for n in cal.notes)
     handeye.simulate.simulate_session(tmp_path / "given", "eye_in_hand", 8, seed=2, write_intrinsics=True)
     cal = handeye.calibrate(tmp_path / "given", progress=False, refine="pose")
     assert "intrinsics" not in cal.std_sources

@@ -368,8 +368,12 @@ def _uncertain(cal: Calibration, fit, views: Views, robot_accuracy: tuple[float,
     intrinsics' error when ``obs`` estimated them from these images) and its verdict weakened when
     that std is too wide: the same whether the estimator was chosen or named."""
     intrinsics = None
-    if obs is not None and obs.intrinsics_source == "estimated":
+    if obs is not None and obs.intrinsics_source == "estimated" and cal.estimator not in (PIXEL_INTRINSICS, PIXEL_ROBOT):
         intrinsics = intrinsics_cov(cal.estimator, fit, views, cal.X, cal.Z)
+        if intrinsics is None:
+            cal = replace(cal, notes=list(cal.notes) + [
+                "the error of the intrinsics estimated from these images could not be propagated to X (a refit "
+                "failed): the std of X leaves it out; give K and dist in session.yaml"])
     return _verdict_from_std(widened_uncertainty(cal, jackknife_cov(fit, views, cal.X), robot_accuracy, intrinsics))
 
 
