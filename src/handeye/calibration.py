@@ -328,8 +328,8 @@ def widened_uncertainty(cal: Calibration, cv_jack: NDArray[np.float64] | None,
         notes.append(f"the std of X includes the robot's absolute accuracy, assumed {robot_accuracy[0]:g} deg / "
                      f"{robot_accuracy[1]:g} mm per axis (robot_accuracy=(deg, mm), --robot-accuracy DEG,MM): a "
                      "constant robot error is invisible in the data and X takes it whole")
-    if intrinsics is not None and cov is not None:
-        cov = cov + intrinsics
+    if intrinsics is not None:
+        cov = intrinsics if cov is None else cov + intrinsics
         notes.append(f"the std of X includes the error of the intrinsics estimated from these images (up to "
                      f"{np.max(sources['intrinsics'][:3]):.3g} deg / {np.max(sources['intrinsics'][3:]):.3g} mm), "
                      f"which the {cal.estimator or cal.method} estimate holds fixed: give K and dist in session.yaml "
