@@ -1,18 +1,27 @@
-"""Calibrated uncertainty: the covariance of the reprojection refinement against Monte-Carlo truth."""
+"""Calibrated uncertainty: the covariance of the refinements against Monte-Carlo truth, the std every estimator
+reports (jackknife, robot accuracy, intrinsics estimated from the images) against the error it promises to cover."""
 
 from __future__ import annotations
 
+import tempfile
+from pathlib import Path
+
+import cv2
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
 import handeye
 import realdata
+from handeye.calibration import _views, observe
+from handeye.estimators import POSE, intrinsics_cov, pose_fit
 from handeye.metrics import rotation_error, translation_error
+from handeye.session import load_session
 from handeye.simulate import (REALISTIC, default_camera, perturb_poses, random_scene, realistic_scene, scene_from_viewpoints,
                               visible_viewpoints)
-from handeye.solvers.refine import refine_pose, refine_reprojection
+from handeye.solvers.refine import downdate_reprojection, refine_pose, refine_reprojection
 from handeye.vision import Detection, solve_pnp, target_from_spec
+from handeye.vision.pnp import intrinsics_covariance, refine_pnp
 from handeye.vision.render import Renderer, target_texture
 
 
@@ -437,15 +446,6 @@ def _estimated_intrinsics_session(args):
     """One rendered session whose intrinsics handeye estimates: the pose refinement's X with the
     intrinsics as estimated and as true (every PnP pose refitted to them), and the covariance
     intrinsics_cov propagates from the estimate's error."""
-    import tempfile
-    from pathlib import Path
-
-    from handeye.calibration import _views, observe
-    from handeye.estimators import POSE, intrinsics_cov, pose_fit
-    from handeye.session import load_session
-    from handeye.validation import Views
-    from handeye.vision.pnp import refine_pnp
-
     seed, setup = args
     with tempfile.TemporaryDirectory() as d:
         folder = Path(d) / "s"
@@ -469,14 +469,6 @@ def _estimated_intrinsics_session(args):
 def test_intrinsics_covariance_is_opencvs():
     """The covariance of the intrinsics (Schur complement over the views' poses) has OpenCV's
     stdDeviationsIntrinsics on its diagonal, from the same detections."""
-    import tempfile
-    from pathlib import Path
-
-    import cv2
-    from handeye.calibration import observe
-    from handeye.session import load_session
-    from handeye.vision.pnp import intrinsics_covariance
-
     with tempfile.TemporaryDirectory() as d:
         handeye.simulate.simulate_session(Path(d) / "s", "eye_in_hand", 8, seed=3, write_intrinsics=False)
         obs = observe(load_session(Path(d) / "s"), progress=False)
@@ -531,8 +523,6 @@ def test_calibrate_with_estimated_intrinsics_reports_their_error(tmp_path, monke
 def test_pixel_downdate_matches_a_refit_and_drops_nothing_when_asked():
     """downdate_reprojection: X without one image within 2% of X's move of a refit without it; with
     no image dropped, the fit itself (a ValueError before: an empty list to concatenate)."""
-    from handeye.solvers.refine import downdate_reprojection
-
     rng = np.random.default_rng(4)
     size, K, dist, target = _mc_camera()
     renderer = Renderer(K, dist, size, supersample=1)
