@@ -442,16 +442,19 @@ def test_std_covers_the_error_with_few_poses_or_a_named_estimator(n, refine):
 
 # --- intrinsics estimated from the same images --------------------------------------------------
 
+def _observed_without_intrinsics(setup: str, seed: int):
+    """What observe makes of 8 rendered images (exact robot poses) whose session.yaml gives no intrinsics."""
+    with tempfile.TemporaryDirectory() as d:
+        handeye.simulate.simulate_session(Path(d) / "s", setup, 8, seed=seed, write_intrinsics=False)
+        return observe(load_session(Path(d) / "s"), progress=False)
+
+
 def _estimated_intrinsics_session(args):
     """One rendered session whose intrinsics handeye estimates: the pose refinement's X with the
     intrinsics as estimated and as true (every PnP pose refitted to them), and the covariance
     intrinsics_cov propagates from the estimate's error."""
     seed, setup = args
-    with tempfile.TemporaryDirectory() as d:
-        folder = Path(d) / "s"
-        sc = handeye.simulate.simulate_session(folder, setup, 8, seed=seed, write_intrinsics=False,
-                                               robot_noise=(0.0, 0.0))
-        obs = observe(load_session(folder), progress=False)
+    obs = _observed_without_intrinsics(setup, seed)
     assert obs.intrinsics_source == "estimated"
     views = _views(obs, np.arange(len(obs.used)))
     fit = pose_fit("daniilidis", views)
@@ -469,9 +472,7 @@ def _estimated_intrinsics_session(args):
 def test_intrinsics_covariance_is_opencvs():
     """The covariance of the intrinsics (Schur complement over the views' poses) has OpenCV's
     stdDeviationsIntrinsics on its diagonal, from the same detections."""
-    with tempfile.TemporaryDirectory() as d:
-        handeye.simulate.simulate_session(Path(d) / "s", "eye_in_hand", 8, seed=3, write_intrinsics=False)
-        obs = observe(load_session(Path(d) / "s"), progress=False)
+    obs = _observed_without_intrinsics("eye_in_hand", 3)
     obj = [np.asarray(o, np.float32) for o in obs.object_points]
     img = [np.asarray(i, np.float32) for i in obs.image_points]
     out = cv2.calibrateCameraExtended(obj, img, (640, 480), None, None)

@@ -20,8 +20,8 @@ from ._shared.progress import Progress
 from ._shared.text import sentences, summarize
 from .diagnostics import closed_form, compare_solvers, diagnose
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError
-from .estimators import (PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, Choice, choose, intrinsics_cov, pixel_candidates,
-                         pixel_fit, pose_candidates, pose_fit)
+from .estimators import (PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, REFINE_INTRINSICS, Choice, choose, intrinsics_cov,
+                         pixel_candidates, pixel_fit, pose_candidates, pose_fit)
 from .geometry.se3 import invert, skew
 from .metrics import std_deg_mm
 from .motions import MotionSet, Pairs, validate_poses
@@ -38,6 +38,7 @@ from .sync import (KEYFRAMES, MIN_SAMPLES, PoseStream, Synchronisation, check_st
 from .validation import Views, jackknife_cov
 from .vision import (calibrate_intrinsics, detect_images, label_doubts, resolve_symmetries, solve_pnp, symmetry_costs,
                      target_from_spec)
+from .vision.pnp import INTRINSICS
 
 __all__ = ["Calibration", "FolderCheck", "Observations", "ROBOT_ACCURACY", "apply_choice", "calibrate", "certify_calibration",
            "calibrate_observed", "calibrate_poses", "check_folder", "observe", "refine_on_pixels", "refine_on_poses",
@@ -368,7 +369,7 @@ def _uncertain(cal: Calibration, fit, views: Views, robot_accuracy: tuple[float,
     intrinsics' error when ``obs`` estimated them from these images) and its verdict weakened when
     that std is too wide: the same whether the estimator was chosen or named."""
     intrinsics = None
-    if obs is not None and obs.intrinsics_source == "estimated" and cal.estimator not in (PIXEL_INTRINSICS, PIXEL_ROBOT):
+    if obs is not None and obs.intrinsics_source == "estimated" and cal.estimator not in REFINE_INTRINSICS:
         intrinsics = intrinsics_cov(cal.estimator, fit, views, cal.X, cal.Z)
         if intrinsics is None:
             cal = replace(cal, notes=list(cal.notes) + [
@@ -526,8 +527,8 @@ def _detect(session: Session, jobs: int | None, progress: bool):
     return target, {k: results[k].detection for k in found}, (sizes.pop() if sizes else None), skipped
 
 
-#: Unknowns of the intrinsics estimate beside the view poses: fx, fy, cx, cy, k1, k2, p1, p2, k3.
-INTRINSIC_UNKNOWNS = 9
+#: Unknowns of the intrinsics estimate beside the view poses (:data:`handeye.vision.pnp.INTRINSICS`).
+INTRINSIC_UNKNOWNS = len(INTRINSICS)
 
 
 def _intrinsics_counts(detections: dict) -> tuple[int, int]:

@@ -27,7 +27,7 @@ from .validation import CrossValidation, Fit, Views, cross_validate, default_fol
 from .vision.pnp import intrinsics_covariance, refine_pnp
 
 __all__ = ["Choice", "pose_candidates", "pose_fit", "pixel_candidates", "choose", "intrinsics_cov", "POSE", "PIXEL",
-           "PIXEL_INTRINSICS", "PIXEL_ROBOT"]
+           "PIXEL_INTRINSICS", "PIXEL_ROBOT", "REFINE_INTRINSICS"]
 
 #: Closed forms left out of the choice: horaud_nonlinear costs 4x the others per fit and lands between
 #: horaud and the pose refinement, which are both candidates.
@@ -40,6 +40,9 @@ POSE = "pose"
 PIXEL = "reprojection"
 PIXEL_INTRINSICS = "reprojection+intrinsics"
 PIXEL_ROBOT = "reprojection+robot"
+#: The estimators that refine intrinsics estimated from the same images along with X (the others hold
+#: them fixed: :func:`intrinsics_cov`).
+REFINE_INTRINSICS = (PIXEL_INTRINSICS, PIXEL_ROBOT)
 
 
 def _closed(method: str) -> Fit:
@@ -192,7 +195,7 @@ def intrinsics_cov(name: str, fit: Fit, views: Views, X: NDArray[np.float64],
     with the intrinsics moved along each principal direction of their covariance
     (:func:`~handeye.vision.pnp.intrinsics_covariance`) and every view's PnP pose refitted to them;
     the differences, scaled to one standard deviation, give the covariance (10 refits; the pixel
-    refinement's warm-started and on every point: ~1 s for 30 images of a 28x17 board). None for the
+    refinement's warm-started and on every point: 0.6 s for 30 images of a 28x17 board). None for the
     estimators that refine the intrinsics themselves, for views without pixels or with other than
     the 5 coefficients :func:`~handeye.vision.pnp.calibrate_intrinsics` estimates, and when a refit
     fails.
@@ -202,7 +205,7 @@ def intrinsics_cov(name: str, fit: Fit, views: Views, X: NDArray[np.float64],
     gives 0.67: detection errors correlated within an image make the intrinsics' covariance, as
     OpenCV's, ~1.15x too small); added to the jackknife and the robot's accuracy, X's whole error
     is within 3 std on 87-100% of the axes at 8, 12 and 20 images (60-100% without it)."""
-    if name in (PIXEL_INTRINSICS, PIXEL_ROBOT) or not views.has_pixels or len(np.ravel(views.dist)) != 5:
+    if name in REFINE_INTRINSICS or not views.has_pixels or len(np.ravel(views.dist)) != 5:
         return None
     try:
         cov_K = intrinsics_covariance(views.object_points, views.image_points, views.target2cam, views.K, views.dist)
@@ -233,9 +236,9 @@ def _fit_with_intrinsics(name: str, fit: Fit, views: Views, X: NDArray[np.float6
     K[0, 2] += step[2]
     K[1, 2] += step[3]
     dist = np.ravel(views.dist) + step[4:]
-    target2cam = np.array([refine_pnp(T, P, uv, K, dist)
-                           for T, P, uv in zip(views.target2cam, views.object_points, views.image_points)])
     if name == PIXEL:  # the pixel refinement reads the intrinsics, not the PnP poses: warm-started there
         return refine_reprojection(X, Z, views.flange2base, list(views.object_points), list(views.image_points),
                                    K, dist, views.setup, robust=False, tol=REFIT_TOL).X
+    target2cam = np.array([refine_pnp(T, P, uv, K, dist)
+                           for T, P, uv in zip(views.target2cam, views.object_points, views.image_points)])
     return fit(views.flange2base, target2cam, views.setup, np.arange(len(views)))[0]

@@ -40,7 +40,7 @@ from .refine import TranslationPriors
 from .observability import MIN_AXIS_SPREAD, MIN_ROTATION, rotation_spread, rotation_spread_absolute
 
 __all__ = ["GAUGE_STD", "GENERAL", "LowDofSolution", "ONE_AXIS", "TRANSLATION_ONLY", "gauge_priors", "gauge_rows",
-           "motion_kind", "partial_kind", "pose_motion_kind", "solve_low_dof"]
+           "motion_kind", "partial_kind", "solve_low_dof"]
 
 GENERAL, ONE_AXIS, TRANSLATION_ONLY = "general", "one_axis", "translation_only"
 #: Below this reciprocal condition number the system that fixes the determined part of X is
@@ -215,13 +215,6 @@ def gauge_priors(null_space: NDArray[np.float64], X: NDArray[np.float64]) -> Tra
     """X's translation held at its value along the undetermined directions, so that the pose
     refinement (and its covariance) is defined on low-DOF data."""
     return TranslationPriors(gauge_rows(null_space), null_space @ X[:3, 3], np.full(len(null_space), GAUGE_STD))
-
-
-def pose_motion_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str) -> tuple[str, str]:
-    """The rotations of the robot and of the camera motions: ``'general'``, ``'one_axis'`` or
-    ``'translation_only'`` each (the thresholds of ``check_observability``), from the poses."""
-    largest, spread = _pose_rotation_spread(flange2base, target2cam, setup)
-    return _kind(largest[0], spread[0]), _kind(largest[1], spread[1])
 
 
 def _pose_rotation_spread(flange2base, target2cam, setup: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.lazy import lazy_module
-from ..geometry.se3 import from_rotvec_translation, invert, screw_parameters
+from ..geometry.se3 import from_rotvec_translation, invert, screw_parameters, skew
 from ..setups import robot_world_A, robot_world_A_inv
 from .targets import Detection
 
@@ -186,7 +186,8 @@ def intrinsics_covariance(object_points: list[NDArray[np.float64]], image_points
     residual variance. Its diagonal is OpenCV's ``stdDeviationsIntrinsics`` squared; the
     correlations (fx with fy, the principal point with the tilt of the views) are what a
     propagation to X needs."""
-    S = np.zeros((9, 9))
+    k = len(INTRINSICS)
+    S = np.zeros((k, k))
     rss, residuals = 0.0, 0
     for P, uv, T in zip(object_points, image_points, target2cam):
         RP = np.asarray(P, dtype=float) @ T[:3, :3].T
@@ -194,19 +195,17 @@ def intrinsics_covariance(object_points: list[NDArray[np.float64]], image_points
         r = np.asarray(uv, dtype=float) - px
         rss += float(np.sum(r * r))
         residuals += r.size
-        # the view's pose: a left rotation increment w (d point = w x RP) and the translation
+        # the view's pose: a left rotation increment w (d point = w x RP = -[RP]x w) and the translation
         d_pose = np.empty((len(RP), 3, 6))
+        d_pose[:, :, :3] = -skew(RP)
         d_pose[:, :, 3:] = np.eye(3)
-        d_pose[:, 0, :3] = np.c_[np.zeros(len(RP)), RP[:, 2], -RP[:, 1]]
-        d_pose[:, 1, :3] = np.c_[-RP[:, 2], np.zeros(len(RP)), RP[:, 0]]
-        d_pose[:, 2, :3] = np.c_[RP[:, 1], -RP[:, 0], np.zeros(len(RP))]
-        A = d_intr.reshape(-1, 9)
+        A = d_intr.reshape(-1, k)
         B = (d_point @ d_pose).reshape(-1, 6)
         BA = B.T @ A
         S += A.T @ A - BA.T @ np.linalg.solve(B.T @ B, BA)
-    dof = residuals - 9 - 6 * len(target2cam)
+    dof = residuals - k - 6 * len(target2cam)
     if dof <= 0:
-        raise ValueError(f"{residuals} residuals cannot give the covariance of 9 intrinsics and {len(target2cam)} poses")
+        raise ValueError(f"{residuals} residuals cannot give the covariance of {k} intrinsics and {len(target2cam)} poses")
     return rss / dof * np.linalg.pinv(S)
 
 
