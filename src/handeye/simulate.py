@@ -33,7 +33,7 @@ cv2 = lazy_module("cv2")
 
 __all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look_at", "look_at_viewpoints", "perturb_poses", "seed_viewpoints",
            "seed_scenes", "add_noise", "simulate_session", "RealisticErrors", "RealisticScene", "REALISTIC", "EXACT",
-           "realistic_scene", "arm_forward_kinematics", "ARM_DH",
+           "realistic_scene", "arm_forward_kinematics", "ARM_DH", "robot_accuracy_of", "simulate_realistic_session",
            "low_dof_scene", "LOW_DOF_ROBOTS", "StreamScene", "stream_scene",
            "simulate_stream_session"]
 
@@ -497,6 +497,8 @@ class RealisticErrors:
     * kinematics: the robot reports the forward kinematics of its nominal DH parameters while the
       arm follows perturbed ones (``dh_length_mm``, ``dh_angle_deg`` per parameter, joint zero
       offsets included): a systematic error that depends on the pose, ~0.5-1 mm at the flange;
+    * ``joint_wave_deg``: a smooth joint-dependent error on top (gear eccentricity, compliance): each
+      joint turns ``joint_wave_deg * sin(q + phase)`` more than commanded, a random phase per joint;
     * ``robot_rot_deg``, ``robot_mm``: random pose noise on top, Student-t with ``robot_dof``
       degrees of freedom (heavy tails; the scale is the t's, not a standard deviation);
     * ``jitter_ms``: the pose is read that long (Gaussian, std) before or after the image while the
@@ -517,6 +519,16 @@ class RealisticErrors:
     speed_deg_s: float = 10.0
     pixel_px: float = 0.3
     flip_probability: float = 0.02
+    joint_wave_deg: float = 0.0
+
+    def scaled(self, factor: float) -> "RealisticErrors":
+        """The same errors with the robot's kinematic part (DH errors and joint waves) ``factor`` times
+        as large: the sweep from a calibrated arm (~0.2 mm absolute error at 0.25) to an
+        uncalibrated one (~3 mm at 3; measured by :func:`robot_accuracy_of`)."""
+        if not (np.isfinite(factor) and factor >= 0):
+            raise HandEyeError(f"factor={factor!r}: give a finite factor >= 0")
+        return replace(self, dh_length_mm=factor * self.dh_length_mm, dh_angle_deg=factor * self.dh_angle_deg,
+                       joint_wave_deg=factor * self.joint_wave_deg)
 
 
 #: The preset that mixes every error above at its default level.
@@ -661,12 +673,65 @@ def realistic_scene(
     dh = ARM_DH.copy()
     dh[:, [0, 2]] += 1e-3 * rng.normal(0.0, errors.dh_length_mm, (6, 2))
     dh[:, [1, 3]] += np.radians(rng.normal(0.0, errors.dh_angle_deg, (6, 2)))
-    f2b_true = arm_forward_kinematics(q, dh)
+    q_true = q
+    if errors.joint_wave_deg > 0:  # drawn only when asked: scenes without it stay as they were
+        q_true = q + np.radians(errors.joint_wave_deg) * np.sin(q + rng.uniform(0.0, 2 * np.pi, 6))
+    f2b_true = arm_forward_kinematics(q_true, dh)
     t2c_true = predicted_target2cam(X, Z, f2b_true, setup)
     reported = _robot_reading(q, f2b_true, errors, rng)
     t2c, image_points, flipped = _camera_reading(t2c_true, obj, K, dist, errors, rng)
     return RealisticScene(setup, X, Z, q, f2b_true, reported, t2c_true, t2c, obj, image_points, K, dist,
                           tuple(image_size), flipped)
+
+
+def robot_accuracy_of(scene: RealisticScene) -> tuple[float, float]:
+    """The median error of the robot poses ``scene`` reports (deg, mm at the flange): the absolute
+    accuracy of its simulated arm over that capture."""
+    D = invert(scene.flange2base_true) @ scene.flange2base
+    rot = np.degrees(np.linalg.norm(Rotation.from_matrix(D[:, :3, :3]).as_rotvec(), axis=1))
+    return float(np.median(rot)), float(1e3 * np.median(np.linalg.norm(D[:, :3, 3], axis=1)))
+
+
+def simulate_realistic_session(
+    out_dir,
+    n_poses: int = 12,
+    setup: str = "eye_in_hand",
+    seed: int | None = None,
+    errors: RealisticErrors = REALISTIC,
+    target: str | dict = "chessboard",
+    image_size: tuple[int, int] = (640, 480),
+    write_intrinsics: bool = True,
+) -> RealisticScene:
+    """Render a capture session of :func:`realistic_scene`: the images show the target where the
+    arm truly put it (feature noise ``errors.pixel_px``), ``poses.csv`` holds what the controller
+    reports (kinematic errors, timing jitter, heavy-tailed noise), ``ground_truth.yaml`` the truth.
+    The camera's poses come from handeye's own detection and PnP on the images, as for a real
+    capture. ``out_dir`` must not already hold a session. Returns the scene."""
+    out = check_output_folder(out_dir)
+    if (out / "session.yaml").exists() or (out / "images").exists():
+        raise HandEyeError(f"{out} already holds a session; choose an empty folder")
+    sc = realistic_scene(n_poses, setup, seed, errors=errors, target=target, image_size=image_size)
+    spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
+    renderer = Renderer(sc.K, sc.dist, image_size)
+    texture = target_texture(target_from_spec(spec))
+    rng = np.random.default_rng(None if seed is None else [seed, 1])
+    (out / "images").mkdir(parents=True, exist_ok=True)
+    names = []
+    for k, T in enumerate(sc.target2cam_true):
+        name = f"{k:03d}.png"
+        if not cv2.imwrite(str(out / "images" / name), renderer.render(texture, T, rng=rng, noise_px=errors.pixel_px)):
+            raise HandEyeError(f"cannot write {out / 'images' / name}")
+        names.append(name)
+    write_session(out, setup, spec, names, sc.flange2base, "quat_wxyz", "mm", "deg",
+                  camera=(sc.K, sc.dist) if write_intrinsics else None,
+                  comment="Rendered by handeye's realistic simulator; ground truth in ground_truth.yaml")
+    info = setup_info(setup)
+    deg, mm = robot_accuracy_of(sc)
+    truth = {"setup": setup, info.x_name: sc.X.tolist(), info.z_name: sc.Z.tolist(), "K": sc.K.tolist(),
+             "dist": sc.dist.tolist(), "errors": {k: float(v) for k, v in vars(errors).items()},
+             "robot_accuracy_deg_mm": [deg, mm], "seed": seed}
+    atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
+    return sc
 
 
 #: Robots whose flange cannot rotate freely (:func:`low_dof_scene`): a SCARA turns its flange about
