@@ -1,0 +1,79 @@
+"""X under real robots' errors (kinematic errors that depend on the pose, from a calibrated arm's
+~0.2 mm to an uncalibrated one's ~3 mm): the simulator's sweep, rendered realistic sessions, and the
+estimator choice that does not trust the pixel refinement's exact-robot model when the robot's
+errors dominate its residuals. The full sweep against OpenCV is benchmarks/bench_robot_errors.py."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import yaml
+
+import handeye
+from handeye.calibration import calibrate_observed, observe
+from handeye.errors import HandEyeError
+from handeye.estimators import PIXEL, POSE, ROBOT_DOMINATES, choose, pixel_candidates, pose_candidates
+from handeye.metrics import rotation_error, translation_error
+from handeye.session import load_session
+from handeye.simulate import EXACT, REALISTIC, realistic_scene, robot_accuracy_of, simulate_realistic_session
+from handeye.validation import Views
+
+
+def test_the_sweep_spans_real_arms_accuracy():
+    """scaled(0.25) is a calibrated arm (~0.2-0.4 mm), scaled(3) an uncalibrated one (~2-4 mm); the
+    joint waves add a smooth error; scaled(0) leaves the timing and noise terms alone."""
+    errs = replace(REALISTIC, joint_wave_deg=0.02)
+    acc = {k: np.median([robot_accuracy_of(realistic_scene(12, "eye_in_hand", s, errors=errs.scaled(k)))[1]
+                         for s in range(6)]) for k in (0.25, 1.0, 3.0)}
+    assert 0.1 < acc[0.25] < 0.5 and 0.5 < acc[1.0] < 1.6 and 1.8 < acc[3.0] < 4.5, acc
+    assert errs.scaled(0).dh_length_mm == 0 and errs.scaled(0).robot_mm == errs.robot_mm
+    plain = realistic_scene(12, "eye_in_hand", 2, errors=replace(EXACT, dh_length_mm=0.3))
+    waved = realistic_scene(12, "eye_in_hand", 2, errors=replace(EXACT, dh_length_mm=0.3, joint_wave_deg=0.05))
+    assert np.allclose(plain.joints, waved.joints)  # the same commanded joints ...
+    assert np.abs(plain.flange2base_true - waved.flange2base_true).max() > 1e-5  # ... the arm goes elsewhere
+    with pytest.raises(HandEyeError, match="factor"):
+        REALISTIC.scaled(-1)
+
+
+def test_a_rendered_realistic_session_calibrates_to_its_truth(tmp_path):
+    sc = simulate_realistic_session(tmp_path / "s", 10, "eye_to_hand", 4)
+    truth = yaml.safe_load((tmp_path / "s" / "ground_truth.yaml").read_text())
+    assert np.allclose(truth["cam2base"], sc.X) and truth["robot_accuracy_deg_mm"][1] > 0
+    cal = handeye.calibrate(tmp_path / "s", progress=False)
+    assert 1e3 * translation_error(cal.X, sc.X) <= 3 * np.linalg.norm(cal.std[3:])
+    assert np.degrees(rotation_error(cal.X, sc.X)) <= 3 * np.linalg.norm(cal.std[:3])
+    with pytest.raises(HandEyeError, match="already holds a session"):
+        simulate_realistic_session(tmp_path / "s", 10, "eye_to_hand", 4)
+
+
+def _choice(folder):
+    obs = observe(load_session(folder), jobs=1, progress=False)
+    idx = np.asarray(handeye.calibrate_poses(obs.flange2base, obs.target2cam, obs.session.setup,
+                                            refine="none").pose_indices)
+    views = Views(obs.flange2base[idx], obs.target2cam[idx], obs.session.setup, [obs.object_points[i] for i in idx],
+                  [obs.image_points[i] for i in idx], obs.K, obs.dist)
+    return obs, choose(views, pose_candidates("daniilidis", views) | pixel_candidates(views, "daniilidis"))
+
+
+def test_the_pixel_refinement_is_preferred_only_while_the_robot_is_exact(tmp_path):
+    """An exact robot: the pixel fit's residual is the camera's (ratio ~1), the pixel refinement is
+    preferred. An uncalibrated arm (~3 mm): the ratio is several, the pose refinement is preferred,
+    and the default's X is closer to the truth than the pixel refinement's."""
+    exact = replace(EXACT, pixel_px=0.1)
+    simulate_realistic_session(tmp_path / "exact", 12, "eye_in_hand", 1, errors=exact)
+    _, choice = _choice(tmp_path / "exact")
+    assert choice.robot_error_ratio < ROBOT_DOMINATES and choice.prefer == PIXEL
+    worse, better = [], []
+    for seed in range(3):
+        folder = tmp_path / f"arm{seed}"
+        sc = simulate_realistic_session(folder, 12, "eye_in_hand", seed,
+                                        errors=replace(REALISTIC, pixel_px=0.1).scaled(3))
+        obs, choice = _choice(folder)
+        assert choice.robot_error_ratio > 2 * ROBOT_DOMINATES and choice.prefer == POSE
+        cal = calibrate_observed(obs)
+        pixel = calibrate_observed(obs, refine="reprojection")
+        better.append(translation_error(cal.X, sc.X))
+        worse.append(translation_error(pixel.X, sc.X))
+    assert np.median(better) < np.median(worse), (better, worse)
