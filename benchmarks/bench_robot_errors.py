@@ -12,7 +12,7 @@ reported std (rotation and translation norms).
 
 Run from the repository root: ``python benchmarks/bench_robot_errors.py [--sessions N] [--levels
 0.25,1,3] [--views 8,12,20]``. The default (10 sessions per cell, 3 levels, 3 view counts, both
-setups: 180 sessions) takes ~6 min on 2 cores.
+setups: 180 sessions) takes ~10 min on 2 cores (96 sessions took ~5 min).
 """
 
 from __future__ import annotations
