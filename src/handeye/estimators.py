@@ -176,7 +176,7 @@ def choose(views: Views, candidates: dict[str, Fit], folds: int | None = None, s
     best = min(finite, key=finite.get)
     ratio = robot_error_ratio(views, candidates)
     if prefer is None:
-        pixel = next((p for p in (PIXEL_INTRINSICS, PIXEL) if p in candidates), None)
+        pixel = _pixel_name(candidates)
         robot_dominates = ratio is not None and ratio > ROBOT_DOMINATES and not _scale_off(views)
         prefer = pixel if pixel is not None and not robot_dominates else POSE
     if prefer in finite and best != prefer:
@@ -202,7 +202,7 @@ def robot_error_ratio(views: Views, candidates: dict[str, Fit]) -> float | None:
     ~1 when the robot's poses are exact up to the camera's noise. None without a pixel refinement
     among ``candidates``, before it was fitted, or with too few points (the pixel refinement then
     stays preferred)."""
-    name = next((p for p in (PIXEL_INTRINSICS, PIXEL) if p in candidates), None)
+    name = _pixel_name(candidates)
     done = getattr(candidates.get(name), "full", None) if name is not None else None
     if not done or not views.has_pixels:
         return None
@@ -216,6 +216,11 @@ def robot_error_ratio(views: Views, candidates: dict[str, Fit]) -> float | None:
         return None
     pixel_sq = done[0].rms_px ** 2 * (count // 2)  # rms_px is per point (x and y together)
     return float(np.sqrt((pixel_sq / dof_pixel) / (sq / dof_pnp)))
+
+
+def _pixel_name(candidates: dict[str, Fit]) -> str | None:
+    """The pixel refinement among ``candidates`` that holds the robot exact (intrinsics refined first)."""
+    return next((p for p in (PIXEL_INTRINSICS, PIXEL) if p in candidates), None)
 
 
 def _scale_off(views: Views) -> bool:
