@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import io
 import types
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -21,7 +22,7 @@ from handeye.geometry.se3 import invert, make_transform, to_rotvec_translation
 from handeye.planning import candidate_views, plan_poses
 from handeye.session import load_session
 from handeye.setups import flange_poses, predicted_target2cam
-from handeye.verification import verify
+from handeye.verification import NOT_THIS, verify
 from handeye.vision.pnp import project_points
 from handeye.vision.targets import target_from_spec
 
@@ -143,6 +144,15 @@ def test_verify_reports_the_true_errors_of_a_second_capture(tmp_path, acquired):
     assert len(v.names) == 8
     assert abs(v.rms_px / np.sqrt(np.mean(true**2)) - 1) < 0.2
     assert v.verdict == "good"
+    # the calibration's own capture is no second capture: refused, naming the images
+    with pytest.raises(HandEyeError, match=r"are the calibration's own inputs"):
+        verify(results, acq.folder, progress=False)
+    # another cell's result (the camera mounted 0.3 m elsewhere): the views do not belong to it
+    elsewhere = results.parent / "elsewhere"
+    moved = replace(cal, X=cal.X @ make_transform(np.eye(3), [0.3, 0.0, 0.0]))
+    write_calibration(moved, elsewhere, report=False)
+    other = verify(elsewhere, folder, progress=False)
+    assert other.verdict == NOT_THIS and "do not belong to this calibration" in other.advice[0]
 
 
 def test_ur_backend_against_a_stand_in(tmp_path):

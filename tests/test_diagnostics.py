@@ -192,10 +192,13 @@ def test_public_name_and_check_command(tmp_path, capsys):
     assert main(["check", str(folder)]) == 2
     out = capsys.readouterr().out
     assert "verdict: inconsistent" in out and "convention hint: euler:ZYX" in out
-    # calibrate-poses answers with the verdict and the fix (exit 1), or refuses with --strict (exit 2)
-    assert main(["calibrate-poses", str(folder)]) == 1
+    # calibrate-poses answers with the verdict and the fix (check's exit status, 2), or refuses with --strict
+    assert main(["calibrate-poses", str(folder)]) == 2
     out = capsys.readouterr().out
     assert "check: inconsistent" in out and "Euler sequence ZYX" in out
+    # the fix first, and X marked as no result to use
+    assert out.startswith("INCONSISTENT DATA: the robot angles follow the Euler sequence ZYX"), out[:300]
+    assert out.index("do not use it") < out.index("(4x4, metres)")
     assert main(["calibrate-poses", str(folder), "--strict"]) == 2
     err = capsys.readouterr().err
     assert "Euler sequence ZYX" in err and len(err.strip().splitlines()) == 1

@@ -27,6 +27,7 @@ import yaml
 
 import handeye
 from handeye.cli import main
+from handeye.verdict import EXIT_STATUS
 from handeye.errors import HandEyeError
 from handeye.report import write_calibration
 from handeye.session import load_pose_pairs, load_session, write_pose_table
@@ -368,7 +369,7 @@ CASES = [
     Case("quaternion-order-swapped", "pp", both(robot_poses_as("quat_wxyz", declare={"format": "quat_xyzw"}),
                                                 text(ROBOT, lambda t: t.replace("qw,qx,qy,qz", "qx,qy,qz,qw", 1))), pp(*VERDICT, out=False), 1,
          r"check: inconsistent[\s\S]*quat_wxyz order"),
-    Case("one-wrong-pose", "pp", shuffle_rows(ROBOT, 2, 7), pp(out=False), 0, r"check: good; outlier poses left out: \[2, 7\]"),
+    Case("one-wrong-pose", "pp", shuffle_rows(ROBOT, 2, 7), pp(out=False), 0, r"check: good; left out as outliers: pose02, pose07"),
     # --- options --------------------------------------------------------------------------------
     Case("out-is-a-file", "pp", nothing, lambda f, o: ["calibrate-poses", str(f), "--out", str(f / ROBOT)], 2,
          r"--out: output folder .*robot_poses.csv exists and is not a folder"),
@@ -388,13 +389,18 @@ CASES = [
     # --- capture sessions -----------------------------------------------------------------------
     Case("missing-session-yaml", "session", remove("session.yaml"), cal(), 2, r"no session.yaml\. The folder must hold a capture session"),
     Case("missing-images-folder", "session", remove("images"), cal(), 2, r"images: no images folder"),
-    Case("missing-image", "session", remove("images/003.png"), cal(), 2, r"image file\(s\) missing: 003.png"),
+    Case("missing-image", "session", remove("images/003.png"), cal("--strict-images"), 2,
+         r"image file\(s\) missing: 003.png"),
+    Case("missing-image-skipped", "session", remove("images/003.png"), cal(), 0, r"skipped 003.png: missing from images/"),
+    Case("not-an-image-skipped", "session", raw("images/005.png", b"not a picture"), cal(), 0,
+         r"skipped 005.png: unreadable"),
     Case("image-without-pose", "session", lambda f: shutil.copy(f / "images/000.png", f / "images/extra.png"), cal(), 2,
          r"poses.csv has 9 poses but images/ holds 10 images; no pose for extra.png"),
     Case("truncated-image", "session", lambda f: (f / "images/002.png").write_bytes((f / "images/002.png").read_bytes()[:300]),
-         cal(), 2, r"cannot read image\(s\) 002.png"),
-    Case("empty-image", "session", raw("images/004.png", b""), cal(), 2, r"cannot read image\(s\) 004.png"),
-    Case("text-as-image", "session", raw("images/001.png", b"not an image\n"), cal(), 2, r"cannot read image\(s\) 001.png"),
+         cal("--strict-images"), 2, r"cannot read image\(s\) 002.png"),
+    Case("empty-image", "session", raw("images/004.png", b""), cal("--strict-images"), 2, r"cannot read image\(s\) 004.png"),
+    Case("text-as-image", "session", raw("images/001.png", b"not an image\n"), cal("--strict-images"), 2,
+         r"cannot read image\(s\) 001.png"),
     Case("one-pixel-image", "session", image("images/005.png", lambda: np.zeros((1, 1), np.uint8)), cal(out=False), 0,
          r"skipped 005.png: image of 1x1 px: too small for the detector"),
     Case("tiny-image", "session", image("images/005.png", lambda: np.full((20, 900), 128, np.uint8)), cal(out=False), 0,
@@ -428,7 +434,9 @@ CASES = [
          r"note: image names matched without regard to case: 002.PNG -> 002.png"),
     Case("check-latin1", "session", text("session.yaml", lambda t: f"# {SYMBOLS}\n{t}", "latin-1"), chk(), 0,
          r"note: session.yaml is not UTF-8[\s\S]*verdict: good"),
-    Case("check-missing-image", "session", remove("images/000.png"), chk(), 2, r"image file\(s\) missing: 000.png"),
+    Case("check-missing-image", "session", remove("images/000.png"), chk("--strict-images"), 2,
+         r"image file\(s\) missing: 000.png"),
+    Case("check-missing-image-skipped", "session", remove("images/000.png"), chk(), 0, r"skipped 000.png: missing"),
     Case("session-out-inside", "session", nothing, lambda f, o: ["calibrate", str(f), "--out", str(f / "images")], 2,
          r"is inside the input folder"),
     Case("jobs-zero", "session", nothing, cal("--jobs", "0"), 2, r"argument --jobs: 0 is too small"),
@@ -484,9 +492,11 @@ def test_fault(case: Case, bases, tmp_path, capsys):
         assert re.match(r"handeye( [a-z-]+)?: error: ", last), stderr
         assert re.search(case.expect, last), last
         assert not out.exists() or not any(out.iterdir()), "partial output left behind"
-    else:  # an answer: exit 0 exactly when the verdict is good
-        good = re.search(r"^(check|verdict): good", stdout, re.M) is not None
-        assert status == (0 if good else 1) and (case.status == 0 or not good), (status, stdout[-3000:], stderr)
+    else:  # an answer: the exit status of its verdict (0 good, 1 weak or partial, 2 inconsistent), as check's
+        found = re.search(r"^(?:check|verdict): ([a-z ]+?)(?:;| \(|$)", stdout, re.M)
+        assert found is not None, stdout[-3000:]
+        verdict = found.group(1)
+        assert status == EXIT_STATUS[verdict] and (case.status == 0 or verdict != "good"), (status, stdout[-3000:], stderr)
         assert re.search(case.expect, stdout), stdout[-3000:]
         if "--out" in case.argv(folder, out):
             assert sorted(p.name for p in out.iterdir()) == ["report.html", "result.json", "result.yaml"]

@@ -182,6 +182,14 @@ def test_cli_writes_poses_in_the_robot_format(tmp_path, camera_yaml, capsys):
                       K, SIZE, DIST, n_poses=8, standoff=0.5)
     assert F.shape == (8, 4, 4)
     assert np.abs(F - plan.flange2base).max() < 1e-9  # the same plan, written and read back exactly
+    # the std calibrate would report: the pixels' part plus the robot's accuracy, as calibrate adds it
+    from handeye.calibration import robot_accuracy_cov
+    from handeye.metrics import std_deg_mm
+    assert np.allclose(plan.std_reported, std_deg_mm(plan.cov_X + robot_accuracy_cov(X, (0.03, 0.3))))
+    assert np.all(plan.std_reported[3:] >= 0.3) and np.all(plan.std_X[3:] < 0.3)
+    line = next(t for t in text.splitlines() if t.startswith("predicted std of X as calibrate would report it"))
+    assert f"{plan.std_reported[3]:.3f}" in line
+    assert "flange rotation vector (deg)" in text and "0.8, 1 and 1.25 x --standoff 500 mm" in text
     # never over an existing file (it may be a session's recorded poses)
     assert main(["plan", "--intrinsics", str(camera_yaml), "--target-in-base", "0.6,0.1,0", "--standoff", "0.5",
                  "--out", str(out)]) == 2

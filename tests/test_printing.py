@@ -86,7 +86,9 @@ def test_target_command_writes_the_page_and_the_block(tmp_path, capsys):
     assert main(["target", "--type", "apriltag-grid", "--cols", "3", "--rows", "4", "--square-mm", "40",
                  "--out", str(out)]) == 0
     printed = capsys.readouterr().out
-    block = yaml.safe_load(printed.split("for session.yaml:\n", 1)[1])
+    block_text, frame = printed.split("for session.yaml:\n", 1)[1].split("\ntarget frame", 1)
+    block = yaml.safe_load(block_text)
+    assert "origin at the top-left corner of the board's first marker" in frame
     assert block["target"] == {"type": "aruco_grid", "cols": 3, "rows": 4, "square": 0.04, "separation": 0.007,
                                "dictionary": "DICT_APRILTAG_36h11"}
     assert out.read_bytes().startswith(b"%PDF-1.4")

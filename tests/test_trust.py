@@ -168,7 +168,7 @@ def test_sample_with_a_wrong_square_size_is_not_good(tmp_path):
     cal = handeye.calibrate(folder, progress=False)
     assert cal.verdict == "inconsistent" and abs(cal.diagnostics.scale - 1.2) < 0.02
     assert any("target's size" in a for a in cal.diagnostics.advice)
-    assert main(["calibrate", str(folder), "--no-progress"]) == 1  # answered, but not good
+    assert main(["calibrate", str(folder), "--no-progress"]) == 2  # answered, but inconsistent: check's status
 
 
 def test_sample_with_two_swapped_poses(tmp_path, capsys):
@@ -236,7 +236,7 @@ def test_the_choice_predicts_no_worse_than_every_closed_form():
 def test_solvers_far_apart_in_std_make_the_verdict_weak():
     """The verdict looks at the spread between solvers: with the std the data support the realistic
     session stays good; had the std promised 100x less, the closed forms would sit far outside it."""
-    from handeye.calibration import _verdict_from_spread
+    from handeye.calibration import _spread_judged
     from handeye.estimators import choose, pose_candidates
     from handeye.validation import Views
 
@@ -245,8 +245,8 @@ def test_solvers_far_apart_in_std_make_the_verdict_weak():
     assert cal.verdict == "good"
     views = Views(cal.flange2base, cal.target2cam, "eye_in_hand")
     choice = choose(views, pose_candidates("daniilidis", views))
-    assert _verdict_from_spread(cal, choice).verdict == "good"
-    promised = _verdict_from_spread(replace(cal, std=cal.std / 100), choice)
+    assert _spread_judged(cal, choice).verdict == "good"
+    promised = _spread_judged(replace(cal, std=cal.std / 100), choice)
     assert promised.verdict == "weak" and any("closed-form solvers" in a for a in promised.diagnostics.advice)
 
 

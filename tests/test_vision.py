@@ -344,14 +344,21 @@ def test_unknown_target_type(session, capsys):
     _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "unknown target type 'checkerboard'")
 
 
-def test_image_missing(session, capsys):
+def test_image_missing_is_skipped_with_the_reason(session, capsys):
     (session / "images" / "004.jpg").unlink()
-    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "image file(s) missing: 004.jpg")
+    assert main(["calibrate", str(session), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "images: 11 used, 1 skipped" in out and "skipped 004.jpg: missing from images/" in out
+    _one_line_error(["calibrate", str(session), "--no-progress", "--strict-images"], capsys,
+                    "image file(s) missing: 004.jpg")
 
 
-def test_image_corrupt(session, capsys):
+def test_image_corrupt_is_skipped_with_the_reason(session, capsys):
     (session / "images" / "004.jpg").write_bytes(b"\xff\xd8 this is not a jpeg")
-    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "cannot read image(s) 004.jpg")
+    assert main(["calibrate", str(session), "--no-progress"]) == 0
+    assert "skipped 004.jpg: unreadable" in capsys.readouterr().out
+    _one_line_error(["calibrate", str(session), "--no-progress", "--strict-images"], capsys,
+                    "cannot read image(s) 004.jpg")
 
 
 def test_target_not_found_in_some_images_is_skipped_and_listed(session, capsys):

@@ -13,10 +13,12 @@ from __future__ import annotations
 from . import metrics, setups, simulate, solvers
 from ._version import __version__
 from .calibration import calibrate, calibrate_poses, certify_calibration
+from .checking import check_folder
 from .diagnostics import diagnose
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError, PoseFormatError
 from .geometry.dualquat import DualQuaternion
 from .motions import relative_motions
+from .options import CalibrationOptions
 from .poses import RobotPoseInput, format_poses, parse_poses
 from .report import write_calibration
 from .result import Calibration, Diagnostics, Unobservable
@@ -25,6 +27,7 @@ from .streams import calibrate_streams
 
 __all__ = [
     "Calibration",
+    "CalibrationOptions",
     "DegenerateMotionError",
     "Diagnostics",
     "DualQuaternion",
@@ -37,6 +40,7 @@ __all__ = [
     "calibrate_poses",
     "calibrate_streams",
     "certify_calibration",
+    "check_folder",
     "diagnose",
     "format_poses",
     "metrics",

@@ -9,7 +9,7 @@ last the image fields.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -19,29 +19,31 @@ from ._shared.io import array_digest, files_digest
 from ._shared.progress import Progress
 from ._shared.text import sentences, summarize
 from .diagnostics import closed_form, compare_solvers, diagnose
-from .errors import DegenerateMotionError, HandEyeError, InputMismatchError
+from .errors import DegenerateMotionError, InputMismatchError
 from .estimators import (PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, REFINE_INTRINSICS, Choice, choose, intrinsics_cov,
                          pixel_candidates, pixel_fit, pose_candidates, pose_fit)
 from .geometry.se3 import invert, skew
 from .metrics import std_deg_mm
 from .motions import MotionSet, Pairs, validate_poses
+from .options import ROBOT_ACCURACY, CalibrationOptions, options_from
 from .partial import calibrate_partial, known_on_complete, parse_known
 from .poses import RobotPoseInput
 from .result import Calibration, Diagnostics
-from .session import POSEPAIRS_FILE, Session, SessionError, load_pose_pairs, load_session
+from .session import Session, SessionError, load_session
 from .setups import check_setup
 from .solvers.certifiable import certify
 from .solvers.low_dof import partial_kind
 from .solvers.refine import PoseRefinementResult, ReprojectionResult, refine_pose
-from .sync import (KEYFRAMES, MIN_SAMPLES, PoseStream, Synchronisation, check_stream, interpolate, keyframes_at,
+from .sync import (MIN_SAMPLES, PoseStream, Synchronisation, check_stream, interpolate, keyframes_at,
                    offset_cov, synchronise, timing_cost)
 from .validation import Views, jackknife_cov
+from .verdict import judged, solver_spread
 from .vision import (calibrate_intrinsics, detect_images, label_doubts, resolve_symmetries, solve_pnp, symmetry_costs,
                      target_from_spec)
 from .vision.pnp import INTRINSICS
 
-__all__ = ["Calibration", "FolderCheck", "Observations", "ROBOT_ACCURACY", "apply_choice", "calibrate", "certify_calibration",
-           "calibrate_observed", "calibrate_poses", "check_folder", "observe", "refine_on_pixels", "refine_on_poses",
+__all__ = ["Calibration", "CalibrationOptions", "Observations", "ROBOT_ACCURACY", "apply_choice", "calibrate", "certify_calibration",
+           "calibrate_observed", "calibrate_poses", "observe", "refine_on_pixels", "refine_on_poses",
            "robot_accuracy_cov", "widened_uncertainty"]
 
 #: Fewest usable poses for a calibration (two motions, as the solvers need).
@@ -58,13 +60,10 @@ REFINE_RMS_FLOOR = 1.0
 PROGRESS_FROM_POSES = 200
 #: calibrate shows its steps after detection from this many views (several seconds for large boards).
 PROGRESS_FROM_IMAGES = 50
-#: The robot's absolute accuracy assumed by default, per axis (deg, mm): a constant error of the robot
-#: poses moves X by as much, and no data can see it (it is absorbed into X).
-ROBOT_ACCURACY = (0.03, 0.3)
 
 
 def _checked_poses(flange2base, target2cam, setup, pairs, check, robot_input, strict=False, camera_input=None,
-                   symmetries=None):
+                   symmetries=None, names=None):
     """The poses to calibrate on after :func:`handeye.diagnose` (outliers left out, explicit pairs
     renumbered): ``(flange2base, target2cam, pairs, keep, diagnostics, notes)``. Raises only when X
     cannot be determined, or (``strict``) when the data are inconsistent."""
@@ -72,9 +71,9 @@ def _checked_poses(flange2base, target2cam, setup, pairs, check, robot_input, st
     if not check:
         return flange2base, target2cam, pairs, keep, None, []
     diag = diagnose(flange2base, target2cam, setup, robot_input=robot_input, camera_input=camera_input,
-                    symmetries=symmetries)
+                    symmetries=symmetries, names=names)
     if diag.verdict == "degenerate":
-        raise DegenerateMotionError(sentences(diag.advice))
+        raise DegenerateMotionError(sentences(diag.advice), diagnostics=diag)
     if diag.verdict == "inconsistent" and strict:
         raise InputMismatchError(f"{diag.advice[0]} (strict=False returns the best estimate with this verdict)")
     if diag.outliers:
@@ -93,18 +92,14 @@ def calibrate_poses(
     flange2base: ArrayLike,
     target2cam: ArrayLike,
     setup: str = "eye_in_hand",
-    method: str = "daniilidis",
-    refine: str = "auto",
-    pairs: Pairs = "auto",
-    check: bool = True,
+    options: CalibrationOptions | None = None,
+    *,
     robot_input: RobotPoseInput | None = None,
-    strict: bool = False,
-    folds: int | None = None,
-    robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
-    progress: bool = True,
     camera_input: RobotPoseInput | None = None,
-    known: dict | None = None,
     symmetries: list | None = None,
+    names: list[str] | None = None,
+    progress: bool = True,
+    **changes,
 ) -> Calibration:
     """Hand-eye calibration from robot poses and camera-to-target poses.
 
@@ -115,6 +110,9 @@ def calibrate_poses(
     target2cam : array_like, shape (N, 4, 4)
         Target poses in the camera frame (``solvePnP``'s rvec/tvec), metres.
     setup : {'eye_in_hand', 'eye_to_hand'}
+    options : CalibrationOptions, optional
+        How to calibrate (:class:`handeye.CalibrationOptions`); any of its fields can be given as a
+        keyword instead (``method='tsai_lenz'``) or on top of it. The fields:
     method : str
         A solver from ``handeye.solvers.available()``: an AX = XB solver (Z is then the mean of
         the per-pose Z_i), or a robot-world one (``shah``, ``li``), which estimates X and Z together.
@@ -133,25 +131,22 @@ def calibrate_poses(
         poses are left out, with a note; inconsistent data (with the convention that fixes them,
         when one does) and weak data are calibrated all the same, with the verdict and the advice
         (``verdict``, ``diagnostics``, ``notes``). ``check=False`` calibrates the poses as they are.
-    robot_input, camera_input, symmetries
-        The robot (camera) poses as written (:class:`RobotPoseInput`), and a symmetric target's
-        symmetries (sessions pass them): the check tries other Euler sequences, quaternion orders,
-        units, and relabels the images under each reading.
     strict : bool
         Raise :class:`InputMismatchError` instead of answering inconsistent data.
     folds : int, optional
-        Cross-validation folds of ``refine='auto'`` (default: one per pose up to 10 poses, else 5;
-        :func:`handeye.validation.default_folds`).
+        Cross-validation folds of ``refine='auto'`` (default: one per pose up to 10 poses, else 5).
     robot_accuracy : (deg, mm) or None
         The robot's absolute accuracy per axis (every ``refine`` but ``'none'``): a constant robot error
         is absorbed into X whole, so it is added to X's covariance. ``None`` (or zeros) for an exact robot.
-    progress : bool
-        Show the steps on stderr (from :data:`PROGRESS_FROM_POSES` poses).
     known : dict, optional
         What the data cannot determine (SCARA, Cartesian robots; :mod:`handeye.partial`), e.g.
         ``{'target2base.z': 0.012}`` or ``{'cam2flange.z': (0.085, 0.001)}``: translation components of
         X or Z in metres (exact, ``(value, std)`` or ``'value+-std'``); values the data determine are
         compared with them (a note), not used.
+    robot_input, camera_input, symmetries, names, progress
+        Keyword-only: the robot (camera) poses as written (:class:`RobotPoseInput`) and a symmetric
+        target's symmetries (the check tries other readings and relabels the images under each);
+        each pose's name (image file or row id: messages name poses by it); the steps on stderr.
 
     Returns
     -------
@@ -167,16 +162,19 @@ def calibrate_poses(
     InputMismatchError
         ``strict`` and the poses do not agree on one X; the message names the likely mistake.
     """
-    accuracy, given = _pose_options(setup, refine, robot_accuracy, known)
+    opts = options_from(options, changes).for_poses()
+    given = _pose_options(setup, opts)
+    accuracy, method, pairs = opts.robot_accuracy, opts.method, opts.pairs
     flange2base_in, target2cam_in = validate_poses(flange2base, target2cam)
     bar = Progress(3, f"calibrating {len(flange2base_in)} poses: check, estimators, uncertainty",
                    progress and len(flange2base_in) >= PROGRESS_FROM_POSES)
     try:
         flange2base, target2cam, pairs, keep, diag, notes = _checked_poses(
-            flange2base_in, target2cam_in, setup, pairs, check, robot_input, strict, camera_input, symmetries)
+            flange2base_in, target2cam_in, setup, pairs, opts.check, robot_input, opts.strict, camera_input, symmetries,
+            names)
         bar.update()
         if (kind := partial_kind(flange2base, target2cam, setup) if diag is None or diag.motion_kind != "general" else None):
-            return _partial(flange2base, target2cam, setup, kind, pairs, given, refine, diag, keep, robot_input,
+            return _partial(flange2base, target2cam, setup, kind, pairs, given, opts.refine, diag, keep, robot_input,
                             array_digest(flange2base_in, target2cam_in), accuracy)
         X, Z, motions = closed_form(flange2base, target2cam, setup, method, pairs)
         cal = Calibration(
@@ -184,7 +182,7 @@ def calibrate_poses(
             motions=motions, diagnostics=diag, pose_indices=keep, notes=notes, robot_input=robot_input,
             inputs_sha256=array_digest(flange2base_in, target2cam_in), estimator=method,
         )
-        cal = _refined(cal, refine, method, pairs, folds, accuracy, bar)
+        cal = _refined(cal, opts.refine, method, pairs, opts.folds, accuracy, bar)
         bar.update(bar.total - bar.done)
     finally:
         bar.close()
@@ -211,13 +209,10 @@ def certify_calibration(cal: Calibration) -> Calibration:
     return replace(cal, certificate=cert.as_dict(), notes=list(cal.notes) + [note])
 
 
-def _pose_options(setup: str, refine: str, robot_accuracy, known) -> tuple:
-    """:func:`calibrate_poses`' options checked: the robot accuracy and the known values."""
+def _pose_options(setup: str, opts: CalibrationOptions) -> dict:
+    """The setup checked and the known values parsed against it (the rest :class:`CalibrationOptions` checked)."""
     check_setup(setup)
-    if refine not in ("auto", "pose", "none"):
-        hint = " (pixel refinement needs the detections: use handeye.calibrate on a session)" if refine == "reprojection" else ""
-        raise InputMismatchError(f"refine={refine!r}; use 'auto', 'pose' or 'none'{hint}")
-    return _accuracy(robot_accuracy), parse_known(known, setup)
+    return parse_known(opts.known, setup)
 
 
 def _refined(cal: Calibration, refine: str, method: str, pairs: Pairs, folds, accuracy, bar: Progress) -> Calibration:
@@ -248,7 +243,7 @@ def _partial(flange2base, target2cam, setup, kind, pairs, given, refine, diag, k
         cal = replace(cal, cov=cov, std=std, notes=cal.notes + [
             f"the std of X includes the robot's absolute accuracy, assumed {accuracy[0]:g} deg / {accuracy[1]:g} mm "
             "per axis (robot_accuracy=(deg, mm))"])
-    return _verdict_from_std(cal)
+    return judged(cal)
 
 
 def _std(cov_X: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -283,19 +278,6 @@ def robot_accuracy_cov(X: NDArray[np.float64], accuracy: tuple[float, float]) ->
     J = np.eye(6)
     J[3:, :3] = -skew(X[:3, 3])
     return J @ np.diag([s_rot**2] * 3 + [s_t**2] * 3) @ J.T
-
-
-def _accuracy(robot_accuracy) -> tuple[float, float] | None:
-    """``robot_accuracy`` checked: None, or two non-negative finite numbers (deg, mm); zeros mean None."""
-    if robot_accuracy is None:
-        return None
-    try:
-        deg, mm = (float(v) for v in robot_accuracy)
-    except (TypeError, ValueError):
-        raise InputMismatchError(f"robot_accuracy {robot_accuracy!r}: give (degrees, millimetres)") from None
-    if not (deg >= 0 and mm >= 0 and np.isfinite(deg) and np.isfinite(mm)):
-        raise InputMismatchError(f"robot_accuracy ({deg:g}, {mm:g}): give non-negative accuracies (deg, mm)")
-    return None if deg == mm == 0 else (deg, mm)
 
 
 def widened_uncertainty(cal: Calibration, cv_jack: NDArray[np.float64] | None,
@@ -356,7 +338,7 @@ def apply_choice(cal: Calibration, choice: Choice, views: Views, pairs: Pairs = 
         cal = replace(cal, X=X, Z=Z, method=name, motions=motions, pairs=motions.pairs)
     cal = replace(cal, estimator=name, cross_validation=choice.table())
     if uncertainty:
-        cal = _verdict_from_spread(_uncertain(cal, choice.fits[name], views, robot_accuracy, obs), choice)
+        cal = _spread_judged(_uncertain(cal, choice.fits[name], views, robot_accuracy, obs), choice)
     notes = list(cal.notes) + [f"estimator {name}: chosen by {choice.best.folds}-fold cross-validation, held-out error "
                                + _cv_text(choice.table()[name])]
     return replace(cal, notes=notes)
@@ -375,7 +357,7 @@ def _uncertain(cal: Calibration, fit, views: Views, robot_accuracy: tuple[float,
             cal = replace(cal, notes=list(cal.notes) + [
                 "the error of the intrinsics estimated from these images could not be propagated to X (a refit "
                 "failed): the std of X leaves it out; give K and dist in session.yaml"])
-    return _verdict_from_std(widened_uncertainty(cal, jackknife_cov(fit, views, cal.X), robot_accuracy, intrinsics))
+    return judged(widened_uncertainty(cal, jackknife_cov(fit, views, cal.X), robot_accuracy, intrinsics))
 
 
 def _pose_refined(cal: Calibration, method: str, robot_accuracy: tuple[float, float] | None,
@@ -412,60 +394,20 @@ def _final_pixel_fit(cal: Calibration, obs: Observations, name: str, robot_noise
     if done and not outliers:  # the candidate's robust fit on these very images
         ref = done[0]
     else:
-        sigma = _robot_sigma(robot_noise, "auto") if name == PIXEL_ROBOT else None
+        sigma = _robot_sigma(robot_noise) if name == PIXEL_ROBOT else None
         ref = pixel_fit(_views(obs, everything), everything, cal.X, cal.Z,
                         name != PIXEL and obs.intrinsics_source == "estimated", sigma)
     return replace(refine_on_pixels(cal, obs, ref, robot_noise if name == PIXEL_ROBOT else None), estimator=name)
 
 
-#: X is "weak" when 3 std of it exceed the thesis's acceptance (§5: 5 mm and 1 deg).
-ACCEPT_MM, ACCEPT_DEG = 5.0, 1.0
-
-
-def _verdict_from_std(cal: Calibration) -> Calibration:
-    """A 'good' verdict becomes 'weak' when X's std cannot promise the thesis's acceptance: the data
-    do not pin X down (typically: leaving one pose out moves it far)."""
-    if cal.std is None or cal.diagnostics is None or cal.diagnostics.verdict != "good":
-        return cal
-    rot, mm = 3 * float(np.linalg.norm(cal.std[:3])), 3 * float(np.linalg.norm(cal.std[3:]))
-    if rot <= ACCEPT_DEG and mm <= ACCEPT_MM:
-        return cal
-    jack = (cal.std_sources or {}).get("jackknife")
-    intr = (cal.std_sources or {}).get("intrinsics")
-    why = (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg"
-           + (f" (leaving one pose out moves X by {np.linalg.norm(jack[3:]):.1f} mm / {np.linalg.norm(jack[:3]):.2f} deg "
-              "per std)" if jack is not None else ""))
-    if intr is not None and (3 * np.linalg.norm(intr[3:]) > ACCEPT_MM or 3 * np.linalg.norm(intr[:3]) > ACCEPT_DEG):
-        why += (f"; the intrinsics estimated from these images alone give {np.linalg.norm(intr[3:]):.1f} mm / "
-                f"{np.linalg.norm(intr[:3]):.2f} deg per std: calibrate the camera on its own (views filling the "
-                "image, the target tilted) and give K and dist in session.yaml, or take more views that do")
-    else:
-        why += ": the poses do not pin X down; take more (10-20), with rotations of 30 deg or more about varied axes"
-    diag = replace(cal.diagnostics, verdict="weak", advice=list(cal.diagnostics.advice) + [why])
-    return replace(cal, diagnostics=diag, notes=list(cal.notes) + [why])
-
-
-def _verdict_from_spread(cal: Calibration, choice: Choice) -> Calibration:
-    """A 'good' verdict becomes 'weak' when the closed forms, each a fair estimate on these poses,
-    typically land further from X than 3 std: the std promises more than the data support. The
-    solver comparison it computes is kept (``solver_comparison``: the report draws it)."""
+def _spread_judged(cal: Calibration, choice: Choice) -> Calibration:
+    """``cal`` judged with the spread of the closed forms about X (each a fair estimate on these
+    poses: when they typically land further from X than 3 std, the std promises more than the data
+    support). The solver comparison it computes is kept (``solver_comparison``: the report draws it)."""
     if cal.std is None or cal.diagnostics is None or cal.diagnostics.verdict != "good":
         return cal
     rows = compare_solvers(cal.flange2base, cal.target2cam, cal.setup, cal.X, cal.pairs)
-    cal = replace(cal, solver_comparison=rows)
-    solved = [r for r in rows if r["method"] in choice.fits and "error" not in r]
-    if not solved:
-        return cal
-    rot = float(np.median([r["dX_deg"] for r in solved]))
-    mm = float(np.median([r["dX_mm"] for r in solved]))
-    lim_rot, lim_mm = 3 * float(np.linalg.norm(cal.std[:3])), 3 * float(np.linalg.norm(cal.std[3:]))
-    if rot <= lim_rot and mm <= lim_mm:
-        return cal
-    why = (f"the closed-form solvers land a median {mm:.2f} mm / {rot:.3f} deg from X, beyond its 3 std "
-           f"({lim_mm:.2f} mm / {lim_rot:.3f} deg): the solvers disagree more than the noise explains; check the "
-           "poses and take more, with larger rotations")
-    diag = replace(cal.diagnostics, verdict="weak", advice=list(cal.diagnostics.advice) + [why])
-    return replace(cal, diagnostics=diag, notes=list(cal.notes) + [why])
+    return judged(replace(cal, solver_comparison=rows), solver_spread(rows, choice.fits))
 
 
 def _cv_text(row: dict[str, float | None]) -> str:
@@ -504,15 +446,23 @@ class Observations:
                        robot_input=None if ri is None else replace(ri, values=ri.values[idx]))
 
 
-def _detect(session: Session, jobs: int | None, progress: bool):
-    """Detections per image, the image size and the images skipped (target not found)."""
+def _detect(session: Session, jobs: int | None, progress: bool, strict_images: bool = False):
+    """Detections per image, the image size and the images skipped with why (missing, unreadable,
+    target not found); ``strict_images``: a missing or unreadable image is an error."""
     target = target_from_spec(session.target_spec)
-    results = detect_images(session.image_paths, target, jobs=jobs, progress=progress)
-    unreadable = [r.path.name for r in results if r.image_size is None]
-    if unreadable:
-        raise SessionError(f"{session.folder / 'images'}: cannot read image(s) {summarize(unreadable)} (corrupt or not an image)")
-    skipped = [(name, r.error) for name, r in zip(session.image_names, results) if r.detection is None]
-    found = [k for k, r in enumerate(results) if r.detection is not None]
+    present = [k for k, p in enumerate(session.image_paths) if Path(p).is_file()]
+    found_results = (detect_images([session.image_paths[k] for k in present], target, jobs=jobs, progress=progress)
+                     if present else [])
+    results: list = [None] * len(session.image_paths)
+    for k, r in zip(present, found_results):
+        results[k] = r
+    unreadable = [session.image_names[k] for k, r in enumerate(results) if r is None or r.image_size is None]
+    if unreadable and strict_images:
+        raise SessionError(f"{session.folder / 'images'}: cannot read image(s) {summarize(unreadable)} (missing, corrupt "
+                           "or not an image); without --strict-images (strict_images=False) they are skipped")
+    skipped = [(name, "missing from images/" if r is None else r.error)
+               for name, r in zip(session.image_names, results) if r is None or r.detection is None]
+    found = [k for k, r in enumerate(results) if r is not None and r.detection is not None]
     sizes = {results[k].image_size for k in found}  # the images that count: those with the target
     if len(sizes) > 1:
         by_size = {sz: [session.image_names[k] for k in found if results[k].image_size == sz] for sz in sorted(sizes)}
@@ -548,18 +498,20 @@ def _check_intrinsics_data(points: int, unknowns: int, images: int, target: str)
             f"more points, e.g. a chessboard or ChArUco board)")
 
 
-def observe(session: Session, jobs: int | None = None, progress: bool = True) -> Observations:
+def observe(session: Session, jobs: int | None = None, progress: bool = True,
+            strict_images: bool = False) -> Observations:
     """Detect the target in every image of ``session`` (in parallel), take the intrinsics from
     session.yaml or estimate them from the same images, solve PnP per image and relabel symmetric
-    targets so that every camera motion agrees with its robot motion.
+    targets so that every camera motion agrees with its robot motion. Missing and unreadable images
+    are skipped with the reason (``skipped``), or (``strict_images``) an error.
 
     Raises
     ------
     SessionError
-        An unreadable image; images of different sizes; fewer than 3 images with the target found;
+        (``strict_images``) a missing or unreadable image; images of different sizes; fewer than 3 images with the target found;
         no intrinsics in session.yaml and too few points to estimate them.
     """
-    target, detections, image_size, skipped = _detect(session, jobs, progress)
+    target, detections, image_size, skipped = _detect(session, jobs, progress, strict_images)
     notes = list(session.notes)
     if session.camera_matrix is not None:
         K, dist, source, k_rms = session.camera_matrix, session.dist_coeffs, "session.yaml", None
@@ -617,20 +569,9 @@ def observe(session: Session, jobs: int | None = None, progress: bool = True) ->
                         notes, robot_input)
 
 
-def _robot_sigma(robot_noise, refine: str) -> tuple[float, float] | None:
-    """``robot_noise`` (deg, mm) checked and converted to (rad, m)."""
-    if robot_noise is None:
-        return None
-    if refine not in ("auto", "reprojection"):
-        raise InputMismatchError(f"robot_noise is used by the pixel refinement; refine={refine!r} would ignore it "
-                                 "(use refine='auto' or 'reprojection', or leave robot_noise out)")
-    try:
-        deg, mm = (float(v) for v in robot_noise)
-    except (TypeError, ValueError):
-        raise InputMismatchError(f"robot_noise {robot_noise!r}: give (degrees, millimetres)") from None
-    if not (deg > 0 and mm > 0 and np.isfinite(deg) and np.isfinite(mm)):
-        raise InputMismatchError(f"robot_noise ({deg:g}, {mm:g}): give positive standard deviations (deg, mm)")
-    return np.radians(deg), 1e-3 * mm
+def _robot_sigma(robot_noise: tuple[float, float] | None) -> tuple[float, float] | None:
+    """``robot_noise`` (deg, mm; checked by :class:`CalibrationOptions`) in (rad, m)."""
+    return None if robot_noise is None else (np.radians(robot_noise[0]), 1e-3 * robot_noise[1])
 
 
 def _views(obs: Observations, idx: NDArray[np.intp]) -> Views:
@@ -700,20 +641,11 @@ def _with_images(cal: Calibration, obs: Observations, kept: list[int], skipped: 
 
 def calibrate(
     session_dir: str | Path,
-    method: str = "daniilidis",
-    refine: str = "auto",
+    options: CalibrationOptions | None = None,
+    *,
     jobs: int | None = None,
     progress: bool = True,
-    pairs: Pairs = "auto",
-    check: bool = True,
-    robot_noise: tuple[float, float] | None = None,
-    strict: bool = False,
-    folds: int | None = None,
-    robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
-    known: dict | None = None,
-    keyframes: int = KEYFRAMES,
-    offset_range: tuple[float, float] | None = None,
-    time_offset: float | None = None,
+    **changes,
 ) -> Calibration:
     """Hand-eye calibration from a capture session folder (images + robot poses, DESIGN §4).
 
@@ -723,6 +655,9 @@ def calibrate(
     Parameters
     ----------
     session_dir : path
+    options : CalibrationOptions, optional
+        How to calibrate (:class:`handeye.CalibrationOptions`); any of its fields can be given as a
+        keyword instead (``refine='pose'``) or on top of it. The fields:
     method, pairs, check, strict, folds, robot_accuracy, known
         As :func:`calibrate_poses` (outlier poses' images are listed in ``skipped``). On motions
         that determine only part of X (SCARA, Cartesian robots), X comes from the PnP poses by the
@@ -760,21 +695,18 @@ def calibrate(
     Raises
     ------
     SessionError
-        Bad session folder; an unreadable image; fewer than 3 images with the target found.
+        Bad session folder; (``strict_images``) a missing or unreadable image; fewer than 3 images
+        with the target found.
     """
-    if refine not in ("auto", "reprojection", "pose", "none"):
-        raise InputMismatchError(f"refine={refine!r}; use 'auto', 'reprojection', 'pose' or 'none'")
-    _robot_sigma(robot_noise, refine)  # bad options fail before any image work
-    _accuracy(robot_accuracy)
-    session = load_session(session_dir)
-    parse_known(known, session.setup)
-    obs = observe(session, jobs=jobs, progress=progress)
+    opts = options_from(options, changes)  # bad options fail before any image work
+    session = load_session(session_dir, strict_images=opts.strict_images)
+    parse_known(opts.known, session.setup)
+    obs = observe(session, jobs=jobs, progress=progress, strict_images=opts.strict_images)
     sync = None
     if session.robot_stream is not None:  # a robot stream: the images meet the robot at the clock offset
-        obs, sync, robot, camera = _synchronised(obs, offset_range, time_offset, keyframes)
-    cal = calibrate_observed(obs, method=method, refine=refine, pairs=pairs, check=check, robot_noise=robot_noise,
-                             strict=strict, folds=folds, robot_accuracy=robot_accuracy, known=known, progress=progress)
-    return cal if sync is None else _with_sync(cal, sync, robot, camera, obs)
+        obs, sync, robot, camera = _synchronised(obs, opts.offset_range, opts.time_offset, opts.keyframes)
+    cal = calibrate_observed(obs, opts, progress=progress)
+    return cal if sync is None else judged(_with_sync(cal, sync, robot, camera, obs))
 
 
 #: Images with times count as a stream (the clock offset estimated) from this many, at most this far apart (s).
@@ -834,17 +766,11 @@ def _with_sync(cal: Calibration, sync: Synchronisation, robot: PoseStream, camer
 
 def calibrate_observed(
     obs: Observations,
-    method: str = "daniilidis",
-    refine: str = "auto",
-    pairs: Pairs = "auto",
-    check: bool = True,
-    robot_noise: tuple[float, float] | None = None,
-    strict: bool = False,
-    folds: int | None = None,
-    robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
+    options: CalibrationOptions | None = None,
+    *,
     uncertainty: bool = True,
-    known: dict | None = None,
     progress: bool = False,
+    **changes,
 ) -> Calibration:
     """:func:`calibrate` from what :func:`observe` made of a session's images (the same options).
 
@@ -856,28 +782,24 @@ def calibrate_observed(
     bar = Progress(3, f"calibrating {len(obs.flange2base)} views: check, estimators, uncertainty",
                    progress and len(obs.flange2base) >= PROGRESS_FROM_IMAGES)
     try:
-        return _calibrate_observed(obs, method, refine, pairs, check, robot_noise, strict, folds, robot_accuracy,
-                                   uncertainty, known, bar)
+        return _calibrate_observed(obs, options_from(options, changes), uncertainty, bar)
     finally:
         bar.close()
 
 
-def _calibrate_observed(obs, method, refine, pairs, check, robot_noise, strict, folds, robot_accuracy, uncertainty,
-                        known, bar: Progress) -> Calibration:
-    if refine not in ("auto", "reprojection", "pose", "none"):
-        raise InputMismatchError(f"refine={refine!r}; use 'auto', 'reprojection', 'pose' or 'none'")
-    robot_sigma = _robot_sigma(robot_noise, refine)
-    accuracy = _accuracy(robot_accuracy)
-    cal = calibrate_poses(obs.flange2base, obs.target2cam, setup=obs.session.setup, method=method, pairs=pairs,
-                          refine="none", check=check, robot_input=obs.robot_input, strict=strict, known=known,
-                          symmetries=_symmetries(obs), progress=False)  # the caller's bar counts this step
+def _calibrate_observed(obs: Observations, opts: CalibrationOptions, uncertainty: bool, bar: Progress) -> Calibration:
+    method, refine, pairs, robot_noise, accuracy = opts.method, opts.refine, opts.pairs, opts.robot_noise, opts.robot_accuracy
+    robot_sigma = _robot_sigma(robot_noise)
+    cal = calibrate_poses(obs.flange2base, obs.target2cam, obs.session.setup, opts.replace(refine="none", robot_noise=None),
+                          robot_input=obs.robot_input, symmetries=_symmetries(obs), names=_used_names(obs),
+                          progress=False)  # the caller's bar counts this step
     bar.update()
     kept, outlier_images = _drop_pose_outliers(cal, obs)
     if cal.motion_kind != "general":  # part of X undetermined: the pose refinement with the known values
         if refine != "none":
-            cal = calibrate_poses(obs.flange2base, obs.target2cam, setup=obs.session.setup, pairs=pairs, refine="pose",
-                                  check=check, robot_input=obs.robot_input, known=known, robot_accuracy=robot_accuracy,
-                                  progress=False)
+            cal = calibrate_poses(obs.flange2base, obs.target2cam, obs.session.setup,
+                                  opts.replace(refine="pose", strict=False, robot_noise=None),
+                                  robot_input=obs.robot_input, names=_used_names(obs), progress=False)
             cal = replace(cal, notes=cal.notes + ["the pixel refinement does not run on motions that determine only "
                                                   "part of X: X is refined on the PnP poses"])
         return _with_images(cal, obs, kept, outlier_images, list(obs.notes))
@@ -886,7 +808,7 @@ def _calibrate_observed(obs, method, refine, pairs, check, robot_noise, strict, 
     if refine == "auto" and len(idx) >= 5:
         views = _views(obs, idx)
         candidates = pose_candidates(method, views) | pixel_candidates(views, method, estimated, robot_sigma)
-        choice = choose(views, candidates, folds)
+        choice = choose(views, candidates, opts.folds)
         bar.update()
         cal = apply_choice(cal, choice, views, pairs, obs, robot_noise, accuracy, uncertainty)
         bar.update()
@@ -904,81 +826,15 @@ def _calibrate_observed(obs, method, refine, pairs, check, robot_noise, strict, 
     return _with_images(cal, obs, kept, outlier_images, list(obs.notes))
 
 
-@dataclass(frozen=True)
-class FolderCheck:
-    """What :func:`check_folder` found: the diagnostics, the name of each pose checked, the images
-    that gave no pose (image, reason), and the held-out prediction error of each estimator on the
-    poses the check keeps (None when too few)."""
-
-    diagnostics: Diagnostics
-    names: list[str]
-    skipped: list[tuple[str, str]]
-    choice: Choice | None = None
-    notes: list[str] = field(default_factory=list)  #: how the files were read, when not as plain UTF-8 CSV
-
-    def cross_validation_table(self) -> str:
-        """The estimators' held-out errors, best first, for people."""
-        if self.choice is None:
-            return "held-out prediction error: not computed (fewer than 5 usable poses)"
-        rows = sorted(self.choice.table().items(), key=lambda kv: kv[1]["px"] if kv[1]["px"] is not None else kv[1]["mm"])
-        lines = [f"held-out prediction error ({self.choice.best.folds}-fold cross-validation; each view predicted "
-                 "from its robot pose by X and Z fitted without it; a candidate replaces the preferred refinement "
-                 "only when better by more than one standard error):"]
-        for name, r in rows:
-            px = f"{r['px']:8.3f} px" if r.get("px") is not None else "           "
-            lines.append(f"  {name:<24} {px} {r['mm']:8.3f} mm at the target" + ("   <- chosen" if name == self.choice.name else ""))
-        return "\n".join(lines)
-
-
-def check_folder(folder: str | Path, jobs: int | None = None, progress: bool = True,
-                 folds: int | None = None, keyframes: int = KEYFRAMES) -> FolderCheck:
-    """:func:`handeye.diagnose` on a capture session (detection and PnP as :func:`calibrate` does them)
-    or on a pose-pair folder (``posepairs.yaml``), with the held-out prediction error of every
-    estimator :func:`calibrate` would choose from."""
-    folder = Path(folder)
-    if (folder / POSEPAIRS_FILE).is_file():
-        pairs = load_pose_pairs(folder)
-        f2b, t2c, ids, notes = pairs.flange2base, pairs.target2cam, list(pairs.ids), list(pairs.notes)
-        robot_input = pairs.robot_input
-        if pairs.is_stream:  # two clocks: the keyframes at the estimated offset are what calibrate-poses uses
-            robot = check_stream(pairs.robot_times, f2b, "robot stream")
-            camera = check_stream(pairs.camera_times, t2c, "camera stream")
-            sync = synchronise(robot, camera, pairs.setup)
-            kf, f2b, _ = keyframes_at(robot, camera, sync.offset, keyframes, pairs.setup, sync.fit)
-            t2c, ids, robot_input = camera.poses[kf], [f"t={t:.3f}" for t in camera.times[kf]], None
-            notes += sync.notes
-        diag = diagnose(f2b, t2c, pairs.setup, robot_input=robot_input,
-                        camera_input=None if pairs.is_stream else pairs.camera_input)
-        keep = _kept(diag)
-        views = Views(f2b[keep], t2c[keep], pairs.setup)
-        return FolderCheck(diag, ids, [], _check_choice(diag, views, {}, folds), notes)
-    obs = observe(load_session(folder), jobs=jobs, progress=progress)
-    if obs.session.robot_stream is not None:
-        obs, sync, _, _ = _synchronised(obs, None, None, keyframes)
-        obs = replace(obs, notes=list(obs.notes) + sync.notes)
-    names = obs.session.image_names
-    diag = diagnose(obs.flange2base, obs.target2cam, obs.session.setup, robot_input=obs.robot_input,
-                    symmetries=_symmetries(obs))
-    keep = _kept(diag)
-    views = _views(obs, keep)
-    pixels = pixel_candidates(views, "daniilidis", obs.intrinsics_source == "estimated")
-    return FolderCheck(diag, [names[k] for k in obs.used], sorted(obs.skipped, key=lambda item: names.index(item[0])),
-                       _check_choice(diag, views, pixels, folds), list(obs.notes))
-
-
 def _symmetries(obs: Observations) -> list[NDArray[np.float64]]:
     """The symmetries of the session's target (the images were labelled against the declared robot poses)."""
     return target_from_spec(obs.session.target_spec).symmetries()
 
 
+def _used_names(obs: Observations) -> list[str]:
+    """The image file of each pose ``obs`` holds."""
+    return [obs.session.image_names[k] for k in obs.used]
+
+
 def _kept(diag: Diagnostics) -> NDArray[np.intp]:
     return np.setdiff1d(np.arange(diag.n_poses), diag.outliers)
-
-
-def _check_choice(diag: Diagnostics, views: Views, extra: dict, folds: int | None) -> Choice | None:
-    if diag.verdict == "degenerate" or diag.motion_kind != "general" or len(views) < 5:  # low-DOF: none sees all of X
-        return None
-    try:
-        return choose(views, pose_candidates("daniilidis", views) | extra, folds)
-    except HandEyeError:
-        return None

@@ -18,10 +18,10 @@ from scipy.spatial.transform import Rotation
 
 from . import solvers
 from ._shared.io import check_output_folder
-from ._shared.text import summarize
 from ._version import __version__
 from .acquire import SimWorld, acquire, capture_views, make_camera, make_robot
-from .calibration import ROBOT_ACCURACY, calibrate, calibrate_poses, certify_calibration, check_folder
+from .calibration import calibrate, certify_calibration
+from .checking import calibrate_folder, check_folder
 from .fleet import calibrate_many
 from .errors import HandEyeError
 from .geometry.se3 import make_transform
@@ -30,14 +30,16 @@ from .planning import (ROBOTS, candidate_views, easy_handeye_poses, fronto_paral
 from .poses import ANGLE_UNITS, LENGTH_UNITS, pose_columns
 from .printing import PAPERS, write_target
 from .report import EXPORTS, write_calibration, write_verification
+from .options import PAIRS, REFINES, REFINES_POSES, ROBOT_ACCURACY, CalibrationOptions
 from .importers import import_easy_handeye, import_industrial_calibration, import_rosbag, import_visp
 from .result import Calibration
 from .session import POSE_KINDS, TIME_UNITS, load_pose_pairs, load_pose_streams, load_yaml, read_intrinsics
 from .setups import SETUPS, flange_poses, predicted_target2cam, setup_info
 from .simulate import DEFAULT_TARGETS, MIN_IMAGE_SIDE, simulate_session
 from .streams import KEYFRAMES, calibrate_streams, paired_delay_note
+from .verdict import exit_status
 from .study import preset, study, write_study
-from .verification import verify
+from .verification import NOT_THIS, verify
 from .vision.targets import target_from_spec
 
 EXAMPLE_POSEPAIRS = "example_posepairs"
@@ -93,6 +95,11 @@ def print_calibration(cal: Calibration, out=None) -> None:
     x_name, z_name = info.x_name, info.z_name
     rot = Rotation.from_matrix(cal.X[:3, :3])
     w = (out or sys.stdout).write
+    d = cal.diagnostics
+    if d is not None and d.verdict == "inconsistent":  # the fix first: X below is not a result to use
+        w(f"INCONSISTENT DATA: {d.advice[0] if d.advice else 'the poses do not agree on one X'}\n"
+          + "".join(f"  also: {a}\n" for a in d.advice[1:])
+          + "X below is what the data give as declared, to compare after the fix; do not use it.\n\n")
     w(f"{cal.setup}: X = {x_name} (maps camera coordinates into the {info.x_parent} frame), method {cal.method}, "
       f"{len(cal.flange2base)} poses, {len(cal.pairs)} motions\n\n")
     with np.printoptions(precision=6, suppress=True, floatmode="fixed", sign=" "):
@@ -109,7 +116,7 @@ def print_calibration(cal: Calibration, out=None) -> None:
       f"{mres[:, 0].max():.3f} deg / {mres[:, 1].max():.3f} mm\n")
     worst = int(np.argmax(pres[:, 1]))
     w(f"{z_name} consistency per pose: median {np.median(pres[:, 0]):.3f} deg / {np.median(pres[:, 1]):.3f} mm, "
-      f"worst pose {worst}: {pres[worst, 0]:.3f} deg / {pres[worst, 1]:.3f} mm\n")
+      f"worst {cal.pose_name(worst)}: {pres[worst, 0]:.3f} deg / {pres[worst, 1]:.3f} mm\n")
     if cal.std is not None:
         w(f"std of X ({cal.refinement} refinement): rotation {_fmt_vec(cal.std[:3], 4)} deg, "
           f"translation {_fmt_vec(cal.std[3:], 3)} mm" + (" (inf: not determined by the data)"
@@ -134,13 +141,10 @@ def print_calibration(cal: Calibration, out=None) -> None:
         w(f"held-out prediction error ({cal.estimator}, cross-validated): "
           + (f"{pe['px']:.3f} px, " if pe.get("px") is not None else "") + f"{pe['mm']:.3f} mm at the target\n")
     if cal.diagnostics is not None:
-        used = set(cal.pose_indices.tolist()) if cal.pose_indices is not None else set()
-        left = [i for i in cal.diagnostics.outliers if i not in used]
-        kept = [i for i in cal.diagnostics.outliers if i in used]  # put back: the pixel refinement judges their points
-        w(f"check: {cal.diagnostics.verdict}" + (f"; outlier poses left out: [{summarize(left)}]" if left else "")
-          + (f"; poses that looked like outliers by their PnP poses, kept for the pixel refinement: [{summarize(kept)}]"
-             if kept else "")
-          + "\n")
+        left, _ = cal.outliers_split()  # images: listed as skipped, and those put back in a note
+        d = cal.diagnostics
+        w(f"check: {d.verdict}" + (f"; left out as outliers: {d.pose_names(left)}" if left and not cal.image_names
+                                   else "") + "\n")
     for note in cal.notes:
         w(f"note: {note}\n")
 
@@ -176,19 +180,10 @@ def _write_outputs(cal: Calibration, args: argparse.Namespace) -> None:
         print("no --out: nothing written (--out FOLDER writes result.json, result.yaml and report.html)")
 
 
-def _stream_options(args: argparse.Namespace) -> dict:
-    """calibrate_streams' own options from the command line."""
-    rng = _floats(args.offset_range, "--offset-range", (2,))
-    return dict(keyframes=args.keyframes, offset_range=None if rng is None else tuple(rng.tolist()),
-                time_offset=args.time_offset)
-
-
 def _calibrate_pose_streams(pairs, args: argparse.Namespace) -> Calibration:
     """calibrate_streams on the two streams of a pose-pair folder or of calibrate-streams' files."""
     cal = calibrate_streams(pairs.robot_times, pairs.flange2base, pairs.camera_times, pairs.target2cam,
-                            setup=pairs.setup, method=args.method, refine=args.refine, pairs=args.pairs,
-                            check=not args.no_check, robot_accuracy=_accuracy_arg(args.robot_accuracy),
-                            robot_input=pairs.robot_input, strict=args.strict, **_stream_options(args))
+                            pairs.setup, _calibrate_options(args), robot_input=pairs.robot_input)
     warning = paired_delay_note(pairs.paired_delays, cal.time_offset, cal.time_offset_std)
     return replace(cal, notes=list(pairs.notes) + ([warning] if warning else []) + list(cal.notes),
                    input_folder=pairs.source)
@@ -227,15 +222,8 @@ def _cmd_calibrate_poses(args: argparse.Namespace) -> int:
     folder = _input_folder(args.folder, args.example, EXAMPLE_POSEPAIRS,
                            "give a pose-pair folder, or --example for the bundled one (not both)")
     _out_folder(args.out, [folder])
-    pairs = load_pose_pairs(folder)
-    if pairs.is_stream:
-        return _finish_poses(_calibrate_pose_streams(pairs, args), args)
-    cal = calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, method=args.method, pairs=args.pairs,
-                          refine=args.refine, robot_input=pairs.robot_input, strict=args.strict,
-                          robot_accuracy=_accuracy_arg(args.robot_accuracy), progress=not args.no_progress,
-                          camera_input=pairs.camera_input, known=_known_arg(args.known), check=not args.no_check)
-    cal = replace(cal, notes=list(pairs.notes) + list(cal.notes), input_folder=folder)
-    return _finish_poses(cal, args)
+    load_pose_pairs(folder)  # a folder without posepairs.yaml: its own error, not a session's
+    return _finish_poses(calibrate_folder(folder, _calibrate_options(args), progress=not args.no_progress), args)
 
 
 def _print_image_summary(cal: Calibration) -> None:
@@ -255,12 +243,16 @@ def _print_image_summary(cal: Calibration) -> None:
     print()
 
 
-def _calibrate_options(args: argparse.Namespace) -> dict:
-    """handeye.calibrate's options from the calibrate command's arguments (the values are checked there)."""
-    robot_noise = _floats(args.robot_noise, "--robot-noise", (2,))
-    return dict(method=args.method, refine=args.refine, robot_noise=None if robot_noise is None else
-                tuple(robot_noise.tolist()), strict=args.strict, robot_accuracy=_accuracy_arg(args.robot_accuracy),
-                known=_known_arg(args.known), check=not args.no_check, **_stream_options(args))
+def _calibrate_options(args: argparse.Namespace) -> CalibrationOptions:
+    """The calibration options of a command's arguments, as one checked record."""
+    robot_noise = _floats(getattr(args, "robot_noise", None), "--robot-noise", (2,))
+    rng = _floats(args.offset_range, "--offset-range", (2,))
+    return CalibrationOptions(
+        method=args.method, refine=args.refine, pairs=args.pairs, folds=args.folds, strict=args.strict,
+        check=not args.no_check, robot_accuracy=_accuracy_arg(args.robot_accuracy), known=_known_arg(args.known),
+        robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()), keyframes=args.keyframes,
+        offset_range=None if rng is None else tuple(rng.tolist()), time_offset=args.time_offset,
+        strict_images=getattr(args, "strict_images", False))
 
 
 def _write_options(args: argparse.Namespace) -> dict:
@@ -275,7 +267,7 @@ def _cmd_calibrate_many(args: argparse.Namespace) -> int:
         raise HandEyeError("several sessions need --out: each session's files go into a folder of its own there")
     items = calibrate_many(args.session, args.out, scheduler=args.scheduler, jobs=args.jobs,
                            progress=not args.no_progress, certify=args.certify, write_options=_write_options(args),
-                           **_calibrate_options(args))
+                           options=_calibrate_options(args))
     status = 0
     print(f"{'session':<32} {'verdict':<13} {'X translation (mm)':<30} std (mm)")
     for it in items:
@@ -285,7 +277,7 @@ def _cmd_calibrate_many(args: argparse.Namespace) -> int:
             continue
         std = "—" if it.std_mm is None else _fmt_vec(np.array(it.std_mm), 3)
         print(f"{it.session:<32.32} {it.verdict:<13} {_fmt_vec(np.array(it.translation_mm), 2):<30} {std}")
-        status = max(status, 0 if it.verdict in ("good", "not checked") else 1)
+        status = max(status, exit_status(it.verdict))
     print(f"wrote {Path(args.out) / 'fleet.json'} and a folder per session")
     return status
 
@@ -300,7 +292,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     session = _input_folder(args.session[0] if args.session else None, args.sample, SAMPLE_SESSION,
                             "give a session folder, or --sample for the bundled sample session (not both)")
     _out_folder(args.out, [session])
-    cal = calibrate(session, jobs=args.jobs, progress=not args.no_progress, **_calibrate_options(args))
+    cal = calibrate(session, _calibrate_options(args), jobs=args.jobs, progress=not args.no_progress)
     if args.certify:
         cal = certify_calibration(cal)
     _print_image_summary(cal)
@@ -309,29 +301,31 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return _verdict_status(cal)
 
 
-EXIT_STATUS = {"good": 0, "weak": 1, "partial": 1, "degenerate": 2, "inconsistent": 2}
-
-
 def _verdict_status(cal: Calibration) -> int:
-    """Exit status of a calibration that answered: 0 when the check found the data good (or was not
-    run), 1 when it called them weak, partial or inconsistent (the result is written all the same)."""
-    return 0 if cal.verdict in ("good", "not checked") else 1
+    """Exit status of a calibration that answered, as ``check`` gives it on the same data
+    (:data:`handeye.verdict.EXIT_STATUS`: 0 good or not checked, 1 weak or partial, 2 inconsistent;
+    the result is written all the same)."""
+    return exit_status(cal.verdict)
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
     folder = _input_folder(args.folder, args.sample, SAMPLE_SESSION,
                            "give a session or pose-pair folder, or --sample (not both)")
-    found = check_folder(folder, jobs=args.jobs, progress=not args.no_progress, keyframes=args.keyframes)
+    found = check_folder(folder, _calibrate_options(args), jobs=args.jobs, progress=not args.no_progress)
     for note in found.notes:
         print(f"note: {note}")
     for name, reason in found.skipped:
         print(f"skipped {name}: {reason}")
-    print(found.diagnostics.pose_table(found.names))
+    print(found.diagnostics.pose_table())
     print()
     print(found.cross_validation_table())
     print()
     print(found.diagnostics.summary())
-    return EXIT_STATUS[found.diagnostics.verdict]
+    if found.calibration is not None and found.calibration.std is not None:
+        std = found.calibration.std
+        print(f"std of X ({found.calibration.estimator}): {np.linalg.norm(std[:3]):.3f} deg / "
+              f"{np.linalg.norm(std[3:]):.2f} mm (as calibrate reports it)")
+    return found.exit_status
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
@@ -509,20 +503,30 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     z_range = _floats(args.z_range, "--z-range", (2,))
     plan = plan_poses(args.setup, X, Z, obj, K, size, dist, n_poses=args.poses, standoff=args.standoff,
                       tilt_max_deg=args.tilt_max, margin_px=args.margin_px, reach_box=box, noise_px=args.noise_px,
-                      robot=args.robot, z_range=None if z_range is None else tuple(z_range.tolist()))
+                      robot=args.robot, z_range=None if z_range is None else tuple(z_range.tolist()),
+                      robot_accuracy=_accuracy_arg(args.robot_accuracy))
     write_plan(plan, out, args.format, args.length_unit, args.angle_unit,
                protect=[p for p in (args.intrinsics, args.target_spec) if p])
     t2c = plan.target2cam
     print(f"{len(plan.flange2base)} poses chosen from {plan.n_candidates} views that keep the target "
           f"{args.margin_px:g} px inside the image; in path order:")
-    print("  pose   flange x, y, z (mm)            view tilt (deg)  distance to target centre (mm)")
+    print("  pose   flange x, y, z (mm)            flange rotation vector (deg)   view tilt (deg)  distance (mm)")
     centre = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
     for k, (F, T) in enumerate(zip(plan.flange2base, t2c)):
         tilt = np.degrees(np.arccos(np.clip(T[2, 2], -1, 1)))  # optical axis vs the target normal
-        print(f"  {k:3d}   {_fmt_vec(1e3 * F[:3, 3], 1):30s} {tilt:8.1f}        {1e3 * np.linalg.norm(T[:3, :3] @ centre + T[:3, 3]):8.1f}")
-    s = plan.std_X
-    print(f"\npredicted std of X at {plan.noise_px:g} px pixel noise (reprojection refinement): rotation "
-          f"{_fmt_vec(s[:3], 4)} deg, translation {_fmt_vec(s[3:], 3)} mm")
+        rv = Rotation.from_matrix(F[:3, :3]).as_rotvec(degrees=True)
+        print(f"  {k:3d}   {_fmt_vec(1e3 * F[:3, 3], 1):30s} {_fmt_vec(rv, 1):30s} {tilt:8.1f}        "
+              f"{1e3 * np.linalg.norm(T[:3, :3] @ centre + T[:3, 3]):8.1f}")
+    print(f"  (distance: camera to target centre; the views are spread over 0.8, 1 and 1.25 x --standoff "
+          f"{1e3 * args.standoff:.0f} mm, as distance varies the depth the views see)")
+    s, r = plan.std_X, plan.std_reported
+    acc = plan.robot_accuracy
+    print(f"\npredicted std of X as calibrate would report it: rotation {_fmt_vec(r[:3], 4)} deg, translation "
+          f"{_fmt_vec(r[3:], 3)} mm")
+    print(f"  from {plan.noise_px:g} px pixel noise (reprojection refinement): rotation {_fmt_vec(s[:3], 4)} deg, "
+          f"translation {_fmt_vec(s[3:], 3)} mm"
+          + (f"; plus the robot's absolute accuracy {acc[0]:g} deg / {acc[1]:g} mm per axis (--robot-accuracy), "
+             "which no capture removes" if acc is not None else "; the robot taken as exact (--robot-accuracy 0,0)"))
     if plan.unobservable:
         info = setup_info(args.setup)
         print(f"warning: a {args.robot} robot cannot determine the {'; the '.join(plan.unobservable)} (std inf): "
@@ -580,8 +584,7 @@ def _accuracy_arg(text: str | None):
     return ROBOT_ACCURACY if v is None else tuple(v.tolist())
 
 
-def _add_solver_and_out(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--method", default="daniilidis", choices=solvers.available(), help="solver (default: daniilidis)")
+def _add_out_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--out", help="write result.json, result.yaml and report.html into this folder")
     p.add_argument("--parent-frame", help="ROS frame X is given in (default: tool0 for eye_in_hand, base_link for eye_to_hand)")
     p.add_argument("--child-frame", help="ROS frame of the camera (default: camera_optical_frame)")
@@ -591,20 +594,51 @@ def _add_solver_and_out(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tool", metavar="X,Y,Z[,RX,RY,RZ]",
                    help="your robot's tool (TCP) frame in the flange frame (m; rotation vector in deg): the result "
                    "files also give the camera (eye-in-hand) or the target (eye-to-hand) relative to the tool")
-    p.add_argument("--robot-accuracy", metavar="DEG,MM",
-                   help=f"the robot's absolute accuracy per axis, added to the std of X (a constant robot error is "
-                   f"invisible in the data; default {ROBOT_ACCURACY[0]:g},{ROBOT_ACCURACY[1]:g}; 0,0 for an exact robot)")
-    p.add_argument("--strict", action="store_true",
-                   help="fail (exit 2) instead of answering when the check calls the data inconsistent")
-    p.add_argument("--no-check", action="store_true",
-                   help="calibrate the poses as they are: no check of the data, no outlier removal (the API's check=False)")
     p.add_argument("--certify", action="store_true",
                    help="certify whether X is the global minimum of the stated motion cost (a semidefinite relaxation; "
                    "needs pip install 'handeye[certifiable]')")
-    p.add_argument("--known", action="append", metavar="TRANSFORM.AXIS=METRES[+-STD]", default=[],
+
+
+#: --refine's help per choice (the README's "auto" paragraph says how auto chooses)
+_REFINE_HELP = {
+    "auto": "auto (default): the estimator that predicts held-out views best (the pixel refinement while the robot's "
+            "errors do not dominate its residuals, else the pose refinement, replaced only by a candidate better by "
+            "more than one standard error)",
+    "reprojection": "reprojection: X and Z on the pixel errors of all target points, robot poses exact",
+    "pose": "pose: X and Z on the robot and camera poses, both noisy",
+    "none": "none: the --method closed form alone (no std)",
+}
+
+
+def _add_calibrate_options(p: argparse.ArgumentParser, refines: tuple[str, ...] = REFINES) -> None:
+    """The options of a calibration (:class:`handeye.CalibrationOptions`), defined once for every command
+    that calibrates or judges data."""
+    g = p.add_argument_group("calibration (the same in calibrate, calibrate-poses, calibrate-streams and check)")
+    g.add_argument("--method", default="daniilidis", choices=solvers.available(), help="solver (default: daniilidis)")
+    g.add_argument("--refine", default="auto", choices=list(refines),
+                   help="; ".join(_REFINE_HELP[r] for r in refines))
+    g.add_argument("--pairs", default="auto", choices=list(PAIRS),
+                   help="which pose pairs form motions (auto: all up to 141 poses, else ~10,000 spread pairs)")
+    g.add_argument("--folds", type=_whole(2), default=None,
+                   help="cross-validation folds of --refine auto (default: one per view up to 10 views, else 5)")
+    g.add_argument("--robot-accuracy", metavar="DEG,MM",
+                   help=f"the robot's absolute accuracy per axis, added to the std of X (a constant robot error is "
+                   f"invisible in the data; default {ROBOT_ACCURACY[0]:g},{ROBOT_ACCURACY[1]:g}; 0,0 for an exact robot)")
+    if "reprojection" in refines:  # a session with images
+        g.add_argument("--strict-images", action="store_true",
+                       help="fail (exit 2) on a missing or unreadable image instead of skipping it with the reason")
+        g.add_argument("--robot-noise", metavar="DEG,MM",
+                       help="robot pose error per axis (e.g. 0.05,0.2): the pixel refinement then corrects each robot "
+                       "pose within it instead of taking the poses as exact")
+    g.add_argument("--strict", action="store_true",
+                   help="fail (exit 2) instead of answering when the check calls the data inconsistent")
+    g.add_argument("--no-check", action="store_true",
+                   help="calibrate the poses as they are: no check of the data, no outlier removal (the API's check=False)")
+    g.add_argument("--known", action="append", metavar="TRANSFORM.AXIS=METRES[+-STD]", default=[],
                    help="what the data cannot determine, given (SCARA and Cartesian robots): e.g. "
                    "--known target2base.z=0.012 (the board's height), --known cam2flange.z=0.085+-0.001 (from the "
                    "drawing); repeat for more")
+    _add_stream_options(p)
 
 
 def _add_detection_options(p: argparse.ArgumentParser) -> None:
@@ -621,13 +655,9 @@ def _add_calibrate_poses(sub) -> None:
     )
     p.add_argument("folder", nargs="?", help="folder with posepairs.yaml")
     p.add_argument("--example", action="store_true", help="run on the bundled example folder")
-    _add_solver_and_out(p)
-    p.add_argument("--refine", default="auto", choices=["auto", "pose", "none"],
-                   help="refine X and Z on the poses and estimate their uncertainty (default: auto = pose)")
-    p.add_argument("--pairs", default="auto", choices=["auto", "all", "consecutive"],
-                   help="which pose pairs form motions (auto: all up to 141 poses, else ~10,000 spread pairs)")
+    _add_out_options(p)
+    _add_calibrate_options(p, REFINES_POSES)
     p.add_argument("--no-progress", action="store_true", help="no progress bar (shown from 200 poses)")
-    _add_stream_options(p)
     p.set_defaults(func=_cmd_calibrate_poses)
 
 
@@ -745,6 +775,7 @@ def _cmd_target(args: argparse.Namespace) -> int:
     print(f"wrote {path}: print it at 100% (no 'fit to page') and check the ruler measures 100 mm")
     print("for session.yaml:")
     print("  " + yaml.safe_dump({"target": spec}, sort_keys=False).replace("\n", "\n  ").rstrip())
+    print(f"target frame (Z and the target poses are given in it): {target_from_spec(spec).frame}")
     return 0
 
 
@@ -786,7 +817,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     if args.out:
         for path in write_verification(v, args.out):
             print(f"wrote {path}")
-    return 1 if v.verdict == "worse than promised" else 0
+    return {"worse than promised": 1, NOT_THIS: 2}.get(v.verdict, 0)
 
 
 def _add_verify(sub) -> None:
@@ -796,7 +827,8 @@ def _add_verify(sub) -> None:
         description="Predict where the target appears in every image of SESSION from its robot pose through the "
         "calibration in RESULT (a result folder, result.json or result.yaml), and compare with the detections: "
         "per view the RMS pixel error and the error in millimetres at the target. Exit 0 when the errors stay "
-        "within 2x of what the calibration's own cross-validation promised, 1 when they do not.",
+        "within 2x of what the calibration's own cross-validation promised, 1 when they do not, 2 when the views "
+        "do not belong to this calibration or are its own images.",
     )
     p.add_argument("result", help="result folder, result.json or result.yaml written by handeye calibrate --out")
     p.add_argument("session", help="a session folder (images + robot poses) the calibration has not seen")
@@ -868,10 +900,8 @@ def _add_calibrate_streams(sub) -> None:
                    help="what the camera rows are (default target2cam, solvePnP's; cam2target for a camera pose in "
                    "the target frame)")
     p.add_argument("--time-unit", default="s", choices=list(TIME_UNITS), help="unit of both time columns (default s)")
-    _add_solver_and_out(p)
-    p.add_argument("--refine", default="auto", choices=["auto", "pose", "none"], help="as calibrate-poses (default auto)")
-    p.add_argument("--pairs", default="auto", choices=["auto", "all", "consecutive"], help="as calibrate-poses")
-    _add_stream_options(p)
+    _add_out_options(p)
+    _add_calibrate_options(p, REFINES_POSES)
     p.set_defaults(func=_cmd_calibrate_streams)
 
 
@@ -886,15 +916,9 @@ def _add_calibrate(sub) -> None:
     p.add_argument("--sample", action="store_true", help="run on the bundled sample session")
     p.add_argument("--scheduler", help="several sessions on Dask: 'local' (a LocalCluster of --jobs workers) or a "
                    "scheduler's address (pip install 'handeye[cluster]'); default local processes")
-    _add_solver_and_out(p)
-    p.add_argument("--refine", default="auto", choices=["auto", "reprojection", "pose", "none"],
-                   help="auto (default): on the pixels of all target points, or on the poses when the robot "
-                   "poses disagree with the images")
-    p.add_argument("--robot-noise", metavar="DEG,MM",
-                   help="robot pose error per axis (e.g. 0.05,0.2): the pixel refinement then corrects each robot "
-                   "pose within it instead of taking the poses as exact")
+    _add_out_options(p)
+    _add_calibrate_options(p)
     _add_detection_options(p)
-    _add_stream_options(p)
     p.set_defaults(func=_cmd_calibrate)
 
 
@@ -909,8 +933,7 @@ def _add_check(sub) -> None:
     p.add_argument("folder", nargs="?", help="session folder (session.yaml) or pose-pair folder (posepairs.yaml)")
     p.add_argument("--sample", action="store_true", help="check the bundled sample session")
     _add_detection_options(p)
-    p.add_argument("--keyframes", type=_whole(3), default=KEYFRAMES,
-                   help=f"streams (files with times): the keyframes to check (default {KEYFRAMES}, as calibrate)")
+    _add_calibrate_options(p)
     p.set_defaults(func=_cmd_check)
 
 
@@ -951,7 +974,8 @@ def _add_plan(sub) -> None:
                    help="built-in target (the one 'handeye simulate' renders); see --target-spec")
     p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (e.g. your session.yaml)")
     _add_placements(p)
-    p.add_argument("--standoff", type=_number(0.0, above=True), required=True, help="camera-to-target distance (m)")
+    p.add_argument("--standoff", type=_number(0.0, above=True), required=True,
+                   help="camera-to-target distance (m) of the middle views; the plan spreads them over 0.8-1.25x it")
     p.add_argument("--tilt-max", type=_number(0.0, 89.0), default=45.0, help="largest view angle from the target normal (deg, default 45)")
     p.add_argument("--margin-px", type=_number(0.0), default=20.0, help="keep every target point this far inside the image")
     p.add_argument("--reach-box", metavar="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", help="where the flange may go (m, base frame)")
@@ -961,6 +985,9 @@ def _add_plan(sub) -> None:
     p.add_argument("--z-range", metavar="ZMIN,ZMAX", help="heights the flange can reach (m, base frame; a SCARA's stroke)")
     p.add_argument("--poses", type=_whole(3), default=12, help="number of poses (default 12)")
     p.add_argument("--noise-px", type=_number(0.0, above=True), default=0.3, help="pixel noise for the predicted std (default 0.3)")
+    p.add_argument("--robot-accuracy", metavar="DEG,MM",
+                   help=f"the robot's absolute accuracy per axis, added to the predicted std as calibrate adds it "
+                   f"(default {ROBOT_ACCURACY[0]:g},{ROBOT_ACCURACY[1]:g}; 0,0 for an exact robot)")
     p.add_argument("--check-runs", type=_whole(0), default=0, help="also simulate this many calibrations to check the prediction")
     p.add_argument("--seed", type=_whole(0), default=0)
     p.add_argument("-o", "--out", required=True, help="poses.csv to write")

@@ -31,7 +31,7 @@ from scipy.special import fdtri
 
 from . import solvers
 from ._shared.text import summarize
-from .errors import DegenerateMotionError, HandEyeError
+from .errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from .geometry.se3 import invert, mean_transform
 from .metrics import rotation_error, translation_error
 from .motions import MotionSet, Pairs, validate_poses
@@ -308,6 +308,7 @@ def diagnose(
     leave_one_out: bool = True,
     rng: np.random.Generator | int | None = 0,
     symmetries: list | None = None,
+    names: list[str] | None = None,
 ) -> Diagnostics:
     """Check whether poses can give a good hand-eye calibration, and say why not.
 
@@ -325,6 +326,9 @@ def diagnose(
     symmetries : list of (4, 4), optional
         A symmetric target's symmetries (``target.symmetries()``; images labelled against the robot
         poses as declared): each other reading of the robot poses relabels the images anew.
+    names : list of str, optional
+        Each pose's name (its image file, or its row id in a pose table): the advice and the
+        summary name poses by it (``Diagnostics.names``).
 
     Returns
     -------
@@ -332,23 +336,34 @@ def diagnose(
     """
     token = _SOLVE_MEMO.set({})
     try:
-        return _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outliers, leave_one_out, rng,
-                         symmetries)
+        diag = _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outliers, leave_one_out, rng,
+                         symmetries, _names(names, len(flange2base)))
     finally:
         _SOLVE_MEMO.reset(token)
+    return diag
+
+
+def _names(names: list[str] | None, n: int) -> list[str] | None:
+    """The poses' names checked against their count."""
+    if names is None:
+        return None
+    names = [str(v) for v in names]
+    if len(names) != n:
+        raise InputMismatchError(f"{len(names)} pose names for {n} poses: give one name per pose")
+    return names
 
 
 def _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outliers, leave_one_out, rng,
-              symmetries) -> Diagnostics:
+              symmetries, names) -> Diagnostics:
     check_setup(setup)
     flange2base, target2cam = validate_poses(flange2base, target2cam)
     n = len(flange2base)
     if n < 3:  # one motion at most: nothing to observe
-        return Diagnostics(verdict="degenerate", n_poses=n, consistency_limit=CONSISTENT, advice=[
+        return Diagnostics(verdict="degenerate", n_poses=n, consistency_limit=CONSISTENT, names=names, advice=[
             f"only {n} pose(s): hand-eye calibration needs at least 3 (two motions with different rotation axes); "
             "take 10-20 from varied viewpoints, turning the flange by 30 deg or more about different axes"])
     motions = MotionSet.from_poses(flange2base, target2cam, setup, "auto")
-    diag = Diagnostics(verdict="good", n_poses=n, consistency_limit=CONSISTENT, **_observability(motions))
+    diag = Diagnostics(verdict="good", n_poses=n, consistency_limit=CONSISTENT, names=names, **_observability(motions))
     try:
         check_observability(motions)
     except DegenerateMotionError as exc:
@@ -380,6 +395,9 @@ def _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outlier
         _name_outliers(diag, inliers, resid)
         if len(diag.outliers) > 0.2 * n:
             diag.verdict = "weak"
+            diag.advice.append(f"{len(diag.outliers)} of {n} poses are outliers (more than 20%): the rest may share "
+                               "the same fault; check how the robot poses are paired with the images before relying "
+                               "on X")
     if leave_one_out:
         diag.leave_one_out = _leave_one_out(flange2base, target2cam, setup, inliers)
     scale = board_scale(flange2base[inliers], target2cam[inliers], setup)
@@ -523,7 +541,9 @@ def _name_outliers(diag: Diagnostics, inliers: NDArray[np.bool_], resid: NDArray
     """The outliers, their residuals and the advice to check them, into ``diag``."""
     diag.outliers = [int(i) for i in np.flatnonzero(~inliers)]
     diag.outlier_residuals = {i: (float(resid[i, 0]), float(resid[i, 1])) for i in diag.outliers}
-    diag.advice.append(f"pose(s) {summarize(diag.outliers)} disagree with the others far beyond their noise "
+    which = diag.pose_names(diag.outliers) if diag.names else f"pose(s) {summarize(diag.outliers)}"
+    verb = "disagrees" if len(diag.outliers) == 1 and diag.names else "disagree"
+    diag.advice.append(f"{which} {verb} with the others far beyond their noise "
                        "(a wrong robot pose, a mislabelled image or a misdetected target): they are left out; check or "
                        "retake them")
 
@@ -587,9 +607,32 @@ def _convention(flange2base, target2cam, setup: str, given: float, robot_input, 
     hint = min(scores, key=scores.get) if scores else None
     if hint is None or scores[hint] > CONSISTENT or scores[hint] >= given / 3:
         return None
+    # readings that fit about as well (inverted robot and inverted camera poses can both fit exactly) are all
+    # named, ranked by where each puts the camera and the target, then by their fit
+    fits = sorted((h for h in scores if _ties(scores[h], scores[hint])),
+                  key=lambda h: (_implausibility(*readings[h], setup), scores[h]))
+    hint = fits[0]
     if hint == "invert_robot_poses":  # the same equations as the other setup: rank the two readings
-        return _setup_or_inverted(*readings[hint], setup, given, scores[hint])
-    return hint, _hint_advice(hint, given, scores[hint])
+        hint, advice = _setup_or_inverted(*readings[hint], setup, given, scores["invert_robot_poses"])
+    else:
+        advice = _hint_advice(hint, given, scores[hint])
+    for h in fits[1:]:
+        advice += f"; or, fitting as well: {_hint_advice(h, given, scores[h])}"
+    return hint, advice
+
+
+def _implausibility(flange2base, target2cam, setup: str) -> int:
+    """How many placements of the camera and the target a reading makes implausible (:func:`_plausibility`)."""
+    try:
+        X = _solve(flange2base, target2cam, setup)
+    except (HandEyeError, np.linalg.LinAlgError):
+        return 99
+    return _plausibility(X, mean_transform(constant_transforms(X, flange2base, target2cam, setup)), setup)[0]
+
+
+def _ties(score: float, best: float) -> bool:
+    """Whether a reading's consistency score fits about as well as the best one's."""
+    return score <= CONSISTENT and score <= max(1.5 * best, best + 0.1)
 
 
 #: Where cameras and targets plausibly are (m): a camera on the flange within this of it, a target on the

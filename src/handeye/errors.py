@@ -22,4 +22,11 @@ class InputMismatchError(HandEyeError, ValueError):
 
 
 class DegenerateMotionError(HandEyeError):
-    """The robot motions do not determine the unknown transform (parallel axes, no rotation)."""
+    """The robot motions do not determine the unknown transform (parallel axes, no rotation).
+
+    ``diagnostics``: the check's findings when the check raised it (None otherwise).
+    """
+
+    def __init__(self, *args: object, diagnostics: object = None) -> None:
+        super().__init__(*args)
+        self.diagnostics = diagnostics

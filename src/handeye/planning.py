@@ -31,10 +31,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from .calibration import calibrate_poses
+from .calibration import calibrate_poses, robot_accuracy_cov
 from .errors import HandEyeError
 from .geometry.se3 import invert, make_transform, skew
 from .metrics import rotation_error, std_deg_mm, translation_error
+from .options import ROBOT_ACCURACY, CalibrationOptions
 from .session import write_pose_table
 from .setups import check_setup, flange_poses, predicted_target2cam, robot_world_A_inv, setup_info
 from .simulate import look_at
@@ -65,6 +66,9 @@ class Plan:
         Predicted covariance of X (rotation vector rad, translation m) for ``noise_px``.
     std_X : (6,)
         Its standard deviations in degrees and millimetres.
+    std_reported : (6,)
+        The std ``calibrate`` would report for this capture: ``cov_X`` plus the robot's absolute
+        accuracy (``robot_accuracy``), which no capture removes.
     noise_px : float
     n_candidates : int
         Viewpoints that passed the visibility and reach checks.
@@ -82,6 +86,10 @@ class Plan:
     robot: str = "arm"
     #: what the chosen robot cannot determine (the std there is inf), in words
     unobservable: list[str] | None = None
+    #: the std calibrate would report: cov_X plus the robot's absolute accuracy
+    std_reported: NDArray[np.float64] | None = None
+    #: the robot's absolute accuracy assumed (deg, mm per axis), None for an exact robot
+    robot_accuracy: tuple[float, float] | None = None
 
 
 #: Robots ``plan_poses`` plans for: a 6-axis arm (views all around), a SCARA (the flange turns about
@@ -301,6 +309,7 @@ def plan_poses(
     noise_px: float = 0.3,
     robot: str = "arm",
     z_range: tuple[float, float] | None = None,
+    robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
 ) -> Plan:
     """Plan ``n_poses`` robot poses for a calibration (see the module docstring).
 
@@ -335,6 +344,8 @@ def plan_poses(
         ``known=`` values.
     z_range : (zmin, zmax), optional
         The heights (m, base frame) the flange can reach (a SCARA's z stroke).
+    robot_accuracy : (deg, mm) or None
+        The robot's absolute accuracy per axis, added as calibrate adds it (``Plan.std_reported``).
 
     Raises
     ------
@@ -379,8 +390,17 @@ def plan_poses(
     cov = predicted_cov(info + prior, noise_px)
     std = std_deg_mm(cov)
     std[3:][np.diag(prior)[3:6] > 0] = np.inf
+    accuracy = CalibrationOptions(robot_accuracy=robot_accuracy).robot_accuracy
     return Plan(setup, X, Z, flange2base[chosen], target2cam[chosen], cov, std, float(noise_px), int(keep.sum()),
-                robot, unobservable)
+                robot, unobservable, _reported(std, cov, X, accuracy), accuracy)
+
+
+def _reported(std: NDArray[np.float64], cov: NDArray[np.float64], X: NDArray[np.float64],
+              accuracy: tuple[float, float] | None) -> NDArray[np.float64]:
+    """The std calibrate reports: the pixels' covariance plus the robot's absolute accuracy."""
+    if accuracy is None:
+        return std
+    return np.where(np.isinf(std), np.inf, std_deg_mm(cov + robot_accuracy_cov(X, accuracy)))
 
 
 def candidate_views(object_points: ArrayLike, K: ArrayLike, image_size: tuple[int, int], dist: ArrayLike | None = None,

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._shared.text import summarize
 from .geometry.se3 import skew
 from .metrics import rotation_error, translation_error
 from .motions import MotionSet, screw_congruence
@@ -126,9 +127,20 @@ class Diagnostics:
     #: 'general', or the low-DOF motions the check found ('one_axis', 'translation_only'; see
     #: :mod:`handeye.partial`), which stay so when the verdict is 'inconsistent'
     motion_kind: str = "general"
+    #: each pose's name (its image file, or its row id in a pose table); None: poses are numbered
+    names: list[str] | None = None
+
+    def pose_name(self, i: int) -> str:
+        """Pose ``i`` as people know it: its image file or row id (else ``pose i``)."""
+        return self.names[i] if self.names else f"pose {i}"
+
+    def pose_names(self, idx) -> str:
+        """Poses ``idx`` by name, summarised when many."""
+        return summarize(self.pose_name(int(i)) for i in idx)
 
     def pose_table(self, names: list[str] | None = None) -> str:
         """Per pose: residual from the consensus and how far X moves without it."""
+        names = names or self.names
         rows = [f"{'pose':>5} {'name':<24} {'resid deg':>9} {'resid mm':>9} {'loo deg':>8} {'loo mm':>8}  flag"]
         for i in range(self.n_poses):
             name = names[i] if names else ""
@@ -151,12 +163,12 @@ class Diagnostics:
                          "(1 when the target size and the units are right)")
         for i in self.outliers:
             r, t = self.outlier_residuals.get(i, (float("nan"), float("nan")))
-            lines.append(f"outlier pose {i}: {r:.3f} deg / {t:.2f} mm from the consensus")
+            lines.append(f"outlier {self.pose_name(i)}: {r:.3f} deg / {t:.2f} mm from the consensus")
         if self.leave_one_out is not None and np.isfinite(self.leave_one_out).any():
             loo = np.where(np.isfinite(self.leave_one_out), self.leave_one_out, -1.0)
             worst = np.argsort(-loo[:, 1])[:3]
-            lines.append("leaving one pose out moves X most for poses " + ", ".join(
-                f"{i} ({loo[i, 0]:.3f} deg / {loo[i, 1]:.2f} mm)" for i in worst))
+            lines.append("leaving one pose out moves X most for " + ("" if self.names else "poses ") + ", ".join(
+                f"{self.names[i] if self.names else i} ({loo[i, 0]:.3f} deg / {loo[i, 1]:.2f} mm)" for i in worst))
         lines += [f"advice: {a}" for a in self.advice]
         return "\n".join(lines)
 
@@ -259,6 +271,25 @@ class Calibration:
         if self.unobservable and (self.diagnostics is None or self.diagnostics.verdict != "inconsistent"):
             return "partial"
         return self.diagnostics.verdict if self.diagnostics is not None else "not checked"
+
+    def pose_name(self, j: int) -> str:
+        """The name of this calibration's pose ``j`` (row ``j`` of ``flange2base``): its image file,
+        or the check's name of the input pose it came from, else ``pose j``."""
+        if self.image_names is not None and len(self.image_names) == len(self.flange2base):
+            return self.image_names[j]
+        d, idx = self.diagnostics, self.pose_indices
+        if d is not None and d.names and idx is not None and len(idx) == len(self.flange2base):
+            return d.names[int(idx[j])]
+        return f"pose {j}"
+
+    def outliers_split(self) -> tuple[list[int], list[int]]:
+        """The check's outlier poses (indices of the input poses): those left out of X, and those put
+        back because the robust pixel refinement judges their points one by one."""
+        if self.diagnostics is None:
+            return [], []
+        used = set(self.pose_indices.tolist()) if self.pose_indices is not None else set()
+        outliers = self.diagnostics.outliers
+        return [i for i in outliers if i not in used], [i for i in outliers if i in used]
 
     @property
     def prediction_error(self) -> dict[str, float | None] | None:

@@ -122,9 +122,10 @@ class Session:
 
     @property
     def input_files(self) -> list[Path]:
-        """Every file the session is read from: session.yaml, the pose table(s), the images."""
+        """Every file the session is read from: session.yaml, the pose table(s), the images (those
+        that exist: a missing one is skipped by the calibration)."""
         tables = [p for p in (self.poses_path, self.image_times_path) if p is not None]
-        return [self.folder / SESSION_FILE] + tables + list(self.image_paths)
+        return [self.folder / SESSION_FILE] + tables + [p for p in self.image_paths if Path(p).is_file()]
 
 
 def read_camera(spec: Any, where: str) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
@@ -146,13 +147,17 @@ def read_camera(spec: Any, where: str) -> tuple[NDArray[np.float64] | None, NDAr
     return K, dist
 
 
-def load_session(folder: str | Path) -> Session:
+def load_session(folder: str | Path, strict_images: bool = True) -> Session:
     """Load and validate a capture session folder (DESIGN §4).
+
+    ``strict_images=False``: an image named in the pose table but missing from ``images/`` is kept
+    in the session (its path does not exist) for :func:`handeye.calibration.observe` to skip with
+    the reason, as it skips unreadable images.
 
     Raises
     ------
     SessionError
-        Missing folder, session.yaml, key, poses file or image; duplicate image names; images in
+        Missing folder, session.yaml, key, poses file or (``strict_images``) image; duplicate image names; images in
         ``images/`` that no pose row names (a pose count that differs from the image count).
     PoseFormatError, InputMismatchError, TargetError
         Bad pose values, unknown setup, unusable target description.
@@ -199,10 +204,10 @@ def load_session(folder: str | Path) -> Session:
     on_disk = [n for n in all_files if Path(n).suffix.lower() in IMAGE_SUFFIXES]
     files = _match_image_names(names, all_files, notes)  # a row may name an image of any suffix
     missing = [n for n, f in zip(names, files) if f is None]
-    if missing:
+    if missing and strict_images:
         raise SessionError(f"{image_dir}: image file(s) missing: {', '.join(missing[:10])}"
                            + (f" and {len(missing) - 10} more" if len(missing) > 10 else ""))
-    paths = [image_dir / f for f in files]
+    paths = [image_dir / (f if f is not None else n) for f, n in zip(files, names)]
     unnamed = sorted(set(on_disk) - set(files))
     if unnamed:
         raise SessionError(
@@ -748,8 +753,9 @@ def write_pose_pairs(folder: str | Path, setup: str, flange2base: NDArray[np.flo
 
 def read_result(path: str | Path) -> dict[str, Any]:
     """A calibration written by handeye (``result.json`` / ``result.yaml``, or the folder holding
-    them): ``setup``, ``X``, ``Z`` (4x4), the intrinsics it used (``K``, ``dist``, None without images)
-    and its cross-validated ``prediction_error`` (``{'px', 'mm'}`` or None)."""
+    them): ``setup``, ``X``, ``Z`` (4x4), the intrinsics it used (``K``, ``dist``, None without images),
+    its cross-validated ``prediction_error`` (``{'px', 'mm'}`` or None) and ``image_sha256`` (image
+    name -> SHA-256 of the images it used; empty for results without them)."""
     p = Path(path)
     if p.is_dir():
         p = next((p / n for n in ("result.json", "result.yaml") if (p / n).is_file()), p / "result.json")
@@ -765,5 +771,7 @@ def read_result(path: str | Path) -> dict[str, Any]:
     if isinstance(data.get("camera"), dict) and data["camera"].get("K") is not None:
         K, dist = read_camera({"K": data["camera"]["K"], "dist": data["camera"].get("dist") or [0.0] * 5}, str(p))
     cv = data.get("cross_validation") or {}
+    images = data.get("images") if isinstance(data.get("images"), dict) else {}
+    digests = dict(zip(images.get("used") or [], images.get("sha256") or []))
     return {"path": p, "setup": setup, "X": X, "Z": Z, "K": K, "dist": dist,
-            "prediction_error": cv.get("prediction_error")}
+            "prediction_error": cv.get("prediction_error"), "image_sha256": {n: d for n, d in digests.items() if d}}

@@ -15,14 +15,14 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ._shared.text import summarize
-from .calibration import ROBOT_ACCURACY, calibrate_poses
-from .errors import InputMismatchError
+from .calibration import calibrate_poses
 from .metrics import std_deg_mm
-from .motions import Pairs
+from .options import CalibrationOptions, options_from
 from .poses import RobotPoseInput
 from .result import Calibration
 from .setups import check_setup
 from .sync import KEYFRAMES, check_stream, keyframes_at, offset_cov, synchronise
+from .verdict import judged
 
 __all__ = ["calibrate_streams", "paired_delay_note", "KEYFRAMES"]
 
@@ -33,16 +33,10 @@ def calibrate_streams(
     t_cam: ArrayLike,
     target2cam: ArrayLike,
     setup: str = "eye_in_hand",
-    method: str = "daniilidis",
-    refine: str = "auto",
-    keyframes: int = KEYFRAMES,
-    offset_range: tuple[float, float] | None = None,
-    time_offset: float | None = None,
-    pairs: Pairs = "auto",
-    check: bool = True,
-    robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
+    options: CalibrationOptions | None = None,
+    *,
     robot_input: RobotPoseInput | None = None,
-    strict: bool = False,
+    **changes,
 ) -> Calibration:
     """Hand-eye calibration from a robot stream and a camera stream with separate clocks.
 
@@ -57,7 +51,9 @@ def calibrate_streams(
     target2cam : array_like, shape (M, 4, 4)
         The target's pose in the camera frame per camera sample (PnP), metres.
     setup : {'eye_in_hand', 'eye_to_hand'}
-    method, refine, pairs, check, robot_accuracy, strict
+    options : CalibrationOptions, optional
+        How to calibrate (:class:`handeye.CalibrationOptions`), or its fields as keywords:
+    method, refine, pairs, check, robot_accuracy, strict, folds, known
         As :func:`handeye.calibrate_poses`, for the keyframes.
     keyframes : int
         How many camera samples to calibrate on (well spread, where the robot moves slowly).
@@ -85,17 +81,16 @@ def calibrate_streams(
     DegenerateMotionError
         The keyframes cannot determine X.
     """
+    opts = options_from(options, changes).for_poses()
     check_setup(setup)
-    if not (isinstance(keyframes, (int, np.integer)) and not isinstance(keyframes, bool) and keyframes >= 3):
-        raise InputMismatchError(f"keyframes={keyframes!r}: give a whole number of at least 3")
     robot = check_stream(t_robot, flange2base, "robot stream")
     camera = check_stream(t_cam, target2cam, "camera stream")
-    sync = synchronise(robot, camera, setup, offset_range, time_offset, keyframes)
-    kf, f2b, n_candidates = keyframes_at(robot, camera, sync.offset, keyframes, setup, sync.fit)
+    sync = synchronise(robot, camera, setup, opts.offset_range, opts.time_offset, opts.keyframes)
+    kf, f2b, n_candidates = keyframes_at(robot, camera, sync.offset, opts.keyframes, setup, sync.fit)
     if robot_input is not None:  # the interpolated poses as the robot would write them (the check re-reads them)
         robot_input = robot_input.rewritten(f2b)
-    cal = calibrate_poses(f2b, camera.poses[kf], setup, method=method, refine=refine, pairs=pairs, check=check,
-                          robot_accuracy=robot_accuracy, strict=strict, progress=False, robot_input=robot_input)
+    cal = calibrate_poses(f2b, camera.poses[kf], setup, opts, progress=False, robot_input=robot_input,
+                          names=[f"t={t:.3f}" for t in camera.times[kf]])
     notes = list(sync.notes) + [f"{len(kf)} keyframes calibrated, chosen among {n_candidates} camera samples where the "
                                 "robot moves slowly"]
     if cal.diagnostics is not None and cal.diagnostics.outliers:
@@ -106,8 +101,8 @@ def calibrate_streams(
         cov = cal.cov + offset_cov(cal.X, cal.Z, setup, robot, camera.times[used], camera.poses[used], sync.offset,
                                    sync.offset_std)
         cal = replace(cal, cov=cov, std=std_deg_mm(cov))
-    return replace(cal, time_offset=sync.offset, time_offset_std=sync.offset_std,
-                   streams=sync.info(robot, camera, camera.times[kf]), notes=notes + list(cal.notes))
+    return judged(replace(cal, time_offset=sync.offset, time_offset_std=sync.offset_std,
+                          streams=sync.info(robot, camera, camera.times[kf]), notes=notes + list(cal.notes)))
 
 
 def paired_delay_note(paired_delays: ArrayLike | None, offset: float, offset_std: float) -> str | None:

@@ -18,13 +18,15 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from ._shared.io import file_digest
 from ._shared.text import summarize
 from .calibration import observe
 from .errors import InputMismatchError
 from .session import Session, SessionError, load_session, read_result
+from .setups import predicted_target2cam
 from .validation import Views, view_errors
 
-__all__ = ["Verification", "verify", "PROMISE_FACTOR", "FLAG_FACTOR"]
+__all__ = ["Verification", "verify", "PROMISE_FACTOR", "FLAG_FACTOR", "NOT_THIS"]
 
 #: A verification passes when its RMS error stays within this factor of the calibration's own
 #: cross-validated prediction error (a new capture differs more from the calibration's than its
@@ -42,7 +44,7 @@ class Verification:
     names: list[str]  #: the views checked (images with the target)
     px: NDArray[np.float64]  #: per view, RMS pixel error of the predicted target points
     mm: NDArray[np.float64]  #: per view, the same in millimetres at the target's distance
-    verdict: str  #: 'good', 'worse than promised' or 'not compared' (no promise in the result)
+    verdict: str  #: 'good', 'worse than promised', 'not compared' (no promise in the result) or NOT_THIS
     advice: list[str] = field(default_factory=list)
     promised: dict | None = None  #: the calibration's cross-validated prediction error ({'px', 'mm'})
     skipped: list[tuple[str, str]] = field(default_factory=list)  #: (image, reason)
@@ -92,6 +94,38 @@ def _with_intrinsics(session: Session, result: dict) -> Session:
     return session
 
 
+#: The verdict when the target is nowhere near where X and Z put it.
+NOT_THIS = "not this calibration's"
+#: ... judged so when the predicted target is off by more than this fraction of its distance (median).
+ELSEWHERE_FRACTION = 0.1
+
+
+def _refuse_own_images(sess: Session, res: dict) -> None:
+    """A session that reuses the calibration's own images is not a second capture."""
+    own = {d: n for n, d in res["image_sha256"].items()}
+    same = [(name, own[file_digest(p)]) for name, p in zip(sess.image_names, sess.image_paths)
+            if Path(p).is_file() and file_digest(p) in own]
+    if same:
+        raise InputMismatchError(
+            f"{sess.folder}: image(s) {summarize(n for n, _ in same)} are the calibration's own inputs (the same bytes as "
+            f"{summarize(m for _, m in same)} in {res['path'].name}): verify needs a capture the calibration has not "
+            "seen (other poses, another day); the calibration's own held-out error is its cross-validation")
+
+
+def _not_where_predicted(X, Z, views: Views) -> str | None:
+    """Why these views cannot belong to this calibration (the target is far from where X and Z put it), or None."""
+    T = predicted_target2cam(X, Z, views.flange2base, views.setup)
+    off = np.linalg.norm(T[:, :3, 3] - views.target2cam[:, :3, 3], axis=1)
+    distance = np.linalg.norm(views.target2cam[:, :3, 3], axis=1)
+    frac = float(np.median(off / np.maximum(distance, 1e-9)))
+    if frac <= ELSEWHERE_FRACTION:
+        return None
+    return (f"these views do not belong to this calibration: the target is a median {1e3 * np.median(off):.0f} mm "
+            f"({100 * frac:.0f}% of its distance) from where X and Z put it; check that the result and the session come "
+            "from the same cell, camera mounting and target placement, and that the robot poses are in the same frame "
+            "and convention")
+
+
 def verify(result: str | Path, session: str | Path, jobs: int | None = None, progress: bool = True) -> Verification:
     """Predict every view of ``session`` (images + robot poses) from the calibration in ``result``
     (result.json / result.yaml or their folder) and compare with the detections.
@@ -101,16 +135,21 @@ def verify(result: str | Path, session: str | Path, jobs: int | None = None, pro
     SessionError
         Unreadable result or session; fewer than 3 images with the target.
     InputMismatchError
-        The session's setup differs from the result's.
+        The session's setup differs from the result's; the session holds the calibration's own images.
     """
     res = read_result(result)
     sess = load_session(session)
     if sess.setup != res["setup"]:
         raise InputMismatchError(f"the result is {res['setup']} but {sess.folder} is {sess.setup}")
+    _refuse_own_images(sess, res)
     obs = observe(_with_intrinsics(sess, res), jobs=jobs, progress=progress)
     views = Views(obs.flange2base, obs.target2cam, sess.setup, obs.object_points, obs.image_points, obs.K, obs.dist)
     px, mm = view_errors(res["X"], res["Z"], views)
     names = [sess.image_names[k] for k in obs.used]
+    elsewhere = _not_where_predicted(res["X"], res["Z"], views)
+    if elsewhere is not None:
+        return Verification(sess.setup, names, px, mm, NOT_THIS, [elsewhere], res["prediction_error"],
+                            list(obs.skipped), [], res["path"], sess.folder)
     median = float(np.median(px))
     flagged = [n for n, p in zip(names, px) if p > FLAG_FACTOR * max(median, 0.1)]
     advice = []

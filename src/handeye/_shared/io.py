@@ -114,6 +114,15 @@ def array_digest(*arrays: np.ndarray) -> str:
     return h.hexdigest()
 
 
+def file_digest(path: Path) -> str:
+    """SHA-256 of one file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
 def files_digest(paths: list[Path], root: Path) -> str:
     """SHA-256 over the names (relative to ``root``) and bytes of ``paths``, in the order given."""
     h = hashlib.sha256()

@@ -313,7 +313,10 @@ def _cross_validation_table(cal: Calibration) -> str:
     body = "".join(body)
     return ("<h3>Held-out prediction error (cross-validated)</h3><p class=\"note\">Each view predicted from its robot "
             "pose by X and Z fitted without it: where the target's points land against where the camera saw them. "
-            "The estimator with the smallest error is used.</p>"
+            "The estimator used is listed first: the preferred refinement (the pixel refinement while the robot's "
+            "errors do not dominate its residuals, else the pose refinement) is replaced only by a candidate better by "
+            "more than one standard error of the per-view differences, so the one used need not have the smallest "
+            "error here.</p>"
             f'<table><tr><th class="l">estimator</th><th>px</th><th>mm at the target</th></tr>{body}</table>')
 
 
@@ -323,11 +326,17 @@ def _residuals_section(cal: Calibration) -> str:
     parts.append(f"<p>Screw congruence per motion (|angle_A − angle_B|, |pitch_A − pitch_B|; independent of X): median "
                  f"{np.median(mres[:, 0]):.3f} deg / {np.median(mres[:, 1]):.3f} mm, max {mres[:, 0].max():.3f} deg / "
                  f"{mres[:, 1].max():.3f} mm.</p>")
-    if cal.diagnostics is not None and cal.diagnostics.outliers:
-        d = cal.diagnostics
-        parts.append("<p>Left out as outliers: " + ", ".join(
-            f"pose {i} ({d.outlier_residuals[i][0]:.2f} deg / {d.outlier_residuals[i][1]:.1f} mm)"
-            if i in d.outlier_residuals else f"pose {i}" for i in d.outliers) + "</p>")
+    left, kept = cal.outliers_split()
+    d = cal.diagnostics
+
+    def named(idx):
+        return ", ".join(_e(d.pose_name(i)) + (f" ({d.outlier_residuals[i][0]:.2f} deg / {d.outlier_residuals[i][1]:.1f} "
+                                               "mm from the others)" if i in d.outlier_residuals else "") for i in idx)
+    if left and not cal.image_names:  # images left out are listed with the skipped ones, with why
+        parts.append(f"<p>Left out as outliers: {named(left)}.</p>")
+    if kept:
+        parts.append(f"<p>Looked like outliers by their PnP poses but kept: the robust pixel refinement judges their "
+                     f"points one by one: {named(kept)}.</p>")
     if cal.skipped:
         parts.append("<p>Skipped images: " + "; ".join(f"{_e(n)} ({_e(r)})" for n, r in cal.skipped) + "</p>")
     parts.append("</section>")

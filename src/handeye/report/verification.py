@@ -11,7 +11,7 @@ import numpy as np
 
 from .._shared.io import atomic_write, check_output_folder
 from .._version import __version__
-from ..verification import Verification
+from ..verification import NOT_THIS, Verification
 from ._page import _COLOURS, _CSS, _e, _figure, _png
 
 __all__ = ["verification_html", "write_verification"]
@@ -33,7 +33,8 @@ def _histogram(v: Verification) -> str:
 
 def verification_html(v: Verification) -> str:
     """The verification as one self-contained HTML page."""
-    colour = {"good": _COLOURS["good"], "worse than promised": _COLOURS["inconsistent"]}.get(v.verdict, "#555555")
+    colour = {"good": _COLOURS["good"], "worse than promised": _COLOURS["inconsistent"],
+              NOT_THIS: _COLOURS["inconsistent"]}.get(v.verdict, "#555555")
     rows = "".join(f'<tr><td class="l">{_e(n)}</td><td>{p:.3f}</td><td>{m:.3f}</td><td class="l">'
                    f'{"far off" if n in v.flagged else ""}</td></tr>' for n, p, m in zip(v.names, v.px, v.mm))
     skipped = "".join(f"<li>{_e(n)}: {_e(r)}</li>" for n, r in v.skipped)

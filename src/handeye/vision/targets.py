@@ -66,6 +66,8 @@ class Target:
     """Base class: a planar target with known feature positions."""
 
     type: ClassVar[str] = ""
+    #: where the target frame is (Z and every pose of the target are given in it), in words
+    frame: ClassVar[str] = ""
     cols: int
     rows: int
     square: float
@@ -123,6 +125,9 @@ class Chessboard(Target):
     """Inner corners of a chessboard, ``cols`` per row."""
 
     type: ClassVar[str] = "chessboard"
+    frame: ClassVar[str] = ("origin at the first inner corner in OpenCV's order, x along its row of cols corners, "
+                            "y along the rows, z into the board (away from the camera); a chessboard reads the same "
+                            "turned by a half turn, so which end is first is settled from the robot motion")
 
     def __post_init__(self) -> None:
         self._check_size()
@@ -205,6 +210,9 @@ class Charuco(_OpenCVBoard, Target):
     """A ChArUco board of ``cols`` x ``rows`` squares; features are its inner chessboard corners."""
 
     type: ClassVar[str] = "charuco"
+    frame: ClassVar[str] = ("origin at the board's outer corner next to its first inner corner (that corner is at "
+                            "x = y = one square), x along the cols squares, y along the rows, z into the board (away "
+                            "from the camera): OpenCV's CharucoBoard frame")
     marker: float = 0.0
     dictionary: str = "DICT_6X6_250"
     _board: Any = field(default=None, repr=False, compare=False)
@@ -233,6 +241,10 @@ class CircleGrid(Target):
     """A grid of circles: symmetric (``cols`` x ``rows``) or OpenCV's asymmetric layout."""
 
     type: ClassVar[str] = "circles"
+    frame: ClassVar[str] = ("origin at the first circle's centre in OpenCV's order, x along its row, y along the "
+                            "rows, z into the board (away from the camera); a symmetric grid reads the same turned by a "
+                            "half turn, so which end is first is settled from the robot motion (an asymmetric grid has "
+                            "one reading)")
     asymmetric: bool = False
 
     def __post_init__(self) -> None:
@@ -265,6 +277,10 @@ class AprilTag(Target):
     """One AprilTag; features are its four outer corners (ids 0..3, OpenCV's aruco order)."""
 
     type: ClassVar[str] = "apriltag"
+    frame: ClassVar[str] = ("origin at the tag's first corner (the top-left of the printed tag, OpenCV's aruco "
+                            "order), x towards the top-right corner, y towards the bottom-left, z into the tag (away "
+                            "from the camera); ViSP and the AprilTag library put the origin at the tag's centre, "
+                            "(side/2, side/2, 0) in this frame")
     dictionary: str = "DICT_APRILTAG_36h11"
     tag_id: int | None = None
 
@@ -302,6 +318,8 @@ class ArucoGrid(_OpenCVBoard, Target):
     marker (id ``4 * marker + corner``)."""
 
     type: ClassVar[str] = "aruco_grid"
+    frame: ClassVar[str] = ("origin at the top-left corner of the board's first marker, x along the cols markers, "
+                            "y along the rows, z into the board (away from the camera): OpenCV's GridBoard frame")
     separation: float = 0.0
     dictionary: str = "DICT_6X6_250"
     _board: Any = field(default=None, repr=False, compare=False)

@@ -1,0 +1,109 @@
+"""A folder calibrated the one way, whichever command asked: :func:`calibrate_folder` and
+:func:`check_folder`.
+
+``check`` used to run the pose check alone and could call data good that ``calibrate`` then called
+weak (a std of tens of millimetres, which only a fit shows). Now both run the same pipeline with
+the same :class:`~handeye.options.CalibrationOptions`, and the verdict comes from
+:mod:`handeye.verdict` for both: ``check`` prints the evidence (the pose table, the held-out errors)
+and the verdict; ``calibrate`` prints and writes the result.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from .calibration import calibrate, calibrate_poses
+from .errors import DegenerateMotionError
+from .options import CalibrationOptions, options_from
+from .result import Calibration, Diagnostics
+from .session import POSEPAIRS_FILE, load_pose_pairs
+from .streams import calibrate_streams, paired_delay_note
+from .validation import default_folds
+from .verdict import exit_status
+
+__all__ = ["FolderCheck", "calibrate_folder", "check_folder"]
+
+
+def calibrate_folder(folder: str | Path, options: CalibrationOptions | None = None, *, jobs: int | None = None,
+                     progress: bool = True, **changes) -> Calibration:
+    """:func:`handeye.calibrate` on a capture session (``session.yaml``), or on a pose-pair folder
+    (``posepairs.yaml``) :func:`handeye.calibrate_poses` (:func:`handeye.calibrate_streams` when
+    its poses carry times), with the files' notes first."""
+    opts = options_from(options, changes)
+    folder = Path(folder)
+    if not (folder / POSEPAIRS_FILE).is_file():
+        return calibrate(folder, opts, jobs=jobs, progress=progress)
+    pairs = load_pose_pairs(folder)
+    if pairs.is_stream:
+        cal = calibrate_streams(pairs.robot_times, pairs.flange2base, pairs.camera_times, pairs.target2cam,
+                                pairs.setup, opts, robot_input=pairs.robot_input)
+        warning = paired_delay_note(pairs.paired_delays, cal.time_offset, cal.time_offset_std)
+        return replace(cal, notes=list(pairs.notes) + ([warning] if warning else []) + list(cal.notes),
+                       input_folder=pairs.source)
+    cal = calibrate_poses(pairs.flange2base, pairs.target2cam, pairs.setup, opts, robot_input=pairs.robot_input,
+                          camera_input=pairs.camera_input, names=[str(i) for i in pairs.ids], progress=progress)
+    return replace(cal, notes=list(pairs.notes) + list(cal.notes), input_folder=folder)
+
+
+@dataclass(frozen=True)
+class FolderCheck:
+    """What :func:`check_folder` found: the calibration ``calibrate`` would make (None when the data
+    cannot determine X), the diagnostics with the verdict, and the images that gave no pose."""
+
+    diagnostics: Diagnostics
+    calibration: Calibration | None = None
+    skipped: list[tuple[str, str]] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    folds: int | None = None
+
+    @property
+    def verdict(self) -> str:
+        """The verdict, as ``calibrate`` gives it (:mod:`handeye.verdict`)."""
+        return self.diagnostics.verdict
+
+    @property
+    def exit_status(self) -> int:
+        """``check``'s exit status, the same as ``calibrate``'s on the same data."""
+        return exit_status(self.verdict)
+
+    @property
+    def names(self) -> list[str]:
+        """The name of each pose checked (its image file, or its row id)."""
+        d = self.diagnostics
+        return list(d.names) if d.names else [str(i) for i in range(d.n_poses)]
+
+    def cross_validation_table(self) -> str:
+        """The estimators' held-out errors, best first, for people."""
+        cal = self.calibration
+        if cal is None or not cal.cross_validation:
+            return "held-out prediction error: not computed (fewer than 5 usable poses, or X not fully determined)"
+        table = cal.cross_validation
+        rows = sorted(table.items(), key=lambda kv: kv[1]["px"] if kv[1]["px"] is not None else kv[1]["mm"])
+        lines = [f"held-out prediction error ({self.folds}-fold cross-validation; each view predicted from its robot "
+                 "pose by X and Z fitted without it; the preferred refinement is replaced only by a candidate better "
+                 "by more than one standard error, so the one used need not have the smallest error):"]
+        for name, r in rows:
+            px = f"{r['px']:8.3f} px" if r.get("px") is not None else "           "
+            lines.append(f"  {name:<24} {px} {r['mm']:8.3f} mm at the target" + ("   <- chosen" if name == cal.estimator else ""))
+        return "\n".join(lines)
+
+
+def check_folder(folder: str | Path, options: CalibrationOptions | None = None, *, jobs: int | None = None,
+                 progress: bool = True, **changes) -> FolderCheck:
+    """What ``calibrate`` would say about a session or pose-pair folder, before using its result:
+    the diagnostics (pose table, outliers, conventions), the held-out prediction error of every
+    estimator ``calibrate`` chooses from, and the same verdict (:func:`calibrate_folder` with the
+    same ``options``). Data that cannot determine X get the check's 'degenerate' verdict and its
+    advice instead of an error."""
+    opts = options_from(options, changes)
+    try:
+        cal = calibrate_folder(folder, opts, jobs=jobs, progress=progress)
+    except DegenerateMotionError as exc:
+        if exc.diagnostics is None:  # not the check's finding (e.g. too few images): the error is the answer
+            raise
+        return FolderCheck(exc.diagnostics)
+    diag = cal.diagnostics if cal.diagnostics is not None else Diagnostics(verdict="not checked")
+    kept = diag.n_poses - len(diag.outliers)
+    folds = None if kept < 4 else (default_folds(kept) if opts.folds is None else min(opts.folds, kept))
+    return FolderCheck(diag, cal, list(cal.skipped), list(cal.notes), folds)

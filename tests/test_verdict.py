@@ -1,0 +1,123 @@
+"""One verdict, one story (issue 35): ``check`` and the commands that calibrate run one pipeline with
+one options record (:class:`handeye.CalibrationOptions`), take the verdict from
+:mod:`handeye.verdict`, and name poses by their files."""
+
+from __future__ import annotations
+
+import csv
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import handeye
+from handeye.cli import main
+from handeye.geometry.se3 import invert, make_transform
+from handeye.session import write_pose_pairs
+from handeye.simulate import random_scene
+from handeye.verdict import EXIT_STATUS, Evidence, judge
+
+SAMPLE = Path(handeye.__file__).parent / "data" / "sample_session"
+
+
+def _noisy_scene(n: int, seed: int, rot_deg: float, mm: float):
+    """A noise-free random scene with Gaussian noise on the camera poses."""
+    sc = random_scene(n, rng=seed)
+    rng = np.random.default_rng(seed)
+    noise = make_transform(Rotation.from_rotvec(np.radians(rot_deg) * rng.standard_normal((n, 3))).as_matrix(),
+                           1e-3 * mm * rng.standard_normal((n, 3)))
+    return sc.flange2base, noise @ sc.target2cam
+
+
+def _verdict(argv: list[str], capsys) -> tuple[int, str]:
+    status = main(argv)
+    out = capsys.readouterr().out
+    found = re.search(r"^(?:check|verdict): ([a-z ]+?)(?:;| \(|$)", out, re.M)
+    assert found is not None, out[-2000:]
+    return status, found.group(1)
+
+
+@pytest.mark.parametrize("kind", ["good", "weak", "inconsistent"])
+def test_check_and_calibrate_poses_give_one_verdict_and_exit_status(kind, tmp_path, capsys):
+    """8 poses with 4 mm of camera noise: the poses alone look good, but 3 std of X exceed 5 mm; check
+    said 'good' (exit 0) where calibrate said 'weak'. Now both say what calibrate's std shows."""
+    f2b, t2c = _noisy_scene(12, 3, 0.02, 0.1) if kind == "good" else _noisy_scene(8, 0, 0.2, 4.0)
+    if kind == "inconsistent":
+        f2b = invert(f2b)
+    write_pose_pairs(tmp_path / "pp", "eye_in_hand", f2b, t2c)
+    checked = _verdict(["check", str(tmp_path / "pp"), "--no-progress"], capsys)
+    calibrated = _verdict(["calibrate-poses", str(tmp_path / "pp")], capsys)
+    assert checked == calibrated == (EXIT_STATUS[kind], kind)
+    if kind == "weak":  # the reason is the std, which the poses alone do not show
+        assert not handeye.diagnose(f2b, t2c).verdict == "weak"
+
+
+def test_check_and_calibrate_agree_on_a_session_and_name_images(tmp_path, capsys):
+    """The sample with the robot poses of images 3 and 7 swapped: check and calibrate give the same
+    verdict and exit status, and name the two images by file, not by list position."""
+    folder = tmp_path / "s"
+    shutil.copytree(SAMPLE, folder)
+    rows = list(csv.reader((folder / "poses.csv").open()))
+    rows[4][1:], rows[8][1:] = rows[8][1:], rows[4][1:]
+    with (folder / "poses.csv").open("w", newline="") as fh:
+        csv.writer(fh).writerows(rows)
+    status = main(["check", str(folder), "--no-progress"])
+    out = capsys.readouterr().out
+    verdict = re.search(r"^verdict: (\w+)", out, re.M).group(1)
+    assert "outlier 003.jpg" in out and "outlier 007.jpg" in out and "003.jpg, 007.jpg disagree" in out
+    assert not re.search(r"pose\(s\) 3, 7|outlier pose 3", out)
+    assert main(["calibrate", str(folder), "--no-progress"]) == status == EXIT_STATUS[verdict]
+    assert f"check: {verdict}" in capsys.readouterr().out
+
+
+def test_the_verdict_rules():
+    """judge: the check's verdict stands unless good; then a wide std or a wide solver spread make it weak."""
+    diag = handeye.Diagnostics(verdict="good", advice=[])
+    narrow, wide = np.array([0.01] * 3 + [0.1] * 3), np.array([0.01] * 3 + [2.0] * 3)
+    assert judge(Evidence(diag, narrow)).verdict == "good"
+    found = judge(Evidence(diag, wide, {"jackknife": wide}))
+    assert found.verdict == "weak" and "3 std of X are 10.4 mm" in found.added[0]
+    assert judge(Evidence(diag, narrow, spread=(0.001, 2.0))).verdict == "weak"
+    assert judge(Evidence(diag, narrow, spread=(0.001, 0.2))).verdict == "good"
+    assert judge(Evidence(handeye.Diagnostics(verdict="inconsistent"), wide)).verdict == "inconsistent"
+    assert judge(Evidence(None, wide)).verdict == "not checked"
+
+
+def test_options_travel_as_one_checked_record():
+    f2b, t2c = _noisy_scene(10, 1, 0.02, 0.1)
+    opts = handeye.CalibrationOptions(method="tsai_lenz", refine="none")
+    by_record = handeye.calibrate_poses(f2b, t2c, "eye_in_hand", opts)
+    by_keywords = handeye.calibrate_poses(f2b, t2c, "eye_in_hand", method="tsai_lenz", refine="none")
+    assert np.array_equal(by_record.X, by_keywords.X) and by_record.method == "tsai_lenz"
+    overridden = handeye.calibrate_poses(f2b, t2c, "eye_in_hand", opts, method="park_martin")
+    assert overridden.method == "park_martin"
+    bad = [
+        (dict(refine="pixels"), r"refine='pixels'"),
+        (dict(folds=1), r"folds=1"),
+        (dict(refine="pose", robot_noise=(0.05, 0.2)), r"robot_noise is used by the pixel refinement"),
+        (dict(robot_noise=(0.05, 0)), r"positive standard deviations"),
+        (dict(keyframes=2), r"keyframes=2"),
+        (dict(offset_range=(1, -1)), r"low < high"),
+        (dict(check="yes"), r"check='yes'"),
+    ]
+    for fields, pattern in bad:
+        with pytest.raises(handeye.InputMismatchError, match=pattern):
+            handeye.CalibrationOptions(**fields)
+    with pytest.raises(handeye.InputMismatchError, match=r"unknown option\(s\) refinement; the options are: method"):
+        handeye.calibrate_poses(f2b, t2c, refinement="pose")
+    with pytest.raises(handeye.InputMismatchError, match="pixel refinement needs the detections"):
+        handeye.calibrate_poses(f2b, t2c, refine="reprojection")
+    assert handeye.CalibrationOptions(robot_accuracy=(0, 0)).robot_accuracy is None
+
+
+def test_readings_that_fit_as_well_are_all_named_ranked():
+    """Inverted robot poses that also fit exactly as inverted camera poses (consistency 0.00 both):
+    both are named, the reading that places the camera and the target plausibly first."""
+    sc = random_scene(12, rng=5)
+    diag = handeye.diagnose(invert(sc.flange2base), sc.target2cam)
+    advice = diag.advice[0]
+    assert diag.convention_hint == "invert_robot_poses"
+    assert advice.index("the robot poses are inverted") < advice.index("fitting as well: the camera poses are inverted")
