@@ -65,6 +65,7 @@ def test_console_script_runs_as_subprocess(tmp_path):
         "robot_rotation_deg", "camera_rotation_deg", "translation_mm"}
     assert data["check"]["verdict"] == "good" and data["check"]["outliers"] == []
     assert data["check"]["pose_indices_used"] == list(range(data["n_poses"]))
+    assert len(data["Z"]["std_translation_mm"]) == 3 and min(data["Z"]["std_translation_mm"]) > 0  # Z has a std too
     cov = np.array(data["uncertainty"]["cov"])
     assert cov.shape == (6, 6) and np.allclose(data["uncertainty"]["std_translation_mm"], 1e3 * np.sqrt(np.diag(cov)[3:]))
 

@@ -36,7 +36,7 @@ from .solvers.low_dof import partial_kind
 from .solvers.refine import PoseRefinementResult, ReprojectionResult, refine_pose
 from .sync import (MIN_SAMPLES, PoseStream, Synchronisation, check_stream, interpolate, keyframes_at,
                    offset_cov, synchronise, timing_cost)
-from .validation import Views, jackknife_cov
+from .validation import Views, jackknife_covs
 from .verdict import judged, solver_spread
 from .vision import (calibrate_intrinsics, detect_images, label_doubts, resolve_symmetries, solve_pnp, symmetry_costs,
                      target_from_spec)
@@ -357,7 +357,12 @@ def _uncertain(cal: Calibration, fit, views: Views, robot_accuracy: tuple[float,
             cal = replace(cal, notes=list(cal.notes) + [
                 "the error of the intrinsics estimated from these images could not be propagated to X (a refit "
                 "failed): the std of X leaves it out; give K and dist in session.yaml"])
-    return judged(widened_uncertainty(cal, jackknife_cov(fit, views, cal.X), robot_accuracy, intrinsics))
+    cov_X, cov_Z = jackknife_covs(fit, views, cal.X, cal.Z)
+    cal = widened_uncertainty(cal, cov_X, robot_accuracy, intrinsics)
+    if cov_Z is not None:  # a constant robot error moves Z about as much as X
+        robot_Z = np.zeros((6, 6)) if robot_accuracy is None else robot_accuracy_cov(cal.Z, robot_accuracy)
+        cal = replace(cal, std_Z=_std(cov_Z + robot_Z))
+    return judged(cal)
 
 
 def _pose_refined(cal: Calibration, method: str, robot_accuracy: tuple[float, float] | None,

@@ -110,6 +110,8 @@ def print_calibration(cal: Calibration, out=None) -> None:
     w(f"rotation vec   rad : {_fmt_vec(rot.as_rotvec())}\n")
     w(f"rotation vec   deg : {_fmt_vec(rot.as_rotvec(degrees=True), 4)}\n\n")
     w(f"{z_name} translation mm : {_fmt_vec(1e3 * cal.Z[:3, 3], 3)}\n")
+    if cal.std_Z is not None:
+        w(f"std of {z_name}: rotation {_fmt_vec(cal.std_Z[:3], 4)} deg, translation {_fmt_vec(cal.std_Z[3:], 3)} mm\n")
     mres, pres = cal.motion_residuals, cal.pose_residuals
     w(f"screw congruence per motion (|angle_A - angle_B|, |pitch_A - pitch_B|): median "
       f"{np.median(mres[:, 0]):.3f} deg / {np.median(mres[:, 1]):.3f} mm, max "

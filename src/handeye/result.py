@@ -246,6 +246,9 @@ class Calibration:
     #: the std of X's six parameters (deg, mm) from each source: 'model' (the refinement's noise
     #: model, None for a closed form), 'jackknife' (the spread of X refitted without each pose)
     std_sources: dict[str, NDArray[np.float64] | None] | None = None
+    #: the std of Z's six parameters (deg, mm; rotation about and translation along Z's parent axes): the
+    #: jackknife spread of Z refitted without each pose, plus the robot's absolute accuracy; None when not computed
+    std_Z: NDArray[np.float64] | None = None
     #: the robot's motions: 'general', 'one_axis' (SCARA, planar) or 'translation_only' (Cartesian)
     motion_kind: str = "general"
     #: what the data cannot determine of X (empty when X is complete); ``std`` is inf there

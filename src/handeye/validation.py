@@ -29,6 +29,7 @@ from .setups import predicted_target2cam
 from .vision.pnp import project_points
 
 __all__ = ["Views", "Fit", "default_folds", "fold_indices", "view_errors", "cross_validate", "CrossValidation", "jackknife_cov",
+           "jackknife_covs",
            "VIRTUAL_TARGET"]
 
 #: Points of a virtual 0.2 m x 0.15 m target (target frame, metres): the held-out error of pose-only
@@ -173,19 +174,31 @@ def jackknife_cov(fit: Fit, views: Views, X: NDArray[np.float64], max_groups: in
     the refit's X relative to ``X``. It measures how much X depends on which poses were taken,
     whatever the noise is: robot errors that depend on the pose included. None when fewer than 3
     refits could be solved."""
+    return jackknife_covs(fit, views, X, None, max_groups)[0]
+
+
+def jackknife_covs(fit: Fit, views: Views, X: NDArray[np.float64], Z: NDArray[np.float64] | None,
+                   max_groups: int = 10) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
+    """:func:`jackknife_cov` of X and, from the same refits, of Z (None when ``Z`` is None)."""
     n = len(views)
     groups = [np.array([i]) for i in range(n)] if n <= max_groups else fold_indices(n, max_groups)
-    Xk = []
+    Xk, Zk = [], []
     for out in groups:
         train = np.setdiff1d(np.arange(n), out)
         try:
-            Xk.append(fit(views.flange2base[train], views.target2cam[train], views.setup, train)[0])
+            solved = fit(views.flange2base[train], views.target2cam[train], views.setup, train)
         except (HandEyeError, np.linalg.LinAlgError, ValueError):
             continue
+        Xk.append(solved[0])
+        Zk.append(solved[1])
     if len(Xk) < 3:
-        return None
-    Xk = np.array(Xk)
-    d = np.concatenate([Rotation.from_matrix(Xk[:, :3, :3] @ X[:3, :3].T).as_rotvec(), Xk[:, :3, 3] - X[:3, 3]], axis=1)
+        return None, None
+    return _spread(np.array(Xk), X), None if Z is None else _spread(np.array(Zk), Z)
+
+
+def _spread(Tk: NDArray[np.float64], T: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The jackknife covariance of the refits ``Tk`` about ``T``."""
+    d = np.concatenate([Rotation.from_matrix(Tk[:, :3, :3] @ T[:3, :3].T).as_rotvec(), Tk[:, :3, 3] - T[:3, 3]], axis=1)
     d -= d.mean(axis=0)
     g = len(d)
     return (g - 1) / g * d.T @ d

@@ -284,7 +284,8 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
         "X_inverse_name": inv_name,
         "X_inverse": _transform_dict(invert(cal.X), cal),
         "Z_name": z_name,
-        "Z": _transform_dict(cal.Z, cal),
+        "Z": _transform_dict(cal.Z, cal) | ({} if cal.std_Z is None else {
+            "std_rotation_deg": _finite_or_none(cal.std_Z[:3]), "std_translation_mm": _finite_or_none(cal.std_Z[3:])}),
         "ros": {
             "parent_frame": parent,
             "child_frame": child,
