@@ -188,3 +188,21 @@ def test_setup_branches_live_in_setups():
                                                      for c in node.comparators + [node.left]):
                 found.append(f"{name}:{node.lineno}")
     assert not found, found
+
+
+def test_every_error_a_user_can_see_is_a_handeye_error_from_errors_py():
+    """Exceptions are defined in errors.py only, and handeye raises its own types (which keep
+    ValueError as a base where callers caught it): no bare ValueError, TypeError, RuntimeError or
+    KeyError is raised on purpose anywhere in the package."""
+    bare, classes = [], []
+    for name, path in MODULES.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Raise) and isinstance(node.exc, ast.Call) and isinstance(node.exc.func, ast.Name) \
+                    and node.exc.func.id in ("ValueError", "TypeError", "RuntimeError", "KeyError"):
+                bare.append(f"{name}:{node.lineno} raises {node.exc.func.id}")
+            if isinstance(node, ast.ClassDef) and name != "handeye.errors" and any(
+                    isinstance(b, ast.Name) and b.id.endswith(("Error", "Exception")) for b in node.bases):
+                classes.append(f"{name}.{node.name}")
+    assert not bare, "\n".join(bare)
+    assert not classes, "exception classes outside errors.py: " + ", ".join(classes)

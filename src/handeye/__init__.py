@@ -15,7 +15,7 @@ from ._version import __version__
 from .calibration import calibrate, calibrate_poses, certify_calibration
 from .checking import check_folder
 from .diagnostics import diagnose
-from .errors import DegenerateMotionError, HandEyeError, InputMismatchError, PoseFormatError
+from .errors import DegenerateMotionError, HandEyeError, InputMismatchError, PoseFormatError, SessionError, TargetError
 from .geometry.dualquat import DualQuaternion
 from .motions import relative_motions
 from .options import CalibrationOptions
@@ -35,6 +35,8 @@ __all__ = [
     "InputMismatchError",
     "PoseFormatError",
     "RobotPoseInput",
+    "SessionError",
+    "TargetError",
     "Unobservable",
     "calibrate",
     "calibrate_poses",

@@ -22,7 +22,7 @@ from .diagnostics import closed_form, compare_solvers, diagnose
 from .errors import DegenerateMotionError, InputMismatchError
 from .estimators import (PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, REFINE_INTRINSICS, Choice, choose, intrinsics_cov,
                          pixel_candidates, pixel_fit, pose_candidates, pose_fit)
-from .geometry.se3 import invert, skew
+from .geometry.se3 import invert, make_transform, skew
 from .metrics import std_deg_mm
 from .motions import MotionSet, Pairs, validate_poses
 from .options import ROBOT_ACCURACY, CalibrationOptions, options_from
@@ -39,7 +39,7 @@ from .sync import (MIN_SAMPLES, PoseStream, Synchronisation, check_stream, inter
 from .validation import Views, jackknife_covs
 from .verdict import judged, solver_spread
 from .vision import (calibrate_intrinsics, detect_images, label_doubts, resolve_symmetries, solve_pnp, symmetry_costs,
-                     target_from_spec)
+                     target_from_spec, target_origin)
 from .vision.pnp import INTRINSICS
 
 __all__ = ["Calibration", "CalibrationOptions", "Observations", "ROBOT_ACCURACY", "apply_choice", "calibrate", "certify_calibration",
@@ -477,8 +477,8 @@ def _detect(session: Session, jobs: int | None, progress: bool, strict_images: b
     if len(found) < MIN_POSES:
         raise SessionError(
             f"the {target.type} target was found in only {len(found)} of {len(results)} images "
-            f"(at least {MIN_POSES} are needed); check the target description in session.yaml"
-        )
+            f"(at least {MIN_POSES} are needed); " + (_counted_squares(session, results) or
+                                                       "check the target description in session.yaml"))
     return target, {k: results[k].detection for k in found}, (sizes.pop() if sizes else None), skipped
 
 
@@ -501,6 +501,21 @@ def _check_intrinsics_data(points: int, unknowns: int, images: int, target: str)
             f"{points} points: {2 * points} equations for the {unknowns} unknowns of estimating them (9, and 6 per "
             f"image). Give the camera's K and dist in session.yaml (camera:), or take more images (or a target with "
             f"more points, e.g. a chessboard or ChArUco board)")
+
+
+def _counted_squares(session: Session, results: list) -> str | None:
+    """For a chessboard not found: whether the squares were counted instead of the inner corners
+    (a board of 10 x 7 squares has 9 x 6 inner corners), tried on up to 3 of the images."""
+    spec = session.target_spec
+    if spec.get("type") != "chessboard" or min(int(spec["cols"]), int(spec["rows"])) < 4:
+        return None
+    smaller = dict(spec, cols=int(spec["cols"]) - 1, rows=int(spec["rows"]) - 1)
+    tried = [session.image_paths[k] for k, r in enumerate(results) if r is not None and r.image_size is not None][:3]
+    if not any(r.detection is not None for r in detect_images(tried, target_from_spec(smaller), jobs=1, progress=False)):
+        return None
+    return (f"did you count squares? This board has {smaller['cols']} x {smaller['rows']} inner corners (a board of "
+            f"{spec['cols']} x {spec['rows']} squares): set cols: {smaller['cols']} and rows: {smaller['rows']} in "
+            "session.yaml (cols and rows count the inner corners)")
 
 
 def observe(session: Session, jobs: int | None = None, progress: bool = True,
@@ -570,6 +585,10 @@ def observe(session: Session, jobs: int | None = None, progress: bool = True,
     robot_input = session.robot_input
     if robot_input is not None:
         robot_input = replace(robot_input, values=robot_input.values[used_arr])
+    origin = target_origin(session.target_spec)
+    if origin.any():  # origin: centre: the same axes, the origin moved (X is unchanged, Z moves with it)
+        target2cam = target2cam @ make_transform(np.eye(3), origin)
+        obj = [p - origin for p in obj]
     return Observations(session, used, flange2base, target2cam, rms, obj, img, K, dist, source, k_rms, skipped,
                         notes, robot_input)
 
@@ -832,8 +851,11 @@ def _calibrate_observed(obs: Observations, opts: CalibrationOptions, uncertainty
 
 
 def _symmetries(obs: Observations) -> list[NDArray[np.float64]]:
-    """The symmetries of the session's target (the images were labelled against the declared robot poses)."""
-    return target_from_spec(obs.session.target_spec).symmetries()
+    """The symmetries of the session's target (the images were labelled against the declared robot
+    poses), in the frame ``obs`` uses (moved to the centre when the spec says ``origin: centre``)."""
+    spec = obs.session.target_spec
+    shift = make_transform(np.eye(3), target_origin(spec))
+    return [invert(shift) @ S @ shift for S in target_from_spec(spec).symmetries()]
 
 
 def _used_names(obs: Observations) -> list[str]:

@@ -40,7 +40,7 @@ from .streams import KEYFRAMES, calibrate_streams, paired_delay_note
 from .verdict import exit_status
 from .study import preset, study, write_study
 from .verification import NOT_THIS, verify
-from .vision.targets import target_from_spec
+from .vision.targets import target_from_spec, target_origin
 
 EXAMPLE_POSEPAIRS = "example_posepairs"
 SAMPLE_SESSION = "sample_session"
@@ -770,14 +770,26 @@ def _cmd_target(args: argparse.Namespace) -> int:
               for k, v in given.items() if v is not None and k not in defaults]
     if unused:
         raise HandEyeError(f"{args.type} takes no {', '.join(unused)}")
+    small = [(k, given[k]) for k in ("square", "marker") if given[k] is not None and given[k] < 1.0]
+    if small:  # a side under 1 mm cannot be printed: metres given where millimetres are asked
+        k, v = small[0]
+        raise HandEyeError(f"--{k}-mm {v:g} looks like metres: the sizes are in millimetres here (--{k}-mm "
+                           f"{v * 1e3:g} for {v:g} m)")
     spec = {"type": kind}
     for k, v in values.items():
         spec[k] = round(v / 1e3, 9) if k in ("square", "marker", "separation") else v
+    if args.origin == "centre":
+        spec["origin"] = "centre"
     path = write_target(spec, args.out, args.paper)
     print(f"wrote {path}: print it at 100% (no 'fit to page') and check the ruler measures 100 mm")
     print("for session.yaml:")
     print("  " + yaml.safe_dump({"target": spec}, sort_keys=False).replace("\n", "\n  ").rstrip())
-    print(f"target frame (Z and the target poses are given in it): {target_from_spec(spec).frame}")
+    frame = target_from_spec(spec).frame
+    if args.origin == "centre":
+        centre = 1e3 * target_origin(spec)
+        frame = (f"origin at the centre of the board, ({centre[0]:g}, {centre[1]:g}) mm in handeye's corner frame, whose "
+                 f"axes it keeps ({frame})")
+    print(f"target frame (Z and the target poses are given in it): {frame}")
     return 0
 
 
@@ -799,6 +811,9 @@ def _add_target(sub) -> None:
     p.add_argument("--square-mm", type=_number(0.0, above=True),
                    help="square side (chessboard, charuco), circle spacing, marker side (grids) or tag side, mm")
     p.add_argument("--marker-mm", type=_number(0.0, above=True), help="charuco: marker side, mm")
+    p.add_argument("--origin", choices=["corner", "centre"], default="corner",
+                   help="where the target frame's origin is: corner (default: each type's first feature, see the README) "
+                   "or centre (the board's centre, as ViSP and the AprilTag library put it); written to the target: block")
     p.add_argument("--separation-mm", type=_number(0.0, above=True), help="marker grids: gap between markers, mm")
     p.add_argument("--dictionary", help="charuco and marker grids: an OpenCV aruco dictionary (e.g. DICT_5X5_100)")
     p.add_argument("--id", type=_whole(0), help="apriltag: the tag id (default 0)")
@@ -1021,7 +1036,13 @@ def _add_study(sub) -> None:
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse, with its errors on one line (the fault and where to read more) instead of the usage."""
+    """argparse, with its errors on one line (the fault and where to read more) instead of the usage,
+    and no abbreviations: ``--square 0.04`` is an error, not ``--square-mm 0.04`` (the subcommands'
+    parsers are of this class too)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")

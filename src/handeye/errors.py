@@ -6,7 +6,7 @@ Every error says what is wrong, where, and what to do about it. They all derive 
 
 from __future__ import annotations
 
-__all__ = ["HandEyeError", "PoseFormatError", "DegenerateMotionError", "InputMismatchError"]
+__all__ = ["HandEyeError", "PoseFormatError", "DegenerateMotionError", "InputMismatchError", "SessionError", "TargetError"]
 
 
 class HandEyeError(Exception):
@@ -30,3 +30,11 @@ class DegenerateMotionError(HandEyeError):
     def __init__(self, *args: object, diagnostics: object = None) -> None:
         super().__init__(*args)
         self.diagnostics = diagnostics
+
+
+class SessionError(HandEyeError):
+    """A capture folder that cannot be read: missing files or keys, malformed tables."""
+
+
+class TargetError(HandEyeError):
+    """A target description that cannot be used (unknown type, bad size, unknown dictionary)."""

@@ -362,7 +362,7 @@ def _yaml_transform(d: dict) -> NDArray[np.float64]:
     t, q = d["translation"], d["rotation"]
     quat = np.array([float(q["x"]), float(q["y"]), float(q["z"]), float(q["w"])])
     if not np.all(np.isfinite(quat)) or abs(np.linalg.norm(quat) - 1) > 1e-3:
-        raise ValueError(f"rotation {quat.tolist()} is not a unit quaternion")
+        raise InputMismatchError(f"rotation {quat.tolist()} is not a unit quaternion")
     return make_transform(Rotation.from_quat(quat).as_matrix(), [float(t["x"]), float(t["y"]), float(t["z"])])
 
 

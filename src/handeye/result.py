@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._shared.text import summarize
+from .errors import InputMismatchError
 from .geometry.se3 import skew
 from .metrics import rotation_error, translation_error
 from .motions import MotionSet, screw_congruence
@@ -324,7 +325,7 @@ class Calibration:
         ``J = [-[R p]x, I]``. Raises ValueError when no covariance was computed.
         """
         if self.cov is None:
-            raise ValueError("no covariance for this calibration (it comes with refinement: refine='pose' or 'reprojection')")
+            raise InputMismatchError("no covariance for this calibration (it comes with refinement: refine='pose' or 'reprojection')")
         p = np.asarray(point, dtype=float).reshape(3)
         Rp = self.X[:3, :3] @ p
         J = np.hstack([-skew(Rp), np.eye(3)])

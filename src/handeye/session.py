@@ -46,7 +46,7 @@ from numpy.typing import NDArray
 from ._shared.io import atomic_write, read_text
 from ._shared.lazy import lazy_module
 from ._shared.text import summarize
-from .errors import HandEyeError, InputMismatchError, PoseFormatError
+from .errors import InputMismatchError, PoseFormatError, SessionError
 from .geometry.se3 import invert
 from .poses import RobotPoseInput, format_poses, parse_poses, pose_columns
 from .setups import check_setup
@@ -66,10 +66,6 @@ TIME_COLUMNS = ("time", "t", "stamp", "timestamp")
 #: Time units of stream files, in seconds.
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp"}
-
-
-class SessionError(HandEyeError):
-    """A capture folder that cannot be read: missing files or keys, malformed tables."""
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation
 
 from ._shared.io import atomic_write, check_output_folder
 from ._shared.lazy import lazy_module
-from .errors import HandEyeError
+from .errors import HandEyeError, InputMismatchError
 from .geometry.se3 import invert, make_transform, perturb, random_rotations
 from .session import write_session, write_stream_session
 from .setups import check_setup, flange_poses, predicted_target2cam, setup_info
@@ -258,10 +258,10 @@ class Noise:
 
     def __post_init__(self) -> None:
         if self.frame not in ("reference", "local"):
-            raise ValueError(f"Noise.frame={self.frame!r}; use 'reference' or 'local'")
+            raise InputMismatchError(f"Noise.frame={self.frame!r}; use 'reference' or 'local'")
         for name in ("rot_deg", "trans_mm"):
             if not getattr(self, name) >= 0:
-                raise ValueError(f"Noise.{name} must be >= 0, got {getattr(self, name)}")
+                raise InputMismatchError(f"Noise.{name} must be >= 0, got {getattr(self, name)}")
 
     @property
     def is_zero(self) -> bool:

@@ -259,7 +259,7 @@ class StudyResult:
         for r in self.settings:
             if r.setting.figure == figure and r.setting.series == series and np.isclose(r.setting.x, x):
                 return r
-        raise KeyError(f"no setting {figure!r} / {series!r} / x={x}")
+        raise InputMismatchError(f"no setting {figure!r} / {series!r} / x={x} in this study")
 
 
 def _clean_context():

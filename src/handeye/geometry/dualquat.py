@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from ..errors import InputMismatchError
 from .se3 import make_transform, pairwise_matmul, rotation_of_valid
 
 __all__ = [
@@ -252,7 +253,7 @@ class DualQuaternion:
         real = np.asarray(real, dtype=float)
         dual = np.asarray(dual, dtype=float)
         if real.shape != (4,) or dual.shape != (4,):
-            raise ValueError(f"real and dual must be 4-vectors (w, x, y, z); got {real.shape}, {dual.shape}")
+            raise InputMismatchError(f"real and dual must be 4-vectors (w, x, y, z); got {real.shape}, {dual.shape}")
         self._q = np.concatenate([real, dual])
 
     # --- constructors
@@ -261,7 +262,7 @@ class DualQuaternion:
         """From an 8-vector ``[w, x, y, z, w', x', y', z']``."""
         a = np.asarray(a, dtype=float)
         if a.shape != (8,):
-            raise ValueError(f"expected an 8-vector, got shape {a.shape}")
+            raise InputMismatchError(f"expected an 8-vector, got shape {a.shape}")
         return cls(a[:4], a[4:])
 
     @classmethod
@@ -270,7 +271,7 @@ class DualQuaternion:
         q = np.asarray(quaternion, dtype=float)
         n = np.linalg.norm(q)
         if q.shape != (4,) or not np.isfinite(n) or n == 0:
-            raise ValueError(f"quaternion must be a finite non-zero 4-vector, got {quaternion!r}")
+            raise InputMismatchError(f"quaternion must be a finite non-zero 4-vector, got {quaternion!r}")
         return cls.from_array(dq_from_rotation_translation(q / n, translation))
 
     @classmethod
@@ -278,7 +279,7 @@ class DualQuaternion:
         """From a 4x4 homogeneous transform."""
         T = np.asarray(T, dtype=float)
         if T.shape != (4, 4):
-            raise ValueError(f"expected a 4x4 transform, got shape {T.shape}")
+            raise InputMismatchError(f"expected a 4x4 transform, got shape {T.shape}")
         return cls.from_array(dq_from_matrix(T))
 
     @classmethod

@@ -14,6 +14,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from ..errors import InputMismatchError
+
 __all__ = [
     "make_transform",
     "invert",
@@ -77,7 +79,7 @@ def invert(T: ArrayLike) -> NDArray[np.float64]:
 def compose(*transforms: ArrayLike) -> NDArray[np.float64]:
     """Compose transforms left to right: ``compose(a, b, c) == a @ b @ c`` (broadcast over stacks)."""
     if not transforms:
-        raise ValueError("compose() needs at least one transform")
+        raise InputMismatchError("compose() needs at least one transform")
     out = np.asarray(transforms[0], dtype=float)
     for T in transforms[1:]:
         out = out @ np.asarray(T, dtype=float)
@@ -152,7 +154,7 @@ def _rotations(T_or_R: NDArray[np.float64]) -> NDArray[np.float64]:
         return T_or_R[..., :3, :3]
     if T_or_R.shape[-2:] == (3, 3):
         return T_or_R
-    raise ValueError(f"expected (...,3,3) rotations or (...,4,4) transforms, got shape {T_or_R.shape}")
+    raise InputMismatchError(f"expected (...,3,3) rotations or (...,4,4) transforms, got shape {T_or_R.shape}")
 
 
 def rotation_axis_angle(T: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

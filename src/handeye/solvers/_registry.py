@@ -38,7 +38,7 @@ def register(name: str, kind: Kind = "hand_eye", reference: str = "", extra: str
 
     def deco(func: Callable) -> Callable:
         if name in _REGISTRY:
-            raise RuntimeError(f"solver {name!r} registered twice")
+            raise InputMismatchError(f"solver {name!r} registered twice: give the new one another name")
         _REGISTRY[name] = SolverInfo(name, kind, func, reference, extra)
         return func
 

@@ -30,6 +30,7 @@ from scipy.optimize import least_squares, minimize
 from scipy.sparse import csr_matrix
 from scipy.spatial.transform import Rotation
 
+from ..errors import InputMismatchError
 from ..geometry.se3 import invert, make_transform, perturb, rotation_of_valid, skew, so3_left_jacobian
 from ..setups import check_setup, constant_transforms, predicted_target2cam, robot_world_A, robot_world_A_inv, setup_info
 from ..vision.pnp import project_points, project_points_many, projection_jacobians, solve_pnp
@@ -174,7 +175,7 @@ def _robot_prior(robot_noise, obj, img, K, dist) -> tuple[tuple[float, float], N
     any robot error)."""
     sig_rot, sig_t = (float(v) for v in robot_noise)
     if not (sig_rot > 0 and sig_t > 0 and np.isfinite(sig_rot) and np.isfinite(sig_t)):
-        raise ValueError(f"robot_noise {robot_noise}: give positive standard deviations (rad, m)")
+        raise InputMismatchError(f"robot_noise {robot_noise}: give positive standard deviations (rad, m)")
     sigma_px = _pixel_noise(obj, img, K, dist)
     return (sig_rot, sig_t), np.tile(np.r_[np.full(3, sigma_px / sig_rot), np.full(3, sigma_px / sig_t)], len(obj))
 
@@ -433,7 +434,7 @@ def downdate_reprojection(ref: ReprojectionResult, drop) -> tuple[NDArray[np.flo
     of a 12x12 (21x21) solve instead of a refit. Raises ``LinAlgError`` when the rest cannot
     determine the unknowns, ``ValueError`` when ``ref`` keeps no Jacobian (robot corrections)."""
     if ref.jacobian is None:
-        raise ValueError("no Jacobian kept for this refinement (robot pose corrections): refit instead")
+        raise InputMismatchError("no Jacobian kept for this refinement (robot pose corrections): refit instead")
     drop = np.atleast_1d(np.asarray(drop, dtype=np.intp))
     if drop.size == 0:  # nothing left out: the fit itself
         return ref.X, ref.Z, ref.K, ref.dist
@@ -798,13 +799,13 @@ VARIANCE_FLOOR = 1e-24
 def _refine_pose_inputs(flange2base, target2cam, setup: str, weighting: str, priors) -> tuple:
     check_setup(setup)
     if weighting not in ("noise_model", "strobl"):
-        raise ValueError(f"weighting={weighting!r}; use 'noise_model' or 'strobl'")
+        raise InputMismatchError(f"weighting={weighting!r}; use 'noise_model' or 'strobl'")
     flange2base = np.asarray(flange2base, dtype=float)
     target2cam = np.asarray(target2cam, dtype=float)
     if len(flange2base) < 3:
-        raise ValueError(f"pose refinement needs at least 3 poses, got {len(flange2base)}")
+        raise InputMismatchError(f"pose refinement needs at least 3 poses, got {len(flange2base)}")
     if priors is not None and weighting != "noise_model":
-        raise ValueError("priors need weighting='noise_model'")
+        raise InputMismatchError("priors need weighting='noise_model'")
     return flange2base, target2cam, len(flange2base)
 
 
@@ -947,7 +948,7 @@ def pose_mahalanobis(
     X and Z. Divided by 6, poses that fit the model follow roughly an F(6, 6 n - 12) distribution.
     """
     if result.weighting != "noise_model":
-        raise ValueError("pose_mahalanobis needs a 'noise_model' refinement")
+        raise InputMismatchError("pose_mahalanobis needs a 'noise_model' refinement")
     flange2base = np.asarray(flange2base, float)
     target2cam = np.asarray(target2cam, float)
     r, target2flange, _ = _pose_residuals(result.X, result.Z, flange2base, target2cam, setup)

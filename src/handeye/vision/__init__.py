@@ -2,7 +2,7 @@
 
 from .detect import ImageResult, detect_images
 from .pnp import calibrate_intrinsics, label_doubts, resolve_symmetries, solve_pnp, symmetry_costs
-from .targets import TARGET_TYPES, Detection, Target, target_from_spec
+from .targets import TARGET_TYPES, Detection, Target, target_from_spec, target_origin
 
 __all__ = [
     "Detection",
@@ -16,4 +16,5 @@ __all__ = [
     "label_doubts",
     "solve_pnp",
     "target_from_spec",
+    "target_origin",
 ]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ..errors import InputMismatchError
 from .._shared.lazy import lazy_module
 from ..geometry.se3 import from_rotvec_translation, invert, screw_parameters, skew
 from ..setups import robot_world_A, robot_world_A_inv
@@ -54,7 +55,7 @@ def _rational_model(p: NDArray[np.float64], dist: NDArray[np.float64]) -> tuple:
     squared radius, the radial factor's numerator and denominator and the distorted point."""
     dist = np.asarray(dist, dtype=float).ravel()
     if len(dist) > 8:
-        raise ValueError(f"{len(dist)} distortion coefficients: the vectorised camera model covers up to 8")
+        raise InputMismatchError(f"{len(dist)} distortion coefficients: the vectorised camera model covers up to 8")
     d = np.zeros(8)
     d[: len(dist)] = dist
     k1, k2, p1, p2, k3, k4, k5, k6 = d
@@ -205,7 +206,7 @@ def intrinsics_covariance(object_points: list[NDArray[np.float64]], image_points
         S += A.T @ A - BA.T @ np.linalg.solve(B.T @ B, BA)
     dof = residuals - k - 6 * len(target2cam)
     if dof <= 0:
-        raise ValueError(f"{residuals} residuals cannot give the covariance of {k} intrinsics and {len(target2cam)} poses")
+        raise InputMismatchError(f"{residuals} residuals cannot give the covariance of {k} intrinsics and {len(target2cam)} poses")
     return rss / dof * np.linalg.pinv(S)
 
 

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.lazy import lazy_module
+from ..errors import TargetError
 from ..geometry.se3 import invert
 from .pnp import project_points
 from .targets import AprilTag, ArucoGrid, Charuco, Chessboard, CircleGrid, Target, aruco_dictionary
@@ -95,7 +96,7 @@ def target_texture(target: Target, texels_per_m: float = 4000.0) -> Texture:
         img = np.full((side + 2 * m, side + 2 * m), LIGHT, np.uint8)
         img[m : m + side, m : m + side] = np.where(tag > 127, LIGHT, DARK)
         return Texture(img, float(m), float(m), side / target.square)
-    raise TypeError(f"cannot render a {type(target).__name__}")
+    raise TargetError(f"cannot render a {type(target).__name__}: the renderer draws the types of TARGET_TYPES")
 
 
 class Renderer:

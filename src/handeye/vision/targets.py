@@ -34,19 +34,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.lazy import lazy_module
-from ..errors import HandEyeError
+from ..errors import TargetError
 
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
 __all__ = ["Detection", "Target", "Chessboard", "Charuco", "CircleGrid", "AprilTag", "ArucoGrid", "target_from_spec",
-           "TARGET_TYPES"]
+           "target_origin", "ORIGINS", "TARGET_TYPES"]
 
 TARGET_TYPES = ("chessboard", "charuco", "circles", "asymmetric_circles", "apriltag", "aruco_grid")
 _SUBPIX_CRITERIA = (3, 50, 1e-4)  # cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER (2 + 1), 50 rounds, 1e-4 px
-
-
-class TargetError(HandEyeError):
-    """A target description that cannot be used (unknown type, bad size, unknown dictionary)."""
 
 
 @dataclass(frozen=True)
@@ -364,10 +360,28 @@ class ArucoGrid(_OpenCVBoard, Target):
         return Detection(feature.astype(np.intp), pts, self.object_points()[feature])
 
 
+#: Where a target frame's origin can be: handeye's (each type's ``frame``), or the target's centre
+#: (ViSP's and the AprilTag library's convention), the same axes.
+ORIGINS = ("corner", "centre")
+
+
+def target_origin(spec: dict[str, Any], where: str = "target") -> NDArray[np.float64]:
+    """The origin of the target frame that ``spec`` asks for (``origin: corner``, the default, or
+    ``origin: centre``), as a point of the type's own frame (:attr:`Target.frame`): zeros, or the
+    centre of the features' bounding box (of the board, for every type handeye prints)."""
+    pts = target_from_spec(spec, where).object_points()  # checks the origin's name too
+    if spec.get("origin", "corner") == "corner":
+        return np.zeros(3)
+    return 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+
+
 def target_from_spec(spec: dict[str, Any], where: str = "target") -> Target:
-    """A :class:`Target` from the ``target:`` mapping of session.yaml (DESIGN §4)."""
+    """A :class:`Target` from the ``target:`` mapping of session.yaml (DESIGN §4); ``origin`` is
+    checked and left to :func:`target_origin` (the target classes stay in their own frame)."""
     if not isinstance(spec, dict):
         raise TargetError(f"{where}: expected a mapping with type, cols, rows, square")
+    if spec.get("origin", "corner") not in ORIGINS + ("center",):
+        raise TargetError(f"{where}: origin {spec.get('origin')!r}; use 'corner' (the default) or 'centre'")
     kind = spec.get("type")
     if kind not in TARGET_TYPES:
         raise TargetError(f"{where}: unknown target type {kind!r}; use one of {', '.join(TARGET_TYPES)}")
