@@ -133,9 +133,10 @@ def robot_poses_as(fmt: str, transform: Callable[[np.ndarray], np.ndarray] = lam
     def mutate(folder: Path) -> None:
         pairs = load_pose_pairs(folder)
         F = transform(pairs.flange2base.copy())
-        if fmt == "matrix_raw":  # the 16 numbers as given, without any check
-            rows = F.reshape(len(F), 16)
-            lines = ["id," + ",".join(f"m{i}{j}" for i in range(4) for j in range(4))]
+        if fmt in ("matrix_raw", "matrix_3x4"):  # the 16 (12: the top 3 rows) numbers as given, without any check
+            n_rows = 3 if fmt == "matrix_3x4" else 4
+            rows = F[:, :n_rows].reshape(len(F), 4 * n_rows)
+            lines = ["id," + ",".join(f"m{i}{j}" for i in range(n_rows) for j in range(4))]
             lines += [f"{n}," + ",".join(repr(float(v)) for v in r) for n, r in zip(pairs.ids, rows)]
             (folder / "robot_poses.csv").write_text("\n".join(lines) + "\n")
             written = "matrix"
@@ -411,6 +412,8 @@ CASES = [
          r"images differ in size \(320x240: .*; 400x300: 003.png\)"),
     Case("wrong-board-size", "session", yaml_edit("session.yaml", lambda d: d["target"].update(cols=7, rows=7)), cal(), 2,
          r"target was found in only 0 of 9 images"),
+    Case("matrix-3x4-rows", "pp", robot_poses_as("matrix_3x4"), pp(out=False), 0,
+         r"3x4 matrices \(m00..m23, row-major\), read with the bottom row 0 0 0 1"),
     Case("squares-counted", "session",
          yaml_edit("session.yaml", lambda d: d["target"].update(cols=d["target"]["cols"] + 1, rows=d["target"]["rows"] + 1)),
          cal(), 2, r"did you count squares\? This board has \d+ x \d+ inner corners"),

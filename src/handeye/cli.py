@@ -89,6 +89,14 @@ def _fmt_vec(v: np.ndarray, digits: int = 6) -> str:
     return "[" + ", ".join(f"{x: .{digits}f}" for x in v) + "]"
 
 
+def _std_label(cal: Calibration) -> str:
+    """What the std of X comes from, in words: the estimator and the parts it adds up."""
+    who = cal.estimator or cal.method
+    who = f"{who} refinement" if who in ("pose", "reprojection") else who
+    parts = [k.replace("_", " ") for k, v in (cal.std_sources or {}).items() if v is not None]
+    return who + (f": {' + '.join(parts)}" if parts else "")
+
+
 def print_calibration(cal: Calibration, out=None) -> None:
     """Print X in the forms people paste into robot programs, and the residual summary."""
     info = setup_info(cal.setup)
@@ -113,14 +121,15 @@ def print_calibration(cal: Calibration, out=None) -> None:
     if cal.std_Z is not None:
         w(f"std of {z_name}: rotation {_fmt_vec(cal.std_Z[:3], 4)} deg, translation {_fmt_vec(cal.std_Z[3:], 3)} mm\n")
     mres, pres = cal.motion_residuals, cal.pose_residuals
-    w(f"screw congruence per motion (|angle_A - angle_B|, |pitch_A - pitch_B|): median "
-      f"{np.median(mres[:, 0]):.3f} deg / {np.median(mres[:, 1]):.3f} mm, max "
-      f"{mres[:, 0].max():.3f} deg / {mres[:, 1].max():.3f} mm\n")
+    share = 100 * cal.motion_pitch_share
+    w(f"screw congruence per motion (|angle_A - angle_B|; |pitch_A - pitch_B| as a share of the motion's "
+      f"translation; both 0 for consistent data): median {np.median(mres[:, 0]):.3f} deg / {np.median(share):.2f}%, "
+      f"worst {mres[:, 0].max():.3f} deg / {share.max():.1f}%\n")
     worst = int(np.argmax(pres[:, 1]))
     w(f"{z_name} consistency per pose: median {np.median(pres[:, 0]):.3f} deg / {np.median(pres[:, 1]):.3f} mm, "
       f"worst {cal.pose_name(worst)}: {pres[worst, 0]:.3f} deg / {pres[worst, 1]:.3f} mm\n")
     if cal.std is not None:
-        w(f"std of X ({cal.refinement} refinement): rotation {_fmt_vec(cal.std[:3], 4)} deg, "
+        w(f"std of X ({_std_label(cal)}): rotation {_fmt_vec(cal.std[:3], 4)} deg, "
           f"translation {_fmt_vec(cal.std[3:], 3)} mm" + (" (inf: not determined by the data)"
                                                         if np.isinf(cal.std).any() else "") + "\n")
     else:  # a closed form alone (--refine none) has no noise model: say so rather than print nothing

@@ -5,7 +5,7 @@ Formats (named explicitly, never guessed):
 =================  =======================================  ==================================
 format             columns                                  notes
 =================  =======================================  ==================================
-``matrix``         m00 m01 ... m33 (16, row-major)          last row must be 0 0 0 1
+``matrix``         m00 m01 ... m33 (16, row-major)          last row must be 0 0 0 1; or m00 ... m23 (12: 3x4)
 ``quat_wxyz``      x y z qw qx qy qz                        ROS-style order is ``quat_xyzw``
 ``quat_xyzw``      x y z qx qy qz qw
 ``rotvec``         x y z rx ry rz                           axis * angle (Universal Robots)
@@ -163,6 +163,8 @@ def parse_poses(
     scale = _check_units(length_unit, angle_unit, what)
     rows = _as_rows(values, kind, what)
     ncols = len(pose_columns(format))
+    if kind == "matrix" and rows.ndim == 2 and rows.shape[1] == 12:  # 3x4 rows: the bottom row 0 0 0 1 implied
+        rows = np.concatenate([rows, np.tile([0.0, 0.0, 0.0, 1.0], (len(rows), 1))], axis=1)
     if rows.shape[1] != ncols:
         raise PoseFormatError(
             f"{what}: format {format!r} needs {ncols} columns ({' '.join(pose_columns(format))}), "

@@ -313,6 +313,17 @@ class Calibration:
         return np.stack([np.degrees(dtheta), 1e3 * dd], axis=1)
 
     @cached_property
+    def motion_pitch_share(self) -> NDArray[np.float64]:
+        """Per motion, ``|d_A - d_B|`` (:attr:`motion_residuals`) over the larger of the robot's and the
+        camera's translation in it: the pitch difference as a share of the motion (a millimetre figure
+        alone means little: a nearly pure rotation has an ill-defined axis, and with it its pitch)."""
+        motions = self.motions
+        if motions is None:
+            motions = MotionSet.from_poses(self.flange2base, self.target2cam, self.setup, self.pairs)
+        scale = np.maximum(np.linalg.norm(motions.A[..., :3, 3], axis=-1), np.linalg.norm(motions.B[..., :3, 3], axis=-1))
+        return 1e-3 * self.motion_residuals[:, 1] / np.maximum(scale, 1e-6)
+
+    @cached_property
     def pose_residuals(self) -> NDArray[np.float64]:
         Zi = constant_transforms(self.X, self.flange2base, self.target2cam, self.setup)
         return np.stack([np.degrees(rotation_error(Zi, self.Z)), 1e3 * translation_error(Zi, self.Z)], axis=1)

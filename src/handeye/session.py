@@ -377,6 +377,9 @@ def read_pose_table(
     rest = [c.lower() for c in (header[1:] if id_col else header)]
     time_col = rest[0] if times and rest and rest[0] in TIME_COLUMNS else None
     pose_header = rest[1:] if time_col else rest
+    three_by_four = fmt == "matrix" and pose_header == expected[:12]  # 3x4 rows: the bottom row 0 0 0 1 implied
+    if three_by_four:
+        expected = expected[:12]
     if pose_header != expected:
         stream = not times and rest and rest[0] in TIME_COLUMNS
         raise SessionError(
@@ -413,6 +416,10 @@ def read_pose_table(
             sep = {";": "semicolons", "\t": "tabs"}.get(delim, "spaces")
             notes.append(f"{path.name}: values read as separated by {sep}" + (", with decimal commas" if decimal_comma else ""))
     values = numbers[:, 1:] if time_col else numbers
+    if three_by_four:
+        values = np.concatenate([values, np.tile([0.0, 0.0, 0.0, 1.0], (len(values), 1))], axis=1)
+        if notes is not None:
+            notes.append(f"{path.name}: 3x4 matrices (m00..m23, row-major), read with the bottom row 0 0 0 1")
     if not times:
         return values, (ids if id_col else None)
     return values, (ids if id_col else None), (numbers[:, 0].copy() if time_col else None)
