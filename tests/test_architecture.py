@@ -206,3 +206,11 @@ def test_every_error_a_user_can_see_is_a_handeye_error_from_errors_py():
                 classes.append(f"{name}.{node.name}")
     assert not bare, "\n".join(bare)
     assert not classes, "exception classes outside errors.py: " + ", ".join(classes)
+
+
+def test_docstrings_cite_sources_by_name_not_by_files_outside_the_repository():
+    """'DESIGN §4' and the seed files' names point at files a user of the package does not have."""
+    found = [f"{name}:{i}" for name, path in MODULES.items()
+             for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+             if "DESIGN §" in line or "001_..." in line or "000_75db" in line or "shared/seeds" in line]
+    assert not found, "\n".join(found)

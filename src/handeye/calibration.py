@@ -671,7 +671,7 @@ def calibrate(
     progress: bool = True,
     **changes,
 ) -> Calibration:
-    """Hand-eye calibration from a capture session folder (images + robot poses, DESIGN §4).
+    """Hand-eye calibration from a capture session folder (images + robot poses, the session format in the README).
 
     Detects the target in every image (in parallel), takes the intrinsics from session.yaml or
     estimates them from the same images, solves PnP per image, and calibrates.

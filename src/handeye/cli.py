@@ -742,7 +742,7 @@ def _add_import(sub) -> None:
     p.add_argument("source", help="the bag (ROS 2 folder, .db3/.mcap, or ROS 1 .bag), the .samples file, the ViSP "
                    "folder, or cal_data.yaml")
     p.add_argument("-o", "--out", required=True, help="folder to write (new or empty)")
-    p.add_argument("--setup", choices=["eye_in_hand", "eye_to_hand"],
+    p.add_argument("--setup", choices=list(SETUPS),
                    help="default eye_in_hand (rosbag); easy-handeye reads it from the file's calibration_type")
     p.add_argument("--robot-frames", default="base_link,tool0", metavar="BASE,TOOL",
                    help="tf frames of the robot's base and flange (default base_link,tool0)")
@@ -880,7 +880,7 @@ def _add_acquire(sub) -> None:
     p.add_argument("--camera", required=True, metavar="BACKEND", help="sim, opencv:INDEX|URL|FILE, genicam:CTI, folder:PATH")
     p.add_argument("-o", "--out", required=True, help="the session folder to write (new, or a stopped capture to resume)")
     p.add_argument("--results", help="where the calibration goes (default: OUT-results beside OUT)")
-    p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
+    p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--target-std", metavar="DEG,MM", help="stop when the std of X per axis is within these "
                    "(default 0.05,0.5; the robot's accuracy sets a floor, checked first)")
     p.add_argument("--max-poses", type=_whole(3), default=20, help="at most this many views (default 20)")
@@ -971,7 +971,7 @@ def _add_simulate(sub) -> None:
         "with ground_truth.yaml (X, Z, K, dist).",
     )
     p.add_argument("-o", "--out", required=True, help="new session folder")
-    p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
+    p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--poses", type=_whole(1), default=15, help="number of images (default 15)")
     p.add_argument("--target", default="chessboard", choices=["chessboard", "charuco", "circles", "asymmetric_circles", "apriltag"])
     p.add_argument("--noise-px", type=_number(0.0), default=0.2, help="feature position noise in pixels (default 0.2)")
@@ -993,7 +993,7 @@ def _add_plan(sub) -> None:
         "poses.csv in your robot's pose format; print the predicted std of X. Lengths in metres, "
         "rotations as rotation vectors in degrees.",
     )
-    p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
+    p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--intrinsics", required=True,
                    help="YAML with K, dist (optional) and image_size [width, height], top level or under camera:")
     p.add_argument("--target", default="chessboard", choices=["chessboard", "charuco", "circles", "asymmetric_circles", "apriltag"],
@@ -1034,7 +1034,7 @@ def _add_study(sub) -> None:
     p.add_argument("-o", "--out", required=True, help="output folder (created; other files in it are left alone)")
     p.add_argument("--runs", type=_whole(1), default=200, help="simulations per setting (default 200, as the thesis)")
     p.add_argument("--seed", type=_whole(0), default=0, help="random seed: same seed, same numbers (default 0)")
-    p.add_argument("--setup", default="eye_in_hand", choices=["eye_in_hand", "eye_to_hand"])
+    p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--figures", nargs="+", metavar="ID", help="only these figures of the preset (e.g. 5.1 5.4)")
     p.add_argument("--jobs", type=_whole(1), default=None, help="worker processes (default: all cores)")
     p.add_argument("--scheduler", metavar="ADDRESS|local",

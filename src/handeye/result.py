@@ -65,7 +65,7 @@ class Unobservable:
 
 @dataclass
 class Diagnostics:
-    """What :func:`diagnose` found (DESIGN §6).
+    """What :func:`diagnose` found (the public API).
 
     Attributes
     ----------

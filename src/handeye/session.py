@@ -1,6 +1,6 @@
 """Captures on disk, in both directions: reading and writing sessions and pose tables.
 
-*Capture sessions* (DESIGN §4): ``session.yaml``, ``poses.csv`` (an ``image`` column, then the
+*Capture sessions* (the session format in the README): ``session.yaml``, ``poses.csv`` (an ``image`` column, then the
 pose columns of the declared format) and ``images/``. See :func:`load_session`.
 
 *Pose-pair folders*, for users who already have camera-to-target poses (from their own
@@ -94,7 +94,7 @@ class PosePairs:
 
 @dataclass(frozen=True)
 class Session:
-    """A capture session read from disk (DESIGN §4), validated."""
+    """A capture session read from disk (the session format in the README), validated."""
 
     folder: Path
     setup: str
@@ -144,7 +144,7 @@ def read_camera(spec: Any, where: str) -> tuple[NDArray[np.float64] | None, NDAr
 
 
 def load_session(folder: str | Path, strict_images: bool = True) -> Session:
-    """Load and validate a capture session folder (DESIGN §4).
+    """Load and validate a capture session folder (the session format in the README).
 
     ``strict_images=False``: an image named in the pose table but missing from ``images/`` is kept
     in the session (its path does not exist) for :func:`handeye.calibration.observe` to skip with
@@ -658,7 +658,7 @@ def write_session(folder: str | Path, setup: str, target_spec: dict[str, Any], n
                   flange2base: NDArray[np.float64] | None, format: str = "quat_wxyz", length_unit: str = "mm",
                   angle_unit: str = "deg", camera: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
                   comment: str | None = None, rows: NDArray[np.float64] | None = None) -> Path:
-    """Write ``session.yaml`` and ``poses.csv`` of a session (DESIGN §4) into ``folder``, atomically;
+    """Write ``session.yaml`` and ``poses.csv`` of a session (the session format in the README) into ``folder``, atomically;
     the images (``images/<name>``) are the caller's. ``camera``: ``(K, dist)`` to put in
     session.yaml. Returns the session.yaml path."""
     folder = Path(folder)
@@ -671,7 +671,7 @@ def write_session(folder: str | Path, setup: str, target_spec: dict[str, Any], n
 
 def _write_session_yaml(folder: Path, setup: str, target_spec: dict[str, Any], camera, poses: dict[str, Any],
                         images: dict[str, Any] | None, comment: str | None) -> Path:
-    """session.yaml with its keys in DESIGN §4's order, atomically; returns its path."""
+    """session.yaml with its keys in the order of the README's session format, atomically; returns its path."""
     spec: dict[str, Any] = {"setup": setup, "target": dict(target_spec)}
     if camera is not None:
         spec["camera"] = {"K": np.asarray(camera[0], dtype=float).tolist(),

@@ -1,8 +1,8 @@
 """Tsai-Lenz (1989): rotation from modified Rodrigues vectors, then translation.
 
 R. Y. Tsai, R. K. Lenz, "A new technique for fully autonomous and efficient 3D robotics hand/eye
-calibration", IEEE Trans. Robotics and Automation 5(3), 1989; thesis §2.2.1; the notes
-``001_...txt`` (the steps below, for both setups).
+calibration", IEEE Trans. Robotics and Automation 5(3), 1989; thesis §2.2.1; the notes on AX = XB
+for eye-in-hand and eye-to-hand that come with it (the steps below, for both setups).
 
 Steps, with ``P = 2 sin(theta/2) n`` the modified Rodrigues vector of a motion's rotation:
 
