@@ -144,6 +144,9 @@ def test_verify_reports_the_true_errors_of_a_second_capture(tmp_path, acquired):
     assert len(v.names) == 8
     assert abs(v.rms_px / np.sqrt(np.mean(true**2)) - 1) < 0.2
     assert v.verdict == "good"
+    from handeye.report import write_verification
+    page = next(p for p in write_verification(v, tmp_path / "verified") if p.suffix == ".html").read_text()
+    assert "mm at the target" in page and "<th></th>" not in page and ("far off" in page) == bool(v.flagged)
     # the calibration's own capture is no second capture: refused, naming the images
     with pytest.raises(HandEyeError, match=r"are the calibration's own inputs"):
         verify(results, acq.folder, progress=False)

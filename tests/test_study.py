@@ -244,9 +244,13 @@ def test_refined_beats_the_closed_forms_in_the_study():
         assert refined["rot_median_deg"] < res.stats[m]["rot_median_deg"], m
 
 
-def test_study_files_and_cli(tmp_path):
+def test_study_files_and_cli(tmp_path, capsys):
     out = tmp_path / "study"
     assert main(["study", "--figures", "5.2", "--runs", "30", "--out", str(out), "--jobs", "1", "--no-progress"]) == 0
+    printed = capsys.readouterr().out  # the headline on the terminal, not only file names
+    assert "median error of X, translation mm / rotation deg" in printed and "Figure 5.1" in printed
+    assert len([line for line in printed.splitlines() if line.startswith("  ") and " best " in line]) == len(
+        [s for s in preset("seed-chapter5")[0] if s.figure == "5.1"])
     rows = list(csv.DictReader(open(out / "study.csv")))
     n_settings = len([s for s in preset("seed-chapter5")[0] if s.figure == "5.1"])
     assert len(rows) == n_settings * 8  # the 5.1 grid feeds figure 5.2; eight methods each

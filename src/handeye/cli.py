@@ -38,7 +38,7 @@ from .setups import SETUPS, flange_poses, predicted_target2cam, setup_info
 from .simulate import DEFAULT_TARGETS, MIN_IMAGE_SIDE, simulate_session
 from .streams import KEYFRAMES, calibrate_streams, paired_delay_note
 from .verdict import exit_status
-from .study import preset, study, write_study
+from .study import headline, preset, study, write_study
 from .verification import NOT_THIS, verify
 from .vision.targets import target_from_spec, target_origin
 
@@ -365,6 +365,8 @@ def _cmd_study(args: argparse.Namespace) -> int:
     result = study(settings, runs=args.runs, seed=args.seed, jobs=args.jobs, progress=not args.no_progress,
                    figures=figures, preset_name=args.preset, scheduler=args.scheduler)
     elapsed = time.perf_counter() - start
+    print(headline(result))
+    print()
     for path in write_study(result, out):
         print(f"wrote {path}")
     print(f"{len(settings)} settings x {args.runs} runs ({args.setup}, seed {args.seed}) in {elapsed:.1f} s")

@@ -452,6 +452,31 @@ def markdown_table(result: StudyResult, methods: Sequence[str] | None = None) ->
     return "\n".join(lines)
 
 
+def headline(result: StudyResult, method: str = "daniilidis") -> str:
+    """The study for a terminal: per figure and setting, the median error of ``method`` (the
+    thesis's choice) and of the best method there (translation mm / rotation deg, and the share of
+    runs under 5 mm and 1 deg); study.md has every method with its percentiles."""
+    lines = [f"median error of X, translation mm / rotation deg ({method}, and the best method per setting; ok = "
+             f"share of runs under {ACCEPT_MM:g} mm and {ACCEPT_DEG:g} deg)"]
+    by_fig: dict[str, list[SettingResult]] = {}
+    for r in result.settings:
+        by_fig.setdefault(r.setting.figure, []).append(r)
+    for fig, rs in by_fig.items():
+        title = result.figures[fig].title if fig in result.figures else fig
+        lines.append(f"Figure {fig}: {title}")
+        for r in rs:
+            if not r.stats:
+                continue
+            best = min(r.stats, key=lambda m: (r.stats[m]["trans_median_mm"], r.stats[m]["rot_median_deg"]))
+            own = r.stats.get(method)
+            text = "" if own is None else (f"{method} {_fmt(own['trans_median_mm'])} / {_fmt(own['rot_median_deg'])} "
+                                           f"(ok {100 * own['accepted']:.0f}%); ")
+            b = r.stats[best]
+            lines.append(f"  {r.setting.series:<22.22} x={r.setting.x:<7g} {text}best {best} "
+                         f"{_fmt(b['trans_median_mm'])} / {_fmt(b['rot_median_deg'])}")
+    return "\n".join(lines)
+
+
 def _plot(result: StudyResult, fig_id: str, path: Path) -> None:
     from matplotlib.figure import Figure  # off-screen, no pyplot: no backend chosen for the user
 

@@ -35,8 +35,10 @@ def verification_html(v: Verification) -> str:
     """The verification as one self-contained HTML page."""
     colour = {"good": _COLOURS["good"], "worse than promised": _COLOURS["inconsistent"],
               NOT_THIS: _COLOURS["inconsistent"]}.get(v.verdict, "#555555")
-    rows = "".join(f'<tr><td class="l">{_e(n)}</td><td>{p:.3f}</td><td>{m:.3f}</td><td class="l">'
-                   f'{"far off" if n in v.flagged else ""}</td></tr>' for n, p, m in zip(v.names, v.px, v.mm))
+    flags = bool(v.flagged)  # the flag column only when a view is flagged (an empty column puzzles)
+    rows = "".join(f'<tr><td class="l">{_e(n)}</td><td>{p:.3f}</td><td>{m:.3f}</td>'
+                   + (f'<td class="l">{"far off" if n in v.flagged else ""}</td>' if flags else "") + "</tr>"
+                   for n, p, m in zip(v.names, v.px, v.mm))
     skipped = "".join(f"<li>{_e(n)}: {_e(r)}</li>" for n, r in v.skipped)
     return (f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>handeye verification</title>"
             f"<style>{_CSS}</style></head><body><h1>Verification on a new capture</h1>"
@@ -45,8 +47,8 @@ def verification_html(v: Verification) -> str:
             f"{len(v.names)} views predicted from their robot poses: RMS {v.rms_px:.3f} px, {v.rms_mm:.3f} mm at the "
             f"target</div></section>"
             f'<section id="distribution"><h2>Distribution</h2><img src="{_histogram(v)}" alt="errors per view"></section>'
-            f'<section id="views"><h2>Per view</h2><table><tr><th class="l">view</th><th>px</th><th>mm</th><th></th></tr>'
-            f"{rows}</table>" + (f"<p>Not used: </p><ul>{skipped}</ul>" if skipped else "") + "</section>"
+            f'<section id="views"><h2>Per view</h2><table><tr><th class="l">view</th><th>px</th><th>mm at the target</th>'
+            + ('<th class="l">flag</th>' if flags else "") + f"</tr>{rows}</table>" + (f"<p>Not used: </p><ul>{skipped}</ul>" if skipped else "") + "</section>"
             '<section id="advice"><h2>Advice</h2><ul>'
             + "".join(f"<li>{_e(a)}</li>" for a in (v.advice or ["Nothing to fix: the calibration predicts the new "
                                                                   "views as well as it promised."]))
