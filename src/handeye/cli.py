@@ -975,7 +975,9 @@ def _add_simulate(sub) -> None:
     p.add_argument("-o", "--out", required=True, help="new session folder")
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--poses", type=_whole(1), default=15, help="number of images (default 15)")
-    p.add_argument("--target", default="chessboard", choices=["chessboard", "charuco", "circles", "asymmetric_circles", "apriltag"])
+    p.add_argument("--target", default="charuco", choices=["chessboard", "charuco", "circles", "asymmetric_circles", "apriltag"],
+                   help="the board rendered (default charuco: it cannot be read from the wrong end, as handeye's advice "
+                   "recommends; chessboard for the thesis's set-up)")
     p.add_argument("--noise-px", type=_number(0.0), default=0.2, help="feature position noise in pixels (default 0.2)")
     p.add_argument("--seed", type=_whole(0), default=None)
     p.add_argument("--image-size", type=_image_size, default=(640, 480), help="WIDTHxHEIGHT (default 640x480)")
