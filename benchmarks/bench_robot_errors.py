@@ -33,7 +33,6 @@ from handeye.geometry.se3 import invert, make_transform
 from handeye.metrics import rotation_error, translation_error
 from handeye.session import load_session
 from handeye.simulate import REALISTIC, robot_accuracy_of, simulate_realistic_session
-from handeye.validation import Views
 
 OPENCV = ("TSAI", "PARK", "HORAUD", "ANDREFF", "DANIILIDIS")
 
@@ -85,8 +84,7 @@ def one_session(args) -> dict:
                "verdict": cal.verdict,
                "covered": bool(e[0] <= 3 * np.linalg.norm(cal.std[:3]) and e[1] <= 3 * np.linalg.norm(cal.std[3:]))}
         idx = np.asarray(handeye.calibrate_poses(obs.flange2base, obs.target2cam, setup, refine="none").pose_indices)
-        views = Views(obs.flange2base[idx], obs.target2cam[idx], setup, [obs.object_points[i] for i in idx],
-                      [obs.image_points[i] for i in idx], obs.K, obs.dist)
+        views = obs.views(idx)
         for name, fit in (pose_candidates("daniilidis", views) | pixel_candidates(views, "daniilidis")).items():
             try:
                 out[f"handeye {name}"] = _errors(fit(views.flange2base, views.target2cam, setup, np.arange(len(views)))[0], sc.X)

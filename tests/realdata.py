@@ -49,7 +49,7 @@ def _session(scratch: Path, setup, target, K, names, images, flange2base) -> Pat
 
 def _observed(name: str, folder: Path) -> RealSet:
     obs = observe(load_session(folder), progress=False)
-    views = Views(obs.flange2base, obs.target2cam, obs.session.setup, obs.object_points, obs.image_points, obs.K, obs.dist)
+    views = obs.views()
     return RealSet(name, views, obs)
 
 

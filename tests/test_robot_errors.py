@@ -18,7 +18,6 @@ from handeye.estimators import PIXEL, POSE, ROBOT_DOMINATES, choose, pixel_candi
 from handeye.metrics import rotation_error, translation_error
 from handeye.session import load_session
 from handeye.simulate import EXACT, REALISTIC, realistic_scene, robot_accuracy_of, simulate_realistic_session
-from handeye.validation import Views
 
 
 def test_the_sweep_spans_real_arms_accuracy():
@@ -52,8 +51,7 @@ def _choice(folder):
     obs = observe(load_session(folder), jobs=1, progress=False)
     idx = np.asarray(handeye.calibrate_poses(obs.flange2base, obs.target2cam, obs.session.setup,
                                             refine="none").pose_indices)
-    views = Views(obs.flange2base[idx], obs.target2cam[idx], obs.session.setup, [obs.object_points[i] for i in idx],
-                  [obs.image_points[i] for i in idx], obs.K, obs.dist)
+    views = obs.views(idx)
     return obs, choose(views, pose_candidates("daniilidis", views) | pixel_candidates(views, "daniilidis"))
 
 

@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 import handeye
 import realdata
-from handeye.calibration import _views, observe
+from handeye.calibration import observe
 from handeye.estimators import POSE, intrinsics_cov, pose_fit
 from handeye.metrics import rotation_error, translation_error
 from handeye.session import load_session
@@ -456,7 +456,7 @@ def _estimated_intrinsics_session(args):
     seed, setup = args
     obs = _observed_without_intrinsics(setup, seed)
     assert obs.intrinsics_source == "estimated"
-    views = _views(obs, np.arange(len(obs.used)))
+    views = obs.views()
     fit = pose_fit("daniilidis", views)
     X, Z = fit(views.flange2base, views.target2cam, setup, np.arange(len(views)))
     K, dist = default_camera((640, 480))

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._shared.io import array_digest, files_digest
+from ._shared.io import array_digest, files_digests
 from ._shared.progress import Progress
 from ._shared.text import sentences, summarize
 from .diagnostics import closed_form, compare_solvers, diagnose
@@ -376,7 +376,7 @@ def _pose_refined(cal: Calibration, method: str, robot_accuracy: tuple[float, fl
     cal = refine_on_poses(cal, ref)
     if not uncertainty:
         return cal
-    views = Views(cal.flange2base, cal.target2cam, cal.setup) if obs is None else _views(obs, np.asarray(cal.pose_indices))
+    views = Views(cal.flange2base, cal.target2cam, cal.setup) if obs is None else obs.views(np.asarray(cal.pose_indices))
     return _uncertain(cal, pose_fit(method, views, ref), views, robot_accuracy, obs)
 
 
@@ -400,7 +400,7 @@ def _final_pixel_fit(cal: Calibration, obs: Observations, name: str, robot_noise
         ref = done[0]
     else:
         sigma = _robot_sigma(robot_noise) if name == PIXEL_ROBOT else None
-        ref = pixel_fit(_views(obs, everything), everything, cal.X, cal.Z,
+        ref = pixel_fit(obs.views(everything), everything, cal.X, cal.Z,
                         name != PIXEL and obs.intrinsics_source == "estimated", sigma)
     return replace(refine_on_pixels(cal, obs, ref, robot_noise if name == PIXEL_ROBOT else None), estimator=name)
 
@@ -456,6 +456,12 @@ class Observations:
     skipped: list[tuple[str, str]]  #: (image, reason)
     notes: list[str]
     robot_input: RobotPoseInput | None  #: the robot poses of the used images as written
+
+    def views(self, idx=None) -> Views:
+        """The used images ``idx`` (indices into ``used``; default all) as cross-validation views."""
+        idx = np.arange(len(self.used)) if idx is None else np.asarray(idx)
+        return Views(self.flange2base[idx], self.target2cam[idx], self.session.setup,
+                     [self.object_points[i] for i in idx], [self.image_points[i] for i in idx], self.K, self.dist)
 
     def subset(self, idx) -> "Observations":
         """The same observations restricted to the used images ``idx`` (indices into ``used``)."""
@@ -614,12 +620,6 @@ def _robot_sigma(robot_noise: tuple[float, float] | None) -> tuple[float, float]
     return None if robot_noise is None else (np.radians(robot_noise[0]), 1e-3 * robot_noise[1])
 
 
-def _views(obs: Observations, idx: NDArray[np.intp]) -> Views:
-    """The observed images ``idx`` (into ``obs.used``) as cross-validation views."""
-    return Views(obs.flange2base[idx], obs.target2cam[idx], obs.session.setup, [obs.object_points[i] for i in idx],
-                 [obs.image_points[i] for i in idx], obs.K, obs.dist)
-
-
 def refine_on_pixels(cal: Calibration, obs: Observations, ref: ReprojectionResult,
                      robot_noise: tuple[float, float] | None = None) -> Calibration:
     """``cal`` with the pixel refinement ``ref`` of its images applied (:func:`handeye.estimators.pixel_fit`):
@@ -665,6 +665,9 @@ def _with_images(cal: Calibration, obs: Observations, kept: list[int], skipped: 
     """``cal`` with the fields of the images it used (``kept`` indexes ``obs.used``)."""
     names = obs.session.image_names
     skipped = sorted(obs.skipped + skipped, key=lambda item: names.index(item[0]))
+    files = obs.session.input_files
+    inputs_sha256, each = files_digests(files, obs.session.folder)  # every input file read once
+    by_path = dict(zip(map(str, files), each))
     intrinsics = {}
     if cal.camera_matrix is None:  # not refined with X and Z: as observed
         intrinsics = dict(camera_matrix=np.asarray(obs.K, dtype=float), dist_coeffs=np.asarray(obs.dist, dtype=float).ravel(),
@@ -674,7 +677,8 @@ def _with_images(cal: Calibration, obs: Observations, kept: list[int], skipped: 
         skipped=skipped, intrinsics_rms=obs.intrinsics_rms,
         image_paths=[obs.session.image_paths[obs.used[k]] for k in kept], input_folder=obs.session.folder,
         object_points=[obs.object_points[k] for k in kept], image_points=[obs.image_points[k] for k in kept],
-        inputs_sha256=files_digest(obs.session.input_files, obs.session.folder), notes=list(cal.notes) + notes,
+        inputs_sha256=inputs_sha256, image_sha256=[by_path[str(obs.session.image_paths[obs.used[k]])] for k in kept],
+        notes=list(cal.notes) + notes,
         **intrinsics,
     )
 
@@ -846,7 +850,7 @@ def _calibrate_observed(obs: Observations, opts: CalibrationOptions, uncertainty
     idx = np.asarray(cal.pose_indices)
     estimated = obs.intrinsics_source == "estimated"
     if refine == "auto" and len(idx) >= 5:
-        views = _views(obs, idx)
+        views = obs.views(idx)
         candidates = pose_candidates(method, views) | pixel_candidates(views, method, estimated, robot_sigma)
         choice = choose(views, candidates, opts.folds)
         bar.update()
@@ -856,7 +860,7 @@ def _calibrate_observed(obs: Observations, opts: CalibrationOptions, uncertainty
         cal = _pose_refined(cal, method, accuracy, uncertainty, obs)
     elif refine == "reprojection":
         name = PIXEL_ROBOT if robot_sigma is not None else (PIXEL_INTRINSICS if estimated else PIXEL)
-        views = _views(obs, idx)
+        views = obs.views(idx)
         fit = pixel_candidates(views, method, estimated, robot_sigma)[name]
         cal = _final_pixel_fit(cal, obs, name, robot_noise, pairs, fit)
         if uncertainty:

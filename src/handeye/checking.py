@@ -17,33 +17,42 @@ from .calibration import calibrate, calibrate_poses
 from .errors import DegenerateMotionError
 from .options import CalibrationOptions, options_from
 from .result import Calibration, Diagnostics
-from .session import POSEPAIRS_FILE, load_pose_pairs
+from .session import POSEPAIRS_FILE, PosePairs, load_pose_pairs
 from .streams import calibrate_streams, paired_delay_note
 from .validation import default_folds
 from .verdict import exit_status
 
-__all__ = ["FolderCheck", "calibrate_folder", "check_folder"]
+__all__ = ["FolderCheck", "calibrate_folder", "calibrate_pairs", "check_folder"]
 
 
 def calibrate_folder(folder: str | Path, options: CalibrationOptions | None = None, *, jobs: int | None = None,
                      progress: bool = True, **changes) -> Calibration:
-    """:func:`handeye.calibrate` on a capture session (``session.yaml``), or on a pose-pair folder
-    (``posepairs.yaml``) :func:`handeye.calibrate_poses` (:func:`handeye.calibrate_streams` when
-    its poses carry times), with the files' notes first."""
+    """:func:`handeye.calibrate` on a capture session (``session.yaml``), or :func:`calibrate_pairs`
+    on a pose-pair folder (``posepairs.yaml``)."""
     opts = options_from(options, changes)
     folder = Path(folder)
     if not (folder / POSEPAIRS_FILE).is_file():
         return calibrate(folder, opts, jobs=jobs, progress=progress)
-    pairs = load_pose_pairs(folder)
+    return calibrate_pairs(load_pose_pairs(folder), opts, progress=progress)
+
+
+def calibrate_pairs(pairs: PosePairs, options: CalibrationOptions | None = None, *, progress: bool = True,
+                    **changes) -> Calibration:
+    """:func:`handeye.calibrate_poses` on pose pairs as read from their files
+    (:func:`handeye.calibrate_streams` when they are two time-stamped streams), with the files'
+    notes first and, for streams, a note when the pairing the files imply disagrees with the clock
+    offset found."""
+    opts = options_from(options, changes)
     if pairs.is_stream:
         cal = calibrate_streams(pairs.robot_times, pairs.flange2base, pairs.camera_times, pairs.target2cam,
                                 pairs.setup, opts, robot_input=pairs.robot_input)
         warning = paired_delay_note(pairs.paired_delays, cal.time_offset, cal.time_offset_std)
-        return replace(cal, notes=list(pairs.notes) + ([warning] if warning else []) + list(cal.notes),
-                       input_folder=pairs.source)
-    cal = calibrate_poses(pairs.flange2base, pairs.target2cam, pairs.setup, opts, robot_input=pairs.robot_input,
-                          camera_input=pairs.camera_input, names=[str(i) for i in pairs.ids], progress=progress)
-    return replace(cal, notes=list(pairs.notes) + list(cal.notes), input_folder=folder)
+        notes = list(pairs.notes) + ([warning] if warning else [])
+    else:
+        cal = calibrate_poses(pairs.flange2base, pairs.target2cam, pairs.setup, opts, robot_input=pairs.robot_input,
+                              camera_input=pairs.camera_input, names=[str(i) for i in pairs.ids], progress=progress)
+        notes = list(pairs.notes)
+    return replace(cal, notes=notes + list(cal.notes), input_folder=pairs.source)
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ from ._shared.io import check_output_folder
 from ._version import __version__
 from .acquire import SimWorld, acquire, capture_views, make_camera, make_robot
 from .calibration import calibrate, certify_calibration
-from .checking import calibrate_folder, check_folder
+from .checking import calibrate_folder, calibrate_pairs, check_folder
 from .fleet import calibrate_many
 from .errors import HandEyeError
 from .geometry.se3 import make_transform
@@ -36,7 +36,7 @@ from .result import Calibration
 from .session import POSE_KINDS, TIME_UNITS, load_pose_pairs, load_pose_streams, load_yaml, read_intrinsics
 from .setups import SETUPS, flange_poses, predicted_target2cam, setup_info
 from .simulate import DEFAULT_TARGETS, MIN_IMAGE_SIDE, simulate_session
-from .streams import KEYFRAMES, calibrate_streams, paired_delay_note
+from .streams import KEYFRAMES
 from .verdict import exit_status
 from .study import headline, preset, study, write_study
 from .verification import NOT_THIS, verify
@@ -191,15 +191,6 @@ def _write_outputs(cal: Calibration, args: argparse.Namespace) -> None:
         print("no --out: nothing written (--out FOLDER writes result.json, result.yaml and report.html)")
 
 
-def _calibrate_pose_streams(pairs, args: argparse.Namespace) -> Calibration:
-    """calibrate_streams on the two streams of a pose-pair folder or of calibrate-streams' files."""
-    cal = calibrate_streams(pairs.robot_times, pairs.flange2base, pairs.camera_times, pairs.target2cam,
-                            pairs.setup, _calibrate_options(args), robot_input=pairs.robot_input)
-    warning = paired_delay_note(pairs.paired_delays, cal.time_offset, cal.time_offset_std)
-    return replace(cal, notes=list(pairs.notes) + ([warning] if warning else []) + list(cal.notes),
-                   input_folder=pairs.source)
-
-
 def _finish_poses(cal: Calibration, args: argparse.Namespace) -> int:
     if args.certify:
         cal = certify_calibration(cal)
@@ -218,7 +209,7 @@ def _cmd_calibrate_streams(args: argparse.Namespace) -> int:
          "time_unit": args.time_unit},
         {"file": str(camera), "format": args.camera_format, "length_unit": cl, "angle_unit": ca,
          "pose": args.camera_pose, "time_unit": args.time_unit}, args.setup)
-    return _finish_poses(_calibrate_pose_streams(pairs, args), args)
+    return _finish_poses(calibrate_pairs(pairs, _calibrate_options(args)), args)
 
 
 def _units_arg(text: str, name: str) -> tuple[str, str]:

@@ -8,7 +8,7 @@ and ``check`` judges the data with exactly the options ``calibrate`` would use.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -138,13 +138,6 @@ class CalibrationOptions:
             raise InputMismatchError(f"refine={self.refine!r}; use 'auto', 'pose' or 'none' (pixel refinement needs "
                                      "the detections: use handeye.calibrate on a session)")
         return self
-
-    def as_dict(self) -> dict[str, Any]:
-        """The options as plain values (for result files and worker processes)."""
-        out = asdict(self)
-        if not isinstance(self.pairs, str):
-            out["pairs"] = np.asarray(self.pairs).tolist()
-        return out
 
 
 def _either(names) -> str:

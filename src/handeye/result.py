@@ -247,6 +247,8 @@ class Calibration:
     #: the std of X's six parameters (deg, mm) from each source: 'model' (the refinement's noise
     #: model, None for a closed form), 'jackknife' (the spread of X refitted without each pose)
     std_sources: dict[str, NDArray[np.float64] | None] | None = None
+    #: SHA-256 of each image in ``image_names`` (verify refuses a calibration's own images), None without images
+    image_sha256: list[str] | None = None
     #: the std of Z's six parameters (deg, mm; rotation about and translation along Z's parent axes): the
     #: jackknife spread of Z refitted without each pose, plus the robot's absolute accuracy; None when not computed
     std_Z: NDArray[np.float64] | None = None

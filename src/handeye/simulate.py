@@ -13,6 +13,7 @@ the ground-truth ``X`` and ``Z``:
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 import yaml
@@ -401,9 +402,7 @@ def simulate_session(
         the poses of :func:`low_dof_scene` (the flange turns about the vertical only, or only
         translates), which determine only part of X.
     """
-    out = check_output_folder(out_dir)
-    if (out / "session.yaml").exists() or (out / "images").exists():
-        raise HandEyeError(f"{out} already holds a session; choose an empty folder")
+    out = _new_session_folder(out_dir)
     check_setup(setup)
     _check_simulation_options(n_poses, noise_px, image_size, image_ext, blur, robot_noise)
     if isinstance(target, str) and target not in DEFAULT_TARGETS:
@@ -425,32 +424,44 @@ def simulate_session(
     flange2base = scene.flange2base
     if robot_noise[0] > 0 or robot_noise[1] > 0:
         flange2base = perturb_poses(flange2base, np.radians(robot_noise[0]), robot_noise[1] * 1e-3, rng)
-    (out / "images").mkdir(parents=True, exist_ok=True)
-    names = []
-    for k, T in enumerate(scene.target2cam):
-        img = renderer.render(texture, T, rng=rng, noise_px=noise_px, blur=blur)
-        name = f"{k:03d}{image_ext}"
-        params = [cv2.IMWRITE_JPEG_QUALITY, 92] if image_ext.lower() in (".jpg", ".jpeg") else []
-        if not cv2.imwrite(str(out / "images" / name), img, params):
-            raise HandEyeError(f"cannot write {out / 'images' / name}")
-        names.append(name)
+    names = _write_images(out, renderer, texture, scene.target2cam, rng, noise_px, blur, image_ext)
     write_session(out, setup, spec, names, flange2base, pose_format, length_unit, angle_unit,
                   camera=(K, dist) if write_intrinsics else None,
                   comment="Rendered by handeye simulate; ground truth in ground_truth.yaml")
-    info = setup_info(setup)
-    truth = {
-        "setup": setup,
-        info.x_name: scene.X.tolist(),
-        info.z_name: scene.Z.tolist(),
-        "K": K.tolist(),
-        "dist": dist.tolist(),
-        "noise_px": float(noise_px),
-        "robot_noise_deg_mm": list(robot_noise),
-        "robot": robot,
-        "seed": seed,
-    }
-    atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
+    _write_truth(out, setup, scene.X, scene.Z, K, dist, seed, noise_px=float(noise_px),
+                 robot_noise_deg_mm=list(robot_noise), robot=robot)
     return scene
+
+
+def _new_session_folder(out_dir) -> Path:
+    """The output folder of a simulated session, checked, and holding no session yet."""
+    out = check_output_folder(out_dir)
+    if (out / "session.yaml").exists() or (out / "images").exists():
+        raise HandEyeError(f"{out} already holds a session; choose an empty folder")
+    return out
+
+
+def _write_images(out: Path, renderer: Renderer, texture, target2cam, rng: np.random.Generator, noise_px: float,
+                  blur: float = 0.0, image_ext: str = ".png") -> list[str]:
+    """Render the target at each pose into ``out/images`` (000.png, 001.png, ...); their names."""
+    (out / "images").mkdir(parents=True, exist_ok=True)
+    params = [cv2.IMWRITE_JPEG_QUALITY, 92] if image_ext.lower() in (".jpg", ".jpeg") else []
+    names = []
+    for k, T in enumerate(target2cam):
+        name = f"{k:03d}{image_ext}"
+        if not cv2.imwrite(str(out / "images" / name), renderer.render(texture, T, rng=rng, noise_px=noise_px, blur=blur),
+                           params):
+            raise HandEyeError(f"cannot write {out / 'images' / name}")
+        names.append(name)
+    return names
+
+
+def _write_truth(out: Path, setup: str, X, Z, K, dist, seed, **extra) -> None:
+    """``ground_truth.yaml``: X and Z under the setup's names, the camera, ``extra``, the seed."""
+    info = setup_info(setup)
+    truth = {"setup": setup, info.x_name: np.asarray(X).tolist(), info.z_name: np.asarray(Z).tolist(),
+             "K": np.asarray(K).tolist(), "dist": np.asarray(dist).tolist(), **extra, "seed": seed}
+    atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -707,30 +718,18 @@ def simulate_realistic_session(
     reports (kinematic errors, timing jitter, heavy-tailed noise), ``ground_truth.yaml`` the truth.
     The camera's poses come from handeye's own detection and PnP on the images, as for a real
     capture. ``out_dir`` must not already hold a session. Returns the scene."""
-    out = check_output_folder(out_dir)
-    if (out / "session.yaml").exists() or (out / "images").exists():
-        raise HandEyeError(f"{out} already holds a session; choose an empty folder")
+    out = _new_session_folder(out_dir)
     sc = realistic_scene(n_poses, setup, seed, errors=errors, target=target, image_size=image_size)
     spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
     renderer = Renderer(sc.K, sc.dist, image_size)
     texture = target_texture(target_from_spec(spec))
     rng = np.random.default_rng(None if seed is None else [seed, 1])
-    (out / "images").mkdir(parents=True, exist_ok=True)
-    names = []
-    for k, T in enumerate(sc.target2cam_true):
-        name = f"{k:03d}.png"
-        if not cv2.imwrite(str(out / "images" / name), renderer.render(texture, T, rng=rng, noise_px=errors.pixel_px)):
-            raise HandEyeError(f"cannot write {out / 'images' / name}")
-        names.append(name)
+    names = _write_images(out, renderer, texture, sc.target2cam_true, rng, errors.pixel_px)
     write_session(out, setup, spec, names, sc.flange2base, "quat_wxyz", "mm", "deg",
                   camera=(sc.K, sc.dist) if write_intrinsics else None,
                   comment="Rendered by handeye's realistic simulator; ground truth in ground_truth.yaml")
-    info = setup_info(setup)
-    deg, mm = robot_accuracy_of(sc)
-    truth = {"setup": setup, info.x_name: sc.X.tolist(), info.z_name: sc.Z.tolist(), "K": sc.K.tolist(),
-             "dist": sc.dist.tolist(), "errors": {k: float(v) for k, v in vars(errors).items()},
-             "robot_accuracy_deg_mm": [deg, mm], "seed": seed}
-    atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
+    _write_truth(out, setup, sc.X, sc.Z, sc.K, sc.dist, seed, errors={k: float(v) for k, v in vars(errors).items()},
+                 robot_accuracy_deg_mm=list(robot_accuracy_of(sc)))
     return sc
 
 

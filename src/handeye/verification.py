@@ -103,8 +103,10 @@ ELSEWHERE_FRACTION = 0.1
 def _refuse_own_images(sess: Session, res: dict) -> None:
     """A session that reuses the calibration's own images is not a second capture."""
     own = {d: n for n, d in res["image_sha256"].items()}
-    same = [(name, own[file_digest(p)]) for name, p in zip(sess.image_names, sess.image_paths)
-            if Path(p).is_file() and file_digest(p) in own]
+    if not own:  # a calibration from poses, or written before results held the images' digests
+        return
+    digests = {name: file_digest(p) for name, p in zip(sess.image_names, sess.image_paths) if Path(p).is_file()}
+    same = [(name, own[d]) for name, d in digests.items() if d in own]
     if same:
         raise InputMismatchError(
             f"{sess.folder}: image(s) {summarize(n for n, _ in same)} are the calibration's own inputs (the same bytes as "
@@ -143,7 +145,7 @@ def verify(result: str | Path, session: str | Path, jobs: int | None = None, pro
         raise InputMismatchError(f"the result is {res['setup']} but {sess.folder} is {sess.setup}")
     _refuse_own_images(sess, res)
     obs = observe(_with_intrinsics(sess, res), jobs=jobs, progress=progress)
-    views = Views(obs.flange2base, obs.target2cam, sess.setup, obs.object_points, obs.image_points, obs.K, obs.dist)
+    views = obs.views()
     px, mm = view_errors(res["X"], res["Z"], views)
     names = [sess.image_names[k] for k in obs.used]
     elsewhere = _not_where_predicted(res["X"], res["Z"], views)

@@ -114,21 +114,33 @@ def array_digest(*arrays: np.ndarray) -> str:
     return h.hexdigest()
 
 
+def _read_into(path: Path, hashers) -> None:
+    """Feed the bytes of ``path`` to every hasher, reading the file once."""
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            for h in hashers:
+                h.update(chunk)
+
+
 def file_digest(path: Path) -> str:
     """SHA-256 of one file's bytes."""
     h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
+    _read_into(path, (h,))
     return h.hexdigest()
 
 
 def files_digest(paths: list[Path], root: Path) -> str:
     """SHA-256 over the names (relative to ``root``) and bytes of ``paths``, in the order given."""
+    return files_digests(paths, root)[0]
+
+
+def files_digests(paths: list[Path], root: Path) -> tuple[str, list[str]]:
+    """:func:`files_digest` and each file's own SHA-256 (:func:`file_digest`), reading each file once."""
     h = hashlib.sha256()
+    each = []
     for p in paths:
         h.update(str(Path(p).relative_to(root)).encode("utf-8") + b"\0")
-        with open(p, "rb") as fh:
-            for chunk in iter(lambda: fh.read(1 << 20), b""):
-                h.update(chunk)
-    return h.hexdigest()
+        one = hashlib.sha256()
+        _read_into(p, (h, one))
+        each.append(one.hexdigest())
+    return h.hexdigest(), each

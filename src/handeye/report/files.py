@@ -20,7 +20,7 @@ import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.io import atomic_write, file_digest
+from .._shared.io import atomic_write
 from .._version import __version__
 from ..errors import HandEyeError
 from ..geometry.se3 import invert
@@ -241,7 +241,7 @@ def _images_dict(cal: Calibration) -> dict[str, Any]:
         "images": {"used": list(cal.image_names), "reprojection_rms_px": cal.reprojection_rms.tolist(),
                    "skipped": [{"image": n, "reason": r} for n, r in cal.skipped],
                    # each used image's bytes: verify refuses to call the calibration's own images a second capture
-                   "sha256": [file_digest(p) if Path(p).is_file() else None for p in (cal.image_paths or [])]},
+                   "sha256": cal.image_sha256},
         "camera": {"source": cal.intrinsics_source, "K": cal.camera_matrix.tolist(), "dist": cal.dist_coeffs.tolist(),
                    "rms_px": cal.intrinsics_rms},
     }
