@@ -110,6 +110,8 @@ def test_options_travel_as_one_checked_record():
         handeye.calibrate_poses(f2b, t2c, refinement="pose")
     with pytest.raises(handeye.InputMismatchError, match="pixel refinement needs the detections"):
         handeye.calibrate_poses(f2b, t2c, refine="reprojection")
+    with pytest.raises(handeye.InputMismatchError, match="robot_noise is used by the pixel refinement"):
+        handeye.calibrate_poses(f2b, t2c, robot_noise=(0.05, 0.2))  # poses alone: it would be ignored
     assert handeye.CalibrationOptions(robot_accuracy=(0, 0)).robot_accuracy is None
 
 

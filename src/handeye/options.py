@@ -137,6 +137,10 @@ class CalibrationOptions:
         if self.refine not in REFINES_POSES:
             raise InputMismatchError(f"refine={self.refine!r}; use 'auto', 'pose' or 'none' (pixel refinement needs "
                                      "the detections: use handeye.calibrate on a session)")
+        if self.robot_noise is not None:  # else dropped without a word
+            raise InputMismatchError("robot_noise is used by the pixel refinement, which needs the detections: use "
+                                     "handeye.calibrate on a session, or leave robot_noise out (the pose refinement "
+                                     "estimates the robot's noise from the poses)")
         return self
 
 
