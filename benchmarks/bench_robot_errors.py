@@ -8,7 +8,10 @@ K given). The sweep scales the kinematic error (``RealisticErrors.scaled``) from
 prints the median error of X (deg / mm) of handeye's default, of each handeye estimator fitted on
 its own, and of OpenCV's 5 calibrateHandEye methods on OpenCV's own detection and PnP
 (findChessboardCorners, cornerSubPix, solvePnP), and the share of sessions whose X lies within 3
-reported std (rotation and translation norms).
+reported std (rotation and translation norms), with the default ``robot_accuracy`` and with the
+arm's accuracy given as its user would state it (``robot_accuracy`` = the median error of the
+simulated arm's poses, per axis): the default assumes a calibrated arm (0.03 deg / 0.3 mm per axis),
+and the constant part of a worse arm's error is invisible in the data.
 
 Run from the repository root: ``python benchmarks/bench_robot_errors.py [--sessions N] [--levels
 0.25,1,3] [--views 8,12,20]``. The default (10 sessions per cell, 3 levels, 3 view counts, both
@@ -70,6 +73,11 @@ def _opencv_pipeline(session) -> dict[str, np.ndarray]:
     return out
 
 
+def _covered(e: tuple[float, float], std: np.ndarray) -> bool:
+    """X's rotation and translation errors both within 3 of their reported std (norms)."""
+    return bool(e[0] <= 3 * np.linalg.norm(std[:3]) and e[1] <= 3 * np.linalg.norm(std[3:]))
+
+
 def one_session(args) -> dict:
     level, n, setup, seed = args
     errors = replace(REALISTIC, pixel_px=0.1, joint_wave_deg=0.02).scaled(level)
@@ -80,9 +88,11 @@ def one_session(args) -> dict:
         obs = observe(session, jobs=1, progress=False)
         cal = calibrate_observed(obs)
         e = _errors(cal.X, sc.X)
+        # the arm's accuracy as its user would state it: the median error of its poses, per axis
+        given = calibrate_observed(obs, robot_accuracy=tuple(np.asarray(robot_accuracy_of(sc)) / np.sqrt(3)))
+        e_given = _errors(given.X, sc.X)
         out = {"accuracy_mm": robot_accuracy_of(sc)[1], "default": e, "estimator": cal.estimator,
-               "verdict": cal.verdict,
-               "covered": bool(e[0] <= 3 * np.linalg.norm(cal.std[:3]) and e[1] <= 3 * np.linalg.norm(cal.std[3:]))}
+               "verdict": cal.verdict, "covered": _covered(e, cal.std), "covered_given": _covered(e_given, given.std)}
         idx = np.asarray(handeye.calibrate_poses(obs.flange2base, obs.target2cam, setup, refine="none").pose_indices)
         views = obs.views(idx)
         for name, fit in (pose_candidates("daniilidis", views) | pixel_candidates(views, "daniilidis")).items():
@@ -109,7 +119,8 @@ def main() -> None:
             rows = list(pool.map(one_session, [(level, n, setup, s) for s in range(args.sessions)]))
             acc = np.median([r["accuracy_mm"] for r in rows])
             print(f"\nlevel {level:g} ({acc:.2f} mm median robot error), {setup}, {n} views, {len(rows)} sessions: "
-                  f"X within 3 std {np.mean([r['covered'] for r in rows]):.0%}; default chose "
+                  f"X within 3 std {np.mean([r['covered'] for r in rows]):.0%} (with the arm's accuracy given: "
+                  f"{np.mean([r['covered_given'] for r in rows]):.0%}); default chose "
                   + ", ".join(f"{e} {[r['estimator'] for r in rows].count(e)}" for e in sorted({r['estimator'] for r in rows})))
             names = ["default"] + [k for k in rows[0] if k.startswith("handeye ")] + [k for k in rows[0] if k.startswith("OpenCV ")]
             best_cv = [min(np.nanmedian([r[k][j] for r in rows]) for k in rows[0] if k.startswith("OpenCV ")) for j in (0, 1)]

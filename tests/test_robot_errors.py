@@ -75,3 +75,21 @@ def test_the_pixel_refinement_is_preferred_only_while_the_robot_is_exact(tmp_pat
         better.append(translation_error(cal.X, sc.X))
         worse.append(translation_error(pixel.X, sc.X))
     assert np.median(better) < np.median(worse), (better, worse)
+
+
+def test_an_uncalibrated_arm_is_covered_once_its_accuracy_is_given(tmp_path):
+    """The constant part of an uncalibrated arm's error (~3-4 mm here) moves X and no spread sees it:
+    with the default robot_accuracy (a calibrated arm's 0.3 mm per axis) X was outside 3 std in 30%
+    of such eye-to-hand sessions (bench_robot_errors.py), in none once the arm's accuracy is given.
+    Seeds 3 and 8 are two of those sessions (3.7 and 6.4 std off with the default); the default's note
+    names the assumption to change."""
+    errors = replace(REALISTIC, pixel_px=0.1, joint_wave_deg=0.02).scaled(3)
+    for seed in (3, 8):
+        sc = simulate_realistic_session(tmp_path / f"s{seed}", 12, "eye_to_hand", seed, errors=errors)
+        obs = observe(load_session(tmp_path / f"s{seed}"), jobs=1, progress=False)
+        default = calibrate_observed(obs)
+        assert any("--robot-accuracy" in note for note in default.notes)
+        given = calibrate_observed(obs, robot_accuracy=tuple(np.asarray(robot_accuracy_of(sc)) / np.sqrt(3)))
+        assert np.linalg.norm(given.std[3:]) > np.linalg.norm(default.std[3:])
+        assert 1e3 * translation_error(given.X, sc.X) <= 3 * np.linalg.norm(given.std[3:])
+        assert np.degrees(rotation_error(given.X, sc.X)) <= 3 * np.linalg.norm(given.std[:3])
