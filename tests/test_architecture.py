@@ -214,3 +214,29 @@ def test_docstrings_cite_sources_by_name_not_by_files_outside_the_repository():
              for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
              if "DESIGN §" in line or "001_..." in line or "000_75db" in line or "shared/seeds" in line]
     assert not found, "\n".join(found)
+
+
+def test_the_command_line_is_one_module_per_command():
+    """cli/ holds one module per command: its ``register`` adds exactly that command's parser, and the
+    calibration options are defined once, in cli/_common.py, for every command that calibrates."""
+    import argparse
+
+    from handeye import cli
+
+    parser = cli.build_parser()
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))  # noqa: SLF001
+    seen = {}
+    for module in cli.COMMANDS:
+        sub = argparse.ArgumentParser().add_subparsers()
+        module.register(sub)
+        names = list(sub.choices)
+        assert len(names) == 1, (module.__name__, names)
+        seen[names[0]] = module.__name__
+    assert sorted(seen) == sorted(action.choices)
+    files = {p.stem for p in (SRC / "cli").glob("*.py")} - {"__init__", "__main__", "_common", "_printing"}
+    assert files == {m.rsplit(".", 1)[1] for m in seen.values()}
+    defining = [p.name for p in (SRC / "cli").glob("*.py") if "def add_calibrate_options" in p.read_text()]
+    assert defining == ["_common.py"]
+    for name in ("calibrate", "calibrate-poses", "calibrate-streams", "check"):
+        options = {o for a in action.choices[name]._actions for o in a.option_strings}  # noqa: SLF001
+        assert {"--refine", "--method", "--robot-accuracy", "--known"} <= options, name

@@ -1,0 +1,304 @@
+"""Arguments, option groups and output steps shared by the commands."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from importlib.resources import files
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .. import solvers
+from .._shared.io import check_output_folder
+from ..calibration import certify_calibration
+from ..errors import HandEyeError
+from ..geometry.se3 import make_transform
+from ..options import PAIRS, REFINES, ROBOT_ACCURACY, CalibrationOptions
+from ..poses import ANGLE_UNITS, LENGTH_UNITS
+from ..report import EXPORTS, write_calibration
+from ..result import Calibration
+from ..session import load_yaml, read_intrinsics
+from ..setups import setup_info
+from ..simulate import MIN_IMAGE_SIDE
+from ..streams import KEYFRAMES
+from ..verdict import exit_status
+from ..vision.targets import target_from_spec
+from ._printing import print_calibration
+
+EXAMPLE_POSEPAIRS = "example_posepairs"
+
+
+SAMPLE_SESSION = "sample_session"
+
+
+def whole_arg(lo: int):
+    """argparse type: a whole number >= ``lo``."""
+    def whole(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"{v} is too small: give a whole number >= {lo}")
+        return v
+    return whole
+
+
+def number_arg(lo: float, hi: float = math.inf, above: bool = False):
+    """argparse type: a finite number in ``[lo, hi]`` (``(lo, hi]`` when ``above``)."""
+    def number(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not math.isfinite(v) or v < lo or (above and v == lo) or v > hi:
+            bound = (f"> {lo:g}" if above else f">= {lo:g}") + (f" and <= {hi:g}" if math.isfinite(hi) else "")
+            raise argparse.ArgumentTypeError(f"{text} is out of range: give a number {bound}")
+        return v
+    return number
+
+
+def image_size_arg(text: str) -> tuple[int, int]:
+    """argparse type: WIDTHxHEIGHT in pixels, each at least MIN_IMAGE_SIDE."""
+    parts = text.lower().replace(" ", "").split("x")
+    try:
+        w, h = (int(v) for v in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give WIDTHxHEIGHT in pixels, e.g. 640x480") from None
+    if min(w, h) < MIN_IMAGE_SIDE:
+        raise argparse.ArgumentTypeError(f"{text}: each side must be at least {MIN_IMAGE_SIDE} px")
+    return w, h
+
+
+def floats_arg(text: str | None, name: str, sizes: tuple[int, ...]) -> np.ndarray | None:
+    if text is None:
+        return None
+    try:
+        v = np.array([float(t) for t in text.replace(" ", "").split(",")])
+    except ValueError:
+        raise HandEyeError(f"{name} {text!r}: give comma-separated numbers") from None
+    if v.size not in sizes or not np.all(np.isfinite(v)):
+        raise HandEyeError(f"{name} {text!r}: give {' or '.join(str(n) for n in sizes)} finite comma-separated numbers")
+    return v
+
+
+def pose_arg(text: str | None, name: str, default_rot_deg=(0.0, 0.0, 0.0), required: bool = False) -> np.ndarray | None:
+    """x,y,z[,rx,ry,rz]: metres and a rotation vector in degrees, as a 4x4."""
+    v = floats_arg(text, name, (3, 6))
+    if v is None:
+        if required:
+            raise HandEyeError(f"{name} is needed: x,y,z (m) and optionally rx,ry,rz (rotation vector, deg)")
+        v = np.r_[0.0, 0.0, 0.0, default_rot_deg]
+    rot = v[3:] if v.size == 6 else np.asarray(default_rot_deg, dtype=float)
+    return make_transform(Rotation.from_rotvec(rot, degrees=True).as_matrix(), v[:3])
+
+
+def load_camera(path: str) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+    """K, dist and image size of ``--intrinsics`` (see :func:`handeye.session.read_intrinsics`)."""
+    try:
+        return read_intrinsics(path)
+    except HandEyeError as exc:
+        raise HandEyeError(f"--intrinsics {exc}") from None
+
+
+def placements(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray]:
+    """Rough X and Z from --cam-in-flange / --target-in-base (eye-in-hand) or --camera-in-base /
+    --target-in-flange (eye-to-hand)."""
+    if setup_info(args.setup).camera_on_flange:
+        if args.camera_in_base or args.target_in_flange:
+            raise HandEyeError("--camera-in-base and --target-in-flange are for eye_to_hand; eye_in_hand takes "
+                               "--target-in-base and --cam-in-flange")
+        return (pose_arg(args.cam_in_flange, "--cam-in-flange"),
+                pose_arg(args.target_in_base, "--target-in-base", (180.0, 0.0, 0.0), required=True))
+    if args.target_in_base or args.cam_in_flange:
+        raise HandEyeError("--target-in-base and --cam-in-flange are for eye_in_hand; eye_to_hand takes "
+                           "--camera-in-base and --target-in-flange")
+    return (pose_arg(args.camera_in_base, "--camera-in-base", required=True),
+            pose_arg(args.target_in_flange, "--target-in-flange", (180.0, 0.0, 0.0)))
+
+
+def add_placements(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--target-in-base", metavar="X,Y,Z[,RX,RY,RZ]",
+                   help="eye_in_hand: where the target lies (m); default rotation 180,0,0 = printed side up")
+    p.add_argument("--cam-in-flange", metavar="X,Y,Z[,RX,RY,RZ]",
+                   help="eye_in_hand: rough camera mounting (default: at the flange, looking along flange z)")
+    p.add_argument("--camera-in-base", metavar="X,Y,Z,RX,RY,RZ", help="eye_to_hand: rough camera pose in the base frame")
+    p.add_argument("--target-in-flange", metavar="X,Y,Z[,RX,RY,RZ]",
+                   help="eye_to_hand: target on the flange (default 0,0,0 turned 180 deg about x: printed side outwards)")
+
+
+def units_arg(text: str, name: str) -> tuple[str, str]:
+    length, _, angle = text.partition(",")
+    if length not in LENGTH_UNITS or angle not in ANGLE_UNITS:
+        raise HandEyeError(f"{name} {text!r}: give LENGTH,ANGLE with LENGTH one of {', '.join(LENGTH_UNITS)} and ANGLE "
+                           f"one of {', '.join(ANGLE_UNITS)}, e.g. m,rad or mm,deg")
+    return length, angle
+
+
+def known_arg(items: list[str]) -> dict[str, str]:
+    """--known NAME=VALUE (repeatable) as the ``known=`` dict (calibrate_poses checks names and values)."""
+    known = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip() or not value.strip():
+            raise HandEyeError(f"--known {item!r}: give TRANSFORM.AXIS=METRES, e.g. --known target2base.z=0.012")
+        known[name.strip()] = value.strip()
+    return known
+
+
+def accuracy_arg(text: str | None):
+    """--robot-accuracy DEG,MM (calibrate checks the values); absent: handeye's default."""
+    v = floats_arg(text, "--robot-accuracy", (2,))
+    return ROBOT_ACCURACY if v is None else tuple(v.tolist())
+
+
+def target_spec_arg(path: str | None) -> dict | None:
+    """--target-spec FILE: the target: mapping of a YAML file (a session.yaml, or the mapping alone)."""
+    if path is None:
+        return None
+    data = load_yaml(Path(path))
+    spec = data.get("target", data)
+    if not isinstance(spec, dict) or "type" not in spec:
+        raise HandEyeError(f"--target-spec {path}: no target mapping (type, cols, rows, square, ... as in session.yaml)")
+    target_from_spec(spec, where=f"--target-spec {path}")
+    return spec
+
+
+def input_folder(given: str | None, bundled: bool, bundled_name: str, usage: str) -> Path:
+    """The folder a command works on: the one given, or (flag set) the one bundled with handeye."""
+    if bundled == (given is not None):
+        raise HandEyeError(usage)
+    if given is not None:
+        return Path(given)
+    folder = Path(str(files("handeye") / "data" / bundled_name))  # handeye installs as plain files
+    print(f"bundled {bundled_name.replace('_', ' ')}: {folder}\n")
+    return folder
+
+
+def out_folder(out: str | None, inputs: Sequence[Path] = ()) -> Path | None:
+    """The --out folder of a command, checked before any work (see
+    :func:`handeye._shared.io.check_output_folder`)."""
+    if out is None:
+        return None
+    try:
+        return check_output_folder(out, inputs)
+    except HandEyeError as exc:
+        raise HandEyeError(f"--out: {exc}") from None
+
+
+def add_out_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("-o", "--out", help="write result.json, result.yaml and report.html into this folder")
+    p.add_argument("--parent-frame", help="ROS frame X is given in (default: tool0 for eye_in_hand, base_link for eye_to_hand)")
+    p.add_argument("--child-frame", help="ROS frame of the camera (default: camera_optical_frame)")
+    p.add_argument("--export", action="append", default=[], choices=list(EXPORTS) + ["all"],
+                   help="with --out, also write: ros2-launch (a ROS 2 launch file publishing X), ros1-launch (the "
+                   "ROS 1 launch file MoveIt Calibration writes), easy-handeye (easy_handeye2's .calib); repeat or all")
+    p.add_argument("--tool", metavar="X,Y,Z[,RX,RY,RZ]",
+                   help="your robot's tool (TCP) frame in the flange frame (m; rotation vector in deg): the result "
+                   "files also give the camera (eye-in-hand) or the target (eye-to-hand) relative to the tool")
+    p.add_argument("--certify", action="store_true",
+                   help="certify whether X is the global minimum of the stated motion cost (a semidefinite relaxation; "
+                   "needs pip install 'handeye[certifiable]')")
+
+
+#: --refine's help per choice (the README's "auto" paragraph says how auto chooses)
+REFINE_HELP = {
+    "auto": "auto (default): the estimator that predicts held-out views best (the pixel refinement while the robot's "
+            "errors do not dominate its residuals, else the pose refinement, replaced only by a candidate better by "
+            "more than one standard error)",
+    "reprojection": "reprojection: X and Z on the pixel errors of all target points, robot poses exact",
+    "pose": "pose: X and Z on the robot and camera poses, both noisy",
+    "none": "none: the --method closed form alone (no std)",
+}
+
+
+def add_calibrate_options(p: argparse.ArgumentParser, refines: tuple[str, ...] = REFINES) -> None:
+    """The options of a calibration (:class:`handeye.CalibrationOptions`), defined once for every command
+    that calibrates or judges data."""
+    g = p.add_argument_group("calibration (the same in calibrate, calibrate-poses, calibrate-streams and check)")
+    g.add_argument("--method", default="daniilidis", choices=solvers.available(), help="solver (default: daniilidis)")
+    g.add_argument("--refine", default="auto", choices=list(refines),
+                   help="; ".join(REFINE_HELP[r] for r in refines))
+    g.add_argument("--pairs", default="auto", choices=list(PAIRS),
+                   help="which pose pairs form motions (auto: all up to 141 poses, else ~10,000 spread pairs)")
+    g.add_argument("--folds", type=whole_arg(2), default=None,
+                   help="cross-validation folds of --refine auto (default: one per view up to 10 views, else 5)")
+    g.add_argument("--robot-accuracy", metavar="DEG,MM",
+                   help=f"the robot's absolute accuracy per axis, added to the std of X (a constant robot error is "
+                   f"invisible in the data; default {ROBOT_ACCURACY[0]:g},{ROBOT_ACCURACY[1]:g}; 0,0 for an exact robot)")
+    if "reprojection" in refines:  # a session with images
+        g.add_argument("--strict-images", action="store_true",
+                       help="fail (exit 2) on a missing or unreadable image instead of skipping it with the reason")
+        g.add_argument("--robot-noise", metavar="DEG,MM",
+                       help="robot pose error per axis (e.g. 0.05,0.2): the pixel refinement then corrects each robot "
+                       "pose within it instead of taking the poses as exact")
+    g.add_argument("--strict", action="store_true",
+                   help="fail (exit 2) instead of answering when the check calls the data inconsistent")
+    g.add_argument("--no-check", action="store_true",
+                   help="calibrate the poses as they are: no check of the data, no outlier removal (the API's check=False)")
+    g.add_argument("--known", action="append", metavar="TRANSFORM.AXIS=METRES[+-STD]", default=[],
+                   help="what the data cannot determine, given (SCARA and Cartesian robots): e.g. "
+                   "--known target2base.z=0.012 (the board's height), --known cam2flange.z=0.085+-0.001 (from the "
+                   "drawing); repeat for more")
+    add_stream_options(p)
+
+
+def add_detection_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--jobs", type=whole_arg(1), default=None, help="parallel detection workers (default: all cores)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def add_stream_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("streams (files with a time column: two clocks, paired by time)")
+    g.add_argument("--keyframes", type=whole_arg(3), default=KEYFRAMES,
+                   help=f"camera samples to calibrate on, well spread where the robot moves slowly (default {KEYFRAMES})")
+    g.add_argument("--offset-range", metavar="LO,HI",
+                   help="clock offsets to search, seconds, camera clock minus robot clock (default -1,1; around the "
+                   "difference of the streams' middles when their stamps do not overlap)")
+    g.add_argument("--time-offset", type=number_arg(-math.inf), metavar="SECONDS",
+                   help="the clock offset when known (camera minus robot): no estimate")
+
+
+def calibrate_options(args: argparse.Namespace) -> CalibrationOptions:
+    """The calibration options of a command's arguments, as one checked record."""
+    robot_noise = floats_arg(getattr(args, "robot_noise", None), "--robot-noise", (2,))
+    rng = floats_arg(args.offset_range, "--offset-range", (2,))
+    return CalibrationOptions(
+        method=args.method, refine=args.refine, pairs=args.pairs, folds=args.folds, strict=args.strict,
+        check=not args.no_check, robot_accuracy=accuracy_arg(args.robot_accuracy), known=known_arg(args.known),
+        robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()), keyframes=args.keyframes,
+        offset_range=None if rng is None else tuple(rng.tolist()), time_offset=args.time_offset,
+        strict_images=getattr(args, "strict_images", False))
+
+
+def write_options(args: argparse.Namespace) -> dict:
+    """write_calibration's options from the command's arguments."""
+    return dict(parent_frame=args.parent_frame, child_frame=args.child_frame, exports=args.export,
+                tool2flange=pose_arg(args.tool, "--tool") if args.tool else None)
+
+
+def write_outputs(cal: Calibration, args: argparse.Namespace) -> None:
+    """Write the result files and the report (never into ``cal.input_folder``: write_calibration)."""
+    if args.out:
+        for path in write_calibration(cal, args.out, **write_options(args)):
+            print(f"wrote {path}")
+    else:
+        print("no --out: nothing written (--out FOLDER writes result.json, result.yaml and report.html)")
+
+
+def finish_poses(cal: Calibration, args: argparse.Namespace) -> int:
+    if args.certify:
+        cal = certify_calibration(cal)
+    print_calibration(cal)
+    write_outputs(cal, args)
+    return verdict_status(cal)
+
+
+def verdict_status(cal: Calibration) -> int:
+    """Exit status of a calibration that answered, as ``check`` gives it on the same data
+    (:data:`handeye.verdict.EXIT_STATUS`: 0 good or not checked, 1 weak or partial, 2 inconsistent;
+    the result is written all the same)."""
+    return exit_status(cal.verdict)

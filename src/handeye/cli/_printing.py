@@ -1,0 +1,103 @@
+"""How the commands print a calibration on the terminal."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..result import Calibration
+from ..setups import setup_info
+
+
+def fmt_vec(v: np.ndarray, digits: int = 6) -> str:
+    return "[" + ", ".join(f"{x: .{digits}f}" for x in v) + "]"
+
+
+def std_label(cal: Calibration) -> str:
+    """What the std of X comes from, in words: the estimator and the parts it adds up."""
+    who = cal.estimator or cal.method
+    who = f"{who} refinement" if who in ("pose", "reprojection") else who
+    parts = [k.replace("_", " ") for k, v in (cal.std_sources or {}).items() if v is not None]
+    return who + (f": {' + '.join(parts)}" if parts else "")
+
+
+def print_calibration(cal: Calibration, out=None) -> None:
+    """Print X in the forms people paste into robot programs, and the residual summary."""
+    info = setup_info(cal.setup)
+    x_name, z_name = info.x_name, info.z_name
+    rot = Rotation.from_matrix(cal.X[:3, :3])
+    w = (out or sys.stdout).write
+    d = cal.diagnostics
+    if d is not None and d.verdict == "inconsistent":  # the fix first: X below is not a result to use
+        w(f"INCONSISTENT DATA: {d.advice[0] if d.advice else 'the poses do not agree on one X'}\n"
+          + "".join(f"  also: {a}\n" for a in d.advice[1:])
+          + "X below is what the data give as declared, to compare after the fix; do not use it.\n\n")
+    w(f"{cal.setup}: X = {x_name} (maps camera coordinates into the {info.x_parent} frame), method {cal.method}, "
+      f"{len(cal.flange2base)} poses, {len(cal.pairs)} motions\n\n")
+    with np.printoptions(precision=6, suppress=True, floatmode="fixed", sign=" "):
+        w(f"{x_name} (4x4, metres):\n{cal.X}\n\n")
+    w(f"translation      m : {fmt_vec(cal.X[:3, 3])}\n")
+    w(f"translation     mm : {fmt_vec(1e3 * cal.X[:3, 3], 3)}\n")
+    w(f"quaternion    wxyz : {fmt_vec(rot.as_quat(canonical=True, scalar_first=True))}\n")
+    w(f"rotation vec   rad : {fmt_vec(rot.as_rotvec())}\n")
+    w(f"rotation vec   deg : {fmt_vec(rot.as_rotvec(degrees=True), 4)}\n\n")
+    w(f"{z_name} translation mm : {fmt_vec(1e3 * cal.Z[:3, 3], 3)}\n")
+    if cal.std_Z is not None:
+        w(f"std of {z_name}: rotation {fmt_vec(cal.std_Z[:3], 4)} deg, translation {fmt_vec(cal.std_Z[3:], 3)} mm\n")
+    mres, pres = cal.motion_residuals, cal.pose_residuals
+    share = 100 * cal.motion_pitch_share
+    w(f"screw congruence per motion (|angle_A - angle_B|; |pitch_A - pitch_B| as a share of the motion's "
+      f"translation; both 0 for consistent data): median {np.median(mres[:, 0]):.3f} deg / {np.median(share):.2f}%, "
+      f"worst {mres[:, 0].max():.3f} deg / {share.max():.1f}%\n")
+    worst = int(np.argmax(pres[:, 1]))
+    w(f"{z_name} consistency per pose: median {np.median(pres[:, 0]):.3f} deg / {np.median(pres[:, 1]):.3f} mm, "
+      f"worst {cal.pose_name(worst)}: {pres[worst, 0]:.3f} deg / {pres[worst, 1]:.3f} mm\n")
+    if cal.std is not None:
+        w(f"std of X ({std_label(cal)}): rotation {fmt_vec(cal.std[:3], 4)} deg, "
+          f"translation {fmt_vec(cal.std[3:], 3)} mm" + (" (inf: not determined by the data)"
+                                                        if np.isinf(cal.std).any() else "") + "\n")
+    else:  # a closed form alone (--refine none) has no noise model: say so rather than print nothing
+        w(f"std of X: not computed ({cal.method} closed form alone; --refine auto or pose gives it)\n")
+    for u in cal.unobservable:
+        w(f"NOT DETERMINED: {u.parameter}; set to {u.choice}. {u.coupled[:1].upper() + u.coupled[1:]}. To fix: {u.fix}\n")
+    for name, k in cal.known.items():
+        w(f"known {name} = {k['value_m']:.5f} +- {k['std_m']:.5f} m: "
+          + ("used (the data cannot determine it)\n" if k["used"] else f"not used (the data give {k['data_m']:.5f} m)\n"))
+    if cal.time_offset is not None:
+        w(f"clock offset (camera minus robot): {1e3 * cal.time_offset:.2f} +- {1e3 * cal.time_offset_std:.2f} ms "
+          f"({len(cal.streams['keyframe_camera_times_s'])} keyframes of {cal.streams['camera_samples']} camera and "
+          f"{cal.streams['robot_samples']} robot samples)\n")
+    if cal.pose_noise is not None:
+        nz = cal.pose_noise
+        w(f"pose noise estimated from the data (per axis): robot rotation {nz['robot_rotation_deg']:.4f} deg, "
+          f"camera rotation {nz['camera_rotation_deg']:.4f} deg, translation {nz['translation_mm']:.3f} mm\n")
+    if cal.prediction_error is not None:
+        pe = cal.prediction_error
+        w(f"held-out prediction error ({cal.estimator}, cross-validated): "
+          + (f"{pe['px']:.3f} px, " if pe.get("px") is not None else "") + f"{pe['mm']:.3f} mm at the target\n")
+    if cal.diagnostics is not None:
+        left, _ = cal.outliers_split()  # images: listed as skipped, and those put back in a note
+        d = cal.diagnostics
+        w(f"check: {d.verdict}" + (f"; left out as outliers: {d.pose_names(left)}" if left and not cal.image_names
+                                   else "") + "\n")
+    for note in cal.notes:
+        w(f"note: {note}\n")
+
+
+def print_image_summary(cal: Calibration) -> None:
+    n_used, n_skip = len(cal.image_names or []), len(cal.skipped)
+    print(f"images: {n_used} used, {n_skip} skipped")
+    for name, reason in cal.skipped:
+        print(f"  skipped {name}: {reason}")
+    if cal.intrinsics_source.startswith("estimated"):
+        print(f"intrinsics: {cal.intrinsics_source} (camera calibration RMS {cal.intrinsics_rms:.3f} px)")
+    else:
+        print("intrinsics: from session.yaml")
+    rms = cal.reprojection_rms
+    worst = int(np.argmax(rms))
+    print(f"PnP reprojection RMS per image: median {np.median(rms):.3f} px, worst {cal.image_names[worst]} {rms[worst]:.3f} px")
+    if cal.refinement == "reprojection":
+        print(f"refined X and Z on the pixel errors of all target points: RMS {cal.refined_rms:.3f} px")
+    print()

@@ -1,0 +1,54 @@
+"""``handeye calibrate-streams``: two time-stamped pose streams on two clocks."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..checking import calibrate_pairs
+from ..options import REFINES_POSES
+from ..session import POSE_KINDS, TIME_UNITS, load_pose_streams
+from ..setups import SETUPS
+from ._common import add_calibrate_options, add_out_options, calibrate_options, finish_poses, out_folder, units_arg
+
+
+def _cmd_calibrate_streams(args: argparse.Namespace) -> int:
+    robot, camera = Path(args.robot), Path(args.camera)
+    out_folder(args.out, [robot.parent, camera.parent])
+    rl, ra = units_arg(args.robot_units, "--robot-units")
+    cl, ca = units_arg(args.camera_units, "--camera-units")
+    pairs = load_pose_streams(
+        {"file": str(robot), "format": args.robot_format, "length_unit": rl, "angle_unit": ra, "pose": args.robot_pose,
+         "time_unit": args.time_unit},
+        {"file": str(camera), "format": args.camera_format, "length_unit": cl, "angle_unit": ca,
+         "pose": args.camera_pose, "time_unit": args.time_unit}, args.setup)
+    return finish_poses(calibrate_pairs(pairs, calibrate_options(args)), args)
+
+
+def register(sub) -> None:
+    """Add the ``calibrate-streams`` command's parser to the sub-parsers ``sub``."""
+    p = sub.add_parser(
+        "calibrate-streams",
+        help="calibrate from a robot pose stream and a camera pose stream with separate clocks",
+        description="Pair two time-stamped pose recordings by time: estimate the clock offset (camera minus robot) "
+        "from the motion, interpolate the robot at the camera's times, choose well-spread keyframes and calibrate. "
+        "Each file: a header 'time' (or t, stamp, timestamp) then the pose columns of its format, or no header "
+        "with the columns in that order (e.g. ETH/TUM trajectories: t x y z qx qy qz qw = quat_xyzw).",
+    )
+    p.add_argument("robot", help="CSV of robot poses with times (flange2base unless --robot-pose base2flange)")
+    p.add_argument("camera", help="CSV of camera poses with times (target2cam unless --camera-pose cam2target)")
+    p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS), help="default: eye_in_hand")
+    p.add_argument("--robot-format", required=True, metavar="FORMAT",
+                   help="pose columns of the robot file: matrix, quat_wxyz, quat_xyzw, rotvec or euler:SEQ")
+    p.add_argument("--camera-format", required=True, metavar="FORMAT", help="pose columns of the camera file (as --robot-format)")
+    p.add_argument("--robot-units", default="m,rad", metavar="LENGTH,ANGLE", help="units of the robot file (default m,rad)")
+    p.add_argument("--camera-units", default="m,rad", metavar="LENGTH,ANGLE", help="units of the camera file (default m,rad)")
+    p.add_argument("--robot-pose", default="flange2base", choices=list(POSE_KINDS["robot_poses"]),
+                   help="what the robot rows are (default flange2base)")
+    p.add_argument("--camera-pose", default="target2cam", choices=list(POSE_KINDS["camera_poses"]),
+                   help="what the camera rows are (default target2cam, solvePnP's; cam2target for a camera pose in "
+                   "the target frame)")
+    p.add_argument("--time-unit", default="s", choices=list(TIME_UNITS), help="unit of both time columns (default s)")
+    add_out_options(p)
+    add_calibrate_options(p, REFINES_POSES)
+    p.set_defaults(func=_cmd_calibrate_streams)

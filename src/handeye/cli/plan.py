@@ -1,0 +1,168 @@
+"""``handeye plan``: robot poses to capture, with the std they would give."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..errors import HandEyeError
+from ..options import ROBOT_ACCURACY
+from ..planning import (
+    ROBOTS,
+    easy_handeye_poses,
+    fronto_parallel_start,
+    plan_poses,
+    predicted_cov,
+    reprojection_information,
+    simulate_errors,
+    visible_mask,
+    write_plan,
+)
+from ..poses import pose_columns
+from ..session import load_yaml
+from ..setups import SETUPS, predicted_target2cam, setup_info
+from ..simulate import DEFAULT_TARGETS
+from ..vision.targets import target_from_spec
+from ._common import (
+    accuracy_arg,
+    add_placements,
+    floats_arg,
+    load_camera,
+    number_arg,
+    out_folder,
+    placements,
+    whole_arg,
+)
+from ._printing import fmt_vec
+
+
+def _cmd_plan(args: argparse.Namespace) -> int:
+    pose_columns(args.format)  # a clear error for an unknown format before any work
+    if args.length_unit not in ("m", "mm") or args.angle_unit not in ("deg", "rad"):
+        raise HandEyeError("--length-unit must be m or mm, --angle-unit deg or rad")
+    K, dist, size = load_camera(args.intrinsics)
+    if args.target_spec:
+        p = Path(args.target_spec)
+        spec = load_yaml(p).get("target")
+        if not isinstance(spec, dict):
+            raise HandEyeError(f"--target-spec {p}: no 'target:' mapping (as in session.yaml)")
+    else:
+        spec = DEFAULT_TARGETS[args.target]
+    obj = target_from_spec(spec).object_points()
+    X, Z = placements(args)
+    box = floats_arg(args.reach_box, "--reach-box", (6,))
+    out = Path(args.out)
+    if out.is_dir():
+        raise HandEyeError(f"--out {out} is a folder; give the file to write, e.g. {out / 'poses.csv'}")
+    if out.exists():
+        raise HandEyeError(f"--out {out} exists (it may be a session's recorded poses); give a new file name")
+    out_folder(str(out.parent))  # a folder that can take the file, before the planning
+    z_range = floats_arg(args.z_range, "--z-range", (2,))
+    plan = plan_poses(args.setup, X, Z, obj, K, size, dist, n_poses=args.poses, standoff=args.standoff,
+                      tilt_max_deg=args.tilt_max, margin_px=args.margin_px, reach_box=box, noise_px=args.noise_px,
+                      robot=args.robot, z_range=None if z_range is None else tuple(z_range.tolist()),
+                      robot_accuracy=accuracy_arg(args.robot_accuracy))
+    write_plan(plan, out, args.format, args.length_unit, args.angle_unit,
+               protect=[p for p in (args.intrinsics, args.target_spec) if p])
+    t2c = plan.target2cam
+    print(f"{len(plan.flange2base)} poses chosen from {plan.n_candidates} views that keep the target "
+          f"{args.margin_px:g} px inside the image; in path order:")
+    print("  pose   flange x, y, z (mm)            flange rotation vector (deg)   view tilt (deg)  distance (mm)")
+    centre = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
+    for k, (F, T) in enumerate(zip(plan.flange2base, t2c)):
+        tilt = np.degrees(np.arccos(np.clip(T[2, 2], -1, 1)))  # optical axis vs the target normal
+        rv = Rotation.from_matrix(F[:3, :3]).as_rotvec(degrees=True)
+        print(f"  {k:3d}   {fmt_vec(1e3 * F[:3, 3], 1):30s} {fmt_vec(rv, 1):30s} {tilt:8.1f}        "
+              f"{1e3 * np.linalg.norm(T[:3, :3] @ centre + T[:3, 3]):8.1f}")
+    print(f"  (distance: camera to target centre; the views are spread over 0.8, 1 and 1.25 x --standoff "
+          f"{1e3 * args.standoff:.0f} mm, as distance varies the depth the views see)")
+    s, r = plan.std_X, plan.std_reported
+    acc = plan.robot_accuracy
+    print(f"\npredicted std of X as calibrate would report it: rotation {fmt_vec(r[:3], 4)} deg, translation "
+          f"{fmt_vec(r[3:], 3)} mm")
+    print(f"  from {plan.noise_px:g} px pixel noise (reprojection refinement): rotation {fmt_vec(s[:3], 4)} deg, "
+          f"translation {fmt_vec(s[3:], 3)} mm"
+          + (f"; plus the robot's absolute accuracy {acc[0]:g} deg / {acc[1]:g} mm per axis (--robot-accuracy), "
+             "which no capture removes" if acc is not None else "; the robot taken as exact (--robot-accuracy 0,0)"))
+    if plan.unobservable:
+        info = setup_info(args.setup)
+        print(f"warning: a {args.robot} robot cannot determine the {'; the '.join(plan.unobservable)} (std inf): "
+              f"measure it, or {info.z_name}'s matching component (e.g. the target's height), and give it to the "
+              f"calibration (--known {info.x_name}.z=METRES or --known {info.z_name}.z=METRES)"
+              + ("; --check-runs is not simulated for it" if args.check_runs else ""))
+    else:  # the comparison and the simulation are for arms that determine all of X
+        _plan_comparison(plan, X, Z, obj, K, dist, size, args)
+    print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): flange2base per image; "
+          "it is the poses.csv of the session to capture (replace each row by the pose the robot reports)")
+    return 0
+
+
+def _plan_comparison(plan, X, Z, obj, K, dist, size, args: argparse.Namespace) -> None:
+    """easy_handeye's pattern at the same standoff for comparison and (``--check-runs``) simulated
+    calibrations of the plan."""
+    s = plan.std_X
+    start = fronto_parallel_start(X, Z, obj, args.standoff, args.setup)
+    eh = easy_handeye_poses(start)
+    seen = visible_mask(predicted_target2cam(X, Z, eh, args.setup), obj, K, dist, size, 0.0)
+    if seen.sum() >= 3:
+        try:
+            c = predicted_cov(reprojection_information(eh[seen], X, Z, args.setup, obj, K).sum(axis=0), plan.noise_px)
+            print(f"for comparison, easy_handeye's 17-pose pattern from a straight-on view at the same standoff: "
+                  f"{int(seen.sum())} of 17 poses see the whole target, translation std "
+                  f"{fmt_vec(1e3 * np.sqrt(np.diag(c)[3:]), 3)} mm")
+        except np.linalg.LinAlgError:
+            print(f"for comparison, easy_handeye's 17-pose pattern: only {int(seen.sum())} of 17 poses see the target "
+                  "and they cannot determine X")
+    else:
+        print(f"for comparison, easy_handeye's 17-pose pattern: only {int(seen.sum())} of 17 poses see the whole target")
+    if args.check_runs:
+        err, _ = simulate_errors(plan.flange2base, X, Z, args.setup, obj, K, dist, size, plan.noise_px,
+                                 args.check_runs, args.seed)
+        rms = np.sqrt(np.mean(err**2, axis=0))
+        print(f"simulated ({args.check_runs} runs: pixel noise, PnP, daniilidis, reprojection refinement): RMS error "
+              f"of X {rms[0]:.4f} deg / {rms[1]:.3f} mm (predicted {np.linalg.norm(s[:3]):.4f} deg / "
+              f"{np.linalg.norm(s[3:]):.3f} mm)")
+
+
+def register(sub) -> None:
+    """Add the ``plan`` command's parser to the sub-parsers ``sub``."""
+    p = sub.add_parser(
+        "plan",
+        help="plan robot poses for a good calibration and predict its accuracy",
+        description="Choose N robot poses that keep the whole target in the image, minimise the predicted "
+        "error of X (large rotations about spread axes) and make a short path; write them as a session "
+        "poses.csv in your robot's pose format; print the predicted std of X. Lengths in metres, "
+        "rotations as rotation vectors in degrees.",
+    )
+    p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
+    p.add_argument("--intrinsics", required=True,
+                   help="YAML with K, dist (optional) and image_size [width, height], top level or under camera:")
+    p.add_argument("--target", default="chessboard", choices=list(DEFAULT_TARGETS),
+                   help="built-in target (the one 'handeye simulate' renders); see --target-spec")
+    p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (e.g. your session.yaml)")
+    add_placements(p)
+    p.add_argument("--standoff", type=number_arg(0.0, above=True), required=True,
+                   help="camera-to-target distance (m) of the middle views; the plan spreads them over 0.8-1.25x it")
+    p.add_argument("--tilt-max", type=number_arg(0.0, 89.0), default=45.0,
+                   help="largest view angle from the target normal (deg, default 45)")
+    p.add_argument("--margin-px", type=number_arg(0.0), default=20.0, help="keep every target point this far inside the image")
+    p.add_argument("--reach-box", metavar="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", help="where the flange may go (m, base frame)")
+    p.add_argument("--robot", default="arm", choices=ROBOTS,
+                   help="arm (default): views all around; scara: the flange points down and turns about the vertical "
+                   "only; cartesian: it only translates (both leave part of X to --known at calibration)")
+    p.add_argument("--z-range", metavar="ZMIN,ZMAX", help="heights the flange can reach (m, base frame; a SCARA's stroke)")
+    p.add_argument("--poses", type=whole_arg(3), default=12, help="number of poses (default 12)")
+    p.add_argument("--noise-px", type=number_arg(0.0, above=True), default=0.3, help="pixel noise for the predicted std (default 0.3)")
+    p.add_argument("--robot-accuracy", metavar="DEG,MM",
+                   help=f"the robot's absolute accuracy per axis, added to the predicted std as calibrate adds it "
+                   f"(default {ROBOT_ACCURACY[0]:g},{ROBOT_ACCURACY[1]:g}; 0,0 for an exact robot)")
+    p.add_argument("--check-runs", type=whole_arg(0), default=0, help="also simulate this many calibrations to check the prediction")
+    p.add_argument("--seed", type=whole_arg(0), default=0)
+    p.add_argument("-o", "--out", required=True, help="poses.csv to write")
+    p.add_argument("--format", default="quat_wxyz", help="pose format: matrix, quat_wxyz, quat_xyzw, rotvec, euler:SEQ")
+    p.add_argument("--length-unit", default="m", help="m or mm (default m)")
+    p.add_argument("--angle-unit", default="deg", help="deg or rad for rotvec and euler (default deg)")
+    p.set_defaults(func=_cmd_plan)

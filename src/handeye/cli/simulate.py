@@ -1,0 +1,44 @@
+"""``handeye simulate``: a rendered session with its ground truth."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..planning import ROBOTS
+from ..setups import SETUPS
+from ..simulate import DEFAULT_TARGETS, simulate_session
+from ._common import image_size_arg, number_arg, out_folder, whole_arg
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    out_folder(args.out)
+    simulate_session(args.out, setup=args.setup, n_poses=args.poses, target=args.target, noise_px=args.noise_px,
+                     seed=args.seed, image_size=args.image_size, write_intrinsics=not args.no_intrinsics, robot=args.robot)
+    print(f"wrote session {args.out} ({args.poses} {args.target} images, {args.setup}, {args.robot}); ground truth in "
+          f"{Path(args.out) / 'ground_truth.yaml'}")
+    return 0
+
+
+def register(sub) -> None:
+    """Add the ``simulate`` command's parser to the sub-parsers ``sub``."""
+    p = sub.add_parser(
+        "simulate",
+        help="render a synthetic capture session with ground truth",
+        description="Render target images seen from simulated robot poses and write a complete session "
+        "with ground_truth.yaml (X, Z, K, dist).",
+    )
+    p.add_argument("-o", "--out", required=True, help="new session folder")
+    p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
+    p.add_argument("--poses", type=whole_arg(1), default=15, help="number of images (default 15)")
+    p.add_argument("--target", default="charuco", choices=list(DEFAULT_TARGETS),
+                   help="the board rendered (default charuco: it cannot be read from the wrong end, as handeye's advice "
+                   "recommends; chessboard for the thesis's set-up)")
+    p.add_argument("--noise-px", type=number_arg(0.0), default=0.2, help="feature position noise in pixels (default 0.2)")
+    p.add_argument("--seed", type=whole_arg(0), default=None)
+    p.add_argument("--image-size", type=image_size_arg, default=(640, 480), help="WIDTHxHEIGHT (default 640x480)")
+    p.add_argument("--no-intrinsics", action="store_true", help="leave K and dist out of session.yaml")
+    p.add_argument("--robot", default="arm", choices=ROBOTS,
+                   help="arm (default): views all around; scara: the flange turns about the vertical only; "
+                   "cartesian: it only translates (both determine only part of X: see --known of calibrate)")
+    p.set_defaults(func=_cmd_simulate)

@@ -1,0 +1,85 @@
+"""``handeye target``: a printable target and its spec."""
+
+from __future__ import annotations
+
+import argparse
+
+import yaml
+
+from ..errors import HandEyeError
+from ..printing import PAPERS, write_target
+from ..vision.targets import target_from_spec, target_origin
+from ._common import number_arg, whole_arg
+
+#: handeye target: per printable kind, the session.yaml type and the defaults (mm, counts, dictionary).
+TARGET_KINDS = {
+    "chessboard": ("chessboard", dict(cols=9, rows=6, square=20.0)),
+    "charuco": ("charuco", dict(cols=7, rows=5, square=25.0, marker=18.0, dictionary="DICT_5X5_100")),
+    "circles": ("circles", dict(cols=7, rows=6, square=20.0)),
+    "asymmetric-circles": ("asymmetric_circles", dict(cols=4, rows=11, square=20.0)),
+    "aruco-grid": ("aruco_grid", dict(cols=5, rows=7, square=25.0, separation=5.0, dictionary="DICT_5X5_100")),
+    "apriltag-grid": ("aruco_grid", dict(cols=4, rows=5, square=35.0, separation=7.0, dictionary="DICT_APRILTAG_36h11")),
+    "apriltag": ("apriltag", dict(square=100.0, dictionary="DICT_APRILTAG_36h11", id=0)),
+}
+
+
+def _cmd_target(args: argparse.Namespace) -> int:
+    kind, defaults = TARGET_KINDS[args.type]
+    given = {"cols": args.cols, "rows": args.rows, "square": args.square_mm, "marker": args.marker_mm,
+             "separation": args.separation_mm, "dictionary": args.dictionary, "id": args.id}
+    values = {k: given[k] if given[k] is not None else v for k, v in defaults.items()}
+    unused = [f"--{k.replace('_', '-')}" + ("-mm" if k in ("square", "marker", "separation") else "")
+              for k, v in given.items() if v is not None and k not in defaults]
+    if unused:
+        raise HandEyeError(f"{args.type} takes no {', '.join(unused)}")
+    small = [(k, given[k]) for k in ("square", "marker") if given[k] is not None and given[k] < 1.0]
+    if small:  # a side under 1 mm cannot be printed: metres given where millimetres are asked
+        k, v = small[0]
+        raise HandEyeError(f"--{k}-mm {v:g} looks like metres: the sizes are in millimetres here (--{k}-mm "
+                           f"{v * 1e3:g} for {v:g} m)")
+    spec = {"type": kind}
+    for k, v in values.items():
+        spec[k] = round(v / 1e3, 9) if k in ("square", "marker", "separation") else v
+    if args.origin == "centre":
+        spec["origin"] = "centre"
+    path = write_target(spec, args.out, args.paper)
+    print(f"wrote {path}: print it at 100% (no 'fit to page') and check the ruler measures 100 mm")
+    print("for session.yaml:")
+    print("  " + yaml.safe_dump({"target": spec}, sort_keys=False).replace("\n", "\n  ").rstrip())
+    frame = target_from_spec(spec).frame
+    if args.origin == "centre":
+        centre = 1e3 * target_origin(spec)
+        frame = (f"origin at the centre of the board, ({centre[0]:g}, {centre[1]:g}) mm in handeye's corner frame, whose "
+                 f"axes it keeps ({frame})")
+    print(f"target frame (Z and the target poses are given in it): {frame}")
+    return 0
+
+
+def register(sub) -> None:
+    """Add the ``target`` command's parser to the sub-parsers ``sub``."""
+    p = sub.add_parser(
+        "target",
+        help="write a printable calibration target (PDF or SVG, true to scale) and its session.yaml block",
+        description="A board to print, drawn as vector shapes at its true size (ChArUco and marker grids from "
+        "OpenCV's own layout), with a 100 mm ruler to check the print and the target: block for session.yaml. "
+        "Sizes in millimetres. cols/rows count: chessboard inner corners; charuco squares; circle grids circles "
+        "(asymmetric: circles per row, rows); grids markers. Symmetric boards (chessboard, circles) can be read "
+        "from either end: handeye resolves that from the robot motion, but a ChArUco board, a marker grid or an "
+        "asymmetric circle grid removes the doubt.",
+    )
+    p.add_argument("--type", required=True, choices=list(TARGET_KINDS))
+    p.add_argument("-o", "--out", required=True, help="board.pdf or board.svg")
+    p.add_argument("--cols", type=whole_arg(1), help="see above (default per type: chessboard 9, charuco 7, ...)")
+    p.add_argument("--rows", type=whole_arg(1), help="see above (default per type: chessboard 6, charuco 5, ...)")
+    p.add_argument("--square-mm", type=number_arg(0.0, above=True),
+                   help="square side (chessboard, charuco), circle spacing, marker side (grids) or tag side, mm")
+    p.add_argument("--marker-mm", type=number_arg(0.0, above=True), help="charuco: marker side, mm")
+    p.add_argument("--origin", choices=["corner", "centre"], default="corner",
+                   help="where the target frame's origin is: corner (default: each type's first feature, see the README) "
+                   "or centre (the board's centre, as ViSP and the AprilTag library put it); written to the target: block")
+    p.add_argument("--separation-mm", type=number_arg(0.0, above=True), help="marker grids: gap between markers, mm")
+    p.add_argument("--dictionary", help="charuco and marker grids: an OpenCV aruco dictionary (e.g. DICT_5X5_100)")
+    p.add_argument("--id", type=whole_arg(0), help="apriltag: the tag id (default 0)")
+    p.add_argument("--paper", default="A4", help=f"{', '.join(PAPERS)} or WIDTHxHEIGHT in mm (default A4; landscape "
+                   "when the board needs it)")
+    p.set_defaults(func=_cmd_target)
