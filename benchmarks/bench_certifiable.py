@@ -18,9 +18,9 @@ import argparse
 
 import cv2
 import numpy as np
-from _timing import best_time
 
 import handeye
+from _timing import best_time
 from handeye.motions import MotionSet
 from handeye.setups import robot_world_inputs
 from handeye.simulate import perturb_poses, random_scene

@@ -33,10 +33,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from _timing import best_time
-
 import yaml
 
+from _timing import best_time
 from handeye.geometry.se3 import invert
 from handeye.session import load_session
 from handeye.simulate import simulate_session

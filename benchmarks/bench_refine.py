@@ -23,11 +23,10 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from _timing import best_time
 
 import handeye
-from handeye.simulate import default_camera, scene_from_viewpoints, visible_viewpoints
-from handeye.simulate import perturb_poses
+from _timing import best_time
+from handeye.simulate import default_camera, perturb_poses, scene_from_viewpoints, visible_viewpoints
 from handeye.solvers.refine import refine_pose, refine_reprojection
 from handeye.vision import Detection, solve_pnp, target_from_spec
 from handeye.vision.render import Renderer, target_texture

@@ -26,9 +26,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 import yaml
-from _timing import best_time
 
 import handeye
+from _timing import best_time
 from handeye.cli import main as cli
 from handeye.geometry.se3 import make_transform, mean_transform
 from handeye.metrics import rotation_error, translation_error

@@ -21,9 +21,9 @@ import time
 
 import cv2
 import numpy as np
-from _timing import best_time
 
 import handeye
+from _timing import best_time
 from handeye.simulate import Noise, add_noise, seed_scenes
 from handeye.study import _motions, preset, study, write_study
 
@@ -66,7 +66,8 @@ def main() -> None:
     A, B = _motions(f2b, t2c, "eye_in_hand", "all")
     X_batch = handeye.solve_batch(A, B, "daniilidis")
     R_cv, t_cv_x = cv2.calibrateHandEye(*cv_args[0], method=cv2.CALIB_HAND_EYE_DANIILIDIS)
-    print(f"(same answer as OpenCV on run 0: max |dX| = {max(np.abs(X_batch[0, :3, :3] - R_cv).max(), np.abs(X_batch[0, :3, 3] - t_cv_x.ravel()).max()):.1e})")
+    dX = max(np.abs(X_batch[0, :3, :3] - R_cv).max(), np.abs(X_batch[0, :3, 3] - t_cv_x.ravel()).max())
+    print(f"(same answer as OpenCV on run 0: max |dX| = {dX:.1e})")
 
     if args.skip_preset:
         return

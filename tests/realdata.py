@@ -19,8 +19,8 @@ from scipy.spatial.transform import Rotation, Slerp
 import handeye
 from handeye.calibration import Observations, calibrate_observed, observe
 from handeye.geometry.se3 import from_rotvec_translation, invert, make_transform, mean_transform
-from handeye.setups import constant_transforms
 from handeye.session import load_session, write_session
+from handeye.setups import constant_transforms
 from handeye.validation import Fit, Views
 
 REAL_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"

@@ -14,8 +14,20 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handeye.acquire import (FolderCamera, GenICamCamera, ManualRobot, SimCamera, SimRobot, SimWorld, URRobot,
-                             VideoCamera, acquire, capture_views, make_camera, make_robot)
+from handeye.acquire import (
+    FolderCamera,
+    GenICamCamera,
+    ManualRobot,
+    SimCamera,
+    SimRobot,
+    SimWorld,
+    URRobot,
+    VideoCamera,
+    acquire,
+    capture_views,
+    make_camera,
+    make_robot,
+)
 from handeye.cli import main
 from handeye.errors import HandEyeError
 from handeye.geometry.se3 import invert, make_transform, to_rotvec_translation

@@ -251,8 +251,8 @@ def test_leave_one_out_in_one_batch_equals_the_loop(setup):
     want = _leave_one_out_by_loop(flange2base, target2cam, setup)
     assert np.isinf(got[5]).all() and np.isinf(want[5]).all()
     from handeye.motions import MotionSet
-    from handeye.solvers.observability import observable_leave_one_out
     from handeye.solvers.daniilidis import motion_groups
+    from handeye.solvers.observability import observable_leave_one_out
 
     motions = MotionSet.from_poses(flange2base, target2cam, setup, "all")
     for block in (2_000_000, 60):  # one block, and blocks of two runs

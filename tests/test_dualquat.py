@@ -10,7 +10,6 @@ from scipy.spatial.transform import Rotation
 from handeye import DualQuaternion
 from handeye.geometry import dualquat as dqm
 from handeye.geometry.se3 import make_transform, random_rotations, screw_parameters
-
 from strategies import transforms, unit_quaternions
 
 PROPS = settings(max_examples=150, deadline=None)

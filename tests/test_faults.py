@@ -27,11 +27,11 @@ import yaml
 
 import handeye
 from handeye.cli import main
-from handeye.verdict import EXIT_STATUS
 from handeye.errors import HandEyeError
 from handeye.report import write_calibration
 from handeye.session import load_pose_pairs, load_session, write_pose_table
 from handeye.simulate import random_scene, simulate_session
+from handeye.verdict import EXIT_STATUS
 
 EXAMPLE = Path(handeye.__file__).parent / "data" / "example_posepairs"
 
@@ -368,7 +368,8 @@ CASES = [
     Case("wrong-euler-sequence", "pp", yaml_edit(SPEC, lambda d: d["robot_poses"].update(format="euler:XYZ")), pp(*VERDICT, out=False), 1,
          r"check: inconsistent[\s\S]*Euler sequence ZYX"),
     Case("quaternion-order-swapped", "pp", both(robot_poses_as("quat_wxyz", declare={"format": "quat_xyzw"}),
-                                                text(ROBOT, lambda t: t.replace("qw,qx,qy,qz", "qx,qy,qz,qw", 1))), pp(*VERDICT, out=False), 1,
+                                                text(ROBOT, lambda t: t.replace("qw,qx,qy,qz", "qx,qy,qz,qw", 1))),
+         pp(*VERDICT, out=False), 1,
          r"check: inconsistent[\s\S]*quat_wxyz order"),
     Case("one-wrong-pose", "pp", shuffle_rows(ROBOT, 2, 7), pp(out=False), 0, r"check: good; left out as outliers: pose02, pose07"),
     # --- options --------------------------------------------------------------------------------

@@ -200,9 +200,8 @@ def test_rendered_scara_session_calibrates_with_known(tmp_path):
 @pytest.mark.parametrize("robot", ["scara", "cartesian"])
 def test_plan_for_robots_that_cannot_rotate_freely(robot, tmp_path, capsys):
     from handeye.planning import plan_poses
-    from handeye.simulate import default_camera
+    from handeye.simulate import DEFAULT_TARGETS, default_camera
     from handeye.vision.targets import target_from_spec
-    from handeye.simulate import DEFAULT_TARGETS
 
     obj = target_from_spec(DEFAULT_TARGETS["chessboard"]).object_points()
     K, dist = default_camera((1280, 1024))

@@ -8,18 +8,25 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
+import realdata
 from handeye.cli import main
 from handeye.diagnostics import diagnose
 from handeye.errors import HandEyeError
 from handeye.geometry.se3 import invert, make_transform
-from handeye.planning import (easy_handeye_poses, fronto_parallel_start, order_path, plan_poses, predicted_cov,
-                              reprojection_information, simulate_errors, visible_mask)
+from handeye.planning import (
+    easy_handeye_poses,
+    fronto_parallel_start,
+    order_path,
+    plan_poses,
+    predicted_cov,
+    reprojection_information,
+    simulate_errors,
+    visible_mask,
+)
 from handeye.poses import parse_poses
 from handeye.session import read_pose_table
 from handeye.simulate import DEFAULT_TARGETS, default_camera
 from handeye.solvers.refine import predicted_target2cam
-
-import realdata
 from handeye.vision.pnp import project_points
 from handeye.vision.targets import target_from_spec
 
@@ -227,8 +234,9 @@ def test_cli_bad_intrinsics(tmp_path, capsys):
 
 def test_plan_takes_a_session_yaml_as_intrinsics(tmp_path, capsys):
     """A session.yaml has K but no image_size: plan reads the size from the session's images."""
-    import handeye
     from pathlib import Path
+
+    import handeye
 
     sample = Path(handeye.__file__).parent / "data" / "sample_session" / "session.yaml"
     out = tmp_path / "poses.csv"

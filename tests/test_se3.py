@@ -9,7 +9,6 @@ from scipy.spatial.transform import Rotation
 
 from handeye.geometry import se3
 from handeye.metrics import rotation_error, translation_error
-
 from strategies import transforms
 
 

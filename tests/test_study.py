@@ -17,8 +17,18 @@ from handeye.geometry.se3 import invert, make_transform
 from handeye.motions import MotionSet
 from handeye.simulate import Noise, add_noise, seed_scenes
 from handeye.solvers import horaud
-from handeye.study import (METHODS, Setting, _motions, pose_errors, preset, run_setting, study, triangle_threshold,
-                           trim_outliers, write_study)
+from handeye.study import (
+    METHODS,
+    Setting,
+    _motions,
+    pose_errors,
+    preset,
+    run_setting,
+    study,
+    triangle_threshold,
+    trim_outliers,
+    write_study,
+)
 
 HAND_EYE = ["tsai_lenz", "park_martin", "horaud", "horaud_nonlinear", "daniilidis", "andreff"]
 SETUPS = ["eye_in_hand", "eye_to_hand"]

@@ -17,14 +17,13 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import handeye
+import realdata
 from handeye.cli import main
 from handeye.diagnostics import board_scale
 from handeye.geometry.se3 import invert, make_transform
 from handeye.metrics import rotation_error, translation_error
 from handeye.simulate import EXACT, REALISTIC, arm_forward_kinematics, random_scene, realistic_scene
 from handeye.solvers.refine import refine_reprojection
-
-import realdata
 
 SAMPLE = Path(handeye.__file__).parent / "data" / "sample_session"
 
@@ -257,7 +256,7 @@ def test_a_view_with_the_camera_at_the_target_origin_scores_a_number():
     others score as usual."""
     import warnings
 
-    from handeye.validation import view_errors, Views
+    from handeye.validation import Views, view_errors
 
     sc = random_scene(6, "eye_in_hand", rng=3)
     t2c = sc.target2cam.copy()

@@ -17,8 +17,15 @@ from handeye.calibration import observe
 from handeye.estimators import POSE, intrinsics_cov, pose_fit
 from handeye.metrics import rotation_error, translation_error
 from handeye.session import load_session
-from handeye.simulate import (REALISTIC, default_camera, perturb_poses, random_scene, realistic_scene, scene_from_viewpoints,
-                              visible_viewpoints)
+from handeye.simulate import (
+    REALISTIC,
+    default_camera,
+    perturb_poses,
+    random_scene,
+    realistic_scene,
+    scene_from_viewpoints,
+    visible_viewpoints,
+)
 from handeye.solvers.refine import downdate_reprojection, refine_pose, refine_reprojection
 from handeye.vision import Detection, solve_pnp, target_from_spec
 from handeye.vision.pnp import intrinsics_covariance, refine_pnp

@@ -16,6 +16,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import handeye
+from conftest import require_real
 from handeye.cli import main
 from handeye.geometry.se3 import from_rotvec_translation, invert
 from handeye.metrics import rotation_error, translation_error
@@ -23,7 +24,6 @@ from handeye.poses import pose_columns
 from handeye.simulate import random_scene, simulate_session
 from handeye.vision import detect_images, label_doubts, resolve_symmetries, symmetry_costs, target_from_spec
 
-from conftest import require_real
 
 def _cases():
     for target in ("chessboard", "charuco", "circles"):
@@ -327,7 +327,8 @@ def test_missing_session_yaml(session, capsys):
     (session / "session.yaml").unlink()
     _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "no session.yaml. The folder must hold a capture session")
     (session / "posepairs.yaml").write_text("setup: eye_in_hand\n")  # the other kind of folder: named, with its command
-    _one_line_error(["calibrate", str(session), "--no-progress"], capsys, "it is a pose-pair folder; calibrate it with `handeye calibrate-poses`")
+    _one_line_error(["calibrate", str(session), "--no-progress"], capsys,
+                    "it is a pose-pair folder; calibrate it with `handeye calibrate-poses`")
 
 
 def test_missing_key(session, capsys):

@@ -20,8 +20,20 @@ from ._shared.progress import Progress
 from ._shared.text import sentences, summarize
 from .diagnostics import closed_form, compare_solvers, diagnose
 from .errors import DegenerateMotionError, InputMismatchError
-from .estimators import (PIXEL, PIXEL_INTRINSICS, PIXEL_ROBOT, POSE, REFINE_INTRINSICS, Choice, choose, intrinsics_cov,
-                         pixel_candidates, pixel_fit, pose_candidates, pose_fit)
+from .estimators import (
+    PIXEL,
+    PIXEL_INTRINSICS,
+    PIXEL_ROBOT,
+    POSE,
+    REFINE_INTRINSICS,
+    Choice,
+    choose,
+    intrinsics_cov,
+    pixel_candidates,
+    pixel_fit,
+    pose_candidates,
+    pose_fit,
+)
 from .geometry.se3 import invert, make_transform, skew
 from .metrics import std_deg_mm
 from .motions import MotionSet, Pairs, validate_poses
@@ -34,12 +46,19 @@ from .setups import check_setup
 from .solvers.certifiable import certify
 from .solvers.low_dof import partial_kind
 from .solvers.refine import PoseRefinementResult, ReprojectionResult, refine_pose
-from .sync import (MIN_SAMPLES, PoseStream, Synchronisation, check_stream, interpolate, keyframes_at,
-                   offset_cov, synchronise, timing_cost)
+from .sync import MIN_SAMPLES, PoseStream, Synchronisation, check_stream, interpolate, keyframes_at, offset_cov, synchronise, timing_cost
 from .validation import Views, jackknife_covs
 from .verdict import judged, solver_spread
-from .vision import (calibrate_intrinsics, detect_images, label_doubts, resolve_symmetries, solve_pnp, symmetry_costs,
-                     target_from_spec, target_origin)
+from .vision import (
+    calibrate_intrinsics,
+    detect_images,
+    label_doubts,
+    resolve_symmetries,
+    solve_pnp,
+    symmetry_costs,
+    target_from_spec,
+    target_origin,
+)
 from .vision.pnp import INTRINSICS
 
 __all__ = ["Calibration", "CalibrationOptions", "Observations", "ROBOT_ACCURACY", "apply_choice", "calibrate", "certify_calibration",

@@ -429,7 +429,8 @@ def board_scale(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64
     robot-world form ``A_i X = Z inv(target2cam_i)`` is linear in ``t_X``, ``t_Z`` and ``s``
     (``R_Ai t_X - t_Z + s R_Ai R_X t_Ci = -t_Ai``, ``t_Ci`` the target's position in the camera):
     least squares, one residual block per pose (poses 4x beyond the median residual left out once);
-    the std is the larger of the residual-variance one and the jackknife's. None when the poses cannot determine it (fewer than 4, or a singular system).
+    the std is the larger of the residual-variance one and the jackknife's. None when the poses
+    cannot determine it (fewer than 4, or a singular system).
     """
     n = len(flange2base)
     if n < 4:

@@ -21,8 +21,7 @@ from scipy.spatial.transform import Rotation
 from . import solvers
 from .diagnostics import SCALE_TOLERANCE, board_scale, closed_form
 from .errors import HandEyeError
-from .solvers.refine import (PoseRefinementResult, ReprojectionResult, downdate_reprojection, refine_pose,
-                             refine_reprojection, refit_pose)
+from .solvers.refine import PoseRefinementResult, ReprojectionResult, downdate_reprojection, refine_pose, refine_reprojection, refit_pose
 from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices
 from .vision.pnp import INTRINSICS, intrinsics_covariance, project_points, refine_pnp
 

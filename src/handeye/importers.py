@@ -34,10 +34,8 @@ from ._shared.io import check_output_folder
 from ._shared.lazy import lazy_module
 from ._shared.text import summarize
 from .errors import HandEyeError, InputMismatchError
-from .geometry.se3 import invert, make_transform
-from .geometry.se3 import from_rotvec_translation
-from .session import (POSEPAIRS_FILE, SESSION_FILE, SessionError, load_yaml, write_pose_pairs, write_session,
-                      write_stream_session)
+from .geometry.se3 import from_rotvec_translation, invert, make_transform
+from .session import POSEPAIRS_FILE, SESSION_FILE, SessionError, load_yaml, write_pose_pairs, write_session, write_stream_session
 from .setups import check_setup, robot_world_A
 from .vision.targets import target_from_spec
 

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from ._shared.io import atomic_write, check_output_folder
 from ._shared.lazy import lazy_module
 from .errors import HandEyeError
-from .vision.targets import ArucoGrid, AprilTag, Charuco, Chessboard, CircleGrid, Target, aruco_dictionary, target_from_spec
+from .vision.targets import AprilTag, ArucoGrid, Charuco, Chessboard, CircleGrid, Target, aruco_dictionary, target_from_spec
 
 cv2 = lazy_module("cv2")
 

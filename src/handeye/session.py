@@ -54,7 +54,8 @@ from .vision.targets import target_from_spec
 
 cv2 = lazy_module("cv2")  # only to read an image's size
 
-__all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session", "read_pose_table", "SessionError", "load_yaml",
+__all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session",
+           "read_pose_table", "SessionError", "load_yaml",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
            "write_pose_pairs", "read_result", "SESSION_FILE", "POSEPAIRS_FILE"]
 

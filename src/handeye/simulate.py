@@ -32,7 +32,8 @@ from .vision.targets import target_from_spec
 
 cv2 = lazy_module("cv2")
 
-__all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look_at", "look_at_viewpoints", "perturb_poses", "seed_viewpoints",
+__all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look_at", "look_at_viewpoints", "perturb_poses",
+           "seed_viewpoints",
            "seed_scenes", "add_noise", "simulate_session", "RealisticErrors", "RealisticScene", "REALISTIC", "EXACT",
            "realistic_scene", "arm_forward_kinematics", "ARM_DH", "robot_accuracy_of", "simulate_realistic_session",
            "low_dof_scene", "LOW_DOF_ROBOTS", "StreamScene", "stream_scene",

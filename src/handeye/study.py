@@ -177,6 +177,8 @@ def summarize(err: NDArray[np.float64]) -> dict[str, float]:
 
 @dataclass
 class SettingResult:
+    """The errors of every solver over the runs of one setting of the study."""
+
     setting: Setting
     runs: int
     errors: dict[str, NDArray[np.float64]]  #: method -> (runs, 2) [mm, deg]
@@ -231,6 +233,8 @@ def run_setting(setting: Setting, runs: int = 200, seed: int | Sequence[int] = 0
 
 @dataclass
 class StudyResult:
+    """A whole study: each setting's results and the figures drawn from them."""
+
     settings: list[SettingResult]
     figures: dict[str, Figure]
     runs: int

@@ -30,8 +30,8 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
-from scipy.special import ndtri, stdtrit
 from scipy.spatial.transform import Rotation, Slerp
+from scipy.special import ndtri, stdtrit
 
 from ._shared.text import sentences, summarize
 from .diagnostics import closed_form, diagnose

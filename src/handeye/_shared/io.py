@@ -14,7 +14,6 @@ import numpy as np
 
 from ..errors import HandEyeError
 
-
 _BOMS = ((b"\xef\xbb\xbf", "utf-8"), (b"\xff\xfe", "utf-16-le"), (b"\xfe\xff", "utf-16-be"))
 
 

@@ -17,7 +17,16 @@ from numpy.typing import NDArray
 from .._shared.io import check_output_folder
 from ..diagnostics import compare_solvers
 from ..result import Calibration
-from .files import EXPORTS, check_exports, default_frames, result_dict, ros2_static_transform_command, urdf_joint, write_exports, write_results
+from .files import (
+    EXPORTS,
+    check_exports,
+    default_frames,
+    result_dict,
+    ros2_static_transform_command,
+    urdf_joint,
+    write_exports,
+    write_results,
+)
 from .html import SECTIONS, report_html, write_report
 from .verification import verification_html, write_verification
 

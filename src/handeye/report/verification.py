@@ -48,7 +48,8 @@ def verification_html(v: Verification) -> str:
             f"target</div></section>"
             f'<section id="distribution"><h2>Distribution</h2><img src="{_histogram(v)}" alt="errors per view"></section>'
             f'<section id="views"><h2>Per view</h2><table><tr><th class="l">view</th><th>px</th><th>mm at the target</th>'
-            + ('<th class="l">flag</th>' if flags else "") + f"</tr>{rows}</table>" + (f"<p>Not used: </p><ul>{skipped}</ul>" if skipped else "") + "</section>"
+            + ('<th class="l">flag</th>' if flags else "") + f"</tr>{rows}</table>"
+            + (f"<p>Not used: </p><ul>{skipped}</ul>" if skipped else "") + "</section>"
             '<section id="advice"><h2>Advice</h2><ul>'
             + "".join(f"<li>{_e(a)}</li>" for a in (v.advice or ["Nothing to fix: the calibration predicts the new "
                                                                   "views as well as it promised."]))

@@ -17,12 +17,13 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import DegenerateMotionError, InputMismatchError, PoseFormatError
 from ..motions import MotionSet
 from ..poses import validate_transform_pair, validate_transforms
-from .observability import check_observability, validate_motions
+from . import andreff, certifiable, daniilidis, horaud, park_martin, robot_world, tsai_lenz  # noqa: F401  (register themselves)
 from ._registry import SolverInfo, available, get, register
 from .certifiable import Certificate, certify, certify_robot_world
-from . import andreff, certifiable, daniilidis, horaud, park_martin, robot_world, tsai_lenz  # noqa: F401  (register themselves)
+from .observability import check_observability, validate_motions
 
-__all__ = ["solve", "solve_batch", "solve_motions", "solve_robot_world", "solve_robot_world_batch", "available", "get", "register", "SolverInfo",
+__all__ = ["solve", "solve_batch", "solve_motions", "solve_robot_world", "solve_robot_world_batch", "available", "get", "register",
+           "SolverInfo",
            "Certificate", "certify", "certify_robot_world"]
 
 

@@ -24,7 +24,6 @@ from ..motions import MotionSet
 from ._common import kron_eye, nearest_rotation
 from ._registry import register
 
-
 #: Up to this condition number of the 12x12 normal matrix its solution is accurate to ~1e-11 relative;
 #: beyond it (measured: 2 motions with axes 1.7 deg apart gave 1.4e-9 m) the stacked system is solved by QR.
 NORMAL_COND_MAX = 1e5

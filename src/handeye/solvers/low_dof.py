@@ -34,10 +34,10 @@ from scipy.spatial.transform import Rotation
 from ..errors import DegenerateMotionError
 from ..geometry.se3 import invert, make_transform
 from ..motions import MotionSet
-from ._common import top_eigenvector
 from ..setups import robot_world_A
-from .refine import TranslationPriors
+from ._common import top_eigenvector
 from .observability import MIN_AXIS_SPREAD, MIN_ROTATION, rotation_spread, rotation_spread_absolute
+from .refine import TranslationPriors
 
 __all__ = ["GAUGE_STD", "GENERAL", "LowDofSolution", "ONE_AXIS", "TRANSLATION_ONLY", "gauge_priors", "gauge_rows",
            "motion_kind", "partial_kind", "solve_low_dof"]

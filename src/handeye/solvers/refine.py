@@ -42,6 +42,8 @@ __all__ = ["PoseRefinementResult", "ReprojectionResult", "TranslationPriors", "d
 
 @dataclass(frozen=True)
 class ReprojectionResult:
+    """X and Z refined on the pixel errors (:func:`refine_reprojection`), with their covariance and residuals."""
+
     X: NDArray[np.float64]
     Z: NDArray[np.float64]
     K: NDArray[np.float64]  #: the intrinsics used (refined when asked)
@@ -615,6 +617,8 @@ class TranslationPriors:
 
 @dataclass(frozen=True)
 class PoseRefinementResult:
+    """X and Z refined on the robot and camera poses (:func:`refine_pose`), with the noise estimates."""
+
     X: NDArray[np.float64]
     Z: NDArray[np.float64]
     cov_X: NDArray[np.float64]  #: 6x6 over [rotation vector (rad), translation (m)] of X

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InputMismatchError
 from .._shared.lazy import lazy_module
+from ..errors import InputMismatchError
 from ..geometry.se3 import from_rotvec_translation, invert, screw_parameters, skew
 from ..setups import robot_world_A, robot_world_A_inv
 from .targets import Detection

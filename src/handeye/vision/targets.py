@@ -217,7 +217,8 @@ class Charuco(_OpenCVBoard, Target):
         self._check_size(3, 3)
         if not (0 < self.marker < self.square):
             raise TargetError(f"charuco: marker side must be between 0 and the square side {self.square}, got {self.marker!r}")
-        board = cv2.aruco.CharucoBoard((int(self.cols), int(self.rows)), float(self.square), float(self.marker), aruco_dictionary(self.dictionary))
+        board = cv2.aruco.CharucoBoard((int(self.cols), int(self.rows)), float(self.square), float(self.marker),
+                                        aruco_dictionary(self.dictionary))
         object.__setattr__(self, "_board", board)
 
     def object_points(self) -> NDArray[np.float64]:
