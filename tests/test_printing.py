@@ -5,6 +5,7 @@ rendered view."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import cv2
@@ -14,7 +15,7 @@ import yaml
 
 from handeye.cli import TARGET_KINDS, main
 from handeye.errors import HandEyeError
-from handeye.printing import board_size_mm, write_target
+from handeye.printing import board_size_mm, largest_square_mm, scaled_spec, target_page, write_target
 from handeye.simulate import default_camera, look_at
 from handeye.vision import solve_pnp
 from handeye.vision.render import Renderer, target_texture
@@ -114,3 +115,28 @@ def test_aruco_grid_target_is_detected_and_posed():
     T, rms = solve_pnp(det, K, dist)
     assert rms < 0.5 and np.linalg.norm(T[:3, 3] - target2cam[:3, 3]) < 1e-3
     assert len(target.symmetries()) == 1  # every marker is unique: no ambiguity to resolve
+
+
+def test_the_board_is_fitted_to_the_paper(tmp_path, capsys):
+    """A 7 x 5 ChArUco board of 30 mm squares (210 x 150 mm) fits an A4 sheet turned (with the narrow
+    margin); 40 mm squares do not, and the error names the largest square that fits, which does and a
+    slightly larger one does not. Without --square-mm the board is made as large as the paper holds."""
+    args = ["target", "--type", "charuco", "--cols", "7", "--rows", "5"]
+    assert main(args + ["--square-mm", "30", "--out", str(tmp_path / "c30.pdf")]) == 0
+    capsys.readouterr()
+    assert main(args + ["--square-mm", "40", "--out", str(tmp_path / "c40.pdf")]) == 2
+    err = capsys.readouterr().err
+    fits = float(re.search(r"the largest square that fits A4 is ([\d.]+) mm", err).group(1))
+    assert 30 <= fits < 40 and not (tmp_path / "c40.pdf").exists()
+    spec = {"type": "charuco", "cols": 7, "rows": 5, "square": 0.04, "marker": 0.028, "dictionary": "DICT_5X5_100"}
+    assert largest_square_mm(spec, "A4") == fits
+    target_page(scaled_spec(spec, fits), "A4")
+    with pytest.raises(HandEyeError, match="larger paper"):
+        target_page(scaled_spec(spec, fits + 0.2), "A4")
+    assert main(["target", "--type", "chessboard", "--out", str(tmp_path / "fit.pdf")]) == 0
+    printed = capsys.readouterr().out
+    square = float(re.search(r"squares of ([\d.]+) mm: the largest whole millimetre that fits A4", printed).group(1))
+    block = yaml.safe_load(printed.split("for session.yaml:\n", 1)[1].split("\ntarget frame", 1)[0])
+    assert block["target"]["square"] == pytest.approx(square / 1e3)
+    with pytest.raises(HandEyeError, match="larger paper"):
+        target_page(scaled_spec(block["target"], square + 1), "A4")

@@ -27,12 +27,14 @@ from .vision.targets import AprilTag, ArucoGrid, Charuco, Chessboard, CircleGrid
 
 cv2 = lazy_module("cv2")
 
-__all__ = ["PAPERS", "Page", "target_page", "write_target", "board_size_mm"]
+__all__ = ["PAPERS", "Page", "target_page", "write_target", "board_size_mm", "largest_square_mm", "scaled_spec"]
 
 #: Paper sizes (width, height) in millimetres, portrait.
 PAPERS = {"A4": (210.0, 297.0), "A3": (297.0, 420.0), "A2": (420.0, 594.0), "letter": (215.9, 279.4),
           "tabloid": (279.4, 431.8)}
 MARGIN_MM = 10.0
+#: The margin used when the board fits only with less (printers leave 3-5 mm unprinted at the edges).
+MIN_MARGIN_MM = 6.0
 #: Below the board: the ruler (mm), then lines of text this far apart (mm).
 RULER_MM, LINE_MM = 12.0, 3.4
 
@@ -130,7 +132,8 @@ def board_size_mm(target: Target) -> tuple[float, float]:
     return w, h
 
 
-def _paper(paper: str | tuple[float, float], need: tuple[float, float]) -> tuple[float, float]:
+def _paper_size(paper: str | tuple[float, float]) -> tuple[float, float]:
+    """Width and height (mm) of a paper named in PAPERS, given as WIDTHxHEIGHT, or as a pair."""
     if isinstance(paper, str):
         if paper in PAPERS:
             w, h = PAPERS[paper]
@@ -143,12 +146,45 @@ def _paper(paper: str | tuple[float, float], need: tuple[float, float]) -> tuple
         w, h = (float(v) for v in paper)
     if not (w > 0 and h > 0):
         raise HandEyeError(f"paper {w:g} x {h:g} mm: give positive sizes")
-    if need[0] <= w and need[1] <= h:
-        return w, h
-    if need[0] <= h and need[1] <= w:  # landscape
-        return h, w
-    raise HandEyeError(f"the board needs {need[0]:.0f} x {need[1]:.0f} mm with margins, ruler and text; the paper is "
-                       f"{w:g} x {h:g} mm: choose a larger paper (--paper A3) or smaller squares")
+    return w, h
+
+
+def _footer_mm(spec: dict[str, Any]) -> float:
+    """Height of the ruler and the text block below the board (mm)."""
+    lines = len(yaml.safe_dump({"target": spec}, sort_keys=False).splitlines())
+    return RULER_MM + LINE_MM * (lines + 2)
+
+
+def _layout(paper: tuple[float, float], board: tuple[float, float], footer: float) -> tuple[float, float, float] | None:
+    """(width, height, margin) of the page that holds the board, the 100 mm ruler and the footer:
+    upright or turned, with the wide margin or, when only that fits, the narrow one; None if none fits."""
+    for margin in (MARGIN_MM, MIN_MARGIN_MM):
+        need = (max(board[0], 100.0) + 2 * margin, board[1] + 2 * margin + footer)
+        for w, h in (paper, paper[::-1]):
+            if need[0] <= w and need[1] <= h:
+                return w, h, margin
+    return None
+
+
+def largest_square_mm(spec: dict[str, Any], paper: str | tuple[float, float] = "A4") -> float:
+    """The largest ``square`` (mm, to 0.1 mm) with which the target of ``spec`` fits the paper, the
+    other sizes (marker, separation) scaled with it; 0 if not even the ruler fits."""
+    w, h = _paper_size(paper)
+    _, bw, bh = board_shapes(target_from_spec(spec))
+    per_mm = (bw / (1e3 * float(spec["square"])), bh / (1e3 * float(spec["square"])))  # the board grows with the square
+    footer = _footer_mm(spec)
+    best = 0.0
+    for margin in (MARGIN_MM, MIN_MARGIN_MM):
+        for pw, ph in ((w, h), (h, w)):
+            if pw - 2 * margin >= 100.0:
+                best = max(best, min((pw - 2 * margin) / per_mm[0], (ph - 2 * margin - footer) / per_mm[1]))
+    return float(np.floor(10 * best) / 10)
+
+
+def scaled_spec(spec: dict[str, Any], square_mm: float) -> dict[str, Any]:
+    """``spec`` with its square ``square_mm`` and its marker and separation scaled in proportion."""
+    k = 1e-3 * square_mm / float(spec["square"])
+    return {key: (round(float(v) * k, 9) if key in ("square", "marker", "separation") else v) for key, v in spec.items()}
 
 
 def target_page(spec: dict[str, Any], paper: str | tuple[float, float] = "A4") -> Page:
@@ -156,21 +192,31 @@ def target_page(spec: dict[str, Any], paper: str | tuple[float, float] = "A4") -
     target = target_from_spec(spec)
     shapes, bw, bh = board_shapes(target)
     block = ["  " + ln for ln in yaml.safe_dump({"target": spec}, sort_keys=False).splitlines()]
-    footer = RULER_MM + LINE_MM * (len(block) + 2)
-    width, height = _paper(paper, (max(bw, 100.0) + 2 * MARGIN_MM, bh + 2 * MARGIN_MM + footer))
-    page = [(kind, *(v + MARGIN_MM for v in rest[:2]), *rest[2:]) for kind, *rest in shapes]
-    y = MARGIN_MM + bh + 6.0
+    size = _paper_size(paper)
+    layout = _layout(size, (bw, bh), _footer_mm(spec))
+    if layout is None:
+        fits = largest_square_mm(spec, paper)
+        name = paper if isinstance(paper, str) else f"{size[0]:g}x{size[1]:g}"
+        hint = (f"the largest square that fits {name} is {fits:.1f} mm (--square-mm {fits:.1f}"
+                + (", the other sizes in proportion" if set(spec) & {"marker", "separation"} else "") + ")"
+                if fits > 0 else f"{name} cannot hold even the ruler")
+        raise HandEyeError(f"the board needs {bw:.0f} x {bh:.0f} mm plus margins, ruler and text, more than the "
+                           f"{size[0]:g} x {size[1]:g} mm paper holds either way up: {hint}, or choose a larger paper "
+                           "(--paper A3)")
+    width, height, margin = layout
+    page = [(kind, *(v + margin for v in rest[:2]), *rest[2:]) for kind, *rest in shapes]
+    y = margin + bh + 6.0
     ruler = 100.0
-    page.append(("line", MARGIN_MM, y, MARGIN_MM + ruler, y, 0.3))
+    page.append(("line", margin, y, margin + ruler, y, 0.3))
     for cm in range(int(ruler // 10) + 1):
-        x = MARGIN_MM + 10.0 * cm
+        x = margin + 10.0 * cm
         page.append(("line", x, y - (3.0 if cm % 5 else 5.0), x, y, 0.3))
         page.append(("text", x - 1.0, y + 4.0, 7, str(cm)))
-    page.append(("text", MARGIN_MM + ruler + 3.0, y + 1.0, 7, "cm"))
+    page.append(("text", margin + ruler + 3.0, y + 1.0, 7, "cm"))
     lines = [f"handeye target: {_describe(spec)}. Print at 100% (no 'fit to page'): the ruler must measure "
              f"{ruler:.0f} mm.", "For session.yaml (if the print is scaled, measure and correct 'square'):"] + block
     for k, text in enumerate(lines):
-        page.append(("text", MARGIN_MM, y + RULER_MM - 2.0 + LINE_MM * k, 7, text))
+        page.append(("text", margin, y + RULER_MM - 2.0 + LINE_MM * k, 7, text))
     return Page(width, height, page)
 
 

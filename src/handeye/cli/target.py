@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
 import yaml
 
 from ..errors import HandEyeError
-from ..printing import PAPERS, write_target
+from ..printing import PAPERS, largest_square_mm, scaled_spec, write_target
 from ..vision.targets import target_from_spec, target_origin
 from ._common import number_arg, whole_arg
 
@@ -40,10 +41,17 @@ def _cmd_target(args: argparse.Namespace) -> int:
     spec = {"type": kind}
     for k, v in values.items():
         spec[k] = round(v / 1e3, 9) if k in ("square", "marker", "separation") else v
-    if args.origin == "centre":
+    if args.origin == "centre":  # before the fit: one more line of text below the board
         spec["origin"] = "centre"
+    fitted = None
+    if args.square_mm is None:  # the board as large as the paper allows (larger squares: better poses)
+        fitted = max(1.0, float(np.floor(largest_square_mm(spec, args.paper))))
+        mine = {k: spec[k] for k in ("marker", "separation") if given[k] is not None}
+        spec = {**scaled_spec(spec, fitted), **mine}
     path = write_target(spec, args.out, args.paper)
     print(f"wrote {path}: print it at 100% (no 'fit to page') and check the ruler measures 100 mm")
+    if fitted is not None:
+        print(f"squares of {fitted:g} mm: the largest whole millimetre that fits {args.paper} (--square-mm sets the size)")
     print("for session.yaml:")
     print("  " + yaml.safe_dump({"target": spec}, sort_keys=False).replace("\n", "\n  ").rstrip())
     frame = target_from_spec(spec).frame
