@@ -127,3 +127,19 @@ def test_industrial_calibration_circle_grid_set_imports_and_calibrates(tmp_path)
     assert cal.verdict in ("good", "weak") and np.isfinite(cal.X).all()
     named = [n for n in cal.notes if "no labelling of the symmetric circles target" in n]
     assert len(named) == 1 and all(f"{k}.png" in named[0] for k in (1, 2, 3, 4))
+
+
+def test_each_importer_has_its_own_help_and_options(capsys):
+    """``handeye import KIND --help`` describes that source and lists only its options; an option of
+    another source is named as unknown for this one."""
+    helps = {}
+    for kind in ("rosbag", "easy-handeye", "visp", "industrial-calibration"):
+        assert main(["import", kind, "--help"]) == 0
+        helps[kind] = capsys.readouterr().out
+    assert len(set(helps.values())) == 4
+    assert "--robot-topic" in helps["rosbag"] and "--robot-topic" not in helps["visp"]
+    assert "ViSP's hand-eye tutorial" in helps["visp"] and "--target-spec" in helps["visp"]
+    assert "--setup" not in helps["industrial-calibration"]
+    assert main(["import", "visp", "folder", "--out", "x", "--robot-topic", "/pose"]) == 2
+    err = capsys.readouterr().err
+    assert "unrecognized argument(s) --robot-topic" in err and "usage: handeye import visp" in err

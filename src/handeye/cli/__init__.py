@@ -61,16 +61,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
-    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))  # noqa: SLF001
-    return dict(action.choices)
+    """The commands of ``parser`` by name (none for a parser without commands)."""
+    action = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)  # noqa: SLF001
+    return {} if action is None else dict(action.choices)
 
 
 def _unknown_options(parser: argparse.ArgumentParser, argv: list[str], extras: list[str]) -> str:
     """One line for arguments no option takes: the sub-command's own usage, and for a mistyped option
     the nearest ones it has ("did you mean")."""
-    subs = _subparsers(parser)
-    command = next((a for a in argv if a in subs), None)
-    target = subs.get(command, parser)
+    target = parser
+    while (subs := _subparsers(target)):  # down to the innermost command named (import visp)
+        command = next((a for a in argv if a in subs), None)
+        if command is None:
+            break
+        target = subs[command]
     options = [o for a in target._actions for o in a.option_strings if o.startswith("--")]  # noqa: SLF001
     hints = []
     for extra in extras:

@@ -34,7 +34,7 @@ def _cmd_import(args: argparse.Namespace) -> int:
             "stream session": "a session (a robot stream, images with their times)",
             "stream posepairs": "a pose-pair folder of two streams"}[summary.kind]
     print(f"wrote {what} to {summary.folder}: {summary.robot_samples} robot and {summary.camera_samples} camera samples")
-    if args.setup is None and args.kind in ("visp", "rosbag"):
+    if getattr(args, "setup", None) is None and args.kind in ("visp", "rosbag"):
         # these sources do not record the setup: say what was assumed, before a calibration says it is inconsistent
         print("setup: eye_in_hand assumed (the source does not say); for a camera fixed beside the robot, import "
               "again with --setup eye_to_hand")
@@ -43,32 +43,54 @@ def _cmd_import(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Each source: its one-line help and its description (``handeye import KIND --help``).
+SOURCES = {
+    "rosbag": ("a ROS 1 or ROS 2 bag: the robot from /tf or a pose topic, the camera from images or a pose topic",
+               "The robot from /tf (--robot-frames BASE,TOOL) or a pose topic (--robot-topic), the camera from an "
+               "image topic (a session; --target-spec needed) or a pose topic (two pose streams). Header stamps are "
+               "kept, so handeye estimates the clock offset between robot and camera."),
+    "easy-handeye": ("easy_handeye2's .samples file", "easy_handeye2's .samples file as a pose-pair folder; the "
+                     "setup is read from its calibration_type."),
+    "visp": ("a folder of ViSP's hand-eye tutorial", "A folder of ViSP's hand-eye tutorial: rPe/fPe robot poses with "
+             "images, camera.xml and chessboard-/apriltag-data.txt (a session), or cPo camera poses (a pose-pair "
+             "folder)."),
+    "industrial-calibration": ("ROS-Industrial's cal_data.yaml (or its folder)", "ROS-Industrial's "
+                               "industrial_calibration data set: cal_data.yaml with its images and poses, as a session."),
+}
+
+
 def register(sub) -> None:
-    """Add the ``import`` command's parser to the sub-parsers ``sub``."""
+    """Add the ``import`` command's parser to the sub-parsers ``sub``: one parser per source, with its options."""
     p = sub.add_parser(
         "import",
         help="turn a ROS bag, easy_handeye samples, a ViSP or an industrial_calibration dataset into a handeye folder",
-        description="rosbag: the robot from /tf (BASE,TOOL frames) or a pose topic, the camera from an image topic "
-        "(a session; --target-spec needed) or a pose topic (two pose streams); header stamps are kept, so handeye "
-        "estimates the clock offset. easy-handeye: easy_handeye2's .samples file as a pose-pair folder. visp: a "
-        "folder of ViSP's hand-eye tutorial (rPe/fPe poses, images, camera.xml, chessboard-/apriltag-data.txt; or "
-        "cPo poses). industrial-calibration: ROS-Industrial's cal_data.yaml (or its folder).",
+        description="Turn another tool's capture into a handeye folder; 'handeye import KIND --help' for each.",
     )
-    p.add_argument("kind", choices=["rosbag", "easy-handeye", "visp", "industrial-calibration"])
-    p.add_argument("source", help="the bag (ROS 2 folder, .db3/.mcap, or ROS 1 .bag), the .samples file, the ViSP "
-                   "folder, or cal_data.yaml")
-    p.add_argument("-o", "--out", required=True, help="folder to write (new or empty)")
-    p.add_argument("--setup", choices=list(SETUPS),
-                   help="default eye_in_hand (rosbag); easy-handeye reads it from the file's calibration_type")
-    p.add_argument("--robot-frames", default="base_link,tool0", metavar="BASE,TOOL",
+    kinds = p.add_subparsers(dest="kind", metavar="KIND")
+    kinds.required = True
+    parsers = {}
+    for kind, (short, long) in SOURCES.items():
+        k = parsers[kind] = kinds.add_parser(kind, help=short, description=long)
+        k.add_argument("-o", "--out", required=True, help="folder to write (new or empty)")
+        k.set_defaults(func=_cmd_import)
+    parsers["rosbag"].add_argument("source", help="the bag: a ROS 2 folder, .db3 or .mcap, or a ROS 1 .bag")
+    parsers["easy-handeye"].add_argument("source", help="the .samples file")
+    parsers["visp"].add_argument("source", help="the ViSP folder")
+    parsers["industrial-calibration"].add_argument("source", help="cal_data.yaml or its folder")
+    parsers["rosbag"].add_argument("--setup", choices=list(SETUPS), help="default eye_in_hand (a bag does not say)")
+    parsers["visp"].add_argument("--setup", choices=list(SETUPS), help="default eye_in_hand (the folder does not say)")
+    parsers["easy-handeye"].add_argument("--setup", choices=list(SETUPS),
+                                         help="default: the file's calibration_type")
+    r = parsers["rosbag"]
+    r.add_argument("--robot-frames", default="base_link,tool0", metavar="BASE,TOOL",
                    help="tf frames of the robot's base and flange (default base_link,tool0)")
-    p.add_argument("--robot-topic", help="instead of tf: a PoseStamped/TransformStamped/Odometry topic of the flange")
-    p.add_argument("--image-topic", help="an Image or CompressedImage topic")
-    p.add_argument("--camera-pose-topic", help="instead of images: a pose topic of the target in the camera")
-    p.add_argument("--camera-pose", default="target2cam", choices=["target2cam", "cam2target"],
+    r.add_argument("--robot-topic", help="instead of tf: a PoseStamped/TransformStamped/Odometry topic of the flange")
+    r.add_argument("--image-topic", help="an Image or CompressedImage topic")
+    r.add_argument("--camera-pose-topic", help="instead of images: a pose topic of the target in the camera")
+    r.add_argument("--camera-pose", default="target2cam", choices=["target2cam", "cam2target"],
                    help="what --camera-pose-topic holds (default target2cam)")
-    p.add_argument("--camera-info-topic", help="a CameraInfo topic: the intrinsics (else estimated from the images)")
-    p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (needed with --image-topic; "
-                   "for ViSP folders without chessboard-/apriltag-data.txt)")
-    p.add_argument("--every", type=whole_arg(1), default=1, help="keep every n-th image (default 1)")
-    p.set_defaults(func=_cmd_import)
+    r.add_argument("--camera-info-topic", help="a CameraInfo topic: the intrinsics (else estimated from the images)")
+    r.add_argument("--every", type=whole_arg(1), default=1, help="keep every n-th image (default 1)")
+    for kind, when in (("rosbag", "needed with --image-topic"),
+                       ("visp", "for folders without chessboard-/apriltag-data.txt")):
+        parsers[kind].add_argument("--target-spec", help=f"YAML with a target: mapping as in session.yaml ({when})")
