@@ -307,9 +307,11 @@ def test_ros2_bag_round_trips_into_a_session_that_calibrates(stream_session, tmp
     assert abs(cal.time_offset - 0.037) < 2e-3 and _within_3_std(cal.X, scene.X, cal.cov)
     with pytest.raises(HandEyeError, match="no topic /camera/missing in the bag"):
         import_rosbag(bag, tmp_path / "x", image_topic="/camera/missing", target=session.target_spec)
-    with pytest.raises(HandEyeError, match="no chain from base_link to gripper"):
+    with pytest.raises(HandEyeError, match="no chain from base_link to gripper: gripper is not a frame") as info:
         import_rosbag(bag, tmp_path / "y", robot_frames=("base_link", "gripper"), image_topic="/camera/image_raw",
                       target=session.target_spec)
+    frames = str(info.value).split("its frames: ", 1)[1]
+    assert "gripper" not in frames and "base_link" in frames and "link6" in frames
 
 
 def test_a_headerless_table_that_is_not_a_stream_is_named(tmp_path):

@@ -143,7 +143,12 @@ def _frame_path(edges: set, start: str, goal: str) -> list[tuple[str, str, bool]
                 seen[g] = seen[f] + [edge]
                 queue.append(g)
     if goal not in seen:
-        raise InputMismatchError(f"tf has no chain from {start} to {goal}; its frames: {summarize(sorted(nbrs))}")
+        frames = sorted({f for edge in edges for f in edge})  # the bag's own frames, not the ones asked for
+        absent = [f for f in (start, goal) if f not in frames]
+        why = (f": {' and '.join(absent)} {'is' if len(absent) == 1 else 'are'} not a frame of the bag" if absent
+               else ": they are in separate trees")
+        raise InputMismatchError(f"tf has no chain from {start} to {goal}{why}; its frames: {summarize(frames)} "
+                                 "(--robot-frames BASE,TOOL)")
     return seen[goal]
 
 
