@@ -336,3 +336,27 @@ def test_study_on_a_local_dask_cluster_gives_the_local_numbers(tmp_path, capsys,
                  "tcp://127.0.0.1:1", "--no-progress"]) == 2
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:1" in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
+
+
+def test_error_bars_on_the_log_axis_stay_above_zero():
+    """fig5_1's bars are mean +- std on a log axis: a std larger than the mean (heavy-tailed errors)
+    would draw the bar to minus infinity; it is cut at a tenth of the mean, the upper end kept."""
+    from handeye.study import log_error_bars
+
+    mean, std = np.array([1.0, 2.0, 0.5]), np.array([0.3, 2.5, 0.5])
+    yerr = log_error_bars(mean, std)
+    assert np.allclose(yerr[1], std) and np.allclose(yerr[0], [0.3, 1.8, 0.45])
+    assert np.all(mean - yerr[0] > 0)
+
+
+def test_study_md_tables_are_narrow():
+    """study.md gives each figure three tables (medians, percentiles, trimmed and accepted) whose
+    cells stay short; a noise-free run's rounding errors read <1e-9."""
+    from handeye.study import markdown_table, study
+
+    settings, figs = preset("seed-chapter5")
+    result = study([s for s in settings if s.figure == "5.1"][:2], runs=10, progress=False, figures=figs)
+    md = markdown_table(result)
+    assert md.count("| series | x |") == 3 and "<1e-9 / <1e-9" in md
+    cells = [c.strip() for line in md.splitlines() if line.startswith("| ") for c in line.strip("|").split("|")]
+    assert max(len(c) for c in cells) <= 40

@@ -46,7 +46,7 @@ from .simulate import Noise, add_noise, seed_scenes
 from .solvers import available, solve_batch, solve_robot_world_batch
 
 __all__ = ["Setting", "Figure", "SettingResult", "StudyResult", "run_setting", "study", "preset", "PRESETS",
-           "triangle_threshold", "trim_outliers", "pose_errors", "write_study", "METHODS"]
+           "triangle_threshold", "trim_outliers", "pose_errors", "write_study", "METHODS", "log_error_bars"]
 
 #: Every solver the study knows: the AX = XB solvers, the robot-world ones, and ``refined``
 #: (``calibrate_poses`` with the pose refinement from Daniilidis, what a handeye user gets).
@@ -425,34 +425,36 @@ def preset(name: str, setup: str = "eye_in_hand") -> tuple[list[Setting], dict[s
 def _fmt(v: float) -> str:
     if not np.isfinite(v):
         return "inf" if v > 0 else "nan"
+    if 0 < abs(v) < 1e-9:  # rounding error of an exact solve: its digits say nothing
+        return "<1e-9"
     return f"{v:.3g}" if abs(v) >= 1e-3 or v == 0 else f"{v:.1e}"
 
 
 def markdown_table(result: StudyResult, methods: Sequence[str] | None = None) -> str:
-    """One markdown table per figure: per setting, each method's median (p10-p90) and acceptance."""
+    """Per figure, three narrow markdown tables: each method's median error, its 10th-90th
+    percentiles, and the runs the triangle method trimmed with the share accepted."""
     lines = [f"# Simulation study ({result.preset or 'custom'}): {result.runs} runs per setting, seed {result.seed}", "",
-             "Errors: translation mm / rotation deg (thesis §5.1). median [10th-90th percentile]; "
-             "trimmed = runs removed by the triangle method; ok = share under 5 mm and 1 deg.", ""]
+             "Errors: translation mm / rotation deg (thesis §5.1). trimmed = runs removed by the triangle method; "
+             f"ok = share of runs under {ACCEPT_MM:g} mm and {ACCEPT_DEG:g} deg.", ""]
     by_fig: dict[str, list[SettingResult]] = {}
     for r in result.settings:
         by_fig.setdefault(r.setting.figure, []).append(r)
+    tables = (
+        ("median, mm / deg", lambda st: f"{_fmt(st['trans_median_mm'])} / {_fmt(st['rot_median_deg'])}"),
+        ("10th-90th percentile, mm / deg", lambda st: f"{_fmt(st['trans_p10_mm'])}-{_fmt(st['trans_p90_mm'])} / "
+                                                      f"{_fmt(st['rot_p10_deg'])}-{_fmt(st['rot_p90_deg'])}"),
+        ("trimmed runs, ok", lambda st: f"{st['trimmed']}, {100 * st['accepted']:.0f}%"),
+    )
     for fig, rs in by_fig.items():
         title = result.figures[fig].title if fig in result.figures else fig
         meths = [m for m in (methods or METHODS) if any(m in r.stats for r in rs)]
-        lines += [f"## Figure {fig}: {title}", "", "| series | x | " + " | ".join(meths) + " |",
-                  "|---|---|" + "---|" * len(meths)]
-        for r in rs:
-            cells = []
-            for m in meths:
-                st = r.stats.get(m)
-                if st is None:
-                    cells.append("")
-                    continue
-                cells.append(f"{_fmt(st['trans_median_mm'])} [{_fmt(st['trans_p10_mm'])}-{_fmt(st['trans_p90_mm'])}] / "
-                             f"{_fmt(st['rot_median_deg'])} [{_fmt(st['rot_p10_deg'])}-{_fmt(st['rot_p90_deg'])}]; "
-                             f"trimmed {st['trimmed']}, ok {100 * st['accepted']:.0f}%")
-            lines.append(f"| {r.setting.series} | {r.setting.x:g} | " + " | ".join(cells) + " |")
-        lines.append("")
+        lines += [f"## Figure {fig}: {title}", ""]
+        for caption, cell in tables:
+            lines += [f"{caption}:", "", "| series | x | " + " | ".join(meths) + " |", "|---|---|" + "---|" * len(meths)]
+            for r in rs:
+                cells = ["" if r.stats.get(m) is None else cell(r.stats[m]) for m in meths]
+                lines.append(f"| {r.setting.series} | {r.setting.x:g} | " + " | ".join(cells) + " |")
+            lines.append("")
     return "\n".join(lines)
 
 
@@ -479,6 +481,14 @@ def headline(result: StudyResult, method: str = "daniilidis") -> str:
             lines.append(f"  {r.setting.series:<22.22} x={r.setting.x:<7g} {text}best {best} "
                          f"{_fmt(b['trans_median_mm'])} / {_fmt(b['rot_median_deg'])}")
     return "\n".join(lines)
+
+
+def log_error_bars(mean: NDArray[np.float64], std: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``yerr`` (2, n) for mean +- std on a logarithmic axis: a lower end at or below zero, which the
+    axis cannot show (matplotlib draws it to minus infinity), is cut at a tenth of the mean."""
+    mean, std = np.asarray(mean, float), np.asarray(std, float)
+    lower = np.where(mean - std > 0, std, 0.9 * mean)
+    return np.stack([lower, std])
 
 
 def _plot(result: StudyResult, fig_id: str, path: Path) -> None:
@@ -524,8 +534,9 @@ def _plot(result: StudyResult, fig_id: str, path: Path) -> None:
                 xs = np.array([p[0] for p in pts])
                 mean = np.array([p[1][f"{name}_trimmed_mean_{unit}"] for p in pts])
                 std = np.array([p[1][f"{name}_trimmed_std_{unit}"] for p in pts])
-                ax.errorbar(xs, mean, yerr=std, marker="o", ms=3, capsize=3, label=sname)
-            ax.set_title("Daniilidis (the thesis's method): trimmed mean +- std", fontsize=9)
+                ax.errorbar(xs, mean, yerr=log_error_bars(mean, std), marker="o", ms=3, capsize=3, label=sname)
+            ax.set_title("Daniilidis (the thesis's method): trimmed mean +- std (a bar below zero: cut at mean/10)",
+                         fontsize=9)
             ax.set_ylabel(label)
             ax = axes[1, c]
             first = series[0]
