@@ -710,7 +710,7 @@ def calibrate(
     progress: bool = True,
     **changes,
 ) -> Calibration:
-    """Hand-eye calibration from a capture session folder (images + robot poses, the session format in the README).
+    """Hand-eye calibration from a capture session folder (images + robot poses, the session format in docs/guide.md).
 
     Detects the target in every image (in parallel), takes the intrinsics from session.yaml or
     estimates them from the same images, solves PnP per image, and calibrates.

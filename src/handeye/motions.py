@@ -1,6 +1,6 @@
 """Absolute poses -> relative motions ``A X = X B``, and per-motion consistency residuals.
 
-Conventions (the README's Conventions; derived for both setups in the notes on AX = XB that come with the thesis):
+Conventions (docs/guide.md, Conventions; derived for both setups in the notes on AX = XB that come with the thesis):
 
 * eye-in-hand, ``X = cam2flange``: ``A = inv(flange2base_j) @ flange2base_i``,
   ``B = target2cam_j @ inv(target2cam_i)``.

@@ -90,7 +90,7 @@ def _parse_format(fmt: str) -> tuple[str, str | None]:
 
 
 def pose_columns(fmt: str) -> list[str]:
-    """The column names of a pose format, as written in ``poses.csv`` (the session format in the README)."""
+    """The column names of a pose format, as written in ``poses.csv`` (the session format in docs/guide.md)."""
     kind, _ = _parse_format(fmt)
     if kind == "matrix":
         return [f"m{i}{j}" for i in range(4) for j in range(4)]

@@ -1,6 +1,6 @@
 """Captures on disk, in both directions: reading and writing sessions and pose tables.
 
-*Capture sessions* (the session format in the README): ``session.yaml``, ``poses.csv`` (an ``image`` column, then the
+*Capture sessions* (the session format in docs/guide.md): ``session.yaml``, ``poses.csv`` (an ``image`` column, then the
 pose columns of the declared format) and ``images/``. See :func:`load_session`.
 
 *Pose-pair folders*, for users who already have camera-to-target poses (from their own
@@ -95,7 +95,7 @@ class PosePairs:
 
 @dataclass(frozen=True)
 class Session:
-    """A capture session read from disk (the session format in the README), validated."""
+    """A capture session read from disk (the session format in docs/guide.md), validated."""
 
     folder: Path
     setup: str
@@ -145,7 +145,7 @@ def read_camera(spec: Any, where: str) -> tuple[NDArray[np.float64] | None, NDAr
 
 
 def load_session(folder: str | Path, strict_images: bool = True) -> Session:
-    """Load and validate a capture session folder (the session format in the README).
+    """Load and validate a capture session folder (the session format in docs/guide.md).
 
     ``strict_images=False``: an image named in the pose table but missing from ``images/`` is kept
     in the session (its path does not exist) for :func:`handeye.calibration.observe` to skip with
@@ -313,7 +313,7 @@ def load_yaml(path: Path, notes: list[str] | None = None) -> dict[str, Any]:
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         raise SessionError(f"{path}: not valid YAML ({problem}{at})") from None
     if data is None:
-        raise SessionError(f"{path}: empty file; expected a mapping of keys (see the README)")
+        raise SessionError(f"{path}: empty file; expected a mapping of keys (see docs/guide.md)")
     if not isinstance(data, dict):
         raise SessionError(f"{path}: expected a mapping of keys, got {type(data).__name__}")
     return data
@@ -534,7 +534,7 @@ def _missing_folder_file(folder: Path, name: str) -> None:
                       "images/", "sample_session") if name == SESSION_FILE else
                      ("pose pairs: posepairs.yaml (setup, robot_poses, camera_poses) and the two pose files",
                       "example_posepairs"))
-    raise SessionError(f"{folder}: no {name}. The folder must hold {what} (the README shows the layout; an "
+    raise SessionError(f"{folder}: no {name}. The folder must hold {what} (docs/guide.md shows the layout; an "
                        f"example is the package's data/{example}); `handeye import` makes one from a ROS bag, ViSP, "
                        "easy_handeye or industrial_calibration data")
 
@@ -659,7 +659,7 @@ def write_session(folder: str | Path, setup: str, target_spec: dict[str, Any], n
                   flange2base: NDArray[np.float64] | None, format: str = "quat_wxyz", length_unit: str = "mm",
                   angle_unit: str = "deg", camera: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
                   comment: str | None = None, rows: NDArray[np.float64] | None = None) -> Path:
-    """Write ``session.yaml`` and ``poses.csv`` of a session (the session format in the README) into ``folder``, atomically;
+    """Write ``session.yaml`` and ``poses.csv`` of a session (the session format in docs/guide.md) into ``folder``, atomically;
     the images (``images/<name>``) are the caller's. ``camera``: ``(K, dist)`` to put in
     session.yaml. Returns the session.yaml path."""
     folder = Path(folder)
@@ -672,7 +672,7 @@ def write_session(folder: str | Path, setup: str, target_spec: dict[str, Any], n
 
 def _write_session_yaml(folder: Path, setup: str, target_spec: dict[str, Any], camera, poses: dict[str, Any],
                         images: dict[str, Any] | None, comment: str | None) -> Path:
-    """session.yaml with its keys in the order of the README's session format, atomically; returns its path."""
+    """session.yaml with its keys in the order of the session format (docs/guide.md), atomically; returns its path."""
     spec: dict[str, Any] = {"setup": setup, "target": dict(target_spec)}
     if camera is not None:
         spec["camera"] = {"K": np.asarray(camera[0], dtype=float).tolist(),

@@ -1,4 +1,4 @@
-"""Everything that differs between eye-in-hand and eye-to-hand, in one place (the README's Conventions).
+"""Everything that differs between eye-in-hand and eye-to-hand, in one place (docs/guide.md, Conventions).
 
 * eye-in-hand: the camera rides on the flange; ``X = cam2flange``, ``Z = target2base``;
   ``target2base = flange2base_i @ X @ target2cam_i``.

@@ -383,7 +383,7 @@ def simulate_session(
     robot_noise: tuple[float, float] = (0.0, 0.0),
     robot: str = "arm",
 ):
-    """Render a complete capture session (the session format in the README) with its ground truth.
+    """Render a complete capture session (the session format in docs/guide.md) with its ground truth.
 
     Writes ``session.yaml``, ``poses.csv``, ``images/`` and ``ground_truth.yaml`` (X, Z, K, dist)
     into ``out_dir``, which must not already hold a session. Returns the :class:`Scene`.

@@ -210,7 +210,7 @@ def coarse_offset(robot: PoseStream, camera: PoseStream, setup: str, search: tup
     """The clock offset (camera minus robot, s) where the angular velocities of the two streams
     align best, searched over ``search``.
 
-    ``A(t) X = Z inv(target2cam(t))`` at every instant (the README's Conventions), so the angular velocity of
+    ``A(t) X = Z inv(target2cam(t))`` at every instant (docs/guide.md, Conventions), so the angular velocity of
     ``A`` (the flange pose; its inverse eye-to-hand) in its own moving frame is that of
     ``cam2target`` in the camera's, turned by X's rotation. Per lag, the rotation that best maps
     one curve onto the other is solved in closed form (Kabsch), and the lag it maps best wins:

@@ -204,7 +204,7 @@ def add_out_options(p: argparse.ArgumentParser) -> None:
                    "needs pip install 'handeye[certifiable]')")
 
 
-#: --refine's help per choice (the README's "auto" paragraph says how auto chooses)
+#: --refine's help per choice (docs/guide.md's "auto" paragraph says how auto chooses)
 REFINE_HELP = {
     "auto": "auto (default): the estimator that predicts held-out views best (the pixel refinement while the robot's "
             "errors do not dominate its residuals, else the pose refinement, replaced only by a candidate better by "

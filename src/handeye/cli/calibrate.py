@@ -72,7 +72,7 @@ def register(sub) -> None:
         "calibrate",
         help="calibrate from a capture session (images + robot poses)",
         description="Detect the target in every image, estimate the camera poses and solve the hand-eye "
-        "transform. SESSION holds session.yaml, poses.csv and images/ (see the README).",
+        "transform. SESSION holds session.yaml, poses.csv and images/ (see docs/guide.md).",
     )
     p.add_argument("session", nargs="*", help="session folder; several calibrate each into --out/<name>/ (a fleet)")
     p.add_argument("--sample", action="store_true", help="run on the bundled sample session")

@@ -83,7 +83,7 @@ def register(sub) -> None:
                    help="square side (chessboard, charuco), circle spacing, marker side (grids) or tag side, mm")
     p.add_argument("--marker-mm", type=number_arg(0.0, above=True), help="charuco: marker side, mm")
     p.add_argument("--origin", choices=["corner", "centre"], default="corner",
-                   help="where the target frame's origin is: corner (default: each type's first feature, see the README) "
+                   help="where the target frame's origin is: corner (default: each type's first feature, see docs/guide.md) "
                    "or centre (the board's centre, as ViSP and the AprilTag library put it); written to the target: block")
     p.add_argument("--separation-mm", type=number_arg(0.0, above=True), help="marker grids: gap between markers, mm")
     p.add_argument("--dictionary", help="charuco and marker grids: an OpenCV aruco dictionary (e.g. DICT_5X5_100)")

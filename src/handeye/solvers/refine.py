@@ -7,7 +7,7 @@ variances are estimated from the data and re-estimated until stable. See its doc
 ``refine_reprojection``: the thesis's "future work" (§6.1) and Horaud-Dornaika's lesson (estimate
 everything together): with target detections available, X and Z are refined jointly so that every
 target point projects onto its detection in every image. The camera pose of image i is not a
-free unknown but follows from the robot pose (the README's Conventions):
+free unknown but follows from the robot pose (docs/guide.md, Conventions):
 
 * eye-in-hand: ``target2cam_i = inv(X) @ inv(flange2base_i) @ Z`` (X = cam2flange, Z = target2base);
 * eye-to-hand: ``target2cam_i = inv(X) @ flange2base_i @ Z`` (X = cam2base, Z = target2flange).

@@ -13,7 +13,7 @@
   come out of the linear solve non-orthonormal and its translations belong to those; after
   projecting the rotations we re-solve the translations for them, as Shah does.
 
-How handeye maps its poses onto this form (the README's Conventions):
+How handeye maps its poses onto this form (docs/guide.md, Conventions):
 
 * eye-in-hand: ``flange2base_i @ X = Z @ inv(target2cam_i)`` with ``X = cam2flange``,
   ``Z = target2base``;

@@ -377,7 +377,7 @@ def target_origin(spec: dict[str, Any], where: str = "target") -> NDArray[np.flo
 
 
 def target_from_spec(spec: dict[str, Any], where: str = "target") -> Target:
-    """A :class:`Target` from the ``target:`` mapping of session.yaml (the session format in the README); ``origin`` is
+    """A :class:`Target` from the ``target:`` mapping of session.yaml (the session format in docs/guide.md); ``origin`` is
     checked and left to :func:`target_origin` (the target classes stay in their own frame)."""
     if not isinstance(spec, dict):
         raise TargetError(f"{where}: expected a mapping with type, cols, rows, square")
