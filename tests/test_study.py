@@ -360,3 +360,18 @@ def test_study_md_tables_are_narrow():
     assert md.count("| series | x |") == 3 and "<1e-9 / <1e-9" in md
     cells = [c.strip() for line in md.splitlines() if line.startswith("| ") for c in line.strip("|").split("|")]
     assert max(len(c) for c in cells) <= 40
+
+
+def test_the_headline_puts_the_thesis_numbers_beside_ours():
+    """Where the thesis states a Daniilidis figure (§5.3: 31.3 mm / 2.45 deg median with two noise-free
+    motions), the terminal's headline prints it next to ours, which is exact there."""
+    from handeye.study import THESIS, headline, study
+
+    settings, figs = preset("seed-chapter5")
+    result = study([s for s in settings if s.figure == "5.1" and s.x == 2.0], runs=10, progress=False, figures=figs)
+    lines = headline(result).splitlines()
+    noise_free = next(line for line in lines if line.lstrip().startswith("no noise"))
+    assert "thesis median 31.3 / 2.45 (ours <1e-9 / <1e-9), p10 3.98 / 0.379" in noise_free
+    assert "thesis" not in next(line for line in lines if "robot 0.3 mm" in line)
+    assert {k[0] for k in THESIS} <= {s.figure for s in settings}
+    assert all(any((s.figure, s.series, s.x) == k for s in settings) for k in THESIS)  # each names a real setting

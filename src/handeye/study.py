@@ -46,7 +46,7 @@ from .simulate import Noise, add_noise, seed_scenes
 from .solvers import available, solve_batch, solve_robot_world_batch
 
 __all__ = ["Setting", "Figure", "SettingResult", "StudyResult", "run_setting", "study", "preset", "PRESETS",
-           "triangle_threshold", "trim_outliers", "pose_errors", "write_study", "METHODS", "log_error_bars"]
+           "triangle_threshold", "trim_outliers", "pose_errors", "write_study", "METHODS", "log_error_bars", "THESIS"]
 
 #: Every solver the study knows: the AX = XB solvers, the robot-world ones, and ``refined``
 #: (``calibrate_poses`` with the pose refinement from Daniilidis, what a handeye user gets).
@@ -458,10 +458,30 @@ def markdown_table(result: StudyResult, methods: Sequence[str] | None = None) ->
     return "\n".join(lines)
 
 
+#: What the thesis states in numbers for its Daniilidis runs (§5.3): per (figure, series, x), the
+#: statistic and its translation (mm) / rotation (deg) error.
+THESIS = {
+    ("5.1", "no noise", 2.0): (("median", 31.3, 2.45), ("p10", 3.98, 0.379)),
+    ("5.3", "robot 1 mm / 1 deg", 15.0): (("p10", 12.9, 1.84),),
+    ("5.4", "robot only", 1.0): (("p10", 12.9, 1.84),),
+}
+
+
+def _thesis_text(key: tuple[str, str, float], own: dict[str, float] | None) -> str:
+    """The thesis's stated numbers for a setting beside ours (daniilidis), or ''."""
+    stated = THESIS.get(key)
+    if not stated or own is None:
+        return ""
+    cols = {"median": ("trans_median_mm", "rot_median_deg"), "p10": ("trans_p10_mm", "rot_p10_deg")}
+    return "; thesis " + ", ".join(f"{stat} {mm:g} / {deg:g} (ours {_fmt(own[cols[stat][0]])} / "
+                                   f"{_fmt(own[cols[stat][1]])})" for stat, mm, deg in stated)
+
+
 def headline(result: StudyResult, method: str = "daniilidis") -> str:
     """The study for a terminal: per figure and setting, the median error of ``method`` (the
     thesis's choice) and of the best method there (translation mm / rotation deg, and the share of
-    runs under 5 mm and 1 deg); study.md has every method with its percentiles."""
+    runs under 5 mm and 1 deg), and where the thesis states a number (:data:`THESIS`) it beside ours;
+    study.md has every method with its percentiles."""
     lines = [f"median error of X, translation mm / rotation deg ({method}, and the best method per setting; ok = "
              f"share of runs under {ACCEPT_MM:g} mm and {ACCEPT_DEG:g} deg)"]
     by_fig: dict[str, list[SettingResult]] = {}
@@ -478,8 +498,9 @@ def headline(result: StudyResult, method: str = "daniilidis") -> str:
             text = "" if own is None else (f"{method} {_fmt(own['trans_median_mm'])} / {_fmt(own['rot_median_deg'])} "
                                            f"(ok {100 * own['accepted']:.0f}%); ")
             b = r.stats[best]
+            thesis = _thesis_text((fig, r.setting.series, r.setting.x), r.stats.get("daniilidis"))
             lines.append(f"  {r.setting.series:<22.22} x={r.setting.x:<7g} {text}best {best} "
-                         f"{_fmt(b['trans_median_mm'])} / {_fmt(b['rot_median_deg'])}")
+                         f"{_fmt(b['trans_median_mm'])} / {_fmt(b['rot_median_deg'])}{thesis}")
     return "\n".join(lines)
 
 
