@@ -51,7 +51,9 @@ def _cmd_target(args: argparse.Namespace) -> int:
     path = write_target(spec, args.out, args.paper)
     print(f"wrote {path}: print it at 100% (no 'fit to page') and check the ruler measures 100 mm")
     if fitted is not None:
-        print(f"squares of {fitted:g} mm: the largest whole millimetre that fits {args.paper} (--square-mm sets the size)")
+        what = {"apriltag": "tag side", "aruco_grid": "markers", "circles": "circle spacing",
+                "asymmetric_circles": "circle spacing"}.get(kind, "squares")
+        print(f"{what} of {fitted:g} mm: the largest whole millimetre that fits {args.paper} (--square-mm sets the size)")
     print("for session.yaml:")
     print("  " + yaml.safe_dump({"target": spec}, sort_keys=False).replace("\n", "\n  ").rstrip())
     frame = target_from_spec(spec).frame
