@@ -169,16 +169,21 @@ def _layout(paper: tuple[float, float], board: tuple[float, float], footer: floa
 def largest_square_mm(spec: dict[str, Any], paper: str | tuple[float, float] = "A4") -> float:
     """The largest ``square`` (mm, to 0.1 mm) with which the target of ``spec`` fits the paper, the
     other sizes (marker, separation) scaled with it; 0 if not even the ruler fits."""
-    w, h = _paper_size(paper)
+    size = _paper_size(paper)
     _, bw, bh = board_shapes(target_from_spec(spec))
     per_mm = (bw / (1e3 * float(spec["square"])), bh / (1e3 * float(spec["square"])))  # the board grows with the square
     footer = _footer_mm(spec)
-    best = 0.0
-    for margin in (MARGIN_MM, MIN_MARGIN_MM):
-        for pw, ph in ((w, h), (h, w)):
-            if pw - 2 * margin >= 100.0:
-                best = max(best, min((pw - 2 * margin) / per_mm[0], (ph - 2 * margin - footer) / per_mm[1]))
-    return float(np.floor(10 * best) / 10)
+
+    def fits(square: float) -> bool:  # _layout decides, as for the page itself
+        return _layout(size, (per_mm[0] * square, per_mm[1] * square), footer) is not None
+
+    lo, hi = 0.0, max(size) / min(per_mm)  # fits(lo) or nothing fits; hi cannot fit
+    if not fits(lo):
+        return 0.0
+    while hi - lo > 1e-3:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if fits(mid) else (lo, mid)
+    return float(np.floor(10 * lo + 1e-9) / 10)
 
 
 def scaled_spec(spec: dict[str, Any], square_mm: float) -> dict[str, Any]:

@@ -472,9 +472,8 @@ def _thesis_text(key: tuple[str, str, float], own: dict[str, float] | None) -> s
     stated = THESIS.get(key)
     if not stated or own is None:
         return ""
-    cols = {"median": ("trans_median_mm", "rot_median_deg"), "p10": ("trans_p10_mm", "rot_p10_deg")}
-    return "; thesis " + ", ".join(f"{stat} {mm:g} / {deg:g} (ours {_fmt(own[cols[stat][0]])} / "
-                                   f"{_fmt(own[cols[stat][1]])})" for stat, mm, deg in stated)
+    return "; thesis " + ", ".join(f"{stat} {mm:g} / {deg:g} (ours {_fmt(own[f'trans_{stat}_mm'])} / "
+                                   f"{_fmt(own[f'rot_{stat}_deg'])})" for stat, mm, deg in stated)
 
 
 def headline(result: StudyResult, method: str = "daniilidis") -> str:
