@@ -5,7 +5,9 @@ stand-ins of their libraries."""
 
 from __future__ import annotations
 
+import base64
 import io
+import re
 import types
 from dataclasses import replace
 
@@ -159,6 +161,14 @@ def test_verify_reports_the_true_errors_of_a_second_capture(tmp_path, acquired):
     from handeye.report import write_verification
     page = next(p for p in write_verification(v, tmp_path / "verified") if p.suffix == ".html").read_text()
     assert "mm at the target" in page and "<th></th>" not in page and ("far off" in page) == bool(v.flagged)
+    # each view's picture: detected points (green rings) and predicted ones (red crosses) both visible
+    pictures = page.split('<section id="predictions">')[1].split("</section>")[0]
+    srcs = re.findall(r'<img class="zoom" tabindex="0" src="data:image/jpeg;base64,([^"]+)"', pictures)
+    assert len(srcs) == 8
+    for src in srcs:
+        img = cv2.imdecode(np.frombuffer(base64.b64decode(src), np.uint8), cv2.IMREAD_COLOR).astype(int)
+        b, g, r = img[..., 0], img[..., 1], img[..., 2]
+        assert ((g > r + 60) & (g > b + 60)).mean() > 0.005 and ((r > g + 60) & (r > b + 60)).mean() > 0.005
     # the calibration's own capture is no second capture: refused, naming the images
     with pytest.raises(HandEyeError, match=r"are the calibration's own inputs"):
         verify(results, acq.folder, progress=False)

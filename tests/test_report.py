@@ -226,6 +226,11 @@ _PROBE = """<script>window.addEventListener('load', function () {
   b.setAttribute('data-height', document.documentElement.scrollHeight);
   b.setAttribute('data-overflow', wide + (document.documentElement.scrollWidth > window.innerWidth ? 1 : 0));
   b.setAttribute('data-errors', (window.__errors || []).length);
+  var thumbs = document.querySelectorAll('#overlays figure img.zoom'), narrow = 0;
+  for (var k = 0; k < thumbs.length; k++) { if (Math.abs(thumbs[k].clientWidth - 360) > 1) narrow++; }
+  b.setAttribute('data-thumbs', thumbs.length); b.setAttribute('data-offsize', narrow);
+  b.setAttribute('data-scene', document.querySelector('#scene img').clientWidth);
+  b.setAttribute('data-axes', document.querySelector('#axes img').clientWidth);
 });</script></body>"""
 #: collects script errors and console.error calls from the start of the page
 _ERRORS = """<head><script>window.__errors = [];
@@ -238,7 +243,8 @@ window.addEventListener('error', function (e) { window.__errors.push(String(e.me
 def test_report_renders_in_headless_chromium(sample_out, tmp_path):
     """The page renders at 1200 px, the browser decodes every embedded image, nothing overflows
     its box sideways (the ROS line was cut off) and no script error or console error is logged
-    (a probe script added to a copy)."""
+    (a probe script added to a copy); the gallery's thumbnails are shown 360 px wide and the 3D view
+    and the rotation axes at most of the page's width."""
     text = (sample_out / "report.html").read_text(encoding="utf-8")
     probe = tmp_path / "probe.html"
     probe.write_text(text.replace("<head>", _ERRORS, 1).replace("</body>", _PROBE), encoding="utf-8")
@@ -247,9 +253,11 @@ def test_report_renders_in_headless_chromium(sample_out, tmp_path):
                           "--window-size=1200,900", "--virtual-time-budget=10000", "--dump-dom", probe.as_uri()],
                          capture_output=True, text=True, timeout=120)
     m = re.search(r'<body data-images="(\d+)" data-broken="(\d+)" data-sections="(\d+)" data-height="(\d+)" '
-                  r'data-overflow="(\d+)" data-errors="(\d+)"', res.stdout)
+                  r'data-overflow="(\d+)" data-errors="(\d+)" data-thumbs="(\d+)" data-offsize="(\d+)" '
+                  r'data-scene="(\d+)" data-axes="(\d+)"', res.stdout)
     assert m, res.stdout[:300] + res.stderr[-500:]
-    n_img, broken, sections, height, overflow, errors = (int(g) for g in m.groups())
+    n_img, broken, sections, height, overflow, errors, thumbs, offsize, scene, axes = (int(g) for g in m.groups())
+    assert thumbs == text.count('class="zoom"') and offsize == 0 and scene >= 750 and axes >= 750
     assert n_img == text.count("<img ") and broken == 0
     assert sections == len(SECTIONS) and height > 2000
     assert overflow == 0 and errors == 0
@@ -349,3 +357,85 @@ def test_gallery_of_a_view_predicted_into_the_camera_plane(sample_cal):
     assert np.allclose(predicted_target2cam(sample_cal.X, sample_cal.Z, f2b, "eye_in_hand")[0], in_plane, atol=1e-9)
     text = report_html(replace(sample_cal, flange2base=f2b))
     assert text.count('<figure class="flag">') >= 1 and "<figcaption>000.jpg" in text
+
+
+def _colour_shares(src: str, width: int) -> tuple[float, float, tuple[float, float]]:
+    """Shares of green-dominant and red-dominant pixels of a JPEG data URI shown ``width`` px wide,
+    and the extent of the green pixels as fractions of the picture's width and height."""
+    img = cv2.imdecode(np.frombuffer(base64.b64decode(src.split(",", 1)[1]), np.uint8), cv2.IMREAD_COLOR)
+    shown = cv2.resize(img, (width, round(img.shape[0] * width / img.shape[1])), interpolation=cv2.INTER_AREA).astype(int)
+    b, g, r = shown[..., 0], shown[..., 1], shown[..., 2]
+    green, red = (g > r + 60) & (g > b + 60), (r > g + 60) & (r > b + 60)
+    ys, xs = np.nonzero(green)
+    extent = (float(np.ptp(xs)) / shown.shape[1], float(np.ptp(ys)) / shown.shape[0]) if len(xs) else (0.0, 0.0)
+    return float(green.mean()), float(red.mean()), extent
+
+
+def test_gallery_marks_read_at_thumbnail_size(sample_out):
+    """At the size the gallery shows them (360 px wide), each thumbnail shows the target large (the
+    image cropped around it) with green rings and red crosses that both cover a visible share of the
+    picture (on the whole 640x480 image they were 0.15% and 0.4% of it: dots)."""
+    from handeye.report._overlay import THUMB_WIDTH
+
+    text = (sample_out / "report.html").read_text(encoding="utf-8")
+    gallery = text.split('<section id="overlays">')[1].split("</section>")[0]
+    srcs = re.findall(r'<img class="zoom" tabindex="0" src="(data:image/jpeg;base64,[^"]+)"', gallery)
+    assert srcs
+    for src in srcs:
+        green, red, extent = _colour_shares(src, THUMB_WIDTH)
+        assert green > 0.02 and red > 0.01, (green, red)
+        assert max(extent) > 0.5, extent  # the board's points span over half the thumbnail
+
+
+def test_overlay_thumbnail_of_points_off_the_image(tmp_path):
+    """Predicted points far outside the image (or NaN) are left out and the crop falls back to the
+    detected ones; an unreadable image gives no thumbnail, not an error."""
+    from handeye.report._overlay import overlay_thumbnail
+
+    path = tmp_path / "grey.png"
+    cv2.imwrite(str(path), np.full((480, 640, 3), 128, np.uint8))
+    det = np.array([[300.0, 200], [320, 200], [300, 220], [320, 220]])
+    far = np.array([[1e20, 1e20], [np.nan, 0.0], [310.0, 210.0], [5e4, 5e4]])
+    green, red, extent = _colour_shares(overlay_thumbnail(path, det, far), 360)
+    assert green > 0.005 and red > 0.0005 and max(extent) > 0.05
+    (tmp_path / "bad.png").write_bytes(b"not an image")
+    assert overlay_thumbnail(tmp_path / "bad.png", det, far) is None
+
+
+def _drawn_texts(fig) -> list[tuple[str, object]]:
+    """(text, window extent) of every label a reader sees: titles, axis labels, the tick labels
+    inside each axis's limits, legends and free texts."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    items = [fig._suptitle] if fig._suptitle is not None else []
+    for ax in fig.axes:
+        items += [ax.title, *ax.texts] + (list(ax.get_legend().get_texts()) if ax.get_legend() else [])
+        for axis in [a for a in (getattr(ax, n, None) for n in ("xaxis", "yaxis", "zaxis")) if a is not None]:
+            lo, hi = sorted(axis.get_view_interval())
+            items.append(axis.label)
+            items += [t.label1 for t, loc in zip(axis.get_major_ticks(), axis.get_majorticklocs())
+                      if lo - 1e-9 <= loc <= hi + 1e-9 and t.label1.get_visible()]
+    return [(t.get_text(), t.get_window_extent(renderer)) for t in items if t.get_visible() and t.get_text().strip()]
+
+
+def test_scene_and_rotation_axes_use_the_page_and_their_labels_do_not_overlap(sample_cal, sample_out):
+    """The 3D view and the rotation-axes figure are drawn at most of the page's width (1,068 px of
+    content; they were 634 and 460 px), and no two of their labels overlap (the sphere's tick labels
+    ran into each other at a tick every 0.25)."""
+    from handeye.motions import MotionSet
+    from handeye.report.html import _axes_figure, _scene_figure
+
+    motions = MotionSet.from_poses(sample_cal.flange2base, sample_cal.target2cam, sample_cal.setup, sample_cal.pairs)
+    for fig in (_scene_figure(sample_cal), _axes_figure(sample_cal, motions)):
+        texts = _drawn_texts(fig)
+        assert len(texts) > 10
+        clashes = [(a, b) for i, (a, ba) in enumerate(texts) for b, bb in texts[i + 1:] if ba.overlaps(bb)]
+        assert not clashes, clashes
+    text = (sample_out / "report.html").read_text(encoding="utf-8")
+    for section in ("scene", "axes"):
+        src = re.search(r'<img src="data:image/png;base64,([^"]+)"', text.split(f'<section id="{section}">')[1]).group(1)
+        img = cv2.imdecode(np.frombuffer(base64.b64decode(src), np.uint8), cv2.IMREAD_COLOR)
+        assert img.shape[1] >= 750, (section, img.shape)

@@ -25,6 +25,7 @@ from .errors import InputMismatchError
 from .session import Session, SessionError, load_session, read_result
 from .setups import predicted_target2cam
 from .validation import Views, view_errors
+from .vision.pnp import project_points
 
 __all__ = ["Verification", "verify", "PROMISE_FACTOR", "FLAG_FACTOR", "NOT_THIS"]
 
@@ -51,6 +52,11 @@ class Verification:
     flagged: list[str] = field(default_factory=list)  #: views far worse than the others
     result_path: Path | None = None
     session_folder: Path | None = None
+    #: per view: the image file, the detected target points and the points predicted through X, Z and
+    #: the robot pose (px), for the page's pictures (not in verify.json)
+    image_paths: list[Path] = field(default_factory=list, repr=False)
+    detected: list[NDArray[np.float64]] = field(default_factory=list, repr=False)
+    predicted: list[NDArray[np.float64]] = field(default_factory=list, repr=False)
 
     @property
     def rms_px(self) -> float:
@@ -148,10 +154,13 @@ def verify(result: str | Path, session: str | Path, jobs: int | None = None, pro
     views = obs.views()
     px, mm = view_errors(res["X"], res["Z"], views)
     names = [sess.image_names[k] for k in obs.used]
+    T = predicted_target2cam(res["X"], res["Z"], views.flange2base, views.setup)
+    pictures = {"image_paths": [Path(sess.image_paths[k]) for k in obs.used], "detected": list(obs.image_points),
+                "predicted": [project_points(T[i], obs.object_points[i], obs.K, obs.dist) for i in range(len(T))]}
     elsewhere = _not_where_predicted(res["X"], res["Z"], views)
     if elsewhere is not None:
         return Verification(sess.setup, names, px, mm, NOT_THIS, [elsewhere], res["prediction_error"],
-                            list(obs.skipped), [], res["path"], sess.folder)
+                            list(obs.skipped), [], res["path"], sess.folder, **pictures)
     median = float(np.median(px))
     flagged = [n for n, p in zip(names, px) if p > FLAG_FACTOR * max(median, 0.1)]
     advice = []
@@ -172,4 +181,4 @@ def verify(result: str | Path, session: str | Path, jobs: int | None = None, pro
                       "held-out views: the camera or the target moved since, the robot's errors differ in this part of "
                       "its workspace, or the calibration's poses did not cover it; recalibrate with poses like these")
     return Verification(sess.setup, names, px, mm, verdict, advice, promised, list(obs.skipped), flagged,
-                        res["path"], sess.folder)
+                        res["path"], sess.folder, **pictures)

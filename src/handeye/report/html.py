@@ -10,7 +10,6 @@ the page loads nothing from anywhere.
 
 from __future__ import annotations
 
-import base64
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Iterable
@@ -28,6 +27,7 @@ from ..result import Calibration
 from ..setups import camera2base, predicted_target2cam, setup_info, target2base
 from ..vision.detect import default_jobs
 from ..vision.pnp import project_points
+from ._overlay import jpeg, overlay_thumbnail, zoom_size
 from ._page import _COLOURS, _CSS, _e, _figure, _fmt, _img, _png
 from .files import euler_angles, result_dict
 
@@ -39,9 +39,6 @@ __all__ = ["report_html", "write_report", "SECTIONS"]
 SECTIONS = ("verdict", "result", "residuals", "overlays", "scene", "axes", "solvers", "advice")
 #: Most images shown as overlays (the page stays a few MB at most).
 MAX_OVERLAYS = 60
-THUMB_WIDTH = 360
-#: Thumbnails are stored this wide and shown at THUMB_WIDTH; a click (focus) shows them at this size.
-ZOOM_WIDTH = 900
 #: An image whose predicted points lie further than this many times the median from the detected
 #: ones is flagged in the gallery.
 FLAG_FACTOR = 3.0
@@ -100,7 +97,8 @@ def _axis_triad(ax, T: NDArray[np.float64], length: float, lw: float = 1.5) -> N
         ax.plot(*seg.T, color=c, lw=lw)
 
 
-def _scene_figure(cal: Calibration) -> str:
+def _scene_figure(cal: Calibration):
+    """The robot base frame in 3D: flange path, camera and target frames (a matplotlib Figure)."""
     cam2base, tgt2base = camera2base(cal.X, cal.flange2base, cal.setup), target2base(cal.Z, cal.flange2base, cal.setup)
     on_flange = setup_info(cal.setup).camera_on_flange
     flange = cal.flange2base[:, :3, 3]
@@ -108,8 +106,8 @@ def _scene_figure(cal: Calibration) -> str:
     extent = float(np.ptp(pts, axis=0).max()) or 1.0
     L = 0.08 * extent
     few = np.unique(np.linspace(0, len(cal.flange2base) - 1, min(len(cal.flange2base), 12)).astype(int))  # not crowded
-    fig = _figure((10.0, 8.5))
-    ax = fig.add_subplot(projection="3d")
+    fig = _figure((12.0, 9.0))
+    ax = fig.add_axes((0.0, 0.0, 1.0, 0.95), projection="3d")  # the axes fill the page's width, not 2/3 of it
     _axis_triad(ax, np.eye(4), 1.5 * L, lw=3)
     ax.text(0, 0, 0, " base", fontsize=8)
     ax.plot(*flange.T, "-o", color="#777", ms=3, lw=0.8, label="flange positions (capture order)")
@@ -131,64 +129,79 @@ def _scene_figure(cal: Calibration) -> str:
     ax.set_xlim(centre[0] - half, centre[0] + half)
     ax.set_ylim(centre[1] - half, centre[1] + half)
     ax.set_zlim(centre[2] - half, centre[2] + half)
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_zlabel("z (m)")
-    ax.legend(loc="upper left", fontsize=8)
+    ax.set_box_aspect((1, 1, 1), zoom=0.95)
+    ax.set_xlabel("x (m)", labelpad=8)
+    ax.set_ylabel("y (m)", labelpad=8)
+    ax.set_zlabel("z (m)", labelpad=8)
+    ax.locator_params(nbins=5)
+    ax.legend(loc="upper left", fontsize=9)
     shown = "" if len(few) == len(cal.flange2base) else f"; frames of {len(few)} of {len(cal.flange2base)} poses"
     ax.set_title(f"robot base frame: axes x red, y green, z blue{shown}", fontsize=10)
-    return _png(fig)
+    return fig
 
 
-def _axes_figure(cal: Calibration, motions: MotionSet) -> str:
+def _axes_figure(cal: Calibration, motions: MotionSet):
+    """The motions' rotation axes in the camera frame: on the unit sphere (both ends of each), and
+    folded onto the half sphere towards camera +z in an equal-area disc, where clusters and gaps read
+    at a glance; coloured by the rotation angle."""
     axis, _, theta, _ = screw_parameters(motions.B)
     deg = np.degrees(theta)
-    fig = _figure((6.5, 5.5))
-    ax = fig.add_subplot(projection="3d")
+    fig = _figure((12.0, 5.6))
+    ax = fig.add_subplot(1, 2, 1, projection="3d")
     u, v = np.mgrid[0:2 * np.pi:24j, 0:np.pi:12j]
     ax.plot_wireframe(np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="#ccc", lw=0.4)
     pts = np.vstack([axis, -axis])  # an axis and its opposite are the same rotation axis
-    sc = ax.scatter(*pts.T, c=np.r_[deg, deg], cmap="viridis", s=14, vmin=0, vmax=max(90.0, deg.max()))
-    fig.colorbar(sc, ax=ax, shrink=0.6, label="rotation angle (deg)")
-    ax.set_xlabel("camera x")
-    ax.set_ylabel("camera y")
-    ax.set_zlabel("camera z")
-    ax.set_box_aspect((1, 1, 1))
-    ax.set_title("rotation axes of the camera motions (both ends of each)", fontsize=10)
-    return _png(fig)
+    norm = {"cmap": "viridis", "vmin": 0, "vmax": max(90.0, float(deg.max()) if len(deg) else 90.0)}
+    ax.scatter(*pts.T, c=np.r_[deg, deg], s=14, **norm)
+    for setter in (ax.set_xticks, ax.set_yticks, ax.set_zticks):
+        setter([-1, 0, 1])  # a tick every quarter crowds the small axes into each other
+    ax.set_xlabel("camera x", labelpad=8)
+    ax.set_ylabel("camera y", labelpad=8)
+    ax.set_zlabel("camera z", labelpad=8)
+    ax.tick_params(pad=0, labelsize=8)
+    ax.set_box_aspect((1, 1, 1), zoom=1.15)
+    ax.set_title("on the unit sphere (both ends of each axis)", fontsize=10)
+    disc = fig.add_subplot(1, 2, 2)
+    up = np.where(axis[:, 2:3] < 0, -axis, axis)
+    # Lambert azimuthal equal-area about +z: a cluster looks as big as it is on the sphere
+    r = np.sqrt(2.0 / (1.0 + np.clip(up[:, 2], -1, 1)))
+    sc = disc.scatter(r * up[:, 0], r * up[:, 1], c=deg, s=22, edgecolors="#333", linewidths=0.3, **norm)
+    for tilt in (30, 60, 90):
+        rho = 2 * np.sin(np.radians(tilt) / 2)
+        disc.add_patch(_circle(rho))
+        disc.text(rho * np.cos(np.radians(60)), rho * np.sin(np.radians(60)), f"{tilt}°", fontsize=8, color="#777")
+    disc.axhline(0, color="#ddd", lw=0.6, zorder=0)
+    disc.axvline(0, color="#ddd", lw=0.6, zorder=0)
+    lim = 1.05 * np.sqrt(2)
+    disc.set_xlim(-lim, lim)
+    disc.set_ylim(-lim, lim)
+    disc.set_aspect("equal")
+    disc.set_xticks([])
+    disc.set_yticks([])
+    disc.set_xlabel("← −x     camera x     +x →", fontsize=9)
+    disc.set_ylabel("← −y     camera y     +y →", fontsize=9)
+    disc.set_title("seen from camera +z, equal area (circles: tilt from z)", fontsize=10)
+    fig.colorbar(sc, ax=disc, shrink=0.8, label="rotation angle (deg)")
+    fig.suptitle("rotation axes of the camera motions: well spread over the sphere is best", fontsize=11)
+    return fig
 
 
-def _overlay_thumb(cal: Calibration, k: int, T: NDArray[np.float64]) -> tuple[str, str] | None:
-    """(data URI, caption) of image ``k``: detected points (green rings) and the points reprojected
-    through X, Z and the robot pose (red crosses); None when the image cannot be read."""
-    img = cv2.imread(str(cal.image_paths[k]), cv2.IMREAD_COLOR)
-    if img is None:
-        return None
-    thumb, s = _zoom_size(img)
+def _circle(radius: float):
+    from matplotlib.patches import Circle  # matplotlib loads only when a report is drawn
+
+    return Circle((0, 0), radius, fill=False, color="#bbb", lw=0.7, ls="--")
+
+
+def _overlay_thumb(cal: Calibration, k: int, T: NDArray[np.float64]) -> tuple[str, str, float] | None:
+    """(data URI, caption, RMS px) of image ``k``: detected points (green rings) and the points
+    reprojected through X, Z and the robot pose (red crosses); None when the image cannot be read."""
     det = np.asarray(cal.image_points[k], dtype=float)
     proj = project_points(T[k], cal.object_points[k], cal.camera_matrix, cal.dist_coeffs)
+    src = overlay_thumbnail(cal.image_paths[k], det, proj)
+    if src is None:
+        return None
     rms = float(np.sqrt(np.mean(np.sum((proj - det) ** 2, axis=1))))
-    r = max(3, round(3 * thumb.shape[1] / THUMB_WIDTH))  # marks that stay visible at the small size
-    for p in det * s:
-        cv2.circle(thumb, (int(round(p[0])), int(round(p[1]))), r, (0, 200, 0), max(1, r // 3), cv2.LINE_AA)
-    for p in proj * s:
-        # far off the image (or NaN): not drawn; OpenCV takes int positions, and a bad prediction's 1e20 is not one
-        if np.all(np.abs(p) < 1e5):
-            cv2.drawMarker(thumb, (int(round(p[0])), int(round(p[1]))), (0, 0, 230), cv2.MARKER_CROSS, 2 * r,
-                           max(1, r // 3), cv2.LINE_AA)
-    return _jpeg(thumb), f"{cal.image_names[k]}: {rms:.2f} px", rms
-
-
-def _zoom_size(img: NDArray[np.uint8]) -> tuple[NDArray[np.uint8], float]:
-    """The image at most ZOOM_WIDTH wide (the size a click shows), and the scale applied."""
-    s = min(1.0, ZOOM_WIDTH / img.shape[1])
-    return cv2.resize(img, (max(1, round(img.shape[1] * s)), max(1, round(img.shape[0] * s))),
-                      interpolation=cv2.INTER_AREA), s
-
-
-def _jpeg(img: NDArray[np.uint8]) -> str:
-    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 80])
-    return "data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii") if ok else ""
+    return src, f"{cal.image_names[k]}: {rms:.2f} px", rms
 
 
 def _overlay_thumbs(cal: Calibration) -> list[tuple[str, str, float]]:
@@ -210,7 +223,7 @@ def _rejected_thumbs(cal: Calibration) -> list[tuple[str, str]]:
         if img is None or img.shape[0] < 2 or img.shape[1] < 2:
             out.append(("", f"{name}: {reason}"))
             continue
-        out.append((_jpeg(_zoom_size(img)[0]), f"{name}: {reason}"))
+        out.append((jpeg(zoom_size(img)[0]), f"{name}: {reason}"))
     return out
 
 
@@ -348,8 +361,8 @@ def _overlays_section(cal: Calibration) -> str:
     if cal.image_paths:
         parts.append("<p class=\"note\">Green rings: detected points. Red crosses: the same points projected through "
                      "the robot pose, X and Z — where they part, the hand-eye model does not explain that image. "
-                     f"Caption: RMS distance; red frame: more than {FLAG_FACTOR:g}x the median. Click an image to "
-                     "enlarge it.</p><div class=\"thumbs\">")
+                     f"Each image is cropped around the target and faded. Caption: RMS distance; red frame: more than "
+                     f"{FLAG_FACTOR:g}x the median. Click an image to enlarge it.</p><div class=\"thumbs\">")
         thumbs = _overlay_thumbs(cal)
         median = float(np.median([t[2] for t in thumbs])) if thumbs else 0.0
         for src, caption, rms in thumbs:
@@ -377,7 +390,7 @@ def _axes_section(cal: Calibration) -> str:
         sh = cal.diagnostics.axis_shares
         obs = (f"<p>Spread of the rotation axes (eigenvalue shares, 1/3 each is ideal): {_fmt(sh, 2)}; rotation angles "
                f"{np.min(cal.diagnostics.rotation_angles_deg):.1f}–{np.max(cal.diagnostics.rotation_angles_deg):.1f} deg.</p>")
-    return ('<section id="axes"><h2>Rotation axes</h2>' + _img(_axes_figure(cal, motions), "rotation axes") + obs
+    return ('<section id="axes"><h2>Rotation axes</h2>' + _img(_png(_axes_figure(cal, motions)), "rotation axes") + obs
             + "</section>")
 
 
@@ -454,7 +467,7 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
              _result_section(cal, data),
              _residuals_section(cal),
              _overlays_section(cal),
-             '<section id="scene"><h2>Robot, camera and target</h2>' + _img(_scene_figure(cal), "3D view") + "</section>",
+             '<section id="scene"><h2>Robot, camera and target</h2>' + _img(_png(_scene_figure(cal)), "3D view") + "</section>",
              _axes_section(cal),
              _solvers_section(solver_rows),
              _advice_section(cal, data, solver_rows),

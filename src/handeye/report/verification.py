@@ -1,9 +1,11 @@
 """Files of a verification (:func:`handeye.verification.verify`): ``verify.json`` and a
-self-contained ``verify.html`` with the per-view errors and their distribution."""
+self-contained ``verify.html`` with the per-view errors, their distribution and each view's image with
+the detected and the predicted target points."""
 
 from __future__ import annotations
 
 import json
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Iterable
 
@@ -12,6 +14,8 @@ import numpy as np
 from .._shared.io import atomic_write, check_output_folder
 from .._version import __version__
 from ..verification import NOT_THIS, Verification
+from ..vision.detect import default_jobs
+from ._overlay import overlay_thumbnail
 from ._page import _COLOURS, _CSS, _e, _figure, _png
 
 __all__ = ["verification_html", "write_verification"]
@@ -29,6 +33,33 @@ def _histogram(v: Verification) -> str:
         ax.legend(fontsize=8)
     axes[0].set_ylabel("views")
     return _png(fig)
+
+
+#: Most views drawn as pictures (the page stays a few MB at most).
+MAX_PICTURES = 60
+
+
+def _pictures(v: Verification) -> str:
+    """Each view's image around the target: detected points (green rings) and the points predicted
+    from the robot pose through X and Z (red crosses); flagged views framed in red."""
+    n = min(len(v.image_paths), MAX_PICTURES)
+    if n == 0:
+        return ""
+    with ThreadPoolExecutor(max_workers=default_jobs()) as pool:  # OpenCV releases the GIL
+        srcs = list(pool.map(lambda k: overlay_thumbnail(v.image_paths[k], v.detected[k], v.predicted[k]), range(n)))
+    figures = []
+    for name, px, src in zip(v.names, v.px, srcs):
+        flag = name in v.flagged
+        caption = f"{name}: {px:.2f} px" + (" (far off: check this view)" if flag else "")
+        img = f'<img class="zoom" tabindex="0" src="{src}" alt="{_e(caption)}">' if src else ""
+        cls = ' class="flag"' if flag else ""
+        figures.append(f"<figure{cls}>{img}<figcaption>{_e(caption)}</figcaption></figure>")
+    more = f'<p class="note">first {n} of {len(v.image_paths)} views shown</p>' if len(v.image_paths) > n else ""
+    return ('<section id="predictions"><h2>Where X puts the target</h2><p class="note">Green rings: detected points. '
+            "Red crosses: the same points predicted from the robot pose through X and Z. Where they part, the "
+            "calibration does not explain that view. Each image is cropped around the target and faded; click one "
+            "to enlarge it.</p>"
+            f'<div class="thumbs">{"".join(figures)}</div>{more}</section>')
 
 
 def verification_html(v: Verification) -> str:
@@ -50,6 +81,7 @@ def verification_html(v: Verification) -> str:
             f'<section id="views"><h2>Per view</h2><table><tr><th class="l">view</th><th>px</th><th>mm at the target</th>'
             + ('<th class="l">flag</th>' if flags else "") + f"</tr>{rows}</table>"
             + (f"<p>Not used: </p><ul>{skipped}</ul>" if skipped else "") + "</section>"
+            + _pictures(v) +
             '<section id="advice"><h2>Advice</h2><ul>'
             + "".join(f"<li>{_e(a)}</li>" for a in (v.advice or ["Nothing to fix: the calibration predicts the new "
                                                                   "views as well as it promised."]))

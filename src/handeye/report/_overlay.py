@@ -1,0 +1,108 @@
+"""Image thumbnails with the detected target points (green rings) and the points predicted through
+X, Z and the robot pose (red crosses), for report.html and verify.html.
+
+A whole 640x480 image shown 360 px wide makes a 9x6 board's marks a few pixels each, and rings and
+crosses cannot be told apart. So a thumbnail shows the part of the image around the target, faded so
+the marks stand out on the black and white squares, with marks sized to the spacing of the points
+as displayed.
+"""
+
+from __future__ import annotations
+
+import base64
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._shared.lazy import lazy_module
+
+cv2 = lazy_module("cv2")
+
+#: Thumbnails are shown this wide ...
+THUMB_WIDTH = 360
+#: ... and stored this wide: a click (focus) shows them at this size.
+ZOOM_WIDTH = 900
+#: The crop around the target's points: this fraction of their extent added on every side.
+CROP_MARGIN = 0.25
+#: The image is blended with white by this much, so that coloured marks stand out.
+FADE = 0.55
+DETECTED_BGR, PREDICTED_BGR = (0, 170, 0), (0, 0, 220)
+#: Mark radius as a fraction of the median spacing of the detected points, and its bounds in
+#: displayed pixels.
+MARK_FRACTION, MARK_MIN_PX, MARK_MAX_PX = 0.35, 3.0, 9.0
+
+
+def jpeg(img: NDArray[np.uint8]) -> str:
+    """``img`` as a JPEG data URI ('' when it cannot be encoded)."""
+    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 80])
+    return "data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii") if ok else ""
+
+
+def zoom_size(img: NDArray[np.uint8]) -> tuple[NDArray[np.uint8], float]:
+    """The image at most ZOOM_WIDTH wide (the size a click shows), and the scale applied."""
+    s = min(1.0, ZOOM_WIDTH / img.shape[1])
+    return cv2.resize(img, (max(1, round(img.shape[1] * s)), max(1, round(img.shape[0] * s))),
+                      interpolation=cv2.INTER_AREA), s
+
+
+def _crop_box(points: NDArray[np.float64], shape: tuple[int, ...]) -> tuple[int, int, int, int]:
+    """(x0, y0, x1, y1): the points' bounding box with CROP_MARGIN, grown to the image's aspect
+    ratio and kept inside the image; the whole image when no point lies in it."""
+    h, w = shape[:2]
+    inside = points[np.all(np.isfinite(points), axis=1) & (points[:, 0] > -w) & (points[:, 0] < 2 * w)
+                    & (points[:, 1] > -h) & (points[:, 1] < 2 * h)]
+    if len(inside) == 0:
+        return 0, 0, w, h
+    lo, hi = np.clip(inside.min(axis=0), 0, [w, h]), np.clip(inside.max(axis=0), 0, [w, h])
+    size = (hi - lo) * (1 + 2 * CROP_MARGIN) + 16
+    cw = max(size[0], size[1] * w / h, 0.2 * w)  # the image's aspect ratio: the gallery's grid stays even
+    cw = min(cw, w)
+    ch = cw * h / w
+    centre = 0.5 * (lo + hi)
+    x0 = int(np.clip(centre[0] - cw / 2, 0, w - cw))
+    y0 = int(np.clip(centre[1] - ch / 2, 0, h - ch))
+    return x0, y0, min(w, x0 + int(round(cw))), min(h, y0 + int(round(ch)))
+
+
+def _spacing(points: NDArray[np.float64]) -> float:
+    """Median distance from each point to its nearest neighbour (px); 0 for fewer than 2 points."""
+    if len(points) < 2:
+        return 0.0
+    pts = points[:400]  # enough for a median; the pairwise table stays small
+    d = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=2)
+    np.fill_diagonal(d, np.inf)
+    return float(np.median(d.min(axis=1)))
+
+
+def overlay_thumbnail(image_path: str | Path, detected: NDArray[np.float64],
+                      predicted: NDArray[np.float64] | None) -> str | None:
+    """The image around its target, faded, with ``detected`` points as green rings and ``predicted``
+    ones as red crosses, as a JPEG data URI ZOOM_WIDTH wide; None when the image cannot be read.
+
+    Predicted points far off the image (or NaN) are not drawn.
+    """
+    img = cv2.imread(str(image_path), cv2.IMREAD_COLOR)
+    if img is None or img.shape[0] < 2 or img.shape[1] < 2:
+        return None
+    detected = np.asarray(detected, dtype=float).reshape(-1, 2)
+    predicted = np.empty((0, 2)) if predicted is None else np.asarray(predicted, dtype=float).reshape(-1, 2)
+    x0, y0, x1, y1 = _crop_box(np.vstack([detected, predicted]), img.shape)
+    crop = img[y0:y1, x0:x1]
+    s = ZOOM_WIDTH / crop.shape[1]
+    thumb = cv2.resize(crop, (ZOOM_WIDTH, max(1, round(crop.shape[0] * s))),
+                       interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
+    thumb = cv2.addWeighted(thumb, 1 - FADE, np.full_like(thumb, 255), FADE, 0)
+    shown = THUMB_WIDTH / ZOOM_WIDTH  # displayed pixels per stored pixel
+    r = float(np.clip(MARK_FRACTION * _spacing(detected) * s, MARK_MIN_PX / shown, MARK_MAX_PX / shown))
+    thick = max(2, round(1.4 / shown))
+    offset = np.array([x0, y0], dtype=float)
+    for p in (detected - offset) * s:
+        if np.all(np.isfinite(p)):
+            cv2.circle(thumb, (int(round(p[0])), int(round(p[1]))), int(round(r)), DETECTED_BGR, thick, cv2.LINE_AA)
+    for p in (predicted - offset) * s:
+        # OpenCV takes int positions, and a bad prediction's 1e20 is not one
+        if np.all(np.abs(p) < 1e5):
+            cv2.drawMarker(thumb, (int(round(p[0])), int(round(p[1]))), PREDICTED_BGR, cv2.MARKER_CROSS,
+                           int(round(2 * r)), thick, cv2.LINE_AA)
+    return jpeg(thumb)
