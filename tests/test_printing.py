@@ -1,25 +1,30 @@
 """Printable targets (issue 24): every kind written as PDF (and SVG), rasterised by an independent
 renderer (PDFium through pypdfium2; cairo through cairosvg) and found by handeye's own detector at
 the stated scale within 0.1%; and the ArUco grid target it added, detected and posed in a
-rendered view."""
+rendered view; a target type defined outside the package, registered, goes through simulate,
+calibrate and target (issue 36)."""
 
 from __future__ import annotations
 
+import json
 import re
+from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import cv2
 import numpy as np
 import pytest
 import yaml
 
+import handeye
 from handeye.cli import TARGET_KINDS, main
 from handeye.errors import HandEyeError
 from handeye.printing import board_size_mm, largest_square_mm, scaled_spec, target_page, write_target
 from handeye.simulate import default_camera, look_at
 from handeye.vision import solve_pnp
 from handeye.vision.render import Renderer, target_texture
-from handeye.vision.targets import target_from_spec
+from handeye.vision.targets import Detection, Target, Texture, target_from_spec
 
 PX_PER_MM = 8.0
 
@@ -140,3 +145,85 @@ def test_the_board_is_fitted_to_the_paper(tmp_path, capsys):
     assert block["target"]["square"] == pytest.approx(square / 1e3)
     with pytest.raises(HandEyeError, match="larger paper"):
         target_page(scaled_spec(block["target"], square + 1), "A4")
+
+
+@dataclass(frozen=True)
+class _SquareDots(Target):
+    """A toy target type, defined here as a plug-in would: a grid of dark squares, their centres
+    found as blobs by findCirclesGrid."""
+
+    type: ClassVar[str] = "square_dots"
+    frame: ClassVar[str] = "origin at the first dot's centre, x along its row, y along the rows, z into the board"
+    size_name: ClassVar[str] = "dot spacing"
+    print_kinds: ClassVar[dict] = {"square-dots": ("square_dots", dict(cols=6, rows=5, square=30.0))}
+
+    def __post_init__(self) -> None:
+        self._check_size(3, 3)
+
+    def object_points(self):
+        j, i = np.mgrid[0:self.rows, 0:self.cols]
+        return np.stack([i.ravel() * self.square, j.ravel() * self.square, np.zeros(i.size)], axis=1)
+
+    def symmetries(self):
+        return self._grid_symmetries(self.object_points())
+
+    def detect(self, gray):
+        params = cv2.SimpleBlobDetector_Params()
+        params.filterByConvexity = params.filterByInertia = False  # squares, not discs
+        params.maxArea = gray.size / 20.0
+        sizes = sorted(k.size for k in cv2.SimpleBlobDetector_create(params).detect(gray))[-self.cols * self.rows:]
+        if len(sizes) < self.cols * self.rows:
+            return None
+        params.minArea = 0.2 * float(np.median(sizes)) ** 2  # the dots, not the printed text beside them
+        ok, centres = cv2.findCirclesGrid(gray, (self.cols, self.rows), flags=cv2.CALIB_CB_SYMMETRIC_GRID,
+                                          blobDetector=cv2.SimpleBlobDetector_create(params))
+        if not ok:
+            return None
+        pts = centres.reshape(-1, 2).astype(float)
+        return Detection(np.arange(len(pts)), pts, self.object_points())
+
+    def texture(self, texels_per_m=4000.0):
+        s, half = texels_per_m, 0.25 * self.square
+        lo = -1.5 * self.square
+        w, h = (int(round(((n - 1) * self.square + 3 * self.square) * s)) for n in (self.cols, self.rows))
+        img = np.full((h, w), 225, np.uint8)
+        for x, y, _ in self.object_points():
+            c = np.array([[x - half, y - half], [x + half, y - half], [x + half, y + half], [x - half, y + half]])
+            cv2.fillConvexPoly(img, np.round((c - lo) * s * 16).astype(np.int32), 25, cv2.LINE_AA, 4)
+        return Texture(img, -lo * s, -lo * s, s)
+
+    def print_shapes(self):
+        sq = 1e3 * self.square
+        shapes = [("rect", 1e3 * x + sq - sq / 4, 1e3 * y + sq - sq / 4, sq / 2, sq / 2) for x, y, _ in self.object_points()]
+        return shapes, (self.cols + 1) * sq, (self.rows + 1) * sq
+
+
+def test_a_new_target_type_is_one_class_and_its_registration(tmp_path, capsys):
+    """A target type handeye does not ship, registered from outside: simulate renders it, calibrate
+    detects it and finds X, and `handeye target` prints it, detected at its stated scale; without
+    the registration session.yaml's type is unknown."""
+    from handeye.vision.targets import register_target, target_types, unregister_target
+
+    spec = {"type": "square_dots", "cols": 6, "rows": 5, "square": 0.04}
+    with pytest.raises(HandEyeError, match="unknown target type 'square_dots'"):
+        target_from_spec(spec)
+    register_target(_SquareDots)
+    try:
+        assert "square_dots" in target_types()
+        scene = handeye.simulate.simulate_session(tmp_path / "s", "eye_in_hand", n_poses=10, target=spec, seed=4)
+        assert main(["calibrate", str(tmp_path / "s"), "--no-progress", "--out", str(tmp_path / "r")]) == 0
+        X = np.array(json.loads((tmp_path / "r" / "result.json").read_text())["X"]["matrix"])
+        assert np.linalg.norm(X[:3, 3] - scene.X[:3, 3]) < 2e-3
+        assert main(["target", "--type", "square-dots", "--out", str(tmp_path / "dots.pdf")]) == 0
+        printed = capsys.readouterr().out
+        assert "dot spacing of" in printed and "type: square_dots" in printed and "origin at the first dot" in printed
+        block = yaml.safe_load(printed.split("for session.yaml:\n", 1)[1].split("\ntarget frame", 1)[0])["target"]
+        gray, px_per_mm = _raster_pdf(tmp_path / "dots.pdf")
+        det = target_from_spec(block).detect(gray)
+        assert det is not None and len(det) == 30
+        assert abs(_scale_px_per_mm(det) / px_per_mm - 1) < 1e-3
+        with pytest.raises(HandEyeError, match="taken by _SquareDots"):
+            register_target(type("Other", (_SquareDots,), {}))
+    finally:
+        unregister_target(_SquareDots)
+    assert "square_dots" not in target_types()

@@ -417,7 +417,7 @@ def test_large_images_search_the_board_region_with_the_same_accuracy(tmp_path):
     same findChessboardCornersSB call in the board's region: as close to the true corners as the
     whole-image call (RMS within 5%), each corner within 0.5 px of it; no board, no detection."""
     from handeye.session import load_session
-    from handeye.vision.targets import PYRAMID_MIN_SIDE, _chessboard_in_region
+    from handeye.vision.targets.chessboard import PYRAMID_MIN_SIDE, _chessboard_in_region
 
     simulate_session(tmp_path / "s", "eye_in_hand", 3, "chessboard", noise_px=0.2, seed=5, image_size=(1000, 800))
     session = load_session(tmp_path / "s")
@@ -456,7 +456,7 @@ def test_board_region_search_on_real_images_matches_the_whole_image_search():
     """ViSP's real Franka chessboard images (640x480) scaled 2x to reach PYRAMID_MIN_SIDE: the
     corners found in the board's region stay within 0.5 px of the whole-image search (in the
     scaled pixels; that search itself moves corners by up to ~2 px between the two scales)."""
-    from handeye.vision.targets import PYRAMID_MIN_SIDE, _chessboard_in_region
+    from handeye.vision.targets.chessboard import PYRAMID_MIN_SIDE, _chessboard_in_region
 
     src = require_real("visp-franka", "eye_in_hand_2025")
     size = (9, 6)

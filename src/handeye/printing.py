@@ -1,10 +1,11 @@
 """Targets to print, true to scale: SVG or PDF (vector), with a ruler to check the print and the
 ``target:`` block to paste into session.yaml.
 
-Chessboards, circle grids and single tags are drawn as vector shapes from their geometry. ChArUco
-boards and marker grids are drawn from OpenCV's own board image (``generateImage``, rendered at a
-resolution where every square, or every marker bit, spans whole pixels, then turned into
-rectangles), so that the printed layout is exactly the one OpenCV's detector expects.
+Each target type draws itself (:meth:`handeye.vision.targets.Target.print_shapes`): chessboards and
+circle grids as vector shapes from their geometry; ChArUco boards, marker grids and tags from
+OpenCV's own image of them (rendered at a resolution where every square, or every marker bit, spans
+whole pixels, then turned into rectangles), so that the printed layout is exactly the one OpenCV's
+detector expects. This module lays the board out on the paper.
 
 A page holds the board in the top-left corner (10 mm margins), then a 100 mm ruler with
 centimetre ticks, the instruction to print at 100 % and the ``target:`` block.
@@ -18,14 +19,10 @@ from typing import Any
 
 import numpy as np
 import yaml
-from numpy.typing import NDArray
 
 from ._shared.io import atomic_write, check_output_folder
-from ._shared.lazy import lazy_module
 from .errors import HandEyeError
-from .vision.targets import AprilTag, ArucoGrid, Charuco, Chessboard, CircleGrid, Target, aruco_dictionary, target_from_spec
-
-cv2 = lazy_module("cv2")
+from .vision.targets import Target, target_from_spec
 
 __all__ = ["PAPERS", "Page", "target_page", "write_target", "board_size_mm", "largest_square_mm", "scaled_spec"]
 
@@ -50,80 +47,10 @@ class Page:
     shapes: list[tuple]
 
 
-def _chessboard(t: Chessboard) -> tuple[list[tuple], float, float]:
-    sq = 1e3 * t.square
-    nx, ny = t.cols + 1, t.rows + 1
-    shapes = [("rect", a * sq, b * sq, sq, sq) for b in range(ny) for a in range(nx) if (a + b) % 2 == 0]
-    return shapes, nx * sq, ny * sq
-
-
-def _circles(t: CircleGrid) -> tuple[list[tuple], float, float]:
-    pts = 1e3 * t.object_points()[:, :2]
-    s = 1e3 * t.square
-    margin = s  # a quiet zone of one spacing around the outer circles
-    shapes = [("circle", x + margin, y + margin, 0.3 * s) for x, y in pts]
-    return shapes, pts[:, 0].max() + 2 * margin, pts[:, 1].max() + 2 * margin
-
-
-def _raster_rects(img: NDArray[np.uint8], mm_per_px: float) -> list[tuple]:
-    """The dark pixels of a binary image as rectangles: runs along each row, merged down the rows
-    while they stay the same."""
-    dark = img < 128
-    shapes: list[tuple] = []
-    open_runs: dict[tuple[int, int], int] = {}  # (x0, x1) -> first row
-    for y in range(dark.shape[0] + 1):
-        runs = set()
-        if y < dark.shape[0]:
-            row = np.r_[False, dark[y], False].astype(np.int8)
-            edges = np.flatnonzero(np.diff(row))
-            runs = {(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])}
-        for run in list(open_runs):
-            if run not in runs:
-                y0 = open_runs.pop(run)
-                shapes.append(("rect", run[0] * mm_per_px, y0 * mm_per_px, (run[1] - run[0]) * mm_per_px,
-                               (y - y0) * mm_per_px))
-        for run in runs:
-            open_runs.setdefault(run, y)
-    return shapes
-
-
-def _board_image(t: Charuco | ArucoGrid) -> tuple[NDArray[np.uint8], float]:
-    """OpenCV's image of the board at a resolution where each square (ChArUco) or each marker bit
-    (grids) spans whole pixels; and the millimetres per pixel."""
-    bits = aruco_dictionary(t.dictionary).markerSize + 2
-    if isinstance(t, Charuco):
-        px = 40 * bits  # pixels per square
-        mm_per_px = 1e3 * t.square / px
-        size = (t.cols * px, t.rows * px)
-    else:  # square = the marker side: whole pixels per bit, and the gap as near whole pixels as can be
-        k = min(range(12, 61), key=lambda k: abs((v := t.separation / t.square * bits * k) - round(v)))
-        mm_per_px = 1e3 * t.square / (bits * k)
-        size = (int(round(1e3 * t.width / mm_per_px)), int(round(1e3 * t.height / mm_per_px)))
-    return t.board.generateImage(size, marginSize=0, borderBits=1), mm_per_px
-
-
-def _tag(t: AprilTag) -> tuple[list[tuple], float, float]:
-    d = aruco_dictionary(t.dictionary)
-    bits = d.markerSize + 2
-    cells = cv2.aruco.generateImageMarker(d, t.tag_id or 0, bits, borderBits=1)  # one pixel per bit
-    cell = 1e3 * t.square / bits
-    quiet = 2 * cell
-    shapes = [(kind, x + quiet, y + quiet, w, h) for kind, x, y, w, h in _raster_rects(cells, cell)]
-    return shapes, t.square * 1e3 + 2 * quiet, t.square * 1e3 + 2 * quiet
-
-
 def board_shapes(target: Target) -> tuple[list[tuple], float, float]:
-    """The board's shapes (mm, y down, origin at its top-left) and its width and height (mm)."""
-    if isinstance(target, Chessboard):
-        return _chessboard(target)
-    if isinstance(target, CircleGrid):
-        return _circles(target)
-    if isinstance(target, AprilTag):
-        return _tag(target)
-    if isinstance(target, (Charuco, ArucoGrid)):
-        img, mm_per_px = _board_image(target)
-        return _raster_rects(img, mm_per_px), img.shape[1] * mm_per_px, img.shape[0] * mm_per_px
-    raise HandEyeError(f"cannot print a {type(target).__name__}")
+    """The board's shapes (mm, y down, origin at its top-left) and its width and height (mm): its
+    :meth:`Target.print_shapes`."""
+    return target.print_shapes()
 
 
 def board_size_mm(target: Target) -> tuple[float, float]:
@@ -187,9 +114,11 @@ def largest_square_mm(spec: dict[str, Any], paper: str | tuple[float, float] = "
 
 
 def scaled_spec(spec: dict[str, Any], square_mm: float) -> dict[str, Any]:
-    """``spec`` with its square ``square_mm`` and its marker and separation scaled in proportion."""
+    """``spec`` with its square ``square_mm`` and its other lengths (the type's ``size_keys``: marker,
+    separation) scaled in proportion."""
+    keys = type(target_from_spec(spec)).size_keys
     k = 1e-3 * square_mm / float(spec["square"])
-    return {key: (round(float(v) * k, 9) if key in ("square", "marker", "separation") else v) for key, v in spec.items()}
+    return {key: (round(float(v) * k, 9) if key in keys else v) for key, v in spec.items()}
 
 
 def target_page(spec: dict[str, Any], paper: str | tuple[float, float] = "A4") -> Page:
@@ -218,27 +147,11 @@ def target_page(spec: dict[str, Any], paper: str | tuple[float, float] = "A4") -
         page.append(("line", x, y - (3.0 if cm % 5 else 5.0), x, y, 0.3))
         page.append(("text", x - 1.0, y + 4.0, 7, str(cm)))
     page.append(("text", margin + ruler + 3.0, y + 1.0, 7, "cm"))
-    lines = [f"handeye target: {_describe(spec)}. Print at 100% (no 'fit to page'): the ruler must measure "
+    lines = [f"handeye target: {target.describe()}. Print at 100% (no 'fit to page'): the ruler must measure "
              f"{ruler:.0f} mm.", "For session.yaml (if the print is scaled, measure and correct 'square'):"] + block
     for k, text in enumerate(lines):
         page.append(("text", margin, y + RULER_MM - 2.0 + LINE_MM * k, 7, text))
     return Page(width, height, page)
-
-
-def _describe(spec: dict[str, Any]) -> str:
-    kind = spec["type"]
-    mm = 1e3 * float(spec["square"])
-    if kind == "chessboard":
-        return f"chessboard of {spec['cols']} x {spec['rows']} inner corners, squares {mm:.2f} mm"
-    if kind == "charuco":
-        return (f"ChArUco board of {spec['cols']} x {spec['rows']} squares, squares {mm:.2f} mm, markers "
-                f"{1e3 * float(spec['marker']):.2f} mm, {spec['dictionary']}")
-    if kind in ("circles", "asymmetric_circles"):
-        return f"{kind.replace('_', ' ')} grid of {spec['cols']} x {spec['rows']}, spacing {mm:.2f} mm"
-    if kind == "aruco_grid":
-        return (f"grid of {spec['cols']} x {spec['rows']} markers, markers {mm:.2f} mm, gaps "
-                f"{1e3 * float(spec['separation']):.2f} mm, {spec.get('dictionary', 'DICT_APRILTAG_36h11')}")
-    return f"tag {spec.get('id', 0)} of {spec.get('dictionary', 'DICT_APRILTAG_36h11')}, side {mm:.2f} mm"
 
 
 def _svg(page: Page) -> str:

@@ -9,23 +9,16 @@ import yaml
 
 from ..errors import HandEyeError
 from ..printing import PAPERS, largest_square_mm, scaled_spec, write_target
-from ..vision.targets import target_from_spec, target_origin
+from ..vision.targets import print_kinds, target_from_spec, target_origin
 from ._common import number_arg, whole_arg
 
-#: handeye target: per printable kind, the session.yaml type and the defaults (mm, counts, dictionary).
-TARGET_KINDS = {
-    "chessboard": ("chessboard", dict(cols=9, rows=6, square=20.0)),
-    "charuco": ("charuco", dict(cols=7, rows=5, square=25.0, marker=18.0, dictionary="DICT_5X5_100")),
-    "circles": ("circles", dict(cols=7, rows=6, square=20.0)),
-    "asymmetric-circles": ("asymmetric_circles", dict(cols=4, rows=11, square=20.0)),
-    "aruco-grid": ("aruco_grid", dict(cols=5, rows=7, square=25.0, separation=5.0, dictionary="DICT_5X5_100")),
-    "apriltag-grid": ("aruco_grid", dict(cols=4, rows=5, square=35.0, separation=7.0, dictionary="DICT_APRILTAG_36h11")),
-    "apriltag": ("apriltag", dict(square=100.0, dictionary="DICT_APRILTAG_36h11", id=0)),
-}
+#: handeye target: per printable kind that handeye ships, the session.yaml type and the defaults (mm,
+#: counts, dictionary); a registered target type adds its own (:func:`handeye.vision.targets.print_kinds`).
+TARGET_KINDS = print_kinds()
 
 
 def _cmd_target(args: argparse.Namespace) -> int:
-    kind, defaults = TARGET_KINDS[args.type]
+    kind, defaults = print_kinds()[args.type]
     given = {"cols": args.cols, "rows": args.rows, "square": args.square_mm, "marker": args.marker_mm,
              "separation": args.separation_mm, "dictionary": args.dictionary, "id": args.id}
     values = {k: given[k] if given[k] is not None else v for k, v in defaults.items()}
@@ -41,6 +34,7 @@ def _cmd_target(args: argparse.Namespace) -> int:
     spec = {"type": kind}
     for k, v in values.items():
         spec[k] = round(v / 1e3, 9) if k in ("square", "marker", "separation") else v
+    target = target_from_spec(spec)
     if args.origin == "centre":  # before the fit: one more line of text below the board
         spec["origin"] = "centre"
     fitted = None
@@ -51,12 +45,10 @@ def _cmd_target(args: argparse.Namespace) -> int:
     path = write_target(spec, args.out, args.paper)
     print(f"wrote {path}: print it at 100% (no 'fit to page') and check the ruler measures 100 mm")
     if fitted is not None:
-        what = {"apriltag": "tag side", "aruco_grid": "markers", "circles": "circle spacing",
-                "asymmetric_circles": "circle spacing"}.get(kind, "squares")
-        print(f"{what} of {fitted:g} mm: the largest whole millimetre that fits {args.paper} (--square-mm sets the size)")
+        print(f"{target.size_name} of {fitted:g} mm: the largest whole millimetre that fits {args.paper} (--square-mm sets the size)")
     print("for session.yaml:")
     print("  " + yaml.safe_dump({"target": spec}, sort_keys=False).replace("\n", "\n  ").rstrip())
-    frame = target_from_spec(spec).frame
+    frame = target.frame
     if args.origin == "centre":
         centre = 1e3 * target_origin(spec)
         frame = (f"origin at the centre of the board, ({centre[0]:g}, {centre[1]:g}) mm in handeye's corner frame, whose "
@@ -77,7 +69,7 @@ def register(sub) -> None:
         "from either end: handeye resolves that from the robot motion, but a ChArUco board, a marker grid or an "
         "asymmetric circle grid removes the doubt.",
     )
-    p.add_argument("--type", required=True, choices=list(TARGET_KINDS))
+    p.add_argument("--type", required=True, choices=list(print_kinds()))
     p.add_argument("-o", "--out", required=True, help="board.pdf or board.svg")
     p.add_argument("--cols", type=whole_arg(1), help="see above (default per type: chessboard 9, charuco 7, ...)")
     p.add_argument("--rows", type=whole_arg(1), help="see above (default per type: chessboard 6, charuco 5, ...)")

@@ -2,12 +2,11 @@
 
 from .detect import ImageResult, detect_images
 from .pnp import calibrate_intrinsics, label_doubts, resolve_symmetries, solve_pnp, symmetry_costs
-from .targets import TARGET_TYPES, Detection, Target, target_from_spec, target_origin
+from .targets import Detection, Target, register_target, target_from_spec, target_origin, target_types
 
 __all__ = [
     "Detection",
     "ImageResult",
-    "TARGET_TYPES",
     "Target",
     "calibrate_intrinsics",
     "detect_images",
@@ -17,4 +16,6 @@ __all__ = [
     "solve_pnp",
     "target_from_spec",
     "target_origin",
+    "target_types",
+    "register_target",
 ]

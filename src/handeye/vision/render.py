@@ -9,94 +9,21 @@ make the images realistic.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.lazy import lazy_module
-from ..errors import TargetError
 from ..geometry.se3 import invert
 from .pnp import project_points
-from .targets import AprilTag, ArucoGrid, Charuco, Chessboard, CircleGrid, Target, aruco_dictionary
+from .targets import Target, Texture
 
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
 __all__ = ["Texture", "target_texture", "Renderer"]
 
-DARK, LIGHT = 25, 225
-
-
-@dataclass(frozen=True)
-class Texture:
-    """A target's printed pattern: ``u = u0 + x * scale``, ``v = v0 + y * scale`` (x, y in metres)."""
-
-    image: NDArray[np.uint8]
-    u0: float
-    v0: float
-    scale: float  #: texels per metre
-
-    def outline(self) -> NDArray[np.float64]:
-        """The sheet's four corners in the target frame (metres, z = 0)."""
-        h, w = self.image.shape
-        us = np.array([0, w, w, 0], dtype=float)
-        vs = np.array([0, 0, h, h], dtype=float)
-        return np.stack([(us - self.u0) / self.scale, (vs - self.v0) / self.scale, np.zeros(4)], axis=1)
-
-
 def target_texture(target: Target, texels_per_m: float = 4000.0) -> Texture:
-    """Draw a target's pattern (with a white quiet zone around it)."""
-    s = texels_per_m
-    if isinstance(target, Chessboard):
-        sq = target.square
-        nx, ny = target.cols + 1, target.rows + 1  # squares
-        margin = sq
-        w, h = int(round((nx * sq + 2 * margin) * s)), int(round((ny * sq + 2 * margin) * s))
-        img = np.full((h, w), LIGHT, np.uint8)
-        u0 = v0 = (margin + sq) * s  # the first inner corner is one square in from the board's corner
-        for b in range(ny):
-            for a in range(nx):
-                if (a + b) % 2 == 0:  # the board's corner square is dark
-                    x0, y0 = (a - 1) * sq, (b - 1) * sq
-                    pts = np.array([[x0, y0], [x0 + sq, y0], [x0 + sq, y0 + sq], [x0, y0 + sq]]) * s + [u0, v0]
-                    cv2.fillConvexPoly(img, np.round(pts * 16).astype(np.int32), DARK, cv2.LINE_AA, 4)
-        return Texture(img, u0, v0, s)
-    if isinstance(target, Charuco):
-        margin = target.square
-        bw, bh = target.cols * target.square, target.rows * target.square
-        w, h = int(round((bw + 2 * margin) * s)), int(round((bh + 2 * margin) * s))
-        m = int(round(margin * s))
-        img = target.board.generateImage((w, h), marginSize=m, borderBits=1)
-        img = np.where(img > 127, LIGHT, DARK).astype(np.uint8)
-        scale = (w - 2 * m) / bw
-        return Texture(img, float(m), float(m), scale)
-    if isinstance(target, ArucoGrid):
-        margin = target.square / 2
-        w, h = int(round((target.width + 2 * margin) * s)), int(round((target.height + 2 * margin) * s))
-        m = int(round(margin * s))
-        img = target.board.generateImage((w, h), marginSize=m, borderBits=1)
-        img = np.where(img > 127, LIGHT, DARK).astype(np.uint8)
-        return Texture(img, float(m), float(m), (w - 2 * m) / target.width)
-    if isinstance(target, CircleGrid):
-        pts = target.object_points()[:, :2]
-        r = 0.3 * target.square
-        margin = 1.5 * target.square
-        lo = pts.min(axis=0) - margin
-        hi = pts.max(axis=0) + margin
-        w, h = (np.round((hi - lo) * s)).astype(int)
-        img = np.full((h, w), LIGHT, np.uint8)
-        for x, y in pts:
-            c = np.round(((np.array([x, y]) - lo) * s) * 16).astype(int)
-            cv2.circle(img, (int(c[0]), int(c[1])), int(round(r * s * 16)), DARK, -1, cv2.LINE_AA, 4)
-        return Texture(img, -lo[0] * s, -lo[1] * s, s)
-    if isinstance(target, AprilTag):
-        side = int(round(target.square * s))
-        tag = cv2.aruco.generateImageMarker(aruco_dictionary(target.dictionary), target.tag_id or 0, side, borderBits=1)
-        m = side // 3
-        img = np.full((side + 2 * m, side + 2 * m), LIGHT, np.uint8)
-        img[m : m + side, m : m + side] = np.where(tag > 127, LIGHT, DARK)
-        return Texture(img, float(m), float(m), side / target.square)
-    raise TargetError(f"cannot render a {type(target).__name__}: the renderer draws the types of TARGET_TYPES")
+    """Draw a target's pattern (with a white quiet zone around it): its :meth:`Target.texture`."""
+    return target.texture(texels_per_m)
 
 
 class Renderer:
