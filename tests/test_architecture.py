@@ -240,3 +240,33 @@ def test_the_command_line_is_one_module_per_command():
     for name in ("calibrate", "calibrate-poses", "calibrate-streams", "check"):
         options = {o for a in action.choices[name]._actions for o in a.option_strings}  # noqa: SLF001
         assert {"--refine", "--method", "--robot-accuracy", "--known"} <= options, name
+
+
+def test_a_target_type_is_one_module_and_one_registration():
+    """vision/targets/ holds one module per target type, each defining one Target class that the
+    registry knows; nothing else in the package switches on a target's class or type name (the
+    renderer, the printer and `handeye target` ask the class)."""
+    from handeye.vision import targets
+
+    folder = SRC / "vision" / "targets"
+    modules = sorted(p.stem for p in folder.glob("*.py") if p.stem not in ("__init__", "base"))
+    registered = {cls.__module__.rsplit(".", 1)[1]: cls for cls in (targets.target_from_spec.__globals__["_REGISTRY"]).values()}
+    assert sorted(registered) == modules
+    for stem in modules:
+        tree = ast.parse((folder / f"{stem}.py").read_text(encoding="utf-8"))
+        classes = [n.name for n in tree.body if isinstance(n, ast.ClassDef)]
+        assert classes == [registered[stem].__name__], (stem, classes)
+    names = {cls.__name__ for cls in registered.values()}
+    kinds = set(targets.target_types())
+    switches = []
+    for name, path in MODULES.items():
+        if name.startswith("handeye.vision.targets"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "isinstance":
+                if {n.id for n in ast.walk(node.args[1]) if isinstance(n, ast.Name)} & names:
+                    switches.append(f"{name}:{node.lineno} isinstance")
+            if isinstance(node, ast.Compare) and any(isinstance(c, ast.Constant) and c.value in kinds
+                                                     for c in node.comparators + [node.left]):
+                switches.append(f"{name}:{node.lineno} compares with a target type")
+    assert not switches, "\n".join(switches)

@@ -103,7 +103,7 @@ def test_calibration_certificate_in_api_cli_and_files(tmp_path, capsys):
     s = random_scene(8, "eye_in_hand", rng=2)
     cal = handeye.calibrate_poses(s.flange2base, s.target2cam, method="certifiable", refine="none")
     cal = handeye.certify_calibration(cal)
-    assert cal.certificate["optimal"] and any("certificate: X is the global minimum" in n for n in cal.notes)
+    assert cal.certificate.optimal and any("certificate: X is the global minimum" in n for n in cal.notes)
     assert main(["calibrate-poses", "--example", "--certify", "--out", str(tmp_path / "out")]) in (0, 1)
     assert "certificate: X is" in capsys.readouterr().out
     data = json.loads((tmp_path / "out" / "result.json").read_text())

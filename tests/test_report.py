@@ -439,3 +439,59 @@ def test_scene_and_rotation_axes_use_the_page_and_their_labels_do_not_overlap(sa
         src = re.search(r'<img src="data:image/png;base64,([^"]+)"', text.split(f'<section id="{section}">')[1]).group(1)
         img = cv2.imdecode(np.frombuffer(base64.b64decode(src), np.uint8), cv2.IMREAD_COLOR)
         assert img.shape[1] >= 750, (section, img.shape)
+
+
+#: result.json's keys as the sub-records' parts wrote them before they were grouped (issue 36): the
+#: top level shared by every calibration, and the sections of the optional parts
+_TOP = {"X", "X_inverse", "X_inverse_name", "X_name", "Z", "Z_name", "check", "determined", "easy_handeye",
+        "handeye_version", "inputs_sha256", "method", "motion_residuals", "n_motions", "n_poses", "notes",
+        "pose_residuals", "refinement", "ros", "setup"}
+
+
+def test_result_json_keeps_its_keys_with_the_sub_records(sample_cal):
+    """Calibration groups its optional parts (cross-validation, observability, certificate, streams)
+    into sub-records, read through the names the guide documents; result.json writes the same keys
+    as before for a calibration from images, a partial one, one with known= values, a certified one
+    and one from streams."""
+    from handeye.report import result_dict
+    from handeye.result import HeldOutErrors, Observability, StreamSync
+    from handeye.simulate import low_dof_scene, stream_scene
+
+    d = result_dict(sample_cal)
+    assert set(d) == _TOP | {"camera", "cross_validation", "images", "uncertainty"}
+    assert set(d["cross_validation"]) == {"estimator", "meaning", "per_estimator", "prediction_error"}
+    assert isinstance(sample_cal.cross_validation, HeldOutErrors) and sample_cal.cross_validation.folds >= 2
+    assert d["cross_validation"]["per_estimator"] == dict(sample_cal.cross_validation)
+    assert sample_cal.prediction_error == sample_cal.cross_validation[sample_cal.estimator]
+    assert sample_cal.observability == Observability() and sample_cal.time_offset is None and sample_cal.streams is None
+
+    sc = low_dof_scene(12, "eye_in_hand", "scara", 1, robot_noise=(0, 0), pixel_px=0)
+    partial = handeye.calibrate_poses(sc.flange2base, sc.target2cam, "eye_in_hand")
+    d = result_dict(partial)
+    assert set(d) == _TOP | {"uncertainty", "unobservable"}
+    assert partial.observability.motion_kind == partial.motion_kind == "one_axis"
+    assert d["unobservable"] == [u.as_dict() for u in partial.observability.unobservable]
+    known = handeye.calibrate_poses(sc.flange2base, sc.target2cam, "eye_in_hand", known={"cam2flange.z": float(sc.X[2, 3])})
+    d = result_dict(known)
+    assert set(d) == _TOP | {"uncertainty", "known"} and set(d["known"]) == {"cam2flange.z"}
+    assert d["known"]["cam2flange.z"] == known.observability.known["cam2flange.z"]
+
+    st = stream_scene(20, "eye_in_hand", rng=3)
+    streamed = handeye.calibrate_streams(st.robot_times, st.flange2base, st.camera_times, st.target2cam, "eye_in_hand")
+    d = result_dict(streamed)
+    assert set(d) == _TOP | {"cross_validation", "time_sync", "uncertainty"}
+    assert set(d["time_sync"]) == {"camera_rate_hz", "camera_samples", "coarse_alignment", "coarse_offset_s", "fit_outliers",
+                                   "fit_samples", "keyframe_camera_times_s", "meaning", "offset_std_fit_s",
+                                   "offset_std_jackknife_s", "robot_rate_hz", "robot_samples", "search_s", "time_offset_s",
+                                   "time_offset_std_s"}
+    assert isinstance(streamed.sync, StreamSync) and d["time_sync"]["time_offset_s"] == streamed.sync.time_offset
+    assert streamed.time_offset_std == streamed.sync.time_offset_std and streamed.streams is streamed.sync.details
+
+    pytest.importorskip("cvxpy")
+    s = random_scene(8, "eye_in_hand", np.random.default_rng(2))
+    certified = handeye.certify_calibration(handeye.calibrate_poses(s.flange2base, s.target2cam, method="certifiable",
+                                                                    refine="none"))
+    d = result_dict(certified)
+    assert set(d) == _TOP | {"certificate"}
+    assert d["certificate"] == certified.certificate.as_dict() and set(d["certificate"]) == {
+        "cost", "cost_name", "gap", "lower_bound", "optimal", "tight"}

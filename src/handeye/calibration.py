@@ -40,7 +40,7 @@ from .motions import MotionSet, Pairs, validate_poses
 from .options import ROBOT_ACCURACY, CalibrationOptions, options_from
 from .partial import calibrate_partial, known_on_complete, parse_known
 from .poses import RobotPoseInput
-from .result import Calibration, Diagnostics
+from .result import Calibration, Diagnostics, HeldOutErrors, StreamSync
 from .session import Session, SessionError, load_session
 from .setups import check_setup
 from .solvers.certifiable import certify
@@ -225,7 +225,7 @@ def certify_calibration(cal: Calibration) -> Calibration:
         note = (f"certificate: X is not the global minimum of the stated motion cost (gap {cert.gap:.3g} of "
                 f"{cert.cost:.3g}; {cal.estimator or cal.method} minimises "
                 f"{'that cost' if cal.method == 'certifiable' else 'another'})")
-    return replace(cal, certificate=cert.as_dict(), notes=list(cal.notes) + [note])
+    return replace(cal, certificate=cert, notes=list(cal.notes) + [note])
 
 
 def _pose_options(setup: str, opts: CalibrationOptions) -> dict:
@@ -355,7 +355,7 @@ def apply_choice(cal: Calibration, choice: Choice, views: Views, pairs: Pairs = 
     elif name != cal.estimator:  # another closed form
         X, Z, motions = closed_form(cal.flange2base, cal.target2cam, cal.setup, name, pairs)
         cal = replace(cal, X=X, Z=Z, method=name, motions=motions, pairs=motions.pairs)
-    cal = replace(cal, estimator=name, cross_validation=choice.table())
+    cal = replace(cal, estimator=name, cross_validation=HeldOutErrors(choice.table(), choice.best.folds))
     if uncertainty:
         cal = _spread_judged(_uncertain(cal, choice.fits[name], views, robot_accuracy, obs), choice)
     notes = list(cal.notes) + [f"estimator {name}: chosen by {choice.best.folds}-fold cross-validation, held-out error "
@@ -545,18 +545,16 @@ def _check_intrinsics_data(points: int, unknowns: int, images: int, target: str)
 
 
 def _counted_squares(session: Session, results: list) -> str | None:
-    """For a chessboard not found: whether the squares were counted instead of the inner corners
-    (a board of 10 x 7 squares has 9 x 6 inner corners), tried on up to 3 of the images."""
-    spec = session.target_spec
-    if spec.get("type") != "chessboard" or min(int(spec["cols"]), int(spec["rows"])) < 4:
+    """For a target not found: whether it was miscounted (:meth:`Target.miscounted`: a chessboard's
+    squares counted instead of its inner corners), tried on up to 3 of the images."""
+    slip = target_from_spec(session.target_spec).miscounted()
+    if slip is None:
         return None
-    smaller = dict(spec, cols=int(spec["cols"]) - 1, rows=int(spec["rows"]) - 1)
+    meant, hint = slip
     tried = [session.image_paths[k] for k, r in enumerate(results) if r is not None and r.image_size is not None][:3]
-    if not any(r.detection is not None for r in detect_images(tried, target_from_spec(smaller), jobs=1, progress=False)):
+    if not any(r.detection is not None for r in detect_images(tried, meant, jobs=1, progress=False)):
         return None
-    return (f"did you count squares? This board has {smaller['cols']} x {smaller['rows']} inner corners (a board of "
-            f"{spec['cols']} x {spec['rows']} squares): set cols: {smaller['cols']} and rows: {smaller['rows']} in "
-            "session.yaml (cols and rows count the inner corners)")
+    return hint
 
 
 def observe(session: Session, jobs: int | None = None, progress: bool = True,
@@ -823,8 +821,8 @@ def _with_sync(cal: Calibration, sync: Synchronisation, robot: PoseStream, camer
         cov = cal.cov + offset_cov(cal.X, cal.Z, cal.setup, robot, used_times, cal.target2cam, sync.offset,
                                    sync.offset_std)
         cal = replace(cal, cov=cov, std=_std(cov))
-    return replace(cal, time_offset=sync.offset, time_offset_std=sync.offset_std,
-                   streams=sync.info(robot, camera, used_times), notes=list(sync.notes) + list(cal.notes))
+    return replace(cal, sync=StreamSync(sync.offset, sync.offset_std, sync.info(robot, camera, used_times)),
+                   notes=list(sync.notes) + list(cal.notes))
 
 
 def calibrate_observed(

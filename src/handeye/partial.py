@@ -21,7 +21,7 @@ from .errors import InputMismatchError
 from .geometry.se3 import mean_transform
 from .metrics import std_deg_mm
 from .motions import MotionSet, Pairs
-from .result import Calibration, Unobservable
+from .result import Calibration, Observability, Unobservable
 from .setups import constant_transforms, robot_world_A, setup_info
 from .solvers.low_dof import GAUGE_STD, ONE_AXIS, TRANSLATION_ONLY, gauge_rows, solve_low_dof
 from .solvers.refine import TranslationPriors, refine_pose
@@ -179,7 +179,7 @@ def known_on_complete(cal: Calibration, known: list[Known]) -> Calibration:
     if not known:
         return cal
     notes, table = _known_notes(known, cal.X, cal.Z, cal.cov, cal.setup)
-    return replace(cal, notes=list(cal.notes) + notes, known=table)
+    return replace(cal, notes=list(cal.notes) + notes, observability=replace(cal.observability, known=table))
 
 
 def calibrate_partial(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str, kind: str,
@@ -246,5 +246,5 @@ def calibrate_partial(flange2base: NDArray[np.float64], target2cam: NDArray[np.f
     return Calibration(
         X=X, Z=Z, setup=setup, method=f"low_dof_{kind}", flange2base=flange2base, target2cam=target2cam,
         pairs=motions.pairs, cov=cov, std=std, motions=motions, refinement="pose" if refine else "none",
-        pose_noise=noise, notes=notes, estimator=f"low_dof_{kind}" + ("+pose" if refine else ""), motion_kind=kind,
-        unobservable=unobservable, known=table)
+        pose_noise=noise, notes=notes, estimator=f"low_dof_{kind}" + ("+pose" if refine else ""),
+        observability=Observability(kind, unobservable, table))

@@ -7,6 +7,7 @@ builds these records step by step, each step returning a new one (``dataclasses.
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -21,8 +22,9 @@ from .metrics import rotation_error, translation_error
 from .motions import MotionSet, screw_congruence
 from .poses import RobotPoseInput
 from .setups import constant_transforms, setup_info
+from .solvers.certifiable import Certificate
 
-__all__ = ["Calibration", "Diagnostics", "Unobservable"]
+__all__ = ["Calibration", "Diagnostics", "Unobservable", "Observability", "HeldOutErrors", "StreamSync", "Certificate"]
 
 
 @dataclass(frozen=True)
@@ -61,6 +63,70 @@ class Unobservable:
         return {"parameter": self.parameter, "transform": self.transform, "frame": self.frame,
                 "direction": [float(v) for v in self.direction], "value_m": float(self.value), "choice": self.choice,
                 "coupled": self.coupled, "fix": self.fix}
+
+
+@dataclass(frozen=True)
+class Observability:
+    """What the robot's motions determine of X (:mod:`handeye.partial`), and what was given for the rest.
+
+    Attributes
+    ----------
+    motion_kind : {'general', 'one_axis', 'translation_only'}
+        The robot's motions: general, all rotations about one axis (SCARA, planar) or none (Cartesian).
+    unobservable : list of Unobservable
+        What the data cannot determine of X (empty when X is complete); ``Calibration.std`` is inf there.
+    known : dict
+        The values given with ``known=``: name -> {'value_m', 'std_m', 'used' (it fixed what the data
+        could not), 'data_m' (the data's own value when they determine it, else None)}.
+    """
+
+    motion_kind: str = "general"
+    unobservable: list[Unobservable] = field(default_factory=list)
+    known: dict[str, dict] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class HeldOutErrors(Mapping):
+    """Held-out prediction error per estimator tried, from K-fold cross-validation: a mapping name ->
+    {'px': RMS pixels (None without images), 'mm': RMS at the target's distance}.
+
+    Attributes
+    ----------
+    errors : dict
+        The mapping itself.
+    folds : int or None
+        K, the number of folds (None when not recorded).
+    """
+
+    errors: dict[str, dict[str, float | None]]
+    folds: int | None = None
+
+    def __getitem__(self, name: str) -> dict[str, float | None]:
+        return self.errors[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.errors)
+
+    def __len__(self) -> int:
+        return len(self.errors)
+
+
+@dataclass(frozen=True)
+class StreamSync:
+    """How :func:`handeye.calibrate_streams` put the robot and the camera on one clock.
+
+    Attributes
+    ----------
+    time_offset, time_offset_std : float
+        The camera clock minus the robot clock (s), and its std.
+    details : dict
+        Rates, samples, the coarse offset and its correlation, the joint fit, and the keyframes'
+        camera times (``handeye.sync``), as written to result.json's ``time_sync``.
+    """
+
+    time_offset: float
+    time_offset_std: float
+    details: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -198,6 +264,15 @@ class Calibration:
         on first access.
     pose_residuals : ndarray (N, 2)
         Per pose, how far its own ``Z_i`` (through X) is from Z: rotation (deg), translation (mm).
+    cross_validation : HeldOutErrors or None
+        Held-out prediction error per estimator tried (a mapping); ``prediction_error`` is the chosen one's.
+    observability : Observability
+        What the motions determine of X (``motion_kind``, ``unobservable``, ``known``, also read directly).
+    certificate : Certificate or None
+        From :func:`handeye.certify_calibration`.
+    sync : StreamSync or None
+        From :func:`handeye.calibrate_streams` (``time_offset``, ``time_offset_std``, ``streams``, also read
+        directly).
     """
 
     X: NDArray[np.float64]
@@ -241,9 +316,8 @@ class Calibration:
     solver_comparison: list[dict] | None = field(default=None, repr=False)
     #: the estimator that gave X (a solver name, 'pose', 'reprojection', ...; see handeye.estimators)
     estimator: str | None = None
-    #: held-out prediction error per estimator tried, from K-fold cross-validation: name ->
-    #: {'px': RMS pixels (None without images), 'mm': RMS at the target's distance}
-    cross_validation: dict[str, dict[str, float | None]] | None = None
+    #: held-out prediction error per estimator tried (a mapping name -> {'px', 'mm'}); None when not cross-validated
+    cross_validation: HeldOutErrors | None = None
     #: the std of X's six parameters (deg, mm) from each source: 'model' (the refinement's noise
     #: model, None for a closed form), 'jackknife' (the spread of X refitted without each pose)
     std_sources: dict[str, NDArray[np.float64] | None] | None = None
@@ -252,22 +326,44 @@ class Calibration:
     #: the std of Z's six parameters (deg, mm; rotation about and translation along Z's parent axes): the
     #: jackknife spread of Z refitted without each pose, plus the robot's absolute accuracy; None when not computed
     std_Z: NDArray[np.float64] | None = None
-    #: the robot's motions: 'general', 'one_axis' (SCARA, planar) or 'translation_only' (Cartesian)
-    motion_kind: str = "general"
-    #: what the data cannot determine of X (empty when X is complete); ``std`` is inf there
-    unobservable: list[Unobservable] = field(default_factory=list)
-    #: the values given with ``known=``: name -> {'value_m', 'std_m', 'used' (it fixed what the data could
-    #: not), 'data_m' (the data's own value when they determine it, else None)}
-    known: dict[str, dict] = field(default_factory=dict)
-    #: from handeye.certify_calibration: whether X is the global minimum of the stated motion cost
-    #: ({'optimal', 'gap', 'cost', 'lower_bound', 'tight', 'cost_name'}); None when not certified
-    certificate: dict | None = None
-    #: from handeye.calibrate_streams: the camera clock minus the robot clock (s), and its std; None for pairs
-    time_offset: float | None = None
-    time_offset_std: float | None = None
-    #: how the streams were synchronised (handeye.calibrate_streams): rates, samples, the coarse offset and its
-    #: correlation, the joint fit, and the keyframes' camera times
-    streams: dict | None = None
+    #: what the motions determine of X (robots that cannot rotate freely), and the values given for the rest
+    observability: Observability = field(default_factory=Observability)
+    #: from handeye.certify_calibration: whether X is the global minimum of the stated motion cost; None when
+    #: not certified
+    certificate: Certificate | None = None
+    #: from handeye.calibrate_streams: the clock offset and how the streams were synchronised; None for pairs
+    sync: StreamSync | None = None
+
+    # the sub-records' parts by their documented names -------------------------------------------
+    @property
+    def motion_kind(self) -> str:
+        """The robot's motions: 'general', 'one_axis' (SCARA, planar) or 'translation_only' (Cartesian)."""
+        return self.observability.motion_kind
+
+    @property
+    def unobservable(self) -> list[Unobservable]:
+        """What the data cannot determine of X (empty when X is complete); ``std`` is inf there."""
+        return self.observability.unobservable
+
+    @property
+    def known(self) -> dict[str, dict]:
+        """The values given with ``known=`` (:class:`Observability`)."""
+        return self.observability.known
+
+    @property
+    def time_offset(self) -> float | None:
+        """The camera clock minus the robot clock (s), from :func:`handeye.calibrate_streams`; None for pairs."""
+        return None if self.sync is None else self.sync.time_offset
+
+    @property
+    def time_offset_std(self) -> float | None:
+        """The std of :attr:`time_offset` (s); None for pairs."""
+        return None if self.sync is None else self.sync.time_offset_std
+
+    @property
+    def streams(self) -> dict | None:
+        """How the streams were synchronised (:attr:`StreamSync.details`); None for pairs."""
+        return None if self.sync is None else self.sync.details
 
     @property
     def verdict(self) -> str:

@@ -19,7 +19,7 @@ from .calibration import calibrate_poses
 from .metrics import std_deg_mm
 from .options import CalibrationOptions, options_from
 from .poses import RobotPoseInput
-from .result import Calibration
+from .result import Calibration, StreamSync
 from .setups import check_setup
 from .sync import KEYFRAMES, check_stream, keyframes_at, offset_cov, synchronise
 from .verdict import judged
@@ -101,8 +101,8 @@ def calibrate_streams(
         cov = cal.cov + offset_cov(cal.X, cal.Z, setup, robot, camera.times[used], camera.poses[used], sync.offset,
                                    sync.offset_std)
         cal = replace(cal, cov=cov, std=std_deg_mm(cov))
-    return judged(replace(cal, time_offset=sync.offset, time_offset_std=sync.offset_std,
-                          streams=sync.info(robot, camera, camera.times[kf]), notes=notes + list(cal.notes)))
+    return judged(replace(cal, sync=StreamSync(sync.offset, sync.offset_std, sync.info(robot, camera, camera.times[kf])),
+                          notes=notes + list(cal.notes)))
 
 
 def paired_delay_note(paired_delays: ArrayLike | None, offset: float, offset_std: float) -> str | None:

@@ -321,7 +321,7 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
         out["cross_validation"] = {
             "estimator": cal.estimator,
             "prediction_error": cal.prediction_error,
-            "per_estimator": cal.cross_validation,
+            "per_estimator": dict(cal.cross_validation),
             "meaning": "RMS error of the target's points in views held out of the fit, predicted from the robot "
                        "pose alone: pixels (with images) and millimetres at the target's distance; the number to "
                        "trust for how well X and Z predict new views",
@@ -335,7 +335,7 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
     if cal.known:
         out["known"] = {k: dict(v) for k, v in cal.known.items()}
     if cal.certificate is not None:
-        out["certificate"] = dict(cal.certificate)
+        out["certificate"] = cal.certificate.as_dict()
     if cal.time_offset is not None:
         out["time_sync"] = {"time_offset_s": cal.time_offset, "time_offset_std_s": cal.time_offset_std,
                             "meaning": "camera clock minus robot clock: the camera sample stamped t shows the robot "

@@ -272,9 +272,9 @@ def _result_section(cal: Calibration, data: dict) -> str:
              + f"<pre>{_e(data['ros']['static_transform_publisher'])}</pre><pre>{_e(data['ros']['urdf_joint'])}</pre>"]
     if cal.certificate is not None:
         c = cal.certificate
-        parts.append(f"<p><b>Certificate:</b> X is {'' if c['optimal'] else 'not '}the global minimum of the stated "
-                     f"cost ({_e(c['cost_name'])}): cost {c['cost']:.6g}, lower bound {c['lower_bound']:.6g}, gap "
-                     f"{c['gap']:.3g}{'' if c['tight'] else ' (relaxation not tight)'}</p>")
+        parts.append(f"<p><b>Certificate:</b> X is {'' if c.optimal else 'not '}the global minimum of the stated "
+                     f"cost ({_e(c.cost_name)}): cost {c.cost:.6g}, lower bound {c.lower_bound:.6g}, gap "
+                     f"{c.gap:.3g}{'' if c.tight else ' (relaxation not tight)'}</p>")
     if cal.time_offset is not None:
         st = cal.streams or {}
         parts.append(f"<p><b>Clock offset</b> (camera minus robot): {1e3 * cal.time_offset:.2f} &plusmn; "

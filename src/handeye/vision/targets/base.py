@@ -127,6 +127,12 @@ class Target:
         """
         return [np.eye(4)]
 
+    def miscounted(self) -> tuple["Target", str] | None:
+        """The target a user who miscounted this one probably has, and the hint to give when it is
+        found where this one is not (a chessboard's squares counted instead of its inner corners);
+        None when no such slip is common."""
+        return None
+
     # render and print ---------------------------------------------------------------------------
     def texture(self, texels_per_m: float = 4000.0) -> Texture:
         """The printed pattern (with a white quiet zone around it), for the renderer."""

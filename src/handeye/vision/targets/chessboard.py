@@ -40,6 +40,14 @@ class Chessboard(Target):
     def symmetries(self) -> list[NDArray[np.float64]]:
         return self._grid_symmetries(self.object_points())
 
+    def miscounted(self) -> tuple["Chessboard", str] | None:
+        if min(self.cols, self.rows) < 4:
+            return None
+        inner = Chessboard(self.cols - 1, self.rows - 1, self.square)
+        return inner, (f"did you count squares? This board has {inner.cols} x {inner.rows} inner corners (a board of "
+                       f"{self.cols} x {self.rows} squares): set cols: {inner.cols} and rows: {inner.rows} in "
+                       "session.yaml (cols and rows count the inner corners)")
+
     def detect(self, gray: NDArray[np.uint8]) -> Detection | None:
         size = (self.cols, self.rows)
         corners = _chessboard_in_region(gray, size) if min(gray.shape[:2]) >= PYRAMID_MIN_SIDE else None
