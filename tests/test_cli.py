@@ -66,7 +66,7 @@ def test_console_script_runs_as_subprocess(tmp_path):
     X = np.array(data["X"]["matrix"])
     assert np.allclose(X[:3, 3], data["X"]["translation_m"]) and data["X_name"] == "cam2flange"
     assert data["refinement"]["type"] == "pose" and set(data["refinement"]["pose_noise"]) == {
-        "robot_rotation_deg", "camera_rotation_deg", "translation_mm"}
+        "robot_rotation_deg", "camera_rotation_deg", "translation_mm", "camera_depth_mm"}
     assert data["check"]["verdict"] == "good" and data["check"]["outliers"] == []
     assert data["check"]["pose_indices_used"] == list(range(data["n_poses"]))
     assert len(data["Z"]["std_translation_mm"]) == 3 and min(data["Z"]["std_translation_mm"]) > 0  # Z has a std too

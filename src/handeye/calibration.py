@@ -285,6 +285,7 @@ def refine_on_poses(cal: Calibration, ref: PoseRefinementResult | None = None) -
             "robot_rotation_deg": float(np.degrees(ref.noise["robot_rotation"])),
             "camera_rotation_deg": float(np.degrees(ref.noise["camera_rotation"])),
             "translation_mm": 1e3 * ref.noise["translation"],
+            "camera_depth_mm": 1e3 * ref.noise["camera_depth"],
         },
     )
 

@@ -215,7 +215,8 @@ def calibrate_partial(flange2base: NDArray[np.float64], target2cam: NDArray[np.f
         X, Z, cov = ref.X, ref.Z, ref.cov_X
         noise = {"robot_rotation_deg": float(np.degrees(ref.noise["robot_rotation"])),
                  "camera_rotation_deg": float(np.degrees(ref.noise["camera_rotation"])),
-                 "translation_mm": 1e3 * ref.noise["translation"]}
+                 "translation_mm": 1e3 * ref.noise["translation"],
+                 "camera_depth_mm": 1e3 * ref.noise["camera_depth"]}
     else:
         # shift along the undetermined directions so that the known values hold (least squares)
         shift, *_ = np.linalg.lstsq(G @ D.T, values - G @ np.concatenate([X0[:3, 3], Z0[:3, 3]]), rcond=None)

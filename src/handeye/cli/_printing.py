@@ -72,7 +72,8 @@ def print_calibration(cal: Calibration, out=None) -> None:
     if cal.pose_noise is not None:
         nz = cal.pose_noise
         w(f"pose noise estimated from the data (per axis): robot rotation {nz['robot_rotation_deg']:.4f} deg, "
-          f"camera rotation {nz['camera_rotation_deg']:.4f} deg, translation {nz['translation_mm']:.3f} mm\n")
+          f"camera rotation {nz['camera_rotation_deg']:.4f} deg, translation {nz['translation_mm']:.3f} mm, camera "
+          f"depth {nz.get('camera_depth_mm', 0.0):.3f} mm\n")
     if cal.prediction_error is not None:
         pe = cal.prediction_error
         w(f"held-out prediction error ({cal.estimator}, cross-validated): "
