@@ -182,7 +182,7 @@ def handeye_fit(rs: RealSet) -> Fit:
     def fit(flange2base, target2cam, setup, idx):
         if rs.observations is not None:
             cal = calibrate_observed(rs.observations.subset(idx), uncertainty=False)
-            return cal.X, cal.Z, cal.camera_matrix, cal.dist_coeffs
+            return cal.X, cal.Z, cal.camera_matrix, cal.dist_coeffs, cal.target_scale
         cal = handeye.calibrate_poses(flange2base, target2cam, setup)
         return cal.X, cal.Z
     return fit

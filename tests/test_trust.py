@@ -140,6 +140,35 @@ def test_board_scale_finds_a_wrong_square_size(setup):
     assert cal.verdict == "inconsistent" and len(factors) == 1 and abs(factors[0] - 1.2) < 0.01
 
 
+def test_a_wrong_square_size_is_not_trusted_as_declared(tmp_path):
+    """Images of a 30 mm board declared as 25 mm: the verdict is inconsistent and names the factor,
+    and X is not the one the declared size gives: it is estimated with the board at the scale the
+    robot's motions give (target_scale 1.2), lands within 3 std of the truth (the std holds the
+    scale's error), as close as with the right size declared, and predicts held-out views better
+    than X on the declared size; result.json and verify carry the scale."""
+    folder = tmp_path / "s"
+    sc = handeye.simulate.simulate_realistic_session(folder, 12, "eye_in_hand", 3)
+    right = handeye.calibrate(folder, progress=False)
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    spec["target"]["square"] = 0.025
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    cal = handeye.calibrate(folder, progress=False)
+    declared = handeye.calibrate(folder, progress=False, check=False)
+    err = np.degrees(rotation_error(cal.X, sc.X)), 1e3 * translation_error(cal.X, sc.X)
+    print(f"scale {cal.target_scale:.4f}; X {err[0]:.3f} deg / {err[1]:.2f} mm from the truth (right size "
+          f"{1e3 * translation_error(right.X, sc.X):.2f} mm, declared size {1e3 * translation_error(declared.X, sc.X):.2f} mm); "
+          f"held-out {cal.prediction_error['px']:.3f} px against {declared.prediction_error['px']:.3f} px")
+    assert cal.verdict == "inconsistent" and abs(cal.target_scale - 1.2) < 0.02
+    factors = [float(m) for a in cal.diagnostics.advice for m in re.findall(r"multiply it by ([0-9.]+)", a)]
+    assert factors == [pytest.approx(cal.target_scale, abs=1e-4)]
+    assert err[0] <= 3 * np.linalg.norm(cal.std[:3]) and err[1] <= 3 * np.linalg.norm(cal.std[3:])
+    assert 1e3 * translation_error(cal.X, right.X) < 0.5 < 1e3 * translation_error(declared.X, sc.X)
+    assert cal.prediction_error["px"] < declared.prediction_error["px"]
+    assert cal.std_sources["board_scale"] is not None
+    handeye.write_calibration(cal, tmp_path / "out")
+    assert handeye.session.read_result(tmp_path / "out")["target_scale"] == pytest.approx(cal.target_scale)
+
+
 # --- the bundled sample, as given and with the issue's faults --------------------------------
 
 def _truth():

@@ -84,6 +84,14 @@ def test_the_verdict_rules():
     assert judge(Evidence(diag, narrow, spread=(0.001, 0.2))).verdict == "good"
     assert judge(Evidence(handeye.Diagnostics(verdict="inconsistent"), wide)).verdict == "inconsistent"
     assert judge(Evidence(None, wide)).verdict == "not checked"
+    # the robot's accuracy alone beyond the acceptance: weak, and more poses are not the advice
+    robot = np.array([0.01] * 3 + [1.5] * 3)
+    found = judge(Evidence(diag, robot, {"jackknife": narrow, "robot_accuracy": robot}))
+    assert found.verdict == "weak" and "robot's accuracy alone" in found.added[0] and "take more" not in found.added[0]
+    # closed forms that predict far worse and land beyond 3 std: still good, and said
+    found = judge(Evidence(diag, narrow, spread=(0.001, 0.2), unfair_spread=(0.01, 4.5, 4.7)))
+    assert found.verdict == "good" and "4.7x worse" in found.reasons[-1] and found.added == found.reasons[-1:]
+    assert judge(Evidence(diag, narrow, unfair_spread=(0.01, 0.3, 4.7))).reasons == []
 
 
 def test_options_travel_as_one_checked_record():

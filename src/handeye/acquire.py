@@ -426,6 +426,15 @@ def _predicted_std(info: NDArray[np.float64], sigma_px: float, X: NDArray[np.flo
     return std_deg_mm(cov)
 
 
+def _stop(cal: Calibration | None, within: Callable) -> str | None:
+    """Why the capture stops on ``cal`` (calibrate's answer on the views so far): its std is ``within``
+    the target, or the robot's accuracy it holds is not (more views do not narrow that); else None."""
+    if cal is None or cal.std is None or within(cal.std):
+        return "target std reached"
+    floor = (cal.std_sources or {}).get("robot_accuracy")
+    return "robot accuracy" if floor is not None and not within(floor) else None
+
+
 def _write_state(folder: Path, setup: str, spec: dict, names: list[str], rows: list, robot: Robot,
                  K: NDArray[np.float64] | None, dist: NDArray[np.float64] | None) -> None:
     """session.yaml and poses.csv with the poses exactly as the robot reported them (not re-formatted:
@@ -587,8 +596,10 @@ def acquire(
     Returns
     -------
     Acquisition
-        ``stopped``: 'target std reached', 'max poses', 'no candidate left' or 'interrupted' (the
-        views captured are kept; run again with the same ``out`` to resume).
+        ``stopped``: 'target std reached', 'robot accuracy' (the robot's error the views show puts
+        X's std above the target whatever more views add: see the calibration's notes), 'max poses',
+        'no candidate left' or 'interrupted' (the views captured are kept; run again with the same
+        ``out`` to resume).
     """
     check_setup(setup)
     _check_target_std(target_std, X0, robot_accuracy)
@@ -609,8 +620,8 @@ def acquire(
                 if len(cap.measured) >= max(min_poses, next_check) and within(std):
                     # the prediction says enough: calibrate, and stop when the std calibrate reports agrees
                     cal = calibrate(cap.folder, progress=False, robot_accuracy=robot_accuracy) if calibrate_session else None
-                    if cal is None or cal.std is None or within(cal.std):
-                        stopped = "target std reached"
+                    if (reason := _stop(cal, within)) is not None:
+                        stopped = reason
                         break
                     cal, next_check = None, len(cap.measured) + RECHECK_AFTER  # the data's spread asks for more
             flange2base = flange_poses(cam2target, X, Z, setup)

@@ -45,7 +45,7 @@ from .solvers.refine import pose_mahalanobis, refine_pose
 from .vision import resolve_symmetries
 
 __all__ = ["Diagnostics", "RobotPoseInput", "diagnose", "find_outliers", "consistency_score", "closed_form",
-           "compare_solvers"]
+           "compare_solvers", "board_scale", "scale_is_off"]
 
 #: Consistency score (below) up to which data count as consistent.
 CONSISTENT = 3.0
@@ -379,7 +379,7 @@ def _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outlier
             diag.advice.append(advice)
             return diag
         scale = board_scale(flange2base, target2cam, setup)  # a wrong target size is the other usual mistake
-        if scale is not None and _scale_is_off(*scale) and _scale_explains(flange2base, target2cam, setup, scale[0]):
+        if scale is not None and scale_is_off(*scale) and _scale_explains(flange2base, target2cam, setup, scale[0]):
             diag.scale, diag.scale_std = scale
             diag.verdict = "inconsistent"
             diag.advice.append(_scale_advice(*scale))
@@ -403,7 +403,7 @@ def _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outlier
     scale = board_scale(flange2base[inliers], target2cam[inliers], setup)
     if scale is not None:
         diag.scale, diag.scale_std = scale
-        if _scale_is_off(*scale):
+        if scale_is_off(*scale):
             diag.verdict = "inconsistent"
             diag.advice.append(_scale_advice(*scale))
             return diag
@@ -483,7 +483,9 @@ def _scale_explains(flange2base, target2cam, setup: str, scale: float) -> bool:
     return consistency_score(flange2base, scaled, setup) <= CONSISTENT
 
 
-def _scale_is_off(scale: float, std: float) -> bool:
+def scale_is_off(scale: float, std: float) -> bool:
+    """Whether a board scale (:func:`board_scale`) names the target's size as wrong: off by more than
+    :data:`SCALE_TOLERANCE` and by more than :data:`SCALE_SIGMAS` of its std."""
     return abs(scale - 1.0) > max(SCALE_TOLERANCE, SCALE_SIGMAS * std)
 
 

@@ -293,10 +293,13 @@ class Calibration:
     camera_matrix: NDArray[np.float64] | None = None
     dist_coeffs: NDArray[np.float64] | None = None
     intrinsics_source: str | None = None  #: "session.yaml" or "estimated"
+    #: the factor the target's given size was multiplied by: the scale the robot's motions give when the
+    #: check found the given size wrong (the target's points, Z and the camera's poses are at that size)
+    target_scale: float = 1.0
     intrinsics_rms: float | None = None
     refinement: str = "none"  #: "none", "pose" or "reprojection"
     refined_rms: float | None = None  #: RMS reprojection error (px) of all points after refinement
-    #: pose refinement's noise estimates: robot rotation (deg), camera rotation (deg), translation (mm)
+    #: pose refinement's noise estimates: robot rotation (deg), camera rotation (deg), translation (mm), camera depth (mm)
     pose_noise: dict[str, float] | None = None
     diagnostics: Diagnostics | None = field(default=None, repr=False)  #: from handeye.diagnose (check=True)
     #: indices (into the poses given) of the poses used: outliers are left out

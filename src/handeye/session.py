@@ -758,8 +758,9 @@ def write_pose_pairs(folder: str | Path, setup: str, flange2base: NDArray[np.flo
 def read_result(path: str | Path) -> dict[str, Any]:
     """A calibration written by handeye (``result.json`` / ``result.yaml``, or the folder holding
     them): ``setup``, ``X``, ``Z`` (4x4), the intrinsics it used (``K``, ``dist``, None without images),
-    its cross-validated ``prediction_error`` (``{'px', 'mm'}`` or None) and ``image_sha256`` (image
-    name -> SHA-256 of the images it used; empty for results without them)."""
+    its cross-validated ``prediction_error`` (``{'px', 'mm'}`` or None), ``image_sha256`` (image
+    name -> SHA-256 of the images it used; empty for results without them) and ``target_scale`` (the
+    factor the target's given size was corrected by, 1.0 when it was not)."""
     p = Path(path)
     if p.is_dir():
         p = next((p / n for n in ("result.json", "result.yaml") if (p / n).is_file()), p / "result.json")
@@ -778,4 +779,5 @@ def read_result(path: str | Path) -> dict[str, Any]:
     images = data.get("images") if isinstance(data.get("images"), dict) else {}
     digests = dict(zip(images.get("used") or [], images.get("sha256") or []))
     return {"path": p, "setup": setup, "X": X, "Z": Z, "K": K, "dist": dist,
-            "prediction_error": cv.get("prediction_error"), "image_sha256": {n: d for n, d in digests.items() if d}}
+            "prediction_error": cv.get("prediction_error"), "image_sha256": {n: d for n, d in digests.items() if d},
+            "target_scale": float((data.get("target_scale") or {}).get("factor", 1.0))}

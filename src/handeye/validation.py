@@ -29,15 +29,15 @@ from .setups import predicted_target2cam
 from .vision.pnp import project_points
 
 __all__ = ["Views", "Fit", "default_folds", "fold_indices", "view_errors", "cross_validate", "CrossValidation", "jackknife_cov",
-           "jackknife_covs",
-           "VIRTUAL_TARGET"]
+           "jackknife_covs", "robot_error_seen", "VIRTUAL_TARGET"]
 
 #: Points of a virtual 0.2 m x 0.15 m target (target frame, metres): the held-out error of pose-only
 #: data is measured on them.
 VIRTUAL_TARGET = np.array([[x, y, 0.0] for x in np.linspace(0.0, 0.2, 5) for y in np.linspace(0.0, 0.15, 4)])
 
 #: A fit: (flange2base, target2cam, setup, the training views' indices) -> (X, Z), or (X, Z, K, dist)
-#: when it also refines the intrinsics (the held-out views are then projected with those).
+#: when it also refines the intrinsics (the held-out views are then projected with those), or
+#: (X, Z, K, dist, scale) when it also corrects the target's size (the held-out views' points scaled).
 Fit = Callable[[NDArray[np.float64], NDArray[np.float64], str, NDArray[np.intp]], tuple]
 
 
@@ -87,12 +87,14 @@ _TINY = np.finfo(float).tiny
 
 def view_errors(X: NDArray[np.float64], Z: NDArray[np.float64], views: Views,
                 idx: NDArray[np.intp] | None = None, K: NDArray[np.float64] | None = None,
-                dist: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64] | None, NDArray[np.float64]]:
+                dist: NDArray[np.float64] | None = None,
+                scale: float = 1.0) -> tuple[NDArray[np.float64] | None, NDArray[np.float64]]:
     """Prediction error of views ``idx`` (default all) from X, Z and their robot poses.
 
     Returns ``(px, mm)``: per view the RMS pixel error of the target's points (None without
     images) and the RMS error in millimetres at the target's distance. ``K``, ``dist``: the
-    intrinsics to project with (default the views').
+    intrinsics to project with (default the views'); ``scale``: the target's size relative to the
+    views' points (a calibration that found the given size wrong predicts them at its own).
     """
     idx = np.arange(len(views)) if idx is None else np.asarray(idx)
     K = views.K if K is None else K
@@ -105,17 +107,37 @@ def view_errors(X: NDArray[np.float64], Z: NDArray[np.float64], views: Views,
         measured = p @ views.target2cam[i, :3, :3].T + views.target2cam[i, :3, 3]
         depth = np.linalg.norm(measured, axis=1)  # 0 only for a point at the camera centre: it adds no error
         if px is not None:
-            d = project_points(T[k], p, K, dist) - np.asarray(views.image_points[i], dtype=float)
+            d = project_points(T[k], scale * p, K, dist) - np.asarray(views.image_points[i], dtype=float)
             px[k] = np.sqrt(np.mean(np.sum(d**2, axis=1)))
             f = 0.5 * (K[0, 0] + K[1, 1])
             mm[k] = 1e3 * np.sqrt(np.mean(np.sum(d**2, axis=1) * (depth / f) ** 2))
         else:
-            predicted = p @ T[k, :3, :3].T + T[k, :3, 3]
+            predicted = scale * p @ T[k, :3, :3].T + T[k, :3, 3]
             u = measured / np.maximum(depth, _TINY)[:, None]
             v = predicted / np.maximum(np.linalg.norm(predicted, axis=1, keepdims=True), _TINY)
             angle = 2.0 * np.arcsin(np.clip(0.5 * np.linalg.norm(u - v, axis=1), 0.0, 1.0))
             mm[k] = 1e3 * np.sqrt(np.mean((angle * depth) ** 2))
     return px, mm
+
+
+def robot_error_seen(X: NDArray[np.float64], Z: NDArray[np.float64], views: Views) -> float:
+    """The robot's pose error that the views show (mm per axis, at the target's distance): how far
+    X and Z with the robot's poses taken as exact miss what the camera saw, beyond the camera's own
+    error. With images, per view the excess of the predicted points' error over the PnP pose's
+    error on the same points (the camera's noise); without images the whole error of the predicted
+    viewing rays (the camera's error included: an over-estimate). The median over the views, so a
+    bad view does not set it; per axis of the image plane (the RMS over both over sqrt 2)."""
+    _, mm = view_errors(X, Z, views)
+    if views.has_pixels:
+        own = np.empty(len(views))
+        f = 0.5 * (views.K[0, 0] + views.K[1, 1])
+        for i, (T, p, q) in enumerate(zip(views.target2cam, views.object_points, views.image_points)):
+            p = np.asarray(p, dtype=float)
+            depth = np.linalg.norm(p @ T[:3, :3].T + T[:3, 3], axis=1)
+            d = project_points(T, p, views.K, views.dist) - np.asarray(q, dtype=float)
+            own[i] = 1e3 * np.sqrt(np.mean(np.sum(d**2, axis=1) * (depth / f) ** 2))
+        mm = np.sqrt(np.maximum(mm**2 - own**2, 0.0))
+    return float(np.median(mm) / np.sqrt(2.0))
 
 
 @dataclass(frozen=True)

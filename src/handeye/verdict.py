@@ -40,6 +40,9 @@ class Evidence:
     std: NDArray[np.float64] | None = None
     std_sources: dict | None = None
     spread: tuple[float, float] | None = None
+    #: the median distance (deg, mm) from X of the closed forms left out of ``spread`` because they predict
+    #: held-out views worse than X, and by what factor (their best held-out error over X's)
+    unfair_spread: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -64,7 +67,13 @@ def _std_reason(std: NDArray[np.float64], sources: dict, n_used: int) -> str | N
     rot, mm = (3 * v for v in _norms(std))
     if rot <= ACCEPT_DEG and mm <= ACCEPT_MM:
         return None
-    jack, intr = sources.get("jackknife"), sources.get("intrinsics")
+    jack, intr, robot = sources.get("jackknife"), sources.get("intrinsics"), sources.get("robot_accuracy")
+    if robot is not None and (3 * np.linalg.norm(robot[3:]) > ACCEPT_MM or 3 * np.linalg.norm(robot[:3]) > ACCEPT_DEG):
+        return (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg, and the robot's "
+                f"accuracy alone gives {np.linalg.norm(robot[3:]):.1f} mm / {np.linalg.norm(robot[:3]):.2f} deg per std: "
+                "a robot error constant over the capture moves X whole and no number of poses removes it; calibrate "
+                "the robot's kinematics (or use a more accurate one), or give its accuracy if it is better "
+                "(--robot-accuracy DEG,MM)")
     why = (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg"
            + (f" (leaving one pose out moves X by {np.linalg.norm(jack[3:]):.1f} mm / {np.linalg.norm(jack[:3]):.2f} deg "
               "per std)" if jack is not None else ""))
@@ -90,12 +99,26 @@ def _spread_reason(std: NDArray[np.float64], spread: tuple[float, float]) -> str
             "poses and take more, with larger rotations")
 
 
+def _unfair_reason(std: NDArray[np.float64], unfair: tuple[float, float, float]) -> str | None:
+    """What a good verdict says when the closed forms that predict held-out views worse than X land
+    beyond its 3 std, or None."""
+    lim_rot, lim_mm = (3 * v for v in _norms(std))
+    rot, mm, factor = unfair
+    if rot <= lim_rot and mm <= lim_mm:
+        return None
+    return (f"the closed-form solvers land a median {mm:.2f} mm / {rot:.3f} deg from X, beyond its 3 std ({lim_mm:.2f} mm / "
+            f"{lim_rot:.3f} deg), but they predict held-out views {factor:.1f}x worse than X does (they read the camera's "
+            "PnP poses, which these views determine less well than X's fit to the pixels): X is kept")
+
+
 def judge(evidence: Evidence) -> Judgement:
     """The verdict on ``evidence``.
 
     The check's verdict stands unless it is 'good': then X's std must promise the acceptance
     (3 std within :data:`ACCEPT_MM` and :data:`ACCEPT_DEG`), and the closed forms must land within
-    3 std of X; the first rule that fails makes the verdict 'weak', with its reason.
+    3 std of X; the first rule that fails makes the verdict 'weak', with its reason. Closed forms
+    that predict held-out views worse than X (``unfair_spread``) and land beyond its 3 std leave a
+    good verdict good, and say so.
     """
     check = evidence.check
     if check is None:
@@ -106,15 +129,17 @@ def judge(evidence: Evidence) -> Judgement:
     why = _std_reason(evidence.std, evidence.std_sources or {}, check.n_poses - len(check.outliers))
     if why is None and evidence.spread is not None:
         why = _spread_reason(evidence.std, evidence.spread)
-    if why is None:
-        return Judgement("good", reasons)
-    return Judgement("weak", reasons + [why], [why])
+    if why is not None:
+        return Judgement("weak", reasons + [why], [why])
+    said = None if evidence.unfair_spread is None else _unfair_reason(evidence.std, evidence.unfair_spread)
+    return Judgement("good", reasons + [said], [said]) if said else Judgement("good", reasons)
 
 
-def judged(cal: Calibration, spread: tuple[float, float] | None = None) -> Calibration:
-    """``cal`` with the verdict :func:`judge` gives on its evidence (its diagnostics, std and
-    ``spread``); the reasons a fit adds go into the advice and the notes."""
-    found = judge(Evidence(cal.diagnostics, cal.std, cal.std_sources, spread))
+def judged(cal: Calibration, spread: tuple[float, float] | None = None,
+           unfair_spread: tuple[float, float, float] | None = None) -> Calibration:
+    """``cal`` with the verdict :func:`judge` gives on its evidence (its diagnostics, std,
+    ``spread`` and ``unfair_spread``); the reasons a fit adds go into the advice and the notes."""
+    found = judge(Evidence(cal.diagnostics, cal.std, cal.std_sources, spread, unfair_spread))
     if not found.added:
         return cal
     diag = replace(cal.diagnostics, verdict=found.verdict, advice=found.reasons)

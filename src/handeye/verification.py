@@ -151,6 +151,8 @@ def verify(result: str | Path, session: str | Path, jobs: int | None = None, pro
         raise InputMismatchError(f"the result is {res['setup']} but {sess.folder} is {sess.setup}")
     _refuse_own_images(sess, res)
     obs = observe(_with_intrinsics(sess, res), jobs=jobs, progress=progress)
+    if res["target_scale"] != 1.0:  # the calibration corrected the target's size: its X and Z are for that size
+        obs = obs.scaled(res["target_scale"])
     views = obs.views()
     px, mm = view_errors(res["X"], res["Z"], views)
     names = [sess.image_names[k] for k in obs.used]

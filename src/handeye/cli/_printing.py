@@ -33,7 +33,10 @@ def print_calibration(cal: Calibration, out=None) -> None:
     if d is not None and d.verdict == "inconsistent":  # the fix first: X below is not a result to use
         w(f"INCONSISTENT DATA: {d.advice[0] if d.advice else 'the poses do not agree on one X'}\n"
           + "".join(f"  also: {a}\n" for a in d.advice[1:])
-          + "X below is what the data give as declared, to compare after the fix; do not use it.\n\n")
+          + ("X below is what the data give as declared, to compare after the fix; do not use it.\n\n"
+             if cal.target_scale == 1.0 else
+             f"X below is for the target {cal.target_scale:.4f} times the size declared (the scale the robot's motions "
+             "give); fix the size and calibrate again before you use it.\n\n"))
     w(f"{cal.setup}: X = {x_name} (maps camera coordinates into the {info.x_parent} frame), method {cal.method}, "
       f"{len(cal.flange2base)} poses, {len(cal.pairs)} motions\n\n")
     with np.printoptions(precision=6, suppress=True, floatmode="fixed", sign=" "):

@@ -64,6 +64,10 @@ def _cmd_acquire(args: argparse.Namespace) -> int:
     if acq.resumed_from:
         print(f"resumed a capture of {acq.resumed_from} views")
     print(f"{acq.n_views} views in {acq.folder}; stopped: {acq.stopped}")
+    if acq.stopped == "robot accuracy":
+        print("  the robot's error the views show keeps X's std above the target whatever more views add (the notes "
+              "below say how much): ask for less (--target-std DEG,MM), or give the arm's accuracy if it is better "
+              "(--robot-accuracy DEG,MM)")
     for s in acq.skipped:
         print(f"  skipped {s}")
     if acq.stopped == "interrupted" or acq.calibration is None:

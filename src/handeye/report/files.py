@@ -237,7 +237,11 @@ def _along_open(cal: Calibration, k: int) -> bool:
 
 
 def _images_dict(cal: Calibration) -> dict[str, Any]:
-    return {
+    out = {} if cal.target_scale == 1.0 else {"target_scale": {
+        "factor": cal.target_scale, "std": cal.diagnostics.scale_std if cal.diagnostics is not None else None,
+        "meaning": "the check found the target's given size wrong: X, Z and the target's points are for the target "
+                   "this many times the size session.yaml gives (the scale the robot's motions give)"}}
+    return out | {
         "images": {"used": list(cal.image_names), "reprojection_rms_px": cal.reprojection_rms.tolist(),
                    "skipped": [{"image": n, "reason": r} for n, r in cal.skipped],
                    # each used image's bytes: verify refuses to call the calibration's own images a second capture
