@@ -69,15 +69,7 @@ def _opencv_pipeline(session) -> dict[str, np.ndarray]:
         _, rvec, tvec = cv2.solvePnP(obj, corners, session.camera_matrix, session.dist_coeffs)
         poses.append(make_transform(cv2.Rodrigues(rvec)[0], tvec.ravel()))
     ok = np.array(ok)
-    t2c = np.array(poses)[ok]
-    f2b = session.flange2base[ok]
-    g2b = f2b if session.setup == "eye_in_hand" else invert(f2b)
-    out = {}
-    for name in OPENCV:
-        R, t = cv2.calibrateHandEye(list(g2b[:, :3, :3]), list(g2b[:, :3, 3]), list(t2c[:, :3, :3]),
-                                    list(t2c[:, :3, 3]), method=getattr(cv2, f"CALIB_HAND_EYE_{name}"))
-        out[name] = make_transform(R, t.ravel())
-    return out
+    return _opencv_on_poses(session.flange2base[ok], np.array(poses)[ok], session.setup)
 
 
 def _covered(e: tuple[float, float], std: np.ndarray) -> bool:
