@@ -138,6 +138,12 @@ def test_board_scale_finds_a_wrong_square_size(setup):
     cal = handeye.calibrate_poses(sc.flange2base, t2c, setup)
     factors = [float(m) for a in cal.diagnostics.advice for m in re.findall(r"multiply it by ([0-9.]+)", a)]
     assert cal.verdict == "inconsistent" and len(factors) == 1 and abs(factors[0] - 1.2) < 0.01
+    # X from the camera's poses at the robot's scale, not as given: as close to the truth as from the right poses
+    right = handeye.calibrate_poses(sc.flange2base, sc.target2cam, setup)
+    assert cal.target_scale == pytest.approx(factors[0], abs=1e-4) and cal.std_sources["board_scale"] is not None
+    assert 1e3 * translation_error(cal.X, sc.X) <= 3 * np.linalg.norm(cal.std[3:])
+    assert translation_error(cal.X, sc.X) < 2 * translation_error(right.X, sc.X) + 5e-4
+    assert "target_scale" in handeye.report.result_dict(cal) and "target_scale" not in handeye.report.result_dict(right)
 
 
 def test_a_wrong_square_size_is_not_trusted_as_declared(tmp_path):

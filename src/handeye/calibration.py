@@ -184,25 +184,26 @@ def calibrate_poses(
     """
     opts = options_from(options, changes).for_poses()
     given = _pose_options(setup, opts)
-    accuracy, method, pairs = opts.robot_accuracy, opts.method, opts.pairs
+    accuracy, method = opts.robot_accuracy, opts.method
     flange2base_in, target2cam_in = validate_poses(flange2base, target2cam)
     bar = Progress(3, f"calibrating {len(flange2base_in)} poses: check, estimators, uncertainty",
                    progress and len(flange2base_in) >= PROGRESS_FROM_POSES)
     try:
-        flange2base, target2cam, pairs, keep, diag, notes = _checked_poses(
-            flange2base_in, target2cam_in, setup, pairs, opts.check, robot_input, opts.strict, camera_input, symmetries,
-            names)
+        flange2base, target2cam, pairs, keep, diag, notes, scale = _checked_at_scale(
+            flange2base_in, target2cam_in, setup, opts, robot_input, camera_input, symmetries, names)
         bar.update()
+        target_scale = 1.0 if scale is None else scale[0]
         if (kind := partial_kind(flange2base, target2cam, setup) if diag is None or diag.motion_kind != "general" else None):
-            return _partial(flange2base, target2cam, setup, kind, pairs, given, opts.refine, diag, keep, robot_input,
-                            array_digest(flange2base_in, target2cam_in), accuracy)
+            return replace(_partial(flange2base, target2cam, setup, kind, pairs, given, opts.refine, diag, keep, robot_input,
+                                    array_digest(flange2base_in, target2cam_in), accuracy), target_scale=target_scale)
         X, Z, motions = closed_form(flange2base, target2cam, setup, method, pairs)
         cal = Calibration(
             X=X, Z=Z, setup=setup, method=method, flange2base=flange2base, target2cam=target2cam, pairs=motions.pairs,
             motions=motions, diagnostics=diag, pose_indices=keep, notes=notes, robot_input=robot_input,
-            inputs_sha256=array_digest(flange2base_in, target2cam_in), estimator=method,
-        )
+            inputs_sha256=array_digest(flange2base_in, target2cam_in), estimator=method, target_scale=target_scale)
         cal = _refined(cal, opts.refine, method, pairs, opts.folds, accuracy, bar)
+        if scale is not None and cal.cov is not None:
+            cal = _with_scale_error(cal, scale, method)
         bar.update(bar.total - bar.done)
     finally:
         bar.close()
@@ -909,17 +910,9 @@ def _calibrate_observed(obs: Observations, opts: CalibrationOptions, uncertainty
     cal = calibrate_poses(obs.flange2base, obs.target2cam, obs.session.setup, opts.replace(refine="none", robot_noise=None),
                           robot_input=obs.robot_input, symmetries=_symmetries(obs), names=_used_names(obs),
                           progress=False)  # the caller's bar counts this step
-    scale = _wrong_scale(cal)
-    if scale is not None:  # the target's size is wrong: X from the target at the scale the robot's motions give
-        checked = cal
-        obs = obs.scaled(scale[0])
-        cal = calibrate_poses(obs.flange2base, obs.target2cam, obs.session.setup, opts.replace(refine="none", robot_noise=None),
-                              robot_input=obs.robot_input, symmetries=_symmetries(obs), names=_used_names(obs),
-                              progress=False)
-        notes = list(checked.notes) + [n for n in cal.notes if n not in checked.notes]
-        cal = replace(cal, diagnostics=_scale_diagnostics(checked.diagnostics, cal.diagnostics), target_scale=scale[0], notes=notes + [
-            f"X is estimated with the target {scale[0]:.4f} times the size session.yaml gives (+- {scale[1]:.4f}, the scale "
-            "the robot's motions give: the given size is wrong, see the advice); its std includes that scale's error"])
+    scale = None if cal.target_scale == 1.0 else (cal.target_scale, cal.diagnostics.scale_std)
+    if scale is not None:  # the check found the target's size wrong: its points too at the scale the robot's motions give
+        obs = obs.scaled(cal.target_scale)
     bar.update()
     kept, outlier_images = _drop_pose_outliers(cal, obs)
     if cal.motion_kind != "general":  # part of X undetermined: the pose refinement with the known values
@@ -955,12 +948,31 @@ def _calibrate_observed(obs: Observations, opts: CalibrationOptions, uncertainty
     return _with_images(cal, obs, kept, outlier_images, list(obs.notes))
 
 
-def _wrong_scale(cal: Calibration) -> tuple[float, float] | None:
+def _wrong_scale(diag: Diagnostics | None) -> tuple[float, float] | None:
     """The board scale (and its std) when the check names the target's size as wrong, else None."""
-    diag = cal.diagnostics
-    if diag is None or diag.scale is None or not scale_is_off(diag.scale, diag.scale_std):
+    if diag is None or diag.verdict != "inconsistent" or diag.scale is None or not scale_is_off(diag.scale, diag.scale_std):
         return None
     return diag.scale, diag.scale_std
+
+
+def _checked_at_scale(flange2base, target2cam, setup, opts: CalibrationOptions, robot_input, camera_input, symmetries,
+                      names):
+    """:func:`_checked_poses`, and the board scale when the check found the target's size wrong (else
+    None): then the poses to calibrate on are the camera's at the scale the robot's motions give
+    (checked again for outliers), under the verdict and advice of the check as given, with a note."""
+    checked = _checked_poses(flange2base, target2cam, setup, opts.pairs, opts.check, robot_input, opts.strict,
+                             camera_input, symmetries, names)
+    scale = _wrong_scale(checked[4])
+    if scale is None:
+        return (*checked, None)
+    target2cam = target2cam.copy()
+    target2cam[:, :3, 3] *= scale[0]
+    f2b, t2c, pairs, keep, diag, more = _checked_poses(flange2base, target2cam, setup, opts.pairs, True, robot_input,
+                                                       symmetries=symmetries, names=names)
+    notes = checked[5] + [n for n in more if n not in checked[5]] + [
+        f"X is estimated with the target {scale[0]:.4f} times the size given (+- {scale[1]:.4f}, the scale the robot's "
+        "motions give: the given size is wrong, see the advice); its std includes that scale's error"]
+    return f2b, t2c, pairs, keep, _scale_diagnostics(checked[4], diag), notes, scale
 
 
 def _scale_diagnostics(checked: Diagnostics, rescaled: Diagnostics) -> Diagnostics:

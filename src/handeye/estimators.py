@@ -22,8 +22,8 @@ from . import solvers
 from .diagnostics import SCALE_TOLERANCE, board_scale, closed_form
 from .errors import HandEyeError
 from .solvers.refine import PoseRefinementResult, ReprojectionResult, downdate_reprojection, refine_pose, refine_reprojection, refit_pose
-from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices
-from .vision.pnp import INTRINSICS, intrinsics_covariance, project_points, refine_pnp
+from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices, pnp_errors
+from .vision.pnp import INTRINSICS, intrinsics_covariance, refine_pnp
 
 __all__ = ["Choice", "pose_candidates", "pose_fit", "pixel_candidates", "choose", "intrinsics_cov", "POSE", "PIXEL",
            "PIXEL_INTRINSICS", "PIXEL_ROBOT", "REFINE_INTRINSICS"]
@@ -223,10 +223,8 @@ def robot_error_ratio(views: Views, candidates: dict[str, Fit]) -> float | None:
     done = getattr(candidates.get(name), "full", None) if name is not None else None
     if not done or not views.has_pixels:
         return None
-    sq, count = 0.0, 0
-    for T, p, q in zip(views.target2cam, views.object_points, views.image_points):
-        d = project_points(T, np.asarray(p, float), views.K, views.dist) - np.asarray(q, float)
-        sq, count = sq + float(np.sum(d**2)), count + d.size
+    points = np.array([len(p) for p in views.object_points])
+    sq, count = float(np.sum(pnp_errors(views)[0] ** 2 * points)), int(2 * points.sum())
     unknowns = 12 + (len(INTRINSICS) if name == PIXEL_INTRINSICS else 0)
     dof_pnp, dof_pixel = count - 6 * len(views), count - unknowns
     if dof_pnp <= 0 or dof_pixel <= 0 or sq <= 0:

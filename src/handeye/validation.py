@@ -29,7 +29,7 @@ from .setups import predicted_target2cam
 from .vision.pnp import project_points
 
 __all__ = ["Views", "Fit", "default_folds", "fold_indices", "view_errors", "cross_validate", "CrossValidation", "jackknife_cov",
-           "jackknife_covs", "robot_error_seen", "VIRTUAL_TARGET"]
+           "jackknife_covs", "pnp_errors", "robot_error_seen", "VIRTUAL_TARGET"]
 
 #: Points of a virtual 0.2 m x 0.15 m target (target frame, metres): the held-out error of pose-only
 #: data is measured on them.
@@ -97,9 +97,20 @@ def view_errors(X: NDArray[np.float64], Z: NDArray[np.float64], views: Views,
     views' points (a calibration that found the given size wrong predicts them at its own).
     """
     idx = np.arange(len(views)) if idx is None else np.asarray(idx)
-    K = views.K if K is None else K
-    dist = views.dist if dist is None else dist
     T = predicted_target2cam(X, Z, views.flange2base[idx], views.setup)
+    return _errors_at(T, views, idx, views.K if K is None else K, views.dist if dist is None else dist, scale)
+
+
+def pnp_errors(views: Views) -> tuple[NDArray[np.float64] | None, NDArray[np.float64]]:
+    """:func:`view_errors` of the camera's own poses (``views.target2cam``, PnP's): per view the
+    RMS pixel error of PnP's fit (None without images) and its millimetres at the target's distance,
+    the camera's noise that no X and Z can go below."""
+    return _errors_at(views.target2cam, views, np.arange(len(views)), views.K, views.dist, 1.0)
+
+
+def _errors_at(T: NDArray[np.float64], views: Views, idx: NDArray[np.intp], K, dist,
+               scale: float) -> tuple[NDArray[np.float64] | None, NDArray[np.float64]]:
+    """Per view ``idx[k]`` the error of the target at ``T[k]`` (its target2cam) against what the camera saw."""
     px = np.empty(len(idx)) if views.has_pixels else None
     mm = np.empty(len(idx))
     for k, i in enumerate(idx):
@@ -129,14 +140,7 @@ def robot_error_seen(X: NDArray[np.float64], Z: NDArray[np.float64], views: View
     bad view does not set it; per axis of the image plane (the RMS over both over sqrt 2)."""
     _, mm = view_errors(X, Z, views)
     if views.has_pixels:
-        own = np.empty(len(views))
-        f = 0.5 * (views.K[0, 0] + views.K[1, 1])
-        for i, (T, p, q) in enumerate(zip(views.target2cam, views.object_points, views.image_points)):
-            p = np.asarray(p, dtype=float)
-            depth = np.linalg.norm(p @ T[:3, :3].T + T[:3, 3], axis=1)
-            d = project_points(T, p, views.K, views.dist) - np.asarray(q, dtype=float)
-            own[i] = 1e3 * np.sqrt(np.mean(np.sum(d**2, axis=1) * (depth / f) ** 2))
-        mm = np.sqrt(np.maximum(mm**2 - own**2, 0.0))
+        mm = np.sqrt(np.maximum(mm**2 - pnp_errors(views)[1] ** 2, 0.0))
     return float(np.median(mm) / np.sqrt(2.0))
 
 

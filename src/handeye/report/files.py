@@ -236,12 +236,16 @@ def _along_open(cal: Calibration, k: int) -> bool:
     return abs(e[k]) > 0.35
 
 
-def _images_dict(cal: Calibration) -> dict[str, Any]:
-    out = {} if cal.target_scale == 1.0 else {"target_scale": {
+def _scale_dict(cal: Calibration) -> dict[str, Any]:
+    """result.json's ``target_scale`` when the check found the target's size wrong, else nothing."""
+    return {} if cal.target_scale == 1.0 else {"target_scale": {
         "factor": cal.target_scale, "std": cal.diagnostics.scale_std if cal.diagnostics is not None else None,
-        "meaning": "the check found the target's given size wrong: X, Z and the target's points are for the target "
-                   "this many times the size session.yaml gives (the scale the robot's motions give)"}}
-    return out | {
+        "meaning": "the check found the target's given size wrong: X, Z, the camera's poses and the target's points "
+                   "are for the target this many times the size given (the scale the robot's motions give)"}}
+
+
+def _images_dict(cal: Calibration) -> dict[str, Any]:
+    return {
         "images": {"used": list(cal.image_names), "reprojection_rms_px": cal.reprojection_rms.tolist(),
                    "skipped": [{"image": n, "reason": r} for n, r in cal.skipped],
                    # each used image's bytes: verify refuses to call the calibration's own images a second capture
@@ -314,6 +318,7 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
     if cal.image_names is not None:
         out["pose_residuals"]["images"] = list(cal.image_names)
         out.update(_images_dict(cal))
+    out.update(_scale_dict(cal))
     out["refinement"] = {"type": cal.refinement}
     if cal.refined_rms is not None:
         out["refinement"]["rms_px"] = cal.refined_rms
