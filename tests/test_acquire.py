@@ -259,6 +259,8 @@ def test_acquire_command_with_verify(tmp_path, capsys):
     text = capsys.readouterr().out
     assert status == 0, text[-2000:]
     assert "stopped: target std reached" in text and "verification: good" in text
+    label = re.search(r"std of X \(([a-z_+]+) ", text)  # named by the estimator that gave X, never 'none'
+    assert label is not None and label.group(1) not in ("none", "None"), text[-2000:]
     assert (tmp_path / "cell-results" / "result.json").is_file() and (tmp_path / "cell-results" / "verify.html").is_file()
     assert main(["acquire", "--robot", "sim", "--camera", "opencv:0", "--out", str(tmp_path / "x")]) == 2
     assert "--robot sim goes with --camera sim" in capsys.readouterr().err

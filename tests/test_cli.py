@@ -213,3 +213,28 @@ def test_wrong_euler_sequence_is_named_for_an_image_session(tmp_path, capsys):
     # calibrate answers (the fix is in the notes) with check's exit status for the same data
     assert main(["calibrate", str(session), "--no-progress", "--refine", "none"]) == 2
     assert "check: inconsistent" in capsys.readouterr().out
+
+
+def test_no_parser_takes_an_abbreviated_option():
+    """Every parser of the command line, subcommands and their subcommands included, refuses
+    abbreviations (`--square 0.04` was taken for `--square-mm`)."""
+    import argparse
+
+    from handeye.cli import build_parser
+
+    todo, seen = [build_parser()], 0
+    while todo:
+        parser = todo.pop()
+        seen += 1
+        assert parser.allow_abbrev is False, parser.prog
+        for action in parser._actions:  # noqa: SLF001
+            if isinstance(action, argparse._SubParsersAction):  # noqa: SLF001
+                todo.extend(action.choices.values())
+    assert seen >= 15
+
+
+def test_simulate_renders_a_charuco_board_by_default(tmp_path):
+    """handeye's advice prefers a board that cannot be read from the wrong end: the command's
+    default target is ChArUco (the API's simulate_session keeps the thesis's chessboard)."""
+    assert main(["simulate", "--out", str(tmp_path / "s"), "--poses", "4", "--seed", "1"]) == 0
+    assert yaml.safe_load((tmp_path / "s" / "session.yaml").read_text())["target"]["type"] == "charuco"

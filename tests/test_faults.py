@@ -133,9 +133,11 @@ def robot_poses_as(fmt: str, transform: Callable[[np.ndarray], np.ndarray] = lam
     def mutate(folder: Path) -> None:
         pairs = load_pose_pairs(folder)
         F = transform(pairs.flange2base.copy())
-        if fmt in ("matrix_raw", "matrix_3x4"):  # the 16 (12: the top 3 rows) numbers as given, without any check
-            n_rows = 3 if fmt == "matrix_3x4" else 4
+        if fmt in ("matrix_raw", "matrix_3x4", "matrix_3x4_columns"):  # the 16 (12: the top 3 rows) numbers as given
+            n_rows = 4 if fmt == "matrix_raw" else 3
             rows = F[:, :n_rows].reshape(len(F), 4 * n_rows)
+            if fmt == "matrix_3x4_columns":  # R's columns, then t, under the row-major column names
+                rows = np.swapaxes(F[:, :3], 1, 2).reshape(len(F), 12)
             lines = ["id," + ",".join(f"m{i}{j}" for i in range(n_rows) for j in range(4))]
             lines += [f"{n}," + ",".join(repr(float(v)) for v in r) for n, r in zip(pairs.ids, rows)]
             (folder / "robot_poses.csv").write_text("\n".join(lines) + "\n")
@@ -324,8 +326,11 @@ CASES = [
          2, r"length_unit|mm"),
     Case("quaternion-not-unit", "pp", both(robot_poses_as("quat_wxyz"), csv_cell(ROBOT, 3, 4, "0.5")), pp(), 2,
          r"row 2: quaternion norm is .*, not 1"),
-    Case("transposed-matrices", "pp", robot_poses_as("matrix_raw", transform=lambda T: np.swapaxes(T, 1, 2)), pp(), 2,
-         r"robot_poses.csv: entry 0: .*look transposed \(column-major"),
+    Case("transposed-matrices", "pp", robot_poses_as("matrix_raw", transform=lambda T: np.swapaxes(T, 1, 2)), pp(out=False),
+         0, r"robot_poses.csv: matrices read as column-major 4x4 \(transposed"),
+    Case("matrix-4x4-rows", "pp", robot_poses_as("matrix_raw"), pp(out=False), 0, r"matrices read as row-major 4x4"),
+    Case("matrix-3x4-columns", "pp", robot_poses_as("matrix_3x4_columns"), pp(out=False), 0,
+         r"matrices read as column-major 3x4 \(R's columns, then t\), with the bottom row 0 0 0 1"),
     Case("bad-bottom-row", "pp", robot_poses_as("matrix_raw", transform=lambda T: T + np.r_[0, 0, 0, 1.0][:, None] * np.r_[0.1, 0, 0, 0]),
          pp(), 2, r"entry 0: the bottom row is \[0.1, 0.0, 0.0, 1.0\], must be \[0, 0, 0, 1\]"),
     Case("non-orthonormal-matrix", "pp", robot_poses_as("matrix_raw", transform=lambda T: T * np.r_[1.02, 1, 1, 1][:, None]),
@@ -415,12 +420,14 @@ CASES = [
     Case("wrong-board-size", "session", yaml_edit("session.yaml", lambda d: d["target"].update(cols=7, rows=7)), cal(), 2,
          r"target was found in only 0 of 9 images"),
     Case("matrix-3x4-rows", "pp", robot_poses_as("matrix_3x4"), pp(out=False), 0,
-         r"3x4 matrices \(m00..m23, row-major\), read with the bottom row 0 0 0 1"),
+         r"matrices read as row-major 3x4, with the bottom row 0 0 0 1"),
     Case("squares-counted", "session",
          yaml_edit("session.yaml", lambda d: d["target"].update(cols=d["target"]["cols"] + 1, rows=d["target"]["rows"] + 1)),
          cal(), 2, r"did you count squares\? This board has \d+ x \d+ inner corners"),
     Case("metres-in-a-mm-option", None, nothing, cmd("target", "--type", "charuco", "--square-mm", "0.04", "--out",
                                                       "{out}/b.pdf"), 2, r"--square-mm 0.04 looks like metres"),
+    Case("metres-in-a-gap-option", None, nothing, cmd("target", "--type", "aruco-grid", "--separation-mm", "0.006",
+                                                       "--out", "{out}/b.pdf"), 2, r"--separation-mm 0.006 looks like metres"),
     Case("abbreviated-option", None, nothing, cmd("target", "--type", "charuco", "--square", "40", "--out", "{out}/b.pdf"),
          2, r"unrecognized argument"),
     Case("bad-target-spec", "session", yaml_edit("session.yaml", lambda d: d["target"].update(cols=-3)), cal(), 2,

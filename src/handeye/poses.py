@@ -5,7 +5,7 @@ Formats (named explicitly, never guessed):
 =================  =======================================  ==================================
 format             columns                                  notes
 =================  =======================================  ==================================
-``matrix``         m00 m01 ... m33 (16, row-major)          last row must be 0 0 0 1; or m00 ... m23 (12: 3x4)
+``matrix``         m00 m01 ... m33 (16, row-major)          last row must be 0 0 0 1; or 12 (3x4, row- or column-major)
 ``quat_wxyz``      x y z qw qx qy qz                        ROS-style order is ``quat_xyzw``
 ``quat_xyzw``      x y z qx qy qz qw
 ``rotvec``         x y z rx ry rz                           axis * angle (Universal Robots)
@@ -30,7 +30,7 @@ from scipy.spatial.transform import Rotation
 from .errors import InputMismatchError, PoseFormatError
 from .geometry.se3 import invert, make_transform, orthonormality_error
 
-__all__ = ["parse_poses", "format_poses", "pose_columns", "validate_transforms", "RobotPoseInput", "FORMATS"]
+__all__ = ["parse_poses", "format_poses", "pose_columns", "validate_transforms", "matrix_layout", "RobotPoseInput", "FORMATS"]
 
 FORMATS = ("matrix", "quat_wxyz", "quat_xyzw", "rotvec", "euler:<SEQ>")
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}
@@ -163,8 +163,11 @@ def parse_poses(
     scale = _check_units(length_unit, angle_unit, what)
     rows = _as_rows(values, kind, what)
     ncols = len(pose_columns(format))
-    if kind == "matrix" and rows.ndim == 2 and rows.shape[1] == 12:  # 3x4 rows: the bottom row 0 0 0 1 implied
-        rows = np.concatenate([rows, np.tile([0.0, 0.0, 0.0, 1.0], (len(rows), 1))], axis=1)
+    if kind == "matrix" and rows.ndim == 2 and rows.shape[1] == 12:  # 3x4, row- or column-major: as 16 row-major
+        # values (16 values are read row-major: a transposed layout is named by the checks below, as it cannot
+        # be told from a wrong bottom row in one pose; session files, read whole, are named and transposed)
+        rows = matrix_layout(rows)[1] if np.isfinite(rows).all() else np.concatenate(
+            [rows, np.tile([0.0, 0.0, 0.0, 1.0], (len(rows), 1))], axis=1)
     if rows.shape[1] != ncols:
         raise PoseFormatError(
             f"{what}: format {format!r} needs {ncols} columns ({' '.join(pose_columns(format))}), "
@@ -313,6 +316,34 @@ def validate_transforms(T: ArrayLike, what: str = "transforms", tol: float = ORT
 
 #: How far a 4x4's bottom row may be from [0, 0, 0, 1] (rounding in a file, float32 storage).
 BOTTOM_ROW_TOL = 1e-6
+
+
+def matrix_layout(rows: NDArray[np.float64]) -> tuple[str, NDArray[np.float64]]:
+    """How rows of 12 or 16 matrix values are laid out, and the rows as 16 row-major values.
+
+    16 values: row-major 4x4 when the bottom row is 0 0 0 1, column-major (Eigen, OpenGL) when the last
+    column is and the bottom row is not. 12 values: the top 3x4 of a transform, row-major (R | t by
+    rows) or column-major (R's columns, then t: Eigen's and many controllers' dumps), told apart by
+    which reading gives orthonormal rotations; row-major when both or neither do (the checks that
+    follow then name what is wrong). Returns ``("row-major 4x4" | "column-major 4x4" | "row-major 3x4"
+    | "column-major 3x4", rows (N, 16))``.
+    """
+    n = len(rows)
+    if rows.shape[1] == 16:
+        M = rows.reshape(n, 4, 4)
+        unit = np.array([0.0, 0.0, 0.0, 1.0])
+        bottom = np.abs(M[:, 3] - unit).max(initial=0.0) <= BOTTOM_ROW_TOL
+        last = np.abs(M[:, :, 3] - unit).max(initial=0.0) <= BOTTOM_ROW_TOL
+        if last and not bottom:
+            return "column-major 4x4", np.swapaxes(M, 1, 2).reshape(n, 16)
+        return "row-major 4x4", rows
+    by_rows = rows.reshape(n, 3, 4)
+    by_columns = np.swapaxes(rows.reshape(n, 4, 3), 1, 2)
+    layout, top = "row-major 3x4", by_rows
+    if (orthonormality_error(by_rows[:, :, :3]).max(initial=0.0) > ORTHONORMAL_TOL
+            and orthonormality_error(by_columns[:, :, :3]).max(initial=0.0) <= ORTHONORMAL_TOL):
+        layout, top = "column-major 3x4", by_columns
+    return layout, np.concatenate([top.reshape(n, 12), np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))], axis=1)
 
 
 def _check_bottom_rows(T: NDArray[np.float64], what: str) -> None:

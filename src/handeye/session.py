@@ -48,7 +48,7 @@ from ._shared.lazy import lazy_module
 from ._shared.text import summarize
 from .errors import InputMismatchError, PoseFormatError, SessionError
 from .geometry.se3 import invert
-from .poses import RobotPoseInput, format_poses, parse_poses, pose_columns
+from .poses import RobotPoseInput, format_poses, matrix_layout, parse_poses, pose_columns
 from .setups import check_setup
 from .vision.targets import target_from_spec
 
@@ -417,10 +417,15 @@ def read_pose_table(
             sep = {";": "semicolons", "\t": "tabs"}.get(delim, "spaces")
             notes.append(f"{path.name}: values read as separated by {sep}" + (", with decimal commas" if decimal_comma else ""))
     values = numbers[:, 1:] if time_col else numbers
-    if three_by_four:
-        values = np.concatenate([values, np.tile([0.0, 0.0, 0.0, 1.0], (len(values), 1))], axis=1)
+    if fmt == "matrix" and np.isfinite(values).all():  # 3x4 or 4x4, row- or column-major: read and named
+        layout, values = matrix_layout(values)
         if notes is not None:
-            notes.append(f"{path.name}: 3x4 matrices (m00..m23, row-major), read with the bottom row 0 0 0 1")
+            notes.append(f"{path.name}: matrices read as {layout}" + (" (R's columns, then t)" if layout == "column-major 3x4"
+                                                                     else " (transposed, as Eigen or OpenGL store them)"
+                                                                     if layout == "column-major 4x4" else "")
+                         + (", with the bottom row 0 0 0 1" if three_by_four else ""))
+    elif three_by_four:  # NaN or infinite values: named by the pose parser, in the 4x4 layout
+        values = np.concatenate([values, np.tile([0.0, 0.0, 0.0, 1.0], (len(values), 1))], axis=1)
     if not times:
         return values, (ids if id_col else None)
     return values, (ids if id_col else None), (numbers[:, 0].copy() if time_col else None)

@@ -26,8 +26,8 @@ def _cmd_target(args: argparse.Namespace) -> int:
               for k, v in given.items() if v is not None and k not in defaults]
     if unused:
         raise HandEyeError(f"{args.type} takes no {', '.join(unused)}")
-    small = [(k, given[k]) for k in ("square", "marker") if given[k] is not None and given[k] < 1.0]
-    if small:  # a side under 1 mm cannot be printed: metres given where millimetres are asked
+    small = [(k, given[k]) for k in ("square", "marker", "separation") if given[k] is not None and given[k] < 1.0]
+    if small:  # a side or gap under 1 mm cannot be printed and read: metres given where millimetres are asked
         k, v = small[0]
         raise HandEyeError(f"--{k}-mm {v:g} looks like metres: the sizes are in millimetres here (--{k}-mm "
                            f"{v * 1e3:g} for {v:g} m)")
