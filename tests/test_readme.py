@@ -44,3 +44,18 @@ def test_the_links_lead_to_files():
         for link in re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", doc.read_text()):
             if not link.startswith("http"):
                 assert (doc.parent / link).exists(), f"{doc.name}: {link}"
+
+
+def test_refine_help_and_the_guide_tell_the_same_choice():
+    """--refine's help and docs/guide.md's account of 'auto' name the same candidates and rules: the
+    closed forms but horaud_nonlinear, the pixel refinement preferred up to 1.2x PnP's residual, the
+    one-standard-error rule, and reprojection's robot poses corrected under --robot-noise."""
+    from handeye.cli._common import REFINE_HELP
+    from handeye.estimators import ROBOT_DOMINATES, SLOW_CLOSED_FORMS
+
+    guide = (README.parent / "docs" / "guide.md").read_text(encoding="utf-8")
+    helps = " ".join(REFINE_HELP.values())
+    for text in (helps, guide):
+        assert f"{ROBOT_DOMINATES:g}x" in text and "one standard error" in text
+        assert all(name in text for name in SLOW_CLOSED_FORMS)
+    assert "robot-noise" in REFINE_HELP["reprojection"] and "robot_noise" in guide

@@ -138,7 +138,7 @@ def calibrate_poses(
         the per-pose Z_i), or a robot-world one (``shah``, ``li``), which estimates X and Z together.
     refine : {'auto', 'pose', 'none'}
         'auto' (default): the estimator that predicts held-out poses best, by ``folds``-fold
-        cross-validation (:mod:`handeye.estimators`): every closed form, or the pose refinement;
+        cross-validation (:mod:`handeye.estimators`): the closed forms (all but ``horaud_nonlinear``) or the pose refinement;
         the uncertainty covers both the refinement's noise model and the spread of the
         cross-validation fits (``std_sources``). 'pose': X and Z refined jointly from the ``method``
         solution by :func:`handeye.solvers.refine.refine_pose` (Strobl-Hirzinger's optimal

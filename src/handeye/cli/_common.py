@@ -206,11 +206,13 @@ def add_out_options(p: argparse.ArgumentParser) -> None:
 
 #: --refine's help per choice (docs/guide.md's "auto" paragraph says how auto chooses)
 REFINE_HELP = {
-    "auto": "auto (default): the estimator that predicts held-out views best (the pixel refinement while the robot's "
-            "errors do not dominate its residuals, else the pose refinement, replaced only by a candidate better by "
-            "more than one standard error)",
-    "reprojection": "reprojection: X and Z on the pixel errors of all target points, robot poses exact",
-    "pose": "pose: X and Z on the robot and camera poses, both noisy",
+    "auto": "auto (default): the estimator that predicts held-out views best by cross-validation among the closed "
+            "forms (all but horaud_nonlinear), pose and, with images, reprojection; preferred: the pixel refinement "
+            "while its residual is at most 1.2x PnP's (the robot's errors do not dominate), else the pose refinement, "
+            "replaced only by a candidate better by more than one standard error (docs/guide.md)",
+    "reprojection": "reprojection: X and Z on the pixel errors of all target points, robot poses exact (or corrected "
+                    "under the prior --robot-noise gives)",
+    "pose": "pose: X and Z on the robot and camera poses, both noisy (their noise estimated from the data)",
     "none": "none: the --method closed form alone (no std)",
 }
 
