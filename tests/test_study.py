@@ -258,7 +258,7 @@ def test_study_files_and_cli(tmp_path, capsys):
     out = tmp_path / "study"
     assert main(["study", "--figures", "5.2", "--runs", "30", "--out", str(out), "--jobs", "1", "--no-progress"]) == 0
     printed = capsys.readouterr().out  # the headline on the terminal, not only file names
-    assert "median error of X, translation mm / rotation deg" in printed and "Figure 5.1" in printed
+    assert "median error of X per solver, translation mm / rotation deg" in printed and "Figure 5.1" in printed
     assert len([line for line in printed.splitlines() if line.startswith("  ") and " best " in line]) == len(
         [s for s in preset("seed-chapter5")[0] if s.figure == "5.1"])
     rows = list(csv.DictReader(open(out / "study.csv")))

@@ -477,30 +477,35 @@ def _thesis_text(key: tuple[str, str, float], own: dict[str, float] | None) -> s
 
 
 def headline(result: StudyResult, method: str = "daniilidis") -> str:
-    """The study for a terminal: per figure and setting, the median error of ``method`` (the
-    thesis's choice) and of the best method there (translation mm / rotation deg, and the share of
-    runs under 5 mm and 1 deg), and where the thesis states a number (:data:`THESIS`) it beside ours;
-    study.md has every method with its percentiles."""
-    lines = [f"median error of X, translation mm / rotation deg ({method}, and the best method per setting; ok = "
-             f"share of runs under {ACCEPT_MM:g} mm and {ACCEPT_DEG:g} deg)"]
+    """The study for a terminal: per figure a table of every solver's median error of X per setting
+    (translation mm / rotation deg), the share of runs under 5 mm and 1 deg for ``method`` (the
+    thesis's choice) and the best solver there, and where the thesis states a number
+    (:data:`THESIS`) it beside ours; study.md has the percentiles too."""
+    lines = [f"median error of X per solver, translation mm / rotation deg (ok = share of {method}'s runs under "
+             f"{ACCEPT_MM:g} mm and {ACCEPT_DEG:g} deg; best = the solver with the smallest median)"]
     by_fig: dict[str, list[SettingResult]] = {}
     for r in result.settings:
         by_fig.setdefault(r.setting.figure, []).append(r)
     for fig, rs in by_fig.items():
         title = result.figures[fig].title if fig in result.figures else fig
+        methods = [m for m in METHODS if any(m in r.stats for r in rs)]
         lines.append(f"Figure {fig}: {title}")
+        lines.append(f"  {'setting':<30} " + " ".join(f"{m[:11]:>11}" for m in methods))
         for r in rs:
             if not r.stats:
                 continue
             best = min(r.stats, key=lambda m: (r.stats[m]["trans_median_mm"], r.stats[m]["rot_median_deg"]))
+            cells = " ".join(f"{'' if r.stats.get(m) is None else _cell(r.stats[m]):>11}" for m in methods)
             own = r.stats.get(method)
-            text = "" if own is None else (f"{method} {_fmt(own['trans_median_mm'])} / {_fmt(own['rot_median_deg'])} "
-                                           f"(ok {100 * own['accepted']:.0f}%); ")
-            b = r.stats[best]
+            ok = "" if own is None else f" ok {100 * own['accepted']:.0f}%"
             thesis = _thesis_text((fig, r.setting.series, r.setting.x), r.stats.get("daniilidis"))
-            lines.append(f"  {r.setting.series:<22.22} x={r.setting.x:<7g} {text}best {best} "
-                         f"{_fmt(b['trans_median_mm'])} / {_fmt(b['rot_median_deg'])}{thesis}")
+            lines.append(f"  {r.setting.series:<22.22} x={r.setting.x:<5g} {cells}{ok}; best {best}{thesis}")
     return "\n".join(lines)
+
+
+def _cell(stats: dict[str, float]) -> str:
+    """A solver's median translation / rotation error in a few characters."""
+    return f"{_fmt(stats['trans_median_mm'])}/{_fmt(stats['rot_median_deg'])}"
 
 
 def log_error_bars(mean: NDArray[np.float64], std: NDArray[np.float64]) -> NDArray[np.float64]:
