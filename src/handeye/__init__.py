@@ -10,13 +10,14 @@ are ``(N, 4, 4)``; lengths are metres inside the library.
 
 from __future__ import annotations
 
-from . import metrics, setups, simulate, solvers
+from . import kinematics, metrics, setups, simulate, solvers
 from ._version import __version__
 from .calibration import calibrate, calibrate_poses, certify_calibration
 from .checking import check_folder
 from .diagnostics import diagnose
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError, PoseFormatError, SessionError, TargetError
 from .geometry.dualquat import DualQuaternion
+from .joint_calibration import calibrate_joints
 from .motions import relative_motions
 from .options import CalibrationOptions
 from .poses import RobotPoseInput, format_poses, parse_poses
@@ -39,12 +40,14 @@ __all__ = [
     "TargetError",
     "Unobservable",
     "calibrate",
+    "calibrate_joints",
     "calibrate_poses",
     "calibrate_streams",
     "certify_calibration",
     "check_folder",
     "diagnose",
     "format_poses",
+    "kinematics",
     "metrics",
     "parse_poses",
     "relative_motions",

@@ -722,7 +722,7 @@ def refine_on_pixels(cal: Calibration, obs: Observations, ref: ReprojectionResul
                    estimator=PIXEL_ROBOT if robot_noise else PIXEL, **fields)
 
 
-def _drop_pose_outliers(cal: Calibration, obs: Observations) -> tuple[list[int], list[tuple[str, str]]]:
+def drop_pose_outliers(cal: Calibration, obs: Observations) -> tuple[list[int], list[tuple[str, str]]]:
     """When the poses decide: the used images without the outlier poses, and the outliers' images
     as skipped (with why)."""
     skipped = []
@@ -733,7 +733,7 @@ def _drop_pose_outliers(cal: Calibration, obs: Observations) -> tuple[list[int],
     return [int(k) for k in cal.pose_indices], skipped
 
 
-def _with_images(cal: Calibration, obs: Observations, kept: list[int], skipped: list[tuple[str, str]],
+def with_images(cal: Calibration, obs: Observations, kept: list[int], skipped: list[tuple[str, str]],
                  notes: list[str]) -> Calibration:
     """``cal`` with the fields of the images it used (``kept`` indexes ``obs.used``)."""
     names = obs.session.image_names
@@ -914,7 +914,7 @@ def _calibrate_observed(obs: Observations, opts: CalibrationOptions, uncertainty
     if scale is not None:  # the check found the target's size wrong: its points too at the scale the robot's motions give
         obs = obs.scaled(cal.target_scale)
     bar.update()
-    kept, outlier_images = _drop_pose_outliers(cal, obs)
+    kept, outlier_images = drop_pose_outliers(cal, obs)
     if cal.motion_kind != "general":  # part of X undetermined: the pose refinement with the known values
         if refine != "none":
             cal = calibrate_poses(obs.flange2base, obs.target2cam, obs.session.setup,
@@ -922,7 +922,7 @@ def _calibrate_observed(obs: Observations, opts: CalibrationOptions, uncertainty
                                   robot_input=obs.robot_input, names=_used_names(obs), progress=False)
             cal = replace(cal, notes=cal.notes + ["the pixel refinement does not run on motions that determine only "
                                                   "part of X: X is refined on the PnP poses"])
-        return _with_images(cal, obs, kept, outlier_images, list(obs.notes))
+        return with_images(cal, obs, kept, outlier_images, list(obs.notes))
     idx = np.asarray(cal.pose_indices)
     estimated = obs.intrinsics_source == "estimated"
     if refine == "auto" and len(idx) >= 5:
@@ -945,7 +945,7 @@ def _calibrate_observed(obs: Observations, opts: CalibrationOptions, uncertainty
         kept, outlier_images = list(range(len(obs.used))), []
     if scale is not None and uncertainty and cal.cov is not None:
         cal = _with_scale_error(cal, scale, method)
-    return _with_images(cal, obs, kept, outlier_images, list(obs.notes))
+    return with_images(cal, obs, kept, outlier_images, list(obs.notes))
 
 
 def _wrong_scale(diag: Diagnostics | None) -> tuple[float, float] | None:

@@ -15,25 +15,40 @@ from pathlib import Path
 
 from .calibration import calibrate, calibrate_poses
 from .errors import DegenerateMotionError
+from .joint_calibration import calibrate_joint_session
 from .options import CalibrationOptions, options_from
 from .result import Calibration, Diagnostics
-from .session import POSEPAIRS_FILE, PosePairs, load_pose_pairs
+from .session import POSEPAIRS_FILE, SESSION_FILE, PosePairs, load_pose_pairs, load_session, load_yaml
 from .streams import calibrate_streams, paired_delay_note
 from .validation import default_folds
 from .verdict import exit_status
 
-__all__ = ["FolderCheck", "calibrate_folder", "calibrate_pairs", "check_folder"]
+__all__ = ["FolderCheck", "calibrate_folder", "calibrate_pairs", "calibrate_session", "check_folder"]
 
 
 def calibrate_folder(folder: str | Path, options: CalibrationOptions | None = None, *, jobs: int | None = None,
                      progress: bool = True, **changes) -> Calibration:
-    """:func:`handeye.calibrate` on a capture session (``session.yaml``), or :func:`calibrate_pairs`
-    on a pose-pair folder (``posepairs.yaml``)."""
+    """:func:`handeye.calibrate` on a capture session (``session.yaml``; with a ``joints:`` table,
+    :func:`handeye.joint_calibration.calibrate_joint_session`: the arm's table fitted with X), or
+    :func:`calibrate_pairs` on a pose-pair folder (``posepairs.yaml``)."""
     opts = options_from(options, changes)
     folder = Path(folder)
     if not (folder / POSEPAIRS_FILE).is_file():
-        return calibrate(folder, opts, jobs=jobs, progress=progress)
+        return calibrate_session(folder, opts, jobs=jobs, progress=progress)
     return calibrate_pairs(load_pose_pairs(folder), opts, progress=progress)
+
+
+def calibrate_session(folder: str | Path, options: CalibrationOptions | None = None, *, jobs: int | None = None,
+                      progress: bool = True, **changes) -> Calibration:
+    """:func:`handeye.calibrate` on a capture session, or, when its ``session.yaml`` has a
+    ``joints:`` table, :func:`handeye.joint_calibration.calibrate_joint_session` (the arm's table
+    fitted with X)."""
+    opts = options_from(options, changes)
+    folder = Path(folder)
+    if (folder / SESSION_FILE).is_file() and load_yaml(folder / SESSION_FILE).get("joints") is not None:
+        session = load_session(folder, strict_images=opts.strict_images)
+        return calibrate_joint_session(session, opts, jobs=jobs, progress=progress)
+    return calibrate(folder, opts, jobs=jobs, progress=progress)
 
 
 def calibrate_pairs(pairs: PosePairs, options: CalibrationOptions | None = None, *, progress: bool = True,

@@ -18,13 +18,15 @@ from numpy.typing import ArrayLike, NDArray
 from ._shared.text import summarize
 from .errors import InputMismatchError
 from .geometry.se3 import skew
+from .kinematics import Chain
 from .metrics import rotation_error, translation_error
 from .motions import MotionSet, screw_congruence
 from .poses import RobotPoseInput
 from .setups import constant_transforms, setup_info
 from .solvers.certifiable import Certificate
 
-__all__ = ["Calibration", "Diagnostics", "Unobservable", "Observability", "HeldOutErrors", "StreamSync", "Certificate"]
+__all__ = ["Calibration", "Diagnostics", "Unobservable", "Observability", "HeldOutErrors", "StreamSync", "Certificate",
+           "KinematicModel"]
 
 
 @dataclass(frozen=True)
@@ -109,6 +111,55 @@ class HeldOutErrors(Mapping):
 
     def __len__(self) -> int:
         return len(self.errors)
+
+
+@dataclass(frozen=True)
+class KinematicModel:
+    """The arm's kinematics a calibration from joint angles found (:func:`handeye.calibrate_joints`).
+
+    Attributes
+    ----------
+    nominal, chain : Chain
+        The arm's table as given, and corrected.
+    names : list of str
+        The table entries estimated (``joint<k>.<a|alpha|d|theta>``; the others move only the base or
+        the flange frame and are X's and Z's).
+    correction, std, prior_std : ndarray (m,)
+        Per entry its correction to the nominal value, its std and its prior's (m or rad).
+    determined : ndarray (m,) of bool
+        Whether the capture determines it (else it stays near nominal and its prior reaches X's std).
+    """
+
+    nominal: Chain
+    chain: Chain
+    names: list[str]
+    correction: NDArray[np.float64]
+    std: NDArray[np.float64]
+    prior_std: NDArray[np.float64]
+    determined: NDArray[np.bool_]
+    #: how far the corrected table moves the flange from the nominal one over the capture's joint
+    #: angles (mm: median, largest): the arm's absolute error as the calibration found it
+    flange_shift_mm: tuple[float, float] | None = None
+
+    @property
+    def undetermined(self) -> list[str]:
+        """The entries the capture does not determine."""
+        return [n for n, d in zip(self.names, self.determined) if not d]
+
+    def as_dict(self) -> dict:
+        """The model as result.json writes it (lengths in mm, angles in degrees)."""
+        def unit(name: str) -> tuple[float, str]:
+            return (np.degrees(1.0), "deg") if name.endswith((".alpha", ".theta")) else (1e3, "mm")
+        entries = {}
+        for name, c, s, p, d in zip(self.names, self.correction, self.std, self.prior_std, self.determined):
+            f, u = unit(name)
+            entries[name] = {"correction": float(f * c), "std": float(f * s), "prior_std": float(f * p), "unit": u,
+                             "determined": bool(d)}
+        return {"arm": self.nominal.name, "convention": self.nominal.convention,
+                "flange_shift_mm": None if self.flange_shift_mm is None else
+                {"median": float(self.flange_shift_mm[0]), "max": float(self.flange_shift_mm[1])},
+                "table": {"columns": ["a_m", "alpha_rad", "d_m", "theta_offset_rad"], "nominal": self.nominal.table.tolist(),
+                          "corrected": self.chain.table.tolist()}, "entries": entries, "undetermined": self.undetermined}
 
 
 @dataclass(frozen=True)
@@ -336,6 +387,8 @@ class Calibration:
     certificate: Certificate | None = None
     #: from handeye.calibrate_streams: the clock offset and how the streams were synchronised; None for pairs
     sync: StreamSync | None = None
+    #: from handeye.calibrate_joints: the arm's kinematics, corrected with X and Z; None for flange poses
+    kinematic: KinematicModel | None = None
 
     # the sub-records' parts by their documented names -------------------------------------------
     @property

@@ -48,6 +48,7 @@ from ._shared.lazy import lazy_module
 from ._shared.text import summarize
 from .errors import InputMismatchError, PoseFormatError, SessionError
 from .geometry.se3 import invert
+from .kinematics import Chain, check_joints_against_poses, load_arm
 from .poses import RobotPoseInput, format_poses, matrix_layout, parse_poses, pose_columns
 from .setups import check_setup
 from .vision.targets import target_from_spec
@@ -57,7 +58,7 @@ cv2 = lazy_module("cv2")  # only to read an image's size
 __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session",
            "read_pose_table", "SessionError", "load_yaml",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
-           "write_pose_pairs", "read_result", "SESSION_FILE", "POSEPAIRS_FILE"]
+           "write_pose_pairs", "read_result", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
 SESSION_FILE = "session.yaml"
@@ -116,12 +117,17 @@ class Session:
     #: with a robot stream: each image's time (s, camera clock), from the ``images:`` table
     image_times: NDArray[np.float64] | None = None
     image_times_path: Path | None = None
+    #: a ``joints:`` table: each image's joint angles (rad) and the arm's nominal kinematics;
+    #: ``flange2base`` then holds the controller's poses when given, else the nominal chain's
+    joints: NDArray[np.float64] | None = None
+    arm: Chain | None = None
+    joints_path: Path | None = None
 
     @property
     def input_files(self) -> list[Path]:
         """Every file the session is read from: session.yaml, the pose table(s), the images (those
         that exist: a missing one is skipped by the calibration)."""
-        tables = [p for p in (self.poses_path, self.image_times_path) if p is not None]
+        tables = [p for p in (self.poses_path, self.image_times_path, self.joints_path) if p is not None]
         return [self.folder / SESSION_FILE] + tables + [p for p in self.image_paths if Path(p).is_file()]
 
 
@@ -172,6 +178,9 @@ def load_session(folder: str | Path, strict_images: bool = True) -> Session:
     target_spec = _require(spec, "target", where)
     target_from_spec(target_spec, where=f"{where}: target")  # a bad target fails now, before any image work
     K, dist = read_camera(spec.get("camera"), where)
+    joints = _read_joints(folder, spec.get("joints"), where, notes) if spec.get("joints") is not None else None
+    if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal chain's flange poses
+        return _joint_session(folder, setup, target_spec, K, dist, joints, None, notes, strict_images)
     poses = _require(spec, "poses", where)
     if not isinstance(poses, dict):
         raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit, angle_unit")
@@ -216,7 +225,99 @@ def load_session(folder: str | Path, strict_images: bool = True) -> Session:
     if stream is not None:
         session = replace(session, robot_times=stream[0], robot_stream=stream[1], image_times=stream[2],
                           image_times_path=stream[3])
+    if joints is not None:
+        if stream is not None:
+            raise SessionError(f"{where}: joints: with a robot stream is not supported; give joint angles per image")
+        return _joint_session(folder, setup, target_spec, K, dist, joints, session, notes, strict_images)
     return session
+
+
+@dataclass(frozen=True)
+class _Joints:
+    names: list[str]
+    q: NDArray[np.float64]  # rad
+    arm: Chain
+    path: Path
+
+
+def _read_joints(folder: Path, spec: Any, where: str, notes: list[str]) -> _Joints:
+    """The ``joints:`` block: ``file`` (an ``image`` column, then one column per joint), ``unit``
+    (deg or rad) and ``arm`` (a shipped arm's name, or a YAML DH table in the folder)."""
+    if not isinstance(spec, dict):
+        raise SessionError(f"{where}: joints must be a mapping with file, unit (deg or rad) and arm")
+    path = folder / str(_require(spec, "file", f"{where}: joints"))
+    unit = str(_require(spec, "unit", f"{where}: joints"))
+    if unit not in ("deg", "rad"):
+        raise SessionError(f"{where}: joints: unit {unit!r}; use deg or rad")
+    arm_name = str(_require(spec, "arm", f"{where}: joints"))
+    try:
+        arm = load_arm(folder / arm_name if arm_name.lower().endswith((".yaml", ".yml")) else arm_name)
+    except InputMismatchError as exc:
+        raise SessionError(f"{where}: joints: {exc}") from None
+    text = _text_of(path, notes)
+    delim = _delimiter(text)
+    rows = [[c.strip() for c in r] for r in csv.reader(io.StringIO(text, newline=""), delimiter=delim,
+                                                       skipinitialspace=delim == " ")
+            if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+    if not rows or rows[0][0].lower() != "image":
+        raise SessionError(f"{path}: the first column must be 'image', then one column per joint "
+                           f"({arm.name}: {arm.n_joints})")
+    n = arm.n_joints
+    names, q = [], np.empty((len(rows) - 1, n))
+    for k, row in enumerate(rows[1:]):
+        if len(row) != n + 1:
+            raise SessionError(f"{path}: line {k + 2} has {len(row) - 1} joint values; {arm.name} has {n} joints")
+        names.append(row[0])
+        for j, cell in enumerate(row[1:]):
+            try:
+                q[k, j] = float(cell)
+            except ValueError:
+                raise SessionError(f"{path}: line {k + 2}, joint {j + 1}: {cell!r} is not a number") from None
+    if not len(q):
+        raise SessionError(f"{path}: no rows after the header")
+    if not np.isfinite(q).all():
+        raise SessionError(f"{path}: line {int(np.argmin(np.isfinite(q).all(axis=1))) + 2} holds NaN or infinite values")
+    if unit == "rad" and np.abs(q).max() > 2.5 * np.pi:
+        raise SessionError(f"{path}: joint angles up to {np.abs(q).max():.1f} given as rad: they look like degrees; "
+                           "write unit: deg under joints:")
+    if len(set(names)) != len(names):
+        raise SessionError(f"{path}: duplicate image names [{summarize(sorted({x for x in names if names.count(x) > 1}))}]")
+    return _Joints(names, np.radians(q) if unit == "deg" else q, arm, path)
+
+
+def _joint_session(folder: Path, setup: str, target_spec, K, dist, joints: _Joints, posed: Session | None,
+                   notes: list[str], strict_images: bool) -> Session:
+    """A session whose robot side is joint angles: alone (the flange poses from the nominal chain,
+    the images named by the joints table), or beside the controller's poses (the same images in
+    both tables; the two checked against each other)."""
+    if posed is None:
+        image_dir = folder / "images"
+        if not image_dir.is_dir():
+            raise SessionError(f"{image_dir}: no images folder; the images named in {joints.path.name} go there")
+        all_files = sorted(p.name for p in image_dir.iterdir() if p.is_file())
+        files = _match_image_names(joints.names, all_files, notes)
+        missing = [n for n, f in zip(joints.names, files) if f is None]
+        if missing and strict_images:
+            raise SessionError(f"{image_dir}: image file(s) missing: {summarize(missing)}")
+        unnamed = sorted({n for n in all_files if Path(n).suffix.lower() in IMAGE_SUFFIXES} - set(files))
+        if unnamed:
+            raise SessionError(f"{joints.path.name} has {len(joints.names)} rows but images/ holds images it does not "
+                               f"name: {summarize(unnamed)}; add their joint angles or move them out of images/")
+        paths = [image_dir / (f if f is not None else n) for f, n in zip(files, joints.names)]
+        return Session(folder, setup, dict(target_spec), joints.arm.forward(joints.q), list(joints.names), paths, K, dist,
+                       "joints", None, None, notes, joints=joints.q, arm=joints.arm, joints_path=joints.path)
+    index = {n: k for k, n in enumerate(joints.names)}
+    absent = [n for n in posed.image_names if n not in index]
+    if absent or len(joints.names) != len(posed.image_names):
+        raise SessionError(f"{joints.path.name} and {posed.poses_path.name if posed.poses_path else 'the poses'} must name "
+                           f"the same images: {len(joints.names)} and {len(posed.image_names)} rows"
+                           + (f"; no joint angles for {summarize(absent)}" if absent else ""))
+    q = joints.q[[index[n] for n in posed.image_names]]
+    try:
+        finding = check_joints_against_poses(joints.arm, q, posed.flange2base, where=f"{joints.path.name}")
+    except InputMismatchError as exc:
+        raise SessionError(f"{folder}: {exc}") from None
+    return replace(posed, joints=q, arm=joints.arm, joints_path=joints.path, notes=notes + [finding])
 
 
 def _time_unit(spec: dict[str, Any], where: str) -> float:
@@ -675,14 +776,40 @@ def write_session(folder: str | Path, setup: str, target_spec: dict[str, Any], n
     return _write_session_yaml(folder, setup, target_spec, camera, poses, None, comment)
 
 
-def _write_session_yaml(folder: Path, setup: str, target_spec: dict[str, Any], camera, poses: dict[str, Any],
-                        images: dict[str, Any] | None, comment: str | None) -> Path:
+def write_joint_session(folder: str | Path, setup: str, target_spec: dict[str, Any], names: list[str],
+                        joints: NDArray[np.float64], arm: str, flange2base: NDArray[np.float64] | None = None,
+                        camera: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+                        comment: str | None = None) -> Path:
+    """Write ``session.yaml`` and ``joints.csv`` (degrees, an ``image`` column then one per joint)
+    of a session whose robot side is joint angles ``joints`` (N, n; radians) of the shipped ``arm``,
+    with the controller's ``flange2base`` in ``poses.csv`` too when given; atomically. The images
+    are the caller's. Returns the session.yaml path."""
+    folder = Path(folder)
+    check_setup(setup)
+    target_from_spec(target_spec)
+    q = np.degrees(np.asarray(joints, dtype=float))
+    lines = ["image," + ",".join(f"joint{k + 1}" for k in range(q.shape[1]))]
+    lines += [f"{n}," + ",".join(_number(v) for v in row) for n, row in zip(names, q)]
+    atomic_write(folder / "joints.csv", "\n".join(lines) + "\n")
+    poses = None
+    if flange2base is not None:
+        write_pose_table(folder / "poses.csv", names, flange2base, "quat_wxyz", "mm", "deg")
+        poses = {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}
+    return _write_session_yaml(folder, setup, target_spec, camera, poses, None, comment,
+                               joints={"file": "joints.csv", "unit": "deg", "arm": arm})
+
+
+def _write_session_yaml(folder: Path, setup: str, target_spec: dict[str, Any], camera, poses: dict[str, Any] | None,
+                        images: dict[str, Any] | None, comment: str | None, joints: dict[str, Any] | None = None) -> Path:
     """session.yaml with its keys in the order of the session format (docs/guide.md), atomically; returns its path."""
     spec: dict[str, Any] = {"setup": setup, "target": dict(target_spec)}
     if camera is not None:
         spec["camera"] = {"K": np.asarray(camera[0], dtype=float).tolist(),
                           "dist": np.asarray(camera[1], dtype=float).ravel().tolist()}
-    spec["poses"] = poses
+    if poses is not None:
+        spec["poses"] = poses
+    if joints is not None:
+        spec["joints"] = joints
     if images is not None:
         spec["images"] = images
     text = (f"# {comment}\n" if comment else "") + yaml.safe_dump(spec, sort_keys=False)

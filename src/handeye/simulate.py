@@ -24,7 +24,8 @@ from ._shared.io import atomic_write, check_output_folder
 from ._shared.lazy import lazy_module
 from .errors import HandEyeError, InputMismatchError
 from .geometry.se3 import invert, make_transform, perturb, random_rotations
-from .session import write_session, write_stream_session
+from .kinematics import Chain, absorbed_parameters, load_arm
+from .session import write_joint_session, write_session, write_stream_session
 from .setups import check_setup, flange_poses, predicted_target2cam, setup_info
 from .vision.pnp import project_points
 from .vision.render import Renderer, target_texture
@@ -36,6 +37,7 @@ __all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look
            "seed_viewpoints",
            "seed_scenes", "add_noise", "simulate_session", "RealisticErrors", "RealisticScene", "REALISTIC", "EXACT",
            "realistic_scene", "arm_forward_kinematics", "ARM_DH", "robot_accuracy_of", "simulate_realistic_session",
+           "KinematicScene", "kinematic_scene", "simulate_kinematic_session",
            "low_dof_scene", "LOW_DOF_ROBOTS", "StreamScene", "stream_scene",
            "simulate_stream_session"]
 
@@ -569,10 +571,12 @@ class RealisticScene:
     flipped: NDArray[np.bool_]  #: (N,) poses where PnP kept the other planar solution
 
 
-def _scene_layout(setup: str, object_points: NDArray[np.float64], rng: np.random.Generator):
+def _scene_layout(setup: str, object_points: NDArray[np.float64], rng: np.random.Generator,
+                  home: NDArray[np.float64] | None = None):
     """X and Z of a realistic cell: the camera 5-10 cm off the flange looking along it (eye-in-hand)
-    or on a stand 0.6-0.8 m in front of the board on the flange (eye-to-hand)."""
-    home = arm_forward_kinematics(ARM_HOME[setup])
+    or on a stand 0.6-0.8 m in front of the board on the flange (eye-to-hand). ``home``: the arm's
+    flange pose at the centre of the capture (default :data:`ARM_DH`'s at :data:`ARM_HOME`)."""
+    home = arm_forward_kinematics(ARM_HOME[setup]) if home is None else home
     centre = 0.5 * (object_points.min(axis=0) + object_points.max(axis=0))
     tilt = make_transform(Rotation.from_rotvec(rng.normal(0.0, np.radians(5.0), 3)).as_matrix(), np.zeros(3))
     if setup_info(setup).camera_on_flange:
@@ -593,13 +597,18 @@ def _scene_layout(setup: str, object_points: NDArray[np.float64], rng: np.random
     return X, Z
 
 
-def _sample_joints(setup, X, Z, object_points, K, image_size, n, rng, margin_px=10.0, spread_deg=(25, 25, 25, 40, 40, 60)):
+def _sample_joints(setup, X, Z, object_points, K, image_size, n, rng, margin_px=10.0, spread_deg=(25, 25, 25, 40, 40, 60),
+                   chain=None):
     """Joint angles around the home pose whose views see the whole target, 0.25-1.2 m away and
-    less than 60 deg from face-on."""
+    less than 60 deg from face-on (``chain``: another arm than :data:`ARM_DH`, its home and spread)."""
+    forward = arm_forward_kinematics if chain is None else chain.forward
     out = []
     for _ in range(50):
-        q = ARM_HOME[setup] + np.radians(rng.uniform(-1, 1, (400, 6)) * spread_deg)
-        t2c = predicted_target2cam(X, Z, arm_forward_kinematics(q), setup)
+        if chain is None:
+            q = ARM_HOME[setup] + np.radians(rng.uniform(-1, 1, (400, 6)) * spread_deg)
+        else:
+            q = chain.home[setup] + rng.uniform(-1, 1, (400, chain.n_joints)) * chain.spread
+        t2c = predicted_target2cam(X, Z, forward(q), setup)
         out.extend(q[_sees_target(t2c, object_points, K, image_size, margin_px)])
         if len(out) >= n:
             return np.array(out[:n])
@@ -696,6 +705,61 @@ def realistic_scene(
                           tuple(image_size), flipped)
 
 
+@dataclass(frozen=True)
+class KinematicScene(RealisticScene):
+    """A capture by an arm whose kinematics differ from its nominal ones (:func:`kinematic_scene`):
+    ``joints`` as the controller reports them, ``flange2base`` the nominal chain's forward
+    kinematics there (what a black-box calibration gets), ``chain_true`` the arm's real table."""
+
+    chain: Chain | None = None
+    chain_true: Chain | None = None
+    joints_true: NDArray[np.float64] | None = None
+
+
+def kinematic_scene(
+    n_poses: int,
+    setup: str = "eye_in_hand",
+    rng: np.random.Generator | int | None = None,
+    arm: str | Chain = "ur5",
+    length_mm: float = 0.5,
+    angle_deg: float = 0.05,
+    pixel_px: float = 0.2,
+    joint_noise_deg: float = 0.002,
+    target: str | dict = "chessboard",
+    image_size: tuple[int, int] = (1280, 1024),
+) -> KinematicScene:
+    """A capture by ``arm`` (a name of :func:`handeye.kinematics.arm_names` or a chain) whose real
+    table differs from the nominal one: every entry the arm owns (not one that only moves its base
+    or flange, :func:`handeye.kinematics.absorbed_parameters`: those are X's and Z's by definition)
+    off by Gaussian ``length_mm`` (a, d) or ``angle_deg`` (alpha, theta offsets), which puts the
+    flange 1-3 mm from where the nominal chain says at the defaults. Joint angles are drawn about
+    the arm's home until ``n_poses`` views see the whole target; the controller reports them with
+    ``joint_noise_deg`` of encoder noise; detections carry ``pixel_px`` of noise, and the camera's
+    poses are PnP's on them."""
+    check_setup(setup)
+    rng = np.random.default_rng(rng)
+    chain = load_arm(arm) if isinstance(arm, str) else arm
+    spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
+    obj = target_from_spec(spec).object_points()
+    K, dist = default_camera(image_size)
+    X, Z = _scene_layout(setup, obj, rng, chain.forward(chain.home[setup][None])[0])
+    q_true = _sample_joints(setup, X, Z, obj, K, image_size, n_poses, rng, chain=chain)
+    deltas = np.zeros(chain.table.size)
+    absorbed = set(absorbed_parameters(chain))
+    for k, name in enumerate(chain.parameter_names()):
+        if name not in absorbed:
+            deltas[k] = (np.radians(rng.normal(0.0, angle_deg)) if name.endswith((".alpha", ".theta"))
+                         else 1e-3 * rng.normal(0.0, length_mm))
+    true = chain.corrected(deltas)
+    f2b_true = true.forward(q_true)
+    joints = q_true + np.radians(rng.normal(0.0, joint_noise_deg, q_true.shape))
+    t2c_true = predicted_target2cam(X, Z, f2b_true, setup)
+    t2c, image_points, flipped = _camera_reading(t2c_true, obj, K, dist,
+                                                 replace(EXACT, pixel_px=pixel_px, flip_probability=0.0), rng)
+    return KinematicScene(setup, X, Z, joints, f2b_true, chain.forward(joints), t2c_true, t2c, obj, image_points, K,
+                          dist, tuple(image_size), flipped, chain=chain, chain_true=true, joints_true=q_true)
+
+
 def robot_accuracy_of(scene: RealisticScene) -> tuple[float, float]:
     """The median error of the robot poses ``scene`` reports (deg, mm at the flange): the absolute
     accuracy of its simulated arm over that capture."""
@@ -730,6 +794,37 @@ def simulate_realistic_session(
                   camera=(sc.K, sc.dist) if write_intrinsics else None,
                   comment="Rendered by handeye's realistic simulator; ground truth in ground_truth.yaml")
     _write_truth(out, setup, sc.X, sc.Z, sc.K, sc.dist, seed, errors={k: float(v) for k, v in vars(errors).items()},
+                 robot_accuracy_deg_mm=list(robot_accuracy_of(sc)))
+    return sc
+
+
+def simulate_kinematic_session(
+    out_dir,
+    n_poses: int = 30,
+    setup: str = "eye_in_hand",
+    seed: int | None = None,
+    arm: str = "ur5",
+    controller_poses: bool = True,
+    target: str | dict = "chessboard",
+    image_size: tuple[int, int] = (1280, 1024),
+    **errors,
+) -> KinematicScene:
+    """Render a capture session of :func:`kinematic_scene` with the joint angles the controller
+    reports in ``joints.csv`` (degrees; ``session.yaml``'s ``joints:`` block names ``arm``), and
+    (``controller_poses``) the flange poses its nominal kinematics give in ``poses.csv``;
+    ``ground_truth.yaml`` holds X, Z and the arm's true table. ``errors``: :func:`kinematic_scene`'s
+    ``length_mm``, ``angle_deg``, ``pixel_px``, ``joint_noise_deg``. Returns the scene."""
+    out = _new_session_folder(out_dir)
+    sc = kinematic_scene(n_poses, setup, seed, arm=arm, target=target, image_size=image_size, **errors)
+    spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
+    renderer = Renderer(sc.K, sc.dist, image_size)
+    texture = target_texture(target_from_spec(spec))
+    rng = np.random.default_rng(None if seed is None else [seed, 1])
+    names = _write_images(out, renderer, texture, sc.target2cam_true, rng, errors.get("pixel_px", 0.2))
+    write_joint_session(out, setup, spec, names, sc.joints, arm, sc.flange2base if controller_poses else None,
+                        camera=(sc.K, sc.dist), comment=f"Rendered by handeye's kinematic simulator ({sc.chain.name} off its "
+                        "nominal table); ground truth in ground_truth.yaml")
+    _write_truth(out, setup, sc.X, sc.Z, sc.K, sc.dist, seed, arm=sc.chain.name, table_true=sc.chain_true.table.tolist(),
                  robot_accuracy_deg_mm=list(robot_accuracy_of(sc)))
     return sc
 

@@ -63,6 +63,14 @@ def print_calibration(cal: Calibration, out=None) -> None:
                                                         if np.isinf(cal.std).any() else "") + "\n")
     else:  # a closed form alone (--refine none) has no noise model: say so rather than print nothing
         w(f"std of X: not computed ({cal.method} closed form alone; --refine auto or pose gives it)\n")
+    if cal.kinematic is not None:
+        k = cal.kinematic
+        big = np.argsort(-np.abs(k.correction / k.prior_std))[:4]
+        w(f"arm table ({k.nominal.name}): {int(k.determined.sum())} of {len(k.names)} entries determined; the corrected "
+          f"table moves the flange {k.flange_shift_mm[0]:.2f} mm (median; up to {k.flange_shift_mm[1]:.2f}) from the "
+          "nominal one; largest corrections: " + ", ".join(
+              f"{k.names[i]} {_entry(k.names[i], k.correction[i])} +- {_entry(k.names[i], k.std[i])}" for i in big)
+          + " (all in result.json; the table in arm_corrected.yaml)\n")
     for u in cal.unobservable:
         w(f"NOT DETERMINED: {u.parameter}; set to {u.choice}. {u.coupled[:1].upper() + u.coupled[1:]}. To fix: {u.fix}\n")
     for name, k in cal.known.items():
@@ -88,6 +96,11 @@ def print_calibration(cal: Calibration, out=None) -> None:
                                    else "") + "\n")
     for note in cal.notes:
         w(f"note: {note}\n")
+
+
+def _entry(name: str, value: float) -> str:
+    """A table entry's value in mm or deg."""
+    return f"{np.degrees(value):.4f} deg" if name.endswith((".alpha", ".theta")) else f"{1e3 * value:.3f} mm"
 
 
 def print_image_summary(cal: Calibration) -> None:

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibration import calibrate, certify_calibration
+from ..calibration import certify_calibration
+from ..checking import calibrate_session
 from ..errors import HandEyeError
 from ..fleet import calibrate_many
 from ..verdict import exit_status
@@ -57,7 +58,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     session = input_folder(args.session[0] if args.session else None, args.sample, SAMPLE_SESSION,
                             "give a session folder, or --sample for the bundled sample session (not both)")
     out_folder(args.out, [session])
-    cal = calibrate(session, calibrate_options(args), jobs=args.jobs, progress=not args.no_progress)
+    cal = calibrate_session(session, calibrate_options(args), jobs=args.jobs, progress=not args.no_progress)
     if args.certify:
         cal = certify_calibration(cal)
     print_image_summary(cal)

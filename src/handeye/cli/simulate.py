@@ -5,14 +5,25 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..errors import InputMismatchError
+from ..kinematics import arm_names
 from ..planning import ROBOTS
 from ..setups import SETUPS
-from ..simulate import DEFAULT_TARGETS, simulate_session
+from ..simulate import DEFAULT_TARGETS, simulate_kinematic_session, simulate_session
 from ._common import image_size_arg, number_arg, out_folder, whole_arg
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     out_folder(args.out)
+    if args.arm is not None:
+        if args.robot != "arm":
+            raise InputMismatchError("--arm simulates a serial arm's joints; it does not combine with --robot " + args.robot)
+        sc = simulate_kinematic_session(args.out, args.poses, args.setup, args.seed, arm=args.arm, target=args.target,
+                                        image_size=args.image_size, pixel_px=args.noise_px)
+        print(f"wrote session {args.out} ({args.poses} {args.target} images, {args.setup}, {sc.chain.name}'s joint angles "
+              f"in joints.csv and its controller's poses in poses.csv; the arm is off its nominal table); ground truth "
+              f"in {Path(args.out) / 'ground_truth.yaml'}")
+        return 0
     simulate_session(args.out, setup=args.setup, n_poses=args.poses, target=args.target, noise_px=args.noise_px,
                      seed=args.seed, image_size=args.image_size, write_intrinsics=not args.no_intrinsics, robot=args.robot)
     print(f"wrote session {args.out} ({args.poses} {args.target} images, {args.setup}, {args.robot}); ground truth in "
@@ -41,4 +52,7 @@ def register(sub) -> None:
     p.add_argument("--robot", default="arm", choices=ROBOTS,
                    help="arm (default): views all around; scara: the flange turns about the vertical only; "
                    "cartesian: it only translates (both determine only part of X: see --known of calibrate)")
+    p.add_argument("--arm", type=str.lower, choices=arm_names(), default=None,
+                   help="simulate this arm's joint angles (joints.csv) beside its controller's poses, the arm 1-3 mm off "
+                   "its nominal table: calibrate then fits the table with X (K and dist always written)")
     p.set_defaults(func=_cmd_simulate)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -24,6 +25,7 @@ from .._shared.io import atomic_write
 from .._version import __version__
 from ..errors import HandEyeError
 from ..geometry.se3 import invert
+from ..kinematics import chain_yaml
 from ..poses import format_poses, pose_columns
 from ..result import Calibration
 from ..setups import setup_info
@@ -319,6 +321,8 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
         out["pose_residuals"]["images"] = list(cal.image_names)
         out.update(_images_dict(cal))
     out.update(_scale_dict(cal))
+    if cal.kinematic is not None:
+        out["kinematics"] = cal.kinematic.as_dict()
     out["refinement"] = {"type": cal.refinement}
     if cal.refined_rms is not None:
         out["refinement"]["rms_px"] = cal.refined_rms
@@ -380,4 +384,11 @@ def write_results(cal: Calibration, out_dir: str | Path, protect: Iterable[Path]
     paths = [out_dir / "result.json", out_dir / "result.yaml"]
     atomic_write(paths[0], json.dumps(data, indent=2) + "\n", protect)
     atomic_write(paths[1], yaml.safe_dump(data, sort_keys=False, width=1000), protect)
+    if cal.kinematic is not None:  # the corrected table, as handeye.kinematics.load_arm (and --arm) read it
+        k = cal.kinematic
+        paths.append(out_dir / "arm_corrected.yaml")
+        atomic_write(paths[-1], chain_yaml(replace(k.chain, name=f"{k.nominal.name} (corrected)"),
+                                           f"{k.nominal.name}'s table corrected by handeye's calibration from joint angles "
+                                           f"({len(k.names)} entries fitted, {len(k.undetermined)} held near nominal)."
+                                           f"\nNominal table: {k.nominal.source or k.nominal.name}"), protect)
     return paths

@@ -9,7 +9,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import lapack as _lapack
+from scipy.spatial.transform import Rotation
 
+from ..geometry.se3 import make_transform
 from ..motions import MotionSet
 
 
@@ -166,3 +168,24 @@ def log_rotations(dq: NDArray[np.float64]) -> NDArray[np.float64]:
     with np.errstate(invalid="ignore", divide="ignore"):
         scale = np.where(vn > 1e-15, angle / vn, 2.0)  # limit of 2 atan(x)/x at 0
     return v * scale[..., None]
+
+
+def _xz_increment(x: NDArray[np.float64], X0: NDArray[np.float64], Z0: NDArray[np.float64]):
+    """X and Z moved by the first 12 unknowns: left rotation-vector increments and translation
+    increments of X, then of Z."""
+    dR = Rotation.from_rotvec(np.stack([x[:3], x[6:9]])).as_matrix()  # one scipy call for both
+    return (make_transform(dR[0] @ X0[:3, :3], X0[:3, 3] + x[3:6]),
+            make_transform(dR[1] @ Z0[:3, :3], Z0[:3, 3] + x[9:12]))
+
+
+def _normal_inverse(J: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``inv(J^T J)`` from the SVD of ``J``: symmetric and positive semi-definite however poorly
+    conditioned ``J`` is (whitened by variances 1e13 apart, ``J^T J`` squares a 1e12 condition
+    number past double precision and its inverse came out with negative variances); a ``J`` with
+    a direction it does not constrain at all gives every variance infinite."""
+    _, s, Vt = np.linalg.svd(J, full_matrices=False)
+    if not s.min() > 0.0:
+        out = np.zeros((J.shape[1], J.shape[1]))
+        np.fill_diagonal(out, np.inf)
+        return out
+    return (Vt.T / s**2) @ Vt

@@ -28,13 +28,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares, minimize
 from scipy.sparse import csr_matrix
-from scipy.spatial.transform import Rotation
 
 from ..errors import InputMismatchError
-from ..geometry.se3 import invert, make_transform, perturb, rotation_of_valid, skew, so3_left_jacobian
+from ..geometry.se3 import invert, perturb, rotation_of_valid, skew, so3_left_jacobian
 from ..setups import check_setup, constant_transforms, predicted_target2cam, robot_world_A, robot_world_A_inv, setup_info
 from ..vision.pnp import project_points, project_points_many, projection_jacobians, solve_pnp
 from ..vision.targets import Detection
+from ._common import _normal_inverse, _xz_increment
 
 __all__ = ["PoseRefinementResult", "ReprojectionResult", "TranslationPriors", "downdate_reprojection", "pose_mahalanobis", "refine_pose",
            "refit_pose", "refine_reprojection", "predicted_target2cam"]
@@ -180,14 +180,6 @@ def _robot_prior(robot_noise, obj, img, K, dist) -> tuple[tuple[float, float], N
         raise InputMismatchError(f"robot_noise {robot_noise}: give positive standard deviations (rad, m)")
     sigma_px = _pixel_noise(obj, img, K, dist)
     return (sig_rot, sig_t), np.tile(np.r_[np.full(3, sigma_px / sig_rot), np.full(3, sigma_px / sig_t)], len(obj))
-
-
-def _xz_increment(x: NDArray[np.float64], X0: NDArray[np.float64], Z0: NDArray[np.float64]):
-    """X and Z moved by the first 12 unknowns: left rotation-vector increments and translation
-    increments of X, then of Z."""
-    dR = Rotation.from_rotvec(np.stack([x[:3], x[6:9]])).as_matrix()  # one scipy call for both
-    return (make_transform(dR[0] @ X0[:3, :3], X0[:3, 3] + x[3:6]),
-            make_transform(dR[1] @ Z0[:3, :3], Z0[:3, 3] + x[9:12]))
 
 
 def _reprojection_unpacker(X0, Z0, K0, d0, extra_dist, flange2base, refine_intrinsics: bool, robot_corrections: bool,
@@ -801,19 +793,6 @@ def _pose_covariance(J, f, theta, weighting: str, n: int, dof: int) -> tuple[NDA
     g = np.einsum("nki,nk->ni", J.reshape(n, -1, 12), f.reshape(n, -1))
     cov = JtJ_inv @ (g.T @ g) @ JtJ_inv * (6 * n / max(dof, 1))
     return cov, {"rotation": theta[0], "translation": theta[1]}
-
-
-def _normal_inverse(J: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``inv(J^T J)`` from the SVD of ``J``: symmetric and positive semi-definite however poorly
-    conditioned ``J`` is (whitened by variances 1e13 apart, ``J^T J`` squares a 1e12 condition
-    number past double precision and its inverse came out with negative variances); a ``J`` with
-    a direction it does not constrain at all gives every variance infinite."""
-    _, s, Vt = np.linalg.svd(J, full_matrices=False)
-    if not s.min() > 0.0:
-        out = np.zeros((J.shape[1], J.shape[1]))
-        np.fill_diagonal(out, np.inf)
-        return out
-    return (Vt.T / s**2) @ Vt
 
 
 #: Smallest noise variance the pose refinement estimates (rad^2 or m^2): noise-free data stay exact.

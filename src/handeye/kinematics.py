@@ -1,0 +1,229 @@
+"""Serial arms' kinematics: Denavit-Hartenberg chains, batched forward kinematics, and their
+parameters as unknowns of a calibration.
+
+A :class:`Chain` holds one row per joint, ``a`` (m), ``alpha`` (rad), ``d`` (m) and the ``theta``
+offset (rad), in the standard convention (``dh``: ``Rz(theta) Tz(d) Tx(a) Rx(alpha)``) or Craig's
+modified one (``mdh``: ``Rx(alpha) Tx(a) Rz(theta) Tz(d)``, the row's ``a`` and ``alpha`` those of
+the link before the joint), then a constant ``flange`` transform. The tables of common arms ship as
+data (:func:`arm_names`, :func:`load_arm`), each with its source.
+
+A kinematic error that only moves the base or the flange frame is not the arm's to estimate: a
+calibration that also finds X and Z takes it into them (:func:`absorbed_parameters`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import yaml
+from numpy.typing import ArrayLike, NDArray
+
+from .errors import InputMismatchError
+
+__all__ = ["Chain", "PARAMETERS", "arm_names", "load_arm", "absorbed_parameters", "check_joints_against_poses",
+           "chain_yaml"]
+
+#: A joint's parameters, in the order of a chain's table columns (and of its parameter vector).
+PARAMETERS = ("a", "alpha", "d", "theta")
+
+
+@dataclass(frozen=True)
+class Chain:
+    """A serial arm of revolute joints.
+
+    Attributes
+    ----------
+    name : str
+    convention : {'dh', 'mdh'}
+        Standard (Denavit-Hartenberg) or modified (Craig) parameters.
+    table : ndarray (n, 4)
+        Per joint ``a`` (m), ``alpha`` (rad), ``d`` (m), ``theta`` offset (rad).
+    flange : ndarray (4, 4)
+        The flange in the last joint's frame.
+    source : str
+        Where the table comes from.
+    home : dict
+        Per setup, joint angles (rad) where a capture centres (the simulator's).
+    spread : ndarray (n,) or None
+        How far (rad) the simulator's captures move each joint from home.
+    """
+
+    name: str
+    convention: str
+    table: NDArray[np.float64]
+    flange: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
+    source: str = ""
+    home: dict = field(default_factory=dict)
+    spread: NDArray[np.float64] | None = None
+
+    def __post_init__(self) -> None:
+        if self.convention not in ("dh", "mdh"):
+            raise InputMismatchError(f"{self.name}: convention {self.convention!r}; use 'dh' or 'mdh'")
+        table = np.asarray(self.table, dtype=float)
+        if table.ndim != 2 or table.shape[1] != 4 or not np.isfinite(table).all():
+            raise InputMismatchError(f"{self.name}: the table must be finite rows of a, alpha, d, theta; got shape "
+                                     f"{table.shape}")
+        object.__setattr__(self, "table", table)
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints."""
+        return len(self.table)
+
+    def parameter_names(self) -> list[str]:
+        """``joint<k>.<a|alpha|d|theta>`` for every entry of the table, row by row."""
+        return [f"joint{k + 1}.{p}" for k in range(self.n_joints) for p in PARAMETERS]
+
+    def corrected(self, deltas: ArrayLike) -> "Chain":
+        """The chain with ``deltas`` (n, 4) added to its table."""
+        return replace(self, table=self.table + np.asarray(deltas, dtype=float).reshape(self.table.shape))
+
+    def forward(self, q: ArrayLike, deltas: ArrayLike | None = None) -> NDArray[np.float64]:
+        """``flange2base`` (N, 4, 4) of joint angles ``q`` (N, n) in radians, the table changed by
+        ``deltas`` (n, 4) when given."""
+        q = np.asarray(q, dtype=float)
+        if q.ndim != 2 or q.shape[1] != self.n_joints:
+            raise InputMismatchError(f"{self.name} has {self.n_joints} joints; the joint angles have shape {q.shape}")
+        table = self.table if deltas is None else self.table + np.asarray(deltas, dtype=float).reshape(self.table.shape)
+        a, alpha, d, theta = (table[:, k] for k in range(4))
+        th = q + theta
+        ct, st = np.cos(th), np.sin(th)
+        ca, sa = np.cos(alpha), np.sin(alpha)
+        A = np.zeros(q.shape + (4, 4))
+        if self.convention == "dh":  # Rz(theta) Tz(d) Tx(a) Rx(alpha)
+            A[..., 0, 0], A[..., 0, 1], A[..., 0, 2], A[..., 0, 3] = ct, -st * ca, st * sa, a * ct
+            A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st, ct * ca, -ct * sa, a * st
+            A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = sa, ca, d
+        else:  # Rx(alpha) Tx(a) Rz(theta) Tz(d)
+            A[..., 0, 0], A[..., 0, 1], A[..., 0, 3] = ct, -st, a
+            A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st * ca, ct * ca, -sa, -sa * d
+            A[..., 2, 0], A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = st * sa, ct * sa, ca, ca * d
+        A[..., 3, 3] = 1.0
+        T = A[:, 0]
+        for k in range(1, self.n_joints):
+            T = T @ A[:, k]
+        return T @ self.flange
+
+
+def absorbed_parameters(chain: Chain) -> list[str]:
+    """The table entries whose errors only move the base or the flange frame: a calibration with
+    X and Z as unknowns takes them into X and Z (which of the two depends on the setup), so they
+    are not the arm's to estimate. The first joint's ``theta`` offset and ``d`` (and, modified
+    convention, the ``a`` and ``alpha`` before it), and everything after the last joint's rotation:
+    its ``theta`` offset and ``d`` (standard convention: also its ``a`` and ``alpha``)."""
+    n = chain.n_joints
+    first = ["theta", "d"] + (["a", "alpha"] if chain.convention == "mdh" else [])
+    last = ["theta", "d"] + (["a", "alpha"] if chain.convention == "dh" else [])
+    return [f"joint1.{p}" for p in first] + [f"joint{n}.{p}" for p in last]
+
+
+def _arm_files() -> dict[str, object]:
+    folder = resources.files("handeye") / "data" / "arms"
+    return {p.name[:-5]: p for p in folder.iterdir() if p.name.endswith(".yaml")}
+
+
+def arm_names() -> list[str]:
+    """The arms whose kinematics ship with handeye (``load_arm``'s names)."""
+    return sorted(_arm_files())
+
+
+def load_arm(name: str | Path) -> Chain:
+    """The nominal kinematics of a common arm by name (case-insensitive; :func:`arm_names`), or of
+    any arm from a YAML file in the shipped tables' format (``name``, ``convention``, ``joints``:
+    rows of ``a`` (m), ``alpha`` (rad), ``d`` (m), ``theta`` offset (rad), optional ``flange``: its
+    offset along the last frame (m)), such as :func:`chain_yaml` writes."""
+    path = Path(str(name))
+    if path.suffix.lower() in (".yaml", ".yml"):
+        if not path.is_file():
+            raise InputMismatchError(f"{path}: no such arm file (a DH table in YAML: name, convention, joints)")
+        return _chain_from_yaml(path.read_text(encoding="utf-8"), str(path))
+    files = _arm_files()
+    key = str(name).lower().replace("-", "").replace("_", "")
+    if key not in files:
+        raise InputMismatchError(f"unknown arm {name!r}; handeye has the kinematics of: {', '.join(sorted(files))} "
+                                 "(or give a YAML file of your arm's DH table, or build a handeye.kinematics.Chain)")
+    return _chain_from_yaml(files[key].read_text(encoding="utf-8"), key)
+
+
+def _chain_from_yaml(text: str, where: str) -> Chain:
+    try:
+        data = yaml.safe_load(text)
+        source = " ".join(line.lstrip("# ").strip() for line in text.splitlines() if line.startswith("#"))
+        flange = np.asarray(data.get("flange", [0.0, 0.0, 0.0]), dtype=float)
+        if flange.shape == (3,):
+            flange = np.vstack([np.hstack([np.eye(3), flange[:, None]]), [0, 0, 0, 1]])
+        return Chain(name=str(data["name"]), convention=str(data["convention"]),
+                     table=np.array(data["joints"], dtype=float), flange=flange, source=source,
+                     home={k: np.radians(v) for k, v in (data.get("home_deg") or {}).items()},
+                     spread=np.radians(data["spread_deg"]) if "spread_deg" in data else None)
+    except (KeyError, TypeError, ValueError, AttributeError, yaml.YAMLError) as exc:
+        raise InputMismatchError(f"{where}: not an arm table ({exc}); give name, convention (dh or mdh) and joints: "
+                                 "one row [a_m, alpha_rad, d_m, theta_offset_rad] per joint") from None
+
+
+def chain_yaml(chain: Chain, comment: str = "") -> str:
+    """``chain`` as a YAML arm table that :func:`load_arm` reads back (full precision), with
+    ``comment`` lines on top."""
+    lines = [f"# {line}" for line in (comment or chain.source).splitlines() if line.strip()]
+    lines += [f"name: {chain.name}", f"convention: {chain.convention}", "columns: [a_m, alpha_rad, d_m, theta_offset_rad]",
+              "joints:"]
+    lines += [f"  - [{', '.join(repr(float(v)) for v in row)}]" for row in chain.table]
+    lines.append(f"flange: [[{'], ['.join(', '.join(repr(float(v)) for v in r) for r in chain.flange)}]]")
+    return "\n".join(lines) + "\n"
+
+
+#: Joint angles and flange poses of the same views agree when the flange poses differ by less than
+#: this (median, mm; deg): a controller's own model of the arm (UR's factory calibration) differs
+#: from the nominal table by a few millimetres, a wrong reading by far more.
+POSE_AGREEMENT = (20.0, 2.0)
+
+
+def _pose_gap(a: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[float, float]:
+    """Median translation (mm) and rotation (deg) between two stacks of poses."""
+    dt = 1e3 * np.linalg.norm(a[:, :3, 3] - b[:, :3, 3], axis=1)
+    cos = (np.einsum("nij,nij->n", a[:, :3, :3], b[:, :3, :3]) - 1) / 2
+    return float(np.median(dt)), float(np.degrees(np.median(np.arccos(np.clip(cos, -1, 1)))))
+
+
+def check_joints_against_poses(chain: Chain, q: ArrayLike, flange2base: ArrayLike, where: str = "joint angles") -> str:
+    """Check that joint angles ``q`` (N, n; radians) and the controller's ``flange2base`` (N, 4, 4)
+    describe the same views through ``chain``.
+
+    Returns the finding as a sentence (how far apart they are) when they agree within
+    :data:`POSE_AGREEMENT`. Otherwise raises, naming what makes them agree when one of the
+    usual slips does: the joints in degrees read as radians (or the reverse), the joint columns in
+    reverse order, the flange poses inverted (base in flange), another of the shipped arms.
+
+    Raises
+    ------
+    InputMismatchError
+    """
+    q = np.asarray(q, dtype=float)
+    flange2base = np.asarray(flange2base, dtype=float)
+    gap = _pose_gap(chain.forward(q), flange2base)
+    if gap[0] <= POSE_AGREEMENT[0] and gap[1] <= POSE_AGREEMENT[1]:
+        return (f"{where} through {chain.name}'s table and the controller's flange poses agree to {gap[0]:.2f} mm / "
+                f"{gap[1]:.3f} deg (median): the arm's error the calibration fits, and the controller's own model")
+    trials = {"the joint angles are in degrees, not radians (give the unit as deg)": (chain, np.radians(q), flange2base),
+              "the joint angles are in radians, not degrees (give the unit as rad)": (chain, np.degrees(q), flange2base),
+              "the joint columns are in reverse order (joint 1 first)": (chain, q[:, ::-1], flange2base),
+              "the flange poses are inverted (base in flange: give flange2base)": (chain, q, np.linalg.inv(flange2base))}
+    for other in arm_names():
+        arm = load_arm(other)
+        if arm.n_joints == chain.n_joints and arm.name != chain.name:
+            trials[f"the arm is {arm.name}, not {chain.name}"] = (arm, q, flange2base)
+    found = []
+    for fix, (arm, qq, f2b) in trials.items():
+        if np.abs(qq).max() > 1e3:
+            continue
+        g = _pose_gap(arm.forward(qq), f2b)
+        if g[0] <= POSE_AGREEMENT[0] and g[1] <= POSE_AGREEMENT[1]:
+            found.append(fix)
+    hint = (f"they agree if {found[0]}" if found else
+            "none of the usual slips explains it (degrees/radians, joint order, inverted poses, another arm): check "
+            "the arm's table (or URDF) and that each row's joints and pose are of the same view")
+    raise InputMismatchError(f"{where} through {chain.name}'s table put the flange {gap[0]:.1f} mm / {gap[1]:.1f} deg "
+                             f"(median) from the controller's flange poses: {hint}")
