@@ -17,7 +17,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "handeye"
 FLOORS = {
     "errors": 1, "_version": 1,
     "geometry": 2, "_shared": 2,
-    "setups": 3, "poses": 3, "metrics": 3, "kinematics": 3,
+    "setups": 3, "poses": 3, "metrics": 3, "kinematics": 3, "urdf": 3.5,
     "vision": 4, "motions": 4,
     "session": 5, "solvers": 5, "printing": 5,
     "result": 6, "simulate": 6, "importers": 6,

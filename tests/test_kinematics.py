@@ -22,6 +22,7 @@ from handeye.metrics import rotation_error, translation_error
 from handeye.session import load_session, write_joint_session, write_pose_table
 from handeye.setups import predicted_target2cam
 from handeye.simulate import arm_forward_kinematics, kinematic_scene, robot_accuracy_of
+from handeye.urdf import chain_from_urdf, chain_urdf
 
 
 def test_the_arms_tables_and_their_forward_kinematics():
@@ -201,6 +202,8 @@ def test_simulate_and_calibrate_a_joint_session_from_the_command_line(tmp_path):
     assert 1e3 * translation_error(X, np.array(truth["cam2flange"])) < 0.3
     corrected = load_arm(out / "arm_corrected.yaml")
     assert np.allclose(corrected.table, data["kinematics"]["table"]["corrected"], atol=0, rtol=0)
+    q = np.random.default_rng(0).uniform(-3, 3, (5, 6))
+    assert np.abs(chain_from_urdf(out / "arm_corrected.urdf").forward(q) - corrected.forward(q)).max() < 1e-9
     true_table = np.array(truth["table_true"])
     nominal = load_arm("ur5").table
     owned = [k for k, name in enumerate(load_arm("ur5").parameter_names()) if name in data["kinematics"]["entries"]
@@ -208,3 +211,75 @@ def test_simulate_and_calibrate_a_joint_session_from_the_command_line(tmp_path):
     # the determined entries move towards the truth
     assert np.abs(corrected.table.ravel()[owned] - true_table.ravel()[owned]).sum() < \
         np.abs(nominal.ravel()[owned] - true_table.ravel()[owned]).sum()
+
+
+def _random_urdf(rng: np.random.Generator) -> str:
+    """A 6-joint URDF unlike any DH drawing: a fixed world-to-base joint, origins with arbitrary
+    rpy, joint axes along arbitrary (also negative) directions, a fixed joint mid-chain, a
+    continuous joint, and a camera link after the tool."""
+    lines = ['<?xml version="1.0"?>', '<robot name="odd">', '<link name="world"/>', '<link name="base_link"/>',
+             '<joint name="mount" type="fixed"><origin xyz="0.1 0 0.2" rpy="0 0 3.14159"/>'
+             '<parent link="world"/><child link="base_link"/></joint>']
+    parent = "base_link"
+    for k in range(6):
+        xyz, rpy, axis = rng.normal(0, 0.2, 3), rng.uniform(-3, 3, 3), rng.normal(size=3)
+        lines += [f'<link name="l{k}"/>',
+                  f'<joint name="j{k}" type="{"continuous" if k == 1 else "revolute"}">'
+                  f'<origin xyz="{" ".join(map(str, xyz))}" rpy="{" ".join(map(str, rpy))}"/>'
+                  f'<parent link="{parent}"/><child link="l{k}"/><axis xyz="{" ".join(map(str, axis / np.linalg.norm(axis)))}"/>'
+                  '<limit lower="-3" upper="3" effort="1" velocity="1"/></joint>']
+        parent = f"l{k}"
+        if k == 2:
+            lines += ['<link name="mid"/>', f'<joint name="fixed_mid" type="fixed"><origin xyz="0.05 0.01 0" rpy="0.1 0.2 0.3"/>'
+                      f'<parent link="{parent}"/><child link="mid"/></joint>']
+            parent = "mid"
+    lines += ['<link name="tool0"/>', f'<joint name="tool" type="fixed"><origin xyz="0 0 0.1" rpy="0 0.3 0"/>'
+              f'<parent link="{parent}"/><child link="tool0"/></joint>', '<link name="camera"/>',
+              '<joint name="cam" type="fixed"><origin xyz="0 0.05 0"/><parent link="tool0"/><child link="camera"/></joint>',
+              "</robot>"]
+    return "\n".join(lines)
+
+
+def test_a_urdf_gives_the_same_flange_poses_as_its_parser(tmp_path):
+    """A URDF read into a chain (modified DH with its base and tool transforms) moves the flange as
+    yourdfpy's own forward kinematics do, to 1e-9, on arbitrary URDFs and on the shipped arms
+    written as URDFs (chain_urdf, what calibrate writes as arm_corrected.urdf)."""
+    yourdfpy = pytest.importorskip("yourdfpy")
+    rng = np.random.default_rng(0)
+    cases = [(_random_urdf(rng), "world") for _ in range(3)] + [(chain_urdf(load_arm(n)), "base_link") for n in arm_names()]
+    for k, (text, root) in enumerate(cases):
+        path = tmp_path / f"arm{k}.urdf"
+        path.write_text(text)
+        chain = chain_from_urdf(path)
+        parser = yourdfpy.URDF.load(str(path), load_meshes=False)
+        q = rng.uniform(-3, 3, (8, chain.n_joints))
+        for row, ours in zip(q, chain.forward(q)):
+            parser.update_cfg(dict(zip(chain.joint_names, row)))
+            assert np.abs(parser.get_transform("tool0", root) - ours).max() < 1e-9
+        if root == "base_link":
+            arm = load_arm(arm_names()[k - 3])
+            assert np.abs(chain.forward(q) - arm.forward(q)).max() < 1e-9
+    with pytest.raises(InputMismatchError, match="no link 'flange9'.*its links"):
+        chain_from_urdf(tmp_path / "arm0.urdf", tip_link="flange9")
+    (tmp_path / "bad.urdf").write_text("<robot name='x'><link name='a'/>")
+    with pytest.raises(InputMismatchError, match="bad.urdf: (not a readable URDF|no revolute joint)"):
+        chain_from_urdf(tmp_path / "bad.urdf")
+
+
+def test_a_session_with_a_urdf_and_named_joint_columns(tmp_path):
+    """`arm: robot.urdf` in the joints block: the chain read from it; joint columns named as the
+    URDF's joints are taken in the URDF's order whatever theirs, and the poses agree to 1e-9."""
+    pytest.importorskip("yourdfpy")
+    sc, folder = _joint_session(tmp_path)
+    chain = replace(load_arm("ur5"), joint_names=("shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2",
+                                                  "wrist_3"))
+    (folder / "ur5.urdf").write_text(chain_urdf(chain))
+    (folder / "session.yaml").write_text((folder / "session.yaml").read_text().replace("arm: ur5", "arm: ur5.urdf"))
+    rows = (folder / "joints.csv").read_text().splitlines()
+    order = [0, 6, 5, 4, 3, 2, 1]  # image, then the joints backwards, named
+    header = ["image"] + list(chain.joint_names)
+    rows = [",".join(header[i] for i in order)] + [",".join(r.split(",")[i] for i in order) for r in rows[1:]]
+    (folder / "joints.csv").write_text("\n".join(rows) + "\n")
+    session = load_session(folder)
+    assert session.arm.joint_names == chain.joint_names and any("taken in" in n for n in session.notes)
+    assert np.abs(session.arm.forward(session.joints) - session.flange2base).max() < 1e-9

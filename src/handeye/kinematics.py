@@ -49,6 +49,12 @@ class Chain:
         Per setup, joint angles (rad) where a capture centres (the simulator's).
     spread : ndarray (n,) or None
         How far (rad) the simulator's captures move each joint from home.
+    base : ndarray (4, 4)
+        The first joint's frame in the base frame (identity for the shipped tables; a URDF's base
+        link to its first joint, :func:`handeye.urdf.chain_from_urdf`).
+    joint_names : tuple of str or None
+        The joints' names (a URDF's), in the table's order: columns of a joints table named so are
+        read in this order whatever theirs.
     """
 
     name: str
@@ -58,6 +64,8 @@ class Chain:
     source: str = ""
     home: dict = field(default_factory=dict)
     spread: NDArray[np.float64] | None = None
+    base: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
+    joint_names: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.convention not in ("dh", "mdh"):
@@ -67,6 +75,13 @@ class Chain:
             raise InputMismatchError(f"{self.name}: the table must be finite rows of a, alpha, d, theta; got shape "
                                      f"{table.shape}")
         object.__setattr__(self, "table", table)
+        for key in ("flange", "base"):
+            T = np.asarray(getattr(self, key), dtype=float)
+            if T.shape != (4, 4) or not np.isfinite(T).all():
+                raise InputMismatchError(f"{self.name}: {key} must be a finite 4x4 transform")
+            object.__setattr__(self, key, T)
+        if self.joint_names is not None and len(self.joint_names) != len(table):
+            raise InputMismatchError(f"{self.name}: {len(self.joint_names)} joint names for {len(table)} joints")
 
     @property
     def n_joints(self) -> int:
@@ -102,7 +117,7 @@ class Chain:
             A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st * ca, ct * ca, -sa, -sa * d
             A[..., 2, 0], A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = st * sa, ct * sa, ca, ca * d
         A[..., 3, 3] = 1.0
-        T = A[:, 0]
+        T = self.base @ A[:, 0]
         for k in range(1, self.n_joints):
             T = T @ A[:, k]
         return T @ self.flange
@@ -155,8 +170,11 @@ def _chain_from_yaml(text: str, where: str) -> Chain:
         flange = np.asarray(data.get("flange", [0.0, 0.0, 0.0]), dtype=float)
         if flange.shape == (3,):
             flange = np.vstack([np.hstack([np.eye(3), flange[:, None]]), [0, 0, 0, 1]])
+        names = data.get("joint_names")
         return Chain(name=str(data["name"]), convention=str(data["convention"]),
                      table=np.array(data["joints"], dtype=float), flange=flange, source=source,
+                     base=np.asarray(data.get("base", np.eye(4)), dtype=float),
+                     joint_names=None if names is None else tuple(str(n) for n in names),
                      home={k: np.radians(v) for k, v in (data.get("home_deg") or {}).items()},
                      spread=np.radians(data["spread_deg"]) if "spread_deg" in data else None)
     except (KeyError, TypeError, ValueError, AttributeError, yaml.YAMLError) as exc:
@@ -171,7 +189,12 @@ def chain_yaml(chain: Chain, comment: str = "") -> str:
     lines += [f"name: {chain.name}", f"convention: {chain.convention}", "columns: [a_m, alpha_rad, d_m, theta_offset_rad]",
               "joints:"]
     lines += [f"  - [{', '.join(repr(float(v)) for v in row)}]" for row in chain.table]
-    lines.append(f"flange: [[{'], ['.join(', '.join(repr(float(v)) for v in r) for r in chain.flange)}]]")
+    for key in ("base", "flange"):
+        T = getattr(chain, key)
+        if key == "flange" or not np.array_equal(T, np.eye(4)):
+            lines.append(f"{key}: [[{'], ['.join(', '.join(repr(float(v)) for v in r) for r in T)}]]")
+    if chain.joint_names is not None:
+        lines.append(f"joint_names: [{', '.join(chain.joint_names)}]")
     return "\n".join(lines) + "\n"
 
 

@@ -51,6 +51,7 @@ from .geometry.se3 import invert
 from .kinematics import Chain, check_joints_against_poses, load_arm
 from .poses import RobotPoseInput, format_poses, matrix_layout, parse_poses, pose_columns
 from .setups import check_setup
+from .urdf import chain_from_urdf
 from .vision.targets import target_from_spec
 
 cv2 = lazy_module("cv2")  # only to read an image's size
@@ -251,7 +252,10 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str]) -> _Join
         raise SessionError(f"{where}: joints: unit {unit!r}; use deg or rad")
     arm_name = str(_require(spec, "arm", f"{where}: joints"))
     try:
-        arm = load_arm(folder / arm_name if arm_name.lower().endswith((".yaml", ".yml")) else arm_name)
+        if arm_name.lower().endswith(".urdf"):
+            arm = chain_from_urdf(folder / arm_name, spec.get("base_link"), spec.get("tip_link"))
+        else:
+            arm = load_arm(folder / arm_name if arm_name.lower().endswith((".yaml", ".yml")) else arm_name)
     except InputMismatchError as exc:
         raise SessionError(f"{where}: joints: {exc}") from None
     text = _text_of(path, notes)
@@ -263,6 +267,12 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str]) -> _Join
         raise SessionError(f"{path}: the first column must be 'image', then one column per joint "
                            f"({arm.name}: {arm.n_joints})")
     n = arm.n_joints
+    columns = rows[0][1:]
+    if arm.joint_names is not None and sorted(columns) == sorted(arm.joint_names):  # named: read in the arm's order
+        order = [columns.index(name) + 1 for name in arm.joint_names]
+        if order != list(range(1, n + 1)):
+            notes.append(f"{path.name}: joint columns taken in {arm.name}'s order ({', '.join(arm.joint_names)})")
+        rows = [[r[0]] + [r[k] for k in order] if len(r) == n + 1 else r for r in rows]
     names, q = [], np.empty((len(rows) - 1, n))
     for k, row in enumerate(rows[1:]):
         if len(row) != n + 1:

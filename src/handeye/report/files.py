@@ -29,6 +29,7 @@ from ..kinematics import chain_yaml
 from ..poses import format_poses, pose_columns
 from ..result import Calibration
 from ..setups import setup_info
+from ..urdf import chain_urdf
 
 __all__ = ["result_dict", "write_results", "ros2_static_transform_command", "urdf_joint", "default_frames",
            "euler_angles", "ros2_launch_file", "ros1_launch_file", "easy_handeye_calibration", "in_tool_frame",
@@ -391,4 +392,6 @@ def write_results(cal: Calibration, out_dir: str | Path, protect: Iterable[Path]
                                            f"{k.nominal.name}'s table corrected by handeye's calibration from joint angles "
                                            f"({len(k.names)} entries fitted, {len(k.undetermined)} held near nominal)."
                                            f"\nNominal table: {k.nominal.source or k.nominal.name}"), protect)
+        paths.append(out_dir / "arm_corrected.urdf")
+        atomic_write(paths[-1], chain_urdf(replace(k.chain, name=f"{k.nominal.name}_corrected")), protect)
     return paths
