@@ -83,9 +83,9 @@ def test_what_the_capture_cannot_determine_is_named_and_held(tmp_path):
     UR5's offsets along its parallel axes are named as such. result.json carries the table."""
     chain = load_arm("ur5")
     still = replace(chain, spread=chain.spread * np.array([1, 1, 1, 0, 1, 1]))
-    sc = kinematic_scene(30, "eye_in_hand", 5, arm=still)
-    moving = _calibrate(kinematic_scene(30, "eye_in_hand", 5, arm=chain), 30)
-    cal = _calibrate(sc, 30)
+    sc = kinematic_scene(20, "eye_in_hand", 5, arm=still)
+    moving = _calibrate(kinematic_scene(20, "eye_in_hand", 5, arm=chain), 20)
+    cal = _calibrate(sc, 20)
     print("undetermined:", cal.kinematic.undetermined, "against", moving.kinematic.undetermined)
     assert {"joint2.d", "joint3.d", "joint4.d"} <= set(moving.kinematic.undetermined)
     assert len(cal.kinematic.undetermined) > len(moving.kinematic.undetermined)
@@ -189,8 +189,8 @@ def test_simulate_and_calibrate_a_joint_session_from_the_command_line(tmp_path):
     arm's table with X (X within 0.3 mm of the truth), prints it, and writes the corrected table
     as a file that load_arm reads back."""
     session, out = tmp_path / "s", tmp_path / "out"
-    assert main(["simulate", "--out", str(session), "--arm", "ur5", "--poses", "25", "--seed", "3",
-                 "--image-size", "1280x1024", "--target", "chessboard"]) == 0
+    assert main(["simulate", "--out", str(session), "--arm", "ur5", "--poses", "20", "--seed", "3",
+                 "--image-size", "800x600"]) == 0
     buf = io.StringIO()
     with redirect_stdout(buf):
         status = main(["calibrate", str(session), "--out", str(out), "--no-progress"])
