@@ -10,18 +10,20 @@ import json
 from contextlib import redirect_stdout
 from dataclasses import replace
 
+import cv2
 import numpy as np
 import pytest
 import yaml
 
 import handeye
+import handeye.importers
 from handeye.cli import main
 from handeye.errors import InputMismatchError, SessionError
 from handeye.kinematics import absorbed_parameters, arm_names, load_arm
 from handeye.metrics import rotation_error, translation_error
 from handeye.session import load_session, write_joint_session, write_pose_table
 from handeye.setups import predicted_target2cam
-from handeye.simulate import arm_forward_kinematics, kinematic_scene, robot_accuracy_of
+from handeye.simulate import arm_forward_kinematics, kinematic_scene, robot_accuracy_of, simulate_kinematic_session
 from handeye.urdf import chain_from_urdf, chain_urdf
 
 
@@ -283,3 +285,56 @@ def test_a_session_with_a_urdf_and_named_joint_columns(tmp_path):
     session = load_session(folder)
     assert session.arm.joint_names == chain.joint_names and any("taken in" in n for n in session.notes)
     assert np.abs(session.arm.forward(session.joints) - session.flange2base).max() < 1e-9
+
+
+def test_a_bags_joint_states_become_a_joint_session(tmp_path):
+    """A ROS 2 bag with images and /joint_states published in the UR driver's (alphabetical) joint
+    order at 100 Hz, the arm still at each image: `handeye import rosbag --joint-topic` writes
+    joints.csv with the topic's names, and the session reads each image's joint angles back in
+    the arm's order, to 1e-9."""
+    pytest.importorskip("rosbags")
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    src = tmp_path / "rendered"
+    sc = simulate_kinematic_session(src, 6, "eye_in_hand", seed=1, image_size=(640, 480))
+    session = load_session(src)
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    ty = ts.types
+    Header, Time, JointState, Image = (ty[k] for k in ("std_msgs/msg/Header", "builtin_interfaces/msg/Time",
+                                                       "sensor_msgs/msg/JointState", "sensor_msgs/msg/Image"))
+    names = ["elbow_joint", "shoulder_lift_joint", "shoulder_pan_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]
+    order = [load_arm("ur5").joint_names.index(n) for n in names]
+
+    def header(t):
+        return Header(stamp=Time(sec=int(t), nanosec=int(round((t - int(t)) * 1e9))), frame_id="")
+
+    image_times = 10.0 + 2.0 * np.arange(6)  # the arm holds still 0.5 s about each image, moves between
+    t_joint = np.arange(9.0, 21.0, 0.01)
+    knots_t = np.repeat(image_times, 2) + np.tile([-0.5, 0.5], 6)
+    knots_q = np.repeat(sc.joints, 2, axis=0)
+    q = np.stack([np.interp(t_joint, knots_t, knots_q[:, k]) for k in range(6)], axis=1)
+    bag = tmp_path / "bag"
+    with Writer(bag, version=8) as w:
+        c_joint = w.add_connection("/joint_states", JointState.__msgtype__, typestore=ts)
+        c_img = w.add_connection("/image", Image.__msgtype__, typestore=ts)
+        for t, row in zip(t_joint, q):
+            msg = JointState(header=header(t), name=names, position=row[order], velocity=np.zeros(0), effort=np.zeros(0))
+            w.write(c_joint, int(t * 1e9), ts.serialize_cdr(msg, JointState.__msgtype__))
+        for t, path in zip(image_times, session.image_paths):
+            img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+            msg = Image(header=header(t), height=img.shape[0], width=img.shape[1], encoding="mono8", is_bigendian=0,
+                        step=img.shape[1], data=img.ravel())
+            w.write(c_img, int(t * 1e9) + 1000, ts.serialize_cdr(msg, Image.__msgtype__))
+    spec = tmp_path / "target.yaml"
+    spec.write_text(yaml.safe_dump({"target": session.target_spec}))
+    out = tmp_path / "imported"
+    assert main(["import", "rosbag", str(bag), "--out", str(out), "--image-topic", "/image", "--joint-topic",
+                 "/joint_states", "--arm", "ur5", "--target-spec", str(spec)]) == 0
+    assert (out / "joints.csv").read_text().splitlines()[0] == "image," + ",".join(names)
+    imported = load_session(out)
+    assert np.abs(imported.joints - sc.joints).max() < 1e-9 and imported.arm.name == "UR5"
+    assert any("taken in UR5's order" in n for n in imported.notes)
+    with pytest.raises(InputMismatchError, match="joint_topic needs image_topic .the images. and arm"):
+        handeye.importers.import_rosbag(bag, tmp_path / "x", image_topic="/image", target=session.target_spec,
+                                        joint_topic="/joint_states")

@@ -35,7 +35,16 @@ from ._shared.lazy import lazy_module
 from ._shared.text import summarize
 from .errors import HandEyeError, InputMismatchError
 from .geometry.se3 import from_rotvec_translation, invert, make_transform
-from .session import POSEPAIRS_FILE, SESSION_FILE, SessionError, load_yaml, write_pose_pairs, write_session, write_stream_session
+from .session import (
+    POSEPAIRS_FILE,
+    SESSION_FILE,
+    SessionError,
+    load_yaml,
+    write_joint_session,
+    write_pose_pairs,
+    write_session,
+    write_stream_session,
+)
 from .setups import check_setup, robot_world_A
 from .vision.targets import target_from_spec
 
@@ -225,6 +234,51 @@ def _write_images(reader, topic: str, folder: Path, every: int) -> tuple[list[st
     return names, np.array(times)
 
 
+def _joint_states(reader, topic: str) -> tuple[NDArray[np.float64], list[str], NDArray[np.float64]]:
+    """Stamps, joint names and positions (rad) of a JointState topic: the messages that hold every
+    joint of the first message (a gripper's joints published apart are left out), in stamp order."""
+    conns = [c for c in reader.connections if c.topic == topic]
+    if not conns:
+        raise InputMismatchError(f"no topic {topic} in the bag; it has {summarize(sorted(reader.topics))}")
+    names: list[str] | None = None
+    times, positions = [], []
+    for conn, _, raw in reader.messages(connections=conns):
+        msg = reader.deserialize(raw, conn.msgtype)
+        if not hasattr(msg, "position") or not hasattr(msg, "name"):
+            raise InputMismatchError(f"{topic}: {conn.msgtype} is not a JointState topic")
+        by_name = dict(zip(list(msg.name), np.asarray(msg.position, dtype=float)))
+        names = names or list(msg.name)
+        if all(n in by_name for n in names):
+            times.append(_stamp(msg))
+            positions.append([by_name[n] for n in names])
+    if not names:
+        raise InputMismatchError(f"{topic}: no joint states in the bag")
+    t, q = _ordered(np.array(times), np.array(positions), topic)
+    return t, names, q
+
+
+def _joint_session_of_bag(reader, bag: Path, folder: Path, setup: str, joint_topic: str, arm: str, image_topic: str,
+                          camera_info_topic: str | None, target: dict[str, Any], every: int) -> ImportSummary:
+    """A session of the bag's images with the joint angles at each image's stamp."""
+    t_joint, names, q = _joint_states(reader, joint_topic)
+    image_names, t_img = _write_images(reader, image_topic, folder, every)
+    outside = (t_img < t_joint[0] - JOINT_GAP_S) | (t_img > t_joint[-1] + JOINT_GAP_S)
+    if outside.any():
+        raise InputMismatchError(f"{joint_topic}: {int(outside.sum())} of {len(t_img)} images lie outside the joint states' "
+                                 f"time span ({t_joint[0]:.3f}-{t_joint[-1]:.3f} s): record both topics together")
+    gaps = np.diff(t_joint).max(initial=0.0)
+    q_img = np.stack([np.interp(t_img, t_joint, q[:, k]) for k in range(q.shape[1])], axis=1)
+    write_joint_session(folder, setup, target, image_names, q_img, arm, camera=_camera_info(reader, camera_info_topic),
+                        comment=f"imported by handeye from {bag.name}: joint angles of {joint_topic} interpolated at "
+                        "each image's stamp", joint_names=names, unit="rad")
+    notes = [f"joint states up to {1e3 * gaps:.0f} ms apart, interpolated at the images' stamps"]
+    return ImportSummary(folder, "session", len(t_joint), len(image_names), notes)
+
+
+#: Images this far (s) outside the joint states' time span cannot be given joint angles.
+JOINT_GAP_S = 0.05
+
+
 def _camera_info(reader, topic: str | None) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
     if topic is None:
         return None
@@ -251,6 +305,8 @@ def import_rosbag(
     camera_info_topic: str | None = None,
     target: dict[str, Any] | None = None,
     every: int = 1,
+    joint_topic: str | None = None,
+    arm: str | None = None,
 ) -> ImportSummary:
     """Write a ROS bag's robot and camera recordings as a handeye folder in ``out``.
 
@@ -272,6 +328,12 @@ def import_rosbag(
         ``'cam2target'``): writes a pose-pair folder of two streams.
     camera_info_topic : str, optional
         A CameraInfo topic: K and dist into session.yaml (else handeye estimates them).
+    joint_topic, arm : str, optional
+        With images, instead of the robot's poses: a JointState topic (``/joint_states``) and the
+        arm (a name of :func:`handeye.kinematics.arm_names`, or a YAML table or URDF file the
+        session will hold): writes a session with ``joints.csv`` (radians, columns named as the
+        topic names its joints), each image's joint angles interpolated at its stamp (one clock:
+        the bag's), so that calibrate fits the arm's table with X.
 
     Returns
     -------
@@ -285,7 +347,10 @@ def import_rosbag(
     check_setup(setup)
     if (image_topic is None) == (camera_pose_topic is None):
         raise InputMismatchError("give the camera as image_topic (images) or camera_pose_topic (poses), one of them")
-    if (robot_topic is None) == (robot_frames is None):
+    if joint_topic is not None:
+        if image_topic is None or arm is None:
+            raise InputMismatchError("joint_topic needs image_topic (the images) and arm (the arm's kinematics)")
+    elif (robot_topic is None) == (robot_frames is None):
         raise InputMismatchError("give the robot as robot_frames (tf) or robot_topic (a pose topic), one of them")
     if image_topic is not None:
         if target is None:
@@ -304,6 +369,9 @@ def import_rosbag(
     AnyReader, Stores, get_typestore = _rosbags()
     try:
         with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+            if joint_topic is not None:
+                return _joint_session_of_bag(reader, bag, folder, setup, joint_topic, arm, image_topic,
+                                             camera_info_topic, dict(target), every)
             if robot_topic is not None:
                 t_robot, f2b = _pose_topic(reader, robot_topic)
             else:

@@ -268,8 +268,8 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str]) -> _Join
                            f"({arm.name}: {arm.n_joints})")
     n = arm.n_joints
     columns = rows[0][1:]
-    if arm.joint_names is not None and sorted(columns) == sorted(arm.joint_names):  # named: read in the arm's order
-        order = [columns.index(name) + 1 for name in arm.joint_names]
+    order = _joint_order(columns, arm.joint_names)
+    if order is not None:  # named as the arm's joints: read in the arm's order
         if order != list(range(1, n + 1)):
             notes.append(f"{path.name}: joint columns taken in {arm.name}'s order ({', '.join(arm.joint_names)})")
         rows = [[r[0]] + [r[k] for k in order] if len(r) == n + 1 else r for r in rows]
@@ -293,6 +293,20 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str]) -> _Join
     if len(set(names)) != len(names):
         raise SessionError(f"{path}: duplicate image names [{summarize(sorted({x for x in names if names.count(x) > 1}))}]")
     return _Joints(names, np.radians(q) if unit == "deg" else q, arm, path)
+
+
+def _joint_order(columns: list[str], joint_names: tuple[str, ...] | None) -> list[int] | None:
+    """The column (1-based, after the image column) of each of the arm's joints when the columns
+    name them all (exactly, or with a prefix: ``ur5_shoulder_pan_joint``), else None."""
+    if joint_names is None or len(columns) != len(joint_names):
+        return None
+    order = []
+    for name in joint_names:
+        hits = [k for k, c in enumerate(columns) if c == name or c.endswith("_" + name) or c.endswith("/" + name)]
+        if len(hits) != 1:
+            return None
+        order.append(hits[0] + 1)
+    return order if len(set(order)) == len(order) else None
 
 
 def _joint_session(folder: Path, setup: str, target_spec, K, dist, joints: _Joints, posed: Session | None,
@@ -789,16 +803,19 @@ def write_session(folder: str | Path, setup: str, target_spec: dict[str, Any], n
 def write_joint_session(folder: str | Path, setup: str, target_spec: dict[str, Any], names: list[str],
                         joints: NDArray[np.float64], arm: str, flange2base: NDArray[np.float64] | None = None,
                         camera: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
-                        comment: str | None = None) -> Path:
-    """Write ``session.yaml`` and ``joints.csv`` (degrees, an ``image`` column then one per joint)
-    of a session whose robot side is joint angles ``joints`` (N, n; radians) of the shipped ``arm``,
-    with the controller's ``flange2base`` in ``poses.csv`` too when given; atomically. The images
-    are the caller's. Returns the session.yaml path."""
+                        comment: str | None = None, joint_names: list[str] | None = None, unit: str = "deg") -> Path:
+    """Write ``session.yaml`` and ``joints.csv`` (``unit``, an ``image`` column then one per joint,
+    named ``joint_names`` or ``joint1`` ...) of a session whose robot side is joint angles
+    ``joints`` (N, n; radians) of ``arm`` (a shipped arm's name, or a table or URDF file in the
+    folder), with the controller's ``flange2base`` in ``poses.csv`` too when given; atomically.
+    The images are the caller's. Returns the session.yaml path."""
     folder = Path(folder)
     check_setup(setup)
     target_from_spec(target_spec)
-    q = np.degrees(np.asarray(joints, dtype=float))
-    lines = ["image," + ",".join(f"joint{k + 1}" for k in range(q.shape[1]))]
+    q = np.asarray(joints, dtype=float)
+    q = np.degrees(q) if unit == "deg" else q
+    columns = list(joint_names) if joint_names is not None else [f"joint{k + 1}" for k in range(q.shape[1])]
+    lines = ["image," + ",".join(columns)]
     lines += [f"{n}," + ",".join(_number(v) for v in row) for n, row in zip(names, q)]
     atomic_write(folder / "joints.csv", "\n".join(lines) + "\n")
     poses = None
@@ -806,7 +823,7 @@ def write_joint_session(folder: str | Path, setup: str, target_spec: dict[str, A
         write_pose_table(folder / "poses.csv", names, flange2base, "quat_wxyz", "mm", "deg")
         poses = {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}
     return _write_session_yaml(folder, setup, target_spec, camera, poses, None, comment,
-                               joints={"file": "joints.csv", "unit": "deg", "arm": arm})
+                               joints={"file": "joints.csv", "unit": unit, "arm": arm})
 
 
 def _write_session_yaml(folder: Path, setup: str, target_spec: dict[str, Any], camera, poses: dict[str, Any] | None,

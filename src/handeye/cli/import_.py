@@ -20,7 +20,7 @@ def _cmd_import(args: argparse.Namespace) -> int:
         summary = import_industrial_calibration(args.source, args.out)
     else:
         frames = None
-        if args.robot_topic is None:
+        if args.robot_topic is None and args.joint_topic is None:
             base, sep, tool = args.robot_frames.partition(",")
             if not sep or not base.strip() or not tool.strip():
                 raise HandEyeError(f"--robot-frames {args.robot_frames!r}: give BASE,TOOL, e.g. base_link,tool0")
@@ -29,11 +29,13 @@ def _cmd_import(args: argparse.Namespace) -> int:
                                 robot_topic=args.robot_topic, image_topic=args.image_topic,
                                 camera_pose_topic=args.camera_pose_topic, camera_pose=args.camera_pose,
                                 camera_info_topic=args.camera_info_topic, target=target_spec_arg(args.target_spec),
-                                every=args.every)
+                                every=args.every, joint_topic=args.joint_topic, arm=args.arm)
     what = {"session": "a session", "posepairs": "a pose-pair folder",
             "stream session": "a session (a robot stream, images with their times)",
             "stream posepairs": "a pose-pair folder of two streams"}[summary.kind]
     print(f"wrote {what} to {summary.folder}: {summary.robot_samples} robot and {summary.camera_samples} camera samples")
+    for note in summary.notes:
+        print(f"note: {note}")
     if getattr(args, "setup", None) is None and args.kind in ("visp", "rosbag"):
         # these sources do not record the setup: say what was assumed, before a calibration says it is inconsistent
         print("setup: eye_in_hand assumed (the source does not say); for a camera fixed beside the robot, import "
@@ -91,6 +93,10 @@ def register(sub) -> None:
                    help="what --camera-pose-topic holds (default target2cam)")
     r.add_argument("--camera-info-topic", help="a CameraInfo topic: the intrinsics (else estimated from the images)")
     r.add_argument("--every", type=whole_arg(1), default=1, help="keep every n-th image (default 1)")
+    r.add_argument("--joint-topic", help="instead of the robot's poses: a JointState topic (/joint_states), each image's "
+                   "joint angles interpolated at its stamp into joints.csv; calibrate then fits the arm's table with X")
+    r.add_argument("--arm", help="with --joint-topic: the arm (ur5, ur5e, ur3e, ur10e, panda), or a DH table (.yaml) or "
+                   "URDF file you put in the session folder")
     for kind, when in (("rosbag", "needed with --image-topic"),
                        ("visp", "for folders without chessboard-/apriltag-data.txt")):
         parsers[kind].add_argument("--target-spec", help=f"YAML with a target: mapping as in session.yaml ({when})")
