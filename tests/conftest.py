@@ -2,18 +2,10 @@
 
 from __future__ import annotations
 
-import os
+from pathlib import Path
 
-# One BLAS thread per process, set before NumPy loads: the tests' matrices are small, and the
-# suite's process pools and OpenCV's threads already use both cores; a second BLAS thread per
-# process only adds contention (measured: tests/test_uncertainty.py 74 -> 66 s on 2 cores).
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-
-from pathlib import Path  # noqa: E402
-
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
+import numpy as np
+import pytest
 
 #: Real captures made by others live beside the repository (../shared/data/real), never copied in.
 REAL_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"

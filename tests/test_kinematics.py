@@ -198,6 +198,8 @@ def test_simulate_and_calibrate_a_joint_session_from_the_command_line(tmp_path):
         status = main(["calibrate", str(session), "--out", str(out), "--no-progress"])
     printed = buf.getvalue()
     assert status in (0, 1) and "arm table (UR5)" in printed and "entries determined" in printed
+    page = (out / "report.html").read_text()
+    assert '<section id="kinematics">' in page and "joint2.a" in page and "arm_corrected.urdf" in page
     truth = yaml.safe_load((session / "ground_truth.yaml").read_text())
     data = json.loads((out / "result.json").read_text())
     X = np.array(data["X"]["matrix"])

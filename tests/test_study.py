@@ -243,8 +243,10 @@ def test_same_seed_same_numbers_whatever_the_jobs():
 
 def test_refined_beats_the_closed_forms_in_the_study():
     """The pose refinement (what calibrate_poses returns) against every closed form on the same
-    200 runs at 15 motions, robot noise 0.3 mm / 0.3 deg."""
-    res = run_setting(Setting("5.4", "robot only", 0.3, 15, robot=Noise(0.3, 0.3)), runs=200, seed=(0, 1))
+    100 runs at 15 motions, robot noise 0.3 mm / 0.3 deg (measured: translation 0.15-0.18x the
+    motion-based closed forms', 0.45-0.48x the robot-world ones'; rotation 0.56-0.78x; the same
+    within 0.03 on 200 runs)."""
+    res = run_setting(Setting("5.4", "robot only", 0.3, 15, robot=Noise(0.3, 0.3)), runs=100, seed=(0, 1))
     refined = res.stats["refined"]
     assert refined["failed"] == 0
     for m in METHODS[:-1]:

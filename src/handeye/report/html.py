@@ -439,6 +439,30 @@ def _could_be_better(cal: Calibration, rows: list[dict] | None) -> list[str]:
     return out
 
 
+def _kinematics_section(cal: Calibration) -> str:
+    """The arm's table as a calibration from joint angles found it: each entry's correction with
+    its std, whether the capture determines it, and how far the corrections move the flange."""
+    k = cal.kinematic
+    if k is None:
+        return ""
+    rows = []
+    for name, c, s, p, d in zip(k.names, k.correction, k.std, k.prior_std, k.determined):
+        f, unit = (np.degrees(1.0), "deg") if name.endswith((".alpha", ".theta")) else (1e3, "mm")
+        digits = 4 if unit == "deg" else 3
+        rows.append(f'<tr><td class="l">{_e(name)}</td><td>{f * c:+.{digits}f} {unit}</td><td>{f * s:.{digits}f}</td>'
+                    f'<td>{f * p:.{digits}f}</td><td class="l">{"yes" if d else "no: held near nominal"}</td></tr>')
+    shift = k.flange_shift_mm
+    return ('<section id="kinematics"><h2>Arm kinematics</h2>'
+            f'<p>{_e(k.nominal.name)}\'s {_e(k.nominal.convention.upper())} table, corrected with X: '
+            f"{int(k.determined.sum())} of {len(k.names)} entries determined by the capture"
+            + (f"; the corrections move the flange {shift[0]:.2f} mm (median; up to {shift[1]:.2f} mm) from where the "
+               "nominal table puts it over this capture's joint angles" if shift is not None else "")
+            + ". The corrected table is in arm_corrected.yaml and arm_corrected.urdf.</p>"
+            '<table><tr><th class="l">entry</th><th>correction</th><th>std</th><th>prior std</th>'
+            '<th class="l">determined</th></tr>' + "".join(rows) + "</table>"
+            f'<p class="note">Nominal table: {_e(k.nominal.source or k.nominal.name)}</p></section>')
+
+
 def _advice_section(cal: Calibration, data: dict, rows: list[dict] | None = None) -> str:
     advice = list(data["check"]["advice"]) + [n for n in cal.notes if n not in data["check"]["advice"]]
     advice += [a for a in _could_be_better(cal, rows) if a not in advice]
@@ -467,6 +491,7 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
              _verdict_section(cal, verdict, pres),
              _result_section(cal, data),
              _residuals_section(cal),
+             _kinematics_section(cal),
              _overlays_section(cal),
              '<section id="scene"><h2>Robot, camera and target</h2>' + _img(_png(_scene_figure(cal)), "3D view") + "</section>",
              _axes_section(cal),
