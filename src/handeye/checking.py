@@ -100,6 +100,9 @@ class FolderCheck:
     def cross_validation_table(self) -> str:
         """The estimators' held-out errors, best first, for people."""
         cal = self.calibration
+        if cal is not None and cal.kinematic is not None:
+            return ("held-out prediction error: not computed for the fit of X with the arm's table (its estimator is "
+                    "not chosen among others; the jackknife widens its std)")
         if cal is None or not cal.cross_validation:
             return "held-out prediction error: not computed (fewer than 5 usable poses, or X not fully determined)"
         table = cal.cross_validation

@@ -145,8 +145,16 @@ def _fit_notes(ref: KinematicRefinement, model: KinematicModel, pixels: bool, ig
                      f"({length_prior_mm:g} mm, {angle_prior_deg:g} deg), whose uncertainty X's std includes"
                      + (f"; {', '.join(parallel)} lie along parallel joint axes, where only their sum shows whatever the "
                         "capture" if parallel else "")
-                     + (f"; move the joints of {', '.join(moved)} further between views to determine them" if moved else ""))
+                     + (f"; move joint{'s' if len(_joints_of(moved)) > 1 else ''} {_joints_of(moved)} further between "
+                        "views (over a wider range, and together with the others) to determine them" if moved else ""))
     return notes
+
+
+def _joints_of(entries: list[str]) -> str:
+    """'3, 5 and 7' for entries of joints 3, 5 and 7 (``joint<k>.<parameter>``)."""
+    ks = sorted({int(e.split(".")[0].removeprefix("joint")) for e in entries})
+    words = [str(k) for k in ks]
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
 
 
 def calibrate_joint_session(session: Session, options: CalibrationOptions | None = None, *, jobs: int | None = None,
