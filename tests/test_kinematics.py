@@ -78,6 +78,10 @@ def test_x_from_joint_angles_beats_the_black_box_under_kinematic_errors(arm, set
     assert err[0] <= 3 * np.linalg.norm(cal.std[:3]) and err[1] <= 3 * np.linalg.norm(cal.std[3:])
     assert before > 5 * after
     assert cal.method == f"kinematic({sc.chain.name})" and cal.kinematic.nominal is sc.chain
+    # cross-validated on the views themselves: each predicted from its joint angles by the fit without it, far
+    # closer than the black box predicts it from the nominal table's flange pose
+    held = cal.cross_validation
+    assert cal.prediction_error == held["kinematic"] and 2 * held["kinematic"]["px"] < held["pose (nominal flange poses)"]["px"]
 
 
 def test_what_the_capture_cannot_determine_is_named_and_held(tmp_path):

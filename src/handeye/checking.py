@@ -100,19 +100,23 @@ class FolderCheck:
     def cross_validation_table(self) -> str:
         """The estimators' held-out errors, best first, for people."""
         cal = self.calibration
-        if cal is not None and cal.kinematic is not None:
-            return ("held-out prediction error: not computed for the fit of X with the arm's table (its estimator is "
-                    "not chosen among others; the jackknife widens its std)")
         if cal is None or not cal.cross_validation:
             return "held-out prediction error: not computed (fewer than 5 usable poses, or X not fully determined)"
         table = cal.cross_validation
         rows = sorted(table.items(), key=lambda kv: kv[1]["px"] if kv[1]["px"] is not None else kv[1]["mm"])
-        lines = [f"held-out prediction error ({self.folds}-fold cross-validation; each view predicted from its robot "
-                 "pose by X and Z fitted without it; the preferred refinement is replaced only by a candidate better "
-                 "by more than one standard error, so the one used need not have the smallest error):"]
+        if cal.kinematic is not None:
+            lines = [f"held-out prediction error ({self.folds}-fold cross-validation; each view predicted from its joint "
+                     "angles by X, Z and the arm's table fitted without it, and from the nominal table's flange pose by "
+                     "the pose refinement on the others):"]
+        else:
+            lines = [f"held-out prediction error ({self.folds}-fold cross-validation; each view predicted from its robot "
+                     "pose by X and Z fitted without it; the preferred refinement is replaced only by a candidate better "
+                     "by more than one standard error, so the one used need not have the smallest error):"]
+        width = max([24] + [len(name) for name, _ in rows])
         for name, r in rows:
             px = f"{r['px']:8.3f} px" if r.get("px") is not None else "           "
-            lines.append(f"  {name:<24} {px} {r['mm']:8.3f} mm at the target" + ("   <- chosen" if name == cal.estimator else ""))
+            lines.append(f"  {name:<{width}} {px} {r['mm']:8.3f} mm at the target" + ("   <- chosen" if name == cal.estimator
+                                                                                       else ""))
         return "\n".join(lines)
 
 

@@ -17,14 +17,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .calibration import calibrate_poses, drop_pose_outliers, observe, with_images
-from .errors import InputMismatchError
+from .diagnostics import closed_form
+from .errors import HandEyeError, InputMismatchError
 from .kinematics import Chain, load_arm
 from .metrics import std_deg_mm
 from .options import CalibrationOptions, options_from
-from .result import Calibration, KinematicModel
+from .result import Calibration, HeldOutErrors, KinematicModel
 from .session import Session
 from .solvers.kinematic import ANGLE_PRIOR_RAD, LENGTH_PRIOR_M, KinematicRefinement, refine_kinematic
-from .validation import Views, jackknife_covs
+from .solvers.refine import refine_pose
+from .validation import Views, cross_validate, default_folds, fold_indices, jackknife_covs, view_errors
 from .verdict import judged
 
 __all__ = ["calibrate_joints", "calibrate_joint_session"]
@@ -110,6 +112,7 @@ def calibrate_joints(
     priors = dict(length_prior=1e-3 * length_prior_mm, angle_prior=np.radians(angle_prior_deg))
     ref = refine_kinematic(start.X, start.Z, chain, q[keep], setup, target2cam=target2cam, **priors, **pixels)
     cov_X, widened = _widened(ref, chain, q[keep], target2cam, setup, priors, pixels)
+    held_out = _held_out(ref, chain, q[keep], target2cam, setup, priors, pixels, opts.folds)
     corrected = chain.corrected(ref.deltas)
     index = [chain.parameter_names().index(n) for n in ref.names]
     shift = 1e3 * np.linalg.norm(corrected.forward(q)[:, :3, 3] - chain.forward(q)[:, :3, 3], axis=1)
@@ -119,6 +122,7 @@ def calibrate_joints(
     cal = replace(start, X=ref.X, Z=ref.Z, cov=cov_X, std=std_deg_mm(cov_X), method=f"kinematic({chain.name})",
                   estimator="kinematic", refinement="kinematic", flange2base=corrected.forward(q[keep]),
                   target2cam=target2cam, pose_indices=keep, motions=None, notes=notes, kinematic=model,
+                  cross_validation=held_out,
                   std_sources={"model": std_deg_mm(ref.cov_X), "jackknife": None if cov_X is ref.cov_X else
                                std_deg_mm(cov_X), "robot_accuracy": None})
     return judged(cal)
@@ -190,6 +194,47 @@ def _widened(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, prior
     ratio = np.sqrt(np.maximum(np.diag(jack), 1e-300) / np.maximum(np.diag(ref.cov_X), 1e-300))
     D = np.diag(np.maximum(ratio, 1.0))
     return D @ ref.cov_X @ D, float(ratio.max())
+
+
+def _held_out(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, priors: dict, pixels: dict,
+              folds: int | None) -> HeldOutErrors | None:
+    """Each view predicted from its joint angles alone by the fit without its fold (X, Z and the
+    table refitted from the fit on all, the noise held), beside the black-box pose refinement on
+    the nominal chain's flange poses on the same folds: what the table's fit buys on views it did
+    not see. None with fewer than 5 views."""
+    n = len(q)
+    if n < 5:
+        return None
+    views = Views(chain.forward(q), target2cam, setup, pixels.get("object_points"), pixels.get("image_points"),
+                  pixels.get("K"), pixels.get("dist"))
+    held = fold_indices(n, default_folds(n) if folds is None else min(folds, n))
+    px = np.full(n, np.inf) if views.has_pixels else None
+    mm = np.full(n, np.inf)
+    for test in held:
+        train = np.setdiff1d(np.arange(n), test)
+        part = {k: ([v[i] for i in train] if k in ("object_points", "image_points") else v) for k, v in pixels.items()}
+        try:
+            r = refine_kinematic(ref.X, ref.Z, chain, q[train], setup, target2cam=target2cam[train], sigma=ref.sigma,
+                                 deltas0=ref.deltas, tol=REFIT_TOL, **priors, **part)
+        except (HandEyeError, np.linalg.LinAlgError, ValueError):
+            continue
+        f2b = views.flange2base.copy()
+        f2b[test] = chain.forward(q[test], r.deltas)
+        e_px, mm[test] = view_errors(r.X, r.Z, replace(views, flange2base=f2b), test)
+        if px is not None:
+            px[test] = e_px
+
+    def black_box(flange2base, t2c, setup, idx):
+        X0, Z0, _ = closed_form(flange2base, t2c, setup, "daniilidis")
+        fit = refine_pose(X0, Z0, flange2base, t2c, setup)
+        return fit.X, fit.Z
+
+    nominal = cross_validate(black_box, views, held)
+
+    def row(p, m) -> dict[str, float | None]:
+        return {"px": None if p is None else float(np.sqrt(np.mean(p**2))), "mm": float(np.sqrt(np.mean(m**2)))}
+    return HeldOutErrors({"kinematic": row(px, mm), "pose (nominal flange poses)": row(nominal.px, nominal.mm)},
+                         len(held))
 
 
 def _along_parallel_axes(chain: Chain) -> set[str]:
