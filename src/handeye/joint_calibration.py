@@ -117,7 +117,8 @@ def calibrate_joints(
     index = [chain.parameter_names().index(n) for n in ref.names]
     shift = 1e3 * np.linalg.norm(corrected.forward(q)[:, :3, 3] - chain.forward(q)[:, :3, 3], axis=1)
     model = KinematicModel(chain, corrected, ref.names, ref.deltas.ravel()[index], ref.parameter_std, ref.prior_std,
-                           ref.determined, (float(np.median(shift)), float(shift.max())))
+                           ref.determined, (float(np.median(shift)), float(shift.max())),
+                           _accuracy(chain, ref.deltas, index, ref.cov[12:, 12:], q))
     notes = list(start.notes) + _fit_notes(ref, model, bool(pixels), ignored, widened, length_prior_mm, angle_prior_deg)
     cal = replace(start, X=ref.X, Z=ref.Z, cov=cov_X, std=std_deg_mm(cov_X), method=f"kinematic({chain.name})",
                   estimator="kinematic", refinement="kinematic", flange2base=corrected.forward(q[keep]),
@@ -194,6 +195,30 @@ def _widened(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, prior
     ratio = np.sqrt(np.maximum(np.diag(jack), 1e-300) / np.maximum(np.diag(ref.cov_X), 1e-300))
     D = np.diag(np.maximum(ratio, 1.0))
     return D @ ref.cov_X @ D, float(ratio.max())
+
+
+#: Joint configurations the arm's accuracy is predicted over (drawn within the capture's joint ranges).
+ACCURACY_SAMPLES = 500
+
+
+def _accuracy(chain: Chain, deltas, index: list[int], cov_entries, q) -> dict[str, float]:
+    """The arm's absolute accuracy at the flange before and after the fit, over joint angles drawn
+    uniformly within the capture's range of each joint (where the fit has seen the arm): before,
+    how far the nominal table puts the flange from the corrected one; after, the corrected
+    table's position std from its entries' covariance (first order, a finite-difference Jacobian)."""
+    lo, hi = q.min(axis=0), q.max(axis=0)
+    samples = np.random.default_rng(0).uniform(lo, hi, (ACCURACY_SAMPLES, len(lo)))
+    corrected = chain.forward(samples, deltas)[:, :3, 3]
+    before = 1e3 * np.linalg.norm(chain.forward(samples)[:, :3, 3] - corrected, axis=1)
+    J = np.empty((len(samples), 3, len(index)))
+    step = 1e-7
+    for j, k in enumerate(index):
+        d = np.array(deltas, dtype=float).ravel()
+        d[k] += step
+        J[:, :, j] = (chain.forward(samples, d.reshape(np.shape(deltas)))[:, :3, 3] - corrected) / step
+    after = 1e3 * np.sqrt(np.einsum("nij,jk,nik->n", J, cov_entries, J))
+    return {"before_median": float(np.median(before)), "before_max": float(before.max()),
+            "after_median": float(np.median(after)), "after_max": float(after.max()), "samples": len(samples)}
 
 
 def _held_out(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, priors: dict, pixels: dict,

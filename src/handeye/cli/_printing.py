@@ -71,6 +71,11 @@ def print_calibration(cal: Calibration, out=None) -> None:
           "nominal one; largest corrections: " + ", ".join(
               f"{k.names[i]} {_entry(k.names[i], k.correction[i])} +- {_entry(k.names[i], k.std[i])}" for i in big)
           + " (all in result.json; the table in arm_corrected.yaml)\n")
+        if k.accuracy_mm is not None:
+            a = k.accuracy_mm
+            w(f"arm accuracy at the flange within the capture's joint ranges: nominal table {a['before_median']:.2f} mm "
+              f"(median; up to {a['before_max']:.2f}), corrected {a['after_median']:.3f} mm (predicted by the fit's model, "
+              f"1 std; up to {a['after_max']:.3f})\n")
     for u in cal.unobservable:
         w(f"NOT DETERMINED: {u.parameter}; set to {u.choice}. {u.coupled[:1].upper() + u.coupled[1:]}. To fix: {u.fix}\n")
     for name, k in cal.known.items():

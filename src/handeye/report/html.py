@@ -458,7 +458,11 @@ def _kinematics_section(cal: Calibration) -> str:
             + (f"; the corrections move the flange {shift[0]:.2f} mm (median; up to {shift[1]:.2f} mm) from where the "
                "nominal table puts it over this capture's joint angles" if shift is not None else "")
             + ". The corrected table is in arm_corrected.yaml and arm_corrected.urdf.</p>"
-            '<table><tr><th class="l">entry</th><th>correction</th><th>std</th><th>prior std</th>'
+            + ("" if k.accuracy_mm is None else
+               f"<p>The arm's accuracy at the flange within the capture's joint ranges: {k.accuracy_mm['before_median']:.2f} mm "
+               f"with the nominal table (median), {k.accuracy_mm['after_median']:.3f} mm with the corrected one (predicted "
+               "by the fit's model, 1 std).</p>")
+            + '<table><tr><th class="l">entry</th><th>correction</th><th>std</th><th>prior std</th>'
             '<th class="l">determined</th></tr>' + "".join(rows) + "</table>"
             f'<p class="note">Nominal table: {_e(k.nominal.source or k.nominal.name)}</p></section>')
 
