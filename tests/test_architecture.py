@@ -24,7 +24,7 @@ FLOORS = {
     "diagnostics": 7, "validation": 7, "estimators": 7.5, "partial": 7.5, "sync": 7.5, "options": 7.6, "verdict": 7.6,
     "calibration": 8, "streams": 8.5, "verification": 8.5, "checking": 8.7, "joint_calibration": 8.5,
     "report": 9, "fleet": 9.5,
-    "planning": 10, "study": 10, "acquire": 10.5,
+    "planning": 10, "joint_planning": 10, "study": 10, "acquire": 10.5,
     "cli": 11, "": 11,  # "" is handeye/__init__.py, the public face
 }
 

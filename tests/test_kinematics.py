@@ -20,11 +20,20 @@ import handeye
 import handeye.importers
 from handeye.cli import main
 from handeye.errors import InputMismatchError, SessionError
+from handeye.joint_calibration import along_parallel_axes
+from handeye.joint_planning import suggest_joint_views
 from handeye.kinematics import absorbed_parameters, arm_names, load_arm
 from handeye.metrics import rotation_error, translation_error
 from handeye.session import load_session, write_joint_session, write_pose_table
 from handeye.setups import predicted_target2cam
-from handeye.simulate import arm_forward_kinematics, kinematic_scene, robot_accuracy_of, simulate_kinematic_session
+from handeye.simulate import (
+    EXACT,
+    _camera_reading,
+    arm_forward_kinematics,
+    kinematic_scene,
+    robot_accuracy_of,
+    simulate_kinematic_session,
+)
 from handeye.urdf import chain_from_urdf, chain_urdf
 
 
@@ -279,6 +288,7 @@ def test_a_urdf_gives_the_same_flange_poses_as_its_parser(tmp_path):
         if root == "base_link":
             arm = load_arm(arm_names()[k - 3])
             assert np.abs(chain.forward(q) - arm.forward(q)).max() < 1e-9
+            assert np.allclose(chain.limits, arm.limits) and chain.joint_names == arm.joint_names
     with pytest.raises(InputMismatchError, match="no link 'flange9'.*its links"):
         chain_from_urdf(tmp_path / "arm0.urdf", tip_link="flange9")
     (tmp_path / "bad.urdf").write_text("<robot name='x'><link name='a'/>")
@@ -356,3 +366,28 @@ def test_a_bags_joint_states_become_a_joint_session(tmp_path):
     with pytest.raises(InputMismatchError, match="joint_topic needs image_topic .the images. and arm"):
         handeye.importers.import_rosbag(bag, tmp_path / "x", image_topic="/image", target=session.target_spec,
                                         joint_topic="/joint_states")
+
+
+def test_suggested_views_determine_what_the_capture_did_not():
+    """A capture whose fourth joint never moves leaves entries undetermined; the views
+    suggest_joint_views proposes (inside the joints' limits, the target seen whole) are predicted
+    to determine those a capture can, and once captured (the true arm, 0.2 px of noise) they do;
+    the offsets along the UR5's parallel axes stay undetermined, as no capture separates them."""
+    chain = load_arm("ur5")
+    still = replace(chain, spread=chain.spread * np.array([1, 1, 1, 0, 1, 1]))
+    sc = kinematic_scene(20, "eye_in_hand", 5, arm=still)
+    cal = _calibrate(sc, 20)
+    views = suggest_joint_views(cal, n_views=6, image_size=sc.image_size)
+    assert {"joint4.theta"} <= set(views.targets) and not set(views.targets) & along_parallel_axes(chain)
+    assert (views.ratio_before >= 0.5).all() and set(views.determined_after) == set(views.targets)
+    assert ((views.joints > chain.limits[:, 0]) & (views.joints < chain.limits[:, 1])).all()
+    t2c_true = predicted_target2cam(sc.X, sc.Z, sc.chain_true.forward(views.joints), sc.setup)
+    t2c, pixels, _ = _camera_reading(t2c_true, sc.object_points, sc.K, sc.dist,
+                                     replace(EXACT, pixel_px=0.2, flip_probability=0.0), np.random.default_rng(9))
+    joints = np.vstack([sc.joints, views.joints])
+    more = handeye.calibrate_joints(joints, np.concatenate([sc.target2cam, t2c]), sc.setup, sc.chain,
+                                    object_points=[sc.object_points] * len(joints),
+                                    image_points=list(sc.image_points) + list(pixels), K=sc.K, dist=sc.dist)
+    print("undetermined before", cal.kinematic.undetermined, "after", more.kinematic.undetermined)
+    assert not set(views.targets) & set(more.kinematic.undetermined)
+    assert set(more.kinematic.undetermined) <= along_parallel_axes(chain)

@@ -118,12 +118,15 @@ def calibrate_joints(
     shift = 1e3 * np.linalg.norm(corrected.forward(q)[:, :3, 3] - chain.forward(q)[:, :3, 3], axis=1)
     model = KinematicModel(chain, corrected, ref.names, ref.deltas.ravel()[index], ref.parameter_std, ref.prior_std,
                            ref.determined, (float(np.median(shift)), float(shift.max())),
-                           _accuracy(chain, ref.deltas, index, ref.cov[12:, 12:], q))
+                           _accuracy(chain, ref.deltas, index, ref.cov[12:, 12:], q), q[keep])
     notes = list(start.notes) + _fit_notes(ref, model, bool(pixels), ignored, widened, length_prior_mm, angle_prior_deg)
     cal = replace(start, X=ref.X, Z=ref.Z, cov=cov_X, std=std_deg_mm(cov_X), method=f"kinematic({chain.name})",
                   estimator="kinematic", refinement="kinematic", flange2base=corrected.forward(q[keep]),
                   target2cam=target2cam, pose_indices=keep, motions=None, notes=notes, kinematic=model,
                   cross_validation=held_out,
+                  **({} if not pixels else dict(object_points=pixels["object_points"], image_points=pixels["image_points"],
+                                                camera_matrix=pixels["K"], dist_coeffs=pixels["dist"],
+                                                intrinsics_source="given")),
                   std_sources={"model": std_deg_mm(ref.cov_X), "jackknife": None if cov_X is ref.cov_X else
                                std_deg_mm(cov_X), "robot_accuracy": None})
     return judged(cal)
@@ -144,7 +147,7 @@ def _fit_notes(ref: KinematicRefinement, model: KinematicModel, pixels: bool, ig
                      "pixel noise explains (errors of a whole view: joint encoder noise or backlash, timing, a view "
                      "that does not fit)")
     if model.undetermined:
-        parallel = [n for n in model.undetermined if n in _along_parallel_axes(chain)]
+        parallel = [n for n in model.undetermined if n in along_parallel_axes(chain)]
         moved = [n for n in model.undetermined if n not in parallel]
         notes.append(f"the capture does not determine {', '.join(model.undetermined)}: held near nominal by their prior "
                      f"({length_prior_mm:g} mm, {angle_prior_deg:g} deg), whose uncertainty X's std includes"
@@ -174,7 +177,8 @@ def calibrate_joint_session(session: Session, options: CalibrationOptions | None
     cal = calibrate_joints(session.joints[obs.used], obs.target2cam, session.setup, session.arm, opts,
                            object_points=obs.object_points, image_points=obs.image_points, K=obs.K, dist=obs.dist)
     kept, outliers = drop_pose_outliers(cal, obs)
-    return judged(with_images(cal, obs, kept, outliers, list(obs.notes)))
+    cal = with_images(cal, obs, kept, outliers, list(obs.notes))
+    return judged(replace(cal, intrinsics_source=obs.intrinsics_source))
 
 
 def _widened(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, priors: dict,
@@ -262,7 +266,7 @@ def _held_out(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, prio
                          len(held))
 
 
-def _along_parallel_axes(chain: Chain) -> set[str]:
+def along_parallel_axes(chain: Chain) -> set[str]:
     """The offsets along joint axes parallel to the next or the previous one: a shift along two
     parallel axes moves the flange the same way, so only the offsets' sum can be determined."""
     alpha = chain.table[:, 1]

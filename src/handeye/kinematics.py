@@ -55,6 +55,8 @@ class Chain:
     joint_names : tuple of str or None
         The joints' names (a URDF's), in the table's order: columns of a joints table named so are
         read in this order whatever theirs.
+    limits : ndarray (n, 2) or None
+        Each joint's lower and upper limit (rad), where known: the views handeye proposes stay inside.
     """
 
     name: str
@@ -66,6 +68,7 @@ class Chain:
     spread: NDArray[np.float64] | None = None
     base: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
     joint_names: tuple[str, ...] | None = None
+    limits: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         if self.convention not in ("dh", "mdh"):
@@ -80,6 +83,11 @@ class Chain:
             if T.shape != (4, 4) or not np.isfinite(T).all():
                 raise InputMismatchError(f"{self.name}: {key} must be a finite 4x4 transform")
             object.__setattr__(self, key, T)
+        if self.limits is not None:
+            limits = np.asarray(self.limits, dtype=float)
+            if limits.shape != (len(table), 2) or np.isnan(limits).any() or (limits[:, 0] > limits[:, 1]).any():
+                raise InputMismatchError(f"{self.name}: limits must be one [lower, upper] row per joint")
+            object.__setattr__(self, "limits", limits)
         if self.joint_names is not None and len(self.joint_names) != len(table):
             raise InputMismatchError(f"{self.name}: {len(self.joint_names)} joint names for {len(table)} joints")
 
@@ -175,6 +183,7 @@ def _chain_from_yaml(text: str, where: str) -> Chain:
                      table=np.array(data["joints"], dtype=float), flange=flange, source=source,
                      base=np.asarray(data.get("base", np.eye(4)), dtype=float),
                      joint_names=None if names is None else tuple(str(n) for n in names),
+                     limits=np.radians(data["limits_deg"]) if "limits_deg" in data else None,
                      home={k: np.radians(v) for k, v in (data.get("home_deg") or {}).items()},
                      spread=np.radians(data["spread_deg"]) if "spread_deg" in data else None)
     except (KeyError, TypeError, ValueError, AttributeError, yaml.YAMLError) as exc:
@@ -195,6 +204,8 @@ def chain_yaml(chain: Chain, comment: str = "") -> str:
             lines.append(f"{key}: [[{'], ['.join(', '.join(repr(float(v)) for v in r) for r in T)}]]")
     if chain.joint_names is not None:
         lines.append(f"joint_names: [{', '.join(chain.joint_names)}]")
+    if chain.limits is not None:
+        lines.append(f"limits_deg: [[{'], ['.join(', '.join(repr(float(v)) for v in r) for r in np.degrees(chain.limits))}]]")
     return "\n".join(lines) + "\n"
 
 

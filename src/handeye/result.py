@@ -145,6 +145,8 @@ class KinematicModel:
     #: 'after' the corrected table's predicted error (1 std of the fit's model, its entries'
     #: covariance propagated; on simulated arms the true error was 1.0-1.7x it)
     accuracy_mm: dict[str, float] | None = None
+    #: the joint angles (rad) of the views fitted, in the calibration's order
+    joints: NDArray[np.float64] | None = None
 
     @property
     def undetermined(self) -> list[str]:

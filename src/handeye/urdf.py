@@ -117,7 +117,7 @@ def chain_from_urdf(path: str | Path, base_link: str | None = None, tip_link: st
     for name, what in ((base, "base_link"), (tip, "tip_link")):
         if name not in links:
             raise InputMismatchError(f"{path}: no link {name!r} ({what}); its links: {', '.join(sorted(links))}")
-    frames, axes, names = [], [], []
+    frames, axes, names, limits = [], [], [], []
     T = np.eye(4)
     for j in _serial_joints(robot, base, tip, path):
         T = T @ (np.eye(4) if j.origin is None else np.asarray(j.origin, dtype=float))
@@ -126,6 +126,10 @@ def chain_from_urdf(path: str | Path, base_link: str | None = None, tip_link: st
             frames.append(T.copy())
             axes.append(T[:3, :3] @ (axis / np.linalg.norm(axis)))
             names.append(j.name)
+            lim = getattr(j, "limit", None)
+            lower, upper = (getattr(lim, "lower", None), getattr(lim, "upper", None)) if lim is not None else (None, None)
+            limits.append([-np.inf if lower is None or j.type == "continuous" else float(lower),
+                           np.inf if upper is None or j.type == "continuous" else float(upper)])
         elif j.type != "fixed":
             raise InputMismatchError(f"{path}: joint {j.name!r} is {j.type}; handeye's chains take revolute joints "
                                      "(and fixed ones between them)")
@@ -137,7 +141,7 @@ def chain_from_urdf(path: str | Path, base_link: str | None = None, tip_link: st
                       for k in range(len(dh_frames))])
     chain = Chain(name=robot.robot.name or path.stem, convention="mdh", table=table,
                   flange=np.linalg.inv(dh_frames[-1]) @ T, source=f"URDF {path.name} ({base} to {tip})",
-                  base=dh_frames[0], joint_names=tuple(names))
+                  base=dh_frames[0], joint_names=tuple(names), limits=np.array(limits))
     _check_same(chain, frames, axes, T, path)
     return chain
 
@@ -237,11 +241,13 @@ def chain_urdf(chain: Chain, base_link: str = "base_link", tip_link: str = "tool
              f"  <!-- written by handeye from {chain.source or chain.name}: kinematics only -->",
              f'  <link name="{base_link}"/>']
     parent, pending = base_link, chain.base
+    limits = chain.limits if chain.limits is not None else np.tile([-2 * np.pi, 2 * np.pi], (chain.n_joints, 1))
+    lower, upper = (np.clip(limits[:, 0], -1e3, 1e3).tolist(), np.clip(limits[:, 1], -1e3, 1e3).tolist())
     for k in range(chain.n_joints):
         origin = pending @ fixed_before[k]
         lines += [f'  <link name="link{k + 1}"/>', f'  <joint name="{names[k]}" type="revolute">',
                   f"    {_origin(origin)}", f'    <parent link="{parent}"/>', f'    <child link="link{k + 1}"/>',
-                  '    <axis xyz="0 0 1"/>', '    <limit lower="-6.2832" upper="6.2832" effort="0" velocity="0"/>',
+                  '    <axis xyz="0 0 1"/>', f'    <limit lower="{lower[k]!r}" upper="{upper[k]!r}" effort="0" velocity="0"/>',
                   "  </joint>"]
         parent, pending = f"link{k + 1}", fixed_after[k]
     lines += [f'  <link name="{tip_link}"/>', f'  <joint name="{tip_link}_joint" type="fixed">',

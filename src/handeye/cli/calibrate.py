@@ -7,10 +7,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .._shared.io import atomic_write
 from ..calibration import certify_calibration
 from ..checking import calibrate_session
 from ..errors import HandEyeError
 from ..fleet import calibrate_many
+from ..joint_planning import suggest_joint_views
 from ..verdict import exit_status
 from ._common import (
     SAMPLE_SESSION,
@@ -64,7 +66,30 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     print_image_summary(cal)
     print_calibration(cal)
     write_outputs(cal, args)
+    _suggest_views(cal, args.out)
     return verdict_status(cal)
+
+
+def _suggest_views(cal, out: str | None) -> None:
+    """A joint fit that left entries of the arm's table undetermined: the views that would
+    determine them, printed and (with --out) written as next_views.csv (joint angles, degrees)."""
+    k = cal.kinematic
+    if k is None or cal.image_points is None:
+        return
+    views = suggest_joint_views(cal)
+    if not len(views.joints):
+        return
+    names = list(k.nominal.joint_names or [f"joint{j + 1}" for j in range(k.nominal.n_joints)])
+    text = "view," + ",".join(names) + "\n" + "".join(
+        f"{i + 1}," + ",".join(f"{v:.3f}" for v in np.degrees(row)) + "\n" for i, row in enumerate(views.joints))
+    print(f"next views: {len(views.joints)} joint configurations (degrees) where the camera sees the target and "
+          f"{', '.join(views.determined_after) or 'none of the undetermined entries'} would be determined (posterior "
+          "std under half the prior's, predicted):")
+    print(text.rstrip())
+    if out:
+        path = Path(out) / "next_views.csv"
+        atomic_write(path, text, list(cal.image_paths or []))
+        print(f"wrote {path}")
 
 
 def register(sub) -> None:
