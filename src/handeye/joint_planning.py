@@ -91,15 +91,15 @@ def suggest_joint_views(cal: Calibration, joints: ArrayLike | None = None, n_vie
     parallel = along_parallel_axes(k.nominal)
     targets = [n for n in k.undetermined if n not in parallel]
     empty = JointViews(np.empty((0, q.shape[1])), targets, np.empty(0), np.empty(0))
+    if not targets:
+        return empty
     K, dist = np.asarray(cal.camera_matrix, dtype=float), np.asarray(cal.dist_coeffs, dtype=float).ravel()
     size = image_size or (int(round(2 * K[0, 2])), int(round(2 * K[1, 2])))
     model = _Model(cal, q, K, dist)
     sigma = model.sigma()
     info = model.information(q) / sigma**2 + np.diag(np.r_[np.zeros(12), np.ones(len(k.names))])
     pick = [k.names.index(t) + 12 for t in targets]
-    before = np.sqrt(np.diag(np.linalg.inv(info))[pick]) if targets else np.empty(0)
-    if not targets:
-        return empty
+    before = np.sqrt(np.diag(np.linalg.inv(info))[pick])
     pool = _candidates(q, k, targets, candidates, np.random.default_rng(rng))
     if k.nominal.limits is not None:  # inside the joints' limits, 2 deg from them
         margin = np.radians(2.0)

@@ -76,7 +76,11 @@ def _suggest_views(cal, out: str | None) -> None:
     k = cal.kinematic
     if k is None or cal.image_points is None:
         return
-    views = suggest_joint_views(cal)
+    try:
+        views = suggest_joint_views(cal)
+    except HandEyeError as exc:  # a proposal, not the result: say why there is none
+        print(f"next views: none proposed ({exc})")
+        return
     if not len(views.joints):
         return
     names = list(k.nominal.joint_names or [f"joint{j + 1}" for j in range(k.nominal.n_joints)])
