@@ -115,10 +115,10 @@ def calibrate_joints(
     held_out = _held_out(ref, chain, q[keep], target2cam, setup, priors, pixels, opts.folds)
     corrected = chain.corrected(ref.deltas)
     index = [chain.parameter_names().index(n) for n in ref.names]
-    shift = 1e3 * np.linalg.norm(corrected.forward(q)[:, :3, 3] - chain.forward(q)[:, :3, 3], axis=1)
+    shift = 1e3 * np.linalg.norm(corrected.forward(q[keep])[:, :3, 3] - chain.forward(q[keep])[:, :3, 3], axis=1)
     model = KinematicModel(chain, corrected, ref.names, ref.deltas.ravel()[index], ref.parameter_std, ref.prior_std,
                            ref.determined, (float(np.median(shift)), float(shift.max())),
-                           _accuracy(chain, ref.deltas, index, ref.cov[12:, 12:], q), q[keep])
+                           _accuracy(chain, ref.deltas, index, ref.cov[12:, 12:], q[keep]), q[keep])
     notes = list(start.notes) + _fit_notes(ref, model, bool(pixels), ignored, widened, length_prior_mm, angle_prior_deg)
     cal = replace(start, X=ref.X, Z=ref.Z, cov=cov_X, std=std_deg_mm(cov_X), method=f"kinematic({chain.name})",
                   estimator="kinematic", refinement="kinematic", flange2base=corrected.forward(q[keep]),
