@@ -181,6 +181,11 @@ def calibrate_joint_session(session: Session, options: CalibrationOptions | None
     return judged(replace(cal, intrinsics_source=obs.intrinsics_source))
 
 
+def _views_of(pixels: dict, idx) -> dict:
+    """The pixel data of the views ``idx`` (per-view points and detections; the intrinsics whole)."""
+    return {k: ([v[i] for i in idx] if k in ("object_points", "image_points") else v) for k, v in pixels.items()}
+
+
 def _widened(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, priors: dict,
              pixels: dict) -> tuple[NDArray[np.float64], float]:
     """X's covariance: the fit's model, each axis widened to the jackknife's spread (X refitted
@@ -189,7 +194,7 @@ def _widened(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, prior
     the pixel errors of a view's points as independent: an error of the whole view (joint encoder
     noise of 0.002 deg on rendered UR5 sessions) left X within 3 of its std on 76% of the axes."""
     def fit(flange2base, t2c, setup, idx):
-        part = {k: ([v[i] for i in idx] if k in ("object_points", "image_points") else v) for k, v in pixels.items()}
+        part = _views_of(pixels, idx)
         r = refine_kinematic(ref.X, ref.Z, chain, q[idx], setup, target2cam=t2c, sigma=ref.sigma,
                              deltas0=ref.deltas, tol=REFIT_TOL, **priors, **part)
         return r.X, r.Z
@@ -241,7 +246,7 @@ def _held_out(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, prio
     mm = np.full(n, np.inf)
     for test in held:
         train = np.setdiff1d(np.arange(n), test)
-        part = {k: ([v[i] for i in train] if k in ("object_points", "image_points") else v) for k, v in pixels.items()}
+        part = _views_of(pixels, train)
         try:
             r = refine_kinematic(ref.X, ref.Z, chain, q[train], setup, target2cam=target2cam[train], sigma=ref.sigma,
                                  deltas0=ref.deltas, tol=REFIT_TOL, **priors, **part)

@@ -204,21 +204,13 @@ def load_session(folder: str | Path, strict_images: bool = True) -> Session:
     if names is None:
         raise SessionError(f"{csv_path}: the first column must be 'image', naming each pose's image in images/ "
                            "(or 'time', for a robot stream with an images: table of image times)")
-    image_dir = folder / "images"
-    if not image_dir.is_dir():
-        raise SessionError(f"{image_dir}: no images folder; the images named in {csv_path.name} go there")
-    all_files = sorted(p.name for p in image_dir.iterdir() if p.is_file())
-    on_disk = [n for n in all_files if Path(n).suffix.lower() in IMAGE_SUFFIXES]
-    files = _match_image_names(names, all_files, notes)  # a row may name an image of any suffix
-    missing = [n for n, f in zip(names, files) if f is None]
+    paths, missing, unnamed, on_disk = _images_named(folder, names, csv_path, notes)
     if missing and strict_images:
-        raise SessionError(f"{image_dir}: image file(s) missing: {', '.join(missing[:10])}"
+        raise SessionError(f"{folder / 'images'}: image file(s) missing: {', '.join(missing[:10])}"
                            + (f" and {len(missing) - 10} more" if len(missing) > 10 else ""))
-    paths = [image_dir / (f if f is not None else n) for f, n in zip(files, names)]
-    unnamed = sorted(set(on_disk) - set(files))
     if unnamed:
         raise SessionError(
-            f"{csv_path.name} has {len(names)} poses but images/ holds {len(on_disk)} images; no pose for "
+            f"{csv_path.name} has {len(names)} poses but images/ holds {on_disk} images; no pose for "
             f"{', '.join(unnamed[:10])}: add their poses or move them out of images/"
         )
     session = Session(folder, setup, dict(target_spec), f2b, list(names), paths, K, dist, fmt,
@@ -315,19 +307,12 @@ def _joint_session(folder: Path, setup: str, target_spec, K, dist, joints: _Join
     the images named by the joints table), or beside the controller's poses (the same images in
     both tables; the two checked against each other)."""
     if posed is None:
-        image_dir = folder / "images"
-        if not image_dir.is_dir():
-            raise SessionError(f"{image_dir}: no images folder; the images named in {joints.path.name} go there")
-        all_files = sorted(p.name for p in image_dir.iterdir() if p.is_file())
-        files = _match_image_names(joints.names, all_files, notes)
-        missing = [n for n, f in zip(joints.names, files) if f is None]
+        paths, missing, unnamed, _ = _images_named(folder, joints.names, joints.path, notes)
         if missing and strict_images:
-            raise SessionError(f"{image_dir}: image file(s) missing: {summarize(missing)}")
-        unnamed = sorted({n for n in all_files if Path(n).suffix.lower() in IMAGE_SUFFIXES} - set(files))
+            raise SessionError(f"{folder / 'images'}: image file(s) missing: {summarize(missing)}")
         if unnamed:
             raise SessionError(f"{joints.path.name} has {len(joints.names)} rows but images/ holds images it does not "
                                f"name: {summarize(unnamed)}; add their joint angles or move them out of images/")
-        paths = [image_dir / (f if f is not None else n) for f, n in zip(files, joints.names)]
         return Session(folder, setup, dict(target_spec), joints.arm.forward(joints.q), list(joints.names), paths, K, dist,
                        "joints", None, None, notes, joints=joints.q, arm=joints.arm, joints_path=joints.path)
     index = {n: k for k, n in enumerate(joints.names)}
@@ -342,6 +327,22 @@ def _joint_session(folder: Path, setup: str, target_spec, K, dist, joints: _Join
     except InputMismatchError as exc:
         raise SessionError(f"{folder}: {exc}") from None
     return replace(posed, joints=q, arm=joints.arm, joints_path=joints.path, notes=notes + [finding])
+
+
+def _images_named(folder: Path, names: list[str], table: Path,
+                  notes: list[str]) -> tuple[list[Path], list[str], list[str], int]:
+    """The images a table's rows name in ``folder/images``: each row's path (its name as written
+    when no file matches), the names with no file, the images no row names, and how many images
+    the folder holds; a row may name an image of any suffix. No images folder: an error."""
+    image_dir = folder / "images"
+    if not image_dir.is_dir():
+        raise SessionError(f"{image_dir}: no images folder; the images named in {table.name} go there")
+    all_files = sorted(p.name for p in image_dir.iterdir() if p.is_file())
+    on_disk = [n for n in all_files if Path(n).suffix.lower() in IMAGE_SUFFIXES]
+    files = _match_image_names(names, all_files, notes)
+    missing = [n for n, f in zip(names, files) if f is None]
+    paths = [image_dir / (f if f is not None else n) for f, n in zip(files, names)]
+    return paths, missing, sorted(set(on_disk) - set(files)), len(on_disk)
 
 
 def _time_unit(spec: dict[str, Any], where: str) -> float:
