@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +19,26 @@ def require_real(*parts: str) -> Path:
     if not path.exists():
         pytest.skip(f"real data not available at {path}")
     return path
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _detection_cache():
+    """Detections are cached for this run only, in a folder removed at its end (never the user's
+    cache folder): the sample session's images, detected by many tests, are detected once."""
+    before = os.environ.get("HANDEYE_CACHE_DIR")
+    with tempfile.TemporaryDirectory(prefix="handeye-test-cache-") as folder:
+        os.environ["HANDEYE_CACHE_DIR"] = folder
+        yield
+    if before is None:
+        os.environ.pop("HANDEYE_CACHE_DIR", None)
+    else:
+        os.environ["HANDEYE_CACHE_DIR"] = before
+
+
+@pytest.fixture
+def no_detection_cache(monkeypatch):
+    """Detection runs on every image (tests comparing detection modes, or timing it)."""
+    monkeypatch.setenv("HANDEYE_CACHE_DIR", "")
 
 
 @pytest.fixture

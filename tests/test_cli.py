@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -10,6 +11,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 
 import handeye
@@ -72,6 +74,31 @@ def test_console_script_runs_as_subprocess(tmp_path):
     assert len(data["Z"]["std_translation_mm"]) == 3 and min(data["Z"]["std_translation_mm"]) > 0  # Z has a std too
     cov = np.array(data["uncertainty"]["cov"])
     assert cov.shape == (6, 6) and np.allclose(data["uncertainty"]["std_translation_mm"], 1e3 * np.sqrt(np.diag(cov)[3:]))
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the user cache folder of Linux ($XDG_CACHE_HOME)")
+def test_check_then_calibrate_detects_once(tmp_path, monkeypatch, capsys):
+    """The command line keeps detections in the user's cache folder: ``check`` then ``calibrate`` on
+    the same images detects once, and X is the same to the last bit as with ``--no-cache`` (which
+    neither reads nor writes the cache); the environment is left as it was."""
+    from handeye.vision import detect
+
+    monkeypatch.delenv("HANDEYE_CACHE_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    calls = []
+    uncached = detect._detect_uncached
+    monkeypatch.setattr(detect, "_detect_uncached", lambda p, t: calls.append(p) or uncached(p, t))
+    assert main(["check", "--sample", "--no-progress"]) in (0, 1)
+    entries = sorted((tmp_path / "xdg" / "handeye" / "detections").rglob("*.npz"))
+    assert len(entries) == len(calls) == 12 and "HANDEYE_CACHE_DIR" not in os.environ
+    assert main(["calibrate", "--sample", "--no-progress", "--out", str(tmp_path / "warm")]) in (0, 1)
+    assert len(calls) == 12  # calibrate detected nothing
+    assert main(["calibrate", "--sample", "--no-progress", "--no-cache", "--out", str(tmp_path / "cold")]) in (0, 1)
+    assert len(calls) == 24 and sorted((tmp_path / "xdg").rglob("*.npz")) == entries
+    capsys.readouterr()
+    warm, cold = (json.loads((tmp_path / d / "result.json").read_text()) for d in ("warm", "cold"))
+    assert warm["X"]["matrix"] == cold["X"]["matrix"] and warm["uncertainty"] == cold["uncertainty"]
+    assert warm["check"]["verdict"] == cold["check"]["verdict"]
 
 
 def _copy_example(tmp_path: Path) -> Path:

@@ -85,7 +85,7 @@ def test_symmetric_labelling_is_resolved_by_the_robot_motion():
     assert label_doubts(costs, thin=1e12)[0][1:].all()
 
 
-def test_parallel_detection_equals_sequential(rendered):
+def test_parallel_detection_equals_sequential(rendered, no_detection_cache):
     folder, _ = rendered("circles", "eye_in_hand", True)
     paths = sorted((folder / "images").iterdir())
     tgt = target_from_spec(yaml.safe_load((folder / "session.yaml").read_text())["target"])
@@ -96,7 +96,56 @@ def test_parallel_detection_equals_sequential(rendered):
         assert np.array_equal(a.detection.image_points, b.detection.image_points)
 
 
-def test_detection_workers_fit_the_available_memory(rendered, monkeypatch, capsys):
+def test_detection_cache_gives_the_same_corners_without_detecting(rendered, tmp_path, monkeypatch):
+    """A second detection of the same image files with the same target reads the cache: the very
+    same corners (and the same 'not found'), no detector call; another target, changed image bytes
+    or a damaged entry detect again; with the cache off nothing is written."""
+    from handeye.vision import detect
+
+    folder, _ = rendered("chessboard", "eye_in_hand", True)
+    paths = sorted((folder / "images").iterdir())[:4]
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((240, 320), 200, np.uint8))
+    paths.append(blank)
+    tgt = target_from_spec(yaml.safe_load((folder / "session.yaml").read_text())["target"])
+    monkeypatch.setenv("HANDEYE_CACHE_DIR", "")
+    plain = detect_images(paths, tgt, jobs=1, progress=False)
+    monkeypatch.setenv("HANDEYE_CACHE_DIR", str(tmp_path / "cache"))
+    calls = []
+    uncached = detect._detect_uncached
+    monkeypatch.setattr(detect, "_detect_uncached", lambda p, t: calls.append(p) or uncached(p, t))
+    first = detect_images(paths, tgt, jobs=2, progress=False)
+    second = detect_images(paths, tgt, jobs=2, progress=False)
+    assert len(calls) == len(paths)  # the second pass detected nothing
+    for a, b, c in zip(plain, first, second):
+        assert a.path == c.path and a.image_size == c.image_size and a.error == c.error
+        if a.detection is None:
+            assert c.detection is None and c.error == "target not found"
+            continue
+        for field in ("ids", "image_points", "object_points"):
+            x, y = getattr(a.detection, field), getattr(c.detection, field)
+            assert np.array_equal(x, y) and x.dtype == y.dtype
+    entries = sorted((tmp_path / "cache" / "detections").rglob("*.npz"))
+    assert len(entries) == len(paths)
+    calls.clear()
+    other = target_from_spec({**yaml.safe_load((folder / "session.yaml").read_text())["target"], "square": 0.031})
+    detect_images(paths[:1], other, jobs=1, progress=False)  # another target: its own entry
+    entries[0].write_bytes(b"damaged")  # a damaged entry: detected again and replaced
+    copy = tmp_path / "copy.png"
+    image = cv2.imread(str(paths[1]))
+    image[0, 0] ^= 1  # one pixel changed: other bytes, other key
+    cv2.imwrite(str(copy), image)
+    again = detect_images(paths + [copy], tgt, jobs=1, progress=False)
+    assert len(calls) == 1 + 1 + 1 and entries[0].read_bytes()[:2] == b"PK"  # an npz again
+    assert all(np.array_equal(a.detection.image_points, b.detection.image_points)
+               for a, b in zip(plain, again) if a.detection is not None)
+    monkeypatch.setenv("HANDEYE_CACHE_DIR", "")
+    before = sorted((tmp_path / "cache").rglob("*"))
+    detect_images([copy], other, jobs=1, progress=False)
+    assert sorted((tmp_path / "cache").rglob("*")) == before
+
+
+def test_detection_workers_fit_the_available_memory(rendered, monkeypatch, capsys, no_detection_cache):
     """By default as many workers as cores, but no more than the available memory holds for images
     the size of the first (detected first, alone): with room for one 640x480 image only, one
     worker, said on stderr, and the same detections in the same order."""
@@ -121,7 +170,7 @@ def test_detection_workers_fit_the_available_memory(rendered, monkeypatch, capsy
 
 @pytest.mark.skipif(platform.libc_ver()[0] != "glibc" or not Path("/proc/self/status").exists(),
                     reason="glibc's arenas, and the resident size from Linux's /proc")
-def test_memory_freed_by_worker_threads_goes_back_to_the_system(rendered, monkeypatch):
+def test_memory_freed_by_worker_threads_goes_back_to_the_system(rendered, monkeypatch, no_detection_cache):
     """glibc keeps what a worker thread freed in that thread's arena (~550 MB after 100 images of
     5 MP): detect_images hands it back when it is done, whatever happened."""
     import threading

@@ -4,12 +4,15 @@ shared option groups in :mod:`._common`."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import difflib
+import os
 import sys
 from typing import Sequence
 
 from .._version import __version__
 from ..errors import HandEyeError
+from ..vision.detect import CACHE_ENV, default_cache_dir
 from . import (
     acquire,
     calibrate,
@@ -87,6 +90,25 @@ def _unknown_options(parser: argparse.ArgumentParser, argv: list[str], extras: l
     return f"{target.prog}: error: unrecognized argument(s) {', '.join(hints)}; {usage[0].lower() + usage[1:]}"
 
 
+@contextlib.contextmanager
+def _detection_cache(args: argparse.Namespace):
+    """While a command runs: detections cached in the user's cache folder (unless
+    ``$HANDEYE_CACHE_DIR`` says where, or is empty: no cache), or nowhere with ``--no-cache``. Set
+    in the environment, so that the processes a fleet starts cache alike; restored afterwards."""
+    before = os.environ.get(CACHE_ENV)
+    if getattr(args, "no_cache", False):
+        os.environ[CACHE_ENV] = ""
+    elif before is None:
+        os.environ[CACHE_ENV] = str(default_cache_dir())
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop(CACHE_ENV, None)
+        else:
+            os.environ[CACHE_ENV] = before
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``handeye`` console script; returns the exit status."""
     parser = build_parser()
@@ -107,7 +129,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(_unknown_options(parser, argv, extras), file=sys.stderr)
         return 2
     try:
-        return args.func(args)
+        with _detection_cache(args):
+            return args.func(args)
     except HandEyeError as exc:
         print(f"handeye: error: {exc}", file=sys.stderr)
         return 2

@@ -251,6 +251,10 @@ def add_calibrate_options(p: argparse.ArgumentParser, refines: tuple[str, ...] =
 def add_detection_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--jobs", type=whole_arg(1), default=None, help="parallel detection workers (default: all cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-cache", action="store_true",
+                   help="detect the target in every image again: neither read nor keep detections in the cache "
+                   "(by default they are kept in the user's cache folder, or $HANDEYE_CACHE_DIR, keyed by each image "
+                   "file's bytes, the target and the detector, so that a second run on the same images skips detection)")
 
 
 def add_stream_options(p: argparse.ArgumentParser) -> None:

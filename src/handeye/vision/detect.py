@@ -6,25 +6,36 @@ worker can deadlock inside OpenCV once the parent's OpenCV thread pool has run, 
 forkserver/spawn start methods re-import the caller's ``__main__`` (breaking any script without
 an ``if __name__ == "__main__"`` guard). While the workers run, OpenCV's own threading is set to
 one thread per worker and restored afterwards.
+
+Detections can be kept in a cache (:func:`detection_cache_dir`), keyed by the image file's bytes,
+the target and the detector's version: running ``check`` and then ``calibrate`` on the same
+session, or calibrating again with other options, does not detect again, and gives the very same
+corners (they are what the detector returned, stored as they were).
 """
 
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import os
 import sys
+import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
+import numpy as np
+
 from .._shared.lazy import lazy_module
 from .._shared.progress import Progress
+from .._version import __version__
 from .targets import Detection, Target
 
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
-__all__ = ["ImageResult", "detect_images", "default_jobs", "available_memory", "workers_for_memory"]
+__all__ = ["ImageResult", "detect_images", "default_jobs", "available_memory", "workers_for_memory",
+           "detection_cache_dir", "default_cache_dir", "CACHE_ENV"]
 
 
 @dataclass(frozen=True)
@@ -93,8 +104,95 @@ def release_freed_memory() -> None:
         pass
 
 
-def _detect_one(args: tuple[str, Target]) -> ImageResult:
-    path, target = args
+#: The environment variable naming the folder detections are cached in; unset or empty: no cache.
+#: The command line sets it to :func:`default_cache_dir` unless it is set (``--no-cache``: empty).
+CACHE_ENV = "HANDEYE_CACHE_DIR"
+#: Part of every cache key: raise it when detection returns something else for the same image.
+DETECTION_VERSION = 1
+
+
+def default_cache_dir() -> Path:
+    """The user's cache folder for handeye (``$XDG_CACHE_HOME/handeye``, ``~/.cache/handeye``;
+    ``%LOCALAPPDATA%\\handeye\\cache`` on Windows, ``~/Library/Caches/handeye`` on macOS)."""
+    if sys.platform.startswith("win"):
+        base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
+        return base / "handeye" / "cache"
+    if sys.platform == "darwin":
+        return Path.home() / "Library" / "Caches" / "handeye"
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "handeye"
+
+
+def detection_cache_dir() -> Path | None:
+    """Where detections are cached (the folder of :data:`CACHE_ENV`, under ``detections/``), or
+    None when caching is off."""
+    root = os.environ.get(CACHE_ENV, "")
+    return Path(root) / "detections" if root else None
+
+
+def _cache_key(data: bytes, target: Target) -> str | None:
+    """The cache key of detecting ``target`` in an image file of bytes ``data``: None for a target
+    class defined outside handeye (its code may change with nothing here knowing)."""
+    if not type(target).__module__.startswith("handeye."):
+        return None
+    h = hashlib.blake2b(data, digest_size=20)
+    h.update(f"|{type(target).__module__}.{type(target).__qualname__}|{target!r}|opencv {cv2.__version__}"
+             f"|handeye {__version__}|detection {DETECTION_VERSION}".encode())
+    return h.hexdigest()
+
+
+def _cached(folder: Path, key: str, path: str) -> ImageResult | None:
+    """The result stored under ``key``, or None (absent, or unreadable: detected again)."""
+    try:
+        with np.load(folder / key[:2] / f"{key}.npz", allow_pickle=False) as z:
+            size = tuple(int(v) for v in z["image_size"])
+            if not bool(z["found"]):
+                return ImageResult(Path(path), None, size, str(z["error"]))
+            det = Detection(z["ids"].astype(np.intp), z["image_points"], z["object_points"])
+            return ImageResult(Path(path), det, size, None)
+    except Exception:  # noqa: BLE001 - any damaged entry (truncated, foreign) is only a cache miss
+        return None
+
+
+def _store(folder: Path, key: str, result: ImageResult) -> None:
+    """Keep ``result`` under ``key`` (atomically; a cache that cannot be written is skipped)."""
+    det = result.detection
+    arrays = dict(image_size=np.array(result.image_size), found=np.array(det is not None),
+                  error=np.array(result.error or ""))
+    if det is not None:
+        arrays.update(ids=np.asarray(det.ids), image_points=np.asarray(det.image_points),
+                      object_points=np.asarray(det.object_points))
+    try:
+        sub = folder / key[:2]
+        sub.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=sub, suffix=".tmp")
+        try:
+            with os.fdopen(fd, "wb") as f:
+                np.savez(f, **arrays)
+            os.replace(tmp, sub / f"{key}.npz")
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    except OSError:
+        pass
+
+
+def _detect_one(args: tuple[str, Target, Path | None]) -> ImageResult:
+    path, target, cache = args
+    key = None
+    if cache is not None:
+        try:
+            key = _cache_key(Path(path).read_bytes(), target)
+        except OSError:  # unreadable: imread below says so
+            key = None
+        if key is not None and (hit := _cached(cache, key, path)) is not None:
+            return hit
+    result = _detect_uncached(path, target)
+    if key is not None and result.image_size is not None and min(result.image_size) >= MIN_IMAGE_SIDE:
+        _store(cache, key, result)
+    return result
+
+
+def _detect_uncached(path: str, target: Target) -> ImageResult:
     gray = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
     if gray is None:
         return ImageResult(Path(path), None, None, "unreadable (missing, corrupt, or not an image format OpenCV reads)")
@@ -125,10 +223,13 @@ def detect_images(
         calling thread with OpenCV's default internal threading.
     progress : bool
         Show a progress bar on stderr.
+
+    Detections are read from and kept in the cache of :func:`detection_cache_dir` when it is on.
     """
     chosen = jobs is None
     jobs = default_jobs() if jobs is None else max(1, int(jobs))
-    work: list[tuple[str, Target]] = [(str(p), target) for p in paths]
+    cache = detection_cache_dir()
+    work: list[tuple[str, Target, Path | None]] = [(str(p), target, cache) for p in paths]
     bar = Progress(len(paths), "detecting", progress)
     results: list[ImageResult] = []
     try:
