@@ -79,7 +79,8 @@ def main() -> None:
         def handeye_run():
             shutil.rmtree(root / "out", ignore_errors=True)
             with contextlib.redirect_stdout(io.StringIO()):
-                return cli(["calibrate", str(session), "--no-progress", "--out", str(root / "out")])
+                # --no-cache: each run detects (the cache would skip detection after the first)
+                return cli(["calibrate", str(session), "--no-progress", "--no-cache", "--out", str(root / "out")])
 
         status = handeye_run()
         t_he = best_time(handeye_run, args.repeat, warmup=False)
