@@ -160,21 +160,23 @@ def refine_reprojection(
     # increments of ~1 mrad and ~1 mm move the pixels about as much as ~1 px of focal length or
     # ~1e-3 of distortion
     scale = np.r_[np.full(12, 1e-3), np.ones(4), np.full(5, 1e-3)][:n_glob]
-    kw = {}
+    kw = {"method": "trf"}
     if robot_noise is not None:
         scale = np.r_[scale, np.tile(np.r_[np.full(3, sig_rot), np.full(3, sig_t)], n_img)]
         if sparse:
             kw["jac"] = _grouped_jacobian(residuals, _robot_groups(counts, n_glob))
     elif analytic and sparse:
-        kw["jac"] = _reprojection_jacobian(unpack, obj, setup, n_glob)
-        if loss == "linear" and r0.size >= n:
-            # MINPACK's Levenberg-Marquardt (QR of the Jacobian) instead of trf, whose SVD of the
-            # whole Jacobian every iteration dominates large boards: 30 images of a 28 x 17 board
-            # with the intrinsics, 0.09 s against 0.45 s, the same optimum to 1e-9
-            kw["method"] = "lm"
-    res = least_squares(residuals, x0, loss=loss, f_scale=f_scale, x_scale=scale, **{"method": "trf", **kw},
-                        xtol=tol, ftol=tol, gtol=tol)
+        kw = {"jac": _reprojection_jacobian(unpack, obj, setup, n_glob), "method": _method(loss, r0.size, n)}
+    res = least_squares(residuals, x0, loss=loss, f_scale=f_scale, x_scale=scale, xtol=tol, ftol=tol, gtol=tol, **kw)
     return _reprojection_result(res, unpack, r0, counts, n, loss, calls[0])
+
+
+def _method(loss: str, m: int, n: int) -> str:
+    """``least_squares``' method for an analytic, dense Jacobian: MINPACK's Levenberg-Marquardt (a QR
+    of the Jacobian per iteration) where it applies (plain least squares, no fewer residuals than
+    unknowns), as trf's SVD of the whole Jacobian every iteration dominates large boards (30 images
+    of a 28 x 17 board with the intrinsics: 0.09 s against 0.45 s, the same optimum to 1e-9)."""
+    return "lm" if loss == "linear" and m >= n else "trf"
 
 
 def _robot_prior(robot_noise, obj, img, K, dist) -> tuple[tuple[float, float], NDArray[np.float64]]:
