@@ -294,6 +294,36 @@ def test_a_session_with_a_urdf_and_named_joint_columns(tmp_path):
     assert np.abs(session.arm.forward(session.joints) - session.flange2base).max() < 1e-9
 
 
+def test_the_arm_given_on_the_command_line_replaces_session_yamls(tmp_path, monkeypatch, capsys):
+    """--arm (``arm=``) reads the joint angles with another arm than session.yaml names (a table
+    file relative to the current folder, noted); with the wrong arm the check names it; a session
+    without joint angles, and poses alone, refuse it with the reason, before any image work."""
+    from handeye.kinematics import chain_yaml
+    from handeye.options import CalibrationOptions
+
+    sc, folder = _joint_session(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "mine.yaml").write_text(chain_yaml(replace(load_arm("ur5"), name="my UR5")))
+    session = load_session(folder, arm="mine.yaml")
+    assert session.arm.name == "my UR5" and any("arm given (my UR5), not session.yaml's (ur5)" in n for n in session.notes)
+    assert np.abs(session.flange2base - sc.flange2base).max() < 1e-9
+    with pytest.raises(SessionError, match="the arm is UR5, not UR5e"):
+        load_session(folder, arm="ur5e")
+    with pytest.raises(SessionError, match="arm given: .*unknown arm 'kr6'"):
+        load_session(folder, arm="kr6")
+    poses_only = tmp_path / "poses_only"
+    poses_only.mkdir()
+    text = yaml.safe_load((folder / "session.yaml").read_text())
+    text.pop("joints")
+    (poses_only / "session.yaml").write_text(yaml.safe_dump(text))
+    assert main(["calibrate", str(poses_only), "--arm", "ur5", "--no-progress"]) == 2
+    assert "arm 'ur5' was given for joint angles, and there is no joints: table" in capsys.readouterr().err
+    with pytest.raises(InputMismatchError, match="poses alone have none"):
+        handeye.calibrate_poses(sc.flange2base, sc.target2cam, arm="ur5")
+    with pytest.raises(InputMismatchError, match="arm=''"):
+        CalibrationOptions(arm="")
+
+
 def test_a_bags_joint_states_become_a_joint_session(tmp_path):
     """A ROS 2 bag with images and /joint_states published in the UR driver's (alphabetical) joint
     order at 100 Hz, the arm still at each image: `handeye import rosbag --joint-topic` writes

@@ -816,7 +816,7 @@ def calibrate(
         with the target found.
     """
     opts = options_from(options, changes)  # bad options fail before any image work
-    session = load_session(session_dir, strict_images=opts.strict_images)
+    session = load_session(session_dir, strict_images=opts.strict_images, arm=opts.arm)
     parse_known(opts.known, session.setup)
     obs = observe(session, jobs=jobs, progress=progress, strict_images=opts.strict_images)
     sync = None

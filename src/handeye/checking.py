@@ -45,8 +45,9 @@ def calibrate_session(folder: str | Path, options: CalibrationOptions | None = N
     fitted with X)."""
     opts = options_from(options, changes)
     folder = Path(folder)
-    if (folder / SESSION_FILE).is_file() and load_yaml(folder / SESSION_FILE).get("joints") is not None:
-        session = load_session(folder, strict_images=opts.strict_images)
+    if opts.arm is not None or ((folder / SESSION_FILE).is_file()
+                                and load_yaml(folder / SESSION_FILE).get("joints") is not None):
+        session = load_session(folder, strict_images=opts.strict_images, arm=opts.arm)
         return calibrate_joint_session(session, opts, jobs=jobs, progress=progress)
     return calibrate(folder, opts, jobs=jobs, progress=progress)
 

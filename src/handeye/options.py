@@ -72,6 +72,11 @@ class CalibrationOptions:
         Streams on two clocks (:func:`handeye.calibrate_streams`).
     strict_images : bool
         A missing or unreadable image is an error; by default it is skipped with the reason.
+    arm : str, optional
+        The arm's kinematics for a session with a ``joints:`` table, instead of the one session.yaml
+        names: a shipped arm's name, a DH table (``.yaml``) or a URDF (``.urdf``; its chain from
+        ``base_link``/``world`` to ``tool0``/``flange``); files relative to the current folder. Joint
+        angles only: poses alone, and sessions without joints, refuse it.
     """
 
     method: str = "daniilidis"
@@ -87,6 +92,7 @@ class CalibrationOptions:
     offset_range: tuple[float, float] | None = None
     time_offset: float | None = None
     strict_images: bool = False
+    arm: str | None = None
 
     def __post_init__(self) -> None:
         get(self.method)  # an unknown name: the registry's error lists the valid ones
@@ -108,6 +114,8 @@ class CalibrationOptions:
         if self.robot_noise is not None and self.refine not in ("auto", "reprojection"):
             raise InputMismatchError(f"robot_noise is used by the pixel refinement; refine={self.refine!r} would "
                                      "ignore it (use refine='auto' or 'reprojection', or leave robot_noise out)")
+        if self.arm is not None and (not isinstance(self.arm, str) or not self.arm.strip()):
+            raise InputMismatchError(f"arm={self.arm!r}; give a shipped arm's name, a DH table (.yaml) or a URDF (.urdf)")
         if self.known is not None and not isinstance(self.known, dict):
             raise InputMismatchError(f"known={self.known!r}; give a dict such as {{'target2base.z': 0.012}}")
         if self.offset_range is not None:
@@ -137,6 +145,9 @@ class CalibrationOptions:
         if self.refine not in REFINES_POSES:
             raise InputMismatchError(f"refine={self.refine!r}; use 'auto', 'pose' or 'none' (pixel refinement needs "
                                      "the detections: use handeye.calibrate on a session)")
+        if self.arm is not None:
+            raise InputMismatchError(f"arm={self.arm!r} gives the kinematics of joint angles; poses alone have none "
+                                     "(give a session with a joints: table, or leave arm out)")
         if self.robot_noise is not None:  # else dropped without a word
             raise InputMismatchError("robot_noise is used by the pixel refinement, which needs the detections: use "
                                      "handeye.calibrate on a session, or leave robot_noise out (the pose refinement "

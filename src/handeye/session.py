@@ -151,7 +151,7 @@ def read_camera(spec: Any, where: str) -> tuple[NDArray[np.float64] | None, NDAr
     return K, dist
 
 
-def load_session(folder: str | Path, strict_images: bool = True) -> Session:
+def load_session(folder: str | Path, strict_images: bool = True, arm: str | None = None) -> Session:
     """Load and validate a capture session folder (the session format in docs/guide.md).
 
     ``strict_images=False``: an image named in the pose table but missing from ``images/`` is kept
@@ -179,7 +179,10 @@ def load_session(folder: str | Path, strict_images: bool = True) -> Session:
     target_spec = _require(spec, "target", where)
     target_from_spec(target_spec, where=f"{where}: target")  # a bad target fails now, before any image work
     K, dist = read_camera(spec.get("camera"), where)
-    joints = _read_joints(folder, spec.get("joints"), where, notes) if spec.get("joints") is not None else None
+    if arm is not None and spec.get("joints") is None:
+        raise SessionError(f"{where}: arm {arm!r} was given for joint angles, and there is no joints: table (file, "
+                           "unit) to use it with; leave the arm out, or add the joint angles")
+    joints = _read_joints(folder, spec.get("joints"), where, notes, arm) if spec.get("joints") is not None else None
     if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal chain's flange poses
         return _joint_session(folder, setup, target_spec, K, dist, joints, None, notes, strict_images)
     poses = _require(spec, "poses", where)
@@ -233,23 +236,27 @@ class _Joints:
     path: Path
 
 
-def _read_joints(folder: Path, spec: Any, where: str, notes: list[str]) -> _Joints:
+def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override: str | None = None) -> _Joints:
     """The ``joints:`` block: ``file`` (an ``image`` column, then one column per joint), ``unit``
-    (deg or rad) and ``arm`` (a shipped arm's name, or a YAML DH table in the folder)."""
+    (deg or rad) and ``arm`` (a shipped arm's name, or a YAML DH table in the folder); ``override``
+    (``--arm``): the arm to use instead (a name, or a file relative to the current folder)."""
     if not isinstance(spec, dict):
         raise SessionError(f"{where}: joints must be a mapping with file, unit (deg or rad) and arm")
     path = folder / str(_require(spec, "file", f"{where}: joints"))
     unit = str(_require(spec, "unit", f"{where}: joints"))
     if unit not in ("deg", "rad"):
         raise SessionError(f"{where}: joints: unit {unit!r}; use deg or rad")
-    arm_name = str(_require(spec, "arm", f"{where}: joints"))
+    arm_name = str(override if override is not None else _require(spec, "arm", f"{where}: joints"))
+    base = Path() if override is not None else folder
     try:
         if arm_name.lower().endswith(".urdf"):
-            arm = chain_from_urdf(folder / arm_name, spec.get("base_link"), spec.get("tip_link"))
+            arm = chain_from_urdf(base / arm_name, spec.get("base_link"), spec.get("tip_link"))
         else:
-            arm = load_arm(folder / arm_name if arm_name.lower().endswith((".yaml", ".yml")) else arm_name)
+            arm = load_arm(base / arm_name if arm_name.lower().endswith((".yaml", ".yml")) else arm_name)
     except InputMismatchError as exc:
-        raise SessionError(f"{where}: joints: {exc}") from None
+        raise SessionError(f"{where}: joints: {'arm given: ' if override is not None else ''}{exc}") from None
+    if override is not None and spec.get("arm") not in (None, override):
+        notes.append(f"joint angles read with the arm given ({arm.name}), not session.yaml's ({spec.get('arm')})")
     text = _text_of(path, notes)
     delim = _delimiter(text)
     rows = [[c.strip() for c in r] for r in csv.reader(io.StringIO(text, newline=""), delimiter=delim,

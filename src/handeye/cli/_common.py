@@ -16,6 +16,7 @@ from .._shared.io import check_output_folder
 from ..calibration import certify_calibration
 from ..errors import HandEyeError
 from ..geometry.se3 import make_transform
+from ..kinematics import arm_names
 from ..options import PAIRS, REFINES, ROBOT_ACCURACY, CalibrationOptions
 from ..poses import ANGLE_UNITS, LENGTH_UNITS
 from ..report import EXPORTS, write_calibration
@@ -237,6 +238,9 @@ def add_calibrate_options(p: argparse.ArgumentParser, refines: tuple[str, ...] =
         g.add_argument("--robot-noise", metavar="DEG,MM",
                        help="robot pose error per axis (e.g. 0.05,0.2): the pixel refinement then corrects each robot "
                        "pose within it instead of taking the poses as exact")
+        g.add_argument("--arm", metavar="NAME|TABLE.yaml|ROBOT.urdf",
+                       help="the arm's kinematics for the session's joint angles (its joints: table), instead of the "
+                       f"arm session.yaml names: a shipped arm ({', '.join(arm_names())}), a DH table or a URDF")
     g.add_argument("--strict", action="store_true",
                    help="fail (exit 2) instead of answering when the check calls the data inconsistent")
     g.add_argument("--no-check", action="store_true",
@@ -277,7 +281,7 @@ def calibrate_options(args: argparse.Namespace) -> CalibrationOptions:
         check=not args.no_check, robot_accuracy=accuracy_arg(args.robot_accuracy), known=known_arg(args.known),
         robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()), keyframes=args.keyframes,
         offset_range=None if rng is None else tuple(rng.tolist()), time_offset=args.time_offset,
-        strict_images=getattr(args, "strict_images", False))
+        strict_images=getattr(args, "strict_images", False), arm=getattr(args, "arm", None))
 
 
 def write_options(args: argparse.Namespace) -> dict:
