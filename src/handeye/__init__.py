@@ -19,7 +19,7 @@ from .errors import DegenerateMotionError, HandEyeError, InputMismatchError, Pos
 # The public names load on first use (PEP 562): ``import handeye`` (and every command of the CLI,
 # which imports from the package) does not pay for scipy.optimize, the solvers and the report
 # until they are used, so a command can start its image work while the rest loads.
-_SUBMODULES = ("kinematics", "metrics", "setups", "simulate", "solvers")
+_SUBMODULES = ("depth", "kinematics", "metrics", "setups", "simulate", "solvers")
 _NAMES = {
     "calibrate": "calibration", "calibrate_poses": "calibration", "certify_calibration": "calibration",
     "check_folder": "checking",
@@ -36,7 +36,7 @@ _NAMES = {
 }
 
 if TYPE_CHECKING:  # what the names are, for type checkers and editors
-    from . import kinematics, metrics, setups, simulate, solvers
+    from . import depth, kinematics, metrics, setups, simulate, solvers
     from .calibration import calibrate, calibrate_poses, certify_calibration
     from .checking import check_folder
     from .diagnostics import diagnose
@@ -84,6 +84,7 @@ __all__ = [
     "calibrate_poses",
     "calibrate_streams",
     "certify_calibration",
+    "depth",
     "check_folder",
     "diagnose",
     "format_poses",

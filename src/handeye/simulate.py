@@ -39,7 +39,7 @@ __all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look
            "realistic_scene", "arm_forward_kinematics", "ARM_DH", "robot_accuracy_of", "simulate_realistic_session",
            "KinematicScene", "kinematic_scene", "simulate_kinematic_session",
            "low_dof_scene", "LOW_DOF_ROBOTS", "StreamScene", "stream_scene",
-           "simulate_stream_session"]
+           "simulate_stream_session", "DepthScene", "depth_scene"]
 
 
 @dataclass(frozen=True)
@@ -1037,3 +1037,87 @@ def simulate_stream_session(
              "dist": dist.tolist(), "time_offset_s": float(time_offset), "seed": seed}
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return scene
+
+
+# --- depth cameras: organized point clouds ------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class DepthScene(Scene):
+    """A simulated depth-camera capture: per view the board's corners in the intensity image
+    (``image_points``, with detection noise) and the organized cloud registered to it (``clouds``,
+    H x W x 3 metres in the camera frame, float32, NaN where there is no depth), from a camera
+    whose depths are ``depth_scale`` times the true ones plus ``depth_bias``."""
+
+    K: NDArray[np.float64] = None  # type: ignore[assignment]
+    image_size: tuple[int, int] = (640, 480)
+    object_points: NDArray[np.float64] = None  # type: ignore[assignment]
+    image_points: list = None  # type: ignore[assignment]
+    clouds: list = None  # type: ignore[assignment]
+    depth_scale: float = 1.0
+    depth_bias: float = 0.0
+
+
+def _depth_image(K, size, target2cam, outline, background: float):
+    """Per pixel, the true point (H, W, 3) where its ray meets the board's sheet (its ``outline``),
+    else the background plane at depth ``background``; and the board's mask."""
+    w, h = size
+    u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], axis=-1)
+    R, t = target2cam[:3, :3], target2cam[:3, 3]
+    normal = R[:, 2]  # the board's z axis in the camera frame
+    with np.errstate(divide="ignore", invalid="ignore"):
+        depth = (normal @ t) / (rays @ normal)  # along each ray, to the board's plane
+    on_plane = rays * depth[..., None]
+    local = (on_plane - t) @ R  # in the board's frame
+    lo, hi = outline[:, :2].min(axis=0), outline[:, :2].max(axis=0)
+    board = (depth > 0) & np.all((local[..., :2] >= lo) & (local[..., :2] <= hi), axis=-1)
+    points = np.where(board[..., None], on_plane, rays * background)
+    return points, board
+
+
+def depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
+                target: str | dict = "chessboard", image_size: tuple[int, int] = (640, 480),
+                depth_noise: tuple[float, float] = (1e-4, 5e-4), depth_scale: float = 1.002,
+                depth_bias: float = 0.0, noise_px: float = 0.2, holes: float = 0.01,
+                distance: tuple[float, float] = (0.5, 1.0)) -> DepthScene:
+    """A depth camera's capture of a board: ``n_views`` views at ``distance`` (m), each an organized
+    cloud and the board's corners in the registered intensity image.
+
+    The cloud's depth noise (std, m) is ``depth_noise[0] + depth_noise[1] z^2`` (0.2 mm at 0.5 m to
+    0.6 mm at 1 m by default), each point moved along its ray; measured depths are
+    ``depth_scale z + depth_bias``; a share ``holes`` of the pixels has no depth (NaN), and the
+    pixels on the board's edge are flying pixels (their depth half-way to the background). The
+    corners are the projections of the board's inner corners (pinhole, no distortion) with
+    ``noise_px`` pixel noise, as a detector finds them in the intensity image.
+    """
+    check_setup(setup)
+    rng = np.random.default_rng(rng)
+    spec = DEFAULT_TARGETS[target] if isinstance(target, str) else dict(target)
+    tgt = target_from_spec(spec)
+    obj = tgt.object_points()
+    K = default_camera(image_size)[0]
+    renderer = Renderer(K, np.zeros(5), image_size, supersample=1)
+    outline = target_texture(tgt).outline()
+    cam2target = visible_viewpoints(n_views, rng, renderer, outline, margin_px=10.0)
+    scale = np.linalg.norm(cam2target[:, :3, 3] - outline.mean(axis=0), axis=1)
+    # the views' distances spread over ``distance``: depth noise, scale and bias differ with depth
+    want = rng.uniform(*distance, n_views)
+    centre = outline.mean(axis=0)
+    cam2target[:, :3, 3] = centre + (cam2target[:, :3, 3] - centre) * (want / scale)[:, None]
+    scene = scene_from_viewpoints(cam2target, setup, rng)
+    image_points, clouds = [], []
+    for T in scene.target2cam:
+        truth, board = _depth_image(K, image_size, T, outline, background=2.5)
+        z = truth[..., 2]
+        measured_z = depth_scale * z + depth_bias + rng.normal(0.0, 1.0, z.shape) * (depth_noise[0] + depth_noise[1] * z**2)
+        cloud = truth * (measured_z / z)[..., None]
+        edge = board & ~(np.roll(board, 1, 0) & np.roll(board, -1, 0) & np.roll(board, 1, 1) & np.roll(board, -1, 1))
+        cloud[edge] = 0.5 * (cloud[edge] + truth[edge] * (2.5 / z[edge])[:, None])  # flying pixels
+        cloud[rng.random(z.shape) < holes] = np.nan
+        clouds.append(cloud.astype(np.float32))
+        px = project_points(T, obj, K, np.zeros(5))
+        image_points.append(px + rng.normal(0.0, noise_px, px.shape))
+    return DepthScene(setup, scene.X, scene.Z, scene.flange2base, scene.target2cam, K=K, image_size=tuple(image_size),
+                      object_points=obj, image_points=image_points, clouds=clouds, depth_scale=depth_scale,
+                      depth_bias=depth_bias)
