@@ -82,11 +82,19 @@ def overlay_thumbnail(image_path: str | Path, detected: NDArray[np.float64],
 
     Predicted points far off the image (or NaN) are not drawn.
     """
-    img = cv2.imread(str(image_path), cv2.IMREAD_COLOR)
-    if img is None or img.shape[0] < 2 or img.shape[1] < 2:
-        return None
     detected = np.asarray(detected, dtype=float).reshape(-1, 2)
     predicted = np.empty((0, 2)) if predicted is None else np.asarray(predicted, dtype=float).reshape(-1, 2)
+    # a large image is decoded at 1/2, 1/4 or 1/8 of its size (JPEG decodes that directly, several
+    # times faster) when the target's crop still spans ZOOM_WIDTH pixels there
+    finite = detected[np.all(np.isfinite(detected), axis=1)]
+    span = float(np.ptp(finite[:, 0])) * (1 + 2 * CROP_MARGIN) if len(finite) else 0.0
+    factor = next((f for f in (8, 4, 2) if span / f >= ZOOM_WIDTH), 1)
+    flags = {1: cv2.IMREAD_COLOR, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4,
+             8: cv2.IMREAD_REDUCED_COLOR_8}[factor]
+    img = cv2.imread(str(image_path), flags)
+    if img is None or img.shape[0] < 2 or img.shape[1] < 2:
+        return None
+    detected, predicted = detected / factor, predicted / factor
     x0, y0, x1, y1 = _crop_box(np.vstack([detected, predicted]), img.shape)
     crop = img[y0:y1, x0:x1]
     s = ZOOM_WIDTH / crop.shape[1]
