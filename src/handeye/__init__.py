@@ -16,9 +16,9 @@ from typing import TYPE_CHECKING, Any
 from ._version import __version__
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError, PoseFormatError, SessionError, TargetError
 
-# The public names load on first use (PEP 562): ``import handeye`` (and every command of the CLI,
-# which imports from the package) does not pay for scipy.optimize, the solvers and the report
-# until they are used, so a command can start its image work while the rest loads.
+# The public names load on first use (PEP 562): ``import handeye``, and any of its light modules
+# (errors, vision.detect, ...), does not pay for scipy, the solvers and the report until they are
+# used.
 _SUBMODULES = ("depth", "kinematics", "metrics", "setups", "simulate", "solvers")
 _NAMES = {
     "calibrate": "calibration", "calibrate_poses": "calibration", "certify_calibration": "calibration",
