@@ -10,6 +10,7 @@ import json
 import re
 from contextlib import redirect_stdout
 from dataclasses import replace
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -219,6 +220,13 @@ def test_simulate_and_calibrate_a_joint_session_from_the_command_line(tmp_path):
     # the determined entries move towards the truth
     assert np.abs(corrected.table.ravel()[owned] - true_table.ravel()[owned]).sum() < \
         np.abs(nominal.ravel()[owned] - true_table.ravel()[owned]).sum()
+    # a fleet calibrates a joint session as calibrate does: with the arm's table
+    from handeye.fleet import calibrate_many
+
+    item = calibrate_many([session], tmp_path / "fleet", jobs=1, progress=False)[0]
+    fleet = json.loads((Path(item.out) / "result.json").read_text())
+    assert item.error is None and fleet["kinematics"]["table"]["corrected"] == data["kinematics"]["table"]["corrected"]
+    assert fleet["X"]["matrix"] == data["X"]["matrix"]
 
 
 def _random_urdf(rng: np.random.Generator) -> str:

@@ -20,7 +20,8 @@ from typing import Any, Sequence
 from ._shared.cluster import dask_client, dask_completed
 from ._shared.io import atomic_write, check_output_folder
 from ._shared.progress import Progress
-from .calibration import calibrate, certify_calibration
+from .calibration import certify_calibration
+from .checking import calibrate_session
 from .errors import HandEyeError
 from .report import write_calibration
 
@@ -43,7 +44,7 @@ def _one(task: tuple[str, str, dict, dict, bool]) -> dict:
     """Calibrate one session and write its files (runs in a worker: plain values in and out)."""
     folder, out, options, write_options, certify = task
     try:
-        cal = calibrate(folder, progress=False, jobs=1, **options)
+        cal = calibrate_session(folder, progress=False, jobs=1, **options)  # joint sessions: the joint fit
         if certify:
             cal = certify_calibration(cal)
         write_calibration(cal, out, **write_options)
