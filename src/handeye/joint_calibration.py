@@ -17,15 +17,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .calibration import calibrate_poses, drop_pose_outliers, observe, with_images
-from .diagnostics import closed_form
 from .errors import HandEyeError, InputMismatchError
+from .estimators import pose_fit
 from .kinematics import Chain, load_arm
 from .metrics import std_deg_mm
 from .options import CalibrationOptions, options_from
 from .result import Calibration, HeldOutErrors, KinematicModel
 from .session import Session
 from .solvers.kinematic import ANGLE_PRIOR_RAD, LENGTH_PRIOR_M, KinematicRefinement, refine_kinematic
-from .solvers.refine import refine_pose
 from .validation import Views, cross_validate, default_folds, fold_indices, jackknife_covs, view_errors
 from .verdict import judged
 
@@ -258,12 +257,7 @@ def _held_out(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, prio
         if px is not None:
             px[test] = e_px
 
-    def black_box(flange2base, t2c, setup, idx):
-        X0, Z0, _ = closed_form(flange2base, t2c, setup, "daniilidis")
-        fit = refine_pose(X0, Z0, flange2base, t2c, setup)
-        return fit.X, fit.Z
-
-    nominal = cross_validate(black_box, views, held)
+    nominal = cross_validate(pose_fit("daniilidis", None), views, held)  # the black box, refitted per fold
 
     def row(p, m) -> dict[str, float | None]:
         return {"px": None if p is None else float(np.sqrt(np.mean(p**2))), "mm": float(np.sqrt(np.mean(m**2)))}

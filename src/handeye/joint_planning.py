@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 from .errors import InputMismatchError
+from .geometry.se3 import perturb
 from .joint_calibration import along_parallel_axes
 from .kinematics import absorbed_parameters
 from .result import Calibration
@@ -97,7 +97,7 @@ def suggest_joint_views(cal: Calibration, joints: ArrayLike | None = None, n_vie
     size = image_size or (int(round(2 * K[0, 2])), int(round(2 * K[1, 2])))
     model = _Model(cal, q, K, dist)
     sigma = model.sigma()
-    info = model.information(q) / sigma**2 + np.diag(np.r_[np.zeros(12), np.ones(len(k.names))])
+    info = model.information_per_view(q).sum(axis=0) / sigma**2 + np.diag(np.r_[np.zeros(12), np.ones(len(k.names))])
     pick = [k.names.index(t) + 12 for t in targets]
     before = np.sqrt(np.diag(np.linalg.inv(info))[pick])
     pool = _candidates(q, k, targets, candidates, np.random.default_rng(rng))
@@ -133,15 +133,6 @@ def _candidates(q, k, targets: list[str], count: int, rng: np.random.Generator) 
     return base + rng.normal(0.0, 1.0, base.shape) * scale
 
 
-def _moved(T: NDArray[np.float64], dx: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``T`` turned by the rotation vector ``dx[:3]`` and shifted by ``dx[3:]`` (a local parametrization:
-    the entries' posterior does not depend on which)."""
-    out = T.copy()
-    out[:3, :3] = Rotation.from_rotvec(dx[:3]).as_matrix() @ T[:3, :3]
-    out[:3, 3] = T[:3, 3] + dx[3:]
-    return out
-
-
 class _Model:
     """The joint fit's prediction of pixels around its solution, for information (J^T J)."""
 
@@ -156,15 +147,19 @@ class _Model:
         self.prior = np.asarray(k.prior_std, dtype=float)
         self.points = np.asarray(cal.object_points[0], dtype=float)
 
+    def _project(self, T) -> NDArray[np.float64]:
+        """The target's points seen from the target2cam poses ``T``: (V, 2M) pixels."""
+        owner = np.repeat(np.arange(len(T)), len(self.points))
+        return project_points_many(T, np.tile(self.points, (len(T), 1)), owner, self.K, self.dist).reshape(len(T), -1)
+
     def _pixels(self, x, joints) -> NDArray[np.float64]:
         k = self.cal.kinematic
-        X, Z = _moved(self.cal.X, x[:6]), _moved(self.cal.Z, x[6:12])
+        # any local parametrization of X and Z: the entries' posterior does not depend on which
+        X, Z = perturb(self.cal.X, x[:3], x[3:6]), perturb(self.cal.Z, x[6:9], x[9:12])
         deltas = (k.chain.table - k.nominal.table).ravel().copy()
         deltas[self.index] += x[12:] * self.prior
-        T = predicted_target2cam(X, Z, k.nominal.forward(joints, deltas.reshape(k.nominal.table.shape)), self.cal.setup)
-        owner = np.repeat(np.arange(len(joints)), len(self.points))
-        return project_points_many(T, np.tile(self.points, (len(joints), 1)), owner, self.K, self.dist).reshape(
-            len(joints), -1)
+        return self._project(predicted_target2cam(X, Z, k.nominal.forward(joints, deltas.reshape(k.nominal.table.shape)),
+                                                  self.cal.setup))
 
     def _jacobian(self, joints) -> NDArray[np.float64]:
         """(V, 2M, P): per view the pixels' derivatives over [X, Z increments, entries in prior units]."""
@@ -178,10 +173,6 @@ class _Model:
             x[p] = h
             J[:, :, p] = (self._pixels(x, joints) - base) / h
         return J
-
-    def information(self, joints) -> NDArray[np.float64]:
-        J = self._jacobian(joints)
-        return np.einsum("vmp,vmq->pq", J, J)
 
     def information_per_view(self, joints) -> NDArray[np.float64]:
         J = self._jacobian(joints)
@@ -203,7 +194,7 @@ class _Model:
         T = predicted_target2cam(self.cal.X, self.cal.Z, k.chain.forward(joints), self.cal.setup)
         cam_points = np.einsum("vij,mj->vmi", T[:, :3, :3], self.points) + T[:, None, :3, 3]
         in_front = (cam_points[..., 2] > 0.05).all(axis=1)
-        px = self._pixels(np.zeros(12 + len(self.index)), joints).reshape(len(joints), -1, 2)
+        px = self._project(T).reshape(len(joints), -1, 2)
         inside = ((px[..., 0] > margin) & (px[..., 0] < size[0] - margin) & (px[..., 1] > margin)
                   & (px[..., 1] < size[1] - margin)).all(axis=1)
         sight = T[:, :3, 3] / np.linalg.norm(T[:, :3, 3], axis=1, keepdims=True)
