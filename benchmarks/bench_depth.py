@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 import handeye
 from handeye.depth import calibrate_depth, lift_points
@@ -35,8 +36,7 @@ def _errors(X, truth, setup):
 
 def _within(cal, truth) -> bool:
     """X within 3 std per axis (rotation about X's reference axes, translation)."""
-    dR = cal.X[:3, :3] @ truth[:3, :3].T
-    rotvec = np.degrees(np.array([dR[2, 1] - dR[1, 2], dR[0, 2] - dR[2, 0], dR[1, 0] - dR[0, 1]]) / 2)
+    rotvec = Rotation.from_matrix(cal.X[:3, :3] @ truth[:3, :3].T).as_rotvec(degrees=True)
     dt = 1e3 * (cal.X[:3, 3] - truth[:3, 3])
     return bool(np.all(np.abs(rotvec) <= 3 * cal.std[:3]) and np.all(np.abs(dt) <= 3 * cal.std[3:]))
 

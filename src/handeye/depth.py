@@ -222,9 +222,9 @@ def calibrate_depth(flange2base: NDArray[np.float64], object_points: list[NDArra
     owner = np.repeat(np.arange(len(F)), [int(k.sum()) for k in keep])
     z = meas[:, 2]
     basis = _ray_frames(meas)  # per point: along its ray, and two directions across it
-    # the noise along the rays (depth) and across them (the corner's pixel noise, times the depth)
-    # differ; each is scaled to the data in a second pass
-    # a corner found off its place moves along the board: along the ray too, by tan(ray, normal)
+    # the noise along the rays (depth; and a corner found off its place moves along the board, so
+    # along the ray too, by tan(ray, normal)) and across them (the corner's pixel noise, times the
+    # depth) differ; each is scaled to the data in a second pass
     normals = np.array([T[:3, 2] for T, _ in poses])[owner]
     cos = np.clip(np.abs(np.einsum("mi,mi->m", basis[:, 0], normals)), 0.2, 1.0)
     along = np.sqrt(depth_sigma(z) ** 2 + (LATERAL * z) ** 2 * (1.0 / cos**2 - 1.0))
@@ -236,7 +236,7 @@ def calibrate_depth(flange2base: NDArray[np.float64], object_points: list[NDArra
             r = meas - _model(x, start.X, start.Z, F, setup, obj, owner, fit_depth)
             return (np.einsum("mij,mj->mi", basis, r) / noise).ravel()
 
-        res = least_squares(residuals, x, method="lm", x_scale=np.r_[np.full(12, 1e-3), 1e-3, 1e-3][:n])
+        res = least_squares(residuals, x, method="lm", x_scale=np.full(n, 1e-3))
         x = res.x
         w = res.fun.reshape(-1, 3)
         dof = max(res.fun.size - n, 1) / res.fun.size
