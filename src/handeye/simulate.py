@@ -12,6 +12,7 @@ the ground-truth ``X`` and ``Z``:
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -25,7 +26,7 @@ from ._shared.lazy import lazy_module
 from .errors import HandEyeError, InputMismatchError
 from .geometry.se3 import invert, make_transform, perturb, random_rotations
 from .kinematics import Chain, absorbed_parameters, load_arm
-from .session import write_joint_session, write_session, write_stream_session
+from .session import write_joint_session, write_pose_table, write_session, write_stream_session
 from .setups import check_setup, flange_poses, predicted_target2cam, setup_info
 from .vision.pnp import project_points
 from .vision.render import Renderer, target_texture
@@ -39,7 +40,7 @@ __all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look
            "realistic_scene", "arm_forward_kinematics", "ARM_DH", "robot_accuracy_of", "simulate_realistic_session",
            "KinematicScene", "kinematic_scene", "simulate_kinematic_session",
            "low_dof_scene", "LOW_DOF_ROBOTS", "StreamScene", "stream_scene",
-           "simulate_stream_session", "DepthScene", "depth_scene"]
+           "simulate_stream_session", "DepthScene", "depth_scene", "SphereScene", "sphere_scene", "write_depth_session"]
 
 
 @dataclass(frozen=True)
@@ -1056,6 +1057,7 @@ class DepthScene(Scene):
     clouds: list = None  # type: ignore[assignment]
     depth_scale: float = 1.0
     depth_bias: float = 0.0
+    target_spec: dict = None  # type: ignore[assignment]
 
 
 def _depth_image(K, size, target2cam, outline, background: float):
@@ -1076,11 +1078,23 @@ def _depth_image(K, size, target2cam, outline, background: float):
     return points, board
 
 
+def _reported(flange2base: NDArray[np.float64], error: tuple[float, float] | None, rng: np.random.Generator):
+    """The controller's flange poses: off by a constant error (the arm's absolute error over a
+    small capture) and heavy-tailed noise per pose (Student-t, 3 dof), each of ``error`` (deg, mm)
+    per axis; the true ones when ``error`` is None."""
+    if error is None:
+        return flange2base
+    n = len(flange2base)
+    rot = np.radians(error[0]) * (rng.normal(0.0, 1.0, 3) + rng.standard_t(3, (n, 3)))
+    tra = 1e-3 * error[1] * (rng.normal(0.0, 1.0, 3) + rng.standard_t(3, (n, 3)))
+    return perturb(flange2base, rot, tra)
+
+
 def depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
                 target: str | dict = "chessboard", image_size: tuple[int, int] = (640, 480),
                 depth_noise: tuple[float, float] = (1e-4, 5e-4), depth_scale: float = 1.002,
                 depth_bias: float = 0.0, noise_px: float = 0.2, holes: float = 0.01,
-                distance: tuple[float, float] = (0.5, 1.0)) -> DepthScene:
+                distance: tuple[float, float] = (0.5, 1.0), robot_error: tuple[float, float] | None = None) -> DepthScene:
     """A depth camera's capture of a board: ``n_views`` views at ``distance`` (m), each an organized
     cloud and the board's corners in the registered intensity image.
 
@@ -1089,7 +1103,9 @@ def depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Ge
     ``depth_scale z + depth_bias``; a share ``holes`` of the pixels has no depth (NaN), and the
     pixels on the board's edge are flying pixels (their depth half-way to the background). The
     corners are the projections of the board's inner corners (pinhole, no distortion) with
-    ``noise_px`` pixel noise, as a detector finds them in the intensity image.
+    ``noise_px`` pixel noise, as a detector finds them in the intensity image. ``robot_error``
+    (deg, mm): the reported flange poses are off by a constant and a heavy-tailed error per pose of
+    that size per axis (``flange2base`` is what the controller reports; None: exact).
     """
     check_setup(setup)
     rng = np.random.default_rng(rng)
@@ -1118,6 +1134,126 @@ def depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Ge
         clouds.append(cloud.astype(np.float32))
         px = project_points(T, obj, K, np.zeros(5))
         image_points.append(px + rng.normal(0.0, noise_px, px.shape))
-    return DepthScene(setup, scene.X, scene.Z, scene.flange2base, scene.target2cam, K=K, image_size=tuple(image_size),
+    return DepthScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
+                      image_size=tuple(image_size),
                       object_points=obj, image_points=image_points, clouds=clouds, depth_scale=depth_scale,
-                      depth_bias=depth_bias)
+                      depth_bias=depth_bias, target_spec=dict(spec))
+
+
+@dataclass(frozen=True)
+class SphereScene(Scene):
+    """A simulated depth-camera capture of a sphere (no board): per view an organized cloud
+    (``clouds``, as :class:`DepthScene`'s) in which the sphere of ``radius`` sits at the origin
+    of the target frame (``Z``'s translation: the centre in the base frame for eye-in-hand, in
+    the flange frame for eye-to-hand; ``Z``'s rotation means nothing for a sphere)."""
+
+    K: NDArray[np.float64] = None  # type: ignore[assignment]
+    image_size: tuple[int, int] = (640, 480)
+    radius: float = 0.025
+    clouds: list = None  # type: ignore[assignment]
+    depth_scale: float = 1.0
+    depth_bias: float = 0.0
+
+
+def _sphere_image(K, size, centre, radius, plane_point, plane_normal):
+    """Per pixel the true point where its ray meets the sphere, else the background plane; and the
+    sphere's mask."""
+    w, h = size
+    u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], axis=-1)
+    dd = np.einsum("hwi,hwi->hw", rays, rays)
+    dc = rays @ centre
+    disc = dc**2 - dd * (centre @ centre - radius**2)
+    sphere = disc > 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t_sphere = (dc - np.sqrt(np.where(sphere, disc, 0.0))) / dd
+        t_plane = (plane_normal @ plane_point) / (rays @ plane_normal)
+    t = np.where(sphere, t_sphere, t_plane)
+    return rays * t[..., None], sphere
+
+
+def sphere_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Generator | int | None = None, *,
+                 radius: float = 0.025, image_size: tuple[int, int] = (640, 480),
+                 depth_noise: tuple[float, float] = (1e-4, 5e-4), depth_scale: float = 1.002,
+                 depth_bias: float = 0.0, holes: float = 0.01, distance: tuple[float, float] = (0.5, 1.0),
+                 tilt_max_deg: float = 60.0, robot_error: tuple[float, float] | None = None) -> SphereScene:
+    """A depth camera's capture of a sphere of ``radius`` (m): on the flange in front of a fixed
+    camera (eye-to-hand), or fixed in the cell and seen by the camera on the flange (eye-in-hand).
+
+    ``n_views`` views at ``distance`` (m) from directions within ``tilt_max_deg`` of the target's z
+    axis, the sphere anywhere in the middle two thirds of the image; behind it a tilted wall 0.2-0.4
+    m further. Noise, scale, bias and holes as :func:`depth_scene`'s; the pixels on the sphere's
+    outline are flying pixels (their depth half-way to the wall); ``robot_error`` as
+    :func:`depth_scene`'s.
+    """
+    check_setup(setup)
+    rng = np.random.default_rng(rng)
+    K = default_camera(image_size)[0]
+    w, h = image_size
+    cam2target = look_at_viewpoints(n_views, rng, distance=distance, tilt_max_deg=tilt_max_deg, aim_jitter=0.0)
+    # turn each camera a little so that the sphere lands off the image centre
+    off = np.c_[rng.uniform(-w / 3, w / 3, n_views) / K[0, 0], rng.uniform(-h / 3, h / 3, n_views) / K[1, 1]]
+    turn = Rotation.from_rotvec(np.c_[off[:, 1], -off[:, 0], np.zeros(n_views)]).as_matrix()
+    cam2target[:, :3, :3] = cam2target[:, :3, :3] @ turn
+    scene = scene_from_viewpoints(cam2target, setup, rng)
+    clouds = []
+    for T in scene.target2cam:
+        centre = T[:3, 3]
+        normal = -centre / np.linalg.norm(centre) + rng.normal(0.0, 0.3, 3)
+        normal /= np.linalg.norm(normal)
+        wall = centre * (1.0 + rng.uniform(0.2, 0.4) / np.linalg.norm(centre))
+        truth, sphere = _sphere_image(K, image_size, centre, radius, wall, normal)
+        z = truth[..., 2]
+        noise = rng.normal(0.0, 1.0, z.shape) * (depth_noise[0] + depth_noise[1] * z**2)
+        cloud = truth * ((depth_scale * z + depth_bias + noise) / z)[..., None]
+        edge = sphere & ~(np.roll(sphere, 1, 0) & np.roll(sphere, -1, 0) & np.roll(sphere, 1, 1) & np.roll(sphere, -1, 1))
+        behind = _sphere_image(K, image_size, centre + 10.0, radius, wall, normal)[0]  # the wall where the sphere is
+        cloud[edge] = 0.5 * (cloud[edge] + behind[edge])
+        cloud[rng.random(z.shape) < holes] = np.nan
+        clouds.append(cloud.astype(np.float32))
+    return SphereScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
+                       image_size=tuple(image_size),
+                       radius=radius, clouds=clouds, depth_scale=depth_scale, depth_bias=depth_bias)
+
+
+def write_depth_session(folder: str | Path, scene: DepthScene | SphereScene, unit: str = "m",
+                        working_range: tuple[float, float] | None = None,
+                        rng: np.random.Generator | int | None = 0) -> Path:
+    """Write a simulated depth capture as a depth session (``handeye.depth.session``'s format):
+    ``clouds/viewNN.npy`` (float32, in ``unit``), for a board the rendered intensity images
+    ``images/viewNN.png``, ``poses.csv`` (quat_wxyz, mm, deg), ``session.yaml`` (with the
+    intensity image's K and a ``depth:`` mapping) and ``ground_truth.yaml``. Returns the folder."""
+    out = check_output_folder(folder)
+    (out / "clouds").mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(rng)
+    spheres = isinstance(scene, SphereScene)
+    names = [f"view{k + 1:02d}" for k in range(len(scene.flange2base))]
+    for name, cloud in zip(names, scene.clouds):
+        buf = io.BytesIO()
+        np.save(buf, (cloud * (1e3 if unit == "mm" else 1.0)).astype(np.float32))
+        atomic_write(out / "clouds" / f"{name}.npy", buf.getvalue())
+    if spheres:
+        target: dict = {"type": "sphere", "diameter": 2 * scene.radius}
+        ids = [f"{n}.npy" for n in names]
+    else:
+        target = dict(scene.target_spec)
+        ids = [f"{n}.png" for n in names]
+        (out / "images").mkdir(exist_ok=True)
+        renderer = Renderer(scene.K, np.zeros(5), scene.image_size)
+        texture = target_texture(target_from_spec(target))
+        for name, T in zip(ids, scene.target2cam):
+            if not cv2.imwrite(str(out / "images" / name), renderer.render(texture, T, rng=rng)):
+                raise HandEyeError(f"could not write {out / 'images' / name}")
+    write_pose_table(out / "poses.csv", ids, scene.flange2base, "quat_wxyz", "mm", "deg",
+                     id_column="cloud" if spheres else "image")
+    depth: dict = {"unit": unit}
+    if working_range is not None:
+        depth["range"] = [float(v) for v in working_range]
+    spec = {"setup": scene.setup, "target": target, "camera": {"K": scene.K.tolist(), "dist": [0.0] * 5},
+            "depth": depth, "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}}
+    atomic_write(out / "session.yaml", yaml.safe_dump(spec, sort_keys=False))
+    info = setup_info(scene.setup)
+    truth = {"setup": scene.setup, info.x_name: scene.X.tolist(), info.z_name: scene.Z.tolist(),
+             "depth_scale": float(scene.depth_scale), "depth_bias": float(scene.depth_bias)}
+    atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
+    return out

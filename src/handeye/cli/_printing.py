@@ -7,6 +7,7 @@ import sys
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..depth import DepthResult
 from ..result import Calibration
 from ..setups import setup_info
 
@@ -123,3 +124,22 @@ def print_image_summary(cal: Calibration) -> None:
     if cal.refinement == "reprojection":
         print(f"refined X and Z on the pixel errors of all target points: RMS {cal.refined_rms:.3f} px")
     print()
+
+
+def print_depth_result(r: DepthResult) -> None:
+    """A depth session's X, std, depth scale and bias, per-view residuals, verdict and advice."""
+    cal = r.calibration
+    print(f"depth session ({r.session.kind}): {len(r.used)} of {len(r.session.names)} views used")
+    print(f"{setup_info(cal.setup).x_name} translation (m): {fmt_vec(cal.X[:3, 3])}")
+    print(f"  std: {fmt_vec(cal.std[:3], 4)} deg, {fmt_vec(cal.std[3:], 3)} mm")
+    print("  rotation matrix:\n" + "\n".join("    " + fmt_vec(row) for row in cal.X[:3, :3]))
+    print(f"depth scale {cal.depth_scale:.5f} +- {cal.depth_scale_std:.5f}, bias {1e3 * cal.depth_bias:+.3f} +- "
+          f"{1e3 * cal.depth_bias_std:.3f} mm; fit {r.fit_mm:.3f} mm RMS"
+          + ("" if r.heldout_mm is None else f", held-out views {r.heldout_mm:.3f} mm RMS"))
+    for name, d, e in zip(r.used, r.distances_m, cal.residuals_mm if cal.residuals_mm is not None else []):
+        print(f"  {name:<24} {d:6.3f} m  {e:7.3f} mm")
+    for name, why in r.skipped:
+        print(f"  {name:<24} left out: {why}")
+    print(f"verdict: {r.verdict}")
+    for line in r.advice:
+        print(f"  - {line}")

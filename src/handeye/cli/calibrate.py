@@ -10,9 +10,11 @@ import numpy as np
 from .._shared.io import atomic_write
 from ..calibration import certify_calibration
 from ..checking import calibrate_session
+from ..depth import calibrate_depth_session, is_depth_session
 from ..errors import HandEyeError
 from ..fleet import calibrate_many
 from ..joint_planning import suggest_joint_views
+from ..report import write_depth_results
 from ..verdict import exit_status
 from ._common import (
     SAMPLE_SESSION,
@@ -26,7 +28,7 @@ from ._common import (
     write_options,
     write_outputs,
 )
-from ._printing import fmt_vec, print_calibration, print_image_summary
+from ._printing import fmt_vec, print_calibration, print_depth_result, print_image_summary
 
 
 def _cmd_calibrate_many(args: argparse.Namespace) -> int:
@@ -60,6 +62,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     session = input_folder(args.session[0] if args.session else None, args.sample, SAMPLE_SESSION,
                             "give a session folder, or --sample for the bundled sample session (not both)")
     out_folder(args.out, [session])
+    if is_depth_session(session):
+        return _cmd_calibrate_depth(session, args)
     cal = calibrate_session(session, calibrate_options(args), jobs=args.jobs, progress=not args.no_progress)
     if args.certify:
         cal = certify_calibration(cal)
@@ -68,6 +72,31 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     write_outputs(cal, args)
     _suggest_views(cal, args.out)
     return verdict_status(cal)
+
+
+#: Options of image sessions a depth session has no use for, and their defaults: given, they are refused.
+_NOT_FOR_DEPTH = {"method": "daniilidis", "refine": "auto", "pairs": "auto", "folds": None, "arm": None,
+                  "robot_noise": None, "known": [], "certify": False, "strict_images": False, "no_check": False,
+                  "parent_frame": None, "child_frame": None, "export": [], "tool": None}
+
+
+def _cmd_calibrate_depth(session: Path, args: argparse.Namespace) -> int:
+    """A depth session (session.yaml with depth:): clouds and robot poses, X with the depth scale and bias."""
+    given = [f"--{k.replace('_', '-')}" for k, default in _NOT_FOR_DEPTH.items() if getattr(args, k, default) != default]
+    if given:
+        raise HandEyeError(f"{session} is a depth session (session.yaml has depth:): {', '.join(given)} apply to image "
+                           "sessions only; leave them out")
+    r = calibrate_depth_session(session, robot_accuracy=calibrate_options(args).robot_accuracy,
+                                progress=not args.no_progress, jobs=args.jobs)
+    if args.strict and r.verdict == "inconsistent":
+        raise HandEyeError(f"{session}: the verdict is inconsistent (--strict): " + "; ".join(r.advice[:2]))
+    print_depth_result(r)
+    if args.out:
+        for path in write_depth_results(r, args.out):
+            print(f"wrote {path}")
+    else:
+        print("no --out: nothing written (--out FOLDER writes result.json, result.yaml and report.html)")
+    return exit_status(r.verdict)
 
 
 def _suggest_views(cal, out: str | None) -> None:

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from .._shared.io import check_output_folder
 from ..diagnostics import compare_solvers
 from ..result import Calibration
+from .depth import depth_report_html, depth_result_dict, write_depth_results
 from .files import (
     EXPORTS,
     check_exports,
@@ -32,7 +33,7 @@ from .verification import verification_html, write_verification
 
 __all__ = ["write_calibration", "result_dict", "write_results", "report_html", "write_report", "default_frames",
            "ros2_static_transform_command", "urdf_joint", "SECTIONS", "EXPORTS", "write_exports",
-           "verification_html", "write_verification"]
+           "verification_html", "write_verification", "depth_result_dict", "depth_report_html", "write_depth_results"]
 
 
 def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterable[str | Path] = (), report: bool = True,

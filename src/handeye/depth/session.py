@@ -1,0 +1,400 @@
+"""Depth-camera sessions on disk: clouds (and intensity images) with robot poses, through one pipeline.
+
+A depth session is a session folder (docs/guide.md, "Depth cameras") whose ``session.yaml`` has a
+``depth:`` mapping::
+
+    setup: eye_to_hand
+    target: {type: sphere, diameter: 0.05}     # or a board (chessboard, charuco, ...) as for images
+    camera: {K: ..., dist: ...}                # optional: the intensity image's intrinsics
+    depth:
+      unit: m                                  # the clouds' unit: m | mm
+      range: [0.3, 1.5]                        # optional: the camera's stated working range, metres
+    poses: {file: poses.csv, format: quat_wxyz, length_unit: mm, angle_unit: deg}
+
+``poses.csv``'s first column is ``image`` (a board: the intensity image in ``images/``, its cloud
+the file of the same stem in ``clouds/``: .npy, .ply or .pcd) or ``cloud`` (spheres: the cloud
+file in ``clouds/``). :func:`calibrate_depth_session` measures every view (a view that cannot be
+measured is skipped with its reason, never silently), fits X with the depth scale and bias,
+leaves out views the fit does not explain (named), cross-validates on held-out views (3D error
+at the target, mm) and gives the verdict.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._shared.progress import Progress
+from ..errors import DegenerateMotionError, HandEyeError, SessionError
+from ..options import ROBOT_ACCURACY
+from ..poses import parse_poses
+from ..session import SESSION_FILE, load_yaml, read_camera, read_pose_table
+from ..setups import check_setup, predicted_target2cam, setup_info
+from ..verdict import ACCEPT_DEG, ACCEPT_MM
+from ..vision import detect_images, target_from_spec
+from .clouds import CLOUD_SUFFIXES, check_frame, lift_points, read_cloud
+from .fit import DepthCalibration, calibrate_depth, calibrate_spheres
+from .spheres import find_spheres
+
+__all__ = ["DepthSession", "DepthResult", "is_depth_session", "load_depth_session", "calibrate_depth_session",
+           "predict_points", "OUTLIER_FACTOR"]
+
+#: A view whose RMS 3D residual exceeds this many times the median view's (and 1 mm) is left out.
+OUTLIER_FACTOR = 5.0
+#: Held-out folds of the cross-validation.
+FOLDS = 5
+
+
+@dataclass(frozen=True)
+class DepthSession:
+    """A depth session's inputs, read and checked (no cloud read yet)."""
+
+    folder: Path
+    setup: str
+    target_spec: dict[str, Any]
+    names: list[str]  #: per view: the image's (boards) or the cloud's (spheres) file name
+    cloud_paths: list[Path]
+    image_paths: list[Path] | None  #: boards only
+    flange2base: NDArray[np.float64]
+    K: NDArray[np.float64] | None
+    dist: NDArray[np.float64] | None
+    unit: str
+    working_range: tuple[float, float] | None
+    radii: list[float] | None  #: spheres only, metres
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def kind(self) -> str:
+        return "spheres" if self.radii is not None else "board"
+
+
+def is_depth_session(folder: str | Path) -> bool:
+    """Whether ``folder``'s session.yaml has a ``depth:`` mapping."""
+    yml = Path(folder) / SESSION_FILE
+    if not yml.is_file():
+        return False
+    try:
+        spec = load_yaml(yml)
+    except HandEyeError:
+        return False
+    return isinstance(spec, dict) and spec.get("depth") is not None
+
+
+def _radii(target: Any, where: str) -> list[float] | None:
+    if not isinstance(target, dict) or str(target.get("type", "")).lower() != "sphere":
+        return None
+    d = target.get("diameter", target.get("diameters"))
+    values = np.atleast_1d(np.asarray(d, dtype=float)) if d is not None else np.array([])
+    if len(values) == 0 or not np.isfinite(values).all() or np.any(values <= 0):
+        raise SessionError(f"{where}: target: a sphere needs its diameter (metres; several: a list), got {d!r}")
+    if np.any(values > 1.0):
+        raise SessionError(f"{where}: target: sphere diameter {values.max():g} m: give it in metres (e.g. 0.05)")
+    if len(values) > 1 and np.min(np.diff(np.sort(values))) < 0.005:
+        raise SessionError(f"{where}: target: spheres are told apart by their diameters; {values.tolist()} differ by "
+                           "less than 5 mm: use balls of clearly different sizes")
+    return (values / 2).tolist()
+
+
+def _depth_spec(spec: Any, where: str) -> tuple[str, tuple[float, float] | None]:
+    if not isinstance(spec, dict):
+        raise SessionError(f"{where}: depth must be a mapping (unit: m | mm, range: [near, far] in metres)")
+    unit = str(spec.get("unit", "m"))
+    if unit not in ("m", "mm"):
+        raise SessionError(f"{where}: depth: unit is m or mm, not {unit!r}")
+    rng = spec.get("range")
+    if rng is None:
+        return unit, None
+    try:
+        lo, hi = (float(v) for v in rng)
+    except (TypeError, ValueError):
+        raise SessionError(f"{where}: depth: range is [near, far] in metres, got {rng!r}") from None
+    if not 0 <= lo < hi or hi > 50:
+        raise SessionError(f"{where}: depth: range [near, far] must be metres with near < far, got {rng!r}")
+    return unit, (lo, hi)
+
+
+def _cloud_of(folder: Path, name: str, table: Path) -> Path:
+    """The cloud in ``clouds/`` named ``name`` (spheres) or with the image's stem (boards)."""
+    clouds = folder / "clouds"
+    direct = clouds / name
+    if direct.suffix.lower() in CLOUD_SUFFIXES and direct.is_file():
+        return direct
+    found = [clouds / (Path(name).stem + s) for s in CLOUD_SUFFIXES if (clouds / (Path(name).stem + s)).is_file()]
+    if not found:
+        raise SessionError(f"{table}: no cloud for {name!r} in {clouds} (expected {Path(name).stem}.npy, .ply or .pcd)")
+    return found[0]
+
+
+def load_depth_session(folder: str | Path) -> DepthSession:
+    """Read and check a depth session folder (the module's docstring); nothing is measured yet.
+
+    Raises :class:`SessionError` naming the file: no ``depth:`` mapping, a bad target, a missing
+    pose table, image or cloud, a pose table whose first column is neither ``image`` nor ``cloud``.
+    """
+    folder = Path(folder)
+    yml = folder / SESSION_FILE
+    if not yml.is_file():
+        raise SessionError(f"{folder}: no {SESSION_FILE}")
+    notes: list[str] = []
+    spec = load_yaml(yml, notes)
+    where = str(yml)
+    if spec.get("depth") is None:
+        raise SessionError(f"{where}: no depth: mapping; a depth session says its clouds' unit there")
+    setup = check_setup(str(spec.get("setup", "")))
+    target = spec.get("target")
+    radii = _radii(target, where)
+    if radii is None:
+        target_from_spec(target, where=f"{where}: target")
+    unit, working = _depth_spec(spec["depth"], where)
+    K, dist = read_camera(spec.get("camera"), where)
+    poses = spec.get("poses")
+    if not isinstance(poses, dict) or "file" not in poses or "format" not in poses:
+        raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit, angle_unit")
+    table = folder / str(poses["file"])
+    if not table.is_file():
+        raise SessionError(f"{table}: no such pose table")
+    fmt = str(poses["format"])
+    values, names = read_pose_table(table, fmt, id_columns=("image", "cloud"), notes=notes)
+    if names is None:
+        raise SessionError(f"{table}: the first column must be 'image' (a board: its intensity image in images/, the "
+                           "cloud of the same name in clouds/) or 'cloud' (spheres: the cloud in clouds/)")
+    f2b = parse_poses(values, fmt, length_unit=str(poses.get("length_unit", "m")),
+                      angle_unit=str(poses.get("angle_unit", "rad")))
+    clouds = [_cloud_of(folder, n, table) for n in names]
+    images = None
+    if radii is None:
+        images = [folder / "images" / n for n in names]
+        missing = [str(p.name) for p in images if not p.is_file()]
+        if missing:
+            raise SessionError(f"{folder / 'images'}: image file(s) missing: {', '.join(missing[:10])}")
+    return DepthSession(folder, setup, dict(target), list(names), clouds, images, f2b, K, dist, unit, working, radii, notes)
+
+
+@dataclass(frozen=True)
+class DepthResult:
+    """A depth session calibrated: X with its std, the verdict and what it rests on."""
+
+    session: DepthSession
+    calibration: DepthCalibration
+    verdict: str  #: good | weak | inconsistent (a session that cannot determine X raises instead)
+    advice: list[str]
+    used: list[str]  #: the views the fit used
+    skipped: list[tuple[str, str]]  #: views left out, each with its reason
+    distances_m: NDArray[np.float64]  #: per used view, the target's median depth
+    heldout_mm: float | None  #: k-fold cross-validation: RMS 3D error of held-out views' points predicted from the robot
+    fit_mm: float  #: the RMS 3D residual of the used views in the fit, mm
+    notes: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain numbers and strings (result.yaml / result.json)."""
+        cal = self.calibration
+        out: dict[str, Any] = {
+            "setup": cal.setup, "kind": self.session.kind, "verdict": self.verdict, "advice": list(self.advice),
+            "X": cal.X.tolist(), "Z": cal.Z.tolist(),
+            "std": {"rotation_deg": cal.std[:3].tolist(), "translation_mm": cal.std[3:].tolist(),
+                    "data_only_rotation_deg": cal.std_data[:3].tolist() if cal.std_data is not None else None,
+                    "data_only_translation_mm": cal.std_data[3:].tolist() if cal.std_data is not None else None},
+            "depth": {"scale": cal.depth_scale, "scale_std": cal.depth_scale_std, "bias_mm": 1e3 * cal.depth_bias,
+                      "bias_std_mm": 1e3 * cal.depth_bias_std, "noise_along_rays_mm": cal.rms_mm},
+            "views": {"used": list(self.used), "skipped": [{"view": n, "reason": r} for n, r in self.skipped],
+                      "distance_m": self.distances_m.tolist(),
+                      "residual_mm": cal.residuals_mm.tolist() if cal.residuals_mm is not None else None},
+            "fit_rms_mm": self.fit_mm, "heldout_rms_mm": self.heldout_mm, "notes": list(self.notes),
+        }
+        if cal.centres is not None:
+            out["spheres"] = {"centres_m": cal.centres.tolist(), "centres_std_mm": cal.centres_std.tolist(),
+                              "frame": setup_info(cal.setup).z_name.split("2")[1]}
+        return out
+
+
+@dataclass
+class _Views:
+    """What the clouds gave, per measured view."""
+
+    index: list[int] = field(default_factory=list)  #: into the session's views
+    object_points: list = field(default_factory=list)  #: boards: (M, 3) per view
+    points: list = field(default_factory=list)  #: boards: (M, 3) lifted; spheres: (K, 3) centres (NaN: not seen)
+    covs: list = field(default_factory=list)  #: spheres: (K, 3, 3)
+    distance: list = field(default_factory=list)
+    skipped: list = field(default_factory=list)
+
+
+def _measure_boards(s: DepthSession, progress: bool, notes: list[str], jobs: int | None) -> _Views:
+    target = target_from_spec(s.target_spec)
+    out = _Views()
+    frames = []
+    for k, res in enumerate(detect_images(s.image_paths or [], target, jobs=jobs, progress=progress)):
+        if res.detection is None:
+            out.skipped.append((s.names[k], res.error or "target not found"))
+            continue
+        cloud = read_cloud(s.cloud_paths[k], res.image_size, s.unit)
+        if s.K is not None:
+            frames.append(check_frame(cloud, s.K, s.dist, where=str(s.cloud_paths[k])))
+        lifted, ok = lift_points(cloud, res.detection.image_points)
+        if ok.sum() < 4:
+            out.skipped.append((s.names[k], f"only {int(ok.sum())} of the target's {len(ok)} points have a depth in "
+                                            f"{s.cloud_paths[k].name} (holes or edges under the corners)"))
+            continue
+        out.index.append(k)
+        out.object_points.append(res.detection.object_points)
+        out.points.append(lifted)
+        out.distance.append(float(np.median(lifted[ok, 2])))
+    if frames:
+        notes.append(f"clouds in the image's frame: their points project {max(frames):.2f} px (RMS, worst view) from "
+                     "their pixels with the given intrinsics")
+    return out
+
+
+def _measure_spheres(s: DepthSession, progress: bool) -> _Views:
+    out = _Views()
+    radii = s.radii or []
+    bar = Progress(len(s.cloud_paths), "finding spheres", progress)
+    for k, path in enumerate(s.cloud_paths):
+        bar.update()
+        cloud = read_cloud(path, None, s.unit)
+        if s.K is not None:
+            check_frame(cloud, s.K, s.dist, where=str(path))
+        found = find_spheres(cloud, radii, rng=k, where=str(path))
+        if all(f is None for f in found):
+            out.skipped.append((s.names[k], "no sphere of diameter " + " or ".join(f"{2e3 * r:.1f} mm" for r in radii)
+                                + " found in the cloud"))
+            continue
+        out.index.append(k)
+        out.points.append(np.array([f.centre if f is not None else np.full(3, np.nan) for f in found]))
+        out.covs.append(np.array([f.cov if f is not None else np.eye(3) for f in found]))
+        out.distance.append(float(np.median([f.centre[2] for f in found if f is not None])))
+    bar.close()
+    return out
+
+
+def _fit(s: DepthSession, v: _Views, keep: list[int], fit_depth: bool, robot_accuracy, uncertainty: bool = True
+         ) -> DepthCalibration:
+    F = s.flange2base[[v.index[i] for i in keep]]
+    if s.kind == "spheres":
+        return calibrate_spheres(F, np.array([v.points[i] for i in keep]), s.setup,
+                                 np.array([v.covs[i] for i in keep]), fit_depth, robot_accuracy, uncertainty=uncertainty,
+                                 radii=np.array(s.radii))
+    return calibrate_depth(F, [v.object_points[i] for i in keep], [v.points[i] for i in keep], s.setup, fit_depth,
+                           robot_accuracy, uncertainty=uncertainty)
+
+
+def predict_points(cal: DepthCalibration, flange2base: NDArray[np.float64],
+                   object_points: list[NDArray[np.float64]] | None = None) -> list[NDArray[np.float64]]:
+    """Per view, where the camera measures the target's points (a board's ``object_points``) or
+    the spheres' centres (``object_points`` None: (K, 3) per view), predicted from the robot pose
+    alone with X, Z, the depth scale and bias of ``cal``."""
+    F = np.asarray(flange2base, dtype=float)
+    if cal.centres is not None:
+        Z = np.broadcast_to(np.eye(4), (len(cal.centres), 4, 4)).copy()
+        Z[:, :3, 3] = cal.centres
+        p = [np.array([predicted_target2cam(cal.X, z, f[None], cal.setup)[0, :3, 3] for z in Z]) for f in F]
+        short = (cal.depth_scale - 1.0) * (cal.radii if cal.radii is not None else np.zeros(len(cal.centres)))
+        return [q * (cal.depth_scale + cal.depth_bias / q[:, 2:3]) - short[:, None] * q / np.linalg.norm(q, axis=1,
+                                                                                                         keepdims=True)
+                for q in p]
+    T = predicted_target2cam(cal.X, cal.Z, F, cal.setup)
+    p = [o @ t[:3, :3].T + t[:3, 3] for o, t in zip(object_points or [], T)]
+    return [q * (cal.depth_scale + cal.depth_bias / q[:, 2:3]) for q in p]
+
+
+def _rms_mm(predicted: list, measured: list) -> float:
+    d = np.concatenate([(p - m)[np.isfinite(m).all(axis=1)] for p, m in zip(predicted, measured)])
+    return float(1e3 * np.sqrt(np.mean(np.sum(d**2, axis=1))))
+
+
+def _heldout(s: DepthSession, v: _Views, keep: list[int], fit_depth: bool) -> float | None:
+    """k-fold over the views: each fold's points predicted from its robot poses by the fit to the others."""
+    if len(keep) < 6:
+        return None
+    folds = np.array_split(np.array(keep), min(FOLDS, len(keep) // 2))
+    predicted, measured = [], []
+    for fold in folds:
+        rest = [i for i in keep if i not in set(fold.tolist())]
+        try:
+            cal = _fit(s, v, rest, fit_depth, None, uncertainty=False)
+        except HandEyeError:  # the others alone do not determine X: no prediction for this fold
+            continue
+        F = s.flange2base[[v.index[i] for i in fold]]
+        predicted += predict_points(cal, F, None if s.kind == "spheres" else [v.object_points[i] for i in fold])
+        measured += [v.points[i] for i in fold]
+    return _rms_mm(predicted, measured) if predicted else None
+
+
+def _outliers(cal: DepthCalibration, keep: list[int]) -> list[int]:
+    r = cal.residuals_mm
+    if r is None or len(keep) < 6:
+        return []
+    bad = (r > OUTLIER_FACTOR * np.median(r)) & (r > 1.0)
+    return [keep[i] for i in np.nonzero(bad)[0]] if bad.sum() <= len(keep) // 3 else []
+
+
+def _verdict(cal: DepthCalibration, heldout: float | None, fit_mm: float, n_outliers: int, n: int) -> tuple[str, list[str]]:
+    advice = list(cal.notes)
+    rot, mm = 3 * float(np.linalg.norm(cal.std[:3])), 3 * float(np.linalg.norm(cal.std[3:]))
+    if heldout is not None and heldout > 4 * max(fit_mm, 0.1):
+        return "inconsistent", advice + [
+            f"held-out views are predicted {heldout:.2f} mm (RMS) off, {heldout / fit_mm:.1f}x the fit's {fit_mm:.2f} mm: "
+            "the robot poses and the clouds disagree (the setup, the pose format or unit, a target that moved, or "
+            "the clouds' and poses' order)"]
+    if n_outliers > n // 3:
+        return "inconsistent", advice + [f"{n_outliers} of {n} views are not explained by the fit"]
+    if rot > ACCEPT_DEG or mm > ACCEPT_MM:
+        return "weak", advice + [f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg: "
+                                 "take more views (10-20) with rotations of 30 deg or more about varied axes"]
+    return "good", advice
+
+
+def calibrate_depth_session(folder: str | Path | DepthSession, fit_depth: bool = True,
+                            robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
+                            progress: bool = False, jobs: int | None = None) -> DepthResult:
+    """Calibrate a depth session (:func:`load_depth_session`): measure every view, fit X with the
+    depth scale and bias, leave out views the fit does not explain, cross-validate, judge.
+    ``jobs``: detection threads for a board's intensity images (default: the cores).
+
+    Raises
+    ------
+    SessionError, InputMismatchError
+        A bad session or cloud (another size than its image, no depth, mm given as m, another frame
+        than the image's), naming the file.
+    DegenerateMotionError
+        Fewer than 3 views measured, or views that cannot determine X; says what to capture.
+    """
+    s = folder if isinstance(folder, DepthSession) else load_depth_session(folder)
+    notes = list(s.notes)
+    v = _measure_spheres(s, progress) if s.kind == "spheres" else _measure_boards(s, progress, notes, jobs)
+    if len(v.index) < 3:
+        raise DegenerateMotionError(
+            f"{len(v.index)} of {len(s.names)} views measured ({'; '.join(f'{n}: {r}' for n, r in v.skipped[:5])}): "
+            "at least 3 are needed, 10-20 with the flange turned 30 deg or more about varied axes to trust X")
+    keep = list(range(len(v.index)))
+    skipped = list(v.skipped)
+    cal = _fit(s, v, keep, fit_depth, robot_accuracy)
+    bad = _outliers(cal, keep)
+    if bad:
+        med = float(np.median(cal.residuals_mm))
+        for i in bad:
+            skipped.append((s.names[v.index[i]], f"the fit does not explain this view: {cal.residuals_mm[keep.index(i)]:.2f} "
+                                                 f"mm RMS against the median view's {med:.2f} mm (a wrong detection, a "
+                                                 "target that moved, or a wrong robot pose)"))
+        keep = [i for i in keep if i not in bad]
+        cal = _fit(s, v, keep, fit_depth, robot_accuracy)
+    F = s.flange2base[[v.index[i] for i in keep]]
+    fit_mm = _rms_mm(predict_points(cal, F, None if s.kind == "spheres" else [v.object_points[i] for i in keep]),
+                     [v.points[i] for i in keep])
+    heldout = _heldout(s, v, keep, fit_depth)
+    verdict, advice = _verdict(cal, heldout, fit_mm, len(bad), len(v.index))
+    distances = np.array([v.distance[i] for i in keep])
+    if s.working_range is not None:
+        lo, hi = s.working_range
+        out = [f"{s.names[v.index[i]]} ({d:.2f} m)" for i, d in zip(keep, distances) if not lo <= d <= hi]
+        if out:
+            advice.append(f"{len(out)} view(s) outside the camera's stated range {lo:g}-{hi:g} m: {', '.join(out[:5])}; "
+                          "depth is least accurate there: capture within the range")
+    if skipped:
+        advice.append(f"{len(skipped)} view(s) left out: " + "; ".join(f"{n}: {r}" for n, r in skipped[:5]))
+    return DepthResult(s, cal, verdict, advice, [s.names[v.index[i]] for i in keep], skipped, distances, heldout,
+                       fit_mm, notes)
