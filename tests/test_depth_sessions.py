@@ -98,7 +98,7 @@ def test_a_sphere_session_through_the_command_line(tmp_path, capsys, spheres):
     """calibrate on a sphere session folder (clouds in mm): exit 0, the verdict good, X and the
     scale in result.yaml as in the library, the view beyond the stated range named, held-out views
     predicted within 0.2 mm; the same from a session where one cloud is another view's (the fit
-    leaves it out, naming it)."""
+    leaves it out, naming it, and check says so)."""
     folder = _session(tmp_path, spheres, unit="mm", working_range=(0.3, 0.9))
     assert main(["calibrate", str(folder), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
     result = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
@@ -110,17 +110,17 @@ def test_a_sphere_session_through_the_command_line(tmp_path, capsys, spheres):
         np.any(np.linalg.norm(spheres.target2cam[:, :3, 3], axis=1) > 0.9))
     assert json.loads((tmp_path / "out" / "result.json").read_text())["depth"]["scale"] == result["depth"]["scale"]
     assert "report.html" in {p.name for p in (tmp_path / "out").iterdir()}
-    assert main(["check", str(folder), "--no-progress"]) == 0  # check gives calibrate's verdict
-    assert "verdict: good" in capsys.readouterr().out
     # options of image sessions are refused, not dropped
     assert main(["calibrate", str(folder), "--method", "tsai_lenz", "--export", "all", "--no-progress"]) != 0
     assert "--method, --export apply to image sessions only" in capsys.readouterr().err
-    # a cloud swapped for another view's: left out with the reason, X still right
+    # a cloud swapped for another view's: check (calibrate's verdict) leaves it out with the reason
     swapped = tmp_path / "session" / "clouds"
     (swapped / "view03.npy").write_bytes((swapped / "view09.npy").read_bytes())
-    r = calibrate_depth_session(folder)
-    assert [n for n, _ in r.skipped] == ["view03.npy"] and "does not explain" in r.skipped[0][1]
-    assert 1e3 * translation_error(r.calibration.X, spheres.X) < 0.5
+    capsys.readouterr()
+    assert main(["check", str(folder), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"view03.npy +left out: the fit does not explain this view", out) and "verdict: good" in out
+    assert "14 of 15 views used" in out
 
 
 def test_a_board_session_with_rendered_images(tmp_path):
@@ -198,4 +198,20 @@ def test_a_depth_session_needs_its_files(tmp_path):
     text = (folder / "poses.csv").read_text().replace("cloud,", "name,", 1)
     (folder / "poses.csv").write_text(text)
     with pytest.raises(Exception, match=r"poses.csv: header \['name', .* does not match"):
+        load_depth_session(folder)
+
+
+def test_bad_robot_poses_in_a_depth_session_name_the_table(tmp_path):
+    """A pose table with a NaN, and a session.yaml without the poses' length unit: refused, naming the file."""
+    folder = _session(tmp_path, sphere_scene(3, "eye_to_hand", 1))
+    lines = (folder / "poses.csv").read_text().splitlines()
+    cells = lines[2].split(",")
+    cells[3] = "nan"
+    (folder / "poses.csv").write_text("\n".join(lines[:2] + [",".join(cells)] + lines[3:]) + "\n")
+    with pytest.raises(Exception, match=r"poses.csv"):
+        load_depth_session(folder)
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    del spec["poses"]["length_unit"]
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    with pytest.raises(Exception, match=r"session.yaml: poses must be a mapping with file, format, length_unit"):
         load_depth_session(folder)

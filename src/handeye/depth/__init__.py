@@ -18,13 +18,14 @@ from .clouds import (
     cloud_pinhole,
     depth_sigma,
     lift_points,
+    plane_points,
     read_cloud,
 )
 from .fit import DepthCalibration, calibrate_depth, calibrate_spheres
 from .session import DepthResult, DepthSession, calibrate_depth_session, is_depth_session, load_depth_session, predict_points
 from .spheres import Sphere, find_spheres, fit_sphere
 
-__all__ = ["read_cloud", "check_cloud", "check_frame", "cloud_pinhole", "lift_points", "board_pose", "depth_sigma",
+__all__ = ["read_cloud", "check_cloud", "check_frame", "cloud_pinhole", "lift_points", "plane_points", "board_pose", "depth_sigma",
            "DepthCalibration", "calibrate_depth", "calibrate_spheres", "Sphere", "fit_sphere", "find_spheres",
            "DepthSession", "DepthResult", "is_depth_session", "load_depth_session", "calibrate_depth_session", "predict_points",
            "MAX_DEPTH_M", "EDGE_JUMP", "FRAME_TOLERANCE_PX", "CLOUD_SUFFIXES"]

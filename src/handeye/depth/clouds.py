@@ -15,6 +15,8 @@ check_frame
     Whether a cloud is in the frame of the image whose intrinsics are given (depth vs colour frame).
 lift_points
     Image points' 3D points from an organized cloud (bilinear, refusing depth edges and holes).
+plane_points
+    A flat target's points where their rays meet its plane, fitted to the cloud (noise averaged).
 board_pose
     A board's pose from its lifted corners (a weighted rigid fit) and its flatness.
 depth_sigma
@@ -29,11 +31,14 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from .._shared.lazy import lazy_module
 from ..errors import InputMismatchError, SessionError
 from ..geometry.se3 import make_transform
 from ..vision.pnp import project_points
 
-__all__ = ["read_cloud", "check_cloud", "cloud_pinhole", "check_frame", "lift_points", "board_pose", "depth_sigma",
+cv2 = lazy_module("cv2")
+
+__all__ = ["plane_points", "read_cloud", "check_cloud", "cloud_pinhole", "check_frame", "lift_points", "board_pose", "depth_sigma",
            "MAX_DEPTH_M", "EDGE_JUMP", "FRAME_TOLERANCE_PX", "CLOUD_SUFFIXES"]
 
 #: A depth beyond this many metres is no depth camera's working range: a cloud whose median depth
@@ -100,6 +105,61 @@ def lift_points(cloud: NDArray[np.float64], image_points: NDArray[np.float64]) -
     points = ((1 - fu) * (1 - fv) * corners[:, 0] + fu * (1 - fv) * corners[:, 1]
               + (1 - fu) * fv * corners[:, 2] + fu * fv * corners[:, 3])
     return np.where(ok[:, None], points, np.nan), ok
+
+
+def _directions(cloud: NDArray[np.float64], image_points: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Unit rays (M, 3) of ``image_points`` from the cloud itself: a point's direction does not
+    depend on its depth (noise along the ray, flying pixels), so the four pixels around each give
+    it bilinearly, lens distortion included; where one of them has no depth, the cloud's pinhole."""
+    h, w = cloud.shape[:2]
+    uv = np.asarray(image_points, dtype=float).reshape(-1, 2)
+    u0 = np.clip(np.floor(uv[:, 0]).astype(int), 0, w - 2)
+    v0 = np.clip(np.floor(uv[:, 1]).astype(int), 0, h - 2)
+    fu, fv = (uv[:, 0] - u0)[:, None], (uv[:, 1] - v0)[:, None]
+    four = np.stack([cloud[v0, u0], cloud[v0, u0 + 1], cloud[v0 + 1, u0], cloud[v0 + 1, u0 + 1]], axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        four = four / np.linalg.norm(four, axis=2, keepdims=True)
+    d = ((1 - fu) * (1 - fv) * four[:, 0] + fu * (1 - fv) * four[:, 1] + (1 - fu) * fv * four[:, 2]
+         + fu * fv * four[:, 3])
+    bad = ~np.isfinite(d).all(axis=1)
+    if bad.any():
+        (fx, fy, cx, cy), _ = cloud_pinhole(cloud)
+        d[bad] = np.c_[(uv[bad, 0] - cx) / fx, (uv[bad, 1] - cy) / fy, np.ones(int(bad.sum()))]
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def plane_points(cloud: NDArray[np.float64], image_points: NDArray[np.float64], where: str = "cloud"
+                 ) -> tuple[NDArray[np.float64], float, int]:
+    """The 3D points of a flat target's ``image_points``: where their rays meet the target's plane,
+    fitted to every point of the cloud inside the points' outline (thousands of points against
+    four per corner for :func:`lift_points`: the depth noise averages out).
+
+    The plane is fitted by weighted total least squares (weights from :func:`depth_sigma`), points
+    beyond 3.5 robust std of it left out and the fit repeated. Returns the points (M, 3), the RMS
+    distance of the cloud from the plane (m) and the number of points fitted.
+    """
+    h, w = cloud.shape[:2]
+    uv = np.asarray(image_points, dtype=np.float64).reshape(-1, 2)
+    hull = cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2)
+    mask = np.zeros((h, w), dtype=np.uint8)
+    cv2.fillConvexPoly(mask, np.rint(hull).astype(np.int32), 1)
+    inside = mask.astype(bool) & np.isfinite(cloud).all(axis=2) & (cloud[..., 2] > 0)
+    q = cloud[inside]
+    if len(q) < 20:
+        raise InputMismatchError(f"{where}: only {len(q)} points with depth on the target: the cloud has no depth there")
+    keep = np.ones(len(q), dtype=bool)
+    for _ in range(3):
+        wgt = 1.0 / np.square(depth_sigma(q[keep, 2]))
+        centre = (wgt @ q[keep]) / wgt.sum()
+        normal = np.linalg.svd((q[keep] - centre) * np.sqrt(wgt)[:, None], full_matrices=False)[2][2]
+        dist = (q - centre) @ normal
+        scale = 1.4826 * np.median(np.abs(dist[keep] / depth_sigma(q[keep, 2])))
+        keep = np.abs(dist) <= 3.5 * scale * depth_sigma(q[:, 2])
+    rays = _directions(cloud, uv)
+    with np.errstate(divide="ignore"):
+        t = (centre @ normal) / (rays @ normal)
+    rms = float(np.sqrt(np.mean(dist[keep] ** 2)))
+    return rays * t[:, None], rms, int(keep.sum())
 
 
 def board_pose(object_points: NDArray[np.float64], points: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:

@@ -13,7 +13,9 @@ A depth session is a session folder (docs/guide.md, "Depth cameras") whose ``ses
 
 ``poses.csv``'s first column is ``image`` (a board: the intensity image in ``images/``, its cloud
 the file of the same stem in ``clouds/``: .npy, .ply or .pcd) or ``cloud`` (spheres: the cloud
-file in ``clouds/``). :func:`calibrate_depth_session` measures every view (a view that cannot be
+file in ``clouds/``). :func:`calibrate_depth_session` measures every view (a board's corners where
+their rays meet its plane fitted to the cloud, :func:`~handeye.depth.plane_points`; a sphere's
+centre, :func:`~handeye.depth.find_spheres`; a view that cannot be
 measured is skipped with its reason, never silently), fits X with the depth scale and bias,
 leaves out views the fit does not explain (named), cross-validates on held-out views (3D error
 at the target, mm) and gives the verdict.
@@ -29,14 +31,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.progress import Progress
-from ..errors import DegenerateMotionError, HandEyeError, SessionError
+from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError, SessionError
 from ..options import ROBOT_ACCURACY
 from ..poses import parse_poses
 from ..session import SESSION_FILE, load_yaml, read_camera, read_pose_table
 from ..setups import check_setup, predicted_target2cam, setup_info
 from ..verdict import ACCEPT_DEG, ACCEPT_MM
 from ..vision import detect_images, target_from_spec
-from .clouds import CLOUD_SUFFIXES, check_frame, lift_points, read_cloud
+from .clouds import CLOUD_SUFFIXES, check_frame, plane_points, read_cloud
 from .fit import DepthCalibration, calibrate_depth, calibrate_spheres
 from .spheres import find_spheres
 
@@ -152,8 +154,9 @@ def load_depth_session(folder: str | Path) -> DepthSession:
     unit, working = _depth_spec(spec["depth"], where)
     K, dist = read_camera(spec.get("camera"), where)
     poses = spec.get("poses")
-    if not isinstance(poses, dict) or "file" not in poses or "format" not in poses:
-        raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit, angle_unit")
+    if not isinstance(poses, dict) or not {"file", "format", "length_unit"} <= set(poses):
+        raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit (m | mm) and angle_unit "
+                           "(deg | rad)")
     table = folder / str(poses["file"])
     if not table.is_file():
         raise SessionError(f"{table}: no such pose table")
@@ -162,8 +165,8 @@ def load_depth_session(folder: str | Path) -> DepthSession:
     if names is None:
         raise SessionError(f"{table}: the first column must be 'image' (a board: its intensity image in images/, the "
                            "cloud of the same name in clouds/) or 'cloud' (spheres: the cloud in clouds/)")
-    f2b = parse_poses(values, fmt, length_unit=str(poses.get("length_unit", "m")),
-                      angle_unit=str(poses.get("angle_unit", "rad")))
+    f2b = parse_poses(values, fmt, length_unit=str(poses["length_unit"]), angle_unit=str(poses.get("angle_unit", "rad")),
+                      what=str(table))
     clouds = [_cloud_of(folder, n, table) for n in names]
     images = None
     if radii is None:
@@ -234,15 +237,15 @@ def _measure_boards(s: DepthSession, progress: bool, notes: list[str], jobs: int
         cloud = read_cloud(s.cloud_paths[k], res.image_size, s.unit)
         if s.K is not None:
             frames.append(check_frame(cloud, s.K, s.dist, where=str(s.cloud_paths[k])))
-        lifted, ok = lift_points(cloud, res.detection.image_points)
-        if ok.sum() < 4:
-            out.skipped.append((s.names[k], f"only {int(ok.sum())} of the target's {len(ok)} points have a depth in "
-                                            f"{s.cloud_paths[k].name} (holes or edges under the corners)"))
+        try:  # where the corners' rays meet the board's plane, fitted to the cloud
+            points, _, _ = plane_points(cloud, res.detection.image_points, where=str(s.cloud_paths[k]))
+        except InputMismatchError as exc:
+            out.skipped.append((s.names[k], str(exc)))
             continue
         out.index.append(k)
         out.object_points.append(res.detection.object_points)
-        out.points.append(lifted)
-        out.distance.append(float(np.median(lifted[ok, 2])))
+        out.points.append(points)
+        out.distance.append(float(np.median(points[:, 2])))
     if frames:
         notes.append(f"clouds in the image's frame: their points project {max(frames):.2f} px (RMS, worst view) from "
                      "their pixels with the given intrinsics")
