@@ -95,7 +95,7 @@ def register(sub) -> None:
     r.add_argument("--every", type=whole_arg(1), default=1, help="keep every n-th image (default 1)")
     r.add_argument("--joint-topic", help="instead of the robot's poses: a JointState topic (/joint_states), each image's "
                    "joint angles interpolated at its stamp into joints.csv; calibrate then fits the arm's table with X")
-    r.add_argument("--arm", help="with --joint-topic: the arm (ur5, ur5e, ur3e, ur10e, panda), or a DH table (.yaml) or "
+    r.add_argument("--arm", help="with --joint-topic: the arm (a shipped one: handeye.kinematics.arm_names()), or a DH table (.yaml) or "
                    "URDF file you put in the session folder")
     for kind, when in (("rosbag", "needed with --image-topic"),
                        ("visp", "for folders without chessboard-/apriltag-data.txt")):
