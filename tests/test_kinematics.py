@@ -479,3 +479,26 @@ def test_the_cb3_universal_robots_tables():
                                            "ur10": (0.1273, -0.612, -0.5723, 0.163941, 0.1157, 0.0922)}.items():
         T = load_arm(name).forward(np.zeros((1, 6)))[0]
         assert np.allclose(T[:3, 3], [a2 + a3, -(d4 + d6), d1 - d5], atol=1e-12), (name, T[:3, 3])
+
+
+def test_plan_proposes_the_next_joint_views_of_a_session(tmp_path, capsys):
+    """``handeye plan --session``: a UR5 joint session whose fourth joint never moved gets joint
+    configurations (degrees, the arm's joint names) that the fit predicts determine what it could
+    not; a session of robot poses only is refused with what to do instead."""
+    chain = load_arm("ur5")
+    still = replace(chain, spread=chain.spread * np.array([1, 1, 1, 0, 1, 1]))
+    simulate_kinematic_session(tmp_path / "s", 14, "eye_in_hand", 3, arm=still, image_size=(640, 480))
+    out = tmp_path / "next.csv"
+    assert main(["plan", "--session", str(tmp_path / "s"), "--out", str(out), "--poses", "4"]) == 0
+    rows = out.read_text().splitlines()
+    assert rows[0] == "view," + ",".join(chain.joint_names) and len(rows) == 5
+    q = np.radians(np.array([[float(v) for v in r.split(",")[1:]] for r in rows[1:]]))
+    assert ((q > chain.limits[:, 0]) & (q < chain.limits[:, 1])).all()
+    assert "joint4.theta" in capsys.readouterr().out
+    assert main(["plan", "--session", str(tmp_path / "s"), "--out", str(out)]) != 0  # never over a file
+    spec = yaml.safe_load((tmp_path / "s" / "session.yaml").read_text())
+    del spec["joints"]
+    (tmp_path / "poses_only").mkdir()
+    (tmp_path / "poses_only" / "session.yaml").write_text(yaml.safe_dump(spec))
+    assert main(["plan", "--session", str(tmp_path / "poses_only"), "--out", str(tmp_path / "n2.csv")]) != 0
+    assert "this one has none (robot poses only?)" in capsys.readouterr().err

@@ -25,7 +25,7 @@ from ._shared.io import atomic_write, check_output_folder
 from ._shared.lazy import lazy_module
 from .errors import HandEyeError, InputMismatchError
 from .geometry.se3 import invert, make_transform, perturb, random_rotations
-from .kinematics import Chain, absorbed_parameters, load_arm
+from .kinematics import Chain, absorbed_parameters, arm_names, load_arm
 from .session import write_joint_session, write_pose_table, write_session, write_stream_session
 from .setups import check_setup, flange_poses, predicted_target2cam, setup_info
 from .vision.pnp import project_points
@@ -804,7 +804,7 @@ def simulate_kinematic_session(
     n_poses: int = 30,
     setup: str = "eye_in_hand",
     seed: int | None = None,
-    arm: str = "ur5",
+    arm: str | Chain = "ur5",
     controller_poses: bool = True,
     target: str | dict = "chessboard",
     image_size: tuple[int, int] = (1280, 1024),
@@ -814,7 +814,12 @@ def simulate_kinematic_session(
     reports in ``joints.csv`` (degrees; ``session.yaml``'s ``joints:`` block names ``arm``), and
     (``controller_poses``) the flange poses its nominal kinematics give in ``poses.csv``;
     ``ground_truth.yaml`` holds X, Z and the arm's true table. ``errors``: :func:`kinematic_scene`'s
-    ``length_mm``, ``angle_deg``, ``pixel_px``, ``joint_noise_deg``. Returns the scene."""
+    ``length_mm``, ``angle_deg``, ``pixel_px``, ``joint_noise_deg``. ``arm``: a shipped arm's name,
+    or a chain named so whose ``home`` / ``spread`` steer the captures (e.g. a joint held still).
+    Returns the scene."""
+    name = arm if isinstance(arm, str) else arm.name.lower()
+    if name.lower() not in arm_names():
+        raise InputMismatchError(f"arm {name!r}: a session names a shipped arm ({', '.join(arm_names())})")
     out = _new_session_folder(out_dir)
     sc = kinematic_scene(n_poses, setup, seed, arm=arm, target=target, image_size=image_size, **errors)
     spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
@@ -822,7 +827,7 @@ def simulate_kinematic_session(
     texture = target_texture(target_from_spec(spec))
     rng = np.random.default_rng(None if seed is None else [seed, 1])
     names = _write_images(out, renderer, texture, sc.target2cam_true, rng, errors.get("pixel_px", 0.2))
-    write_joint_session(out, setup, spec, names, sc.joints, arm, sc.flange2base if controller_poses else None,
+    write_joint_session(out, setup, spec, names, sc.joints, name, sc.flange2base if controller_poses else None,
                         camera=(sc.K, sc.dist), comment=f"Rendered by handeye's kinematic simulator ({sc.chain.name} off its "
                         "nominal table); ground truth in ground_truth.yaml")
     _write_truth(out, setup, sc.X, sc.Z, sc.K, sc.dist, seed, arm=sc.chain.name, table_true=sc.chain_true.table.tolist(),

@@ -143,3 +143,17 @@ def print_depth_result(r: DepthResult) -> None:
     print(f"verdict: {r.verdict}")
     for line in r.advice:
         print(f"  - {line}")
+
+
+def print_next_views(cal: Calibration, views) -> str:
+    """Print the proposed joint configurations (``handeye.joint_planning.JointViews``) and return
+    them as next_views.csv's text (a view column, then one column per joint, degrees)."""
+    k = cal.kinematic
+    names = list(k.nominal.joint_names or [f"joint{j + 1}" for j in range(k.nominal.n_joints)])
+    text = "view," + ",".join(names) + "\n" + "".join(
+        f"{i + 1}," + ",".join(f"{v:.3f}" for v in np.degrees(row)) + "\n" for i, row in enumerate(views.joints))
+    print(f"next views: {len(views.joints)} joint configurations (degrees) where the camera sees the target and "
+          f"{', '.join(views.determined_after) or 'none of the undetermined entries'} would be determined (posterior "
+          "std under half the prior's, predicted):")
+    print(text.rstrip())
+    return text

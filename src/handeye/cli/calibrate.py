@@ -28,7 +28,7 @@ from ._common import (
     write_options,
     write_outputs,
 )
-from ._printing import fmt_vec, print_calibration, print_depth_result, print_image_summary
+from ._printing import fmt_vec, print_calibration, print_depth_result, print_image_summary, print_next_views
 
 
 def _cmd_calibrate_many(args: argparse.Namespace) -> int:
@@ -112,13 +112,7 @@ def _suggest_views(cal, out: str | None) -> None:
         return
     if not len(views.joints):
         return
-    names = list(k.nominal.joint_names or [f"joint{j + 1}" for j in range(k.nominal.n_joints)])
-    text = "view," + ",".join(names) + "\n" + "".join(
-        f"{i + 1}," + ",".join(f"{v:.3f}" for v in np.degrees(row)) + "\n" for i, row in enumerate(views.joints))
-    print(f"next views: {len(views.joints)} joint configurations (degrees) where the camera sees the target and "
-          f"{', '.join(views.determined_after) or 'none of the undetermined entries'} would be determined (posterior "
-          "std under half the prior's, predicted):")
-    print(text.rstrip())
+    text = print_next_views(cal, views)
     if out:
         path = Path(out) / "next_views.csv"
         atomic_write(path, text, list(cal.image_paths or []))

@@ -8,8 +8,11 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .._shared.io import atomic_write
+from ..checking import calibrate_session
 from ..errors import HandEyeError
-from ..options import ROBOT_ACCURACY
+from ..joint_planning import suggest_joint_views
+from ..options import ROBOT_ACCURACY, CalibrationOptions
 from ..planning import (
     ROBOTS,
     easy_handeye_poses,
@@ -22,7 +25,7 @@ from ..planning import (
     write_plan,
 )
 from ..poses import pose_columns
-from ..session import load_yaml
+from ..session import SESSION_FILE, load_yaml
 from ..setups import SETUPS, predicted_target2cam, setup_info
 from ..simulate import DEFAULT_TARGETS
 from ..vision.targets import target_from_spec
@@ -36,10 +39,47 @@ from ._common import (
     placements,
     whole_arg,
 )
-from ._printing import fmt_vec
+from ._printing import fmt_vec, print_next_views
+
+
+def _plan_next_views(args: argparse.Namespace) -> int:
+    """--session: the next joint configurations of a joint session, so that the entries of the arm's
+    table its capture left undetermined become determined (calibrate prints the same after its fit)."""
+    session = Path(args.session)
+    out = _new_file(args.out)
+    out_folder(str(out.parent), [session])
+    if not (session / SESSION_FILE).is_file() or load_yaml(session / SESSION_FILE).get("joints") is None:
+        raise HandEyeError(f"{session}: plan --session proposes the next joint configurations of a session with joint "
+                           "angles (a joints: table in session.yaml); this one has none (robot poses only?): plan a new "
+                           "capture with --intrinsics and --standoff instead")
+    cal = calibrate_session(session, CalibrationOptions(), progress=True)
+    views = suggest_joint_views(cal, n_views=args.poses or 5, rng=args.seed)
+    if not len(views.joints):
+        print("next views: none to propose: " + ("the capture determines every entry of the arm's table that views can "
+                                                 "determine" if not views.targets else
+                                                 "no candidate configuration sees the whole target"))
+        return 0
+    text = print_next_views(cal, views)
+    atomic_write(out, text, list(cal.image_paths or []))
+    print(f"wrote {out}: capture these joint configurations (degrees), add them to {session}, and calibrate again")
+    return 0
+
+
+def _new_file(path: str) -> Path:
+    out = Path(path)
+    if out.is_dir():
+        raise HandEyeError(f"--out {out} is a folder; give the file to write, e.g. {out / 'poses.csv'}")
+    if out.exists():
+        raise HandEyeError(f"--out {out} exists (it may be a session's recorded poses); give a new file name")
+    return out
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
+    if args.session:
+        return _plan_next_views(args)
+    if args.intrinsics is None or args.standoff is None:
+        raise HandEyeError("plan needs --intrinsics and --standoff for a new capture (or --session SESSION for the next "
+                           "views of a joint session)")
     pose_columns(args.format)  # a clear error for an unknown format before any work
     if args.length_unit not in ("m", "mm") or args.angle_unit not in ("deg", "rad"):
         raise HandEyeError("--length-unit must be m or mm, --angle-unit deg or rad")
@@ -54,14 +94,10 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     obj = target_from_spec(spec).object_points()
     X, Z = placements(args)
     box = floats_arg(args.reach_box, "--reach-box", (6,))
-    out = Path(args.out)
-    if out.is_dir():
-        raise HandEyeError(f"--out {out} is a folder; give the file to write, e.g. {out / 'poses.csv'}")
-    if out.exists():
-        raise HandEyeError(f"--out {out} exists (it may be a session's recorded poses); give a new file name")
+    out = _new_file(args.out)
     out_folder(str(out.parent))  # a folder that can take the file, before the planning
     z_range = floats_arg(args.z_range, "--z-range", (2,))
-    plan = plan_poses(args.setup, X, Z, obj, K, size, dist, n_poses=args.poses, standoff=args.standoff,
+    plan = plan_poses(args.setup, X, Z, obj, K, size, dist, n_poses=args.poses or 12, standoff=args.standoff,
                       tilt_max_deg=args.tilt_max, margin_px=args.margin_px, reach_box=box, noise_px=args.noise_px,
                       robot=args.robot, z_range=None if z_range is None else tuple(z_range.tolist()),
                       robot_accuracy=accuracy_arg(args.robot_accuracy))
@@ -138,13 +174,13 @@ def register(sub) -> None:
         "rotations as rotation vectors in degrees.",
     )
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
-    p.add_argument("--intrinsics", required=True,
+    p.add_argument("--intrinsics",
                    help="YAML with K, dist (optional) and image_size [width, height], top level or under camera:")
     p.add_argument("--target", default="chessboard", choices=list(DEFAULT_TARGETS),
                    help="built-in target (the one 'handeye simulate' renders); see --target-spec")
     p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (e.g. your session.yaml)")
     add_placements(p)
-    p.add_argument("--standoff", type=number_arg(0.0, above=True), required=True,
+    p.add_argument("--standoff", type=number_arg(0.0, above=True),
                    help="camera-to-target distance (m) of the middle views; the plan spreads them over 0.8-1.25x it")
     p.add_argument("--tilt-max", type=number_arg(0.0, 89.0), default=45.0,
                    help="largest view angle from the target normal (deg, default 45)")
@@ -154,7 +190,10 @@ def register(sub) -> None:
                    help="arm (default): views all around; scara: the flange points down and turns about the vertical "
                    "only; cartesian: it only translates (both leave part of X to --known at calibration)")
     p.add_argument("--z-range", metavar="ZMIN,ZMAX", help="heights the flange can reach (m, base frame; a SCARA's stroke)")
-    p.add_argument("--poses", type=whole_arg(3), default=12, help="number of poses (default 12)")
+    p.add_argument("--poses", type=whole_arg(3), default=None,
+                   help="number of poses (default 12; with --session, of next views: default 5)")
+    p.add_argument("--session", help="a joint session already captured: propose the next joint configurations that "
+                   "determine the entries of the arm's table it left undetermined (written to --out as CSV, degrees)")
     p.add_argument("--noise-px", type=number_arg(0.0, above=True), default=0.3, help="pixel noise for the predicted std (default 0.3)")
     p.add_argument("--robot-accuracy", metavar="DEG,MM",
                    help=f"the robot's absolute accuracy per axis, added to the predicted std as calibrate adds it "
