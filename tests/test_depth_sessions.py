@@ -67,11 +67,13 @@ def test_two_spheres_told_apart_by_their_diameters():
 
 @pytest.mark.parametrize("setup", ["eye_to_hand", "eye_in_hand"])
 def test_x_from_a_sphere_without_any_board(setup, spheres):
-    """The issue's bar on one session per setup: X within 0.5 mm / 0.2 deg of the truth and within
-    3 std (the data's: the simulated robot is exact), the depth scale within 3 std of 1.002."""
-    sc = spheres if setup == "eye_to_hand" else sphere_scene(15, setup, 5)
-    found = [fit_sphere(c, sc.radius, k) for k, c in enumerate(sc.clouds)]
-    cal = calibrate_spheres(sc.flange2base, np.array([f.centre for f in found]), setup,
+    """The issue's bar on one session per setup (10 views: the suite's time; the benchmark has 15):
+    X within 0.5 mm / 0.2 deg of the truth and within 3 std (the data's: the simulated robot is
+    exact), the depth scale within 3 std of 1.002."""
+    sc = spheres if setup == "eye_to_hand" else sphere_scene(10, setup, 5)
+    n = 10
+    found = [fit_sphere(c, sc.radius, k) for k, c in enumerate(sc.clouds[:n])]
+    cal = calibrate_spheres(sc.flange2base[:n], np.array([f.centre for f in found]), setup,
                             np.array([f.cov for f in found]), radii=[sc.radius])
     rot, trans = np.degrees(rotation_error(cal.X, sc.X)), 1e3 * translation_error(cal.X, sc.X)
     assert rot < 0.2 and trans < 0.5, (rot, trans)

@@ -154,7 +154,10 @@ def plane_points(cloud: NDArray[np.float64], image_points: NDArray[np.float64], 
         normal = np.linalg.svd((q[keep] - centre) * np.sqrt(wgt)[:, None], full_matrices=False)[2][2]
         dist = (q - centre) @ normal
         scale = 1.4826 * np.median(np.abs(dist[keep] / depth_sigma(q[keep, 2])))
-        keep = np.abs(dist) <= 3.5 * scale * depth_sigma(q[:, 2])
+        keep = np.abs(dist) <= np.maximum(3.5 * scale * depth_sigma(q[:, 2]), 1e-9)
+        if keep.sum() < 20:
+            raise InputMismatchError(f"{where}: the points on the target do not lie on a plane (fewer than 20 within "
+                                     "3.5 std of the best one): is the target flat and in view?")
     rays = _directions(cloud, uv)
     with np.errstate(divide="ignore"):
         t = (centre @ normal) / (rays @ normal)

@@ -168,8 +168,8 @@ def calibrate_depth(flange2base: NDArray[np.float64], object_points: list[NDArra
     object_points : list of N arrays (M_i, 3)
         The corners in the target's frame (metres).
     points : list of N arrays (M_i, 3)
-        The same corners measured in the camera frame (:func:`~handeye.depth.lift_points`; NaN
-        rows: no depth).
+        The same corners measured in the camera frame (:func:`~handeye.depth.plane_points` for a
+        flat target, :func:`~handeye.depth.lift_points` for any; NaN rows: no depth).
     setup : {'eye_in_hand', 'eye_to_hand'}
     fit_depth : bool
         Estimate the depth scale and bias (else taken as 1 and 0).
