@@ -1160,28 +1160,48 @@ class SphereScene(Scene):
     depth_bias: float = 0.0
 
 
-def _sphere_image(K, size, centre, radius, plane_point, plane_normal):
-    """Per pixel the true point where its ray meets the sphere, else the background plane; and the
-    sphere's mask."""
+def _stem_depth(rays, start, axis, radius: float, length: float):
+    """Per ray, where it meets the side of a rod of ``radius`` from ``start`` along ``axis`` for
+    ``length`` (inf where it does not)."""
+    d_perp = rays - (rays @ axis)[..., None] * axis
+    w = -start
+    w_perp = w - (w @ axis) * axis
+    a = np.einsum("hwi,hwi->hw", d_perp, d_perp)
+    b = d_perp @ w_perp
+    c = w_perp @ w_perp - radius**2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = (-b - np.sqrt(b**2 - a * c)) / a
+        along = t * (rays @ axis) + w @ axis
+    return np.where((t > 0) & (along >= 0) & (along <= length), t, np.inf)
+
+
+def _sphere_image(K, size, centre, radius, plane_point, plane_normal, stem=None):
+    """Per pixel the true point where its ray meets the sphere (or the rod holding it, ``stem``:
+    its direction in the camera frame and radius), else the background plane; and the sphere's mask."""
     w, h = size
     u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
     rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], axis=-1)
     dd = np.einsum("hwi,hwi->hw", rays, rays)
     dc = rays @ centre
     disc = dc**2 - dd * (centre @ centre - radius**2)
-    sphere = disc > 0
     with np.errstate(invalid="ignore", divide="ignore"):
-        t_sphere = (dc - np.sqrt(np.where(sphere, disc, 0.0))) / dd
+        t_sphere = np.where(disc > 0, (dc - np.sqrt(np.where(disc > 0, disc, 0.0))) / dd, np.inf)
         t_plane = (plane_normal @ plane_point) / (rays @ plane_normal)
-    t = np.where(sphere, t_sphere, t_plane)
-    return rays * t[..., None], sphere
+    t_stem = np.full(t_sphere.shape, np.inf)
+    if stem is not None:
+        axis, stem_radius = stem
+        t_stem = _stem_depth(rays, centre + 0.8 * radius * axis, axis, stem_radius, 0.15)
+    sphere = t_sphere < t_stem
+    t = np.where(sphere & np.isfinite(t_sphere), t_sphere, np.where(np.isfinite(t_stem), t_stem, t_plane))
+    return rays * t[..., None], sphere & np.isfinite(t_sphere)
 
 
 def sphere_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Generator | int | None = None, *,
                  radius: float = 0.025, image_size: tuple[int, int] = (640, 480),
                  depth_noise: tuple[float, float] = (1e-4, 5e-4), depth_scale: float = 1.002,
                  depth_bias: float = 0.0, holes: float = 0.01, distance: tuple[float, float] = (0.5, 1.0),
-                 tilt_max_deg: float = 60.0, robot_error: tuple[float, float] | None = None) -> SphereScene:
+                 tilt_max_deg: float = 60.0, robot_error: tuple[float, float] | None = None,
+                 stem: float | None = None) -> SphereScene:
     """A depth camera's capture of a sphere of ``radius`` (m): on the flange in front of a fixed
     camera (eye-to-hand), or fixed in the cell and seen by the camera on the flange (eye-in-hand).
 
@@ -1189,7 +1209,8 @@ def sphere_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.G
     axis, the sphere anywhere in the middle two thirds of the image; behind it a tilted wall 0.2-0.4
     m further. Noise, scale, bias and holes as :func:`depth_scene`'s; the pixels on the sphere's
     outline are flying pixels (their depth half-way to the wall); ``robot_error`` as
-    :func:`depth_scene`'s.
+    :func:`depth_scene`'s. ``stem``: the ball sits on a rod of that radius (m), 0.15 m long, towards
+    the flange (eye-to-hand) or down to the table (eye-in-hand), which hides part of it from some views.
     """
     check_setup(setup)
     rng = np.random.default_rng(rng)
@@ -1201,13 +1222,20 @@ def sphere_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.G
     turn = Rotation.from_rotvec(np.c_[off[:, 1], -off[:, 0], np.zeros(n_views)]).as_matrix()
     cam2target[:, :3, :3] = cam2target[:, :3, :3] @ turn
     scene = scene_from_viewpoints(cam2target, setup, rng)
+    # the rod's direction in the target (ball) frame: down to the table, or to the flange's origin
+    if setup_info(setup).camera_on_flange:
+        stem_axis = scene.Z[:3, :3].T @ np.array([0.0, 0.0, -1.0])
+    else:
+        stem_axis = -scene.Z[:3, :3].T @ scene.Z[:3, 3]
+        stem_axis /= np.linalg.norm(stem_axis)
     clouds = []
     for T in scene.target2cam:
         centre = T[:3, 3]
         normal = -centre / np.linalg.norm(centre) + rng.normal(0.0, 0.3, 3)
         normal /= np.linalg.norm(normal)
         wall = centre * (1.0 + rng.uniform(0.2, 0.4) / np.linalg.norm(centre))
-        truth, sphere = _sphere_image(K, image_size, centre, radius, wall, normal)
+        rod = None if stem is None else (T[:3, :3] @ stem_axis, stem)
+        truth, sphere = _sphere_image(K, image_size, centre, radius, wall, normal, rod)
         z = truth[..., 2]
         noise = rng.normal(0.0, 1.0, z.shape) * (depth_noise[0] + depth_noise[1] * z**2)
         cloud = truth * ((depth_scale * z + depth_bias + noise) / z)[..., None]
