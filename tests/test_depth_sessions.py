@@ -217,3 +217,15 @@ def test_bad_robot_poses_in_a_depth_session_name_the_table(tmp_path):
     (folder / "session.yaml").write_text(yaml.safe_dump(spec))
     with pytest.raises(Exception, match=r"session.yaml: poses must be a mapping with file, format, length_unit"):
         load_depth_session(folder)
+
+
+def test_robot_poses_in_the_wrong_order_are_called_inconsistent(tmp_path, spheres):
+    """The clouds paired with another view's robot pose: not an answer to trust. The verdict is
+    inconsistent, and the advice says what to check."""
+    from dataclasses import replace
+
+    session = load_depth_session(_session(tmp_path, spheres))
+    order = np.roll(np.arange(len(session.names)), 5)
+    r = calibrate_depth_session(replace(session, flange2base=session.flange2base[order]))
+    assert r.verdict == "inconsistent", (r.verdict, r.advice)
+    assert any("the robot poses and the clouds disagree" in a or "not explained by the fit" in a for a in r.advice)

@@ -49,6 +49,9 @@ __all__ = ["DepthSession", "DepthResult", "is_depth_session", "load_depth_sessio
 OUTLIER_FACTOR = 5.0
 #: Held-out folds of the cross-validation.
 FOLDS = 5
+#: A fit whose RMS 3D residual exceeds this many times what the robot's accuracy and the depth noise
+#: allow explains nothing: the verdict is inconsistent.
+FIT_FACTOR = 5.0
 
 
 @dataclass(frozen=True)
@@ -328,23 +331,35 @@ def _heldout(s: DepthSession, v: _Views, keep: list[int], fit_depth: bool) -> fl
 
 
 def _outliers(cal: DepthCalibration, keep: list[int]) -> list[int]:
+    """The views (of ``keep``) whose residual the fit does not explain (none below 6 views)."""
     r = cal.residuals_mm
     if r is None or len(keep) < 6:
         return []
     bad = (r > OUTLIER_FACTOR * np.median(r)) & (r > 1.0)
-    return [keep[i] for i in np.nonzero(bad)[0]] if bad.sum() <= len(keep) // 3 else []
+    return [keep[i] for i in np.nonzero(bad)[0]]
 
 
-def _verdict(cal: DepthCalibration, heldout: float | None, fit_mm: float, n_outliers: int, n: int) -> tuple[str, list[str]]:
+def _verdict(cal: DepthCalibration, heldout: float | None, fit_mm: float, n_outliers: int, n: int,
+             robot_accuracy: tuple[float, float] | None) -> tuple[str, list[str]]:
     advice = list(cal.notes)
     rot, mm = 3 * float(np.linalg.norm(cal.std[:3])), 3 * float(np.linalg.norm(cal.std[3:]))
+    # what a point's residual may be: the robot's accuracy (its rotation at ~1 m) and the depth noise
+    acc = (0.0, 0.0) if robot_accuracy is None else robot_accuracy
+    allowed = np.sqrt(3.0) * (acc[1] + np.radians(acc[0]) * 1e3) + cal.rms_mm
+    if fit_mm > FIT_FACTOR * max(allowed, 0.5) or abs(cal.depth_scale - 1.0) > 0.05:
+        return "inconsistent", advice + [
+            f"the views' points are {fit_mm:.1f} mm (RMS) from the fit (depth scale {cal.depth_scale:.3f}), far beyond "
+            f"the {allowed:.1f} mm the robot's accuracy and the depth noise allow: the robot poses and the clouds "
+            "disagree (the clouds' and poses' order, the pose format or unit, the setup, the clouds' unit)"]
     if heldout is not None and heldout > 4 * max(fit_mm, 0.1):
         return "inconsistent", advice + [
             f"held-out views are predicted {heldout:.2f} mm (RMS) off, {heldout / fit_mm:.1f}x the fit's {fit_mm:.2f} mm: "
             "the robot poses and the clouds disagree (the setup, the pose format or unit, a target that moved, or "
             "the clouds' and poses' order)"]
     if n_outliers > n // 3:
-        return "inconsistent", advice + [f"{n_outliers} of {n} views are not explained by the fit"]
+        return "inconsistent", advice + [f"{n_outliers} of {n} views are not explained by the fit (5x the median "
+                                         "view's residual): too many to leave out; check the poses' format and unit, "
+                                         "the setup, and that the target did not move"]
     if rot > ACCEPT_DEG or mm > ACCEPT_MM:
         return "weak", advice + [f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg: "
                                  "take more views (10-20) with rotations of 30 deg or more about varied axes"]
@@ -377,7 +392,7 @@ def calibrate_depth_session(folder: str | Path | DepthSession, fit_depth: bool =
     skipped = list(v.skipped)
     cal = _fit(s, v, keep, fit_depth, robot_accuracy)
     bad = _outliers(cal, keep)
-    if bad:
+    if bad and len(bad) <= len(keep) // 3:  # a few wrong views are left out, named; more make the verdict
         med = float(np.median(cal.residuals_mm))
         for i in bad:
             skipped.append((s.names[v.index[i]], f"the fit does not explain this view: {cal.residuals_mm[keep.index(i)]:.2f} "
@@ -389,7 +404,7 @@ def calibrate_depth_session(folder: str | Path | DepthSession, fit_depth: bool =
     fit_mm = _rms_mm(predict_points(cal, F, None if s.kind == "spheres" else [v.object_points[i] for i in keep]),
                      [v.points[i] for i in keep])
     heldout = _heldout(s, v, keep, fit_depth)
-    verdict, advice = _verdict(cal, heldout, fit_mm, len(bad), len(v.index))
+    verdict, advice = _verdict(cal, heldout, fit_mm, len(bad), len(v.index), robot_accuracy)
     distances = np.array([v.distance[i] for i in keep])
     if s.working_range is not None:
         lo, hi = s.working_range

@@ -100,7 +100,7 @@ def _score(cloud, valid, centres, radius, pinhole, exclude, step: int = 1):
     return near.sum(axis=1)
 
 
-def _refine(cloud, valid, centre, radius, pinhole):
+def _refine(cloud, valid, centre, radius, pinhole, where: str):
     """The centre fitted to every point of the cap near ``centre`` (robust, weighted), its cov, mask."""
     h, w = cloud.shape[:2]
     fx, fy, cx, cy = pinhole
@@ -124,11 +124,11 @@ def _refine(cloud, valid, centre, radius, pinhole):
         fit = least_squares(residuals, centre, loss="soft_l1", f_scale=2.0, x_scale=np.full(3, 1e-3))
         centre = fit.x
     if len(q) < 10:
-        raise TargetError(f"the sphere's cap has only {len(q)} points with depth")
+        raise TargetError(f"{where}: the sphere's cap has only {len(q)} points with depth: is it in view?")
     inlier = np.abs(fit.fun) < 3.5
     J = fit.jac[inlier]
     s2 = float(np.sum(fit.fun[inlier] ** 2)) / max(int(inlier.sum()) - 3, 1)
-    cov = s2 * np.linalg.inv(J.T @ J)
+    cov = s2 * np.linalg.pinv(J.T @ J)
     mask = np.zeros((h, w), dtype=bool)
     mask[v0:v1, u0:u1] = near
     rms = float(np.sqrt(np.mean((np.linalg.norm(q[inlier] - centre, axis=1) - radius) ** 2)))
@@ -140,7 +140,8 @@ def fit_sphere(cloud: NDArray[np.float64], radius: float, rng: np.random.Generat
     """The sphere of ``radius`` (m) in an organized ``cloud`` (H, W, 3; metres, NaN: no depth).
 
     Raises :class:`~handeye.errors.TargetError` naming ``where`` when no sphere of that size is
-    seen (fewer points on the best candidate than a tenth of the cap it would show).
+    seen: no candidate with a quarter of its ring's points on it, or a best fit with fewer than half
+    the points a ball there shows or further off them than 1.5x the depth noise (a wall, an edge).
     """
     rng = np.random.default_rng(rng)
     valid = np.isfinite(cloud).all(axis=2) & (cloud[..., 2] > 0)
@@ -162,7 +163,7 @@ def fit_sphere(cloud: NDArray[np.float64], radius: float, rng: np.random.Generat
     if score[best] < 0.25 * RING:  # a sphere in view, with holes and noise, shows most of them
         raise TargetError(f"{where}: no sphere of diameter {2e3 * radius:.1f} mm in the cloud (the best candidate "
                           f"has {score[best]} of {RING} points on it): is the sphere in view, and its diameter right?")
-    centre, cov, n, rms, mask = _refine(cloud, valid, centres[best], radius, pinhole)
+    centre, cov, n, rms, mask = _refine(cloud, valid, centres[best], radius, pinhole, where)
     # a sphere in view fills ~pi (r f / z)^2 pixels, most with depth, its points as close to it as
     # the depth noise allows; a patch of wall or an edge that fooled the search does neither
     expected = np.pi * (radius * float(np.mean(pinhole[:2])) / centre[2]) ** 2
