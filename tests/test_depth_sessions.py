@@ -22,7 +22,7 @@ from handeye.depth import (
     read_cloud,
 )
 from handeye.errors import DegenerateMotionError, InputMismatchError, TargetError
-from handeye.geometry.se3 import make_transform
+from handeye.geometry.se3 import invert, make_transform
 from handeye.metrics import rotation_error, translation_error
 from handeye.simulate import depth_scene, sphere_scene, write_depth_session
 
@@ -220,12 +220,14 @@ def test_bad_robot_poses_in_a_depth_session_name_the_table(tmp_path):
 
 
 def test_robot_poses_in_the_wrong_order_are_called_inconsistent(tmp_path, spheres):
-    """The clouds paired with another view's robot pose: not an answer to trust. The verdict is
-    inconsistent, and the advice says what to check."""
+    """The clouds paired with another view's robot pose, or the robot poses inverted: not an answer
+    to trust. The verdict is inconsistent (the residuals far beyond what the stated robot accuracy
+    and the depth noise allow), and the advice says what to check."""
     from dataclasses import replace
 
     session = load_depth_session(_session(tmp_path, spheres))
     order = np.roll(np.arange(len(session.names)), 5)
-    r = calibrate_depth_session(replace(session, flange2base=session.flange2base[order]))
-    assert r.verdict == "inconsistent", (r.verdict, r.advice)
-    assert any("the robot poses and the clouds disagree" in a or "not explained by the fit" in a for a in r.advice)
+    for wrong in (session.flange2base[order], invert(session.flange2base)):  # the wrong order; base2flange given
+        r = calibrate_depth_session(replace(session, flange2base=wrong))
+        assert r.verdict == "inconsistent", (r.verdict, r.advice)
+        assert any("the robot poses and the clouds disagree" in a for a in r.advice)

@@ -38,7 +38,7 @@ from ..session import SESSION_FILE, load_yaml, read_camera, read_pose_table
 from ..setups import check_setup, predicted_target2cam, setup_info
 from ..verdict import ACCEPT_DEG, ACCEPT_MM
 from ..vision import detect_images, target_from_spec
-from .clouds import CLOUD_SUFFIXES, check_frame, plane_points, read_cloud
+from .clouds import CLOUD_SUFFIXES, check_frame, depth_sigma, plane_points, read_cloud
 from .fit import DepthCalibration, calibrate_depth, calibrate_spheres
 from .spheres import find_spheres
 
@@ -340,12 +340,13 @@ def _outliers(cal: DepthCalibration, keep: list[int]) -> list[int]:
 
 
 def _verdict(cal: DepthCalibration, heldout: float | None, fit_mm: float, n_outliers: int, n: int,
-             robot_accuracy: tuple[float, float] | None) -> tuple[str, list[str]]:
+             robot_accuracy: tuple[float, float] | None, distance_m: float) -> tuple[str, list[str]]:
     advice = list(cal.notes)
     rot, mm = 3 * float(np.linalg.norm(cal.std[:3])), 3 * float(np.linalg.norm(cal.std[3:]))
-    # what a point's residual may be: the robot's accuracy (its rotation at ~1 m) and the depth noise
+    # what a point's residual may be, known before the fit (never from its residuals): the robot's
+    # accuracy (its rotation at ~1 m) and the depth noise at the views' distance
     acc = (0.0, 0.0) if robot_accuracy is None else robot_accuracy
-    allowed = np.sqrt(3.0) * (acc[1] + np.radians(acc[0]) * 1e3) + cal.rms_mm
+    allowed = np.sqrt(3.0) * (acc[1] + np.radians(acc[0]) * 1e3) + 1e3 * float(depth_sigma(np.array([distance_m]))[0])
     if fit_mm > FIT_FACTOR * max(allowed, 0.5) or abs(cal.depth_scale - 1.0) > 0.05:
         return "inconsistent", advice + [
             f"the views' points are {fit_mm:.1f} mm (RMS) from the fit (depth scale {cal.depth_scale:.3f}), far beyond "
@@ -404,8 +405,8 @@ def calibrate_depth_session(folder: str | Path | DepthSession, fit_depth: bool =
     fit_mm = _rms_mm(predict_points(cal, F, None if s.kind == "spheres" else [v.object_points[i] for i in keep]),
                      [v.points[i] for i in keep])
     heldout = _heldout(s, v, keep, fit_depth)
-    verdict, advice = _verdict(cal, heldout, fit_mm, len(bad), len(v.index), robot_accuracy)
     distances = np.array([v.distance[i] for i in keep])
+    verdict, advice = _verdict(cal, heldout, fit_mm, len(bad), len(v.index), robot_accuracy, float(np.median(distances)))
     if s.working_range is not None:
         lo, hi = s.working_range
         out = [f"{s.names[v.index[i]]} ({d:.2f} m)" for i, d in zip(keep, distances) if not lo <= d <= hi]
