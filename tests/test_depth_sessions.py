@@ -115,6 +115,8 @@ def test_a_sphere_session_through_the_command_line(tmp_path, capsys, spheres):
     # options of image sessions are refused, not dropped
     assert main(["calibrate", str(folder), "--method", "tsai_lenz", "--export", "all", "--no-progress"]) != 0
     assert "--method, --export apply to image sessions only" in capsys.readouterr().err
+    assert main(["check", str(folder), "--refine", "pose", "--no-progress"]) != 0
+    assert "--refine apply to image sessions only" in capsys.readouterr().err
     # a cloud swapped for another view's: check (calibrate's verdict) leaves it out with the reason
     swapped = tmp_path / "session" / "clouds"
     (swapped / "view03.npy").write_bytes((swapped / "view09.npy").read_bytes())

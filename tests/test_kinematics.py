@@ -496,6 +496,8 @@ def test_plan_proposes_the_next_joint_views_of_a_session(tmp_path, capsys):
     assert ((q > chain.limits[:, 0]) & (q < chain.limits[:, 1])).all()
     assert "joint4.theta" in capsys.readouterr().out
     assert main(["plan", "--session", str(tmp_path / "s"), "--out", str(out)]) != 0  # never over a file
+    assert main(["plan", "--session", str(tmp_path / "s"), "--out", str(tmp_path / "n3.csv"), "--standoff", "0.5"]) != 0
+    assert "--standoff plan a new capture" in capsys.readouterr().err
     spec = yaml.safe_load((tmp_path / "s" / "session.yaml").read_text())
     del spec["joints"]
     (tmp_path / "poses_only").mkdir()

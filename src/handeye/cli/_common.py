@@ -312,3 +312,17 @@ def verdict_status(cal: Calibration) -> int:
     (:data:`handeye.verdict.EXIT_STATUS`: 0 good or not checked, 1 weak or partial, 2 inconsistent;
     the result is written all the same)."""
     return exit_status(cal.verdict)
+
+
+#: Options of image sessions a depth session has no use for, and their defaults: given, they are refused.
+_NOT_FOR_DEPTH = {"method": "daniilidis", "refine": "auto", "pairs": "auto", "folds": None, "arm": None,
+                  "robot_noise": None, "known": [], "certify": False, "strict_images": False, "no_check": False,
+                  "parent_frame": None, "child_frame": None, "export": [], "tool": None}
+
+
+def refuse_image_options(args: argparse.Namespace, session: Path) -> None:
+    """A depth session given options that only image sessions use: refused, naming them (never dropped)."""
+    given = [f"--{k.replace('_', '-')}" for k, default in _NOT_FOR_DEPTH.items() if getattr(args, k, default) != default]
+    if given:
+        raise HandEyeError(f"{session} is a depth session (session.yaml has depth:): {', '.join(given)} apply to image "
+                           "sessions only; leave them out")

@@ -24,6 +24,7 @@ from ._common import (
     calibrate_options,
     input_folder,
     out_folder,
+    refuse_image_options,
     verdict_status,
     write_options,
     write_outputs,
@@ -74,18 +75,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return verdict_status(cal)
 
 
-#: Options of image sessions a depth session has no use for, and their defaults: given, they are refused.
-_NOT_FOR_DEPTH = {"method": "daniilidis", "refine": "auto", "pairs": "auto", "folds": None, "arm": None,
-                  "robot_noise": None, "known": [], "certify": False, "strict_images": False, "no_check": False,
-                  "parent_frame": None, "child_frame": None, "export": [], "tool": None}
-
-
 def _cmd_calibrate_depth(session: Path, args: argparse.Namespace) -> int:
     """A depth session (session.yaml with depth:): clouds and robot poses, X with the depth scale and bias."""
-    given = [f"--{k.replace('_', '-')}" for k, default in _NOT_FOR_DEPTH.items() if getattr(args, k, default) != default]
-    if given:
-        raise HandEyeError(f"{session} is a depth session (session.yaml has depth:): {', '.join(given)} apply to image "
-                           "sessions only; leave them out")
+    refuse_image_options(args, session)
     r = calibrate_depth_session(session, robot_accuracy=calibrate_options(args).robot_accuracy,
                                 progress=not args.no_progress, jobs=args.jobs)
     if args.strict and r.verdict == "inconsistent":

@@ -46,6 +46,11 @@ def _plan_next_views(args: argparse.Namespace) -> int:
     """--session: the next joint configurations of a joint session, so that the entries of the arm's
     table its capture left undetermined become determined (calibrate prints the same after its fit)."""
     session = Path(args.session)
+    given = [name for name, value in (("--intrinsics", args.intrinsics), ("--standoff", args.standoff),
+                                      ("--target-spec", args.target_spec), ("--reach-box", args.reach_box)) if value]
+    if given:
+        raise HandEyeError(f"{', '.join(given)} plan a new capture; --session takes the camera, target and arm from "
+                           "the session: leave them out")
     out = _new_file(args.out)
     out_folder(str(out.parent), [session])
     if not (session / SESSION_FILE).is_file() or load_yaml(session / SESSION_FILE).get("joints") is None:
