@@ -339,14 +339,36 @@ def _outliers(cal: DepthCalibration, keep: list[int]) -> list[int]:
     return [keep[i] for i in np.nonzero(bad)[0]]
 
 
+def _allowed_mm(robot_accuracy: tuple[float, float] | None, distance_m: float) -> float:
+    """The RMS 3D residual (mm) a point may have, known before any fit: the robot's stated accuracy
+    (its rotation at ~1 m) and the depth noise at the views' distance."""
+    acc = (0.0, 0.0) if robot_accuracy is None else robot_accuracy
+    return float(np.sqrt(3.0) * (acc[1] + np.radians(acc[0]) * 1e3) + 1e3 * depth_sigma(np.array([distance_m]))[0])
+
+
+def _one_wrong_view(s: DepthSession, v: _Views, keep: list[int], fit_depth: bool, limit_mm: float) -> int | None:
+    """The one view without which the others fit within ``limit_mm`` (RMS), when the fit to all is
+    dragged off by it (a wrong view among few pulls a least-squares fit everywhere); else None."""
+    best = None
+    for i in keep:
+        rest = [j for j in keep if j != i]
+        try:
+            cal = _fit(s, v, rest, fit_depth, None, uncertainty=False)
+        except HandEyeError:
+            continue
+        rms = float(np.sqrt(np.mean(np.square(cal.residuals_mm))))
+        if best is None or rms < best[0]:
+            best = (rms, i)
+    return best[1] if best is not None and best[0] <= limit_mm else None
+
+
 def _verdict(cal: DepthCalibration, heldout: float | None, fit_mm: float, n_outliers: int, n: int,
              robot_accuracy: tuple[float, float] | None, distance_m: float) -> tuple[str, list[str]]:
     advice = list(cal.notes)
     rot, mm = 3 * float(np.linalg.norm(cal.std[:3])), 3 * float(np.linalg.norm(cal.std[3:]))
     # what a point's residual may be, known before the fit (never from its residuals): the robot's
     # accuracy (its rotation at ~1 m) and the depth noise at the views' distance
-    acc = (0.0, 0.0) if robot_accuracy is None else robot_accuracy
-    allowed = np.sqrt(3.0) * (acc[1] + np.radians(acc[0]) * 1e3) + 1e3 * float(depth_sigma(np.array([distance_m]))[0])
+    allowed = _allowed_mm(robot_accuracy, distance_m)
     if fit_mm > FIT_FACTOR * max(allowed, 0.5) or abs(cal.depth_scale - 1.0) > 0.05:
         return "inconsistent", advice + [
             f"the views' points are {fit_mm:.1f} mm (RMS) from the fit (depth scale {cal.depth_scale:.3f}), far beyond "
@@ -393,6 +415,10 @@ def calibrate_depth_session(folder: str | Path | DepthSession, fit_depth: bool =
     skipped = list(v.skipped)
     cal = _fit(s, v, keep, fit_depth, robot_accuracy)
     bad = _outliers(cal, keep)
+    limit = FIT_FACTOR * max(_allowed_mm(robot_accuracy, float(np.median(v.distance))), 0.5)
+    if not bad and len(keep) >= 6 and np.sqrt(np.mean(np.square(cal.residuals_mm))) > limit:
+        wrong = _one_wrong_view(s, v, keep, fit_depth, limit)  # one view may have dragged the whole fit off
+        bad = [] if wrong is None else [wrong]
     if bad and len(bad) <= len(keep) // 3:  # a few wrong views are left out, named; more make the verdict
         med = float(np.median(cal.residuals_mm))
         for i in bad:
