@@ -1065,12 +1065,31 @@ class DepthScene(Scene):
     target_spec: dict = None  # type: ignore[assignment]
 
 
+def _pixel_rays(K, size) -> NDArray[np.float64]:
+    """(H, W, 3): each pixel's ray (z = 1) of a pinhole camera ``K`` without distortion."""
+    w, h = size
+    u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+    return np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], axis=-1)
+
+
+def _depth_reading(truth, mask, behind, rng: np.random.Generator, depth_scale: float, depth_bias: float,
+                   depth_noise: tuple[float, float], holes: float) -> NDArray[np.float32]:
+    """What a depth camera measures of the true points ``truth`` (H, W, 3): each moved along its ray
+    to depth ``depth_scale z + depth_bias`` plus noise ``depth_noise[0] + depth_noise[1] z^2``; the
+    pixels on the outline of ``mask`` flying half-way to ``behind``; a share ``holes`` without depth."""
+    z = truth[..., 2]
+    measured_z = depth_scale * z + depth_bias + rng.normal(0.0, 1.0, z.shape) * (depth_noise[0] + depth_noise[1] * z**2)
+    cloud = truth * (measured_z / z)[..., None]
+    edge = mask & ~(np.roll(mask, 1, 0) & np.roll(mask, -1, 0) & np.roll(mask, 1, 1) & np.roll(mask, -1, 1))
+    cloud[edge] = 0.5 * (cloud[edge] + behind[edge])
+    cloud[rng.random(z.shape) < holes] = np.nan
+    return cloud.astype(np.float32)
+
+
 def _depth_image(K, size, target2cam, outline, background: float):
     """Per pixel, the true point (H, W, 3) where its ray meets the board's sheet (its ``outline``),
     else the background plane at depth ``background``; and the board's mask."""
-    w, h = size
-    u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
-    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], axis=-1)
+    rays = _pixel_rays(K, size)
     R, t = target2cam[:3, :3], target2cam[:3, 3]
     normal = R[:, 2]  # the board's z axis in the camera frame
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -1130,13 +1149,8 @@ def depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Ge
     image_points, clouds = [], []
     for T in scene.target2cam:
         truth, board = _depth_image(K, image_size, T, outline, background=2.5)
-        z = truth[..., 2]
-        measured_z = depth_scale * z + depth_bias + rng.normal(0.0, 1.0, z.shape) * (depth_noise[0] + depth_noise[1] * z**2)
-        cloud = truth * (measured_z / z)[..., None]
-        edge = board & ~(np.roll(board, 1, 0) & np.roll(board, -1, 0) & np.roll(board, 1, 1) & np.roll(board, -1, 1))
-        cloud[edge] = 0.5 * (cloud[edge] + truth[edge] * (2.5 / z[edge])[:, None])  # flying pixels
-        cloud[rng.random(z.shape) < holes] = np.nan
-        clouds.append(cloud.astype(np.float32))
+        behind = truth * (2.5 / truth[..., 2])[..., None]  # the background where the board is
+        clouds.append(_depth_reading(truth, board, behind, rng, depth_scale, depth_bias, depth_noise, holes))
         px = project_points(T, obj, K, np.zeros(5))
         image_points.append(px + rng.normal(0.0, noise_px, px.shape))
     return DepthScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
@@ -1178,9 +1192,7 @@ def _stem_depth(rays, start, axis, radius: float, length: float):
 def _sphere_image(K, size, centre, radius, plane_point, plane_normal, stem=None):
     """Per pixel the true point where its ray meets the sphere (or the rod holding it, ``stem``:
     its direction in the camera frame and radius), else the background plane; and the sphere's mask."""
-    w, h = size
-    u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
-    rays = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], axis=-1)
+    rays = _pixel_rays(K, size)
     dd = np.einsum("hwi,hwi->hw", rays, rays)
     dc = rays @ centre
     disc = dc**2 - dd * (centre @ centre - radius**2)
@@ -1236,14 +1248,8 @@ def sphere_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.G
         wall = centre * (1.0 + rng.uniform(0.2, 0.4) / np.linalg.norm(centre))
         rod = None if stem is None else (T[:3, :3] @ stem_axis, stem)
         truth, sphere = _sphere_image(K, image_size, centre, radius, wall, normal, rod)
-        z = truth[..., 2]
-        noise = rng.normal(0.0, 1.0, z.shape) * (depth_noise[0] + depth_noise[1] * z**2)
-        cloud = truth * ((depth_scale * z + depth_bias + noise) / z)[..., None]
-        edge = sphere & ~(np.roll(sphere, 1, 0) & np.roll(sphere, -1, 0) & np.roll(sphere, 1, 1) & np.roll(sphere, -1, 1))
         behind = _sphere_image(K, image_size, centre + 10.0, radius, wall, normal)[0]  # the wall where the sphere is
-        cloud[edge] = 0.5 * (cloud[edge] + behind[edge])
-        cloud[rng.random(z.shape) < holes] = np.nan
-        clouds.append(cloud.astype(np.float32))
+        clouds.append(_depth_reading(truth, sphere, behind, rng, depth_scale, depth_bias, depth_noise, holes))
     return SphereScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
                        image_size=tuple(image_size),
                        radius=radius, clouds=clouds, depth_scale=depth_scale, depth_bias=depth_bias)

@@ -14,6 +14,7 @@ from scipy.spatial.transform import Rotation
 from .. import solvers
 from .._shared.io import check_output_folder
 from ..calibration import certify_calibration
+from ..depth import DepthResult, calibrate_depth_session
 from ..errors import HandEyeError
 from ..geometry.se3 import make_transform
 from ..kinematics import arm_names
@@ -320,9 +321,12 @@ _NOT_FOR_DEPTH = {"method": "daniilidis", "refine": "auto", "pairs": "auto", "fo
                   "parent_frame": None, "child_frame": None, "export": [], "tool": None}
 
 
-def refuse_image_options(args: argparse.Namespace, session: Path) -> None:
-    """A depth session given options that only image sessions use: refused, naming them (never dropped)."""
+def calibrate_depth_folder(args: argparse.Namespace, session: Path) -> DepthResult:
+    """``calibrate`` and ``check`` on a depth session: options that only image sessions use are
+    refused, naming them (never dropped); then the depth pipeline with the command's robot accuracy."""
     given = [f"--{k.replace('_', '-')}" for k, default in _NOT_FOR_DEPTH.items() if getattr(args, k, default) != default]
     if given:
         raise HandEyeError(f"{session} is a depth session (session.yaml has depth:): {', '.join(given)} apply to image "
                            "sessions only; leave them out")
+    return calibrate_depth_session(session, robot_accuracy=calibrate_options(args).robot_accuracy,
+                                   progress=not args.no_progress, jobs=args.jobs)

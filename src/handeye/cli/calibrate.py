@@ -10,7 +10,7 @@ import numpy as np
 from .._shared.io import atomic_write
 from ..calibration import certify_calibration
 from ..checking import calibrate_session
-from ..depth import calibrate_depth_session, is_depth_session
+from ..depth import is_depth_session
 from ..errors import HandEyeError
 from ..fleet import calibrate_many
 from ..joint_planning import suggest_joint_views
@@ -21,10 +21,10 @@ from ._common import (
     add_calibrate_options,
     add_detection_options,
     add_out_options,
+    calibrate_depth_folder,
     calibrate_options,
     input_folder,
     out_folder,
-    refuse_image_options,
     verdict_status,
     write_options,
     write_outputs,
@@ -77,9 +77,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
 def _cmd_calibrate_depth(session: Path, args: argparse.Namespace) -> int:
     """A depth session (session.yaml with depth:): clouds and robot poses, X with the depth scale and bias."""
-    refuse_image_options(args, session)
-    r = calibrate_depth_session(session, robot_accuracy=calibrate_options(args).robot_accuracy,
-                                progress=not args.no_progress, jobs=args.jobs)
+    r = calibrate_depth_folder(args, session)
     if args.strict and r.verdict == "inconsistent":
         raise HandEyeError(f"{session}: the verdict is inconsistent (--strict): " + "; ".join(r.advice[:2]))
     print_depth_result(r)

@@ -7,15 +7,15 @@ import argparse
 import numpy as np
 
 from ..checking import check_folder
-from ..depth import calibrate_depth_session, is_depth_session
+from ..depth import is_depth_session
 from ..verdict import exit_status
 from ._common import (
     SAMPLE_SESSION,
     add_calibrate_options,
     add_detection_options,
+    calibrate_depth_folder,
     calibrate_options,
     input_folder,
-    refuse_image_options,
 )
 from ._printing import print_depth_result
 
@@ -24,9 +24,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
     folder = input_folder(args.folder, args.sample, SAMPLE_SESSION,
                            "give a session or pose-pair folder, or --sample (not both)")
     if is_depth_session(folder):  # calibrate's verdict on it, as for images
-        refuse_image_options(args, folder)
-        r = calibrate_depth_session(folder, robot_accuracy=calibrate_options(args).robot_accuracy,
-                                    progress=not args.no_progress, jobs=args.jobs)
+        r = calibrate_depth_folder(args, folder)
         print_depth_result(r)
         return exit_status(r.verdict)
     found = check_folder(folder, calibrate_options(args), jobs=args.jobs, progress=not args.no_progress)

@@ -21,8 +21,8 @@ from .clouds import (
     plane_points,
     read_cloud,
 )
-from .fit import DepthCalibration, calibrate_depth, calibrate_spheres
-from .session import DepthResult, DepthSession, calibrate_depth_session, is_depth_session, load_depth_session, predict_points
+from .fit import DepthCalibration, calibrate_depth, calibrate_spheres, predict_points
+from .session import DepthResult, DepthSession, calibrate_depth_session, is_depth_session, load_depth_session
 from .spheres import Sphere, find_spheres, fit_sphere
 
 __all__ = ["read_cloud", "check_cloud", "check_frame", "cloud_pinhole", "lift_points", "plane_points", "board_pose", "depth_sigma",

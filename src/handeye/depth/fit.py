@@ -29,7 +29,7 @@ from ..options import ROBOT_ACCURACY
 from ..setups import check_setup, predicted_target2cam, robot_world_A
 from .clouds import board_pose, depth_sigma
 
-__all__ = ["DepthCalibration", "calibrate_depth", "calibrate_spheres", "LATERAL"]
+__all__ = ["DepthCalibration", "calibrate_depth", "calibrate_spheres", "predict_points", "LATERAL"]
 
 #: Noise across the rays, per metre of depth, to start from (0.2 px at a focal length of ~700 px).
 LATERAL = 3e-4
@@ -69,11 +69,15 @@ def _ray_frames(points: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.stack([along, first, np.cross(along, first)], axis=1)
 
 
-def _with_depth(p: NDArray[np.float64], x_depth: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Points ``p`` as the camera measures them: scaled along their rays to depth ``s z + b``."""
-    if len(x_depth) == 0:
-        return p
-    return p * (1.0 + x_depth[0] + x_depth[1] / p[:, 2])[:, None]
+def _as_measured(p: NDArray[np.float64], scale_step: float, bias: float,
+                 radius: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+    """Points ``p`` (M, 3) as the camera measures them: scaled along their rays to depth ``s z + b``
+    (``scale_step`` = s - 1); with ``radius`` (M,), centres of spheres fitted with that radius to a
+    cap whose depths are so scaled, which lie ``(s - 1) r`` short along their rays."""
+    q = p * (1.0 + scale_step + bias / p[:, 2])[:, None]
+    if radius is None:
+        return q
+    return q - (scale_step * radius)[:, None] * p / np.linalg.norm(p, axis=1, keepdims=True)
 
 
 @dataclass
@@ -206,7 +210,8 @@ def calibrate_depth(flange2base: NDArray[np.float64], object_points: list[NDArra
 
     def predict(x):
         T = predicted_target2cam(perturb(start.X, x[0:3], x[3:6]), perturb(start.Z, x[6:9], x[9:12]), F, setup)
-        return _with_depth(np.einsum("mij,mj->mi", T[owner, :3, :3], obj) + T[owner, :3, 3], x[12:])
+        p = np.einsum("mij,mj->mi", T[owner, :3, :3], obj) + T[owner, :3, 3]
+        return _as_measured(p, x[12], x[13]) if fit_depth else p
 
     problem = _Problem(predict, meas, basis, np.stack([along, LATERAL * z, LATERAL * z], axis=1), owner, len(F),
                        ((0,), (1, 2)))
@@ -298,6 +303,7 @@ def calibrate_spheres(flange2base: NDArray[np.float64], centres: NDArray[np.floa
         noise = np.ones((len(meas), 3))
     A = robot_world_A(F, setup)
     X0, p0 = _sphere_start(A, meas, view, sphere, n_spheres)
+    radius = None if radii is None else np.asarray(radii, float)[sphere]
     depth = 2 if fit_depth else 0
     n = 6 + 3 * n_spheres + depth
 
@@ -307,10 +313,7 @@ def calibrate_spheres(flange2base: NDArray[np.float64], centres: NDArray[np.floa
         Z = np.broadcast_to(np.eye(4), (len(meas), 4, 4)).copy()
         Z[:, :3, 3] = p[sphere]
         c = predicted_target2cam(X, Z, F[view], setup)[:, :3, 3]
-        q = _with_depth(c, x[6 + 3 * n_spheres:])
-        if radii is None or not fit_depth:
-            return q
-        return q - (x[-2] * np.asarray(radii, float)[sphere])[:, None] * c / np.linalg.norm(c, axis=1, keepdims=True)
+        return _as_measured(c, x[-2], x[-1], radius) if fit_depth else c
 
     problem = _Problem(predict, meas, basis, noise, view, n_views, ((0, 1, 2),))
     x, std, residual = _solve(problem, n, uncertainty)
@@ -326,3 +329,19 @@ def calibrate_spheres(flange2base: NDArray[np.float64], centres: NDArray[np.floa
                             centres_std=1e3 * std[6:6 + 3 * n_spheres].reshape(n_spheres, 3),
                             residuals_mm=_per_view_rms(residual, view, n_views), std_data=x_std_data,
                             radii=None if radii is None else np.asarray(radii, float))
+
+
+def predict_points(cal: DepthCalibration, flange2base: NDArray[np.float64],
+                   object_points: list[NDArray[np.float64]] | None = None) -> list[NDArray[np.float64]]:
+    """Per view, where the camera measures the target's points (a board's ``object_points``) or
+    the spheres' centres (``object_points`` None: (K, 3) per view), predicted from the robot pose
+    alone with X, Z, the depth scale and bias of ``cal`` (the model the fit used)."""
+    F = np.asarray(flange2base, dtype=float)
+    step = cal.depth_scale - 1.0
+    if cal.centres is not None:
+        Z = np.broadcast_to(np.eye(4), (len(cal.centres), 4, 4)).copy()
+        Z[:, :3, 3] = cal.centres
+        c = predicted_target2cam(cal.X, Z, F[:, None], cal.setup)[..., :3, 3]  # (N, K, 3)
+        return [_as_measured(q, step, cal.depth_bias, cal.radii) for q in c]
+    T = predicted_target2cam(cal.X, cal.Z, F, cal.setup)
+    return [_as_measured(o @ t[:3, :3].T + t[:3, 3], step, cal.depth_bias) for o, t in zip(object_points or [], T)]

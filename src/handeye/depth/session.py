@@ -35,15 +35,15 @@ from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError, Se
 from ..options import ROBOT_ACCURACY
 from ..poses import parse_poses
 from ..session import SESSION_FILE, load_yaml, read_camera, read_pose_table
-from ..setups import check_setup, predicted_target2cam, setup_info
+from ..setups import check_setup, setup_info
 from ..verdict import ACCEPT_DEG, ACCEPT_MM
 from ..vision import detect_images, target_from_spec
 from .clouds import CLOUD_SUFFIXES, check_frame, depth_sigma, plane_points, read_cloud
-from .fit import DepthCalibration, calibrate_depth, calibrate_spheres
+from .fit import DepthCalibration, calibrate_depth, calibrate_spheres, predict_points
 from .spheres import find_spheres
 
 __all__ = ["DepthSession", "DepthResult", "is_depth_session", "load_depth_session", "calibrate_depth_session",
-           "predict_points", "OUTLIER_FACTOR"]
+           "OUTLIER_FACTOR"]
 
 #: A view whose RMS 3D residual exceeds this many times the median view's (and 1 mm) is left out.
 OUTLIER_FACTOR = 5.0
@@ -288,25 +288,6 @@ def _fit(s: DepthSession, v: _Views, keep: list[int], fit_depth: bool, robot_acc
                            robot_accuracy, uncertainty=uncertainty)
 
 
-def predict_points(cal: DepthCalibration, flange2base: NDArray[np.float64],
-                   object_points: list[NDArray[np.float64]] | None = None) -> list[NDArray[np.float64]]:
-    """Per view, where the camera measures the target's points (a board's ``object_points``) or
-    the spheres' centres (``object_points`` None: (K, 3) per view), predicted from the robot pose
-    alone with X, Z, the depth scale and bias of ``cal``."""
-    F = np.asarray(flange2base, dtype=float)
-    if cal.centres is not None:
-        Z = np.broadcast_to(np.eye(4), (len(cal.centres), 4, 4)).copy()
-        Z[:, :3, 3] = cal.centres
-        p = [np.array([predicted_target2cam(cal.X, z, f[None], cal.setup)[0, :3, 3] for z in Z]) for f in F]
-        short = (cal.depth_scale - 1.0) * (cal.radii if cal.radii is not None else np.zeros(len(cal.centres)))
-        return [q * (cal.depth_scale + cal.depth_bias / q[:, 2:3]) - short[:, None] * q / np.linalg.norm(q, axis=1,
-                                                                                                         keepdims=True)
-                for q in p]
-    T = predicted_target2cam(cal.X, cal.Z, F, cal.setup)
-    p = [o @ t[:3, :3].T + t[:3, 3] for o, t in zip(object_points or [], T)]
-    return [q * (cal.depth_scale + cal.depth_bias / q[:, 2:3]) for q in p]
-
-
 def _rms_mm(predicted: list, measured: list) -> float:
     d = np.concatenate([(p - m)[np.isfinite(m).all(axis=1)] for p, m in zip(predicted, measured)])
     return float(1e3 * np.sqrt(np.mean(np.sum(d**2, axis=1))))
@@ -346,6 +327,11 @@ def _allowed_mm(robot_accuracy: tuple[float, float] | None, distance_m: float) -
     return float(np.sqrt(3.0) * (acc[1] + np.radians(acc[0]) * 1e3) + 1e3 * depth_sigma(np.array([distance_m]))[0])
 
 
+def _fit_limit_mm(robot_accuracy: tuple[float, float] | None, distance_m: float) -> float:
+    """The RMS 3D residual (mm) beyond which a fit explains nothing (:data:`FIT_FACTOR` times what is allowed)."""
+    return FIT_FACTOR * max(_allowed_mm(robot_accuracy, distance_m), 0.5)
+
+
 def _one_wrong_view(s: DepthSession, v: _Views, keep: list[int], fit_depth: bool, limit_mm: float) -> int | None:
     """The one view without which the others fit within ``limit_mm`` (RMS), when the fit to all is
     dragged off by it (a wrong view among few pulls a least-squares fit everywhere); else None."""
@@ -369,7 +355,7 @@ def _verdict(cal: DepthCalibration, heldout: float | None, fit_mm: float, n_outl
     # what a point's residual may be, known before the fit (never from its residuals): the robot's
     # accuracy (its rotation at ~1 m) and the depth noise at the views' distance
     allowed = _allowed_mm(robot_accuracy, distance_m)
-    if fit_mm > FIT_FACTOR * max(allowed, 0.5) or abs(cal.depth_scale - 1.0) > 0.05:
+    if fit_mm > _fit_limit_mm(robot_accuracy, distance_m) or abs(cal.depth_scale - 1.0) > 0.05:
         return "inconsistent", advice + [
             f"the views' points are {fit_mm:.1f} mm (RMS) from the fit (depth scale {cal.depth_scale:.3f}), far beyond "
             f"the {allowed:.1f} mm the robot's accuracy and the depth noise allow: the robot poses and the clouds "
@@ -415,7 +401,7 @@ def calibrate_depth_session(folder: str | Path | DepthSession, fit_depth: bool =
     skipped = list(v.skipped)
     cal = _fit(s, v, keep, fit_depth, robot_accuracy)
     bad = _outliers(cal, keep)
-    limit = FIT_FACTOR * max(_allowed_mm(robot_accuracy, float(np.median(v.distance))), 0.5)
+    limit = _fit_limit_mm(robot_accuracy, float(np.median(v.distance)))
     if not bad and len(keep) >= 6 and np.sqrt(np.mean(np.square(cal.residuals_mm))) > limit:
         wrong = _one_wrong_view(s, v, keep, fit_depth, limit)  # one view may have dragged the whole fit off
         bad = [] if wrong is None else [wrong]
