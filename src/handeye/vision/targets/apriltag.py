@@ -74,7 +74,7 @@ class AprilTag(Target):
         m = side // 3
         img = np.full((side + 2 * m, side + 2 * m), LIGHT, np.uint8)
         img[m : m + side, m : m + side] = np.where(tag > 127, LIGHT, DARK)
-        return Texture(img, float(m), float(m), side / self.square)
+        return Texture(img, m - 0.5, m - 0.5, side / self.square)  # the tag's edge between texels (board_texture)
 
     def print_shapes(self) -> tuple[list[tuple], float, float]:
         d = aruco_dictionary(self.dictionary)

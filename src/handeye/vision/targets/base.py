@@ -54,7 +54,8 @@ class Detection:
 
 @dataclass(frozen=True)
 class Texture:
-    """A target's printed pattern: ``u = u0 + x * scale``, ``v = v0 + y * scale`` (x, y in metres)."""
+    """A target's printed pattern: ``u = u0 + x * scale``, ``v = v0 + y * scale`` (x, y in metres),
+    texel ``(i, j)`` centred at ``u = i, v = j`` (OpenCV's drawing and ``remap`` convention)."""
 
     image: NDArray[np.uint8]
     u0: float
@@ -64,8 +65,8 @@ class Texture:
     def outline(self) -> NDArray[np.float64]:
         """The sheet's four corners in the target frame (metres, z = 0)."""
         h, w = self.image.shape
-        us = np.array([0, w, w, 0], dtype=float)
-        vs = np.array([0, 0, h, h], dtype=float)
+        us = np.array([0, w, w, 0], dtype=float) - 0.5  # texel centres at integers: the sheet spans [-0.5, w - 0.5]
+        vs = np.array([0, 0, h, h], dtype=float) - 0.5
         return np.stack([(us - self.u0) / self.scale, (vs - self.v0) / self.scale, np.zeros(4)], axis=1)
 
 
@@ -205,7 +206,9 @@ class OpenCVBoard:
         m = int(round(margin * s))
         img = self.board.generateImage((w, h), marginSize=m, borderBits=1)
         img = np.where(img > 127, LIGHT, DARK).astype(np.uint8)
-        return Texture(img, float(m), float(m), (w - 2 * m) / width)
+        # texel i spans [i - 0.5, i + 0.5] where the renderer samples (pixel centres at integers):
+        # the board's edge, between texels m - 1 and m, is at m - 0.5
+        return Texture(img, m - 0.5, m - 0.5, (w - 2 * m) / width)
 
 
 def raster_rects(img: NDArray[np.uint8], mm_per_px: float) -> list[tuple]:
