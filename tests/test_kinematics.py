@@ -103,6 +103,15 @@ def test_x_from_joint_angles_beats_the_black_box_under_kinematic_errors(arm, set
     print(f"accuracy before {a['before_median']:.3f} (true {true_before:.3f}), after {a['after_median']:.3f} "
           f"(true {true_after:.3f})")
     assert abs(a["before_median"] - true_before) < 0.1 * true_before and true_after < 3 * a["after_median"]
+    # over the joints' whole range (their limits): the same promise where the capture never took the arm
+    lo, hi = sc.chain.limits.T
+    samples = np.random.default_rng(1).uniform(lo, hi, (500, len(lo)))
+    true = sc.chain_true.forward(samples)[:, :3, 3]
+    ws_before = np.median(1e3 * np.linalg.norm(sc.chain.forward(samples)[:, :3, 3] - true, axis=1))
+    ws_after = np.median(1e3 * np.linalg.norm(cal.kinematic.chain.forward(samples)[:, :3, 3] - true, axis=1))
+    print(f"whole range: before {a['workspace_before_median']:.3f} (true {ws_before:.3f}), after "
+          f"{a['workspace_after_median']:.3f} (true {ws_after:.3f})")
+    assert abs(a["workspace_before_median"] - ws_before) < 0.2 * ws_before and ws_after < 3 * a["workspace_after_median"]
 
 
 def test_joint_angles_are_checked():
@@ -330,6 +339,16 @@ def test_the_arm_given_on_the_command_line_replaces_session_yamls(tmp_path, monk
         handeye.calibrate_poses(sc.flange2base, sc.target2cam, arm="ur5")
     with pytest.raises(InputMismatchError, match="arm=''"):
         CalibrationOptions(arm="")
+    # --urdf FILE is --arm FILE.urdf; both at once, or another file, are refused
+    (tmp_path / "ur5.urdf").write_text(chain_urdf(load_arm("ur5")))
+    assert main(["check", str(folder), "--urdf", "ur5.yaml", "--no-progress"]) == 2
+    assert "--urdf ur5.yaml: not a .urdf file" in capsys.readouterr().err
+    assert main(["check", str(folder), "--urdf", "ur5.urdf", "--arm", "ur5", "--no-progress"]) == 2
+    assert "give the arm's kinematics once" in capsys.readouterr().err
+    from handeye.cli import build_parser
+    from handeye.cli._common import calibrate_options
+    arm = calibrate_options(build_parser().parse_args(["check", str(folder), "--urdf", "ur5.urdf"])).arm
+    assert arm == "ur5.urdf" and np.abs(load_session(folder, arm=arm).flange2base - sc.flange2base).max() < 1e-9
 
 
 def test_a_bags_joint_states_become_a_joint_session(tmp_path):

@@ -110,14 +110,15 @@ def calibrate_joints(
                       K=np.asarray(K, dtype=float), dist=np.asarray(dist, dtype=float).ravel())
     priors = dict(length_prior=1e-3 * length_prior_mm, angle_prior=np.radians(angle_prior_deg))
     ref = refine_kinematic(start.X, start.Z, chain, q[keep], setup, target2cam=target2cam, **priors, **pixels)
-    cov_X, widened = _widened(ref, chain, q[keep], target2cam, setup, priors, pixels)
+    cov_X, cov_entries, widened = _widened(ref, chain, q[keep], target2cam, setup, priors, pixels)
     held_out = _held_out(ref, chain, q[keep], target2cam, setup, priors, pixels, opts.folds)
     corrected = chain.corrected(ref.deltas)
     index = [chain.parameter_names().index(n) for n in ref.names]
     shift = 1e3 * np.linalg.norm(corrected.forward(q[keep])[:, :3, 3] - chain.forward(q[keep])[:, :3, 3], axis=1)
-    model = KinematicModel(chain, corrected, ref.names, ref.deltas.ravel()[index], ref.parameter_std, ref.prior_std,
+    entry_std = np.sqrt(np.diag(cov_entries))
+    model = KinematicModel(chain, corrected, ref.names, ref.deltas.ravel()[index], entry_std, ref.prior_std,
                            ref.determined, (float(np.median(shift)), float(shift.max())),
-                           _accuracy(chain, ref.deltas, index, ref.cov[12:, 12:], q[keep]), q[keep])
+                           _accuracy(chain, ref.deltas, index, cov_entries, q[keep]), q[keep])
     notes = list(start.notes) + _fit_notes(ref, model, bool(pixels), ignored, widened, length_prior_mm, angle_prior_deg)
     cal = replace(start, X=ref.X, Z=ref.Z, cov=cov_X, std=std_deg_mm(cov_X), method=f"kinematic({chain.name})",
                   estimator="kinematic", refinement="kinematic", flange2base=corrected.forward(q[keep]),
@@ -186,23 +187,37 @@ def _views_of(pixels: dict, idx) -> dict:
 
 
 def _widened(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, priors: dict,
-             pixels: dict) -> tuple[NDArray[np.float64], float]:
-    """X's covariance: the fit's model, each axis widened to the jackknife's spread (X refitted
-    without each of up to 10 groups of views, started at the fit on all, the noise held) when that
-    is larger, as every handeye estimator does; and the largest widening factor. The model takes
-    the pixel errors of a view's points as independent: an error of the whole view (joint encoder
-    noise of 0.002 deg on rendered UR5 sessions) left X within 3 of its std on 76% of the axes."""
+             pixels: dict) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """X's covariance and the table entries': the fit's model, each axis (each entry) widened to the
+    jackknife's spread (the fit repeated without each of up to 10 groups of views, started at the
+    fit on all, the noise held) when that is larger, as every handeye estimator does; and X's largest
+    widening factor. The model takes the pixel errors of a view's points as independent: an error
+    of the whole view (joint encoder noise of 0.002 deg on rendered UR5 sessions) left X within 3 of
+    its std on 76% of the axes."""
+    index = [chain.parameter_names().index(n) for n in ref.names]
+    refitted = []
+
     def fit(flange2base, t2c, setup, idx):
         part = _views_of(pixels, idx)
         r = refine_kinematic(ref.X, ref.Z, chain, q[idx], setup, target2cam=t2c, sigma=ref.sigma,
                              deltas0=ref.deltas, tol=REFIT_TOL, **priors, **part)
+        refitted.append(r.deltas.ravel()[index])
         return r.X, r.Z
     jack, _ = jackknife_covs(fit, Views(chain.forward(q), target2cam, setup), ref.X, None)
+    cov_entries = ref.cov[12:, 12:]
     if jack is None:
-        return ref.cov_X, 1.0
-    ratio = np.sqrt(np.maximum(np.diag(jack), 1e-300) / np.maximum(np.diag(ref.cov_X), 1e-300))
+        return ref.cov_X, cov_entries, 1.0
+    d = np.array(refitted) - np.mean(refitted, axis=0)
+    jack_entries = (len(d) - 1) / len(d) * d.T @ d
+    cov_X, factor = _wider(ref.cov_X, jack)
+    return cov_X, _wider(cov_entries, jack_entries)[0], factor
+
+
+def _wider(cov: NDArray[np.float64], jack: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """``cov`` with each axis widened to the jackknife's ``jack`` where that is larger; the largest factor."""
+    ratio = np.sqrt(np.maximum(np.diag(jack), 1e-300) / np.maximum(np.diag(cov), 1e-300))
     D = np.diag(np.maximum(ratio, 1.0))
-    return D @ ref.cov_X @ D, float(ratio.max())
+    return D @ cov @ D, float(ratio.max())
 
 
 #: Joint configurations the arm's accuracy is predicted over (drawn within the capture's joint ranges).
@@ -211,11 +226,24 @@ ACCURACY_SAMPLES = 500
 
 def _accuracy(chain: Chain, deltas, index: list[int], cov_entries, q) -> dict[str, float]:
     """The arm's absolute accuracy at the flange before and after the fit, over joint angles drawn
-    uniformly within the capture's range of each joint (where the fit has seen the arm): before,
-    how far the nominal table puts the flange from the corrected one; after, the corrected
-    table's position std from its entries' covariance (first order, a finite-difference Jacobian)."""
-    lo, hi = q.min(axis=0), q.max(axis=0)
-    samples = np.random.default_rng(0).uniform(lo, hi, (ACCURACY_SAMPLES, len(lo)))
+    uniformly within the capture's range of each joint (where the fit has seen the arm) and, when
+    the chain knows its joints' limits, over the whole workspace (``workspace_`` keys): before, how
+    far the nominal table puts the flange from the corrected one; after, the corrected table's
+    position std from its entries' covariance (first order, a finite-difference Jacobian). Outside
+    the capture's ranges 'before' is the corrected table extrapolated, and 'after' grows with the
+    entries the capture left to their prior."""
+    rng = np.random.default_rng(0)
+    out = _accuracy_over(chain, deltas, index, cov_entries, rng.uniform(q.min(axis=0), q.max(axis=0),
+                                                                         (ACCURACY_SAMPLES, q.shape[1])))
+    if chain.limits is not None:
+        whole = _accuracy_over(chain, deltas, index, cov_entries,
+                               rng.uniform(chain.limits[:, 0], chain.limits[:, 1], (ACCURACY_SAMPLES, q.shape[1])))
+        out |= {f"workspace_{k}": v for k, v in whole.items() if k != "samples"}
+    return out
+
+
+def _accuracy_over(chain: Chain, deltas, index: list[int], cov_entries, samples) -> dict[str, float]:
+    """:func:`_accuracy` at the joint angles ``samples`` (S, n)."""
     corrected = chain.forward(samples, deltas)[:, :3, 3]
     before = 1e3 * np.linalg.norm(chain.forward(samples)[:, :3, 3] - corrected, axis=1)
     J = np.empty((len(samples), 3, len(index)))

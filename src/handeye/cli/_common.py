@@ -242,6 +242,9 @@ def add_calibrate_options(p: argparse.ArgumentParser, refines: tuple[str, ...] =
         g.add_argument("--arm", metavar="NAME|TABLE.yaml|ROBOT.urdf",
                        help="the arm's kinematics for the session's joint angles (its joints: table), instead of the "
                        f"arm session.yaml names: a shipped arm ({', '.join(arm_names())}), a DH table or a URDF")
+        g.add_argument("--urdf", metavar="ROBOT.urdf", help="the arm's URDF for the session's joint angles (the same as "
+                       "--arm ROBOT.urdf; the chain from the URDF's root to its last joint's link, or the session's "
+                       "base_link/tip_link)")
     g.add_argument("--strict", action="store_true",
                    help="fail (exit 2) instead of answering when the check calls the data inconsistent")
     g.add_argument("--no-check", action="store_true",
@@ -282,7 +285,19 @@ def calibrate_options(args: argparse.Namespace) -> CalibrationOptions:
         check=not args.no_check, robot_accuracy=accuracy_arg(args.robot_accuracy), known=known_arg(args.known),
         robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()), keyframes=args.keyframes,
         offset_range=None if rng is None else tuple(rng.tolist()), time_offset=args.time_offset,
-        strict_images=getattr(args, "strict_images", False), arm=getattr(args, "arm", None))
+        strict_images=getattr(args, "strict_images", False), arm=arm_arg(args))
+
+
+def arm_arg(args: argparse.Namespace) -> str | None:
+    """The arm of ``--arm`` or ``--urdf`` (one of them; ``--urdf`` takes a .urdf file only)."""
+    arm, urdf = getattr(args, "arm", None), getattr(args, "urdf", None)
+    if urdf is None:
+        return arm
+    if arm is not None:
+        raise HandEyeError(f"--arm {arm} and --urdf {urdf}: give the arm's kinematics once")
+    if not urdf.lower().endswith(".urdf"):
+        raise HandEyeError(f"--urdf {urdf}: not a .urdf file; a DH table (.yaml) or a shipped arm's name goes to --arm")
+    return urdf
 
 
 def write_options(args: argparse.Namespace) -> dict:
@@ -316,7 +331,7 @@ def verdict_status(cal: Calibration) -> int:
 
 
 #: Options of image sessions a depth session has no use for, and their defaults: given, they are refused.
-_NOT_FOR_DEPTH = {"method": "daniilidis", "refine": "auto", "pairs": "auto", "folds": None, "arm": None,
+_NOT_FOR_DEPTH = {"method": "daniilidis", "refine": "auto", "pairs": "auto", "folds": None, "arm": None, "urdf": None,
                   "robot_noise": None, "known": [], "certify": False, "strict_images": False, "no_check": False,
                   "parent_frame": None, "child_frame": None, "export": [], "tool": None}
 

@@ -75,8 +75,12 @@ def print_calibration(cal: Calibration, out=None) -> None:
         if k.accuracy_mm is not None:
             a = k.accuracy_mm
             w(f"arm accuracy at the flange within the capture's joint ranges: nominal table {a['before_median']:.2f} mm "
-              f"(median; up to {a['before_max']:.2f}), corrected {a['after_median']:.3f} mm (predicted by the fit's model, "
+              f"(median; up to {a['before_max']:.2f}), corrected {a['after_median']:.3f} mm (predicted by the fit, "
               f"1 std; up to {a['after_max']:.3f})\n")
+            if "workspace_after_median" in a:
+                w(f"  over the joints' whole range (limits; beyond the capture's: extrapolated): nominal table "
+                  f"{a['workspace_before_median']:.2f} mm (median; up to {a['workspace_before_max']:.2f}), corrected "
+                  f"{a['workspace_after_median']:.3f} mm (1 std; up to {a['workspace_after_max']:.3f})\n")
     for u in cal.unobservable:
         w(f"NOT DETERMINED: {u.parameter}; set to {u.choice}. {u.coupled[:1].upper() + u.coupled[1:]}. To fix: {u.fix}\n")
     for name, k in cal.known.items():

@@ -461,7 +461,12 @@ def _kinematics_section(cal: Calibration) -> str:
             + ("" if k.accuracy_mm is None else
                f"<p>The arm's accuracy at the flange within the capture's joint ranges: {k.accuracy_mm['before_median']:.2f} mm "
                f"with the nominal table (median), {k.accuracy_mm['after_median']:.3f} mm with the corrected one (predicted "
-               "by the fit's model, 1 std).</p>")
+               "by the fit, 1 std)"
+               + ("" if "workspace_after_median" not in k.accuracy_mm else
+                  f"; over the joints' whole range (their limits, beyond the capture's: extrapolated) "
+                  f"{k.accuracy_mm['workspace_before_median']:.2f} mm with the nominal table and "
+                  f"{k.accuracy_mm['workspace_after_median']:.3f} mm with the corrected one")
+               + ".</p>")
             + '<table><tr><th class="l">entry</th><th>correction</th><th>std</th><th>prior std</th>'
             '<th class="l">determined</th></tr>' + "".join(rows) + "</table>"
             f'<p class="note">Nominal table: {_e(k.nominal.source or k.nominal.name)}</p></section>')
