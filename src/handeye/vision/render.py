@@ -26,6 +26,37 @@ def target_texture(target: Target, texels_per_m: float = 4000.0) -> Texture:
     return target.texture(texels_per_m)
 
 
+def _undistorted_grid(K, dist, w: int, h: int, ss: int) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """x and y (h ss * w ss,), float32: the undistorted normalized coordinates of every supersampled
+    pixel centre, row by row.
+
+    Undistortion is iterative and costly (7-17 s for 1600x1200 at 3x3 samples): it is solved on the
+    whole pixels (and one beyond the border) and interpolated bilinearly in between, off the
+    iterative solution by < 5e-5 px, float32 rounding included (measured at 640x480 and 1280x1024
+    with the simulator's lens)."""
+    cu, cv = np.arange(-1.0, w + 1.0), np.arange(-1.0, h + 1.0)
+    uu, vv = np.meshgrid(cu, cv)
+    pix = np.stack([uu.ravel(), vv.ravel()], axis=1).reshape(-1, 1, 2)
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-10)
+    if hasattr(cv2, "undistortPointsIter"):  # OpenCV 4
+        xy = cv2.undistortPointsIter(pix, K, dist, None, None, crit)
+    else:  # OpenCV 5 folded the criteria into undistortPoints
+        xy = cv2.undistortPoints(pix, K, dist, None, None, None, crit)
+    grid = xy.reshape(len(cv), len(cu), 2)
+
+    def weights(n: int) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+        pos = (np.arange(n * ss) + 0.5) / ss - 0.5 + 1.0  # supersampled centres, on the grid's index scale
+        i0 = np.clip(np.floor(pos).astype(np.intp), 0, n)
+        return i0, pos - i0
+    i0, tx = weights(w)
+    j0, ty = weights(h)
+    out = []
+    for c in (0, 1):  # one coordinate at a time: a 12 MP image has 108 million samples
+        rows = grid[:, i0, c] * (1.0 - tx) + grid[:, i0 + 1, c] * tx
+        out.append((rows[j0] * (1.0 - ty)[:, None] + rows[j0 + 1] * ty[:, None]).astype(np.float32).ravel())
+    return out[0], out[1]
+
+
 class Renderer:
     """Renders textures seen by one camera; the undistorted rays are computed once."""
 
@@ -34,21 +65,9 @@ class Renderer:
         self.size = (int(image_size[0]), int(image_size[1]))
         self.ss = int(supersample)
         w, h = self.size
-        ss = self.ss
-        u = (np.arange(w * ss) + 0.5) / ss - 0.5
-        v = (np.arange(h * ss) + 0.5) / ss - 0.5
-        uu, vv = np.meshgrid(u, v)
-        pix = np.stack([uu.ravel(), vv.ravel()], axis=1).reshape(-1, 1, 2)
-        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-10)
-        if hasattr(cv2, "undistortPointsIter"):  # OpenCV 4
-            xy = cv2.undistortPointsIter(pix, self.K, self.dist, None, None, crit)
-        else:  # OpenCV 5 folded the criteria into undistortPoints
-            xy = cv2.undistortPoints(pix, self.K, self.dist, None, None, None, crit)
-        xy = xy.reshape(-1, 2)
-        self.rays = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)  # camera frame, z = 1
-        # the ray components in float32 (texture coordinates need ~1e-4 px, float32 gives ~1e-7 relative)
-        self._rx = np.ascontiguousarray(xy[:, 0], dtype=np.float32)
-        self._ry = np.ascontiguousarray(xy[:, 1], dtype=np.float32)
+        # the rays (x, y, 1) in the camera frame, in float32 (texture coordinates need ~1e-4 px,
+        # float32 gives ~1e-7 relative)
+        self._rx, self._ry = _undistorted_grid(self.K, self.dist, w, h, self.ss)
 
     def project(self, points_target: NDArray[np.float64], target2cam: NDArray[np.float64]) -> NDArray[np.float64]:
         """Pixel positions of target-frame points (with distortion)."""
