@@ -171,6 +171,7 @@ def test_a_wrong_square_size_is_not_trusted_as_declared(tmp_path):
     assert 1e3 * translation_error(cal.X, right.X) < 0.5 < 1e3 * translation_error(declared.X, sc.X)
     assert cal.prediction_error["px"] < declared.prediction_error["px"]
     assert cal.std_sources["board_scale"] is not None
+    assert not any("focal length" in a for a in cal.diagnostics.advice)  # K given: the size it is
     handeye.write_calibration(cal, tmp_path / "out")
     assert handeye.session.read_result(tmp_path / "out")["target_scale"] == pytest.approx(cal.target_scale)
 
@@ -301,3 +302,18 @@ def test_a_view_with_the_camera_at_the_target_origin_scores_a_number():
         warnings.simplefilter("error")
         _, mm = view_errors(sc.X, sc.Z, views, np.arange(6))
     assert np.isfinite(mm).all() and mm[2] > 0 and np.allclose(np.delete(mm, 2), 0.0, atol=1e-9)
+
+
+def test_a_wrong_scale_with_estimated_intrinsics_names_the_focal_length_too(tmp_path):
+    """A board declared 25 mm for 30, the intrinsics estimated from the same images: the advice names
+    the factor, and that a focal length off by it would look the same (with K given it does not)."""
+    folder = tmp_path / "s"
+    handeye.simulate.simulate_session(folder, "eye_in_hand", 10, "chessboard", noise_px=0.2, seed=2,
+                                      write_intrinsics=False)
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    spec["target"]["square"] *= 25 / 30
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    cal = handeye.calibrate(folder, progress=False, refine="none")
+    assert cal.verdict == "inconsistent" and cal.intrinsics_source == "estimated"
+    assert any("multiply it by 1.2" in a for a in cal.diagnostics.advice)
+    assert any("a focal length off by that factor" in a for a in cal.diagnostics.advice)

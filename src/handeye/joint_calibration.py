@@ -24,7 +24,7 @@ from .metrics import std_deg_mm
 from .options import CalibrationOptions, options_from
 from .result import Calibration, HeldOutErrors, KinematicModel
 from .session import Session
-from .solvers.kinematic import ANGLE_PRIOR_RAD, LENGTH_PRIOR_M, KinematicRefinement, refine_kinematic
+from .solvers.kinematic import ANGLE_PRIOR_RAD, COMPLIANCE_PRIOR, LENGTH_PRIOR_M, KinematicRefinement, refine_kinematic
 from .validation import Views, cross_validate, default_folds, fold_indices, jackknife_covs, view_errors
 from .verdict import judged
 
@@ -94,7 +94,9 @@ def calibrate_joints(
     opts = options_from(options, changes)
     ignored = [f"refine={opts.refine!r}"] if opts.refine != "auto" else []
     ignored += ["robot_noise (the arm's error is fitted)"] if opts.robot_noise is not None else []
-    opts = opts.replace(refine="none", robot_noise=None)
+    compliance = opts.compliance
+    # the black-box start on the nominal flange poses: poses alone have no joints (arm, compliance)
+    opts = opts.replace(refine="none", robot_noise=None, arm=None, compliance=False)
     start = calibrate_poses(chain.forward(q), target2cam, setup, opts, progress=False)
     if start.observability is not None and start.observability.unobservable:
         raise InputMismatchError(f"the motions determine only part of X ({start.observability.motion_kind}): the arm's "
@@ -108,17 +110,21 @@ def calibrate_joints(
         pixels = dict(object_points=[start.target_scale * np.asarray(object_points[i]) for i in keep],
                       image_points=[image_points[i] for i in keep],
                       K=np.asarray(K, dtype=float), dist=np.asarray(dist, dtype=float).ravel())
-    priors = dict(length_prior=1e-3 * length_prior_mm, angle_prior=np.radians(angle_prior_deg))
+    priors = dict(length_prior=1e-3 * length_prior_mm, angle_prior=np.radians(angle_prior_deg),
+                  compliance=compliance)
     ref = refine_kinematic(start.X, start.Z, chain, q[keep], setup, target2cam=target2cam, **priors, **pixels)
     cov_X, cov_entries, widened = _widened(ref, chain, q[keep], target2cam, setup, priors, pixels)
     held_out = _held_out(ref, chain, q[keep], target2cam, setup, priors, pixels, opts.folds)
     corrected = chain.corrected(ref.deltas)
-    index = [chain.parameter_names().index(n) for n in ref.names]
+    if ref.compliance is not None:
+        corrected = replace(corrected, compliance=ref.compliance)
+    index = [chain.parameter_names(compliance).index(n) for n in ref.names]
+    p = _vector(chain, ref)
     shift = 1e3 * np.linalg.norm(corrected.forward(q[keep])[:, :3, 3] - chain.forward(q[keep])[:, :3, 3], axis=1)
     entry_std = np.sqrt(np.diag(cov_entries))
-    model = KinematicModel(chain, corrected, ref.names, ref.deltas.ravel()[index], entry_std, ref.prior_std,
+    model = KinematicModel(chain, corrected, ref.names, p[index], entry_std, ref.prior_std,
                            ref.determined, (float(np.median(shift)), float(shift.max())),
-                           _accuracy(chain, ref.deltas, index, cov_entries, q[keep]), q[keep])
+                           _accuracy(chain, p, index, cov_entries, q[keep]), q[keep])
     notes = list(start.notes) + _fit_notes(ref, model, bool(pixels), ignored, widened, length_prior_mm, angle_prior_deg)
     cal = replace(start, X=ref.X, Z=ref.Z, cov=cov_X, std=std_deg_mm(cov_X), method=f"kinematic({chain.name})",
                   estimator="kinematic", refinement="kinematic", flange2base=corrected.forward(q[keep]),
@@ -148,13 +154,19 @@ def _fit_notes(ref: KinematicRefinement, model: KinematicModel, pixels: bool, ig
                      "that does not fit)")
     if model.undetermined:
         parallel = [n for n in model.undetermined if n in along_parallel_axes(chain)]
-        moved = [n for n in model.undetermined if n not in parallel]
+        sagging = [n for n in model.undetermined if n.endswith(".compliance")]
+        moved = [n for n in model.undetermined if n not in parallel and n not in sagging]
+        prior = f"{length_prior_mm:g} mm, {angle_prior_deg:g} deg" + (
+            f", {np.degrees(COMPLIANCE_PRIOR):g} deg/m" if any(n.endswith(".compliance") for n in model.names) else "")
         notes.append(f"the capture does not determine {', '.join(model.undetermined)}: held near nominal by their prior "
-                     f"({length_prior_mm:g} mm, {angle_prior_deg:g} deg), whose uncertainty X's std includes"
+                     f"({prior}), whose uncertainty X's std includes"
                      + (f"; {', '.join(parallel)} lie along parallel joint axes, where only their sum shows whatever the "
                         "capture" if parallel else "")
                      + (f"; move joint{'s' if len(_joints_of(moved)) > 1 else ''} {_joints_of(moved)} further between "
-                        "views (over a wider range, and together with the others) to determine them" if moved else ""))
+                        "views (over a wider range, and together with the others) to determine them" if moved else "")
+                     + (f"; for the compliance of joint{'s' if len(_joints_of(sagging)) > 1 else ''} {_joints_of(sagging)}, "
+                        "vary how far the flange reaches out from those joints' axes between views (the load's "
+                        "moment arm)" if sagging else ""))
     return notes
 
 
@@ -194,14 +206,14 @@ def _widened(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, prior
     widening factor. The model takes the pixel errors of a view's points as independent: an error
     of the whole view (joint encoder noise of 0.002 deg on rendered UR5 sessions) left X within 3 of
     its std on 76% of the axes."""
-    index = [chain.parameter_names().index(n) for n in ref.names]
+    index = [chain.parameter_names(priors["compliance"]).index(n) for n in ref.names]
     refitted = []
 
     def fit(flange2base, t2c, setup, idx):
         part = _views_of(pixels, idx)
         r = refine_kinematic(ref.X, ref.Z, chain, q[idx], setup, target2cam=t2c, sigma=ref.sigma,
-                             deltas0=ref.deltas, tol=REFIT_TOL, **priors, **part)
-        refitted.append(r.deltas.ravel()[index])
+                             deltas0=ref.deltas, compliance0=ref.compliance, tol=REFIT_TOL, **priors, **part)
+        refitted.append(_vector(chain, r)[index])
         return r.X, r.Z
     jack, _ = jackknife_covs(fit, Views(chain.forward(q), target2cam, setup), ref.X, None)
     cov_entries = ref.cov[12:, 12:]
@@ -224,7 +236,7 @@ def _wider(cov: NDArray[np.float64], jack: NDArray[np.float64]) -> tuple[NDArray
 ACCURACY_SAMPLES = 500
 
 
-def _accuracy(chain: Chain, deltas, index: list[int], cov_entries, q) -> dict[str, float]:
+def _accuracy(chain: Chain, p, index: list[int], cov_entries, q) -> dict[str, float]:
     """The arm's absolute accuracy at the flange before and after the fit, over joint angles drawn
     uniformly within the capture's range of each joint (where the fit has seen the arm) and, when
     the chain knows its joints' limits, over the whole workspace (``workspace_`` keys): before, how
@@ -233,28 +245,36 @@ def _accuracy(chain: Chain, deltas, index: list[int], cov_entries, q) -> dict[st
     the capture's ranges 'before' is the corrected table extrapolated, and 'after' grows with the
     entries the capture left to their prior."""
     rng = np.random.default_rng(0)
-    out = _accuracy_over(chain, deltas, index, cov_entries, rng.uniform(q.min(axis=0), q.max(axis=0),
-                                                                         (ACCURACY_SAMPLES, q.shape[1])))
+    within = rng.uniform(q.min(axis=0), q.max(axis=0), (ACCURACY_SAMPLES, q.shape[1]))
+    out = _accuracy_over(chain, p, index, cov_entries, within)
     if chain.limits is not None:
-        whole = _accuracy_over(chain, deltas, index, cov_entries,
+        whole = _accuracy_over(chain, p, index, cov_entries,
                                rng.uniform(chain.limits[:, 0], chain.limits[:, 1], (ACCURACY_SAMPLES, q.shape[1])))
         out |= {f"workspace_{k}": v for k, v in whole.items() if k != "samples"}
     return out
 
 
-def _accuracy_over(chain: Chain, deltas, index: list[int], cov_entries, samples) -> dict[str, float]:
+def _accuracy_over(chain: Chain, p, index: list[int], cov_entries, samples) -> dict[str, float]:
     """:func:`_accuracy` at the joint angles ``samples`` (S, n)."""
-    corrected = chain.forward(samples, deltas)[:, :3, 3]
+    corrected = chain.forward_with(samples, p)[:, :3, 3]
     before = 1e3 * np.linalg.norm(chain.forward(samples)[:, :3, 3] - corrected, axis=1)
     J = np.empty((len(samples), 3, len(index)))
     step = 1e-7
     for j, k in enumerate(index):
-        d = np.array(deltas, dtype=float).ravel()
+        d = np.array(p, dtype=float)
         d[k] += step
-        J[:, :, j] = (chain.forward(samples, d.reshape(np.shape(deltas)))[:, :3, 3] - corrected) / step
+        J[:, :, j] = (chain.forward_with(samples, d)[:, :3, 3] - corrected) / step
     after = 1e3 * np.sqrt(np.einsum("nij,jk,nik->n", J, cov_entries, J))
     return {"before_median": float(np.median(before)), "before_max": float(before.max()),
             "after_median": float(np.median(after)), "after_max": float(after.max()), "samples": len(samples)}
+
+
+def _vector(chain: Chain, r: KinematicRefinement) -> NDArray[np.float64]:
+    """The fit's parameter vector of ``chain.forward_with``: the table's corrections, then (when
+    fitted) the compliance's."""
+    if r.compliance is None:
+        return r.deltas.ravel().copy()
+    return np.r_[r.deltas.ravel(), r.compliance - (0.0 if chain.compliance is None else chain.compliance)]
 
 
 def _held_out(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, priors: dict, pixels: dict,
@@ -276,11 +296,11 @@ def _held_out(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, prio
         part = _views_of(pixels, train)
         try:
             r = refine_kinematic(ref.X, ref.Z, chain, q[train], setup, target2cam=target2cam[train], sigma=ref.sigma,
-                                 deltas0=ref.deltas, tol=REFIT_TOL, **priors, **part)
+                                 deltas0=ref.deltas, compliance0=ref.compliance, tol=REFIT_TOL, **priors, **part)
         except (HandEyeError, np.linalg.LinAlgError, ValueError):
             continue
         f2b = views.flange2base.copy()
-        f2b[test] = chain.forward(q[test], r.deltas)
+        f2b[test] = chain.forward_with(q[test], _vector(chain, r))
         e_px, mm[test] = view_errors(r.X, r.Z, replace(views, flange2base=f2b), test)
         if px is not None:
             px[test] = e_px

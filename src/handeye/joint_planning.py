@@ -139,11 +139,14 @@ class _Model:
     def __init__(self, cal: Calibration, q, K, dist) -> None:
         self.cal, self.q, self.K, self.dist = cal, q, K, dist
         k = cal.kinematic
-        absorbed = set(absorbed_parameters(k.nominal))
-        names = [n for n in k.nominal.parameter_names() if n not in absorbed]
-        if names != list(k.names):
+        compliance = any(n.endswith(".compliance") for n in k.names)
+        every = k.nominal.parameter_names(compliance)
+        if set(k.names) & set(absorbed_parameters(k.nominal)) or not set(k.names) <= set(every):
             raise InputMismatchError("the calibration's table entries do not match its arm's")
-        self.index = np.array([k.nominal.parameter_names().index(n) for n in names])
+        self.index = np.array([every.index(n) for n in k.names])
+        # the fit's parameter vector (Chain.forward_with) about which the entries move
+        own = np.zeros(k.nominal.n_joints) if k.nominal.compliance is None else k.nominal.compliance
+        self.p = np.r_[(k.chain.table - k.nominal.table).ravel(), k.chain.compliance - own if compliance else []]
         self.prior = np.asarray(k.prior_std, dtype=float)
         self.points = np.asarray(cal.object_points[0], dtype=float)
 
@@ -156,10 +159,9 @@ class _Model:
         k = self.cal.kinematic
         # any local parametrization of X and Z: the entries' posterior does not depend on which
         X, Z = perturb(self.cal.X, x[:3], x[3:6]), perturb(self.cal.Z, x[6:9], x[9:12])
-        deltas = (k.chain.table - k.nominal.table).ravel().copy()
-        deltas[self.index] += x[12:] * self.prior
-        return self._project(predicted_target2cam(X, Z, k.nominal.forward(joints, deltas.reshape(k.nominal.table.shape)),
-                                                  self.cal.setup))
+        p = self.p.copy()
+        p[self.index] += x[12:] * self.prior
+        return self._project(predicted_target2cam(X, Z, k.nominal.forward_with(joints, p), self.cal.setup))
 
     def _jacobian(self, joints) -> NDArray[np.float64]:
         """(V, 2M, P): per view the pixels' derivatives over [X, Z increments, entries in prior units]."""

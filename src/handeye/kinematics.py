@@ -9,6 +9,11 @@ data (:func:`arm_names`, :func:`load_arm`), each with its source.
 
 A kinematic error that only moves the base or the flange frame is not the arm's to estimate: a
 calibration that also finds X and Z takes it into them (:func:`absorbed_parameters`).
+
+Joint compliance (optional, ``Chain.compliance``): each joint gives way under the load it holds,
+by its compliance (rad per metre) times the moment arm of the flange's load about the joint's axis
+(:meth:`Chain.moment_arms`; the load lumped at the flange, gravity along ``Chain.gravity``, the
+base frame's -z by default): an arm reaching out sags more than one held close.
 """
 
 from __future__ import annotations
@@ -23,11 +28,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from .errors import InputMismatchError
 
-__all__ = ["Chain", "PARAMETERS", "arm_names", "load_arm", "absorbed_parameters", "check_joints_against_poses",
-           "chain_yaml"]
+__all__ = ["Chain", "PARAMETERS", "GRAVITY", "arm_names", "load_arm", "absorbed_parameters",
+           "check_joints_against_poses", "chain_yaml", "display_unit"]
 
 #: A joint's parameters, in the order of a chain's table columns (and of its parameter vector).
 PARAMETERS = ("a", "alpha", "d", "theta")
+#: Gravity's direction in an arm's base frame unless the chain says otherwise (a floor-mounted
+#: arm, z up: the shipped tables' and ROS's convention).
+GRAVITY = (0.0, 0.0, -1.0)
 
 
 @dataclass(frozen=True)
@@ -57,6 +65,11 @@ class Chain:
         read in this order whatever theirs.
     limits : ndarray (n, 2) or None
         Each joint's lower and upper limit (rad), where known: the views handeye proposes stay inside.
+    compliance : ndarray (n,) or None
+        Each joint's deflection (rad) per metre of the moment arm of the flange's load about its
+        axis (:meth:`moment_arms`); None: a rigid arm.
+    gravity : ndarray (3,)
+        Gravity's direction in the base frame (a unit vector; :data:`GRAVITY` by default).
     """
 
     name: str
@@ -69,6 +82,8 @@ class Chain:
     base: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
     joint_names: tuple[str, ...] | None = None
     limits: NDArray[np.float64] | None = None
+    compliance: NDArray[np.float64] | None = None
+    gravity: NDArray[np.float64] = field(default_factory=lambda: np.array(GRAVITY))
 
     def __post_init__(self) -> None:
         if self.convention not in ("dh", "mdh"):
@@ -88,6 +103,15 @@ class Chain:
             if limits.shape != (len(table), 2) or np.isnan(limits).any() or (limits[:, 0] > limits[:, 1]).any():
                 raise InputMismatchError(f"{self.name}: limits must be one [lower, upper] row per joint")
             object.__setattr__(self, "limits", limits)
+        if self.compliance is not None:
+            c = np.asarray(self.compliance, dtype=float)
+            if c.shape != (len(table),) or not np.isfinite(c).all():
+                raise InputMismatchError(f"{self.name}: compliance must be one finite number per joint (rad per metre)")
+            object.__setattr__(self, "compliance", c)
+        g = np.asarray(self.gravity, dtype=float)
+        if g.shape != (3,) or not np.isfinite(g).all() or np.linalg.norm(g) < 1e-9:
+            raise InputMismatchError(f"{self.name}: gravity must be a direction in the base frame, e.g. [0, 0, -1]")
+        object.__setattr__(self, "gravity", g / np.linalg.norm(g))
         if self.joint_names is not None and len(self.joint_names) != len(table):
             raise InputMismatchError(f"{self.name}: {len(self.joint_names)} joint names for {len(table)} joints")
 
@@ -96,21 +120,60 @@ class Chain:
         """Number of joints."""
         return len(self.table)
 
-    def parameter_names(self) -> list[str]:
-        """``joint<k>.<a|alpha|d|theta>`` for every entry of the table, row by row."""
-        return [f"joint{k + 1}.{p}" for k in range(self.n_joints) for p in PARAMETERS]
+    def parameter_names(self, compliance: bool = False) -> list[str]:
+        """``joint<k>.<a|alpha|d|theta>`` for every entry of the table, row by row, then (with
+        ``compliance``) ``joint<k>.compliance`` for every joint: the order of :meth:`forward_with`'s
+        parameter vector."""
+        names = [f"joint{k + 1}.{p}" for k in range(self.n_joints) for p in PARAMETERS]
+        return names + ([f"joint{k + 1}.compliance" for k in range(self.n_joints)] if compliance else [])
+
+    def forward_with(self, q: ArrayLike, p: ArrayLike) -> NDArray[np.float64]:
+        """:meth:`forward` with the parameter vector ``p`` of :meth:`parameter_names` added: the
+        table's corrections and, when ``p`` is that long, the compliance's (to the chain's own, or 0)."""
+        p = np.asarray(p, dtype=float).ravel()
+        size = self.table.size
+        if len(p) == size:
+            return self.forward(q, p)
+        own = np.zeros(self.n_joints) if self.compliance is None else self.compliance
+        return self.forward(q, p[:size], own + p[size:])
 
     def corrected(self, deltas: ArrayLike) -> "Chain":
         """The chain with ``deltas`` (n, 4) added to its table."""
         return replace(self, table=self.table + np.asarray(deltas, dtype=float).reshape(self.table.shape))
 
-    def forward(self, q: ArrayLike, deltas: ArrayLike | None = None) -> NDArray[np.float64]:
+    def forward(self, q: ArrayLike, deltas: ArrayLike | None = None,
+                compliance: ArrayLike | None = None) -> NDArray[np.float64]:
         """``flange2base`` (N, 4, 4) of joint angles ``q`` (N, n) in radians, the table changed by
-        ``deltas`` (n, 4) when given."""
+        ``deltas`` (n, 4) and the joints' compliance (n,) replaced by ``compliance`` when given.
+        Compliance turns each joint by its value times :meth:`moment_arms` at the commanded angles
+        (first order: the deflections are small)."""
         q = np.asarray(q, dtype=float)
         if q.ndim != 2 or q.shape[1] != self.n_joints:
             raise InputMismatchError(f"{self.name} has {self.n_joints} joints; the joint angles have shape {q.shape}")
         table = self.table if deltas is None else self.table + np.asarray(deltas, dtype=float).reshape(self.table.shape)
+        c = self.compliance if compliance is None else np.asarray(compliance, dtype=float)
+        if c is not None and np.any(c != 0):
+            q = q + c * self._moment_arms(q, table)
+        return self._frames(q, table)[-1] @ self.flange
+
+    def moment_arms(self, q: ArrayLike, deltas: ArrayLike | None = None) -> NDArray[np.float64]:
+        """(N, n): per joint the torque (N m) a 1 N load at the flange's origin makes about the
+        joint's axis under gravity (``Chain.gravity``), i.e. the load's moment arm (m), signed
+        along the axis: the direction the joint gives way."""
+        q = np.asarray(q, dtype=float)
+        table = self.table if deltas is None else self.table + np.asarray(deltas, dtype=float).reshape(self.table.shape)
+        return self._moment_arms(q, table)
+
+    def _moment_arms(self, q: NDArray[np.float64], table: NDArray[np.float64]) -> NDArray[np.float64]:
+        frames = self._frames(q, table)
+        flange = (frames[-1] @ self.flange)[:, :3, 3]
+        # the joint's axis: z of the frame before its rotation (standard DH: the previous frame's)
+        axes = [np.broadcast_to(self.base, frames[0].shape)] + frames[:-1] if self.convention == "dh" else frames
+        return np.stack([np.einsum("ni,ni->n", np.cross(flange - A[:, :3, 3], self.gravity), A[:, :3, 2]) for A in axes],
+                        axis=1)
+
+    def _frames(self, q: NDArray[np.float64], table: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+        """Each joint's frame after its rotation in the base frame: n stacks (N, 4, 4)."""
         a, alpha, d, theta = (table[:, k] for k in range(4))
         th = q + theta
         ct, st = np.cos(th), np.sin(th)
@@ -125,10 +188,18 @@ class Chain:
             A[..., 1, 0], A[..., 1, 1], A[..., 1, 2], A[..., 1, 3] = st * ca, ct * ca, -sa, -sa * d
             A[..., 2, 0], A[..., 2, 1], A[..., 2, 2], A[..., 2, 3] = st * sa, ct * sa, ca, ca * d
         A[..., 3, 3] = 1.0
-        T = self.base @ A[:, 0]
+        frames = [self.base @ A[:, 0]]
         for k in range(1, self.n_joints):
-            T = T @ A[:, k]
-        return T @ self.flange
+            frames.append(frames[-1] @ A[:, k])
+        return frames
+
+
+def display_unit(name: str) -> tuple[float, str]:
+    """How a parameter of :meth:`Chain.parameter_names` is shown: (factor from SI, unit); lengths
+    in mm, angles in deg, compliance in deg per metre of the load's moment arm."""
+    if name.endswith(".compliance"):
+        return float(np.degrees(1.0)), "deg/m"
+    return (float(np.degrees(1.0)), "deg") if name.endswith((".alpha", ".theta")) else (1e3, "mm")
 
 
 def absorbed_parameters(chain: Chain) -> list[str]:
@@ -185,7 +256,8 @@ def _chain_from_yaml(text: str, where: str) -> Chain:
                      joint_names=None if names is None else tuple(str(n) for n in names),
                      limits=np.radians(data["limits_deg"]) if "limits_deg" in data else None,
                      home={k: np.radians(v) for k, v in (data.get("home_deg") or {}).items()},
-                     spread=np.radians(data["spread_deg"]) if "spread_deg" in data else None)
+                     spread=np.radians(data["spread_deg"]) if "spread_deg" in data else None,
+                     compliance=data.get("compliance_rad_per_m"), gravity=data.get("gravity", GRAVITY))
     except (KeyError, TypeError, ValueError, AttributeError, yaml.YAMLError) as exc:
         raise InputMismatchError(f"{where}: not an arm table ({exc}); give name, convention (dh or mdh) and joints: "
                                  "one row [a_m, alpha_rad, d_m, theta_offset_rad] per joint") from None
@@ -204,6 +276,10 @@ def chain_yaml(chain: Chain, comment: str = "") -> str:
             lines.append(f"{key}: [[{'], ['.join(', '.join(repr(float(v)) for v in r) for r in T)}]]")
     if chain.joint_names is not None:
         lines.append(f"joint_names: [{', '.join(chain.joint_names)}]")
+    if chain.compliance is not None:
+        lines.append(f"compliance_rad_per_m: [{', '.join(repr(float(v)) for v in chain.compliance)}]")
+    if not np.allclose(chain.gravity, GRAVITY, atol=0.0):
+        lines.append(f"gravity: [{', '.join(repr(float(v)) for v in chain.gravity)}]")
     if chain.limits is not None:
         lines.append(f"limits_deg: [[{'], ['.join(', '.join(repr(float(v)) for v in r) for r in np.degrees(chain.limits))}]]")
     return "\n".join(lines) + "\n"

@@ -77,6 +77,10 @@ class CalibrationOptions:
         names: a shipped arm's name, a DH table (``.yaml``) or a URDF (``.urdf``; its chain from
         ``base_link``/``world`` to ``tool0``/``flange``); files relative to the current folder. Joint
         angles only: poses alone, and sessions without joints, refuse it.
+    compliance : bool
+        With joint angles: fit each joint's compliance with the arm's table (its deflection per metre
+        of the moment arm of the flange's load, :meth:`handeye.kinematics.Chain.moment_arms`). Joint
+        angles only, as ``arm``.
     """
 
     method: str = "daniilidis"
@@ -93,6 +97,7 @@ class CalibrationOptions:
     time_offset: float | None = None
     strict_images: bool = False
     arm: str | None = None
+    compliance: bool = False
 
     def __post_init__(self) -> None:
         get(self.method)  # an unknown name: the registry's error lists the valid ones
@@ -101,7 +106,7 @@ class CalibrationOptions:
         if isinstance(self.pairs, str) and self.pairs not in PAIRS:
             raise InputMismatchError(f"unknown pairs strategy {self.pairs!r}; use {', '.join(repr(p) for p in PAIRS)} "
                                      "or a (K, 2) array of pose indices")
-        for name in ("check", "strict", "strict_images"):
+        for name in ("check", "strict", "strict_images", "compliance"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise InputMismatchError(f"{name}={getattr(self, name)!r}; give True or False")
         if self.folds is not None and (not _whole(self.folds) or self.folds < 2):
@@ -148,6 +153,9 @@ class CalibrationOptions:
         if self.arm is not None:
             raise InputMismatchError(f"arm={self.arm!r} gives the kinematics of joint angles; poses alone have none "
                                      "(give a session with a joints: table, or leave arm out)")
+        if self.compliance:
+            raise InputMismatchError("compliance=True fits the joints' compliance from joint angles; poses alone have "
+                                     "none (give a session with a joints: table, or leave compliance out)")
         if self.robot_noise is not None:  # else dropped without a word
             raise InputMismatchError("robot_noise is used by the pixel refinement, which needs the detections: use "
                                      "handeye.calibrate on a session, or leave robot_noise out (the pose refinement "

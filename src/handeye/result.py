@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from ._shared.text import summarize
 from .errors import InputMismatchError
 from .geometry.se3 import skew
-from .kinematics import Chain
+from .kinematics import Chain, display_unit
 from .metrics import rotation_error, translation_error
 from .motions import MotionSet, screw_congruence
 from .poses import RobotPoseInput
@@ -123,7 +123,7 @@ class KinematicModel:
         The arm's table as given, and corrected.
     names : list of str
         The table entries estimated (``joint<k>.<a|alpha|d|theta>``; the others move only the base or
-        the flange frame and are X's and Z's).
+        the flange frame and are X's and Z's), then ``joint<k>.compliance`` when fitted.
     correction, std, prior_std : ndarray (m,)
         Per entry its correction to the nominal value, its std and its prior's (m or rad).
     determined : ndarray (m,) of bool
@@ -156,12 +156,11 @@ class KinematicModel:
         return [n for n, d in zip(self.names, self.determined) if not d]
 
     def as_dict(self) -> dict:
-        """The model as result.json writes it (lengths in mm, angles in degrees)."""
-        def unit(name: str) -> tuple[float, str]:
-            return (np.degrees(1.0), "deg") if name.endswith((".alpha", ".theta")) else (1e3, "mm")
+        """The model as result.json writes it (lengths in mm, angles in degrees, compliance in
+        degrees per metre of the load's moment arm)."""
         entries = {}
         for name, c, s, p, d in zip(self.names, self.correction, self.std, self.prior_std, self.determined):
-            f, u = unit(name)
+            f, u = display_unit(name)
             entries[name] = {"correction": float(f * c), "std": float(f * s), "prior_std": float(f * p), "unit": u,
                              "determined": bool(d)}
         return {"arm": self.nominal.name, "convention": self.nominal.convention,
@@ -169,7 +168,9 @@ class KinematicModel:
                 {"median": float(self.flange_shift_mm[0]), "max": float(self.flange_shift_mm[1])},
                 "accuracy_mm": self.accuracy_mm,
                 "table": {"columns": ["a_m", "alpha_rad", "d_m", "theta_offset_rad"], "nominal": self.nominal.table.tolist(),
-                          "corrected": self.chain.table.tolist()}, "entries": entries, "undetermined": self.undetermined}
+                          "corrected": self.chain.table.tolist()},
+                "compliance_rad_per_m": None if self.chain.compliance is None else self.chain.compliance.tolist(),
+                "entries": entries, "undetermined": self.undetermined}
 
 
 @dataclass(frozen=True)

@@ -728,6 +728,7 @@ def kinematic_scene(
     joint_noise_deg: float = 0.002,
     target: str | dict = "chessboard",
     image_size: tuple[int, int] = (1280, 1024),
+    compliance_deg_per_m: float = 0.0,
 ) -> KinematicScene:
     """A capture by ``arm`` (a name of :func:`handeye.kinematics.arm_names` or a chain) whose real
     table differs from the nominal one: every entry the arm owns (not one that only moves its base
@@ -736,7 +737,9 @@ def kinematic_scene(
     flange 1-3 mm from where the nominal chain says at the defaults. Joint angles are drawn about
     the arm's home until ``n_poses`` views see the whole target; the controller reports them with
     ``joint_noise_deg`` of encoder noise; detections carry ``pixel_px`` of noise, and the camera's
-    poses are PnP's on them."""
+    poses are PnP's on them. With ``compliance_deg_per_m``, every joint of the real arm gives way
+    under the flange's load by 0.5-1.5x that (uniform) per metre of the load's moment arm
+    (:meth:`handeye.kinematics.Chain.moment_arms`)."""
     check_setup(setup)
     rng = np.random.default_rng(rng)
     chain = load_arm(arm) if isinstance(arm, str) else arm
@@ -752,6 +755,8 @@ def kinematic_scene(
             deltas[k] = (np.radians(rng.normal(0.0, angle_deg)) if name.endswith((".alpha", ".theta"))
                          else 1e-3 * rng.normal(0.0, length_mm))
     true = chain.corrected(deltas)
+    if compliance_deg_per_m > 0:
+        true = replace(true, compliance=np.radians(compliance_deg_per_m) * rng.uniform(0.5, 1.5, chain.n_joints))
     f2b_true = true.forward(q_true)
     joints = q_true + np.radians(rng.normal(0.0, joint_noise_deg, q_true.shape))
     t2c_true = predicted_target2cam(X, Z, f2b_true, setup)

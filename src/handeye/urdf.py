@@ -238,8 +238,11 @@ def chain_urdf(chain: Chain, base_link: str = "base_link", tip_link: str = "tool
             fixed_before.append(np.eye(4))
             fixed_after.append(_rot("z", theta) @ _shift(2, d) @ _shift(0, a) @ _rot("x", alpha))
     lines = ['<?xml version="1.0"?>', f'<robot name="{chain.name}">',
-             f"  <!-- written by handeye from {chain.source or chain.name}: kinematics only -->",
-             f'  <link name="{base_link}"/>']
+             f"  <!-- written by handeye from {chain.source or chain.name}: kinematics only -->"]
+    if chain.compliance is not None:  # URDF has no element for it
+        lines.append("  <!-- without the joints' compliance, which a URDF cannot hold (the DH table in YAML has it): "
+                     f"{', '.join(f'{np.degrees(c):.6g}' for c in chain.compliance)} deg per metre of moment arm -->")
+    lines += [f'  <link name="{base_link}"/>']
     parent, pending = base_link, chain.base
     limits = chain.limits if chain.limits is not None else np.tile([-2 * np.pi, 2 * np.pi], (chain.n_joints, 1))
     lower, upper = (np.clip(limits[:, 0], -1e3, 1e3).tolist(), np.clip(limits[:, 1], -1e3, 1e3).tolist())

@@ -242,6 +242,9 @@ def add_calibrate_options(p: argparse.ArgumentParser, refines: tuple[str, ...] =
         g.add_argument("--arm", metavar="NAME|TABLE.yaml|ROBOT.urdf",
                        help="the arm's kinematics for the session's joint angles (its joints: table), instead of the "
                        f"arm session.yaml names: a shipped arm ({', '.join(arm_names())}), a DH table or a URDF")
+        g.add_argument("--compliance", action="store_true",
+                       help="with joint angles: fit each joint's compliance with the arm's table (how far it gives way "
+                       "per metre of the moment arm of the flange's load; gravity along the base's -z)")
         g.add_argument("--urdf", metavar="ROBOT.urdf", help="the arm's URDF for the session's joint angles (the same as "
                        "--arm ROBOT.urdf; the chain from the URDF's root to its last joint's link, or the session's "
                        "base_link/tip_link)")
@@ -285,7 +288,8 @@ def calibrate_options(args: argparse.Namespace) -> CalibrationOptions:
         check=not args.no_check, robot_accuracy=accuracy_arg(args.robot_accuracy), known=known_arg(args.known),
         robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()), keyframes=args.keyframes,
         offset_range=None if rng is None else tuple(rng.tolist()), time_offset=args.time_offset,
-        strict_images=getattr(args, "strict_images", False), arm=arm_arg(args))
+        strict_images=getattr(args, "strict_images", False), arm=arm_arg(args),
+        compliance=getattr(args, "compliance", False))
 
 
 def arm_arg(args: argparse.Namespace) -> str | None:
@@ -332,7 +336,7 @@ def verdict_status(cal: Calibration) -> int:
 
 #: Options of image sessions a depth session has no use for, and their defaults: given, they are refused.
 _NOT_FOR_DEPTH = {"method": "daniilidis", "refine": "auto", "pairs": "auto", "folds": None, "arm": None, "urdf": None,
-                  "robot_noise": None, "known": [], "certify": False, "strict_images": False, "no_check": False,
+                  "compliance": False, "robot_noise": None, "known": [], "certify": False, "strict_images": False, "no_check": False,
                   "parent_frame": None, "child_frame": None, "export": [], "tool": None}
 
 

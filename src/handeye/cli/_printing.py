@@ -8,6 +8,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..depth import DepthResult
+from ..kinematics import display_unit
 from ..result import Calibration
 from ..setups import setup_info
 
@@ -109,8 +110,9 @@ def print_calibration(cal: Calibration, out=None) -> None:
 
 
 def _entry(name: str, value: float) -> str:
-    """A table entry's value in mm or deg."""
-    return f"{np.degrees(value):.4f} deg" if name.endswith((".alpha", ".theta")) else f"{1e3 * value:.3f} mm"
+    """A table entry's value in mm, deg or (compliance) deg/m."""
+    f, unit = display_unit(name)
+    return f"{f * value:.{3 if unit == 'mm' else 4}f} {unit}"
 
 
 def print_image_summary(cal: Calibration) -> None:

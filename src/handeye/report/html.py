@@ -22,6 +22,7 @@ from .._shared.io import atomic_write
 from .._shared.lazy import lazy_module
 from .._version import __version__
 from ..geometry.se3 import screw_parameters
+from ..kinematics import display_unit
 from ..motions import MotionSet
 from ..result import Calibration
 from ..setups import camera2base, predicted_target2cam, setup_info, target2base
@@ -447,8 +448,8 @@ def _kinematics_section(cal: Calibration) -> str:
         return ""
     rows = []
     for name, c, s, p, d in zip(k.names, k.correction, k.std, k.prior_std, k.determined):
-        f, unit = (np.degrees(1.0), "deg") if name.endswith((".alpha", ".theta")) else (1e3, "mm")
-        digits = 4 if unit == "deg" else 3
+        f, unit = display_unit(name)
+        digits = 3 if unit == "mm" else 4
         rows.append(f'<tr><td class="l">{_e(name)}</td><td>{f * c:+.{digits}f} {unit}</td><td>{f * s:.{digits}f}</td>'
                     f'<td>{f * p:.{digits}f}</td><td class="l">{"yes" if d else "no: held near nominal"}</td></tr>')
     shift = k.flange_shift_mm

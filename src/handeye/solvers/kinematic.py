@@ -10,6 +10,10 @@ joint never moved, lengths along parallel axes of which only the sum shows) stay
 their uncertainty reaches X's covariance; the entries that only move the base or the flange frame
 (:func:`handeye.kinematics.absorbed_parameters`) are left to X and Z.
 
+With ``compliance``, each joint's compliance (:meth:`handeye.kinematics.Chain.moment_arms`) is an
+unknown too, about 0 with the prior :data:`COMPLIANCE_PRIOR` (joints whose axis the load never
+turns, such as a vertical first joint's, have none to fit).
+
 Residuals: with images, the pixel errors of the target's points (``image_points``); with poses
 alone, the error of the predicted viewing rays of a virtual target's points, across the ray (in
 metres at the target's distance: what pixels measure, without PnP's depth error).
@@ -29,12 +33,19 @@ from ..setups import predicted_target2cam
 from ..vision.pnp import project_points_many
 from ._common import _normal_inverse, _xz_increment
 
-__all__ = ["KinematicRefinement", "refine_kinematic", "DETERMINED", "LENGTH_PRIOR_M", "ANGLE_PRIOR_RAD"]
+__all__ = ["KinematicRefinement", "refine_kinematic", "DETERMINED", "LENGTH_PRIOR_M", "ANGLE_PRIOR_RAD",
+           "COMPLIANCE_PRIOR"]
 
 #: The default prior std of a table entry: a length (m) and an angle (rad, 0.1 deg), an uncalibrated
 #: arm's tolerances.
 LENGTH_PRIOR_M = 1e-3
 ANGLE_PRIOR_RAD = np.radians(0.1)
+#: The default prior std of a joint's compliance (rad per metre of the load's moment arm): 0.2 deg
+#: per metre, a collaborative arm's shoulder (~3e4 N m/rad) under its links and a camera (~100 N):
+#: ~1 mm at reach.
+COMPLIANCE_PRIOR = float(np.radians(0.2))
+#: A joint whose load's moment arm stays below this (m) over the capture has no compliance to fit.
+_MIN_MOMENT_ARM = 1e-3
 #: An entry is determined by the capture when its posterior std is below this share of its prior's.
 DETERMINED = 0.5
 #: Points of the virtual target (target frame, m) whose viewing rays carry the residuals of pose-only data.
@@ -51,7 +62,8 @@ class KinematicRefinement:
     deltas : ndarray (n, 4)
         Corrections to the chain's table (a, alpha, d, theta per joint); 0 for the entries left to X and Z.
     names : list of str
-        The table entries estimated, in the order of ``cov``'s last rows.
+        The table entries estimated (then ``joint<k>.compliance``, when fitted), in the order of
+        ``cov``'s last rows.
     cov : ndarray (12 + m, 12 + m)
         Over [X rotation, X translation, Z rotation, Z translation, the entries ``names``].
     prior_std : ndarray (m,)
@@ -60,6 +72,8 @@ class KinematicRefinement:
     rms : float
         RMS residual per point (px or m).
     success : bool
+    compliance : ndarray (n,) or None
+        Each joint's compliance (rad per metre; 0 where not fitted), when fitted.
     """
 
     X: NDArray[np.float64]
@@ -71,6 +85,7 @@ class KinematicRefinement:
     sigma: float
     rms: float
     success: bool
+    compliance: NDArray[np.float64] | None = None
 
     @property
     def cov_X(self) -> NDArray[np.float64]:
@@ -89,8 +104,9 @@ class KinematicRefinement:
         return self.parameter_std < DETERMINED * self.prior_std
 
 
-def _prior(names: list[str], length: float, angle: float) -> NDArray[np.float64]:
-    return np.array([angle if name.endswith((".alpha", ".theta")) else length for name in names])
+def _prior(names: list[str], length: float, angle: float, compliance: float) -> NDArray[np.float64]:
+    return np.array([compliance if name.endswith(".compliance") else angle if name.endswith((".alpha", ".theta"))
+                     else length for name in names])
 
 
 def refine_kinematic(
@@ -111,6 +127,9 @@ def refine_kinematic(
     rounds: int = 3,
     deltas0: NDArray[np.float64] | None = None,
     tol: float = 1e-12,
+    compliance: bool = False,
+    compliance_prior: float = COMPLIANCE_PRIOR,
+    compliance0: NDArray[np.float64] | None = None,
 ) -> KinematicRefinement:
     """X, Z and the chain's table corrections fitted to what the camera saw.
 
@@ -134,33 +153,48 @@ def refine_kinematic(
         Table corrections to start from (a refit on part of the views starts at the fit on all).
     tol : float
         The solver's tolerances (a refit near its start needs fewer digits).
+    compliance : bool
+        Fit each joint's compliance too (the chain's own, if any, is the start and the prior's centre).
+    compliance_prior : float
+        Its prior std (rad per metre).
+    compliance0 : (n,), optional
+        The joints' compliance to start from (a refit's: the fit on all's).
     """
     joints = np.asarray(joints, dtype=float)
     if joints.ndim != 2 or joints.shape[1] != chain.n_joints:
         raise InputMismatchError(f"{chain.name} has {chain.n_joints} joints; the joint angles have shape {joints.shape}")
     absorbed = set(absorbed_parameters(chain))
-    names = [name for name in chain.parameter_names() if name not in absorbed]
-    index = np.array([chain.parameter_names().index(name) for name in names])
-    prior_std = _prior(names, length_prior, angle_prior)
+    every = chain.parameter_names(compliance)
+    loaded = np.abs(chain.moment_arms(joints)).max(axis=0) >= _MIN_MOMENT_ARM if compliance else np.zeros(0, bool)
+    names = [name for name in every if name not in absorbed
+             and (not name.endswith(".compliance") or loaded[int(name.split(".")[0].removeprefix("joint")) - 1])]
+    index = np.array([every.index(name) for name in names])
+    prior_std = _prior(names, length_prior, angle_prior, compliance_prior)
     residual = _residual_function(chain, joints, setup, object_points, image_points, K, dist, target2cam)
-    n_data = len(residual(X0, Z0, np.zeros(chain.table.size)))
+    p0 = np.zeros(len(every))
+    n_data = len(residual(X0, Z0, p0))
 
     def unpack(x):
         X, Z = _xz_increment(x, X0, Z0)
-        deltas = np.zeros(chain.table.size)
-        deltas[index] = x[12:] * prior_std  # the entries in units of their prior std, about nominal
-        return X, Z, deltas
+        p = np.zeros(len(every))
+        p[index] = x[12:] * prior_std  # the entries in units of their prior std, about nominal
+        return X, Z, p
 
     x = np.zeros(12 + len(names))
-    if deltas0 is not None:
-        x[12:] = np.asarray(deltas0, dtype=float).ravel()[index] / prior_std
+    if deltas0 is not None or compliance0 is not None:
+        start = np.zeros(len(every))
+        if deltas0 is not None:
+            start[:chain.table.size] = np.asarray(deltas0, dtype=float).ravel()
+        if compliance0 is not None and compliance:
+            start[chain.table.size:] = np.asarray(compliance0, dtype=float).ravel() - (
+                0.0 if chain.compliance is None else chain.compliance)
+        x[12:] = start[index] / prior_std
     dof = max(n_data - 12 - len(names), 1)
-    s = sigma if sigma is not None else max(float(np.sqrt(np.sum(residual(X0, Z0, np.zeros(chain.table.size)) ** 2) / dof)),
-                                             1e-12)
+    s = sigma if sigma is not None else max(float(np.sqrt(np.sum(residual(X0, Z0, p0) ** 2) / dof)), 1e-12)
     for _ in range(1 if sigma is not None else rounds):
         def whitened(x, s=s):
-            X, Z, deltas = unpack(x)
-            return np.concatenate([residual(X, Z, deltas) / s, x[12:]])  # the prior: unit std in these units
+            X, Z, p = unpack(x)
+            return np.concatenate([residual(X, Z, p) / s, x[12:]])  # the prior: unit std in these units
         res = least_squares(whitened, x, method="trf", x_scale=np.r_[np.full(12, 1e-3), np.ones(len(names))],
                             xtol=tol, ftol=tol, gtol=tol)
         if not np.isfinite(res.x).all():
@@ -168,19 +202,22 @@ def refine_kinematic(
         x, used = res.x, s
         if sigma is None:  # the data's own std, for the next fit's balance of data and prior
             s = max(float(np.sqrt(np.sum((res.fun[:n_data] * used) ** 2) / dof)), 1e-12)
-    X, Z, deltas = unpack(x)
+    X, Z, p = unpack(x)
     J = res.jac.copy()
     J[:n_data] *= used / s  # whitened by the final std
     # covariance in natural units: X's and Z's increments as they are, the entries times their prior std
     scale = np.r_[np.ones(12), prior_std]
     cov = _normal_inverse(J) * np.outer(scale, scale)
-    rms = float(np.sqrt(np.mean(residual(X, Z, deltas).reshape(-1, 2) ** 2) * 2))
-    return KinematicRefinement(X, Z, deltas.reshape(chain.table.shape), names, cov, prior_std, float(s), rms,
-                               bool(res.success))
+    rms = float(np.sqrt(np.mean(residual(X, Z, p).reshape(-1, 2) ** 2) * 2))
+    size = chain.table.size
+    own = np.zeros(chain.n_joints) if chain.compliance is None else chain.compliance
+    return KinematicRefinement(X, Z, p[:size].reshape(chain.table.shape), names, cov, prior_std, float(s), rms,
+                               bool(res.success), own + p[size:] if compliance else None)
 
 
 def _residual_function(chain, joints, setup, object_points, image_points, K, dist, target2cam):
-    """``residual(X, Z, deltas) -> (2 M,)``: pixels with images, else metres across the viewing rays."""
+    """``residual(X, Z, p) -> (2 M,)``: pixels with images, else metres across the viewing rays; ``p``
+    the parameter vector of ``chain.forward_with``."""
     if image_points is not None:
         if object_points is None or K is None or dist is None or len(image_points) != len(joints):
             raise InputMismatchError("pixel residuals need object_points, image_points (one per view), K and dist")
@@ -188,8 +225,8 @@ def _residual_function(chain, joints, setup, object_points, image_points, K, dis
         points = np.concatenate([np.asarray(p, dtype=float) for p in object_points])
         seen = np.concatenate([np.asarray(p, dtype=float) for p in image_points])
 
-        def residual(X, Z, deltas):
-            T = predicted_target2cam(X, Z, chain.forward(joints, deltas), setup)
+        def residual(X, Z, p):
+            T = predicted_target2cam(X, Z, chain.forward_with(joints, p), setup)
             return (project_points_many(T, points, owner, K, dist) - seen).ravel()
         return residual
     if target2cam is None or len(target2cam) != len(joints):
@@ -197,10 +234,10 @@ def _residual_function(chain, joints, setup, object_points, image_points, K, dis
     measured = np.einsum("nij,mj->nmi", target2cam[:, :3, :3], _VIRTUAL) + target2cam[:, None, :3, 3]
     depth = measured[..., 2]
 
-    def residual(X, Z, deltas):
-        T = predicted_target2cam(X, Z, chain.forward(joints, deltas), setup)
-        p = np.einsum("nij,mj->nmi", T[:, :3, :3], _VIRTUAL) + T[:, None, :3, 3]
-        across = (p[..., :2] / p[..., 2:3] - measured[..., :2] / depth[..., None]) * depth[..., None]
+    def residual(X, Z, p):
+        T = predicted_target2cam(X, Z, chain.forward_with(joints, p), setup)
+        seen = np.einsum("nij,mj->nmi", T[:, :3, :3], _VIRTUAL) + T[:, None, :3, 3]
+        across = (seen[..., :2] / seen[..., 2:3] - measured[..., :2] / depth[..., None]) * depth[..., None]
         return across.ravel()
     return residual
 
