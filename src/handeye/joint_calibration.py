@@ -115,19 +115,10 @@ def calibrate_joints(
     ref = refine_kinematic(start.X, start.Z, chain, q[keep], setup, target2cam=target2cam, **priors, **pixels)
     cov_X, cov_entries, widened = _widened(ref, chain, q[keep], target2cam, setup, priors, pixels)
     held_out = _held_out(ref, chain, q[keep], target2cam, setup, priors, pixels, opts.folds)
-    corrected = chain.corrected(ref.deltas)
-    if ref.compliance is not None:
-        corrected = replace(corrected, compliance=ref.compliance)
-    index = [chain.parameter_names(compliance).index(n) for n in ref.names]
-    p = _vector(chain, ref)
-    shift = 1e3 * np.linalg.norm(corrected.forward(q[keep])[:, :3, 3] - chain.forward(q[keep])[:, :3, 3], axis=1)
-    entry_std = np.sqrt(np.diag(cov_entries))
-    model = KinematicModel(chain, corrected, ref.names, p[index], entry_std, ref.prior_std,
-                           ref.determined, (float(np.median(shift)), float(shift.max())),
-                           _accuracy(chain, p, index, cov_entries, q[keep]), q[keep])
+    model = _kinematic_model(chain, ref, cov_entries, q[keep])
     notes = list(start.notes) + _fit_notes(ref, model, bool(pixels), ignored, widened, length_prior_mm, angle_prior_deg)
     cal = replace(start, X=ref.X, Z=ref.Z, cov=cov_X, std=std_deg_mm(cov_X), method=f"kinematic({chain.name})",
-                  estimator="kinematic", refinement="kinematic", flange2base=corrected.forward(q[keep]),
+                  estimator="kinematic", refinement="kinematic", flange2base=model.chain.forward(q[keep]),
                   target2cam=target2cam, pose_indices=keep, motions=None, notes=notes, kinematic=model,
                   cross_validation=held_out,
                   **({} if not pixels else dict(object_points=pixels["object_points"], image_points=pixels["image_points"],
@@ -136,6 +127,20 @@ def calibrate_joints(
                   std_sources={"model": std_deg_mm(ref.cov_X), "jackknife": None if cov_X is ref.cov_X else
                                std_deg_mm(cov_X), "robot_accuracy": None})
     return judged(cal)
+
+
+def _kinematic_model(chain: Chain, ref: KinematicRefinement, cov_entries, q) -> KinematicModel:
+    """The arm's kinematics the fit found: the corrected chain, each entry's correction and std (the
+    jackknife-widened ``cov_entries``), how far it moves the flange, and the accuracy before/after."""
+    corrected = chain.corrected(ref.deltas)
+    if ref.compliance is not None:
+        corrected = replace(corrected, compliance=ref.compliance)
+    index = [chain.parameter_names(ref.compliance is not None).index(n) for n in ref.names]
+    p = _vector(chain, ref)
+    shift = 1e3 * np.linalg.norm(corrected.forward(q)[:, :3, 3] - chain.forward(q)[:, :3, 3], axis=1)
+    return KinematicModel(chain, corrected, ref.names, p[index], np.sqrt(np.diag(cov_entries)), ref.prior_std,
+                          ref.determined, (float(np.median(shift)), float(shift.max())),
+                          _accuracy(chain, p, index, cov_entries, q), q)
 
 
 def _fit_notes(ref: KinematicRefinement, model: KinematicModel, pixels: bool, ignored: list[str], widened: float,

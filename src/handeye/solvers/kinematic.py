@@ -163,12 +163,7 @@ def refine_kinematic(
     joints = np.asarray(joints, dtype=float)
     if joints.ndim != 2 or joints.shape[1] != chain.n_joints:
         raise InputMismatchError(f"{chain.name} has {chain.n_joints} joints; the joint angles have shape {joints.shape}")
-    absorbed = set(absorbed_parameters(chain))
-    every = chain.parameter_names(compliance)
-    loaded = np.abs(chain.moment_arms(joints)).max(axis=0) >= _MIN_MOMENT_ARM if compliance else np.zeros(0, bool)
-    names = [name for name in every if name not in absorbed
-             and (not name.endswith(".compliance") or loaded[int(name.split(".")[0].removeprefix("joint")) - 1])]
-    index = np.array([every.index(name) for name in names])
+    every, names, index = _unknowns(chain, joints, compliance)
     prior_std = _prior(names, length_prior, angle_prior, compliance_prior)
     residual = _residual_function(chain, joints, setup, object_points, image_points, K, dist, target2cam)
     p0 = np.zeros(len(every))
@@ -180,15 +175,7 @@ def refine_kinematic(
         p[index] = x[12:] * prior_std  # the entries in units of their prior std, about nominal
         return X, Z, p
 
-    x = np.zeros(12 + len(names))
-    if deltas0 is not None or compliance0 is not None:
-        start = np.zeros(len(every))
-        if deltas0 is not None:
-            start[:chain.table.size] = np.asarray(deltas0, dtype=float).ravel()
-        if compliance0 is not None and compliance:
-            start[chain.table.size:] = np.asarray(compliance0, dtype=float).ravel() - (
-                0.0 if chain.compliance is None else chain.compliance)
-        x[12:] = start[index] / prior_std
+    x = np.r_[np.zeros(12), _start(chain, len(every), deltas0, compliance0 if compliance else None)[index] / prior_std]
     dof = max(n_data - 12 - len(names), 1)
     s = sigma if sigma is not None else max(float(np.sqrt(np.sum(residual(X0, Z0, p0) ** 2) / dof)), 1e-12)
     for _ in range(1 if sigma is not None else rounds):
@@ -213,6 +200,29 @@ def refine_kinematic(
     own = np.zeros(chain.n_joints) if chain.compliance is None else chain.compliance
     return KinematicRefinement(X, Z, p[:size].reshape(chain.table.shape), names, cov, prior_std, float(s), rms,
                                bool(res.success), own + p[size:] if compliance else None)
+
+
+def _unknowns(chain: Chain, joints: NDArray[np.float64], compliance: bool) -> tuple[list[str], list[str], NDArray[np.intp]]:
+    """Every parameter of ``chain.forward_with``'s vector, the ones fitted (not absorbed by X and Z;
+    a compliance only for joints the load turns over the capture) and their positions."""
+    absorbed = set(absorbed_parameters(chain))
+    every = chain.parameter_names(compliance)
+    loaded = np.abs(chain.moment_arms(joints)).max(axis=0) >= _MIN_MOMENT_ARM if compliance else np.zeros(0, bool)
+    names = [name for name in every if name not in absorbed
+             and (not name.endswith(".compliance") or loaded[int(name.split(".")[0].removeprefix("joint")) - 1])]
+    return every, names, np.array([every.index(name) for name in names], dtype=np.intp)
+
+
+def _start(chain: Chain, size: int, deltas0, compliance0) -> NDArray[np.float64]:
+    """The parameter vector (``size`` long) to start from: the table's corrections ``deltas0`` and
+    the joints' compliance ``compliance0`` (as corrections to the chain's own), 0 where not given."""
+    start = np.zeros(size)
+    if deltas0 is not None:
+        start[:chain.table.size] = np.asarray(deltas0, dtype=float).ravel()
+    if compliance0 is not None:
+        start[chain.table.size:] = np.asarray(compliance0, dtype=float).ravel() - (
+            0.0 if chain.compliance is None else chain.compliance)
+    return start
 
 
 def _residual_function(chain, joints, setup, object_points, image_points, K, dist, target2cam):
