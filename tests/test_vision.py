@@ -590,3 +590,11 @@ def test_charuco_markers_found_at_half_size_give_the_true_corners(tmp_path, monk
     print(f"corner RMS from truth: whole image {rms_whole:.4f} px, markers at half size {rms_half:.4f} px")
     assert rms_half <= 1.05 * rms_whole and rms_half < 0.1
     assert target.detect(np.full((1200, 1600), 128, np.uint8)) is None
+    # a marker of the same dictionary that is not the board's, in the corner farthest from the board: ignored
+    foreign = cv2.aruco.generateImageMarker(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_5X5_100), 99, 120)
+    centre = half.image_points.mean(axis=0)
+    x0, y0 = (0 if centre[0] > 800 else 1440), (0 if centre[1] > 600 else 1040)
+    gray[y0:y0 + 160, x0:x0 + 160] = 255
+    gray[y0 + 20:y0 + 140, x0 + 20:x0 + 140] = foreign
+    pasted = target.detect(gray)
+    assert np.array_equal(pasted.ids, half.ids) and np.abs(pasted.image_points - half.image_points).max() < 1e-9
