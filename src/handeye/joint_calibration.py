@@ -28,7 +28,7 @@ from .solvers.kinematic import ANGLE_PRIOR_RAD, COMPLIANCE_PRIOR, LENGTH_PRIOR_M
 from .validation import Views, cross_validate, default_folds, fold_indices, jackknife_covs, view_errors
 from .verdict import judged
 
-__all__ = ["calibrate_joints", "calibrate_joint_session"]
+__all__ = ["calibrate_joints", "calibrate_joint_session", "joint_angles"]
 
 #: The jackknife refits' tolerance: they start at the fit on all views, and move by far more than this.
 REFIT_TOL = 1e-8
@@ -86,7 +86,7 @@ def calibrate_joints(
         Joint angles of the wrong shape, count or unit, an unknown arm or unit.
     """
     chain = load_arm(arm) if isinstance(arm, str) else arm
-    q = _joints(joints, chain, joint_unit)
+    q = joint_angles(joints, chain, joint_unit)
     target2cam = np.asarray(target2cam, dtype=float)
     if target2cam.shape != (len(q), 4, 4):
         raise InputMismatchError(f"{len(q)} joint rows but target2cam has shape {target2cam.shape}: give one camera pose "
@@ -333,7 +333,7 @@ def along_parallel_axes(chain: Chain) -> set[str]:
     return out
 
 
-def _joints(joints: ArrayLike, chain: Chain, unit: str) -> NDArray[np.float64]:
+def joint_angles(joints: ArrayLike, chain: Chain, unit: str) -> NDArray[np.float64]:
     """Joint angles (N, n) in radians, checked against the chain and the unit."""
     if unit not in ("rad", "deg"):
         raise InputMismatchError(f"joint_unit {unit!r}; use 'rad' or 'deg'")

@@ -39,7 +39,7 @@ __all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look
            "seed_scenes", "add_noise", "simulate_session", "RealisticErrors", "RealisticScene", "REALISTIC", "EXACT",
            "realistic_scene", "arm_forward_kinematics", "ARM_DH", "robot_accuracy_of", "simulate_realistic_session",
            "KinematicScene", "kinematic_scene", "simulate_kinematic_session",
-           "low_dof_scene", "LOW_DOF_ROBOTS", "StreamScene", "stream_scene",
+           "low_dof_scene", "LOW_DOF_ROBOTS", "StreamScene", "stream_scene", "JointStreamScene", "joint_stream_scene",
            "simulate_stream_session", "DepthScene", "depth_scene", "SphereScene", "sphere_scene", "write_depth_session"]
 
 
@@ -748,6 +748,21 @@ def kinematic_scene(
     K, dist = default_camera(image_size)
     X, Z = _scene_layout(setup, obj, rng, chain.forward(chain.home[setup][None])[0])
     q_true = _sample_joints(setup, X, Z, obj, K, image_size, n_poses, rng, chain=chain)
+    true = _real_chain(chain, rng, length_mm, angle_deg, compliance_deg_per_m)
+    f2b_true = true.forward(q_true)
+    joints = q_true + np.radians(rng.normal(0.0, joint_noise_deg, q_true.shape))
+    t2c_true = predicted_target2cam(X, Z, f2b_true, setup)
+    t2c, image_points, flipped = _camera_reading(t2c_true, obj, K, dist,
+                                                 replace(EXACT, pixel_px=pixel_px, flip_probability=0.0), rng)
+    return KinematicScene(setup, X, Z, joints, f2b_true, chain.forward(joints), t2c_true, t2c, obj, image_points, K,
+                          dist, tuple(image_size), flipped, chain=chain, chain_true=true, joints_true=q_true)
+
+
+def _real_chain(chain: Chain, rng: np.random.Generator, length_mm: float, angle_deg: float,
+                compliance_deg_per_m: float = 0.0) -> Chain:
+    """The arm as built: every entry of ``chain``'s table it owns (not one X or Z absorbs) off by
+    Gaussian ``length_mm`` or ``angle_deg``, and each joint's compliance 0.5-1.5x
+    ``compliance_deg_per_m`` (uniform) when that is positive."""
     deltas = np.zeros(chain.table.size)
     absorbed = set(absorbed_parameters(chain))
     for k, name in enumerate(chain.parameter_names()):
@@ -757,13 +772,7 @@ def kinematic_scene(
     true = chain.corrected(deltas)
     if compliance_deg_per_m > 0:
         true = replace(true, compliance=np.radians(compliance_deg_per_m) * rng.uniform(0.5, 1.5, chain.n_joints))
-    f2b_true = true.forward(q_true)
-    joints = q_true + np.radians(rng.normal(0.0, joint_noise_deg, q_true.shape))
-    t2c_true = predicted_target2cam(X, Z, f2b_true, setup)
-    t2c, image_points, flipped = _camera_reading(t2c_true, obj, K, dist,
-                                                 replace(EXACT, pixel_px=pixel_px, flip_probability=0.0), rng)
-    return KinematicScene(setup, X, Z, joints, f2b_true, chain.forward(joints), t2c_true, t2c, obj, image_points, K,
-                          dist, tuple(image_size), flipped, chain=chain, chain_true=true, joints_true=q_true)
+    return true
 
 
 def robot_accuracy_of(scene: RealisticScene) -> tuple[float, float]:
@@ -1004,6 +1013,78 @@ def stream_scene(
     order_r, order_c = np.argsort(robot_stamps), np.argsort(cam_stamps)  # jitter may swap neighbours
     return StreamScene(setup, X, Z, time_offset, robot_stamps[order_r], reported[order_r], f2b_true[order_r],
                        cam_stamps[order_c], t2c[order_c], t2c_true[order_c], t_cam[order_c], flipped[order_c])
+
+
+@dataclass(frozen=True)
+class JointStreamScene:
+    """A continuous recording by an arm whose kinematics differ from its nominal ones
+    (:func:`joint_stream_scene`): the controller's time-stamped joint angles and the camera's
+    time-stamped poses, each on its own clock; ``time_offset`` is the camera clock minus the robot's."""
+
+    setup: str
+    X: NDArray[np.float64]
+    Z: NDArray[np.float64]
+    time_offset: float
+    robot_times: NDArray[np.float64]  #: stamps on the robot clock (s)
+    joints: NDArray[np.float64]  #: (N, n) rad, as the controller reports them (encoder noise)
+    camera_times: NDArray[np.float64]  #: stamps on the camera clock (s), frames that see the target
+    target2cam: NDArray[np.float64]  #: what PnP returns
+    target2cam_true: NDArray[np.float64]
+    chain: Chain  #: the nominal kinematics
+    chain_true: Chain  #: the arm's real ones
+
+
+def joint_stream_scene(
+    duration: float = 40.0,
+    setup: str = "eye_in_hand",
+    rng: np.random.Generator | int | None = None,
+    arm: str | Chain = "ur5",
+    robot_hz: float = 100.0,
+    camera_hz: float = 15.0,
+    time_offset: float = 0.037,
+    jitter_ms: float = 1.0,
+    waypoint_s: float = 2.5,
+    length_mm: float = 0.5,
+    angle_deg: float = 0.05,
+    joint_noise_deg: float = 0.002,
+    pixel_px: float = 0.2,
+    target: str | dict = "chessboard",
+    image_size: tuple[int, int] = (1280, 1024),
+) -> JointStreamScene:
+    """``arm`` moving continuously for ``duration`` seconds through random joint waypoints
+    ``waypoint_s`` apart whose views see the target (a clamped cubic spline, as
+    :func:`stream_scene`), its real table off the nominal one as in :func:`kinematic_scene`; the
+    controller records the joint angles at ``robot_hz`` (``joint_noise_deg`` of encoder noise), the
+    camera its PnP poses at ``camera_hz`` (``pixel_px`` of detection noise), on clocks
+    ``time_offset`` apart, every stamp off by Gaussian ``jitter_ms``."""
+    from scipy.interpolate import CubicSpline  # noqa: PLC0415  (scipy's interpolate costs import time)
+
+    check_setup(setup)
+    rng = np.random.default_rng(rng)
+    if not (duration > 2 * waypoint_s and robot_hz > 0 and camera_hz > 0):
+        raise HandEyeError("joint_stream_scene: duration must exceed two waypoint intervals; rates must be positive")
+    chain = load_arm(arm) if isinstance(arm, str) else arm
+    spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
+    obj = target_from_spec(spec).object_points()
+    K, dist = default_camera(image_size)
+    X, Z = _scene_layout(setup, obj, rng, chain.forward(chain.home[setup][None])[0])
+    n_way = int(np.ceil(duration / waypoint_s)) + 1
+    path = CubicSpline(np.arange(n_way) * waypoint_s, _sample_joints(setup, X, Z, obj, K, image_size, n_way, rng,
+                                                                      chain=chain), bc_type="clamped")
+    true = _real_chain(chain, rng, length_mm, angle_deg)
+    jitter = 1e-3 * jitter_ms
+    t_robot = np.arange(0.0, duration, 1.0 / robot_hz)
+    joints = path(t_robot) + np.radians(rng.normal(0.0, joint_noise_deg, (len(t_robot), chain.n_joints)))
+    robot_stamps = t_robot + rng.normal(0.0, jitter, len(t_robot))
+    t_cam = np.arange(rng.uniform(0, 1.0 / camera_hz), duration, 1.0 / camera_hz)
+    t2c_true = predicted_target2cam(X, Z, true.forward(path(t_cam)), setup)
+    sees = _sees_target(t2c_true, obj, K, image_size)
+    t_cam, t2c_true = t_cam[sees], t2c_true[sees]
+    t2c, _, _ = _camera_reading(t2c_true, obj, K, dist, replace(EXACT, pixel_px=pixel_px, flip_probability=0.0), rng)
+    cam_stamps = t_cam + time_offset + rng.normal(0.0, jitter, len(t_cam))
+    order_r, order_c = np.argsort(robot_stamps), np.argsort(cam_stamps)  # jitter may swap neighbours
+    return JointStreamScene(setup, X, Z, time_offset, robot_stamps[order_r], joints[order_r], cam_stamps[order_c],
+                            t2c[order_c], t2c_true[order_c], chain, true)
 
 
 def simulate_stream_session(

@@ -16,6 +16,8 @@ from numpy.typing import ArrayLike
 
 from ._shared.text import summarize
 from .calibration import calibrate_poses
+from .joint_calibration import calibrate_joints, joint_angles
+from .kinematics import Chain, load_arm
 from .metrics import std_deg_mm
 from .options import CalibrationOptions, options_from
 from .poses import RobotPoseInput
@@ -24,7 +26,7 @@ from .setups import check_setup
 from .sync import KEYFRAMES, check_stream, keyframes_at, offset_cov, synchronise
 from .verdict import judged
 
-__all__ = ["calibrate_streams", "paired_delay_note", "KEYFRAMES"]
+__all__ = ["calibrate_streams", "calibrate_joint_streams", "paired_delay_note", "KEYFRAMES"]
 
 
 def calibrate_streams(
@@ -97,6 +99,71 @@ def calibrate_streams(
         left = [f"{camera.times[kf][i]:.3f} s" for i in cal.diagnostics.outliers]
         notes.append(f"keyframes left out as outliers (camera times): {summarize(left)}")
     if sync.offset_std > 0 and cal.cov is not None and np.isfinite(cal.cov).all():
+        used = kf[cal.pose_indices]
+        cov = cal.cov + offset_cov(cal.X, cal.Z, setup, robot, camera.times[used], camera.poses[used], sync.offset,
+                                   sync.offset_std)
+        cal = replace(cal, cov=cov, std=std_deg_mm(cov))
+    return judged(replace(cal, sync=StreamSync(sync.offset, sync.offset_std, sync.info(robot, camera, camera.times[kf])),
+                          notes=notes + list(cal.notes)))
+
+
+def calibrate_joint_streams(
+    t_robot: ArrayLike,
+    joints: ArrayLike,
+    t_cam: ArrayLike,
+    target2cam: ArrayLike,
+    setup: str = "eye_in_hand",
+    arm: str | Chain = "ur5",
+    options: CalibrationOptions | None = None,
+    *,
+    joint_unit: str = "rad",
+    **changes,
+) -> Calibration:
+    """:func:`calibrate_streams` with the robot recorded as joint angles: X, Z and the arm's table
+    (:func:`handeye.calibrate_joints`) from a joint stream and a camera stream on separate clocks.
+
+    The clock offset is estimated on the nominal table's flange poses (:func:`handeye.sync.synchronise`:
+    an arm a few millimetres off its table does not move the offset), the keyframes are chosen
+    where the arm moves slowly, the joint angles are interpolated (linearly, per joint) at their
+    camera times minus the offset, and X, Z and the table are fitted to the keyframes' camera
+    poses (across the viewing rays). The offset's uncertainty is added to X's covariance.
+
+    Parameters
+    ----------
+    t_robot : array_like (N,)
+        Stamps of the joint angles, seconds on the robot's clock, strictly increasing.
+    joints : array_like (N, n)
+        The joint angles the controller recorded (``joint_unit``), e.g. ``/joint_states``.
+    t_cam, target2cam
+        As :func:`calibrate_streams`.
+    setup : {'eye_in_hand', 'eye_to_hand'}
+    arm : str or Chain
+        A shipped arm's name or a chain (:func:`handeye.kinematics.load_arm`).
+    options : CalibrationOptions, optional
+        As :func:`calibrate_streams` (``keyframes``: the kinematic fit wants 30 or more; the default
+        80 is fine), plus ``compliance``.
+    joint_unit : {'rad', 'deg'}
+
+    Returns
+    -------
+    Calibration
+        As :func:`handeye.calibrate_joints` on the keyframes, with ``sync`` (the offset and its std).
+    """
+    opts = options_from(options, changes)
+    check_setup(setup)
+    chain = load_arm(arm) if isinstance(arm, str) else arm
+    q = joint_angles(joints, chain, joint_unit)
+    robot = check_stream(t_robot, chain.forward(q), "robot stream (the nominal table's flange poses)")
+    camera = check_stream(t_cam, target2cam, "camera stream")
+    sync = synchronise(robot, camera, setup, opts.offset_range, opts.time_offset, opts.keyframes)
+    kf, _, n_candidates = keyframes_at(robot, camera, sync.offset, opts.keyframes, setup, sync.fit)
+    at = camera.times[kf] - sync.offset
+    q_kf = np.stack([np.interp(at, robot.times, q[:, j]) for j in range(chain.n_joints)], axis=1)
+    cal = calibrate_joints(q_kf, camera.poses[kf], setup, chain, opts.replace(offset_range=None, time_offset=None))
+    notes = list(sync.notes) + [f"{len(kf)} keyframes calibrated with the arm's table, chosen among {n_candidates} camera "
+                                "samples where the arm moves slowly; their joint angles interpolated at the camera "
+                                "times minus the offset"]
+    if sync.offset_std > 0 and np.isfinite(cal.cov).all():
         used = kf[cal.pose_indices]
         cov = cal.cov + offset_cov(cal.X, cal.Z, setup, robot, camera.times[used], camera.poses[used], sync.offset,
                                    sync.offset_std)
