@@ -22,7 +22,7 @@ FLOORS = {
     "session": 5, "solvers": 5, "printing": 5,
     "result": 6, "simulate": 6, "importers": 6,
     "diagnostics": 7, "validation": 7, "estimators": 7.5, "partial": 7.5, "sync": 7.5, "options": 7.6, "verdict": 7.6,
-    "calibration": 8, "streams": 8.5, "depth": 8.5, "verification": 8.5, "checking": 8.7, "joint_calibration": 8.5,
+    "calibration": 8, "streams": 8.6, "depth": 8.5, "verification": 8.5, "checking": 8.7, "joint_calibration": 8.5,
     "report": 9, "fleet": 9.5,
     "planning": 10, "joint_planning": 10, "study": 10, "acquire": 10.5,
     "cli": 11, "": 11,  # "" is handeye/__init__.py, the public face

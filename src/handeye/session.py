@@ -59,7 +59,8 @@ cv2 = lazy_module("cv2")  # only to read an image's size
 __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session",
            "read_pose_table", "SessionError", "load_yaml",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
-           "write_pose_pairs", "read_result", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session"]
+           "write_pose_pairs", "read_result", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session",
+           "load_joint_stream", "load_camera_stream"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
 SESSION_FILE = "session.yaml"
@@ -257,14 +258,25 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override
         raise SessionError(f"{where}: joints: {'arm given: ' if override is not None else ''}{exc}") from None
     if override is not None and spec.get("arm") not in (None, override):
         notes.append(f"joint angles read with the arm given ({arm.name}), not session.yaml's ({spec.get('arm')})")
+    names, q = _joint_table(path, arm, unit, ("image",), notes, "write unit: deg under joints:")
+    if len(set(names)) != len(names):
+        raise SessionError(f"{path}: duplicate image names [{summarize(sorted({x for x in names if names.count(x) > 1}))}]")
+    return _Joints(names, np.radians(q) if unit == "deg" else q, arm, path)
+
+
+def _joint_table(path: Path, arm: Chain, unit: str, first: tuple[str, ...], notes: list[str], fix: str
+                 ) -> tuple[list[str], NDArray[np.float64]]:
+    """A table of joint angles: its first column (named one of ``first``: the image, or a time) as
+    text, and the joint angles (N, n) in ``unit``, in the arm's order when the columns name its
+    joints; ``fix``: how to give the unit as degrees, for the error that says they look like it."""
     text = _text_of(path, notes)
     delim = _delimiter(text)
     rows = [[c.strip() for c in r] for r in csv.reader(io.StringIO(text, newline=""), delimiter=delim,
                                                        skipinitialspace=delim == " ")
             if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
-    if not rows or rows[0][0].lower() != "image":
-        raise SessionError(f"{path}: the first column must be 'image', then one column per joint "
-                           f"({arm.name}: {arm.n_joints})")
+    if not rows or rows[0][0].lower() not in first:
+        raise SessionError(f"{path}: the first column must be {' or '.join(repr(f) for f in first)}, then one column "
+                           f"per joint ({arm.name}: {arm.n_joints})")
     n = arm.n_joints
     columns = rows[0][1:]
     order = _joint_order(columns, arm.joint_names)
@@ -288,10 +300,30 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override
         raise SessionError(f"{path}: line {int(np.argmin(np.isfinite(q).all(axis=1))) + 2} holds NaN or infinite values")
     if unit == "rad" and np.abs(q).max() > 2.5 * np.pi:
         raise SessionError(f"{path}: joint angles up to {np.abs(q).max():.1f} given as rad: they look like degrees; "
-                           "write unit: deg under joints:")
-    if len(set(names)) != len(names):
-        raise SessionError(f"{path}: duplicate image names [{summarize(sorted({x for x in names if names.count(x) > 1}))}]")
-    return _Joints(names, np.radians(q) if unit == "deg" else q, arm, path)
+                           f"{fix}")
+    return names, q
+
+
+def load_joint_stream(path: str | Path, arm: str | Chain, unit: str = "rad", time_unit: str = "s"
+                      ) -> tuple[NDArray[np.float64], NDArray[np.float64], Chain]:
+    """A recording of joint angles (``/joint_states`` as CSV): a header ``time`` (or t, stamp,
+    timestamp), then one column per joint (named as the arm's joints, in any order, or in the arm's
+    order); returns the times (s), the joint angles (N, n) in radians and the arm's chain."""
+    if unit not in ("deg", "rad"):
+        raise SessionError(f"{path}: joint unit {unit!r}; use deg or rad")
+    scale = _time_unit({"time_unit": time_unit}, str(path))
+    try:
+        chain = arm if isinstance(arm, Chain) else (chain_from_urdf(Path(arm)) if str(arm).lower().endswith(".urdf")
+                                                    else load_arm(arm))
+    except InputMismatchError as exc:
+        raise SessionError(f"{path}: {exc}") from None
+    notes: list[str] = []
+    stamps, q = _joint_table(Path(path), chain, unit, TIME_COLUMNS, notes, "give their unit as deg")
+    try:
+        times = scale * np.array([float(t) for t in stamps])
+    except ValueError:
+        raise SessionError(f"{path}: the time column holds a value that is not a number") from None
+    return times, np.radians(q) if unit == "deg" else q, chain
 
 
 def _joint_order(columns: list[str], joint_names: tuple[str, ...] | None) -> list[int] | None:
@@ -717,6 +749,17 @@ def load_pose_streams(robot_spec: dict[str, Any], camera_spec: dict[str, Any], s
         if side.times is None:
             raise SessionError(f"{side.path}: no time column; a stream needs one (header 'time', then the pose columns)")
     return _pairs_or_streams(setup, robot, camera, robot.path.parent, notes)
+
+
+def load_camera_stream(spec: dict[str, Any], folder: str | Path = ".") -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                                                              list[str]]:
+    """One camera stream file described as in ``posepairs.yaml``'s ``camera_poses`` (``file``
+    relative to ``folder``, with a time column): its times (s), ``target2cam`` poses and notes."""
+    notes: list[str] = []
+    camera = _read_poses(Path(folder), spec, "camera_poses", notes, where_file="(camera stream)")
+    if camera.times is None:
+        raise SessionError(f"{camera.path}: no time column; a stream needs one (header 'time', then the pose columns)")
+    return camera.times, camera.poses, notes
 
 
 def _pairs_or_streams(setup: str, robot: _Side, camera: _Side, folder: Path, notes: list[str]) -> PosePairs:

@@ -3,26 +3,46 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 from ..checking import calibrate_pairs
+from ..errors import HandEyeError
 from ..options import REFINES_POSES
-from ..session import POSE_KINDS, TIME_UNITS, load_pose_streams
+from ..session import POSE_KINDS, TIME_UNITS, load_camera_stream, load_joint_stream, load_pose_streams
 from ..setups import SETUPS
+from ..streams import calibrate_joint_streams
 from ._common import add_calibrate_options, add_out_options, calibrate_options, finish_poses, out_folder, units_arg
 
 
 def _cmd_calibrate_streams(args: argparse.Namespace) -> int:
     robot, camera = Path(args.robot), Path(args.camera)
+    if (args.arm is None) == (args.robot_format is None):
+        raise HandEyeError("give --robot-format (the robot file holds poses) or --arm (it holds joint angles), one of them")
+    if args.compliance and args.arm is None:
+        raise HandEyeError("--compliance fits the joints' compliance: the robot file must hold joint angles (--arm)")
     out_folder(args.out, [robot.parent, camera.parent])
     rl, ra = units_arg(args.robot_units, "--robot-units")
     cl, ca = units_arg(args.camera_units, "--camera-units")
+    if args.arm is not None:
+        return _joint_streams(args, robot, camera, ra, cl, ca)
     pairs = load_pose_streams(
         {"file": str(robot), "format": args.robot_format, "length_unit": rl, "angle_unit": ra, "pose": args.robot_pose,
          "time_unit": args.time_unit},
         {"file": str(camera), "format": args.camera_format, "length_unit": cl, "angle_unit": ca,
          "pose": args.camera_pose, "time_unit": args.time_unit}, args.setup)
     return finish_poses(calibrate_pairs(pairs, calibrate_options(args)), args)
+
+
+def _joint_streams(args: argparse.Namespace, robot: Path, camera: Path, joint_unit: str, cl: str, ca: str) -> int:
+    """The robot file holds joint angles: X, Z and the arm's table from the two streams."""
+    t_robot, joints, chain = load_joint_stream(robot, args.arm, joint_unit, args.time_unit)
+    t_cam, target2cam, notes = load_camera_stream({"file": str(camera), "format": args.camera_format, "length_unit": cl,
+                                                   "angle_unit": ca, "pose": args.camera_pose,
+                                                   "time_unit": args.time_unit})
+    cal = calibrate_joint_streams(t_robot, joints, t_cam, target2cam, args.setup, chain,
+                                  calibrate_options(args).replace(arm=None))
+    return finish_poses(replace(cal, notes=notes + list(cal.notes), input_folder=robot.parent), args)
 
 
 def register(sub) -> None:
@@ -38,8 +58,13 @@ def register(sub) -> None:
     p.add_argument("robot", help="CSV of robot poses with times (flange2base unless --robot-pose base2flange)")
     p.add_argument("camera", help="CSV of camera poses with times (target2cam unless --camera-pose cam2target)")
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS), help="default: eye_in_hand")
-    p.add_argument("--robot-format", required=True, metavar="FORMAT",
+    p.add_argument("--robot-format", metavar="FORMAT",
                    help="pose columns of the robot file: matrix, quat_wxyz, quat_xyzw, rotvec or euler:SEQ")
+    p.add_argument("--arm", metavar="NAME|TABLE.yaml|ROBOT.urdf",
+                   help="instead of --robot-format: the robot file holds joint angles (a time column, then one per "
+                   "joint, in the unit of --robot-units' angle), read with this arm's kinematics; X, Z and the arm's "
+                   "table are fitted together")
+    p.add_argument("--compliance", action="store_true", help="with --arm: fit each joint's compliance too")
     p.add_argument("--camera-format", required=True, metavar="FORMAT", help="pose columns of the camera file (as --robot-format)")
     p.add_argument("--robot-units", default="m,rad", metavar="LENGTH,ANGLE", help="units of the robot file (default m,rad)")
     p.add_argument("--camera-units", default="m,rad", metavar="LENGTH,ANGLE", help="units of the camera file (default m,rad)")
