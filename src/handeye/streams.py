@@ -93,18 +93,9 @@ def calibrate_streams(
         robot_input = robot_input.rewritten(f2b)
     cal = calibrate_poses(f2b, camera.poses[kf], setup, opts, progress=False, robot_input=robot_input,
                           names=[f"t={t:.3f}" for t in camera.times[kf]])
-    notes = list(sync.notes) + [f"{len(kf)} keyframes calibrated, chosen among {n_candidates} camera samples where the "
-                                "robot moves slowly"]
-    if cal.diagnostics is not None and cal.diagnostics.outliers:
-        left = [f"{camera.times[kf][i]:.3f} s" for i in cal.diagnostics.outliers]
-        notes.append(f"keyframes left out as outliers (camera times): {summarize(left)}")
-    if sync.offset_std > 0 and cal.cov is not None and np.isfinite(cal.cov).all():
-        used = kf[cal.pose_indices]
-        cov = cal.cov + offset_cov(cal.X, cal.Z, setup, robot, camera.times[used], camera.poses[used], sync.offset,
-                                   sync.offset_std)
-        cal = replace(cal, cov=cov, std=std_deg_mm(cov))
-    return judged(replace(cal, sync=StreamSync(sync.offset, sync.offset_std, sync.info(robot, camera, camera.times[kf])),
-                          notes=notes + list(cal.notes)))
+    return _with_sync(cal, sync, robot, camera, kf, setup,
+                      f"{len(kf)} keyframes calibrated, chosen among {n_candidates} camera samples where the robot "
+                      "moves slowly")
 
 
 def calibrate_joint_streams(
@@ -160,10 +151,19 @@ def calibrate_joint_streams(
     at = camera.times[kf] - sync.offset
     q_kf = np.stack([np.interp(at, robot.times, q[:, j]) for j in range(chain.n_joints)], axis=1)
     cal = calibrate_joints(q_kf, camera.poses[kf], setup, chain, opts.replace(offset_range=None, time_offset=None))
-    notes = list(sync.notes) + [f"{len(kf)} keyframes calibrated with the arm's table, chosen among {n_candidates} camera "
-                                "samples where the arm moves slowly; their joint angles interpolated at the camera "
-                                "times minus the offset"]
-    if sync.offset_std > 0 and np.isfinite(cal.cov).all():
+    return _with_sync(cal, sync, robot, camera, kf, setup,
+                      f"{len(kf)} keyframes calibrated with the arm's table, chosen among {n_candidates} camera samples "
+                      "where the arm moves slowly; their joint angles interpolated at the camera times minus the offset")
+
+
+def _with_sync(cal: Calibration, sync, robot, camera, kf, setup: str, done: str) -> Calibration:
+    """``cal`` (on the keyframes ``kf`` of ``camera``) judged with the clock offset ``sync``: its std
+    added to X's, the synchronisation's notes, ``done``, and the keyframes left out as outliers."""
+    notes = list(sync.notes) + [done]
+    if cal.diagnostics is not None and cal.diagnostics.outliers:
+        left = [f"{camera.times[kf][i]:.3f} s" for i in cal.diagnostics.outliers]
+        notes.append(f"keyframes left out as outliers (camera times): {summarize(left)}")
+    if sync.offset_std > 0 and cal.cov is not None and np.isfinite(cal.cov).all():
         used = kf[cal.pose_indices]
         cov = cal.cov + offset_cov(cal.X, cal.Z, setup, robot, camera.times[used], camera.poses[used], sync.offset,
                                    sync.offset_std)
