@@ -590,7 +590,7 @@ def test_calibrate_streams_takes_a_joint_recording(tmp_path, capsys):
     within 1 ms and fits X with the arm's table on keyframes where the arm moves slowly: X within
     0.3 mm / 0.05 deg, where the black box on the same streams (calibrate_streams on the nominal
     table's flange poses) is 2x further or more (measured 0.38 mm against 0.11). --robot-format and
-    --arm together, or neither, and --compliance without --arm, are refused."""
+    --arm together, or neither, --compliance without --arm, and --robot-pose with --arm are refused."""
     from handeye.session import write_pose_stream
     from handeye.simulate import joint_stream_scene
     from handeye.streams import calibrate_joint_streams
@@ -621,3 +621,5 @@ def test_calibrate_streams_takes_a_joint_recording(tmp_path, capsys):
     assert "one of them" in capsys.readouterr().err
     assert main(base + ["--robot-format", "quat_wxyz", "--compliance"]) == 2
     assert "must hold joint angles (--arm)" in capsys.readouterr().err
+    assert main(base + ["--arm", "ur5", "--robot-pose", "base2flange"]) == 2
+    assert "leave --robot-pose out" in capsys.readouterr().err

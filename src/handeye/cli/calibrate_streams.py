@@ -21,6 +21,9 @@ def _cmd_calibrate_streams(args: argparse.Namespace) -> int:
         raise HandEyeError("give --robot-format (the robot file holds poses) or --arm (it holds joint angles), one of them")
     if args.compliance and args.arm is None:
         raise HandEyeError("--compliance fits the joints' compliance: the robot file must hold joint angles (--arm)")
+    if args.arm is not None and args.robot_pose != "flange2base":
+        raise HandEyeError(f"--robot-pose {args.robot_pose} describes pose rows; with --arm the robot file holds joint "
+                           "angles: leave --robot-pose out")
     out_folder(args.out, [robot.parent, camera.parent])
     rl, ra = units_arg(args.robot_units, "--robot-units")
     cl, ca = units_arg(args.camera_units, "--camera-units")
