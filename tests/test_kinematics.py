@@ -611,6 +611,7 @@ def test_calibrate_streams_takes_a_joint_recording(tmp_path, capsys):
     X = np.array(data["X"]["matrix"])
     assert 1e3 * translation_error(X, sc.X) < 0.3 and np.degrees(rotation_error(X, sc.X)) < 0.05
     assert abs(data["time_sync"]["time_offset_s"] - sc.time_offset) < 1e-3 and "kinematics" in data
+    assert any("joint columns taken in" in n for n in data["notes"])  # the columns' order, said
     black = handeye.calibrate_streams(sc.robot_times, sc.chain.forward(sc.joints), sc.camera_times, sc.target2cam,
                                       sc.setup)
     assert translation_error(black.X, sc.X) > 2 * translation_error(X, sc.X)

@@ -305,10 +305,11 @@ def _joint_table(path: Path, arm: Chain, unit: str, first: tuple[str, ...], note
 
 
 def load_joint_stream(path: str | Path, arm: str | Chain, unit: str = "rad", time_unit: str = "s"
-                      ) -> tuple[NDArray[np.float64], NDArray[np.float64], Chain]:
+                      ) -> tuple[NDArray[np.float64], NDArray[np.float64], Chain, list[str]]:
     """A recording of joint angles (``/joint_states`` as CSV): a header ``time`` (or t, stamp,
     timestamp), then one column per joint (named as the arm's joints, in any order, or in the arm's
-    order); returns the times (s), the joint angles (N, n) in radians and the arm's chain."""
+    order); returns the times (s), the joint angles (N, n) in radians, the arm's chain and notes
+    (how the columns were read)."""
     if unit not in ("deg", "rad"):
         raise SessionError(f"{path}: joint unit {unit!r}; use deg or rad")
     scale = _time_unit({"time_unit": time_unit}, str(path))
@@ -318,12 +319,12 @@ def load_joint_stream(path: str | Path, arm: str | Chain, unit: str = "rad", tim
     except InputMismatchError as exc:
         raise SessionError(f"{path}: {exc}") from None
     notes: list[str] = []
-    stamps, q = _joint_table(Path(path), chain, unit, TIME_COLUMNS, notes, "give their unit as deg")
+    stamps, q = _joint_table(Path(path), chain, unit, TIME_COLUMNS, notes, "give their unit as deg (--robot-units m,deg)")
     try:
         times = scale * np.array([float(t) for t in stamps])
     except ValueError:
         raise SessionError(f"{path}: the time column holds a value that is not a number") from None
-    return times, np.radians(q) if unit == "deg" else q, chain
+    return times, np.radians(q) if unit == "deg" else q, chain, notes
 
 
 def _joint_order(columns: list[str], joint_names: tuple[str, ...] | None) -> list[int] | None:
