@@ -135,7 +135,7 @@ def _kinematic_model(chain: Chain, ref: KinematicRefinement, cov_entries, q) -> 
     corrected = chain.corrected(ref.deltas)
     if ref.compliance is not None:
         corrected = replace(corrected, compliance=ref.compliance)
-    index = [chain.parameter_names(ref.compliance is not None).index(n) for n in ref.names]
+    index = _positions(chain, ref.names)
     p = _vector(chain, ref)
     shift = 1e3 * np.linalg.norm(corrected.forward(q)[:, :3, 3] - chain.forward(q)[:, :3, 3], axis=1)
     return KinematicModel(chain, corrected, ref.names, p[index], np.sqrt(np.diag(cov_entries)), ref.prior_std,
@@ -211,7 +211,7 @@ def _widened(ref: KinematicRefinement, chain: Chain, q, target2cam, setup, prior
     widening factor. The model takes the pixel errors of a view's points as independent: an error
     of the whole view (joint encoder noise of 0.002 deg on rendered UR5 sessions) left X within 3 of
     its std on 76% of the axes."""
-    index = [chain.parameter_names(priors["compliance"]).index(n) for n in ref.names]
+    index = _positions(chain, ref.names)
     refitted = []
 
     def fit(flange2base, t2c, setup, idx):
@@ -272,6 +272,12 @@ def _accuracy_over(chain: Chain, p, index: list[int], cov_entries, samples) -> d
     after = 1e3 * np.sqrt(np.einsum("nij,jk,nik->n", J, cov_entries, J))
     return {"before_median": float(np.median(before)), "before_max": float(before.max()),
             "after_median": float(np.median(after)), "after_max": float(after.max()), "samples": len(samples)}
+
+
+def _positions(chain: Chain, names: list[str]) -> list[int]:
+    """Where the fitted entries ``names`` sit in ``chain.forward_with``'s parameter vector."""
+    every = chain.parameter_names(any(n.endswith(".compliance") for n in names))
+    return [every.index(n) for n in names]
 
 
 def _vector(chain: Chain, r: KinematicRefinement) -> NDArray[np.float64]:

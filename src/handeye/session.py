@@ -248,12 +248,8 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override
     if unit not in ("deg", "rad"):
         raise SessionError(f"{where}: joints: unit {unit!r}; use deg or rad")
     arm_name = str(override if override is not None else _require(spec, "arm", f"{where}: joints"))
-    base = Path() if override is not None else folder
     try:
-        if arm_name.lower().endswith(".urdf"):
-            arm = chain_from_urdf(base / arm_name, spec.get("base_link"), spec.get("tip_link"))
-        else:
-            arm = load_arm(base / arm_name if arm_name.lower().endswith((".yaml", ".yml")) else arm_name)
+        arm = _arm_chain(arm_name, Path() if override is not None else folder, spec.get("base_link"), spec.get("tip_link"))
     except InputMismatchError as exc:
         raise SessionError(f"{where}: joints: {'arm given: ' if override is not None else ''}{exc}") from None
     if override is not None and spec.get("arm") not in (None, override):
@@ -262,6 +258,14 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override
     if len(set(names)) != len(names):
         raise SessionError(f"{path}: duplicate image names [{summarize(sorted({x for x in names if names.count(x) > 1}))}]")
     return _Joints(names, np.radians(q) if unit == "deg" else q, arm, path)
+
+
+def _arm_chain(name: str, base: Path, base_link: str | None = None, tip_link: str | None = None) -> Chain:
+    """The chain an arm is named by: a URDF (its chain from ``base_link`` to ``tip_link`` when given)
+    or a DH table file, relative to ``base``, or a shipped arm's name."""
+    if name.lower().endswith(".urdf"):
+        return chain_from_urdf(base / name, base_link, tip_link)
+    return load_arm(base / name if name.lower().endswith((".yaml", ".yml")) else name)
 
 
 def _joint_table(path: Path, arm: Chain, unit: str, first: tuple[str, ...], notes: list[str], fix: str
@@ -314,8 +318,7 @@ def load_joint_stream(path: str | Path, arm: str | Chain, unit: str = "rad", tim
         raise SessionError(f"{path}: joint unit {unit!r}; use deg or rad")
     scale = _time_unit({"time_unit": time_unit}, str(path))
     try:
-        chain = arm if isinstance(arm, Chain) else (chain_from_urdf(Path(arm)) if str(arm).lower().endswith(".urdf")
-                                                    else load_arm(arm))
+        chain = arm if isinstance(arm, Chain) else _arm_chain(str(arm), Path())
     except InputMismatchError as exc:
         raise SessionError(f"{path}: {exc}") from None
     notes: list[str] = []
@@ -747,9 +750,14 @@ def load_pose_streams(robot_spec: dict[str, Any], camera_spec: dict[str, Any], s
     robot = _read_poses(folder, robot_spec, "robot_poses", notes, where_file="(robot stream)")
     camera = _read_poses(folder, camera_spec, "camera_poses", notes, where_file="(camera stream)")
     for side in (robot, camera):
-        if side.times is None:
-            raise SessionError(f"{side.path}: no time column; a stream needs one (header 'time', then the pose columns)")
+        _require_times(side)
     return _pairs_or_streams(setup, robot, camera, robot.path.parent, notes)
+
+
+def _require_times(side: _Side) -> None:
+    """A stream file's side must have a time column."""
+    if side.times is None:
+        raise SessionError(f"{side.path}: no time column; a stream needs one (header 'time', then the pose columns)")
 
 
 def load_camera_stream(spec: dict[str, Any], folder: str | Path = ".") -> tuple[NDArray[np.float64], NDArray[np.float64],
@@ -758,8 +766,7 @@ def load_camera_stream(spec: dict[str, Any], folder: str | Path = ".") -> tuple[
     relative to ``folder``, with a time column): its times (s), ``target2cam`` poses and notes."""
     notes: list[str] = []
     camera = _read_poses(Path(folder), spec, "camera_poses", notes, where_file="(camera stream)")
-    if camera.times is None:
-        raise SessionError(f"{camera.path}: no time column; a stream needs one (header 'time', then the pose columns)")
+    _require_times(camera)
     return camera.times, camera.poses, notes
 
 

@@ -40,9 +40,9 @@ def _cmd_calibrate_streams(args: argparse.Namespace) -> int:
 def _joint_streams(args: argparse.Namespace, robot: Path, camera: Path, joint_unit: str, cl: str, ca: str) -> int:
     """The robot file holds joint angles: X, Z and the arm's table from the two streams."""
     t_robot, joints, chain, joint_notes = load_joint_stream(robot, args.arm, joint_unit, args.time_unit)
-    t_cam, target2cam, camera_notes = load_camera_stream({"file": str(camera), "format": args.camera_format, "length_unit": cl,
-                                                   "angle_unit": ca, "pose": args.camera_pose,
-                                                   "time_unit": args.time_unit})
+    spec = {"file": str(camera), "format": args.camera_format, "length_unit": cl, "angle_unit": ca,
+            "pose": args.camera_pose, "time_unit": args.time_unit}
+    t_cam, target2cam, camera_notes = load_camera_stream(spec)
     cal = calibrate_joint_streams(t_robot, joints, t_cam, target2cam, args.setup, chain,
                                   calibrate_options(args).replace(arm=None))
     return finish_poses(replace(cal, notes=joint_notes + camera_notes + list(cal.notes), input_folder=robot.parent), args)
