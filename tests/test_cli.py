@@ -87,7 +87,7 @@ def test_check_then_calibrate_detects_once(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     calls = []
     uncached = detect._detect_uncached
-    monkeypatch.setattr(detect, "_detect_uncached", lambda p, t: calls.append(p) or uncached(p, t))
+    monkeypatch.setattr(detect, "_detect_uncached", lambda p, t, *a: calls.append(p) or uncached(p, t, *a))
     assert main(["check", "--sample", "--no-progress"]) in (0, 1)
     entries = sorted((tmp_path / "xdg" / "handeye" / "detections").rglob("*.npz"))
     assert len(entries) == len(calls) == 12 and "HANDEYE_CACHE_DIR" not in os.environ

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import json
+import os
 import re
 import shlex
 import shutil
@@ -403,6 +404,45 @@ def test_overlay_thumbnail_of_points_off_the_image(tmp_path):
     assert green > 0.005 and red > 0.0005 and max(extent) > 0.05
     (tmp_path / "bad.png").write_bytes(b"not an image")
     assert overlay_thumbnail(tmp_path / "bad.png", det, far) is None
+
+
+def test_thumbnails_from_the_previews_detection_cut(tmp_path, no_detection_cache, monkeypatch):
+    """While previews are kept, detection cuts each image's part around its target and the
+    thumbnail is drawn on it without reading the file again (the same picture as from the file,
+    grey); a prediction outside the part, or a file changed since, reads the file; outside the
+    block nothing is kept."""
+    from handeye.report import _overlay
+    from handeye.vision import detect_images, preview, target_from_spec
+
+    folder = tmp_path / "s"
+    shutil.copytree(SAMPLE, folder)
+    paths = sorted((folder / "images").iterdir())[:4]
+    target = target_from_spec(yaml.safe_load((folder / "session.yaml").read_text())["target"])
+    assert all(preview.recall(p) is None for p in paths)
+    with preview.kept(3):
+        found = detect_images(paths, target, jobs=2, progress=False)
+        kept = [preview.recall(p) for p in paths]
+        assert [v is not None for v in kept] == [r.detection is not None for r in found[:3]] + [False]
+        det = np.asarray(found[0].detection.image_points)
+        near = det + 1.5  # predictions a pixel or two off, as usual
+        from_file = _overlay.overlay_thumbnail(paths[0], det, near)
+        monkeypatch.setattr(_overlay, "_from_file", lambda *a: pytest.fail("the file was read again"))
+        from_preview = _overlay.overlay_thumbnail(paths[0], det, near)
+        a, b = (cv2.imdecode(np.frombuffer(base64.b64decode(s.split(",", 1)[1]), np.uint8), cv2.IMREAD_COLOR)
+                for s in (from_file, from_preview))
+        assert a.shape == b.shape and np.mean(np.abs(a.astype(int) - b.astype(int))) < 3
+        saturation = cv2.cvtColor(b, cv2.COLOR_BGR2HSV)[..., 1]
+        assert np.mean(saturation < 40) > 0.8  # the picture grey, only the marks coloured
+        monkeypatch.undo()
+        read = []
+        monkeypatch.setattr(_overlay, "_from_file", lambda *a: read.append(1) or _overlay.cut(
+            cv2.imread(str(a[0]), cv2.IMREAD_GRAYSCALE), np.vstack(a[1:])))
+        _overlay.overlay_thumbnail(paths[0], det, det + [300.0, 0.0])  # the crosses outside the part
+        assert read == [1]
+        os.utime(paths[0], ns=(1, 1))  # the file changed
+        assert preview.recall(paths[0]) is None
+    assert preview.recall(paths[1]) is None  # dropped with the block
+    assert preview.wanted() == 0
 
 
 def _drawn_texts(fig) -> list[tuple[str, object]]:

@@ -116,7 +116,7 @@ def test_detection_cache_gives_the_same_corners_without_detecting(rendered, tmp_
     monkeypatch.setenv("HANDEYE_CACHE_DIR", str(tmp_path / "cache"))
     calls = []
     uncached = detect._detect_uncached
-    monkeypatch.setattr(detect, "_detect_uncached", lambda p, t: calls.append(p) or uncached(p, t))
+    monkeypatch.setattr(detect, "_detect_uncached", lambda p, t, *a: calls.append(p) or uncached(p, t, *a))
     first = detect_images(paths, tgt, jobs=2, progress=False)
     second = detect_images(paths, tgt, jobs=2, progress=False)
     assert len(calls) == len(paths)  # the second pass detected nothing

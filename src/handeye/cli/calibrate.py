@@ -15,7 +15,9 @@ from ..errors import HandEyeError
 from ..fleet import calibrate_many
 from ..joint_planning import suggest_joint_views
 from ..report import write_depth_results
+from ..report.html import MAX_OVERLAYS
 from ..verdict import exit_status
+from ..vision import preview
 from ._common import (
     SAMPLE_SESSION,
     add_calibrate_options,
@@ -65,12 +67,14 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     out_folder(args.out, [session])
     if is_depth_session(session):
         return _cmd_calibrate_depth(session, args)
-    cal = calibrate_session(session, calibrate_options(args), jobs=args.jobs, progress=not args.no_progress)
-    if args.certify:
-        cal = certify_calibration(cal)
-    print_image_summary(cal)
-    print_calibration(cal)
-    write_outputs(cal, args)
+    # the report's thumbnails are cut while detection has the images decoded (not read again)
+    with preview.kept(MAX_OVERLAYS if args.out else 0):
+        cal = calibrate_session(session, calibrate_options(args), jobs=args.jobs, progress=not args.no_progress)
+        if args.certify:
+            cal = certify_calibration(cal)
+        print_image_summary(cal)
+        print_calibration(cal)
+        write_outputs(cal, args)
     _suggest_views(cal, args.out)
     return verdict_status(cal)
 

@@ -2,9 +2,10 @@
 X, Z and the robot pose (red crosses), for report.html and verify.html.
 
 A whole 640x480 image shown 360 px wide makes a 9x6 board's marks a few pixels each, and rings and
-crosses cannot be told apart. So a thumbnail shows the part of the image around the target, faded so
-the marks stand out on the black and white squares, with marks sized to the spacing of the points
-as displayed.
+crosses cannot be told apart. So a thumbnail shows the part of the image around the target, grey and
+faded so that the coloured marks stand out, with marks sized to the spacing of the points as
+displayed. The part is the one detection cut while it had the image decoded
+(:mod:`handeye.vision.preview`), or read from the file again.
 """
 
 from __future__ import annotations
@@ -16,17 +17,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.lazy import lazy_module
+from ..vision.preview import CROP_MARGIN, ZOOM_WIDTH, Preview, cut, recall
 
 cv2 = lazy_module("cv2")
 
-#: Thumbnails are shown this wide ...
+#: Thumbnails are shown this wide (and stored ZOOM_WIDTH wide: a click shows them at that size).
 THUMB_WIDTH = 360
-#: ... and stored this wide: a click (focus) shows them at this size.
-ZOOM_WIDTH = 900
-#: The crop around the target's points: this fraction of their extent added on every side.
-CROP_MARGIN = 0.25
-#: The image is blended with white by this much, so that coloured marks stand out.
-FADE = 0.55
 DETECTED_BGR, PREDICTED_BGR = (0, 170, 0), (0, 0, 220)
 #: Mark radius as a fraction of the median spacing of the detected points, and its bounds in
 #: displayed pixels.
@@ -46,25 +42,6 @@ def zoom_size(img: NDArray[np.uint8]) -> tuple[NDArray[np.uint8], float]:
                       interpolation=cv2.INTER_AREA), s
 
 
-def _crop_box(points: NDArray[np.float64], shape: tuple[int, ...]) -> tuple[int, int, int, int]:
-    """(x0, y0, x1, y1): the points' bounding box with CROP_MARGIN, grown to the image's aspect
-    ratio and kept inside the image; the whole image when no point lies in it."""
-    h, w = shape[:2]
-    inside = points[np.all(np.isfinite(points), axis=1) & (points[:, 0] > -w) & (points[:, 0] < 2 * w)
-                    & (points[:, 1] > -h) & (points[:, 1] < 2 * h)]
-    if len(inside) == 0:
-        return 0, 0, w, h
-    lo, hi = np.clip(inside.min(axis=0), 0, [w, h]), np.clip(inside.max(axis=0), 0, [w, h])
-    size = (hi - lo) * (1 + 2 * CROP_MARGIN) + 16
-    cw = max(size[0], size[1] * w / h, 0.2 * w)  # the image's aspect ratio: the gallery's grid stays even
-    cw = min(cw, w)
-    ch = cw * h / w
-    centre = 0.5 * (lo + hi)
-    x0 = int(np.clip(centre[0] - cw / 2, 0, w - cw))
-    y0 = int(np.clip(centre[1] - ch / 2, 0, h - ch))
-    return x0, y0, min(w, x0 + int(round(cw))), min(h, y0 + int(round(ch)))
-
-
 def _spacing(points: NDArray[np.float64]) -> float:
     """Median distance from each point to its nearest neighbour (px); 0 for fewer than 2 points."""
     if len(points) < 2:
@@ -75,36 +52,46 @@ def _spacing(points: NDArray[np.float64]) -> float:
     return float(np.median(d.min(axis=1)))
 
 
-def overlay_thumbnail(image_path: str | Path, detected: NDArray[np.float64],
-                      predicted: NDArray[np.float64] | None) -> str | None:
-    """The image around its target, faded, with ``detected`` points as green rings and ``predicted``
-    ones as red crosses, as a JPEG data URI ZOOM_WIDTH wide; None when the image cannot be read.
-
-    Predicted points far off the image (or NaN) are not drawn.
-    """
-    detected = np.asarray(detected, dtype=float).reshape(-1, 2)
-    predicted = np.empty((0, 2)) if predicted is None else np.asarray(predicted, dtype=float).reshape(-1, 2)
+def _from_file(image_path: str | Path, detected: NDArray[np.float64],
+               predicted: NDArray[np.float64]) -> Preview | None:
+    """The preview of the image file around the detected and predicted points; None when it cannot
+    be read."""
     # a large image is decoded at 1/2, 1/4 or 1/8 of its size (JPEG decodes that directly, several
     # times faster) when the target's crop still spans ZOOM_WIDTH pixels there
     finite = detected[np.all(np.isfinite(detected), axis=1)]
     span = float(np.ptp(finite[:, 0])) * (1 + 2 * CROP_MARGIN) if len(finite) else 0.0
     factor = next((f for f in (8, 4, 2) if span / f >= ZOOM_WIDTH), 1)
-    flags = {1: cv2.IMREAD_COLOR, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4,
-             8: cv2.IMREAD_REDUCED_COLOR_8}[factor]
+    flags = {1: cv2.IMREAD_GRAYSCALE, 2: cv2.IMREAD_REDUCED_GRAYSCALE_2, 4: cv2.IMREAD_REDUCED_GRAYSCALE_4,
+             8: cv2.IMREAD_REDUCED_GRAYSCALE_8}[factor]
     img = cv2.imread(str(image_path), flags)
     if img is None or img.shape[0] < 2 or img.shape[1] < 2:
         return None
-    detected, predicted = detected / factor, predicted / factor
-    x0, y0, x1, y1 = _crop_box(np.vstack([detected, predicted]), img.shape)
-    crop = img[y0:y1, x0:x1]
-    s = ZOOM_WIDTH / crop.shape[1]
-    thumb = cv2.resize(crop, (ZOOM_WIDTH, max(1, round(crop.shape[0] * s))),
-                       interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
-    thumb = cv2.addWeighted(thumb, 1 - FADE, np.full_like(thumb, 255), FADE, 0)
+    return cut(img, np.vstack([detected, predicted]), factor)
+
+
+def overlay_thumbnail(image_path: str | Path, detected: NDArray[np.float64],
+                      predicted: NDArray[np.float64] | None) -> str | None:
+    """The image around its target, grey and faded, with ``detected`` points as green rings and
+    ``predicted`` ones as red crosses, as a JPEG data URI ZOOM_WIDTH wide; None when the image
+    cannot be read.
+
+    The preview detection kept of the image (:mod:`handeye.vision.preview`) is used when every
+    predicted point in the image lies in it; else the file is read. Predicted points far off the
+    image (or NaN) are not drawn.
+    """
+    detected = np.asarray(detected, dtype=float).reshape(-1, 2)
+    predicted = np.empty((0, 2)) if predicted is None else np.asarray(predicted, dtype=float).reshape(-1, 2)
+    view = recall(image_path)
+    if view is None or not view.holds(predicted):
+        view = _from_file(image_path, detected, predicted)
+    if view is None:
+        return None
+    thumb = cv2.cvtColor(view.image, cv2.COLOR_GRAY2BGR)
+    s = view.scale
     shown = THUMB_WIDTH / ZOOM_WIDTH  # displayed pixels per stored pixel
     r = float(np.clip(MARK_FRACTION * _spacing(detected) * s, MARK_MIN_PX / shown, MARK_MAX_PX / shown))
     thick = max(2, round(1.4 / shown))
-    offset = np.array([x0, y0], dtype=float)
+    offset = np.array(view.box[:2], dtype=float)
     for p in (detected - offset) * s:
         if np.all(np.isfinite(p)):
             cv2.circle(thumb, (int(round(p[0])), int(round(p[1]))), int(round(r)), DETECTED_BGR, thick, cv2.LINE_AA)

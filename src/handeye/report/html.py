@@ -363,7 +363,7 @@ def _overlays_section(cal: Calibration) -> str:
     if cal.image_paths:
         parts.append("<p class=\"note\">Green rings: detected points. Red crosses: the same points projected through "
                      "the robot pose, X and Z — where they part, the hand-eye model does not explain that image. "
-                     f"Each image is cropped around the target and faded. Caption: RMS distance; red frame: more than "
+                     f"Each image is cropped around the target, grey and faded. Caption: RMS distance; red frame: more than "
                      f"{FLAG_FACTOR:g}x the median. Click an image to enlarge it.</p><div class=\"thumbs\">")
         thumbs = _overlay_thumbs(cal)
         median = float(np.median([t[2] for t in thumbs])) if thumbs else 0.0

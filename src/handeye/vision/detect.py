@@ -30,6 +30,7 @@ import numpy as np
 from .._shared.lazy import lazy_module
 from .._shared.progress import Progress
 from .._version import __version__
+from . import preview
 from .targets import Detection, Target
 
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
@@ -176,8 +177,8 @@ def _store(folder: Path, key: str, result: ImageResult) -> None:
         pass
 
 
-def _detect_one(args: tuple[str, Target, Path | None]) -> ImageResult:
-    path, target, cache = args
+def _detect_one(args: tuple[str, Target, Path | None, bool]) -> ImageResult:
+    path, target, cache, keep_preview = args
     key = None
     if cache is not None:
         try:
@@ -186,13 +187,13 @@ def _detect_one(args: tuple[str, Target, Path | None]) -> ImageResult:
             key = None
         if key is not None and (hit := _cached(cache, key, path)) is not None:
             return hit
-    result = _detect_uncached(path, target)
+    result = _detect_uncached(path, target, keep_preview)
     if key is not None and result.image_size is not None and min(result.image_size) >= MIN_IMAGE_SIDE:
         _store(cache, key, result)
     return result
 
 
-def _detect_uncached(path: str, target: Target) -> ImageResult:
+def _detect_uncached(path: str, target: Target, keep_preview: bool = False) -> ImageResult:
     gray = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
     if gray is None:
         return ImageResult(Path(path), None, None, "unreadable (missing, corrupt, or not an image format OpenCV reads)")
@@ -205,6 +206,8 @@ def _detect_uncached(path: str, target: Target) -> ImageResult:
     except cv2.error as exc:  # an image the detector cannot take: skipped with the reason, not a crash
         reason = (str(exc).strip().splitlines() or ["OpenCV error"])[-1]
         return ImageResult(Path(path), None, size, f"the detector failed on it ({reason})")
+    if det is not None and keep_preview:  # the report's thumbnail, cut while the image is decoded
+        preview.remember(path, preview.cut(gray, np.asarray(det.image_points)))
     return ImageResult(Path(path), det, size, None if det is not None else "target not found")
 
 
@@ -229,7 +232,9 @@ def detect_images(
     chosen = jobs is None
     jobs = default_jobs() if jobs is None else max(1, int(jobs))
     cache = detection_cache_dir()
-    work: list[tuple[str, Target, Path | None]] = [(str(p), target, cache) for p in paths]
+    previews = preview.wanted()
+    work: list[tuple[str, Target, Path | None, bool]] = [(str(p), target, cache, k < previews)
+                                                          for k, p in enumerate(paths)]
     bar = Progress(len(paths), "detecting", progress)
     results: list[ImageResult] = []
     try:
