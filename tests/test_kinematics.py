@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 import pytest
 import yaml
+from scipy.spatial.transform import Rotation
 
 import handeye
 import handeye.importers
@@ -25,7 +26,7 @@ from handeye.joint_calibration import along_parallel_axes
 from handeye.joint_planning import suggest_joint_views
 from handeye.kinematics import absorbed_parameters, arm_names, load_arm
 from handeye.metrics import rotation_error, translation_error
-from handeye.session import load_session, write_joint_session, write_pose_table
+from handeye.session import load_camera_stream, load_joint_stream, load_session, write_joint_session, write_pose_table
 from handeye.setups import predicted_target2cam
 from handeye.simulate import (
     EXACT,
@@ -180,6 +181,40 @@ def test_a_joint_table_that_disagrees_with_the_poses_names_the_fix(tmp_path, sli
                          "quat_wxyz", "mm", "deg")
     with pytest.raises(SessionError, match=fix):
         load_session(folder)
+
+
+def test_a_fanuc_pendants_joint_angles(tmp_path):
+    """FANUC's teach pendant measures J3 against the horizon: at J3 = 0 on the pendant the forearm
+    stays level whatever J2 (the table's joint 3 is J3 + J2: ROS-Industrial's J23_factor 1 for this
+    arm). The pendant's angles beside the controller's poses are refused with the fix named; with
+    pendant: true under joints: they are converted and give the poses to 1e-9; pendant: true on the
+    table's own angles names the other fix; a bad coupling in a table is refused."""
+    arm = load_arm("lrmate200id")
+    q = np.zeros((4, 6))
+    q[:, 1] = np.radians([-30, 0, 20, 45])  # J2 turns, the pendant's J3 stays 0
+    elbow_to_wrist = [f[:, :3, 3] for f in arm._frames(arm.from_pendant(q), arm.table)]
+    d = elbow_to_wrist[4] - elbow_to_wrist[2]
+    assert np.abs(d[:, 2]).max() < 1e-12 and np.ptp(np.linalg.norm(d, axis=1)) < 1e-12  # level, the same length
+    assert np.abs(arm.to_pendant(arm.from_pendant(q)) - q).max() < 1e-15
+    sc = kinematic_scene(8, "eye_in_hand", 2, arm="lrmate200id")
+    _, folder = _joint_session(tmp_path, arm="lrmate200id", q=sc.chain.to_pendant(sc.joints))  # the poses: sc's
+    with pytest.raises(SessionError, match="as the teach pendant shows them .* write pendant: true under joints:"):
+        load_session(folder)
+    text = (folder / "session.yaml").read_text()
+    (folder / "session.yaml").write_text(text.replace("unit: deg", "unit: deg\n  pendant: true"))
+    session = load_session(folder)
+    assert np.abs(session.joints - sc.joints).max() < 1e-12
+    assert np.abs(session.arm.forward(session.joints) - session.flange2base).max() < 1e-9
+    assert any("teach pendant's angles converted" in n for n in session.notes)
+    _, other = _joint_session(tmp_path / "own", arm="lrmate200id", q=sc.joints)
+    (other / "session.yaml").write_text((other / "session.yaml").read_text().replace("unit: deg", "unit: deg\n  pendant: true"))
+    with pytest.raises(SessionError, match="not the teach pendant's .remove pendant: true"):
+        load_session(other)
+    (other / "session.yaml").write_text((other / "session.yaml").read_text().replace("pendant: true", "pendant: yes please"))
+    with pytest.raises(SessionError, match="pendant 'yes please'; use true"):
+        load_session(other)
+    with pytest.raises(InputMismatchError, match="pendant_coupling .3, 3, 1.0.: two different joints"):
+        replace(arm, pendant_coupling=(3, 3, 1.0))
 
 
 def test_a_joint_session_is_checked(tmp_path):
@@ -352,11 +387,13 @@ def test_the_arm_given_on_the_command_line_replaces_session_yamls(tmp_path, monk
     assert arm == "ur5.urdf" and np.abs(load_session(folder, arm=arm).flange2base - sc.flange2base).max() < 1e-9
 
 
-def test_a_bags_joint_states_become_a_joint_session(tmp_path):
+def test_a_bags_joint_states_become_a_joint_session(tmp_path, capsys):
     """A ROS 2 bag with images and /joint_states published in the UR driver's (alphabetical) joint
     order at 100 Hz, the arm still at each image: `handeye import rosbag --joint-topic` writes
     joints.csv with the topic's names, and the session reads each image's joint angles back in
-    the arm's order, to 1e-9."""
+    the arm's order, to 1e-9. With a pose topic of the target instead of the images it writes the
+    two streams of calibrate-streams --arm (and prints that command), read back as recorded; an arm
+    with another number of joints than the topic is refused before anything is written."""
     pytest.importorskip("rosbags")
     from rosbags.rosbag2 import Writer
     from rosbags.typesys import Stores, get_typestore
@@ -368,6 +405,7 @@ def test_a_bags_joint_states_become_a_joint_session(tmp_path):
     ty = ts.types
     Header, Time, JointState, Image = (ty[k] for k in ("std_msgs/msg/Header", "builtin_interfaces/msg/Time",
                                                        "sensor_msgs/msg/JointState", "sensor_msgs/msg/Image"))
+    TS, Tr, V3, Q = (ty[f"geometry_msgs/msg/{k}"] for k in ("TransformStamped", "Transform", "Vector3", "Quaternion"))
     names = ["elbow_joint", "shoulder_lift_joint", "shoulder_pan_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]
     order = [load_arm("ur5").joint_names.index(n) for n in names]
 
@@ -383,6 +421,12 @@ def test_a_bags_joint_states_become_a_joint_session(tmp_path):
     with Writer(bag, version=8) as w:
         c_joint = w.add_connection("/joint_states", JointState.__msgtype__, typestore=ts)
         c_img = w.add_connection("/image", Image.__msgtype__, typestore=ts)
+        c_pose = w.add_connection("/target_pose", TS.__msgtype__, typestore=ts)
+        for t, T in zip(image_times, sc.target2cam):  # the target's pose from a tracker, beside the images
+            xyzw = Rotation.from_matrix(T[:3, :3]).as_quat()
+            msg = TS(header=header(t), child_frame_id="target", transform=Tr(
+                translation=V3(x=T[0, 3], y=T[1, 3], z=T[2, 3]), rotation=Q(x=xyzw[0], y=xyzw[1], z=xyzw[2], w=xyzw[3])))
+            w.write(c_pose, int(t * 1e9) + 500, ts.serialize_cdr(msg, TS.__msgtype__))
         for t, row in zip(t_joint, q):
             msg = JointState(header=header(t), name=names, position=row[order], velocity=np.zeros(0), effort=np.zeros(0))
             w.write(c_joint, int(t * 1e9), ts.serialize_cdr(msg, JointState.__msgtype__))
@@ -400,9 +444,24 @@ def test_a_bags_joint_states_become_a_joint_session(tmp_path):
     imported = load_session(out)
     assert np.abs(imported.joints - sc.joints).max() < 1e-9 and imported.arm.name == "UR5"
     assert any("taken in UR5's order" in n for n in imported.notes)
-    with pytest.raises(InputMismatchError, match="joint_topic needs image_topic .the images. and arm"):
+    with pytest.raises(InputMismatchError, match="joint_topic with image_topic needs arm"):
         handeye.importers.import_rosbag(bag, tmp_path / "x", image_topic="/image", target=session.target_spec,
                                         joint_topic="/joint_states")
+    # the joint states and a pose topic: the two streams of calibrate-streams --arm, read back as written
+    streams = tmp_path / "streams"
+    capsys.readouterr()
+    assert main(["import", "rosbag", str(bag), "--out", str(streams), "--camera-pose-topic", "/target_pose",
+                 "--joint-topic", "/joint_states", "--arm", "ur5"]) == 0
+    assert f"calibrate-streams {streams / 'joints.csv'} {streams / 'camera.csv'} --arm ur5" in capsys.readouterr().out
+    t_read, q_read, chain, _ = load_joint_stream(streams / "joints.csv", "ur5")
+    assert np.abs(t_read - t_joint).max() < 1e-9 and np.abs(q_read - q).max() < 1e-12 and chain.name == "UR5"
+    t_cam, target2cam, _ = load_camera_stream({"file": "camera.csv", "format": "quat_wxyz", "length_unit": "m", "angle_unit": "rad"},
+                                               streams)
+    assert np.abs(t_cam - image_times).max() < 1e-9 and np.abs(target2cam - sc.target2cam).max() < 1e-9
+    with pytest.raises(InputMismatchError, match="names 6 joints .*; panda has 7"):
+        handeye.importers.import_rosbag(bag, tmp_path / "y", camera_pose_topic="/target_pose",
+                                        joint_topic="/joint_states", arm="panda")
+    assert not (tmp_path / "y" / "joints.csv").exists()
 
 
 def test_what_the_capture_cannot_determine_is_named_held_and_planned(tmp_path):
@@ -590,7 +649,8 @@ def test_calibrate_streams_takes_a_joint_recording(tmp_path, capsys):
     within 1 ms and fits X with the arm's table on keyframes where the arm moves slowly: X within
     0.3 mm / 0.05 deg, where the black box on the same streams (calibrate_streams on the nominal
     table's flange poses) is 2x further or more (measured 0.38 mm against 0.11). --robot-format and
-    --arm together, or neither, --compliance without --arm, and --robot-pose with --arm are refused."""
+    --arm together, or neither, --compliance or --pendant-joints without --arm, and --robot-pose with
+    --arm are refused."""
     from handeye.session import write_pose_stream
     from handeye.simulate import joint_stream_scene
     from handeye.streams import calibrate_joint_streams
@@ -624,3 +684,5 @@ def test_calibrate_streams_takes_a_joint_recording(tmp_path, capsys):
     assert "must hold joint angles (--arm)" in capsys.readouterr().err
     assert main(base + ["--arm", "ur5", "--robot-pose", "base2flange"]) == 2
     assert "leave --robot-pose out" in capsys.readouterr().err
+    assert main(base + ["--robot-format", "quat_wxyz", "--pendant-joints"]) == 2
+    assert "--pendant-joints describes joint angles" in capsys.readouterr().err

@@ -35,13 +35,16 @@ from ._shared.lazy import lazy_module
 from ._shared.text import summarize
 from .errors import HandEyeError, InputMismatchError
 from .geometry.se3 import from_rotvec_translation, invert, make_transform
+from .kinematics import arm_names, load_arm
 from .session import (
     POSEPAIRS_FILE,
     SESSION_FILE,
     SessionError,
     load_yaml,
     write_joint_session,
+    write_joint_stream,
     write_pose_pairs,
+    write_pose_stream,
     write_session,
     write_stream_session,
 )
@@ -60,7 +63,8 @@ ROSBAGS_MISSING = "reading bag files needs the rosbags package: pip install 'han
 @dataclass(frozen=True)
 class ImportSummary:
     """What an import wrote: the folder, its kind ('session', 'posepairs', or 'stream session' /
-    'stream posepairs' for recordings on two clocks) and how many samples of each side."""
+    'stream posepairs' / 'joint streams' for recordings on two clocks) and how many samples of
+    each side."""
 
     folder: Path
     kind: str
@@ -275,6 +279,25 @@ def _joint_session_of_bag(reader, bag: Path, folder: Path, setup: str, joint_top
     return ImportSummary(folder, "session", len(t_joint), len(image_names), notes)
 
 
+def _joint_streams_of_bag(reader, bag: Path, folder: Path, setup: str, joint_topic: str, arm: str | None,
+                          camera_pose_topic: str, camera_pose: str) -> ImportSummary:
+    """The bag's joint states and the target's poses as the two streams of ``calibrate-streams
+    --arm``: joints.csv (radians, the columns named as the topic names its joints) and camera.csv."""
+    t_joint, names, q = _joint_states(reader, joint_topic)
+    if arm is not None and arm.lower() in arm_names() and load_arm(arm).n_joints != len(names):
+        raise InputMismatchError(f"{joint_topic} names {len(names)} joints ({', '.join(names)}); {arm} has "
+                                 f"{load_arm(arm).n_joints}")
+    t_cam, poses = _pose_topic(reader, camera_pose_topic)
+    target2cam = poses if camera_pose == "target2cam" else invert(poses)
+    write_joint_stream(folder / "joints.csv", t_joint, q, names)
+    write_pose_stream(folder / "camera.csv", t_cam, target2cam, "quat_wxyz")
+    command = (f"handeye calibrate-streams {folder / 'joints.csv'} {folder / 'camera.csv'} --arm {arm or 'ARM'} "
+               f"--camera-format quat_wxyz --setup {setup}")
+    notes = [f"{bag.name}'s {joint_topic} (radians) and {camera_pose_topic} (as target2cam, metres) on the bag's clock; "
+             f"calibrate them with: {command}"]
+    return ImportSummary(folder, "joint streams", len(t_joint), len(t_cam), notes)
+
+
 #: Images this far (s) outside the joint states' time span cannot be given joint angles.
 JOINT_GAP_S = 0.05
 
@@ -291,6 +314,28 @@ def _camera_info(reader, topic: str | None) -> tuple[NDArray[np.float64], NDArra
         d = np.asarray(getattr(msg, "d", None) if hasattr(msg, "d") else msg.D, dtype=float).ravel()
         return K, (d if len(d) in (4, 5, 8, 12, 14) else np.zeros(5))
     raise InputMismatchError(f"{topic}: no CameraInfo message in the bag")
+
+
+def _check_bag_request(setup: str, robot_frames, robot_topic, image_topic, camera_pose_topic, camera_pose: str,
+                       target, every, joint_topic, arm) -> None:
+    """:func:`import_rosbag`'s arguments make one request (a robot side, a camera side), or raise."""
+    check_setup(setup)
+    if (image_topic is None) == (camera_pose_topic is None):
+        raise InputMismatchError("give the camera as image_topic (images) or camera_pose_topic (poses), one of them")
+    if joint_topic is not None:
+        if image_topic is not None and arm is None:
+            raise InputMismatchError("joint_topic with image_topic needs arm (the arm's kinematics: joints.csv is read "
+                                     "with it)")
+    elif (robot_topic is None) == (robot_frames is None):
+        raise InputMismatchError("give the robot as robot_frames (tf) or robot_topic (a pose topic), one of them")
+    if image_topic is not None:
+        if target is None:
+            raise InputMismatchError("images need the target's description (target=, as in session.yaml)")
+        target_from_spec(target)
+    if camera_pose not in ("target2cam", "cam2target"):
+        raise InputMismatchError(f"camera_pose={camera_pose!r}; use 'target2cam' or 'cam2target'")
+    if not (isinstance(every, int) and every >= 1):
+        raise InputMismatchError(f"every={every!r}: give a whole number >= 1")
 
 
 def import_rosbag(
@@ -329,11 +374,14 @@ def import_rosbag(
     camera_info_topic : str, optional
         A CameraInfo topic: K and dist into session.yaml (else handeye estimates them).
     joint_topic, arm : str, optional
-        With images, instead of the robot's poses: a JointState topic (``/joint_states``) and the
-        arm (a name of :func:`handeye.kinematics.arm_names`, or a YAML table or URDF file the
-        session will hold): writes a session with ``joints.csv`` (radians, columns named as the
-        topic names its joints), each image's joint angles interpolated at its stamp (one clock:
-        the bag's), so that calibrate fits the arm's table with X.
+        Instead of the robot's poses: a JointState topic (``/joint_states``) and the arm (a name of
+        :func:`handeye.kinematics.arm_names`, or a YAML table or URDF file the session will hold).
+        With images: writes a session with ``joints.csv`` (radians, columns named as the topic
+        names its joints), each image's joint angles interpolated at its stamp (one clock: the
+        bag's), so that calibrate fits the arm's table with X. With ``camera_pose_topic``: writes
+        the two streams of ``handeye calibrate-streams --arm`` (``joints.csv``: a time column,
+        then the joint angles; ``camera.csv``: the target's poses, quat_wxyz in metres; the arm
+        is optional then, named in the command the notes give).
 
     Returns
     -------
@@ -344,22 +392,8 @@ def import_rosbag(
     HandEyeError
         rosbags not installed; a topic or frame missing; an image encoding handeye does not read.
     """
-    check_setup(setup)
-    if (image_topic is None) == (camera_pose_topic is None):
-        raise InputMismatchError("give the camera as image_topic (images) or camera_pose_topic (poses), one of them")
-    if joint_topic is not None:
-        if image_topic is None or arm is None:
-            raise InputMismatchError("joint_topic needs image_topic (the images) and arm (the arm's kinematics)")
-    elif (robot_topic is None) == (robot_frames is None):
-        raise InputMismatchError("give the robot as robot_frames (tf) or robot_topic (a pose topic), one of them")
-    if image_topic is not None:
-        if target is None:
-            raise InputMismatchError("images need the target's description (target=, as in session.yaml)")
-        target_from_spec(target)
-    if camera_pose not in ("target2cam", "cam2target"):
-        raise InputMismatchError(f"camera_pose={camera_pose!r}; use 'target2cam' or 'cam2target'")
-    if not (isinstance(every, int) and every >= 1):
-        raise InputMismatchError(f"every={every!r}: give a whole number >= 1")
+    _check_bag_request(setup, robot_frames, robot_topic, image_topic, camera_pose_topic, camera_pose, target, every,
+                       joint_topic, arm)
     bag = Path(bag)
     if not bag.exists():
         raise SessionError(f"{bag}: no such bag")
@@ -369,9 +403,12 @@ def import_rosbag(
     AnyReader, Stores, get_typestore = _rosbags()
     try:
         with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
-            if joint_topic is not None:
+            if joint_topic is not None and image_topic is not None:
                 return _joint_session_of_bag(reader, bag, folder, setup, joint_topic, arm, image_topic,
                                              camera_info_topic, dict(target), every)
+            if joint_topic is not None:
+                return _joint_streams_of_bag(reader, bag, folder, setup, joint_topic, arm, camera_pose_topic,
+                                             camera_pose)
             if robot_topic is not None:
                 t_robot, f2b = _pose_topic(reader, robot_topic)
             else:

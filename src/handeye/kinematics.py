@@ -70,6 +70,10 @@ class Chain:
         axis (:meth:`moment_arms`); None: a rigid arm.
     gravity : ndarray (3,)
         Gravity's direction in the base frame (a unit vector; :data:`GRAVITY` by default).
+    pendant_coupling : (int, int, float) or None
+        ``(j, i, f)``: the teach pendant shows joint ``j`` (1-based) as the table's joint ``j``
+        minus ``f`` times joint ``i`` (:meth:`from_pendant`). FANUC's pendant measures J3 against
+        the horizon: ``(3, 2, 1.0)``, ROS-Industrial's ``J23_factor`` of 1.
     """
 
     name: str
@@ -84,6 +88,7 @@ class Chain:
     limits: NDArray[np.float64] | None = None
     compliance: NDArray[np.float64] | None = None
     gravity: NDArray[np.float64] = field(default_factory=lambda: np.array(GRAVITY))
+    pendant_coupling: tuple[int, int, float] | None = None
 
     def __post_init__(self) -> None:
         if self.convention not in ("dh", "mdh"):
@@ -114,6 +119,24 @@ class Chain:
         object.__setattr__(self, "gravity", g / np.linalg.norm(g))
         if self.joint_names is not None and len(self.joint_names) != len(table):
             raise InputMismatchError(f"{self.name}: {len(self.joint_names)} joint names for {len(table)} joints")
+        if self.pendant_coupling is not None:
+            object.__setattr__(self, "pendant_coupling", _coupling(self.pendant_coupling, len(table), self.name))
+
+    def from_pendant(self, q: ArrayLike) -> NDArray[np.float64]:
+        """Joint angles (N, n) as the teach pendant shows them, as the table takes them (the same
+        when the arm has no :attr:`pendant_coupling`)."""
+        return self._coupled(q, 1.0)
+
+    def to_pendant(self, q: ArrayLike) -> NDArray[np.float64]:
+        """The inverse of :meth:`from_pendant`."""
+        return self._coupled(q, -1.0)
+
+    def _coupled(self, q: ArrayLike, sign: float) -> NDArray[np.float64]:
+        q = np.array(q, dtype=float)
+        if self.pendant_coupling is not None:
+            j, i, f = self.pendant_coupling
+            q[..., j - 1] += sign * f * q[..., i - 1]
+        return q
 
     @property
     def n_joints(self) -> int:
@@ -194,6 +217,20 @@ class Chain:
         return frames
 
 
+def _coupling(value, n: int, name: str) -> tuple[int, int, float]:
+    """A pendant coupling ``(j, i, f)`` checked against an arm of ``n`` joints."""
+    try:
+        j, i, f = value
+        j, i, f = int(j), int(i), float(f)
+    except (TypeError, ValueError):
+        raise InputMismatchError(f"{name}: pendant_coupling must be [joint, joint it adds, factor], e.g. [3, 2, 1.0]"
+                                 ) from None
+    if not (1 <= j <= n and 1 <= i <= n and j != i and np.isfinite(f)):
+        raise InputMismatchError(f"{name}: pendant_coupling {list(value)}: two different joints of 1..{n} and a finite "
+                                 "factor")
+    return j, i, f
+
+
 def display_unit(name: str) -> tuple[float, str]:
     """How a parameter of :meth:`Chain.parameter_names` is shown: (factor from SI, unit); lengths
     in mm, angles in deg, compliance in deg per metre of the load's moment arm."""
@@ -257,7 +294,8 @@ def _chain_from_yaml(text: str, where: str) -> Chain:
                      limits=np.radians(data["limits_deg"]) if "limits_deg" in data else None,
                      home={k: np.radians(v) for k, v in (data.get("home_deg") or {}).items()},
                      spread=np.radians(data["spread_deg"]) if "spread_deg" in data else None,
-                     compliance=data.get("compliance_rad_per_m"), gravity=data.get("gravity", GRAVITY))
+                     compliance=data.get("compliance_rad_per_m"), gravity=data.get("gravity", GRAVITY),
+                     pendant_coupling=data.get("pendant_coupling"))
     except (KeyError, TypeError, ValueError, AttributeError, yaml.YAMLError) as exc:
         raise InputMismatchError(f"{where}: not an arm table ({exc}); give name, convention (dh or mdh) and joints: "
                                  "one row [a_m, alpha_rad, d_m, theta_offset_rad] per joint") from None
@@ -280,6 +318,9 @@ def chain_yaml(chain: Chain, comment: str = "") -> str:
         lines.append(f"compliance_rad_per_m: [{', '.join(repr(float(v)) for v in chain.compliance)}]")
     if not np.allclose(chain.gravity, GRAVITY, atol=0.0):
         lines.append(f"gravity: [{', '.join(repr(float(v)) for v in chain.gravity)}]")
+    if chain.pendant_coupling is not None:
+        j, i, f = chain.pendant_coupling
+        lines.append(f"pendant_coupling: [{j}, {i}, {f!r}]")
     if chain.limits is not None:
         lines.append(f"limits_deg: [[{'], ['.join(', '.join(repr(float(v)) for v in r) for r in np.degrees(chain.limits))}]]")
     return "\n".join(lines) + "\n"
@@ -321,6 +362,12 @@ def check_joints_against_poses(chain: Chain, q: ArrayLike, flange2base: ArrayLik
               "the joint angles are in radians, not degrees (give the unit as rad)": (chain, np.degrees(q), flange2base),
               "the joint columns are in reverse order (joint 1 first)": (chain, q[:, ::-1], flange2base),
               "the flange poses are inverted (base in flange: give flange2base)": (chain, q, np.linalg.inv(flange2base))}
+    if chain.pendant_coupling is not None:
+        j, i, _ = chain.pendant_coupling
+        trials[f"the joint angles are as the teach pendant shows them (J{j} coupled with J{i}): write pendant: true "
+               "under joints:"] = (chain, chain.from_pendant(q), flange2base)
+        trials[f"the joint angles are {chain.name}'s own, not the teach pendant's (remove pendant: true)"] = (
+            chain, chain.to_pendant(q), flange2base)
     for other in arm_names():
         arm = load_arm(other)
         if arm.n_joints == chain.n_joints and arm.name != chain.name:

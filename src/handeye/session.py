@@ -60,7 +60,7 @@ __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME
            "read_pose_table", "SessionError", "load_yaml",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
            "write_pose_pairs", "read_result", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session",
-           "load_joint_stream", "load_camera_stream"]
+           "load_joint_stream", "load_camera_stream", "write_joint_stream"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
 SESSION_FILE = "session.yaml"
@@ -254,10 +254,25 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override
         raise SessionError(f"{where}: joints: {'arm given: ' if override is not None else ''}{exc}") from None
     if override is not None and spec.get("arm") not in (None, override):
         notes.append(f"joint angles read with the arm given ({arm.name}), not session.yaml's ({spec.get('arm')})")
+    pendant = spec.get("pendant", False)
+    if not isinstance(pendant, bool):
+        raise SessionError(f"{where}: joints: pendant {pendant!r}; use true (the angles as the teach pendant shows them) "
+                           "or false")
     names, q = _joint_table(path, arm, unit, ("image",), notes, "write unit: deg under joints:")
     if len(set(names)) != len(names):
         raise SessionError(f"{path}: duplicate image names [{summarize(sorted({x for x in names if names.count(x) > 1}))}]")
-    return _Joints(names, np.radians(q) if unit == "deg" else q, arm, path)
+    return _Joints(names, _model_angles(np.radians(q) if unit == "deg" else q, arm, pendant, path.name, notes), arm, path)
+
+
+def _model_angles(q: NDArray[np.float64], arm: Chain, pendant: bool, where: str, notes: list[str]) -> NDArray[np.float64]:
+    """Joint angles (rad) as ``arm``'s table takes them: converted from the teach pendant's
+    (:meth:`Chain.from_pendant`) when ``pendant``, with a note saying so."""
+    if not pendant or arm.pendant_coupling is None:
+        return q
+    j, i, f = arm.pendant_coupling
+    notes.append(f"{where}: the teach pendant's angles converted to {arm.name}'s table: joint {j} = J{j} + "
+                 f"{f:g} x J{i}")
+    return arm.from_pendant(q)
 
 
 def _arm_chain(name: str, base: Path, base_link: str | None = None, tip_link: str | None = None) -> Chain:
@@ -308,11 +323,12 @@ def _joint_table(path: Path, arm: Chain, unit: str, first: tuple[str, ...], note
     return names, q
 
 
-def load_joint_stream(path: str | Path, arm: str | Chain, unit: str = "rad", time_unit: str = "s"
-                      ) -> tuple[NDArray[np.float64], NDArray[np.float64], Chain, list[str]]:
+def load_joint_stream(path: str | Path, arm: str | Chain, unit: str = "rad", time_unit: str = "s",
+                      pendant: bool = False) -> tuple[NDArray[np.float64], NDArray[np.float64], Chain, list[str]]:
     """A recording of joint angles (``/joint_states`` as CSV): a header ``time`` (or t, stamp,
     timestamp), then one column per joint (named as the arm's joints, in any order, or in the arm's
-    order); returns the times (s), the joint angles (N, n) in radians, the arm's chain and notes
+    order); returns the times (s), the joint angles (N, n) in radians as the arm's table takes them
+    (``pendant``: recorded as the teach pendant shows them, converted), the arm's chain and notes
     (how the columns were read)."""
     if unit not in ("deg", "rad"):
         raise SessionError(f"{path}: joint unit {unit!r}; use deg or rad")
@@ -327,7 +343,7 @@ def load_joint_stream(path: str | Path, arm: str | Chain, unit: str = "rad", tim
         times = scale * np.array([float(t) for t in stamps])
     except ValueError:
         raise SessionError(f"{path}: the time column holds a value that is not a number") from None
-    return times, np.radians(q) if unit == "deg" else q, chain, notes
+    return times, _model_angles(np.radians(q) if unit == "deg" else q, chain, pendant, Path(path).name, notes), chain, notes
 
 
 def _joint_order(columns: list[str], joint_names: tuple[str, ...] | None) -> list[int] | None:
@@ -901,6 +917,27 @@ def _write_session_yaml(folder: Path, setup: str, target_spec: dict[str, Any], c
     text = (f"# {comment}\n" if comment else "") + yaml.safe_dump(spec, sort_keys=False)
     atomic_write(folder / SESSION_FILE, text)
     return folder / SESSION_FILE
+
+
+def write_joint_stream(path: str | Path, times: NDArray[np.float64], joints: NDArray[np.float64],
+                       joint_names: list[str] | None = None, unit: str = "rad") -> Path:
+    """Write time-stamped joint angles (``joints`` (N, n) in radians, ``times`` in seconds) as the
+    CSV :func:`load_joint_stream` reads: a ``time`` column, then one per joint named
+    ``joint_names`` (or joint1 ...), in ``unit``; atomically. Returns the path."""
+    q = np.asarray(joints, dtype=float)
+    times = np.asarray(times, dtype=float)
+    if q.ndim != 2 or len(times) != len(q):
+        raise InputMismatchError(f"{len(times)} times for joint angles of shape {q.shape}")
+    if unit not in ("deg", "rad"):
+        raise InputMismatchError(f"joint unit {unit!r}; use deg or rad")
+    q = np.degrees(q) if unit == "deg" else q
+    columns = list(joint_names) if joint_names is not None else [f"joint{k + 1}" for k in range(q.shape[1])]
+    if len(columns) != q.shape[1]:
+        raise InputMismatchError(f"{len(columns)} joint names for {q.shape[1]} joints")
+    lines = ["time," + ",".join(columns)]
+    lines += [_number(t) + "," + ",".join(_number(v) for v in row) for t, row in zip(times, q)]
+    atomic_write(Path(path), "\n".join(lines) + "\n")
+    return Path(path)
 
 
 def write_pose_stream(path: str | Path, times: NDArray[np.float64], poses: NDArray[np.float64], format: str = "quat_xyzw",

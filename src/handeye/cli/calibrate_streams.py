@@ -21,6 +21,8 @@ def _cmd_calibrate_streams(args: argparse.Namespace) -> int:
         raise HandEyeError("give --robot-format (the robot file holds poses) or --arm (it holds joint angles), one of them")
     if args.compliance and args.arm is None:
         raise HandEyeError("--compliance fits the joints' compliance: the robot file must hold joint angles (--arm)")
+    if args.pendant_joints and args.arm is None:
+        raise HandEyeError("--pendant-joints describes joint angles: the robot file must hold them (--arm)")
     if args.arm is not None and args.robot_pose != "flange2base":
         raise HandEyeError(f"--robot-pose {args.robot_pose} describes pose rows; with --arm the robot file holds joint "
                            "angles: leave --robot-pose out")
@@ -39,7 +41,8 @@ def _cmd_calibrate_streams(args: argparse.Namespace) -> int:
 
 def _joint_streams(args: argparse.Namespace, robot: Path, camera: Path, joint_unit: str, cl: str, ca: str) -> int:
     """The robot file holds joint angles: X, Z and the arm's table from the two streams."""
-    t_robot, joints, chain, joint_notes = load_joint_stream(robot, args.arm, joint_unit, args.time_unit)
+    t_robot, joints, chain, joint_notes = load_joint_stream(robot, args.arm, joint_unit, args.time_unit,
+                                                            args.pendant_joints)
     spec = {"file": str(camera), "format": args.camera_format, "length_unit": cl, "angle_unit": ca,
             "pose": args.camera_pose, "time_unit": args.time_unit}
     t_cam, target2cam, camera_notes = load_camera_stream(spec)
@@ -68,6 +71,9 @@ def register(sub) -> None:
                    "joint, in the unit of --robot-units' angle), read with this arm's kinematics; X, Z and the arm's "
                    "table are fitted together")
     p.add_argument("--compliance", action="store_true", help="with --arm: fit each joint's compliance too")
+    p.add_argument("--pendant-joints", action="store_true",
+                   help="with --arm: the joint angles are as the teach pendant shows them (FANUC: J3 against the "
+                   "horizon), converted with the arm's pendant_coupling")
     p.add_argument("--camera-format", required=True, metavar="FORMAT", help="pose columns of the camera file (as --robot-format)")
     p.add_argument("--robot-units", default="m,rad", metavar="LENGTH,ANGLE", help="units of the robot file (default m,rad)")
     p.add_argument("--camera-units", default="m,rad", metavar="LENGTH,ANGLE", help="units of the camera file (default m,rad)")

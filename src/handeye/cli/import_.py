@@ -32,7 +32,8 @@ def _cmd_import(args: argparse.Namespace) -> int:
                                 every=args.every, joint_topic=args.joint_topic, arm=args.arm)
     what = {"session": "a session", "posepairs": "a pose-pair folder",
             "stream session": "a session (a robot stream, images with their times)",
-            "stream posepairs": "a pose-pair folder of two streams"}[summary.kind]
+            "stream posepairs": "a pose-pair folder of two streams",
+            "joint streams": "two streams for calibrate-streams --arm (joints.csv, camera.csv)"}[summary.kind]
     print(f"wrote {what} to {summary.folder}: {summary.robot_samples} robot and {summary.camera_samples} camera samples")
     for note in summary.notes:
         print(f"note: {note}")
@@ -93,8 +94,9 @@ def register(sub) -> None:
                    help="what --camera-pose-topic holds (default target2cam)")
     r.add_argument("--camera-info-topic", help="a CameraInfo topic: the intrinsics (else estimated from the images)")
     r.add_argument("--every", type=whole_arg(1), default=1, help="keep every n-th image (default 1)")
-    r.add_argument("--joint-topic", help="instead of the robot's poses: a JointState topic (/joint_states), each image's "
-                   "joint angles interpolated at its stamp into joints.csv; calibrate then fits the arm's table with X")
+    r.add_argument("--joint-topic", help="instead of the robot's poses: a JointState topic (/joint_states); with "
+                   "--image-topic each image's joint angles interpolated at its stamp into joints.csv (calibrate then fits "
+                   "the arm's table with X); with --camera-pose-topic the two streams calibrate-streams --arm takes")
     r.add_argument("--arm", help="with --joint-topic: the arm (a shipped one: handeye.kinematics.arm_names()), or a DH table (.yaml) or "
                    "URDF file you put in the session folder")
     for kind, when in (("rosbag", "needed with --image-topic"),
