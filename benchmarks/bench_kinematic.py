@@ -18,20 +18,26 @@ With ``--compliance DEG_PER_M`` the simulated arm's joints also give way under t
 (0.5-1.5x that per metre of moment arm), and a row "handeye kinematic+compliance" fits it
 (``compliance=True``) beside the rigid kinematic fit.
 
+With ``--spread FACTOR`` the captures move each joint FACTOR times as far about the arm's home as
+its table's ``spread_deg`` (views that do not show the whole target are still left out): how much
+a wider capture determines.
+
 Run from the repository root: ``python benchmarks/bench_kinematic.py [--sessions N] [--views 25,40]
-[--arms ur5,panda] [--compliance 0.2]``.
+[--arms ur5,panda] [--compliance 0.2] [--spread 2]``.
 """
 
 from __future__ import annotations
 
 import argparse
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 
 import cv2
 import numpy as np
 
 import handeye
 from handeye.geometry.se3 import invert, make_transform
+from handeye.kinematics import load_arm
 from handeye.metrics import rotation_error, translation_error
 from handeye.setups import predicted_target2cam
 from handeye.simulate import kinematic_scene
@@ -61,8 +67,10 @@ def _seen_error(X, Z, flange2base, setup, target2cam_true) -> float:
 
 
 def one_session(args) -> dict:
-    arm, n, setup, seed, compliance = args
-    sc = kinematic_scene(2 * n, setup, seed, arm=arm, compliance_deg_per_m=compliance)
+    arm, n, setup, seed, compliance, spread = args
+    chain = load_arm(arm)
+    chain = replace(chain, spread=spread * chain.spread)
+    sc = kinematic_scene(2 * n, setup, seed, arm=chain, compliance_deg_per_m=compliance)
     fit, held = np.arange(n), np.arange(n, 2 * n)
     black = handeye.calibrate_poses(sc.flange2base[fit], sc.target2cam[fit], setup, progress=False)
     row = {"black": _errors(black.X, sc.X), "opencv": _opencv_best(sc.flange2base[fit], sc.target2cam[fit], setup, sc.X),
@@ -86,6 +94,9 @@ def main() -> None:
     ap.add_argument("--setups", default="eye_in_hand,eye_to_hand")
     ap.add_argument("--compliance", type=float, default=0.0, metavar="DEG_PER_M",
                     help="the simulated joints' compliance (deg per metre of the load's moment arm; default 0: rigid)")
+    ap.add_argument("--spread", type=float, default=1.0, metavar="FACTOR",
+                    help="the capture moves each joint FACTOR times as far about home as the arm's table says "
+                    "(spread_deg; views that do not see the whole target are still left out; default 1)")
     args = ap.parse_args()
     fits = ("kinematic", "compliance") if args.compliance > 0 else ("kinematic",)
     labels = {"black": "handeye black-box", "opencv": "best OpenCV method", "kinematic": "handeye kinematic",
@@ -94,12 +105,14 @@ def main() -> None:
         for arm in args.arms.split(","):
             for setup in args.setups.split(","):
                 for n in (int(v) for v in args.views.split(",")):
-                    rows = list(pool.map(one_session, [(arm, n, setup, s, args.compliance) for s in range(args.sessions)]))
+                    rows = list(pool.map(one_session, [(arm, n, setup, s, args.compliance, args.spread)
+                                                        for s in range(args.sessions)]))
                     keys = ("black", "opencv") + fits
                     within = {k: np.mean([r[k][0] <= 0.05 and r[k][1] <= 0.3 for r in rows]) for k in keys}
                     med = {k: np.median([r[k] for r in rows], axis=0) for k in keys}
                     before = np.median([r["before"] for r in rows])
                     print(f"{arm} {setup}, {n} views, {len(rows)} sessions"
+                          + (f", joints moved {args.spread:g}x the table's spread" if args.spread != 1 else "")
                           + (f", joints' compliance {args.compliance:g} deg/m:" if args.compliance > 0 else ":"))
                     for k in keys:
                         print(f"  {labels[k]:<29} X median {med[k][0]:.4f} deg / {med[k][1]:.3f} mm, within 0.05 deg / "

@@ -2,7 +2,9 @@
 ``handeye plan``.
 
 A calibration from joint angles (:func:`handeye.calibrate_joints`) names the table entries its
-capture does not determine. :func:`suggest_joint_views` proposes a few more views that would:
+capture does not determine. :func:`suggest_joint_views` proposes a few more views that would (or,
+when the capture determines them all but moved the joints so little that X's std is mostly the
+table's, views that shrink X's std, the joints moved further):
 joint configurations near the capture's, with the joints of those entries moved further, where the
 calibrated camera sees the whole target and (where the arm's table gives them) inside the joints'
 limits, chosen one at a time by how much each shrinks the entries' posterior std (the fit's
@@ -25,7 +27,7 @@ from .result import Calibration
 from .setups import predicted_target2cam
 from .vision.pnp import project_points_many
 
-__all__ = ["JointViews", "suggest_joint_views"]
+__all__ = ["JointViews", "suggest_joint_views", "TABLE_DOMINATES"]
 
 
 @dataclass(frozen=True)
@@ -38,16 +40,28 @@ class JointViews:
         Joint angles (rad), in the order to capture them.
     targets : list of str
         The undetermined entries they are chosen for (those along parallel joint axes excluded:
-        no capture separates them).
+        no capture separates them); empty when they are chosen for X (``aim``).
     ratio_before, ratio_after : ndarray (len(targets),)
         Each target entry's posterior std over its prior's, with the capture as it is and with
         these views added (predicted): below 0.5 counts as determined.
+    aim : {'entries', 'X'}
+        What the views are for: the undetermined entries, or (when every entry views can determine
+        is determined but X's std is mostly the table's: :data:`TABLE_DOMINATES`) X's std.
+    x_std_before, x_std_after : float
+        X's translation std (m, the norm over the axes; predicted by the fit's information) with
+        the capture as it is and with these views added.
+    x_std_table_known : float
+        X's translation std the capture would give with the arm's table known.
     """
 
     joints: NDArray[np.float64]
     targets: list[str]
     ratio_before: NDArray[np.float64]
     ratio_after: NDArray[np.float64]
+    aim: str = "entries"
+    x_std_before: float = float("nan")
+    x_std_after: float = float("nan")
+    x_std_table_known: float = float("nan")
 
     @property
     def determined_after(self) -> list[str]:
@@ -55,11 +69,19 @@ class JointViews:
         return [t for t, r in zip(self.targets, self.ratio_after) if r < 0.5]
 
 
+#: Views are proposed for X when its translation std is more than this many times what the same
+#: capture gives with the arm's table known: the joints moved too little to tell the table's
+#: errors from X. Measured (simulated UR5 and Panda, 1-3 mm off their tables, 25 views): see
+#: docs/benchmarks.md (bench_kinematic.py).
+TABLE_DOMINATES = 5.0
+
+
 def suggest_joint_views(cal: Calibration, joints: ArrayLike | None = None, n_views: int = 5,
                         image_size: tuple[int, int] | None = None, candidates: int = 3000,
                         rng: int | np.random.Generator | None = 0) -> JointViews:
     """Joint configurations to capture next, so that the entries of the arm's table that ``cal``
-    left undetermined become determined.
+    left undetermined become determined, or, when it left none that views can determine and X's
+    std is mostly the table's (:data:`TABLE_DOMINATES`), so that X's std shrinks.
 
     Parameters
     ----------
@@ -77,8 +99,8 @@ def suggest_joint_views(cal: Calibration, joints: ArrayLike | None = None, n_vie
     Returns
     -------
     JointViews
-        Empty ``joints`` when nothing the capture left undetermined can be determined by more
-        views (entries along parallel axes) or no candidate sees the target.
+        Empty ``joints`` when views have nothing to add (every entry views can determine is
+        determined, X's std not mostly the table's) or no candidate sees the target.
     """
     k = cal.kinematic
     if k is None or cal.image_points is None or cal.object_points is None or cal.camera_matrix is None:
@@ -90,42 +112,61 @@ def suggest_joint_views(cal: Calibration, joints: ArrayLike | None = None, n_vie
                                  f"views the calibration used; got shape {q.shape}")
     parallel = along_parallel_axes(k.nominal)
     targets = [n for n in k.undetermined if n not in parallel]
-    empty = JointViews(np.empty((0, q.shape[1])), targets, np.empty(0), np.empty(0))
-    if not targets:
-        return empty
     K, dist = np.asarray(cal.camera_matrix, dtype=float), np.asarray(cal.dist_coeffs, dtype=float).ravel()
     size = image_size or (int(round(2 * K[0, 2])), int(round(2 * K[1, 2])))
     model = _Model(cal, q, K, dist)
     sigma = model.sigma()
     info = model.information_per_view(q).sum(axis=0) / sigma**2 + np.diag(np.r_[np.zeros(12), np.ones(len(k.names))])
+    x_before, x_known = _x_std(info), _x_std(info[:12, :12])
+    aim = "entries" if targets else "X"
+    empty = JointViews(np.empty((0, q.shape[1])), targets, np.empty(0), np.empty(0), aim, x_before, x_before, x_known)
+    if not targets and x_before <= TABLE_DOMINATES * x_known:
+        return empty
     pick = [k.names.index(t) + 12 for t in targets]
     before = np.sqrt(np.diag(np.linalg.inv(info))[pick])
-    pool = _candidates(q, k, targets, candidates, np.random.default_rng(rng))
+    wide = ({int(t.split(".")[0].removeprefix("joint")) - 1 for t in targets} if targets
+            else set(range(q.shape[1])))
+    pool = _candidates(q, wide, candidates, np.random.default_rng(rng))
     if k.nominal.limits is not None:  # inside the joints' limits, 2 deg from them
         margin = np.radians(2.0)
         pool = pool[((pool >= k.nominal.limits[:, 0] + margin) & (pool <= k.nominal.limits[:, 1] - margin)).all(axis=1)]
     pool = pool[model.sees_whole_target(pool, size)]
     if not len(pool):
         return empty
-    per_view = model.information_per_view(pool) / sigma**2  # (C, P, P)
+    info, chosen = _greedy(info, model.information_per_view(pool) / sigma**2, pick, n_views, model.lever())
+    after = np.sqrt(np.diag(np.linalg.inv(info))[pick])
+    return JointViews(pool[chosen], targets, before, after, aim, x_before, _x_std(info), x_known)
+
+
+def _x_std(info: NDArray[np.float64]) -> float:
+    """X's translation std (m, norm over the axes) from the information matrix over [X, Z, ...]."""
+    return float(np.sqrt(np.trace(np.linalg.inv(info)[3:6, 3:6])))
+
+
+def _greedy(info, per_view, pick: list[int], n_views: int, lever: float) -> tuple[NDArray[np.float64], list[int]]:
+    """Views chosen one at a time, each the one that most shrinks the summed posterior variance of
+    the entries ``pick`` (or, when none, X's: its translation's and its rotation's at ``lever``)."""
+    per_view = per_view.copy()
     chosen = []
-    for _ in range(min(n_views, len(pool))):
+    for _ in range(min(n_views, len(per_view))):
         trial = np.linalg.inv(info[None] + per_view)
-        score = np.sum(trial[:, pick, pick], axis=1)
+        if pick:
+            score = np.sum(trial[:, pick, pick], axis=1)
+        else:
+            d = np.diagonal(trial[:, :6, :6], axis1=1, axis2=2)
+            score = d[:, 3:].sum(axis=1) + lever**2 * d[:, :3].sum(axis=1)
         best = int(np.argmin(score))
         info = info + per_view[best]
         chosen.append(best)
         per_view[best] = 0.0  # not twice
-    after = np.sqrt(np.diag(np.linalg.inv(info))[pick])
-    return JointViews(pool[chosen], targets, before, after)
+    return info, chosen
 
 
-def _candidates(q, k, targets: list[str], count: int, rng: np.random.Generator) -> NDArray[np.float64]:
+def _candidates(q, wide: set[int], count: int, rng: np.random.Generator) -> NDArray[np.float64]:
     """Joint angles about the capture's: a captured view's, every joint moved by up to its
-    capture's spread, the joints of the target entries (and their neighbours) by more."""
+    capture's spread, the joints ``wide`` (and their neighbours) by more."""
     spread = np.maximum(q.max(axis=0) - q.min(axis=0), np.radians(5.0))
-    wide = {int(t.split(".")[0].removeprefix("joint")) - 1 for t in targets}
-    wide |= {j + 1 for j in wide if j + 1 < q.shape[1]} | {j - 1 for j in wide if j > 0}
+    wide = set(wide) | {j + 1 for j in wide if j + 1 < q.shape[1]} | {j - 1 for j in wide if j > 0}
     scale = 0.5 * spread
     for j in wide:
         scale[j] = 0.5 * spread[j] + np.radians(30.0)
@@ -179,6 +220,10 @@ class _Model:
     def information_per_view(self, joints) -> NDArray[np.float64]:
         J = self._jacobian(joints)
         return np.einsum("vmp,vmq->vpq", J, J)
+
+    def lever(self) -> float:
+        """The target's median distance from the camera (m): how far X's rotation moves what it sees."""
+        return float(np.median(np.linalg.norm(self.cal.target2cam[:, :3, 3], axis=1)))
 
     def sigma(self) -> float:
         """The pixel noise the capture showed (RMS per coordinate at the solution; the same points in each view)."""

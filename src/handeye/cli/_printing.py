@@ -158,8 +158,14 @@ def print_next_views(cal: Calibration, views) -> str:
     names = list(k.nominal.joint_names or [f"joint{j + 1}" for j in range(k.nominal.n_joints)])
     text = "view," + ",".join(names) + "\n" + "".join(
         f"{i + 1}," + ",".join(f"{v:.3f}" for v in np.degrees(row)) + "\n" for i, row in enumerate(views.joints))
-    print(f"next views: {len(views.joints)} joint configurations (degrees) where the camera sees the target and "
-          f"{', '.join(views.determined_after) or 'none of the undetermined entries'} would be determined (posterior "
-          "std under half the prior's, predicted):")
+    if views.aim == "X":
+        print(f"next views: X's std ({1e3 * views.x_std_before:.2f} mm) is {views.x_std_before / views.x_std_table_known:.1f}x "
+              "what this capture would give with the arm's table known: the joints moved too little to tell the table's "
+              f"errors from X. {len(views.joints)} joint configurations (degrees) where the camera sees the target, "
+              f"moving the joints further, would bring it to {1e3 * views.x_std_after:.2f} mm (predicted):")
+    else:
+        print(f"next views: {len(views.joints)} joint configurations (degrees) where the camera sees the target and "
+              f"{', '.join(views.determined_after) or 'none of the undetermined entries'} would be determined (posterior "
+              "std under half the prior's, predicted):")
     print(text.rstrip())
     return text

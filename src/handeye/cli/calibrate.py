@@ -94,8 +94,9 @@ def _cmd_calibrate_depth(session: Path, args: argparse.Namespace) -> int:
 
 
 def _suggest_views(cal, out: str | None) -> None:
-    """A joint fit that left entries of the arm's table undetermined: the views that would
-    determine them, printed and (with --out) written as next_views.csv (joint angles, degrees)."""
+    """A joint fit that left entries of the arm's table undetermined (or whose X's std is mostly the
+    table's): the views that would determine them (shrink it), printed and (with --out) written as
+    next_views.csv (joint angles, degrees)."""
     k = cal.kinematic
     if k is None or cal.image_points is None:
         return

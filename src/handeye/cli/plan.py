@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 from .._shared.io import atomic_write
 from ..checking import calibrate_session
 from ..errors import HandEyeError
-from ..joint_planning import suggest_joint_views
+from ..joint_planning import TABLE_DOMINATES, suggest_joint_views
 from ..options import ROBOT_ACCURACY, CalibrationOptions
 from ..planning import (
     ROBOTS,
@@ -44,7 +44,8 @@ from ._printing import fmt_vec, print_next_views
 
 def _plan_next_views(args: argparse.Namespace) -> int:
     """--session: the next joint configurations of a joint session, so that the entries of the arm's
-    table its capture left undetermined become determined (calibrate prints the same after its fit)."""
+    table its capture left undetermined become determined, or X's std shrinks when it is mostly the
+    table's (calibrate prints the same after its fit)."""
     session = Path(args.session)
     given = [name for name, value in (("--intrinsics", args.intrinsics), ("--standoff", args.standoff),
                                       ("--target-spec", args.target_spec), ("--reach-box", args.reach_box)) if value]
@@ -61,8 +62,9 @@ def _plan_next_views(args: argparse.Namespace) -> int:
     views = suggest_joint_views(cal, n_views=args.poses or 5, rng=args.seed)
     if not len(views.joints):
         print("next views: none to propose: " + ("the capture determines every entry of the arm's table that views can "
-                                                 "determine" if not views.targets else
-                                                 "no candidate configuration sees the whole target"))
+                                                 "determine, and X's std is not mostly the table's" if not views.targets
+                                                 and views.x_std_before <= TABLE_DOMINATES * views.x_std_table_known
+                                                 else "no candidate configuration sees the whole target"))
         return 0
     text = print_next_views(cal, views)
     atomic_write(out, text, list(cal.image_paths or []))
