@@ -240,7 +240,8 @@ def test_a_joint_session_is_checked(tmp_path):
 def test_simulate_and_calibrate_a_joint_session_from_the_command_line(tmp_path):
     """`handeye simulate --arm ur5` renders a session with joints.csv; `handeye calibrate` fits the
     arm's table with X (X within 0.3 mm of the truth), prints it, and writes the corrected table
-    as a file that load_arm reads back."""
+    as a file that load_arm reads back; handeye.calibrate, the image pipeline alone, says it used
+    the nominal flange poses and where the joint fit is."""
     session, out = tmp_path / "s", tmp_path / "out"
     assert main(["simulate", "--out", str(session), "--arm", "ur5", "--poses", "20", "--seed", "3",
                  "--image-size", "800x600"]) == 0
@@ -266,6 +267,12 @@ def test_simulate_and_calibrate_a_joint_session_from_the_command_line(tmp_path):
     # the determined entries move towards the truth
     assert np.abs(corrected.table.ravel()[owned] - true_table.ravel()[owned]).sum() < \
         np.abs(nominal.ravel()[owned] - true_table.ravel()[owned]).sum()
+    # handeye.calibrate (the image pipeline) takes the nominal flange poses, and says where the joint fit is
+    black = handeye.calibrate(session, progress=False)
+    assert black.kinematic is None and any("took the flange poses the controller reported as a black box; "
+                                           "handeye.checking.calibrate_folder" in n for n in black.notes)
+    with pytest.raises(InputMismatchError, match="compliance=True .*handeye.checking.calibrate_folder"):
+        handeye.calibrate(session, progress=False, compliance=True)
     # a fleet calibrates a joint session as calibrate does: with the arm's table
     from handeye.fleet import calibrate_many
 

@@ -818,8 +818,14 @@ def calibrate(
     opts = options_from(options, changes)  # bad options fail before any image work
     session = load_session(session_dir, strict_images=opts.strict_images, arm=opts.arm)
     if opts.compliance:
-        raise InputMismatchError(f"{session.folder}: compliance=True fits the joints' compliance from joint angles, and "
-                                 "the session has none (a joints: table in session.yaml); leave compliance out")
+        raise InputMismatchError(f"{session.folder}: compliance=True fits the joints' compliance from joint angles with "
+                                 "the arm's table: " + (_JOINT_FIT if session.joints is not None else
+                                                        "the session has none (a joints: table in session.yaml); leave "
+                                                        "compliance out"))
+    if session.joints is not None:  # said, not silently dropped
+        poses = "the arm's nominal table gives" if session.pose_format == "joints" else "the controller reported"
+        session = replace(session, notes=list(session.notes) + [
+            f"session.yaml has joint angles: this calibration took the flange poses {poses} as a black box; {_JOINT_FIT}"])
     parse_known(opts.known, session.setup)
     obs = observe(session, jobs=jobs, progress=progress, strict_images=opts.strict_images)
     sync = None
@@ -827,6 +833,11 @@ def calibrate(
         obs, sync, robot, camera = _synchronised(obs, opts.offset_range, opts.time_offset, opts.keyframes)
     cal = calibrate_observed(obs, opts, progress=progress)
     return cal if sync is None else judged(_with_sync(cal, sync, robot, camera, obs))
+
+
+#: Where a session's joint angles are used.
+_JOINT_FIT = ("handeye.checking.calibrate_folder (which `handeye calibrate` runs) fits the arm's table with X from "
+              "them")
 
 
 #: Images with times count as a stream (the clock offset estimated) from this many, at most this far apart (s).
