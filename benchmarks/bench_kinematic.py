@@ -18,17 +18,22 @@ With ``--compliance DEG_PER_M`` the simulated arm's joints also give way under t
 (0.5-1.5x that per metre of moment arm), and a row "handeye kinematic+compliance" fits it
 (``compliance=True``) beside the rigid kinematic fit.
 
+With ``--rendered`` the sessions are rendered (1280x1024 images of the chessboard, the controller's
+joint angles in joints.csv), detected and fitted by :func:`handeye.checking.calibrate_folder` (as
+``handeye calibrate`` does): the kinematic rows only, X's error and its coverage by 3 std.
+
 With ``--spread FACTOR`` the captures move each joint FACTOR times as far about the arm's home as
 its table's ``spread_deg`` (views that do not show the whole target are still left out): how much
 a wider capture determines.
 
 Run from the repository root: ``python benchmarks/bench_kinematic.py [--sessions N] [--views 25,40]
-[--arms ur5,panda] [--compliance 0.2] [--spread 2]``.
+[--arms ur5,panda] [--compliance 0.2] [--spread 2] [--rendered]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import tempfile
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 
@@ -36,11 +41,12 @@ import cv2
 import numpy as np
 
 import handeye
+from handeye.checking import calibrate_folder
 from handeye.geometry.se3 import invert, make_transform
 from handeye.kinematics import load_arm
 from handeye.metrics import rotation_error, translation_error
 from handeye.setups import predicted_target2cam
-from handeye.simulate import kinematic_scene
+from handeye.simulate import kinematic_scene, simulate_kinematic_session
 
 OPENCV = ("TSAI", "PARK", "HORAUD", "ANDREFF", "DANIILIDIS")
 
@@ -86,6 +92,33 @@ def one_session(args) -> dict:
     return row
 
 
+def rendered_session(args) -> tuple[tuple[float, float], bool]:
+    """X's error (deg, mm) and whether it is within 3 std, of a rendered joint session (images
+    1280x1024, detected, the joint fit of `handeye calibrate`)."""
+    arm, n, setup, seed, spread = args
+    chain = load_arm(arm)
+    chain = replace(chain, spread=spread * chain.spread)
+    with tempfile.TemporaryDirectory(prefix="handeye-bench-kinematic-") as folder:
+        sc = simulate_kinematic_session(f"{folder}/s", n, setup, seed=seed, arm=chain, controller_poses=False)
+        cal = calibrate_folder(f"{folder}/s", progress=False)
+    e = _errors(cal.X, sc.X)
+    return e, bool(np.radians(e[0]) <= 3 * np.linalg.norm(cal.std[:3]) and 1e-3 * e[1] <= 3 * np.linalg.norm(cal.std[3:]))
+
+
+def rendered_rows(args, pool) -> None:
+    """--rendered: the kinematic fit on rendered sessions, per arm, setup and number of views."""
+    for arm in args.arms.split(","):
+        for setup in args.setups.split(","):
+            for n in (int(v) for v in args.views.split(",")):
+                rows = list(pool.map(rendered_session, [(arm, n, setup, s, args.spread) for s in range(args.sessions)]))
+                e = np.array([r[0] for r in rows])
+                print(f"{arm} {setup}, {n} views, {len(rows)} rendered sessions"
+                      + (f", joints moved {args.spread:g}x the table's spread" if args.spread != 1 else "")
+                      + f": handeye kinematic X median {np.median(e[:, 0]):.4f} deg / {np.median(e[:, 1]):.3f} mm, "
+                      f"within 0.05 deg / 0.3 mm {np.mean((e[:, 0] <= 0.05) & (e[:, 1] <= 0.3)):.0%}, "
+                      f"within 3 std {np.mean([r[1] for r in rows]):.0%}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sessions", type=int, default=20)
@@ -97,7 +130,14 @@ def main() -> None:
     ap.add_argument("--spread", type=float, default=1.0, metavar="FACTOR",
                     help="the capture moves each joint FACTOR times as far about home as the arm's table says "
                     "(spread_deg; views that do not see the whole target are still left out; default 1)")
+    ap.add_argument("--rendered", action="store_true",
+                    help="render the sessions (1280x1024 images, detected) and fit them as `handeye calibrate` does; "
+                    "the kinematic rows only")
     args = ap.parse_args()
+    if args.rendered:
+        with ProcessPoolExecutor(2) as pool:
+            rendered_rows(args, pool)
+        return
     fits = ("kinematic", "compliance") if args.compliance > 0 else ("kinematic",)
     labels = {"black": "handeye black-box", "opencv": "best OpenCV method", "kinematic": "handeye kinematic",
               "compliance": "handeye kinematic+compliance"}
