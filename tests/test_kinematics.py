@@ -472,6 +472,18 @@ def test_a_bags_joint_states_become_a_joint_session(tmp_path, capsys):
     assert not (tmp_path / "y" / "joints.csv").exists()
 
 
+def _with_views(sc, joints, seed: int):
+    """The joint fit of ``sc``'s capture with views at ``joints`` added, captured by the true arm
+    (0.2 px of noise)."""
+    t2c_true = predicted_target2cam(sc.X, sc.Z, sc.chain_true.forward(joints), sc.setup)
+    t2c, pixels, _ = _camera_reading(t2c_true, sc.object_points, sc.K, sc.dist,
+                                     replace(EXACT, pixel_px=0.2, flip_probability=0.0), np.random.default_rng(seed))
+    every = np.vstack([sc.joints, joints])
+    return handeye.calibrate_joints(every, np.concatenate([sc.target2cam, t2c]), sc.setup, sc.chain,
+                                    object_points=[sc.object_points] * len(every),
+                                    image_points=list(sc.image_points) + list(pixels), K=sc.K, dist=sc.dist)
+
+
 def test_what_the_capture_cannot_determine_is_named_held_and_planned(tmp_path):
     """A capture whose fourth joint never moves: the entries only it could show stay near nominal,
     named as undetermined with the joints to move, their prior in X's std (no traceback), the table
@@ -497,13 +509,7 @@ def test_what_the_capture_cannot_determine_is_named_held_and_planned(tmp_path):
     assert {"joint4.theta"} <= set(views.targets) and not set(views.targets) & parallel
     assert (views.ratio_before >= 0.5).all() and set(views.determined_after) == set(views.targets)
     assert ((views.joints > chain.limits[:, 0]) & (views.joints < chain.limits[:, 1])).all()
-    t2c_true = predicted_target2cam(sc.X, sc.Z, sc.chain_true.forward(views.joints), sc.setup)
-    t2c, pixels, _ = _camera_reading(t2c_true, sc.object_points, sc.K, sc.dist,
-                                     replace(EXACT, pixel_px=0.2, flip_probability=0.0), np.random.default_rng(9))
-    joints = np.vstack([sc.joints, views.joints])
-    more = handeye.calibrate_joints(joints, np.concatenate([sc.target2cam, t2c]), sc.setup, sc.chain,
-                                    object_points=[sc.object_points] * len(joints),
-                                    image_points=list(sc.image_points) + list(pixels), K=sc.K, dist=sc.dist)
+    more = _with_views(sc, views.joints, 9)
     assert views.aim == "entries"
     assert set(more.kinematic.undetermined) <= parallel
     assert "parallel joint axes" in next(n for n in more.notes if "does not determine" in n)
@@ -525,13 +531,7 @@ def test_views_for_x_when_the_joints_moved_too_little(tmp_path):
     assert views.x_std_before > TABLE_DOMINATES * views.x_std_table_known and views.x_std_after < 0.5 * views.x_std_before
     limits = sc.chain.limits
     assert ((views.joints > limits[:, 0]) & (views.joints < limits[:, 1])).all()
-    t2c_true = predicted_target2cam(sc.X, sc.Z, sc.chain_true.forward(views.joints), sc.setup)
-    t2c, pixels, _ = _camera_reading(t2c_true, sc.object_points, sc.K, sc.dist,
-                                     replace(EXACT, pixel_px=0.2, flip_probability=0.0), np.random.default_rng(1000))
-    joints = np.vstack([sc.joints, views.joints])
-    more = handeye.calibrate_joints(joints, np.concatenate([sc.target2cam, t2c]), sc.setup, sc.chain,
-                                    object_points=[sc.object_points] * len(joints),
-                                    image_points=list(sc.image_points) + list(pixels), K=sc.K, dist=sc.dist)
+    more = _with_views(sc, views.joints, 1000)
     before, after = 1e3 * translation_error(cal.X, sc.X), 1e3 * translation_error(more.X, sc.X)
     assert before > 0.3 and after < 0.3 and np.degrees(rotation_error(more.X, sc.X)) < 0.05
     assert np.linalg.norm(more.std[3:]) < np.linalg.norm(cal.std[3:])
