@@ -30,9 +30,8 @@ from handeye.metrics import rotation_error, translation_error
 from handeye.session import load_camera_stream, load_joint_stream, load_session, write_joint_session, write_pose_table
 from handeye.setups import predicted_target2cam
 from handeye.simulate import (
-    EXACT,
-    _camera_reading,
     arm_forward_kinematics,
+    capture_joint_views,
     kinematic_scene,
     robot_accuracy_of,
     simulate_kinematic_session,
@@ -474,11 +473,9 @@ def test_a_bags_joint_states_become_a_joint_session(tmp_path, capsys):
 
 def _with_views(sc, joints, seed: int):
     """The joint fit of ``sc``'s capture with views at ``joints`` added, captured by the true arm
-    (0.2 px of noise)."""
-    t2c_true = predicted_target2cam(sc.X, sc.Z, sc.chain_true.forward(joints), sc.setup)
-    t2c, pixels, _ = _camera_reading(t2c_true, sc.object_points, sc.K, sc.dist,
-                                     replace(EXACT, pixel_px=0.2, flip_probability=0.0), np.random.default_rng(seed))
-    every = np.vstack([sc.joints, joints])
+    (capture_joint_views: 0.2 px of noise, the controller's encoder noise)."""
+    reported, t2c, pixels = capture_joint_views(sc, joints, seed)
+    every = np.vstack([sc.joints, reported])
     return handeye.calibrate_joints(every, np.concatenate([sc.target2cam, t2c]), sc.setup, sc.chain,
                                     object_points=[sc.object_points] * len(every),
                                     image_points=list(sc.image_points) + list(pixels), K=sc.K, dist=sc.dist)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from ._shared.io import atomic_write, check_output_folder
@@ -38,7 +38,7 @@ __all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look
            "seed_viewpoints",
            "seed_scenes", "add_noise", "simulate_session", "RealisticErrors", "RealisticScene", "REALISTIC", "EXACT",
            "realistic_scene", "arm_forward_kinematics", "ARM_DH", "robot_accuracy_of", "simulate_realistic_session",
-           "KinematicScene", "kinematic_scene", "simulate_kinematic_session",
+           "KinematicScene", "kinematic_scene", "simulate_kinematic_session", "capture_joint_views",
            "low_dof_scene", "LOW_DOF_ROBOTS", "StreamScene", "stream_scene", "JointStreamScene", "joint_stream_scene",
            "simulate_stream_session", "DepthScene", "depth_scene", "SphereScene", "sphere_scene", "write_depth_session"]
 
@@ -756,6 +756,24 @@ def kinematic_scene(
                                                  replace(EXACT, pixel_px=pixel_px, flip_probability=0.0), rng)
     return KinematicScene(setup, X, Z, joints, f2b_true, chain.forward(joints), t2c_true, t2c, obj, image_points, K,
                           dist, tuple(image_size), flipped, chain=chain, chain_true=true, joints_true=q_true)
+
+
+def capture_joint_views(scene: KinematicScene, joints: ArrayLike, rng: np.random.Generator | int | None = None,
+                        pixel_px: float = 0.2, joint_noise_deg: float = 0.002
+                        ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """More views in ``scene``'s cell (:func:`kinematic_scene`): its real arm at the commanded
+    ``joints`` (N, n; rad), e.g. the views :func:`handeye.joint_planning.suggest_joint_views`
+    proposes. Returns the joint angles the controller reports (``joint_noise_deg`` of encoder
+    noise), the camera's PnP poses (target2cam) and the detections (N, M, 2; ``pixel_px`` of noise)."""
+    q = np.atleast_2d(np.asarray(joints, dtype=float))
+    if scene.chain_true is None or q.shape[1] != scene.chain_true.n_joints:
+        raise InputMismatchError(f"joints of shape {q.shape} for a scene of "
+                                 f"{'no arm' if scene.chain_true is None else scene.chain_true.name}")
+    rng = np.random.default_rng(rng)
+    t2c_true = predicted_target2cam(scene.X, scene.Z, scene.chain_true.forward(q), scene.setup)
+    t2c, image_points, _ = _camera_reading(t2c_true, scene.object_points, scene.K, scene.dist,
+                                           replace(EXACT, pixel_px=pixel_px, flip_probability=0.0), rng)
+    return q + np.radians(rng.normal(0.0, joint_noise_deg, q.shape)), t2c, image_points
 
 
 def _real_chain(chain: Chain, rng: np.random.Generator, length_mm: float, angle_deg: float,
