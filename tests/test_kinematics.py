@@ -188,7 +188,8 @@ def test_a_fanuc_pendants_joint_angles(tmp_path):
     stays level whatever J2 (the table's joint 3 is J3 + J2: ROS-Industrial's J23_factor 1 for this
     arm). The pendant's angles beside the controller's poses are refused with the fix named; with
     pendant: true under joints: they are converted and give the poses to 1e-9; pendant: true on the
-    table's own angles names the other fix; a bad coupling in a table is refused."""
+    table's own angles names the other fix; a bad coupling in a table is refused; pendant: true for
+    an arm whose pendant shows its table's angles (a UR) changes nothing and says so."""
     arm = load_arm("lrmate200id")
     q = np.zeros((4, 6))
     q[:, 1] = np.radians([-30, 0, 20, 45])  # J2 turns, the pendant's J3 stays 0
@@ -215,6 +216,9 @@ def test_a_fanuc_pendants_joint_angles(tmp_path):
         load_session(other)
     with pytest.raises(InputMismatchError, match="pendant_coupling .3, 3, 1.0.: two different joints"):
         replace(arm, pendant_coupling=(3, 3, 1.0))
+    _, ur = _joint_session(tmp_path / "ur", arm="ur5")  # a UR's pendant shows its table's angles: said, unchanged
+    (ur / "session.yaml").write_text((ur / "session.yaml").read_text().replace("unit: deg", "unit: deg\n  pendant: true"))
+    assert any("nothing to convert" in n for n in load_session(ur).notes)
 
 
 def test_a_joint_session_is_checked(tmp_path):

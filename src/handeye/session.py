@@ -267,7 +267,11 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override
 def _model_angles(q: NDArray[np.float64], arm: Chain, pendant: bool, where: str, notes: list[str]) -> NDArray[np.float64]:
     """Joint angles (rad) as ``arm``'s table takes them: converted from the teach pendant's
     (:meth:`Chain.from_pendant`) when ``pendant``, with a note saying so."""
-    if not pendant or arm.pendant_coupling is None:
+    if not pendant:
+        return q
+    if arm.pendant_coupling is None:
+        notes.append(f"{where}: pendant angles given, and {arm.name}'s teach pendant shows its table's own joint angles: "
+                     "nothing to convert")
         return q
     j, i, f = arm.pendant_coupling
     notes.append(f"{where}: the teach pendant's angles converted to {arm.name}'s table: joint {j} = J{j} + "
