@@ -998,8 +998,6 @@ def stream_scene(
     ``jitter_ms`` is not used: the timing is this function's); the camera's poses come from PnP on
     noisy projections (sometimes flipped); frames that do not see the whole target are dropped.
     """
-    from scipy.interpolate import CubicSpline  # noqa: PLC0415  (scipy's interpolate costs import time)
-
     check_setup(setup)
     rng = np.random.default_rng(rng)
     if not (duration > 2 * waypoint_s and robot_hz > 0 and camera_hz > 0):
@@ -1008,9 +1006,7 @@ def stream_scene(
     obj = target_from_spec(spec).object_points()
     K, dist = default_camera(image_size)
     X, Z = _scene_layout(setup, obj, rng)
-    n_way = int(np.ceil(duration / waypoint_s)) + 1
-    q_way = _sample_joints(setup, X, Z, obj, K, image_size, n_way, rng)
-    path = CubicSpline(np.arange(n_way) * waypoint_s, q_way, bc_type="clamped")
+    path = _waypoint_path(setup, X, Z, obj, K, image_size, duration, waypoint_s, rng)
     dh = ARM_DH.copy()
     dh[:, [0, 2]] += 1e-3 * rng.normal(0.0, errors.dh_length_mm, (6, 2))
     dh[:, [1, 3]] += np.radians(rng.normal(0.0, errors.dh_angle_deg, (6, 2)))
@@ -1021,16 +1017,36 @@ def stream_scene(
     f2b_true = arm_forward_kinematics(q, dh)
     reported = _robot_reading(q, f2b_true, replace(errors, jitter_ms=0.0), rng)
     robot_stamps = t_robot + rng.normal(0.0, jitter, len(t_robot))
-    # the camera: frames at its own rate (robot clock), stamped on the camera clock
-    t_cam = np.arange(rng.uniform(0, 1.0 / camera_hz), duration, 1.0 / camera_hz)
-    t2c_true = predicted_target2cam(X, Z, arm_forward_kinematics(path(t_cam), dh), setup)
-    sees = _sees_target(t2c_true, obj, K, image_size)
-    t_cam, t2c_true = t_cam[sees], t2c_true[sees]
-    t2c, _, flipped = _camera_reading(t2c_true, obj, K, dist, errors, rng)
-    cam_stamps = t_cam + time_offset + rng.normal(0.0, jitter, len(t_cam))
+    t_cam, cam_stamps, t2c, t2c_true, flipped = _camera_stream(
+        lambda t: predicted_target2cam(X, Z, arm_forward_kinematics(path(t), dh), setup), obj, K, dist, image_size,
+        duration, camera_hz, time_offset, jitter, errors, rng)
     order_r, order_c = np.argsort(robot_stamps), np.argsort(cam_stamps)  # jitter may swap neighbours
     return StreamScene(setup, X, Z, time_offset, robot_stamps[order_r], reported[order_r], f2b_true[order_r],
                        cam_stamps[order_c], t2c[order_c], t2c_true[order_c], t_cam[order_c], flipped[order_c])
+
+
+def _waypoint_path(setup, X, Z, obj, K, image_size, duration: float, waypoint_s: float, rng, chain=None):
+    """A smooth joint path (clamped cubic spline, seconds to joint angles) through random waypoints
+    ``waypoint_s`` apart for ``duration`` seconds whose views see the target (:func:`_sample_joints`)."""
+    from scipy.interpolate import CubicSpline  # noqa: PLC0415  (scipy's interpolate costs import time)
+
+    n_way = int(np.ceil(duration / waypoint_s)) + 1
+    q_way = _sample_joints(setup, X, Z, obj, K, image_size, n_way, rng, chain=chain)
+    return CubicSpline(np.arange(n_way) * waypoint_s, q_way, bc_type="clamped")
+
+
+def _camera_stream(target2cam_at, obj, K, dist, image_size, duration: float, camera_hz: float, time_offset: float,
+                   jitter: float, errors: RealisticErrors, rng):
+    """The camera's frames at its own rate from a random phase (true times on the robot clock),
+    those that see the whole target read with ``errors`` (:func:`_camera_reading`) and stamped on
+    the camera clock (``time_offset`` ahead, Gaussian ``jitter`` s): (true times, stamps, PnP
+    target2cam, true target2cam, flipped). ``target2cam_at``: true times to true target2cam."""
+    t_cam = np.arange(rng.uniform(0, 1.0 / camera_hz), duration, 1.0 / camera_hz)
+    t2c_true = target2cam_at(t_cam)
+    sees = _sees_target(t2c_true, obj, K, image_size)
+    t_cam, t2c_true = t_cam[sees], t2c_true[sees]
+    t2c, _, flipped = _camera_reading(t2c_true, obj, K, dist, errors, rng)
+    return t_cam, t_cam + time_offset + rng.normal(0.0, jitter, len(t_cam)), t2c, t2c_true, flipped
 
 
 @dataclass(frozen=True)
@@ -1075,8 +1091,6 @@ def joint_stream_scene(
     controller records the joint angles at ``robot_hz`` (``joint_noise_deg`` of encoder noise), the
     camera its PnP poses at ``camera_hz`` (``pixel_px`` of detection noise), on clocks
     ``time_offset`` apart, every stamp off by Gaussian ``jitter_ms``."""
-    from scipy.interpolate import CubicSpline  # noqa: PLC0415  (scipy's interpolate costs import time)
-
     check_setup(setup)
     rng = np.random.default_rng(rng)
     if not (duration > 2 * waypoint_s and robot_hz > 0 and camera_hz > 0):
@@ -1086,20 +1100,15 @@ def joint_stream_scene(
     obj = target_from_spec(spec).object_points()
     K, dist = default_camera(image_size)
     X, Z = _scene_layout(setup, obj, rng, chain.forward(chain.home[setup][None])[0])
-    n_way = int(np.ceil(duration / waypoint_s)) + 1
-    path = CubicSpline(np.arange(n_way) * waypoint_s, _sample_joints(setup, X, Z, obj, K, image_size, n_way, rng,
-                                                                      chain=chain), bc_type="clamped")
+    path = _waypoint_path(setup, X, Z, obj, K, image_size, duration, waypoint_s, rng, chain)
     true = _real_chain(chain, rng, length_mm, angle_deg)
     jitter = 1e-3 * jitter_ms
     t_robot = np.arange(0.0, duration, 1.0 / robot_hz)
     joints = path(t_robot) + np.radians(rng.normal(0.0, joint_noise_deg, (len(t_robot), chain.n_joints)))
     robot_stamps = t_robot + rng.normal(0.0, jitter, len(t_robot))
-    t_cam = np.arange(rng.uniform(0, 1.0 / camera_hz), duration, 1.0 / camera_hz)
-    t2c_true = predicted_target2cam(X, Z, true.forward(path(t_cam)), setup)
-    sees = _sees_target(t2c_true, obj, K, image_size)
-    t_cam, t2c_true = t_cam[sees], t2c_true[sees]
-    t2c, _, _ = _camera_reading(t2c_true, obj, K, dist, replace(EXACT, pixel_px=pixel_px, flip_probability=0.0), rng)
-    cam_stamps = t_cam + time_offset + rng.normal(0.0, jitter, len(t_cam))
+    _, cam_stamps, t2c, t2c_true, _ = _camera_stream(
+        lambda t: predicted_target2cam(X, Z, true.forward(path(t)), setup), obj, K, dist, image_size, duration,
+        camera_hz, time_offset, jitter, replace(EXACT, pixel_px=pixel_px, flip_probability=0.0), rng)
     order_r, order_c = np.argsort(robot_stamps), np.argsort(cam_stamps)  # jitter may swap neighbours
     return JointStreamScene(setup, X, Z, time_offset, robot_stamps[order_r], joints[order_r], cam_stamps[order_c],
                             t2c[order_c], t2c_true[order_c], chain, true)
