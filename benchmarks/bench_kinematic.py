@@ -88,9 +88,7 @@ def one_session(args) -> dict:
     row = {"black": _errors(black.X, sc.X), "opencv": _opencv_best(sc.flange2base[fit], sc.target2cam[fit], setup, sc.X),
            "before": _seen_error(black.X, black.Z, sc.flange2base[held], setup, sc.target2cam_true[held])}
     for key, with_compliance in (("kinematic", False), ("compliance", True))[:2 if compliance > 0 else 1]:
-        kin = handeye.calibrate_joints(sc.joints[fit], sc.target2cam[fit], setup, sc.chain,
-                                       object_points=[sc.object_points] * n, image_points=list(sc.image_points[fit]),
-                                       K=sc.K, dist=sc.dist, compliance=with_compliance)
+        kin = _fit(sc, sc.joints[fit], sc.target2cam[fit], list(sc.image_points[fit]), compliance=with_compliance)
         e = _errors(kin.X, sc.X)
         row |= {key: e, f"{key}_covered": e[0] <= 3 * np.linalg.norm(kin.std[:3]) and e[1] <= 3 * np.linalg.norm(kin.std[3:]),
                 f"{key}_after": _seen_error(kin.X, kin.Z, kin.kinematic.chain.forward(sc.joints[held]), setup,
@@ -115,9 +113,10 @@ def _planned(sc, kin, n: int, count: int, seed: int) -> dict:
     return out | {"planned": _errors(fit.X, sc.X)}
 
 
-def _fit(sc, joints, target2cam, image_points):
+def _fit(sc, joints, target2cam, image_points, **options):
+    """The joint fit of these views of ``sc``'s capture (its detections, intrinsics and nominal arm)."""
     return handeye.calibrate_joints(joints, target2cam, sc.setup, sc.chain, object_points=[sc.object_points] * len(joints),
-                                    image_points=image_points, K=sc.K, dist=sc.dist)
+                                    image_points=image_points, K=sc.K, dist=sc.dist, **options)
 
 
 def _print_planned(rows: list[dict], count: int) -> None:
