@@ -53,3 +53,32 @@ def test_fleet_passes_the_write_options_to_every_session(fleet, capsys):
         folder = fleet / "named" / f"cell{k}"
         assert "wrist_cam_optical" in (folder / "result.yaml").read_text()
         assert any("launch" in p.name for p in folder.iterdir())
+
+
+def _worker_environment() -> tuple[str | None, str | None]:
+    import os
+
+    return os.environ.get("MALLOC_TRIM_THRESHOLD_"), os.environ.get("OPENBLAS_NUM_THREADS")
+
+
+def test_sessions_side_by_side_run_one_thread_each():
+    # two workers each spreading OpenCV and OpenBLAS over both cores fight over them; Dask's
+    # eager malloc trimming cost its workers ~15% (issue 37's fleet)
+    import cv2
+    from threadpoolctl import threadpool_info
+
+    from handeye._shared.cluster import dask_client, single_threaded
+
+    saved = cv2.getNumThreads()
+    cv2.setNumThreads(3)
+    try:
+        with single_threaded():
+            assert cv2.getNumThreads() == 1
+            assert all(pool["num_threads"] == 1 for pool in threadpool_info())
+        assert cv2.getNumThreads() == 3
+    finally:
+        cv2.setNumThreads(saved)
+    pytest.importorskip("distributed")
+    with dask_client("local", 1) as client:
+        environments = list(client.run(_worker_environment).values())
+    assert environments == [(None, "1")]  # Dask's other settings kept

@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
-from ._shared.cluster import dask_client, dask_completed
+from ._shared.cluster import dask_client, dask_completed, single_threaded
 from ._shared.io import atomic_write, check_output_folder
 from ._shared.progress import Progress
 from .calibration import certify_calibration
@@ -52,6 +52,13 @@ def _one(task: tuple[str, str, dict, dict, bool]) -> dict:
         return asdict(FleetItem(folder, None, None, None, None, str(exc)))
     return asdict(FleetItem(folder, out, cal.verdict, [1e3 * float(v) for v in cal.X[:3, 3]],
                             None if cal.std is None else [float(v) for v in cal.std[3:]]))
+
+
+def _one_beside_others(task: tuple[str, str, dict, dict, bool]) -> dict:
+    """:func:`_one` in a worker process beside others: the sessions side by side use the cores, not
+    threads within one."""
+    with single_threaded():
+        return _one(task)
 
 
 def _names(folders: Sequence[Path]) -> list[str]:
@@ -99,7 +106,7 @@ def calibrate_many(folders: Sequence[str | Path], out_dir: str | Path, scheduler
     try:
         if scheduler is not None:
             with dask_client(scheduler, jobs) as client:
-                futures = client.map(_one, tasks, pure=False)
+                futures = client.map(_one_beside_others, tasks, pure=False)
                 index = {f.key: k for k, f in enumerate(futures)}
                 for fut in dask_completed(futures):
                     results[index[fut.key]] = fut.result()
@@ -111,7 +118,7 @@ def calibrate_many(folders: Sequence[str | Path], out_dir: str | Path, scheduler
         else:  # a fork server: a child forked after OpenCV's threads ran in this process would hang
             context = multiprocessing.get_context("forkserver") if "forkserver" in multiprocessing.get_all_start_methods() else None
             with ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=context) as pool:
-                for k, r in enumerate(pool.map(_one, tasks)):
+                for k, r in enumerate(pool.map(_one_beside_others, tasks)):
                     results[k] = r
                     bar.update()
     finally:

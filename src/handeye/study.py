@@ -34,7 +34,7 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from ._shared.cluster import dask_client, dask_completed
+from ._shared.cluster import dask_client, dask_completed, single_threaded
 from ._shared.io import atomic_write
 from ._shared.progress import Progress
 from .calibration import calibrate_poses
@@ -287,9 +287,7 @@ def _run_indexed(args):
 
 def _run_single_threaded(args):
     """:func:`_run_indexed` on a Dask worker, with one BLAS thread (as the local worker processes)."""
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(1):
+    with single_threaded():
         return _run_indexed(args)
 
 

@@ -14,8 +14,11 @@ from contextlib import contextmanager
 from typing import Any, Iterator
 
 from ..errors import HandEyeError
+from .lazy import lazy_module
 
-__all__ = ["dask_client", "dask_completed", "CONNECT_TIMEOUT"]
+cv2 = lazy_module("cv2")
+
+__all__ = ["dask_client", "dask_completed", "single_threaded", "CONNECT_TIMEOUT"]
 
 #: How long to try to reach a scheduler's address before saying it cannot be reached.
 CONNECT_TIMEOUT = "10s"
@@ -37,8 +40,16 @@ def dask_client(scheduler: str, jobs: int | None = None) -> Iterator[Any]:
     if not isinstance(scheduler, str) or not scheduler.strip():
         raise HandEyeError(f"scheduler={scheduler!r}: give 'local' or the address of a Dask scheduler (tcp://host:8786)")
     if scheduler == "local":
-        cluster = distributed.LocalCluster(n_workers=jobs or None, threads_per_worker=1, processes=True,
-                                           dashboard_address=None)
+        dask = importlib.import_module("dask")
+        # Dask starts its workers with MALLOC_TRIM_THRESHOLD_=65536, which hands freed memory back
+        # to the system at once: for handeye's short tasks, each allocating and freeing images and
+        # figures, that costs ~15% of a worker's time (measured: 50 sessions on 2 workers); a
+        # LocalCluster handeye starts for one call and closes after it keeps glibc's own threshold
+        environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ", {}).items()
+                   if k != "MALLOC_TRIM_THRESHOLD_"}
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": environ}):
+            cluster = distributed.LocalCluster(n_workers=jobs or None, threads_per_worker=1, processes=True,
+                                               dashboard_address=None)
         try:
             with distributed.Client(cluster) as client:
                 yield client
@@ -59,3 +70,19 @@ def dask_client(scheduler: str, jobs: int | None = None) -> Iterator[Any]:
 def dask_completed(futures: list[Any]) -> Iterator[Any]:
     """The Dask ``futures`` in the order they finish."""
     return _distributed().as_completed(futures)
+
+
+@contextmanager
+def single_threaded() -> Iterator[None]:
+    """One BLAS thread and one OpenCV thread while the block runs, as in a worker process that
+    shares the cores with others: two workers each spreading OpenCV's detector and OpenBLAS over
+    every core fight over them (measured on 2 cores: a session 1.6 s -> 3.2 s a worker)."""
+    from threadpoolctl import threadpool_limits
+
+    saved = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        with threadpool_limits(1):
+            yield
+    finally:
+        cv2.setNumThreads(saved)
