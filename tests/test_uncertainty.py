@@ -17,6 +17,7 @@ from handeye.calibration import observe
 from handeye.estimators import POSE, intrinsics_cov, pose_fit
 from handeye.metrics import rotation_error, translation_error
 from handeye.session import load_session
+from handeye.setups import predicted_target2cam
 from handeye.simulate import (
     REALISTIC,
     default_camera,
@@ -341,6 +342,33 @@ def test_robot_aware_sparse_jacobian_matches_dense():
     assert translation_error(sp.X, de.X) < 1e-7 and rotation_error(sp.X, de.X) < 1e-7
     with pytest.raises(ValueError, match="positive"):
         refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", robot_noise=(0.0, 1e-3))
+
+
+def test_soft_l1_pass_reaches_scipys_robust_optimum():
+    """The robust pass's soft-L1 cost, written as plain least squares for MINPACK's
+    Levenberg-Marquardt (issue 37), has scipy's own soft-L1 optimum (trf, the loss applied by
+    least_squares, differences), with and without the intrinsics, wrong detections included."""
+    scene, f2b, poses, cal, obj, img, K, dist = _robot_noise_scene(np.random.default_rng(7), n_poses=8)
+    img = [im.copy() for im in img]
+    img[1][3] += 25.0
+    img[5][10] -= 18.0
+
+    def cost(fit):  # the soft-L1 cost at the fit
+        r = np.concatenate([cv2.projectPoints(o, cv2.Rodrigues(T[:3, :3])[0], T[:3, 3], fit.K, fit.dist)[0].reshape(-1, 2)
+                            - im for o, im, T in zip(obj, img, predicted_target2cam(fit.X, fit.Z, f2b, "eye_in_hand"))])
+        return float(np.sum(2.0 * (np.sqrt(1.0 + r.ravel() ** 2) - 1.0)))
+
+    for intrinsics in (False, True):
+        kw = dict(loss="soft_l1", f_scale=1.0, refine_intrinsics=intrinsics)
+        lm = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", **kw)
+        trf = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", sparse=False, **kw)
+        # scipy's differences stop ~3e-8 m, 2e-7 deg short of the optimum with the intrinsics (a
+        # higher cost); MINPACK's steps on the analytic Jacobian get as close or closer
+        assert translation_error(lm.X, trf.X) < 1e-7 and rotation_error(lm.X, trf.X) < 1e-6
+        assert cost(lm) <= cost(trf) * (1.0 + 1e-13)
+        # the RMS of the pixel residuals, as scipy reports them, not of their soft-L1 form
+        assert np.abs(lm.K - trf.K).max() < 1e-3 and abs(lm.rms_px - trf.rms_px) < 1e-7  # px
+        assert lm.n_evaluations < trf.n_evaluations
 
 
 def test_robot_aware_robust_fit_drops_a_view_its_robot_pose_contradicts():
