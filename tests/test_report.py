@@ -21,8 +21,10 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import handeye
+from handeye._shared.io import file_digest, files_digest
 from handeye.cli import SAMPLE_SESSION, main
 from handeye.report import SECTIONS, result_dict, ros2_static_transform_command, urdf_joint, write_calibration
+from handeye.session import load_session
 from handeye.simulate import random_scene
 
 SAMPLE = Path(handeye.__file__).parent / "data" / SAMPLE_SESSION
@@ -138,6 +140,10 @@ def test_inputs_hash_follows_the_inputs(tmp_path, sample_cal):
     shutil.copytree(SAMPLE, session)
     again = handeye.calibrate(session, progress=False)
     assert again.inputs_sha256 == sample_cal.inputs_sha256  # names and bytes, not the folder's location
+    # hashed in the background while X is estimated (issue 37): the same as hashed there and then
+    files = load_session(session).input_files
+    assert again.inputs_sha256 == files_digest(files, session)
+    assert again.image_sha256 == [file_digest(session / "images" / name) for name in again.image_names]
     img = session / "images" / "003.jpg"
     data = bytearray(img.read_bytes())
     data[-3] ^= 1  # one bit of one image

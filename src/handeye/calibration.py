@@ -9,14 +9,15 @@ last the image fields.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from concurrent.futures import Future
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from ._shared.io import array_digest, files_digests
+from ._shared.io import array_digest, files_digests, files_digests_soon
 from ._shared.progress import Progress
 from ._shared.text import sentences, summarize
 from .diagnostics import closed_form, compare_solvers, diagnose, scale_is_off
@@ -524,6 +525,8 @@ class Observations:
     skipped: list[tuple[str, str]]  #: (image, reason)
     notes: list[str]
     robot_input: RobotPoseInput | None  #: the robot poses of the used images as written
+    #: the input files' digests and each one's by path (:func:`~handeye._shared.io.files_digests_soon`)
+    input_digests: Future | None = field(default=None, compare=False, repr=False)
 
     def views(self, idx=None) -> Views:
         """The used images ``idx`` (indices into ``used``; default all) as cross-validation views."""
@@ -614,11 +617,12 @@ def _counted_squares(session: Session, results: list) -> str | None:
 
 
 def observe(session: Session, jobs: int | None = None, progress: bool = True,
-            strict_images: bool = False) -> Observations:
+            strict_images: bool = False, digests: bool = False) -> Observations:
     """Detect the target in every image of ``session`` (in parallel), take the intrinsics from
     session.yaml or estimate them from the same images, solve PnP per image and relabel symmetric
     targets so that every camera motion agrees with its robot motion. Missing and unreadable images
-    are skipped with the reason (``skipped``), or (``strict_images``) an error.
+    are skipped with the reason (``skipped``), or (``strict_images``) an error. ``digests``: hash the
+    input files in the background from when the detection ends (``input_digests``, for the result).
 
     Raises
     ------
@@ -627,6 +631,7 @@ def observe(session: Session, jobs: int | None = None, progress: bool = True,
         no intrinsics in session.yaml and too few points to estimate them.
     """
     target, detections, image_size, skipped = _detect(session, jobs, progress, strict_images)
+    hashed = files_digests_soon(session.input_files, session.folder) if digests else None
     notes = list(session.notes)
     if session.camera_matrix is not None:
         K, dist, source, k_rms = session.camera_matrix, session.dist_coeffs, "session.yaml", None
@@ -685,7 +690,7 @@ def observe(session: Session, jobs: int | None = None, progress: bool = True,
         target2cam = target2cam @ make_transform(np.eye(3), origin)
         obj = [p - origin for p in obj]
     return Observations(session, used, flange2base, target2cam, rms, obj, img, K, dist, source, k_rms, skipped,
-                        notes, robot_input)
+                        notes, robot_input, hashed)
 
 
 def _robot_sigma(robot_noise: tuple[float, float] | None) -> tuple[float, float] | None:
@@ -738,9 +743,12 @@ def with_images(cal: Calibration, obs: Observations, kept: list[int], skipped: l
     """``cal`` with the fields of the images it used (``kept`` indexes ``obs.used``)."""
     names = obs.session.image_names
     skipped = sorted(obs.skipped + skipped, key=lambda item: names.index(item[0]))
-    files = obs.session.input_files
-    inputs_sha256, each = files_digests(files, obs.session.folder)  # every input file read once
-    by_path = dict(zip(map(str, files), each))
+    if obs.input_digests is not None:  # hashed in the background since the detection ended
+        inputs_sha256, by_path = obs.input_digests.result()
+    else:
+        files = obs.session.input_files
+        inputs_sha256, each = files_digests(files, obs.session.folder)  # every input file read once
+        by_path = dict(zip(map(str, files), each))
     intrinsics = {}
     if cal.camera_matrix is None:  # not refined with X and Z: as observed
         intrinsics = dict(camera_matrix=np.asarray(obs.K, dtype=float), dist_coeffs=np.asarray(obs.dist, dtype=float).ravel(),
@@ -827,7 +835,7 @@ def calibrate(
         session = replace(session, notes=list(session.notes) + [
             f"session.yaml has joint angles: this calibration took the flange poses {poses} as a black box; {_JOINT_FIT}"])
     parse_known(opts.known, session.setup)
-    obs = observe(session, jobs=jobs, progress=progress, strict_images=opts.strict_images)
+    obs = observe(session, jobs=jobs, progress=progress, strict_images=opts.strict_images, digests=True)
     sync = None
     if session.robot_stream is not None:  # a robot stream: the images meet the robot at the clock offset
         obs, sync, robot, camera = _synchronised(obs, opts.offset_range, opts.time_offset, opts.keyframes)

@@ -190,7 +190,7 @@ def calibrate_joint_session(session: Session, options: CalibrationOptions | None
     opts = options_from(options, changes)
     if session.joints is None or session.arm is None:
         raise InputMismatchError(f"{session.folder}: no joints: table in session.yaml")
-    obs = observe(session, jobs=jobs, progress=progress, strict_images=opts.strict_images)
+    obs = observe(session, jobs=jobs, progress=progress, strict_images=opts.strict_images, digests=True)
     cal = calibrate_joints(session.joints[obs.used], obs.target2cam, session.setup, session.arm, opts,
                            object_points=obs.object_points, image_points=obs.image_points, K=obs.K, dist=obs.dist)
     kept, outliers = drop_pose_outliers(cal, obs)

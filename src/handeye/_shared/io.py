@@ -7,6 +7,7 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Iterable
 
@@ -143,3 +144,21 @@ def files_digests(paths: list[Path], root: Path) -> tuple[str, list[str]]:
         _read_into(p, (h, one))
         each.append(one.hexdigest())
     return h.hexdigest(), each
+
+
+_BACKGROUND: list[ThreadPoolExecutor] = []
+
+
+def files_digests_soon(paths: list[Path], root: Path) -> "Future[tuple[str, dict[str, str]]]":
+    """:func:`files_digests` on a background thread: its result, when asked for, is the digest of
+    all and each file's by its path (``str``). Reading and hashing release the GIL, so the digests
+    of a large capture (200 images of 12 MP: ~0.45 s) take the core the estimation leaves idle
+    instead of adding to the wall time."""
+    if not _BACKGROUND:
+        _BACKGROUND.append(ThreadPoolExecutor(max_workers=1, thread_name_prefix="handeye-digests"))
+    return _BACKGROUND[0].submit(_digests_by_path, list(paths), root)
+
+
+def _digests_by_path(paths: list[Path], root: Path) -> tuple[str, dict[str, str]]:
+    digest, each = files_digests(paths, root)
+    return digest, dict(zip(map(str, paths), each))
