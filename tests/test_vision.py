@@ -317,6 +317,24 @@ def test_calibrate_shows_the_steps_after_detection(rendered, monkeypatch, capsys
     assert "detecting: 15/15" in err and "calibrating 15 views: check, estimators, uncertainty: 3/3" in err
 
 
+def test_estimation_runs_on_one_blas_thread(rendered, monkeypatch):
+    """After detection the estimation runs with one BLAS thread (issue 37: its small LAPACK calls are
+    faster so, and X does not depend on the number of cores); the caller's setting comes back."""
+    from threadpoolctl import threadpool_info
+
+    from handeye import calibration
+
+    folder, _ = rendered("chessboard", "eye_in_hand", True)
+    seen = []
+    original = calibration.calibrate_observed
+    monkeypatch.setattr(calibration, "calibrate_observed",
+                        lambda *a, **k: seen.append([p["num_threads"] for p in threadpool_info()]) or original(*a, **k))
+    before = [p["num_threads"] for p in threadpool_info()]
+    handeye.calibrate(folder, progress=False)
+    assert seen and set(seen[0]) == {1}
+    assert [p["num_threads"] for p in threadpool_info()] == before
+
+
 def test_reprojection_refinement_gains_on_rendered_session(rendered):
     folder, scene = rendered("chessboard", "eye_in_hand", True)
     closed = handeye.calibrate(folder, progress=False, refine="none", check=False)  # the board as declared
