@@ -544,3 +544,20 @@ def test_result_json_keeps_its_keys_with_the_sub_records(sample_cal):
     assert set(d) == _TOP | {"certificate"}
     assert d["certificate"] == certified.certificate.as_dict() and set(d["certificate"]) == {
         "cost", "cost_name", "gap", "lower_bound", "optimal", "tight"}
+
+
+def test_rotation_axes_figure_draws_a_share_of_many_motions(sample_cal, monkeypatch):
+    """Thousands of motions (200 views: 6,700) cover each other on the rotation-axes figure and cost
+    ~0.3 s to draw: at most MAX_AXES_DRAWN are, evenly chosen, and the title says so (issue 37)."""
+    from handeye.report import html
+
+    drawn = []
+    original = html.screw_parameters
+    monkeypatch.setattr(html, "screw_parameters", lambda B: drawn.append(len(B)) or original(B))
+    n = len(sample_cal.motions.B)
+    monkeypatch.setattr(html, "MAX_AXES_DRAWN", n - 3)
+    fig = html._axes_figure(sample_cal, sample_cal.motions)
+    assert drawn == [n - 3] and f"({n - 3} of {n} motions drawn)" in fig._suptitle.get_text()
+    monkeypatch.setattr(html, "MAX_AXES_DRAWN", n)
+    fig = html._axes_figure(sample_cal, sample_cal.motions)
+    assert drawn[-1] == n and "drawn" not in fig._suptitle.get_text()
