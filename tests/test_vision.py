@@ -577,6 +577,15 @@ def test_too_few_points_to_estimate_the_intrinsics_are_named(tmp_path):
     assert any("poorly determined" in n for n in cal.notes)
 
 
+def _charuco_renders(tmp_path, n: int):
+    """``n`` views of the 14 x 10 ChArUco board rendered at 1600 x 1200 without noise: the scene, K,
+    dist and the target."""
+    spec = {"type": "charuco", "cols": 14, "rows": 10, "square": 0.02, "marker": 0.015, "dictionary": "DICT_5X5_100"}
+    scene = simulate_session(tmp_path / "s", "eye_in_hand", n, spec, noise_px=0.0, seed=5, image_size=(1600, 1200))
+    gt = yaml.safe_load((tmp_path / "s" / "ground_truth.yaml").read_text())
+    return scene, np.array(gt["K"]), np.array(gt["dist"]), target_from_spec(spec)
+
+
 def test_charuco_markers_found_at_a_quarter_give_the_true_corners(tmp_path, monkeypatch):
     """From QUARTER_SIZE_FROM_PX the markers are looked for at a quarter size first (issue 37: 12 MP
     detection ~1.9x faster), refined at half size, then at full: the same corners as the half-size
@@ -586,11 +595,7 @@ def test_charuco_markers_found_at_a_quarter_give_the_true_corners(tmp_path, monk
     rendering 17 MP."""
     from handeye.vision.targets import charuco
 
-    spec = {"type": "charuco", "cols": 14, "rows": 10, "square": 0.02, "marker": 0.015, "dictionary": "DICT_5X5_100"}
-    scene = simulate_session(tmp_path / "s", "eye_in_hand", 3, spec, noise_px=0.0, seed=5, image_size=(1600, 1200))
-    gt = yaml.safe_load((tmp_path / "s" / "ground_truth.yaml").read_text())
-    K, dist = np.array(gt["K"]), np.array(gt["dist"])
-    target = target_from_spec(spec)
+    scene, K, dist, target = _charuco_renders(tmp_path, 3)
     found = []
     original = charuco.Charuco._detect_from_reduced
     monkeypatch.setattr(charuco.Charuco, "_detect_from_reduced",
@@ -630,11 +635,7 @@ def test_charuco_markers_found_at_half_size_give_the_true_corners(tmp_path, monk
     (the renderer puts the board's texels where its frame says: half a texel off gave ~0.9 px)."""
     from handeye.vision.targets import charuco
 
-    spec = {"type": "charuco", "cols": 14, "rows": 10, "square": 0.02, "marker": 0.015, "dictionary": "DICT_5X5_100"}
-    scene = simulate_session(tmp_path / "s", "eye_in_hand", 2, spec, noise_px=0.0, seed=5, image_size=(1600, 1200))
-    gt = yaml.safe_load((tmp_path / "s" / "ground_truth.yaml").read_text())
-    K, dist = np.array(gt["K"]), np.array(gt["dist"])
-    target = target_from_spec(spec)
+    scene, K, dist, target = _charuco_renders(tmp_path, 2)
     halves = []
     original = charuco.Charuco._detect_from_reduced
     monkeypatch.setattr(charuco.Charuco, "_detect_from_reduced", lambda *a: halves.append(len(a[-1])) or original(*a))

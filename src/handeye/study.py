@@ -286,7 +286,8 @@ def _run_indexed(args):
 
 
 def _run_single_threaded(args):
-    """:func:`_run_indexed` on a Dask worker, with one BLAS thread (as the local worker processes)."""
+    """:func:`_run_indexed` on a Dask worker, with one BLAS and one OpenCV thread (as the local
+    worker processes)."""
     with single_threaded():
         return _run_indexed(args)
 

@@ -213,8 +213,8 @@ def _method(loss: str, m: int, n: int) -> str:
     """``least_squares``' method for an analytic, dense Jacobian: MINPACK's Levenberg-Marquardt (a QR
     of the Jacobian per iteration) where it applies (plain least squares, no fewer residuals than
     unknowns; soft-L1 too, by :func:`_soft_l1_as_plain`), as trf's SVD of the whole Jacobian every
-    iteration dominates large boards (30 images
-    of a 28 x 17 board with the intrinsics: 0.09 s against 0.45 s, the same optimum to 1e-9)."""
+    iteration dominates large boards (30 images of a 28 x 17 board with the intrinsics: 0.09 s
+    against 0.45 s, the same optimum to 1e-9)."""
     return "lm" if loss == "linear" and m >= n else "trf"
 
 
