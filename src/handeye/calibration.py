@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from ._shared.io import array_digest, files_digests, files_digests_soon
+from ._shared.io import array_digest, files_digests_by_path, files_digests_soon
 from ._shared.progress import Progress
 from ._shared.text import sentences, summarize
 from .diagnostics import closed_form, compare_solvers, diagnose, scale_is_off
@@ -743,12 +743,9 @@ def with_images(cal: Calibration, obs: Observations, kept: list[int], skipped: l
     """``cal`` with the fields of the images it used (``kept`` indexes ``obs.used``)."""
     names = obs.session.image_names
     skipped = sorted(obs.skipped + skipped, key=lambda item: names.index(item[0]))
-    if obs.input_digests is not None:  # hashed in the background since the detection ended
-        inputs_sha256, by_path = obs.input_digests.result()
-    else:
-        files = obs.session.input_files
-        inputs_sha256, each = files_digests(files, obs.session.folder)  # every input file read once
-        by_path = dict(zip(map(str, files), each))
+    # every input file read once (on a background thread since the detection ended: observe(digests=True))
+    inputs_sha256, by_path = (obs.input_digests.result() if obs.input_digests is not None else
+                              files_digests_by_path(obs.session.input_files, obs.session.folder))
     intrinsics = {}
     if cal.camera_matrix is None:  # not refined with X and Z: as observed
         intrinsics = dict(camera_matrix=np.asarray(obs.K, dtype=float), dist_coeffs=np.asarray(obs.dist, dtype=float).ravel(),

@@ -64,6 +64,12 @@ class JointViews:
     x_std_table_known: float = float("nan")
 
     @property
+    def needed(self) -> bool:
+        """Whether views have something to add: undetermined entries they can determine, or X's std
+        mostly the table's (:data:`TABLE_DOMINATES`); when not, ``joints`` is empty."""
+        return bool(self.targets) or self.x_std_before > TABLE_DOMINATES * self.x_std_table_known
+
+    @property
     def determined_after(self) -> list[str]:
         """The target entries these views are predicted to determine."""
         return [t for t, r in zip(self.targets, self.ratio_after) if r < 0.5]
@@ -120,7 +126,7 @@ def suggest_joint_views(cal: Calibration, joints: ArrayLike | None = None, n_vie
     x_before, x_known = _x_std(info), _x_std(info[:12, :12])
     aim = "entries" if targets else "X"
     empty = JointViews(np.empty((0, q.shape[1])), targets, np.empty(0), np.empty(0), aim, x_before, x_before, x_known)
-    if not targets and x_before <= TABLE_DOMINATES * x_known:
+    if not empty.needed:
         return empty
     pick = [k.names.index(t) + 12 for t in targets]
     before = np.sqrt(np.diag(np.linalg.inv(info))[pick])

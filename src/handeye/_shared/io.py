@@ -150,15 +150,15 @@ _BACKGROUND: list[ThreadPoolExecutor] = []
 
 
 def files_digests_soon(paths: list[Path], root: Path) -> "Future[tuple[str, dict[str, str]]]":
-    """:func:`files_digests` on a background thread: its result, when asked for, is the digest of
-    all and each file's by its path (``str``). Reading and hashing release the GIL, so the digests
-    of a large capture (200 images of 12 MP: ~0.45 s) take the core the estimation leaves idle
-    instead of adding to the wall time."""
+    """:func:`files_digests_by_path` on a background thread, its result when asked for: reading
+    and hashing release the GIL, so the digests of a large capture (200 images of 12 MP: ~0.45 s)
+    take the core the estimation leaves idle instead of adding to the wall time."""
     if not _BACKGROUND:
         _BACKGROUND.append(ThreadPoolExecutor(max_workers=1, thread_name_prefix="handeye-digests"))
-    return _BACKGROUND[0].submit(_digests_by_path, list(paths), root)
+    return _BACKGROUND[0].submit(files_digests_by_path, list(paths), root)
 
 
-def _digests_by_path(paths: list[Path], root: Path) -> tuple[str, dict[str, str]]:
+def files_digests_by_path(paths: list[Path], root: Path) -> tuple[str, dict[str, str]]:
+    """:func:`files_digests` with each file's digest by its path (``str``)."""
     digest, each = files_digests(paths, root)
     return digest, dict(zip(map(str, paths), each))

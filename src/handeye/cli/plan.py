@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 from .._shared.io import atomic_write
 from ..checking import calibrate_session
 from ..errors import HandEyeError
-from ..joint_planning import TABLE_DOMINATES, suggest_joint_views
+from ..joint_planning import suggest_joint_views
 from ..options import ROBOT_ACCURACY, CalibrationOptions
 from ..planning import (
     ROBOTS,
@@ -62,8 +62,7 @@ def _plan_next_views(args: argparse.Namespace) -> int:
     views = suggest_joint_views(cal, n_views=args.poses or 5, rng=args.seed)
     if not len(views.joints):
         print("next views: none to propose: " + ("the capture determines every entry of the arm's table that views can "
-                                                 "determine, and X's std is not mostly the table's" if not views.targets
-                                                 and views.x_std_before <= TABLE_DOMINATES * views.x_std_table_known
+                                                 "determine, and X's std is not mostly the table's" if not views.needed
                                                  else "no candidate configuration sees the whole target"))
         return 0
     text = print_next_views(cal, views)
