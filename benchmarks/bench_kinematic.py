@@ -78,11 +78,26 @@ def _seen_error(X, Z, flange2base, setup, target2cam_true) -> float:
     return float(1e3 * np.median(np.linalg.norm(T[:, :3, 3] - target2cam_true[:, :3, 3], axis=1)))
 
 
+def _arm(name: str, spread: float):
+    """The shipped arm ``name`` whose captures move the joints ``spread`` times its table's spread."""
+    chain = load_arm(name)
+    return replace(chain, spread=spread * chain.spread)
+
+
+def _covered(e, std) -> bool:
+    """Whether X's error ``e`` (deg, mm) is within 3 of its reported std (rotation deg, translation mm)."""
+    return bool(e[0] <= 3 * np.linalg.norm(std[:3]) and e[1] <= 3 * np.linalg.norm(std[3:]))
+
+
+def _within(e) -> float:
+    """The share of X's errors ``e`` ((N, 2): deg, mm) within 0.05 deg and 0.3 mm."""
+    e = np.asarray(e, dtype=float).reshape(-1, 2)
+    return float(np.mean((e[:, 0] <= 0.05) & (e[:, 1] <= 0.3)))
+
+
 def one_session(args) -> dict:
     arm, n, setup, seed, compliance, spread, planned = args
-    chain = load_arm(arm)
-    chain = replace(chain, spread=spread * chain.spread)
-    sc = kinematic_scene(2 * n, setup, seed, arm=chain, compliance_deg_per_m=compliance)
+    sc = kinematic_scene(2 * n, setup, seed, arm=_arm(arm, spread), compliance_deg_per_m=compliance)
     fit, held = np.arange(n), np.arange(n, 2 * n)
     black = handeye.calibrate_poses(sc.flange2base[fit], sc.target2cam[fit], setup, progress=False)
     row = {"black": _errors(black.X, sc.X), "opencv": _opencv_best(sc.flange2base[fit], sc.target2cam[fit], setup, sc.X),
@@ -90,7 +105,7 @@ def one_session(args) -> dict:
     for key, with_compliance in (("kinematic", False), ("compliance", True))[:2 if compliance > 0 else 1]:
         kin = _fit(sc, sc.joints[fit], sc.target2cam[fit], list(sc.image_points[fit]), compliance=with_compliance)
         e = _errors(kin.X, sc.X)
-        row |= {key: e, f"{key}_covered": e[0] <= 3 * np.linalg.norm(kin.std[:3]) and e[1] <= 3 * np.linalg.norm(kin.std[3:]),
+        row |= {key: e, f"{key}_covered": _covered(e, kin.std),
                 f"{key}_after": _seen_error(kin.X, kin.Z, kin.kinematic.chain.forward(sc.joints[held]), setup,
                                             sc.target2cam_true[held])}
         if key == "kinematic" and planned:
@@ -124,10 +139,10 @@ def _print_planned(rows: list[dict], count: int) -> None:
     proposed = [r for r in rows if r["proposed"]]
     e = np.array([r["planned"] for r in rows])  # the fit's own X where nothing was proposed
     print(f"  {'kinematic, then the proposed views if any':<44} in all {len(rows)} sessions: X median {np.median(e[:, 0]):.4f} "
-          f"deg / {np.median(e[:, 1]):.3f} mm, within 0.05 deg / 0.3 mm {np.mean((e[:, 0] <= 0.05) & (e[:, 1] <= 0.3)):.0%}")
+          f"deg / {np.median(e[:, 1]):.3f} mm, within 0.05 deg / 0.3 mm {_within(e):.0%}")
     for key, label in (("planned", f"kinematic + {count} proposed views"), ("more", f"kinematic + {count} more of the capture")):
         e = np.array([r[key] for r in proposed]) if proposed else np.zeros((0, 2))
-        within = np.mean((e[:, 0] <= 0.05) & (e[:, 1] <= 0.3)) if len(e) else float("nan")
+        within = _within(e) if len(e) else float("nan")
         print(f"  {label:<44} in the {len(proposed)} sessions with views proposed "
               f"({', '.join(sorted({r['aim'] for r in proposed})) or '-'}): X median "
               + (f"{np.median(e[:, 0]):.4f} deg / {np.median(e[:, 1]):.3f} mm, within 0.05 deg / 0.3 mm {within:.0%}"
@@ -138,13 +153,12 @@ def rendered_session(args) -> tuple[tuple[float, float], bool]:
     """X's error (deg, mm) and whether it is within 3 std, of a rendered joint session (images
     1280x1024, detected, the joint fit of `handeye calibrate`)."""
     arm, n, setup, seed, spread = args
-    chain = load_arm(arm)
-    chain = replace(chain, spread=spread * chain.spread)
+    chain = _arm(arm, spread)
     with tempfile.TemporaryDirectory(prefix="handeye-bench-kinematic-") as folder:
         sc = simulate_kinematic_session(f"{folder}/s", n, setup, seed=seed, arm=chain, controller_poses=False)
         cal = calibrate_folder(f"{folder}/s", progress=False)
     e = _errors(cal.X, sc.X)
-    return e, bool(e[0] <= 3 * np.linalg.norm(cal.std[:3]) and e[1] <= 3 * np.linalg.norm(cal.std[3:]))  # std: deg, mm
+    return e, _covered(e, cal.std)
 
 
 def rendered_rows(args, pool) -> None:
@@ -157,7 +171,7 @@ def rendered_rows(args, pool) -> None:
                 print(f"{arm} {setup}, {n} views, {len(rows)} rendered sessions"
                       + (f", joints moved {args.spread:g}x the table's spread" if args.spread != 1 else "")
                       + f": handeye kinematic X median {np.median(e[:, 0]):.4f} deg / {np.median(e[:, 1]):.3f} mm, "
-                      f"within 0.05 deg / 0.3 mm {np.mean((e[:, 0] <= 0.05) & (e[:, 1] <= 0.3)):.0%}, "
+                      f"within 0.05 deg / 0.3 mm {_within(e):.0%}, "
                       f"within 3 std {np.mean([r[1] for r in rows]):.0%}", flush=True)
 
 
@@ -194,7 +208,7 @@ def main() -> None:
                     rows = list(pool.map(one_session, [(arm, n, setup, s, args.compliance, args.spread, args.planned)
                                                         for s in range(args.sessions)]))
                     keys = ("black", "opencv") + fits
-                    within = {k: np.mean([r[k][0] <= 0.05 and r[k][1] <= 0.3 for r in rows]) for k in keys}
+                    within = {k: _within([r[k] for r in rows]) for k in keys}
                     med = {k: np.median([r[k] for r in rows], axis=0) for k in keys}
                     before = np.median([r["before"] for r in rows])
                     print(f"{arm} {setup}, {n} views, {len(rows)} sessions"
