@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares, minimize
+from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
 
 from ..errors import InputMismatchError
@@ -755,30 +755,66 @@ def _theta(noise: dict[str, float]) -> NDArray[np.float64]:
     return np.maximum([noise.get(k, 0.0) ** 2 for k in NOISE_TERMS], VARIANCE_FLOOR)
 
 
-def _fit_variances(r, shapes, theta0):
-    """Maximum-likelihood variances ``theta`` of ``r_i ~ N(0, sum_k theta_k shapes_k[i])``."""
-    shapes = np.stack(shapes)  # (3, N, 6, 6)
+def _fit_variances(r, shapes, theta0) -> NDArray[np.float64]:
+    """Maximum-likelihood variances ``theta`` of ``r_i ~ N(0, sum_k theta_k shapes_k[i])``.
 
-    def nll(log_t):
-        # -2 log-likelihood and its gradient over log theta
-        t = np.exp(log_t)
-        C = np.einsum("k,knij->nij", t, shapes)
-        try:
-            Ci = np.linalg.inv(C)
-        except np.linalg.LinAlgError:
-            # a trial point with two variances at the floor can make C singular (e.g. a noise-free
-            # camera and a probe that also zeroes the robot rotation): an infinitely unlikely
-            # point, reported as a huge value so the line search steps back
-            return 1e300, np.zeros_like(log_t)
-        u = np.einsum("nij,nj->ni", Ci, r)
-        value = float(np.sum(np.linalg.slogdet(C)[1]) + np.einsum("ni,ni->", r, u))
-        grad = t * (np.einsum("nij,knji->k", Ci, shapes) - np.einsum("ni,knij,nj->k", u, shapes, u))
-        return value, grad
-
-    # a variance the data do not support runs to the floor (1e-12 rad or m standard deviation)
+    Fisher scoring over log theta (the expected Hessian of the variance-components problem) with
+    step halving: every step lowers -2 log-likelihood. A quasi-Newton search (L-BFGS-B) took its
+    first step by the gradient's size, summed over the poses, to the variances' floor, where the
+    covariance is singular, and stopped there with the variances unchanged: on 40 poses with 0.1
+    deg of robot rotation noise it returned its start (0.058 deg) in 38 of 40 sessions, and X was
+    further from the truth (100 poses: 0.14 mm median against 0.094 mm now). A term whose share of
+    the residuals' variance falls below :data:`NEGLIGIBLE_SHARE` is set to the floor: the data do
+    not support it.
+    """
+    shapes = np.stack(shapes)  # (K, N, 6, 6)
     lo, hi = np.log(VARIANCE_FLOOR), 0.0
-    res = minimize(nll, np.clip(np.log(theta0), lo, hi), jac=True, method="L-BFGS-B", bounds=[(lo, hi)] * len(theta0))
-    return np.exp(res.x)
+
+    def evaluate(log_t):
+        t = np.exp(log_t)
+        try:
+            Ci = np.linalg.inv(np.einsum("k,knij->nij", t, shapes))
+        except np.linalg.LinAlgError:  # an infinitely unlikely point: the step is halved
+            return np.inf, None, None, None
+        u = np.einsum("nij,nj->ni", Ci, r)
+        A = np.einsum("nij,knjl->knil", Ci, shapes)  # C^-1 S_k
+        share = t * np.einsum("knii->k", A)  # each term's part of the residuals' 6N degrees of freedom
+        grad = share - t * np.einsum("ni,knij,nj->k", u, shapes, u)
+        fisher = np.outer(t, t) * np.einsum("knij,lnji->kl", A, A)
+        value = float(-np.sum(np.linalg.slogdet(Ci)[1]) + np.einsum("ni,ni->", r, u))  # log det C = -log det C^-1
+        return value, grad, fisher, share
+
+    x = np.clip(np.log(theta0), lo, hi)
+    f, g, F, share = evaluate(x)
+    for _ in range(SCORING_STEPS):
+        if g is None:
+            break
+        ridge = 1e-12 * max(np.trace(F), np.finfo(float).tiny)
+        step = np.linalg.solve(F + ridge * np.eye(len(x)), -g)
+        step *= min(1.0, MAX_LOG_STEP / max(np.abs(step).max(), np.finfo(float).tiny))  # the direction kept
+        for _ in range(40):
+            trial = np.clip(x + step, lo, hi)
+            evaluated = evaluate(trial)
+            if evaluated[0] < f:
+                break
+            step = step / 2.0
+        else:
+            break
+        done = f - evaluated[0] <= 1e-12 * max(1.0, abs(f))
+        x, (f, g, F, share) = trial, evaluated
+        if done:
+            break
+    if share is not None:
+        x = np.where(share < NEGLIGIBLE_SHARE * r.size, lo, x)
+    return np.exp(x)
+
+
+#: Most Fisher-scoring steps of :func:`_fit_variances`, and the largest change of a log variance per step.
+SCORING_STEPS = 100
+MAX_LOG_STEP = 2.0
+#: A noise term carrying less than this share of the residuals' variance is not supported by the
+#: data and goes to the floor.
+NEGLIGIBLE_SHARE = 1e-9
 
 
 def _raw_pose_residuals(X, Z, flange2base, target2cam, setup: str, weighting: str) -> NDArray[np.float64]:
