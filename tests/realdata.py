@@ -91,7 +91,7 @@ def visp_2018() -> RealSet:
 
 def industrial(kind: str, scratch: Path) -> RealSet:
     """ROS-Industrial's sets: 'charuco' (eye-to-hand, 16 images 1600x1200) or '10x10' (eye-in-hand
-    circle grid, 15 images, nominal intrinsics). Images pair with poses by the listed names."""
+    modified circle grid, 15 images, nominal intrinsics). Images pair with poses by the listed names."""
     src = REAL_DATA / "industrial-calibration" / f"test_set_{kind}"
     data = yaml.safe_load((src / "cal_data.yaml").read_text())
     names, images, f2b = [], [], []
@@ -107,7 +107,7 @@ def industrial(kind: str, scratch: Path) -> RealSet:
         setup = "eye_to_hand"
     else:
         K = [[550.0, 0, 320.0], [0, 550.0, 240.0], [0, 0, 1]]
-        target = {"type": "circles", "cols": 10, "rows": 10, "square": 0.0254}
+        target = {"type": "modified_circles", "cols": 10, "rows": 10, "square": 0.0254}
         setup = "eye_in_hand"
     return _observed(f"industrial_{kind}", _session(scratch, setup, target, K, names, images, f2b))
 

@@ -4,6 +4,7 @@ written as a handeye folder that calibrates. ROS bags are in test_streams.py (th
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 import yaml
@@ -116,17 +117,49 @@ def test_visp_import_says_the_setup_it_assumed(tmp_path, capsys):
 
 
 def test_industrial_calibration_circle_grid_set_imports_and_calibrates(tmp_path):
-    """ROS-Industrial's 10x10 circle grid (eye-in-hand, nominal intrinsics, a square symmetric grid):
-    imported, it calibrates with a verdict; the four images whose camera motion no labelling of the
-    grid reconciles with the robot's are named (they fit at 2.5 rad where the others fit at 0.1)."""
-    summary = import_industrial_calibration(require_real("industrial-calibration", "test_set_10x10"), tmp_path / "c")
+    """ROS-Industrial's 10x10 modified circle grid (eye-in-hand, nominal intrinsics; a square grid
+    whose corner circle is drawn large): imported as ``modified_circles``, every image is read from
+    its big circle, and it calibrates with a verdict. findCirclesGrid puts the big circle at the same
+    index in all 15 images, so OpenCV's order is that same reading; X equals calibrateHandEye's
+    (Daniilidis) on it. Read as a plain symmetric grid, the labels chosen from the robot motion alone
+    agree (the same X, no image in doubt): four robot motions from the first pose are pure
+    translations, and judged by their noise-set pitch one image was read a quarter turn off and four
+    named as matching no reading."""
+    src = require_real("industrial-calibration", "test_set_10x10")
+    summary = import_industrial_calibration(src, tmp_path / "c")
     session = load_session(summary.folder)
-    assert session.setup == "eye_in_hand" and session.target_spec["type"] == "circles"
+    assert session.setup == "eye_in_hand" and session.target_spec["type"] == "modified_circles"
     cal = handeye.calibrate(summary.folder, progress=False, refine="none")
     print(f"industrial 10x10: X {np.round(1e3 * cal.X[:3, 3], 1)} mm, verdict {cal.verdict}")
-    assert cal.verdict in ("good", "weak") and np.isfinite(cal.X).all()
-    named = [n for n in cal.notes if "no labelling of the symmetric circles target" in n]
-    assert len(named) == 1 and all(f"{k}.png" in named[0] for k in (1, 2, 3, 4))
+    assert cal.verdict in ("good", "weak") and np.isfinite(cal.X).all() and len(cal.image_names) == 15
+    spec = yaml.safe_load((summary.folder / "session.yaml").read_text())
+    spec["target"]["type"] = "circles"
+    (summary.folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    symmetric = handeye.calibrate(summary.folder, progress=False, refine="none")
+    assert not [n for n in symmetric.notes if "symmetric circles target" in n]
+    assert rotation_error(symmetric.X, cal.X) < 1e-6 and translation_error(symmetric.X, cal.X) < 1e-6
+    K = np.array(session.camera_matrix)
+    grid = np.zeros((100, 3))
+    grid[:, :2] = np.mgrid[0:10, 0:10].T.reshape(-1, 2) * 0.0254
+    params = cv2.SimpleBlobDetector_Params()
+    params.minArea = 10.0
+    R_f, t_f, R_t, t_t = [], [], [], []
+    for name, flange2base in zip(session.image_names, session.flange2base):
+        gray = cv2.imread(str(summary.folder / "images" / name), cv2.IMREAD_GRAYSCALE)
+        params.maxArea = gray.size / 20.0
+        blobs = cv2.SimpleBlobDetector_create(params)
+        found, centres = cv2.findCirclesGrid(gray, (10, 10), flags=cv2.CALIB_CB_SYMMETRIC_GRID, blobDetector=blobs)
+        assert found
+        big = max(blobs.detect(gray), key=lambda d: d.size).pt
+        assert np.argmin(np.linalg.norm(centres.reshape(-1, 2) - big, axis=1)) == 90, name  # the big circle
+        _, rvec, tvec = cv2.solvePnP(grid, centres, K, None)
+        R_f.append(flange2base[:3, :3])
+        t_f.append(flange2base[:3, 3])
+        R_t.append(cv2.Rodrigues(rvec)[0])
+        t_t.append(tvec)
+    R, t = cv2.calibrateHandEye(R_f, t_f, R_t, t_t, method=cv2.CALIB_HAND_EYE_DANIILIDIS)
+    X_opencv = make_transform(R, t.ravel())
+    assert np.degrees(rotation_error(cal.X, X_opencv)) < 0.05 and 1e3 * translation_error(cal.X, X_opencv) < 0.5
 
 
 def test_each_importer_has_its_own_help_and_options(capsys):

@@ -56,8 +56,8 @@ from .vision import (
     detect_images,
     label_doubts,
     resolve_symmetries,
+    settled_symmetry_costs,
     solve_pnp,
-    symmetry_costs,
     target_from_spec,
     target_origin,
 )
@@ -664,7 +664,7 @@ def observe(session: Session, jobs: int | None = None, progress: bool = True,
     unsure = unmatched = np.zeros(len(poses), bool)
     costs = None
     if len(symmetries) > 1 and len(poses) > 1:
-        costs = symmetry_costs(poses, flange2base, session.setup, symmetries)
+        costs = settled_symmetry_costs(poses, flange2base, session.setup, symmetries)
         unsure, unmatched = label_doubts(costs)
     target2cam, choice = resolve_symmetries(poses, flange2base, session.setup, symmetries, costs)
     if unmatched.any():  # flagged, not dropped: the check and the robust fits judge them

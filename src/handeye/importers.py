@@ -609,8 +609,8 @@ def import_industrial_calibration(cal_data: str | Path, out: str | Path) -> Impo
     ``data`` pairs image and pose files by name (pose YAMLs with x, y, z, qx, qy, qz, qw: the flange
     in the base); ``target_finder`` gives the target (CharucoGridTargetFinder: ``cols`` x ``rows``
     squares, ``chessboard_dim``, ``aruco_marker_dim``, ``dictionary``; circle grids: ``rows``, ``cols``,
-    ``spacing``); ``intrinsics`` fx, fy, cx, cy (no distortion in its model); ``static_camera: true``
-    means eye-to-hand.
+    ``spacing``, ModifiedCircleGridTargetFinder as ``modified_circles``); ``intrinsics`` fx, fy, cx, cy
+    (no distortion in its model); ``static_camera: true`` means eye-to-hand.
     """
     path = Path(cal_data)
     if path.is_dir():
@@ -627,9 +627,9 @@ def import_industrial_calibration(cal_data: str | Path, out: str | Path) -> Impo
             spec = {"type": "charuco", "cols": int(finder["cols"]), "rows": int(finder["rows"]),
                     "square": float(finder["chessboard_dim"]), "marker": float(finder["aruco_marker_dim"]),
                     "dictionary": _aruco_name(finder["dictionary"])}
-        elif "Circle" in kind:
-            spec = {"type": "circles", "cols": int(finder["cols"]), "rows": int(finder["rows"]),
-                    "square": float(finder["spacing"])}
+        elif "Circle" in kind:  # the modified grid's big circle gives every image one reading
+            spec = {"type": "modified_circles" if "Modified" in kind else "circles", "cols": int(finder["cols"]),
+                    "rows": int(finder["rows"]), "square": float(finder["spacing"])}
         else:
             raise SessionError(f"{path}: target_finder type {kind!r}; handeye imports Charuco and circle grid finders")
     except (KeyError, TypeError, ValueError) as exc:

@@ -10,10 +10,11 @@ from .targets import Detection, Target, register_target, target_from_spec, targe
 
 # PnP and the intrinsics need scipy: they load on first use, so that detection (which does not) can
 # start while the rest of handeye loads
-_PNP = ("calibrate_intrinsics", "label_doubts", "resolve_symmetries", "solve_pnp", "symmetry_costs")
+_PNP = ("calibrate_intrinsics", "label_doubts", "resolve_symmetries", "settled_symmetry_costs", "solve_pnp",
+        "symmetry_costs")
 
 if TYPE_CHECKING:
-    from .pnp import calibrate_intrinsics, label_doubts, resolve_symmetries, solve_pnp, symmetry_costs
+    from .pnp import calibrate_intrinsics, label_doubts, resolve_symmetries, settled_symmetry_costs, solve_pnp, symmetry_costs
 
 
 def __getattr__(name: str) -> Any:
@@ -30,6 +31,7 @@ __all__ = [
     "detect_images",
     "resolve_symmetries",
     "symmetry_costs",
+    "settled_symmetry_costs",
     "label_doubts",
     "solve_pnp",
     "target_from_spec",

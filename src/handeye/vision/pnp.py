@@ -13,7 +13,8 @@ from .targets import Detection
 
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
 
-__all__ = ["symmetry_costs", "label_doubts", "solve_pnp", "refine_pnp", "calibrate_intrinsics", "intrinsics_covariance",
+__all__ = ["symmetry_costs", "settled_symmetry_costs", "label_doubts", "solve_pnp",
+           "refine_pnp", "calibrate_intrinsics", "intrinsics_covariance",
            "INTRINSICS", "resolve_symmetries", "reprojection_rms", "project_points", "project_points_many",
            "project_camera_points", "projection_jacobians"]
 
@@ -211,18 +212,62 @@ def intrinsics_covariance(object_points: list[NDArray[np.float64]], image_points
 
 
 def symmetry_costs(target2cam: NDArray[np.float64], flange2base: NDArray[np.float64], setup: str,
-                   symmetries: list[NDArray[np.float64]]) -> NDArray[np.float64]:
-    """(S, N - 1): per symmetry and image after the first, how far the camera motion from the first
-    image, so relabelled, is from the robot's in rotation angle and pitch (rad; 0.1 m of pitch ~ 1 rad)."""
+                   symmetries: list[NDArray[np.float64]], labels: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
+    """(S, N - 1): per symmetry and image after the first, how far that image's camera motions, so
+    relabelled, are from the robot's in rotation angle and pitch (rad; 0.1 m of pitch ~ 1 rad).
+
+    Without ``labels``, the motion from the first image alone; with them (the symmetry index chosen
+    per image), the median over the motions from up to :data:`LABEL_REFERENCES` other images, each
+    relabelled by its own label: one image's noise or a motion whose angle and pitch happen to match
+    a wrong labelling's no longer decides. The pitch counts in full only where both motions turn by
+    :data:`PITCH_ANGLE` or more: the pitch is the translation along the screw axis, and the axis of
+    a motion that hardly turns is set by the poses' noise. A pure translation of the robot (the
+    camera moved without turning) is then judged by the angle alone, which tells the labellings
+    apart by a quarter or half turn.
+    """
+    n = len(target2cam)
     robot, robot_inv = robot_world_A(flange2base, setup), robot_world_A_inv(flange2base, setup)
-    A = robot_inv[1:] @ robot[0]  # the robot motion from the first pose, A_i0 = inv(A_i) A_0
-    _, _, th_a, d_a = screw_parameters(A)
-    inv0 = invert(target2cam[0])
+    if labels is None:
+        refs, ref_poses = np.array([0]), target2cam[:1]
+    else:
+        refs = np.unique(np.linspace(0, n - 1, min(n, LABEL_REFERENCES)).round().astype(np.intp))
+        ref_poses = np.array([target2cam[j] @ symmetries[labels[j]] for j in refs])
+    # (R, N - 1) motions from reference j to image i: A_ij = inv(A_i) A_j, B_ij = (T_i F) inv(T_j F_j)
+    _, _, th_a, d_a = screw_parameters(robot_inv[None, 1:] @ robot[refs][:, None])
+    inv_refs = invert(ref_poses)[:, None]
+    same = refs[:, None] == np.arange(1, n)[None]  # an image is not its own reference
     costs = []
     for F in symmetries:
-        _, _, th_b, d_b = screw_parameters((target2cam[1:] @ F) @ inv0)
-        costs.append(np.abs(th_a - th_b) + np.abs(d_a - d_b) / 0.1)
+        _, _, th_b, d_b = screw_parameters((target2cam[None, 1:] @ F) @ inv_refs)
+        weight = np.minimum(1.0, np.minimum(th_a, th_b) / PITCH_ANGLE)
+        cost = np.where(same, np.nan, np.abs(th_a - th_b) + weight * np.abs(d_a - d_b) / 0.1)
+        costs.append(np.nanmedian(cost, axis=0) if len(refs) > 1 else cost[0])
     return np.stack(costs)
+
+
+def settled_symmetry_costs(target2cam: NDArray[np.float64], flange2base: NDArray[np.float64], setup: str,
+                           symmetries: list[NDArray[np.float64]], rounds: int = 3) -> NDArray[np.float64]:
+    """:func:`symmetry_costs` against every image's label: the labels from the first image's motions,
+    then the costs against all of them, and again until no label changes (at most ``rounds``)."""
+    costs = symmetry_costs(target2cam, flange2base, setup, symmetries)
+    labels = np.r_[0, np.argmin(costs, axis=0)]
+    for _ in range(rounds):
+        costs = symmetry_costs(target2cam, flange2base, setup, symmetries, labels)
+        new = np.r_[0, np.argmin(costs, axis=0)]
+        if np.array_equal(new, labels):
+            break
+        labels = new
+    return costs
+
+
+#: From this rotation angle (rad, 20 deg) of a motion its pitch counts in full in :func:`symmetry_costs`;
+#: below, in proportion to the angle. With 1 deg of rotation noise per pose the screw axis of a pure
+#: translation points anywhere and its pitch takes any value up to the translation's length (0.5 m:
+#: a misfit of 5 rad, beyond a wrong labelling's quarter turn).
+PITCH_ANGLE = 0.35
+#: Most reference images :func:`symmetry_costs` compares each image with (spread over the capture):
+#: enough for a steady median, linear in the images beyond.
+LABEL_REFERENCES = 25
 
 
 def label_doubts(costs: NDArray[np.float64], thin: float = 3.0, unmatched: float = 10.0,
@@ -251,13 +296,13 @@ def resolve_symmetries(
     costs: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
     """Choose, per image, which symmetric variant ``T @ F`` of a pose the robot motion agrees with
-    (``costs``: :func:`symmetry_costs` of these poses, when already computed).
+    (``costs``: :func:`settled_symmetry_costs` of these poses, when already computed).
 
     A symmetric pattern (chessboard, symmetric circle grid) looks the same after a half turn, so a
     detector may label it from either end: the PnP pose is ``T`` or ``T @ F``. The rotation angle
     and the pitch of a motion do not depend on the hand-eye transform (thesis §2.2.3), so for each
-    image the variant whose camera motion from the first image has the robot motion's angle and
-    pitch is the right one. The first image keeps its labelling (it defines the target frame).
+    image the variant whose camera motions from the other images have the robot motions' angles and
+    pitches is the right one. The first image keeps its labelling (it defines the target frame).
 
     Returns the corrected poses and the index of the symmetry chosen per image.
     """
@@ -266,7 +311,7 @@ def resolve_symmetries(
     if len(symmetries) == 1 or n < 2:
         return target2cam, choice
     if costs is None:
-        costs = symmetry_costs(target2cam, flange2base, setup, symmetries)
+        costs = settled_symmetry_costs(target2cam, flange2base, setup, symmetries)
     choice[1:] = np.argmin(costs, axis=0)
     fixed = target2cam.copy()
     for k, F in enumerate(symmetries):

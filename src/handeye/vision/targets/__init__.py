@@ -11,6 +11,8 @@ chessboard             inner corners, ``cols`` x ``rows``; ``square`` = square s
 charuco                chessboard corners between markers; ``cols`` x ``rows`` squares,
                        ``square``, ``marker``, ``dictionary``
 circles                symmetric circle grid, ``cols`` x ``rows`` centres, ``square`` = spacing
+modified_circles       ROS-Industrial's modified circle grid: ``circles`` with the corner circle
+                       drawn large, the origin (one reading, no symmetry)
 asymmetric_circles     OpenCV's asymmetric grid, ``cols`` per row, ``rows`` rows, ``square`` =
                        the spacing of OpenCV's pattern unit (centres at ((2j + i % 2) s, i s))
 apriltag               one tag (AprilTag 36h11 unless ``dictionary`` says otherwise), its four
@@ -44,8 +46,9 @@ from .base import Detection, Target, Texture, aruco_dictionary
 from .charuco import Charuco
 from .chessboard import PYRAMID_MIN_SIDE, Chessboard
 from .circles import CircleGrid
+from .modified_circles import ModifiedCircleGrid
 
-__all__ = ["Detection", "Target", "Texture", "Chessboard", "Charuco", "CircleGrid", "AprilTag", "ArucoGrid",
+__all__ = ["Detection", "Target", "Texture", "Chessboard", "Charuco", "CircleGrid", "ModifiedCircleGrid", "AprilTag", "ArucoGrid",
            "target_from_spec", "target_origin", "register_target", "unregister_target", "target_types", "print_kinds",
            "aruco_dictionary",
            "ORIGINS", "PYRAMID_MIN_SIDE", "TargetError"]
@@ -81,7 +84,7 @@ def unregister_target(cls: type[Target]) -> None:
             del _REGISTRY[kind]
 
 
-for _cls in (Chessboard, Charuco, CircleGrid, AprilTag, ArucoGrid):
+for _cls in (Chessboard, Charuco, CircleGrid, ModifiedCircleGrid, AprilTag, ArucoGrid):
     register_target(_cls)
 
 

@@ -59,16 +59,21 @@ class CircleGrid(Target):
         return [np.eye(4)] if self.asymmetric else self._grid_symmetries(self.object_points())
 
     def detect(self, gray: NDArray[np.uint8]) -> Detection | None:
+        found = self._find(gray)
+        if found is None:
+            return None
+        pts = found[0].reshape(-1, 2).astype(float)
+        return Detection(np.arange(len(pts)), pts, self.object_points())
+
+    def _find(self, gray: NDArray[np.uint8]) -> tuple[NDArray[np.float32], Any] | None:
+        """findCirclesGrid's centres (OpenCV's order) and the blob detector it used, or None."""
         flags = cv2.CALIB_CB_ASYMMETRIC_GRID if self.asymmetric else cv2.CALIB_CB_SYMMETRIC_GRID
         params = cv2.SimpleBlobDetector_Params()
         params.maxArea = float(gray.shape[0] * gray.shape[1]) / 20.0
         params.minArea = 10.0
         blob = cv2.SimpleBlobDetector_create(params)
         ok, centres = cv2.findCirclesGrid(gray, (self.cols, self.rows), flags=flags, blobDetector=blob)
-        if not ok:
-            return None
-        pts = centres.reshape(-1, 2).astype(float)
-        return Detection(np.arange(len(pts)), pts, self.object_points())
+        return (centres, blob) if ok else None
 
     def texture(self, texels_per_m: float = 4000.0) -> Texture:
         s = texels_per_m
