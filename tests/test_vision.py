@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 import handeye
 from conftest import require_real
 from handeye.cli import main
-from handeye.geometry.se3 import from_rotvec_translation, invert
+from handeye.geometry.se3 import from_rotvec_translation, invert, rotation_angle
 from handeye.metrics import rotation_error, translation_error
 from handeye.poses import pose_columns
 from handeye.simulate import perturb_poses, random_scene, simulate_session
@@ -113,6 +113,27 @@ def test_symmetric_labelling_survives_pure_translations_and_noise():
         costs = settled_symmetry_costs(read, flange2base, "eye_in_hand", sym)
         doubted += sum(flags.sum() for flags in label_doubts(costs))
     assert wrong == 0 and doubted == 0
+
+
+def test_screw_congruence_compares_pitches_only_where_motions_turn():
+    """The pitch of a motion that turns by less than 20 deg is set by the poses' noise: the screw
+    congruence's pitch share leaves such motions out (NaN) and says over how many it was taken. A
+    capture whose poses 1-4 are the first one translated, 1 deg / 5 mm of camera noise: those motions'
+    pitches differ by up to ~2x their translation, the others' by a few percent."""
+    rng = np.random.default_rng(2)
+    s = random_scene(12, "eye_in_hand", rng=rng)
+    flange2base = s.flange2base.copy()
+    flange2base[1:5] = flange2base[0]
+    flange2base[1:5, :3, 3] += rng.normal(0.0, 0.15, (4, 3))
+    target2cam = perturb_poses(invert(flange2base @ s.X) @ s.Z, np.radians(1.0), 5e-3, rng)
+    cal = handeye.calibrate_poses(flange2base, target2cam, refine="none", check=False, pairs="all")
+    turn = np.degrees(np.minimum(rotation_angle(cal.motions.A), rotation_angle(cal.motions.B)))
+    share = cal.motion_pitch_share
+    assert np.array_equal(np.isnan(share), turn < 20.0)
+    assert np.isnan(share).sum() >= 6 and np.nanmax(share) < 0.2  # the 6 motions among poses 0-4 at least
+    raw = 1e-3 * cal.motion_residuals[:, 1] / np.linalg.norm(cal.motions.A[:, :3, 3], axis=1)
+    assert raw[np.isnan(share)].max() > 0.2
+    assert f"over the {np.isfinite(share).sum()} of {len(share)} motions that turn 20 deg or more" in cal.screw_congruence_text()
 
 
 @pytest.mark.parametrize("cols, rows", [(7, 5), (6, 6)])

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._shared.text import summarize
 from .errors import InputMismatchError
-from .geometry.se3 import skew
+from .geometry.se3 import PITCH_ANGLE, rotation_angle, skew
 from .kinematics import Chain, display_unit
 from .metrics import rotation_error, translation_error
 from .motions import MotionSet, screw_congruence
@@ -481,12 +481,30 @@ class Calibration:
     def motion_pitch_share(self) -> NDArray[np.float64]:
         """Per motion, ``|d_A - d_B|`` (:attr:`motion_residuals`) over the larger of the robot's and the
         camera's translation in it: the pitch difference as a share of the motion (a millimetre figure
-        alone means little: a nearly pure rotation has an ill-defined axis, and with it its pitch)."""
+        alone means little). NaN where the robot or the camera turns by less than
+        :data:`~handeye.geometry.se3.PITCH_ANGLE`: the screw axis of a motion that hardly turns, and with it
+        its pitch, is set by the poses' noise (a pure translation has none)."""
         motions = self.motions
         if motions is None:
             motions = MotionSet.from_poses(self.flange2base, self.target2cam, self.setup, self.pairs)
         scale = np.maximum(np.linalg.norm(motions.A[..., :3, 3], axis=-1), np.linalg.norm(motions.B[..., :3, 3], axis=-1))
-        return 1e-3 * self.motion_residuals[:, 1] / np.maximum(scale, 1e-6)
+        turn = np.minimum(rotation_angle(motions.A), rotation_angle(motions.B))
+        return np.where(turn >= PITCH_ANGLE, 1e-3 * self.motion_residuals[:, 1] / np.maximum(scale, 1e-6), np.nan)
+
+    def screw_congruence_text(self) -> str:
+        """The screw congruence in words: the median and worst angle difference (deg) and pitch
+        difference (% of the motion) over the motions, the pitch over those that turn enough."""
+        angle, share = self.motion_residuals[:, 0], 100 * self.motion_pitch_share
+        turning = np.isfinite(share)
+        if not turning.any():
+            return (f"median {np.median(angle):.3f} deg, worst {angle.max():.3f} deg (no motion turns "
+                    f"{np.degrees(PITCH_ANGLE):.0f} deg or more: pitches not compared)")
+        text = (f"median {np.median(angle):.3f} deg / {np.median(share[turning]):.2f}%, "
+                f"worst {angle.max():.3f} deg / {share[turning].max():.1f}%")
+        if not turning.all():
+            text += (f" (the pitch over the {turning.sum()} of {len(share)} motions that turn "
+                     f"{np.degrees(PITCH_ANGLE):.0f} deg or more)")
+        return text
 
     @cached_property
     def pose_residuals(self) -> NDArray[np.float64]:

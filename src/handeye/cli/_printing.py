@@ -51,11 +51,9 @@ def print_calibration(cal: Calibration, out=None) -> None:
     w(f"{z_name} translation mm : {fmt_vec(1e3 * cal.Z[:3, 3], 3)}\n")
     if cal.std_Z is not None:
         w(f"std of {z_name}: rotation {fmt_vec(cal.std_Z[:3], 4)} deg, translation {fmt_vec(cal.std_Z[3:], 3)} mm\n")
-    mres, pres = cal.motion_residuals, cal.pose_residuals
-    share = 100 * cal.motion_pitch_share
+    pres = cal.pose_residuals
     w(f"screw congruence per motion (|angle_A - angle_B|; |pitch_A - pitch_B| as a share of the motion's "
-      f"translation; both 0 for consistent data): median {np.median(mres[:, 0]):.3f} deg / {np.median(share):.2f}%, "
-      f"worst {mres[:, 0].max():.3f} deg / {share.max():.1f}%\n")
+      f"translation; both 0 for consistent data): {cal.screw_congruence_text()}\n")
     worst = int(np.argmax(pres[:, 1]))
     w(f"{z_name} consistency per pose: median {np.median(pres[:, 0]):.3f} deg / {np.median(pres[:, 1]):.3f} mm, "
       f"worst {cal.pose_name(worst)}: {pres[worst, 0]:.3f} deg / {pres[worst, 1]:.3f} mm\n")

@@ -26,6 +26,7 @@ __all__ = [
     "rotation_angle",
     "rotation_axis_angle",
     "screw_parameters",
+    "PITCH_ANGLE",
     "from_rotvec_translation",
     "perturb",
     "to_rotvec_translation",
@@ -178,6 +179,16 @@ def rotation_axis_angle(T: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.f
 def rotation_angle(T: ArrayLike) -> NDArray[np.float64]:
     """Rotation angle in [0, pi] of rotations ``(..., 3, 3)`` or transforms ``(..., 4, 4)``."""
     return rotation_axis_angle(T)[1]
+
+
+#: From this rotation angle (rad, 20 deg) a motion's pitch (its translation along the screw axis)
+#: is compared in full; below it the axis, and with it the pitch, is set more and more by the poses'
+#: noise: with 1 deg of rotation noise per pose the axis of a pure translation points anywhere and
+#: its pitch takes any value up to the translation's length (0.5 m: 5 rad in the labelling cost of
+#: :func:`handeye.vision.pnp.symmetry_costs`, beyond a wrong labelling's quarter turn). On
+#: ROS-Industrial's 10x10 capture, 24 of its 105 motions turn less; the pitch difference of the
+#: others is 1.9% of the motion in the median.
+PITCH_ANGLE = 0.35
 
 
 def screw_parameters(

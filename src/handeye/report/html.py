@@ -343,10 +343,8 @@ def _cross_validation_table(cal: Calibration) -> str:
 
 def _residuals_section(cal: Calibration) -> str:
     parts = ['<section id="residuals"><h2>Per-pose residuals</h2>' + _img(_residual_figure(cal), "per-pose residuals")]
-    mres, share = cal.motion_residuals, 100 * cal.motion_pitch_share
     parts.append(f"<p>Screw congruence per motion (|angle_A − angle_B|; |pitch_A − pitch_B| as a share of the motion's "
-                 f"translation; independent of X, both 0 for consistent data): median {np.median(mres[:, 0]):.3f} deg / "
-                 f"{np.median(share):.2f}%, worst {mres[:, 0].max():.3f} deg / {share.max():.1f}%.</p>")
+                 f"translation; independent of X, both 0 for consistent data): {_e(cal.screw_congruence_text())}.</p>")
     left, kept = cal.outliers_split()
     d = cal.diagnostics
 

@@ -7,7 +7,7 @@ from numpy.typing import NDArray
 
 from .._shared.lazy import lazy_module
 from ..errors import InputMismatchError
-from ..geometry.se3 import from_rotvec_translation, invert, screw_parameters, skew
+from ..geometry.se3 import PITCH_ANGLE, from_rotvec_translation, invert, screw_parameters, skew
 from ..setups import robot_world_A, robot_world_A_inv
 from .targets import Detection
 
@@ -223,7 +223,8 @@ def symmetry_costs(target2cam: NDArray[np.float64], flange2base: NDArray[np.floa
     :data:`PITCH_ANGLE` or more: the pitch is the translation along the screw axis, and the axis of
     a motion that hardly turns is set by the poses' noise. A pure translation of the robot (the
     camera moved without turning) is then judged by the angle alone, which tells the labellings
-    apart by a quarter or half turn.
+    apart by a quarter or half turn (the pitch's part weighted by the smaller angle over
+    :data:`~handeye.geometry.se3.PITCH_ANGLE`, up to 1).
     """
     n = len(target2cam)
     robot, robot_inv = robot_world_A(flange2base, setup), robot_world_A_inv(flange2base, setup)
@@ -260,11 +261,6 @@ def settled_symmetry_costs(target2cam: NDArray[np.float64], flange2base: NDArray
     return costs
 
 
-#: From this rotation angle (rad, 20 deg) of a motion its pitch counts in full in :func:`symmetry_costs`;
-#: below, in proportion to the angle. With 1 deg of rotation noise per pose the screw axis of a pure
-#: translation points anywhere and its pitch takes any value up to the translation's length (0.5 m:
-#: a misfit of 5 rad, beyond a wrong labelling's quarter turn).
-PITCH_ANGLE = 0.35
 #: Most reference images :func:`symmetry_costs` compares each image with (spread over the capture):
 #: enough for a steady median, linear in the images beyond.
 LABEL_REFERENCES = 25
