@@ -88,6 +88,16 @@ def test_symmetric_labelling_is_resolved_by_the_robot_motion():
     assert label_doubts(costs, thin=1e12)[0][1:].all()
 
 
+def _translated_capture(rng):
+    """12 eye-in-hand poses whose poses 1-4 are the first one translated by ~0.15 m (pure robot
+    translations), with 1 deg / 5 mm of noise on the camera's poses: (flange2base, target2cam)."""
+    s = random_scene(12, "eye_in_hand", rng=rng)
+    flange2base = s.flange2base.copy()
+    flange2base[1:5] = flange2base[0]
+    flange2base[1:5, :3, 3] += rng.normal(0.0, 0.15, (4, 3))
+    return flange2base, perturb_poses(invert(flange2base @ s.X) @ s.Z, np.radians(1.0), 5e-3, rng)
+
+
 def test_symmetric_labelling_survives_pure_translations_and_noise():
     """Robot motions that only translate (the camera moved without turning) have no screw axis but
     the one the poses' noise gives, and so no pitch to compare: they are judged by the angle, and
@@ -100,11 +110,7 @@ def test_symmetric_labelling_survives_pure_translations_and_noise():
     wrong, doubted = 0, 0
     for seed in range(20):
         rng = np.random.default_rng(seed)
-        s = random_scene(12, "eye_in_hand", rng=rng)
-        flange2base = s.flange2base.copy()
-        flange2base[1:5] = flange2base[0]
-        flange2base[1:5, :3, 3] += rng.normal(0.0, 0.15, (4, 3))
-        target2cam = perturb_poses(invert(flange2base @ s.X) @ s.Z, np.radians(1.0), 5e-3, rng)
+        flange2base, target2cam = _translated_capture(rng)
         flange2base = perturb_poses(flange2base, np.radians(0.3), 3e-3, rng)
         truth = np.r_[0, rng.integers(0, len(sym), 11)]
         read = np.array([T @ invert(sym[k]) for T, k in zip(target2cam, truth)])
@@ -120,12 +126,7 @@ def test_screw_congruence_compares_pitches_only_where_motions_turn():
     congruence's pitch share leaves such motions out (NaN) and says over how many it was taken. A
     capture whose poses 1-4 are the first one translated, 1 deg / 5 mm of camera noise: those motions'
     pitches differ by up to ~2x their translation, the others' by a few percent."""
-    rng = np.random.default_rng(2)
-    s = random_scene(12, "eye_in_hand", rng=rng)
-    flange2base = s.flange2base.copy()
-    flange2base[1:5] = flange2base[0]
-    flange2base[1:5, :3, 3] += rng.normal(0.0, 0.15, (4, 3))
-    target2cam = perturb_poses(invert(flange2base @ s.X) @ s.Z, np.radians(1.0), 5e-3, rng)
+    flange2base, target2cam = _translated_capture(np.random.default_rng(2))
     cal = handeye.calibrate_poses(flange2base, target2cam, refine="none", check=False, pairs="all")
     turn = np.degrees(np.minimum(rotation_angle(cal.motions.A), rotation_angle(cal.motions.B)))
     share = cal.motion_pitch_share

@@ -220,11 +220,10 @@ def symmetry_costs(target2cam: NDArray[np.float64], flange2base: NDArray[np.floa
     per image), the median over the motions from up to :data:`LABEL_REFERENCES` other images, each
     relabelled by its own label: one image's noise or a motion whose angle and pitch happen to match
     a wrong labelling's no longer decides. The pitch counts in full only where both motions turn by
-    :data:`PITCH_ANGLE` or more: the pitch is the translation along the screw axis, and the axis of
-    a motion that hardly turns is set by the poses' noise. A pure translation of the robot (the
-    camera moved without turning) is then judged by the angle alone, which tells the labellings
-    apart by a quarter or half turn (the pitch's part weighted by the smaller angle over
-    :data:`~handeye.geometry.se3.PITCH_ANGLE`, up to 1).
+    :data:`~handeye.geometry.se3.PITCH_ANGLE` or more, below it in proportion to the smaller angle:
+    the axis of a motion that hardly turns, and with it the pitch, is set by the poses' noise. A pure
+    translation of the robot (the camera moved without turning) is then judged by the angle alone,
+    which tells the labellings apart by a quarter or half turn.
     """
     n = len(target2cam)
     robot, robot_inv = robot_world_A(flange2base, setup), robot_world_A_inv(flange2base, setup)
@@ -232,7 +231,7 @@ def symmetry_costs(target2cam: NDArray[np.float64], flange2base: NDArray[np.floa
         refs, ref_poses = np.array([0]), target2cam[:1]
     else:
         refs = np.unique(np.linspace(0, n - 1, min(n, LABEL_REFERENCES)).round().astype(np.intp))
-        ref_poses = np.array([target2cam[j] @ symmetries[labels[j]] for j in refs])
+        ref_poses = target2cam[refs] @ np.asarray(symmetries)[np.asarray(labels)[refs]]
     # (R, N - 1) motions from reference j to image i: A_ij = inv(A_i) A_j, B_ij = (T_i F) inv(T_j F_j)
     _, _, th_a, d_a = screw_parameters(robot_inv[None, 1:] @ robot[refs][:, None])
     inv_refs = invert(ref_poses)[:, None]

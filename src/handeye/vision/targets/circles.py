@@ -83,17 +83,21 @@ class CircleGrid(Target):
         hi = pts.max(axis=0) + margin
         w, h = (np.round((hi - lo) * s)).astype(int)
         img = np.full((h, w), LIGHT, np.uint8)
-        for x, y in pts:
+        for (x, y), radius in zip(pts, self._radii()):
             c = np.round(((np.array([x, y]) - lo) * s) * 16).astype(int)
-            cv2.circle(img, (int(c[0]), int(c[1])), int(round(RADIUS * self.square * s * 16)), DARK, -1, cv2.LINE_AA, 4)
+            cv2.circle(img, (int(c[0]), int(c[1])), int(round(radius * self.square * s * 16)), DARK, -1, cv2.LINE_AA, 4)
         return Texture(img, -lo[0] * s, -lo[1] * s, s)
 
     def print_shapes(self) -> tuple[list[tuple], float, float]:
         pts = 1e3 * self.object_points()[:, :2]
         s = 1e3 * self.square
         margin = s  # a quiet zone of one spacing around the outer circles
-        shapes = [("circle", x + margin, y + margin, RADIUS * s) for x, y in pts]
+        shapes = [("circle", x + margin, y + margin, radius * s) for (x, y), radius in zip(pts, self._radii())]
         return shapes, pts[:, 0].max() + 2 * margin, pts[:, 1].max() + 2 * margin
+
+    def _radii(self) -> NDArray[np.float64]:
+        """Each circle's radius as a fraction of the spacing, in id order."""
+        return np.full(self.cols * self.rows, RADIUS)
 
     def describe(self) -> str:
         kind = "asymmetric circles" if self.asymmetric else "circles"

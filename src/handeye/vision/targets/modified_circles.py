@@ -12,15 +12,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._shared.lazy import lazy_module
-from .base import DARK, LIGHT, Detection, Texture, need
+from .base import Detection, need
 from .circles import RADIUS, CircleGrid
 
 cv2 = lazy_module("cv2")
 
 __all__ = ["ModifiedCircleGrid"]
 
-#: The big circle's radius as a fraction of the spacing (ROS-Industrial's printed targets: about
-#: twice the others' diameter).
+#: The big circle's radius as a fraction of the spacing, 1.67x the others' (on ROS-Industrial's
+#: printed targets about 2x).
 ORIGIN_RADIUS = 0.5
 #: The big circle's blob is this many times the median blob's size or more (its diameter), and
 #: :data:`ORIGIN_MARGIN` times the next largest: on ROS-Industrial's 10x10 captures the big one is
@@ -80,27 +80,8 @@ class ModifiedCircleGrid(CircleGrid):
                         np.zeros(flat.shape[0])], axis=1)
         return Detection(np.arange(len(flat)), flat, obj)
 
-    def texture(self, texels_per_m: float = 4000.0) -> Texture:
-        s = texels_per_m
-        pts = self.object_points()[:, :2]
-        margin = 1.5 * self.square
-        lo = pts.min(axis=0) - margin
-        hi = pts.max(axis=0) + margin
-        w, h = (np.round((hi - lo) * s)).astype(int)
-        img = np.full((h, w), LIGHT, np.uint8)
-        for k, (x, y) in enumerate(pts):
-            c = np.round(((np.array([x, y]) - lo) * s) * 16).astype(int)
-            r = (ORIGIN_RADIUS if k == 0 else RADIUS) * self.square * s * 16
-            cv2.circle(img, (int(c[0]), int(c[1])), int(round(r)), DARK, -1, cv2.LINE_AA, 4)
-        return Texture(img, -lo[0] * s, -lo[1] * s, s)
-
-    def print_shapes(self) -> tuple[list[tuple], float, float]:
-        pts = 1e3 * self.object_points()[:, :2]
-        s = 1e3 * self.square
-        margin = s  # a quiet zone of one spacing around the outer circles
-        shapes = [("circle", x + margin, y + margin, (ORIGIN_RADIUS if k == 0 else RADIUS) * s)
-                  for k, (x, y) in enumerate(pts)]
-        return shapes, pts[:, 0].max() + 2 * margin, pts[:, 1].max() + 2 * margin
+    def _radii(self) -> NDArray[np.float64]:
+        return np.r_[ORIGIN_RADIUS, np.full(self.cols * self.rows - 1, RADIUS)]
 
     def describe(self) -> str:
         return (f"modified circle grid of {self.cols} x {self.rows} (the big circle at the origin), "
