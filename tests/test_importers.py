@@ -102,18 +102,27 @@ def test_visp_2025_eye_in_hand_imports_and_its_board_scale_is_named(tmp_path):
     assert any("multiply it by 1.1" in a for a in cal.diagnostics.advice)
 
 
-def test_visp_import_says_the_setup_it_assumed(tmp_path, capsys):
-    """ViSP's folders do not record the setup: the import says it took eye-in-hand and how to
-    change it (the eye-to-hand folder calibrates 'inconsistent' under that assumption), and says
-    nothing of the kind when --setup was given. ``-o`` is ``--out``."""
-    src = str(require_real("visp-franka", "eye_to_hand_2025"))
-    assert main(["import", "visp", src, "-o", str(tmp_path / "a")]) == 0
+def test_visp_import_takes_the_setup_from_the_data_or_says_it_assumed_one(tmp_path, capsys):
+    """ViSP's folders do not record the setup. The import checks the images' poses: the eye-to-hand
+    folder is consistent only as eye-to-hand (the camera 1.07 m from the base, the tag 0.08 m from
+    the flange), so it is written so, with the check's sentence, and calibrates to ViSP's rMc within
+    2 mm; the eye-in-hand folder fits the assumed eye-in-hand, which the import says it took and how
+    to change. Nothing of the kind with --setup given. ``-o`` is ``--out``."""
+    visp = require_real("visp-franka")
+    assert main(["import", "visp", str(visp / "eye_to_hand_2025"), "-o", str(tmp_path / "a")]) == 0
+    out = capsys.readouterr().out
+    assert "setup: eye_to_hand, from the data" in out and "most likely the setup is eye_to_hand" in out
+    assert load_session(tmp_path / "a").setup == "eye_to_hand"
+    cal = handeye.calibrate(tmp_path / "a", progress=False)
+    assert 1e3 * np.linalg.norm(cal.X[:3, 3] - [0.9540358034, -0.05123574465, 0.4762201018]) < 2.0  # ViSP's rMc
+    assert main(["import", "visp", str(visp / "eye_in_hand_2025"), "-o", str(tmp_path / "b")]) == 0
     out = capsys.readouterr().out
     assert "eye_in_hand assumed" in out and "--setup eye_to_hand" in out
-    assert load_session(tmp_path / "a").setup == "eye_in_hand"
-    assert main(["import", "visp", src, "--out", str(tmp_path / "b"), "--setup", "eye_to_hand"]) == 0
-    assert "assumed" not in capsys.readouterr().out
-    assert load_session(tmp_path / "b").setup == "eye_to_hand"
+    assert load_session(tmp_path / "b").setup == "eye_in_hand"
+    assert main(["import", "visp", str(visp / "eye_to_hand_2025"), "--out", str(tmp_path / "c"), "--setup", "eye_in_hand"]) == 0
+    out = capsys.readouterr().out
+    assert "assumed" not in out and "from the data" not in out
+    assert load_session(tmp_path / "c").setup == "eye_in_hand"
 
 
 def test_industrial_calibration_circle_grid_set_imports_and_calibrates(tmp_path):

@@ -3,9 +3,14 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
+from .._shared.io import atomic_write
+from ..calibration import observe
+from ..diagnostics import diagnose
 from ..errors import HandEyeError
 from ..importers import import_easy_handeye, import_industrial_calibration, import_rosbag, import_visp
+from ..session import load_session
 from ..setups import SETUPS
 from ._common import target_spec_arg, whole_arg
 
@@ -38,12 +43,40 @@ def _cmd_import(args: argparse.Namespace) -> int:
     for note in summary.notes:
         print(f"note: {note}")
     if getattr(args, "setup", None) is None and args.kind in ("visp", "rosbag"):
-        # these sources do not record the setup: say what was assumed, before a calibration says it is inconsistent
-        print("setup: eye_in_hand assumed (the source does not say); for a camera fixed beside the robot, import "
-              "again with --setup eye_to_hand")
+        # these sources do not record the setup: ViSP's small folders are checked, else say what was assumed
+        found = _setup_from_data(summary.folder) if args.kind == "visp" and summary.kind == "session" else None
+        if found is None:
+            print("setup: eye_in_hand assumed (the source does not say); for a camera fixed beside the robot, import "
+                  "again with --setup eye_to_hand")
+        else:
+            print(f"setup: {found[0]}, from the data (the source does not say; the check of its images: {found[1]}); "
+                  "--setup eye_in_hand to keep the other")
     command = "calibrate" if summary.kind.endswith("session") else "calibrate-poses"
     print(f"next: handeye {command} {summary.folder} --out RESULTS")
     return 0
+
+
+def _setup_from_data(folder: Path) -> tuple[str, str] | None:
+    """The setup an imported session's own data take, when the pose check finds them consistent only
+    in the other one (its convention hint ``setup:...``): ``(setup, the check's sentence)``, with
+    session.yaml rewritten to it; None when the setup assumed fits, or the check cannot tell (no
+    target found, too few views). The detections stay in the cache for the calibration."""
+    try:
+        session = load_session(folder)
+        obs = observe(session, progress=False)
+        diag = diagnose(obs.flange2base, obs.target2cam, session.setup)
+    except HandEyeError:
+        return None
+    hint = diag.convention_hint or ""
+    if not hint.startswith("setup:"):
+        return None
+    setup = hint.partition(":")[2]
+    path = Path(folder) / "session.yaml"
+    text = path.read_text(encoding="utf-8")
+    atomic_write(path, text.replace(f"\nsetup: {session.setup}\n", f"\nsetup: {setup}\n", 1))
+    if load_session(folder).setup != setup:
+        raise HandEyeError(f"{path}: could not set the setup to {setup}")
+    return setup, next((a for a in diag.advice if "setup" in a), hint)
 
 
 #: Each source: its one-line help and its description (``handeye import KIND --help``).
@@ -81,7 +114,9 @@ def register(sub) -> None:
     parsers["visp"].add_argument("source", help="the ViSP folder")
     parsers["industrial-calibration"].add_argument("source", help="cal_data.yaml or its folder")
     parsers["rosbag"].add_argument("--setup", choices=list(SETUPS), help="default eye_in_hand (a bag does not say)")
-    parsers["visp"].add_argument("--setup", choices=list(SETUPS), help="default eye_in_hand (the folder does not say)")
+    parsers["visp"].add_argument("--setup", choices=list(SETUPS),
+                                 help="default: the folder does not say; eye_to_hand when the images' poses are "
+                                      "consistent only so (the pose check), else eye_in_hand")
     parsers["easy-handeye"].add_argument("--setup", choices=list(SETUPS),
                                          help="default: the file's calibration_type")
     r = parsers["rosbag"]
