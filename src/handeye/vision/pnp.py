@@ -241,7 +241,7 @@ def symmetry_costs(target2cam: NDArray[np.float64], flange2base: NDArray[np.floa
         _, _, th_b, d_b = screw_parameters((target2cam[None, 1:] @ F) @ inv_refs)
         weight = np.minimum(1.0, np.minimum(th_a, th_b) / PITCH_ANGLE)
         cost = np.where(same, np.nan, np.abs(th_a - th_b) + weight * np.abs(d_a - d_b) / 0.1)
-        costs.append(np.nanmedian(cost, axis=0) if len(refs) > 1 else cost[0])
+        costs.append(np.nanmedian(cost, axis=0))
     return np.stack(costs)
 
 

@@ -47,7 +47,7 @@ class CircleGrid(Target):
                    asymmetric=(spec["type"] == "asymmetric_circles"))
 
     def to_spec(self) -> dict[str, Any]:
-        return {**super().to_spec(), "type": "asymmetric_circles" if self.asymmetric else "circles"}
+        return {**super().to_spec(), "type": "asymmetric_circles" if self.asymmetric else self.type}
 
     def object_points(self) -> NDArray[np.float64]:
         if not self.asymmetric:

@@ -6,13 +6,13 @@ the target frame right-handed with z into the board."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..._shared.lazy import lazy_module
-from .base import Detection, need
+from .base import Detection, grid_points
 from .circles import RADIUS, CircleGrid
 
 cv2 = lazy_module("cv2")
@@ -47,17 +47,10 @@ class ModifiedCircleGrid(CircleGrid):
     def spec_types(cls) -> tuple[str, ...]:
         return (cls.type,)
 
-    @classmethod
-    def from_spec(cls, spec: dict[str, Any]) -> "ModifiedCircleGrid":
-        return cls(need(spec, "cols"), need(spec, "rows"), float(need(spec, "square")))
-
-    def to_spec(self) -> dict[str, Any]:
-        return {"type": self.type, "cols": self.cols, "rows": self.rows, "square": self.square}
-
     def object_points(self) -> NDArray[np.float64]:
-        """The circles up the big circle's column (x, ``rows`` of them), then along its row (y)."""
-        a, b = np.divmod(np.arange(self.cols * self.rows), self.cols)
-        return np.stack([a * self.square, b * self.square, np.zeros(len(a))], axis=1)
+        """The circles up the big circle's column (x, ``rows`` of them), then along its row (y): the
+        symmetric grid's points with x and y swapped, in the same order."""
+        return grid_points(self.cols, self.rows, self.square)[:, [1, 0, 2]]
 
     def symmetries(self) -> list[NDArray[np.float64]]:
         return [np.eye(4)]
@@ -74,11 +67,8 @@ class ModifiedCircleGrid(CircleGrid):
         order = _reading(grid, corner)
         if order is None:
             return None
-        flat = centres.reshape(-1, 2)[order.ravel()]
-        obj = np.stack([np.repeat(np.arange(order.shape[0]), order.shape[1]) * self.square,
-                        np.tile(np.arange(order.shape[1]), order.shape[0]) * self.square,
-                        np.zeros(flat.shape[0])], axis=1)
-        return Detection(np.arange(len(flat)), flat, obj)
+        flat = centres.reshape(-1, 2)[order.ravel()].astype(float)
+        return Detection(np.arange(len(flat)), flat, self.object_points())
 
     def _radii(self) -> NDArray[np.float64]:
         return np.r_[ORIGIN_RADIUS, np.full(self.cols * self.rows - 1, RADIUS)]
