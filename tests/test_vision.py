@@ -566,20 +566,22 @@ def test_other_targets_render_detect_and_calibrate(tmp_path, target):
     assert rot < (0.3 if target == "apriltag" else 0.1) and trans < (2.0 if target == "apriltag" else 1.0)
 
 
-def test_large_images_search_the_board_region_with_the_same_accuracy(tmp_path):
-    """Chessboards in images >= PYRAMID_MIN_SIDE are located on the half-size level and found by the
-    same findChessboardCornersSB call in the board's region: as close to the true corners as the
-    whole-image call (RMS within 5%), each corner within 0.5 px of it; no board, no detection."""
+@pytest.mark.parametrize("image_size, views", [((640, 480), 8), ((1000, 800), 3)])
+def test_chessboards_are_found_in_the_board_region_with_the_same_accuracy(tmp_path, image_size, views):
+    """Chessboards in images >= PYRAMID_MIN_SIDE (VGA and up) are located on the half-size level and
+    found by the same findChessboardCornersSB call in the board's region: as close to the true
+    corners as the whole-image call (RMS within 5%), each corner within 0.6 px of it; no board, no
+    detection."""
     from handeye.session import load_session
     from handeye.vision.targets.chessboard import PYRAMID_MIN_SIDE, _chessboard_in_region
 
-    simulate_session(tmp_path / "s", "eye_in_hand", 3, "chessboard", noise_px=0.2, seed=5, image_size=(1000, 800))
+    simulate_session(tmp_path / "s", "eye_in_hand", views, "chessboard", noise_px=0.2, seed=5, image_size=image_size)
     session = load_session(tmp_path / "s")
     gt = yaml.safe_load((tmp_path / "s" / "ground_truth.yaml").read_text())
     target2cam = invert(np.array(gt["cam2flange"])) @ invert(session.flange2base) @ np.array(gt["target2base"])
     target = target_from_spec(session.target_spec)
     size, objp = (target.cols, target.rows), target.object_points()
-    assert 800 >= PYRAMID_MIN_SIDE
+    assert min(image_size) >= PYRAMID_MIN_SIDE
     err_whole, err_region = [], []
     for path, T in zip(session.image_paths, target2cam):
         gray = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
@@ -595,28 +597,29 @@ def test_large_images_search_the_board_region_with_the_same_accuracy(tmp_path):
             whole = whole[::-1]
         if np.abs(region[::-1] - truth).max() < np.abs(region - truth).max():
             region = region[::-1]
-        assert np.abs(region - whole).max() < 0.5
+        assert np.abs(region - whole).max() < 0.6
         err_whole.append(np.linalg.norm(whole - truth, axis=1))
         err_region.append(np.linalg.norm(region - truth, axis=1))
     rms_whole = np.sqrt(np.mean(np.square(err_whole)))
     rms_region = np.sqrt(np.mean(np.square(err_region)))
     print(f"corner RMS from truth: whole image {rms_whole:.4f} px, board region {rms_region:.4f} px")
     assert rms_region <= 1.05 * rms_whole
-    blank = np.full((800, 1000), 128, np.uint8)
+    blank = np.full(image_size[::-1], 128, np.uint8)
     assert _chessboard_in_region(blank, size) is None and target.detect(blank) is None
 
 
-def test_board_region_search_on_real_images_matches_the_whole_image_search():
-    """ViSP's real Franka chessboard images (640x480) scaled 2x to reach PYRAMID_MIN_SIDE: the
-    corners found in the board's region stay within 0.5 px of the whole-image search (in the
-    scaled pixels; that search itself moves corners by up to ~2 px between the two scales)."""
+@pytest.mark.parametrize("scale", [1, 2])
+def test_board_region_search_on_real_images_matches_the_whole_image_search(scale):
+    """ViSP's real Franka chessboard images (640x480), as taken and scaled 2x: the corners found in
+    the board's region stay within 0.5 px of the whole-image search (in the scaled pixels; that
+    search itself moves corners by up to ~2 px between the two scales)."""
     from handeye.vision.targets.chessboard import PYRAMID_MIN_SIDE, _chessboard_in_region
 
     src = require_real("visp-franka", "eye_in_hand_2025")
     size = (9, 6)
     for i in (1, 3, 5, 8):
         gray = cv2.imread(str(src / f"franka_image-{i}.png"), cv2.IMREAD_GRAYSCALE)
-        big = cv2.resize(gray, None, fx=2, fy=2, interpolation=cv2.INTER_CUBIC)
+        big = cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_CUBIC)
         assert min(big.shape) >= PYRAMID_MIN_SIDE
         ok, whole = cv2.findChessboardCornersSB(big, size, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
         region = _chessboard_in_region(big, size)
