@@ -43,7 +43,10 @@ def test_bundled_example_uncertainty_covers_the_error():
     assert rotation_error(cal.X, X_true) < 3 * np.sqrt(np.trace(cal.cov[:3, :3]))
     assert translation_error(cal.X, X_true) < 3 * np.sqrt(np.trace(cal.cov[3:, 3:]))
     closed = handeye.calibrate_poses(pairs.flange2base, pairs.target2cam, setup=pairs.setup, refine="none")
-    assert closed.cov is None and closed.method == "daniilidis"
+    assert closed.method == "daniilidis" and closed.std_sources["model"] is None  # no noise model: the jackknife's
+    assert closed.std_sources["jackknife"] is not None and closed.std_sources["robot_accuracy"] is not None
+    assert rotation_error(closed.X, X_true) < 3 * np.sqrt(np.trace(closed.cov[:3, :3]))
+    assert translation_error(closed.X, X_true) < 3 * np.sqrt(np.trace(closed.cov[3:, 3:]))
 
 
 def test_example_command_prints_x(capsys):
@@ -56,8 +59,7 @@ def test_example_command_prints_x(capsys):
     assert worst < 3.0
     assert main(["calibrate-poses", "--example", "--refine", "none"]) == 0
     closed = capsys.readouterr().out
-    assert "std of X: not computed (daniilidis closed form alone" in closed
-    assert "the check below judges the poses, not how far X can be trusted" in closed  # a 'good' without a std
+    assert "std of X (daniilidis: jackknife + robot accuracy)" in closed  # a closed form's verdict has a std too
 
 
 def test_console_script_runs_as_subprocess(tmp_path):

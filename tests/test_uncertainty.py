@@ -100,7 +100,7 @@ def test_calibration_reports_std_and_predicts_point_error(tmp_path):
     mapped = R @ p + cal.X[:3, 3] + d[:, 3:]
     assert np.allclose(mapped.std(axis=0), cal.predict_error(p), rtol=0.03)
     assert np.allclose(cal.predict_error([0.0, 0.0, 0.0]), np.sqrt(np.diag(cal.cov)[3:]))
-    none = handeye.calibrate_poses(scene.flange2base, scene.target2cam, refine="none")
+    none = handeye.calibrate_poses(scene.flange2base, scene.target2cam, refine="none", uncertainty=False)
     with pytest.raises(ValueError, match="no covariance"):
         none.predict_error([0, 0, 1])
 
@@ -592,3 +592,30 @@ def test_pixel_downdate_matches_a_refit_and_drops_nothing_when_asked():
     sub = refine_reprojection(ref.X, ref.Z, scene.flange2base[keep], [obj] * 9, pixels[1:], K, dist, "eye_in_hand")
     X_down = downdate_reprojection(ref, [0])[0]
     assert translation_error(X_down, sub.X) <= 0.02 * translation_error(ref.X, sub.X) + 1e-9
+
+
+def test_closed_form_alone_reports_a_std_that_holds_under_real_robot_errors():
+    """refine='none' (the closed form as is) has no noise model: its std is the jackknife spread
+    plus the robot's accuracy (raised to what the poses show), as every estimator's. On pose-only
+    sessions of arms 1 and 3 mm off (both setups, 12 views, 10 each) X is within 3 std in >= 95%
+    (the sweep's 600 sessions: 99.3-100%) and the std is not so wide that it says nothing: its
+    median under 3x the median error. (Through images: test_vision's AprilTag session, with the
+    intrinsics' error added.)"""
+    from dataclasses import replace
+
+    covered, errors, stds = [], [], []
+    for level in (1, 3):
+        errors_model = replace(REALISTIC, pixel_px=0.1, joint_wave_deg=0.02).scaled(level)
+        for setup in ("eye_in_hand", "eye_to_hand"):
+            for seed in range(10):
+                sc = realistic_scene(12, setup, seed, errors=errors_model)
+                cal = handeye.calibrate_poses(sc.flange2base, sc.target2cam, setup, refine="none", progress=False)
+                assert cal.std_sources["model"] is None and cal.std_sources["jackknife"] is not None
+                rot, trans = np.degrees(rotation_error(cal.X, sc.X)), 1e3 * translation_error(cal.X, sc.X)
+                covered.append(rot <= 3 * np.linalg.norm(cal.std[:3]) and trans <= 3 * np.linalg.norm(cal.std[3:]))
+                errors.append(trans)
+                stds.append(np.linalg.norm(cal.std[3:]))
+    print(f"closed form alone: within 3 std {np.mean(covered):.1%}, median error {np.median(errors):.2f} mm, "
+          f"median std {np.median(stds):.2f} mm")
+    assert np.mean(covered) >= 0.95
+    assert np.median(stds) < 3 * np.median(errors)

@@ -653,6 +653,8 @@ def test_too_few_points_to_estimate_the_intrinsics_are_named(tmp_path):
     simulate_session(tmp_path / "seven", "eye_in_hand", 7, "apriltag", seed=5, write_intrinsics=False)
     cal = handeye.calibrate(tmp_path / "seven", progress=False, refine="none")
     assert any("poorly determined" in n for n in cal.notes)
+    # the closed form's std: its jackknife, the robot's accuracy and the estimated intrinsics' error
+    assert all(cal.std_sources[k] is not None for k in ("jackknife", "robot_accuracy", "intrinsics"))
 
 
 def _charuco_renders(tmp_path, n: int):

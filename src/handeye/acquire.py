@@ -527,7 +527,7 @@ def _model(measured: list, setup: str, X0, Z0, noise_px: float, n_points: int):
     f2b = np.array([m[0] for m in measured])
     t2c = np.array([m[1] for m in measured])
     try:
-        cal = calibrate_poses(f2b, t2c, setup, refine="none", check=False, progress=False)
+        cal = calibrate_poses(f2b, t2c, setup, refine="none", check=False, progress=False, uncertainty=False)
     except HandEyeError:  # the first views may not determine X yet (one rotation axis)
         return X0, Z0, noise_px
     return cal.X, cal.Z, _pixel_noise([m[2] for m in measured], n_points)

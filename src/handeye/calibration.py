@@ -30,6 +30,7 @@ from .estimators import (
     REFINE_INTRINSICS,
     Choice,
     choose,
+    closed_fit,
     intrinsics_cov,
     pixel_candidates,
     pixel_fit,
@@ -120,6 +121,7 @@ def calibrate_poses(
     symmetries: list | None = None,
     names: list[str] | None = None,
     progress: bool = True,
+    uncertainty: bool = True,
     **changes,
 ) -> Calibration:
     """Hand-eye calibration from robot poses and camera-to-target poses.
@@ -139,12 +141,12 @@ def calibrate_poses(
         the per-pose Z_i), or a robot-world one (``shah``, ``li``), which estimates X and Z together.
     refine : {'auto', 'pose', 'none'}
         'auto' (default): the estimator that predicts held-out poses best, by ``folds``-fold
-        cross-validation (:mod:`handeye.estimators`): the closed forms (all but ``horaud_nonlinear``) or the pose refinement;
-        the uncertainty covers both the refinement's noise model and the spread of the
-        cross-validation fits (``std_sources``). 'pose': X and Z refined jointly from the ``method``
-        solution by :func:`handeye.solvers.refine.refine_pose` (Strobl-Hirzinger's optimal
-        correction with noise variances estimated from the data), which gives ``cov``, ``std`` and
-        ``pose_noise``. 'none': the closed form as is (no uncertainty).
+        cross-validation (:mod:`handeye.estimators`): the closed forms (all but ``horaud_nonlinear``)
+        or the pose refinement. 'pose': X and Z refined jointly from the ``method`` solution by
+        :func:`handeye.solvers.refine.refine_pose` (Strobl-Hirzinger's optimal correction with noise
+        variances estimated from the data; ``pose_noise``). 'none': the closed form as is. Each
+        reports ``cov`` and ``std``: the noise model (none for a closed form), the jackknife spread
+        and the robot's accuracy (``std_sources``).
     pairs : {'auto', 'all', 'consecutive'} or (K, 2) array
         The pose pairs of the motions (:func:`handeye.motions.pair_indices`).
     check : bool
@@ -157,17 +159,16 @@ def calibrate_poses(
     folds : int, optional
         Cross-validation folds of ``refine='auto'`` (default: one per pose up to 10 poses, else 5).
     robot_accuracy : (deg, mm) or None
-        The robot's absolute accuracy per axis (every ``refine`` but ``'none'``): a constant robot error
-        is absorbed into X whole, so it is added to X's covariance. ``None`` (or zeros) for an exact robot.
+        The robot's absolute accuracy per axis, which X absorbs unseen (added to its covariance; None: exact).
     known : dict, optional
         What the data cannot determine (SCARA, Cartesian robots; :mod:`handeye.partial`), e.g.
         ``{'target2base.z': 0.012}`` or ``{'cam2flange.z': (0.085, 0.001)}``: translation components of
         X or Z in metres (exact, ``(value, std)`` or ``'value+-std'``); values the data determine are
         compared with them (a note), not used.
-    robot_input, camera_input, symmetries, names, progress
-        Keyword-only: the robot (camera) poses as written (:class:`RobotPoseInput`) and a symmetric
-        target's symmetries (the check tries other readings and relabels the images under each);
-        each pose's name (image file or row id: messages name poses by it); the steps on stderr.
+    robot_input, camera_input, symmetries, names, progress, uncertainty
+        Keyword-only: the robot (camera) poses as written (:class:`RobotPoseInput`); a symmetric target's
+        symmetries (the check relabels the images under each); each pose's name (image file or row id);
+        the steps on stderr; False skips the std's jackknife and robot accuracy (X alone, in a loop).
 
     Returns
     -------
@@ -202,7 +203,7 @@ def calibrate_poses(
             X=X, Z=Z, setup=setup, method=method, flange2base=flange2base, target2cam=target2cam, pairs=motions.pairs,
             motions=motions, diagnostics=diag, pose_indices=keep, notes=notes, robot_input=robot_input,
             inputs_sha256=array_digest(flange2base_in, target2cam_in), estimator=method, target_scale=target_scale)
-        cal = _refined(cal, opts.refine, method, pairs, opts.folds, accuracy, bar)
+        cal = _refined(cal, opts.refine, method, pairs, opts.folds, accuracy, bar, uncertainty)
         if scale is not None and cal.cov is not None:
             cal = _with_scale_error(cal, scale, method)
         bar.update(bar.total - bar.done)
@@ -237,15 +238,18 @@ def _pose_options(setup: str, opts: CalibrationOptions) -> dict:
     return parse_known(opts.known, setup)
 
 
-def _refined(cal: Calibration, refine: str, method: str, pairs: Pairs, folds, accuracy, bar: Progress) -> Calibration:
+def _refined(cal: Calibration, refine: str, method: str, pairs: Pairs, folds, accuracy, bar: Progress,
+             uncertainty: bool = True) -> Calibration:
     """The closed form ``cal`` refined as ``refine`` says (:func:`calibrate_poses`)."""
     if refine == "pose" or (refine == "auto" and len(cal.flange2base) < 5):
-        return _pose_refined(cal, method, accuracy)
+        return _pose_refined(cal, method, accuracy, uncertainty)
     if refine == "auto":
         views = Views(cal.flange2base, cal.target2cam, cal.setup)
         choice = choose(views, pose_candidates(method, views), folds)
         bar.update()
-        return apply_choice(cal, choice, views, pairs, robot_accuracy=accuracy)
+        return apply_choice(cal, choice, views, pairs, robot_accuracy=accuracy, uncertainty=uncertainty)
+    if uncertainty:  # the closed form alone: no noise model, the jackknife and the robot's accuracy
+        return _uncertain(cal, closed_fit(method, pairs), Views(cal.flange2base, cal.target2cam, cal.setup), accuracy)
     return cal
 
 
@@ -938,7 +942,7 @@ def _calibrate_observed(obs: Observations, opts: CalibrationOptions, uncertainty
     robot_sigma = _robot_sigma(robot_noise)
     cal = calibrate_poses(obs.flange2base, obs.target2cam, obs.session.setup, opts.replace(refine="none", robot_noise=None),
                           robot_input=obs.robot_input, symmetries=_symmetries(obs), names=_used_names(obs),
-                          progress=False)  # the caller's bar counts this step
+                          progress=False, uncertainty=False)  # the caller's bar counts this step
     scale = None if cal.target_scale == 1.0 else (cal.target_scale, cal.diagnostics.scale_std)
     if scale is not None:  # the check found the target's size wrong: its points too at the scale the robot's motions give
         obs = obs.scaled(cal.target_scale)
@@ -972,6 +976,8 @@ def _calibrate_observed(obs: Observations, opts: CalibrationOptions, uncertainty
         cal = _final_pixel_fit(cal, obs, name, robot_noise, pairs, fit)
         if uncertainty:
             cal = _uncertain(cal, fit, views, accuracy, obs)
+    elif uncertainty:  # refine='none': the closed form's std from its jackknife and the robot's accuracy
+        cal = _uncertain(cal, closed_fit(method, pairs), obs.views(idx), accuracy, obs)
     if cal.refinement == "reprojection":  # every image back in (see _final_pixel_fit)
         kept, outlier_images = list(range(len(obs.used))), []
     if scale is not None and uncertainty and cal.cov is not None:

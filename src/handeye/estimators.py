@@ -21,11 +21,12 @@ from scipy.spatial.transform import Rotation
 from . import solvers
 from .diagnostics import SCALE_TOLERANCE, board_scale, closed_form
 from .errors import HandEyeError
+from .motions import Pairs
 from .solvers.refine import PoseRefinementResult, ReprojectionResult, downdate_reprojection, refine_pose, refine_reprojection, refit_pose
 from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices, pnp_errors
 from .vision.pnp import INTRINSICS, intrinsics_covariance, refine_pnp
 
-__all__ = ["Choice", "pose_candidates", "pose_fit", "pixel_candidates", "choose", "intrinsics_cov", "POSE", "PIXEL",
+__all__ = ["Choice", "closed_fit", "pose_candidates", "pose_fit", "pixel_candidates", "choose", "intrinsics_cov", "POSE", "PIXEL",
            "PIXEL_INTRINSICS", "PIXEL_ROBOT", "REFINE_INTRINSICS"]
 
 #: Closed forms left out of the choice: horaud_nonlinear costs 4x the others per fit and lands between
@@ -44,9 +45,13 @@ PIXEL_ROBOT = "reprojection+robot"
 REFINE_INTRINSICS = (PIXEL_INTRINSICS, PIXEL_ROBOT)
 
 
-def _closed(method: str) -> Fit:
+def closed_fit(method: str, pairs: Pairs = "auto") -> Fit:
+    """The closed form ``method`` on the motions of ``pairs`` (for a subset: its own ``pairs``; an
+    explicit list of index pairs does not survive leaving poses out, so it becomes 'auto')."""
+    rule = pairs if isinstance(pairs, str) else "auto"
+
     def fit(flange2base, target2cam, setup, idx):
-        X, Z, _ = closed_form(flange2base, target2cam, setup, method)
+        X, Z, _ = closed_form(flange2base, target2cam, setup, method, rule)
         return X, Z
     return fit
 
@@ -76,7 +81,7 @@ def pose_fit(method: str, views: Views | None, start: PoseRefinementResult | Non
 def pose_candidates(method: str = "daniilidis", views: Views | None = None) -> dict[str, Fit]:
     """Every registered closed form, and the pose refinement started from ``method`` (warm-started
     from the refinement on all of ``views`` when given)."""
-    out = {name: _closed(name) for name in solvers.available(closed_forms=True) if name not in SLOW_CLOSED_FORMS}
+    out = {name: closed_fit(name) for name in solvers.available(closed_forms=True) if name not in SLOW_CLOSED_FORMS}
     out[POSE] = pose_fit(method, views)
     return out
 

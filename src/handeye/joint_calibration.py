@@ -97,7 +97,7 @@ def calibrate_joints(
     compliance = opts.compliance
     # the black-box start on the nominal flange poses: poses alone have no joints (arm, compliance)
     opts = opts.replace(refine="none", robot_noise=None, arm=None, compliance=False)
-    start = calibrate_poses(chain.forward(q), target2cam, setup, opts, progress=False)
+    start = calibrate_poses(chain.forward(q), target2cam, setup, opts, progress=False, uncertainty=False)
     if start.observability is not None and start.observability.unobservable:
         raise InputMismatchError(f"the motions determine only part of X ({start.observability.motion_kind}): the arm's "
                                  "table cannot be fitted with it; calibrate the flange poses with handeye.calibrate_poses")

@@ -498,7 +498,7 @@ def simulate_errors(
     for r in range(runs):
         img = [c + rng.normal(0.0, noise_px, c.shape) for c in clean]
         t2c = np.array([solve_pnp(Detection(ids, im, obj), K, dist)[0] for im in img])
-        cal = calibrate_poses(f2b, t2c, setup=setup, method=method, refine="none", check=False)
+        cal = calibrate_poses(f2b, t2c, setup=setup, method=method, refine="none", check=False, uncertainty=False)
         ref = refine_reprojection(cal.X, cal.Z, f2b, [obj] * len(img), img, K, dist, setup)
         errors[r] = np.degrees(rotation_error(ref.X, X)), 1e3 * translation_error(ref.X, X)
     return errors, int(usable.sum())

@@ -217,7 +217,7 @@ def run_setting(setting: Setting, runs: int = 200, seed: int | Sequence[int] = 0
         if method == "refined":
             def fn(s):
                 return calibrate_poses(flange2base[s], target2cam[s], setting.setup, method="daniilidis",
-                                       refine="pose", pairs="consecutive", check=False).X
+                                       refine="pose", pairs="consecutive", check=False, uncertainty=False).X
             X = _one_by_one(fn, runs)
         elif method in available("robot_world"):
             X = solve_robot_world_batch(robot_abs, cam_abs, method)[0]

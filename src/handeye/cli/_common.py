@@ -215,7 +215,7 @@ REFINE_HELP = {
     "reprojection": "reprojection: X and Z on the pixel errors of all target points, robot poses exact (or corrected "
                     "under the prior --robot-noise gives)",
     "pose": "pose: X and Z on the robot and camera poses, both noisy (their noise estimated from the data)",
-    "none": "none: the --method closed form alone (no std)",
+    "none": "none: the --method closed form alone (its std: the jackknife and the robot's accuracy)",
 }
 
 

@@ -61,9 +61,8 @@ def print_calibration(cal: Calibration, out=None) -> None:
         w(f"std of X ({std_label(cal)}): rotation {fmt_vec(cal.std[:3], 4)} deg, "
           f"translation {fmt_vec(cal.std[3:], 3)} mm" + (" (inf: not determined by the data)"
                                                         if np.isinf(cal.std).any() else "") + "\n")
-    else:  # a closed form alone (--refine none) has no noise model: say so rather than print nothing
-        w(f"std of X: not computed ({cal.method} closed form alone; --refine auto or pose gives it): the check below "
-          "judges the poses, not how far X can be trusted\n")
+    else:  # uncertainty skipped (or too few poses to refit without one, and an exact robot): say so
+        w(f"std of X: not computed ({cal.method}): the check below judges the poses, not how far X can be trusted\n")
     if cal.kinematic is not None:
         k = cal.kinematic
         big = np.argsort(-np.abs(k.correction / k.prior_std))[:4]
