@@ -84,6 +84,11 @@ def _parse_urdf(snippet: str) -> tuple[np.ndarray, str, str]:
 def test_result_files_parse_back_to_the_same_X(sample_out, sample_cal):
     js = json.loads((sample_out / "result.json").read_text())
     ym = yaml.safe_load((sample_out / "result.yaml").read_text())
+    # the pitch difference where a screw axis exists: the motions that turn 20 deg or more, as the CLI says
+    turning = js["motion_residuals"]["pitch_where_turning"]
+    share = sample_cal.motion_pitch_share
+    assert turning["motions"] == np.isfinite(share).sum() == 64 and round(turning["min_turn_deg"]) == 20
+    assert np.isclose(turning["max_share"], np.nanmax(share)) and turning["max_mm"] <= js["motion_residuals"]["max"][1]
     for data in (js, ym):
         X = np.array(data["X"]["matrix"])
         assert np.abs(X - sample_cal.X).max() <= 1e-12
