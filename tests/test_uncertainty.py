@@ -619,3 +619,6 @@ def test_closed_form_alone_reports_a_std_that_holds_under_real_robot_errors():
           f"median std {np.median(stds):.2f} mm")
     assert np.mean(covered) >= 0.95
     assert np.median(stds) < 3 * np.median(errors)
+    # 3 poses: no refit without one is possible, and the std says what it leaves out
+    few = handeye.calibrate_poses(sc.flange2base[:3], sc.target2cam[:3], setup, refine="none", progress=False)
+    assert few.std_sources["jackknife"] is None and any("leaves out the poses' noise" in n for n in few.notes)

@@ -424,6 +424,10 @@ def _uncertain(cal: Calibration, fit, views: Views, robot_accuracy: tuple[float,
                 "the error of the intrinsics estimated from these images could not be propagated to X (a refit "
                 "failed): the std of X leaves it out; give K and dist in session.yaml"])
     cov_X, cov_Z = jackknife_covs(fit, views, cal.X, cal.Z)
+    if cov_X is None and cal.cov is None:  # a closed form on too few poses to refit without one
+        cal = replace(cal, notes=list(cal.notes) + [
+            f"the std of X leaves out the poses' noise: {cal.estimator or cal.method} has no noise model and "
+            f"{len(views)} poses are too few to refit it without each one; add poses, or refine='pose'"])
     seen = None if robot_accuracy is None else robot_error_seen(cal.X, cal.Z, views)
     cal = widened_uncertainty(cal, cov_X, robot_accuracy, intrinsics, seen, views.has_pixels)
     if cov_Z is not None:  # a constant robot error moves Z about as much as X
