@@ -46,11 +46,18 @@ def dask_client(scheduler: str, jobs: int | None = None) -> Iterator[Any]:
         # figures, that costs ~15% of a worker's time (measured: 50 sessions on 2 workers); a
         # LocalCluster handeye starts for one call and closes after it keeps glibc's own threshold.
         # Its statistical profiler samples the task's stack every 10 ms: ~5% of a worker's CPU
-        # (measured: 1.47 -> 1.38 s a session), for a dashboard nobody opens here
+        # (measured: 1.47 -> 1.38 s a session), for a dashboard nobody opens here. Its periodic
+        # housekeeping (event-loop ticks every 20 ms, memory checks every 100 ms, system monitor,
+        # work stealing) costs an idle 2-worker cluster 0.50 s of CPU every 10 s, 0.15 s at the
+        # intervals below, which tasks of a second or more do not need shorter
         environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ", {}).items()
                    if k != "MALLOC_TRIM_THRESHOLD_"}
         with dask.config.set({"distributed.nanny.pre-spawn-environ": environ,
-                              "distributed.worker.profile.enabled": False}):
+                              "distributed.worker.profile.enabled": False,
+                              "distributed.admin.tick.interval": "500ms",
+                              "distributed.worker.memory.monitor-interval": "1s",
+                              "distributed.admin.system-monitor.interval": "2s",
+                              "distributed.scheduler.work-stealing-interval": "1s"}):
             cluster = distributed.LocalCluster(n_workers=jobs or None, threads_per_worker=1, processes=True,
                                                dashboard_address=None)
         try:
