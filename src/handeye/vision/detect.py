@@ -109,7 +109,7 @@ def release_freed_memory() -> None:
 #: The command line sets it to :func:`default_cache_dir` unless it is set (``--no-cache``: empty).
 CACHE_ENV = "HANDEYE_CACHE_DIR"
 #: Part of every cache key: raise it when detection returns something else for the same image.
-DETECTION_VERSION = 2
+DETECTION_VERSION = 3
 
 
 def default_cache_dir() -> Path:
