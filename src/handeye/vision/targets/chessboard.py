@@ -102,12 +102,14 @@ def _chessboard_in_region(gray: NDArray[np.uint8], size: tuple[int, int]) -> NDA
     found by the same call as on the whole image, in the bounding box of the board grown by one
     square. They are not the same corners (the call's result depends on the whole image it is
     given: up to ~0.4 px apart at 640x480) but as accurate, measured on rendered images with 0.2 px
-    noise: 0.1785 px RMS from the true corners against 0.1782 px on the whole image at 1280x1024
-    (~5x faster); at 640x480, 0.2181 px on 120 images located by the classic detector, 0.2182 by
-    the sector-based one (28 and 44 ms an image), 0.2190 on the whole image (126 ms). A board the
-    half-size image does not show is searched for on the whole image; the failed half-size search
-    adds 5-10 ms at 640x480 to an image without a board, ~180 ms to one whose board has another
-    size than the session says (its whole-image search, ~290 ms, already fails slowly).
+    noise (RMS from the true corners): at 640x480, 0.2181 px on 120 images located by the classic
+    detector, 0.2182 by the sector-based one (28 and 44 ms an image), 0.2190 on the whole image
+    (126 ms); at 1280x1024, 0.1835 against 0.1833 px on the whole image (30 images,
+    benchmarks/bench_images.py); at 4000x3000, 0.1924 px both. A board the half-size image does not
+    show is searched for on the whole image. An image without a board pays the failed half-size
+    searches before that (at 640x480: 9 ms flat, 37 ms noisy; at 1280x1024: ~160 ms), an image
+    whose board has another size than the session says ~210 ms (1280x1024: ~320 ms); the
+    whole-image search then fails too (~290 ms at 640x480).
     """
     half = cv2.pyrDown(gray)
     ok, corners = cv2.findChessboardCorners(half, size, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
