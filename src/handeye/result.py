@@ -491,19 +491,32 @@ class Calibration:
         turn = np.minimum(rotation_angle(motions.A), rotation_angle(motions.B))
         return np.where(turn >= PITCH_ANGLE, 1e-3 * self.motion_residuals[:, 1] / np.maximum(scale, 1e-6), np.nan)
 
+    @cached_property
+    def pitch_where_turning(self) -> dict[str, float]:
+        """The pitch difference over the motions that turn :data:`~handeye.geometry.se3.PITCH_ANGLE`
+        or more (:attr:`motion_pitch_share` is NaN for the others): ``min_turn_deg``, ``motions`` (how
+        many), and when there are any their ``median_mm``, ``max_mm``, ``median_share`` and ``max_share``."""
+        share = self.motion_pitch_share
+        turning = np.isfinite(share)
+        out: dict[str, float] = {"min_turn_deg": float(np.degrees(PITCH_ANGLE)), "motions": int(turning.sum())}
+        if turning.any():
+            mm = self.motion_residuals[turning, 1]
+            out |= {"median_mm": float(np.median(mm)), "max_mm": float(mm.max()),
+                    "median_share": float(np.median(share[turning])), "max_share": float(share[turning].max())}
+        return out
+
     def screw_congruence_text(self) -> str:
         """The screw congruence in words: the median and worst angle difference (deg) and pitch
         difference (% of the motion) over the motions, the pitch over those that turn enough."""
-        angle, share = self.motion_residuals[:, 0], 100 * self.motion_pitch_share
-        turning = np.isfinite(share)
-        if not turning.any():
+        angle, pitch = self.motion_residuals[:, 0], self.pitch_where_turning
+        if not pitch["motions"]:
             return (f"median {np.median(angle):.3f} deg, worst {angle.max():.3f} deg (no motion turns "
-                    f"{np.degrees(PITCH_ANGLE):.0f} deg or more: pitches not compared)")
-        text = (f"median {np.median(angle):.3f} deg / {np.median(share[turning]):.2f}%, "
-                f"worst {angle.max():.3f} deg / {share[turning].max():.1f}%")
-        if not turning.all():
-            text += (f" (the pitch over the {turning.sum()} of {len(share)} motions that turn "
-                     f"{np.degrees(PITCH_ANGLE):.0f} deg or more)")
+                    f"{pitch['min_turn_deg']:.0f} deg or more: pitches not compared)")
+        text = (f"median {np.median(angle):.3f} deg / {100 * pitch['median_share']:.2f}%, "
+                f"worst {angle.max():.3f} deg / {100 * pitch['max_share']:.1f}%")
+        if pitch["motions"] < len(angle):
+            text += (f" (the pitch over the {pitch['motions']} of {len(angle)} motions that turn "
+                     f"{pitch['min_turn_deg']:.0f} deg or more)")
         return text
 
     @cached_property

@@ -24,7 +24,7 @@ from scipy.spatial.transform import Rotation
 from .._shared.io import atomic_write
 from .._version import __version__
 from ..errors import HandEyeError
-from ..geometry.se3 import PITCH_ANGLE, invert
+from ..geometry.se3 import invert
 from ..kinematics import chain_yaml
 from ..poses import format_poses, pose_columns
 from ..result import Calibration
@@ -183,20 +183,6 @@ def _euler_of_input(rot: Rotation, cal: Calibration) -> dict[str, Any] | None:
             "note": "the convention of the robot poses given (upper case intrinsic, lower case extrinsic)"}
 
 
-def _pitch_where_turning(cal: Calibration) -> dict[str, Any]:
-    """The pitch difference over the motions that turn enough for a screw axis (``pitch_mm`` above
-    takes every motion, and a motion that hardly turns has a pitch made of its poses' noise): in mm
-    and as a share of the motion's translation (:attr:`Calibration.motion_pitch_share`)."""
-    share = cal.motion_pitch_share
-    turning = np.isfinite(share)
-    out: dict[str, Any] = {"min_turn_deg": float(np.degrees(PITCH_ANGLE)), "motions": int(turning.sum())}
-    if turning.any():
-        mm = cal.motion_residuals[turning, 1]
-        out |= {"median_mm": float(np.median(mm)), "max_mm": float(mm.max()),
-                "median_share": float(np.median(share[turning])), "max_share": float(share[turning].max())}
-    return out
-
-
 def _transform_dict(T: NDArray[np.float64], cal: Calibration | None = None) -> dict[str, Any]:
     rot = Rotation.from_matrix(T[:3, :3])
     out = {
@@ -325,7 +311,7 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
             "columns": ["angle_deg", "pitch_mm"],
             "median": np.median(mres, axis=0).tolist(),
             "max": mres.max(axis=0).tolist(),
-            "pitch_where_turning": _pitch_where_turning(cal),
+            "pitch_where_turning": dict(cal.pitch_where_turning),
         },
         "pose_residuals": {
             "columns": ["rotation_deg", "translation_mm"],
