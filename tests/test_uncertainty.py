@@ -48,7 +48,7 @@ def _mc_run(args):
     obj = target.object_points()
     dets = [Detection(np.arange(len(obj)), px, obj) for px in pixels]
     poses = [solve_pnp(det, K, dist)[0] for det in dets]
-    cal = handeye.calibrate_poses(flange2base, np.array(poses), setup=setup, refine="none", check=False)
+    cal = handeye.calibrate_poses(flange2base, np.array(poses), setup=setup, refine="none", uncertainty=False, check=False)
     ref = refine_reprojection(cal.X, cal.Z, flange2base, [d.object_points for d in dets],
                               [d.image_points for d in dets], K, dist, setup)
     # errors in the covariance's own parameterisation: left rotation increment, translation
@@ -128,7 +128,7 @@ def test_refinement_gain_and_robust_loss():
             bad.append(q)
         for pts, out in ((good, clean), (bad, outl)):
             poses = np.array([solve_pnp(Detection(np.arange(len(obj)), p, obj), K, dist)[0] for p in pts])
-            cal = handeye.calibrate_poses(sc.flange2base, poses, refine="none", check=False)  # closed-form start only
+            cal = handeye.calibrate_poses(sc.flange2base, poses, refine="none", uncertainty=False, check=False)  # closed-form start only
             if pts is good:
                 closed.append(cal.X[:3, 3] - sc.X[:3, 3])
             ref = refine_reprojection(cal.X, cal.Z, sc.flange2base, [obj] * len(pts), pts, K, dist, "eye_in_hand",
@@ -174,7 +174,7 @@ def _pose_run(args):
     X, f, t, setup = args
     closed = {}
     for m in CLOSED_FORMS:
-        c = handeye.calibrate_poses(f, t, setup=setup, method=m, refine="none", check=False)
+        c = handeye.calibrate_poses(f, t, setup=setup, method=m, refine="none", uncertainty=False, check=False)
         closed[m] = (rotation_error(c.X, X), translation_error(c.X, X))
     # check=False: the data are clean by construction, and what is measured is the refinement
     cal = handeye.calibrate_poses(f, t, setup=setup, check=False, refine="pose")
@@ -304,7 +304,7 @@ def _robot_noise_scene(rng, n_poses=15, robot=(0.05, 0.2), sigma_px=0.3, outline
     img = [renderer.project(obj, T) + rng.normal(0.0, sigma_px, (len(obj), 2)) for T in scene.target2cam]
     f2b = perturb_poses(scene.flange2base, np.radians(robot[0]), 1e-3 * robot[1], rng)
     poses = np.array([solve_pnp(Detection(np.arange(len(obj)), p, obj), K, dist)[0] for p in img])
-    cal = handeye.calibrate_poses(f2b, poses, refine="none", check=False)
+    cal = handeye.calibrate_poses(f2b, poses, refine="none", uncertainty=False, check=False)
     return scene, f2b, poses, cal, [obj] * n_poses, img, K, dist
 
 
@@ -584,7 +584,7 @@ def test_pixel_downdate_matches_a_refit_and_drops_nothing_when_asked():
     obj = target.object_points()
     scene = scene_from_viewpoints(visible_viewpoints(10, rng, renderer, target_texture(target).outline()), "eye_in_hand", rng)
     pixels = [renderer.project(obj, T) + rng.normal(0.0, 0.3, (len(obj), 2)) for T in scene.target2cam]
-    cal = handeye.calibrate_poses(scene.flange2base, scene.target2cam, refine="none", check=False)
+    cal = handeye.calibrate_poses(scene.flange2base, scene.target2cam, refine="none", uncertainty=False, check=False)
     ref = refine_reprojection(cal.X, cal.Z, scene.flange2base, [obj] * 10, pixels, K, dist, "eye_in_hand")
     X, Z, K1, d1 = downdate_reprojection(ref, [])
     assert np.array_equal(X, ref.X) and np.array_equal(Z, ref.Z) and np.array_equal(K1, ref.K)
