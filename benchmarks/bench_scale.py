@@ -74,12 +74,18 @@ def _opencv(F, T):
     return X, mean_transform(constant_transforms(X, F, T, "eye_in_hand"))
 
 
-def sizes(counts: list[int], noise: tuple[float, float]) -> None:
-    """``calibrate-poses --out`` once on the first ``n`` poses of one scene, for each ``n``."""
-    rng = np.random.default_rng(11)
-    scene = random_scene(max(counts), rng=rng)
+def _capture(n: int, noise: tuple[float, float], seed: int):
+    """An eye-in-hand scene of ``n`` poses and its robot and camera poses with ``noise`` (deg, mm) each."""
+    rng = np.random.default_rng(seed)
+    scene = random_scene(n, rng=rng)
     F = perturb_poses(scene.flange2base, np.radians(noise[0]), 1e-3 * noise[1], rng)
     T = perturb_poses(scene.target2cam, np.radians(noise[0]), 1e-3 * noise[1], rng)
+    return scene, F, T
+
+
+def sizes(counts: list[int], noise: tuple[float, float]) -> None:
+    """``calibrate-poses --out`` once on the first ``n`` poses of one scene, for each ``n``."""
+    _, F, T = _capture(max(counts), noise, 11)
     print(f"one capture of {max(counts)} poses (robot and camera noise {noise[0]:g} deg / {noise[1]:g} mm), "
           "its first n poses:")
     verdicts = []
@@ -110,10 +116,7 @@ def others(n: int, noise: tuple[float, float], captures: int = 10) -> None:
     the capture itself, whatever its size."""
     verdicts, spans = [], []
     for seed in range(captures):
-        rng = np.random.default_rng(seed)
-        scene = random_scene(n, rng=rng)
-        F = perturb_poses(scene.flange2base, np.radians(noise[0]), 1e-3 * noise[1], rng)
-        T = perturb_poses(scene.target2cam, np.radians(noise[0]), 1e-3 * noise[1], rng)
+        _, F, T = _capture(n, noise, seed)
         cal = handeye.calibrate_poses(F, T, progress=False)
         verdicts.append(cal.verdict)
         spans.append(3 * np.linalg.norm(cal.std[3:]))
@@ -135,10 +138,7 @@ def main() -> None:
             deg, mm = (float(v) for v in level.split(","))
             sizes([int(v) for v in args.sizes.split(",")], (deg, mm))
         return
-    rng = np.random.default_rng(11)
-    scene = random_scene(args.poses, rng=rng)
-    F = perturb_poses(scene.flange2base, np.radians(0.02), 2e-4, rng)
-    T = perturb_poses(scene.target2cam, np.radians(0.02), 2e-4, rng)
+    scene, F, T = _capture(args.poses, (0.02, 0.2), 11)
     root = Path(tempfile.mkdtemp(prefix="handeye-bench-scale-"))
     try:
         folder = _folder(root, F, T)
