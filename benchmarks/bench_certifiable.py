@@ -21,8 +21,8 @@ import numpy as np
 
 import handeye
 from _timing import best_time
-from handeye.motions import MotionSet
-from handeye.setups import robot_world_inputs
+from handeye.frames.motions import MotionSet
+from handeye.frames.setups import robot_world_inputs
 from handeye.simulate import perturb_poses, random_scene
 from handeye.solvers import available, certifiable, get
 

@@ -1,4 +1,4 @@
-"""Depth cameras: X from board corners lifted to 3D from organized clouds (``handeye.depth``)
+"""Depth cameras: X from board corners lifted to 3D from organized clouds (``handeye.sensors.depth``, ``handeye.pipelines.depth``)
 against the same views through the 2D path (the intensity image's corners, PnP, handeye's
 default pose pipeline), on simulated captures with the depth camera's own errors.
 
@@ -35,11 +35,12 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.depth import calibrate_depth, calibrate_spheres, fit_sphere, lift_points, plane_points
 from handeye.errors import TargetError
-from handeye.metrics import rotation_error, translation_error
+from handeye.frames.metrics import rotation_error, translation_error
+from handeye.pipelines.depth_fit import calibrate_depth, calibrate_spheres
+from handeye.sensors.camera import Detection, solve_pnp
+from handeye.sensors.depth import fit_sphere, lift_points, plane_points
 from handeye.simulate import depth_scene, sphere_scene
-from handeye.vision import Detection, solve_pnp
 
 
 def _errors(X, truth, setup):

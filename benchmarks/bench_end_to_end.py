@@ -26,11 +26,11 @@ import yaml
 
 from _timing import best_time
 from handeye.cli import main as cli
+from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import make_transform
-from handeye.metrics import rotation_error, translation_error
-from handeye.session import load_session
+from handeye.io.session import load_session
+from handeye.sensors.camera import target_from_spec
 from handeye.simulate import simulate_session
-from handeye.vision import target_from_spec
 
 GOAL = 0.6
 BOARD = {"type": "chessboard", "cols": 28, "rows": 17, "square": 0.012}

@@ -1,4 +1,4 @@
-"""A fleet: 50 rendered sessions through :func:`handeye.fleet.calibrate_many` on a 2-worker Dask
+"""A fleet: 50 rendered sessions through :func:`handeye.workflows.fleet.calibrate_many` on a 2-worker Dask
 LocalCluster, against the plain sequential loop over the same folders (goal: <= 0.7x its wall time),
 with the same results.
 
@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 import handeye
-from handeye.fleet import calibrate_many
 from handeye.simulate import simulate_session
+from handeye.workflows.fleet import calibrate_many
 
 GOAL = 0.7
 

@@ -15,7 +15,7 @@ Timings on the same images, best of ``--repeat``:
 * ``opencv loop, handeye's calls``: the same loop with the calls handeye makes for images of this
   size (findChessboardCornersSB on the half-size pyramid level to locate the board, then the same
   call as above on the board's region of the full image; see
-  ``handeye.vision.targets.chessboard._chessboard_in_region``): the bare-OpenCV baseline for handeye's
+  ``handeye.sensors.camera.targets.chessboard._chessboard_in_region``): the bare-OpenCV baseline for handeye's
   overhead;
 * ``handeye jobs=1``: handeye's pipeline in one worker (goal: < 10% over the bare calls);
 * ``handeye jobs=N``: all cores (goal: >= 1.8x the plain loop on 2 cores).
@@ -37,11 +37,11 @@ import yaml
 
 from _timing import best_time
 from handeye.geometry.se3 import invert
-from handeye.session import load_session
+from handeye.io.session import load_session
+from handeye.sensors.camera import detect_images, solve_pnp, target_from_spec
+from handeye.sensors.camera.detect import default_jobs
+from handeye.sensors.camera.targets.chessboard import _chessboard_in_region
 from handeye.simulate import simulate_session
-from handeye.vision import detect_images, solve_pnp, target_from_spec
-from handeye.vision.detect import default_jobs
-from handeye.vision.targets.chessboard import _chessboard_in_region
 
 
 def corner_rms(found: list, truth: list) -> float:
@@ -63,7 +63,7 @@ def main() -> None:
 
 _CHILD = """
 import sys, json, cv2, numpy as np
-from handeye.vision import detect_images, solve_pnp, target_from_spec
+from handeye.sensors.camera import detect_images, solve_pnp, target_from_spec
 paths, spec, K, dist, which = json.loads(sys.stdin.read())
 target, K, dist = target_from_spec(spec), np.array(K), np.array(dist)
 if which == "handeye":

@@ -19,12 +19,12 @@ With ``--compliance DEG_PER_M`` the simulated arm's joints also give way under t
 (``compliance=True``) beside the rigid kinematic fit.
 
 With ``--planned N``, after the kinematic fit the N views
-:func:`handeye.joint_planning.suggest_joint_views` proposes (for undetermined entries, or for X when
+:func:`handeye.planning.joints.suggest_joint_views` proposes (for undetermined entries, or for X when
 the joints moved too little) are captured by the true arm and X fitted again; beside it, N more
 views of the same capture instead (the N next views drawn).
 
 With ``--rendered`` the sessions are rendered (1280x1024 images of the chessboard, the controller's
-joint angles in joints.csv), detected and fitted by :func:`handeye.checking.calibrate_folder` (as
+joint angles in joints.csv), detected and fitted by :func:`handeye.pipelines.folders.calibrate_folder` (as
 ``handeye calibrate`` does): the kinematic rows only, X's error and its coverage by 3 std.
 
 With ``--spread FACTOR`` the captures move each joint FACTOR times as far about the arm's home as
@@ -46,12 +46,12 @@ import cv2
 import numpy as np
 
 import handeye
-from handeye.checking import calibrate_folder
+from handeye.frames.metrics import rotation_error, translation_error
+from handeye.frames.setups import predicted_target2cam
 from handeye.geometry.se3 import invert, make_transform
-from handeye.joint_planning import suggest_joint_views
-from handeye.kinematics import load_arm
-from handeye.metrics import rotation_error, translation_error
-from handeye.setups import predicted_target2cam
+from handeye.pipelines.folders import calibrate_folder
+from handeye.planning.joints import suggest_joint_views
+from handeye.robot.kinematics import load_arm
 from handeye.simulate import capture_joint_views, kinematic_scene, simulate_kinematic_session
 
 OPENCV = ("TSAI", "PARK", "HORAUD", "ANDREFF", "DANIILIDIS")

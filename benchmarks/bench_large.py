@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from handeye.metrics import rotation_error, translation_error
+from handeye.frames.metrics import rotation_error, translation_error
 from handeye.simulate import simulate_session
 
 GOAL = 0.6

@@ -78,7 +78,7 @@ def main() -> None:
     args = parser.parse_args()
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     handeye = [sys.executable, "-m", "handeye.cli"]
-    subprocess.run([sys.executable, "-c", "import handeye.cli, handeye.calibration"], env=env, check=True)  # byte code
+    subprocess.run([sys.executable, "-c", "import handeye.cli, handeye.pipelines.calibration"], env=env, check=True)  # byte code
     best = {}
     with tempfile.TemporaryDirectory(prefix="handeye-bench-latency-") as root:
         warm_env = {**env, "HANDEYE_CACHE_DIR": str(Path(root) / "warm")}

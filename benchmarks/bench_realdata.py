@@ -3,7 +3,7 @@
 Per set, 5-fold cross-validation on the same folds for everyone: fit on 4/5 of the views, predict
 where the target's points appear in the other 1/5 from the robot pose alone, and compare with what
 the camera saw (pixels for image sets, millimetres at the target's distance for pose pairs; see
-handeye.validation). Rows: every OpenCV calibrateHandEye method (on the same PnP poses), handeye's
+handeye.estimation.validation). Rows: every OpenCV calibrateHandEye method (on the same PnP poses), handeye's
 default pipeline (which chooses its estimator by an inner cross-validation on the training part
 only), and each handeye estimator on its own. The ratio is against the best OpenCV method of the
 set, measured in the same run.
@@ -31,8 +31,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import numpy as np  # noqa: E402
 
 import realdata  # noqa: E402
-from handeye.estimators import pixel_candidates, pose_candidates  # noqa: E402
-from handeye.validation import cross_validate, fold_indices  # noqa: E402
+from handeye.estimation.estimators import pixel_candidates, pose_candidates  # noqa: E402
+from handeye.estimation.validation import cross_validate, fold_indices  # noqa: E402
 
 
 def bench_set(rs: realdata.RealSet, seed: int = 0) -> list[tuple[str, float, float]]:

@@ -30,10 +30,10 @@ import numpy as np
 
 import handeye
 from _timing import best_time
+from handeye.sensors.camera import Detection, solve_pnp, target_from_spec
+from handeye.sensors.camera.render import Renderer, target_texture
 from handeye.simulate import default_camera, perturb_poses, scene_from_viewpoints, visible_viewpoints
 from handeye.solvers.refine import refine_pose, refine_reprojection
-from handeye.vision import Detection, solve_pnp, target_from_spec
-from handeye.vision.render import Renderer, target_texture
 
 
 def main() -> None:

@@ -36,13 +36,13 @@ import cv2
 import numpy as np
 
 import handeye
-from handeye.calibration import calibrate_observed, observe
-from handeye.estimators import pixel_candidates, pose_candidates
+from handeye.estimation.estimators import pixel_candidates, pose_candidates
+from handeye.estimation.validation import Views
+from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import invert, make_transform
-from handeye.metrics import rotation_error, translation_error
-from handeye.session import load_session
+from handeye.io.session import load_session
+from handeye.pipelines.calibration import calibrate_observed, observe
 from handeye.simulate import REALISTIC, realistic_scene, robot_accuracy_of, simulate_realistic_session
-from handeye.validation import Views
 
 OPENCV = ("TSAI", "PARK", "HORAUD", "ANDREFF", "DANIILIDIS")
 

@@ -9,7 +9,7 @@ OpenCV's Daniilidis on the same poses.
 of each: the verdict must not change with the size. One capture per ``--noise`` level (default
 three: 0.01 deg / 0.1 mm, 0.02 / 0.2 and 0.05 / 0.5, robot and camera alike). The std of X does not
 shrink with the poses: it holds the robot's absolute accuracy, raised from pose pairs to 3x their
-disagreement (``handeye.calibration.UNSEEN_FACTOR``), which no number of poses removes; at 0.02 deg /
+disagreement (``handeye.pipelines.calibration.UNSEEN_FACTOR``), which no number of poses removes; at 0.02 deg /
 0.2 mm its 3 std lands on the 5 mm line between good and weak (5.0 +- 0.1 mm at every size), so the
 verdict there turns on the third digit of a data-derived number, while at the other levels (2.5 mm,
 12.5 mm) it is the same at every size. Each level then calibrates 10 other captures of 100 poses at
@@ -44,10 +44,10 @@ import yaml
 import handeye
 from _timing import best_time
 from handeye.cli import main as cli
+from handeye.frames.metrics import rotation_error, translation_error
+from handeye.frames.setups import constant_transforms
 from handeye.geometry.se3 import make_transform, mean_transform
-from handeye.metrics import rotation_error, translation_error
-from handeye.session import write_pose_table
-from handeye.setups import constant_transforms
+from handeye.io.session import write_pose_table
 from handeye.simulate import perturb_poses, random_scene
 
 GOAL_S = 5.0

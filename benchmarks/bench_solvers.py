@@ -32,10 +32,10 @@ import numpy as np
 
 import handeye
 from _timing import best_time
+from handeye.frames.motions import MotionSet, validate_poses
+from handeye.frames.poses import validate_transform_pair
+from handeye.frames.setups import constant_transforms, robot_world_inputs
 from handeye.geometry.se3 import make_transform, mean_transform
-from handeye.motions import MotionSet, validate_poses
-from handeye.poses import validate_transform_pair
-from handeye.setups import constant_transforms, robot_world_inputs
 from handeye.simulate import random_scene
 from handeye.solvers import get, solve_motions, solve_robot_world
 from handeye.solvers.observability import check_observability

@@ -25,7 +25,7 @@ import numpy as np
 import handeye
 from _timing import best_time
 from handeye.simulate import Noise, add_noise, seed_scenes
-from handeye.study import _motions, preset, study, write_study
+from handeye.workflows.study import _motions, preset, study, write_study
 
 CV_NAMESAKES = {"tsai_lenz", "park_martin", "horaud", "daniilidis", "andreff", "shah", "li"}
 

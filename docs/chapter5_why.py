@@ -10,12 +10,12 @@ assembly taken literally. Experiments only: not part of the package.
 import numpy as np
 from scipy.spatial.transform import Rotation
 from handeye.simulate import seed_scenes
-from handeye.study import pose_errors, _motions
+from handeye.workflows.study import pose_errors, _motions
 from handeye.geometry.dualquat import dq_from_matrix, dq_to_matrix
 from handeye.solvers import solve_batch
-from handeye.motions import _align_signs
+from handeye.frames.motions import _align_signs
 from handeye.solvers.daniilidis import _blocks
-from handeye.motions import MotionSet
+from handeye.frames.motions import MotionSet
 
 def dan_dtype(A, B, dtype, unit=1.0):
     A = A.copy(); B = B.copy(); A[..., :3, 3] *= unit; B[..., :3, 3] *= unit

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from handeye.poses import format_poses, pose_columns
+from handeye.frames.poses import format_poses, pose_columns
 from handeye.simulate import REALISTIC, realistic_scene
 
 OUT = Path(__file__).resolve().parents[1] / "src" / "handeye" / "data" / "example_posepairs"

@@ -1,8 +1,8 @@
-"""The real captures in ../shared/data/real, read into :class:`handeye.validation.Views`.
+"""The real captures in ../shared/data/real, read into :class:`handeye.estimation.validation.Views`.
 
 Used by the real-data tests and by ``benchmarks/bench_realdata.py``. Image sets become session
 folders (images linked, never copied) in a scratch folder the caller owns, then go through
-:func:`handeye.calibration.observe` (detection, PnP, symmetric targets), as ``handeye calibrate``
+:func:`handeye.pipelines.calibration.observe` (detection, PnP, symmetric targets), as ``handeye calibrate``
 does. Each loader says how its files are read; the ABOUT.md of each set gives the conventions.
 """
 
@@ -17,11 +17,11 @@ import yaml
 from scipy.spatial.transform import Rotation, Slerp
 
 import handeye
-from handeye.calibration import Observations, calibrate_observed, observe
+from handeye.estimation.validation import Fit, Views
+from handeye.frames.setups import constant_transforms
 from handeye.geometry.se3 import from_rotvec_translation, invert, make_transform, mean_transform
-from handeye.session import load_session, write_session
-from handeye.setups import constant_transforms
-from handeye.validation import Fit, Views
+from handeye.io.session import load_session, write_session
+from handeye.pipelines.calibration import Observations, calibrate_observed, observe
 
 REAL_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
 
@@ -35,7 +35,7 @@ class RealSet:
 
     name: str
     views: Views
-    observations: Observations | None = None  #: what handeye.calibration.observe made of the images
+    observations: Observations | None = None  #: what handeye.pipelines.calibration.observe made of the images
 
 
 def _session(scratch: Path, setup, target, K, names, images, flange2base) -> Path:
@@ -121,8 +121,8 @@ def tabb() -> RealSet:
     base2hand[:, :3, :] = Bm.reshape(-1, 3, 4)
     base2hand[:, :3, 3] /= 1e3
     t2c = make_transform(Am[:, :9].reshape(-1, 3, 3), Am[:, 9:] / 1e3)
-    f2b = handeye.poses.validate_transforms(invert(base2hand))
-    return RealSet("tabb_ds1", Views(f2b, handeye.poses.validate_transforms(t2c), "eye_in_hand"))
+    f2b = handeye.frames.poses.validate_transforms(invert(base2hand))
+    return RealSet("tabb_ds1", Views(f2b, handeye.frames.poses.validate_transforms(t2c), "eye_in_hand"))
 
 
 def eth(step: int = 15) -> RealSet:

@@ -16,7 +16,16 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handeye.acquire import (
+from handeye.cli import main
+from handeye.errors import HandEyeError
+from handeye.frames.setups import flange_poses, predicted_target2cam
+from handeye.geometry.se3 import invert, make_transform, to_rotvec_translation
+from handeye.io.session import load_session
+from handeye.pipelines.verify import NOT_THIS, verify
+from handeye.planning.poses import candidate_views, plan_poses
+from handeye.sensors.camera.pnp import project_points
+from handeye.sensors.camera.targets import target_from_spec
+from handeye.workflows.acquire import (
     FolderCamera,
     GenICamCamera,
     ManualRobot,
@@ -30,15 +39,6 @@ from handeye.acquire import (
     make_camera,
     make_robot,
 )
-from handeye.cli import main
-from handeye.errors import HandEyeError
-from handeye.geometry.se3 import invert, make_transform, to_rotvec_translation
-from handeye.planning import candidate_views, plan_poses
-from handeye.session import load_session
-from handeye.setups import flange_poses, predicted_target2cam
-from handeye.verification import NOT_THIS, verify
-from handeye.vision.pnp import project_points
-from handeye.vision.targets import target_from_spec
 
 ROUGH = make_transform(Rotation.from_rotvec(np.radians([1.5, -1.0, 1.0])).as_matrix(), [0.01, -0.008, 0.005])
 

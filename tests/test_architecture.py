@@ -12,21 +12,29 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "handeye"
 
-#: Floors from the ground up (DESIGN §3): a module imports only from lower floors, or from its own
-#: package. Keys are top-level modules or subpackages of handeye.
+#: Floors from the ground up (README, "Layout"): a module imports only from lower floors, or from its own
+#: package. Keys are the top-level modules and packages of handeye, each on a floor of its own.
 FLOORS = {
     "errors": 1, "_version": 1,
     "geometry": 2, "_shared": 2,
-    "setups": 3, "poses": 3, "metrics": 3, "kinematics": 3, "urdf": 3.5,
-    "vision": 4, "motions": 4,
-    "session": 5, "solvers": 5, "printing": 5,
-    "result": 6, "simulate": 6, "importers": 6,
-    "diagnostics": 7, "validation": 7, "estimators": 7.5, "partial": 7.5, "sync": 7.5, "options": 7.6, "verdict": 7.6,
-    "calibration": 8, "streams": 8.6, "depth": 8.5, "verification": 8.5, "checking": 8.7, "joint_calibration": 8.5,
-    "report": 9, "fleet": 9.5,
-    "planning": 10, "joint_planning": 10, "study": 10, "acquire": 10.5,
-    "cli": 11, "": 11,  # "" is handeye/__init__.py, the public face
+    "frames": 3,
+    "robot": 4,
+    "sensors": 5,
+    "solvers": 6,
+    "options": 7,
+    "result": 8,
+    "estimation": 9,
+    "io": 10,
+    "simulate": 11,
+    "pipelines": 12,
+    "report": 13,
+    "planning": 14,
+    "workflows": 15,
+    "cli": 16,
+    "": 17,  # "" is handeye/__init__.py, the public face
 }
+#: The modules at the package's root (the rest live in folders named for what they hold).
+ROOT_MODULES = {"__init__", "errors", "_version", "options", "result"}
 
 
 def _module_name(path: Path) -> str:
@@ -86,6 +94,17 @@ def _package(name: str) -> str:
 
 def test_every_module_has_a_floor():
     assert {_top(m) for m in MODULES} <= set(FLOORS), sorted({_top(m) for m in MODULES} - set(FLOORS))
+    assert all(isinstance(f, int) for f in FLOORS.values())
+
+
+def test_few_modules_at_the_root_and_a_folder_for_each_domain():
+    """A newcomer finds the robot, the sensors, the solvers, the estimation, the pipelines, the files
+    and the workflows by their folder names; at most six modules stay at the root."""
+    root = {p.stem for p in SRC.glob("*.py")}
+    assert root == ROOT_MODULES and len(root) <= 6, sorted(root)
+    folders = {p.name for p in SRC.iterdir() if p.is_dir() and (p / "__init__.py").is_file()}
+    assert {"frames", "geometry", "robot", "sensors", "solvers", "estimation", "io", "pipelines", "report",
+            "planning", "workflows", "simulate", "cli"} <= folders, sorted(folders)
 
 
 def test_imports_go_down_the_floors():
@@ -181,7 +200,7 @@ def test_setup_branches_live_in_setups():
     """What differs between eye-in-hand and eye-to-hand is decided in setups.py alone."""
     found = []
     for name, path in MODULES.items():
-        if name == "handeye.setups":
+        if name == "handeye.frames.setups":
             continue
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.Compare) and any(isinstance(c, ast.Constant) and c.value in ("eye_in_hand", "eye_to_hand")
@@ -243,12 +262,12 @@ def test_the_command_line_is_one_module_per_command():
 
 
 def test_a_target_type_is_one_module_and_one_registration():
-    """vision/targets/ holds one module per target type, each defining one Target class that the
+    """sensors/camera/targets/ holds one module per target type, each defining one Target class that the
     registry knows; nothing else in the package switches on a target's class or type name (the
     renderer, the printer and `handeye target` ask the class)."""
-    from handeye.vision import targets
+    from handeye.sensors.camera import targets
 
-    folder = SRC / "vision" / "targets"
+    folder = SRC / "sensors" / "camera" / "targets"
     modules = sorted(p.stem for p in folder.glob("*.py") if p.stem not in ("__init__", "base"))
     registered = {cls.__module__.rsplit(".", 1)[1]: cls for cls in (targets.target_from_spec.__globals__["_REGISTRY"]).values()}
     assert sorted(registered) == modules
@@ -260,7 +279,7 @@ def test_a_target_type_is_one_module_and_one_registration():
     kinds = set(targets.target_types())
     switches = []
     for name, path in MODULES.items():
-        if name.startswith("handeye.vision.targets"):
+        if name.startswith("handeye.sensors.camera.targets"):
             continue
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "isinstance":
@@ -270,3 +289,23 @@ def test_a_target_type_is_one_module_and_one_registration():
                                                      for c in node.comparators + [node.left]):
                 switches.append(f"{name}:{node.lineno} compares with a target type")
     assert not switches, "\n".join(switches)
+
+
+@pytest.mark.parametrize("old", ["handeye.calibration", "handeye.vision.targets", "handeye.depth", "handeye.kinematics"])
+def test_moved_modules_import_from_their_old_path_with_a_deprecation_warning(old):
+    """One release of grace: the old path imports, warns where to import from, and forwards every name."""
+    code = (f"import warnings; warnings.simplefilter('error')\n"
+            f"try:\n    import {old}\nexcept DeprecationWarning as w:\n    print('warned', w)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    parent = old.rsplit(".", 1)[0] if old.count(".") > 1 else old  # an old package's path warns first
+    assert out.startswith(f"warned {parent} has moved: import from handeye."), out
+    with pytest.warns(DeprecationWarning):
+        module = __import__(old, fromlist=["_"])
+    from handeye import MOVED
+
+    for target in MOVED[old]:
+        new = __import__(target, fromlist=["_"])
+        for name in getattr(new, "__all__", []):
+            assert getattr(module, name) is getattr(new, name), (old, name)
+    with pytest.raises(AttributeError, match="moved to"):
+        module.no_such_name  # noqa: B018

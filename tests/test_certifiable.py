@@ -14,9 +14,9 @@ pytest.importorskip("cvxpy")
 import handeye  # noqa: E402
 from handeye.cli import main  # noqa: E402
 from handeye.errors import HandEyeError  # noqa: E402
+from handeye.frames.motions import MotionSet  # noqa: E402
+from handeye.frames.setups import robot_world_inputs  # noqa: E402
 from handeye.geometry.se3 import make_transform  # noqa: E402
-from handeye.motions import MotionSet  # noqa: E402
-from handeye.setups import robot_world_inputs  # noqa: E402
 from handeye.simulate import perturb_poses, random_scene  # noqa: E402
 from handeye.solvers import available, certifiable, get  # noqa: E402
 

@@ -16,8 +16,8 @@ import yaml
 
 import handeye
 from handeye.cli import main
-from handeye.metrics import rotation_error, translation_error
-from handeye.session import load_pose_pairs
+from handeye.frames.metrics import rotation_error, translation_error
+from handeye.io.session import load_pose_pairs
 
 EXAMPLE = Path(handeye.__file__).parent / "data" / "example_posepairs"
 
@@ -85,7 +85,7 @@ def test_check_then_calibrate_detects_once(tmp_path, monkeypatch, capsys):
     """The command line keeps detections in the user's cache folder: ``check`` then ``calibrate`` on
     the same images detects once, and X is the same to the last bit as with ``--no-cache`` (which
     neither reads nor writes the cache); the environment is left as it was."""
-    from handeye.vision import detect
+    from handeye.sensors.camera import detect
 
     monkeypatch.delenv("HANDEYE_CACHE_DIR", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))

@@ -10,9 +10,9 @@ from scipy.spatial.transform import Rotation
 import handeye
 from conftest import require_real
 from handeye import DegenerateMotionError, InputMismatchError
+from handeye.frames.metrics import rotation_error, translation_error
+from handeye.frames.motions import MotionSet
 from handeye.geometry.se3 import from_rotvec_translation, invert, make_transform
-from handeye.metrics import rotation_error, translation_error
-from handeye.motions import MotionSet
 from handeye.simulate import perturb_poses, random_scene
 from handeye.solvers import daniilidis
 

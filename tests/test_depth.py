@@ -6,10 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from handeye.depth import board_pose, calibrate_depth, check_cloud, lift_points, plane_points
 from handeye.errors import InputMismatchError
+from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import make_transform
-from handeye.metrics import rotation_error, translation_error
+from handeye.pipelines.depth_fit import calibrate_depth
+from handeye.sensors.depth import board_pose, check_cloud, lift_points, plane_points
 from handeye.simulate import depth_scene
 
 

@@ -13,18 +13,13 @@ import pytest
 import yaml
 
 from handeye.cli import main
-from handeye.depth import (
-    calibrate_depth_session,
-    calibrate_spheres,
-    check_frame,
-    find_spheres,
-    fit_sphere,
-    load_depth_session,
-    read_cloud,
-)
 from handeye.errors import DegenerateMotionError, InputMismatchError, TargetError
+from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import invert, make_transform
-from handeye.metrics import rotation_error, translation_error
+from handeye.io.depth_session import load_depth_session
+from handeye.pipelines.depth import calibrate_depth_session
+from handeye.pipelines.depth_fit import calibrate_spheres
+from handeye.sensors.depth import check_frame, find_spheres, fit_sphere, read_cloud
 from handeye.simulate import depth_scene, sphere_scene, write_depth_session
 
 

@@ -8,10 +8,10 @@ from scipy.spatial.transform import Rotation
 
 import handeye
 import realdata
-from handeye.diagnostics import RobotPoseInput, diagnose
+from handeye.estimation.diagnostics import RobotPoseInput, diagnose
+from handeye.frames.metrics import translation_error
+from handeye.frames.poses import format_poses, parse_poses
 from handeye.geometry.se3 import invert, make_transform, random_rotations
-from handeye.metrics import translation_error
-from handeye.poses import format_poses, parse_poses
 from handeye.simulate import perturb_poses, random_scene
 
 SCENES = 50
@@ -206,9 +206,9 @@ def test_public_name_and_check_command(tmp_path, capsys):
 
 def _leave_one_out_by_loop(flange2base, target2cam, setup):
     """The definition: a new Daniilidis solve per left-out pose (inf when it is refused)."""
-    from handeye.diagnostics import _solve
     from handeye.errors import HandEyeError
-    from handeye.metrics import rotation_error
+    from handeye.estimation.diagnostics import _solve
+    from handeye.frames.metrics import rotation_error
 
     X = _solve(flange2base, target2cam, setup)
     out = np.empty((len(flange2base), 2))
@@ -228,7 +228,7 @@ def test_leave_one_out_in_one_batch_equals_the_loop(setup):
     """diagnose's leave-one-out subtracts each pose's motions from the Daniilidis moment sum and
     checks observability per run, all poses in one batch: the same moves as a solve per pose,
     and inf for the same poses (a pose that alone gives the second rotation axis)."""
-    from handeye.diagnostics import _leave_one_out
+    from handeye.estimation.diagnostics import _leave_one_out
     from handeye.geometry.se3 import from_rotvec_translation
 
     rng = np.random.default_rng(4)
@@ -250,7 +250,7 @@ def test_leave_one_out_in_one_batch_equals_the_loop(setup):
     got = _leave_one_out(flange2base, target2cam, setup, np.ones(n, bool))
     want = _leave_one_out_by_loop(flange2base, target2cam, setup)
     assert np.isinf(got[5]).all() and np.isinf(want[5]).all()
-    from handeye.motions import MotionSet
+    from handeye.frames.motions import MotionSet
     from handeye.solvers.daniilidis import motion_groups
     from handeye.solvers.observability import observable_leave_one_out
 
@@ -267,8 +267,8 @@ def test_leave_one_out_observability_reads_no_uninitialised_memory(monkeypatch):
     the largest rotation of a run was whatever the allocator handed back, and a run that leaves X
     undetermined passed as observable about one time in six. Here every np.empty comes back full of
     large numbers (the worst memory can hold): the answer must not change."""
+    from handeye.frames.motions import MotionSet
     from handeye.geometry.se3 import from_rotvec_translation
-    from handeye.motions import MotionSet
     from handeye.solvers.daniilidis import motion_groups
     from handeye.solvers.observability import observable_leave_one_out
 
@@ -293,8 +293,8 @@ def test_leave_one_out_observability_matches_the_check_on_each_subset():
     """All poses at once (counting the motions that pass each test) against check_observability on
     the motions left after dropping each pose, on random, one-axis-but-a-few and small-rotation poses."""
     from handeye.errors import DegenerateMotionError
+    from handeye.frames.motions import MotionSet
     from handeye.geometry.se3 import from_rotvec_translation
-    from handeye.motions import MotionSet
     from handeye.solvers.daniilidis import motion_groups
     from handeye.solvers.observability import check_observability, observable_leave_one_out
 

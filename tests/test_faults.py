@@ -28,10 +28,10 @@ import yaml
 import handeye
 from handeye.cli import main
 from handeye.errors import HandEyeError
+from handeye.estimation.verdict import EXIT_STATUS
+from handeye.io.session import load_pose_pairs, load_session, write_pose_table
 from handeye.report import write_calibration
-from handeye.session import load_pose_pairs, load_session, write_pose_table
 from handeye.simulate import random_scene, simulate_session
-from handeye.verdict import EXIT_STATUS
 
 EXAMPLE = Path(handeye.__file__).parent / "data" / "example_posepairs"
 
@@ -187,7 +187,7 @@ def translations_on_a_line(folder: Path) -> None:
 
 
 def _rewrite_posepairs(folder: Path, X, Z, flange2base) -> None:
-    from handeye.setups import predicted_target2cam
+    from handeye.frames.setups import predicted_target2cam
     F = np.array(flange2base)
     T = predicted_target2cam(X, Z, F, "eye_in_hand")
     names = [f"p{k}" for k in range(len(F))]
@@ -610,7 +610,7 @@ def test_thousand_pose_pairs_in_bounded_time(tmp_path, capsys):
     measured here, a guard against quadratic work, not a speed goal (benchmarks/bench_scale.py)."""
     import time
 
-    from handeye.metrics import rotation_error, translation_error
+    from handeye.frames.metrics import rotation_error, translation_error
     from handeye.simulate import perturb_poses
 
     rng = np.random.default_rng(11)

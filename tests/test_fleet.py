@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from handeye.cli import main
-from handeye.fleet import calibrate_many
 from handeye.simulate import simulate_session
+from handeye.workflows.fleet import calibrate_many
 
 
 @pytest.fixture(scope="module")

@@ -12,8 +12,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from handeye import HandEyeError, parse_poses
-from handeye.poses import format_poses, pose_columns, validate_transforms
-from handeye.session import load_yaml, read_pose_table
+from handeye.frames.poses import format_poses, pose_columns, validate_transforms
+from handeye.io.session import load_yaml, read_pose_table
 
 FORMATS = ["matrix", "quat_wxyz", "quat_xyzw", "rotvec", "euler:ZYX", "euler:xyz", "euler:XYX", "euler:zyz"]
 formats = st.one_of(st.sampled_from(FORMATS), st.text(max_size=12),

@@ -14,10 +14,10 @@ import handeye
 from conftest import require_real
 from handeye.cli import main
 from handeye.errors import HandEyeError, InputMismatchError
+from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import invert, make_transform
-from handeye.importers import import_easy_handeye, import_industrial_calibration, import_visp
-from handeye.metrics import rotation_error, translation_error
-from handeye.session import load_pose_pairs, load_session
+from handeye.io.importers import import_easy_handeye, import_industrial_calibration, import_visp
+from handeye.io.session import load_pose_pairs, load_session
 from handeye.simulate import random_scene
 
 

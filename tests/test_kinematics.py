@@ -19,16 +19,17 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import handeye
-import handeye.importers
+import handeye.io.importers
 from handeye.cli import main
 from handeye.cli._printing import print_next_views
 from handeye.errors import InputMismatchError, SessionError
-from handeye.joint_calibration import along_parallel_axes
-from handeye.joint_planning import TABLE_DOMINATES, suggest_joint_views
-from handeye.kinematics import absorbed_parameters, arm_names, load_arm
-from handeye.metrics import rotation_error, translation_error
-from handeye.session import load_camera_stream, load_joint_stream, load_session, write_joint_session, write_pose_table
-from handeye.setups import predicted_target2cam
+from handeye.frames.metrics import rotation_error, translation_error
+from handeye.frames.setups import predicted_target2cam
+from handeye.io.session import load_camera_stream, load_joint_stream, load_session, write_joint_session, write_pose_table
+from handeye.pipelines.joints import along_parallel_axes
+from handeye.planning.joints import TABLE_DOMINATES, suggest_joint_views
+from handeye.robot.kinematics import absorbed_parameters, arm_names, load_arm
+from handeye.robot.urdf import chain_from_urdf, chain_urdf
 from handeye.simulate import (
     arm_forward_kinematics,
     capture_joint_views,
@@ -37,7 +38,6 @@ from handeye.simulate import (
     simulate_kinematic_session,
     simulate_session,
 )
-from handeye.urdf import chain_from_urdf, chain_urdf
 
 
 def test_the_arms_tables_and_their_forward_kinematics():
@@ -273,11 +273,11 @@ def test_simulate_and_calibrate_a_joint_session_from_the_command_line(tmp_path):
     # handeye.calibrate (the image pipeline) takes the nominal flange poses, and says where the joint fit is
     black = handeye.calibrate(session, progress=False)
     assert black.kinematic is None and any("took the flange poses the controller reported as a black box; "
-                                           "handeye.checking.calibrate_folder" in n for n in black.notes)
-    with pytest.raises(InputMismatchError, match="compliance=True .*handeye.checking.calibrate_folder"):
+                                           "handeye.pipelines.folders.calibrate_folder" in n for n in black.notes)
+    with pytest.raises(InputMismatchError, match="compliance=True .*handeye.pipelines.folders.calibrate_folder"):
         handeye.calibrate(session, progress=False, compliance=True)
     # a fleet calibrates a joint session as calibrate does: with the arm's table
-    from handeye.fleet import calibrate_many
+    from handeye.workflows.fleet import calibrate_many
 
     item = calibrate_many([session], tmp_path / "fleet", jobs=1, progress=False)[0]
     fleet = json.loads((Path(item.out) / "result.json").read_text())
@@ -362,8 +362,8 @@ def test_the_arm_given_on_the_command_line_replaces_session_yamls(tmp_path, monk
     """--arm (``arm=``) reads the joint angles with another arm than session.yaml names (a table
     file relative to the current folder, noted); with the wrong arm the check names it; a session
     without joint angles, and poses alone, refuse it with the reason, before any image work."""
-    from handeye.kinematics import chain_yaml
     from handeye.options import CalibrationOptions
+    from handeye.robot.kinematics import chain_yaml
 
     sc, folder = _joint_session(tmp_path)
     monkeypatch.chdir(tmp_path)
@@ -456,7 +456,7 @@ def test_a_bags_joint_states_become_a_joint_session(tmp_path, capsys):
     assert np.abs(imported.joints - sc.joints).max() < 1e-9 and imported.arm.name == "UR5"
     assert any("taken in UR5's order" in n for n in imported.notes)
     with pytest.raises(InputMismatchError, match="joint_topic with image_topic needs arm"):
-        handeye.importers.import_rosbag(bag, tmp_path / "x", image_topic="/image", target=session.target_spec,
+        handeye.io.importers.import_rosbag(bag, tmp_path / "x", image_topic="/image", target=session.target_spec,
                                         joint_topic="/joint_states")
     # the joint states and a pose topic: the two streams of calibrate-streams --arm, read back as written
     streams = tmp_path / "streams"
@@ -470,7 +470,7 @@ def test_a_bags_joint_states_become_a_joint_session(tmp_path, capsys):
                                                streams)
     assert np.abs(t_cam - image_times).max() < 1e-9 and np.abs(target2cam - sc.target2cam).max() < 1e-9
     with pytest.raises(InputMismatchError, match="names 6 joints .*; panda has 7"):
-        handeye.importers.import_rosbag(bag, tmp_path / "y", camera_pose_topic="/target_pose",
+        handeye.io.importers.import_rosbag(bag, tmp_path / "y", camera_pose_topic="/target_pose",
                                         joint_topic="/joint_states", arm="panda")
     assert not (tmp_path / "y" / "joints.csv").exists()
 
@@ -630,7 +630,7 @@ def test_moment_arms_are_the_torque_of_a_load_at_the_flange():
     virtual work, gravity's direction dotted with the flange's velocity per joint (both conventions,
     another gravity too); a compliant chain turns each joint by compliance x moment arm, and its
     YAML table keeps the compliance and the gravity."""
-    from handeye.kinematics import _chain_from_yaml, chain_yaml
+    from handeye.robot.kinematics import _chain_from_yaml, chain_yaml
 
     rng = np.random.default_rng(4)
     for name, gravity in (("ur5", (0, 0, -1)), ("panda", (0, 0, -1)), ("irb120", (1, 0, 0))):
@@ -685,15 +685,15 @@ def test_calibrate_streams_takes_a_joint_recording(tmp_path, capsys):
     """A UR5 1-3 mm off its table recorded as it moves for 40 s: joint angles at 100 Hz, the camera's
     poses at 15 Hz on a clock 37 ms ahead (1 ms jitter). `handeye calibrate-streams joints.csv
     camera.csv --arm ur5 --robot-units m,deg` (the robot file: a time, then the joint angles named as
-    the arm's joints, in another order; handeye.streams.calibrate_joint_streams) finds the offset
+    the arm's joints, in another order; handeye.pipelines.streams.calibrate_joint_streams) finds the offset
     within 1 ms and fits X with the arm's table on keyframes where the arm moves slowly: X within
     0.3 mm / 0.05 deg, where the black box on the same streams (calibrate_streams on the nominal
     table's flange poses) is 2x further or more (measured 0.38 mm against 0.11). --robot-format and
     --arm together, or neither, --compliance or --pendant-joints without --arm, and --robot-pose with
     --arm are refused."""
-    from handeye.session import write_pose_stream
+    from handeye.io.session import write_pose_stream
+    from handeye.pipelines.streams import calibrate_joint_streams
     from handeye.simulate import joint_stream_scene
-    from handeye.streams import calibrate_joint_streams
 
     sc = joint_stream_scene(40.0, "eye_in_hand", 1, arm="ur5")
     names = list(load_arm("ur5").joint_names)

@@ -16,9 +16,9 @@ from scipy.spatial.transform import Rotation
 import handeye
 from handeye.cli import main
 from handeye.errors import InputMismatchError
-from handeye.motions import MotionSet
-from handeye.poses import format_poses
-from handeye.setups import setup_info
+from handeye.frames.motions import MotionSet
+from handeye.frames.poses import format_poses
+from handeye.frames.setups import setup_info
 from handeye.simulate import low_dof_scene, realistic_scene
 from handeye.solvers.low_dof import motion_kind, solve_low_dof
 
@@ -199,9 +199,9 @@ def test_rendered_scara_session_calibrates_with_known(tmp_path):
 
 @pytest.mark.parametrize("robot", ["scara", "cartesian"])
 def test_plan_for_robots_that_cannot_rotate_freely(robot, tmp_path, capsys):
-    from handeye.planning import plan_poses
+    from handeye.planning.poses import plan_poses
+    from handeye.sensors.camera.targets import target_from_spec
     from handeye.simulate import DEFAULT_TARGETS, default_camera
-    from handeye.vision.targets import target_from_spec
 
     obj = target_from_spec(DEFAULT_TARGETS["chessboard"]).object_points()
     K, dist = default_camera((1280, 1024))
@@ -219,7 +219,7 @@ def test_plan_for_robots_that_cannot_rotate_freely(robot, tmp_path, capsys):
         assert np.isinf(plan.std_X[5]) and np.isfinite(plan.std_X[:5]).all()
         assert plan.unobservable == ["translation of cam2flange along the flange z axis"]
     # the planned poses calibrate to the part of X they determine
-    t2c = handeye.setups.predicted_target2cam(X, Z, plan.flange2base, "eye_in_hand")
+    t2c = handeye.frames.setups.predicted_target2cam(X, Z, plan.flange2base, "eye_in_hand")
     cal = handeye.calibrate_poses(plan.flange2base, t2c)
     assert cal.verdict == "partial" and np.abs(cal.X[:3, :3] - X[:3, :3]).max() < 1e-9
 

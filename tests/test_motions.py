@@ -7,8 +7,8 @@ import pytest
 
 import handeye
 from handeye import InputMismatchError, PoseFormatError, relative_motions
+from handeye.frames.motions import MotionSet, pair_indices, screw_congruence
 from handeye.geometry.se3 import invert
-from handeye.motions import MotionSet, pair_indices, screw_congruence
 from handeye.simulate import random_scene
 
 
@@ -98,7 +98,7 @@ def test_screw_congruence_zero_for_consistent_and_large_for_wrong_convention():
     assert answered.verdict == "inconsistent" and answered.diagnostics.convention_hint == "invert_robot_poses"
     assert any("robot poses are inverted" in n for n in answered.notes)
     # Euler sequence mixed up: the rotation angles no longer match.
-    from handeye.poses import format_poses, parse_poses
+    from handeye.frames.poses import format_poses, parse_poses
 
     wrong = parse_poses(format_poses(s.flange2base, "euler:ZYX"), "euler:XYZ")
     dth, dd = screw_congruence(*relative_motions(wrong, s.target2cam))
@@ -109,7 +109,7 @@ def test_calibrate_poses_accepts_explicit_pairs():
     s = random_scene(6, "eye_in_hand", rng=5)
     cal = handeye.calibrate_poses(s.flange2base, s.target2cam, pairs=np.array([[0, 1], [1, 2], [0, 5]]), refine="none")
     assert cal.pairs.tolist() == [[0, 1], [1, 2], [0, 5]]
-    assert handeye.metrics.rotation_error(cal.X, s.X) < 1e-9
+    assert handeye.frames.metrics.rotation_error(cal.X, s.X) < 1e-9
 
 
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])

@@ -10,10 +10,12 @@ from scipy.spatial.transform import Rotation
 
 import realdata
 from handeye.cli import main
-from handeye.diagnostics import diagnose
 from handeye.errors import HandEyeError
+from handeye.estimation.diagnostics import diagnose
+from handeye.frames.poses import parse_poses
 from handeye.geometry.se3 import invert, make_transform
-from handeye.planning import (
+from handeye.io.session import read_pose_table
+from handeye.planning.poses import (
     easy_handeye_poses,
     fronto_parallel_start,
     order_path,
@@ -23,12 +25,10 @@ from handeye.planning import (
     simulate_errors,
     visible_mask,
 )
-from handeye.poses import parse_poses
-from handeye.session import read_pose_table
+from handeye.sensors.camera.pnp import project_points
+from handeye.sensors.camera.targets import target_from_spec
 from handeye.simulate import DEFAULT_TARGETS, default_camera
 from handeye.solvers.refine import predicted_target2cam
-from handeye.vision.pnp import project_points
-from handeye.vision.targets import target_from_spec
 
 SIZE = (1280, 1024)
 K, DIST = default_camera(SIZE)
@@ -190,8 +190,8 @@ def test_cli_writes_poses_in_the_robot_format(tmp_path, camera_yaml, capsys):
     assert F.shape == (8, 4, 4)
     assert np.abs(F - plan.flange2base).max() < 1e-9  # the same plan, written and read back exactly
     # the std calibrate would report: the pixels' part plus the robot's accuracy, as calibrate adds it
-    from handeye.calibration import robot_accuracy_cov
-    from handeye.metrics import std_deg_mm
+    from handeye.frames.metrics import std_deg_mm
+    from handeye.pipelines.calibration import robot_accuracy_cov
     assert np.allclose(plan.std_reported, std_deg_mm(plan.cov_X + robot_accuracy_cov(X, (0.03, 0.3))))
     assert np.all(plan.std_reported[3:] >= 0.3) and np.all(plan.std_X[3:] < 0.3)
     line = next(t for t in text.splitlines() if t.startswith("predicted std of X as calibrate would report it"))

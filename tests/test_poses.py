@@ -7,8 +7,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from handeye import PoseFormatError, format_poses, parse_poses
+from handeye.frames.poses import pose_columns
 from handeye.geometry.se3 import make_transform, random_rotations
-from handeye.poses import pose_columns
 
 FORMATS = ["matrix", "quat_wxyz", "quat_xyzw", "rotvec", "euler:ZYX", "euler:xyz", "euler:ZYZ", "euler:zxy"]
 
@@ -134,7 +134,7 @@ def test_transform_pair_validated_in_one_pass_as_one_by_one(rng):
     """validate_transform_pair: the one-pass check (exact rotations) and the one-by-one fallback
     give what validate_transforms gives each stack; every failure still names its stack and entry."""
     from handeye import InputMismatchError
-    from handeye.poses import _rotations_exact, validate_transform_pair, validate_transforms
+    from handeye.frames.poses import _rotations_exact, validate_transform_pair, validate_transforms
 
     A = make_transform(random_rotations(6, rng), rng.normal(size=(6, 3)))
     B = make_transform(random_rotations(6, rng), rng.normal(size=(6, 3)))

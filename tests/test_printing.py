@@ -20,11 +20,11 @@ import yaml
 import handeye
 from handeye.cli import TARGET_KINDS, main
 from handeye.errors import HandEyeError
-from handeye.printing import board_size_mm, largest_square_mm, scaled_spec, target_page, write_target
+from handeye.sensors.camera import solve_pnp
+from handeye.sensors.camera.printing import board_size_mm, largest_square_mm, scaled_spec, target_page, write_target
+from handeye.sensors.camera.render import Renderer, target_texture
+from handeye.sensors.camera.targets import Detection, Target, Texture, target_from_spec
 from handeye.simulate import default_camera, look_at
-from handeye.vision import solve_pnp
-from handeye.vision.render import Renderer, target_texture
-from handeye.vision.targets import Detection, Target, Texture, target_from_spec
 
 PX_PER_MM = 8.0
 
@@ -202,7 +202,7 @@ def test_a_new_target_type_is_one_class_and_its_registration(tmp_path, capsys):
     """A target type handeye does not ship, registered from outside: simulate renders it, calibrate
     detects it and finds X, and `handeye target` prints it, detected at its stated scale; without
     the registration session.yaml's type is unknown."""
-    from handeye.vision.targets import register_target, target_types, unregister_target
+    from handeye.sensors.camera.targets import register_target, target_types, unregister_target
 
     spec = {"type": "square_dots", "cols": 6, "rows": 5, "square": 0.04}
     with pytest.raises(HandEyeError, match="unknown target type 'square_dots'"):

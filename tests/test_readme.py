@@ -51,7 +51,7 @@ def test_refine_help_and_the_guide_tell_the_same_choice():
     closed forms but horaud_nonlinear, the pixel refinement preferred up to 1.2x PnP's residual, the
     one-standard-error rule, and reprojection's robot poses corrected under --robot-noise."""
     from handeye.cli._common import REFINE_HELP
-    from handeye.estimators import ROBOT_DOMINATES, SLOW_CLOSED_FORMS
+    from handeye.estimation.estimators import ROBOT_DOMINATES, SLOW_CLOSED_FORMS
 
     guide = (README.parent / "docs" / "guide.md").read_text(encoding="utf-8")
     helps = " ".join(REFINE_HELP.values())

@@ -6,7 +6,7 @@ by the robot's accuracy (raised to what the views show of the robot's error) and
 error; and X within 3 std of the closed forms' medoid unless the verdict says the data are not good,
 or says that X was kept although the closed forms land further.
 
-The held-out error (handeye.validation): 5-fold cross-validation over the views; each view is
+The held-out error (handeye.estimation.validation): 5-fold cross-validation over the views; each view is
 predicted from its robot pose by X and Z fitted on the other folds, and compared with what the
 camera saw (pixels for image sets, millimetres at the target's distance for pose pairs). handeye's
 row is its whole default pipeline run on each training part (check, estimator chosen by an inner
@@ -23,10 +23,10 @@ import pytest
 
 import handeye
 import realdata
-from handeye.calibration import calibrate_observed
-from handeye.diagnostics import closed_form
-from handeye.metrics import rotation_error, translation_error
-from handeye.validation import cross_validate, fold_indices
+from handeye.estimation.diagnostics import closed_form
+from handeye.estimation.validation import cross_validate, fold_indices
+from handeye.frames.metrics import rotation_error, translation_error
+from handeye.pipelines.calibration import calibrate_observed
 
 SETS = ["visp_eye_in_hand_2025", "visp_eye_to_hand_2025", "visp_eye_in_hand_2022", "visp_posepairs_2018",
         "industrial_charuco", "industrial_10x10", "tabb_ds1", "eth_robot_arm"]

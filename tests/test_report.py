@@ -23,8 +23,8 @@ from scipy.spatial.transform import Rotation
 import handeye
 from handeye._shared.io import file_digest, files_digest
 from handeye.cli import SAMPLE_SESSION, main
+from handeye.io.session import load_session
 from handeye.report import SECTIONS, result_dict, ros2_static_transform_command, urdf_joint, write_calibration
-from handeye.session import load_session
 from handeye.simulate import random_scene
 
 SAMPLE = Path(handeye.__file__).parent / "data" / SAMPLE_SESSION
@@ -362,9 +362,9 @@ def test_gallery_of_a_view_predicted_into_the_camera_plane(sample_cal):
     """A robot pose that puts the target in the camera's own plane projects its points to ~1e10 px
     (found by fuzzing calibrate: OpenCV's drawMarker took them for no position and the report
     failed): the marks off the image are left out and the report is written."""
+    from handeye.frames.setups import predicted_target2cam
     from handeye.geometry.se3 import invert, make_transform
     from handeye.report import report_html
-    from handeye.setups import predicted_target2cam
 
     in_plane = make_transform(np.eye(3), [0.0, 0.0, 1e-9])  # the target's plane through the camera centre
     f2b = sample_cal.flange2base.copy()
@@ -423,7 +423,7 @@ def test_thumbnails_from_the_previews_detection_cut(tmp_path, no_detection_cache
     grey); a prediction outside the part, or a file changed since, reads the file; outside the
     block nothing is kept."""
     from handeye.report import _overlay
-    from handeye.vision import detect_images, preview, target_from_spec
+    from handeye.sensors.camera import detect_images, preview, target_from_spec
 
     folder = tmp_path / "s"
     shutil.copytree(SAMPLE, folder)
@@ -479,7 +479,7 @@ def test_scene_and_rotation_axes_use_the_page_and_their_labels_do_not_overlap(sa
     """The 3D view and the rotation-axes figure are drawn at most of the page's width (1,068 px of
     content; they were 634 and 460 px), and no two of their labels overlap (the sphere's tick labels
     ran into each other at a tick every 0.25)."""
-    from handeye.motions import MotionSet
+    from handeye.frames.motions import MotionSet
     from handeye.report.html import _axes_figure, _scene_figure
 
     motions = MotionSet.from_poses(sample_cal.flange2base, sample_cal.target2cam, sample_cal.setup, sample_cal.pairs)

@@ -12,11 +12,11 @@ import pytest
 import yaml
 
 import handeye
-from handeye.calibration import calibrate_observed, observe
 from handeye.errors import HandEyeError
-from handeye.estimators import PIXEL, POSE, ROBOT_DOMINATES, choose, pixel_candidates, pose_candidates
-from handeye.metrics import rotation_error, translation_error
-from handeye.session import load_session
+from handeye.estimation.estimators import PIXEL, POSE, ROBOT_DOMINATES, choose, pixel_candidates, pose_candidates
+from handeye.frames.metrics import rotation_error, translation_error
+from handeye.io.session import load_session
+from handeye.pipelines.calibration import calibrate_observed, observe
 from handeye.simulate import EXACT, REALISTIC, realistic_scene, robot_accuracy_of, simulate_realistic_session
 
 
@@ -132,7 +132,7 @@ def test_the_default_std_covers_an_uncalibrated_arm_and_says_why():
 def test_the_robot_error_the_views_show(tmp_path):
     """robot_error_seen: what an exact robot's views show beyond the camera's noise is ~0; an
     uncalibrated arm's is several tenths of a millimetre per axis, and the default's std says so."""
-    from handeye.validation import robot_error_seen
+    from handeye.estimation.validation import robot_error_seen
 
     simulate_realistic_session(tmp_path / "exact", 12, "eye_in_hand", 1, errors=replace(EXACT, pixel_px=0.1))
     sc = simulate_realistic_session(tmp_path / "arm", 12, "eye_in_hand", 1,

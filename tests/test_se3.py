@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from scipy.spatial.transform import Rotation
 
+from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry import se3
-from handeye.metrics import rotation_error, translation_error
 from strategies import transforms
 
 

@@ -19,12 +19,12 @@ import realdata
 from conftest import require_real
 from handeye.cli import main
 from handeye.errors import HandEyeError, InputMismatchError
+from handeye.estimation.sync import check_stream, coarse_offset, interpolate, search_range, select_keyframes
+from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import invert, make_transform, to_rotvec_translation
-from handeye.importers import import_rosbag
-from handeye.metrics import rotation_error, translation_error
-from handeye.session import SessionError, load_pose_pairs, load_session, write_pose_pairs
+from handeye.io.importers import import_rosbag
+from handeye.io.session import SessionError, load_pose_pairs, load_session, write_pose_pairs
 from handeye.simulate import random_scene, simulate_stream_session, stream_scene
-from handeye.sync import check_stream, coarse_offset, interpolate, search_range, select_keyframes
 
 ETH = ("ethz-robot-arm-posepairs", "robot_arm_complete_bag_color_and_ir_base_link_sr300_hinge.csv",
        "robot_arm_complete_bag_color_and_ir_target_ir.csv")
@@ -128,7 +128,7 @@ def test_simulated_streams_offset_within_2_ms_and_X_within_3_std(simulated_strea
 
 def _eth_streams():
     folder = require_real(*ETH[:1])
-    return handeye.session.load_pose_streams(
+    return handeye.io.session.load_pose_streams(
         {"file": ETH[1], "format": "quat_xyzw", "length_unit": "m"},
         {"file": ETH[2], "format": "quat_xyzw", "length_unit": "m", "pose": "cam2target"}, "eye_in_hand", folder)
 
@@ -183,8 +183,8 @@ def test_pose_pair_folder_with_times_is_two_streams_and_a_wrong_pairing_is_named
     ids_robot = np.full(len(sc.robot_times), "", dtype=object)
     ids_robot[near] = ids_cam
     ids_robot = [i if i else f"r{k}" for k, i in enumerate(ids_robot)]
-    handeye.session.write_pose_stream(folder / "robot_poses.csv", sc.robot_times, sc.flange2base, ids=ids_robot)
-    handeye.session.write_pose_stream(folder / "camera_poses.csv", sc.camera_times, sc.target2cam, ids=ids_cam)
+    handeye.io.session.write_pose_stream(folder / "robot_poses.csv", sc.robot_times, sc.flange2base, ids=ids_robot)
+    handeye.io.session.write_pose_stream(folder / "camera_poses.csv", sc.camera_times, sc.target2cam, ids=ids_cam)
     pairs = load_pose_pairs(folder)
     assert np.median(pairs.paired_delays) < 0.01
     status = main(["calibrate-poses", str(folder), "--keyframes", "30"])
@@ -200,7 +200,7 @@ def test_time_in_one_file_only_is_an_error(tmp_path):
     sc = random_scene(8, rng=1)
     folder = tmp_path / "mixed"
     write_pose_pairs(folder, "eye_in_hand", sc.flange2base, sc.target2cam)
-    handeye.session.write_pose_stream(folder / "robot_poses.csv", np.arange(8) * 0.1, sc.flange2base)
+    handeye.io.session.write_pose_stream(folder / "robot_poses.csv", np.arange(8) * 0.1, sc.flange2base)
     with pytest.raises(SessionError, match="has a time column but camera_poses.csv has none"):
         load_pose_pairs(folder)
 

@@ -13,11 +13,11 @@ from scipy.spatial.transform import Rotation
 import handeye
 from handeye.cli import main
 from handeye.errors import HandEyeError, InputMismatchError, PoseFormatError
+from handeye.frames.motions import MotionSet
 from handeye.geometry.se3 import invert, make_transform
-from handeye.motions import MotionSet
 from handeye.simulate import Noise, add_noise, seed_scenes
 from handeye.solvers import horaud
-from handeye.study import (
+from handeye.workflows.study import (
     METHODS,
     Setting,
     _motions,
@@ -60,7 +60,7 @@ def test_seed_scenes_follow_the_thesis_setup(setup):
     assert cos.min() >= np.cos(np.radians(45)) ** 2 - 1e-12
     assert np.degrees(np.arccos(cos)).max() > 40  # the tilts are used
     for s in range(0, 300, 37):
-        Zi = handeye.setups.constant_transforms(sc.X[s], sc.flange2base[s], sc.target2cam[s], setup)
+        Zi = handeye.frames.setups.constant_transforms(sc.X[s], sc.flange2base[s], sc.target2cam[s], setup)
         assert np.abs(Zi - sc.Z[s]).max() < 1e-12
 
 
@@ -343,7 +343,7 @@ def test_study_on_a_local_dask_cluster_gives_the_local_numbers(tmp_path, capsys,
 def test_error_bars_on_the_log_axis_stay_above_zero():
     """fig5_1's bars are mean +- std on a log axis: a std larger than the mean (heavy-tailed errors)
     would draw the bar to minus infinity; it is cut at a tenth of the mean, the upper end kept."""
-    from handeye.study import log_error_bars
+    from handeye.workflows.study import log_error_bars
 
     mean, std = np.array([1.0, 2.0, 0.5]), np.array([0.3, 2.5, 0.5])
     yerr = log_error_bars(mean, std)
@@ -354,7 +354,7 @@ def test_error_bars_on_the_log_axis_stay_above_zero():
 def test_study_md_tables_are_narrow():
     """study.md gives each figure three tables (medians, percentiles, trimmed and accepted) whose
     cells stay short; a noise-free run's rounding errors read <1e-9."""
-    from handeye.study import markdown_table, study
+    from handeye.workflows.study import markdown_table, study
 
     settings, figs = preset("seed-chapter5")
     result = study([s for s in settings if s.figure == "5.1"][:2], runs=10, progress=False, figures=figs)
@@ -367,7 +367,7 @@ def test_study_md_tables_are_narrow():
 def test_the_headline_puts_the_thesis_numbers_beside_ours():
     """Where the thesis states a Daniilidis figure (§5.3: 31.3 mm / 2.45 deg median with two noise-free
     motions), the terminal's headline prints it next to ours, which is exact there."""
-    from handeye.study import THESIS, headline, study
+    from handeye.workflows.study import THESIS, headline, study
 
     settings, figs = preset("seed-chapter5")
     result = study([s for s in settings if s.figure == "5.1" and s.x == 2.0], runs=10, progress=False, figures=figs)

@@ -13,12 +13,15 @@ from scipy.spatial.transform import Rotation
 
 import handeye
 import realdata
-from handeye.calibration import observe
-from handeye.diagnostics import closed_form
-from handeye.estimators import POSE, intrinsics_cov, pose_fit
-from handeye.metrics import rotation_error, translation_error
-from handeye.session import load_session
-from handeye.setups import predicted_target2cam
+from handeye.estimation.diagnostics import closed_form
+from handeye.estimation.estimators import POSE, intrinsics_cov, pose_fit
+from handeye.frames.metrics import rotation_error, translation_error
+from handeye.frames.setups import predicted_target2cam
+from handeye.io.session import load_session
+from handeye.pipelines.calibration import observe
+from handeye.sensors.camera import Detection, solve_pnp, target_from_spec
+from handeye.sensors.camera.pnp import intrinsics_covariance, refine_pnp
+from handeye.sensors.camera.render import Renderer, target_texture
 from handeye.simulate import (
     REALISTIC,
     default_camera,
@@ -29,9 +32,6 @@ from handeye.simulate import (
     visible_viewpoints,
 )
 from handeye.solvers.refine import downdate_reprojection, refine_pose, refine_reprojection
-from handeye.vision import Detection, solve_pnp, target_from_spec
-from handeye.vision.pnp import intrinsics_covariance, refine_pnp
-from handeye.vision.render import Renderer, target_texture
 
 
 def _mc_camera():
@@ -425,8 +425,8 @@ def test_reprojection_jacobians_match_central_differences(setup):
     """The analytic Jacobians of the pixel refinement (X, Z, intrinsics; the robot-correction
     blocks) against central differences of the residuals, away from the start (the rotation
     unknowns' left Jacobians matter there), for both setups and 5 or 8 distortion terms."""
+    from handeye.sensors.camera.pnp import project_points_many
     from handeye.solvers import refine as rf
-    from handeye.vision.pnp import project_points_many
 
     rng = np.random.default_rng(3)
     sc = handeye.simulate.random_scene(5, setup, rng=3)
@@ -443,7 +443,7 @@ def test_reprojection_jacobians_match_central_differences(setup):
                 X, Z, Kx, dx, _ = glob(x[:n_glob])
                 c = x[n_glob:].reshape(5, 6)
                 F = handeye.geometry.se3.perturb(sc.flange2base, c[:, :3], c[:, 3:])
-                return project_points_many(handeye.setups.predicted_target2cam(X, Z, F, setup), points, owner, Kx, dx).ravel()
+                return project_points_many(handeye.frames.setups.predicted_target2cam(X, Z, F, setup), points, owner, Kx, dx).ravel()
 
             X, Z, Kx, dx, _ = glob(x[:n_glob])
             c = x[n_glob:].reshape(5, 6)
@@ -567,7 +567,7 @@ def test_calibrate_with_estimated_intrinsics_reports_their_error(tmp_path, monke
         raise ValueError("no pose")
 
     with monkeypatch.context() as m:  # a refit that fails: answered, and the missing term said
-        m.setattr("handeye.estimators.refine_pnp", fails)
+        m.setattr("handeye.estimation.estimators.refine_pnp", fails)
         cal = handeye.calibrate(tmp_path / "s", progress=False, refine="pose")
         assert "intrinsics" not in cal.std_sources and any("could not be propagated" in n for n in cal.notes)
     handeye.simulate.simulate_session(tmp_path / "given", "eye_in_hand", 8, seed=2, write_intrinsics=True)

@@ -1,6 +1,6 @@
 """One verdict, one story (issue 35): ``check`` and the commands that calibrate run one pipeline with
 one options record (:class:`handeye.CalibrationOptions`), take the verdict from
-:mod:`handeye.verdict`, and name poses by their files."""
+:mod:`handeye.estimation.verdict`, and name poses by their files."""
 
 from __future__ import annotations
 
@@ -15,10 +15,10 @@ from scipy.spatial.transform import Rotation
 
 import handeye
 from handeye.cli import main
+from handeye.estimation.verdict import EXIT_STATUS, Evidence, judge
 from handeye.geometry.se3 import invert, make_transform
-from handeye.session import write_pose_pairs
+from handeye.io.session import write_pose_pairs
 from handeye.simulate import random_scene
-from handeye.verdict import EXIT_STATUS, Evidence, judge
 
 SAMPLE = Path(handeye.__file__).parent / "data" / "sample_session"
 
@@ -137,7 +137,7 @@ def test_z_has_a_std_that_covers_its_error():
     """Z (target2base / target2flange) gets a std: the jackknife of Z plus the robot's accuracy.
     Realistic scenes (kinematic errors, heavy tails), both setups: Z within 3 std (measured on 20
     scenes: 20 of 20, its error a third of 3 std on the median)."""
-    from handeye.metrics import rotation_error, translation_error
+    from handeye.frames.metrics import rotation_error, translation_error
     from handeye.simulate import realistic_scene
 
     for setup, seed in (("eye_in_hand", 1), ("eye_in_hand", 3), ("eye_to_hand", 0)):
@@ -177,7 +177,7 @@ def test_the_target_origin_can_be_the_centre(tmp_path, capsys):
     frame); an unknown origin is an error naming it; handeye target writes and explains it."""
     import yaml
 
-    from handeye.vision.targets import TargetError, target_origin
+    from handeye.sensors.camera.targets import TargetError, target_origin
 
     results = {}
     for origin in ("corner", "centre"):
@@ -205,7 +205,7 @@ def test_closed_forms_that_predict_far_worse_do_not_make_the_verdict_weak(tmp_pa
     several times worse, so their spread is no evidence against X's std: the verdict stays good."""
     import yaml
 
-    from handeye.metrics import translation_error
+    from handeye.frames.metrics import translation_error
     from handeye.simulate import simulate_session
 
     simulate_session(tmp_path / "s", target="charuco", seed=4)

@@ -18,11 +18,11 @@ from scipy.spatial.transform import Rotation
 import handeye
 from conftest import require_real
 from handeye.cli import main
+from handeye.frames.metrics import rotation_error, translation_error
+from handeye.frames.poses import pose_columns
 from handeye.geometry.se3 import from_rotvec_translation, invert, rotation_angle
-from handeye.metrics import rotation_error, translation_error
-from handeye.poses import pose_columns
+from handeye.sensors.camera import detect_images, label_doubts, resolve_symmetries, settled_symmetry_costs, symmetry_costs, target_from_spec
 from handeye.simulate import perturb_poses, random_scene, simulate_session
-from handeye.vision import detect_images, label_doubts, resolve_symmetries, settled_symmetry_costs, symmetry_costs, target_from_spec
 
 
 def _cases():
@@ -178,7 +178,7 @@ def test_detection_cache_gives_the_same_corners_without_detecting(rendered, tmp_
     """A second detection of the same image files with the same target reads the cache: the very
     same corners (and the same 'not found'), no detector call; another target, changed image bytes
     or a damaged entry detect again; with the cache off nothing is written."""
-    from handeye.vision import detect
+    from handeye.sensors.camera import detect
 
     folder, _ = rendered("chessboard", "eye_in_hand", True)
     paths = sorted((folder / "images").iterdir())[:4]
@@ -227,7 +227,7 @@ def test_detection_workers_fit_the_available_memory(rendered, monkeypatch, capsy
     """By default as many workers as cores, but no more than the available memory holds for images
     the size of the first (detected first, alone): with room for one 640x480 image only, one
     worker, said on stderr, and the same detections in the same order."""
-    from handeye.vision import detect
+    from handeye.sensors.camera import detect
 
     assert detect.workers_for_memory(8, (4000, 3000), 64 * 12_000_000 * 3) == 3
     assert detect.workers_for_memory(8, (4000, 3000), 1) == 1
@@ -253,7 +253,7 @@ def test_memory_freed_by_worker_threads_goes_back_to_the_system(rendered, monkey
     5 MP): detect_images hands it back when it is done, whatever happened."""
     import threading
 
-    from handeye.vision import detect
+    from handeye.sensors.camera import detect
 
     def resident() -> int:
         return next(int(line.split()[1]) * 1024 for line in open("/proc/self/status") if line.startswith("VmRSS"))
@@ -382,7 +382,7 @@ def test_visp_eye_in_hand_2025_matches_visp(tmp_path):
 def test_calibrate_shows_the_steps_after_detection(rendered, monkeypatch, capsys):
     """Large captures spend seconds after detection (check, the estimators' cross-validation, the
     uncertainty): from PROGRESS_FROM_IMAGES views they are shown too (one line each off a terminal)."""
-    from handeye import calibration
+    from handeye.pipelines import calibration
 
     folder, _ = rendered("chessboard", "eye_in_hand", True)
     handeye.calibrate(folder, progress=True)
@@ -398,7 +398,7 @@ def test_estimation_runs_on_one_blas_thread(rendered, monkeypatch):
     faster so, and X does not depend on the number of cores); the caller's setting comes back."""
     from threadpoolctl import threadpool_info
 
-    from handeye import calibration
+    from handeye.pipelines import calibration
 
     folder, _ = rendered("chessboard", "eye_in_hand", True)
     seen = []
@@ -573,8 +573,8 @@ def test_chessboards_are_found_in_the_board_region_with_the_same_accuracy(tmp_pa
     found by the same findChessboardCornersSB call in the board's region: as close to the true
     corners as the whole-image call (RMS within 5%), each corner within 0.6 px of it; no board, no
     detection."""
-    from handeye.session import load_session
-    from handeye.vision.targets.chessboard import PYRAMID_MIN_SIDE, _chessboard_in_region
+    from handeye.io.session import load_session
+    from handeye.sensors.camera.targets.chessboard import PYRAMID_MIN_SIDE, _chessboard_in_region
 
     simulate_session(tmp_path / "s", "eye_in_hand", views, "chessboard", noise_px=0.2, seed=5, image_size=image_size)
     session = load_session(tmp_path / "s")
@@ -614,7 +614,7 @@ def test_board_region_search_on_real_images_matches_the_whole_image_search(scale
     """ViSP's real Franka chessboard images (640x480), as taken and scaled 2x: the corners found in
     the board's region stay within 0.5 px of the whole-image search (in the scaled pixels; that
     search itself moves corners by up to ~2 px between the two scales)."""
-    from handeye.vision.targets.chessboard import PYRAMID_MIN_SIDE, _chessboard_in_region
+    from handeye.sensors.camera.targets.chessboard import PYRAMID_MIN_SIDE, _chessboard_in_region
 
     src = require_real("visp-franka", "eye_in_hand_2025")
     size = (9, 6)
@@ -649,7 +649,7 @@ def test_too_few_points_to_estimate_the_intrinsics_are_named(tmp_path):
     cv2.error (found by fuzzing calibrate); it is a SessionError that says what to give. With 7
     images the estimate runs and a note says it is poorly determined."""
     simulate_session(tmp_path / "four", "eye_in_hand", 4, "apriltag", seed=5, write_intrinsics=False)
-    with pytest.raises(handeye.session.SessionError, match=r"16 points: 32 equations for the 33 unknowns.*K and dist"):
+    with pytest.raises(handeye.io.session.SessionError, match=r"16 points: 32 equations for the 33 unknowns.*K and dist"):
         handeye.calibrate(tmp_path / "four", progress=False, refine="none")
     simulate_session(tmp_path / "seven", "eye_in_hand", 7, "apriltag", seed=5, write_intrinsics=False)
     cal = handeye.calibrate(tmp_path / "seven", progress=False, refine="none")
@@ -674,7 +674,7 @@ def test_charuco_markers_found_at_a_quarter_give_the_true_corners(tmp_path, monk
     Images rendered at 1600 x 1200 and enlarged 3 times to 17 MP (the truth with them: u -> 3u + 1),
     so that the markers are as large as on 12 MP frames (a quarter shows them ~30 px wide), without
     rendering 17 MP."""
-    from handeye.vision.targets import charuco
+    from handeye.sensors.camera.targets import charuco
 
     scene, K, dist, target = _charuco_renders(tmp_path, 3)
     found = []
@@ -714,7 +714,7 @@ def test_charuco_markers_found_at_half_size_give_the_true_corners(tmp_path, monk
     at half size and their corners refined at full size: the same corners as the whole-image search
     (each within 0.2 px, RMS from the renderer's truth within 5%) and within 0.1 px RMS of the truth
     (the renderer puts the board's texels where its frame says: half a texel off gave ~0.9 px)."""
-    from handeye.vision.targets import charuco
+    from handeye.sensors.camera.targets import charuco
 
     scene, K, dist, target = _charuco_renders(tmp_path, 2)
     halves = []

@@ -13,47 +13,76 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from ._shared.moved import install as install_moved
 from ._version import __version__
 from .errors import DegenerateMotionError, HandEyeError, InputMismatchError, PoseFormatError, SessionError, TargetError
 
 # The public names load on first use (PEP 562): ``import handeye``, and any of its light modules
 # (errors, vision.detect, ...), does not pay for scipy, the solvers and the report until they are
 # used.
-_SUBMODULES = ("depth", "kinematics", "metrics", "setups", "simulate", "solvers")
+_SUBMODULES = ("estimation", "frames", "io", "pipelines", "planning", "report", "robot", "sensors", "simulate",
+               "solvers", "workflows")
 _NAMES = {
-    "calibrate": "calibration", "calibrate_poses": "calibration", "certify_calibration": "calibration",
-    "check_folder": "checking",
-    "diagnose": "diagnostics",
+    "calibrate": "pipelines.calibration", "calibrate_poses": "pipelines.calibration",
+    "certify_calibration": "pipelines.calibration",
+    "check_folder": "pipelines.folders",
+    "diagnose": "estimation.diagnostics",
     "DualQuaternion": "geometry.dualquat",
-    "calibrate_joints": "joint_calibration",
-    "relative_motions": "motions",
+    "calibrate_joints": "pipelines.joints",
+    "relative_motions": "frames.motions",
     "CalibrationOptions": "options",
-    "RobotPoseInput": "poses", "format_poses": "poses", "parse_poses": "poses",
+    "RobotPoseInput": "frames.poses", "format_poses": "frames.poses", "parse_poses": "frames.poses",
     "write_calibration": "report",
     "Calibration": "result", "Diagnostics": "result", "Unobservable": "result",
     "solve": "solvers", "solve_batch": "solvers", "solve_robot_world": "solvers", "solve_robot_world_batch": "solvers",
-    "calibrate_streams": "streams",
+    "calibrate_streams": "pipelines.streams",
 }
 
+#: Modules that moved when the package was cut into folders by domain: the old path still imports,
+#: with a DeprecationWarning, for one release (old name -> the modules that now hold its names).
+MOVED = {f"handeye.{old}": tuple(f"handeye.{n}" for n in new) for old, new in {
+    "setups": ("frames.setups",), "poses": ("frames.poses",), "motions": ("frames.motions",),
+    "metrics": ("frames.metrics",), "kinematics": ("robot.kinematics",), "urdf": ("robot.urdf",),
+    "vision": ("sensors.camera",), "vision.detect": ("sensors.camera.detect",), "vision.pnp": ("sensors.camera.pnp",),
+    "vision.render": ("sensors.camera.render",), "vision.preview": ("sensors.camera.preview",),
+    "vision.targets": ("sensors.camera.targets",),
+    **{f"vision.targets.{m}": (f"sensors.camera.targets.{m}",) for m in
+       ("base", "chessboard", "charuco", "circles", "modified_circles", "apriltag", "aruco_grid")},
+    "printing": ("sensors.camera.printing",),
+    "depth": ("sensors.depth", "pipelines.depth", "pipelines.depth_fit", "io.depth_session"),
+    "depth.clouds": ("sensors.depth.clouds",), "depth.spheres": ("sensors.depth.spheres",),
+    "depth.fit": ("pipelines.depth_fit",), "depth.session": ("pipelines.depth", "io.depth_session"),
+    "diagnostics": ("estimation.diagnostics",), "validation": ("estimation.validation",),
+    "estimators": ("estimation.estimators",), "partial": ("estimation.partial",), "verdict": ("estimation.verdict",),
+    "sync": ("estimation.sync",), "session": ("io.session",), "importers": ("io.importers",),
+    "calibration": ("pipelines.calibration",), "joint_calibration": ("pipelines.joints",),
+    "streams": ("pipelines.streams",), "checking": ("pipelines.folders",), "verification": ("pipelines.verify",),
+    "joint_planning": ("planning.joints",), "acquire": ("workflows.acquire",), "fleet": ("workflows.fleet",),
+    "study": ("workflows.study",),
+}.items()}
+install_moved(MOVED)
+
 if TYPE_CHECKING:  # what the names are, for type checkers and editors
-    from . import depth, kinematics, metrics, setups, simulate, solvers
-    from .calibration import calibrate, calibrate_poses, certify_calibration
-    from .checking import check_folder
-    from .diagnostics import diagnose
+    from . import estimation, frames, io, pipelines, planning, report, robot, sensors, simulate, solvers, workflows
+    from .estimation.diagnostics import diagnose
+    from .frames.motions import relative_motions
+    from .frames.poses import RobotPoseInput, format_poses, parse_poses
     from .geometry.dualquat import DualQuaternion
-    from .joint_calibration import calibrate_joints
-    from .motions import relative_motions
     from .options import CalibrationOptions
-    from .poses import RobotPoseInput, format_poses, parse_poses
+    from .pipelines.calibration import calibrate, calibrate_poses, certify_calibration
+    from .pipelines.folders import check_folder
+    from .pipelines.joints import calibrate_joints
+    from .pipelines.streams import calibrate_streams
     from .report import write_calibration
     from .result import Calibration, Diagnostics, Unobservable
     from .solvers import solve, solve_batch, solve_robot_world, solve_robot_world_batch
-    from .streams import calibrate_streams
 
 
 def __getattr__(name: str) -> Any:
     if name in _SUBMODULES:
         value: Any = importlib.import_module(f"{__name__}.{name}")
+    elif f"{__name__}.{name}" in MOVED:  # an old module's name: its stand-in, with the warning
+        value = importlib.import_module(f"{__name__}.{name}")
     elif name in _NAMES:
         value = getattr(importlib.import_module(f"{__name__}.{_NAMES[name]}"), name)
     else:
@@ -84,21 +113,26 @@ __all__ = [
     "calibrate_poses",
     "calibrate_streams",
     "certify_calibration",
-    "depth",
     "check_folder",
     "diagnose",
+    "estimation",
     "format_poses",
-    "kinematics",
-    "metrics",
+    "frames",
+    "io",
     "parse_poses",
+    "pipelines",
+    "planning",
     "relative_motions",
-    "setups",
+    "report",
+    "robot",
+    "sensors",
     "simulate",
     "solve",
     "solve_batch",
     "solve_robot_world",
     "solve_robot_world_batch",
     "solvers",
+    "workflows",
     "write_calibration",
     "__version__",
 ]

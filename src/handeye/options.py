@@ -15,13 +15,14 @@ import numpy as np
 
 from .errors import InputMismatchError
 from .solvers import get
-from .sync import KEYFRAMES
 
-__all__ = ["CalibrationOptions", "FIELDS", "PAIRS", "REFINES", "REFINES_POSES", "ROBOT_ACCURACY", "options_from"]
+__all__ = ["CalibrationOptions", "FIELDS", "KEYFRAMES", "PAIRS", "REFINES", "REFINES_POSES", "ROBOT_ACCURACY", "options_from"]
 
 #: The robot's absolute accuracy assumed by default, per axis (deg, mm): a constant error of the robot
 #: poses moves X by as much, and no data can see it (it is absorbed into X).
 ROBOT_ACCURACY = (0.03, 0.3)
+#: Keyframes calibrated by default from a camera stream: well spread, where the robot moves slowly.
+KEYFRAMES = 80
 #: ``refine`` on a session with images, and on poses alone (the pixel refinement needs detections).
 REFINES = ("auto", "reprojection", "pose", "none")
 REFINES_POSES = ("auto", "pose", "none")
@@ -67,7 +68,7 @@ class CalibrationOptions:
     robot_noise : (deg, mm), optional
         The robot's pose error std for the pixel refinement with robot pose corrections.
     known : dict, optional
-        Translation components of X or Z the data cannot determine (:mod:`handeye.partial`).
+        Translation components of X or Z the data cannot determine (:mod:`handeye.estimation.partial`).
     keyframes, offset_range, time_offset
         Streams on two clocks (:func:`handeye.calibrate_streams`).
     strict_images : bool
@@ -79,7 +80,7 @@ class CalibrationOptions:
         angles only: poses alone, and sessions without joints, refuse it.
     compliance : bool
         With joint angles: fit each joint's compliance with the arm's table (its deflection per metre
-        of the moment arm of the flange's load, :meth:`handeye.kinematics.Chain.moment_arms`). Joint
+        of the moment arm of the flange's load, :meth:`handeye.robot.kinematics.Chain.moment_arms`). Joint
         angles only, as ``arm``.
     """
 

@@ -1,6 +1,6 @@
 """The results of handeye, as data: :class:`Calibration` and :class:`Diagnostics`.
 
-Nothing here computes a calibration or writes a file: the pipeline (``handeye.calibration``)
+Nothing here computes a calibration or writes a file: the pipeline (``handeye.pipelines.calibration``)
 builds these records step by step, each step returning a new one (``dataclasses.replace``), and
 ``handeye.report`` turns them into files for robots and people.
 """
@@ -17,12 +17,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from ._shared.text import summarize
 from .errors import InputMismatchError
+from .frames.metrics import rotation_error, translation_error
+from .frames.motions import MotionSet, screw_congruence
+from .frames.poses import RobotPoseInput
+from .frames.setups import constant_transforms, setup_info
 from .geometry.se3 import PITCH_ANGLE, rotation_angle, skew
-from .kinematics import Chain, display_unit
-from .metrics import rotation_error, translation_error
-from .motions import MotionSet, screw_congruence
-from .poses import RobotPoseInput
-from .setups import constant_transforms, setup_info
+from .robot.kinematics import Chain, display_unit
 from .solvers.certifiable import Certificate
 
 __all__ = ["Calibration", "Diagnostics", "Unobservable", "Observability", "HeldOutErrors", "StreamSync", "Certificate",
@@ -69,7 +69,7 @@ class Unobservable:
 
 @dataclass(frozen=True)
 class Observability:
-    """What the robot's motions determine of X (:mod:`handeye.partial`), and what was given for the rest.
+    """What the robot's motions determine of X (:mod:`handeye.estimation.partial`), and what was given for the rest.
 
     Attributes
     ----------
@@ -183,7 +183,7 @@ class StreamSync:
         The camera clock minus the robot clock (s), and its std.
     details : dict
         Rates, samples, the coarse offset and its correlation, the joint fit, and the keyframes'
-        camera times (``handeye.sync``), as written to result.json's ``time_sync``.
+        camera times (``handeye.estimation.sync``), as written to result.json's ``time_sync``.
     """
 
     time_offset: float
@@ -247,14 +247,14 @@ class Diagnostics:
     leave_one_out: NDArray[np.float64] | None = None
     pose_residuals: NDArray[np.float64] | None = None  #: (N, 2) deg, mm from the consensus target pose
     n_poses: int = 0
-    #: consistency score up to which data count as consistent (handeye.diagnostics.CONSISTENT)
+    #: consistency score up to which data count as consistent (handeye.estimation.diagnostics.CONSISTENT)
     consistency_limit: float = 3.0
     #: the factor that maps the camera's translations onto the robot's (1 when the target's size and
     #: the units are right), and its standard deviation; None when not estimated
     scale: float | None = None
     scale_std: float | None = None
     #: 'general', or the low-DOF motions the check found ('one_axis', 'translation_only'; see
-    #: :mod:`handeye.partial`), which stay so when the verdict is 'inconsistent'
+    #: :mod:`handeye.estimation.partial`), which stay so when the verdict is 'inconsistent'
     motion_kind: str = "general"
     #: each pose's name (its image file, or its row id in a pose table); None: poses are numbered
     names: list[str] | None = None
@@ -377,9 +377,9 @@ class Calibration:
     input_folder: Path | None = field(default=None, repr=False)
     object_points: list[NDArray[np.float64]] | None = field(default=None, repr=False)
     image_points: list[NDArray[np.float64]] | None = field(default=None, repr=False)
-    #: per solver: its closed-form X on the same poses, from handeye.diagnostics.compare_solvers
+    #: per solver: its closed-form X on the same poses, from handeye.estimation.diagnostics.compare_solvers
     solver_comparison: list[dict] | None = field(default=None, repr=False)
-    #: the estimator that gave X (a solver name, 'pose', 'reprojection', ...; see handeye.estimators)
+    #: the estimator that gave X (a solver name, 'pose', 'reprojection', ...; see handeye.estimation.estimators)
     estimator: str | None = None
     #: held-out prediction error per estimator tried (a mapping name -> {'px', 'mm'}); None when not cross-validated
     cross_validation: HeldOutErrors | None = None

@@ -12,7 +12,7 @@ from typing import Sequence
 
 from .._version import __version__
 from ..errors import HandEyeError
-from ..vision.detect import CACHE_ENV, default_cache_dir
+from ..sensors.camera.detect import CACHE_ENV, default_cache_dir
 from . import (
     acquire,
     calibrate,

@@ -13,21 +13,21 @@ from scipy.spatial.transform import Rotation
 
 from .. import solvers
 from .._shared.io import check_output_folder
-from ..calibration import certify_calibration
-from ..depth import DepthResult, calibrate_depth_session
 from ..errors import HandEyeError
+from ..estimation.verdict import exit_status
+from ..frames.poses import ANGLE_UNITS, LENGTH_UNITS
+from ..frames.setups import setup_info
 from ..geometry.se3 import make_transform
-from ..kinematics import arm_names
+from ..io.session import load_yaml, read_intrinsics
 from ..options import PAIRS, REFINES, ROBOT_ACCURACY, CalibrationOptions
-from ..poses import ANGLE_UNITS, LENGTH_UNITS
+from ..pipelines.calibration import certify_calibration
+from ..pipelines.depth import DepthResult, calibrate_depth_session
+from ..pipelines.streams import KEYFRAMES
 from ..report import EXPORTS, write_calibration
 from ..result import Calibration
-from ..session import load_yaml, read_intrinsics
-from ..setups import setup_info
+from ..robot.kinematics import arm_names
+from ..sensors.camera.targets import target_from_spec
 from ..simulate import MIN_IMAGE_SIDE
-from ..streams import KEYFRAMES
-from ..verdict import exit_status
-from ..vision.targets import target_from_spec
 from ._printing import print_calibration
 
 EXAMPLE_POSEPAIRS = "example_posepairs"
@@ -99,7 +99,7 @@ def pose_arg(text: str | None, name: str, default_rot_deg=(0.0, 0.0, 0.0), requi
 
 
 def load_camera(path: str) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
-    """K, dist and image size of ``--intrinsics`` (see :func:`handeye.session.read_intrinsics`)."""
+    """K, dist and image size of ``--intrinsics`` (see :func:`handeye.io.session.read_intrinsics`)."""
     try:
         return read_intrinsics(path)
     except HandEyeError as exc:
@@ -329,7 +329,7 @@ def finish_poses(cal: Calibration, args: argparse.Namespace) -> int:
 
 def verdict_status(cal: Calibration) -> int:
     """Exit status of a calibration that answered, as ``check`` gives it on the same data
-    (:data:`handeye.verdict.EXIT_STATUS`: 0 good or not checked, 1 weak or partial, 2 inconsistent;
+    (:data:`handeye.estimation.verdict.EXIT_STATUS`: 0 good or not checked, 1 weak or partial, 2 inconsistent;
     the result is written all the same)."""
     return exit_status(cal.verdict)
 

@@ -7,10 +7,10 @@ import sys
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..depth import DepthResult
-from ..kinematics import display_unit
+from ..frames.setups import setup_info
+from ..pipelines.depth import DepthResult
 from ..result import Calibration
-from ..setups import setup_info
+from ..robot.kinematics import display_unit
 
 
 def fmt_vec(v: np.ndarray, digits: int = 6) -> str:
@@ -150,7 +150,7 @@ def print_depth_result(r: DepthResult) -> None:
 
 
 def print_next_views(cal: Calibration, views) -> str:
-    """Print the proposed joint configurations (``handeye.joint_planning.JointViews``) and return
+    """Print the proposed joint configurations (``handeye.planning.joints.JointViews``) and return
     them as next_views.csv's text (a view column, then one column per joint, degrees)."""
     k = cal.kinematic
     names = list(k.nominal.joint_names or [f"joint{j + 1}" for j in range(k.nominal.n_joints)])

@@ -9,14 +9,14 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..acquire import SimWorld, acquire, capture_views, make_camera, make_robot
 from ..errors import HandEyeError
+from ..frames.setups import SETUPS, flange_poses
 from ..geometry.se3 import make_transform
-from ..planning import candidate_views
+from ..pipelines.verify import verify
+from ..planning.poses import candidate_views
 from ..report import write_calibration, write_verification
-from ..setups import SETUPS, flange_poses
-from ..verification import verify
-from ..vision.targets import target_from_spec
+from ..sensors.camera.targets import target_from_spec
+from ..workflows.acquire import SimWorld, acquire, capture_views, make_camera, make_robot
 from ._common import (
     accuracy_arg,
     add_placements,

@@ -8,16 +8,16 @@ from pathlib import Path
 import numpy as np
 
 from .._shared.io import atomic_write
-from ..calibration import certify_calibration
-from ..checking import calibrate_session
-from ..depth import is_depth_session
 from ..errors import HandEyeError
-from ..fleet import calibrate_many
-from ..joint_planning import suggest_joint_views
+from ..estimation.verdict import exit_status
+from ..io.depth_session import is_depth_session
+from ..pipelines.calibration import certify_calibration
+from ..pipelines.folders import calibrate_session
+from ..planning.joints import suggest_joint_views
 from ..report import write_depth_results
 from ..report.html import MAX_OVERLAYS
-from ..verdict import exit_status
-from ..vision import preview
+from ..sensors.camera import preview
+from ..workflows.fleet import calibrate_many
 from ._common import (
     SAMPLE_SESSION,
     add_calibrate_options,

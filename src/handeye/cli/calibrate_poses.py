@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from ..checking import calibrate_folder
+from ..io.session import load_pose_pairs
 from ..options import REFINES_POSES
-from ..session import load_pose_pairs
+from ..pipelines.folders import calibrate_folder
 from ._common import (
     EXAMPLE_POSEPAIRS,
     add_calibrate_options,

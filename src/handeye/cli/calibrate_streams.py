@@ -6,12 +6,12 @@ import argparse
 from dataclasses import replace
 from pathlib import Path
 
-from ..checking import calibrate_pairs
 from ..errors import HandEyeError
+from ..frames.setups import SETUPS
+from ..io.session import POSE_KINDS, TIME_UNITS, load_camera_stream, load_joint_stream, load_pose_streams
 from ..options import REFINES_POSES
-from ..session import POSE_KINDS, TIME_UNITS, load_camera_stream, load_joint_stream, load_pose_streams
-from ..setups import SETUPS
-from ..streams import calibrate_joint_streams
+from ..pipelines.folders import calibrate_pairs
+from ..pipelines.streams import calibrate_joint_streams
 from ._common import add_calibrate_options, add_out_options, calibrate_options, finish_poses, out_folder, units_arg
 
 

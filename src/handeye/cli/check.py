@@ -6,9 +6,9 @@ import argparse
 
 import numpy as np
 
-from ..checking import check_folder
-from ..depth import is_depth_session
-from ..verdict import exit_status
+from ..estimation.verdict import exit_status
+from ..io.depth_session import is_depth_session
+from ..pipelines.folders import check_folder
 from ._common import (
     SAMPLE_SESSION,
     add_calibrate_options,

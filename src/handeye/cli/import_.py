@@ -6,12 +6,12 @@ import argparse
 from pathlib import Path
 
 from .._shared.io import atomic_write
-from ..calibration import observe
-from ..diagnostics import diagnose
 from ..errors import HandEyeError
-from ..importers import import_easy_handeye, import_industrial_calibration, import_rosbag, import_visp
-from ..session import load_session
-from ..setups import SETUPS
+from ..estimation.diagnostics import diagnose
+from ..frames.setups import SETUPS
+from ..io.importers import import_easy_handeye, import_industrial_calibration, import_rosbag, import_visp
+from ..io.session import load_session
+from ..pipelines.calibration import observe
 from ._common import target_spec_arg, whole_arg
 
 
@@ -132,8 +132,8 @@ def register(sub) -> None:
     r.add_argument("--joint-topic", help="instead of the robot's poses: a JointState topic (/joint_states); with "
                    "--image-topic each image's joint angles interpolated at its stamp into joints.csv (calibrate then fits "
                    "the arm's table with X); with --camera-pose-topic the two streams calibrate-streams --arm takes")
-    r.add_argument("--arm", help="with --joint-topic: the arm (a shipped one: handeye.kinematics.arm_names()), or a DH table (.yaml) or "
-                   "URDF file you put in the session folder")
+    r.add_argument("--arm", help="with --joint-topic: the arm (a shipped one: handeye.robot.kinematics.arm_names()), "
+                   "or a DH table (.yaml) or URDF file you put in the session folder")
     for kind, when in (("rosbag", "needed with --image-topic"),
                        ("visp", "for folders without chessboard-/apriltag-data.txt")):
         parsers[kind].add_argument("--target-spec", help=f"YAML with a target: mapping as in session.yaml ({when})")

@@ -9,11 +9,14 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .._shared.io import atomic_write
-from ..checking import calibrate_session
 from ..errors import HandEyeError
-from ..joint_planning import suggest_joint_views
+from ..frames.poses import pose_columns
+from ..frames.setups import SETUPS, predicted_target2cam, setup_info
+from ..io.session import SESSION_FILE, load_yaml
 from ..options import ROBOT_ACCURACY, CalibrationOptions
-from ..planning import (
+from ..pipelines.folders import calibrate_session
+from ..planning.joints import suggest_joint_views
+from ..planning.poses import (
     ROBOTS,
     easy_handeye_poses,
     fronto_parallel_start,
@@ -24,11 +27,8 @@ from ..planning import (
     visible_mask,
     write_plan,
 )
-from ..poses import pose_columns
-from ..session import SESSION_FILE, load_yaml
-from ..setups import SETUPS, predicted_target2cam, setup_info
+from ..sensors.camera.targets import target_from_spec
 from ..simulate import DEFAULT_TARGETS
-from ..vision.targets import target_from_spec
 from ._common import (
     accuracy_arg,
     add_placements,

@@ -6,9 +6,9 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputMismatchError
-from ..kinematics import arm_names
-from ..planning import ROBOTS
-from ..setups import SETUPS
+from ..frames.setups import SETUPS
+from ..planning.poses import ROBOTS
+from ..robot.kinematics import arm_names
 from ..simulate import DEFAULT_TARGETS, simulate_kinematic_session, simulate_session
 from ._common import image_size_arg, number_arg, out_folder, whole_arg
 

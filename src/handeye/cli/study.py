@@ -6,8 +6,8 @@ import argparse
 import time
 
 from ..errors import HandEyeError
-from ..setups import SETUPS
-from ..study import headline, preset, study, write_study
+from ..frames.setups import SETUPS
+from ..workflows.study import headline, preset, study, write_study
 from ._common import out_folder, whole_arg
 
 

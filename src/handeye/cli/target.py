@@ -8,12 +8,12 @@ import numpy as np
 import yaml
 
 from ..errors import HandEyeError
-from ..printing import PAPERS, largest_square_mm, scaled_spec, write_target
-from ..vision.targets import print_kinds, target_from_spec, target_origin
+from ..sensors.camera.printing import PAPERS, largest_square_mm, scaled_spec, write_target
+from ..sensors.camera.targets import print_kinds, target_from_spec, target_origin
 from ._common import number_arg, whole_arg
 
 #: handeye target: per printable kind that handeye ships, the session.yaml type and the defaults (mm,
-#: counts, dictionary); a registered target type adds its own (:func:`handeye.vision.targets.print_kinds`).
+#: counts, dictionary); a registered target type adds its own (:func:`handeye.sensors.camera.targets.print_kinds`).
 TARGET_KINDS = print_kinds()
 
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..pipelines.verify import NOT_THIS, verify
 from ..report import write_verification
-from ..verification import NOT_THIS, verify
 from ._common import add_detection_options, out_folder
 
 

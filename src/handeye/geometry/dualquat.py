@@ -93,7 +93,7 @@ def quat_from_matrix(R: ArrayLike, assume_valid: bool = False) -> NDArray[np.flo
     """Unit quaternions (scalar first, ``w >= 0``) of rotation matrices ``(..., 3, 3)``.
 
     ``assume_valid``: the matrices are already orthonormal (validated by
-    :func:`handeye.poses.validate_transforms`), so scipy need not orthonormalise them again (~20x
+    :func:`handeye.frames.poses.validate_transforms`), so scipy need not orthonormalise them again (~20x
     faster; scipy >= 1.17, ignored before)."""
     R = np.asarray(R, dtype=float)
     rot = rotation_of_valid(R.reshape(-1, 3, 3)) if assume_valid else Rotation.from_matrix(R.reshape(-1, 3, 3))

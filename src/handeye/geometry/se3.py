@@ -185,7 +185,7 @@ def rotation_angle(T: ArrayLike) -> NDArray[np.float64]:
 #: is compared in full; below it the axis, and with it the pitch, is set more and more by the poses'
 #: noise: with 1 deg of rotation noise per pose the axis of a pure translation points anywhere and
 #: its pitch takes any value up to the translation's length (0.5 m: 5 rad in the labelling cost of
-#: :func:`handeye.vision.pnp.symmetry_costs`, beyond a wrong labelling's quarter turn). On
+#: :func:`handeye.sensors.camera.pnp.symmetry_costs`, beyond a wrong labelling's quarter turn). On
 #: ROS-Industrial's 10x10 capture, 24 of its 105 motions turn less; the pitch difference of the
 #: others is 1.9% of the motion in the median.
 PITCH_ANGLE = 0.35

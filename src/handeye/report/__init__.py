@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.io import check_output_folder
-from ..diagnostics import compare_solvers
+from ..estimation.diagnostics import compare_solvers
 from ..result import Calibration
 from .depth import depth_report_html, depth_result_dict, write_depth_results
 from .files import (
@@ -46,7 +46,7 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
     (:func:`handeye._shared.io.check_output_folder`): never a file, never inside the folder the
     inputs came from (``cal.input_folder``), writable. ``protect``: paths never to overwrite; the
     input images are always protected. ``compare``: draw every solver on the same data in the report
-    (``cal.solver_comparison``, or computed here by :func:`handeye.diagnostics.compare_solvers`
+    (``cal.solver_comparison``, or computed here by :func:`handeye.estimation.diagnostics.compare_solvers`
     when it holds none). ``parent_frame`` / ``child_frame`` name the frames of the ROS snippets
     (default ``tool0`` or ``base_link``, and ``camera_optical_frame``). ``exports``: more files for
     robot software (keys of :data:`EXPORTS`: a ROS 2 launch file, a ROS 1 / MoveIt launch file,

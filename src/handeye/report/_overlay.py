@@ -5,7 +5,7 @@ A whole 640x480 image shown 360 px wide makes a 9x6 board's marks a few pixels e
 crosses cannot be told apart. So a thumbnail shows the part of the image around the target, grey and
 faded so that the coloured marks stand out, with marks sized to the spacing of the points as
 displayed. The part is the one detection cut while it had the image decoded
-(:mod:`handeye.vision.preview`), or read from the file again.
+(:mod:`handeye.sensors.camera.preview`), or read from the file again.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.lazy import lazy_module
-from ..vision.preview import CROP_MARGIN, ZOOM_WIDTH, Preview, cut, recall
+from ..sensors.camera.preview import CROP_MARGIN, ZOOM_WIDTH, Preview, cut, recall
 
 cv2 = lazy_module("cv2")
 
@@ -75,7 +75,7 @@ def overlay_thumbnail(image_path: str | Path, detected: NDArray[np.float64],
     ``predicted`` ones as red crosses, as a JPEG data URI ZOOM_WIDTH wide; None when the image
     cannot be read.
 
-    The preview detection kept of the image (:mod:`handeye.vision.preview`) is used when every
+    The preview detection kept of the image (:mod:`handeye.sensors.camera.preview`) is used when every
     predicted point in the image lies in it; else the file is read. Predicted points far off the
     image (or NaN) are not drawn.
     """

@@ -1,4 +1,4 @@
-"""Files of a depth-camera calibration (:func:`handeye.depth.calibrate_depth_session`):
+"""Files of a depth-camera calibration (:func:`handeye.pipelines.depth.calibrate_depth_session`):
 ``result.json``, ``result.yaml`` and a self-contained ``report.html`` (the verdict, X with its std,
 the depth scale and bias, every view's distance and residual, the views left out and why)."""
 
@@ -14,8 +14,8 @@ from scipy.spatial.transform import Rotation
 
 from .._shared.io import atomic_write, check_output_folder
 from .._version import __version__
-from ..depth import DepthResult
-from ..setups import setup_info
+from ..frames.setups import setup_info
+from ..pipelines.depth import DepthResult
 from ._page import _COLOURS, _CSS, _e
 
 __all__ = ["depth_result_dict", "depth_report_html", "write_depth_results"]

@@ -24,12 +24,12 @@ from scipy.spatial.transform import Rotation
 from .._shared.io import atomic_write
 from .._version import __version__
 from ..errors import HandEyeError
+from ..frames.poses import format_poses, pose_columns
+from ..frames.setups import setup_info
 from ..geometry.se3 import invert
-from ..kinematics import chain_yaml
-from ..poses import format_poses, pose_columns
 from ..result import Calibration
-from ..setups import setup_info
-from ..urdf import chain_urdf
+from ..robot.kinematics import chain_yaml
+from ..robot.urdf import chain_urdf
 
 __all__ = ["result_dict", "write_results", "ros2_static_transform_command", "urdf_joint", "default_frames",
            "euler_angles", "ros2_launch_file", "ros1_launch_file", "easy_handeye_calibration", "in_tool_frame",
@@ -386,7 +386,7 @@ def write_results(cal: Calibration, out_dir: str | Path, protect: Iterable[Path]
     paths = [out_dir / "result.json", out_dir / "result.yaml"]
     atomic_write(paths[0], json.dumps(data, indent=2) + "\n", protect)
     atomic_write(paths[1], yaml.safe_dump(data, sort_keys=False, width=1000), protect)
-    if cal.kinematic is not None:  # the corrected table, as handeye.kinematics.load_arm (and --arm) read it
+    if cal.kinematic is not None:  # the corrected table, as handeye.robot.kinematics.load_arm (and --arm) read it
         k = cal.kinematic
         paths.append(out_dir / "arm_corrected.yaml")
         atomic_write(paths[-1], chain_yaml(replace(k.chain, name=f"{k.nominal.name} (corrected)"),

@@ -21,13 +21,13 @@ from scipy.spatial.transform import Rotation
 from .._shared.io import atomic_write
 from .._shared.lazy import lazy_module
 from .._version import __version__
+from ..frames.motions import MotionSet
+from ..frames.setups import camera2base, predicted_target2cam, setup_info, target2base
 from ..geometry.se3 import screw_parameters
-from ..kinematics import display_unit
-from ..motions import MotionSet
 from ..result import Calibration
-from ..setups import camera2base, predicted_target2cam, setup_info, target2base
-from ..vision.detect import default_jobs
-from ..vision.pnp import project_points
+from ..robot.kinematics import display_unit
+from ..sensors.camera.detect import default_jobs
+from ..sensors.camera.pnp import project_points
 from ._overlay import jpeg, overlay_thumbnail, zoom_size
 from ._page import _COLOURS, _CSS, _e, _figure, _fmt, _img, _png
 from .files import euler_angles, result_dict
@@ -489,7 +489,7 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
                 solver_rows: list[dict] | None = None) -> str:
     """The report page for a calibration, as one self-contained HTML string.
 
-    ``solver_rows``: the solver comparison to draw (:func:`handeye.diagnostics.compare_solvers`);
+    ``solver_rows``: the solver comparison to draw (:func:`handeye.estimation.diagnostics.compare_solvers`);
     default ``cal.solver_comparison``; the section says "not computed" when there is none.
     """
     data = result_dict(cal, parent_frame, child_frame)

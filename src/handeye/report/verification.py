@@ -1,4 +1,4 @@
-"""Files of a verification (:func:`handeye.verification.verify`): ``verify.json`` and a
+"""Files of a verification (:func:`handeye.pipelines.verify.verify`): ``verify.json`` and a
 self-contained ``verify.html`` with the per-view errors, their distribution and each view's image with
 the detected and the predicted target points."""
 
@@ -13,8 +13,8 @@ import numpy as np
 
 from .._shared.io import atomic_write, check_output_folder
 from .._version import __version__
-from ..verification import NOT_THIS, Verification
-from ..vision.detect import default_jobs
+from ..pipelines.verify import NOT_THIS, Verification
+from ..sensors.camera.detect import default_jobs
 from ._overlay import overlay_thumbnail
 from ._page import _COLOURS, _CSS, _e, _figure, _png
 

@@ -15,8 +15,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import DegenerateMotionError, InputMismatchError, PoseFormatError
-from ..motions import MotionSet
-from ..poses import validate_transform_pair, validate_transforms
+from ..frames.motions import MotionSet
+from ..frames.poses import validate_transform_pair, validate_transforms
 from . import andreff, certifiable, daniilidis, horaud, park_martin, robot_world, tsai_lenz  # noqa: F401  (register themselves)
 from ._registry import SolverInfo, available, get, register
 from .certifiable import Certificate, certify, certify_robot_world
@@ -116,7 +116,7 @@ def solve_batch(A: ArrayLike, B: ArrayLike, method: str = "daniilidis") -> NDArr
 
 
 def solve_motions(motions: MotionSet, method: str = "daniilidis") -> NDArray[np.float64]:
-    """Solve ``A X = X B`` on an already validated :class:`~handeye.motions.MotionSet`."""
+    """Solve ``A X = X B`` on an already validated :class:`~handeye.frames.motions.MotionSet`."""
     info = get(method, kind="hand_eye")
     check_observability(motions)
     return _solved(info, motions)

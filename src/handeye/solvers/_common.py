@@ -11,8 +11,8 @@ from numpy.typing import NDArray
 from scipy.linalg import lapack as _lapack
 from scipy.spatial.transform import Rotation
 
+from ..frames.motions import MotionSet
 from ..geometry.se3 import make_transform
-from ..motions import MotionSet
 
 
 def translation_least_squares(motions: MotionSet, R_X: NDArray[np.float64]) -> NDArray[np.float64]:

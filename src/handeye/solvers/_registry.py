@@ -1,6 +1,6 @@
 """The solver registry: every solver family registers its functions here under one signature.
 
-``AX = XB`` solvers take a :class:`~handeye.motions.MotionSet` of validated motions and return
+``AX = XB`` solvers take a :class:`~handeye.frames.motions.MotionSet` of validated motions and return
 ``X``; robot-world solvers take absolute stacks ``(N, 4, 4)`` with ``A_i X = Z B_i`` and return
 ``(X, Z)``. Every solver is vectorised over leading (run) axes of its inputs, ``(S, K, ...)`` in,
 one result per run out: :func:`handeye.solve_batch` relies on it, and a single problem is a batch

@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ..frames.motions import MotionSet
 from ..geometry.se3 import make_transform
-from ..motions import MotionSet
 from ._common import kron_eye, nearest_rotation
 from ._registry import register
 

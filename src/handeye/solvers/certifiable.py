@@ -46,9 +46,9 @@ from scipy.spatial.transform import Rotation
 
 from .._shared.lazy import lazy_module
 from ..errors import DegenerateMotionError, HandEyeError
+from ..frames.motions import MotionSet
 from ..geometry.dualquat import quat_to_matrix
 from ..geometry.se3 import make_transform
-from ..motions import MotionSet
 from ._common import nearest_rotation
 from ._registry import register
 from .observability import validate_motions
@@ -408,7 +408,7 @@ def certify(A, B, X, rotation_scale: float = ROTATION_SCALE, translation_scale: 
     Parameters
     ----------
     A, B : (K, 4, 4) or MotionSet
-        The motions (``A`` a :class:`~handeye.motions.MotionSet` and ``B`` None also works).
+        The motions (``A`` a :class:`~handeye.frames.motions.MotionSet` and ``B`` None also works).
     X : (4, 4)
     relaxation : Relaxation, optional
         Of the same motions and weights (:func:`relax`), to certify several X at the cost of one SDP.

@@ -32,9 +32,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import DegenerateMotionError
+from ..frames.motions import MotionSet
 from ..geometry.dualquat import dq_to_matrix
 from ..geometry.se3 import skew
-from ..motions import MotionSet
 from ._registry import register
 
 __all__ = ["solve", "solve_leave_one_out", "motion_groups", "system_matrix", "normal_matrix", "singular_values"]
@@ -84,7 +84,7 @@ def normal_matrix(motions: MotionSet) -> NDArray[np.float64]:
 
     Each block ``S_i`` is linear in the 16 numbers ``y_i = [dq_a, dq_b]``, so
     ``T^T T = sum_i S_i^T S_i`` is a fixed contraction of the 16x16 moment matrix ``sum_i y_i y_i^T``
-    (:attr:`~handeye.motions.MotionSet.dq_moments`): BLAS products over the motions and no 6K x 8 array.
+    (:attr:`~handeye.frames.motions.MotionSet.dq_moments`): BLAS products over the motions and no 6K x 8 array.
     """
     return np.tensordot(motions.dq_moments, _F, axes=2)
 

@@ -26,9 +26,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from ..frames.motions import MotionSet
 from ..geometry.dualquat import qmul_matrix, quat_to_matrix
 from ..geometry.se3 import make_transform, skew, so3_left_jacobian
-from ..motions import MotionSet
 from ._common import translation_least_squares
 from ._registry import register
 

@@ -2,15 +2,15 @@
 
 A black-box calibration takes the flange poses the controller reports as given and can only widen
 X's std by the robot's absolute accuracy. With the joint angles and the arm's kinematic chain
-(:class:`handeye.kinematics.Chain`), the chain's table entries are unknowns too: the flange pose of
+(:class:`handeye.robot.kinematics.Chain`), the chain's table entries are unknowns too: the flange pose of
 view i is the chain's forward kinematics at ``q_i`` with the table corrected by ``delta``, and X, Z
 and ``delta`` are fitted to what the camera saw. Every entry has a Gaussian prior about its nominal
 value (the manufacturer's tolerance: ``prior_std``), so the entries the capture cannot determine (a
 joint never moved, lengths along parallel axes of which only the sum shows) stay near nominal and
 their uncertainty reaches X's covariance; the entries that only move the base or the flange frame
-(:func:`handeye.kinematics.absorbed_parameters`) are left to X and Z.
+(:func:`handeye.robot.kinematics.absorbed_parameters`) are left to X and Z.
 
-With ``compliance``, each joint's compliance (:meth:`handeye.kinematics.Chain.moment_arms`) is an
+With ``compliance``, each joint's compliance (:meth:`handeye.robot.kinematics.Chain.moment_arms`) is an
 unknown too, about 0 with the prior :data:`COMPLIANCE_PRIOR` (joints whose axis the load never
 turns, such as a vertical first joint's, have none to fit).
 
@@ -28,9 +28,9 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
 from ..errors import HandEyeError, InputMismatchError
-from ..kinematics import Chain, absorbed_parameters
-from ..setups import predicted_target2cam
-from ..vision.pnp import project_points_many
+from ..frames.setups import predicted_target2cam
+from ..robot.kinematics import Chain, absorbed_parameters
+from ..sensors.camera.pnp import project_points_many
 from ._common import _normal_inverse, _xz_increment
 
 __all__ = ["KinematicRefinement", "refine_kinematic", "DETERMINED", "LENGTH_PRIOR_M", "ANGLE_PRIOR_RAD",

@@ -9,7 +9,7 @@ When every robot rotation is about one axis ``a`` (a SCARA's vertical, a planar 
   and in ``(cos phi, sin phi)``, solved here by one linear least squares (Ulrich and Steger,
   "Hand-eye calibration of SCARA robots using dual quaternions", PRIA 26(1), 2016, reach the
   same determined part by extending Daniilidis' dual-quaternion method; as in their paper, a
-  nonlinear refinement follows: :mod:`handeye.partial`);
+  nonlinear refinement follows: :mod:`handeye.estimation.partial`);
 * ``(R_A - I) a = 0`` for every motion, so the translation of X along ``a`` is undetermined: a
   camera shifted along the axis sees the same motions. In the robot-world form only the
   difference of that component and the matching component of Z (e.g. the target's height in the
@@ -32,9 +32,9 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from ..errors import DegenerateMotionError
+from ..frames.motions import MotionSet
+from ..frames.setups import robot_world_A
 from ..geometry.se3 import invert, make_transform
-from ..motions import MotionSet
-from ..setups import robot_world_A
 from ._common import top_eigenvector
 from .observability import MIN_AXIS_SPREAD, MIN_ROTATION, rotation_spread, rotation_spread_absolute
 from .refine import TranslationPriors

@@ -7,8 +7,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import DegenerateMotionError
-from ..motions import MotionSet
-from ..poses import validate_transform_pair
+from ..frames.motions import MotionSet
+from ..frames.poses import validate_transform_pair
 from ._common import top_eigenvector
 
 #: A motion whose quaternion vector part |sin(theta/2) l| is below this rotates by < 0.57 deg.
@@ -28,7 +28,7 @@ def rotation_spread(dq: NDArray[np.float64], moment: NDArray[np.float64] | None 
     """Largest rotation, largest off-dominant-axis rotation (both as ``sin(theta/2)``) and the
     dominant axis of motions given as dual quaternions ``(K, 8)``. The dominant axis is the
     principal direction of the axis vectors ``v = sin(theta/2) n`` (sign-free). ``moment``:
-    ``sum v v^T`` when known (:attr:`~handeye.motions.MotionSet.dq_moments`)."""
+    ``sum v v^T`` when known (:attr:`~handeye.frames.motions.MotionSet.dq_moments`)."""
     v = dq[:, 1:4]
     e1 = top_eigenvector(v.T @ v if moment is None else moment)
     sq = np.einsum("ki,ki->k", v, v)

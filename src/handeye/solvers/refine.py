@@ -30,10 +30,10 @@ from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
 
 from ..errors import InputMismatchError
+from ..frames.setups import check_setup, constant_transforms, predicted_target2cam, robot_world_A, robot_world_A_inv, setup_info
 from ..geometry.se3 import invert, perturb, rotation_of_valid, skew, so3_left_jacobian
-from ..setups import check_setup, constant_transforms, predicted_target2cam, robot_world_A, robot_world_A_inv, setup_info
-from ..vision.pnp import project_points, project_points_many, projection_jacobians, solve_pnp
-from ..vision.targets import Detection
+from ..sensors.camera.pnp import project_points, project_points_many, projection_jacobians, solve_pnp
+from ..sensors.camera.targets import Detection
 from ._common import _normal_inverse, _xz_increment
 
 __all__ = ["PoseRefinementResult", "ReprojectionResult", "TranslationPriors", "downdate_reprojection", "pose_mahalanobis", "refine_pose",
@@ -290,7 +290,7 @@ def _pixel_blocks(X, Z, Kx, dx, F, points, owner, setup: str, n_glob: int, x_rot
     the global unknowns (X, Z, the intrinsics) and, with robot corrections ``c_rot`` (their rotation
     vectors, ``(N, 3)``), ``(M, 2, 6)`` against each point's image's correction (else None).
 
-    With ``H_i = inv(A_i)`` (:func:`~handeye.setups.robot_world_A_inv`) a target point ``P`` is seen
+    With ``H_i = inv(A_i)`` (:func:`~handeye.frames.setups.robot_world_A_inv`) a target point ``P`` is seen
     at ``p = R_X^T (H_i Z P - t_X)``. For the left rotation increments and added translations of
     the unknowns: ``dp/dw_X = [p]x R_X^T``, ``dp/dv_X = -R_X^T``, ``dp/dw_Z = -G_i [R_Z P]x``,
     ``dp/dv_Z = G_i`` with ``G_i = R_X^T R_Hi``; a robot correction of ``flange2base_i`` (rotation
@@ -298,7 +298,7 @@ def _pixel_blocks(X, Z, Kx, dx, F, points, owner, setup: str, n_glob: int, x_rot
     ``H = F``) or ``R_F^T [q - t_F]x w - R_F^T v`` (eye-in-hand, ``H = inv(F)``). The unknowns are
     rotation vectors composed on the left (``exp(w) R_0``), so each rotation block is the left
     increment's times the left Jacobian at ``w`` (``x_rot``: X's and Z's, ``(2, 3)``). The pixels
-    follow by :func:`~handeye.vision.pnp.projection_jacobians`."""
+    follow by :func:`~handeye.sensors.camera.pnp.projection_jacobians`."""
     m = len(points)
     R_Xt = X[:3, :3].T
     H = robot_world_A_inv(F, setup)

@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ..frames.motions import MotionSet
 from ..geometry.se3 import make_transform, skew
-from ..motions import MotionSet
 from ._common import translation_least_squares
 from ._registry import register
 

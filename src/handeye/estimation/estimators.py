@@ -1,0 +1,319 @@
+"""The estimators a calibration chooses from, and the choice: by what predicts held-out views best.
+
+Every closed form (AX = XB with Z the mean of the per-pose Z_i, and the robot-world ones), the pose
+refinement (Strobl-Hirzinger's weighting with a noise model, :func:`~handeye.solvers.refine.refine_pose`),
+and with images the pixel refinement (:func:`~handeye.solvers.refine.refine_reprojection`: robot
+poses exact, or corrected under a prior the user gives; intrinsics refined too when they were
+estimated from the same images). Fitting the training data better is not the test: on real
+captures a refinement can fit better and predict worse. :func:`choose` runs K-fold
+cross-validation (:mod:`handeye.estimation.validation`) of each on the user's own data and keeps the one with
+the smallest held-out error; the jackknife spread of X comes from refits of the chosen one without each pose
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from .. import solvers
+from ..errors import HandEyeError
+from ..frames.motions import Pairs
+from ..sensors.camera.pnp import INTRINSICS, intrinsics_covariance, refine_pnp
+from ..solvers.refine import PoseRefinementResult, ReprojectionResult, downdate_reprojection, refine_pose, refine_reprojection, refit_pose
+from .diagnostics import SCALE_TOLERANCE, board_scale, closed_form
+from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices, pnp_errors
+
+__all__ = ["Choice", "closed_fit", "pose_candidates", "pose_fit", "pixel_candidates", "choose", "intrinsics_cov", "POSE", "PIXEL",
+           "PIXEL_INTRINSICS", "PIXEL_ROBOT", "REFINE_INTRINSICS"]
+
+#: Closed forms left out of the choice: horaud_nonlinear costs 4x the others per fit and lands between
+#: horaud and the pose refinement, which are both candidates.
+SLOW_CLOSED_FORMS = ("horaud_nonlinear",)
+#: Tolerance of the refits on parts of the data (cross-validation, jackknife), which start at the
+#: fit on all of it: their X moves by far more between folds than this leaves unconverged.
+REFIT_TOL = 1e-8
+#: Names of the refinements (the closed forms go by their solver names).
+POSE = "pose"
+PIXEL = "reprojection"
+PIXEL_INTRINSICS = "reprojection+intrinsics"
+PIXEL_ROBOT = "reprojection+robot"
+#: The estimators that refine intrinsics estimated from the same images along with X (the others hold
+#: them fixed: :func:`intrinsics_cov`).
+REFINE_INTRINSICS = (PIXEL_INTRINSICS, PIXEL_ROBOT)
+
+
+def closed_fit(method: str, pairs: Pairs = "auto") -> Fit:
+    """The closed form ``method`` on the motions of ``pairs`` (for a subset: its own ``pairs``; an
+    explicit list of index pairs does not survive leaving poses out, so it becomes 'auto')."""
+    rule = pairs if isinstance(pairs, str) else "auto"
+
+    def fit(flange2base, target2cam, setup, idx):
+        X, Z, _ = closed_form(flange2base, target2cam, setup, method, rule)
+        return X, Z
+    return fit
+
+
+def pose_fit(method: str, views: Views | None, start: PoseRefinementResult | None = None) -> Fit:
+    """The pose refinement. With ``views`` (all the poses), it is refined on them once (kept as
+    ``fit.full``; ``start``: that refinement, already made), and each fit on a subset starts there
+    with the noise variances held (:func:`~handeye.solvers.refine.refit_pose`): a cross-validation
+    fold differs from the whole by a few poses."""
+    full: list = [] if start is None else [start]
+
+    def fit(flange2base, target2cam, setup, idx):
+        if views is None:
+            X, Z, _ = closed_form(flange2base, target2cam, setup, method)
+            ref = refine_pose(X, Z, flange2base, target2cam, setup)
+            return ref.X, ref.Z
+        if not full:
+            X, Z, _ = closed_form(views.flange2base, views.target2cam, setup, method)
+            full.append(refine_pose(X, Z, views.flange2base, views.target2cam, setup))
+        ref = full[0]
+        return refit_pose(ref.X, ref.Z, flange2base, target2cam, setup, ref.noise)
+
+    fit.full = full
+    return fit
+
+
+def pose_candidates(method: str = "daniilidis", views: Views | None = None) -> dict[str, Fit]:
+    """Every registered closed form, and the pose refinement started from ``method`` (warm-started
+    from the refinement on all of ``views`` when given)."""
+    out = {name: closed_fit(name) for name in solvers.available(closed_forms=True) if name not in SLOW_CLOSED_FORMS}
+    out[POSE] = pose_fit(method, views)
+    return out
+
+
+def pixel_fit(views: Views, idx: NDArray[np.intp], X0: NDArray[np.float64], Z0: NDArray[np.float64],
+              refine_intrinsics: bool = False, robot_sigma: tuple[float, float] | None = None) -> ReprojectionResult:
+    """The robust pixel refinement of X0, Z0 on the views ``idx``."""
+    return refine_reprojection(X0, Z0, views.flange2base[idx], [views.object_points[i] for i in idx],
+                               [views.image_points[i] for i in idx], views.K, views.dist, views.setup,
+                               refine_intrinsics=refine_intrinsics, robust=True, robot_noise=robot_sigma)
+
+
+def _pixel(views: Views, method: str, refine_intrinsics: bool, robot_sigma) -> Fit:
+    """The pixel refinement. It is fitted on all of ``views`` once (robustly, kept as ``fit.full``
+    with the points it kept); each fit on a subset is one Gauss-Newton downdate of it
+    (:func:`~handeye.solvers.refine.downdate_reprojection`), or with robot pose corrections a refit
+    started there on those points: a cross-validation fold differs from the whole by a few images."""
+    full: list = []
+
+    def fit(flange2base, target2cam, setup, idx):
+        if not full:
+            all_idx = np.arange(len(views))
+            X, Z, _ = closed_form(views.flange2base, views.target2cam, setup, method)
+            full.append(pixel_fit(views, all_idx, X, Z, refine_intrinsics, robot_sigma))
+        ref = full[0]
+        if ref.jacobian is not None:  # one Gauss-Newton downdate instead of a refit
+            try:
+                X, Z, K, dist = downdate_reprojection(ref, np.setdiff1d(np.arange(len(views)), idx))
+                return (X, Z, K, dist) if refine_intrinsics else (X, Z)
+            except np.linalg.LinAlgError:
+                pass
+        keep = [ref.kept[i] for i in idx]
+        sub = refine_reprojection(ref.X, ref.Z, views.flange2base[idx],
+                                  [np.asarray(views.object_points[i])[k] for i, k in zip(idx, keep)],
+                                  [np.asarray(views.image_points[i])[k] for i, k in zip(idx, keep)],
+                                  ref.K if refine_intrinsics else views.K, ref.dist if refine_intrinsics else views.dist,
+                                  setup, refine_intrinsics=refine_intrinsics, robot_noise=robot_sigma, tol=REFIT_TOL)
+        return (sub.X, sub.Z, sub.K, sub.dist) if refine_intrinsics else (sub.X, sub.Z)
+
+    fit.full = full
+    return fit
+
+
+def pixel_candidates(views: Views, method: str = "daniilidis", intrinsics_estimated: bool = False,
+                     robot_sigma: tuple[float, float] | None = None) -> dict[str, Fit]:
+    """The pixel refinements for ``views`` (which must have images): robot poses exact; with the
+    intrinsics refined too when they were estimated from these images; with robot pose corrections
+    when ``robot_sigma`` (rad, m) is given."""
+    out = {PIXEL: _pixel(views, method, False, None)}
+    if intrinsics_estimated:
+        out[PIXEL_INTRINSICS] = _pixel(views, method, True, None)
+    if robot_sigma is not None:
+        out[PIXEL_ROBOT] = _pixel(views, method, intrinsics_estimated, robot_sigma)
+    return out
+
+
+@dataclass(frozen=True)
+class Choice:
+    """What :func:`choose` found: the estimator chosen, and every candidate's held-out errors."""
+
+    name: str
+    results: dict[str, CrossValidation]
+    fits: dict[str, Fit]  #: the candidates, by name
+    prefer: str | None = None  #: the estimator the others had to beat by one standard error
+    robot_error_ratio: float | None = None  #: :func:`robot_error_ratio` of these views
+
+    @property
+    def best(self) -> CrossValidation:
+        return self.results[self.name]
+
+    def table(self) -> dict[str, dict[str, float | None]]:
+        """Per estimator its held-out RMS error: ``px`` (None without images) and ``mm``."""
+        return {name: {"px": r.rms_px, "mm": r.rms_mm} for name, r in self.results.items()}
+
+
+def choose(views: Views, candidates: dict[str, Fit], folds: int | None = None, seed: int = 0,
+           prefer: str | None = None) -> Choice:
+    """Cross-validate every candidate on the same folds and keep the best (smallest RMS held-out
+    error: pixels with images, millimetres at the target's distance without).
+
+    With few views the held-out errors are noisy, and the smallest can win by chance: the
+    candidate with the smallest error replaces ``prefer`` only when it is better by more than one
+    standard error of the per-view differences (the "one standard error" rule of model selection).
+    By default ``prefer`` is the pixel refinement while its model holds (the robot's poses exact
+    up to the camera's noise: :func:`robot_error_ratio` at most :data:`ROBOT_DOMINATES`), else the
+    pose refinement, which models the noise of both robot and camera. Held-out pixels alone do not
+    see a bias of X that every held-out view shares (a robot error smooth over the capture moves
+    them all alike), so the default is chosen by the model that fits the errors; beyond
+    :data:`ROBOT_EXCLUDES` the exact-robot pixel refinement cannot win at all. Raises
+    :class:`HandEyeError` when no candidate solves every fold.
+    """
+    held = fold_indices(len(views), default_folds(len(views)) if folds is None else folds, seed)
+    results = {name: cross_validate(fit, views, held, name) for name, fit in candidates.items()}
+    finite = {name: r.score for name, r in results.items() if np.isfinite(r.score)}
+    if not finite:
+        raise HandEyeError("no estimator could be fitted on every cross-validation fold (too few or degenerate poses)")
+    ratio = robot_error_ratio(views, candidates)
+    scale_off = None if ratio is None or ratio <= ROBOT_DOMINATES else _scale_off(views)
+    if ratio is not None and ratio > ROBOT_EXCLUDES and not scale_off and POSE in finite:
+        # the exact-robot model is plainly wrong here: a modest held-out gain is no evidence for its X
+        finite = {name: v for name, v in finite.items()
+                  if name not in (PIXEL, PIXEL_INTRINSICS) or v < PIXEL_MARGIN * finite[POSE]}
+    best = min(finite, key=finite.get)
+    if prefer is None:
+        pixel = _pixel_name(candidates)
+        robot_dominates = ratio is not None and ratio > ROBOT_DOMINATES and not scale_off
+        prefer = pixel if pixel is not None and not robot_dominates else POSE
+    if prefer in finite and best != prefer:
+        d = _errors(results[best]) ** 2 - _errors(results[prefer]) ** 2
+        if d.mean() + d.std(ddof=1) / np.sqrt(len(d)) >= 0:
+            best = prefer
+    return Choice(best, results, dict(candidates), prefer, ratio)
+
+
+#: The pixel refinement holds the robot's poses exact. When its residual std is more than this many
+#: times the PnP residual's on the same points (each view's pose free; both per degree of freedom),
+#: the robot's errors, not the pixels', make much of it: the pixel fit then weighs views by how far
+#: the robot's error moves their pixels, and lands further from X than the pose refinement, which
+#: models robot and camera noise (rendered realistic sessions of 12 eye-in-hand views at ~0.9 mm
+#: robot error: 1.25 mm against 0.64 mm median). Exact robot poses give ~1.0-1.1; an arm with
+#: 0.2-3 mm of kinematic error 1.3-8.
+ROBOT_DOMINATES = 1.2
+#: Beyond this ratio the exact-robot pixel refinement may not win at all (unless the board scale is
+#: off): its held-out pixels can beat the pose refinement's while its X is further from the truth.
+#: Rendered sessions (24 per cell, 12 views, robot error 0.2-3 mm): the default's median X error
+#: against OpenCV's best method went from 0.94/1.06 to 0.94/0.98 (rotation/translation) at ~0.9 mm
+#: eye-to-hand, 1.00/0.96 to 0.97/0.83 at ~2.7 mm eye-in-hand and 1.44/1.17 to 1.35/0.96 eye-to-hand;
+#: unchanged below the threshold (at 1.2 instead, the 0.2 mm eye-to-hand cell lost: 0.90/1.11 to 1.12/1.18).
+ROBOT_EXCLUDES = 1.5
+#: ... unless its held-out error is below this fraction of the pose refinement's: bending X to the
+#: robot's smooth errors gained the pixel fit 13-32% in held-out pixels on those sessions (one of 24
+#: at ~2.7 mm eye-to-hand: 32%), while on ROS-Industrial's ChArUco capture (ratio above 1.5) it predicts
+#: held-out views 34% better on all 16 views (2.8x better in 5-fold cross-validation).
+PIXEL_MARGIN = 0.7
+
+
+def robot_error_ratio(views: Views, candidates: dict[str, Fit]) -> float | None:
+    """The pixel refinement's residual std over the PnP poses' on the same points, each per degree
+    of freedom (the hand-eye fit has 12 unknowns, and the intrinsics when it refines them; PnP 6 per view):
+    ~1 when the robot's poses are exact up to the camera's noise. None without a pixel refinement
+    among ``candidates``, before it was fitted, or with too few points (the pixel refinement then
+    stays preferred)."""
+    name = _pixel_name(candidates)
+    done = getattr(candidates.get(name), "full", None) if name is not None else None
+    if not done or not views.has_pixels:
+        return None
+    points = np.array([len(p) for p in views.object_points])
+    sq, count = float(np.sum(pnp_errors(views)[0] ** 2 * points)), int(2 * points.sum())
+    unknowns = 12 + (len(INTRINSICS) if name == PIXEL_INTRINSICS else 0)
+    dof_pnp, dof_pixel = count - 6 * len(views), count - unknowns
+    if dof_pnp <= 0 or dof_pixel <= 0 or sq <= 0:
+        return None
+    pixel_sq = done[0].rms_px ** 2 * (count // 2)  # rms_px is per point (x and y together)
+    return float(np.sqrt((pixel_sq / dof_pixel) / (sq / dof_pnp)))
+
+
+def _pixel_name(candidates: dict[str, Fit]) -> str | None:
+    """The pixel refinement among ``candidates`` that holds the robot exact (intrinsics refined first)."""
+    return next((p for p in (PIXEL_INTRINSICS, PIXEL) if p in candidates), None)
+
+
+def _scale_off(views: Views) -> bool:
+    """The board's scale is off by more than 3 of its std and more than 1%
+    (:func:`~handeye.estimation.diagnostics.board_scale`): then a wrong square size, not the robot, makes the
+    pixel fit's excess residual. An arm's link-length errors also move the scale, by 0.05-0.7% on
+    rendered sessions with 0.2-3 mm of kinematic error, beyond 3 std in 5 of 24 at 3 mm."""
+    scale = board_scale(views.flange2base, views.target2cam, views.setup)
+    return scale is not None and abs(scale[0] - 1.0) > max(3.0 * scale[1], SCALE_TOLERANCE)
+
+
+def _errors(r: CrossValidation) -> NDArray[np.float64]:
+    return r.px if r.px is not None else r.mm
+
+
+#: :func:`intrinsics_cov` steps this many standard deviations along each principal direction of
+#: the intrinsics' covariance (a poorly determined k3 moves by tens); 1.0 gives the same std.
+INTRINSICS_STEP = 0.25
+
+
+def intrinsics_cov(name: str, fit: Fit, views: Views, X: NDArray[np.float64],
+                   Z: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """Covariance of X (6x6, as ``Calibration.cov``) from the error of intrinsics estimated from
+    these very views, for the estimator ``name`` (fitted by ``fit``) when it holds them fixed: the
+    pose refinement, the closed forms and the pixel refinement without intrinsics. The intrinsics'
+    error is common to every view, so neither a noise model nor the jackknife sees it. X is refitted
+    with the intrinsics moved along each principal direction of their covariance
+    (:func:`~handeye.sensors.camera.pnp.intrinsics_covariance`) and every view's PnP pose refitted to them;
+    the differences, scaled to one standard deviation, give the covariance (10 refits; the pixel
+    refinement's warm-started and on every point: 0.6 s for 30 images of a 28x17 board). None for the
+    estimators that refine the intrinsics themselves, for views without pixels or with other than
+    the 5 coefficients :func:`~handeye.sensors.camera.pnp.calibrate_intrinsics` estimates, and when a refit
+    fails.
+
+    Measured on rendered sessions of 8 images: X's change from the true intrinsics to the
+    estimated ones is within 3 of these std on 97% of the axes (median ratio 0.84 where a Gaussian
+    gives 0.67: detection errors correlated within an image make the intrinsics' covariance, as
+    OpenCV's, ~1.15x too small); added to the jackknife and the robot's accuracy, X's whole error
+    is within 3 std on 87-100% of the axes at 8, 12 and 20 images (60-100% without it)."""
+    if name in REFINE_INTRINSICS or not views.has_pixels or len(np.ravel(views.dist)) != 5:
+        return None
+    try:
+        cov_K = intrinsics_covariance(views.object_points, views.image_points, views.target2cam, views.K, views.dist)
+        lam, V = np.linalg.eigh(cov_K)
+        # differences from X refitted the same way at the intrinsics as estimated (not the given X,
+        # which a robust fit or another start may have put a hair away)
+        X0 = _fit_with_intrinsics(name, fit, views, X, Z, np.zeros(9))
+        diffs = []
+        for lam_j, v in zip(lam, V.T):
+            if lam_j > 0:
+                Xj = _fit_with_intrinsics(name, fit, views, X, Z, INTRINSICS_STEP * np.sqrt(lam_j) * v)
+                d_rot = Rotation.from_matrix(Xj[:3, :3] @ X0[:3, :3].T).as_rotvec()
+                diffs.append(np.r_[d_rot, Xj[:3, 3] - X0[:3, 3]] / INTRINSICS_STEP)
+    except (HandEyeError, np.linalg.LinAlgError, ValueError):
+        return None  # a refit that fails: the caller says the term is missing
+    if not diffs:
+        return None
+    D = np.array(diffs)
+    return D.T @ D
+
+
+def _fit_with_intrinsics(name: str, fit: Fit, views: Views, X: NDArray[np.float64], Z: NDArray[np.float64],
+                         step: NDArray[np.float64]) -> NDArray[np.float64]:
+    """X fitted by ``name`` to the views with the intrinsics (fx fy cx cy k1 k2 p1 p2 k3) moved by ``step``."""
+    K = views.K.copy()
+    K[0, 0] += step[0]
+    K[1, 1] += step[1]
+    K[0, 2] += step[2]
+    K[1, 2] += step[3]
+    dist = np.ravel(views.dist) + step[4:]
+    if name == PIXEL:  # the pixel refinement reads the intrinsics, not the PnP poses: warm-started there
+        return refine_reprojection(X, Z, views.flange2base, list(views.object_points), list(views.image_points),
+                                   K, dist, views.setup, robust=False, tol=REFIT_TOL).X
+    target2cam = np.array([refine_pnp(T, P, uv, K, dist)
+                           for T, P, uv in zip(views.target2cam, views.object_points, views.image_points)])
+    return fit(views.flange2base, target2cam, views.setup, np.arange(len(views)))[0]

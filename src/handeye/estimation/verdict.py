@@ -1,0 +1,160 @@
+"""The verdict on a calibration and its reasons, decided in one place from one record of evidence.
+
+:func:`handeye.diagnose` looks at the poses alone (degenerate motions, inconsistent poses and the
+conventions that explain them, outliers, weak rotation); a calibration adds what only a fit can
+show: the std of X (too wide to promise the thesis's acceptance of 5 mm / 1 deg) and the spread of
+the closed forms about X (wider than the std allows). :func:`judge` combines them; ``calibrate``,
+``check``, the report, ``fleet`` and ``acquire`` all take the verdict and the exit status from here,
+so the same data get the same verdict whichever command looked at them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..result import Calibration, Diagnostics
+
+__all__ = ["ACCEPT_DEG", "ACCEPT_MM", "EXIT_STATUS", "Evidence", "Judgement", "exit_status", "judge", "judged",
+           "solver_spread"]
+
+#: X is "weak" when 3 std of it exceed the thesis's acceptance (§5: 5 mm and 1 deg).
+ACCEPT_MM, ACCEPT_DEG = 5.0, 1.0
+#: The exit status of ``check`` and of the commands that calibrate: 0 good (or not checked), 1 weak or
+#: partial (an answer, to be trusted less), 2 degenerate or inconsistent (fix the data first).
+EXIT_STATUS = {"good": 0, "not checked": 0, "weak": 1, "partial": 1, "degenerate": 2, "inconsistent": 2}
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """What the verdict is decided from.
+
+    ``check``: the diagnostics of the poses (None: not checked); ``std``: X's reported std (3 deg,
+    3 mm); ``std_sources``: its parts by source (``jackknife``, ``intrinsics``, ...); ``spread``:
+    the median distance (deg, mm) of the closed forms from X.
+    """
+
+    check: Diagnostics | None
+    std: NDArray[np.float64] | None = None
+    std_sources: dict | None = None
+    spread: tuple[float, float] | None = None
+    #: the median distance (deg, mm) from X of the closed forms left out of ``spread`` because they predict
+    #: held-out views worse than X, and by what factor (their best held-out error over X's)
+    unfair_spread: tuple[float, float, float] | None = None
+
+
+@dataclass(frozen=True)
+class Judgement:
+    """The verdict and every reason for it (the check's advice first, then what the fit added)."""
+
+    verdict: str
+    reasons: list[str] = field(default_factory=list)
+    added: list[str] = field(default_factory=list)  #: the reasons the fit added to the check's
+
+
+def _norms(v: NDArray[np.float64]) -> tuple[float, float]:
+    return float(np.linalg.norm(v[:3])), float(np.linalg.norm(v[3:]))
+
+
+#: From this many poses, more of the same kind hardly narrow a std that leaving one pose out makes wide.
+MANY_POSES = 20
+
+
+def _std_reason(std: NDArray[np.float64], sources: dict, n_used: int) -> str | None:
+    """Why 3 std of X cannot promise the acceptance, or None when they can."""
+    rot, mm = (3 * v for v in _norms(std))
+    if rot <= ACCEPT_DEG and mm <= ACCEPT_MM:
+        return None
+    jack, intr, robot = sources.get("jackknife"), sources.get("intrinsics"), sources.get("robot_accuracy")
+    if robot is not None and (3 * np.linalg.norm(robot[3:]) > ACCEPT_MM or 3 * np.linalg.norm(robot[:3]) > ACCEPT_DEG):
+        return (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg, and the robot's "
+                f"accuracy alone gives {np.linalg.norm(robot[3:]):.1f} mm / {np.linalg.norm(robot[:3]):.2f} deg per std: "
+                "a robot error constant over the capture moves X whole and no number of poses removes it; calibrate "
+                "the robot's kinematics (or use a more accurate one), or give its accuracy if it is better "
+                "(--robot-accuracy DEG,MM)")
+    why = (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg"
+           + (f" (leaving one pose out moves X by {np.linalg.norm(jack[3:]):.1f} mm / {np.linalg.norm(jack[:3]):.2f} deg "
+              "per std)" if jack is not None else ""))
+    if intr is not None and (3 * np.linalg.norm(intr[3:]) > ACCEPT_MM or 3 * np.linalg.norm(intr[:3]) > ACCEPT_DEG):
+        return why + (f"; the intrinsics estimated from these images alone give {np.linalg.norm(intr[3:]):.1f} mm / "
+                      f"{np.linalg.norm(intr[:3]):.2f} deg per std: calibrate the camera on its own (views filling the "
+                      "image, the target tilted) and give K and dist in session.yaml, or take more views that do")
+    if n_used >= MANY_POSES:
+        return why + (f": {n_used} poses disagree more than their noise, and more of the same will not pin X down; "
+                      "rotations of 30 deg or more about varied axes, and the robot's accuracy (a kinematic error that "
+                      "depends on the pose; --robot-accuracy), decide it")
+    return why + ": the poses do not pin X down; take more (10-20), with rotations of 30 deg or more about varied axes"
+
+
+def _spread_reason(std: NDArray[np.float64], spread: tuple[float, float]) -> str | None:
+    """Why the closed forms' spread about X says the std promises too much, or None."""
+    lim_rot, lim_mm = (3 * v for v in _norms(std))
+    rot, mm = spread
+    if rot <= lim_rot and mm <= lim_mm:
+        return None
+    return (f"the closed-form solvers land a median {mm:.2f} mm / {rot:.3f} deg from X, beyond its 3 std "
+            f"({lim_mm:.2f} mm / {lim_rot:.3f} deg): the solvers disagree more than the noise explains; check the "
+            "poses and take more, with larger rotations")
+
+
+def _unfair_reason(std: NDArray[np.float64], unfair: tuple[float, float, float]) -> str | None:
+    """What a good verdict says when the closed forms that predict held-out views worse than X land
+    beyond its 3 std, or None."""
+    lim_rot, lim_mm = (3 * v for v in _norms(std))
+    rot, mm, factor = unfair
+    if rot <= lim_rot and mm <= lim_mm:
+        return None
+    return (f"the closed-form solvers land a median {mm:.2f} mm / {rot:.3f} deg from X, beyond its 3 std ({lim_mm:.2f} mm / "
+            f"{lim_rot:.3f} deg), but they predict held-out views {factor:.1f}x worse than X does (they read the camera's "
+            "PnP poses, which these views determine less well than X's fit to the pixels): X is kept")
+
+
+def judge(evidence: Evidence) -> Judgement:
+    """The verdict on ``evidence``.
+
+    The check's verdict stands unless it is 'good': then X's std must promise the acceptance
+    (3 std within :data:`ACCEPT_MM` and :data:`ACCEPT_DEG`), and the closed forms must land within
+    3 std of X; the first rule that fails makes the verdict 'weak', with its reason. Closed forms
+    that predict held-out views worse than X (``unfair_spread``) and land beyond its 3 std leave a
+    good verdict good, and say so.
+    """
+    check = evidence.check
+    if check is None:
+        return Judgement("not checked")
+    reasons = list(check.advice)
+    if check.verdict != "good" or evidence.std is None:
+        return Judgement(check.verdict, reasons)
+    why = _std_reason(evidence.std, evidence.std_sources or {}, check.n_poses - len(check.outliers))
+    if why is None and evidence.spread is not None:
+        why = _spread_reason(evidence.std, evidence.spread)
+    if why is not None:
+        return Judgement("weak", reasons + [why], [why])
+    said = None if evidence.unfair_spread is None else _unfair_reason(evidence.std, evidence.unfair_spread)
+    return Judgement("good", reasons + [said], [said]) if said else Judgement("good", reasons)
+
+
+def judged(cal: Calibration, spread: tuple[float, float] | None = None,
+           unfair_spread: tuple[float, float, float] | None = None) -> Calibration:
+    """``cal`` with the verdict :func:`judge` gives on its evidence (its diagnostics, std,
+    ``spread`` and ``unfair_spread``); the reasons a fit adds go into the advice and the notes."""
+    found = judge(Evidence(cal.diagnostics, cal.std, cal.std_sources, spread, unfair_spread))
+    if not found.added:
+        return cal
+    diag = replace(cal.diagnostics, verdict=found.verdict, advice=found.reasons)
+    return replace(cal, diagnostics=diag, notes=list(cal.notes) + found.added)
+
+
+def solver_spread(rows: list[dict], methods) -> tuple[float, float] | None:
+    """The median distance (deg, mm) from X of the closed forms ``methods`` among the solver
+    comparison ``rows`` (:func:`handeye.estimation.diagnostics.compare_solvers`); None when none solved."""
+    solved = [r for r in rows if r["method"] in methods and "error" not in r]
+    if not solved:
+        return None
+    return float(np.median([r["dX_deg"] for r in solved])), float(np.median([r["dX_mm"] for r in solved]))
+
+
+def exit_status(verdict: str) -> int:
+    """The exit status of a command that reached ``verdict`` (:data:`EXIT_STATUS`)."""
+    return EXIT_STATUS[verdict]

@@ -1,0 +1,122 @@
+"""Everything that differs between eye-in-hand and eye-to-hand, in one place (docs/guide.md, Conventions).
+
+* eye-in-hand: the camera rides on the flange; ``X = cam2flange``, ``Z = target2base``;
+  ``target2base = flange2base_i @ X @ target2cam_i``.
+* eye-to-hand: the camera stands beside the robot and the target rides on the flange;
+  ``X = cam2base``, ``Z = target2flange``; ``target2flange = inv(flange2base_i) @ X @ target2cam_i``.
+
+Both are the robot-world form ``A_i @ X = Z @ inv(target2cam_i)`` with ``A_i = flange2base_i``
+(eye-in-hand) or ``inv(flange2base_i)`` (eye-to-hand): :func:`robot_world_A` and :func:`robot_world_A_inv` give ``A_i``
+and its inverse (each computed directly, never as an inverse of an inverse). Relative motions follow from it:
+``A_ij = inv(A_j) @ A_i``. The names of X and Z, and the default ROS frames, are here too.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import InputMismatchError
+from ..geometry.dualquat import dq_conj
+from ..geometry.se3 import invert
+
+__all__ = ["SETUPS", "SetupInfo", "check_setup", "setup_info", "robot_world_A", "robot_world_A_inv", "robot_world_dq",
+           "robot_world_inputs", "constant_transforms", "predicted_target2cam",
+           "flange_poses", "camera2base", "target2base"]
+
+SETUPS = ("eye_in_hand", "eye_to_hand")
+
+
+@dataclass(frozen=True)
+class SetupInfo:
+    """Names and roles of the transforms of one setup."""
+
+    name: str
+    camera_on_flange: bool  #: the camera moves with the flange (eye-in-hand)
+    x_name: str  #: ``cam2flange`` or ``cam2base``
+    z_name: str  #: ``target2base`` or ``target2flange``
+    x_inverse_name: str  #: ``flange2cam`` or ``base2cam``
+    x_parent: str  #: the frame X maps camera coordinates into, in words
+    ros_parent_frame: str  #: ROS-Industrial's name of that frame
+    ros_child_frame: str = "camera_optical_frame"  #: OpenCV's camera frame is ROS's *_optical_frame (REP 103)
+
+
+_INFO = {
+    "eye_in_hand": SetupInfo("eye_in_hand", True, "cam2flange", "target2base", "flange2cam", "flange", "tool0"),
+    "eye_to_hand": SetupInfo("eye_to_hand", False, "cam2base", "target2flange", "base2cam", "robot base", "base_link"),
+}
+
+
+def check_setup(setup: str) -> str:
+    """Return ``setup`` if it is a known setup name, else raise a clear error."""
+    if setup not in _INFO:
+        raise InputMismatchError(f"unknown setup {setup!r}; use 'eye_in_hand' (camera on the flange) "
+                                 f"or 'eye_to_hand' (camera fixed, target on the flange)")
+    return setup
+
+
+def setup_info(setup: str) -> SetupInfo:
+    """The names and roles of X and Z for ``setup`` (raises for an unknown one)."""
+    return _INFO[check_setup(setup)]
+
+
+def robot_world_A(flange2base: NDArray[np.float64], setup: str) -> NDArray[np.float64]:
+    """``A_i`` of ``A_i X = Z inv(target2cam_i)``: eye-in-hand ``flange2base``, eye-to-hand ``base2flange``."""
+    return flange2base if _INFO[setup].camera_on_flange else invert(flange2base)
+
+
+def robot_world_A_inv(flange2base: NDArray[np.float64], setup: str) -> NDArray[np.float64]:
+    """``inv(A_i)`` (:func:`robot_world_A`), computed directly: eye-in-hand ``base2flange``, eye-to-hand
+    ``flange2base``."""
+    return invert(flange2base) if _INFO[setup].camera_on_flange else flange2base
+
+
+def robot_world_dq(dq_flange2base: NDArray[np.float64], setup: str) -> NDArray[np.float64]:
+    """The unit dual quaternions of ``A_i`` (:func:`robot_world_A`) from those of ``flange2base``."""
+    return dq_flange2base if _INFO[setup].camera_on_flange else dq_conj(dq_flange2base)
+
+
+def robot_world_inputs(
+    flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(A_i, B_i)`` of ``A_i X = Z B_i``: ``A_i`` as :func:`robot_world_A`, ``B_i = inv(target2cam_i)``."""
+    return robot_world_A(flange2base, setup), invert(target2cam)
+
+
+def constant_transforms(
+    X: NDArray[np.float64], flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str
+) -> NDArray[np.float64]:
+    """Per pose, the transform that must be constant given X: ``Z_i = A_i @ X @ target2cam_i``
+    (target2base for eye-in-hand, target2flange for eye-to-hand)."""
+    return robot_world_A(flange2base, setup) @ X @ target2cam
+
+
+def predicted_target2cam(X: NDArray[np.float64], Z: NDArray[np.float64], flange2base: NDArray[np.float64],
+                         setup: str) -> NDArray[np.float64]:
+    """Camera-to-target poses implied by X, Z and the robot poses: ``inv(X) @ inv(A_i) @ Z``."""
+    return invert(X) @ robot_world_A_inv(flange2base, setup) @ Z
+
+
+def flange_poses(cam2target: NDArray[np.float64], X: NDArray[np.float64], Z: NDArray[np.float64],
+                 setup: str) -> NDArray[np.float64]:
+    """The robot poses that show the target from ``cam2target`` (batches broadcast): eye-in-hand
+    ``Z @ cam2target @ inv(X)``, eye-to-hand ``X @ inv(cam2target) @ inv(Z)``."""
+    if _INFO[setup].camera_on_flange:
+        return Z @ cam2target @ invert(X)
+    return X @ invert(cam2target) @ invert(Z)
+
+
+def camera2base(X: NDArray[np.float64], flange2base: NDArray[np.float64], setup: str) -> NDArray[np.float64]:
+    """The camera pose per robot pose in the base frame."""
+    if _INFO[setup].camera_on_flange:
+        return flange2base @ X
+    return np.broadcast_to(X, flange2base.shape)
+
+
+def target2base(Z: NDArray[np.float64], flange2base: NDArray[np.float64], setup: str) -> NDArray[np.float64]:
+    """The target pose per robot pose in the base frame."""
+    if _INFO[setup].camera_on_flange:
+        return np.broadcast_to(Z, flange2base.shape)
+    return flange2base @ Z

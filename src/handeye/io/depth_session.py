@@ -1,0 +1,150 @@
+"""Depth-camera session folders read and checked: ``session.yaml`` with a ``depth:`` mapping, the
+clouds in ``clouds/`` (and a board's intensity images in ``images/``), the robot poses; nothing is
+measured here (:mod:`handeye.pipelines.depth` does that).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import HandEyeError, SessionError
+from ..frames.poses import parse_poses
+from ..frames.setups import check_setup
+from ..sensors.camera import target_from_spec
+from ..sensors.depth.clouds import CLOUD_SUFFIXES
+from .session import SESSION_FILE, load_yaml, read_camera, read_pose_table
+
+__all__ = ["DepthSession", "is_depth_session", "load_depth_session"]
+
+
+@dataclass(frozen=True)
+class DepthSession:
+    """A depth session's inputs, read and checked (no cloud read yet)."""
+
+    folder: Path
+    setup: str
+    target_spec: dict[str, Any]
+    names: list[str]  #: per view: the image's (boards) or the cloud's (spheres) file name
+    cloud_paths: list[Path]
+    image_paths: list[Path] | None  #: boards only
+    flange2base: NDArray[np.float64]
+    K: NDArray[np.float64] | None
+    dist: NDArray[np.float64] | None
+    unit: str
+    working_range: tuple[float, float] | None
+    radii: list[float] | None  #: spheres only, metres
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def kind(self) -> str:
+        return "spheres" if self.radii is not None else "board"
+
+
+def is_depth_session(folder: str | Path) -> bool:
+    """Whether ``folder``'s session.yaml has a ``depth:`` mapping."""
+    yml = Path(folder) / SESSION_FILE
+    if not yml.is_file():
+        return False
+    try:
+        spec = load_yaml(yml)
+    except HandEyeError:
+        return False
+    return isinstance(spec, dict) and spec.get("depth") is not None
+
+
+def _radii(target: Any, where: str) -> list[float] | None:
+    if not isinstance(target, dict) or str(target.get("type", "")).lower() != "sphere":
+        return None
+    d = target.get("diameter", target.get("diameters"))
+    values = np.atleast_1d(np.asarray(d, dtype=float)) if d is not None else np.array([])
+    if len(values) == 0 or not np.isfinite(values).all() or np.any(values <= 0):
+        raise SessionError(f"{where}: target: a sphere needs its diameter (metres; several: a list), got {d!r}")
+    if np.any(values > 1.0):
+        raise SessionError(f"{where}: target: sphere diameter {values.max():g} m: give it in metres (e.g. 0.05)")
+    if len(values) > 1 and np.min(np.diff(np.sort(values))) < 0.005:
+        raise SessionError(f"{where}: target: spheres are told apart by their diameters; {values.tolist()} differ by "
+                           "less than 5 mm: use balls of clearly different sizes")
+    return (values / 2).tolist()
+
+
+def _depth_spec(spec: Any, where: str) -> tuple[str, tuple[float, float] | None]:
+    if not isinstance(spec, dict):
+        raise SessionError(f"{where}: depth must be a mapping (unit: m | mm, range: [near, far] in metres)")
+    unit = str(spec.get("unit", "m"))
+    if unit not in ("m", "mm"):
+        raise SessionError(f"{where}: depth: unit is m or mm, not {unit!r}")
+    rng = spec.get("range")
+    if rng is None:
+        return unit, None
+    try:
+        lo, hi = (float(v) for v in rng)
+    except (TypeError, ValueError):
+        raise SessionError(f"{where}: depth: range is [near, far] in metres, got {rng!r}") from None
+    if not 0 <= lo < hi or hi > 50:
+        raise SessionError(f"{where}: depth: range [near, far] must be metres with near < far, got {rng!r}")
+    return unit, (lo, hi)
+
+
+def _cloud_of(folder: Path, name: str, table: Path) -> Path:
+    """The cloud in ``clouds/`` named ``name`` (spheres) or with the image's stem (boards)."""
+    clouds = folder / "clouds"
+    direct = clouds / name
+    if direct.suffix.lower() in CLOUD_SUFFIXES and direct.is_file():
+        return direct
+    found = [clouds / (Path(name).stem + s) for s in CLOUD_SUFFIXES if (clouds / (Path(name).stem + s)).is_file()]
+    if not found:
+        raise SessionError(f"{table}: no cloud for {name!r} in {clouds} (expected {Path(name).stem}.npy, .ply or .pcd)")
+    return found[0]
+
+
+def load_depth_session(folder: str | Path) -> DepthSession:
+    """Read and check a depth session folder (the module's docstring); nothing is measured yet.
+
+    Raises :class:`SessionError` naming the file: no ``depth:`` mapping, a bad target, a missing
+    pose table, image or cloud, a pose table whose first column is neither ``image`` nor ``cloud``.
+    """
+    folder = Path(folder)
+    yml = folder / SESSION_FILE
+    if not yml.is_file():
+        raise SessionError(f"{folder}: no {SESSION_FILE}")
+    notes: list[str] = []
+    spec = load_yaml(yml, notes)
+    where = str(yml)
+    if spec.get("depth") is None:
+        raise SessionError(f"{where}: no depth: mapping; a depth session says its clouds' unit there")
+    setup = check_setup(str(spec.get("setup", "")))
+    target = spec.get("target")
+    radii = _radii(target, where)
+    if radii is None:
+        target_from_spec(target, where=f"{where}: target")
+    unit, working = _depth_spec(spec["depth"], where)
+    K, dist = read_camera(spec.get("camera"), where)
+    poses = spec.get("poses")
+    if not isinstance(poses, dict) or not {"file", "format", "length_unit"} <= set(poses):
+        raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit (m | mm) and angle_unit "
+                           "(deg | rad)")
+    table = folder / str(poses["file"])
+    if not table.is_file():
+        raise SessionError(f"{table}: no such pose table")
+    fmt = str(poses["format"])
+    values, names = read_pose_table(table, fmt, id_columns=("image", "cloud"), notes=notes)
+    if names is None:
+        raise SessionError(f"{table}: the first column must be 'image' (a board: its intensity image in images/, the "
+                           "cloud of the same name in clouds/) or 'cloud' (spheres: the cloud in clouds/)")
+    f2b = parse_poses(values, fmt, length_unit=str(poses["length_unit"]), angle_unit=str(poses.get("angle_unit", "rad")),
+                      what=str(table))
+    clouds = [_cloud_of(folder, n, table) for n in names]
+    images = None
+    if radii is None:
+        images = [folder / "images" / n for n in names]
+        missing = [str(p.name) for p in images if not p.is_file()]
+        if missing:
+            raise SessionError(f"{folder / 'images'}: image file(s) missing: {', '.join(missing[:10])}")
+    return DepthSession(folder, setup, dict(target), list(names), clouds, images, f2b, K, dist, unit, working, radii, notes)
+
+

@@ -1,0 +1,141 @@
+"""A folder calibrated the one way, whichever command asked: :func:`calibrate_folder` and
+:func:`check_folder`.
+
+``check`` used to run the pose check alone and could call data good that ``calibrate`` then called
+weak (a std of tens of millimetres, which only a fit shows). Now both run the same pipeline with
+the same :class:`~handeye.options.CalibrationOptions`, and the verdict comes from
+:mod:`handeye.estimation.verdict` for both: ``check`` prints the evidence (the pose table, the held-out errors)
+and the verdict; ``calibrate`` prints and writes the result.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from ..errors import DegenerateMotionError
+from ..estimation.validation import default_folds
+from ..estimation.verdict import exit_status
+from ..io.session import POSEPAIRS_FILE, SESSION_FILE, PosePairs, load_pose_pairs, load_session, load_yaml
+from ..options import CalibrationOptions, options_from
+from ..result import Calibration, Diagnostics
+from .calibration import calibrate, calibrate_poses
+from .joints import calibrate_joint_session
+from .streams import calibrate_streams, paired_delay_note
+
+__all__ = ["FolderCheck", "calibrate_folder", "calibrate_pairs", "calibrate_session", "check_folder"]
+
+
+def calibrate_folder(folder: str | Path, options: CalibrationOptions | None = None, *, jobs: int | None = None,
+                     progress: bool = True, **changes) -> Calibration:
+    """:func:`handeye.calibrate` on a capture session (``session.yaml``; with a ``joints:`` table,
+    :func:`handeye.pipelines.joints.calibrate_joint_session`: the arm's table fitted with X), or
+    :func:`calibrate_pairs` on a pose-pair folder (``posepairs.yaml``)."""
+    opts = options_from(options, changes)
+    folder = Path(folder)
+    if not (folder / POSEPAIRS_FILE).is_file():
+        return calibrate_session(folder, opts, jobs=jobs, progress=progress)
+    return calibrate_pairs(load_pose_pairs(folder), opts, progress=progress)
+
+
+def calibrate_session(folder: str | Path, options: CalibrationOptions | None = None, *, jobs: int | None = None,
+                      progress: bool = True, **changes) -> Calibration:
+    """:func:`handeye.calibrate` on a capture session, or, when its ``session.yaml`` has a
+    ``joints:`` table, :func:`handeye.pipelines.joints.calibrate_joint_session` (the arm's table
+    fitted with X)."""
+    opts = options_from(options, changes)
+    folder = Path(folder)
+    if opts.arm is not None or ((folder / SESSION_FILE).is_file()
+                                and load_yaml(folder / SESSION_FILE).get("joints") is not None):
+        session = load_session(folder, strict_images=opts.strict_images, arm=opts.arm)
+        return calibrate_joint_session(session, opts, jobs=jobs, progress=progress)
+    return calibrate(folder, opts, jobs=jobs, progress=progress)
+
+
+def calibrate_pairs(pairs: PosePairs, options: CalibrationOptions | None = None, *, progress: bool = True,
+                    **changes) -> Calibration:
+    """:func:`handeye.calibrate_poses` on pose pairs as read from their files
+    (:func:`handeye.calibrate_streams` when they are two time-stamped streams), with the files'
+    notes first and, for streams, a note when the pairing the files imply disagrees with the clock
+    offset found."""
+    opts = options_from(options, changes)
+    if pairs.is_stream:
+        cal = calibrate_streams(pairs.robot_times, pairs.flange2base, pairs.camera_times, pairs.target2cam,
+                                pairs.setup, opts, robot_input=pairs.robot_input)
+        warning = paired_delay_note(pairs.paired_delays, cal.time_offset, cal.time_offset_std)
+        notes = list(pairs.notes) + ([warning] if warning else [])
+    else:
+        cal = calibrate_poses(pairs.flange2base, pairs.target2cam, pairs.setup, opts, robot_input=pairs.robot_input,
+                              camera_input=pairs.camera_input, names=[str(i) for i in pairs.ids], progress=progress)
+        notes = list(pairs.notes)
+    return replace(cal, notes=notes + list(cal.notes), input_folder=pairs.source)
+
+
+@dataclass(frozen=True)
+class FolderCheck:
+    """What :func:`check_folder` found: the calibration ``calibrate`` would make (None when the data
+    cannot determine X), the diagnostics with the verdict, and the images that gave no pose."""
+
+    diagnostics: Diagnostics
+    calibration: Calibration | None = None
+    skipped: list[tuple[str, str]] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    folds: int | None = None
+
+    @property
+    def verdict(self) -> str:
+        """The verdict, as ``calibrate`` gives it (:mod:`handeye.estimation.verdict`)."""
+        return self.diagnostics.verdict
+
+    @property
+    def exit_status(self) -> int:
+        """``check``'s exit status, the same as ``calibrate``'s on the same data."""
+        return exit_status(self.verdict)
+
+    @property
+    def names(self) -> list[str]:
+        """The name of each pose checked (its image file, or its row id)."""
+        d = self.diagnostics
+        return list(d.names) if d.names else [str(i) for i in range(d.n_poses)]
+
+    def cross_validation_table(self) -> str:
+        """The estimators' held-out errors, best first, for people."""
+        cal = self.calibration
+        if cal is None or not cal.cross_validation:
+            return "held-out prediction error: not computed (fewer than 5 usable poses, or X not fully determined)"
+        table = cal.cross_validation
+        rows = sorted(table.items(), key=lambda kv: kv[1]["px"] if kv[1]["px"] is not None else kv[1]["mm"])
+        if cal.kinematic is not None:
+            lines = [f"held-out prediction error ({self.folds}-fold cross-validation; each view predicted from its joint "
+                     "angles by X, Z and the arm's table fitted without it, and from the nominal table's flange pose by "
+                     "the pose refinement on the others):"]
+        else:
+            lines = [f"held-out prediction error ({self.folds}-fold cross-validation; each view predicted from its robot "
+                     "pose by X and Z fitted without it; the preferred refinement is replaced only by a candidate better "
+                     "by more than one standard error, so the one used need not have the smallest error):"]
+        width = max([24] + [len(name) for name, _ in rows])
+        for name, r in rows:
+            px = f"{r['px']:8.3f} px" if r.get("px") is not None else "           "
+            lines.append(f"  {name:<{width}} {px} {r['mm']:8.3f} mm at the target" + ("   <- chosen" if name == cal.estimator
+                                                                                       else ""))
+        return "\n".join(lines)
+
+
+def check_folder(folder: str | Path, options: CalibrationOptions | None = None, *, jobs: int | None = None,
+                 progress: bool = True, **changes) -> FolderCheck:
+    """What ``calibrate`` would say about a session or pose-pair folder, before using its result:
+    the diagnostics (pose table, outliers, conventions), the held-out prediction error of every
+    estimator ``calibrate`` chooses from, and the same verdict (:func:`calibrate_folder` with the
+    same ``options``). Data that cannot determine X get the check's 'degenerate' verdict and its
+    advice instead of an error."""
+    opts = options_from(options, changes)
+    try:
+        cal = calibrate_folder(folder, opts, jobs=jobs, progress=progress)
+    except DegenerateMotionError as exc:
+        if exc.diagnostics is None:  # not the check's finding (e.g. too few images): the error is the answer
+            raise
+        return FolderCheck(exc.diagnostics)
+    diag = cal.diagnostics if cal.diagnostics is not None else Diagnostics(verdict="not checked")
+    kept = diag.n_poses - len(diag.outliers)
+    folds = None if kept < 4 else (default_folds(kept) if opts.folds is None else min(opts.folds, kept))
+    return FolderCheck(diag, cal, list(cal.skipped), list(cal.notes), folds)

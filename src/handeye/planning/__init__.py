@@ -1,0 +1,25 @@
+"""Planning what to capture: robot poses that determine X well for a camera (:mod:`~handeye.planning.poses.poses`,
+``handeye plan``), and the joint configurations that would determine what a joint fit left undetermined
+(:mod:`~handeye.planning.poses.joints`)."""
+
+from __future__ import annotations
+
+from .joints import TABLE_DOMINATES, JointViews, suggest_joint_views
+from .poses import (
+    ROBOTS,
+    Plan,
+    candidate_views,
+    choose_next,
+    easy_handeye_poses,
+    order_path,
+    plan_poses,
+    predicted_cov,
+    reprojection_information,
+    simulate_errors,
+    visible_mask,
+    write_plan,
+)
+
+__all__ = ["Plan", "ROBOTS", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
+           "visible_mask", "simulate_errors", "write_plan", "order_path", "candidate_views", "choose_next",
+           "JointViews", "suggest_joint_views", "TABLE_DOMINATES"]
