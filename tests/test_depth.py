@@ -9,7 +9,7 @@ import pytest
 from handeye.errors import InputMismatchError
 from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import make_transform
-from handeye.pipelines.depth_fit import calibrate_depth
+from handeye.pipelines.depth import calibrate_depth
 from handeye.sensors.depth import board_pose, check_cloud, lift_points, plane_points
 from handeye.simulate import depth_scene
 
@@ -25,10 +25,11 @@ def test_x_and_the_depth_scale_from_lifted_corners(setup):
     assert min(np.isfinite(q).all(axis=1).sum() for q in lifted) >= 40  # holes and edges refused, most kept
     cal = calibrate_depth(sc.flange2base, [sc.object_points] * len(lifted), lifted, setup)
     rot, trans = np.degrees(rotation_error(cal.X, sc.X)), 1e3 * translation_error(cal.X, sc.X)
-    print(f"{setup}: {rot:.4f} deg {trans:.3f} mm, scale {cal.depth_scale:.5f} +- {cal.depth_scale_std:.5f}")
+    scale, bias = cal.sensor.figures["depth_scale"], cal.sensor.figures["depth_bias_mm"]
+    print(f"{setup}: {rot:.4f} deg {trans:.3f} mm, scale {scale['value']:.5f} +- {scale['std']:.5f}")
     assert rot < 0.1 and trans < 0.3
-    assert np.all(np.abs(1e3 * (cal.X[:3, 3] - sc.X[:3, 3])) <= 3 * cal.std_data[3:])  # the robot is exact here
-    assert abs(cal.depth_scale - 1.002) <= 3 * cal.depth_scale_std and abs(cal.depth_bias) <= 3 * cal.depth_bias_std
+    assert np.all(np.abs(1e3 * (cal.X[:3, 3] - sc.X[:3, 3])) <= 3 * cal.std_sources["data"][3:])  # the robot is exact here
+    assert abs(scale["value"] - 1.002) <= 3 * scale["std"] and abs(bias["value"]) <= 3 * bias["std"]
     assert any("depth scale 1.00" in n and "beyond 3 std" in n for n in cal.notes)
     # without the scale as an unknown, X absorbs it: further from the truth
     fixed = calibrate_depth(sc.flange2base, [sc.object_points] * len(lifted), lifted, setup, fit_depth=False)

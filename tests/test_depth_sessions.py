@@ -17,8 +17,7 @@ from handeye.errors import DegenerateMotionError, InputMismatchError, TargetErro
 from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import invert, make_transform
 from handeye.io.depth_session import load_depth_session
-from handeye.pipelines.depth import calibrate_depth_session
-from handeye.pipelines.depth_fit import calibrate_spheres
+from handeye.pipelines.depth import calibrate_depth_session, calibrate_spheres
 from handeye.sensors.depth import check_frame, find_spheres, fit_sphere, read_cloud
 from handeye.simulate import depth_scene, sphere_scene, write_depth_session
 
@@ -73,10 +72,11 @@ def test_x_from_a_sphere_without_any_board(setup, spheres):
                             np.array([f.cov for f in found]), radii=[sc.radius])
     rot, trans = np.degrees(rotation_error(cal.X, sc.X)), 1e3 * translation_error(cal.X, sc.X)
     assert rot < 0.2 and trans < 0.5, (rot, trans)
-    assert np.all(np.abs(1e3 * (cal.X[:3, 3] - sc.X[:3, 3])) <= 3 * cal.std_data[3:])
-    assert abs(cal.depth_scale - sc.depth_scale) <= 3 * cal.depth_scale_std
-    assert np.linalg.norm(cal.centres[0] - sc.Z[:3, 3]) < 1e-3
-    assert np.all(cal.std >= cal.std_data)  # the robot's stated accuracy widens it
+    assert np.all(np.abs(1e3 * (cal.X[:3, 3] - sc.X[:3, 3])) <= 3 * cal.std_sources["data"][3:])
+    scale = cal.sensor.figures["depth_scale"]
+    assert abs(scale["value"] - sc.depth_scale) <= 3 * scale["std"]
+    assert np.linalg.norm(cal.Z[:3, 3] - sc.Z[:3, 3]) < 1e-3  # Z: the ball's centre
+    assert np.all(cal.std >= cal.std_sources["data"])  # the robot's stated accuracy widens it
 
 
 def test_a_sphere_seen_from_motions_about_one_axis_is_refused(spheres):
@@ -106,19 +106,20 @@ def test_a_sphere_session_through_the_command_line(tmp_path, capsys, spheres):
     folder = _session(tmp_path, spheres, unit="mm", working_range=(0.3, 0.9))
     assert main(["calibrate", str(folder), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
     result = yaml.safe_load((tmp_path / "out" / "result.yaml").read_text())
-    assert result["verdict"] == "good" and result["kind"] == "spheres"
-    X = np.array(result["cam2base"]["matrix"])
+    assert result["verdict"] == "good" and result["sensor"]["target"] == "spheres" and result["X_name"] == "cam2base"
+    X = np.array(result["X"]["matrix"])
     assert 1e3 * translation_error(X, spheres.X) < 0.5
-    assert result["heldout_rms_mm"] < 0.2
-    assert any("outside the camera's stated range 0.3-0.9 m" in a for a in result["advice"]) == bool(
+    assert result["cross_validation"]["prediction_error"]["mm"] < 0.2
+    assert any("outside the camera's stated range 0.3-0.9 m" in a for a in result["check"]["advice"]) == bool(
         np.any(np.linalg.norm(spheres.target2cam[:, :3, 3], axis=1) > 0.9))
-    assert json.loads((tmp_path / "out" / "result.json").read_text())["depth"]["scale"] == result["depth"]["scale"]
+    scale = json.loads((tmp_path / "out" / "result.json").read_text())["sensor"]["figures"]["depth_scale"]
+    assert scale == result["sensor"]["figures"]["depth_scale"]
     assert "report.html" in {p.name for p in (tmp_path / "out").iterdir()}
     # options of image sessions are refused, not dropped
-    assert main(["calibrate", str(folder), "--method", "tsai_lenz", "--export", "all", "--no-progress"]) != 0
-    assert "--method, --export apply to image sessions only" in capsys.readouterr().err
+    assert main(["calibrate", str(folder), "--method", "tsai_lenz", "--no-progress"]) != 0
+    assert "method (--method): options of image and pose sessions" in capsys.readouterr().err
     assert main(["check", str(folder), "--refine", "pose", "--no-progress"]) != 0
-    assert "--refine apply to image sessions only" in capsys.readouterr().err
+    assert "refine (--refine): options of image and pose sessions" in capsys.readouterr().err
     # a cloud swapped for another view's: check (calibrate's verdict) leaves it out with the reason
     swapped = tmp_path / "session" / "clouds"
     (swapped / "view03.npy").write_bytes((swapped / "view09.npy").read_bytes())
@@ -133,12 +134,13 @@ def test_a_board_session_with_rendered_images(tmp_path):
     """A board session: the corners detected in rendered intensity images, lifted from the clouds;
     X within 0.3 mm / 0.1 deg, the verdict good, every view used."""
     sc = depth_scene(7, "eye_in_hand", 7)
-    r = calibrate_depth_session(_session(tmp_path, sc))
-    assert r.verdict == "good" and len(r.used) == 7 and not r.skipped
-    assert 1e3 * translation_error(r.calibration.X, sc.X) < 0.3
-    assert np.degrees(rotation_error(r.calibration.X, sc.X)) < 0.1
-    assert abs(r.calibration.depth_scale - 1.002) <= 3 * r.calibration.depth_scale_std
-    assert any("clouds in the image's frame" in n for n in r.notes)
+    cal = calibrate_depth_session(_session(tmp_path, sc))
+    assert cal.verdict == "good" and len(cal.sensor.views) == 7 and not cal.skipped
+    assert 1e3 * translation_error(cal.X, sc.X) < 0.3
+    assert np.degrees(rotation_error(cal.X, sc.X)) < 0.1
+    scale = cal.sensor.figures["depth_scale"]
+    assert abs(scale["value"] - 1.002) <= 3 * scale["std"]
+    assert any("clouds in the image's frame" in n for n in cal.notes)
 
 
 def test_clouds_read_from_ply_and_pcd_as_from_npy(tmp_path, spheres):
@@ -232,6 +234,23 @@ def test_robot_poses_in_the_wrong_order_are_called_inconsistent(tmp_path, sphere
     session = load_depth_session(_session(tmp_path, spheres))
     order = np.roll(np.arange(len(session.names)), 5)
     for wrong in (session.flange2base[order], invert(session.flange2base)):  # the wrong order; base2flange given
-        r = calibrate_depth_session(replace(session, flange2base=wrong))
-        assert r.verdict == "inconsistent", (r.verdict, r.advice)
-        assert any("the robot poses and the clouds disagree" in a for a in r.advice)
+        cal = calibrate_depth_session(replace(session, flange2base=wrong))
+        assert cal.verdict == "inconsistent", (cal.verdict, cal.diagnostics.advice)
+        assert any("the robot poses and the measurements disagree" in a for a in cal.diagnostics.advice)
+
+
+def test_depth_sessions_in_a_fleet_and_with_exports(tmp_path, capsys, spheres):
+    """Two depth sessions in one ``calibrate`` (a fleet): both calibrated, each into its own folder
+    with the same result files as any session; a depth result exports a ROS 2 launch file as any
+    calibration does (issue 60, item 13)."""
+    a = write_depth_session(tmp_path / "a", spheres)
+    b = write_depth_session(tmp_path / "b", sphere_scene(8, "eye_in_hand", 7))
+    assert main(["calibrate", str(a), str(b), "--out", str(tmp_path / "fleet"), "--no-progress", "--export",
+                 "ros2-launch"]) == 0, capsys.readouterr()
+    fleet = json.loads((tmp_path / "fleet" / "fleet.json").read_text())
+    items = fleet["sessions"] if isinstance(fleet, dict) else fleet
+    assert [i["verdict"] for i in items] == ["good", "good"], items
+    for name in ("a", "b"):
+        result = json.loads((tmp_path / "fleet" / name / "result.json").read_text())
+        assert result["sensor"]["kind"] == "depth camera"
+        assert (tmp_path / "fleet" / name / "handeye_static_tf.launch.py").is_file()

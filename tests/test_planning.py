@@ -190,8 +190,8 @@ def test_cli_writes_poses_in_the_robot_format(tmp_path, camera_yaml, capsys):
     assert F.shape == (8, 4, 4)
     assert np.abs(F - plan.flange2base).max() < 1e-9  # the same plan, written and read back exactly
     # the std calibrate would report: the pixels' part plus the robot's accuracy, as calibrate adds it
+    from handeye.estimation.uncertainty import robot_accuracy_cov
     from handeye.frames.metrics import std_deg_mm
-    from handeye.pipelines.calibration import robot_accuracy_cov
     assert np.allclose(plan.std_reported, std_deg_mm(plan.cov_X + robot_accuracy_cov(X, (0.03, 0.3))))
     assert np.all(plan.std_reported[3:] >= 0.3) and np.all(plan.std_X[3:] < 0.3)
     line = next(t for t in text.splitlines() if t.startswith("predicted std of X as calibrate would report it"))

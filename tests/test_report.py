@@ -498,8 +498,8 @@ def test_scene_and_rotation_axes_use_the_page_and_their_labels_do_not_overlap(sa
 #: result.json's keys as the sub-records' parts wrote them before they were grouped (issue 36): the
 #: top level shared by every calibration, and the sections of the optional parts
 _TOP = {"X", "X_inverse", "X_inverse_name", "X_name", "Z", "Z_name", "check", "determined", "easy_handeye",
-        "handeye_version", "inputs_sha256", "method", "motion_residuals", "n_motions", "n_poses", "notes",
-        "pose_residuals", "refinement", "ros", "setup"}
+        "estimator", "handeye_version", "inputs_sha256", "method", "motion_residuals", "n_motions", "n_poses", "notes",
+        "pose_residuals", "poses", "refinement", "ros", "setup", "verdict"}
 
 
 def test_result_json_keeps_its_keys_with_the_sub_records(sample_cal):
@@ -513,7 +513,7 @@ def test_result_json_keeps_its_keys_with_the_sub_records(sample_cal):
 
     d = result_dict(sample_cal)
     assert set(d) == _TOP | {"camera", "cross_validation", "images", "uncertainty"}
-    assert set(d["cross_validation"]) == {"estimator", "meaning", "per_estimator", "prediction_error"}
+    assert set(d["cross_validation"]) == {"estimator", "folds", "meaning", "per_estimator", "prediction_error"}
     assert isinstance(sample_cal.cross_validation, HeldOutErrors) and sample_cal.cross_validation.folds >= 2
     assert d["cross_validation"]["per_estimator"] == dict(sample_cal.cross_validation)
     assert sample_cal.prediction_error == sample_cal.cross_validation[sample_cal.estimator]

@@ -173,7 +173,7 @@ def test_a_wrong_square_size_is_not_trusted_as_declared(tmp_path):
     assert cal.std_sources["board_scale"] is not None
     assert not any("focal length" in a for a in cal.diagnostics.advice)  # K given: the size it is
     handeye.write_calibration(cal, tmp_path / "out")
-    assert handeye.io.session.read_result(tmp_path / "out")["target_scale"] == pytest.approx(cal.target_scale)
+    assert handeye.load_result(tmp_path / "out").target_scale == pytest.approx(cal.target_scale)
 
 
 # --- the bundled sample, as given and with the faults --------------------------------

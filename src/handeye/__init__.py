@@ -36,6 +36,7 @@ _NAMES = {
     "Calibration": "result", "Diagnostics": "result", "Unobservable": "result",
     "solve": "solvers", "solve_batch": "solvers", "solve_robot_world": "solvers", "solve_robot_world_batch": "solvers",
     "calibrate_streams": "pipelines.streams",
+    "load_result": "io.results",
 }
 
 #: Modules that moved when the package was cut into folders by domain: the old path still imports,
@@ -49,9 +50,9 @@ MOVED = {f"handeye.{old}": tuple(f"handeye.{n}" for n in new) for old, new in {
     **{f"vision.targets.{m}": (f"sensors.camera.targets.{m}",) for m in
        ("base", "chessboard", "charuco", "circles", "modified_circles", "apriltag", "aruco_grid")},
     "printing": ("sensors.camera.printing",),
-    "depth": ("sensors.depth", "pipelines.depth", "pipelines.depth_fit", "io.depth_session"),
+    "depth": ("sensors.depth", "pipelines.depth", "io.depth_session"),
     "depth.clouds": ("sensors.depth.clouds",), "depth.spheres": ("sensors.depth.spheres",),
-    "depth.fit": ("pipelines.depth_fit",), "depth.session": ("pipelines.depth", "io.depth_session"),
+    "depth.fit": ("pipelines.depth",), "depth.session": ("pipelines.depth", "io.depth_session"),
     "diagnostics": ("estimation.diagnostics",), "validation": ("estimation.validation",),
     "estimators": ("estimation.estimators",), "partial": ("estimation.partial",), "verdict": ("estimation.verdict",),
     "sync": ("estimation.sync",), "session": ("io.session",), "importers": ("io.importers",),
@@ -68,6 +69,7 @@ if TYPE_CHECKING:  # what the names are, for type checkers and editors
     from .frames.motions import relative_motions
     from .frames.poses import RobotPoseInput, format_poses, parse_poses
     from .geometry.dualquat import DualQuaternion
+    from .io.results import load_result
     from .options import CalibrationOptions
     from .pipelines.calibration import calibrate, calibrate_poses, certify_calibration
     from .pipelines.folders import check_folder
@@ -119,6 +121,7 @@ __all__ = [
     "format_poses",
     "frames",
     "io",
+    "load_result",
     "parse_poses",
     "pipelines",
     "planning",

@@ -11,6 +11,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -26,7 +27,7 @@ from .robot.kinematics import Chain, display_unit
 from .solvers.certifiable import Certificate
 
 __all__ = ["Calibration", "Diagnostics", "Unobservable", "Observability", "HeldOutErrors", "StreamSync", "Certificate",
-           "KinematicModel"]
+           "KinematicModel", "SensorFit"]
 
 
 @dataclass(frozen=True)
@@ -174,6 +175,41 @@ class KinematicModel:
 
 
 @dataclass(frozen=True)
+class SensorFit:
+    """What the fit of a sensor model found beside X (:mod:`handeye.estimation.core`): the sensor,
+    the target, each view's residual and the sensor's own figures.
+
+    Attributes
+    ----------
+    sensor, target : str
+        In words (``'depth camera'``, ``'spheres'``; ``'laser line profiler'``, ``'sphere'`` ...).
+    views : list of str
+        The views the fit used, in the calibration's order.
+    residual_mm : ndarray (len(views),)
+        Per view, the RMS of its measurements' residuals (mm).
+    fit_rms_mm : float
+        The same over every view.
+    figures : dict
+        The sensor's own results (a depth scale and bias with their std, the target's centres or
+        radius, ...), plain numbers as result.json writes them.
+    points, rejected : int
+        Measurements fitted, and set aside as outliers (beyond 5 of their std).
+    heldout_mm : ndarray (len(views),) or None
+        Per view its error when held out of the fit (cross-validation), mm.
+    """
+
+    sensor: str
+    target: str
+    views: list[str]
+    residual_mm: NDArray[np.float64]
+    fit_rms_mm: float
+    figures: dict[str, Any] = field(default_factory=dict)
+    points: int = 0
+    rejected: int = 0
+    heldout_mm: NDArray[np.float64] | None = None
+
+
+@dataclass(frozen=True)
 class StreamSync:
     """How :func:`handeye.calibrate_streams` put the robot and the camera on one clock.
 
@@ -309,14 +345,17 @@ class Calibration:
     Attributes
     ----------
     X : ndarray (4, 4)
-        ``cam2flange`` (eye_in_hand) or ``cam2base`` (eye_to_hand), metres.
+        ``cam2flange`` (eye_in_hand) or ``cam2base`` (eye_to_hand), metres; the sensor's frame for
+        other sensors (``sensor2flange``, ``sensor2base``: the same matrix).
     Z : ndarray (4, 4)
         ``target2base`` (eye_in_hand) or ``target2flange`` (eye_to_hand): the mean over poses.
     setup, method : str
     flange2base, target2cam : ndarray (N, 4, 4)
-        The (validated) inputs.
+        The (validated) inputs; ``target2cam`` is None for sensors whose views measure no whole
+        pose of the target (a ball's centre, a laser profile), and both are None for a result read
+        back from its file (:func:`handeye.load_result`).
     pairs : ndarray (K, 2)
-        The pose index pairs of the motions used.
+        The pose index pairs of the motions used (none without ``target2cam``).
     cov : ndarray (6, 6) or None
         Covariance of X over [rotation vector (rad), translation (m)]; None when not computed.
     std : ndarray (6,) or None
@@ -341,9 +380,9 @@ class Calibration:
     Z: NDArray[np.float64]
     setup: str
     method: str
-    flange2base: NDArray[np.float64] = field(repr=False)
-    target2cam: NDArray[np.float64] = field(repr=False)
-    pairs: NDArray[np.intp] = field(repr=False)
+    flange2base: NDArray[np.float64] | None = field(default=None, repr=False)
+    target2cam: NDArray[np.float64] | None = field(default=None, repr=False)
+    pairs: NDArray[np.intp] = field(default_factory=lambda: np.zeros((0, 2), dtype=np.intp), repr=False)
     cov: NDArray[np.float64] | None = None
     std: NDArray[np.float64] | None = None
     #: the motions the solver saw (built from the poses and pairs when not given)
@@ -400,6 +439,9 @@ class Calibration:
     sync: StreamSync | None = None
     #: from handeye.calibrate_joints: the arm's kinematics, corrected with X and Z; None for flange poses
     kinematic: KinematicModel | None = None
+    #: from a sensor model's fit (depth clouds, laser profiles, ...; handeye.estimation.core): the sensor's
+    #: own figures and each view's residual; None for images and pose pairs
+    sensor: SensorFit | None = None
 
     # the sub-records' parts by their documented names -------------------------------------------
     @property
@@ -446,6 +488,8 @@ class Calibration:
         or the check's name of the input pose it came from, else ``pose j``."""
         if self.image_names is not None and len(self.image_names) == len(self.flange2base):
             return self.image_names[j]
+        if self.sensor is not None:
+            return self.sensor.views[j]
         d, idx = self.diagnostics, self.pose_indices
         if d is not None and d.names and idx is not None and len(idx) == len(self.flange2base):
             return d.names[int(idx[j])]
@@ -471,6 +515,9 @@ class Calibration:
 
     @cached_property
     def motion_residuals(self) -> NDArray[np.float64]:
+        """Screw congruence per motion (:class:`Calibration`'s attributes); none without camera poses."""
+        if self.target2cam is None and self.motions is None:
+            return np.zeros((0, 2))
         motions = self.motions
         if motions is None:
             motions = MotionSet.from_poses(self.flange2base, self.target2cam, self.setup, self.pairs)
@@ -485,6 +532,8 @@ class Calibration:
         :data:`~handeye.geometry.se3.PITCH_ANGLE`: the screw axis of a motion that hardly turns, and with it
         its pitch, is set by the poses' noise (a pure translation has none)."""
         motions = self.motions
+        if motions is None and self.target2cam is None:
+            return np.zeros(0)
         if motions is None:
             motions = MotionSet.from_poses(self.flange2base, self.target2cam, self.setup, self.pairs)
         scale = np.maximum(np.linalg.norm(motions.A[..., :3, 3], axis=-1), np.linalg.norm(motions.B[..., :3, 3], axis=-1))
@@ -521,6 +570,9 @@ class Calibration:
 
     @cached_property
     def pose_residuals(self) -> NDArray[np.float64]:
+        """Per pose how far its own Z_i is from Z (deg, mm); none without camera poses."""
+        if self.target2cam is None:
+            return np.zeros((0, 2))
         Zi = constant_transforms(self.X, self.flange2base, self.target2cam, self.setup)
         return np.stack([np.degrees(rotation_error(Zi, self.Z)), 1e3 * translation_error(Zi, self.Z)], axis=1)
 

@@ -21,7 +21,6 @@ from ..geometry.se3 import make_transform
 from ..io.session import load_yaml, read_intrinsics
 from ..options import PAIRS, REFINES, ROBOT_ACCURACY, CalibrationOptions
 from ..pipelines.calibration import certify_calibration
-from ..pipelines.depth import DepthResult, calibrate_depth_session
 from ..pipelines.streams import KEYFRAMES
 from ..report import EXPORTS, write_calibration
 from ..result import Calibration
@@ -332,20 +331,3 @@ def verdict_status(cal: Calibration) -> int:
     (:data:`handeye.estimation.verdict.EXIT_STATUS`: 0 good or not checked, 1 weak or partial, 2 inconsistent;
     the result is written all the same)."""
     return exit_status(cal.verdict)
-
-
-#: Options of image sessions a depth session has no use for, and their defaults: given, they are refused.
-_NOT_FOR_DEPTH = {"method": "daniilidis", "refine": "auto", "pairs": "auto", "folds": None, "arm": None, "urdf": None,
-                  "compliance": False, "robot_noise": None, "known": [], "certify": False, "strict_images": False, "no_check": False,
-                  "parent_frame": None, "child_frame": None, "export": [], "tool": None}
-
-
-def calibrate_depth_folder(args: argparse.Namespace, session: Path) -> DepthResult:
-    """``calibrate`` and ``check`` on a depth session: options that only image sessions use are
-    refused, naming them (never dropped); then the depth pipeline with the command's robot accuracy."""
-    given = [f"--{k.replace('_', '-')}" for k, default in _NOT_FOR_DEPTH.items() if getattr(args, k, default) != default]
-    if given:
-        raise HandEyeError(f"{session} is a depth session (session.yaml has depth:): {', '.join(given)} apply to image "
-                           "sessions only; leave them out")
-    return calibrate_depth_session(session, robot_accuracy=calibrate_options(args).robot_accuracy,
-                                   progress=not args.no_progress, jobs=args.jobs)

@@ -8,7 +8,6 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..frames.setups import setup_info
-from ..pipelines.depth import DepthResult
 from ..result import Calibration
 from ..robot.kinematics import display_unit
 
@@ -21,7 +20,7 @@ def std_label(cal: Calibration) -> str:
     """What the std of X comes from, in words: the estimator and the parts it adds up."""
     who = cal.estimator or cal.method
     who = f"{who} refinement" if who in ("pose", "reprojection") else who
-    parts = [k.replace("_", " ") for k, v in (cal.std_sources or {}).items() if v is not None]
+    parts = [k.replace("_", " ") for k, v in (cal.std_sources or {}).items() if v is not None and k != "data"]
     return who + (f": {' + '.join(parts)}" if parts else "")
 
 
@@ -39,8 +38,10 @@ def print_calibration(cal: Calibration, out=None) -> None:
              if cal.target_scale == 1.0 else
              f"X below is for the target {cal.target_scale:.4f} times the size declared (the scale the robot's motions "
              "give); fix the size and calibrate again before you use it.\n\n"))
-    w(f"{cal.setup}: X = {x_name} (maps camera coordinates into the {info.x_parent} frame), method {cal.method}, "
-      f"{len(cal.flange2base)} poses, {len(cal.pairs)} motions\n\n")
+    what = "camera" if cal.sensor is None else "sensor"
+    w(f"{cal.setup}: X = {x_name} (maps {what} coordinates into the {info.x_parent} frame), method {cal.method}, "
+      + (f"{len(cal.flange2base)} poses, {len(cal.pairs)} motions\n\n" if cal.sensor is None else
+         f"{len(cal.flange2base)} views\n\n"))
     with np.printoptions(precision=6, suppress=True, floatmode="fixed", sign=" "):
         w(f"{x_name} (4x4, metres):\n{cal.X}\n\n")
     w(f"translation      m : {fmt_vec(cal.X[:3, 3])}\n")
@@ -50,13 +51,15 @@ def print_calibration(cal: Calibration, out=None) -> None:
     w(f"rotation vec   deg : {fmt_vec(rot.as_rotvec(degrees=True), 4)}\n\n")
     w(f"{z_name} translation mm : {fmt_vec(1e3 * cal.Z[:3, 3], 3)}\n")
     if cal.std_Z is not None:
-        w(f"std of {z_name}: rotation {fmt_vec(cal.std_Z[:3], 4)} deg, translation {fmt_vec(cal.std_Z[3:], 3)} mm\n")
+        rot = "not defined" if np.isnan(cal.std_Z[:3]).all() else f"{fmt_vec(cal.std_Z[:3], 4)} deg"
+        w(f"std of {z_name}: rotation {rot}, translation {fmt_vec(cal.std_Z[3:], 3)} mm\n")
     pres = cal.pose_residuals
-    w(f"screw congruence per motion (|angle_A - angle_B|; |pitch_A - pitch_B| as a share of the motion's "
-      f"translation; both 0 for consistent data): {cal.screw_congruence_text()}\n")
-    worst = int(np.argmax(pres[:, 1]))
-    w(f"{z_name} consistency per pose: median {np.median(pres[:, 0]):.3f} deg / {np.median(pres[:, 1]):.3f} mm, "
-      f"worst {cal.pose_name(worst)}: {pres[worst, 0]:.3f} deg / {pres[worst, 1]:.3f} mm\n")
+    if len(pres):  # the camera's poses: the motions' screw congruence and each pose's own Z
+        w(f"screw congruence per motion (|angle_A - angle_B|; |pitch_A - pitch_B| as a share of the motion's "
+          f"translation; both 0 for consistent data): {cal.screw_congruence_text()}\n")
+        worst = int(np.argmax(pres[:, 1]))
+        w(f"{z_name} consistency per pose: median {np.median(pres[:, 0]):.3f} deg / {np.median(pres[:, 1]):.3f} mm, "
+          f"worst {cal.pose_name(worst)}: {pres[worst, 0]:.3f} deg / {pres[worst, 1]:.3f} mm\n")
     if cal.std is not None:
         w(f"std of X ({std_label(cal)}): rotation {fmt_vec(cal.std[:3], 4)} deg, "
           f"translation {fmt_vec(cal.std[3:], 3)} mm" + (" (inf: not determined by the data)"
@@ -102,7 +105,7 @@ def print_calibration(cal: Calibration, out=None) -> None:
         left, _ = cal.outliers_split()  # images: listed as skipped, and those put back in a note
         d = cal.diagnostics
         w(f"check: {d.verdict}" + (f"; left out as outliers: {d.pose_names(left)}" if left and not cal.image_names
-                                   else "") + "\n")
+                                   and cal.sensor is None else "") + "\n")
     for note in cal.notes:
         w(f"note: {note}\n")
 
@@ -130,23 +133,24 @@ def print_image_summary(cal: Calibration) -> None:
     print()
 
 
-def print_depth_result(r: DepthResult) -> None:
-    """A depth session's X, std, depth scale and bias, per-view residuals, verdict and advice."""
-    cal = r.calibration
-    print(f"depth session ({r.session.kind}): {len(r.used)} of {len(r.session.names)} views used")
-    print(f"{setup_info(cal.setup).x_name} translation (m): {fmt_vec(cal.X[:3, 3])}")
-    print(f"  std: {fmt_vec(cal.std[:3], 4)} deg, {fmt_vec(cal.std[3:], 3)} mm")
-    print("  rotation matrix:\n" + "\n".join("    " + fmt_vec(row) for row in cal.X[:3, :3]))
-    print(f"depth scale {cal.depth_scale:.5f} +- {cal.depth_scale_std:.5f}, bias {1e3 * cal.depth_bias:+.3f} +- "
-          f"{1e3 * cal.depth_bias_std:.3f} mm; fit {r.fit_mm:.3f} mm RMS"
-          + ("" if r.heldout_mm is None else f", held-out views {r.heldout_mm:.3f} mm RMS"))
-    for name, d, e in zip(r.used, r.distances_m, cal.residuals_mm if cal.residuals_mm is not None else []):
-        print(f"  {name:<24} {d:6.3f} m  {e:7.3f} mm")
-    for name, why in r.skipped:
-        print(f"  {name:<24} left out: {why}")
-    print(f"verdict: {r.verdict}")
-    for line in r.advice:
-        print(f"  - {line}")
+def print_sensor_views(cal: Calibration, out=None) -> None:
+    """A sensor's fit (depth, laser, ...): how many views it used, each view's residual (and held-out
+    error), the views not used with why, and the sensor's own figures."""
+    sf = cal.sensor
+    w = (out or sys.stdout).write
+    total = len(sf.views) + len(cal.skipped)
+    w(f"{sf.sensor} ({sf.target}): {len(sf.views)} of {total} views used; {sf.points} measurements, {sf.rejected} set aside "
+      f"as outliers; fit {sf.fit_rms_mm:.3f} mm RMS\n")
+    held = sf.heldout_mm if sf.heldout_mm is not None else [None] * len(sf.views)
+    for name, r, h in zip(sf.views, sf.residual_mm, held):
+        w(f"  {name:<24} {r:7.3f} mm" + ("" if h is None or not np.isfinite(h) else f"   held out {h:7.3f} mm") + "\n")
+    for name, why in cal.skipped:
+        w(f"  {name:<24} left out: {why}\n")
+    for key, value in sf.figures.items():
+        if isinstance(value, dict) and "value" in value:
+            w(f"{key.replace('_', ' ')}: {value['value']:.6g} +- {value['std']:.3g}"
+              + ("" if value.get("fitted", True) else " (not fitted)") + "\n")
+    w("\n")
 
 
 def print_next_views(cal: Calibration, views) -> str:

@@ -10,11 +10,9 @@ import numpy as np
 from .._shared.io import atomic_write
 from ..errors import HandEyeError
 from ..estimation.verdict import exit_status
-from ..io.depth_session import is_depth_session
 from ..pipelines.calibration import certify_calibration
 from ..pipelines.folders import calibrate_session
 from ..planning.joints import suggest_joint_views
-from ..report import write_depth_results
 from ..report.html import MAX_OVERLAYS
 from ..sensors.camera import preview
 from ..workflows.fleet import calibrate_many
@@ -23,7 +21,6 @@ from ._common import (
     add_calibrate_options,
     add_detection_options,
     add_out_options,
-    calibrate_depth_folder,
     calibrate_options,
     input_folder,
     out_folder,
@@ -31,7 +28,7 @@ from ._common import (
     write_options,
     write_outputs,
 )
-from ._printing import fmt_vec, print_calibration, print_depth_result, print_image_summary, print_next_views
+from ._printing import fmt_vec, print_calibration, print_image_summary, print_next_views, print_sensor_views
 
 
 def _cmd_calibrate_many(args: argparse.Namespace) -> int:
@@ -65,32 +62,22 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     session = input_folder(args.session[0] if args.session else None, args.sample, SAMPLE_SESSION,
                             "give a session folder, or --sample for the bundled sample session (not both)")
     out_folder(args.out, [session])
-    if is_depth_session(session):
-        return _cmd_calibrate_depth(session, args)
     # the report's thumbnails are cut while detection has the images decoded (not read again)
     with preview.kept(MAX_OVERLAYS if args.out else 0):
         cal = calibrate_session(session, calibrate_options(args), jobs=args.jobs, progress=not args.no_progress)
+        if args.strict and cal.verdict == "inconsistent":  # a sensor's fit answers; --strict refuses the answer
+            raise HandEyeError(f"{session}: the verdict is inconsistent (--strict): "
+                               + "; ".join(cal.diagnostics.advice[:2]))
         if args.certify:
             cal = certify_calibration(cal)
-        print_image_summary(cal)
+        if cal.sensor is not None:
+            print_sensor_views(cal)
+        else:
+            print_image_summary(cal)
         print_calibration(cal)
         write_outputs(cal, args)
     _suggest_views(cal, args.out)
     return verdict_status(cal)
-
-
-def _cmd_calibrate_depth(session: Path, args: argparse.Namespace) -> int:
-    """A depth session (session.yaml with depth:): clouds and robot poses, X with the depth scale and bias."""
-    r = calibrate_depth_folder(args, session)
-    if args.strict and r.verdict == "inconsistent":
-        raise HandEyeError(f"{session}: the verdict is inconsistent (--strict): " + "; ".join(r.advice[:2]))
-    print_depth_result(r)
-    if args.out:
-        for path in write_depth_results(r, args.out):
-            print(f"wrote {path}")
-    else:
-        print("no --out: nothing written (--out FOLDER writes result.json, result.yaml and report.html)")
-    return exit_status(r.verdict)
 
 
 def _suggest_views(cal, out: str | None) -> None:

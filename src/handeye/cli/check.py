@@ -6,33 +6,29 @@ import argparse
 
 import numpy as np
 
-from ..estimation.verdict import exit_status
-from ..io.depth_session import is_depth_session
 from ..pipelines.folders import check_folder
 from ._common import (
     SAMPLE_SESSION,
     add_calibrate_options,
     add_detection_options,
-    calibrate_depth_folder,
     calibrate_options,
     input_folder,
 )
-from ._printing import print_depth_result
+from ._printing import print_sensor_views
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
     folder = input_folder(args.folder, args.sample, SAMPLE_SESSION,
                            "give a session or pose-pair folder, or --sample (not both)")
-    if is_depth_session(folder):  # calibrate's verdict on it, as for images
-        r = calibrate_depth_folder(args, folder)
-        print_depth_result(r)
-        return exit_status(r.verdict)
     found = check_folder(folder, calibrate_options(args), jobs=args.jobs, progress=not args.no_progress)
     for note in found.notes:
         print(f"note: {note}")
-    for name, reason in found.skipped:
-        print(f"skipped {name}: {reason}")
-    print(found.diagnostics.pose_table())
+    if found.calibration is not None and found.calibration.sensor is not None:  # a sensor's fit: its views
+        print_sensor_views(found.calibration)
+    else:
+        for name, reason in found.skipped:
+            print(f"skipped {name}: {reason}")
+        print(found.diagnostics.pose_table())
     print()
     print(found.cross_validation_table())
     print()

@@ -333,6 +333,20 @@ def diagnose(
     Returns
     -------
     Diagnostics
+
+    Examples
+    --------
+    Robot poses given inverted (base2flange where flange2base was meant) are found, with the fix:
+
+    >>> import handeye
+    >>> from handeye.geometry.se3 import invert
+    >>> from handeye.simulate import random_scene
+    >>> scene = random_scene(10, "eye_in_hand", rng=2)
+    >>> handeye.diagnose(scene.flange2base, scene.target2cam).verdict
+    'good'
+    >>> d = handeye.diagnose(invert(scene.flange2base), scene.target2cam)
+    >>> d.verdict, d.convention_hint
+    ('inconsistent', 'invert_robot_poses')
     """
     token = _SOLVE_MEMO.set({})
     try:

@@ -125,6 +125,17 @@ def relative_motions(
     -------
     A, B : ndarray, shape (K, 4, 4)
         Robot and camera motions, one per pair of :func:`pair_indices`.
+
+    Examples
+    --------
+    >>> import handeye
+    >>> from handeye.simulate import random_scene
+    >>> scene = random_scene(5, "eye_to_hand", rng=1)
+    >>> A, B = handeye.relative_motions(scene.flange2base, scene.target2cam, setup="eye_to_hand")
+    >>> A.shape                                              # all pairs of 5 poses
+    (10, 4, 4)
+    >>> bool(np.allclose(A @ scene.X, scene.X @ B))         # A X = X B for every motion
+    True
     """
     check_setup(setup)
     flange2base, target2cam = validate_poses(flange2base, target2cam)

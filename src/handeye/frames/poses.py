@@ -158,6 +158,15 @@ def parse_poses(
         Naming the row: wrong column count, NaN/inf, quaternion norm off by more than 1e-3,
         rotation matrix not orthonormal (with its deviation), unknown format or unit, and values
         that cannot be in the declared unit (e.g. metres of tens of metres, radians beyond 2 pi).
+
+    Examples
+    --------
+    A KUKA controller's X, Y, Z (mm) and A, B, C (deg, intrinsic ZYX):
+
+    >>> from handeye import parse_poses
+    >>> T = parse_poses([[500.0, 0.0, 300.0, 90.0, 0.0, 180.0]], format="euler:ZYX", length_unit="mm", angle_unit="deg")
+    >>> T.shape, T[0, :3, 3].round(3).tolist()
+    ((1, 4, 4), [0.5, 0.0, 0.3])
     """
     kind, seq = _parse_format(format)
     scale = _check_units(length_unit, angle_unit, what)

@@ -15,9 +15,10 @@ from numpy.typing import NDArray
 from ..errors import HandEyeError, SessionError
 from ..frames.poses import parse_poses
 from ..frames.setups import check_setup
+from ..robot.kinematics import Chain
 from ..sensors.camera import target_from_spec
 from ..sensors.depth.clouds import CLOUD_SUFFIXES
-from .session import SESSION_FILE, load_yaml, read_camera, read_pose_table
+from .session import SESSION_FILE, load_yaml, read_camera, read_joints, read_pose_table
 
 __all__ = ["DepthSession", "is_depth_session", "load_depth_session"]
 
@@ -39,6 +40,11 @@ class DepthSession:
     working_range: tuple[float, float] | None
     radii: list[float] | None  #: spheres only, metres
     notes: list[str] = field(default_factory=list)
+    #: a ``joints:`` table: each view's joint angles (rad) and the arm; ``flange2base`` then holds the
+    #: controller's poses when given, else the nominal table's
+    joints: NDArray[np.float64] | None = None
+    arm: Chain | None = None
+    joints_path: Path | None = None
 
     @property
     def kind(self) -> str:
@@ -102,8 +108,13 @@ def _cloud_of(folder: Path, name: str, table: Path) -> Path:
     return found[0]
 
 
-def load_depth_session(folder: str | Path) -> DepthSession:
+def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSession:
     """Read and check a depth session folder (the module's docstring); nothing is measured yet.
+
+    A ``joints:`` table (as for image sessions: ``file``, ``unit``, ``arm``; its first column
+    ``image`` or ``cloud``) gives each view's joint angles: the calibration then fits the arm's table
+    with X; ``arm`` (``--arm``) overrides the table's arm. Without ``poses:`` the flange poses are
+    the nominal table's.
 
     Raises :class:`SessionError` naming the file: no ``depth:`` mapping, a bad target, a missing
     pose table, image or cloud, a pose table whose first column is neither ``image`` nor ``cloud``.
@@ -124,7 +135,27 @@ def load_depth_session(folder: str | Path) -> DepthSession:
         target_from_spec(target, where=f"{where}: target")
     unit, working = _depth_spec(spec["depth"], where)
     K, dist = read_camera(spec.get("camera"), where)
-    poses = spec.get("poses")
+    joints = read_joints(folder, spec["joints"], where, notes, arm, ("image", "cloud")) if spec.get("joints") else None
+    if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
+        names, table, f2b = joints[0], joints[3], joints[2].forward(joints[1])
+    else:
+        f2b, names, table = _robot_poses(folder, spec.get("poses"), where, notes)
+    if joints is not None:
+        f2b, q = _with_joints(folder, names, f2b, joints, spec.get("poses") is not None)
+    clouds = [_cloud_of(folder, n, table) for n in names]
+    images = None
+    if radii is None:
+        images = [folder / "images" / n for n in names]
+        missing = [str(p.name) for p in images if not p.is_file()]
+        if missing:
+            raise SessionError(f"{folder / 'images'}: image file(s) missing: {', '.join(missing[:10])}")
+    return DepthSession(folder, setup, dict(target), list(names), clouds, images, f2b, K, dist, unit, working, radii, notes,
+                        None if joints is None else q, None if joints is None else joints[2],
+                        None if joints is None else joints[3])
+
+
+def _robot_poses(folder: Path, poses: Any, where: str, notes: list[str]) -> tuple[NDArray[np.float64], list[str], Path]:
+    """The ``poses:`` block: the flange poses, each view's name and the table's path."""
     if not isinstance(poses, dict) or not {"file", "format", "length_unit"} <= set(poses):
         raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit (m | mm) and angle_unit "
                            "(deg | rad)")
@@ -138,13 +169,19 @@ def load_depth_session(folder: str | Path) -> DepthSession:
                            "cloud of the same name in clouds/) or 'cloud' (spheres: the cloud in clouds/)")
     f2b = parse_poses(values, fmt, length_unit=str(poses["length_unit"]), angle_unit=str(poses.get("angle_unit", "rad")),
                       what=str(table))
-    clouds = [_cloud_of(folder, n, table) for n in names]
-    images = None
-    if radii is None:
-        images = [folder / "images" / n for n in names]
-        missing = [str(p.name) for p in images if not p.is_file()]
-        if missing:
-            raise SessionError(f"{folder / 'images'}: image file(s) missing: {', '.join(missing[:10])}")
-    return DepthSession(folder, setup, dict(target), list(names), clouds, images, f2b, K, dist, unit, working, radii, notes)
+    return f2b, list(names), table
+
+
+def _with_joints(folder: Path, names: list[str], f2b: NDArray[np.float64], joints, posed: bool
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The flange poses and the joint angles in the views' order (the joints table names the same views)."""
+    j_names, q, arm, path = joints
+    index = {n: k for k, n in enumerate(j_names)}
+    absent = [n for n in names if n not in index]
+    if absent or len(j_names) != len(names):
+        raise SessionError(f"{path}: the joint angles and the poses must name the same views: {len(j_names)} and "
+                           f"{len(names)} rows" + (f"; no joint angles for {', '.join(absent[:5])}" if absent else ""))
+    q = q[[index[n] for n in names]]
+    return (f2b if posed else arm.forward(q)), q
 
 

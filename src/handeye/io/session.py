@@ -57,9 +57,9 @@ from ..sensors.camera.targets import target_from_spec
 cv2 = lazy_module("cv2")  # only to read an image's size
 
 __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session",
-           "read_pose_table", "SessionError", "load_yaml",
+           "read_pose_table", "read_joints", "SessionError", "load_yaml",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
-           "write_pose_pairs", "read_result", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session",
+           "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session",
            "load_joint_stream", "load_camera_stream", "write_joint_stream"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
@@ -237,7 +237,17 @@ class _Joints:
     path: Path
 
 
-def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override: str | None = None) -> _Joints:
+def read_joints(folder: Path, spec: Any, where: str, notes: list[str], override: str | None = None,
+                id_columns: tuple[str, ...] = ("image",)) -> tuple[list[str], NDArray[np.float64], Chain, Path]:
+    """The ``joints:`` block of a session.yaml: each view's name, its joint angles (rad, as the arm's
+    table takes them), the arm and the table's path (:func:`_read_joints`; ``id_columns``: the
+    names the first column may have, ``image``, ``cloud``, ``profile``)."""
+    j = _read_joints(folder, spec, where, notes, override, id_columns)
+    return j.names, j.q, j.arm, j.path
+
+
+def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override: str | None = None,
+                 id_columns: tuple[str, ...] = ("image",)) -> _Joints:
     """The ``joints:`` block: ``file`` (an ``image`` column, then one column per joint), ``unit``
     (deg or rad) and ``arm`` (a shipped arm's name, or a YAML DH table in the folder); ``override``
     (``--arm``): the arm to use instead (a name, or a file relative to the current folder)."""
@@ -258,7 +268,7 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override
     if not isinstance(pendant, bool):
         raise SessionError(f"{where}: joints: pendant {pendant!r}; use true (the angles as the teach pendant shows them) "
                            "or false")
-    names, q = _joint_table(path, arm, unit, ("image",), notes, "write unit: deg under joints:")
+    names, q = _joint_table(path, arm, unit, id_columns, notes, "write unit: deg under joints:")
     if len(set(names)) != len(names):
         raise SessionError(f"{path}: duplicate image names [{summarize(sorted({x for x in names if names.count(x) > 1}))}]")
     return _Joints(names, _model_angles(np.radians(q) if unit == "deg" else q, arm, pendant, path.name, notes), arm, path)
@@ -1012,31 +1022,3 @@ def write_pose_pairs(folder: str | Path, setup: str, flange2base: NDArray[np.flo
     text = (f"# {comment}\n" if comment else "") + yaml.safe_dump(spec, sort_keys=False)
     atomic_write(folder / POSEPAIRS_FILE, text)
     return folder / POSEPAIRS_FILE
-
-
-def read_result(path: str | Path) -> dict[str, Any]:
-    """A calibration written by handeye (``result.json`` / ``result.yaml``, or the folder holding
-    them): ``setup``, ``X``, ``Z`` (4x4), the intrinsics it used (``K``, ``dist``, None without images),
-    its cross-validated ``prediction_error`` (``{'px', 'mm'}`` or None), ``image_sha256`` (image
-    name -> SHA-256 of the images it used; empty for results without them) and ``target_scale`` (the
-    factor the target's given size was corrected by, 1.0 when it was not)."""
-    p = Path(path)
-    if p.is_dir():
-        p = next((p / n for n in ("result.json", "result.yaml") if (p / n).is_file()), p / "result.json")
-    data = load_yaml(p)  # JSON is YAML
-    try:
-        setup = check_setup(str(data["setup"]))
-        X, Z = (np.array(data[k]["matrix"], dtype=float) for k in ("X", "Z"))
-    except (KeyError, TypeError, ValueError):
-        raise SessionError(f"{p}: not a handeye result (setup, X and Z with their matrix)") from None
-    if X.shape != (4, 4) or Z.shape != (4, 4) or not (np.isfinite(X).all() and np.isfinite(Z).all()):
-        raise SessionError(f"{p}: X and Z must be finite 4x4 matrices")
-    K = dist = None
-    if isinstance(data.get("camera"), dict) and data["camera"].get("K") is not None:
-        K, dist = read_camera({"K": data["camera"]["K"], "dist": data["camera"].get("dist") or [0.0] * 5}, str(p))
-    cv = data.get("cross_validation") or {}
-    images = data.get("images") if isinstance(data.get("images"), dict) else {}
-    digests = dict(zip(images.get("used") or [], images.get("sha256") or []))
-    return {"path": p, "setup": setup, "X": X, "Z": Z, "K": K, "dist": dist,
-            "prediction_error": cv.get("prediction_error"), "image_sha256": {n: d for n, d in digests.items() if d},
-            "target_scale": float((data.get("target_scale") or {}).get("factor", 1.0))}

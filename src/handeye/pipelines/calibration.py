@@ -49,13 +49,14 @@ from ..estimation.sync import (
     synchronise,
     timing_cost,
 )
+from ..estimation.uncertainty import UNSEEN_FACTOR, robot_accuracy_cov, robot_accuracy_from_data, widened_uncertainty
 from ..estimation.validation import Views, jackknife_covs, robot_error_seen
 from ..estimation.verdict import judged, solver_spread
 from ..frames.metrics import std_deg_mm
 from ..frames.motions import MotionSet, Pairs, validate_poses
 from ..frames.poses import RobotPoseInput
 from ..frames.setups import check_setup
-from ..geometry.se3 import invert, make_transform, skew
+from ..geometry.se3 import invert, make_transform
 from ..io.session import Session, SessionError, load_session
 from ..options import ROBOT_ACCURACY, CalibrationOptions, options_from
 from ..result import Calibration, Diagnostics, HeldOutErrors, StreamSync
@@ -193,6 +194,18 @@ def calibrate_poses(
         The motions cannot determine X (advice in the message).
     InputMismatchError
         ``strict`` and the poses do not agree on one X; the message names the likely mistake.
+
+    Examples
+    --------
+    >>> import handeye
+    >>> from handeye.simulate import Noise, add_noise, random_scene
+    >>> scene = random_scene(12, "eye_in_hand", rng=0)
+    >>> target2cam = add_noise(scene.target2cam, Noise(rot_deg=0.02, trans_mm=0.2), np.random.default_rng(0))
+    >>> cal = handeye.calibrate_poses(scene.flange2base, target2cam, setup="eye_in_hand", progress=False)
+    >>> cal.verdict, cal.cam2flange.shape
+    ('good', (4, 4))
+    >>> bool(1e3 * np.linalg.norm(cal.X[:3, 3] - scene.X[:3, 3]) < 3 * np.linalg.norm(cal.std[3:]))   # within its std
+    True
     """
     opts = options_from(options, changes).for_poses()
     given = _pose_options(setup, opts)
@@ -228,6 +241,9 @@ def certify_calibration(cal: Calibration) -> Calibration:
     relaxation), and a note saying so. Needs ``handeye[certifiable]``. The estimator that chose X
     may minimise another cost (the pose or pixel refinements do): a gap then says how far X is from
     that cost's minimum, not that X is wrong."""
+    if cal.target2cam is None and cal.motions is None:
+        raise InputMismatchError("certify: the certificate is of the AX = XB cost on the camera's motions; this "
+                                 f"calibration ({cal.method}) has no camera poses: leave --certify out")
     if cal.motion_kind != "general":  # the relaxation needs motions that determine all of X
         return replace(cal, notes=list(cal.notes) + ["certificate: not computed (the motions determine only part of X)"])
     motions = cal.motions if cal.motions is not None else MotionSet.from_poses(cal.flange2base, cal.target2cam,
@@ -305,97 +321,6 @@ def refine_on_poses(cal: Calibration, ref: PoseRefinementResult | None = None) -
             "camera_depth_mm": 1e3 * ref.noise["camera_depth"],
         },
     )
-
-
-def robot_accuracy_cov(X: NDArray[np.float64], accuracy: tuple[float, float]) -> NDArray[np.float64]:
-    """Covariance of X (as ``Calibration.cov``) from a constant robot pose error of ``accuracy``
-    (deg, mm per axis), which X absorbs whole: ``X' = exp(d) X`` in the flange (eye-in-hand) or base
-    (eye-to-hand) frame, so X's translation also moves by ``d_rot x t_X``."""
-    s_rot, s_t = np.radians(accuracy[0]), 1e-3 * accuracy[1]
-    J = np.eye(6)
-    J[3:, :3] = -skew(X[:3, 3])
-    return J @ np.diag([s_rot**2] * 3 + [s_t**2] * 3) @ J.T
-
-
-#: The robot's error that X absorbs unseen (its part constant over the capture) is taken as this many
-#: times the error the views show (:func:`~handeye.estimation.validation.robot_error_seen`) when that is more than
-#: the stated accuracy. Rendered and pose-only sessions of a 6-axis arm whose kinematic error sweeps from
-#: ~0.1 to ~3.5 mm (30 per level and setup, 8-20 views): the views show 0.1-0.7 mm per axis while X
-#: takes up to 8 mm. At ~3 mm, X was within 3 std in 77% / 63% of the rendered eye-in-hand / eye-to-hand
-#: sessions with the calibrated arm's default alone, 93% / 90% with 2x what the views show, 100% / 97%
-#: with 3x (pose-only: 85% / 51%, 97% / 93%, 99% / 99%); at a calibrated arm (~0.3 mm) the std of X's
-#: translation grows from 0.7 to 1.0 mm (eye-in-hand) and 1.1 to 1.2 mm (eye-to-hand).
-UNSEEN_FACTOR = 3.0
-
-
-def robot_accuracy_from_data(stated: tuple[float, float] | None, seen_mm: float | None) -> tuple[float, float] | None:
-    """The robot accuracy (deg, mm per axis) X's std takes: the ``stated`` one, or when the views show
-    a larger robot error (``seen_mm`` per axis, :func:`~handeye.estimation.validation.robot_error_seen`)
-    :data:`UNSEEN_FACTOR` times that, with the rotation in the stated proportion (the default's,
-    0.1 deg per mm, when the stated is zero). None when ``stated`` is None: the robot is exact."""
-    if stated is None or seen_mm is None or UNSEEN_FACTOR * seen_mm <= stated[1]:
-        return stated
-    mm = UNSEEN_FACTOR * seen_mm
-    deg_per_mm = stated[0] / stated[1] if stated[1] > 0 else ROBOT_ACCURACY[0] / ROBOT_ACCURACY[1]
-    return max(stated[0], deg_per_mm * mm), mm
-
-
-def widened_uncertainty(cal: Calibration, cv_jack: NDArray[np.float64] | None,
-                        robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
-                        intrinsics: NDArray[np.float64] | None = None, seen_mm: float | None = None,
-                        seen_in_pixels: bool = True) -> Calibration:
-    """``cal`` with a std that covers both sources: the refinement's noise model (``cal.cov``, None for
-    a closed form) and the jackknife spread (X refitted without each pose). Each of X's six
-    parameters gets the larger of the two (the model's correlations kept); a note says when the
-    spread widened the model's. Errors common to every pose, which neither sees, are added: the
-    robot's absolute accuracy (raised to what the views show of the robot's error, ``seen_mm``:
-    :func:`robot_accuracy_from_data`; ``seen_in_pixels``: measured beyond the camera's own error, else
-    from poses alone), and ``intrinsics`` (X's covariance from intrinsics estimated
-    from the same images, :func:`handeye.estimation.estimators.intrinsics_cov`)."""
-    model = cal.cov
-    accuracy = robot_accuracy_from_data(robot_accuracy, seen_mm)
-    robot = None if accuracy is None else robot_accuracy_cov(cal.X, accuracy)
-    sources = {"model": None if model is None else _std(model), "jackknife": None if cv_jack is None else _std(cv_jack),
-               "robot_accuracy": None if robot is None else _std(robot)}
-    if intrinsics is not None:
-        sources["intrinsics"] = _std(intrinsics)
-    notes = list(cal.notes)
-    if model is None or cv_jack is None:
-        cov = model if cv_jack is None else cv_jack
-    else:
-        ratio = np.sqrt(np.maximum(np.diag(cv_jack), 1e-300) / np.maximum(np.diag(model), 1e-300))
-        D = np.diag(np.maximum(ratio, 1.0))
-        cov = D @ model @ D
-        if ratio.max() > 1.5:
-            notes.append(f"the std of X is widened up to {ratio.max():.1f}x the noise model's: X moves more without "
-                         "one pose than the model predicts (robot errors that depend on the pose, such as kinematic "
-                         "errors, or outliers the check did not catch)")
-    if robot is not None:
-        cov = robot if cov is None else cov + robot
-        if accuracy == robot_accuracy:
-            notes.append(f"the std of X includes the robot's absolute accuracy, assumed {accuracy[0]:g} deg / "
-                         f"{accuracy[1]:g} mm per axis (robot_accuracy=(deg, mm), --robot-accuracy DEG,MM): a "
-                         "constant robot error is invisible in the data and X takes it whole")
-        else:
-            seen = (f"the robot's poses miss what the camera saw by {seen_mm:.2f} mm per axis beyond the camera's own "
-                    "error" if seen_in_pixels else
-                    f"the robot's and the camera's poses disagree by {seen_mm:.2f} mm per axis at the target (pose "
-                    "pairs alone cannot tell whose error it is; images can)")
-            notes.append(f"the std of X includes the robot's absolute accuracy taken as {accuracy[0]:.3g} deg / "
-                         f"{accuracy[1]:.3g} mm per axis, not the {robot_accuracy[0]:g} deg / {robot_accuracy[1]:g} mm "
-                         f"assumed: {seen} (an error that depends on the pose, as an arm's kinematic errors do), and "
-                         f"the part of such an error that is constant over the capture, which X takes whole and no data "
-                         f"show, is taken as {UNSEEN_FACTOR:g}x that; give the arm's accuracy if you know it "
-                         "(robot_accuracy=(deg, mm), --robot-accuracy DEG,MM)")
-    if intrinsics is not None:
-        cov = intrinsics if cov is None else cov + intrinsics
-        notes.append(f"the std of X includes the error of the intrinsics estimated from these images (up to "
-                     f"{np.max(sources['intrinsics'][:3]):.3g} deg / {np.max(sources['intrinsics'][3:]):.3g} mm), "
-                     f"which the {cal.estimator or cal.method} estimate holds fixed: give K and dist in session.yaml "
-                     "from a calibration of their own to remove it")
-    if cov is None:
-        return replace(cal, std_sources=sources, notes=notes)
-    return replace(cal, cov=cov, std=_std(cov), std_sources=sources, notes=notes)
 
 
 def apply_choice(cal: Calibration, choice: Choice, views: Views, pairs: Pairs = "auto", obs: "Observations | None" = None,
@@ -837,6 +762,16 @@ def calibrate(
     SessionError
         Bad session folder; (``strict_images``) a missing or unreadable image; fewer than 3 images
         with the target found.
+
+    Examples
+    --------
+    The bundled sample session (12 rendered chessboard images, KUKA poses):
+
+    >>> import handeye
+    >>> from importlib.resources import files
+    >>> cal = handeye.calibrate(files("handeye") / "data" / "sample_session", progress=False)
+    >>> cal.verdict, len(cal.image_names), cal.estimator is not None
+    ('good', 12, True)
     """
     opts = options_from(options, changes)  # bad options fail before any image work
     session = load_session(session_dir, strict_images=opts.strict_images, arm=opts.arm)

@@ -16,10 +16,12 @@ from pathlib import Path
 from ..errors import DegenerateMotionError
 from ..estimation.validation import default_folds
 from ..estimation.verdict import exit_status
+from ..io.depth_session import is_depth_session
 from ..io.session import POSEPAIRS_FILE, SESSION_FILE, PosePairs, load_pose_pairs, load_session, load_yaml
 from ..options import CalibrationOptions, options_from
 from ..result import Calibration, Diagnostics
 from .calibration import calibrate, calibrate_poses
+from .depth import calibrate_depth_session
 from .joints import calibrate_joint_session
 from .streams import calibrate_streams, paired_delay_note
 
@@ -28,9 +30,20 @@ __all__ = ["FolderCheck", "calibrate_folder", "calibrate_pairs", "calibrate_sess
 
 def calibrate_folder(folder: str | Path, options: CalibrationOptions | None = None, *, jobs: int | None = None,
                      progress: bool = True, **changes) -> Calibration:
-    """:func:`handeye.calibrate` on a capture session (``session.yaml``; with a ``joints:`` table,
-    :func:`handeye.pipelines.joints.calibrate_joint_session`: the arm's table fitted with X), or
-    :func:`calibrate_pairs` on a pose-pair folder (``posepairs.yaml``)."""
+    """Any folder handeye reads, to one :class:`~handeye.result.Calibration`: a capture session
+    (:func:`calibrate_session`: images, a depth camera's clouds, with or without joint angles), or
+    :func:`calibrate_pairs` on a pose-pair folder (``posepairs.yaml``).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from handeye.simulate import simulate_session
+    >>> folder = tempfile.mkdtemp() + "/s"
+    >>> scene = simulate_session(folder, setup="eye_in_hand", n_poses=8, seed=2)
+    >>> cal = calibrate_folder(folder, progress=False)
+    >>> cal.verdict in ("good", "weak"), cal.X.shape
+    (True, (4, 4))
+    """
     opts = options_from(options, changes)
     folder = Path(folder)
     if not (folder / POSEPAIRS_FILE).is_file():
@@ -40,11 +53,13 @@ def calibrate_folder(folder: str | Path, options: CalibrationOptions | None = No
 
 def calibrate_session(folder: str | Path, options: CalibrationOptions | None = None, *, jobs: int | None = None,
                       progress: bool = True, **changes) -> Calibration:
-    """:func:`handeye.calibrate` on a capture session, or, when its ``session.yaml`` has a
+    """:func:`handeye.calibrate` on a capture session of images; when its ``session.yaml`` has a
     ``joints:`` table, :func:`handeye.pipelines.joints.calibrate_joint_session` (the arm's table
-    fitted with X)."""
+    fitted with X); a depth camera's session (``depth:``), :func:`handeye.pipelines.depth.calibrate_depth_session`."""
     opts = options_from(options, changes)
     folder = Path(folder)
+    if is_depth_session(folder):
+        return calibrate_depth_session(folder, opts, progress=progress, jobs=jobs)
     if opts.arm is not None or ((folder / SESSION_FILE).is_file()
                                 and load_yaml(folder / SESSION_FILE).get("joints") is not None):
         session = load_session(folder, strict_images=opts.strict_images, arm=opts.arm)
@@ -127,7 +142,16 @@ def check_folder(folder: str | Path, options: CalibrationOptions | None = None, 
     the diagnostics (pose table, outliers, conventions), the held-out prediction error of every
     estimator ``calibrate`` chooses from, and the same verdict (:func:`calibrate_folder` with the
     same ``options``). Data that cannot determine X get the check's 'degenerate' verdict and its
-    advice instead of an error."""
+    advice instead of an error.
+
+    Examples
+    --------
+    >>> import handeye
+    >>> from importlib.resources import files
+    >>> found = handeye.check_folder(files("handeye") / "data" / "example_posepairs", progress=False)
+    >>> found.verdict, found.exit_status
+    ('good', 0)
+    """
     opts = options_from(options, changes)
     try:
         cal = calibrate_folder(folder, opts, jobs=jobs, progress=progress)

@@ -82,6 +82,17 @@ def calibrate_streams(
         velocities align best at the end of the searched range.
     DegenerateMotionError
         The keyframes cannot determine X.
+
+    Examples
+    --------
+    A robot stream at 100 Hz and a camera stream at 30 Hz on two clocks, 40 ms apart:
+
+    >>> import handeye
+    >>> from handeye.simulate import stream_scene
+    >>> sc = stream_scene(duration=12.0, setup="eye_in_hand", time_offset=0.040, rng=1)
+    >>> cal = handeye.calibrate_streams(sc.robot_times, sc.flange2base, sc.camera_times, sc.target2cam, "eye_in_hand")
+    >>> bool(abs(cal.time_offset - 0.040) < 0.005)
+    True
     """
     opts = options_from(options, changes).for_poses()
     check_setup(setup)

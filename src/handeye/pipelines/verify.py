@@ -23,7 +23,9 @@ from .._shared.text import summarize
 from ..errors import InputMismatchError
 from ..estimation.validation import Views, view_errors
 from ..frames.setups import predicted_target2cam
-from ..io.session import Session, SessionError, load_session, read_result
+from ..io.results import load_result, result_path
+from ..io.session import Session, SessionError, load_session
+from ..result import Calibration
 from ..sensors.camera.pnp import project_points
 from .calibration import observe
 
@@ -89,11 +91,11 @@ class Verification:
                 "session": None if self.session_folder is None else str(self.session_folder)}
 
 
-def _with_intrinsics(session: Session, result: dict) -> Session:
+def _with_intrinsics(session: Session, cal: Calibration) -> Session:
     """The session with the intrinsics the calibration used (refined with X and Z, when it came
     from images); else the session's own; a session with neither cannot be verified in pixels."""
-    if result["K"] is not None:
-        return replace(session, camera_matrix=result["K"], dist_coeffs=result["dist"])
+    if cal.camera_matrix is not None:
+        return replace(session, camera_matrix=cal.camera_matrix, dist_coeffs=cal.dist_coeffs)
     if session.camera_matrix is None:
         raise SessionError(f"{session.folder}: no intrinsics: the result holds none (a calibration from poses) and "
                            "session.yaml has no camera: K, dist")
@@ -106,9 +108,9 @@ NOT_THIS = "not this calibration's"
 ELSEWHERE_FRACTION = 0.1
 
 
-def _refuse_own_images(sess: Session, res: dict) -> None:
+def _refuse_own_images(sess: Session, cal: Calibration, where: str) -> None:
     """A session that reuses the calibration's own images is not a second capture."""
-    own = {d: n for n, d in res["image_sha256"].items()}
+    own = {d: n for n, d in zip(cal.image_names or [], cal.image_sha256 or []) if d}
     if not own:  # a calibration from poses, or written before results held the images' digests
         return
     digests = {name: file_digest(p) for name, p in zip(sess.image_names, sess.image_paths) if Path(p).is_file()}
@@ -116,7 +118,7 @@ def _refuse_own_images(sess: Session, res: dict) -> None:
     if same:
         raise InputMismatchError(
             f"{sess.folder}: image(s) {summarize(n for n, _ in same)} are the calibration's own inputs (the same bytes as "
-            f"{summarize(m for _, m in same)} in {res['path'].name}): verify needs a capture the calibration has not "
+            f"{summarize(m for _, m in same)} in {where}): verify needs a capture the calibration has not "
             "seen (other poses, another day); the calibration's own held-out error is its cross-validation")
 
 
@@ -134,9 +136,11 @@ def _not_where_predicted(X, Z, views: Views) -> str | None:
             "and convention")
 
 
-def verify(result: str | Path, session: str | Path, jobs: int | None = None, progress: bool = True) -> Verification:
-    """Predict every view of ``session`` (images + robot poses) from the calibration in ``result``
-    (result.json / result.yaml or their folder) and compare with the detections.
+def verify(result: str | Path | Calibration, session: str | Path, jobs: int | None = None,
+           progress: bool = True) -> Verification:
+    """Predict every view of ``session`` (images + robot poses) from the calibration ``result`` (a
+    :class:`~handeye.result.Calibration`, or result.json / result.yaml or their folder, read by
+    :func:`handeye.load_result`) and compare with the detections.
 
     Raises
     ------
@@ -145,31 +149,35 @@ def verify(result: str | Path, session: str | Path, jobs: int | None = None, pro
     InputMismatchError
         The session's setup differs from the result's; the session holds the calibration's own images.
     """
-    res = read_result(result)
+    path = None if isinstance(result, Calibration) else result_path(result)
+    cal = result if isinstance(result, Calibration) else load_result(path)
     sess = load_session(session)
-    if sess.setup != res["setup"]:
-        raise InputMismatchError(f"the result is {res['setup']} but {sess.folder} is {sess.setup}")
-    _refuse_own_images(sess, res)
-    obs = observe(_with_intrinsics(sess, res), jobs=jobs, progress=progress)
-    if res["target_scale"] != 1.0:  # the calibration corrected the target's size: its X and Z are for that size
-        obs = obs.scaled(res["target_scale"])
+    if sess.setup != cal.setup:
+        raise InputMismatchError(f"the result is {cal.setup} but {sess.folder} is {sess.setup}")
+    if cal.sensor is not None:
+        raise InputMismatchError(f"the result is a {cal.sensor.sensor}'s ({cal.sensor.target}); verify checks a camera's "
+                                 "result on images: calibrate the second capture and compare, or cross-validate (check)")
+    _refuse_own_images(sess, cal, path.name if path is not None else "the calibration")
+    obs = observe(_with_intrinsics(sess, cal), jobs=jobs, progress=progress)
+    if cal.target_scale != 1.0:  # the calibration corrected the target's size: its X and Z are for that size
+        obs = obs.scaled(cal.target_scale)
     views = obs.views()
-    px, mm = view_errors(res["X"], res["Z"], views)
+    px, mm = view_errors(cal.X, cal.Z, views)
     names = [sess.image_names[k] for k in obs.used]
-    T = predicted_target2cam(res["X"], res["Z"], views.flange2base, views.setup)
+    T = predicted_target2cam(cal.X, cal.Z, views.flange2base, views.setup)
     pictures = {"image_paths": [Path(sess.image_paths[k]) for k in obs.used], "detected": list(obs.image_points),
                 "predicted": [project_points(T[i], obs.object_points[i], obs.K, obs.dist) for i in range(len(T))]}
-    elsewhere = _not_where_predicted(res["X"], res["Z"], views)
+    elsewhere = _not_where_predicted(cal.X, cal.Z, views)
     if elsewhere is not None:
-        return Verification(sess.setup, names, px, mm, NOT_THIS, [elsewhere], res["prediction_error"],
-                            list(obs.skipped), [], res["path"], sess.folder, **pictures)
+        return Verification(sess.setup, names, px, mm, NOT_THIS, [elsewhere], cal.prediction_error,
+                            list(obs.skipped), [], path, sess.folder, **pictures)
     median = float(np.median(px))
     flagged = [n for n, p in zip(names, px) if p > FLAG_FACTOR * max(median, 0.1)]
     advice = []
     if flagged:
         advice.append(f"view(s) {summarize(flagged)} are predicted over {FLAG_FACTOR:g}x worse than the median: check "
                       "their robot poses (a wrong pose, a tool that moved) or their images")
-    promised = res["prediction_error"]
+    promised = cal.prediction_error
     rms = float(np.sqrt(np.mean(px**2)))
     if promised is None or promised.get("px") is None:
         verdict = "not compared"
@@ -183,4 +191,4 @@ def verify(result: str | Path, session: str | Path, jobs: int | None = None, pro
                       "held-out views: the camera or the target moved since, the robot's errors differ in this part of "
                       "its workspace, or the calibration's poses did not cover it; recalibrate with poses like these")
     return Verification(sess.setup, names, px, mm, verdict, advice, promised, list(obs.skipped), flagged,
-                        res["path"], sess.folder, **pictures)
+                        path, sess.folder, **pictures)

@@ -32,12 +32,13 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from ..errors import HandEyeError
+from ..estimation.uncertainty import robot_accuracy_cov
 from ..frames.metrics import rotation_error, std_deg_mm, translation_error
 from ..frames.setups import check_setup, flange_poses, predicted_target2cam, robot_world_A_inv, setup_info
 from ..geometry.se3 import invert, make_transform, skew
 from ..io.session import write_pose_table
 from ..options import ROBOT_ACCURACY, CalibrationOptions
-from ..pipelines.calibration import calibrate_poses, robot_accuracy_cov
+from ..pipelines.calibration import calibrate_poses
 from ..sensors.camera.pnp import project_points, solve_pnp
 from ..sensors.camera.targets import Detection
 from ..simulate import look_at

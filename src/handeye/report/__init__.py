@@ -17,7 +17,6 @@ from numpy.typing import NDArray
 from .._shared.io import check_output_folder
 from ..estimation.diagnostics import compare_solvers
 from ..result import Calibration
-from .depth import depth_report_html, depth_result_dict, write_depth_results
 from .files import (
     EXPORTS,
     check_exports,
@@ -33,7 +32,7 @@ from .verification import verification_html, write_verification
 
 __all__ = ["write_calibration", "result_dict", "write_results", "report_html", "write_report", "default_frames",
            "ros2_static_transform_command", "urdf_joint", "SECTIONS", "EXPORTS", "write_exports",
-           "verification_html", "write_verification", "depth_result_dict", "depth_report_html", "write_depth_results"]
+           "verification_html", "write_verification"]
 
 
 def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterable[str | Path] = (), report: bool = True,
@@ -53,6 +52,15 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
     easy_handeye2's .calib; 'all'). ``tool2flange``: the robot's tool (TCP) frame, so that the
     result files also give the camera (eye-in-hand) or the target (eye-to-hand) relative to it.
     Returns the paths written, the report last.
+
+    Examples
+    --------
+    >>> import tempfile, handeye
+    >>> from handeye.simulate import random_scene
+    >>> scene = random_scene(8, "eye_in_hand", rng=0)
+    >>> cal = handeye.calibrate_poses(scene.flange2base, scene.target2cam, progress=False)
+    >>> [p.name for p in handeye.write_calibration(cal, tempfile.mkdtemp(), report=False)]
+    ['result.json', 'result.yaml']
     """
     inputs = [cal.input_folder] if cal.input_folder is not None else []
     exports = check_exports(exports)  # before any file is written
@@ -64,7 +72,7 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
         rows = None
         if compare:
             rows = cal.solver_comparison
-            if rows is None:
+            if rows is None and cal.target2cam is not None:
                 rows = compare_solvers(cal.flange2base, cal.target2cam, cal.setup, cal.X, cal.pairs)
         paths.append(write_report(cal, out_dir / "report.html", protect, parent_frame, child_frame, rows))
     return paths

@@ -262,85 +262,79 @@ def _uncertainty_dict(cal: Calibration) -> dict[str, Any]:
     out = {
         "std_rotation_deg": _finite_or_none(cal.std[:3]),
         "std_translation_mm": _finite_or_none(cal.std[3:]),
-        "cov": cal.cov.tolist(),
+        "cov": [_finite_or_none(row) for row in cal.cov],
         "cov_parameters": "X: rotation vector increment (rad, left), translation (m)",
     }
     if cal.std_sources is not None:
-        out["sources"] = {k: (None if v is None else {"rotation_deg": v[:3].tolist(), "translation_mm": v[3:].tolist()})
+        out["sources"] = {k: (None if v is None else {"rotation_deg": _finite_or_none(v[:3]),
+                                                      "translation_mm": _finite_or_none(v[3:])})
                           for k, v in cal.std_sources.items()}
     return out
 
 
-def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: str | None = None,
-                tool2flange: NDArray[np.float64] | None = None) -> dict[str, Any]:
-    """A plain, JSON/YAML-ready description of a calibration (see the module docstring).
+def _sensor_dict(cal: Calibration) -> dict[str, Any]:
+    """result.json's ``sensor``: the sensor and target, each view's residual (and held-out error), the
+    sensor's own figures."""
+    sf = cal.sensor
+    return {"kind": sf.sensor, "target": sf.target, "views": list(sf.views),
+            "residual_mm": [float(v) for v in sf.residual_mm],
+            "heldout_mm": None if sf.heldout_mm is None else _finite_or_none(np.asarray(sf.heldout_mm)),
+            "fit_rms_mm": sf.fit_rms_mm, "points": sf.points, "rejected_points": sf.rejected, "figures": sf.figures}
 
-    ``parent_frame`` / ``child_frame`` name the frames in the ROS snippets (defaults:
-    :func:`default_frames`). ``tool2flange``: the robot's tool (TCP) frame in the flange frame;
-    adds the camera (eye-in-hand) or the target (eye-to-hand) relative to that tool (``tool``).
-    """
-    info = setup_info(cal.setup)
-    x_name, z_name, inv_name = info.x_name, info.z_name, info.x_inverse_name
-    parent, child = default_frames(cal.setup)
-    parent, child = parent_frame or parent, child_frame or child
-    mres = cal.motion_residuals
-    pres = cal.pose_residuals
-    out: dict[str, Any] = {
-        "handeye_version": __version__,
-        "inputs_sha256": cal.inputs_sha256,
-        "setup": cal.setup,
-        "method": cal.method,
-        "X_name": x_name,
-        "X": _transform_dict(cal.X, cal),
-        "X_inverse_name": inv_name,
-        "X_inverse": _transform_dict(invert(cal.X), cal),
-        "Z_name": z_name,
-        "Z": _transform_dict(cal.Z, cal) | ({} if cal.std_Z is None else {
-            "std_rotation_deg": _finite_or_none(cal.std_Z[:3]), "std_translation_mm": _finite_or_none(cal.std_Z[3:])}),
-        "ros": {
-            "parent_frame": parent,
-            "child_frame": child,
-            "static_transform_publisher": ros2_static_transform_command(cal.X, parent, child),
-            "urdf_joint": urdf_joint(cal.X, parent, child),
-            "ros1_launch": ros1_launch_file(cal.X, parent, child),
-        },
-        "easy_handeye": easy_handeye_calibration(cal, parent, child),
-        "n_poses": int(len(cal.flange2base)),
-        "n_motions": int(len(cal.pairs)),
-        "motion_residuals": {
-            "columns": ["angle_deg", "pitch_mm"],
-            "median": np.median(mres, axis=0).tolist(),
-            "max": mres.max(axis=0).tolist(),
-            "pitch_where_turning": dict(cal.pitch_where_turning),
-        },
-        "pose_residuals": {
-            "columns": ["rotation_deg", "translation_mm"],
-            "pose_indices": [int(i) for i in (cal.pose_indices if cal.pose_indices is not None else range(len(pres)))],
-            "values": pres.tolist(),
-        },
-    }
+
+def _residuals_dict(cal: Calibration) -> dict[str, Any]:
+    """The camera's poses: the motions' screw congruence and each pose's own Z (none without them)."""
+    if cal.target2cam is None:
+        return {}
+    mres, pres = cal.motion_residuals, cal.pose_residuals
+    out = {"motion_residuals": {"columns": ["angle_deg", "pitch_mm"], "median": np.median(mres, axis=0).tolist(),
+                                "max": mres.max(axis=0).tolist(), "pitch_where_turning": dict(cal.pitch_where_turning)},
+           "pose_residuals": {"columns": ["rotation_deg", "translation_mm"],
+                              "pose_indices": [int(i) for i in (cal.pose_indices if cal.pose_indices is not None
+                                                                 else range(len(pres)))],
+                              "values": pres.tolist()}}
     if cal.image_names is not None:
         out["pose_residuals"]["images"] = list(cal.image_names)
-        out.update(_images_dict(cal))
-    out.update(_scale_dict(cal))
-    if cal.kinematic is not None:
-        out["kinematics"] = cal.kinematic.as_dict()
-    out["refinement"] = {"type": cal.refinement}
-    if cal.refined_rms is not None:
-        out["refinement"]["rms_px"] = cal.refined_rms
-    if cal.pose_noise is not None:
-        out["refinement"]["pose_noise"] = dict(cal.pose_noise)
-    if cal.cov is not None:
-        out["uncertainty"] = _uncertainty_dict(cal)
-    if cal.cross_validation is not None:
-        out["cross_validation"] = {
-            "estimator": cal.estimator,
-            "prediction_error": cal.prediction_error,
-            "per_estimator": dict(cal.cross_validation),
-            "meaning": "RMS error of the target's points in views held out of the fit, predicted from the robot "
-                       "pose alone: pixels (with images) and millimetres at the target's distance; the number to "
-                       "trust for how well X and Z predict new views",
-        }
+    return out
+
+
+def _poses_dict(cal: Calibration) -> dict[str, Any]:
+    """The poses the calibration used (each a row of 16, the 4x4 row by row): what made it, so that it
+    can be read back whole (:func:`handeye.load_result`) and checked again."""
+    if cal.flange2base is None:
+        return {}
+    return {"poses": {"flange2base": np.asarray(cal.flange2base).reshape(-1, 16).tolist(),
+                      "target2cam": None if cal.target2cam is None else np.asarray(cal.target2cam).reshape(-1, 16).tolist(),
+                      "pairs": np.asarray(cal.pairs).tolist(),
+                      "layout": "each pose a row of 16: the 4x4 matrix row by row, metres"}}
+
+
+def _cross_validation_dict(cal: Calibration) -> dict[str, Any]:
+    if cal.cross_validation is None:
+        return {}
+    meaning = ("RMS error of the target's points in views held out of the fit, predicted from the robot pose alone: "
+               "pixels (with images) and millimetres at the target's distance; the number to trust for how well X and "
+               "Z predict new views") if cal.sensor is None else (
+               "RMS residual (mm) of the measurements of views held out of the fit, predicted from the robot alone: "
+               "the number to trust for how well X predicts new views")
+    return {"cross_validation": {"estimator": cal.estimator, "prediction_error": cal.prediction_error,
+                                 "per_estimator": dict(cal.cross_validation), "folds": cal.cross_validation.folds,
+                                 "meaning": meaning}}
+
+
+def _check_dict(cal: Calibration) -> dict[str, Any]:
+    if cal.diagnostics is None:
+        return {"check": {"verdict": "not checked", "advice": []}}
+    d = cal.diagnostics
+    return {"check": {"verdict": cal.verdict, "outliers": list(d.outliers),
+                      "pose_indices_used": [int(i) for i in cal.pose_indices], "n_poses": int(d.n_poses),
+                      "names": None if d.names is None else list(d.names), "consistency": float(d.consistency),
+                      "scale": d.scale, "scale_std": d.scale_std, "advice": list(d.advice)}}
+
+
+def _extras_dict(cal: Calibration, tool2flange: NDArray[np.float64] | None) -> dict[str, Any]:
+    """What only some calibrations have: a tool frame, known values, a certificate, two clocks, skipped views."""
+    out: dict[str, Any] = {}
     if tool2flange is not None:
         name, T = in_tool_frame(cal, tool2flange)
         out["tool"] = {"tool2flange": _transform_dict(tool2flange), "name": name, "transform": _transform_dict(T, cal)}
@@ -356,20 +350,69 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
                             "meaning": "camera clock minus robot clock: the camera sample stamped t shows the robot "
                                        "at robot time t - time_offset",
                             **(cal.streams or {})}
-    if cal.diagnostics is not None:
-        d = cal.diagnostics
-        out["check"] = {
-            "verdict": cal.verdict,
-            "outliers": list(d.outliers),
-            "pose_indices_used": [int(i) for i in cal.pose_indices],
-            "consistency": float(d.consistency),
-            "scale": d.scale,
-            "scale_std": d.scale_std,
-            "advice": list(d.advice),
-        }
-    else:
-        out["check"] = {"verdict": "not checked", "advice": []}
+    if cal.skipped and cal.image_names is None:
+        out["skipped"] = [{"view": n, "reason": r} for n, r in cal.skipped]
+    return out
+
+
+def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: str | None = None,
+                tool2flange: NDArray[np.float64] | None = None) -> dict[str, Any]:
+    """A plain, JSON/YAML-ready description of a calibration (see the module docstring), the same keys
+    for every sensor: ``X``, ``Z``, ``verdict``, ``uncertainty``, ``cross_validation``, ``check``,
+    ``notes``; the camera's own under ``images`` and ``camera``, any other sensor's under ``sensor``.
+
+    ``parent_frame`` / ``child_frame`` name the frames in the ROS snippets (defaults:
+    :func:`default_frames`). ``tool2flange``: the robot's tool (TCP) frame in the flange frame;
+    adds the camera (eye-in-hand) or the target (eye-to-hand) relative to that tool (``tool``).
+    """
+    info = setup_info(cal.setup)
+    parent, child = default_frames(cal.setup)
+    parent, child = parent_frame or parent, child_frame or child
+    out: dict[str, Any] = {
+        "handeye_version": __version__,
+        "inputs_sha256": cal.inputs_sha256,
+        "setup": cal.setup,
+        "method": cal.method,
+        "estimator": cal.estimator,
+        "X_name": info.x_name,
+        "X": _transform_dict(cal.X, cal),
+        "X_inverse_name": info.x_inverse_name,
+        "X_inverse": _transform_dict(invert(cal.X), cal),
+        "Z_name": info.z_name,
+        "Z": _transform_dict(cal.Z, cal) | ({} if cal.std_Z is None else {
+            "std_rotation_deg": _finite_or_none(cal.std_Z[:3]), "std_translation_mm": _finite_or_none(cal.std_Z[3:])}),
+        "ros": {
+            "parent_frame": parent,
+            "child_frame": child,
+            "static_transform_publisher": ros2_static_transform_command(cal.X, parent, child),
+            "urdf_joint": urdf_joint(cal.X, parent, child),
+            "ros1_launch": ros1_launch_file(cal.X, parent, child),
+        },
+        "easy_handeye": easy_handeye_calibration(cal, parent, child),
+        "verdict": cal.verdict,
+        "n_poses": int(len(cal.flange2base)),
+        "n_motions": int(len(cal.pairs)),
+    }
+    out.update(_residuals_dict(cal))
+    if cal.sensor is not None:
+        out["sensor"] = _sensor_dict(cal)
+    if cal.image_names is not None:
+        out.update(_images_dict(cal))
+    out.update(_scale_dict(cal))
+    if cal.kinematic is not None:
+        out["kinematics"] = cal.kinematic.as_dict()
+    out["refinement"] = {"type": cal.refinement}
+    if cal.refined_rms is not None:
+        out["refinement"]["rms_px"] = cal.refined_rms
+    if cal.pose_noise is not None:
+        out["refinement"]["pose_noise"] = dict(cal.pose_noise)
+    if cal.cov is not None:
+        out["uncertainty"] = _uncertainty_dict(cal)
+    out.update(_cross_validation_dict(cal))
+    out.update(_extras_dict(cal, tool2flange))
+    out.update(_check_dict(cal))
     out["notes"] = list(cal.notes)
+    out.update(_poses_dict(cal))
     return out
 
 

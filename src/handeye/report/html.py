@@ -251,20 +251,71 @@ def _transform_table(T: NDArray[np.float64], std: NDArray[np.float64] | None) ->
             f"<pre>{_e(matrix)}</pre>")
 
 
+def _view_residual_figure(cal: Calibration) -> str:
+    """Per view of a sensor's fit: its RMS residual and, when cross-validated, its held-out error (mm)."""
+    sf = cal.sensor
+    fig = _figure((10, 3.2))
+    ax = fig.subplots(1, 1)
+    x = np.arange(len(sf.views))
+    width = 0.4 if sf.heldout_mm is not None else 0.8
+    ax.bar(x - (width / 2 if sf.heldout_mm is not None else 0), sf.residual_mm, width, color="#4a78b5", label="in the fit")
+    if sf.heldout_mm is not None:
+        ax.bar(x + width / 2, np.nan_to_num(sf.heldout_mm), width, color="#d08c30", label="held out (predicted)")
+    ax.set_ylabel("RMS residual (mm)")
+    ax.set_title(f"per view: how far the {sf.target}'s model through X misses what the {sf.sensor} measured", fontsize=10)
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize=8)
+    if len(x) <= MAX_LABELLED_POSES:
+        ax.set_xticks(x)
+        ax.set_xticklabels(sf.views, rotation=90 if len(x) > 12 else 0, fontsize=8)
+    return _png(fig)
+
+
+def _sensor_residuals_section(cal: Calibration) -> str:
+    """A sensor's fit: each view's residual, the views left out and the sensor's own figures."""
+    sf = cal.sensor
+    parts = ['<section id="residuals"><h2>Per-view residuals</h2>' + _img(_view_residual_figure(cal), "per-view residuals"),
+             f"<p>{sf.points} measurements fitted, {sf.rejected} set aside as outliers (beyond 5 of their std); "
+             f"{sf.fit_rms_mm:.3f} mm RMS.</p>"]
+    if cal.skipped:
+        parts.append("<p>Views not used: " + "; ".join(f"{_e(n)} ({_e(r)})" for n, r in cal.skipped) + "</p>")
+    rows = "".join(f'<tr><td class="l">{_e(k)}</td><td class="l">{_e(_figure_text(v))}</td></tr>'
+                   for k, v in sf.figures.items())
+    parts.append(f"<h3>The {_e(sf.sensor)}'s own figures</h3>"
+                 f'<table><tr><th class="l">figure</th><th class="l">value</th></tr>{rows}</table></section>')
+    return "".join(parts)
+
+
+def _figure_text(value) -> str:
+    """A sensor figure as text: a value with its std, or numbers rounded."""
+    if isinstance(value, dict) and "value" in value:
+        return f"{value['value']:.6g} ± {value.get('std', 0.0):.3g}" + ("" if value.get("fitted", True) else " (not fitted)")
+    arr = np.asarray(value, dtype=object)
+    try:
+        return np.array2string(np.asarray(value, dtype=float), precision=4, separator=", ")
+    except (TypeError, ValueError):
+        return str(arr)
+
+
 def _verdict_section(cal: Calibration, verdict: str, pres: NDArray[np.float64]) -> str:
     std_txt = ""
     if cal.std is not None and cal.unobservable:
-        std_txt = f" · {len(cal.unobservable)} direction(s) of X's translation not determined by the data (see Result)"
+        std_txt = f" · {len(cal.unobservable)} direction(s) of X not determined by the data (see Result)"
     elif cal.std is not None:
         std_txt = (f" · std of X: {np.linalg.norm(cal.std[3:]):.3f} mm (translation, all axes), "
                    f"{np.linalg.norm(cal.std[:3]):.4f} deg (rotation)")
     headline = {"good": "the data determine X well", "weak": "usable, but the data leave X poorly determined",
                 "partial": "the motions determine only part of X",
-                "degenerate": "the motions cannot determine X", "inconsistent": "the poses do not agree on one X",
+                "degenerate": "the motions cannot determine X",
+                "inconsistent": "the poses do not agree on one X" if cal.sensor is None else
+                "the robot poses and the measurements do not agree on one X",
                 "not checked": "the data were not checked"}.get(verdict, "")
+    tail = (f"; median pose consistency {np.median(pres[:, 0]):.3f} deg / {np.median(pres[:, 1]):.3f} mm" if len(pres)
+            else f"; fit {cal.sensor.fit_rms_mm:.3f} mm RMS" if cal.sensor is not None else "")
+    if cal.prediction_error is not None and cal.sensor is not None:
+        tail += f", held-out views {cal.prediction_error['mm']:.3f} mm"
     return (f'<section id="verdict"><div class="banner" style="background:{_COLOURS.get(verdict, "#555")}">'
-            f"<b>{_e(verdict)}</b> — {_e(headline)}{_e(std_txt)}; median pose consistency "
-            f"{np.median(pres[:, 0]):.3f} deg / {np.median(pres[:, 1]):.3f} mm</div></section>")
+            f"<b>{_e(verdict)}</b> — {_e(headline)}{_e(std_txt)}{_e(tail)}</div></section>")
 
 
 def _result_section(cal: Calibration, data: dict) -> str:
@@ -500,18 +551,24 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
     parts = [f"<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>handeye report: {_e(data['X_name'])}</title>"
              f"<style>{_CSS}</style></head><body>",
              f"<h1>Hand-eye calibration ({_e(cal.setup.replace('_', '-'))})</h1>"
-             f"<p class=\"note\">handeye {_e(__version__)} · method {_e(cal.method)} · {len(cal.flange2base)} poses, "
-             f"{len(cal.pairs)} motions · inputs sha256 {_e((cal.inputs_sha256 or '')[:16])}…</p>",
+             f"<p class=\"note\">handeye {_e(__version__)} · method {_e(cal.method)} · {len(cal.flange2base)} "
+             f"{'poses' if cal.sensor is None else 'views'}, {len(cal.pairs)} motions · inputs sha256 "
+             f"{_e((cal.inputs_sha256 or '')[:16])}…</p>",
              _verdict_section(cal, verdict, pres),
-             _result_section(cal, data),
-             _residuals_section(cal),
-             _kinematics_section(cal),
-             _overlays_section(cal),
-             '<section id="scene"><h2>Robot, camera and target</h2>' + _img(_png(_scene_figure(cal)), "3D view") + "</section>",
-             _axes_section(cal),
-             _solvers_section(solver_rows),
-             _advice_section(cal, data, solver_rows),
-             "</body></html>\n"]
+             _result_section(cal, data)]
+    if cal.target2cam is None:  # a sensor's fit (depth, laser, ...): its views' residuals and figures
+        parts += [_sensor_residuals_section(cal), _kinematics_section(cal),
+                  '<section id="scene"><h2>Robot, sensor and target</h2>' + _img(_png(_scene_figure(cal)), "3D view")
+                  + "</section>", _advice_section(cal, data), "</body></html>\n"]
+        return "".join(parts)
+    parts += [_residuals_section(cal),
+              _kinematics_section(cal),
+              _overlays_section(cal),
+              '<section id="scene"><h2>Robot, camera and target</h2>' + _img(_png(_scene_figure(cal)), "3D view") + "</section>",
+              _axes_section(cal),
+              _solvers_section(solver_rows),
+              _advice_section(cal, data, solver_rows),
+              "</body></html>\n"]
     return "".join(parts)
 
 

@@ -51,6 +51,16 @@ def solve(A: ArrayLike, B: ArrayLike, method: str = "daniilidis") -> NDArray[np.
         A motion that is not a rigid transform (NaN, non-orthonormal rotation).
     DegenerateMotionError
         Motions that cannot determine ``X`` (fewer than two, all rotation axes parallel, no rotation).
+
+    Examples
+    --------
+    >>> import handeye
+    >>> from handeye.simulate import random_scene
+    >>> scene = random_scene(6, "eye_in_hand", rng=0)        # noise-free poses
+    >>> A, B = handeye.relative_motions(scene.flange2base, scene.target2cam, setup="eye_in_hand")
+    >>> X = handeye.solve(A, B, method="daniilidis")
+    >>> bool(np.allclose(X, scene.X, atol=1e-9))
+    True
     """
     info = get(method, kind="hand_eye")
     return solve_motions(validate_motions(A, B), method=info.name)

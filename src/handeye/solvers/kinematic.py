@@ -29,23 +29,14 @@ from scipy.optimize import least_squares
 
 from ..errors import HandEyeError, InputMismatchError
 from ..frames.setups import predicted_target2cam
-from ..robot.kinematics import Chain, absorbed_parameters
+from ..robot.kinematics import Chain
+from ..robot.models import ANGLE_PRIOR_RAD, COMPLIANCE_PRIOR, LENGTH_PRIOR_M, entry_priors, fitted_entries
 from ..sensors.camera.pnp import project_points_many
 from ._common import _normal_inverse, _xz_increment
 
 __all__ = ["KinematicRefinement", "refine_kinematic", "DETERMINED", "LENGTH_PRIOR_M", "ANGLE_PRIOR_RAD",
            "COMPLIANCE_PRIOR"]
 
-#: The default prior std of a table entry: a length (m) and an angle (rad, 0.1 deg), an uncalibrated
-#: arm's tolerances.
-LENGTH_PRIOR_M = 1e-3
-ANGLE_PRIOR_RAD = np.radians(0.1)
-#: The default prior std of a joint's compliance (rad per metre of the load's moment arm): 0.2 deg
-#: per metre, a collaborative arm's shoulder (~3e4 N m/rad) under its links and a camera (~100 N):
-#: ~1 mm at reach.
-COMPLIANCE_PRIOR = float(np.radians(0.2))
-#: A joint whose load's moment arm stays below this (m) over the capture has no compliance to fit.
-_MIN_MOMENT_ARM = 1e-3
 #: An entry is determined by the capture when its posterior std is below this share of its prior's.
 DETERMINED = 0.5
 #: Points of the virtual target (target frame, m) whose viewing rays carry the residuals of pose-only data.
@@ -104,11 +95,6 @@ class KinematicRefinement:
         return self.parameter_std < DETERMINED * self.prior_std
 
 
-def _prior(names: list[str], length: float, angle: float, compliance: float) -> NDArray[np.float64]:
-    return np.array([compliance if name.endswith(".compliance") else angle if name.endswith((".alpha", ".theta"))
-                     else length for name in names])
-
-
 def refine_kinematic(
     X0: NDArray[np.float64],
     Z0: NDArray[np.float64],
@@ -163,8 +149,8 @@ def refine_kinematic(
     joints = np.asarray(joints, dtype=float)
     if joints.ndim != 2 or joints.shape[1] != chain.n_joints:
         raise InputMismatchError(f"{chain.name} has {chain.n_joints} joints; the joint angles have shape {joints.shape}")
-    every, names, index = _unknowns(chain, joints, compliance)
-    prior_std = _prior(names, length_prior, angle_prior, compliance_prior)
+    every, names, index = fitted_entries(chain, joints, compliance)
+    prior_std = entry_priors(names, length_prior, angle_prior, compliance_prior)
     residual = _residual_function(chain, joints, setup, object_points, image_points, K, dist, target2cam)
     p0 = np.zeros(len(every))
     n_data = len(residual(X0, Z0, p0))
@@ -200,17 +186,6 @@ def refine_kinematic(
     own = np.zeros(chain.n_joints) if chain.compliance is None else chain.compliance
     return KinematicRefinement(X, Z, p[:size].reshape(chain.table.shape), names, cov, prior_std, float(s), rms,
                                bool(res.success), own + p[size:] if compliance else None)
-
-
-def _unknowns(chain: Chain, joints: NDArray[np.float64], compliance: bool) -> tuple[list[str], list[str], NDArray[np.intp]]:
-    """Every parameter of ``chain.forward_with``'s vector, the ones fitted (not absorbed by X and Z;
-    a compliance only for joints the load turns over the capture) and their positions."""
-    absorbed = set(absorbed_parameters(chain))
-    every = chain.parameter_names(compliance)
-    loaded = np.abs(chain.moment_arms(joints)).max(axis=0) >= _MIN_MOMENT_ARM if compliance else np.zeros(0, bool)
-    names = [name for name in every if name not in absorbed
-             and (not name.endswith(".compliance") or loaded[int(name.split(".")[0].removeprefix("joint")) - 1])]
-    return every, names, np.array([every.index(name) for name in names], dtype=np.intp)
 
 
 def _start(chain: Chain, size: int, deltas0, compliance0) -> NDArray[np.float64]:

@@ -46,13 +46,16 @@ from .._shared.io import atomic_write, check_output_folder
 from .._shared.lazy import lazy_module
 from .._shared.progress import Progress
 from ..errors import HandEyeError
+from ..estimation.uncertainty import robot_accuracy_cov
 from ..frames.metrics import std_deg_mm
 from ..frames.poses import format_poses, parse_poses, pose_columns
 from ..frames.setups import check_setup, flange_poses, predicted_target2cam, setup_info
 from ..geometry.se3 import make_transform, perturb
 from ..io.session import SESSION_FILE, SessionError, load_session, write_session
-from ..pipelines.calibration import ROBOT_ACCURACY, Calibration, calibrate, calibrate_poses, robot_accuracy_cov
+from ..options import ROBOT_ACCURACY
+from ..pipelines.calibration import calibrate, calibrate_poses
 from ..planning.poses import candidate_views, choose_next, reprojection_information
+from ..result import Calibration
 from ..sensors.camera import solve_pnp, target_from_spec
 from ..sensors.camera.render import Renderer, target_texture
 from ..simulate import default_camera

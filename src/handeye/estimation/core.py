@@ -1,0 +1,579 @@
+"""One estimation core for every sensor: a sensor model times a robot model times a setup.
+
+A sensor model (:mod:`handeye.sensors.base`) says what each view measured and how to predict it
+from X, its own unknowns ``p`` and the flange pose; a robot model (:mod:`handeye.robot.models`)
+says where the flange was, from the controller's poses or from joint angles through the arm's
+table with its entries as unknowns ``d``. :func:`estimate` fits all of them together and does what
+every calibration needs, once for all sensors:
+
+* the start: the closed form on the views' poses when each view measures a whole pose, else the
+  sensor's own closed form;
+* the robust fit: every measurement weighted by its noise, each noise group's scale fitted to the
+  data, points beyond 5 of their std set aside (spikes, multiple reflections), then a plain least
+  squares on the rest (:func:`fit`);
+* what the capture leaves undetermined of X (the directions the data do not constrain), named and
+  held at the start, their std infinite, never refused for what is determined;
+* views the fit does not explain, left out and named;
+* K-fold cross-validation: each fold's views predicted from the robot alone by the fit to the others
+  (the sensor's residuals, mm), beside the closed-form start's (the fit must beat it);
+* the std: the fit's noise model, each axis widened to the leave-views-out jackknife's spread, plus the
+  robot's accuracy for controller poses (:mod:`handeye.estimation.uncertainty`);
+* the verdict (:mod:`handeye.estimation.verdict`): the fit against the noise the sensor and the robot
+  allow, held-out views against the fit, and X's std against the acceptance.
+
+The refits of cross-validation and jackknife are one Gauss-Newton step from the fit on all views
+without the rows left out (a fold differs from the whole by a few views).
+
+Examples
+--------
+>>> from handeye.estimation.core import estimate
+>>> from handeye.robot.models import ControllerPoses
+>>> from handeye.sensors.depth.model import SphereCentres
+>>> from handeye.simulate import sphere_scene
+>>> scene = sphere_scene(12, "eye_to_hand", rng=1)
+>>> centres = scene.target2cam[:, :3, 3]                  # the ball's centre in each view (exact here)
+>>> model = SphereCentres("eye_to_hand", [f"v{i}" for i in range(12)], centres, fit_depth=False)
+>>> cal = estimate(model, ControllerPoses(scene.flange2base))
+>>> bool(abs(cal.X[:3, 3] - scene.X[:3, 3]).max() < 1e-6)
+True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+
+from ..errors import DegenerateMotionError, HandEyeError
+from ..frames.metrics import std_deg_mm
+from ..frames.setups import setup_info
+from ..geometry.se3 import perturb
+from ..options import ROBOT_ACCURACY
+from ..result import Calibration, Diagnostics, HeldOutErrors, KinematicModel, Observability, SensorFit, Unobservable
+from ..robot.models import ControllerPoses, JointAngles, RobotModel
+from ..sensors.base import SensorModel
+from ..solvers.refine import refine_pose
+from .diagnostics import closed_form
+from .uncertainty import widened_uncertainty
+from .validation import default_folds, fold_indices
+from .verdict import judged
+
+__all__ = ["Fitted", "Problem", "fit", "estimate", "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR", "HELDOUT_FACTOR"]
+
+#: Points whose residual exceeds this many of their std (after a robust first fit) are set aside.
+REJECT = 5.0
+#: A view whose RMS residual exceeds this many times the median view's (and 3 times the noise the
+#: sensor states) is left out, named.
+OUTLIER_FACTOR = 5.0
+#: A fit whose RMS residual exceeds this many times what the sensor's noise and the robot's accuracy
+#: allow explains nothing: the verdict is inconsistent.
+FIT_FACTOR = 5.0
+#: Held-out views predicted this many times worse than the fit's residual: the verdict is inconsistent.
+HELDOUT_FACTOR = 4.0
+#: A direction of X whose std exceeds this (rad at 1 m, or m), or whose information is this small a
+#: share of the largest, is not determined by the capture.
+UNDETERMINED_STD, UNDETERMINED_SHARE = 1.0, 1e-13
+#: The weight of the rows that hold an undetermined direction at its start (1 / its std, m).
+PIN = 1e9
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A sensor model and a robot model, with the start and the directions of X held at it."""
+
+    sensor: SensorModel
+    robot: RobotModel
+    X0: NDArray[np.float64]
+    p0: NDArray[np.float64]
+    #: (k, 6) unit directions of X's increment (rotation in rad at 1 m, translation in m) held at the start
+    pins: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 6)))
+
+    @property
+    def sizes(self) -> tuple[int, int, int]:
+        """Unknowns of X, of the sensor and of the robot."""
+        return 6, len(self.p0), self.robot.n_params
+
+    def unpack(self, x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """X, the sensor's ``p`` and the robot's ``d`` of the vector ``x``."""
+        _, k, _ = self.sizes
+        return perturb(self.X0, x[0:3], x[3:6]), self.p0 + x[6:6 + k], x[6 + k:]
+
+    def scale(self) -> NDArray[np.float64]:
+        """A typical size of each unknown (the solver's scaling)."""
+        return np.r_[np.full(6, 1e-3), np.asarray(self.sensor.param_scale, float), np.ones(self.robot.n_params)]
+
+
+@dataclass(frozen=True)
+class Fitted:
+    """One fit of a :class:`Problem` on some of its views."""
+
+    x: NDArray[np.float64]
+    X: NDArray[np.float64]
+    p: NDArray[np.float64]
+    d: NDArray[np.float64]
+    cov: NDArray[np.float64]  #: of ``x`` (X's increment: rotation vector rad, translation m)
+    sigma: NDArray[np.float64]  #: per residual column, the scale of the sensor's noise shape
+    kept: NDArray[np.bool_]  #: per measurement row: not set aside as an outlier
+    rows: NDArray[np.intp]  #: the rows the fit used (kept, in its views)
+    jac: NDArray[np.float64] = field(repr=False)  #: whitened, over ``rows`` then the prior and pin rows
+    fun: NDArray[np.float64] = field(repr=False)  #: the whitened residuals, likewise
+    success: bool = True
+
+
+def _columns(sensor: SensorModel) -> NDArray[np.intp]:
+    """Per residual column its noise group."""
+    c = np.asarray(sensor.shape).shape[1]
+    out = np.zeros(c, dtype=np.intp)
+    for g, cols in enumerate(sensor.groups):
+        out[list(cols)] = g
+    return out
+
+
+def _group_scales(w: NDArray[np.float64], sensor: SensorModel, robust: bool, dof_share: float = 1.0) -> NDArray[np.float64]:
+    """Per column the noise scale of its group, from residuals ``w`` (M, c) already divided by the shape:
+    the robust spread (1.4826 x median absolute) or the RMS corrected for the unknowns' share."""
+    out = np.ones(w.shape[1])
+    for cols in sensor.groups:
+        v = np.abs(w[:, list(cols)]).ravel()
+        s = 1.4826 * float(np.median(v)) if robust else float(np.sqrt(np.mean(v**2) / max(dof_share, 1e-9)))
+        out[list(cols)] = max(s, 1e-12)
+    return out
+
+
+def _function(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
+    """The whitened residuals of ``rows``, the robot's prior and the pins, as a function of ``x``."""
+    sensor, robot = problem.sensor, problem.robot
+    weight = 1.0 / (np.asarray(sensor.shape)[rows] * sigma)
+
+    def fun(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        X, p, d = problem.unpack(x)
+        r = sensor.residuals(X, p, robot.flange2base(d), rows) * weight
+        return np.concatenate([r.ravel(), robot.prior(d), PIN * (problem.pins @ x[:6])])
+    return fun
+
+
+def _cov(jac: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``inv(J^T J)`` through the SVD (symmetric, positive semi-definite however poorly conditioned)."""
+    _, s, Vt = np.linalg.svd(jac, full_matrices=False)
+    s = np.where(s > s.max() * 1e-14, s, np.inf) if s.size and s.max() > 0 else np.full_like(s, np.inf)
+    return (Vt.T / s**2) @ Vt
+
+
+def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted | None = None,
+        tol: float = 1e-10) -> Fitted:
+    """The fit of ``problem`` on ``views`` (default all).
+
+    Without ``start``: a robust fit (soft L1, each noise group's scale from the residuals' median),
+    the rows beyond :data:`REJECT` of their std set aside, then two plain least-squares rounds on the
+    rest with the scales re-estimated. With ``start`` (a fit on more views): its scales and rows kept,
+    one plain least squares from its solution.
+    """
+    sensor = problem.sensor
+    owner = np.asarray(sensor.owner)
+    in_views = np.ones(len(owner), bool) if views is None else np.isin(owner, np.asarray(views))
+    x_scale = problem.scale()
+    cols = _columns(sensor)
+    if start is not None:
+        rows = np.flatnonzero(in_views & start.kept)
+        fun = _function(problem, rows, start.sigma)
+        res = least_squares(fun, start.x, method="trf", x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
+        return _fitted(problem, res, start.sigma, start.kept, rows)
+    x = np.zeros(sum(problem.sizes))
+    shape = np.asarray(sensor.shape)
+    rows = np.flatnonzero(in_views)
+    X, p, d = problem.unpack(x)
+    w0 = sensor.residuals(X, p, problem.robot.flange2base(d), rows) / shape[rows]
+    sigma = _group_scales(w0, sensor, robust=True)[cols]
+    res = least_squares(_function(problem, rows, sigma), x, method="trf", loss="soft_l1", f_scale=2.0, x_scale=x_scale,
+                        xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    x = res.x
+    X, p, d = problem.unpack(x)
+    w = sensor.residuals(X, p, problem.robot.flange2base(d), rows) / shape[rows]
+    sigma = _group_scales(w, sensor, robust=True)[cols]
+    kept = np.zeros(len(owner), bool)
+    kept[rows] = np.all(np.abs(w) <= REJECT * sigma, axis=1)
+    rows = np.flatnonzero(kept)
+    n_unknowns = len(x)
+    for _ in range(2):
+        res = least_squares(_function(problem, rows, sigma), x, method="trf", x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
+        x = res.x
+        X, p, d = problem.unpack(x)
+        w = sensor.residuals(X, p, problem.robot.flange2base(d), rows) / shape[rows]
+        share = max(w.size - n_unknowns, 1) / w.size
+        sigma = _group_scales(w, sensor, robust=False, dof_share=share)[cols]
+    res = least_squares(_function(problem, rows, sigma), x, method="trf", x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
+    return _fitted(problem, res, sigma, kept, rows)
+
+
+def _fitted(problem: Problem, res, sigma, kept, rows) -> Fitted:
+    if not np.isfinite(res.x).all():
+        raise HandEyeError("the fit failed (no finite solution)")
+    X, p, d = problem.unpack(res.x)
+    return Fitted(res.x, X, p, d, _cov(res.jac), sigma, kept, rows, res.jac, res.fun, bool(res.success))
+
+
+def downdated(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> Fitted:
+    """The fit on ``views`` as one Gauss-Newton step from ``full`` (the fit on all views) without the
+    other views' rows: at ``full``'s solution the whole gradient is zero, so the step is
+    ``(J_t^T J_t)^-1 J_h^T r_h`` with t the rows kept and h the rows left out."""
+    owner = np.asarray(problem.sensor.owner)
+    c = np.asarray(problem.sensor.shape).shape[1]
+    held = ~np.isin(owner[full.rows], np.asarray(views))
+    n_data = len(full.rows) * c
+    drop = np.zeros(len(full.fun), bool)
+    drop[:n_data] = np.repeat(held, c)
+    J_t, J_h, r_h = full.jac[~drop], full.jac[drop], full.fun[drop]
+    step = _gn_step(J_t, J_h, r_h)
+    x = full.x + step
+    X, p, d = problem.unpack(x)
+    return Fitted(x, X, p, d, full.cov, full.sigma, full.kept, full.rows[~held], full.jac[~drop], full.fun[~drop])
+
+
+def _gn_step(J_t: NDArray[np.float64], J_h: NDArray[np.float64], r_h: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``(J_t^T J_t)^-1 J_h^T r_h`` (least squares where J_t^T J_t is singular)."""
+    return np.linalg.lstsq(J_t.T @ J_t, J_h.T @ r_h, rcond=None)[0]
+
+
+def view_rms_mm(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flange2base: NDArray[np.float64] | None = None
+                ) -> NDArray[np.float64]:
+    """Per view of ``views``: the RMS length (mm) of its kept rows' residuals under ``fitted``
+    (NaN for a view without a kept row)."""
+    sensor = problem.sensor
+    owner = np.asarray(sensor.owner)
+    rows = np.flatnonzero(np.isin(owner, views) & fitted.kept)
+    F = problem.robot.flange2base(fitted.d) if flange2base is None else flange2base
+    r = sensor.residuals(fitted.X, fitted.p, F, rows)
+    sq = np.bincount(owner[rows], np.sum(r**2, axis=1), minlength=len(sensor.names))
+    count = np.bincount(owner[rows], minlength=len(sensor.names))
+    views = np.asarray(views)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return 1e3 * np.sqrt(sq[views] / count[views])
+
+
+def _undetermined(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
+    """The unit directions (k, 6) of X's increment the fit does not constrain: the information of X
+    after the other unknowns are taken out (a Schur complement), its eigen-directions whose std
+    exceeds :data:`UNDETERMINED_STD` or whose share of the largest is below :data:`UNDETERMINED_SHARE`."""
+    info = fitted.jac.T @ fitted.jac
+    n_pins = len(problem.pins)
+    if n_pins:  # the pins' own rows are not information from the data
+        P = fitted.jac[-n_pins:]
+        info = info - P.T @ P
+    A, B, C = info[:6, :6], info[:6, 6:], info[6:, 6:]
+    S = A - B @ np.linalg.pinv(C, rcond=1e-14) @ B.T if C.size else A
+    lam, V = np.linalg.eigh(0.5 * (S + S.T))
+    lam = np.maximum(lam, 0.0)
+    top = max(float(lam.max()), 1e-300)
+    bad = (lam < UNDETERMINED_STD**-2) | (lam < UNDETERMINED_SHARE * top)
+    return V[:, bad].T
+
+
+def _words(direction: NDArray[np.float64], setup: str) -> tuple[str, str]:
+    """A direction of X's increment in words, and the axis it names (in X's parent frame)."""
+    info = setup_info(setup)
+    frame = info.x_parent
+    rot, trans = direction[:3], direction[3:]
+
+    def axis(v: NDArray[np.float64]) -> str:
+        v = v / np.linalg.norm(v)
+        k = int(np.argmax(np.abs(v)))
+        if abs(v[k]) > 0.95:
+            return f"the {frame} {'xyz'[k]} axis"
+        return f"the {frame} direction ({v[0]:+.2f}, {v[1]:+.2f}, {v[2]:+.2f})"
+    if np.linalg.norm(trans) >= 0.9:
+        return f"translation of {info.x_name} along {axis(trans)}", axis(trans)
+    if np.linalg.norm(rot) >= 0.9:
+        return f"rotation of {info.x_name} about {axis(rot)}", axis(rot)
+    return (f"rotation of {info.x_name} about {axis(rot)} together with its translation along {axis(trans)}",
+            axis(rot))
+
+
+def _unobservable(pins: NDArray[np.float64], X: NDArray[np.float64], setup: str, fix: str) -> list[Unobservable]:
+    info = setup_info(setup)
+    out = []
+    for u in pins:
+        words, _ = _words(u, setup)
+        trans = np.linalg.norm(u[3:]) >= np.linalg.norm(u[:3])
+        direction = u[3:] / np.linalg.norm(u[3:]) if trans else u[:3] / np.linalg.norm(u[:3])
+        value = float(X[:3, 3] @ direction) if trans else 0.0
+        out.append(Unobservable(words, info.x_name, info.x_parent, direction, value,
+                                "held at the start's value (the closed form's)", "nothing: the measurements do not change "
+                                "with it", fix))
+    return out
+
+
+def _std_with_pins(cov_X: NDArray[np.float64], pins: NDArray[np.float64]) -> NDArray[np.float64]:
+    """X's std (deg, mm) with every axis that an undetermined direction touches set to infinity."""
+    std = std_deg_mm(cov_X)
+    for u in pins:
+        std = np.where(np.abs(u) > 0.05, np.inf, std)
+    return std
+
+
+@dataclass(frozen=True)
+class _Checked:
+    """The fit on the views that stay, and the views left out (indices, why)."""
+
+    problem: Problem
+    full: Fitted
+    views: NDArray[np.intp]
+    left_out: list[tuple[int, str]]
+
+
+def _start(sensor: SensorModel, robot: RobotModel, views: NDArray[np.intp] | None = None
+           ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """X and ``p`` to start from, on ``views`` (default all) and the robot's poses at its prior (the
+    controller's, or the nominal table's): the closed form on the views' poses when the sensor
+    measures them, else the sensor's own."""
+    F = robot.flange2base(np.zeros(robot.n_params))
+    poses = sensor.view_poses()
+    views = np.arange(len(sensor.names)) if views is None else np.asarray(views)
+    rows = np.flatnonzero(np.isin(np.asarray(sensor.owner), views))
+    X = Z = None
+    if poses is not None:
+        F, poses = F[views], poses[views]
+        if len(poses) < 3:
+            raise DegenerateMotionError(f"{len(poses)} views: at least 3 are needed, 10-20 with the flange turned "
+                                        "30 deg or more about varied axes to trust X")
+        X, Z, _ = closed_form(F, poses, sensor.setup, "daniilidis")
+        ref = refine_pose(X, Z, F, poses, sensor.setup)
+        X, Z = ref.X, ref.Z
+        F = robot.flange2base(np.zeros(robot.n_params))
+    return sensor.start(F, X, Z, rows)
+
+
+def _outlier_views(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> list[tuple[int, str]]:
+    """The views (of ``views``) the fit does not explain: their RMS beyond :data:`OUTLIER_FACTOR`
+    times the median view's and 3 times the noise the sensor states, or most of their points set aside."""
+    if len(views) < 6:
+        return []
+    sensor = problem.sensor
+    rms = view_rms_mm(problem, full, views)
+    owner = np.asarray(sensor.owner)
+    out = []
+    med = float(np.nanmedian(rms))
+    for v, r in zip(views, rms):
+        rows = np.flatnonzero(owner == v)
+        noise = float(np.median(sensor.noise_mm(rows))) if len(rows) else 0.0
+        rejected = 1.0 - float(full.kept[rows].mean()) if len(rows) else 1.0
+        if rejected > 0.5:
+            out.append((int(v), f"the fit does not explain this view: {100 * rejected:.0f}% of its points are beyond "
+                                f"{REJECT:g} std of the rest (a wrong robot pose, a target that moved, or a bad measurement)"))
+        elif np.isfinite(r) and r > OUTLIER_FACTOR * med and r > 3.0 * noise:
+            out.append((int(v), f"the fit does not explain this view: {r:.2f} mm RMS against the median view's {med:.2f} mm "
+                                "(a wrong robot pose, a target that moved, or a bad measurement)"))
+    return out if len(out) <= len(views) // 3 else []
+
+
+def _prepared(sensor: SensorModel, robot: RobotModel) -> _Checked:
+    """The start, the fit with what the capture does not determine held at the start, and the
+    views the fit does not explain left out (refitted without them)."""
+    X0, p0 = _start(sensor, robot)
+    problem = Problem(sensor, robot, X0, p0)
+    views = np.unique(np.asarray(sensor.owner))
+    full = fit(problem)
+    pins = _undetermined(problem, full)
+    if len(pins):
+        problem = replace(problem, X0=full.X, p0=full.p, pins=pins)
+        full = fit(problem)
+    left_out = _outlier_views(problem, full, views)
+    if left_out:
+        views = np.setdiff1d(views, [v for v, _ in left_out])
+        full = fit(problem, views)
+    return _Checked(problem, full, views, left_out)
+
+
+def _cross_validation(problem: Problem, full: Fitted, views: NDArray[np.intp], folds: int | None
+                      ) -> tuple[dict[str, dict[str, float | None]], int, NDArray[np.float64]]:
+    """Per estimator its held-out RMS error (mm) over ``views``: the fit, and the closed-form start
+    (refitted per fold); for joint angles also the fit on the nominal table's poses. Returns the
+    table, the folds and the fit's per-view held-out errors."""
+    n = len(views)
+    if n < 4:
+        return {}, 0, np.full(n, np.nan)
+    held = [views[i] for i in fold_indices(n, default_folds(n) if folds is None else min(folds, n))]
+    fitted_mm = np.full(n, np.nan)
+    start_mm = np.full(n, np.nan)
+    position = {int(v): i for i, v in enumerate(views)}
+    nominal = None
+    if isinstance(problem.robot, JointAngles):
+        nominal = Problem(problem.sensor, ControllerPoses(problem.robot.flange2base(np.zeros(problem.robot.n_params))),
+                          problem.X0, problem.p0, problem.pins)
+        nominal_full = fit(nominal, views)
+        nominal_mm = np.full(n, np.nan)
+    for test in held:
+        train = np.setdiff1d(views, test)
+        at = [position[int(v)] for v in test]
+        fold = downdated(problem, full, train)
+        fitted_mm[at] = view_rms_mm(problem, fold, test)
+        try:
+            X0, p0 = _start(problem.sensor, problem.robot, train)
+            start_mm[at] = view_rms_mm(problem, replace(full, X=X0, p=p0, d=np.zeros(problem.robot.n_params)), test)
+        except HandEyeError:
+            pass
+        if nominal is not None:
+            nominal_mm[at] = view_rms_mm(nominal, downdated(nominal, nominal_full, train), test)
+    table = {_name(problem.robot): _row(fitted_mm), "closed-form start": _row(start_mm)}
+    if nominal is not None:
+        table["fit on the nominal table's poses"] = _row(nominal_mm)
+    return table, len(held), fitted_mm
+
+
+def _name(robot: RobotModel) -> str:
+    """The estimator's name: the sensor's fit, with the arm's table when the robot is joint angles."""
+    return "fit with the arm's table" if isinstance(robot, JointAngles) else "fit"
+
+
+def _row(mm: NDArray[np.float64]) -> dict[str, float | None]:
+    finite = mm[np.isfinite(mm)]
+    return {"px": None, "mm": float(np.sqrt(np.mean(finite**2))) if finite.size else None}
+
+
+def _jackknife(problem: Problem, full: Fitted, views: NDArray[np.intp], max_groups: int = 10) -> NDArray[np.float64] | None:
+    """The jackknife covariance of ``x`` (views left out in up to ``max_groups`` groups)."""
+    n = len(views)
+    if n < 4:
+        return None
+    groups = [np.array([v]) for v in views] if n <= max_groups else [views[i] for i in fold_indices(n, max_groups)]
+    xs = np.array([downdated(problem, full, np.setdiff1d(views, g)).x for g in groups])
+    d = xs - xs.mean(axis=0)
+    g = len(xs)
+    return (g - 1) / g * d.T @ d
+
+
+def _widen(cov: NDArray[np.float64], jack: NDArray[np.float64] | None) -> tuple[NDArray[np.float64], float]:
+    """``cov`` with each axis widened to the jackknife's where that is larger; the largest factor."""
+    if jack is None:
+        return cov, 1.0
+    ratio = np.sqrt(np.maximum(np.diag(jack), 1e-300) / np.maximum(np.diag(cov), 1e-300))
+    D = np.diag(np.maximum(ratio, 1.0))
+    return D @ cov @ D, float(ratio.max())
+
+
+def _allowed_mm(problem: Problem, full: Fitted, accuracy: tuple[float, float] | None) -> float:
+    """The RMS residual (mm) a measurement may have, known before any fit: the sensor's stated noise
+    and the robot's stated accuracy (its rotation at the measurements' distance, ~1 m)."""
+    acc = (0.0, 0.0) if accuracy is None else accuracy
+    noise = float(np.median(problem.sensor.noise_mm(full.rows))) if len(full.rows) else 0.0
+    return float(np.sqrt(3.0) * (acc[1] + np.radians(acc[0]) * 1e3) + noise)
+
+
+def _verdict(problem: Problem, full: Fitted, fit_mm: float, heldout_mm: float | None, n_out: int, n: int,
+             accuracy: tuple[float, float] | None) -> tuple[str, list[str], float]:
+    """The check's verdict on the fit ('good' to be judged on X's std, or 'inconsistent'), its advice
+    and the consistency score (the fit's RMS over what is allowed)."""
+    allowed = _allowed_mm(problem, full, accuracy)
+    score = fit_mm / max(allowed, 1e-9)
+    if fit_mm > FIT_FACTOR * max(allowed, 0.05):
+        return "inconsistent", [
+            f"the views' measurements are {fit_mm:.2f} mm (RMS) from the fit, far beyond the {allowed:.2f} mm the "
+            "sensor's noise and the robot's accuracy allow: the robot poses and the measurements disagree (their "
+            "order, the pose format or unit, the setup, the measurements' unit)"], score
+    if heldout_mm is not None and heldout_mm > HELDOUT_FACTOR * max(fit_mm, 0.1):
+        return "inconsistent", [
+            f"held-out views are predicted {heldout_mm:.2f} mm (RMS) off, {heldout_mm / fit_mm:.1f}x the fit's "
+            f"{fit_mm:.2f} mm: the robot poses and the measurements disagree (the setup, the pose format or unit, a "
+            "target that moved, or the order of the views)"], score
+    if n_out > n // 3:
+        return "inconsistent", [f"{n_out} of {n} views are not explained by the fit: too many to leave out; check the "
+                                "poses' format and unit, the setup, and that the target did not move"], score
+    return "good", [], score
+
+
+#: A table entry is determined by the capture when its std is below this share of its prior's.
+DETERMINED = 0.5
+
+
+def _kinematic(robot: JointAngles, d: NDArray[np.float64], cov_d: NDArray[np.float64], views: NDArray[np.intp]
+               ) -> KinematicModel:
+    """The arm's table the fit found: each entry's correction and std (natural units), whether the
+    capture determines it, and how far the corrections move the flange over the capture."""
+    prior = robot.prior_std
+    std = np.sqrt(np.clip(np.diag(cov_d), 0.0, None)) * prior
+    corrected = robot.corrected(d)
+    q = robot.joints[views]
+    shift = 1e3 * np.linalg.norm(corrected.forward(q)[:, :3, 3] - robot.chain.forward(q)[:, :3, 3], axis=1)
+    return KinematicModel(robot.chain, corrected, list(robot.names), d * prior, std, prior, std < DETERMINED * prior,
+                          (float(np.median(shift)), float(shift.max())), None, q)
+
+
+def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *, uncertainty: bool = True,
+             method: str | None = None) -> Calibration:
+    """X (and the target's pose, the sensor's and the robot's unknowns) from ``sensor`` and ``robot``:
+    the module docstring's steps, one :class:`~handeye.result.Calibration` with the verdict.
+
+    Parameters
+    ----------
+    sensor : SensorModel
+        What the views measured (:mod:`handeye.sensors.base`).
+    robot : RobotModel
+        Where the flange was (:mod:`handeye.robot.models`); a :class:`ControllerPoses` brings the
+        robot's stated accuracy into X's std.
+    folds : int, optional
+        Cross-validation folds (default: one per view up to 10 views, else 5).
+    uncertainty : bool
+        False skips the jackknife and cross-validation (X alone, e.g. inside a loop).
+    method : str, optional
+        The result's ``method`` (default: the sensor and robot in words).
+
+    Raises
+    ------
+    DegenerateMotionError
+        The views cannot determine X even in part (too few, or the start cannot be solved).
+    """
+    if len(sensor.names) != robot.n_views:
+        raise HandEyeError(f"{len(sensor.names)} views measured and {robot.n_views} robot poses: give one per view")
+    checked = _prepared(sensor, robot)
+    problem, full, views = checked.problem, checked.full, checked.views
+    n_x, n_p, _ = problem.sizes
+    F = robot.flange2base(full.d)
+    per_view = view_rms_mm(problem, full, views)
+    fit_mm = float(np.sqrt(np.nanmean(per_view**2)))
+    table, n_folds, held_mm = ({}, 0, None) if not uncertainty else _cross_validation(problem, full, views, folds)
+    heldout = table.get(_name(robot), {}).get("mm") if table else None
+    jack = _jackknife(problem, full, views) if uncertainty else None
+    cov, widened = _widen(full.cov, jack)
+    cov_p = cov[6:6 + n_p, 6:6 + n_p]
+    accuracy = robot.accuracy if isinstance(robot, ControllerPoses) else None
+    verdict, advice, score = _verdict(problem, full, fit_mm, heldout, len(checked.left_out), len(sensor.names), accuracy)
+    names = list(sensor.names)
+    fix = ("views that turn the flange about that axis, or move it along that direction, between measurements determine "
+           "it; or give it (known=)")
+    unobs = _unobservable(problem.pins, full.X, sensor.setup, fix)
+    if unobs and verdict == "good":
+        verdict = "partial"
+        advice = [f"the capture does not determine {', '.join(u.parameter for u in unobs)}: held at the start's value, "
+                  f"its std infinite; {fix}"] + advice
+    diag = Diagnostics(verdict=verdict, advice=advice, outliers=[int(v) for v, _ in checked.left_out],
+                       consistency=score, consistency_limit=FIT_FACTOR, n_poses=len(names), names=names)
+    record = SensorFit(sensor.kind, sensor.target, [names[v] for v in views], per_view, fit_mm,
+                       sensor.figures(full.p, cov_p), int(len(full.rows)), int((~full.kept).sum()), held_mm)
+    notes = [f"{sensor.kind} ({sensor.target}): {len(full.rows)} measurements fitted "
+             f"({int((~full.kept).sum())} set aside beyond {REJECT:g} std), {fit_mm:.3f} mm RMS, with {robot.describe}"]
+    notes += [f"view {names[v]} left out: {why}" for v, why in checked.left_out] + sensor.notes(full.p, cov_p)
+    cal = Calibration(
+        X=full.X, Z=sensor.Z(full.X, full.p), setup=sensor.setup,
+        method=method or f"{sensor.kind} ({sensor.target}) fit",
+        flange2base=F[views], target2cam=None, pairs=np.zeros((0, 2), dtype=np.intp), cov=full.cov[:6, :6],
+        diagnostics=diag, pose_indices=views, notes=notes, estimator=_name(robot), refinement="sensor fit", sensor=record,
+        skipped=[(names[v], why) for v, why in checked.left_out],
+        cross_validation=HeldOutErrors(table, n_folds) if table else None,
+        std_Z=sensor.Z_std(full.p, cov_p), observability=Observability("general", unobs),
+    )
+    if isinstance(robot, JointAngles):
+        cal = replace(cal, kinematic=_kinematic(robot, full.d, cov[6 + n_p:, 6 + n_p:], views))
+    # the noise model widened by the jackknife, plus the robot's stated accuracy for controller poses
+    data_cov = _widen(full.cov[:6, :6], None if jack is None else jack[:6, :6])[0]
+    cal = widened_uncertainty(cal, None if jack is None else jack[:6, :6], accuracy)
+    cal = replace(cal, std=_std_with_pins(cal.cov, problem.pins),
+                  std_sources=dict(cal.std_sources, data=_std_with_pins(data_cov, problem.pins)))
+    if widened > 1.5 and jack is not None:
+        cal = replace(cal, notes=[n for n in cal.notes if not n.startswith("the std of X is widened")] + [
+            f"the std is widened up to {widened:.1f}x the fit's noise model by leaving views out (errors of a whole view: "
+            "the robot's pose error, or a view that fits less well)"])
+    return judged(cal) if verdict == "good" else cal
+
+
+__all__ += ["view_rms_mm", "downdated", "ROBOT_ACCURACY"]

@@ -1,0 +1,180 @@
+"""Robot models: where the flange was at each view, and what of it a calibration may fit.
+
+A calibration is a sensor model times a robot model times a setup (:mod:`handeye.estimation.core`).
+The robot model says how the flange pose of view ``i`` follows from its own unknowns ``d``:
+
+* :class:`ControllerPoses`: the poses the controller reported, taken as they are (no unknowns); the
+  robot's absolute accuracy, which X absorbs unseen, is added to X's std.
+* :class:`JointAngles`: the joint angles through the arm's kinematic table, whose entries are
+  unknowns with a Gaussian prior about their nominal values (the arm's tolerances); the entries
+  that only move the base or the flange frame are left to X and the target's pose
+  (:func:`~handeye.robot.kinematics.absorbed_parameters`). The fit then removes the arm's error
+  instead of widening X's std by it.
+
+Both are immutable; ``flange2base(d)`` gives every view's pose (N, 4, 4) for the unknowns ``d``.
+
+Examples
+--------
+>>> import numpy as np
+>>> from handeye.robot.kinematics import load_arm
+>>> from handeye.robot.models import ControllerPoses, JointAngles
+>>> ur5 = load_arm("ur5")
+>>> q = np.radians([[0, -90, 90, -90, -90, 0], [10, -80, 85, -95, -90, 20], [-15, -100, 95, -80, -85, -30]])
+>>> robot = JointAngles(ur5, q)
+>>> robot.flange2base(np.zeros(robot.n_params)).shape
+(3, 4, 4)
+>>> ControllerPoses(ur5.forward(q)).n_params
+0
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import InputMismatchError
+from .kinematics import Chain, absorbed_parameters
+
+__all__ = ["RobotModel", "ControllerPoses", "JointAngles", "fitted_entries", "entry_priors", "LENGTH_PRIOR_M",
+           "ANGLE_PRIOR_RAD", "COMPLIANCE_PRIOR", "MIN_MOMENT_ARM"]
+
+#: The default prior std of a table entry: a length (m) and an angle (rad, 0.1 deg), an uncalibrated
+#: arm's tolerances.
+LENGTH_PRIOR_M = 1e-3
+ANGLE_PRIOR_RAD = float(np.radians(0.1))
+#: The default prior std of a joint's compliance (rad per metre of the load's moment arm): 0.2 deg
+#: per metre, a collaborative arm's shoulder (~3e4 N m/rad) under its links and a camera (~100 N):
+#: ~1 mm at reach.
+COMPLIANCE_PRIOR = float(np.radians(0.2))
+#: A joint whose load's moment arm stays below this (m) over the capture has no compliance to fit.
+MIN_MOMENT_ARM = 1e-3
+
+
+def fitted_entries(chain: Chain, joints: NDArray[np.float64], compliance: bool = False
+                   ) -> tuple[list[str], list[str], NDArray[np.intp]]:
+    """Every parameter of ``chain.forward_with``'s vector, the ones a calibration fits (not absorbed
+    by X and the target's pose; a compliance only for joints the load turns over the capture), and
+    their positions in that vector."""
+    absorbed = set(absorbed_parameters(chain))
+    every = chain.parameter_names(compliance)
+    loaded = np.abs(chain.moment_arms(joints)).max(axis=0) >= MIN_MOMENT_ARM if compliance else np.zeros(0, bool)
+    names = [name for name in every if name not in absorbed
+             and (not name.endswith(".compliance") or loaded[int(name.split(".")[0].removeprefix("joint")) - 1])]
+    return every, names, np.array([every.index(name) for name in names], dtype=np.intp)
+
+
+def entry_priors(names: list[str], length: float = LENGTH_PRIOR_M, angle: float = ANGLE_PRIOR_RAD,
+                 compliance: float = COMPLIANCE_PRIOR) -> NDArray[np.float64]:
+    """The prior std of each table entry of ``names`` (m, rad, or rad per metre)."""
+    return np.array([compliance if name.endswith(".compliance") else angle if name.endswith((".alpha", ".theta"))
+                     else length for name in names])
+
+
+class RobotModel:
+    """What every robot model has (see the module docstring): ``n_views``, ``n_params``, ``names`` (its
+    unknowns), ``flange2base(d)``, ``prior(d)`` (whitened residual rows that hold ``d`` near its
+    prior; empty without unknowns), ``accuracy`` ((deg, mm) that X absorbs unseen, None when the fit
+    models the robot's error) and ``describe`` (in words)."""
+
+    n_params: int = 0
+    names: list[str] = []
+    accuracy: tuple[float, float] | None = None
+    describe: str = ""
+
+    @property
+    def n_views(self) -> int:  # noqa: D102
+        raise NotImplementedError
+
+    def flange2base(self, d: NDArray[np.float64]) -> NDArray[np.float64]:  # noqa: D102
+        raise NotImplementedError
+
+    def prior(self, d: NDArray[np.float64]) -> NDArray[np.float64]:  # noqa: D102
+        return np.zeros(0)
+
+
+@dataclass(frozen=True)
+class ControllerPoses(RobotModel):
+    """The flange poses the controller reported (N, 4, 4), with the robot's stated absolute
+    accuracy per axis (deg, mm; None: exact), which X absorbs unseen."""
+
+    poses: NDArray[np.float64]
+    accuracy: tuple[float, float] | None = None
+    describe: str = "the controller's flange poses"
+
+    @property
+    def n_views(self) -> int:
+        """Number of views."""
+        return len(self.poses)
+
+    def flange2base(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The poses as reported (there are no unknowns)."""
+        return self.poses
+
+
+@dataclass(frozen=True)
+class JointAngles(RobotModel):
+    """Joint angles (N, n; rad) through ``chain``, whose table entries (and, with ``compliance``, the
+    joints' compliance) are unknowns with the prior std ``length_prior`` (m), ``angle_prior`` (rad)
+    and ``compliance_prior`` (rad/m) about their nominal values. The unknowns ``d`` are in units of
+    their prior std, so ``prior(d) = d``."""
+
+    chain: Chain
+    joints: NDArray[np.float64]
+    length_prior: float = LENGTH_PRIOR_M
+    angle_prior: float = ANGLE_PRIOR_RAD
+    compliance: bool = False
+    compliance_prior: float = COMPLIANCE_PRIOR
+    describe: str = "joint angles through the arm's table, fitted"
+    _every: list[str] = field(init=False, repr=False)
+    _index: NDArray[np.intp] = field(init=False, repr=False)
+    names: list[str] = field(init=False)
+    prior_std: NDArray[np.float64] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        q = np.asarray(self.joints, dtype=float)
+        if q.ndim != 2 or q.shape[1] != self.chain.n_joints:
+            raise InputMismatchError(f"{self.chain.name} has {self.chain.n_joints} joints; the joint angles have shape "
+                                     f"{q.shape} (one row per view)")
+        every, names, index = fitted_entries(self.chain, q, self.compliance)
+        object.__setattr__(self, "joints", q)
+        object.__setattr__(self, "_every", every)
+        object.__setattr__(self, "_index", index)
+        object.__setattr__(self, "names", names)
+        object.__setattr__(self, "prior_std", entry_priors(names, self.length_prior, self.angle_prior,
+                                                           self.compliance_prior))
+
+    @property
+    def n_views(self) -> int:
+        """Number of views."""
+        return len(self.joints)
+
+    @property
+    def n_params(self) -> int:
+        """Number of table entries fitted."""
+        return len(self.names)
+
+    def vector(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``chain.forward_with``'s whole parameter vector for the unknowns ``d`` (natural units)."""
+        p = np.zeros(len(self._every))
+        p[self._index] = np.asarray(d, dtype=float) * self.prior_std
+        return p
+
+    def flange2base(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Every view's flange pose through the table corrected by ``d``."""
+        return self.chain.forward_with(self.joints, self.vector(d))
+
+    def prior(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The prior's whitened residuals: ``d`` itself (unit std in these units)."""
+        return np.asarray(d, dtype=float)
+
+    def corrected(self, d: NDArray[np.float64]) -> Chain:
+        """The chain with the table corrected by ``d`` (and the fitted compliance, when fitted)."""
+        p = self.vector(d)
+        size = self.chain.table.size
+        chain = self.chain.corrected(p[:size].reshape(self.chain.table.shape))
+        if self.compliance:
+            own = np.zeros(self.chain.n_joints) if self.chain.compliance is None else self.chain.compliance
+            chain = replace(chain, compliance=own + p[size:])
+        return chain

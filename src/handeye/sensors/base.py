@@ -1,0 +1,85 @@
+"""What a sensor model is: the one interface the estimation core (:mod:`handeye.estimation.core`) fits.
+
+A sensor model holds what the views of one capture measured (points, centres, profiles, ...) and
+says how to predict each measurement from X, the sensor's own unknowns ``p`` (the target's pose or
+centre, a depth scale, a sphere's radius, ...) and the flange pose of its view. The core does the
+rest for every sensor alike: the robust fit with the robot model's unknowns, cross-validation over
+held-out views, the jackknife, the robot's accuracy, what the capture leaves undetermined, the
+verdict and the result.
+
+A new sensor is one package under ``sensors/`` whose model class has these members (see
+:class:`SensorModel`; :class:`handeye.sensors.depth.model.SphereCentres` is the smallest one):
+
+``kind``, ``target``
+    The sensor and the target in words (``'depth camera'``, ``'spheres'``).
+``setup``
+    ``'eye_in_hand'`` or ``'eye_to_hand'``.
+``names``
+    Per view its name (the file it came from).
+``owner``, ``shape``, ``groups``
+    Per measurement row its view (M,), its noise's shape (M, c: relative std of each residual
+    column, fixed by the measurement), and which columns share one noise scale (the core fits each
+    group's scale to the data).
+``param_names``, ``param_scale``
+    The sensor's unknowns in order, and a typical size of each (the solver's scaling).
+``start(flange2base, X, Z, rows)``
+    X and ``p`` to start from: from the closed form's X and Z when :meth:`view_poses` gave per-view
+    poses, else the sensor's own closed form on the measurement rows ``rows`` (raises
+    :class:`~handeye.errors.DegenerateMotionError` when they cannot determine X).
+``view_poses()``
+    Per view the target's pose in the sensor frame (N, 4, 4), when one view measures a whole pose
+    (a board); None otherwise.
+``residuals(X, p, flange2base, rows)``
+    The measured minus the predicted value of measurement rows ``rows`` (len(rows), c), metres;
+    ``flange2base`` holds every view's pose.
+``Z(X, p)``, ``Z_std(p, cov_p)``
+    The target's pose (target2base eye-in-hand, target2flange eye-to-hand) and its std (deg, mm; 6).
+``figures(p, cov_p)``, ``notes(p, cov_p)``
+    The sensor's own results (a depth scale with its std, the spheres' centres, ...), plain numbers;
+    and what of them a user must hear (a depth scale beyond 3 std of 1), sentences.
+``noise_mm(rows)``
+    The noise each row's residual may have before any fit (the sensor's stated noise, mm): what
+    the verdict holds the fit's residual against.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["SensorModel"]
+
+
+@runtime_checkable
+class SensorModel(Protocol):
+    """The interface of a sensor model (the module docstring says what each member is)."""
+
+    kind: str
+    target: str
+    setup: str
+    names: list[str]
+    owner: NDArray[np.intp]
+    shape: NDArray[np.float64]
+    groups: tuple[tuple[int, ...], ...]
+    param_names: list[str]
+    param_scale: NDArray[np.float64]
+
+    def view_poses(self) -> NDArray[np.float64] | None: ...
+
+    def start(self, flange2base: NDArray[np.float64], X: NDArray[np.float64] | None, Z: NDArray[np.float64] | None,
+              rows: NDArray[np.intp] | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
+
+    def residuals(self, X: NDArray[np.float64], p: NDArray[np.float64], flange2base: NDArray[np.float64],
+                  rows: NDArray[np.intp]) -> NDArray[np.float64]: ...
+
+    def Z(self, X: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.float64]: ...
+
+    def Z_std(self, p: NDArray[np.float64], cov_p: NDArray[np.float64]) -> NDArray[np.float64]: ...
+
+    def figures(self, p: NDArray[np.float64], cov_p: NDArray[np.float64]) -> dict[str, Any]: ...
+
+    def notes(self, p: NDArray[np.float64], cov_p: NDArray[np.float64]) -> list[str]: ...
+
+    def noise_mm(self, rows: NDArray[np.intp]) -> NDArray[np.float64]: ...
