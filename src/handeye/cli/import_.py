@@ -9,7 +9,7 @@ from .._shared.io import atomic_write
 from ..errors import HandEyeError
 from ..estimation.diagnostics import diagnose
 from ..frames.setups import SETUPS
-from ..io.importers import import_easy_handeye, import_industrial_calibration, import_rosbag, import_visp
+from ..io.importers import import_easy_handeye, import_industrial_calibration, import_robcalibrator, import_rosbag, import_visp
 from ..io.session import load_session
 from ..pipelines.calibration import observe
 from ._common import target_spec_arg, whole_arg
@@ -23,6 +23,8 @@ def _cmd_import(args: argparse.Namespace) -> int:
                               target=target_spec_arg(args.target_spec))
     elif args.kind == "industrial-calibration":
         summary = import_industrial_calibration(args.source, args.out)
+    elif args.kind == "robcalibrator":
+        summary = import_robcalibrator(args.source, args.out)
     else:
         frames = None
         if args.robot_topic is None and args.joint_topic is None:
@@ -38,7 +40,8 @@ def _cmd_import(args: argparse.Namespace) -> int:
     what = {"session": "a session", "posepairs": "a pose-pair folder",
             "stream session": "a session (a robot stream, images with their times)",
             "stream posepairs": "a pose-pair folder of two streams",
-            "joint streams": "two streams for calibrate-streams --arm (joints.csv, camera.csv)"}[summary.kind]
+            "joint streams": "two streams for calibrate-streams --arm (joints.csv, camera.csv)",
+            "laser session": "a laser profiler's session (profiles/, poses.csv)"}[summary.kind]
     print(f"wrote {what} to {summary.folder}: {summary.robot_samples} robot and {summary.camera_samples} camera samples")
     for note in summary.notes:
         print(f"note: {note}")
@@ -92,6 +95,9 @@ SOURCES = {
              "folder)."),
     "industrial-calibration": ("ROS-Industrial's cal_data.yaml (or its folder)", "ROS-Industrial's "
                                "industrial_calibration data set: cal_data.yaml with its images and poses, as a session."),
+    "robcalibrator": ("RobCalibrator's laser scans of a sphere (p1.yml ..., RobPoses.rob)", "RobCalibrator's folder of "
+                      "laser profiles of a sphere (p1.yml ...: OpenCV YAML scan_line in mm), FANUC poses (RobPoses.rob: "
+                      "x, y, z, w, p, r in mm and degrees) and calibration.sec (setup, radius), as a laser session."),
 }
 
 
@@ -99,7 +105,8 @@ def register(sub) -> None:
     """Add the ``import`` command's parser to the sub-parsers ``sub``: one parser per source, with its options."""
     p = sub.add_parser(
         "import",
-        help="turn a ROS bag, easy_handeye samples, a ViSP or an industrial_calibration dataset into a handeye folder",
+        help="turn a ROS bag, easy_handeye samples, a ViSP, an industrial_calibration or a RobCalibrator dataset into a "
+        "handeye folder",
         description="Turn another tool's capture into a handeye folder; 'handeye import KIND --help' for each.",
     )
     kinds = p.add_subparsers(dest="kind", metavar="KIND")
@@ -113,6 +120,7 @@ def register(sub) -> None:
     parsers["easy-handeye"].add_argument("source", help="the .samples file")
     parsers["visp"].add_argument("source", help="the ViSP folder")
     parsers["industrial-calibration"].add_argument("source", help="cal_data.yaml or its folder")
+    parsers["robcalibrator"].add_argument("source", help="the folder of p1.yml ..., RobPoses.rob")
     parsers["rosbag"].add_argument("--setup", choices=list(SETUPS), help="default eye_in_hand (a bag does not say)")
     parsers["visp"].add_argument("--setup", choices=list(SETUPS),
                                  help="default: the folder does not say; eye_to_hand when the images' poses are "

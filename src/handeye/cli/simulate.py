@@ -9,12 +9,20 @@ from ..errors import InputMismatchError
 from ..frames.setups import SETUPS
 from ..planning.poses import ROBOTS
 from ..robot.kinematics import arm_names
-from ..simulate import DEFAULT_TARGETS, simulate_kinematic_session, simulate_session
+from ..simulate import DEFAULT_TARGETS, laser_scene, simulate_kinematic_session, simulate_session, write_laser_session
 from ._common import image_size_arg, number_arg, out_folder, whole_arg
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     out_folder(args.out)
+    if args.sensor == "laser_line":
+        if args.arm is not None or args.robot != "arm":
+            raise InputMismatchError("--sensor laser_line simulates the controller's poses of a 6-axis arm; leave --arm and "
+                                     "--robot out")
+        write_laser_session(args.out, laser_scene(args.poses, args.setup, args.seed))
+        print(f"wrote laser session {args.out} ({args.poses} profiles of a 40 mm ball, {args.setup}); ground truth in "
+              f"{Path(args.out) / 'ground_truth.yaml'}")
+        return 0
     if args.arm is not None:
         if args.robot != "arm":
             raise InputMismatchError("--arm simulates a serial arm's joints; it does not combine with --robot " + args.robot)
@@ -40,6 +48,9 @@ def register(sub) -> None:
         "with ground_truth.yaml (X, Z, K, dist).",
     )
     p.add_argument("-o", "--out", required=True, help="new session folder")
+    p.add_argument("--sensor", default="camera", choices=["camera", "laser_line"],
+                   help="camera (default): rendered images of a board; laser_line: a laser line profiler's profiles of a "
+                   "ball (--poses of them)")
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--poses", type=whole_arg(1), default=15, help="number of images (default 15)")
     p.add_argument("--target", default="charuco", choices=list(DEFAULT_TARGETS),

@@ -45,6 +45,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
+from scipy.special import stdtrit
 
 from ..errors import DegenerateMotionError, HandEyeError
 from ..frames.metrics import std_deg_mm
@@ -77,6 +78,9 @@ HELDOUT_FACTOR = 4.0
 UNDETERMINED_STD, UNDETERMINED_SHARE = 1.0, 1e-13
 #: The weight of the rows that hold an undetermined direction at its start (1 / its std, m).
 PIN = 1e9
+#: The robust first round fits at most this many measurement rows, evenly taken (the plain rounds
+#: after it fit every row kept): it only has to find the outliers.
+ROBUST_ROWS = 50000
 
 
 @dataclass(frozen=True)
@@ -117,9 +121,10 @@ class Fitted:
     sigma: NDArray[np.float64]  #: per residual column, the scale of the sensor's noise shape
     kept: NDArray[np.bool_]  #: per measurement row: not set aside as an outlier
     rows: NDArray[np.intp]  #: the rows the fit used (kept, in its views)
-    jac: NDArray[np.float64] = field(repr=False)  #: whitened, over ``rows`` then the prior and pin rows
+    jac: NDArray[np.float64] = field(repr=False)  #: whitened, over ``rows`` then the prior and pin rows (none for a downdate)
     fun: NDArray[np.float64] = field(repr=False)  #: the whitened residuals, likewise
     success: bool = True
+    normal: NDArray[np.float64] | None = field(default=None, repr=False, compare=False)  #: jac^T jac, when computed
 
 
 def _columns(sensor: SensorModel) -> NDArray[np.intp]:
@@ -154,6 +159,23 @@ def _function(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
     return fun
 
 
+def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
+    """The Jacobian of :func:`_function`'s residuals from the sensor's own derivatives, when it has
+    them (``jacobian(X, p, flange2base, rows)``: (M, c, 6 + k), X's part for a left increment as
+    ``x``'s) and the robot has no unknowns; else '2-point' (finite differences)."""
+    sensor, robot = problem.sensor, problem.robot
+    if not hasattr(sensor, "jacobian") or robot.n_params:
+        return "2-point"
+    weight = 1.0 / (np.asarray(sensor.shape)[rows] * sigma)
+    pins = np.c_[PIN * problem.pins, np.zeros((len(problem.pins), len(problem.p0)))]
+
+    def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        X, p, d = problem.unpack(x)
+        J = sensor.jacobian(X, p, robot.flange2base(d), rows) * weight[..., None]
+        return np.vstack([J.reshape(-1, J.shape[-1]), pins])
+    return jac
+
+
 def _cov(jac: NDArray[np.float64]) -> NDArray[np.float64]:
     """``inv(J^T J)`` through the SVD (symmetric, positive semi-definite however poorly conditioned)."""
     _, s, Vt = np.linalg.svd(jac, full_matrices=False)
@@ -178,7 +200,8 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     if start is not None:
         rows = np.flatnonzero(in_views & start.kept)
         fun = _function(problem, rows, start.sigma)
-        res = least_squares(fun, start.x, method="trf", x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
+        res = least_squares(fun, start.x, _jacobian(problem, rows, start.sigma), method="trf", x_scale=x_scale,
+                            xtol=tol, ftol=tol, gtol=tol)
         return _fitted(problem, res, start.sigma, start.kept, rows)
     x = np.zeros(sum(problem.sizes))
     shape = np.asarray(sensor.shape)
@@ -186,8 +209,9 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     X, p, d = problem.unpack(x)
     w0 = sensor.residuals(X, p, problem.robot.flange2base(d), rows) / shape[rows]
     sigma = _group_scales(w0, sensor, robust=True)[cols]
-    res = least_squares(_function(problem, rows, sigma), x, method="trf", loss="soft_l1", f_scale=2.0, x_scale=x_scale,
-                        xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    few = rows if len(rows) <= ROBUST_ROWS else rows[np.linspace(0, len(rows) - 1, ROBUST_ROWS).astype(np.intp)]
+    res = least_squares(_function(problem, few, sigma), x, _jacobian(problem, few, sigma), method="trf",
+                        loss="soft_l1", f_scale=2.0, x_scale=x_scale, xtol=1e-12, ftol=1e-12, gtol=1e-12)
     x = res.x
     X, p, d = problem.unpack(x)
     w = sensor.residuals(X, p, problem.robot.flange2base(d), rows) / shape[rows]
@@ -197,13 +221,21 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     rows = np.flatnonzero(kept)
     n_unknowns = len(x)
     for _ in range(2):
-        res = least_squares(_function(problem, rows, sigma), x, method="trf", x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
+        res = least_squares(_function(problem, rows, sigma), x, _jacobian(problem, rows, sigma), method="trf",
+                            x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
         x = res.x
         X, p, d = problem.unpack(x)
         w = sensor.residuals(X, p, problem.robot.flange2base(d), rows) / shape[rows]
         share = max(w.size - n_unknowns, 1) / w.size
-        sigma = _group_scales(w, sensor, robust=False, dof_share=share)[cols]
-    res = least_squares(_function(problem, rows, sigma), x, method="trf", x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
+        new = _group_scales(w, sensor, robust=False, dof_share=share)[cols]
+        if len(sensor.groups) == 1 and not problem.robot.n_params and not len(problem.pins):
+            # one noise scale and nothing else weighted against it: the scale does not move the solution,
+            # only the whitening (the Jacobian and residuals rescaled, not solved again)
+            res.jac, res.fun = res.jac * (sigma[0] / new[0]), res.fun * (sigma[0] / new[0])
+            return _fitted(problem, res, new, kept, rows)
+        sigma = new
+    res = least_squares(_function(problem, rows, sigma), x, _jacobian(problem, rows, sigma), method="trf",
+                        x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
     return _fitted(problem, res, sigma, kept, rows)
 
 
@@ -220,20 +252,17 @@ def downdated(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> Fitted
     ``(J_t^T J_t)^-1 J_h^T r_h`` with t the rows kept and h the rows left out."""
     owner = np.asarray(problem.sensor.owner)
     c = np.asarray(problem.sensor.shape).shape[1]
-    held = ~np.isin(owner[full.rows], np.asarray(views))
-    n_data = len(full.rows) * c
-    drop = np.zeros(len(full.fun), bool)
-    drop[:n_data] = np.repeat(held, c)
-    J_t, J_h, r_h = full.jac[~drop], full.jac[drop], full.fun[drop]
-    step = _gn_step(J_t, J_h, r_h)
+    held = np.flatnonzero(~np.isin(owner[full.rows], np.asarray(views)))
+    drop = (c * held[:, None] + np.arange(c)).ravel()  # the rows of jac and fun left out
+    J_h, r_h = full.jac[drop], full.fun[drop]
+    if full.normal is None:  # the whole normal matrix, once
+        object.__setattr__(full, "normal", full.jac.T @ full.jac)
+    step = np.linalg.lstsq(full.normal - J_h.T @ J_h, J_h.T @ r_h, rcond=None)[0]
     x = full.x + step
     X, p, d = problem.unpack(x)
-    return Fitted(x, X, p, d, full.cov, full.sigma, full.kept, full.rows[~held], full.jac[~drop], full.fun[~drop])
-
-
-def _gn_step(J_t: NDArray[np.float64], J_h: NDArray[np.float64], r_h: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``(J_t^T J_t)^-1 J_h^T r_h`` (least squares where J_t^T J_t is singular)."""
-    return np.linalg.lstsq(J_t.T @ J_t, J_h.T @ r_h, rcond=None)[0]
+    keep = np.ones(len(full.rows), bool)
+    keep[held] = False
+    return Fitted(x, X, p, d, full.cov, full.sigma, full.kept, full.rows[keep], np.zeros((0, len(x))), np.zeros(0))
 
 
 def view_rms_mm(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flange2base: NDArray[np.float64] | None = None
@@ -302,6 +331,32 @@ def _unobservable(pins: NDArray[np.float64], X: NDArray[np.float64], setup: str,
                                 "held at the start's value (the closed form's)", "nothing: the measurements do not change "
                                 "with it", fix))
     return out
+
+
+def _robot_error_seen(problem: Problem, full: Fitted, views: NDArray[np.intp], per_view: NDArray[np.float64]) -> float:
+    """The robot's error the views show (mm per axis): each view's RMS residual beyond the noise the
+    sensor states, the median over the views (a bad view does not set it), per axis of three. With
+    the robot's poses exact it is ~0; an arm's pose error that differs from view to view shows here,
+    and the part of it constant over the capture, which X takes whole, is taken as a multiple of it
+    (:func:`~handeye.estimation.uncertainty.robot_accuracy_from_data`)."""
+    owner = np.asarray(problem.sensor.owner)
+    noise = np.array([float(np.median(problem.sensor.noise_mm(np.flatnonzero(owner == v)))) for v in views])
+    excess = np.sqrt(np.maximum(np.nan_to_num(per_view) ** 2 - noise**2, 0.0))
+    return float(np.median(excess) / np.sqrt(3.0))
+
+
+def _weakest(cov_X: NDArray[np.float64], pins: NDArray[np.float64], setup: str) -> list[str]:
+    """The direction of X the capture determines least well (its rotation at 1 m and its translation
+    compared in metres), in words with its std, as a note (none when everything is pinned)."""
+    lam, V = np.linalg.eigh(0.5 * (cov_X + cov_X.T))
+    k = int(np.argmax(lam))
+    u = V[:, k]
+    if len(pins) and np.max(np.abs(pins @ u)) > 0.5:
+        return []
+    words, _ = _words(u, setup)
+    std = float(np.sqrt(max(lam[k], 0.0)))
+    size = f"{np.degrees(std):.3f} deg" if np.linalg.norm(u[:3]) >= np.linalg.norm(u[3:]) else f"{1e3 * std:.3f} mm"
+    return [f"the capture determines X least well in {words} (std {size} that way, before the robot's accuracy)"]
 
 
 def _std_with_pins(cov_X: NDArray[np.float64], pins: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -431,8 +486,10 @@ def _row(mm: NDArray[np.float64]) -> dict[str, float | None]:
     return {"px": None, "mm": float(np.sqrt(np.mean(finite**2))) if finite.size else None}
 
 
-def _jackknife(problem: Problem, full: Fitted, views: NDArray[np.intp], max_groups: int = 10) -> NDArray[np.float64] | None:
-    """The jackknife covariance of ``x`` (views left out in up to ``max_groups`` groups)."""
+def _jackknife(problem: Problem, full: Fitted, views: NDArray[np.intp], max_groups: int = 100) -> NDArray[np.float64] | None:
+    """The jackknife covariance of ``x`` (each view left out, or views in ``max_groups`` groups), scaled
+    so that 3 of its std promise what 3 std of a known variance do: an estimate from g groups has
+    g - 1 degrees of freedom, whose 99.73% point is Student's t's, not 3 (20 views: 1.19x the std)."""
     n = len(views)
     if n < 4:
         return None
@@ -440,7 +497,8 @@ def _jackknife(problem: Problem, full: Fitted, views: NDArray[np.intp], max_grou
     xs = np.array([downdated(problem, full, np.setdiff1d(views, g)).x for g in groups])
     d = xs - xs.mean(axis=0)
     g = len(xs)
-    return (g - 1) / g * d.T @ d
+    factor = float(stdtrit(g - 1, 0.99865)) / 3.0
+    return factor**2 * (g - 1) / g * d.T @ d
 
 
 def _widen(cov: NDArray[np.float64], jack: NDArray[np.float64] | None) -> tuple[NDArray[np.float64], float]:
@@ -553,6 +611,7 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
     notes = [f"{sensor.kind} ({sensor.target}): {len(full.rows)} measurements fitted "
              f"({int((~full.kept).sum())} set aside beyond {REJECT:g} std), {fit_mm:.3f} mm RMS, with {robot.describe}"]
     notes += [f"view {names[v]} left out: {why}" for v, why in checked.left_out] + sensor.notes(full.p, cov_p)
+    notes += _weakest(cov[:6, :6], problem.pins, sensor.setup)
     cal = Calibration(
         X=full.X, Z=sensor.Z(full.X, full.p), setup=sensor.setup,
         method=method or f"{sensor.kind} ({sensor.target}) fit",
@@ -566,7 +625,8 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
         cal = replace(cal, kinematic=_kinematic(robot, full.d, cov[6 + n_p:, 6 + n_p:], views))
     # the noise model widened by the jackknife, plus the robot's stated accuracy for controller poses
     data_cov = _widen(full.cov[:6, :6], None if jack is None else jack[:6, :6])[0]
-    cal = widened_uncertainty(cal, None if jack is None else jack[:6, :6], accuracy)
+    cal = widened_uncertainty(cal, None if jack is None else jack[:6, :6], accuracy, seen_mm=_robot_error_seen(
+        problem, full, views, per_view) if accuracy is not None else None)
     cal = replace(cal, std=_std_with_pins(cal.cov, problem.pins),
                   std_sources=dict(cal.std_sources, data=_std_with_pins(data_cov, problem.pins)))
     if widened > 1.5 and jack is not None:

@@ -36,13 +36,14 @@ from .._shared.progress import Progress
 from ..errors import DegenerateMotionError, InputMismatchError
 from ..estimation.core import estimate
 from ..io.depth_session import DepthSession, load_depth_session
-from ..options import ROBOT_ACCURACY, CalibrationOptions, options_from
+from ..options import ROBOT_ACCURACY, CalibrationOptions
 from ..result import Calibration
 from ..robot.models import ControllerPoses, JointAngles, RobotModel
 from ..sensors.camera import detect_images, target_from_spec
 from ..sensors.depth.clouds import check_frame, plane_points, read_cloud
 from ..sensors.depth.model import BoardPoints, SphereCentres
 from ..sensors.depth.spheres import find_spheres
+from ._sensor import sensor_options
 
 __all__ = ["calibrate_depth_session", "calibrate_depth", "calibrate_spheres", "measure_depth_session", "DepthViews"]
 
@@ -175,7 +176,7 @@ def calibrate_depth_session(folder: str | Path | DepthSession, options: Calibrat
     >>> cal.verdict, cal.sensor.target
     ('good', 'spheres')
     """
-    opts = _depth_options(options, changes)
+    opts = sensor_options(options, changes, "a depth session")
     s = folder if isinstance(folder, DepthSession) else load_depth_session(folder, arm=opts.arm)
     v = measure_depth_session(s, progress, jobs)
     if len(v.index) < 3:
@@ -184,30 +185,6 @@ def calibrate_depth_session(folder: str | Path | DepthSession, options: Calibrat
             "at least 3 are needed, 10-20 with the flange turned 30 deg or more about varied axes to trust X")
     cal = estimate(sensor_model(s, v, fit_depth), robot_model(s, v.index, opts.robot_accuracy), opts.folds)
     return _with_session(cal, s, v)
-
-
-def _depth_options(options: CalibrationOptions | None, changes: dict) -> CalibrationOptions:
-    """The options, refusing those that only image and pose sessions use when they are changed."""
-    opts = options_from(options, changes)
-    default = CalibrationOptions()
-    unused = [name for name in ("method", "refine", "pairs", "known", "robot_noise", "compliance", "strict_images",
-                                "keyframes", "offset_range", "time_offset")
-              if _given(getattr(opts, name), getattr(default, name))]
-    unused += [] if opts.check else ["check"]
-    if unused:
-        flags = ", ".join(f"{name} (--{name.replace('_', '-')})" for name in unused)
-        raise InputMismatchError(f"{flags}: options of image and pose sessions; a depth session's fit has no use for "
-                                 "them (leave them out)")
-    return opts
-
-
-def _given(value, default) -> bool:
-    """Whether an option was given other than its default (an empty mapping counts as none)."""
-    if value is None or (isinstance(value, dict) and not value):
-        return default is not None and not (isinstance(default, dict) and not default)
-    if isinstance(value, (str, bool, int, float, tuple)):
-        return value != default
-    return True
 
 
 def _with_session(cal: Calibration, s: DepthSession, v: DepthViews) -> Calibration:

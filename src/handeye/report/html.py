@@ -257,10 +257,16 @@ def _view_residual_figure(cal: Calibration) -> str:
     fig = _figure((10, 3.2))
     ax = fig.subplots(1, 1)
     x = np.arange(len(sf.views))
-    width = 0.4 if sf.heldout_mm is not None else 0.8
-    ax.bar(x - (width / 2 if sf.heldout_mm is not None else 0), sf.residual_mm, width, color="#4a78b5", label="in the fit")
-    if sf.heldout_mm is not None:
-        ax.bar(x + width / 2, np.nan_to_num(sf.heldout_mm), width, color="#d08c30", label="held out (predicted)")
+    held = sf.heldout_mm is not None
+    if len(x) > MAX_LABELLED_POSES:  # beyond a few dozen views: lines, not a patch per bar
+        ax.plot(x, sf.residual_mm, ".", color="#4a78b5", label="in the fit")
+        if held:
+            ax.plot(x, np.nan_to_num(sf.heldout_mm), ".", color="#d08c30", label="held out (predicted)")
+    else:
+        width = 0.4 if held else 0.8
+        ax.bar(x - (width / 2 if held else 0), sf.residual_mm, width, color="#4a78b5", label="in the fit")
+        if held:
+            ax.bar(x + width / 2, np.nan_to_num(sf.heldout_mm), width, color="#d08c30", label="held out (predicted)")
     ax.set_ylabel("RMS residual (mm)")
     ax.set_title(f"per view: how far the {sf.target}'s model through X misses what the {sf.sensor} measured", fontsize=10)
     ax.grid(axis="y", alpha=0.3)

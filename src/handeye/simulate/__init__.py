@@ -5,7 +5,8 @@
 * :mod:`~handeye.simulate.arms`: captures by arms with real robots' errors, joint angles through
   shipped arms' tables, robots that cannot rotate freely;
 * :mod:`~handeye.simulate.streams`: continuous recordings on two clocks;
-* :mod:`~handeye.simulate.depth`: depth cameras' clouds of a board or a sphere.
+* :mod:`~handeye.simulate.depth`: depth cameras' clouds of a board or a sphere;
+* :mod:`~handeye.simulate.laser`: laser line profilers' profiles of a ball.
 
 Sessions are written by :mod:`handeye.io.session`'s writers.
 """
@@ -36,6 +37,7 @@ from .arms import (
     simulate_realistic_session,
 )
 from .depth import DepthScene, SphereScene, depth_scene, sphere_scene, write_depth_session
+from .laser import LaserScene, laser_scene, write_laser_session
 from .scenes import (
     Noise,
     Scene,
@@ -59,4 +61,5 @@ __all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look
            "realistic_scene", "arm_forward_kinematics", "ARM_DH", "robot_accuracy_of", "simulate_realistic_session",
            "KinematicScene", "kinematic_scene", "simulate_kinematic_session", "capture_joint_views",
            "low_dof_scene", "LOW_DOF_ROBOTS", "StreamScene", "stream_scene", "JointStreamScene", "joint_stream_scene",
-           "simulate_stream_session", "DepthScene", "depth_scene", "SphereScene", "sphere_scene", "write_depth_session"]
+           "simulate_stream_session", "DepthScene", "depth_scene", "SphereScene", "sphere_scene", "write_depth_session",
+           "LaserScene", "laser_scene", "write_laser_session"]

@@ -1,0 +1,206 @@
+"""Laser profiler session folders read and checked (the format in docs/guide.md, "Laser line profilers").
+
+::
+
+    SESSION/
+      session.yaml
+      poses.csv        # first column `profile` (the file in profiles/), then the pose columns
+      profiles/        # one profile per robot pose: .csv (x,z or x,y,z) or .npy, in the unit below
+      joints.csv       # optional: joint angles per profile (a joints: block)
+
+``session.yaml``::
+
+    setup: eye_in_hand
+    laser:
+      unit: mm                      # the profiles' unit: m | mm
+      range: [80, 160]              # optional: the measuring range along z, in that unit (points outside: left out)
+      noise: 0.02                   # optional: the sensor's noise along z, in that unit (default 0.02 mm)
+    target: {type: sphere, diameter: 0.040}   # metres; without a diameter it is estimated
+    poses: {file: poses.csv, format: "euler:xyz", length_unit: mm, angle_unit: deg}
+
+Nothing is fitted here (:mod:`handeye.pipelines.laser` does that); every key is checked (an unknown
+one is an error naming the nearest known key).
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import SessionError
+from ..frames.poses import parse_poses
+from ..frames.setups import check_setup
+from ..geometry.se3 import invert
+from ..robot.kinematics import Chain
+from ..sensors.laser.model import LASER_NOISE_M
+from ..sensors.laser.profiles import PROFILE_SUFFIXES
+from .session import SESSION_FILE, load_yaml, read_joints, read_pose_table
+
+__all__ = ["LaserSession", "is_laser_session", "load_laser_session", "LASER_KEYS", "TARGET_TYPES"]
+
+#: The keys of ``laser:``, and of session.yaml around it.
+LASER_KEYS = ("unit", "range", "noise")
+SESSION_KEYS = ("setup", "laser", "target", "poses", "joints")
+#: The targets a laser session can scan.
+TARGET_TYPES = ("sphere",)
+
+
+@dataclass(frozen=True)
+class LaserSession:
+    """A laser session's inputs, read and checked (no profile read yet)."""
+
+    folder: Path
+    setup: str
+    target_spec: dict[str, Any]
+    names: list[str]  #: per view: the profile's file name
+    profile_paths: list[Path]
+    flange2base: NDArray[np.float64]
+    unit: str
+    working_range: tuple[float, float] | None  #: metres
+    noise_m: float
+    radius: float | None  #: the ball's, metres (None: estimated)
+    notes: list[str] = field(default_factory=list)
+    joints: NDArray[np.float64] | None = None
+    arm: Chain | None = None
+    joints_path: Path | None = None
+
+    @property
+    def input_files(self) -> list[Path]:
+        """Every file the session is read from."""
+        return [self.folder / SESSION_FILE] + [p for p in self.profile_paths if p.is_file()]
+
+
+def is_laser_session(folder: str | Path) -> bool:
+    """Whether ``folder``'s session.yaml has a ``laser:`` mapping."""
+    yml = Path(folder) / SESSION_FILE
+    if not yml.is_file():
+        return False
+    try:
+        spec = load_yaml(yml)
+    except SessionError:
+        return False
+    return isinstance(spec, dict) and spec.get("laser") is not None
+
+
+def _unknown_keys(mapping: dict, known: tuple[str, ...], where: str) -> None:
+    for key in mapping:
+        if key not in known:
+            near = difflib.get_close_matches(str(key), known, n=1)
+            raise SessionError(f"{where}: unknown key {key!r}" + (f" (did you mean {near[0]!r}?)" if near else "")
+                               + f"; the keys are {', '.join(known)}")
+
+
+def _laser_spec(spec: Any, where: str) -> tuple[str, tuple[float, float] | None, float]:
+    if not isinstance(spec, dict):
+        raise SessionError(f"{where}: laser must be a mapping (unit: m | mm, optional range and noise)")
+    _unknown_keys(spec, LASER_KEYS, f"{where}: laser")
+    unit = str(spec.get("unit", ""))
+    if unit not in ("m", "mm"):
+        raise SessionError(f"{where}: laser: unit is m or mm (the profiles' unit), not {unit!r}")
+    f = 1e-3 if unit == "mm" else 1.0
+    rng = None
+    if spec.get("range") is not None:
+        try:
+            lo, hi = (float(v) for v in spec["range"])
+        except (TypeError, ValueError):
+            raise SessionError(f"{where}: laser: range is [near, far] along z, in {unit}; got {spec['range']!r}") from None
+        if not lo < hi:
+            raise SessionError(f"{where}: laser: range [near, far] needs near < far, got {spec['range']!r}")
+        rng = (f * lo, f * hi)
+    noise = float(spec.get("noise", LASER_NOISE_M / f)) * f
+    if not 0 < noise < 0.01:
+        raise SessionError(f"{where}: laser: noise {noise / f:g} {unit}: give the sensor's noise along z in {unit} (a few "
+                           "micrometres to a few tenths of a millimetre); if the profiles are in millimetres, write unit: "
+                           "mm")
+    return unit, rng, noise
+
+
+def _radius(target: Any, where: str) -> float | None:
+    if not isinstance(target, dict):
+        raise SessionError(f"{where}: target must be a mapping, e.g. {{type: sphere, diameter: 0.04}} (metres)")
+    kind = str(target.get("type", ""))
+    if kind not in TARGET_TYPES:
+        raise SessionError(f"{where}: target: a laser session scans a {' or '.join(TARGET_TYPES)}, not {kind!r}")
+    _unknown_keys(target, ("type", "diameter"), f"{where}: target")
+    if target.get("diameter") is None:
+        return None
+    try:
+        d = float(target["diameter"])
+    except (TypeError, ValueError):
+        raise SessionError(f"{where}: target: diameter {target['diameter']!r}: give metres, e.g. 0.04") from None
+    if not 0 < d <= 1.0:
+        raise SessionError(f"{where}: target: diameter {d:g} m: give it in metres (e.g. 0.04 for 40 mm)")
+    return d / 2
+
+
+def load_laser_session(folder: str | Path, arm: str | None = None) -> LaserSession:
+    """Read and check a laser session folder (the module's docstring); no profile is read yet.
+
+    Raises :class:`SessionError` naming the file and the key: no ``laser:`` mapping, an unknown key,
+    a bad unit, range, noise or target, a diameter in millimetres given as metres, a missing pose
+    table or profile file, a pose table whose first column is not ``profile``.
+    """
+    folder = Path(folder)
+    yml = folder / SESSION_FILE
+    if not yml.is_file():
+        raise SessionError(f"{folder}: no {SESSION_FILE}")
+    notes: list[str] = []
+    spec = load_yaml(yml, notes)
+    where = str(yml)
+    _unknown_keys(spec, SESSION_KEYS, where)
+    if spec.get("laser") is None:
+        raise SessionError(f"{where}: no laser: mapping; a laser session says its profiles' unit there")
+    setup = check_setup(str(spec.get("setup", "")))
+    unit, working, noise = _laser_spec(spec["laser"], where)
+    radius = _radius(spec.get("target"), where)
+    joints = read_joints(folder, spec["joints"], where, notes, arm, ("profile",)) if spec.get("joints") else None
+    if spec.get("poses") is None and joints is not None:
+        names, f2b = list(joints[0]), joints[2].forward(joints[1])
+        q = joints[1]
+    else:
+        f2b, names = _poses(folder, spec.get("poses"), where, notes)
+        q = None
+        if joints is not None:
+            index = {n: k for k, n in enumerate(joints[0])}
+            absent = [n for n in names if n not in index]
+            if absent or len(index) != len(names):
+                raise SessionError(f"{joints[3]}: the joint angles and the poses must name the same profiles"
+                                   + (f"; none for {', '.join(absent[:5])}" if absent else ""))
+            q = joints[1][[index[n] for n in names]]
+    paths = [_profile_of(folder, n) for n in names]
+    return LaserSession(folder, setup, dict(spec["target"]), list(names), paths, f2b, unit, working, noise, radius, notes,
+                        q, None if joints is None else joints[2], None if joints is None else joints[3])
+
+
+def _poses(folder: Path, poses: Any, where: str, notes: list[str]) -> tuple[NDArray[np.float64], list[str]]:
+    if not isinstance(poses, dict) or not {"file", "format", "length_unit"} <= set(poses):
+        raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit (m | mm) and angle_unit "
+                           "(deg | rad)")
+    _unknown_keys(poses, ("file", "format", "length_unit", "angle_unit", "pose"), f"{where}: poses")
+    table = folder / str(poses["file"])
+    if not table.is_file():
+        raise SessionError(f"{table}: no such pose table")
+    fmt = str(poses["format"])
+    values, names = read_pose_table(table, fmt, id_columns=("profile",), notes=notes)
+    if names is None:
+        raise SessionError(f"{table}: the first column must be 'profile', naming each pose's profile file in profiles/")
+    f2b = parse_poses(values, fmt, length_unit=str(poses["length_unit"]), angle_unit=str(poses.get("angle_unit", "rad")),
+                      what=str(table))
+    if str(poses.get("pose", "flange2base")) == "base2flange":
+        f2b = invert(f2b)
+    elif str(poses.get("pose", "flange2base")) != "flange2base":
+        raise SessionError(f"{where}: poses: pose is flange2base (the controller's) or base2flange (their inverses)")
+    return f2b, list(names)
+
+
+def _profile_of(folder: Path, name: str) -> Path:
+    path = folder / "profiles" / name
+    if path.suffix.lower() in PROFILE_SUFFIXES:
+        return path
+    found = [folder / "profiles" / (name + s) for s in PROFILE_SUFFIXES if (folder / "profiles" / (name + s)).is_file()]
+    return found[0] if found else path

@@ -1,0 +1,119 @@
+"""Laser line profiler sessions calibrated: every profile read, then the estimation core.
+
+A laser session (:mod:`handeye.io.laser_session`: ``laser:`` in session.yaml, ``profiles/``) gives
+per robot pose the points where the profiler's laser plane met a ball. :func:`calibrate_laser_session`
+reads each profile (in metres; points outside the stated measuring range left out; a profile that
+is missing or has no point left is skipped, named), makes them a sensor model
+(:class:`~handeye.sensors.laser.model.SphereProfiles`: every point's distance from the ball), and the
+estimation core (:func:`handeye.estimation.core.estimate`) fits X with the ball's centre (and its
+radius when the session gives none), the arm's table too when the session has joint angles; sets
+aside stray points, leaves out profiles the fit does not explain, cross-validates on held-out
+profiles (their points' distance from the ball, mm), says what the capture leaves undetermined and
+gives the verdict: one :class:`~handeye.result.Calibration`, as for images.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DegenerateMotionError
+from ..estimation.core import estimate
+from ..io.laser_session import LaserSession, load_laser_session
+from ..options import CalibrationOptions
+from ..result import Calibration
+from ..robot.models import ControllerPoses, JointAngles, RobotModel
+from ..sensors.laser.model import SphereProfiles
+from ..sensors.laser.profiles import read_profile
+from ._sensor import sensor_options
+
+__all__ = ["calibrate_laser_session", "read_profiles", "MIN_POINTS"]
+
+#: A profile with fewer points than this (after the range) is skipped: too few to say where the ball is.
+MIN_POINTS = 20
+
+
+def read_profiles(s: LaserSession) -> tuple[list[int], list, list[tuple[str, str]], list[str]]:
+    """Every profile of ``s`` read: the views kept, their points (metres, the range applied), the
+    views skipped with why (missing, empty, too few points) and notes."""
+    kept, profiles, skipped, notes = [], [], [], []
+    outside = 0
+    for k, (name, path) in enumerate(zip(s.names, s.profile_paths)):
+        if not path.is_file():
+            skipped.append((name, f"missing from {path.parent}"))
+            continue
+        p = read_profile(path, s.unit)
+        if s.working_range is not None:
+            out = np.isfinite(p[:, 2]) & ((p[:, 2] < s.working_range[0]) | (p[:, 2] > s.working_range[1]))
+            outside += int(out.sum())
+            p[out] = np.nan
+        n = int(np.isfinite(p).all(axis=1).sum())
+        if n < MIN_POINTS:
+            skipped.append((name, "no return in the profile (all points empty or NaN)" if n == 0 else
+                            f"only {n} points with a return (at least {MIN_POINTS} are needed)"))
+            continue
+        kept.append(k)
+        profiles.append(p)
+    if outside:
+        notes.append(f"{outside} points outside the stated measuring range left out")
+    return kept, profiles, skipped, notes
+
+
+def robot_model(s: LaserSession, index: list[int], accuracy: tuple[float, float] | None) -> RobotModel:
+    """Joint angles through the arm's table when the session has them, else the controller's poses."""
+    if s.joints is not None:
+        return JointAngles(s.arm, s.joints[index])
+    return ControllerPoses(s.flange2base[index], accuracy)
+
+
+def calibrate_laser_session(folder: str | Path | LaserSession, options: CalibrationOptions | None = None, *,
+                            progress: bool = False, **changes) -> Calibration:
+    """Calibrate a laser line profiler session (the module docstring).
+
+    Parameters
+    ----------
+    folder : path or LaserSession
+    options : CalibrationOptions, optional
+        ``robot_accuracy`` (the controller's poses' stated accuracy, added to X's std), ``folds`` and
+        ``arm`` (the arm of a ``joints:`` table) are used; the options of image sessions are refused
+        when changed.
+    progress : bool
+        Unused (a laser session calibrates in seconds); accepted as every pipeline does.
+
+    Returns
+    -------
+    Calibration
+        X (``sensor2flange`` eye-in-hand, ``sensor2base`` eye-to-hand: the matrix ``cam2flange`` /
+        ``cam2base`` names), Z the ball's centre, the std, the verdict; ``sensor`` holds the ball's
+        radius and centre and each profile's residual; ``skipped`` the profiles not used, with why.
+
+    Raises
+    ------
+    SessionError
+        A bad session or profile file, naming it (a y that is not 0, millimetres given as metres, ...).
+    DegenerateMotionError
+        Fewer than 3 usable profiles, or profiles whose poses cannot determine the sensor's rotation.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from handeye.simulate import laser_scene, write_laser_session
+    >>> folder = write_laser_session(tempfile.mkdtemp() + "/s", laser_scene(20, "eye_in_hand", rng=1))
+    >>> cal = calibrate_laser_session(folder)
+    >>> cal.verdict, cal.sensor.target, cal.sensor.figures["radius_mm"]["value"]
+    ('good', 'sphere', 20.0)
+    """
+    opts = sensor_options(options, changes, "a laser session")
+    s = folder if isinstance(folder, LaserSession) else load_laser_session(folder, arm=opts.arm)
+    kept, profiles, skipped, notes = read_profiles(s)
+    if len(kept) < 3:
+        why = f" ({'; '.join(f'{n}: {r}' for n, r in skipped[:5])})" if skipped else ""
+        raise DegenerateMotionError(
+            f"{len(kept)} of {len(s.names)} profiles usable{why}: at least 3 are needed, 15-20 with the flange turned "
+            "10 deg or more about two or three axes to trust X")
+    model = SphereProfiles(s.setup, [s.names[k] for k in kept], profiles, s.radius, s.noise_m)
+    cal = estimate(model, robot_model(s, kept, opts.robot_accuracy), opts.folds)
+    return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + notes + list(cal.notes),
+                   input_folder=s.folder)

@@ -1,0 +1,425 @@
+"""A laser line profiler's profiles as sensor models (:mod:`handeye.sensors.base`).
+
+A laser line profile sensor (laser triangulation) measures, per robot pose, the points where its
+laser plane meets the scene: ``p = (x, 0, z)`` in the sensor's frame (``x`` along the laser line,
+``z`` along its measuring axis, ``y = 0`` the laser plane). Each point, mapped through the flange
+pose and X into the frame the target is fixed in (the base eye-in-hand, the flange eye-to-hand:
+``q = A_i X p`` with ``A_i`` :func:`~handeye.frames.setups.robot_world_A`'s), must lie on the
+target's surface; the residual is its signed distance from it (metres), every point weighted alike
+and the noise's scale fitted to the data.
+
+* :class:`SphereProfiles`: a ball of known (or unknown: estimated) radius; the unknowns are its
+  centre (then its radius). Its closed-form start, :func:`sphere_profiles_start`, solves the
+  sphere's equation linearly for X's rotation (from profiles at one flange orientation, or from all
+  of them through products of the unknowns), then fits X's translation and the centre.
+
+Examples
+--------
+>>> import numpy as np
+>>> from handeye.sensors.laser.model import SphereProfiles
+>>> profiles = [np.array([[0.0, 0.0, 0.05], [0.01, 0.0, 0.049]])] * 3
+>>> SphereProfiles("eye_in_hand", ["a", "b", "c"], profiles, radius=0.02).param_names
+['centre.x', 'centre.y', 'centre.z']
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from ...errors import DegenerateMotionError, InputMismatchError
+from ...frames.setups import check_setup, robot_world_A, setup_info
+from ...geometry.se3 import invert, make_transform
+from ..depth.model import sphere_start
+
+__all__ = ["SphereProfiles", "sphere_profiles_start", "LASER_NOISE_M"]
+
+#: The closed-form start uses at most this many points, evenly taken over the profiles.
+START_POINTS = 6000
+#: A laser profiler's noise along its measuring axis to state before any fit (m): 20 um, a
+#: Gocator 2300's or a Keyence LJ-X8000's repeatability at mid-range is a few um, its linearity tens.
+LASER_NOISE_M = 2e-5
+
+
+def _points(profiles: list[NDArray[np.float64]]) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """Every profile's finite points as (M, 3) rows in the sensor frame, and each row's profile."""
+    rows, owner = [], []
+    for k, p in enumerate(profiles):
+        p = np.asarray(p, dtype=float)
+        keep = np.isfinite(p).all(axis=1)
+        rows.append(p[keep])
+        owner.append(np.full(int(keep.sum()), k))
+    return np.concatenate(rows), np.concatenate(owner).astype(np.intp)
+
+
+class SphereProfiles:
+    """Profiles of a ball: per view (``names``) the profile's points (n_i, 3) in the sensor frame
+    (NaN rows: no return), metres; ``radius`` (m) known, or None to estimate it with the centre."""
+
+    kind = "laser line profiler"
+    target = "sphere"
+    groups: tuple[tuple[int, ...], ...] = ((0,),)
+
+    def __init__(self, setup: str, names: list[str], profiles: list[NDArray[np.float64]], radius: float | None = None,
+                 noise_m: float = LASER_NOISE_M) -> None:
+        self.setup = check_setup(setup)
+        if len(names) != len(profiles):
+            raise InputMismatchError(f"{len(names)} view names and {len(profiles)} profiles: give one profile per view")
+        self.names = list(names)
+        self.points, self.owner = _points(profiles)
+        if np.any(np.abs(self.points[:, 1]) > 1e-9):
+            raise InputMismatchError("profile points must lie in the laser plane (y = 0 in the sensor frame)")
+        self.radius = radius
+        self.noise_m = noise_m
+        self.shape = np.ones((len(self.points), 1))
+        self.param_names = ["centre.x", "centre.y", "centre.z"] + ([] if radius is not None else ["radius"])
+        self.param_scale = np.full(len(self.param_names), 1e-3)
+
+    def view_poses(self) -> None:
+        """A profile measures no whole pose."""
+        return None
+
+    def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """:func:`sphere_profiles_start` on ``rows`` (default all; at most :data:`START_POINTS` of
+        them, evenly taken: a start needs no more); the radius, when unknown, from the start's points."""
+        rows = np.arange(len(self.points)) if rows is None else np.asarray(rows)
+        if len(rows) > START_POINTS:
+            rows = rows[np.linspace(0, len(rows) - 1, START_POINTS).astype(np.intp)]
+        F = np.asarray(flange2base, dtype=float)
+        # the base's origin moved to the flange's mean position: the closed forms' products are
+        # better conditioned, and the sensor's mount lies near the origin in both setups
+        shift = make_transform(np.eye(3), -np.mean(F[np.unique(self.owner[rows]), :3, 3], axis=0))
+        A = robot_world_A(shift @ F, self.setup)
+        X0, centre = sphere_profiles_start(A, self.points[rows], self.owner[rows], self.radius)
+        X0, centre = _unshifted(X0, centre, shift, self.setup)
+        A = robot_world_A(F, self.setup)
+        if self.radius is not None:
+            return X0, centre
+        q = self._mapped(X0, A, rows)
+        return X0, np.r_[centre, np.median(np.linalg.norm(q - centre, axis=1))]
+
+    def _mapped(self, X, A, rows) -> NDArray[np.float64]:
+        """The points of ``rows`` in the target's frame (base eye-in-hand, flange eye-to-hand): with
+        ``y = 0``, ``x`` times the first column of ``A_i X`` plus ``z`` times its third plus its
+        translation (three gathers per view's pose, not a 4x4 product per point)."""
+        M = A @ X
+        owner, p = self.owner[rows], self.points[rows]
+        first, third, origin = (np.ascontiguousarray(M[:, :3, k]) for k in (0, 2, 3))
+        return p[:, :1] * first[owner] + p[:, 2:] * third[owner] + origin[owner]
+
+    def jacobian(self, X, p, flange2base, rows) -> NDArray[np.float64]:
+        """The residuals' derivatives (M, 1, 6 + k): for a left increment of X (rotation ``a``,
+        translation ``b``: ``X p -> exp(a) R_X p + t_X + b``) ``d = |q - c| - r`` moves by
+        ``(R_X p) x w . a + w . b`` with ``w = R_A^T u`` and ``u`` the unit normal at the point; by
+        ``-u`` with the centre, ``-1`` with the radius."""
+        A = robot_world_A(flange2base, self.setup)
+        owner, pts = self.owner[rows], self.points[rows]
+        d = self._mapped(X, A, rows) - p[:3]
+        u = d / np.sqrt(np.einsum("mi,mi->m", d, d))[:, None]
+        R = A[:, :3, :3]
+        w = np.stack([np.einsum("mi,mi->m", u, np.ascontiguousarray(R[:, :, k])[owner]) for k in range(3)], axis=1)
+        v = pts[:, :1] * X[:3, 0] + pts[:, 2:] * X[:3, 2]  # R_X p
+        J = np.concatenate([np.cross(v, w), w, -u] + ([] if self.radius is not None else [-np.ones((len(rows), 1))]),
+                           axis=1)
+        return J[:, None, :]
+
+    def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
+        """Each point's distance from the sphere (m; positive outside)."""
+        A = robot_world_A(flange2base, self.setup)
+        d = self._mapped(X, A, rows) - p[:3]
+        r = self.radius if self.radius is not None else p[3]
+        return (np.sqrt(np.einsum("mi,mi->m", d, d)) - r)[:, None]
+
+    def Z(self, X, p) -> NDArray[np.float64]:
+        """The ball's centre (a translation: a ball has no orientation)."""
+        return make_transform(np.eye(3), p[:3])
+
+    def Z_std(self, p, cov_p) -> NDArray[np.float64]:
+        """The centre's std (mm); a ball's orientation is not defined (NaN)."""
+        return np.r_[np.full(3, np.nan), 1e3 * np.sqrt(np.clip(np.diag(cov_p)[:3], 0.0, None))]
+
+    def figures(self, p, cov_p) -> dict[str, Any]:
+        """The ball's centre and radius."""
+        std = np.sqrt(np.clip(np.diag(cov_p), 0.0, None))
+        out: dict[str, Any] = {"centre_m": [float(v) for v in p[:3]], "centre_std_mm": [float(1e3 * v) for v in std[:3]]}
+        if self.radius is None:
+            out["radius_mm"] = {"value": float(1e3 * p[3]), "std": float(1e3 * std[3]), "fitted": True}
+        else:
+            out["radius_mm"] = {"value": float(1e3 * self.radius), "std": 0.0, "fitted": False}
+        return out
+
+    def notes(self, p, cov_p) -> list[str]:
+        """The radius found, when it was estimated."""
+        if self.radius is not None:
+            return []
+        s = float(np.sqrt(max(cov_p[3, 3], 0.0)))
+        return [f"the ball's radius was estimated: {1e3 * p[3]:.3f} +- {1e3 * s:.3f} mm (give its diameter to fix it)"]
+
+    def noise_mm(self, rows) -> NDArray[np.float64]:
+        """The profiler's stated noise (mm)."""
+        return np.full(len(rows), 1e3 * self.noise_m)
+
+
+def _unshifted(X: NDArray[np.float64], centre: NDArray[np.float64], shift: NDArray[np.float64], setup: str
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """X and the centre solved with the base moved by ``shift``, back in the base itself: the
+    moved base is the target's frame eye-in-hand (the centre moves back), X's eye-to-hand."""
+    back = invert(shift)
+    if setup_info(setup).camera_on_flange:
+        return X, back[:3, :3] @ centre + back[:3, 3]
+    return back @ X, centre
+
+
+def sphere_profiles_start(A: NDArray[np.float64], points: NDArray[np.float64], owner: NDArray[np.intp],
+                          radius: float | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """X and the sphere's centre from points ``p`` (M, 3; y = 0) of a sphere, point ``m`` seen from
+    the robot-world pose ``A[owner[m]]`` (:func:`~handeye.frames.setups.robot_world_A`), in closed form.
+
+    X's rotation: from profiles taken at one orientation of the flange (pure translations), where
+    the sensor's orientation ``S = R_A R_X`` and ``u = R_A t_X - C`` are constant and every point
+    satisfies ``|p|^2 + |t_A|^2 + 2 (S p).t_A + 2 t_A.u + 2 (S p).u + |u|^2 - r^2 = 0``, linear in S's
+    first and third columns, ``u``, their products with ``u`` and ``|u|^2 - r^2`` (12 unknowns;
+    :func:`_rotation_from_translations`); else, with the radius known, from each profile's circle,
+    which puts the ball's centre on either side of the laser plane (:func:`_rotation_from_circles`);
+    else from every point through the products of X's columns and translation with the centre
+    (:func:`_rotation_lifted`). Then X's translation and the centre
+    (:func:`_translation_start`; with the ``radius`` when it is known). Raises DegenerateMotionError
+    when neither determines the rotation.
+    """
+    candidates = []  # (rotation, translation to start from)
+    R_T = _rotation_from_translations(A, points, owner)
+    if R_T is not None:
+        candidates.append((R_T, np.zeros(3)))
+    if len(np.unique(owner)) >= LIFTED_PROFILES:
+        try:
+            candidates.append(_rotation_lifted(A[owner], points))
+        except DegenerateMotionError:
+            pass
+    best = _best_start(A[owner], points, candidates, radius)
+    if radius is not None and (best is None or best[3] > GOOD_START_M):  # each profile's circle, both sides
+        best = _best_start(A[owner], points, [(R, np.zeros(3)) for R in _rotation_from_circles(A, points, owner, radius)],
+                           radius, best)
+    if best is None:
+        raise DegenerateMotionError(
+            "the profiles do not determine the sensor's rotation in closed form: capture 3 or more profiles at one "
+            "orientation of the flange, moving it across the ball (pure translations), or 15 or more profiles with the "
+            "flange turned 10 deg or more about two or three axes between them")
+    R_X, t_X, C, _ = best
+    return make_transform(R_X, t_X), C
+
+
+#: Flange orientations within this angle (rad) count as one (the profiles between them pure translations).
+SAME_TURN = np.radians(0.5)
+
+
+def _nearest_rotation(c1: NDArray[np.float64], c3: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """The rotation whose first and third columns are nearest ``c1`` and ``c3``, or None when they are
+    far from orthonormal (the data did not determine them)."""
+    n1, n3 = np.linalg.norm(c1), np.linalg.norm(c3)
+    if not (0.5 < n1 < 2.0 and 0.5 < n3 < 2.0 and abs(c1 @ c3) < 0.5 * n1 * n3):
+        return None
+    U, _, Vt = np.linalg.svd(np.column_stack([c1, np.cross(c3, c1), c3]))
+    return U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+
+
+def _rotation_from_translations(A: NDArray[np.float64], points: NDArray[np.float64], owner: NDArray[np.intp]
+                                ) -> NDArray[np.float64] | None:
+    """X's rotation from the largest group of 3 or more profiles taken at one flange orientation
+    (see :func:`sphere_profiles_start`), or None without such a group."""
+    R = A[:, :3, :3]
+    # turned by less than SAME_TURN: trace(R_i^T R_j) = 1 + 2 cos(angle), for every pair at once
+    close = np.einsum("nij,mij->nm", R, R) > 1.0 + 2.0 * np.cos(SAME_TURN)
+    groups: list[list[int]] = []
+    free = np.ones(len(A), bool)
+    for v in range(len(A)):
+        if free[v]:
+            members = np.flatnonzero(close[v] & free)
+            free[members] = False
+            groups.append(members.tolist())
+    views = [g for g in groups if len(g) >= 3 and np.isin(owner, g).any()]
+    if not views:
+        return None
+    g = max(views, key=len)
+    rows = np.isin(owner, g)
+    p, tA = points[rows], A[owner[rows], :3, 3]
+    x, z = p[:, 0], p[:, 2]
+    M = np.column_stack([2 * x[:, None] * tA, 2 * z[:, None] * tA, 2 * tA, 2 * x, 2 * z, np.ones(len(p))])
+    rhs = -(x**2 + z**2 + np.sum(tA**2, axis=1))
+    scale = np.linalg.norm(M, axis=0)
+    scale[scale == 0] = 1.0
+    sol = np.linalg.lstsq(M / scale, rhs, rcond=None)[0] / scale
+    S = _nearest_rotation(sol[0:3], sol[3:6])
+    return None if S is None else R[g[0]].T @ S
+
+
+#: The products' closed form needs this many profiles (each gives about three of its 42 unknowns).
+LIFTED_PROFILES = 15
+#: A start whose points lie within this RMS (m) of the sphere is good enough to fit from.
+GOOD_START_M = 1e-3
+
+
+def _best_start(A, points, candidates, radius, best=None):
+    """Of the candidate rotations, each with its translation start, the one that leads to the best
+    fit (all of X and the centre fitted to at most 3,000 of the points from it): (R_X, t_X, C, rms)
+    as the closed form gave them (the fit's own rms decides), or ``best`` when none beats it."""
+    few = np.linspace(0, len(points) - 1, min(len(points), 3000)).astype(np.intp)
+    for R_X, t0 in candidates:
+        t_X, C, _ = _translation_start(A, points, R_X, t0, radius)
+        rms = _whole_start(A[few], points[few], R_X, t_X, C, radius)[3]
+        if best is None or rms < best[3]:
+            best = (R_X, t_X, C, rms)
+    return best
+
+
+def _whole_start(A, points, R_X, t_X, C, radius):
+    """X and the centre (and the radius) fitted together to ``points`` from a start: (R_X, t_X, C, rms)."""
+    R, tA = A[:, :3, :3], A[:, :3, 3]
+
+    def fun(u):
+        Rx = Rotation.from_rotvec(u[:3]).as_matrix() @ R_X
+        q = np.einsum("mij,mj->mi", R, points @ Rx.T + u[3:6]) + tA
+        r = radius if radius is not None else u[9]
+        return np.linalg.norm(q - u[6:9], axis=1) - r
+
+    u0 = np.r_[np.zeros(3), t_X, C] if radius is not None else np.r_[np.zeros(3), t_X, C, np.median(np.abs(fun(
+        np.r_[np.zeros(3), t_X, C, 0.0])))]
+    res = least_squares(fun, u0, method="trf", loss="soft_l1", f_scale=1e-3, x_scale=1e-3)
+    return (Rotation.from_rotvec(res.x[:3]).as_matrix() @ R_X, res.x[3:6], res.x[6:9],
+            float(np.sqrt(np.median(res.fun**2))))
+
+
+#: Up to this many profiles every pattern of sides is tried (2^n); beyond, the sides are chosen one
+#: profile at a time from the best of :data:`SIDE_STARTS` random patterns.
+ALL_SIDES, SIDE_STARTS = 12, 64
+
+
+def _circles(points: NDArray[np.float64], owner: NDArray[np.intp], radius: float
+             ) -> tuple[NDArray[np.intp], NDArray[np.float64], NDArray[np.float64]]:
+    """Per profile with 10 points or more, the circle its points lie on in the laser plane (an
+    algebraic fit: ``x^2 + z^2 = 2 a x + 2 b z + c``): the profiles, the circles' centres (x, 0, z)
+    and the ball's centre's distance from the plane, ``sqrt(r^2 - rho^2)``."""
+    views, centres, offsets = [], [], []
+    for v in np.unique(owner):
+        p = points[owner == v]
+        if len(p) < 10:
+            continue
+        x, z = p[:, 0], p[:, 2]
+        a, b, c = np.linalg.lstsq(np.c_[2 * x, 2 * z, np.ones(len(p))], x**2 + z**2, rcond=None)[0]
+        rho2 = c + a * a + b * b
+        views.append(v)
+        centres.append([a, 0.0, b])
+        offsets.append(np.sqrt(max(radius**2 - rho2, 0.0)))
+    return np.array(views, dtype=np.intp), np.array(centres), np.array(offsets)
+
+
+def _rotation_from_circles(A: NDArray[np.float64], points: NDArray[np.float64], owner: NDArray[np.intp],
+                           radius: float, keep: int = 3) -> list[NDArray[np.float64]]:
+    """X's rotation from each profile's circle: the ball's centre is the circle's centre moved
+    ``sqrt(r^2 - rho^2)`` along the laser plane's normal, to one side or the other; for each pattern
+    of sides the centres must map onto one point, ``A_i X b_i = C``
+    (:func:`~handeye.sensors.depth.model.sphere_start`, linear); the ``keep`` patterns that do best
+    give the rotations returned (none with fewer than 5 profiles)."""
+    views, centres, offsets = _circles(points, owner, radius)
+    n = len(views)
+    if n < 5:
+        return []
+    Av = A[views]
+    one = np.zeros(n, dtype=np.intp)
+
+    def cost(signs):
+        b = centres + np.c_[np.zeros(n), signs * offsets, np.zeros(n)]
+        try:
+            X, C = sphere_start(Av, b, np.arange(n), one, 1)
+        except DegenerateMotionError:
+            return np.inf, None
+        q = np.einsum("nij,nj->ni", (Av @ X)[:, :3, :3], b) + (Av @ X)[:, :3, 3]
+        return float(np.sum((q - C[0]) ** 2)), X
+    rng = np.random.default_rng(0)
+    patterns = (((np.arange(2**n)[:, None] >> np.arange(n)) & 1) * 2 - 1 if n <= ALL_SIDES
+                else rng.choice([-1, 1], (SIDE_STARTS, n)))
+    scored = sorted(((cost(s), s) for s in patterns), key=lambda item: item[0][0])[:keep]
+    out = []
+    for (best, X), signs in scored:
+        if n > ALL_SIDES:  # one profile's side at a time while that helps
+            improved = True
+            while improved:
+                improved = False
+                for k in range(n):
+                    trial = signs.copy()
+                    trial[k] = -trial[k]
+                    c, Xt = cost(trial)
+                    if c < best:
+                        best, X, signs, improved = c, Xt, trial, True
+        if X is not None:
+            out.append(X[:3, :3])
+    return out
+
+
+def _rotation_lifted(A: NDArray[np.float64], points: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """X's rotation (and a translation) from every point: ``|R_A (R_X p + t_X) + t_A - C|^2 = r^2``
+    with ``v = R_X p + t_X`` is ``|p|^2 + 2 p.R_X^T t_X + |t_X|^2 + 2 v.R_A^T (t_A - C) + |t_A - C|^2
+    = r^2``, linear in X's first and third columns, ``R_X^T t_X`` (x, z), ``t_X``, ``C``, the
+    products of X's columns and of ``t_X`` with ``C`` (27), and ``|t_X|^2 + |C|^2 - r^2``: 42
+    unknowns; the flange must turn about two axes or more."""
+    x, z = points[:, 0], points[:, 2]
+    R, tA = A[:, :3, :3], A[:, :3, 3]
+    Rt = np.swapaxes(R, 1, 2)  # R_A^T
+    g = np.einsum("mij,mj->mi", Rt, tA)  # R_A^T t_A
+    m = len(points)
+    Rt_flat = Rt.reshape(m, 9)
+    # tau_x, tau_z, kappa; c1, c3, t_X; C; -2 [x c1^T R^T C + z c3^T R^T C + t^T R^T C] (products u_j C_k)
+    M = np.column_stack([2 * x, 2 * z, np.ones(m), 2 * x[:, None] * g, 2 * z[:, None] * g, 2 * g, -2 * tA,
+                         -2 * x[:, None] * Rt_flat, -2 * z[:, None] * Rt_flat, -2 * Rt_flat])
+    rhs = -(x**2 + z**2 + np.sum(tA**2, axis=1))
+    scale = np.linalg.norm(M, axis=0)
+    scale[scale == 0] = 1.0
+    sol = np.linalg.lstsq(M / scale, rhs, rcond=None)[0] / scale
+    R_X = _nearest_rotation(sol[3:6], sol[6:9])
+    if R_X is None:
+        raise DegenerateMotionError(
+            "the profiles do not determine the sensor's rotation in closed form: capture 3 or more profiles at one "
+            "orientation of the flange, moving it across the ball (pure translations), or turn the flange 10 deg or "
+            "more about two or three axes between profiles")
+    return R_X, sol[9:12]
+
+
+#: The start's translation: held near the sensor's mount by a prior of this std (m) where the poses
+#: determine it weakly (small turns of the flange), so that the fit starts where a mount can be (the
+#: base moved to the flange's mean position: the sensor within a metre of it in both setups).
+MOUNT_PRIOR_M = 1.0
+
+
+def _translation_start(A: NDArray[np.float64], points: NDArray[np.float64], R_X: NDArray[np.float64],
+                       t_lifted: NDArray[np.float64], radius: float | None = None
+                       ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """X's translation and the centre with X's rotation ``R_X`` given: the products of the lifted
+    solution leave them poorly determined when the flange turns little (what is determined then is
+    the centre less the flange's turn of X's translation), so they are fitted again, each point's
+    distance from a sphere whose radius is fitted too, X's translation held near the flange
+    (:data:`MOUNT_PRIOR_M`) along what the points do not determine, started from the lifted one when
+    that is within reach of a mount, else from the flange's origin. Returns them and the points' RMS
+    distance from the sphere (m)."""
+    R, tA = A[:, :3, :3], A[:, :3, 3]
+    base = np.einsum("mij,mj->mi", R, points @ R_X.T) + tA  # R_A R_X p + t_A
+
+    t0 = t_lifted if np.linalg.norm(t_lifted) < 2 * MOUNT_PRIOR_M else np.zeros(3)
+    q0 = base + np.einsum("mij,j->mi", R, t0)
+    # the algebraic sphere through q0: |q|^2 = 2 q.C + (r^2 - |C|^2)
+    sol = np.linalg.lstsq(np.c_[2 * q0, np.ones(len(q0))], np.sum(q0**2, axis=1), rcond=None)[0]
+    C0, r0 = sol[:3], np.sqrt(max(sol[3] + sol[:3] @ sol[:3], 1e-12))
+    sigma = [max(float(np.sqrt(np.mean((np.linalg.norm(q0 - C0, axis=1) - r0) ** 2))), LASER_NOISE_M)]
+
+    def fun(u):  # the points' distances in units of their noise, and the mount's prior
+        q = base + np.einsum("mij,j->mi", R, u[:3])
+        r = radius if radius is not None else u[6]
+        return np.r_[(np.linalg.norm(q - u[3:6], axis=1) - r) / sigma[0], u[:3] / MOUNT_PRIOR_M]
+
+    x = np.r_[t0, C0, r0] if radius is None else np.r_[t0, C0]
+    for _ in range(2):  # the noise from the fit, then the fit again with it
+        x = least_squares(fun, x, method="lm").x
+        sigma[0] = max(float(np.sqrt(np.mean((fun(x)[:-3] * sigma[0]) ** 2))), 1e-7)
+    return x[:3], x[3:6], sigma[0]

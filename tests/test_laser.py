@@ -1,0 +1,187 @@
+"""Laser line profilers (issue 61): profiles of a ball fitted through the estimation core, against the
+simulator's truth, a real FANUC + SSZN capture, and the bad input of laser sessions."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+import handeye
+from handeye.cli import main
+from handeye.errors import DegenerateMotionError, SessionError
+from handeye.estimation.core import estimate
+from handeye.frames.metrics import rotation_error, translation_error
+from handeye.io.laser_session import load_laser_session
+from handeye.pipelines.laser import calibrate_laser_session
+from handeye.robot.models import ControllerPoses
+from handeye.sensors.laser.model import SphereProfiles
+from handeye.simulate import laser_scene, write_laser_session
+
+REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "robcalibrator-laser"
+
+
+def _within_3_std(cal, truth) -> bool:
+    from scipy.spatial.transform import Rotation
+
+    rot = Rotation.from_matrix(cal.X[:3, :3] @ truth[:3, :3].T).as_rotvec(degrees=True)
+    return bool(np.all(np.abs(rot) <= 3 * cal.std[:3]) and np.all(np.abs(1e3 * (cal.X[:3, 3] - truth[:3, 3]))
+                                                                   <= 3 * cal.std[3:]))
+
+
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+def test_x_from_profiles_of_a_ball(setup):
+    """20 profiles, 0.02 mm depth noise, dropouts and spikes, an exact robot: X within 0.01 mm /
+    0.005 deg and within 3 std (the data's), the spikes set aside, the fit better than its
+    closed-form start on held-out profiles; the radius, when not given, estimated within 0.01 mm."""
+    sc = laser_scene(20, setup, rng=11)
+    names = [f"p{i}" for i in range(20)]
+    cal = estimate(SphereProfiles(setup, names, sc.profiles, radius=sc.radius), ControllerPoses(sc.flange2base))
+    assert 1e3 * translation_error(cal.X, sc.X) < 0.01 and np.degrees(rotation_error(cal.X, sc.X)) < 0.005
+    assert _within_3_std(cal, sc.X) and cal.verdict == "good"
+    assert cal.sensor.rejected > 0  # the spikes
+    cv = cal.cross_validation
+    assert cv["fit"]["mm"] < cv["closed-form start"]["mm"]
+    free = estimate(SphereProfiles(setup, names, sc.profiles), ControllerPoses(sc.flange2base))
+    assert abs(free.sensor.figures["radius_mm"]["value"] - 1e3 * sc.radius) < 0.01
+    assert 1e3 * translation_error(free.X, sc.X) < 0.05
+
+
+def test_a_robot_error_is_in_the_std():
+    """A calibrated arm's error (0.01 deg / 0.05 mm, constant and per pose) moves X by tenths of a
+    degree (the ball's lever across the laser plane is short): the std, with that accuracy stated,
+    holds X within 3 std."""
+    sc = laser_scene(20, "eye_in_hand", rng=12, robot_error=(0.01, 0.05))
+    cal = estimate(SphereProfiles("eye_in_hand", [f"p{i}" for i in range(20)], sc.profiles, radius=sc.radius),
+                   ControllerPoses(sc.flange2base, (0.01, 0.05)))
+    assert _within_3_std(cal, sc.X)
+
+
+def test_pure_translations_leave_the_translation_undetermined_and_say_so():
+    """Profiles taken at one orientation of the flange determine X's rotation, not its translation
+    (it moves with the ball's centre): partial, the translation named, its std infinite, the rotation
+    right."""
+    sc = laser_scene(12, "eye_in_hand", rng=13)
+    R = sc.flange2base[0, :3, :3]
+    flange2base = sc.flange2base.copy()
+    # the same views with the flange's orientation held: the sensor moved by translations only
+    sensor2base = sc.flange2base @ sc.X
+    for k in range(len(flange2base)):
+        flange2base[k, :3, :3] = R
+        flange2base[k, :3, 3] = sensor2base[k, :3, 3] - R @ sc.X[:3, 3]
+    profiles = []
+    from handeye.simulate.laser import _profile
+
+    rng = np.random.default_rng(0)
+    for F in flange2base:
+        T = np.linalg.inv(F @ sc.X) @ sc.Z  # the ball in the sensor frame
+        profiles.append(_profile(T, sc.radius, rng, 2e-5, 0.0, 0.0))
+    keep = [k for k, p in enumerate(profiles) if np.isfinite(p[:, 2]).sum() > 50]
+    cal = estimate(SphereProfiles("eye_in_hand", [f"p{k}" for k in keep], [profiles[k] for k in keep], radius=sc.radius),
+                   ControllerPoses(flange2base[keep]))
+    assert cal.verdict == "partial" and cal.unobservable
+    assert any("translation" in u.parameter for u in cal.unobservable)
+    assert np.isinf(cal.std[3:]).any()
+    assert np.degrees(rotation_error(cal.X, sc.X)) < 0.05
+
+
+def test_a_laser_session_through_the_command_line(tmp_path, capsys):
+    """simulate --sensor laser_line, calibrate and check: the result files as for any sensor, the
+    verdict good, exit 0."""
+    folder = tmp_path / "s"
+    assert main(["simulate", "--sensor", "laser_line", "--out", str(folder), "--poses", "20", "--seed", "3"]) == 0
+    assert main(["calibrate", str(folder), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
+    result = json.loads((tmp_path / "out" / "result.json").read_text())
+    assert result["verdict"] == "good" and result["sensor"]["kind"] == "laser line profiler"
+    truth = yaml.safe_load((folder / "ground_truth.yaml").read_text())
+    assert 1e3 * translation_error(np.array(result["X"]["matrix"]), np.array(truth["sensor2flange"])) < 0.02
+    assert main(["check", str(folder), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "laser line profiler (sphere): 20 of 20 views used" in out
+    back = handeye.load_result(tmp_path / "out")
+    assert back.sensor.target == "sphere" and back.verdict == "good"
+
+
+def _damaged(tmp_path, change):
+    folder = write_laser_session(tmp_path / "s", laser_scene(16, "eye_in_hand", rng=4))
+    change(folder)
+    return folder
+
+
+def test_bad_laser_input_is_refused_or_skipped_by_name(tmp_path):
+    """The issue's bad input: millimetres declared as metres, a y that is not 0, a diameter in mm
+    written as metres, an unknown key (with the nearest one), an empty profile (a named skip), fewer
+    profiles than X needs; nothing is written."""
+    def mm_as_m(folder):
+        spec = yaml.safe_load((folder / "session.yaml").read_text())
+        spec["laser"]["unit"] = "m"
+        (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    folder = _damaged(tmp_path / "a", mm_as_m)
+    with pytest.raises(SessionError, match=r"noise 0.02 m: .* if the profiles are in millimetres, write unit: mm"):
+        calibrate_laser_session(folder)
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    del spec["laser"]["noise"]
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    with pytest.raises(SessionError, match=r"p01.csv: the points lie a median .* they look like millimetres"):
+        calibrate_laser_session(folder)
+
+    def y_not_zero(folder):
+        (folder / "profiles" / "p03.csv").write_text("x,y,z\n1.0,0.5,100.0\n2.0,0.5,101.0\n")
+    with pytest.raises(SessionError, match=r"p03.csv: y up to 0.5 mm"):
+        calibrate_laser_session(_damaged(tmp_path / "b", y_not_zero))
+
+    def diameter_mm(folder):
+        spec = yaml.safe_load((folder / "session.yaml").read_text())
+        spec["target"]["diameter"] = 40.0
+        (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    with pytest.raises(SessionError, match=r"diameter 40 m: give it in metres"):
+        load_laser_session(_damaged(tmp_path / "c", diameter_mm))
+
+    def unknown_key(folder):
+        spec = yaml.safe_load((folder / "session.yaml").read_text())
+        spec["laser"]["untis"] = "mm"
+        (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    with pytest.raises(SessionError, match=r"unknown key 'untis' \(did you mean 'unit'\?\)"):
+        load_laser_session(_damaged(tmp_path / "d", unknown_key))
+
+    def empty(folder):
+        (folder / "profiles" / "p05.csv").write_text("x,z\n1.0,\n2.0,nan\n")
+    cal = calibrate_laser_session(_damaged(tmp_path / "e", empty))
+    assert ("p05.csv", "no return in the profile (all points empty or NaN)") in cal.skipped
+    assert "p05.csv" not in cal.sensor.views
+
+    few = _damaged(tmp_path / "f", lambda folder: None)
+    lines = (few / "poses.csv").read_text().splitlines()
+    (few / "poses.csv").write_text("\n".join(lines[:3]) + "\n")
+    with pytest.raises(DegenerateMotionError, match="2 of 2 profiles usable: at least 3 are needed"):
+        calibrate_laser_session(few)
+    assert main(["calibrate", str(few), "--out", str(tmp_path / "never"), "--no-progress"]) != 0
+    assert not (tmp_path / "never").exists()
+
+
+@pytest.mark.skipif(not REAL.is_dir(), reason="the real captures are not beside the checkout (../shared/data/real)")
+def test_a_real_fanuc_capture_of_a_ball(tmp_path):
+    """RobCalibrator's FANUC + SSZN capture (15 profiles of an 80 mm ball): imported as a laser
+    session; handeye's X makes the profiles fit one sphere at least as well as the source tool's
+    own answer (0.133 mm RMS), its 5-fold held-out error is reported, and the verdict says what the
+    small turns (4-15 deg) leave poorly determined; the radius, when not given, comes out ~40 mm."""
+    assert main(["import", "robcalibrator", str(REAL), "--out", str(tmp_path / "s")]) == 0
+    cal = calibrate_laser_session(tmp_path / "s")
+    assert cal.sensor.fit_rms_mm < 0.133 and cal.prediction_error["mm"] < 0.25
+    assert cal.verdict == "weak" and any("beyond 5 mm / 1 deg" in a for a in cal.diagnostics.advice)
+    assert any("least well" in n for n in cal.notes)
+    # the source's answer is within 1.3 mm / 1.6 deg of handeye's (1.2 deg about the flange's z, ~3 of
+    # handeye's std there): the small turns leave the rotation weakly determined, as the verdict says
+    source = np.array(json.loads((REAL / "calibration.sec").read_text())["Solution"]["HTM"])
+    source[:3, 3] *= 1e-3
+    assert np.degrees(rotation_error(cal.X, source)) < 2.0 and 1e3 * translation_error(cal.X, source) < 2.0
+    spec = yaml.safe_load((tmp_path / "s" / "session.yaml").read_text())
+    del spec["target"]["diameter"]
+    (tmp_path / "s" / "session.yaml").write_text(yaml.safe_dump(spec))
+    free = calibrate_laser_session(tmp_path / "s")
+    assert abs(free.sensor.figures["radius_mm"]["value"] - 40.0) < 0.1
+    shutil.rmtree(tmp_path / "s")
