@@ -269,3 +269,14 @@ def test_simulate_renders_a_charuco_board_by_default(tmp_path):
     default target is ChArUco (the API's simulate_session keeps the thesis's chessboard)."""
     assert main(["simulate", "--out", str(tmp_path / "s"), "--poses", "4", "--seed", "1"]) == 0
     assert yaml.safe_load((tmp_path / "s" / "session.yaml").read_text())["target"]["type"] == "charuco"
+
+
+def test_check_states_the_std_as_calibrate_does(capsys):
+    """check and calibrate print X's std the one way: per axis, rotation in deg and translation in mm,
+    labelled with what it is made of (issue 60, item 2)."""
+    assert main(["check", "--sample", "--no-progress"]) == 0
+    checked = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("std of X")]
+    assert main(["calibrate", "--sample", "--no-progress"]) == 0
+    calibrated = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("std of X")]
+    assert len(checked) == len(calibrated) == 1
+    assert checked[0].split(" mm")[0] == calibrated[0].split(" mm")[0]  # the same numbers and label

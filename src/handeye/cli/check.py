@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
 from ..pipelines.folders import check_folder
 from ._common import (
     SAMPLE_SESSION,
@@ -14,7 +12,7 @@ from ._common import (
     calibrate_options,
     input_folder,
 )
-from ._printing import print_sensor_views
+from ._printing import fmt_vec, print_sensor_views, std_label
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -32,11 +30,18 @@ def _cmd_check(args: argparse.Namespace) -> int:
     print()
     print(found.cross_validation_table())
     print()
-    print(found.diagnostics.summary())
-    if found.calibration is not None and found.calibration.std is not None:
+    cal = found.calibration
+    if cal is not None and cal.sensor is not None:  # a sensor's fit: its consistency is its residual against the noise
+        d = found.diagnostics
+        print(f"verdict: {found.verdict} ({len(cal.sensor.views)} views; the fit's residual is {d.consistency:.2f}x what the "
+              f"sensor's stated noise and the robot's accuracy allow, up to {d.consistency_limit:g} is consistent)")
+        print("\n".join(f"advice: {a}" for a in d.advice))
+    else:
+        print(found.diagnostics.summary())
+    if found.calibration is not None and found.calibration.std is not None:  # per axis, as calibrate prints it
         std = found.calibration.std
-        print(f"std of X ({found.calibration.estimator}): {np.linalg.norm(std[:3]):.3f} deg / "
-              f"{np.linalg.norm(std[3:]):.2f} mm (as calibrate reports it)")
+        print(f"std of X ({std_label(found.calibration)}): rotation {fmt_vec(std[:3], 4)} deg, translation "
+              f"{fmt_vec(std[3:], 3)} mm, per axis (as calibrate prints it)")
     return found.exit_status
 
 

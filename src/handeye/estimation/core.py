@@ -51,7 +51,6 @@ from ..errors import DegenerateMotionError, HandEyeError
 from ..frames.metrics import std_deg_mm
 from ..frames.setups import setup_info
 from ..geometry.se3 import perturb
-from ..options import ROBOT_ACCURACY
 from ..result import Calibration, Diagnostics, HeldOutErrors, KinematicModel, Observability, SensorFit, Unobservable
 from ..robot.models import ControllerPoses, JointAngles, RobotModel
 from ..sensors.base import SensorModel
@@ -61,7 +60,8 @@ from .uncertainty import widened_uncertainty
 from .validation import default_folds, fold_indices
 from .verdict import judged
 
-__all__ = ["Fitted", "Problem", "fit", "estimate", "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR", "HELDOUT_FACTOR"]
+__all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "estimate", "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
+           "HELDOUT_FACTOR"]
 
 #: Points whose residual exceeds this many of their std (after a robust first fit) are set aside.
 REJECT = 5.0
@@ -585,7 +585,7 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
         raise HandEyeError(f"{len(sensor.names)} views measured and {robot.n_views} robot poses: give one per view")
     checked = _prepared(sensor, robot)
     problem, full, views = checked.problem, checked.full, checked.views
-    n_x, n_p, _ = problem.sizes
+    _, n_p, _ = problem.sizes
     F = robot.flange2base(full.d)
     per_view = view_rms_mm(problem, full, views)
     fit_mm = float(np.sqrt(np.nanmean(per_view**2)))
@@ -635,5 +635,3 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
             "the robot's pose error, or a view that fits less well)"])
     return judged(cal) if verdict == "good" else cal
 
-
-__all__ += ["view_rms_mm", "downdated", "ROBOT_ACCURACY"]

@@ -12,13 +12,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import HandEyeError, SessionError
+from ..errors import SessionError
 from ..frames.poses import parse_poses
 from ..frames.setups import check_setup
 from ..robot.kinematics import Chain
 from ..sensors.camera import target_from_spec
 from ..sensors.depth.clouds import CLOUD_SUFFIXES
-from .session import SESSION_FILE, load_yaml, read_camera, read_joints, read_pose_table
+from .session import SESSION_FILE, has_section, load_yaml, read_camera, read_joints, read_pose_table
 
 __all__ = ["DepthSession", "is_depth_session", "load_depth_session"]
 
@@ -53,14 +53,7 @@ class DepthSession:
 
 def is_depth_session(folder: str | Path) -> bool:
     """Whether ``folder``'s session.yaml has a ``depth:`` mapping."""
-    yml = Path(folder) / SESSION_FILE
-    if not yml.is_file():
-        return False
-    try:
-        spec = load_yaml(yml)
-    except HandEyeError:
-        return False
-    return isinstance(spec, dict) and spec.get("depth") is not None
+    return has_section(folder, "depth")
 
 
 def _radii(target: Any, where: str) -> list[float] | None:

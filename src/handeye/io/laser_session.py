@@ -39,7 +39,7 @@ from ..geometry.se3 import invert
 from ..robot.kinematics import Chain
 from ..sensors.laser.model import LASER_NOISE_M
 from ..sensors.laser.profiles import PROFILE_SUFFIXES
-from .session import SESSION_FILE, load_yaml, read_joints, read_pose_table
+from .session import SESSION_FILE, has_section, load_yaml, read_joints, read_pose_table
 
 __all__ = ["LaserSession", "is_laser_session", "load_laser_session", "LASER_KEYS", "TARGET_TYPES"]
 
@@ -77,14 +77,7 @@ class LaserSession:
 
 def is_laser_session(folder: str | Path) -> bool:
     """Whether ``folder``'s session.yaml has a ``laser:`` mapping."""
-    yml = Path(folder) / SESSION_FILE
-    if not yml.is_file():
-        return False
-    try:
-        spec = load_yaml(yml)
-    except SessionError:
-        return False
-    return isinstance(spec, dict) and spec.get("laser") is not None
+    return has_section(folder, "laser")
 
 
 def _unknown_keys(mapping: dict, known: tuple[str, ...], where: str) -> None:

@@ -46,7 +46,7 @@ from numpy.typing import NDArray
 from .._shared.io import atomic_write, read_text
 from .._shared.lazy import lazy_module
 from .._shared.text import summarize
-from ..errors import InputMismatchError, PoseFormatError, SessionError
+from ..errors import HandEyeError, InputMismatchError, PoseFormatError, SessionError
 from ..frames.poses import RobotPoseInput, format_poses, matrix_layout, parse_poses, pose_columns
 from ..frames.setups import check_setup
 from ..geometry.se3 import invert
@@ -57,7 +57,7 @@ from ..sensors.camera.targets import target_from_spec
 cv2 = lazy_module("cv2")  # only to read an image's size
 
 __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session",
-           "read_pose_table", "read_joints", "SessionError", "load_yaml",
+           "read_pose_table", "read_joints", "SessionError", "load_yaml", "has_section",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
            "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session",
            "load_joint_stream", "load_camera_stream", "write_joint_stream"]
@@ -497,6 +497,19 @@ def _text_of(path: Path, notes: list[str] | None) -> str:
     if note and notes is not None:
         notes.append(note)
     return text
+
+
+def has_section(folder: str | Path, key: str) -> bool:
+    """Whether ``folder``'s session.yaml has a ``key:`` mapping (``depth``, ``laser``: which sensor's
+    session it is); False when there is none or it cannot be read (the reader says why)."""
+    yml = Path(folder) / SESSION_FILE
+    if not yml.is_file():
+        return False
+    try:
+        spec = load_yaml(yml)
+    except HandEyeError:
+        return False
+    return isinstance(spec, dict) and spec.get(key) is not None
 
 
 def load_yaml(path: Path, notes: list[str] | None = None) -> dict[str, Any]:

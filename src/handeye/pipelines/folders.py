@@ -125,7 +125,11 @@ class FolderCheck:
             return "held-out prediction error: not computed (fewer than 5 usable poses, or X not fully determined)"
         table = cal.cross_validation
         rows = sorted(table.items(), key=lambda kv: kv[1]["px"] if kv[1]["px"] is not None else kv[1]["mm"])
-        if cal.kinematic is not None:
+        if cal.sensor is not None:
+            lines = [f"held-out prediction error ({cal.cross_validation.folds}-fold cross-validation; each view's "
+                     f"measurements predicted from its robot {'joint angles' if cal.kinematic is not None else 'pose'} by "
+                     "the fit to the others, beside the closed-form start refitted the same way):"]
+        elif cal.kinematic is not None:
             lines = [f"held-out prediction error ({self.folds}-fold cross-validation; each view predicted from its joint "
                      "angles by X, Z and the arm's table fitted without it, and from the nominal table's flange pose by "
                      "the pose refinement on the others):"]

@@ -308,8 +308,8 @@ def _verdict_section(cal: Calibration, verdict: str, pres: NDArray[np.float64]) 
     if cal.std is not None and cal.unobservable:
         std_txt = f" · {len(cal.unobservable)} direction(s) of X not determined by the data (see Result)"
     elif cal.std is not None:
-        std_txt = (f" · std of X: {np.linalg.norm(cal.std[3:]):.3f} mm (translation, all axes), "
-                   f"{np.linalg.norm(cal.std[:3]):.4f} deg (rotation)")
+        std_txt = (f" · std of X per axis: translation up to {np.max(cal.std[3:]):.3f} mm, rotation up to "
+                   f"{np.max(cal.std[:3]):.4f} deg")
     headline = {"good": "the data determine X well", "weak": "usable, but the data leave X poorly determined",
                 "partial": "the motions determine only part of X",
                 "degenerate": "the motions cannot determine X",
