@@ -40,6 +40,9 @@ A new sensor is one package under ``sensors/`` whose model class has these membe
 ``noise_mm(rows)``
     The noise each row's residual may have before any fit (the sensor's stated noise, mm): what
     the verdict holds the fit's residual against.
+``jacobian(X, p, flange2base, rows)`` (optional)
+    The residuals' derivatives (M, c, 6 + k) for a left increment of X and the sensor's unknowns:
+    with it the fit needs one evaluation per step instead of one per unknown (the laser's has it).
 """
 
 from __future__ import annotations
