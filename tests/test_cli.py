@@ -280,3 +280,64 @@ def test_check_states_the_std_as_calibrate_does(capsys):
     calibrated = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("std of X")]
     assert len(checked) == len(calibrated) == 1
     assert checked[0].split(" mm")[0] == calibrated[0].split(" mm")[0]  # the same numbers and label
+
+
+def test_base2flange_poses_in_an_image_session_and_unknown_keys(tmp_path, capsys):
+    """A session whose poses.csv holds base2flange rows says so with ``pose: base2flange`` under
+    poses: and calibrates to the same X as the flange2base rows; an unknown key anywhere in
+    session.yaml is an error naming the nearest known key, never ignored (issue 60, item 1)."""
+    import yaml
+
+    import handeye
+    from handeye.frames.poses import format_poses, parse_poses
+    from handeye.geometry.se3 import invert
+    from handeye.io.session import write_pose_table
+
+    src = Path(handeye.__file__).parent / "data" / "sample_session"
+    folder = shutil.copytree(src, tmp_path / "s")
+    rows = np.loadtxt(folder / "poses.csv", delimiter=",", skiprows=1, usecols=range(1, 7))
+    names = [line.split(",")[0] for line in (folder / "poses.csv").read_text().splitlines()[1:]]
+    inverse = format_poses(invert(parse_poses(rows, "euler:ZYX", "mm", "deg")), "euler:ZYX", "mm", "deg")
+    write_pose_table(folder / "poses.csv", names, None, "euler:ZYX", "mm", "deg", rows=inverse)
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    spec["poses"]["pose"] = "base2flange"
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    back = handeye.calibrate(folder, progress=False)
+    ref = handeye.calibrate(src, progress=False)
+    assert back.verdict == ref.verdict and np.allclose(back.X, ref.X, atol=1e-6)
+    spec["poses"]["lenght_unit"] = spec["poses"].pop("length_unit")
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    assert main(["check", str(folder), "--no-progress"]) != 0
+    assert "unknown key 'lenght_unit' (did you mean 'length_unit'?)" in capsys.readouterr().err
+    spec["poses"]["length_unit"] = spec["poses"].pop("lenght_unit")
+    spec["cameras"] = spec.pop("camera")
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    with pytest.raises(handeye.SessionError, match="unknown key 'cameras' \\(did you mean 'camera'\\?\\)"):
+        handeye.calibrate(folder, progress=False)
+
+
+def test_a_noise_the_data_do_not_resolve_is_said_so_not_printed_as_zero():
+    """Issue 60, item 7: an estimated noise that reached zero reads 'below what the data resolve'."""
+    from handeye.result import Calibration
+
+    cal = Calibration(np.eye(4), np.eye(4), "eye_in_hand", "pose", pose_noise={
+        "robot_rotation_deg": 0.012, "camera_rotation_deg": 0.0, "translation_mm": 0.0, "camera_depth_mm": 0.25})
+    text = cal.pose_noise_text()
+    assert "robot rotation 0.0120 deg" in text and "camera depth (along its optical axis) 0.250 mm" in text
+    assert text.count("below what the data resolve") == 2 and "0.000" not in text
+
+
+def test_only_handeyes_words_reach_the_terminal(tmp_path, capfd):
+    """A missing image and an image named in CJK: calibrate --out says which image it skipped, and
+    neither OpenCV's '[ WARN...] imread_' nor matplotlib's missing-glyph warnings reach stderr
+    (issue 60, item 12)."""
+    import handeye
+
+    folder = shutil.copytree(Path(handeye.__file__).parent / "data" / "sample_session", tmp_path / "s")
+    (folder / "images" / "003.jpg").unlink()
+    (folder / "images" / "004.jpg").rename(folder / "images" / "画像004.jpg")
+    (folder / "poses.csv").write_text((folder / "poses.csv").read_text().replace("004.jpg", "画像004.jpg"), encoding="utf-8")
+    assert main(["calibrate", str(folder), "--out", str(tmp_path / "out"), "--no-progress"]) in (0, 1)
+    out, err = capfd.readouterr()
+    assert "skipped 003.jpg: missing from images/" in out
+    assert "[ WARN" not in err and "Glyph" not in err, err[-2000:]

@@ -202,13 +202,13 @@ def test_a_fanuc_pendants_joint_angles(tmp_path):
     with pytest.raises(SessionError, match="as the teach pendant shows them .* write pendant: true under joints:"):
         load_session(folder)
     text = (folder / "session.yaml").read_text()
-    (folder / "session.yaml").write_text(text.replace("unit: deg", "unit: deg\n  pendant: true"))
+    (folder / "session.yaml").write_text(text.replace("\n  unit: deg", "\n  unit: deg\n  pendant: true"))
     session = load_session(folder)
     assert np.abs(session.joints - sc.joints).max() < 1e-12
     assert np.abs(session.arm.forward(session.joints) - session.flange2base).max() < 1e-9
     assert any("teach pendant's angles converted" in n for n in session.notes)
     _, other = _joint_session(tmp_path / "own", arm="lrmate200id", q=sc.joints)
-    (other / "session.yaml").write_text((other / "session.yaml").read_text().replace("unit: deg", "unit: deg\n  pendant: true"))
+    (other / "session.yaml").write_text((other / "session.yaml").read_text().replace("\n  unit: deg", "\n  unit: deg\n  pendant: true"))
     with pytest.raises(SessionError, match="not the teach pendant's .remove pendant: true"):
         load_session(other)
     (other / "session.yaml").write_text((other / "session.yaml").read_text().replace("pendant: true", "pendant: yes please"))
@@ -217,7 +217,7 @@ def test_a_fanuc_pendants_joint_angles(tmp_path):
     with pytest.raises(InputMismatchError, match="pendant_coupling .3, 3, 1.0.: two different joints"):
         replace(arm, pendant_coupling=(3, 3, 1.0))
     _, ur = _joint_session(tmp_path / "ur", arm="ur5")  # a UR's pendant shows its table's angles: said, unchanged
-    (ur / "session.yaml").write_text((ur / "session.yaml").read_text().replace("unit: deg", "unit: deg\n  pendant: true"))
+    (ur / "session.yaml").write_text((ur / "session.yaml").read_text().replace("\n  unit: deg", "\n  unit: deg\n  pendant: true"))
     assert any("nothing to convert" in n for n in load_session(ur).notes)
 
 

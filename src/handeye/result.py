@@ -568,6 +568,18 @@ class Calibration:
                      f"{pitch['min_turn_deg']:.0f} deg or more)")
         return text
 
+    def pose_noise_text(self) -> str:
+        """The pose refinement's noise estimates in words, per axis; one the data do not resolve (an
+        estimate that reached zero) said so, not printed as a zero that looks like a fault."""
+        nz = self.pose_noise or {}
+
+        def amount(key: str, unit: str, digits: int) -> str:
+            v = float(nz.get(key, 0.0))
+            return f"{v:.{digits}f} {unit}" if v >= 0.5 * 10.0**-digits else "below what the data resolve"
+        return (f"robot rotation {amount('robot_rotation_deg', 'deg', 4)}, camera rotation "
+                f"{amount('camera_rotation_deg', 'deg', 4)}, translation {amount('translation_mm', 'mm', 3)}, camera depth "
+                f"(along its optical axis) {amount('camera_depth_mm', 'mm', 3)}")
+
     @cached_property
     def pose_residuals(self) -> NDArray[np.float64]:
         """Per pose how far its own Z_i is from Z (deg, mm); none without camera poses."""

@@ -93,10 +93,7 @@ def print_calibration(cal: Calibration, out=None) -> None:
           f"({len(cal.streams['keyframe_camera_times_s'])} keyframes of {cal.streams['camera_samples']} camera and "
           f"{cal.streams['robot_samples']} robot samples)\n")
     if cal.pose_noise is not None:
-        nz = cal.pose_noise
-        w(f"pose noise estimated from the data (per axis): robot rotation {nz['robot_rotation_deg']:.4f} deg, "
-          f"camera rotation {nz['camera_rotation_deg']:.4f} deg, translation {nz['translation_mm']:.3f} mm, camera "
-          f"depth {nz.get('camera_depth_mm', 0.0):.3f} mm\n")
+        w(f"pose noise estimated from the data (per axis): {cal.pose_noise_text()}\n")
     if cal.prediction_error is not None:
         pe = cal.prediction_error
         w(f"held-out prediction error ({cal.estimator}, cross-validated): "

@@ -15,10 +15,22 @@ from numpy.typing import NDArray
 from ..errors import SessionError
 from ..frames.poses import parse_poses
 from ..frames.setups import check_setup
+from ..geometry.se3 import invert
 from ..robot.kinematics import Chain
 from ..sensors.camera import target_from_spec
 from ..sensors.depth.clouds import CLOUD_SUFFIXES
-from .session import SESSION_FILE, has_section, load_yaml, read_camera, read_joints, read_pose_table
+from .session import (
+    CAMERA_KEYS,
+    JOINTS_KEYS,
+    POSES_KEYS,
+    SESSION_FILE,
+    check_keys,
+    has_section,
+    load_yaml,
+    read_camera,
+    read_joints,
+    read_pose_table,
+)
 
 __all__ = ["DepthSession", "is_depth_session", "load_depth_session"]
 
@@ -121,6 +133,9 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     where = str(yml)
     if spec.get("depth") is None:
         raise SessionError(f"{where}: no depth: mapping; a depth session says its clouds' unit there")
+    check_keys(spec, ("setup", "target", "camera", "depth", "poses", "joints"), where)
+    for key, known in (("depth", ("unit", "range")), ("poses", POSES_KEYS), ("camera", CAMERA_KEYS), ("joints", JOINTS_KEYS)):
+        check_keys(spec.get(key), known, f"{where}: {key}")
     setup = check_setup(str(spec.get("setup", "")))
     target = spec.get("target")
     radii = _radii(target, where)
@@ -162,7 +177,11 @@ def _robot_poses(folder: Path, poses: Any, where: str, notes: list[str]) -> tupl
                            "cloud of the same name in clouds/) or 'cloud' (spheres: the cloud in clouds/)")
     f2b = parse_poses(values, fmt, length_unit=str(poses["length_unit"]), angle_unit=str(poses.get("angle_unit", "rad")),
                       what=str(table))
-    return f2b, list(names), table
+    kind = str(poses.get("pose", "flange2base"))
+    if kind not in ("flange2base", "base2flange"):
+        raise SessionError(f"{where}: poses: pose {kind!r}; use flange2base (the default: the controller's poses) or "
+                           "base2flange (the table's rows are their inverses)")
+    return (invert(f2b) if kind == "base2flange" else f2b), list(names), table
 
 
 def _with_joints(folder: Path, names: list[str], f2b: NDArray[np.float64], joints, posed: bool

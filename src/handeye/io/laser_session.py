@@ -24,7 +24,6 @@ one is an error naming the nearest known key).
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -39,7 +38,7 @@ from ..geometry.se3 import invert
 from ..robot.kinematics import Chain
 from ..sensors.laser.model import LASER_NOISE_M
 from ..sensors.laser.profiles import PROFILE_SUFFIXES
-from .session import SESSION_FILE, has_section, load_yaml, read_joints, read_pose_table
+from .session import JOINTS_KEYS, POSES_KEYS, SESSION_FILE, check_keys, has_section, load_yaml, read_joints, read_pose_table
 
 __all__ = ["LaserSession", "is_laser_session", "load_laser_session", "LASER_KEYS", "TARGET_TYPES"]
 
@@ -81,11 +80,7 @@ def is_laser_session(folder: str | Path) -> bool:
 
 
 def _unknown_keys(mapping: dict, known: tuple[str, ...], where: str) -> None:
-    for key in mapping:
-        if key not in known:
-            near = difflib.get_close_matches(str(key), known, n=1)
-            raise SessionError(f"{where}: unknown key {key!r}" + (f" (did you mean {near[0]!r}?)" if near else "")
-                               + f"; the keys are {', '.join(known)}")
+    check_keys(mapping, known, where)
 
 
 def _laser_spec(spec: Any, where: str) -> tuple[str, tuple[float, float] | None, float]:
@@ -146,6 +141,7 @@ def load_laser_session(folder: str | Path, arm: str | None = None) -> LaserSessi
     spec = load_yaml(yml, notes)
     where = str(yml)
     _unknown_keys(spec, SESSION_KEYS, where)
+    _unknown_keys(spec.get("joints") or {}, JOINTS_KEYS, f"{where}: joints")
     if spec.get("laser") is None:
         raise SessionError(f"{where}: no laser: mapping; a laser session says its profiles' unit there")
     setup = check_setup(str(spec.get("setup", "")))
@@ -174,7 +170,7 @@ def _poses(folder: Path, poses: Any, where: str, notes: list[str]) -> tuple[NDAr
     if not isinstance(poses, dict) or not {"file", "format", "length_unit"} <= set(poses):
         raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit (m | mm) and angle_unit "
                            "(deg | rad)")
-    _unknown_keys(poses, ("file", "format", "length_unit", "angle_unit", "pose"), f"{where}: poses")
+    _unknown_keys(poses, POSES_KEYS, f"{where}: poses")
     table = folder / str(poses["file"])
     if not table.is_file():
         raise SessionError(f"{table}: no such pose table")

@@ -33,6 +33,7 @@ and TUM's trajectory files: ``t x y z qx qy qz qw`` with ``format: quat_xyzw``).
 from __future__ import annotations
 
 import csv
+import difflib
 import io
 import unicodedata
 from dataclasses import dataclass, field, replace
@@ -57,7 +58,7 @@ from ..sensors.camera.targets import target_from_spec
 cv2 = lazy_module("cv2")  # only to read an image's size
 
 __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session",
-           "read_pose_table", "read_joints", "SessionError", "load_yaml", "has_section",
+           "read_pose_table", "read_joints", "SessionError", "load_yaml", "has_section", "check_keys",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
            "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session",
            "load_joint_stream", "load_camera_stream", "write_joint_stream"]
@@ -176,6 +177,9 @@ def load_session(folder: str | Path, strict_images: bool = True, arm: str | None
     notes: list[str] = []
     spec = load_yaml(yml, notes)
     where = str(yml)
+    check_keys(spec, SESSION_KEYS, where)
+    for key, known in (("poses", POSES_KEYS), ("camera", CAMERA_KEYS), ("joints", JOINTS_KEYS), ("images", IMAGES_KEYS)):
+        check_keys(spec.get(key), known, f"{where}: {key}")
     setup = check_setup(str(_require(spec, "setup", where)))
     target_spec = _require(spec, "target", where)
     target_from_spec(target_spec, where=f"{where}: target")  # a bad target fails now, before any image work
@@ -195,6 +199,13 @@ def load_session(folder: str | Path, strict_images: bool = True, arm: str | None
     angle_unit = str(poses.get("angle_unit", "rad"))
     values, names, robot_times = read_pose_table(csv_path, fmt, id_columns=("image",), notes=notes, times=True)
     f2b = _parsed(values, fmt, length_unit, angle_unit, csv_path)
+    kind = str(poses.get("pose", "flange2base"))
+    if kind not in POSE_KINDS["robot_poses"]:
+        raise SessionError(f"{where}: poses: pose {kind!r}; use flange2base (the default: the controller's poses) or "
+                           "base2flange (the table's rows are their inverses)")
+    inverted = kind == "base2flange"
+    if inverted:  # the rows are base2flange: handeye uses their inverses
+        f2b = invert(f2b)
     stream = None
     if robot_times is not None:  # a robot stream: the images carry their own times
         if names is not None:
@@ -218,7 +229,7 @@ def load_session(folder: str | Path, strict_images: bool = True, arm: str | None
             f"{', '.join(unnamed[:10])}: add their poses or move them out of images/"
         )
     session = Session(folder, setup, dict(target_spec), f2b, list(names), paths, K, dist, fmt,
-                      RobotPoseInput(values, fmt, length_unit, angle_unit), csv_path, notes)
+                      RobotPoseInput(values, fmt, length_unit, angle_unit, inverted), csv_path, notes)
     if stream is not None:
         session = replace(session, robot_times=stream[0], robot_stream=stream[1], image_times=stream[2],
                           image_times_path=stream[3])
@@ -497,6 +508,26 @@ def _text_of(path: Path, notes: list[str] | None) -> str:
     if note and notes is not None:
         notes.append(note)
     return text
+
+
+#: The keys of an image session's session.yaml and of its blocks (docs/guide.md): any other is an error.
+SESSION_KEYS = ("setup", "target", "camera", "poses", "joints", "images")
+POSES_KEYS = ("file", "format", "length_unit", "angle_unit", "pose", "time_unit")
+CAMERA_KEYS = ("K", "dist")
+JOINTS_KEYS = ("file", "unit", "arm", "pendant", "base_link", "tip_link")
+IMAGES_KEYS = ("file", "time_unit")
+
+
+def check_keys(mapping: Any, known: tuple[str, ...], where: str) -> None:
+    """Raise :class:`SessionError` for a key of ``mapping`` that is not ``known``, naming the nearest
+    known key: a misspelt key would otherwise do nothing, silently."""
+    if not isinstance(mapping, dict):
+        return
+    for key in mapping:
+        if key not in known:
+            near = difflib.get_close_matches(str(key), known, n=1, cutoff=0.5)
+            raise SessionError(f"{where}: unknown key {key!r}" + (f" (did you mean {near[0]!r}?)" if near else "")
+                               + f"; the keys there are {', '.join(known)}")
 
 
 def has_section(folder: str | Path, key: str) -> bool:

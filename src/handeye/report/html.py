@@ -348,10 +348,7 @@ def _result_section(cal: Calibration, data: dict) -> str:
     if cal.cross_validation is not None:
         parts.append(_cross_validation_table(cal))
     if cal.pose_noise is not None:
-        nz = cal.pose_noise
-        parts.append(f"<p>noise estimated from the data (per axis): robot rotation {nz['robot_rotation_deg']:.4f} deg, "
-                     f"camera rotation {nz['camera_rotation_deg']:.4f} deg, translation {nz['translation_mm']:.3f} mm, "
-                     f"camera depth (along its optical axis) {nz.get('camera_depth_mm', 0.0):.3f} mm</p>")
+        parts.append(f"<p>noise estimated from the data (per axis): {_e(cal.pose_noise_text())}</p>")
     if cal.camera_matrix is not None:
         K = cal.camera_matrix
         parts.append(f"<p>intrinsics ({_e(cal.intrinsics_source)}): fx {K[0, 0]:.2f}, fy {K[1, 1]:.2f}, "
