@@ -124,7 +124,7 @@ class Fitted:
     jac: NDArray[np.float64] = field(repr=False)  #: whitened, over ``rows`` then the prior and pin rows (none for a downdate)
     fun: NDArray[np.float64] = field(repr=False)  #: the whitened residuals, likewise
     success: bool = True
-    normal: NDArray[np.float64] | None = field(default=None, repr=False, compare=False)  #: jac^T jac, when computed
+    normal: NDArray[np.float64] | None = field(default=None, repr=False, compare=False)  #: jac^T jac (none for a downdate)
 
 
 def _columns(sensor: SensorModel) -> NDArray[np.intp]:
@@ -243,7 +243,8 @@ def _fitted(problem: Problem, res, sigma, kept, rows) -> Fitted:
     if not np.isfinite(res.x).all():
         raise HandEyeError("the fit failed (no finite solution)")
     X, p, d = problem.unpack(res.x)
-    return Fitted(res.x, X, p, d, _cov(res.jac), sigma, kept, rows, res.jac, res.fun, bool(res.success))
+    return Fitted(res.x, X, p, d, _cov(res.jac), sigma, kept, rows, res.jac, res.fun, bool(res.success),
+                  res.jac.T @ res.jac)
 
 
 def downdated(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> Fitted:
@@ -255,8 +256,6 @@ def downdated(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> Fitted
     held = np.flatnonzero(~np.isin(owner[full.rows], np.asarray(views)))
     drop = (c * held[:, None] + np.arange(c)).ravel()  # the rows of jac and fun left out
     J_h, r_h = full.jac[drop], full.fun[drop]
-    if full.normal is None:  # the whole normal matrix, once
-        object.__setattr__(full, "normal", full.jac.T @ full.jac)
     step = np.linalg.lstsq(full.normal - J_h.T @ J_h, J_h.T @ r_h, rcond=None)[0]
     x = full.x + step
     X, p, d = problem.unpack(x)
@@ -299,8 +298,8 @@ def _undetermined(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
     return V[:, bad].T
 
 
-def _words(direction: NDArray[np.float64], setup: str) -> tuple[str, str]:
-    """A direction of X's increment in words, and the axis it names (in X's parent frame)."""
+def _words(direction: NDArray[np.float64], setup: str) -> str:
+    """A direction of X's increment in words (its axis in X's parent frame)."""
     info = setup_info(setup)
     frame = info.x_parent
     rot, trans = direction[:3], direction[3:]
@@ -312,18 +311,17 @@ def _words(direction: NDArray[np.float64], setup: str) -> tuple[str, str]:
             return f"the {frame} {'xyz'[k]} axis"
         return f"the {frame} direction ({v[0]:+.2f}, {v[1]:+.2f}, {v[2]:+.2f})"
     if np.linalg.norm(trans) >= 0.9:
-        return f"translation of {info.x_name} along {axis(trans)}", axis(trans)
+        return f"translation of {info.x_name} along {axis(trans)}"
     if np.linalg.norm(rot) >= 0.9:
-        return f"rotation of {info.x_name} about {axis(rot)}", axis(rot)
-    return (f"rotation of {info.x_name} about {axis(rot)} together with its translation along {axis(trans)}",
-            axis(rot))
+        return f"rotation of {info.x_name} about {axis(rot)}"
+    return f"rotation of {info.x_name} about {axis(rot)} together with its translation along {axis(trans)}"
 
 
 def _unobservable(pins: NDArray[np.float64], X: NDArray[np.float64], setup: str, fix: str) -> list[Unobservable]:
     info = setup_info(setup)
     out = []
     for u in pins:
-        words, _ = _words(u, setup)
+        words = _words(u, setup)
         trans = np.linalg.norm(u[3:]) >= np.linalg.norm(u[:3])
         direction = u[3:] / np.linalg.norm(u[3:]) if trans else u[:3] / np.linalg.norm(u[:3])
         value = float(X[:3, 3] @ direction) if trans else 0.0
@@ -333,15 +331,25 @@ def _unobservable(pins: NDArray[np.float64], X: NDArray[np.float64], setup: str,
     return out
 
 
+def _view_noise_mm(sensor: SensorModel, views: NDArray[np.intp]) -> NDArray[np.float64]:
+    """Per view the noise the sensor states for its measurements (mm, the median over its rows; 0
+    for a view without any)."""
+    owner = np.asarray(sensor.owner)
+    out = np.zeros(len(views))
+    for k, v in enumerate(views):
+        rows = np.flatnonzero(owner == v)
+        if len(rows):
+            out[k] = float(np.median(sensor.noise_mm(rows)))
+    return out
+
+
 def _robot_error_seen(problem: Problem, full: Fitted, views: NDArray[np.intp], per_view: NDArray[np.float64]) -> float:
     """The robot's error the views show (mm per axis): each view's RMS residual beyond the noise the
     sensor states, the median over the views (a bad view does not set it), per axis of three. With
     the robot's poses exact it is ~0; an arm's pose error that differs from view to view shows here,
     and the part of it constant over the capture, which X takes whole, is taken as a multiple of it
     (:func:`~handeye.estimation.uncertainty.robot_accuracy_from_data`)."""
-    owner = np.asarray(problem.sensor.owner)
-    noise = np.array([float(np.median(problem.sensor.noise_mm(np.flatnonzero(owner == v)))) for v in views])
-    excess = np.sqrt(np.maximum(np.nan_to_num(per_view) ** 2 - noise**2, 0.0))
+    excess = np.sqrt(np.maximum(np.nan_to_num(per_view) ** 2 - _view_noise_mm(problem.sensor, views) ** 2, 0.0))
     return float(np.median(excess) / np.sqrt(3.0))
 
 
@@ -353,7 +361,7 @@ def _weakest(cov_X: NDArray[np.float64], pins: NDArray[np.float64], setup: str) 
     u = V[:, k]
     if len(pins) and np.max(np.abs(pins @ u)) > 0.5:
         return []
-    words, _ = _words(u, setup)
+    words = _words(u, setup)
     std = float(np.sqrt(max(lam[k], 0.0)))
     size = f"{np.degrees(std):.3f} deg" if np.linalg.norm(u[:3]) >= np.linalg.norm(u[3:]) else f"{1e3 * std:.3f} mm"
     return [f"the capture determines X least well in {words} (std {size} that way, before the robot's accuracy)"]
@@ -388,14 +396,12 @@ def _start(sensor: SensorModel, robot: RobotModel, views: NDArray[np.intp] | Non
     rows = np.flatnonzero(np.isin(np.asarray(sensor.owner), views))
     X = Z = None
     if poses is not None:
-        F, poses = F[views], poses[views]
-        if len(poses) < 3:
-            raise DegenerateMotionError(f"{len(poses)} views: at least 3 are needed, 10-20 with the flange turned "
+        if len(views) < 3:
+            raise DegenerateMotionError(f"{len(views)} views: at least 3 are needed, 10-20 with the flange turned "
                                         "30 deg or more about varied axes to trust X")
-        X, Z, _ = closed_form(F, poses, sensor.setup, "daniilidis")
-        ref = refine_pose(X, Z, F, poses, sensor.setup)
+        X, Z, _ = closed_form(F[views], poses[views], sensor.setup, "daniilidis")
+        ref = refine_pose(X, Z, F[views], poses[views], sensor.setup)
         X, Z = ref.X, ref.Z
-        F = robot.flange2base(np.zeros(robot.n_params))
     return sensor.start(F, X, Z, rows)
 
 
@@ -404,14 +410,12 @@ def _outlier_views(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> l
     times the median view's and 3 times the noise the sensor states, or most of their points set aside."""
     if len(views) < 6:
         return []
-    sensor = problem.sensor
     rms = view_rms_mm(problem, full, views)
-    owner = np.asarray(sensor.owner)
+    owner = np.asarray(problem.sensor.owner)
     out = []
     med = float(np.nanmedian(rms))
-    for v, r in zip(views, rms):
+    for v, r, noise in zip(views, rms, _view_noise_mm(problem.sensor, views)):
         rows = np.flatnonzero(owner == v)
-        noise = float(np.median(sensor.noise_mm(rows))) if len(rows) else 0.0
         rejected = 1.0 - float(full.kept[rows].mean()) if len(rows) else 1.0
         if rejected > 0.5:
             out.append((int(v), f"the fit does not explain this view: {100 * rejected:.0f}% of its points are beyond "

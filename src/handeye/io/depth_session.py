@@ -13,9 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import SessionError
-from ..frames.poses import parse_poses
 from ..frames.setups import check_setup
-from ..geometry.se3 import invert
 from ..robot.kinematics import Chain
 from ..sensors.camera import target_from_spec
 from ..sensors.depth.clouds import CLOUD_SUFFIXES
@@ -23,16 +21,20 @@ from .session import (
     CAMERA_KEYS,
     JOINTS_KEYS,
     POSES_KEYS,
-    SESSION_FILE,
-    check_keys,
+    check_session_keys,
     has_section,
-    load_yaml,
+    joints_of_views,
     read_camera,
     read_joints,
-    read_pose_table,
+    read_robot_poses,
+    read_session_yaml,
 )
 
 __all__ = ["DepthSession", "is_depth_session", "load_depth_session"]
+
+#: What the pose table's first column must be, for the error that finds it is not.
+FIRST_COLUMN = ("'image' (a board: its intensity image in images/, the cloud of the same name in clouds/) or 'cloud' "
+                "(spheres: the cloud in clouds/)")
 
 
 @dataclass(frozen=True)
@@ -124,18 +126,11 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     Raises :class:`SessionError` naming the file: no ``depth:`` mapping, a bad target, a missing
     pose table, image or cloud, a pose table whose first column is neither ``image`` nor ``cloud``.
     """
-    folder = Path(folder)
-    yml = folder / SESSION_FILE
-    if not yml.is_file():
-        raise SessionError(f"{folder}: no {SESSION_FILE}")
-    notes: list[str] = []
-    spec = load_yaml(yml, notes)
-    where = str(yml)
+    folder, spec, where, notes = read_session_yaml(folder)
     if spec.get("depth") is None:
         raise SessionError(f"{where}: no depth: mapping; a depth session says its clouds' unit there")
-    check_keys(spec, ("setup", "target", "camera", "depth", "poses", "joints"), where)
-    for key, known in (("depth", ("unit", "range")), ("poses", POSES_KEYS), ("camera", CAMERA_KEYS), ("joints", JOINTS_KEYS)):
-        check_keys(spec.get(key), known, f"{where}: {key}")
+    check_session_keys(spec, ("setup", "target", "camera", "depth", "poses", "joints"),
+                       {"depth": ("unit", "range"), "poses": POSES_KEYS, "camera": CAMERA_KEYS, "joints": JOINTS_KEYS}, where)
     setup = check_setup(str(spec.get("setup", "")))
     target = spec.get("target")
     radii = _radii(target, where)
@@ -147,9 +142,8 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
         names, table, f2b = joints[0], joints[3], joints[2].forward(joints[1])
     else:
-        f2b, names, table = _robot_poses(folder, spec.get("poses"), where, notes)
-    if joints is not None:
-        f2b, q = _with_joints(folder, names, f2b, joints, spec.get("poses") is not None)
+        f2b, names, table = read_robot_poses(folder, spec.get("poses"), where, notes, ("image", "cloud"), FIRST_COLUMN)
+    q = None if joints is None else joints_of_views(joints, names)
     clouds = [_cloud_of(folder, n, table) for n in names]
     images = None
     if radii is None:
@@ -160,40 +154,3 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     return DepthSession(folder, setup, dict(target), list(names), clouds, images, f2b, K, dist, unit, working, radii, notes,
                         None if joints is None else q, None if joints is None else joints[2],
                         None if joints is None else joints[3])
-
-
-def _robot_poses(folder: Path, poses: Any, where: str, notes: list[str]) -> tuple[NDArray[np.float64], list[str], Path]:
-    """The ``poses:`` block: the flange poses, each view's name and the table's path."""
-    if not isinstance(poses, dict) or not {"file", "format", "length_unit"} <= set(poses):
-        raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit (m | mm) and angle_unit "
-                           "(deg | rad)")
-    table = folder / str(poses["file"])
-    if not table.is_file():
-        raise SessionError(f"{table}: no such pose table")
-    fmt = str(poses["format"])
-    values, names = read_pose_table(table, fmt, id_columns=("image", "cloud"), notes=notes)
-    if names is None:
-        raise SessionError(f"{table}: the first column must be 'image' (a board: its intensity image in images/, the "
-                           "cloud of the same name in clouds/) or 'cloud' (spheres: the cloud in clouds/)")
-    f2b = parse_poses(values, fmt, length_unit=str(poses["length_unit"]), angle_unit=str(poses.get("angle_unit", "rad")),
-                      what=str(table))
-    kind = str(poses.get("pose", "flange2base"))
-    if kind not in ("flange2base", "base2flange"):
-        raise SessionError(f"{where}: poses: pose {kind!r}; use flange2base (the default: the controller's poses) or "
-                           "base2flange (the table's rows are their inverses)")
-    return (invert(f2b) if kind == "base2flange" else f2b), list(names), table
-
-
-def _with_joints(folder: Path, names: list[str], f2b: NDArray[np.float64], joints, posed: bool
-                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The flange poses and the joint angles in the views' order (the joints table names the same views)."""
-    j_names, q, arm, path = joints
-    index = {n: k for k, n in enumerate(j_names)}
-    absent = [n for n in names if n not in index]
-    if absent or len(j_names) != len(names):
-        raise SessionError(f"{path}: the joint angles and the poses must name the same views: {len(j_names)} and "
-                           f"{len(names)} rows" + (f"; no joint angles for {', '.join(absent[:5])}" if absent else ""))
-    q = q[[index[n] for n in names]]
-    return (f2b if posed else arm.forward(q)), q
-
-

@@ -32,13 +32,22 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import SessionError
-from ..frames.poses import parse_poses
 from ..frames.setups import check_setup
-from ..geometry.se3 import invert
 from ..robot.kinematics import Chain
 from ..sensors.laser.model import LASER_NOISE_M
 from ..sensors.laser.profiles import PROFILE_SUFFIXES
-from .session import JOINTS_KEYS, POSES_KEYS, SESSION_FILE, check_keys, has_section, load_yaml, read_joints, read_pose_table
+from .session import (
+    JOINTS_KEYS,
+    POSES_KEYS,
+    SESSION_FILE,
+    check_keys,
+    check_session_keys,
+    has_section,
+    joints_of_views,
+    read_joints,
+    read_robot_poses,
+    read_session_yaml,
+)
 
 __all__ = ["LaserSession", "is_laser_session", "load_laser_session", "LASER_KEYS", "TARGET_TYPES"]
 
@@ -79,14 +88,10 @@ def is_laser_session(folder: str | Path) -> bool:
     return has_section(folder, "laser")
 
 
-def _unknown_keys(mapping: dict, known: tuple[str, ...], where: str) -> None:
-    check_keys(mapping, known, where)
-
-
 def _laser_spec(spec: Any, where: str) -> tuple[str, tuple[float, float] | None, float]:
     if not isinstance(spec, dict):
         raise SessionError(f"{where}: laser must be a mapping (unit: m | mm, optional range and noise)")
-    _unknown_keys(spec, LASER_KEYS, f"{where}: laser")
+    check_keys(spec, LASER_KEYS, f"{where}: laser")
     unit = str(spec.get("unit", ""))
     if unit not in ("m", "mm"):
         raise SessionError(f"{where}: laser: unit is m or mm (the profiles' unit), not {unit!r}")
@@ -114,7 +119,7 @@ def _radius(target: Any, where: str) -> float | None:
     kind = str(target.get("type", ""))
     if kind not in TARGET_TYPES:
         raise SessionError(f"{where}: target: a laser session scans a {' or '.join(TARGET_TYPES)}, not {kind!r}")
-    _unknown_keys(target, ("type", "diameter"), f"{where}: target")
+    check_keys(target, ("type", "diameter"), f"{where}: target")
     if target.get("diameter") is None:
         return None
     try:
@@ -133,58 +138,23 @@ def load_laser_session(folder: str | Path, arm: str | None = None) -> LaserSessi
     a bad unit, range, noise or target, a diameter in millimetres given as metres, a missing pose
     table or profile file, a pose table whose first column is not ``profile``.
     """
-    folder = Path(folder)
-    yml = folder / SESSION_FILE
-    if not yml.is_file():
-        raise SessionError(f"{folder}: no {SESSION_FILE}")
-    notes: list[str] = []
-    spec = load_yaml(yml, notes)
-    where = str(yml)
-    _unknown_keys(spec, SESSION_KEYS, where)
-    _unknown_keys(spec.get("joints") or {}, JOINTS_KEYS, f"{where}: joints")
+    folder, spec, where, notes = read_session_yaml(folder)
+    check_session_keys(spec, SESSION_KEYS, {"poses": POSES_KEYS, "joints": JOINTS_KEYS}, where)
     if spec.get("laser") is None:
         raise SessionError(f"{where}: no laser: mapping; a laser session says its profiles' unit there")
     setup = check_setup(str(spec.get("setup", "")))
     unit, working, noise = _laser_spec(spec["laser"], where)
     radius = _radius(spec.get("target"), where)
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("profile",)) if spec.get("joints") else None
-    if spec.get("poses") is None and joints is not None:
+    if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
         names, f2b = list(joints[0]), joints[2].forward(joints[1])
-        q = joints[1]
     else:
-        f2b, names = _poses(folder, spec.get("poses"), where, notes)
-        q = None
-        if joints is not None:
-            index = {n: k for k, n in enumerate(joints[0])}
-            absent = [n for n in names if n not in index]
-            if absent or len(index) != len(names):
-                raise SessionError(f"{joints[3]}: the joint angles and the poses must name the same profiles"
-                                   + (f"; none for {', '.join(absent[:5])}" if absent else ""))
-            q = joints[1][[index[n] for n in names]]
+        f2b, names, _ = read_robot_poses(folder, spec.get("poses"), where, notes, ("profile",),
+                                         "'profile', naming each pose's profile file in profiles/")
+    q = None if joints is None else joints_of_views(joints, names)
     paths = [_profile_of(folder, n) for n in names]
     return LaserSession(folder, setup, dict(spec["target"]), list(names), paths, f2b, unit, working, noise, radius, notes,
                         q, None if joints is None else joints[2], None if joints is None else joints[3])
-
-
-def _poses(folder: Path, poses: Any, where: str, notes: list[str]) -> tuple[NDArray[np.float64], list[str]]:
-    if not isinstance(poses, dict) or not {"file", "format", "length_unit"} <= set(poses):
-        raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit (m | mm) and angle_unit "
-                           "(deg | rad)")
-    _unknown_keys(poses, POSES_KEYS, f"{where}: poses")
-    table = folder / str(poses["file"])
-    if not table.is_file():
-        raise SessionError(f"{table}: no such pose table")
-    fmt = str(poses["format"])
-    values, names = read_pose_table(table, fmt, id_columns=("profile",), notes=notes)
-    if names is None:
-        raise SessionError(f"{table}: the first column must be 'profile', naming each pose's profile file in profiles/")
-    f2b = parse_poses(values, fmt, length_unit=str(poses["length_unit"]), angle_unit=str(poses.get("angle_unit", "rad")),
-                      what=str(table))
-    if str(poses.get("pose", "flange2base")) == "base2flange":
-        f2b = invert(f2b)
-    elif str(poses.get("pose", "flange2base")) != "flange2base":
-        raise SessionError(f"{where}: poses: pose is flange2base (the controller's) or base2flange (their inverses)")
-    return f2b, list(names)
 
 
 def _profile_of(folder: Path, name: str) -> Path:

@@ -59,6 +59,7 @@ cv2 = lazy_module("cv2")  # only to read an image's size
 
 __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session",
            "read_pose_table", "read_joints", "SessionError", "load_yaml", "has_section", "check_keys",
+           "check_session_keys", "read_session_yaml", "pose_rows_inverted", "read_robot_poses", "joints_of_views",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
            "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session",
            "load_joint_stream", "load_camera_stream", "write_joint_stream"]
@@ -168,18 +169,9 @@ def load_session(folder: str | Path, strict_images: bool = True, arm: str | None
     PoseFormatError, InputMismatchError, TargetError
         Bad pose values, unknown setup, unusable target description.
     """
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise SessionError(f"{folder}: no such session folder")
-    yml = folder / SESSION_FILE
-    if not yml.is_file():
-        _missing_folder_file(folder, SESSION_FILE)
-    notes: list[str] = []
-    spec = load_yaml(yml, notes)
-    where = str(yml)
-    check_keys(spec, SESSION_KEYS, where)
-    for key, known in (("poses", POSES_KEYS), ("camera", CAMERA_KEYS), ("joints", JOINTS_KEYS), ("images", IMAGES_KEYS)):
-        check_keys(spec.get(key), known, f"{where}: {key}")
+    folder, spec, where, notes = read_session_yaml(folder)
+    check_session_keys(spec, SESSION_KEYS, {"poses": POSES_KEYS, "camera": CAMERA_KEYS, "joints": JOINTS_KEYS,
+                                            "images": IMAGES_KEYS}, where)
     setup = check_setup(str(_require(spec, "setup", where)))
     target_spec = _require(spec, "target", where)
     target_from_spec(target_spec, where=f"{where}: target")  # a bad target fails now, before any image work
@@ -199,11 +191,7 @@ def load_session(folder: str | Path, strict_images: bool = True, arm: str | None
     angle_unit = str(poses.get("angle_unit", "rad"))
     values, names, robot_times = read_pose_table(csv_path, fmt, id_columns=("image",), notes=notes, times=True)
     f2b = _parsed(values, fmt, length_unit, angle_unit, csv_path)
-    kind = str(poses.get("pose", "flange2base"))
-    if kind not in POSE_KINDS["robot_poses"]:
-        raise SessionError(f"{where}: poses: pose {kind!r}; use flange2base (the default: the controller's poses) or "
-                           "base2flange (the table's rows are their inverses)")
-    inverted = kind == "base2flange"
+    inverted = pose_rows_inverted(poses, where)
     if inverted:  # the rows are base2flange: handeye uses their inverses
         f2b = invert(f2b)
     stream = None
@@ -528,6 +516,69 @@ def check_keys(mapping: Any, known: tuple[str, ...], where: str) -> None:
             near = difflib.get_close_matches(str(key), known, n=1, cutoff=0.5)
             raise SessionError(f"{where}: unknown key {key!r}" + (f" (did you mean {near[0]!r}?)" if near else "")
                                + f"; the keys there are {', '.join(known)}")
+
+
+def read_session_yaml(folder: str | Path) -> tuple[Path, dict[str, Any], str, list[str]]:
+    """A session folder's session.yaml read: the folder, the mapping, where it came from (for the
+    errors) and how it was read (notes); a missing folder or file is a :class:`SessionError` that
+    says what the folder must hold."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise SessionError(f"{folder}: no such session folder")
+    yml = folder / SESSION_FILE
+    if not yml.is_file():
+        _missing_folder_file(folder, SESSION_FILE)
+    notes: list[str] = []
+    return folder, load_yaml(yml, notes), str(yml), notes
+
+
+def check_session_keys(spec: dict, top: tuple[str, ...], blocks: dict[str, tuple[str, ...]], where: str) -> None:
+    """:func:`check_keys` on a session.yaml's top level (``top``) and on each of its ``blocks``."""
+    check_keys(spec, top, where)
+    for key, known in blocks.items():
+        check_keys(spec.get(key), known, f"{where}: {key}")
+
+
+def pose_rows_inverted(poses: dict, where: str) -> bool:
+    """Whether a ``poses:`` block says its rows are the inverses of the flange poses
+    (``pose: base2flange``; the default ``flange2base``: the controller's poses as it reports them)."""
+    kind = str(poses.get("pose", "flange2base"))
+    if kind not in POSE_KINDS["robot_poses"]:
+        raise SessionError(f"{where}: poses: pose {kind!r}; use flange2base (the default: the controller's poses) or "
+                           "base2flange (the table's rows are their inverses)")
+    return kind == "base2flange"
+
+
+def read_robot_poses(folder: Path, poses: Any, where: str, notes: list[str], id_columns: tuple[str, ...],
+                     first_column: str) -> tuple[NDArray[np.float64], list[str], Path]:
+    """A sensor session's ``poses:`` block (``file``, ``format``, ``length_unit``, ``angle_unit``,
+    ``pose``): the flange poses (inverted when the rows are base2flange), each view's name (the
+    table's first column, one of ``id_columns``; ``first_column`` says what it must be when it is
+    missing) and the table's path."""
+    if not isinstance(poses, dict) or not {"file", "format", "length_unit"} <= set(poses):
+        raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit (m | mm) and angle_unit "
+                           "(deg | rad)")
+    table = folder / str(poses["file"])
+    if not table.is_file():
+        raise SessionError(f"{table}: no such pose table")
+    fmt = str(poses["format"])
+    values, names = read_pose_table(table, fmt, id_columns=id_columns, notes=notes)
+    if names is None:
+        raise SessionError(f"{table}: the first column must be {first_column}")
+    f2b = _parsed(values, fmt, str(poses["length_unit"]), str(poses.get("angle_unit", "rad")), table)
+    return (invert(f2b) if pose_rows_inverted(poses, where) else f2b), list(names), table
+
+
+def joints_of_views(joints: tuple[list[str], NDArray[np.float64], Chain, Path], names: list[str]) -> NDArray[np.float64]:
+    """The joint angles of :func:`read_joints` in the order of the views ``names`` (the poses'
+    table's), which both tables must name alike."""
+    j_names, q, _, path = joints
+    index = {n: k for k, n in enumerate(j_names)}
+    absent = [n for n in names if n not in index]
+    if absent or len(j_names) != len(names):
+        raise SessionError(f"{path}: the joint angles and the poses must name the same views: {len(j_names)} and "
+                           f"{len(names)} rows" + (f"; no joint angles for {', '.join(absent[:5])}" if absent else ""))
+    return q[[index[n] for n in names]]
 
 
 def has_section(folder: str | Path, key: str) -> bool:

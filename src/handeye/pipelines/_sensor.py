@@ -1,4 +1,4 @@
-"""What the pipelines of sensor models share: the options they use, and those they refuse."""
+"""What the pipelines of sensor models share: the options they use and those they refuse, the robot model."""
 
 from __future__ import annotations
 
@@ -6,8 +6,9 @@ from typing import Any
 
 from ..errors import InputMismatchError
 from ..options import CalibrationOptions, options_from
+from ..robot.models import ControllerPoses, JointAngles, RobotModel
 
-__all__ = ["sensor_options"]
+__all__ = ["sensor_options", "robot_model"]
 
 #: The options of image and pose sessions that a sensor model's fit has no use for.
 IMAGE_ONLY = ("method", "refine", "pairs", "known", "robot_noise", "compliance", "strict_images", "keyframes",
@@ -36,3 +37,12 @@ def sensor_options(options: CalibrationOptions | None, changes: dict, what: str)
         raise InputMismatchError(f"{flags}: options of image and pose sessions; {what}'s fit has no use for them (leave "
                                  "them out)")
     return opts
+
+
+def robot_model(session: Any, index: list[int], accuracy: tuple[float, float] | None) -> RobotModel:
+    """The robot side of a sensor session's (depth, laser: its ``flange2base``, ``joints``, ``arm``)
+    views ``index``: joint angles through the arm's table when the session has them, else the
+    controller's poses with the robot's stated ``accuracy``."""
+    if session.joints is not None:
+        return JointAngles(session.arm, session.joints[index])
+    return ControllerPoses(session.flange2base[index], accuracy)

@@ -38,12 +38,12 @@ from ..estimation.core import estimate
 from ..io.depth_session import DepthSession, load_depth_session
 from ..options import ROBOT_ACCURACY, CalibrationOptions
 from ..result import Calibration
-from ..robot.models import ControllerPoses, JointAngles, RobotModel
+from ..robot.models import ControllerPoses
 from ..sensors.camera import detect_images, target_from_spec
 from ..sensors.depth.clouds import check_frame, plane_points, read_cloud
 from ..sensors.depth.model import BoardPoints, SphereCentres
 from ..sensors.depth.spheres import find_spheres
-from ._sensor import sensor_options
+from ._sensor import robot_model, sensor_options
 
 __all__ = ["calibrate_depth_session", "calibrate_depth", "calibrate_spheres", "measure_depth_session", "DepthViews"]
 
@@ -124,14 +124,6 @@ def sensor_model(s: DepthSession, v: DepthViews, fit_depth: bool = True) -> Boar
     if s.kind == "spheres":
         return SphereCentres(s.setup, names, np.array(v.points), np.array(v.covs), np.array(s.radii), fit_depth)
     return BoardPoints(s.setup, names, v.object_points, v.points, fit_depth)
-
-
-def robot_model(s: DepthSession, index: list[int], accuracy: tuple[float, float] | None) -> RobotModel:
-    """The robot side of the measured views ``index``: joint angles through the arm's table when the
-    session has them, else the controller's poses with the robot's stated accuracy."""
-    if s.joints is not None:
-        return JointAngles(s.arm, s.joints[index])
-    return ControllerPoses(s.flange2base[index], accuracy)
 
 
 def calibrate_depth_session(folder: str | Path | DepthSession, options: CalibrationOptions | None = None, *,

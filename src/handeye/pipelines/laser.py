@@ -24,10 +24,9 @@ from ..estimation.core import estimate
 from ..io.laser_session import LaserSession, load_laser_session
 from ..options import CalibrationOptions
 from ..result import Calibration
-from ..robot.models import ControllerPoses, JointAngles, RobotModel
 from ..sensors.laser.model import SphereProfiles
 from ..sensors.laser.profiles import read_profile
-from ._sensor import sensor_options
+from ._sensor import robot_model, sensor_options
 
 __all__ = ["calibrate_laser_session", "read_profiles", "MIN_POINTS"]
 
@@ -59,13 +58,6 @@ def read_profiles(s: LaserSession) -> tuple[list[int], list, list[tuple[str, str
     if outside:
         notes.append(f"{outside} points outside the stated measuring range left out")
     return kept, profiles, skipped, notes
-
-
-def robot_model(s: LaserSession, index: list[int], accuracy: tuple[float, float] | None) -> RobotModel:
-    """Joint angles through the arm's table when the session has them, else the controller's poses."""
-    if s.joints is not None:
-        return JointAngles(s.arm, s.joints[index])
-    return ControllerPoses(s.flange2base[index], accuracy)
 
 
 def calibrate_laser_session(folder: str | Path | LaserSession, options: CalibrationOptions | None = None, *,

@@ -296,11 +296,10 @@ def _figure_text(value) -> str:
     """A sensor figure as text: a value with its std, or numbers rounded."""
     if isinstance(value, dict) and "value" in value:
         return f"{value['value']:.6g} ± {value.get('std', 0.0):.3g}" + ("" if value.get("fitted", True) else " (not fitted)")
-    arr = np.asarray(value, dtype=object)
     try:
         return np.array2string(np.asarray(value, dtype=float), precision=4, separator=", ")
-    except (TypeError, ValueError):
-        return str(arr)
+    except (TypeError, ValueError):  # not numbers (None, text): as written
+        return str(value)
 
 
 def _verdict_section(cal: Calibration, verdict: str, pres: NDArray[np.float64]) -> str:

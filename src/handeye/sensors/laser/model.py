@@ -268,15 +268,16 @@ def _best_start(A, points, candidates, radius, best=None):
     as the closed form gave them (the fit's own rms decides), or ``best`` when none beats it."""
     few = np.linspace(0, len(points) - 1, min(len(points), 3000)).astype(np.intp)
     for R_X, t0 in candidates:
-        t_X, C, _ = _translation_start(A, points, R_X, t0, radius)
-        rms = _whole_start(A[few], points[few], R_X, t_X, C, radius)[3]
+        t_X, C = _translation_start(A, points, R_X, t0, radius)
+        rms = _fitted_rms(A[few], points[few], R_X, t_X, C, radius)
         if best is None or rms < best[3]:
             best = (R_X, t_X, C, rms)
     return best
 
 
-def _whole_start(A, points, R_X, t_X, C, radius):
-    """X and the centre (and the radius) fitted together to ``points`` from a start: (R_X, t_X, C, rms)."""
+def _fitted_rms(A, points, R_X, t_X, C, radius) -> float:
+    """How well ``points`` fit the sphere once X and the centre (and the radius) are fitted together
+    from a start: the robust RMS distance (m) the fit leaves, what tells a good start from a bad one."""
     R, tA = A[:, :3, :3], A[:, :3, 3]
 
     def fun(u):
@@ -288,8 +289,7 @@ def _whole_start(A, points, R_X, t_X, C, radius):
     u0 = np.r_[np.zeros(3), t_X, C] if radius is not None else np.r_[np.zeros(3), t_X, C, np.median(np.abs(fun(
         np.r_[np.zeros(3), t_X, C, 0.0])))]
     res = least_squares(fun, u0, method="trf", loss="soft_l1", f_scale=1e-3, x_scale=1e-3)
-    return (Rotation.from_rotvec(res.x[:3]).as_matrix() @ R_X, res.x[3:6], res.x[6:9],
-            float(np.sqrt(np.median(res.fun**2))))
+    return float(np.sqrt(np.median(res.fun**2)))
 
 
 #: Up to this many profiles every pattern of sides is tried (2^n); beyond, the sides are chosen one
@@ -395,14 +395,13 @@ MOUNT_PRIOR_M = 1.0
 
 def _translation_start(A: NDArray[np.float64], points: NDArray[np.float64], R_X: NDArray[np.float64],
                        t_lifted: NDArray[np.float64], radius: float | None = None
-                       ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+                       ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """X's translation and the centre with X's rotation ``R_X`` given: the products of the lifted
     solution leave them poorly determined when the flange turns little (what is determined then is
     the centre less the flange's turn of X's translation), so they are fitted again, each point's
     distance from a sphere whose radius is fitted too, X's translation held near the flange
     (:data:`MOUNT_PRIOR_M`) along what the points do not determine, started from the lifted one when
-    that is within reach of a mount, else from the flange's origin. Returns them and the points' RMS
-    distance from the sphere (m)."""
+    that is within reach of a mount, else from the flange's origin."""
     R, tA = A[:, :3, :3], A[:, :3, 3]
     base = np.einsum("mij,mj->mi", R, points @ R_X.T) + tA  # R_A R_X p + t_A
 
@@ -422,4 +421,4 @@ def _translation_start(A: NDArray[np.float64], points: NDArray[np.float64], R_X:
     for _ in range(2):  # the noise from the fit, then the fit again with it
         x = least_squares(fun, x, method="lm").x
         sigma[0] = max(float(np.sqrt(np.mean((fun(x)[:-3] * sigma[0]) ** 2))), 1e-7)
-    return x[:3], x[3:6], sigma[0]
+    return x[:3], x[3:6]
