@@ -313,3 +313,38 @@ def test_moved_modules_import_from_their_old_path_with_a_deprecation_warning(old
             assert getattr(module, name) is getattr(new, name), (old, name)
     with pytest.raises(AttributeError, match="moved to"):
         module.no_such_name  # noqa: B018
+
+
+def test_the_setup_is_checked_once_per_call_and_travels_inward(monkeypatch):
+    """Issue 59: a setup name is checked where it enters (``check_setup`` makes a :class:`Setup`),
+    and the functions it travels into do not check it again: one calibration of pose pairs, with
+    its check, its estimators and its uncertainty, validates the string once. A Setup is a str
+    everywhere (JSON, YAML, pickling) and its names come with it."""
+    import json
+    import pickle
+
+    import numpy as np
+    import yaml
+
+    import handeye
+    from handeye.frames import setups
+    from handeye.simulate import Noise, add_noise, random_scene
+
+    class Counting(dict):
+        checks = 0
+
+        def __contains__(self, key):
+            Counting.checks += 1
+            return super().__contains__(key)
+
+    monkeypatch.setattr(setups, "_INFO", Counting(setups._INFO))
+    scene = random_scene(12, "eye_to_hand", rng=0)
+    target2cam = add_noise(scene.target2cam, Noise(rot_deg=0.02, trans_mm=0.2), np.random.default_rng(0))
+    Counting.checks = 0  # the simulator checked its own
+    cal = handeye.calibrate_poses(scene.flange2base, target2cam, "eye_to_hand", progress=False)
+    assert Counting.checks == 1 and type(cal.setup) is setups.Setup and cal.setup.info.x_name == "cam2base"
+    assert json.loads(json.dumps({"setup": cal.setup})) == {"setup": "eye_to_hand"}
+    assert yaml.safe_load(yaml.safe_dump({"setup": cal.setup})) == {"setup": "eye_to_hand"}
+    assert pickle.loads(pickle.dumps(cal.setup)) is not None and pickle.loads(pickle.dumps(cal.setup)) == "eye_to_hand"
+    with pytest.raises(handeye.InputMismatchError, match="unknown setup 'eye_on_hand'"):
+        setups.check_setup("eye_on_hand")

@@ -341,3 +341,22 @@ def test_only_handeyes_words_reach_the_terminal(tmp_path, capfd):
     out, err = capfd.readouterr()
     assert "skipped 003.jpg: missing from images/" in out
     assert "[ WARN" not in err and "Glyph" not in err, err[-2000:]
+
+
+def test_notes_fold_to_the_terminal_width_and_stay_one_line_in_a_pipe(monkeypatch):
+    """Issue 60, item 9: a ~500-character note is folded to the terminal's width when printed to a
+    terminal (every line within it, the words intact), and stays one line in a pipe or a log."""
+    import io
+
+    from handeye.cli._printing import wrapped
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    monkeypatch.setenv("COLUMNS", "80")
+    note = " ".join(["the std of X includes the robot's absolute accuracy"] * 10)
+    folded = wrapped(note, "note: ", Terminal()).splitlines()
+    assert len(folded) > 3 and all(len(line) <= 79 for line in folded)
+    assert " ".join(line.strip() for line in folded) == "note: " + note
+    assert wrapped(note, "note: ", io.StringIO()) == "note: " + note

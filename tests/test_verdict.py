@@ -131,6 +131,10 @@ def test_readings_that_fit_as_well_are_all_named_ranked():
     advice = diag.advice[0]
     assert diag.convention_hint == "invert_robot_poses"
     assert advice.index("the robot poses are inverted") < advice.index("fitting as well: the camera poses are inverted")
+    # camera poses handeye computed from images (PnP): inverting them is no advice a user can follow (issue 60, item 6)
+    from_images = handeye.diagnose(invert(sc.flange2base), sc.target2cam, camera_from_images=True)
+    assert from_images.convention_hint == "invert_robot_poses"
+    assert "camera poses are inverted" not in " ".join(from_images.advice)
 
 
 def test_z_has_a_std_that_covers_its_error():
@@ -213,3 +217,19 @@ def test_closed_forms_that_predict_far_worse_do_not_make_the_verdict_weak(tmp_pa
     truth = np.array(yaml.safe_load((tmp_path / "s" / "ground_truth.yaml").read_text())["cam2flange"])
     assert cal.verdict == "good", cal.diagnostics.advice
     assert 1e3 * translation_error(cal.X, truth) <= 3 * np.linalg.norm(cal.std[3:])
+
+
+def test_the_weak_headline_says_how_weak():
+    """Issue 60, item 5: 'weak' is worded by how far 3 std of X are beyond the acceptance (5 mm /
+    1 deg): a little beyond, usable with care; 27 mm per axis, not usable as it is."""
+    from dataclasses import replace
+
+    from handeye.estimation.verdict import headline
+
+    sc = random_scene(12, rng=5)
+    cal = handeye.calibrate_poses(sc.flange2base, sc.target2cam, progress=False)
+    weak = replace(cal, diagnostics=replace(cal.diagnostics, verdict="weak"))
+    assert headline(cal) == "the data determine X well"
+    assert headline(replace(weak, std=np.r_[0.01, 0.01, 0.01, 1.0, 1.0, 1.0])).startswith("usable with care: X known to 5.2 mm")
+    assert headline(replace(weak, std=np.r_[0.05, 0.05, 0.05, 3.0, 3.0, 3.0])).startswith("poorly determined: X known to 15.6 mm")
+    assert headline(replace(weak, std=np.r_[0.1, 0.1, 0.1, 27.0, 27.0, 27.0])).startswith("not usable as it is: X known to 140.3")

@@ -2,14 +2,29 @@
 
 from __future__ import annotations
 
+import shutil
 import sys
+import textwrap
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..estimation.verdict import headline
 from ..frames.setups import setup_info
 from ..result import Calibration
 from ..robot.kinematics import display_unit
+
+
+def wrapped(text: str, prefix: str, stream=None) -> str:
+    """``prefix + text`` folded to the terminal's width, the lines after the first indented, when
+    ``stream`` (default stdout) is a terminal; one line otherwise (logs and pipes keep a note per
+    line, for grep)."""
+    stream = stream or sys.stdout
+    if not getattr(stream, "isatty", lambda: False)():
+        return prefix + text
+    width = max(shutil.get_terminal_size((100, 24)).columns - 1, 40)
+    return textwrap.fill(text, width, initial_indent=prefix, subsequent_indent="  ", break_on_hyphens=False,
+                         break_long_words=False)
 
 
 def fmt_vec(v: np.ndarray, digits: int = 6) -> str:
@@ -101,10 +116,11 @@ def print_calibration(cal: Calibration, out=None) -> None:
     if cal.diagnostics is not None:
         left, _ = cal.outliers_split()  # images: listed as skipped, and those put back in a note
         d = cal.diagnostics
-        w(f"check: {d.verdict}" + (f"; left out as outliers: {d.pose_names(left)}" if left and not cal.image_names
-                                   and cal.sensor is None else "") + "\n")
+        w(f"check: {d.verdict}" + (f" ({headline(cal)})" if cal.verdict == "weak" else "")
+          + (f"; left out as outliers: {d.pose_names(left)}" if left and not cal.image_names and cal.sensor is None else "")
+          + "\n")
     for note in cal.notes:
-        w(f"note: {note}\n")
+        w(wrapped(note, "note: ", out) + "\n")
 
 
 def _entry(name: str, value: float) -> str:

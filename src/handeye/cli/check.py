@@ -12,7 +12,7 @@ from ._common import (
     calibrate_options,
     input_folder,
 )
-from ._printing import fmt_vec, print_sensor_views, std_label
+from ._printing import fmt_vec, print_sensor_views, std_label, wrapped
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -35,7 +35,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
         d = found.diagnostics
         print(f"verdict: {found.verdict} ({len(cal.sensor.views)} views; the fit's residual is {d.consistency:.2f}x what the "
               f"sensor's stated noise and the robot's accuracy allow, up to {d.consistency_limit:g} is consistent)")
-        print("\n".join(f"advice: {a}" for a in d.advice))
+        print("\n".join(wrapped(a, "advice: ") for a in d.advice))
     else:
         print(found.diagnostics.summary())
     if found.calibration is not None and found.calibration.std is not None:  # per axis, as calibrate prints it

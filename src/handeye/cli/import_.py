@@ -67,7 +67,7 @@ def _setup_from_data(folder: Path) -> tuple[str, str] | None:
     try:
         session = load_session(folder)
         obs = observe(session, progress=False)
-        diag = diagnose(obs.flange2base, obs.target2cam, session.setup)
+        diag = diagnose(obs.flange2base, obs.target2cam, session.setup, camera_from_images=True)
     except HandEyeError:
         return None
     hint = diag.convention_hint or ""

@@ -145,9 +145,10 @@ def _reread(pose_input: RobotPoseInput, change: dict) -> NDArray[np.float64] | N
 
 
 def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None, camera_input: RobotPoseInput | None = None,
-              setup: str = "eye_in_hand", symmetries: list | None = None):
+              setup: str = "eye_in_hand", symmetries: list | None = None, camera_from_images: bool = False):
     """Other readings of the inputs: hint -> (flange2base, target2cam). Camera hints start with
-    ``camera:``. With the ``symmetries`` of a symmetric target, each robot reading relabels the
+    ``camera:``; camera poses handeye computed from images are never read inverted (a user cannot
+    invert them). With the ``symmetries`` of a symmetric target, each robot reading relabels the
     images anew (:func:`handeye.sensors.camera.resolve_symmetries`): the labels chosen against the robot
     poses as declared are wrong under another reading."""
     def relabelled(f):
@@ -155,10 +156,9 @@ def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None, camer
                                                                                             symmetries)[0]
 
     inverted = invert(flange2base)
-    out = {
-        "invert_robot_poses": (inverted, relabelled(inverted)),
-        "invert_camera_poses": (flange2base, invert(target2cam)),
-    }
+    out = {"invert_robot_poses": (inverted, relabelled(inverted))}
+    if not camera_from_images:
+        out["invert_camera_poses"] = (flange2base, invert(target2cam))
     if robot_input is None:
         for hint, s in (("length_unit:mm", 1e-3), ("length_unit:m", 1e3)):
             f = flange2base.copy()
@@ -309,6 +309,7 @@ def diagnose(
     rng: np.random.Generator | int | None = 0,
     symmetries: list | None = None,
     names: list[str] | None = None,
+    camera_from_images: bool = False,
 ) -> Diagnostics:
     """Check whether poses can give a good hand-eye calibration, and say why not.
 
@@ -329,6 +330,9 @@ def diagnose(
     names : list of str, optional
         Each pose's name (its image file, or its row id in a pose table): the advice and the
         summary name poses by it (``Diagnostics.names``).
+    camera_from_images : bool
+        ``target2cam`` is handeye's own PnP of images: reading it inverted is no advice a user can
+        follow, so it is not tried.
 
     Returns
     -------
@@ -351,7 +355,7 @@ def diagnose(
     token = _SOLVE_MEMO.set({})
     try:
         diag = _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outliers, leave_one_out, rng,
-                         symmetries, _names(names, len(flange2base)))
+                         symmetries, _names(names, len(flange2base)), camera_from_images)
     finally:
         _SOLVE_MEMO.reset(token)
     return diag
@@ -368,8 +372,8 @@ def _names(names: list[str] | None, n: int) -> list[str] | None:
 
 
 def _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outliers, leave_one_out, rng,
-              symmetries, names) -> Diagnostics:
-    check_setup(setup)
+              symmetries, names, camera_from_images=False) -> Diagnostics:
+    setup = check_setup(setup)
     flange2base, target2cam = validate_poses(flange2base, target2cam)
     n = len(flange2base)
     if n < 3:  # one motion at most: nothing to observe
@@ -387,7 +391,8 @@ def _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outlier
     diag.consistency = given
     if given > CONSISTENT:
         # systematic trouble: try the usual mistakes
-        found = _convention(flange2base, target2cam, setup, given, robot_input, camera_input, symmetries)
+        found = _convention(flange2base, target2cam, setup, given, robot_input, camera_input, symmetries,
+                            camera_from_images)
         if found is not None:
             diag.verdict, (diag.convention_hint, advice) = "inconsistent", found
             diag.advice.append(advice)
@@ -615,11 +620,11 @@ def _weak_advice(diag: Diagnostics, target2cam: NDArray[np.float64], n_used: int
     return weak
 
 
-def _convention(flange2base, target2cam, setup: str, given: float, robot_input, camera_input, symmetries
-                ) -> tuple[str, str] | None:
+def _convention(flange2base, target2cam, setup: str, given: float, robot_input, camera_input, symmetries,
+                camera_from_images: bool = False) -> tuple[str, str] | None:
     """The reading of the inputs that makes them consistent (a third of the score as given, and
     consistent), as (hint, advice); None when no usual mistake explains the data."""
-    readings = _readings(flange2base, target2cam, robot_input, camera_input, setup, symmetries)
+    readings = _readings(flange2base, target2cam, robot_input, camera_input, setup, symmetries, camera_from_images)
     scores = {h: consistency_score(f, t, setup) for h, (f, t) in readings.items()}
     hint = min(scores, key=scores.get) if scores else None
     if hint is None or scores[hint] > CONSISTENT or scores[hint] >= given / 3:

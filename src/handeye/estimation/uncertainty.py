@@ -63,14 +63,14 @@ def robot_accuracy_from_data(stated: tuple[float, float] | None, seen_mm: float 
 def widened_uncertainty(cal: Calibration, cv_jack: NDArray[np.float64] | None,
                         robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
                         intrinsics: NDArray[np.float64] | None = None, seen_mm: float | None = None,
-                        seen_in_pixels: bool = True) -> Calibration:
+                        seen_in_pixels: bool = True, sensor: str = "camera") -> Calibration:
     """``cal`` with a std that covers both sources: the refinement's noise model (``cal.cov``, None for
     a closed form) and the jackknife spread (X refitted without each pose). Each of X's six
     parameters gets the larger of the two (the model's correlations kept); a note says when the
     spread widened the model's. Errors common to every pose, which neither sees, are added: the
     robot's absolute accuracy (raised to what the views show of the robot's error, ``seen_mm``:
     :func:`robot_accuracy_from_data`; ``seen_in_pixels``: measured beyond the camera's own error, else
-    from poses alone), and ``intrinsics`` (X's covariance from intrinsics estimated
+    from poses alone; ``sensor`` names what saw, in the note), and ``intrinsics`` (X's covariance from intrinsics estimated
     from the same images, :func:`handeye.estimation.estimators.intrinsics_cov`)."""
     model = cal.cov
     accuracy = robot_accuracy_from_data(robot_accuracy, seen_mm)
@@ -97,8 +97,8 @@ def widened_uncertainty(cal: Calibration, cv_jack: NDArray[np.float64] | None,
                          f"{accuracy[1]:g} mm per axis (robot_accuracy=(deg, mm), --robot-accuracy DEG,MM): a "
                          "constant robot error is invisible in the data and X takes it whole")
         else:
-            seen = (f"the robot's poses miss what the camera saw by {seen_mm:.2f} mm per axis beyond the camera's own "
-                    "error" if seen_in_pixels else
+            seen = (f"the robot's poses miss what the {sensor} saw by {seen_mm:.2f} mm per axis beyond the {sensor}'s "
+                    "own error" if seen_in_pixels else
                     f"the robot's and the camera's poses disagree by {seen_mm:.2f} mm per axis at the target (pose "
                     "pairs alone cannot tell whose error it is; images can)")
             notes.append(f"the std of X includes the robot's absolute accuracy taken as {accuracy[0]:.3g} deg / "

@@ -17,7 +17,8 @@ from numpy.typing import NDArray
 
 from ..result import Calibration, Diagnostics
 
-__all__ = ["ACCEPT_DEG", "ACCEPT_MM", "EXIT_STATUS", "Evidence", "Judgement", "exit_status", "judge", "judged",
+__all__ = ["ACCEPT_DEG", "ACCEPT_MM", "EXIT_STATUS", "Evidence", "HEADLINES", "Judgement", "exit_status", "headline", "judge",
+           "judged",
            "solver_spread"]
 
 #: X is "weak" when 3 std of it exceed the thesis's acceptance (§5: 5 mm and 1 deg).
@@ -71,9 +72,12 @@ def _std_reason(std: NDArray[np.float64], sources: dict, n_used: int) -> str | N
     if robot is not None and (3 * np.linalg.norm(robot[3:]) > ACCEPT_MM or 3 * np.linalg.norm(robot[:3]) > ACCEPT_DEG):
         return (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg, and the robot's "
                 f"accuracy alone gives {np.linalg.norm(robot[3:]):.1f} mm / {np.linalg.norm(robot[:3]):.2f} deg per std: "
-                "a robot error constant over the capture moves X whole and no number of poses removes it; calibrate "
-                "the robot's kinematics (or use a more accurate one), or give its accuracy if it is better "
-                "(--robot-accuracy DEG,MM)")
+                "a robot error constant over the capture moves X whole and no number of poses removes it; record the "
+                "arm's joint angles with each pose (joints.csv and a joints: block naming the arm in session.yaml, "
+                "then handeye calibrate SESSION --out OUT): handeye then fits the arm's table with X from the same "
+                "views (docs/guide.md, 'Joint angles'; on a real Panda capture that predicted held-out views 12x "
+                "better than any pose-only method); or use a more accurate robot, or give its accuracy if it is "
+                "better (--robot-accuracy DEG,MM)")
     why = (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg"
            + (f" (leaving one pose out moves X by {np.linalg.norm(jack[3:]):.1f} mm / {np.linalg.norm(jack[:3]):.2f} deg "
               "per std)" if jack is not None else ""))
@@ -109,6 +113,35 @@ def _unfair_reason(std: NDArray[np.float64], unfair: tuple[float, float, float])
     return (f"the closed-form solvers land a median {mm:.2f} mm / {rot:.3f} deg from X, beyond its 3 std ({lim_mm:.2f} mm / "
             f"{lim_rot:.3f} deg), but they predict held-out views {factor:.1f}x worse than X does (they read the camera's "
             "PnP poses, which these views determine less well than X's fit to the pixels): X is kept")
+
+
+#: The verdicts' headlines (the report's banner); 'weak' is worded by how weak (:func:`headline`).
+HEADLINES = {"good": "the data determine X well", "partial": "the motions determine only part of X",
+             "degenerate": "the motions cannot determine X", "inconsistent": "the poses do not agree on one X",
+             "not checked": "the data were not checked"}
+
+
+def headline(cal: Calibration) -> str:
+    """The verdict in a few words: for 'weak', how weak, from 3 std of X against the acceptance
+    (:data:`ACCEPT_MM`, :data:`ACCEPT_DEG`): up to 2x beyond it usable with care, up to 5x poorly
+    determined, beyond that not usable as it is."""
+    verdict = cal.verdict
+    if verdict == "inconsistent" and cal.sensor is not None:
+        return "the robot poses and the measurements do not agree on one X"
+    if verdict != "weak":
+        return HEADLINES.get(verdict, "")
+    if cal.std is None or not np.all(np.isfinite(cal.std)):
+        return "the data leave X poorly determined"
+    rot, mm = (3 * v for v in _norms(cal.std))
+    beyond = max(mm / ACCEPT_MM, rot / ACCEPT_DEG)
+    known = f"X known to {mm:.1f} mm / {rot:.2f} deg (3 std)"
+    if beyond <= 2:
+        return f"usable with care: {known}, a little beyond the {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg a calibration should promise"
+    if beyond <= 5:
+        return (f"poorly determined: {known}, {beyond:.1f}x the {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg a calibration "
+                "should promise; read the advice before using X")
+    return (f"not usable as it is: {known}, {beyond:.0f}x the {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg a calibration should "
+            "promise; follow the advice and capture again")
 
 
 def judge(evidence: Evidence) -> Judgement:

@@ -137,7 +137,7 @@ def relative_motions(
     >>> bool(np.allclose(A @ scene.X, scene.X @ B))         # A X = X B for every motion
     True
     """
-    check_setup(setup)
+    setup = check_setup(setup)
     flange2base, target2cam = validate_poses(flange2base, target2cam)
     ij = pair_indices(len(flange2base), pairs)
     return motion_matrices(flange2base, target2cam, setup, ij)
@@ -334,7 +334,7 @@ class MotionSet:
         The motion dual quaternions are products of the N pose dual quaternions (cheap), not
         conversions of the K motion matrices (K = N(N-1)/2 for all pairs).
         """
-        check_setup(setup)
+        setup = check_setup(setup)
         ij = pair_indices(len(flange2base), pairs)
         i, j = ij[:, 0], ij[:, 1]
         n = len(flange2base)

@@ -16,13 +16,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import yaml
 from numpy.typing import NDArray
 
 from ..errors import InputMismatchError
 from ..geometry.dualquat import dq_conj
 from ..geometry.se3 import invert
 
-__all__ = ["SETUPS", "SetupInfo", "check_setup", "setup_info", "robot_world_A", "robot_world_A_inv", "robot_world_dq",
+__all__ = ["SETUPS", "Setup", "SetupInfo", "check_setup", "setup_info", "robot_world_A", "robot_world_A_inv", "robot_world_dq",
            "robot_world_inputs", "constant_transforms", "predicted_target2cam",
            "flange_poses", "camera2base", "target2base"]
 
@@ -49,17 +50,46 @@ _INFO = {
 }
 
 
-def check_setup(setup: str) -> str:
-    """Return ``setup`` if it is a known setup name, else raise a clear error."""
-    if setup not in _INFO:
+class Setup(str):
+    """A setup name already checked (:func:`check_setup` makes one): a ``str`` everywhere a setup
+    name goes (JSON, comparisons, ``setup: str`` parameters), which the functions it travels into
+    do not check again, with its :class:`SetupInfo` as ``info``.
+
+    Examples
+    --------
+    >>> setup = check_setup("eye_to_hand")
+    >>> setup == "eye_to_hand", setup.info.x_name, check_setup(setup) is setup
+    (True, 'cam2base', True)
+    """
+
+    __slots__ = ()
+
+    @property
+    def info(self) -> SetupInfo:
+        """The names and roles of X and Z."""
+        return _INFO[str(self)]
+
+    def __reduce__(self):  # pickles (Dask, multiprocessing) as the plain name, checked again on arrival
+        return check_setup, (str(self),)
+
+
+yaml.SafeDumper.add_representer(Setup, lambda dumper, setup: dumper.represent_str(str(setup)))  # a session.yaml's setup: eye_in_hand
+
+
+def check_setup(setup: str) -> Setup:
+    """``setup`` as a checked :class:`Setup` if it is a known setup name, else a clear error; a
+    :class:`Setup` is returned as it is (checked where it was made)."""
+    if type(setup) is Setup:
+        return setup
+    if not isinstance(setup, str) or setup not in _INFO:
         raise InputMismatchError(f"unknown setup {setup!r}; use 'eye_in_hand' (camera on the flange) "
                                  f"or 'eye_to_hand' (camera fixed, target on the flange)")
-    return setup
+    return Setup(setup)
 
 
 def setup_info(setup: str) -> SetupInfo:
     """The names and roles of X and Z for ``setup`` (raises for an unknown one)."""
-    return _INFO[check_setup(setup)]
+    return check_setup(setup).info
 
 
 def robot_world_A(flange2base: NDArray[np.float64], setup: str) -> NDArray[np.float64]:

@@ -322,7 +322,7 @@ def _camera_info(reader, topic: str | None) -> tuple[NDArray[np.float64], NDArra
 def _check_bag_request(setup: str, robot_frames, robot_topic, image_topic, camera_pose_topic, camera_pose: str,
                        target, every, joint_topic, arm) -> None:
     """:func:`import_rosbag`'s arguments make one request (a robot side, a camera side), or raise."""
-    check_setup(setup)
+    setup = check_setup(setup)
     if (image_topic is None) == (camera_pose_topic is None):
         raise InputMismatchError("give the camera as image_topic (images) or camera_pose_topic (poses), one of them")
     if joint_topic is not None:
@@ -449,7 +449,7 @@ def import_easy_handeye(samples: str | Path, out: str | Path, setup: str | None 
         if setup is None:
             raise InputMismatchError(f"{samples}: calibration_type {kind!r} does not say the setup; give setup "
                                      "('eye_in_hand' or 'eye_to_hand', --setup)")
-    check_setup(setup)
+    setup = check_setup(setup)
     rows = data.get("samples")
     if not isinstance(rows, list) or len(rows) < 3:
         raise SessionError(f"{samples}: expected a list 'samples' of at least 3 robot/tracking pairs")
@@ -569,7 +569,7 @@ def import_visp(folder: str | Path, out: str | Path, setup: str = "eye_in_hand",
     src = Path(folder)
     if not src.is_dir():
         raise SessionError(f"{src}: no such folder")
-    check_setup(setup)
+    setup = check_setup(setup)
     poses = _numbered(src, r"(?:.*_)?[rf]Pe_(\d+)\.yaml")
     if len(poses) < 3:
         raise SessionError(f"{src}: fewer than 3 robot poses (*_rPe_<i>.yaml or *_fPe_<i>.yaml)")

@@ -871,7 +871,7 @@ def load_pose_streams(robot_spec: dict[str, Any], camera_spec: dict[str, Any], s
     from the command line; both must have a time column (or no header: time, then the pose columns)."""
     folder = Path(folder)
     notes: list[str] = []
-    check_setup(setup)
+    setup = check_setup(setup)
     robot = _read_poses(folder, robot_spec, "robot_poses", notes, where_file="(robot stream)")
     camera = _read_poses(folder, camera_spec, "camera_poses", notes, where_file="(camera stream)")
     for side in (robot, camera):
@@ -977,7 +977,7 @@ def write_session(folder: str | Path, setup: str, target_spec: dict[str, Any], n
     the images (``images/<name>``) are the caller's. ``camera``: ``(K, dist)`` to put in
     session.yaml. Returns the session.yaml path."""
     folder = Path(folder)
-    check_setup(setup)
+    setup = check_setup(setup)
     target_from_spec(target_spec)
     write_pose_table(folder / "poses.csv", names, flange2base, format, length_unit, angle_unit, rows=rows)
     poses = {"file": "poses.csv", "format": format, "length_unit": length_unit, "angle_unit": angle_unit}
@@ -994,7 +994,7 @@ def write_joint_session(folder: str | Path, setup: str, target_spec: dict[str, A
     folder), with the controller's ``flange2base`` in ``poses.csv`` too when given; atomically.
     The images are the caller's. Returns the session.yaml path."""
     folder = Path(folder)
-    check_setup(setup)
+    setup = check_setup(setup)
     target_from_spec(target_spec)
     q = np.asarray(joints, dtype=float)
     q = np.degrees(q) if unit == "deg" else q
@@ -1076,7 +1076,7 @@ def write_stream_session(folder: str | Path, setup: str, target_spec: dict[str, 
     the pose columns) and ``images.csv`` (image, time on the camera's clock); the images are the
     caller's. Returns the session.yaml path."""
     folder = Path(folder)
-    check_setup(setup)
+    setup = check_setup(setup)
     target_from_spec(target_spec)
     if len(image_names) != len(image_times):
         raise InputMismatchError(f"{len(image_names)} image names for {len(image_times)} image times")
@@ -1099,7 +1099,7 @@ def write_pose_pairs(folder: str | Path, setup: str, flange2base: NDArray[np.flo
     as quat_xyzw in metres): pairs by id (``ids``, default row numbers) or, with both ``*_times``,
     two streams. Returns the posepairs.yaml path."""
     folder = Path(folder)
-    check_setup(setup)
+    setup = check_setup(setup)
     if (robot_times is None) != (camera_times is None):
         raise InputMismatchError("give both robot_times and camera_times (streams) or neither (pairs)")
     if robot_times is not None:

@@ -55,7 +55,7 @@ from ..estimation.verdict import judged, solver_spread
 from ..frames.metrics import std_deg_mm
 from ..frames.motions import MotionSet, Pairs, validate_poses
 from ..frames.poses import RobotPoseInput
-from ..frames.setups import check_setup
+from ..frames.setups import Setup, check_setup, setup_info
 from ..geometry.se3 import invert, make_transform
 from ..io.session import Session, SessionError, load_session
 from ..options import ROBOT_ACCURACY, CalibrationOptions, options_from
@@ -95,16 +95,32 @@ PROGRESS_FROM_POSES = 200
 PROGRESS_FROM_IMAGES = 50
 
 
-def _checked_poses(flange2base, target2cam, setup, pairs, check, robot_input, strict=False, camera_input=None,
-                   symmetries=None, names=None):
+@dataclass(frozen=True)
+class _PoseCall:
+    """One call of :func:`calibrate_poses`, checked once at its entry, for the steps inside it: the
+    setup, the options, the known values parsed against the setup, and what the poses were given as."""
+
+    setup: Setup
+    opts: CalibrationOptions
+    given: dict
+    robot_input: RobotPoseInput | None = None
+    camera_input: RobotPoseInput | None = None
+    symmetries: list | None = None
+    names: list[str] | None = None
+    uncertainty: bool = True
+    camera_from_images: bool = False
+
+
+def _checked_poses(flange2base, target2cam, call: _PoseCall, check: bool, strict: bool = False, camera_input=None):
     """The poses to calibrate on after :func:`handeye.diagnose` (outliers left out, explicit pairs
     renumbered): ``(flange2base, target2cam, pairs, keep, diagnostics, notes)``. Raises only when X
     cannot be determined, or (``strict``) when the data are inconsistent."""
     keep = np.arange(len(flange2base))
+    pairs = call.opts.pairs
     if not check:
         return flange2base, target2cam, pairs, keep, None, []
-    diag = diagnose(flange2base, target2cam, setup, robot_input=robot_input, camera_input=camera_input,
-                    symmetries=symmetries, names=names)
+    diag = diagnose(flange2base, target2cam, call.setup, robot_input=call.robot_input, camera_input=camera_input,
+                    symmetries=call.symmetries, names=call.names, camera_from_images=call.camera_from_images)
     if diag.verdict == "degenerate":
         raise DegenerateMotionError(sentences(diag.advice), diagnostics=diag)
     if diag.verdict == "inconsistent" and strict:
@@ -133,6 +149,7 @@ def calibrate_poses(
     names: list[str] | None = None,
     progress: bool = True,
     uncertainty: bool = True,
+    camera_from_images: bool = False,
     **changes,
 ) -> Calibration:
     """Hand-eye calibration from robot poses and camera-to-target poses.
@@ -176,10 +193,11 @@ def calibrate_poses(
         ``{'target2base.z': 0.012}`` or ``{'cam2flange.z': (0.085, 0.001)}``: translation components of
         X or Z in metres (exact, ``(value, std)`` or ``'value+-std'``); values the data determine are
         compared with them (a note), not used.
-    robot_input, camera_input, symmetries, names, progress, uncertainty
+    robot_input, camera_input, symmetries, names, progress, uncertainty, camera_from_images
         Keyword-only: the robot (camera) poses as written (:class:`RobotPoseInput`); a symmetric target's
         symmetries (the check relabels the images under each); each pose's name (image file or row id);
-        the steps on stderr; False skips the std's jackknife and robot accuracy (X alone, in a loop).
+        the steps on stderr; False skips the std's jackknife and robot accuracy (X alone, in a loop);
+        ``target2cam`` is handeye's own PnP (the check then never advises inverting it).
 
     Returns
     -------
@@ -208,31 +226,31 @@ def calibrate_poses(
     True
     """
     opts = options_from(options, changes).for_poses()
-    given = _pose_options(setup, opts)
-    accuracy, method = opts.robot_accuracy, opts.method
+    setup = check_setup(setup)
+    call = _PoseCall(setup, opts, parse_known(opts.known, setup), robot_input, camera_input, symmetries, names, uncertainty,
+                     camera_from_images)
     flange2base_in, target2cam_in = validate_poses(flange2base, target2cam)
     bar = Progress(3, f"calibrating {len(flange2base_in)} poses: check, estimators, uncertainty",
                    progress and len(flange2base_in) >= PROGRESS_FROM_POSES)
     try:
-        flange2base, target2cam, pairs, keep, diag, notes, scale = _checked_at_scale(
-            flange2base_in, target2cam_in, setup, opts, robot_input, camera_input, symmetries, names)
+        flange2base, target2cam, pairs, keep, diag, notes, scale = _checked_at_scale(flange2base_in, target2cam_in, call)
         bar.update()
         target_scale = 1.0 if scale is None else scale[0]
+        digest = array_digest(flange2base_in, target2cam_in)
         if (kind := partial_kind(flange2base, target2cam, setup) if diag is None or diag.motion_kind != "general" else None):
-            return replace(_partial(flange2base, target2cam, setup, kind, pairs, given, opts.refine, diag, keep, robot_input,
-                                    array_digest(flange2base_in, target2cam_in), accuracy), target_scale=target_scale)
-        X, Z, motions = closed_form(flange2base, target2cam, setup, method, pairs)
+            return replace(_partial(flange2base, target2cam, call, kind, pairs, diag, keep, digest), target_scale=target_scale)
+        X, Z, motions = closed_form(flange2base, target2cam, setup, opts.method, pairs)
         cal = Calibration(
-            X=X, Z=Z, setup=setup, method=method, flange2base=flange2base, target2cam=target2cam, pairs=motions.pairs,
+            X=X, Z=Z, setup=setup, method=opts.method, flange2base=flange2base, target2cam=target2cam, pairs=motions.pairs,
             motions=motions, diagnostics=diag, pose_indices=keep, notes=notes, robot_input=robot_input,
-            inputs_sha256=array_digest(flange2base_in, target2cam_in), estimator=method, target_scale=target_scale)
-        cal = _refined(cal, opts.refine, method, pairs, opts.folds, accuracy, bar, uncertainty)
+            inputs_sha256=digest, estimator=opts.method, target_scale=target_scale)
+        cal = _refined(cal, call, pairs, bar)
         if scale is not None and cal.cov is not None:
-            cal = _with_scale_error(cal, scale, method)
+            cal = _with_scale_error(cal, scale, opts.method)
         bar.update(bar.total - bar.done)
     finally:
         bar.close()
-    return known_on_complete(cal, given)
+    return known_on_complete(cal, call.given)
 
 
 def certify_calibration(cal: Calibration) -> Calibration:
@@ -258,20 +276,14 @@ def certify_calibration(cal: Calibration) -> Calibration:
     return replace(cal, certificate=cert, notes=list(cal.notes) + [note])
 
 
-def _pose_options(setup: str, opts: CalibrationOptions) -> dict:
-    """The setup checked and the known values parsed against it (the rest :class:`CalibrationOptions` checked)."""
-    check_setup(setup)
-    return parse_known(opts.known, setup)
-
-
-def _refined(cal: Calibration, refine: str, method: str, pairs: Pairs, folds, accuracy, bar: Progress,
-             uncertainty: bool = True) -> Calibration:
-    """The closed form ``cal`` refined as ``refine`` says (:func:`calibrate_poses`)."""
+def _refined(cal: Calibration, call: _PoseCall, pairs: Pairs, bar: Progress) -> Calibration:
+    """The closed form ``cal`` refined as ``call.opts.refine`` says (:func:`calibrate_poses`)."""
+    refine, method, accuracy, uncertainty = call.opts.refine, call.opts.method, call.opts.robot_accuracy, call.uncertainty
     if refine == "pose" or (refine == "auto" and len(cal.flange2base) < 5):
         return _pose_refined(cal, method, accuracy, uncertainty)
     if refine == "auto":
         views = Views(cal.flange2base, cal.target2cam, cal.setup)
-        choice = choose(views, pose_candidates(method, views), folds)
+        choice = choose(views, pose_candidates(method, views), call.opts.folds)
         bar.update()
         return apply_choice(cal, choice, views, pairs, robot_accuracy=accuracy, uncertainty=uncertainty)
     if uncertainty:  # the closed form alone: no noise model, the jackknife and the robot's accuracy
@@ -279,15 +291,17 @@ def _refined(cal: Calibration, refine: str, method: str, pairs: Pairs, folds, ac
     return cal
 
 
-def _partial(flange2base, target2cam, setup, kind, pairs, given, refine, diag, keep, robot_input, digest, accuracy):
+def _partial(flange2base, target2cam, call: _PoseCall, kind: str, pairs: Pairs, diag: Diagnostics | None, keep,
+             digest: str) -> Calibration:
     """:func:`calibrate_poses` on motions that determine only part of X (:mod:`handeye.estimation.partial`)."""
-    cal = calibrate_partial(flange2base, target2cam, setup, kind, pairs, given, refine=refine != "none")
+    accuracy = call.opts.robot_accuracy
+    cal = calibrate_partial(flange2base, target2cam, call.setup, kind, pairs, call.given, refine=call.opts.refine != "none")
     if diag is None:  # unchecked: the verdict still says partial (Calibration.verdict)
         diag = Diagnostics(verdict="partial", n_poses=len(flange2base))
     if not cal.unobservable and diag.verdict == "partial":  # complete with the known values: judged by its std
         diag = replace(diag, verdict="good")
     # the check's advice beyond the partial verdict's own sentence (calibrate_partial's note says it): outliers
-    cal = replace(cal, diagnostics=diag, pose_indices=keep, robot_input=robot_input, inputs_sha256=digest,
+    cal = replace(cal, diagnostics=diag, pose_indices=keep, robot_input=call.robot_input, inputs_sha256=digest,
                   notes=cal.notes + list(diag.advice[1:]))
     if cal.cov is not None and accuracy is not None:
         cov = cal.cov + robot_accuracy_cov(cal.X, accuracy)
@@ -610,6 +624,12 @@ def observe(session: Session, jobs: int | None = None, progress: bool = True,
         costs = settled_symmetry_costs(poses, flange2base, session.setup, symmetries)
         unsure, unmatched = label_doubts(costs)
     target2cam, choice = resolve_symmetries(poses, flange2base, session.setup, symmetries, costs)
+    if len(symmetries) > 1:  # X is fixed by the labelling; Z only up to the board's symmetry (issue 60, item 8)
+        notes.append(f"the {target.type} target looks the same turned a half turn about its centre: its corners are "
+                     "labelled so that the camera's motion agrees with the robot's, which fixes X; Z "
+                     f"({setup_info(session.setup).z_name}) is the board's frame so labelled, which may be the printed "
+                     "board's turned a half turn about its normal (compare Z with a measured one up to that turn; a board "
+                     "that cannot be read from the wrong end, such as ChArUco, fixes Z too)")
     if unmatched.any():  # flagged, not dropped: the check and the robust fits judge them
         notes.append(f"image(s) {summarize(session.image_names[used[k]] for k in np.flatnonzero(unmatched))}: no "
                      f"labelling of the symmetric {target.type} target makes the camera's motion agree with the robot's "
@@ -891,7 +911,7 @@ def _calibrate_observed(obs: Observations, opts: CalibrationOptions, uncertainty
     robot_sigma = _robot_sigma(robot_noise)
     cal = calibrate_poses(obs.flange2base, obs.target2cam, obs.session.setup, opts.replace(refine="none", robot_noise=None),
                           robot_input=obs.robot_input, symmetries=_symmetries(obs), names=_used_names(obs),
-                          progress=False, uncertainty=False)  # the caller's bar counts this step
+                          progress=False, uncertainty=False, camera_from_images=True)  # the caller's bar counts this step
     scale = None if cal.target_scale == 1.0 else (cal.target_scale, cal.diagnostics.scale_std)
     if scale is not None:  # the check found the target's size wrong: its points too at the scale the robot's motions give
         obs = obs.scaled(cal.target_scale)
@@ -903,7 +923,8 @@ def _calibrate_observed(obs: Observations, opts: CalibrationOptions, uncertainty
         if refine != "none":
             cal = calibrate_poses(obs.flange2base, obs.target2cam, obs.session.setup,
                                   opts.replace(refine="pose", strict=False, robot_noise=None),
-                                  robot_input=obs.robot_input, names=_used_names(obs), progress=False)
+                                  robot_input=obs.robot_input, names=_used_names(obs), progress=False,
+                                  camera_from_images=True)
             cal = replace(cal, notes=cal.notes + ["the pixel refinement does not run on motions that determine only "
                                                   "part of X: X is refined on the PnP poses"])
         return with_images(cal, obs, kept, outlier_images, list(obs.notes))
@@ -952,20 +973,17 @@ def _wrong_scale(diag: Diagnostics | None) -> tuple[float, float] | None:
     return diag.scale, diag.scale_std
 
 
-def _checked_at_scale(flange2base, target2cam, setup, opts: CalibrationOptions, robot_input, camera_input, symmetries,
-                      names):
+def _checked_at_scale(flange2base, target2cam, call: _PoseCall):
     """:func:`_checked_poses`, and the board scale when the check found the target's size wrong (else
     None): then the poses to calibrate on are the camera's at the scale the robot's motions give
     (checked again for outliers), under the verdict and advice of the check as given, with a note."""
-    checked = _checked_poses(flange2base, target2cam, setup, opts.pairs, opts.check, robot_input, opts.strict,
-                             camera_input, symmetries, names)
+    checked = _checked_poses(flange2base, target2cam, call, call.opts.check, call.opts.strict, call.camera_input)
     scale = _wrong_scale(checked[4])
     if scale is None:
         return (*checked, None)
     target2cam = target2cam.copy()
     target2cam[:, :3, 3] *= scale[0]
-    f2b, t2c, pairs, keep, diag, more = _checked_poses(flange2base, target2cam, setup, opts.pairs, True, robot_input,
-                                                       symmetries=symmetries, names=names)
+    f2b, t2c, pairs, keep, diag, more = _checked_poses(flange2base, target2cam, call, True)
     notes = checked[5] + [n for n in more if n not in checked[5]] + [
         f"X is estimated with the target {scale[0]:.4f} times the size given (+- {scale[1]:.4f}, the scale the robot's "
         "motions give: the given size is wrong, see the advice); its std includes that scale's error"]

@@ -95,7 +95,7 @@ def calibrate_streams(
     True
     """
     opts = options_from(options, changes).for_poses()
-    check_setup(setup)
+    setup = check_setup(setup)
     robot = check_stream(t_robot, flange2base, "robot stream")
     camera = check_stream(t_cam, target2cam, "camera stream")
     sync = synchronise(robot, camera, setup, opts.offset_range, opts.time_offset, opts.keyframes)
@@ -152,7 +152,7 @@ def calibrate_joint_streams(
         As :func:`handeye.calibrate_joints` on the keyframes, with ``sync`` (the offset and its std).
     """
     opts = options_from(options, changes)
-    check_setup(setup)
+    setup = check_setup(setup)
     chain = load_arm(arm) if isinstance(arm, str) else arm
     q = joint_angles(joints, chain, joint_unit)
     robot = check_stream(t_robot, chain.forward(q), "robot stream (the nominal table's flange poses)")

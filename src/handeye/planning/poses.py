@@ -353,7 +353,7 @@ def plan_poses(
     HandEyeError
         Bad arguments, or too few viewpoints see the whole target (with what to change).
     """
-    check_setup(setup)
+    setup = check_setup(setup)
     X = np.asarray(X, dtype=float)
     Z = np.asarray(Z, dtype=float)
     obj = np.asarray(object_points, dtype=float).reshape(-1, 3)

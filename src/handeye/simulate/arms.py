@@ -76,7 +76,7 @@ def realistic_scene(
     nominal forward kinematics (plus timing jitter and heavy-tailed noise); the camera's poses
     come from PnP on noisy projections of the target's points (sometimes flipped).
     """
-    check_setup(setup)
+    setup = check_setup(setup)
     rng = np.random.default_rng(rng)
     spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
     obj = target_from_spec(spec).object_points()
@@ -131,7 +131,7 @@ def kinematic_scene(
     poses are PnP's on them. With ``compliance_deg_per_m``, every joint of the real arm gives way
     under the flange's load by 0.5-1.5x that (uniform) per metre of the load's moment arm
     (:meth:`handeye.robot.kinematics.Chain.moment_arms`)."""
-    check_setup(setup)
+    setup = check_setup(setup)
     rng = np.random.default_rng(rng)
     chain = load_arm(arm) if isinstance(arm, str) else arm
     spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
@@ -284,7 +284,7 @@ def low_dof_scene(
     target with ``pixel_px`` Gaussian noise. Eye-in-hand: a camera beside the flange looks down at
     a table target; eye-to-hand: a camera on the floor looks up at a target under the flange.
     """
-    check_setup(setup)
+    setup = check_setup(setup)
     if robot not in LOW_DOF_ROBOTS:
         raise HandEyeError(f"unknown robot {robot!r}; use one of {', '.join(LOW_DOF_ROBOTS)}")
     rng = np.random.default_rng(rng)

@@ -136,7 +136,7 @@ def depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Ge
     (:func:`_arm_views`: its real table off the nominal one by ``length_mm`` / ``angle_deg`` per
     entry, the joints reported with ``joint_noise_deg``), ``flange2base`` its nominal table's poses.
     """
-    check_setup(setup)
+    setup = check_setup(setup)
     rng = np.random.default_rng(rng)
     spec = DEFAULT_TARGETS[target] if isinstance(target, str) else dict(target)
     tgt = target_from_spec(spec)
@@ -246,7 +246,7 @@ def sphere_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.G
     ``arm``, ``length_mm``, ``angle_deg``, ``joint_noise_deg``: the views by an arm off its nominal
     table, as :func:`depth_scene`'s.
     """
-    check_setup(setup)
+    setup = check_setup(setup)
     rng = np.random.default_rng(rng)
     K = default_camera(image_size)[0]
     w, h = image_size

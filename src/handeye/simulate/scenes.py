@@ -116,7 +116,7 @@ def random_scene(
     distance, tilt_max_deg
         Viewpoint distribution, see :func:`look_at_viewpoints`.
     """
-    check_setup(setup)
+    setup = check_setup(setup)
     rng = np.random.default_rng(rng)
     cam2target = look_at_viewpoints(n_poses, rng, distance=distance, tilt_max_deg=tilt_max_deg)
     return scene_from_viewpoints(cam2target, setup, rng, x_translation=x_translation)
@@ -222,7 +222,7 @@ def seed_scenes(
     start_distance, cube, tilt_max_deg
         See :func:`seed_viewpoints`.
     """
-    check_setup(setup)
+    setup = check_setup(setup)
     rng = np.random.default_rng(rng)
     cam2target = seed_viewpoints(runs, n_poses, rng, start_distance, cube, tilt_max_deg)
     target2cam = invert(cam2target)
@@ -376,7 +376,7 @@ def simulate_session(
         translates), which determine only part of X.
     """
     out = _new_session_folder(out_dir)
-    check_setup(setup)
+    setup = check_setup(setup)
     _check_simulation_options(n_poses, noise_px, image_size, image_ext, blur, robot_noise)
     if isinstance(target, str) and target not in DEFAULT_TARGETS:
         raise HandEyeError(f"unknown target {target!r}; use one of {', '.join(DEFAULT_TARGETS)} or a target mapping")

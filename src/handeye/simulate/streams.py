@@ -79,7 +79,7 @@ def stream_scene(
     ``jitter_ms`` is not used: the timing is this function's); the camera's poses come from PnP on
     noisy projections (sometimes flipped); frames that do not see the whole target are dropped.
     """
-    check_setup(setup)
+    setup = check_setup(setup)
     rng = np.random.default_rng(rng)
     if not (duration > 2 * waypoint_s and robot_hz > 0 and camera_hz > 0):
         raise HandEyeError("stream_scene: duration must exceed two waypoint intervals; rates must be positive")
@@ -172,7 +172,7 @@ def joint_stream_scene(
     controller records the joint angles at ``robot_hz`` (``joint_noise_deg`` of encoder noise), the
     camera its PnP poses at ``camera_hz`` (``pixel_px`` of detection noise), on clocks
     ``time_offset`` apart, every stamp off by Gaussian ``jitter_ms``."""
-    check_setup(setup)
+    setup = check_setup(setup)
     rng = np.random.default_rng(rng)
     if not (duration > 2 * waypoint_s and robot_hz > 0 and camera_hz > 0):
         raise HandEyeError("joint_stream_scene: duration must exceed two waypoint intervals; rates must be positive")

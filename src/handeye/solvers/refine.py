@@ -883,7 +883,7 @@ VARIANCE_FLOOR = 1e-24
 
 
 def _refine_pose_inputs(flange2base, target2cam, setup: str, weighting: str, priors) -> tuple:
-    check_setup(setup)
+    setup = check_setup(setup)
     if weighting not in ("noise_model", "strobl"):
         raise InputMismatchError(f"weighting={weighting!r}; use 'noise_model' or 'strobl'")
     flange2base = np.asarray(flange2base, dtype=float)

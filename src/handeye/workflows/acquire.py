@@ -119,7 +119,7 @@ class SimWorld:
     dist: NDArray[np.float64] = field(default=None)
 
     def __post_init__(self) -> None:
-        check_setup(self.setup)
+        self.setup = check_setup(self.setup)
         if self.K is None:
             self.K, self.dist = default_camera(self.image_size)
         rng = np.random.default_rng([self.seed, 7])
@@ -604,7 +604,7 @@ def acquire(
         'no candidate left' or 'interrupted' (the views captured are kept; run again with the same
         ``out`` to resume).
     """
-    check_setup(setup)
+    setup = check_setup(setup)
     _check_target_std(target_std, X0, robot_accuracy)
     cap = _Capture.open(out, setup, target_spec, robot, camera, K, dist)
     cam2target = candidate_views(cap.obj, cap.K, image_size, cap.dist, standoff, tilt_max_deg, margin_px)

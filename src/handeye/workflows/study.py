@@ -69,7 +69,7 @@ class Setting:
     methods: tuple[str, ...] = METHODS
 
     def __post_init__(self) -> None:
-        check_setup(self.setup)
+        object.__setattr__(self, "setup", check_setup(self.setup))
         if self.n_motions < 2:
             raise InputMismatchError(f"n_motions={self.n_motions}: AX = XB needs at least 2 motions")
         unknown = [m for m in self.methods if m not in METHODS]
