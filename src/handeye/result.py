@@ -196,6 +196,11 @@ class SensorFit:
         Measurements fitted, and set aside as outliers (beyond 5 of their std).
     heldout_mm : ndarray (len(views),) or None
         Per view its error when held out of the fit (cross-validation), mm.
+    sections : list of dict or None
+        Per view, what the report draws of it, in the sensor's own plane (a profiler's laser plane):
+        ``points_mm`` (n, 2) measured, ``residual_mm`` (n,) theirs, ``curve_mm`` (m, 2) the fitted
+        target's section there (NaN where it has none); None when the sensor draws nothing. Not in
+        result.json (the raw measurements stay in the session).
     """
 
     sensor: str
@@ -207,6 +212,7 @@ class SensorFit:
     points: int = 0
     rejected: int = 0
     heldout_mm: NDArray[np.float64] | None = None
+    sections: list[dict[str, NDArray[np.float64]]] | None = None
 
 
 @dataclass(frozen=True)

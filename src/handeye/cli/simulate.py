@@ -10,19 +10,30 @@ from ..frames.setups import SETUPS
 from ..planning.poses import ROBOTS
 from ..robot.kinematics import arm_names
 from ..simulate import DEFAULT_TARGETS, laser_scene, simulate_kinematic_session, simulate_session, write_laser_session
+from ..simulate.laser import TARGETS as LASER_TARGETS
 from ._common import image_size_arg, number_arg, out_folder, whole_arg
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     out_folder(args.out)
     if args.sensor == "laser_line":
-        if args.arm is not None or args.robot != "arm":
-            raise InputMismatchError("--sensor laser_line simulates the controller's poses of a 6-axis arm; leave --arm and "
-                                     "--robot out")
-        write_laser_session(args.out, laser_scene(args.poses, args.setup, args.seed))
-        print(f"wrote laser session {args.out} ({args.poses} profiles of a 40 mm ball, {args.setup}); ground truth in "
+        if args.robot != "arm":
+            raise InputMismatchError("--sensor laser_line simulates a 6-axis arm (its controller's poses, or with --arm its "
+                                     "joint angles too); leave --robot out")
+        target = args.target or "sphere"
+        if target not in LASER_TARGETS:
+            raise InputMismatchError(f"--target {target} is a board for cameras; a laser line profiler scans a "
+                                     f"{' or a '.join(LASER_TARGETS)} (--target sphere, the default, or --target plane)")
+        write_laser_session(args.out, laser_scene(args.poses, args.setup, args.seed, arm=args.arm, target=target))
+        what = "a 40 mm ball" if target == "sphere" else "a 200 mm plate"
+        arm = f", {args.arm}'s joint angles in joints.csv (the arm 1-3 mm off its nominal table)" if args.arm else ""
+        print(f"wrote laser session {args.out} ({args.poses} profiles of {what}, {args.setup}{arm}); ground truth in "
               f"{Path(args.out) / 'ground_truth.yaml'}")
         return 0
+    args.target = args.target or "charuco"
+    if args.target in LASER_TARGETS:
+        raise InputMismatchError(f"--target {args.target} is a laser profiler's target: add --sensor laser_line, or give a "
+                                 f"board ({', '.join(DEFAULT_TARGETS)})")
     if args.arm is not None:
         if args.robot != "arm":
             raise InputMismatchError("--arm simulates a serial arm's joints; it does not combine with --robot " + args.robot)
@@ -50,12 +61,12 @@ def register(sub) -> None:
     p.add_argument("-o", "--out", required=True, help="new session folder")
     p.add_argument("--sensor", default="camera", choices=["camera", "laser_line"],
                    help="camera (default): rendered images of a board; laser_line: a laser line profiler's profiles of a "
-                   "ball (--poses of them)")
+                   "ball or a plate (--poses of them; --arm for joint angles)")
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--poses", type=whole_arg(1), default=15, help="number of images (default 15)")
-    p.add_argument("--target", default="charuco", choices=list(DEFAULT_TARGETS),
+    p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS),
                    help="the board rendered (default charuco: it cannot be read from the wrong end, as handeye's advice "
-                   "recommends; chessboard for the thesis's set-up)")
+                   "recommends; chessboard for the thesis's set-up); with --sensor laser_line: sphere (default) or plane")
     p.add_argument("--noise-px", type=number_arg(0.0), default=0.2, help="feature position noise in pixels (default 0.2)")
     p.add_argument("--seed", type=whole_arg(0), default=None)
     p.add_argument("--image-size", type=image_size_arg, default=(640, 480), help="WIDTHxHEIGHT (default 640x480)")

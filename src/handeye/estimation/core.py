@@ -610,8 +610,9 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
                   f"its std infinite; {fix}"] + advice
     diag = Diagnostics(verdict=verdict, advice=advice, outliers=[int(v) for v, _ in checked.left_out],
                        consistency=score, consistency_limit=FIT_FACTOR, n_poses=len(names), names=names)
+    sections = sensor.sections(full.X, full.p, F, views) if hasattr(sensor, "sections") else None
     record = SensorFit(sensor.kind, sensor.target, [names[v] for v in views], per_view, fit_mm,
-                       sensor.figures(full.p, cov_p), int(len(full.rows)), int((~full.kept).sum()), held_mm)
+                       sensor.figures(full.p, cov_p), int(len(full.rows)), int((~full.kept).sum()), held_mm, sections)
     notes = [f"{sensor.kind} ({sensor.target}): {len(full.rows)} measurements fitted "
              f"({int((~full.kept).sum())} set aside beyond {REJECT:g} std), {fit_mm:.3f} mm RMS, with {robot.describe}"]
     notes += [f"view {names[v]} left out: {why}" for v, why in checked.left_out] + sensor.notes(full.p, cov_p)
@@ -630,7 +631,7 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
     # the noise model widened by the jackknife, plus the robot's stated accuracy for controller poses
     data_cov = _widen(full.cov[:6, :6], None if jack is None else jack[:6, :6])[0]
     cal = widened_uncertainty(cal, None if jack is None else jack[:6, :6], accuracy, seen_mm=_robot_error_seen(
-        problem, full, views, per_view) if accuracy is not None else None)
+        problem, full, views, per_view) if accuracy is not None else None, sensor=sensor.kind)
     cal = replace(cal, std=_std_with_pins(cal.cov, problem.pins),
                   std_sources=dict(cal.std_sources, data=_std_with_pins(data_cov, problem.pins)))
     if widened > 1.5 and jack is not None:

@@ -16,6 +16,7 @@
       range: [80, 160]              # optional: the measuring range along z, in that unit (points outside: left out)
       noise: 0.02                   # optional: the sensor's noise along z, in that unit (default 0.02 mm)
     target: {type: sphere, diameter: 0.040}   # metres; without a diameter it is estimated
+    # or target: {type: plane}                # a flat plate (fixed in the cell, or on the flange)
     poses: {file: poses.csv, format: "euler:xyz", length_unit: mm, angle_unit: deg}
 
 Nothing is fitted here (:mod:`handeye.pipelines.laser` does that); every key is checked (an unknown
@@ -55,7 +56,9 @@ __all__ = ["LaserSession", "is_laser_session", "load_laser_session", "LASER_KEYS
 LASER_KEYS = ("unit", "range", "noise")
 SESSION_KEYS = ("setup", "laser", "target", "poses", "joints")
 #: The targets a laser session can scan.
-TARGET_TYPES = ("sphere",)
+TARGET_TYPES = ("sphere", "plane")
+#: The keys of each target.
+TARGET_KEYS = {"sphere": ("type", "diameter"), "plane": ("type",)}
 
 
 @dataclass(frozen=True)
@@ -71,11 +74,12 @@ class LaserSession:
     unit: str
     working_range: tuple[float, float] | None  #: metres
     noise_m: float
-    radius: float | None  #: the ball's, metres (None: estimated)
+    radius: float | None  #: the ball's, metres (None: estimated, or not a ball)
     notes: list[str] = field(default_factory=list)
     joints: NDArray[np.float64] | None = None
     arm: Chain | None = None
     joints_path: Path | None = None
+    target: str = "sphere"  #: one of :data:`TARGET_TYPES`
 
     @property
     def input_files(self) -> list[Path]:
@@ -113,13 +117,19 @@ def _laser_spec(spec: Any, where: str) -> tuple[str, tuple[float, float] | None,
     return unit, rng, noise
 
 
-def _radius(target: Any, where: str) -> float | None:
+def _target(target: Any, where: str) -> tuple[str, float | None]:
+    """The target's type and, for a ball, its radius (m; None: estimated)."""
     if not isinstance(target, dict):
-        raise SessionError(f"{where}: target must be a mapping, e.g. {{type: sphere, diameter: 0.04}} (metres)")
+        raise SessionError(f"{where}: target must be a mapping, e.g. {{type: sphere, diameter: 0.04}} (metres) or "
+                           "{type: plane}")
     kind = str(target.get("type", ""))
     if kind not in TARGET_TYPES:
-        raise SessionError(f"{where}: target: a laser session scans a {' or '.join(TARGET_TYPES)}, not {kind!r}")
-    check_keys(target, ("type", "diameter"), f"{where}: target")
+        raise SessionError(f"{where}: target: a laser session scans a {' or a '.join(TARGET_TYPES)}, not {kind!r}")
+    check_keys(target, TARGET_KEYS[kind], f"{where}: target ({kind})")
+    return kind, _radius(target, where) if kind == "sphere" else None
+
+
+def _radius(target: dict, where: str) -> float | None:
     if target.get("diameter") is None:
         return None
     try:
@@ -144,7 +154,7 @@ def load_laser_session(folder: str | Path, arm: str | None = None) -> LaserSessi
         raise SessionError(f"{where}: no laser: mapping; a laser session says its profiles' unit there")
     setup = check_setup(str(spec.get("setup", "")))
     unit, working, noise = _laser_spec(spec["laser"], where)
-    radius = _radius(spec.get("target"), where)
+    target, radius = _target(spec.get("target"), where)
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("profile",)) if spec.get("joints") else None
     if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
         names, f2b = list(joints[0]), joints[2].forward(joints[1])
@@ -154,7 +164,7 @@ def load_laser_session(folder: str | Path, arm: str | None = None) -> LaserSessi
     q = None if joints is None else joints_of_views(joints, names)
     paths = [_profile_of(folder, n) for n in names]
     return LaserSession(folder, setup, dict(spec["target"]), list(names), paths, f2b, unit, working, noise, radius, notes,
-                        q, None if joints is None else joints[2], None if joints is None else joints[3])
+                        q, None if joints is None else joints[2], None if joints is None else joints[3], target)
 
 
 def _profile_of(folder: Path, name: str) -> Path:

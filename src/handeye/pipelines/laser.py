@@ -1,12 +1,13 @@
 """Laser line profiler sessions calibrated: every profile read, then the estimation core.
 
 A laser session (:mod:`handeye.io.laser_session`: ``laser:`` in session.yaml, ``profiles/``) gives
-per robot pose the points where the profiler's laser plane met a ball. :func:`calibrate_laser_session`
+per robot pose the points where the profiler's laser plane met a ball or a plate. :func:`calibrate_laser_session`
 reads each profile (in metres; points outside the stated measuring range left out; a profile that
 is missing or has no point left is skipped, named), makes them a sensor model
-(:class:`~handeye.sensors.laser.model.SphereProfiles`: every point's distance from the ball), and the
-estimation core (:func:`handeye.estimation.core.estimate`) fits X with the ball's centre (and its
-radius when the session gives none), the arm's table too when the session has joint angles; sets
+(:class:`~handeye.sensors.laser.model.SphereProfiles`: every point's distance from the ball;
+:class:`~handeye.sensors.laser.plane.PlaneProfiles`: from the plate's plane), and the estimation core
+(:func:`handeye.estimation.core.estimate`) fits X with the ball's centre (and its radius when the
+session gives none) or the plane, the arm's table too when the session has joint angles; sets
 aside stray points, leaves out profiles the fit does not explain, cross-validates on held-out
 profiles (their points' distance from the ball, mm), says what the capture leaves undetermined and
 gives the verdict: one :class:`~handeye.result.Calibration`, as for images.
@@ -25,6 +26,7 @@ from ..io.laser_session import LaserSession, load_laser_session
 from ..options import CalibrationOptions
 from ..result import Calibration
 from ..sensors.laser.model import SphereProfiles
+from ..sensors.laser.plane import PlaneProfiles
 from ..sensors.laser.profiles import read_profile
 from ._sensor import robot_model, sensor_options
 
@@ -105,7 +107,9 @@ def calibrate_laser_session(folder: str | Path | LaserSession, options: Calibrat
         raise DegenerateMotionError(
             f"{len(kept)} of {len(s.names)} profiles usable{why}: at least 3 are needed, 15-20 with the flange turned "
             "10 deg or more about two or three axes to trust X")
-    model = SphereProfiles(s.setup, [s.names[k] for k in kept], profiles, s.radius, s.noise_m)
+    names = [s.names[k] for k in kept]
+    model = (PlaneProfiles(s.setup, names, profiles, s.noise_m) if s.target == "plane" else
+             SphereProfiles(s.setup, names, profiles, s.radius, s.noise_m))
     cal = estimate(model, robot_model(s, kept, opts.robot_accuracy), opts.folds)
     return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + notes + list(cal.notes),
                    input_folder=s.folder)

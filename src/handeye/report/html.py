@@ -21,6 +21,8 @@ from scipy.spatial.transform import Rotation
 from .._shared.io import atomic_write
 from .._shared.lazy import lazy_module
 from .._version import __version__
+from ..estimation.verdict import HEADLINES
+from ..estimation.verdict import headline as verdict_headline
 from ..frames.motions import MotionSet
 from ..frames.setups import camera2base, predicted_target2cam, setup_info, target2base
 from ..geometry.se3 import screw_parameters
@@ -277,12 +279,60 @@ def _view_residual_figure(cal: Calibration) -> str:
     return _png(fig)
 
 
+#: The report draws at most this many views' sections (the worst half of them, and the rest evenly).
+MAX_SECTIONS = 24
+
+
+def _shown_sections(sf) -> list[int]:
+    """The views whose sections are drawn: all up to :data:`MAX_SECTIONS`, else the worst half of
+    that by residual and the rest evenly over the others, in the views' order."""
+    n = len(sf.sections)
+    if n <= MAX_SECTIONS:
+        return list(range(n))
+    worst = list(np.argsort(-np.asarray(sf.residual_mm))[:MAX_SECTIONS // 2])
+    rest = [k for k in range(n) if k not in worst]
+    return sorted(worst + [rest[i] for i in np.linspace(0, len(rest) - 1, MAX_SECTIONS - len(worst)).astype(int)])
+
+
+def _sections_figure(cal: Calibration) -> str:
+    """Each drawn view in the sensor's own plane: its points coloured by residual, and the fitted
+    target's section through X (a profiler's profile and the ball's circle or the plate's line)."""
+    sf = cal.sensor
+    shown = _shown_sections(sf)
+    cols = min(6, len(shown))
+    rows = -(-len(shown) // cols)
+    fig = _figure((2.1 * cols, 2.0 * rows + 0.4))
+    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
+    limit = max(float(np.nanpercentile(np.abs(np.concatenate([sf.sections[k]["residual_mm"] for k in shown])), 99)), 1e-3)
+    for ax, k in zip(axes, shown):
+        sec = sf.sections[k]
+        ax.plot(sec["curve_mm"][:, 0], sec["curve_mm"][:, 1], "-", color="#555", lw=1.0)
+        dots = ax.scatter(sec["points_mm"][:, 0], sec["points_mm"][:, 1], c=sec["residual_mm"], cmap="coolwarm",
+                          vmin=-limit, vmax=limit, s=3)
+        ax.invert_yaxis()  # the sensor looks down its z
+        ax.set_title(f"{sf.views[k]}: {sf.residual_mm[k]:.3f} mm", fontsize=7)
+        ax.tick_params(labelsize=6)
+        ax.locator_params(nbins=4)
+    for ax in axes[len(shown):]:
+        ax.set_visible(False)
+    fig.subplots_adjust(hspace=0.5, wspace=0.4)
+    fig.colorbar(dots, ax=axes.tolist(), shrink=0.6, label="residual (mm)")
+    fig.suptitle(f"each view in the {sf.sensor}'s plane (x, z in mm): the points, and the fitted {sf.target}'s section "
+                 "through X (line)", fontsize=9)
+    return _png(fig)
+
+
 def _sensor_residuals_section(cal: Calibration) -> str:
     """A sensor's fit: each view's residual, the views left out and the sensor's own figures."""
     sf = cal.sensor
     parts = ['<section id="residuals"><h2>Per-view residuals</h2>' + _img(_view_residual_figure(cal), "per-view residuals"),
              f"<p>{sf.points} measurements fitted, {sf.rejected} set aside as outliers (beyond 5 of their std); "
              f"{sf.fit_rms_mm:.3f} mm RMS.</p>"]
+    if sf.sections:
+        shown = _shown_sections(sf)
+        parts.append(_img(_sections_figure(cal), "each view with the fitted target's section")
+                     + (f"<p>{len(shown)} of {len(sf.sections)} views drawn: the {MAX_SECTIONS // 2} that fit worst and "
+                        "others evenly.</p>" if len(shown) < len(sf.sections) else ""))
     if cal.skipped:
         parts.append("<p>Views not used: " + "; ".join(f"{_e(n)} ({_e(r)})" for n, r in cal.skipped) + "</p>")
     rows = "".join(f'<tr><td class="l">{_e(k)}</td><td class="l">{_e(_figure_text(v))}</td></tr>'
@@ -309,12 +359,7 @@ def _verdict_section(cal: Calibration, verdict: str, pres: NDArray[np.float64]) 
     elif cal.std is not None:
         std_txt = (f" · std of X per axis: translation up to {np.max(cal.std[3:]):.3f} mm, rotation up to "
                    f"{np.max(cal.std[:3]):.4f} deg")
-    headline = {"good": "the data determine X well", "weak": "usable, but the data leave X poorly determined",
-                "partial": "the motions determine only part of X",
-                "degenerate": "the motions cannot determine X",
-                "inconsistent": "the poses do not agree on one X" if cal.sensor is None else
-                "the robot poses and the measurements do not agree on one X",
-                "not checked": "the data were not checked"}.get(verdict, "")
+    headline = verdict_headline(cal) if verdict == cal.verdict else HEADLINES.get(verdict, "")
     tail = (f"; median pose consistency {np.median(pres[:, 0]):.3f} deg / {np.median(pres[:, 1]):.3f} mm" if len(pres)
             else f"; fit {cal.sensor.fit_rms_mm:.3f} mm RMS" if cal.sensor is not None else "")
     if cal.prediction_error is not None and cal.sensor is not None:

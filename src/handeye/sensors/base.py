@@ -43,6 +43,10 @@ A new sensor is one package under ``sensors/`` whose model class has these membe
 ``jacobian(X, p, flange2base, rows)`` (optional)
     The residuals' derivatives (M, c, 6 + k) for a left increment of X and the sensor's unknowns:
     with it the fit needs one evaluation per step instead of one per unknown (the laser's has it).
+``sections(X, p, flange2base, views)`` (optional)
+    Per view of ``views`` what the report draws of it in the sensor's own plane: the measured
+    points, their residuals and the fitted target's section (:class:`~handeye.result.SensorFit`'s
+    ``sections``; the laser's has it).
 """
 
 from __future__ import annotations

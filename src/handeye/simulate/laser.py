@@ -17,13 +17,16 @@ from pathlib import Path
 import numpy as np
 import yaml
 from numpy.typing import NDArray
+from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from .._shared.io import atomic_write, check_output_folder
-from ..frames.setups import check_setup, setup_info
+from ..errors import HandEyeError, InputMismatchError
+from ..frames.setups import check_setup, predicted_target2cam, setup_info
 from ..geometry.se3 import invert, make_transform
 from ..io.session import write_pose_table
-from ._common import _reported
+from ..robot.kinematics import Chain, load_arm
+from ._common import _real_chain, _reported
 from .scenes import Scene, scene_from_viewpoints
 
 __all__ = ["LaserScene", "laser_scene", "write_laser_session", "PROFILER"]
@@ -43,6 +46,12 @@ class LaserScene(Scene):
     radius: float = 0.02
     noise_m: float = 2e-5
     flange2base_true: NDArray[np.float64] | None = None
+    #: with an arm: the joint angles the controller reports (rad), the arm's name, its nominal and real tables
+    joints: NDArray[np.float64] | None = None
+    arm: str | None = None
+    chain: Chain | None = None
+    chain_true: Chain | None = None
+    target: str = "sphere"  #: 'sphere' (a ball of ``radius``) or 'plane' (a plate at the target frame's z = 0)
 
 
 def _sensor_views(n: int, radius: float, rng: np.random.Generator, cone_deg: float) -> NDArray[np.float64]:
@@ -84,9 +93,63 @@ def _profile(target2sensor: NDArray[np.float64], radius: float, rng: np.random.G
     return np.c_[x, np.zeros(n), z]
 
 
+#: The simulated plate: a square of this side (m) at the target frame's z = 0.
+PLATE_M = 0.2
+
+
+def _plate_views(n: int, rng: np.random.Generator, cone_deg: float) -> NDArray[np.float64]:
+    """(n, 4, 4) sensor2target: the profiler above the plate (the target frame's z = 0, its +z up),
+    looking down from within ``cone_deg`` of the plate's normal with any roll, the laser line's
+    centre on the plate's middle half, at a distance within the measuring range."""
+    near, far = PROFILER["near"], PROFILER["far"]
+    out = np.empty((n, 4, 4))
+    for k in range(n):
+        tilt = np.radians(cone_deg) * np.sqrt(rng.uniform())
+        axis = rng.normal(size=2)
+        axis /= np.linalg.norm(axis)
+        R = (Rotation.from_rotvec(tilt * np.r_[axis, 0.0]) * Rotation.from_euler("x", 180, degrees=True)
+             * Rotation.from_euler("z", rng.uniform(-180, 180), degrees=True)).as_matrix()
+        hit = np.r_[rng.uniform(-0.25, 0.25, 2) * PLATE_M, 0.0]
+        out[k] = make_transform(R, hit - R[:, 2] * rng.uniform(near + 0.2 * (far - near), far - 0.2 * (far - near)))
+    return out
+
+
+def _plate_profile(target2sensor: NDArray[np.float64], rng: np.random.Generator, noise_m: float, dropout: float,
+                   spikes: float) -> NDArray[np.float64]:
+    """What the profiler measures of the plate at ``target2sensor``: per x across its field of view
+    the point where its laser plane meets the plate (``n . p = d`` in the sensor frame), with the
+    ball's noise, dropouts and spikes (:func:`_profile`); off the plate or outside the range: NaN."""
+    near, far, fov, n = PROFILER["near"], PROFILER["far"], PROFILER["fov"], PROFILER["points"]
+    normal, d = target2sensor[:3, 2], target2sensor[:3, 2] @ target2sensor[:3, 3]
+    x = np.linspace(-0.5 * fov, 0.5 * fov, n)
+    z = (d - normal[0] * x) / normal[2]
+    on_plate = invert(target2sensor)[:3, :3] @ np.c_[x, np.zeros(n), z].T + invert(target2sensor)[:3, 3:]
+    z = np.where(np.all(np.abs(on_plate[:2]) <= 0.5 * PLATE_M, axis=0), z, np.nan) + rng.normal(0.0, noise_m, n)
+    stray = rng.random(n) < spikes
+    z[stray] += rng.choice([-1.0, 1.0], int(stray.sum())) * rng.uniform(5e-4, 3e-3, int(stray.sum()))
+    z[(rng.random(n) < dropout) | (z < near) | (z > far)] = np.nan
+    return np.c_[x, np.zeros(n), z]
+
+
+def _views(target: str, n: int, radius: float, rng: np.random.Generator, cone_deg: float) -> NDArray[np.float64]:
+    return _sensor_views(n, radius, rng, cone_deg) if target == "sphere" else _plate_views(n, rng, cone_deg)
+
+
+def _reading(target: str, target2sensor, radius, rng, noise_m, dropout, spikes) -> NDArray[np.float64]:
+    if target == "sphere":
+        return _profile(target2sensor, radius, rng, noise_m, dropout, spikes)
+    return _plate_profile(target2sensor, rng, noise_m, dropout, spikes)
+
+
+#: The targets the simulator scans.
+TARGETS = ("sphere", "plane")
+
+
 def laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
                 radius: float = 0.02, noise_m: float = 2e-5, dropout: float = 0.02, spikes: float = 0.002,
-                cone_deg: float = 45.0, robot_error: tuple[float, float] | None = None) -> LaserScene:
+                cone_deg: float = 45.0, robot_error: tuple[float, float] | None = None, arm: str | None = None,
+                length_mm: float = 0.5, angle_deg: float = 0.05, joint_noise_deg: float = 0.002,
+                target: str = "sphere") -> LaserScene:
     """A laser profiler's capture of a ball of ``radius`` (m): fixed in the cell and scanned by the
     profiler on the flange (eye-in-hand), or on the flange in front of a fixed profiler (eye-to-hand).
 
@@ -95,7 +158,11 @@ def laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Ge
     0.8 of its radius off its centre on either side; depth noise ``noise_m`` (m), a share ``dropout``
     of points without return, a share ``spikes`` of stray points 0.5-3 mm off. ``robot_error`` (deg,
     mm): the reported flange poses are off by a constant and a heavy-tailed error per pose of that
-    size per axis (``flange2base`` is what the controller reports; None: exact).
+    size per axis (``flange2base`` is what the controller reports; None: exact). ``arm`` (a shipped
+    arm's name): the profiles are the arm's at joint angles that reach those views, its real table
+    off the nominal one by ``length_mm`` / ``angle_deg`` per entry (1-3 mm at the flange at the
+    defaults), the joint angles reported with ``joint_noise_deg`` of encoder noise, ``flange2base``
+    the nominal table's poses at them (:func:`_arm_laser_scene`; ``robot_error`` is then unused).
 
     Examples
     --------
@@ -103,13 +170,82 @@ def laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Ge
     >>> len(sc.profiles), sc.profiles[0].shape
     (5, (2000, 3))
     """
-    check_setup(setup)
+    setup = check_setup(setup)
+    if target not in TARGETS:
+        raise InputMismatchError(f"target={target!r}: the simulator scans a {' or a '.join(TARGETS)}")
     rng = np.random.default_rng(rng)
-    sensor2target = _sensor_views(n_views, radius, rng, cone_deg)
+    if arm is not None:
+        return _arm_laser_scene(n_views, setup, rng, radius, noise_m, dropout, spikes, cone_deg, arm, length_mm,
+                                angle_deg, joint_noise_deg, target)
+    sensor2target = _views(target, n_views, radius, rng, cone_deg)
     scene = scene_from_viewpoints(sensor2target, setup, rng)
-    profiles = [_profile(T, radius, rng, noise_m, dropout, spikes) for T in invert(sensor2target)]
+    profiles = [_reading(target, T, radius, rng, noise_m, dropout, spikes) for T in invert(sensor2target)]
     return LaserScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam,
-                      profiles=profiles, radius=radius, noise_m=noise_m, flange2base_true=scene.flange2base)
+                      profiles=profiles, radius=radius, noise_m=noise_m, flange2base_true=scene.flange2base, target=target)
+
+
+#: The arm's sensor (eye-in-hand) or ball (eye-to-hand) this far (m) off the flange, and the ball this
+#: far from the profiler at the arm's home.
+MOUNT_M, STANDOFF_M = (0.05, 0.10), 0.12
+
+
+def _arm_laser_scene(n: int, setup: str, rng: np.random.Generator, radius, noise_m, dropout, spikes, cone_deg, arm: str,
+                     length_mm: float, angle_deg: float, joint_noise_deg: float, target: str = "sphere") -> LaserScene:
+    """:func:`laser_scene` by a real arm: at the arm's home the profiler looks down at the ball from
+    :data:`STANDOFF_M`; each view of :func:`_sensor_views` is reached by the nominal table's joint
+    angles (least squares from home; views out of reach, or more than 1.5 spreads from home, drawn
+    again), which the real arm (its table off the nominal one) takes to a slightly other pose: the
+    profile is what the profiler sees from there (drawn again when it has fewer than 200 points)."""
+    chain = load_arm(arm)
+    home = chain.home[setup]
+    flange_home = chain.forward(home[None])[0]
+    mount = make_transform(Rotation.from_rotvec(rng.normal(0.0, np.radians(5.0), 3)).as_matrix()
+                           @ Rotation.from_euler("z", rng.uniform(-180, 180), degrees=True).as_matrix(),
+                           rng.uniform(-1, 1, 3) * [MOUNT_M[1], MOUNT_M[1], 0.0] + [0.0, 0.0, MOUNT_M[0]])
+    above = make_transform(Rotation.from_euler("x", 180, degrees=True).as_matrix(), [0.0, 0.0, STANDOFF_M])  # sensor2target
+    if setup_info(setup).camera_on_flange:  # X: the profiler on the flange; Z: the ball below it at home
+        X = mount
+        Z = flange_home @ X @ invert(above)
+    else:  # Z: the ball on the flange; X: the profiler above it at home
+        Z = mount @ make_transform(Rotation.from_euler("x", 180, degrees=True).as_matrix(), np.zeros(3))
+        X = flange_home @ Z @ above
+    true = _real_chain(chain, rng, length_mm, angle_deg)
+    limit = 1.5 * (chain.spread if chain.spread is not None else np.full(chain.n_joints, np.pi))
+    joints, profiles, f_true = [], [], []
+    for _ in range(50 * n):
+        if len(joints) == n:
+            break
+        s2t = _views(target, 1, radius, rng, cone_deg)[0]
+        wanted = (Z @ s2t @ invert(X) if setup_info(setup).camera_on_flange else X @ invert(s2t) @ invert(Z))
+        q, gap = _reaching(chain, wanted, home)
+        if gap > 1e-6 or np.any(np.abs(q - home) > limit):
+            continue
+        F = true.forward(q[None])[0]
+        profile = _reading(target, predicted_target2cam(X, Z, F[None], setup)[0], radius, rng, noise_m, dropout, spikes)
+        if np.isfinite(profile[:, 2]).sum() >= 200:
+            joints.append(q)
+            profiles.append(profile)
+            f_true.append(F)
+    if len(joints) < n:
+        raise HandEyeError(f"the simulated {arm} reached only {len(joints)} of {n} views of the {target}: ask for fewer "
+                           "views, or another arm")
+    q_true = np.array(joints)
+    reported = q_true + np.radians(rng.normal(0.0, joint_noise_deg, q_true.shape))
+    F_true = np.array(f_true)
+    return LaserScene(setup, X, Z, chain.forward(reported), predicted_target2cam(X, Z, F_true, setup), profiles=profiles,
+                      radius=radius, noise_m=noise_m, flange2base_true=F_true, joints=reported, arm=arm, chain=chain,
+                      chain_true=true, target=target)
+
+
+def _reaching(chain: Chain, flange2base: NDArray[np.float64], q0: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """Joint angles from ``q0`` that take ``chain``'s flange to ``flange2base`` (least squares), and
+    how far they leave it (rad, and m / 0.1 m)."""
+    def gap(q):
+        E = invert(flange2base) @ chain.forward(q[None])[0]
+        return np.r_[Rotation.from_matrix(E[:3, :3]).as_rotvec(), E[:3, 3] / 0.1]
+
+    res = least_squares(gap, q0, method="lm", xtol=1e-14, ftol=1e-14)
+    return res.x, float(np.max(np.abs(res.fun)))
 
 
 def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm", diameter: bool = True) -> Path:
@@ -125,12 +261,22 @@ def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm",
         rows = "".join(f"{float(f * x)!r},{'' if not np.isfinite(z) else repr(float(f * z))}\n" for x, z in p[:, [0, 2]])
         atomic_write(out / "profiles" / name, "x,z\n" + rows)
     write_pose_table(out / "poses.csv", names, scene.flange2base, "quat_wxyz", "mm", "deg", id_column="profile")
-    target: dict = {"type": "sphere"} | ({"diameter": 2 * scene.radius} if diameter else {})
+    target: dict = ({"type": "plane"} if scene.target == "plane" else
+                    {"type": "sphere"} | ({"diameter": 2 * scene.radius} if diameter else {}))
     spec = {"setup": scene.setup, "target": target, "laser": {"unit": unit, "noise": f * scene.noise_m},
             "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}}
+    if scene.joints is not None:  # the joint angles the controller reports, degrees, as other sessions have them
+        header = ",".join(["profile"] + [f"joint{k + 1}" for k in range(scene.joints.shape[1])])
+        atomic_write(out / "joints.csv", header + "\n" + "".join(
+            f"{n}," + ",".join(repr(float(v)) for v in np.degrees(q)) + "\n" for n, q in zip(names, scene.joints)))
+        spec["joints"] = {"file": "joints.csv", "unit": "deg", "arm": scene.arm}
     atomic_write(out / "session.yaml", yaml.safe_dump(spec, sort_keys=False))
     info = setup_info(scene.setup)
     truth = {"setup": scene.setup, info.x_name.replace("cam", "sensor"): scene.X.tolist(),
-             info.z_name: scene.Z.tolist(), "radius_m": float(scene.radius)}
+             info.z_name: scene.Z.tolist()}
+    truth |= ({"radius_m": float(scene.radius)} if scene.target == "sphere" else
+              {"normal": scene.Z[:3, 2].tolist(), "distance_m": float(scene.Z[:3, 2] @ scene.Z[:3, 3])})
+    if scene.chain_true is not None:
+        truth |= {"arm": scene.arm, "table_true": scene.chain_true.table.tolist()}
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return out
