@@ -278,3 +278,38 @@ def test_few_profiles_of_a_ball_of_known_size_start_in_the_right_basin(n, seed, 
     cal = estimate(SphereProfiles(setup, [f"p{k}" for k in range(n)], sc.profiles, radius=sc.radius),
                    ControllerPoses(sc.flange2base))
     assert np.degrees(rotation_error(cal.X, sc.X)) < 0.05 and cal.verdict == "good"
+
+
+def test_plan_for_a_laser_predicts_what_its_capture_gives(tmp_path, capsys, monkeypatch):
+    """handeye plan --sensor laser_line: poses around the ball written as a laser session's poses.csv
+    (first column profile), X's std predicted from the profiles alone and as calibrate reports it; a
+    capture of exactly those poses (a new noise draw) lands within 3 of the predicted std, and the
+    same number of profiles turned at most 10 deg places X's translation worse (the lever)."""
+    from handeye.frames.setups import predicted_target2cam
+    from handeye.geometry.se3 import make_transform
+    from handeye.planning.laser import plan_laser
+    from handeye.simulate import laser as simulated_laser
+    from handeye.simulate.laser import profile_reading
+
+    monkeypatch.setitem(simulated_laser.PROFILER, "points", 500)  # ~250 points on the ball: a small test
+    X, Z = make_transform(np.eye(3), [0.0, 0.05, 0.08]), make_transform(np.eye(3), [0.6, 0.0, 0.05])
+    plan = plan_laser("eye_in_hand", X, Z, n_poses=16, rng=1, robot_accuracy=None)
+    assert np.all(plan.std_data[3:] < plan.std_narrow[3:])
+    rng = np.random.default_rng(9)
+    profiles = [profile_reading("sphere", T, 0.02, rng, 2e-5) for T in predicted_target2cam(X, Z, plan.flange2base,
+                                                                                              "eye_in_hand")]
+    cal = estimate(SphereProfiles("eye_in_hand", [f"p{k}" for k in range(16)], profiles, 0.02),
+                   ControllerPoses(plan.flange2base))
+    from scipy.spatial.transform import Rotation
+
+    rot = Rotation.from_matrix(cal.X[:3, :3] @ X[:3, :3].T).as_rotvec(degrees=True)
+    assert np.all(np.abs(rot) <= 3 * plan.std_data[:3]) and np.all(np.abs(1e3 * (cal.X[:3, 3] - X[:3, 3])) <= 3 * plan.std_data[3:])
+    out = tmp_path / "poses.csv"
+    assert main(["plan", "--sensor", "laser_line", "--target-in-base", "0.6,0,0.05", "--cam-in-flange", "0,0.05,0.08",
+                 "--poses", "16", "--out", str(out)]) == 0
+    assert out.read_text().startswith("profile,") and len(out.read_text().splitlines()) == 17
+    text = capsys.readouterr().out
+    assert "predicted std of X as calibrate would report it" in text and "turned at most 10 deg" in text
+    assert main(["plan", "--sensor", "laser_line", "--intrinsics", "k.yaml", "--target-in-base", "0.6,0,0.05",
+                 "--out", str(tmp_path / "b.csv")]) != 0
+    assert "--intrinsics: a camera's" in capsys.readouterr().err

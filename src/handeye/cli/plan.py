@@ -12,10 +12,11 @@ from .._shared.io import atomic_write
 from ..errors import HandEyeError
 from ..frames.poses import pose_columns
 from ..frames.setups import SETUPS, predicted_target2cam, setup_info
-from ..io.session import SESSION_FILE, load_yaml
+from ..io.session import SESSION_FILE, load_yaml, write_pose_table
 from ..options import ROBOT_ACCURACY, CalibrationOptions
 from ..pipelines.folders import calibrate_session
 from ..planning.joints import suggest_joint_views
+from ..planning.laser import NARROW_DEG, plan_laser
 from ..planning.poses import (
     ROBOTS,
     easy_handeye_poses,
@@ -29,6 +30,7 @@ from ..planning.poses import (
 )
 from ..sensors.camera.targets import target_from_spec
 from ..simulate import DEFAULT_TARGETS
+from ..simulate.laser import TARGETS as LASER_TARGETS
 from ._common import (
     accuracy_arg,
     add_placements,
@@ -37,6 +39,7 @@ from ._common import (
     number_arg,
     out_folder,
     placements,
+    pose_arg,
     whole_arg,
 )
 from ._printing import fmt_vec, print_next_views
@@ -80,9 +83,62 @@ def _new_file(path: str) -> Path:
     return out
 
 
+def _plan_laser(args: argparse.Namespace) -> int:
+    """--sensor laser_line: flange poses around a ball (or over a plate) for a laser profiler, and the
+    std they would give, beside the same number of profiles turned at most NARROW_DEG."""
+    given = [name for name, value in (("--intrinsics", args.intrinsics), ("--standoff", args.standoff),
+                                      ("--target-spec", args.target_spec), ("--session", args.session)) if value]
+    if given:
+        raise HandEyeError(f"{', '.join(given)}: a camera's; plan --sensor laser_line takes the profiler's placement "
+                           "(--cam-in-flange or --camera-in-base), the target's and --target sphere|plane")
+    target = args.target or "sphere"
+    if target not in LASER_TARGETS:
+        raise HandEyeError(f"--target {target}: a laser line profiler scans a sphere or a plane (--target sphere, the "
+                           "default, or --target plane)")
+    pose_columns(args.format)
+    if args.length_unit not in ("m", "mm") or args.angle_unit not in ("deg", "rad"):
+        raise HandEyeError("--length-unit must be m or mm, --angle-unit deg or rad")
+    if setup_info(args.setup).camera_on_flange and not args.camera_in_base and not args.target_in_flange:
+        # the target's +z is the side the profiler looks from: a ball on a table is seen from above
+        X = pose_arg(args.cam_in_flange, "--cam-in-flange")
+        Z = pose_arg(args.target_in_base, "--target-in-base", (0.0, 0.0, 0.0), required=True)
+    else:
+        X, Z = placements(args)
+    out = _new_file(args.out)
+    out_folder(str(out.parent))
+    plan = plan_laser(args.setup, X, Z, n_poses=args.poses or 20, target=target, radius=args.diameter / 2,
+                      robot_accuracy=accuracy_arg(args.robot_accuracy), rng=args.seed)
+    names = [f"p{k + 1:02d}.csv" for k in range(len(plan.flange2base))]
+    write_pose_table(out, names, plan.flange2base, args.format, args.length_unit, args.angle_unit, id_column="profile")
+    print(f"{len(plan.flange2base)} profiles of the {target}, the profiler within {plan.cone_deg:g} deg of the "
+          f"{'ball' if target == 'sphere' else 'plate'}'s +z, turned about its view direction, in path order:")
+    print("  profile   flange x, y, z (mm)            flange rotation vector (deg)")
+    for name, F in zip(names, plan.flange2base):
+        print(f"  {name:8s}  {fmt_vec(1e3 * F[:3, 3], 1):30s} {fmt_vec(Rotation.from_matrix(F[:3, :3]).as_rotvec(degrees=True), 1)}")
+    s, d, n = plan.std_X, plan.std_data, plan.std_narrow
+    acc = plan.robot_accuracy
+    print(f"\npredicted std of X as calibrate would report it: rotation {fmt_vec(s[:3], 4)} deg, translation "
+          f"{fmt_vec(s[3:], 3)} mm" + (f" (the robot's absolute accuracy {acc[0]:g} deg / {acc[1]:g} mm per axis in it, "
+                                       "which no capture removes)" if acc is not None else ""))
+    print(f"  from the profiles alone: rotation {fmt_vec(d[:3], 5)} deg, translation {fmt_vec(d[3:], 4)} mm")
+    print(f"  the same number of profiles with the flange turned at most {NARROW_DEG:g} deg: " + (
+        f"rotation {fmt_vec(n[:3], 5)} deg, translation {fmt_vec(n[3:], 4)} mm" if np.all(np.isfinite(n)) else
+        "X is not determined (the profiles of a plate at nearly one orientation only slide along it)")
+    + " (turns between profiles place X's translation; the ball's centre across the laser plane, its rotation)")
+    print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): flange2base per profile; it is the "
+          "poses.csv of the laser session to capture (replace each row by the pose the robot reports)")
+    return 0
+
+
 def _cmd_plan(args: argparse.Namespace) -> int:
+    if args.sensor == "laser_line":
+        return _plan_laser(args)
     if args.session:
         return _plan_next_views(args)
+    args.target = args.target or "chessboard"
+    if args.target in LASER_TARGETS:
+        raise HandEyeError(f"--target {args.target} is a laser profiler's target: add --sensor laser_line, or give a "
+                           f"board ({', '.join(DEFAULT_TARGETS)})")
     if args.intrinsics is None or args.standoff is None:
         raise HandEyeError("plan needs --intrinsics and --standoff for a new capture (or --session SESSION for the next "
                            "views of a joint session)")
@@ -182,8 +238,14 @@ def register(sub) -> None:
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--intrinsics",
                    help="YAML with K, dist (optional) and image_size [width, height], top level or under camera:")
-    p.add_argument("--target", default="chessboard", choices=list(DEFAULT_TARGETS),
-                   help="built-in target (the one 'handeye simulate' renders); see --target-spec")
+    p.add_argument("--sensor", default="camera", choices=["camera", "laser_line"],
+                   help="camera (default): views of a board; laser_line: a laser line profiler's profiles of a ball "
+                   "(--diameter) or a plate (--target plane)")
+    p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS),
+                   help="built-in target (the one 'handeye simulate' renders; default chessboard); see --target-spec; "
+                   "with --sensor laser_line: sphere (default) or plane")
+    p.add_argument("--diameter", type=number_arg(0.0, 1.0, above=True), default=0.04,
+                   help="--sensor laser_line: the ball's diameter (m, default 0.04)")
     p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (e.g. your session.yaml)")
     add_placements(p)
     p.add_argument("--standoff", type=number_arg(0.0, above=True),

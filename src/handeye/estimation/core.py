@@ -177,10 +177,22 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
 
 
 def _cov(jac: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``inv(J^T J)`` through the SVD (symmetric, positive semi-definite however poorly conditioned)."""
+    """``inv(J^T J)`` through the SVD (symmetric, positive semi-definite however poorly conditioned),
+    of the QR's ``R`` when ``jac`` is tall (its singular values and right vectors, without the
+    hundreds of thousands of rows of ``U``)."""
+    if jac.shape[0] > 4 * jac.shape[1]:
+        jac = np.linalg.qr(jac, mode="r")
     _, s, Vt = np.linalg.svd(jac, full_matrices=False)
     s = np.where(s > s.max() * 1e-14, s, np.inf) if s.size and s.max() > 0 else np.full_like(s, np.inf)
     return (Vt.T / s**2) @ Vt
+
+
+def _plain_method(problem: Problem, rows: NDArray[np.intp]) -> str:
+    """The plain (linear loss) rounds' method: 'lm' (MINPACK: a QR of the Jacobian per step, where
+    'trf' takes its SVD, 2.5x the time on a laser's 230,000 rows) whenever the residuals outnumber
+    the unknowns, as MINPACK needs; else 'trf'."""
+    n_rows = len(rows) * np.asarray(problem.sensor.shape).shape[1] + problem.robot.n_params + len(problem.pins)
+    return "lm" if n_rows > sum(problem.sizes) else "trf"
 
 
 def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted | None = None,
@@ -200,8 +212,8 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     if start is not None:
         rows = np.flatnonzero(in_views & start.kept)
         fun = _function(problem, rows, start.sigma)
-        res = least_squares(fun, start.x, _jacobian(problem, rows, start.sigma), method="trf", x_scale=x_scale,
-                            xtol=tol, ftol=tol, gtol=tol)
+        res = least_squares(fun, start.x, _jacobian(problem, rows, start.sigma), method=_plain_method(problem, rows),
+                            x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
         return _fitted(problem, res, start.sigma, start.kept, rows)
     x = np.zeros(sum(problem.sizes))
     shape = np.asarray(sensor.shape)
@@ -221,8 +233,8 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     rows = np.flatnonzero(kept)
     n_unknowns = len(x)
     for _ in range(2):
-        res = least_squares(_function(problem, rows, sigma), x, _jacobian(problem, rows, sigma), method="trf",
-                            x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
+        res = least_squares(_function(problem, rows, sigma), x, _jacobian(problem, rows, sigma),
+                            method=_plain_method(problem, rows), x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
         x = res.x
         X, p, d = problem.unpack(x)
         w = sensor.residuals(X, p, problem.robot.flange2base(d), rows) / shape[rows]
@@ -234,8 +246,8 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
             res.jac, res.fun = res.jac * (sigma[0] / new[0]), res.fun * (sigma[0] / new[0])
             return _fitted(problem, res, new, kept, rows)
         sigma = new
-    res = least_squares(_function(problem, rows, sigma), x, _jacobian(problem, rows, sigma), method="trf",
-                        x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
+    res = least_squares(_function(problem, rows, sigma), x, _jacobian(problem, rows, sigma),
+                        method=_plain_method(problem, rows), x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
     return _fitted(problem, res, sigma, kept, rows)
 
 

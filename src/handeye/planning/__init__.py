@@ -1,10 +1,11 @@
-"""Planning what to capture: robot poses that determine X well for a camera (:mod:`~handeye.planning.poses.poses`,
-``handeye plan``), and the joint configurations that would determine what a joint fit left undetermined
-(:mod:`~handeye.planning.poses.joints`)."""
+"""Planning what to capture: robot poses that determine X well for a camera (:mod:`~handeye.planning.poses`,
+``handeye plan``) or a laser line profiler (:mod:`~handeye.planning.laser`), and the joint
+configurations that would determine what a joint fit left undetermined (:mod:`~handeye.planning.joints`)."""
 
 from __future__ import annotations
 
 from .joints import TABLE_DOMINATES, JointViews, suggest_joint_views
+from .laser import LaserPlan, plan_laser
 from .poses import (
     ROBOTS,
     Plan,
@@ -22,4 +23,4 @@ from .poses import (
 
 __all__ = ["Plan", "ROBOTS", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
            "visible_mask", "simulate_errors", "write_plan", "order_path", "candidate_views", "choose_next",
-           "JointViews", "suggest_joint_views", "TABLE_DOMINATES"]
+           "JointViews", "suggest_joint_views", "TABLE_DOMINATES", "LaserPlan", "plan_laser"]

@@ -295,30 +295,41 @@ def _shown_sections(sf) -> list[int]:
 
 
 def _sections_figure(cal: Calibration) -> str:
-    """Each drawn view in the sensor's own plane: its points coloured by residual, and the fitted
+    """Each drawn view in the sensor's own plane, in one grid of cells at one scale (one axes: a
+    figure of two dozen axes took a second to draw): its points coloured by residual, and the fitted
     target's section through X (a profiler's profile and the ball's circle or the plate's line)."""
     sf = cal.sensor
     shown = _shown_sections(sf)
     cols = min(6, len(shown))
-    rows = -(-len(shown) // cols)
-    fig = _figure((2.1 * cols, 2.0 * rows + 0.4))
-    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
-    limit = max(float(np.nanpercentile(np.abs(np.concatenate([sf.sections[k]["residual_mm"] for k in shown])), 99)), 1e-3)
-    for ax, k in zip(axes, shown):
+    boxes = [(np.nanmin(sf.sections[k]["points_mm"], axis=0), np.nanmax(sf.sections[k]["points_mm"], axis=0))
+             for k in shown]
+    cell = 1.25 * max(float(np.max(hi - lo)) for lo, hi in boxes)  # mm: the largest view's extent, and a margin
+    fig = _figure((1.9 * cols + 1.2, 1.9 * (-(-len(shown) // cols)) + 0.6))
+    ax = fig.subplots(1, 1)
+    xs, zs, res = [], [], []
+    for i, (k, (lo, hi)) in enumerate(zip(shown, boxes)):
         sec = sf.sections[k]
-        ax.plot(sec["curve_mm"][:, 0], sec["curve_mm"][:, 1], "-", color="#555", lw=1.0)
-        dots = ax.scatter(sec["points_mm"][:, 0], sec["points_mm"][:, 1], c=sec["residual_mm"], cmap="coolwarm",
-                          vmin=-limit, vmax=limit, s=3)
-        ax.invert_yaxis()  # the sensor looks down its z
-        ax.set_title(f"{sf.views[k]}: {sf.residual_mm[k]:.3f} mm", fontsize=7)
-        ax.tick_params(labelsize=6)
-        ax.locator_params(nbins=4)
-    for ax in axes[len(shown):]:
-        ax.set_visible(False)
-    fig.subplots_adjust(hspace=0.5, wspace=0.4)
-    fig.colorbar(dots, ax=axes.tolist(), shrink=0.6, label="residual (mm)")
-    fig.suptitle(f"each view in the {sf.sensor}'s plane (x, z in mm): the points, and the fitted {sf.target}'s section "
-                 "through X (line)", fontsize=9)
+        offset = np.array([(i % cols) * cell, (i // cols) * cell]) - 0.5 * (lo + hi)  # the view's centre to its cell's
+        curve = sec["curve_mm"] + offset
+        ax.plot(curve[:, 0], curve[:, 1], "-", color="#555", lw=0.8)
+        xs.append(sec["points_mm"][:, 0] + offset[0])
+        zs.append(sec["points_mm"][:, 1] + offset[1])
+        res.append(sec["residual_mm"])
+        ax.text((i % cols) * cell, (i // cols) * cell - 0.45 * cell, f"{sf.views[k]}: {sf.residual_mm[k]:.3f} mm",
+                ha="center", va="top", fontsize=6)
+    res_all = np.concatenate(res)
+    limit = max(float(np.nanpercentile(np.abs(res_all), 99)), 1e-3)
+    dots = ax.scatter(np.concatenate(xs), np.concatenate(zs), c=res_all, cmap="coolwarm", vmin=-limit, vmax=limit, s=2)
+    bar = 10.0 if cell > 20 else 1.0  # a scale bar: every cell is drawn at this one scale
+    y0 = (-(-len(shown) // cols) - 0.5) * cell
+    ax.plot([-0.4 * cell, -0.4 * cell + bar], [y0, y0], "k-", lw=1.5)
+    ax.text(-0.4 * cell, y0 + 0.04 * cell, f"{bar:g} mm", fontsize=6, va="top")
+    ax.set_aspect("equal")
+    ax.invert_yaxis()  # the sensor looks down its z
+    ax.axis("off")
+    fig.colorbar(dots, ax=ax, shrink=0.6, label="residual (mm)")
+    ax.set_title(f"each view in the {sf.sensor}'s plane (x across, z down, one scale): the points, and the fitted "
+                 f"{sf.target}'s section through X (line)", fontsize=8, pad=14)
     return _png(fig)
 
 

@@ -29,7 +29,7 @@ from ..robot.kinematics import Chain, load_arm
 from ._common import _real_chain, _reported
 from .scenes import Scene, scene_from_viewpoints
 
-__all__ = ["LaserScene", "laser_scene", "write_laser_session", "PROFILER"]
+__all__ = ["LaserScene", "laser_scene", "write_laser_session", "profiler_views", "profile_reading", "PROFILER", "TARGETS"]
 
 #: The simulated profiler: field of view along x (m), measuring range along z (m), points per profile.
 PROFILER = {"fov": 0.08, "near": 0.08, "far": 0.16, "points": 2000}
@@ -54,7 +54,8 @@ class LaserScene(Scene):
     target: str = "sphere"  #: 'sphere' (a ball of ``radius``) or 'plane' (a plate at the target frame's z = 0)
 
 
-def _sensor_views(n: int, radius: float, rng: np.random.Generator, cone_deg: float) -> NDArray[np.float64]:
+def _sensor_views(n: int, radius: float, rng: np.random.Generator, cone_deg: float, roll_deg: float = 180.0
+                  ) -> NDArray[np.float64]:
     """(n, 4, 4) sensor2target: the ball (at the target's origin) in front of the profiler, the laser
     plane cutting it off its centre (either side), the chord inside the field of view and the range,
     the sensor looking from within ``cone_deg`` of the target's +z with any roll."""
@@ -71,7 +72,7 @@ def _sensor_views(n: int, radius: float, rng: np.random.Generator, cone_deg: flo
         axis /= np.linalg.norm(axis)
         # the sensor's z axis points down at the ball (towards -z of the target), tilted, any roll
         R = (Rotation.from_rotvec(tilt * np.r_[axis, 0.0]) * Rotation.from_euler("x", 180, degrees=True)
-             * Rotation.from_euler("z", rng.uniform(-180, 180), degrees=True)).as_matrix()
+             * Rotation.from_euler("z", rng.uniform(-roll_deg, roll_deg), degrees=True)).as_matrix()
         out[k] = make_transform(R, -R @ centre)
     return out
 
@@ -97,7 +98,7 @@ def _profile(target2sensor: NDArray[np.float64], radius: float, rng: np.random.G
 PLATE_M = 0.2
 
 
-def _plate_views(n: int, rng: np.random.Generator, cone_deg: float) -> NDArray[np.float64]:
+def _plate_views(n: int, rng: np.random.Generator, cone_deg: float, roll_deg: float = 180.0) -> NDArray[np.float64]:
     """(n, 4, 4) sensor2target: the profiler above the plate (the target frame's z = 0, its +z up),
     looking down from within ``cone_deg`` of the plate's normal with any roll, the laser line's
     centre on the plate's middle half, at a distance within the measuring range."""
@@ -108,7 +109,7 @@ def _plate_views(n: int, rng: np.random.Generator, cone_deg: float) -> NDArray[n
         axis = rng.normal(size=2)
         axis /= np.linalg.norm(axis)
         R = (Rotation.from_rotvec(tilt * np.r_[axis, 0.0]) * Rotation.from_euler("x", 180, degrees=True)
-             * Rotation.from_euler("z", rng.uniform(-180, 180), degrees=True)).as_matrix()
+             * Rotation.from_euler("z", rng.uniform(-roll_deg, roll_deg), degrees=True)).as_matrix()
         hit = np.r_[rng.uniform(-0.25, 0.25, 2) * PLATE_M, 0.0]
         out[k] = make_transform(R, hit - R[:, 2] * rng.uniform(near + 0.2 * (far - near), far - 0.2 * (far - near)))
     return out
@@ -131,11 +132,20 @@ def _plate_profile(target2sensor: NDArray[np.float64], rng: np.random.Generator,
     return np.c_[x, np.zeros(n), z]
 
 
-def _views(target: str, n: int, radius: float, rng: np.random.Generator, cone_deg: float) -> NDArray[np.float64]:
-    return _sensor_views(n, radius, rng, cone_deg) if target == "sphere" else _plate_views(n, rng, cone_deg)
+def profiler_views(target: str, n: int, radius: float, rng: np.random.Generator, cone_deg: float,
+                   roll_deg: float = 180.0) -> NDArray[np.float64]:
+    """(n, 4, 4) sensor2target: ``n`` views of the ``target`` ('sphere' of ``radius``, or 'plane')
+    from within ``cone_deg`` of its +z, turned within ``roll_deg`` about the view direction, as
+    :func:`laser_scene` draws them (the planner's too)."""
+    if target == "sphere":
+        return _sensor_views(n, radius, rng, cone_deg, roll_deg)
+    return _plate_views(n, rng, cone_deg, roll_deg)
 
 
-def _reading(target: str, target2sensor, radius, rng, noise_m, dropout, spikes) -> NDArray[np.float64]:
+def profile_reading(target: str, target2sensor: NDArray[np.float64], radius: float, rng: np.random.Generator,
+                    noise_m: float, dropout: float = 0.0, spikes: float = 0.0) -> NDArray[np.float64]:
+    """What the profiler of :data:`PROFILER` measures of the ``target`` at ``target2sensor`` ((n, 3)
+    points, NaN without return), with the noise, dropouts and spikes of :func:`laser_scene`."""
     if target == "sphere":
         return _profile(target2sensor, radius, rng, noise_m, dropout, spikes)
     return _plate_profile(target2sensor, rng, noise_m, dropout, spikes)
@@ -177,9 +187,9 @@ def laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Ge
     if arm is not None:
         return _arm_laser_scene(n_views, setup, rng, radius, noise_m, dropout, spikes, cone_deg, arm, length_mm,
                                 angle_deg, joint_noise_deg, target)
-    sensor2target = _views(target, n_views, radius, rng, cone_deg)
+    sensor2target = profiler_views(target, n_views, radius, rng, cone_deg)
     scene = scene_from_viewpoints(sensor2target, setup, rng)
-    profiles = [_reading(target, T, radius, rng, noise_m, dropout, spikes) for T in invert(sensor2target)]
+    profiles = [profile_reading(target, T, radius, rng, noise_m, dropout, spikes) for T in invert(sensor2target)]
     return LaserScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam,
                       profiles=profiles, radius=radius, noise_m=noise_m, flange2base_true=scene.flange2base, target=target)
 
@@ -215,13 +225,13 @@ def _arm_laser_scene(n: int, setup: str, rng: np.random.Generator, radius, noise
     for _ in range(50 * n):
         if len(joints) == n:
             break
-        s2t = _views(target, 1, radius, rng, cone_deg)[0]
+        s2t = profiler_views(target, 1, radius, rng, cone_deg)[0]
         wanted = (Z @ s2t @ invert(X) if setup_info(setup).camera_on_flange else X @ invert(s2t) @ invert(Z))
         q, gap = _reaching(chain, wanted, home)
         if gap > 1e-6 or np.any(np.abs(q - home) > limit):
             continue
         F = true.forward(q[None])[0]
-        profile = _reading(target, predicted_target2cam(X, Z, F[None], setup)[0], radius, rng, noise_m, dropout, spikes)
+        profile = profile_reading(target, predicted_target2cam(X, Z, F[None], setup)[0], radius, rng, noise_m, dropout, spikes)
         if np.isfinite(profile[:, 2]).sum() >= 200:
             joints.append(q)
             profiles.append(profile)

@@ -308,24 +308,21 @@ GOOD_START_M = 1e-3
 
 def _best_start(A, points, candidates, radius, best=None):
     """Of the candidate rotations, each with its translation start, the one that leads to the best
-    fit: (R_X, t_X, C, rms) of all of X and the centre fitted to at most 3,000 of the points from it
-    (:func:`_polished`), or ``best`` when none beats it. The polished values, not the closed form's,
-    are returned: a translation start far off (the profiles' centres weakly placed along the laser
-    planes' normals) leaves the full fit's robust round in another basin (seen eye-to-hand with 8-14
-    profiles: 10-70 deg off), where the polish, in the base moved to the flange, reaches the right one."""
-    few = np.linspace(0, len(points) - 1, min(len(points), 3000)).astype(np.intp)
+    fit: (R_X, t_X, C, rms) as the closed form gave them, the rms that of all of X and the centre
+    fitted to at most 1,500 of the points from them (:func:`_fitted_rms`), or ``best`` when none
+    beats it."""
+    few = np.linspace(0, len(points) - 1, min(len(points), 1500)).astype(np.intp)
     for R_X, t0 in candidates:
         t_X, C = _translation_start(A, points, R_X, t0, radius)
-        polished = _polished(A[few], points[few], R_X, t_X, C, radius)
-        if best is None or polished[3] < best[3]:
-            best = polished
+        rms = _fitted_rms(A[few], points[few], R_X, t_X, C, radius)
+        if best is None or rms < best[3]:
+            best = (R_X, t_X, C, rms)
     return best
 
 
-def _polished(A, points, R_X, t_X, C, radius) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]:
-    """X and the centre (and the radius) fitted together to ``points`` from a start (soft L1 of 1 mm:
-    forgiving of a start millimetres off): (R_X, t_X, C, the robust RMS distance in m), the RMS what
-    tells a good start from a bad one."""
+def _fitted_rms(A, points, R_X, t_X, C, radius) -> float:
+    """How well ``points`` fit the sphere once X and the centre (and the radius) are fitted together
+    from a start: the robust RMS distance (m) the fit leaves, what tells a good start from a bad one."""
     R, tA = A[:, :3, :3], A[:, :3, 3]
 
     def fun(u):
@@ -337,8 +334,7 @@ def _polished(A, points, R_X, t_X, C, radius) -> tuple[NDArray[np.float64], NDAr
     u0 = np.r_[np.zeros(3), t_X, C] if radius is not None else np.r_[np.zeros(3), t_X, C, np.median(np.abs(fun(
         np.r_[np.zeros(3), t_X, C, 0.0])))]
     res = least_squares(fun, u0, method="trf", loss="soft_l1", f_scale=1e-3, x_scale=1e-3)
-    u = res.x
-    return (Rotation.from_rotvec(u[:3]).as_matrix() @ R_X, u[3:6], u[6:9], float(np.sqrt(np.median(res.fun**2))))
+    return float(np.sqrt(np.median(res.fun**2)))
 
 
 #: Up to this many profiles every pattern of sides is tried (2^n); beyond, the sides are chosen one
