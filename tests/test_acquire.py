@@ -8,12 +8,14 @@ from __future__ import annotations
 import base64
 import io
 import re
+import sys
 import types
 from dataclasses import replace
 
 import cv2
 import numpy as np
 import pytest
+import yaml
 from scipy.spatial.transform import Rotation
 
 from handeye.cli import main
@@ -218,6 +220,21 @@ def test_ur_backend_against_a_stand_in(tmp_path):
         make_robot("ur")
 
 
+def test_a_ur_dry_run_needs_neither_ur_rtde_nor_a_controller(monkeypatch):
+    """Issue 60, item 11: acquire --robot ur:IP --dry-run prints the moves without the ur_rtde
+    package (hidden here) and without reaching the controller; a real run still names the extra."""
+    monkeypatch.setitem(sys.modules, "rtde_control", None)  # import fails as if not installed
+    monkeypatch.setitem(sys.modules, "rtde_receive", None)
+    out = io.StringIO()
+    dry = make_robot("ur:10.0.0.2", dry_run=True)
+    dry.out = out
+    dry.move_to(np.array([0.6, 0.0, 0.2, 0.0, 3.1, 0.0]))
+    assert "dry run: would move linearly to [0.6000, 0.0000, 0.2000" in out.getvalue()
+    assert dry.current_pose()[0] == 0.6
+    with pytest.raises(HandEyeError, match=r"ur_rtde package: pip install 'handeye\[ur\]'"):
+        make_robot("ur:10.0.0.2")
+
+
 def test_cameras_opencv_file_genicam_stand_in_and_errors(tmp_path):
     video = tmp_path / "clip.avi"
     writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (64, 48))
@@ -253,12 +270,20 @@ def test_cameras_opencv_file_genicam_stand_in_and_errors(tmp_path):
 
 
 def test_acquire_command_with_verify(tmp_path, capsys):
+    """The simulated cell renders the board given by --target-spec (the one printed; issue 60, item 4),
+    and the run says in one sentence why it stopped and whether X is good."""
     out = tmp_path / "cell"
+    board = {"type": "chessboard", "cols": 8, "rows": 5, "square": 0.03}
+    (tmp_path / "board.yaml").write_text(yaml.safe_dump({"target": board}))
     status = main(["acquire", "--robot", "sim", "--camera", "sim", "--out", str(out), "--seed", "2", "--verify", "6",
-                   "--target-std", "0.1,1", "--no-progress"])
+                   "--target-std", "0.1,1", "--target-spec", str(tmp_path / "board.yaml"), "--no-progress"])
     text = capsys.readouterr().out
     assert status == 0, text[-2000:]
+    assert yaml.safe_load((out / "session.yaml").read_text())["target"] == board
     assert "stopped: target std reached" in text and "verification: good" in text
+    assert re.search(r"stopped after \d+ views because X's std reached the target \(--target-std\); X is good \(the "
+                     r"data determine X well, std up to [0-9.]+ deg / [0-9.]+ mm per axis against the 0.1 deg / 1 mm "
+                     r"asked for\)", text), text[-2000:]
     label = re.search(r"std of X \(([a-z_+]+) ", text)  # named by the estimator that gave X, never 'none'
     assert label is not None and label.group(1) not in ("none", "None"), text[-2000:]
     assert (tmp_path / "cell-results" / "result.json").is_file() and (tmp_path / "cell-results" / "verify.html").is_file()

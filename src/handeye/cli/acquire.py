@@ -10,6 +10,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..errors import HandEyeError
+from ..estimation.verdict import headline
 from ..frames.setups import SETUPS, flange_poses
 from ..geometry.se3 import make_transform
 from ..pipelines.verify import verify
@@ -41,7 +42,8 @@ def _cmd_acquire(args: argparse.Namespace) -> int:
     if args.robot == "sim":
         if args.camera != "sim":
             raise HandEyeError("--robot sim goes with --camera sim (the simulated cell)")
-        world = SimWorld.default(args.setup, seed=args.seed)
+        # the simulated cell renders the board the user printed (step 1 of the tutorial), when given
+        world = SimWorld.default(args.setup, seed=args.seed, target=target_spec_arg(args.target_spec))
         rough = make_transform(Rotation.from_rotvec(np.radians([1.5, -1.0, 1.0])).as_matrix(), [0.01, -0.008, 0.005])
         X0, Z0 = rough @ world.X, rough @ world.Z  # as from a drawing: ~1 cm and 2 deg off
         spec, (K, dist, size) = world.target_spec, (world.K, world.dist, world.image_size)
@@ -58,7 +60,7 @@ def _cmd_acquire(args: argparse.Namespace) -> int:
     robot = make_robot(args.robot, world, args.robot_format, rl, ra, speed=args.speed, yes=args.yes, dry_run=args.dry_run)
     camera = make_camera(args.camera, world, robot)
     acq = acquire(robot, camera, out, args.setup, spec, K, dist, size, X0, Z0,
-                  target_std=tuple(target_std.tolist()) if target_std is not None else (0.05, 0.5),
+                  target_std=tuple(target_std.tolist()) if target_std is not None else DEFAULT_TARGET_STD,
                   max_poses=args.max_poses, min_poses=args.min_poses, standoff=args.standoff,
                   robot_accuracy=accuracy_arg(args.robot_accuracy), settle_s=args.settle, progress=not args.no_progress)
     if acq.resumed_from:
@@ -76,12 +78,32 @@ def _cmd_acquire(args: argparse.Namespace) -> int:
     cal = replace(acq.calibration, notes=[f"captured by handeye acquire: {acq.n_views} views, stopped: {acq.stopped}"]
                   + list(acq.calibration.notes))
     print_calibration(cal)
+    print(_why_stopped(acq, cal, target_std))
     for path in write_calibration(cal, results):
         print(f"wrote {path}")
     status = verdict_status(cal)
     if args.verify:
         status = max(status, _acquire_verify(args, robot, camera, out, results, spec, K, dist, size, cal))
     return status
+
+
+#: --target-std's default: X's std per axis (deg, mm) at which a capture stops.
+DEFAULT_TARGET_STD = (0.05, 0.5)
+#: Why a capture stopped, in words (``Acquisition.stopped``).
+STOP_REASONS = {"target std reached": "X's std reached the target (--target-std)",
+                "robot accuracy": "the robot's error the views show keeps X's std above the target whatever more views add",
+                "max poses": "it took --max-poses views",
+                "no candidate left": "no view the planner can still propose would narrow X's std"}
+
+
+def _why_stopped(acq, cal, target_std) -> str:
+    """One sentence: why the capture stopped, and whether X is good (the verdict in words, its std per
+    axis against the target asked for)."""
+    target = DEFAULT_TARGET_STD if target_std is None else tuple(target_std.tolist())
+    std = "" if cal.std is None else (f", std up to {np.max(cal.std[:3]):.3f} deg / {np.max(cal.std[3:]):.2f} mm per axis "
+                                      f"against the {target[0]:g} deg / {target[1]:g} mm asked for")
+    return (f"stopped after {acq.n_views} views because {STOP_REASONS.get(acq.stopped, acq.stopped)}; X is "
+            f"{cal.verdict} ({headline(cal)}{std})")
 
 
 def _acquire_verify(args, robot, camera, out: Path, results: Path, spec, K, dist, size, cal) -> int:
@@ -134,7 +156,8 @@ def register(sub) -> None:
     p.add_argument("--robot-accuracy", metavar="DEG,MM", help="the robot's absolute accuracy (as calibrate)")
     p.add_argument("--speed", type=number_arg(0.0, above=True), default=0.1, help="ur: linear speed, m/s (capped at 0.25)")
     p.add_argument("--yes", action="store_true", help="ur: move without asking before each move")
-    p.add_argument("--dry-run", action="store_true", help="ur: print the moves, do not make them")
+    p.add_argument("--dry-run", action="store_true", help="ur: print the moves, do not make them (needs neither ur_rtde nor "
+                   "the controller)")
     p.add_argument("--seed", type=whole_arg(0), default=0, help="sim: the simulated cell and its noise")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_acquire)

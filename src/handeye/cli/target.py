@@ -7,6 +7,7 @@ import argparse
 import numpy as np
 import yaml
 
+from .._shared.io import atomic_write
 from ..errors import HandEyeError
 from ..sensors.camera.printing import PAPERS, largest_square_mm, scaled_spec, write_target
 from ..sensors.camera.targets import print_kinds, target_from_spec, target_origin
@@ -46,8 +47,12 @@ def _cmd_target(args: argparse.Namespace) -> int:
     print(f"wrote {path}: print it at 100% (no 'fit to page') and check the ruler measures 100 mm")
     if fitted is not None:
         print(f"{target.size_name} of {fitted:g} mm: the largest whole millimetre that fits {args.paper} (--square-mm sets the size)")
+    block = yaml.safe_dump({"target": spec}, sort_keys=False)
+    beside = path.with_suffix(".yaml")  # the block as a file: --target-spec of acquire and plan take it
+    atomic_write(beside, block)
+    print(f"wrote {beside}: the target: block below, for session.yaml (acquire and plan take it as --target-spec)")
     print("for session.yaml:")
-    print("  " + yaml.safe_dump({"target": spec}, sort_keys=False).replace("\n", "\n  ").rstrip())
+    print("  " + block.replace("\n", "\n  ").rstrip())
     frame = target.frame
     if args.origin == "centre":
         centre = 1e3 * target_origin(spec)

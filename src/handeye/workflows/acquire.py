@@ -317,7 +317,8 @@ class GenICamCamera:
 class URRobot:
     """A Universal Robots arm through ``ur_rtde``: poses as UR writes them (x, y, z in m and a
     rotation vector in rad: 'rotvec'); linear moves at capped speed, each confirmed on ``inp``
-    unless ``yes``; ``dry_run`` prints the moves and reports the commanded pose."""
+    unless ``yes``; ``dry_run`` prints the moves and reports the commanded pose, needing neither
+    ``ur_rtde`` nor a controller (issue 60, item 11)."""
 
     pose_format, length_unit, angle_unit = "rotvec", "m", "rad"
     MAX_SPEED, MAX_ACCEL = 0.25, 0.5  # m/s, m/s^2: a calibration needs no haste
@@ -328,7 +329,7 @@ class URRobot:
         self.yes, self.dry_run = yes, dry_run
         self.inp, self.out = inp or sys.stdin, out or sys.stdout
         self._commanded: NDArray[np.float64] | None = None
-        if control is None or receive is None:
+        if (control is None or receive is None) and not dry_run:  # a dry run moves nothing and reads back its commands
             try:
                 import rtde_control  # noqa: PLC0415  (an optional extra)
                 import rtde_receive  # noqa: PLC0415
@@ -336,7 +337,7 @@ class URRobot:
                 raise HandEyeError("Universal Robots arms need the ur_rtde package: pip install 'handeye[ur]'") from None
             try:
                 receive = rtde_receive.RTDEReceiveInterface(host)
-                control = None if dry_run else rtde_control.RTDEControlInterface(host)
+                control = rtde_control.RTDEControlInterface(host)
             except RuntimeError as exc:
                 raise HandEyeError(f"cannot reach the UR controller at {host} ({exc})") from None
         self.control, self.receive = control, receive
@@ -359,6 +360,8 @@ class URRobot:
     def current_pose(self) -> NDArray[np.float64]:
         if self.dry_run and self._commanded is not None:
             return self._commanded
+        if self.receive is None:
+            raise HandEyeError("dry run: no pose commanded yet, and no controller connected to read one from")
         return np.array(self.receive.getActualTCPPose(), dtype=float)
 
 
