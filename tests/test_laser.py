@@ -136,12 +136,50 @@ def test_x_from_profiles_of_a_plate(setup):
 
 def test_a_plate_scanned_at_one_orientation_is_refused_with_the_moves_that_fix_it():
     """Profiles of a plane at one flange orientation only slide along it: X's rotation is not
-    determined, and the error says which moves determine it."""
+    determined (a searched start finds turned X's that fit as well), and the error says which moves
+    determine it."""
     sc = laser_scene(12, "eye_in_hand", rng=23, target="plane", cone_deg=0.0)
     flange2base = sc.flange2base.copy()
     flange2base[:, :3, :3] = flange2base[0, :3, :3]
     with pytest.raises(DegenerateMotionError, match="turned 10 deg or more about two or three axes"):
         estimate(PlaneProfiles("eye_in_hand", [f"p{i}" for i in range(12)], sc.profiles), ControllerPoses(flange2base))
+
+
+def test_a_plate_with_few_profiles_or_turns_about_one_axis_is_searched_for_and_judged():
+    """Fewer profiles than the plate's closed form needs (12 < 16): a searched start, X right and
+    good. Turns about the flange's z axis only: what the fit determines is calibrated (rotation
+    right) and the rest named (translation along flange z, std inf), or, where a turned or mirrored X
+    fits as well, refused as ambiguous; never a wrong X with a small std."""
+    from scipy.spatial.transform import Rotation
+
+    from handeye.frames.setups import predicted_target2cam
+    from handeye.geometry.se3 import make_transform
+    from handeye.simulate.laser import profile_reading
+
+    sc = laser_scene(12, "eye_in_hand", rng=5, target="plane")
+    cal = estimate(PlaneProfiles("eye_in_hand", [f"p{k}" for k in range(12)], sc.profiles), ControllerPoses(sc.flange2base))
+    assert cal.verdict == "good" and np.degrees(rotation_error(cal.X, sc.X)) < 0.01
+    outcomes = []
+    for seed in (5, 6):
+        sc = laser_scene(20, "eye_in_hand", rng=seed, target="plane")
+        rng = np.random.default_rng(seed)
+        F0 = sc.flange2base[0]
+        F = np.array([make_transform(F0[:3, :3] @ Rotation.from_euler("z", rng.uniform(-40, 40), degrees=True).as_matrix(),
+                                     F0[:3, 3] + rng.uniform(-0.02, 0.02, 3)) for _ in range(20)])
+        profiles = [profile_reading("plane", T, 0.02, rng, 2e-5) for T in predicted_target2cam(sc.X, sc.Z, F, "eye_in_hand")]
+        keep = [k for k, p in enumerate(profiles) if np.isfinite(p[:, 2]).sum() > 50]
+        model = PlaneProfiles("eye_in_hand", [f"p{k}" for k in keep], [profiles[k] for k in keep])
+        try:
+            cal = estimate(model, ControllerPoses(F[keep]))
+        except DegenerateMotionError as exc:
+            assert "X is ambiguous" in str(exc) and "about two or three axes" in str(exc)
+            outcomes.append("refused")
+            continue
+        assert cal.verdict == "partial" and np.degrees(rotation_error(cal.X, sc.X)) < 0.05
+        assert any("translation" in u.parameter and "flange z" in u.parameter for u in cal.unobservable)
+        assert np.isinf(cal.std[5])
+        outcomes.append("partial")
+    assert outcomes == ["refused", "partial"]
 
 
 def test_a_plate_session_through_the_command_line(tmp_path, capsys):

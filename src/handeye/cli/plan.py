@@ -95,6 +95,9 @@ def _plan_laser(args: argparse.Namespace) -> int:
     if target not in LASER_TARGETS:
         raise HandEyeError(f"--target {target}: a laser line profiler scans a sphere or a plane (--target sphere, the "
                            "default, or --target plane)")
+    if target == "plane" and args.diameter is not None:
+        raise HandEyeError("--diameter is a ball's; a plate (--target plane) has none: leave it out")
+    diameter = 0.04 if args.diameter is None else args.diameter
     pose_columns(args.format)
     if args.length_unit not in ("m", "mm") or args.angle_unit not in ("deg", "rad"):
         raise HandEyeError("--length-unit must be m or mm, --angle-unit deg or rad")
@@ -106,7 +109,7 @@ def _plan_laser(args: argparse.Namespace) -> int:
         X, Z = placements(args)
     out = _new_file(args.out)
     out_folder(str(out.parent))
-    plan = plan_laser(args.setup, X, Z, n_poses=args.poses or 20, target=target, radius=args.diameter / 2,
+    plan = plan_laser(args.setup, X, Z, n_poses=args.poses or 20, target=target, radius=diameter / 2,
                       robot_accuracy=accuracy_arg(args.robot_accuracy), rng=args.seed)
     names = [f"p{k + 1:02d}.csv" for k in range(len(plan.flange2base))]
     write_pose_table(out, names, plan.flange2base, args.format, args.length_unit, args.angle_unit, id_column="profile")
@@ -133,6 +136,8 @@ def _plan_laser(args: argparse.Namespace) -> int:
 def _cmd_plan(args: argparse.Namespace) -> int:
     if args.sensor == "laser_line":
         return _plan_laser(args)
+    if args.diameter is not None:
+        raise HandEyeError("--diameter is a laser target's (a ball's): add --sensor laser_line, or leave it out")
     if args.session:
         return _plan_next_views(args)
     args.target = args.target or "chessboard"
@@ -240,11 +245,12 @@ def register(sub) -> None:
                    help="YAML with K, dist (optional) and image_size [width, height], top level or under camera:")
     p.add_argument("--sensor", default="camera", choices=["camera", "laser_line"],
                    help="camera (default): views of a board; laser_line: a laser line profiler's profiles of a ball "
-                   "(--diameter) or a plate (--target plane)")
+                   "(--diameter) or a plate (--target plane); --target-in-base is then the ball's centre (or a point "
+                   "of the plate), its rotation by default 0,0,0: the profiler looks from above")
     p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS),
                    help="built-in target (the one 'handeye simulate' renders; default chessboard); see --target-spec; "
                    "with --sensor laser_line: sphere (default) or plane")
-    p.add_argument("--diameter", type=number_arg(0.0, 1.0, above=True), default=0.04,
+    p.add_argument("--diameter", type=number_arg(0.0, 1.0, above=True), default=None,
                    help="--sensor laser_line: the ball's diameter (m, default 0.04)")
     p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (e.g. your session.yaml)")
     add_placements(p)

@@ -76,6 +76,8 @@ HELDOUT_FACTOR = 4.0
 #: A direction of X whose std exceeds this (rad at 1 m, or m), or whose information is this small a
 #: share of the largest, is not determined by the capture.
 UNDETERMINED_STD, UNDETERMINED_SHARE = 1.0, 1e-13
+#: A singular value of the Jacobian below this share of the largest is an exact null direction.
+NULL_SHARE = 1e-12
 #: The weight of the rows that hold an undetermined direction at its start (1 / its std, m).
 PIN = 1e9
 #: The robust first round fits at most this many measurement rows, evenly taken (the plain rounds
@@ -295,19 +297,31 @@ def view_rms_mm(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flang
 def _undetermined(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
     """The unit directions (k, 6) of X's increment the fit does not constrain: the information of X
     after the other unknowns are taken out (a Schur complement), its eigen-directions whose std
-    exceeds :data:`UNDETERMINED_STD` or whose share of the largest is below :data:`UNDETERMINED_SHARE`."""
-    info = fitted.jac.T @ fitted.jac
+    exceeds :data:`UNDETERMINED_STD` or whose share of the largest is below :data:`UNDETERMINED_SHARE`;
+    and X's part of every exact null direction of the Jacobian (all unknowns together: singular value
+    below :data:`NULL_SHARE` of the largest), which the normal matrix's rounding (its eigenvalues are
+    exact only to about 1e-16 of the largest) can hide: a plate's profiles with the flange turned about
+    one axis leave X's translation along it and the plane's distance free together, at 10 where the
+    largest is 1e12."""
+    jac = fitted.jac
     n_pins = len(problem.pins)
     if n_pins:  # the pins' own rows are not information from the data
-        P = fitted.jac[-n_pins:]
-        info = info - P.T @ P
+        jac = jac[:-n_pins]
+    info = jac.T @ jac
     A, B, C = info[:6, :6], info[:6, 6:], info[6:, 6:]
     S = A - B @ np.linalg.pinv(C, rcond=1e-14) @ B.T if C.size else A
     lam, V = np.linalg.eigh(0.5 * (S + S.T))
     lam = np.maximum(lam, 0.0)
     top = max(float(lam.max()), 1e-300)
     bad = (lam < UNDETERMINED_STD**-2) | (lam < UNDETERMINED_SHARE * top)
-    return V[:, bad].T
+    R = np.linalg.qr(jac, mode="r") if jac.shape[0] > jac.shape[1] else jac
+    _, s, Vt = np.linalg.svd(R)
+    null = Vt[len(s):] if len(s) < Vt.shape[0] else Vt[s < NULL_SHARE * max(float(s.max()), 1e-300)]
+    directions = np.vstack([V[:, bad].T, null[:, :6]])
+    if not len(directions):
+        return np.zeros((0, 6))
+    U, sv, W = np.linalg.svd(directions, full_matrices=False)
+    return W[sv > 1e-6]
 
 
 def _words(direction: NDArray[np.float64], setup: str) -> str:

@@ -172,7 +172,9 @@ def laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Ge
     arm's name): the profiles are the arm's at joint angles that reach those views, its real table
     off the nominal one by ``length_mm`` / ``angle_deg`` per entry (1-3 mm at the flange at the
     defaults), the joint angles reported with ``joint_noise_deg`` of encoder noise, ``flange2base``
-    the nominal table's poses at them (:func:`_arm_laser_scene`; ``robot_error`` is then unused).
+    the nominal table's poses at them (:func:`_arm_laser_scene`; give no ``robot_error`` then: the
+    arm's own error replaces it). ``target``: 'sphere' (the ball) or 'plane' (a 200 mm plate at the
+    target frame's z = 0, seen from within ``cone_deg`` of its normal).
 
     Examples
     --------
@@ -185,6 +187,9 @@ def laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Ge
         raise InputMismatchError(f"target={target!r}: the simulator scans a {' or a '.join(TARGETS)}")
     rng = np.random.default_rng(rng)
     if arm is not None:
+        if robot_error is not None:
+            raise InputMismatchError("laser_scene: give arm (its table's error) or robot_error (an error of the poses), "
+                                     "not both")
         return _arm_laser_scene(n_views, setup, rng, radius, noise_m, dropout, spikes, cone_deg, arm, length_mm,
                                 angle_deg, joint_noise_deg, target)
     sensor2target = profiler_views(target, n_views, radius, rng, cone_deg)

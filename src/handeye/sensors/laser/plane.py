@@ -27,14 +27,21 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
 
 from ...errors import DegenerateMotionError
 from ...frames.setups import robot_world_A
 from ...geometry.se3 import make_transform
 from .model import LASER_NOISE_M, START_POINTS, Profiles, rotation_from_columns
 
-__all__ = ["PlaneProfiles", "plane_profiles_start"]
+__all__ = ["PlaneProfiles", "plane_profiles_start", "searched_start"]
 
+#: The searched start tries this many rotations of X (fixed, spread over all rotations), each
+#: polished on at most SEARCH_POINTS points; a best fit worse than SEARCH_GIVE_UP_M refuses.
+SEARCH_ROTATIONS, SEARCH_POINTS, SEARCH_GIVE_UP_M = 60, 600, 1e-3
+#: Searched starts as good as the best whose rotations differ by more than this (deg): X is ambiguous.
+AMBIGUOUS_DEG = 1.0
 #: The closed form's null space must stand out by this factor (its smallest singular value against
 #: the next): else the profiles' poses do not determine X's rotation and the plane.
 SEPARATION = 5.0
@@ -61,6 +68,7 @@ class PlaneProfiles(Profiles):
         super().__init__(setup, names, profiles, noise_m)
         self.param_scale = np.array([1e-3, 1e-3, 1e-3])
         self._chart: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
+        self._searched: NDArray[np.float64] | None = None  # X's rotation a search found, for the folds' starts
 
     def _normal(self, p) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The unit normal of ``p`` and the chart's unnormalised vector ``n0 + a e1 + b e2``."""
@@ -75,7 +83,13 @@ class PlaneProfiles(Profiles):
         if len(rows) > START_POINTS:
             rows = rows[np.linspace(0, len(rows) - 1, START_POINTS).astype(np.intp)]
         A = robot_world_A(np.asarray(flange2base, dtype=float), self.setup)
-        X0, n, d = plane_profiles_start(A, self.points[rows], self.owner[rows])
+        try:
+            X0, n, d = plane_profiles_start(A, self.points[rows], self.owner[rows])
+        except DegenerateMotionError:
+            # too few turns for the closed form (about one axis only, or fewer than 16 profiles): the
+            # fit may still determine part of X or all of it; search for a start (once: a part of the
+            # same profiles, as cross-validation's folds are, starts from the whole's), or refuse
+            X0, n, d = self._searched_start(A[self.owner[rows]], self.points[rows])
         if self._chart is None:
             self._chart = (n, *_basis(n))
         n0, e1, e2 = self._chart
@@ -83,6 +97,17 @@ class PlaneProfiles(Profiles):
             n, d = -n, -d
         k = n / (n @ n0)  # n0 + a e1 + b e2, proportional to n
         return X0, np.array([k @ e1, k @ e2, d])
+
+    def _searched_start(self, A, points) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+        """:func:`searched_start`, or, after one, a polish from the rotation it found when that fits."""
+        if self._searched is not None:
+            few = np.linspace(0, len(points) - 1, min(len(points), SEARCH_POINTS)).astype(np.intp)
+            rms, X0, n, d = _polished(A[few], points[few], self._searched)
+            if rms <= 5 * self.noise_m:
+                return X0, n, d
+        X0, n, d = searched_start(A, points, 5 * self.noise_m)
+        self._searched = X0[:3, :3]
+        return X0, n, d
 
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """Each point's signed distance from the plane (m)."""
@@ -166,3 +191,55 @@ def plane_profiles_start(A: NDArray[np.float64], points: NDArray[np.float64], ow
             "profiles with the flange turned 10 deg or more about two or three axes between them (a plane's profiles "
             "at one orientation of the flange only slide along it)")
     return make_transform(R_X, t_X), n, float(v[30])
+
+
+def _polished(A: NDArray[np.float64], points: NDArray[np.float64], R0: NDArray[np.float64]
+              ) -> tuple[float, NDArray[np.float64], NDArray[np.float64], float]:
+    """From X's rotation ``R0`` (translation 0): the plane through the mapped points, then X, the
+    normal and the distance fitted together (soft L1 of 1 mm): (robust RMS in m, X, n, d)."""
+    R, tA = A[:, :3, :3], A[:, :3, 3]
+    q = np.einsum("mij,mj->mi", R, points @ R0.T) + tA
+    centre = q.mean(axis=0)
+    n0 = np.linalg.svd(q - centre, full_matrices=False)[2][2]
+    e1, e2 = _basis(n0)
+
+    def unpack(u):
+        m = n0 + u[6] * e1 + u[7] * e2
+        return Rotation.from_rotvec(u[:3]).as_matrix() @ R0, u[3:6], m / np.linalg.norm(m), n0 @ centre + u[8]
+
+    def fun(u):
+        Rx, t, n, d = unpack(u)
+        return (np.einsum("mij,mj->mi", R, points @ Rx.T + t) + tA) @ n - d
+
+    res = least_squares(fun, np.zeros(9), loss="soft_l1", f_scale=1e-3, x_scale=1e-3, max_nfev=60)
+    Rx, t, n, d = unpack(res.x)
+    return float(np.sqrt(np.median(res.fun**2))), make_transform(Rx, t), n, float(d)
+
+
+def searched_start(A: NDArray[np.float64], points: NDArray[np.float64], good_m: float
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """X, the plane's normal and distance from points ``p`` (point ``m`` seen from ``A[m]``) when the
+    closed form cannot give them: from each of :data:`SEARCH_ROTATIONS` rotations of X, the plane
+    and X polished together on :data:`SEARCH_POINTS` of the points; the best. What the profiles
+    leave undetermined is then the fit's to name (it pins it). Raises DegenerateMotionError when
+    none fits within :data:`SEARCH_GIVE_UP_M`, or when fits as good as the best (within ``good_m``
+    RMS of it) put X's rotation more than :data:`AMBIGUOUS_DEG` apart: such profiles (the flange
+    turned about one axis, or not at all) fit a mirrored or turned X as well, which no local std
+    shows."""
+    few = np.linspace(0, len(points) - 1, min(len(points), SEARCH_POINTS)).astype(np.intp)
+    found = [_polished(A[few], points[few], R0) for R0 in Rotation.random(SEARCH_ROTATIONS, random_state=0).as_matrix()]
+    best = min(found, key=lambda f: f[0])
+    turns = "turned 10 deg or more about two or three axes between them"
+    if best[0] > SEARCH_GIVE_UP_M:
+        raise DegenerateMotionError(
+            f"the profiles of the plane do not determine the sensor's rotation: capture 16 or more profiles with the "
+            f"flange {turns} (a plane's profiles at one orientation of the flange only slide along it)")
+    rivals = [f for f in found if f[0] <= best[0] + good_m]
+    apart = max(np.degrees(np.linalg.norm(Rotation.from_matrix(f[1][:3, :3] @ best[1][:3, :3].T).as_rotvec()))
+                for f in rivals)
+    if apart > AMBIGUOUS_DEG:
+        raise DegenerateMotionError(
+            f"the profiles of the plane fit sensor rotations {apart:.0f} deg apart equally well ({best[0] * 1e3:.3f} mm "
+            f"RMS): X is ambiguous; capture profiles with the flange {turns} (turns about one axis only, or none, leave "
+            "a turned or mirrored X as good a fit)")
+    return best[1], best[2], best[3]
