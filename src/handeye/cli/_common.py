@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from .. import solvers
 from .._shared.io import check_output_folder
-from ..errors import HandEyeError
+from ..errors import HandEyeError, InputMismatchError
 from ..estimation.verdict import exit_status
 from ..frames.poses import ANGLE_UNITS, LENGTH_UNITS
 from ..frames.setups import setup_info
@@ -26,7 +26,8 @@ from ..report import EXPORTS, write_calibration
 from ..result import Calibration
 from ..robot.kinematics import arm_names
 from ..sensors.camera.targets import target_from_spec
-from ..simulate import MIN_IMAGE_SIDE
+from ..simulate import DEFAULT_TARGETS, MIN_IMAGE_SIDE
+from ..simulate.laser import TARGETS as LASER_TARGETS
 from ._printing import print_calibration
 
 EXAMPLE_POSEPAIRS = "example_posepairs"
@@ -119,6 +120,22 @@ def placements(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray]:
                            "--camera-in-base and --target-in-flange")
     return (pose_arg(args.camera_in_base, "--camera-in-base", required=True),
             pose_arg(args.target_in_flange, "--target-in-flange", (180.0, 0.0, 0.0)))
+
+
+def sensor_target(sensor: str, target: str | None, board: str) -> str:
+    """--target for --sensor: a laser line profiler's sphere (the default) or plane, a camera's board
+    (default ``board``); the other kind's target is a clear error (simulate and plan)."""
+    if sensor == "laser_line":
+        target = target or "sphere"
+        if target not in LASER_TARGETS:
+            raise InputMismatchError(f"--target {target} is a board for cameras; a laser line profiler scans a "
+                                     f"{' or a '.join(LASER_TARGETS)} (--target sphere, the default, or --target plane)")
+        return target
+    target = target or board
+    if target in LASER_TARGETS:
+        raise InputMismatchError(f"--target {target} is a laser profiler's target: add --sensor laser_line, or give a "
+                                 f"board ({', '.join(DEFAULT_TARGETS)})")
+    return target
 
 
 def add_placements(p: argparse.ArgumentParser) -> None:

@@ -40,6 +40,7 @@ from ._common import (
     out_folder,
     placements,
     pose_arg,
+    sensor_target,
     whole_arg,
 )
 from ._printing import fmt_vec, print_next_views
@@ -83,6 +84,13 @@ def _new_file(path: str) -> Path:
     return out
 
 
+def _check_pose_format(args: argparse.Namespace) -> None:
+    """--format, --length-unit and --angle-unit of the poses.csv to write, checked before any work."""
+    pose_columns(args.format)
+    if args.length_unit not in ("m", "mm") or args.angle_unit not in ("deg", "rad"):
+        raise HandEyeError("--length-unit must be m or mm, --angle-unit deg or rad")
+
+
 def _plan_laser(args: argparse.Namespace) -> int:
     """--sensor laser_line: flange poses around a ball (or over a plate) for a laser profiler, and the
     std they would give, beside the same number of profiles turned at most NARROW_DEG."""
@@ -91,16 +99,11 @@ def _plan_laser(args: argparse.Namespace) -> int:
     if given:
         raise HandEyeError(f"{', '.join(given)}: a camera's; plan --sensor laser_line takes the profiler's placement "
                            "(--cam-in-flange or --camera-in-base), the target's and --target sphere|plane")
-    target = args.target or "sphere"
-    if target not in LASER_TARGETS:
-        raise HandEyeError(f"--target {target}: a laser line profiler scans a sphere or a plane (--target sphere, the "
-                           "default, or --target plane)")
+    target = sensor_target(args.sensor, args.target, "chessboard")
     if target == "plane" and args.diameter is not None:
         raise HandEyeError("--diameter is a ball's; a plate (--target plane) has none: leave it out")
     diameter = 0.04 if args.diameter is None else args.diameter
-    pose_columns(args.format)
-    if args.length_unit not in ("m", "mm") or args.angle_unit not in ("deg", "rad"):
-        raise HandEyeError("--length-unit must be m or mm, --angle-unit deg or rad")
+    _check_pose_format(args)
     if setup_info(args.setup).camera_on_flange and not args.camera_in_base and not args.target_in_flange:
         # the target's +z is the side the profiler looks from: a ball on a table is seen from above
         X = pose_arg(args.cam_in_flange, "--cam-in-flange")
@@ -140,16 +143,11 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         raise HandEyeError("--diameter is a laser target's (a ball's): add --sensor laser_line, or leave it out")
     if args.session:
         return _plan_next_views(args)
-    args.target = args.target or "chessboard"
-    if args.target in LASER_TARGETS:
-        raise HandEyeError(f"--target {args.target} is a laser profiler's target: add --sensor laser_line, or give a "
-                           f"board ({', '.join(DEFAULT_TARGETS)})")
+    args.target = sensor_target(args.sensor, args.target, "chessboard")
     if args.intrinsics is None or args.standoff is None:
         raise HandEyeError("plan needs --intrinsics and --standoff for a new capture (or --session SESSION for the next "
                            "views of a joint session)")
-    pose_columns(args.format)  # a clear error for an unknown format before any work
-    if args.length_unit not in ("m", "mm") or args.angle_unit not in ("deg", "rad"):
-        raise HandEyeError("--length-unit must be m or mm, --angle-unit deg or rad")
+    _check_pose_format(args)
     K, dist, size = load_camera(args.intrinsics)
     if args.target_spec:
         p = Path(args.target_spec)

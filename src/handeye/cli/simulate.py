@@ -11,7 +11,7 @@ from ..planning.poses import ROBOTS
 from ..robot.kinematics import arm_names
 from ..simulate import DEFAULT_TARGETS, laser_scene, simulate_kinematic_session, simulate_session, write_laser_session
 from ..simulate.laser import TARGETS as LASER_TARGETS
-from ._common import image_size_arg, number_arg, out_folder, whole_arg
+from ._common import image_size_arg, number_arg, out_folder, sensor_target, whole_arg
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
@@ -20,20 +20,14 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         if args.robot != "arm":
             raise InputMismatchError("--sensor laser_line simulates a 6-axis arm (its controller's poses, or with --arm its "
                                      "joint angles too); leave --robot out")
-        target = args.target or "sphere"
-        if target not in LASER_TARGETS:
-            raise InputMismatchError(f"--target {target} is a board for cameras; a laser line profiler scans a "
-                                     f"{' or a '.join(LASER_TARGETS)} (--target sphere, the default, or --target plane)")
+        target = sensor_target(args.sensor, args.target, "charuco")
         write_laser_session(args.out, laser_scene(args.poses, args.setup, args.seed, arm=args.arm, target=target))
         what = "a 40 mm ball" if target == "sphere" else "a 200 mm plate"
         arm = f", {args.arm}'s joint angles in joints.csv (the arm 1-3 mm off its nominal table)" if args.arm else ""
         print(f"wrote laser session {args.out} ({args.poses} profiles of {what}, {args.setup}{arm}); ground truth in "
               f"{Path(args.out) / 'ground_truth.yaml'}")
         return 0
-    args.target = args.target or "charuco"
-    if args.target in LASER_TARGETS:
-        raise InputMismatchError(f"--target {args.target} is a laser profiler's target: add --sensor laser_line, or give a "
-                                 f"board ({', '.join(DEFAULT_TARGETS)})")
+    args.target = sensor_target(args.sensor, args.target, "charuco")
     if args.arm is not None:
         if args.robot != "arm":
             raise InputMismatchError("--arm simulates a serial arm's joints; it does not combine with --robot " + args.robot)

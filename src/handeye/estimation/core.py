@@ -320,7 +320,7 @@ def _undetermined(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
     directions = np.vstack([V[:, bad].T, null[:, :6]])
     if not len(directions):
         return np.zeros((0, 6))
-    U, sv, W = np.linalg.svd(directions, full_matrices=False)
+    _, sv, W = np.linalg.svd(directions, full_matrices=False)
     return W[sv > 1e-6]
 
 

@@ -21,6 +21,7 @@ __all__ = [
     "invert",
     "compose",
     "skew",
+    "perpendicular_basis",
     "so3_left_jacobian",
     "pairwise_matmul",
     "rotation_angle",
@@ -109,6 +110,23 @@ def pairwise_matmul(L: ArrayLike, R: ArrayLike, il: ArrayLike, ir: ArrayLike) ->
         return np.take(prod.reshape(n_l * n_r, r), il * n_r + ir, axis=0)[:, :, None]
     prod = L.reshape(n_l * r, c) @ R.transpose(1, 0, 2).reshape(c, n_r * k)
     return prod.reshape(n_l, r, n_r, k).transpose(0, 2, 1, 3)[il, ir]
+
+
+def perpendicular_basis(e: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Two unit vectors completing the unit vector(s) ``e`` (..., 3) to a right-handed orthonormal
+    basis ``(u, w, e)``.
+
+    Examples
+    --------
+    >>> u, w = perpendicular_basis(np.array([0.0, 0.0, 1.0]))
+    >>> bool(np.allclose(np.cross(u, w), [0.0, 0.0, 1.0]))
+    True
+    """
+    e = np.asarray(e, dtype=float)
+    helper = np.where(np.abs(e[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    u = np.cross(e, helper)
+    u /= np.linalg.norm(u, axis=-1, keepdims=True)
+    return u, np.cross(e, u)
 
 
 def skew(v: ArrayLike) -> NDArray[np.float64]:

@@ -61,7 +61,7 @@ __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME
            "read_pose_table", "read_joints", "SessionError", "load_yaml", "has_section", "check_keys",
            "check_session_keys", "read_session_yaml", "pose_rows_inverted", "read_robot_poses", "joints_of_views",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
-           "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session",
+           "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session", "write_joint_table",
            "load_joint_stream", "load_camera_stream", "write_joint_stream"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
@@ -984,6 +984,21 @@ def write_session(folder: str | Path, setup: str, target_spec: dict[str, Any], n
     return _write_session_yaml(folder, setup, target_spec, camera, poses, None, comment)
 
 
+def write_joint_table(path: str | Path, names: list[str], joints: NDArray[np.float64], unit: str = "deg",
+                      id_column: str = "image", joint_names: list[str] | None = None) -> Path:
+    """Write joint angles ``joints`` (N, n; radians) as a session's ``joints.csv``: an ``id_column``
+    naming each view, then one column per joint (``joint_names`` or ``joint1`` ...) in ``unit``
+    (deg or rad), atomically; returns the path."""
+    q = np.asarray(joints, dtype=float)
+    q = np.degrees(q) if unit == "deg" else q
+    columns = list(joint_names) if joint_names is not None else [f"joint{k + 1}" for k in range(q.shape[1])]
+    lines = [f"{id_column}," + ",".join(columns)]
+    lines += [f"{n}," + ",".join(_number(v) for v in row) for n, row in zip(names, q)]
+    path = Path(path)
+    atomic_write(path, "\n".join(lines) + "\n")
+    return path
+
+
 def write_joint_session(folder: str | Path, setup: str, target_spec: dict[str, Any], names: list[str],
                         joints: NDArray[np.float64], arm: str, flange2base: NDArray[np.float64] | None = None,
                         camera: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
@@ -996,12 +1011,7 @@ def write_joint_session(folder: str | Path, setup: str, target_spec: dict[str, A
     folder = Path(folder)
     setup = check_setup(setup)
     target_from_spec(target_spec)
-    q = np.asarray(joints, dtype=float)
-    q = np.degrees(q) if unit == "deg" else q
-    columns = list(joint_names) if joint_names is not None else [f"joint{k + 1}" for k in range(q.shape[1])]
-    lines = ["image," + ",".join(columns)]
-    lines += [f"{n}," + ",".join(_number(v) for v in row) for n, row in zip(names, q)]
-    atomic_write(folder / "joints.csv", "\n".join(lines) + "\n")
+    write_joint_table(folder / "joints.csv", names, joints, unit, joint_names=joint_names)
     poses = None
     if flange2base is not None:
         write_pose_table(folder / "poses.csv", names, flange2base, "quat_wxyz", "mm", "deg")

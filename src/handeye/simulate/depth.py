@@ -15,7 +15,7 @@ from .._shared.io import atomic_write, check_output_folder
 from .._shared.lazy import lazy_module
 from ..errors import HandEyeError
 from ..frames.setups import check_setup, predicted_target2cam, setup_info
-from ..io.session import write_pose_table
+from ..io.session import write_joint_table, write_pose_table
 from ..robot.kinematics import Chain, load_arm
 from ..sensors.camera.pnp import project_points
 from ..sensors.camera.render import Renderer, target_texture
@@ -316,10 +316,7 @@ def write_depth_session(folder: str | Path, scene: DepthScene | SphereScene, uni
                      id_column="cloud" if spheres else "image")
     joints = None
     if scene.joints is not None:  # the joint angles the controller reports, degrees, as image sessions have them
-        rows = ["cloud" if spheres else "image"] + [f"joint{k + 1}" for k in range(scene.joints.shape[1])]
-        text = ",".join(rows) + "\n" + "".join(f"{n}," + ",".join(repr(float(v)) for v in np.degrees(q)) + "\n"
-                                                for n, q in zip(ids, scene.joints))
-        atomic_write(out / "joints.csv", text)
+        write_joint_table(out / "joints.csv", ids, scene.joints, id_column="cloud" if spheres else "image")
         joints = {"file": "joints.csv", "unit": "deg", "arm": scene.arm}
     depth: dict = {"unit": unit}
     if working_range is not None:

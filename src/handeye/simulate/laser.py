@@ -24,7 +24,7 @@ from .._shared.io import atomic_write, check_output_folder
 from ..errors import HandEyeError, InputMismatchError
 from ..frames.setups import check_setup, predicted_target2cam, setup_info
 from ..geometry.se3 import invert, make_transform
-from ..io.session import write_pose_table
+from ..io.session import write_joint_table, write_pose_table
 from ..robot.kinematics import Chain, load_arm
 from ._common import _real_chain, _reported
 from .scenes import Scene, scene_from_viewpoints
@@ -77,21 +77,30 @@ def _sensor_views(n: int, radius: float, rng: np.random.Generator, cone_deg: flo
     return out
 
 
-def _profile(target2sensor: NDArray[np.float64], radius: float, rng: np.random.Generator, noise_m: float,
-             dropout: float, spikes: float) -> NDArray[np.float64]:
-    """What the profiler measures of the ball at ``target2sensor``: per x across its field of view the
-    nearest point of the ball in its laser plane, with ``noise_m`` along z, a share ``dropout`` without
-    return and a share ``spikes`` of stray points 0.5-3 mm off; outside the range or the ball: NaN."""
-    near, far, fov, n = PROFILER["near"], PROFILER["far"], PROFILER["fov"], PROFILER["points"]
-    cx, h, cz = target2sensor[:3, 3]
-    x = np.linspace(-0.5 * fov, 0.5 * fov, n)
-    inside = radius**2 - h**2 - (x - cx) ** 2
-    z = np.where(inside > 0, cz - np.sqrt(np.maximum(inside, 0.0)), np.nan)
+def _measured(x: NDArray[np.float64], z: NDArray[np.float64], rng: np.random.Generator, noise_m: float,
+              dropout: float, spikes: float) -> NDArray[np.float64]:
+    """The profile (n, 3) the profiler reports of the true depths ``z`` at ``x``: ``noise_m`` along
+    z, a share ``spikes`` of stray points 0.5-3 mm off, a share ``dropout`` without return, and
+    nothing (NaN) outside the measuring range."""
+    near, far, n = PROFILER["near"], PROFILER["far"], len(x)
     z = z + rng.normal(0.0, noise_m, n)
     stray = rng.random(n) < spikes
     z[stray] += rng.choice([-1.0, 1.0], int(stray.sum())) * rng.uniform(5e-4, 3e-3, int(stray.sum()))
     z[(rng.random(n) < dropout) | (z < near) | (z > far)] = np.nan
     return np.c_[x, np.zeros(n), z]
+
+
+def _profile(target2sensor: NDArray[np.float64], radius: float, rng: np.random.Generator, noise_m: float,
+             dropout: float, spikes: float) -> NDArray[np.float64]:
+    """What the profiler measures of the ball at ``target2sensor``: per x across its field of view the
+    nearest point of the ball in its laser plane, with ``noise_m`` along z, a share ``dropout`` without
+    return and a share ``spikes`` of stray points 0.5-3 mm off; outside the range or the ball: NaN."""
+    fov, n = PROFILER["fov"], PROFILER["points"]
+    cx, h, cz = target2sensor[:3, 3]
+    x = np.linspace(-0.5 * fov, 0.5 * fov, n)
+    inside = radius**2 - h**2 - (x - cx) ** 2
+    z = np.where(inside > 0, cz - np.sqrt(np.maximum(inside, 0.0)), np.nan)
+    return _measured(x, z, rng, noise_m, dropout, spikes)
 
 
 #: The simulated plate: a square of this side (m) at the target frame's z = 0.
@@ -120,16 +129,13 @@ def _plate_profile(target2sensor: NDArray[np.float64], rng: np.random.Generator,
     """What the profiler measures of the plate at ``target2sensor``: per x across its field of view
     the point where its laser plane meets the plate (``n . p = d`` in the sensor frame), with the
     ball's noise, dropouts and spikes (:func:`_profile`); off the plate or outside the range: NaN."""
-    near, far, fov, n = PROFILER["near"], PROFILER["far"], PROFILER["fov"], PROFILER["points"]
+    fov, n = PROFILER["fov"], PROFILER["points"]
     normal, d = target2sensor[:3, 2], target2sensor[:3, 2] @ target2sensor[:3, 3]
     x = np.linspace(-0.5 * fov, 0.5 * fov, n)
     z = (d - normal[0] * x) / normal[2]
     on_plate = invert(target2sensor)[:3, :3] @ np.c_[x, np.zeros(n), z].T + invert(target2sensor)[:3, 3:]
-    z = np.where(np.all(np.abs(on_plate[:2]) <= 0.5 * PLATE_M, axis=0), z, np.nan) + rng.normal(0.0, noise_m, n)
-    stray = rng.random(n) < spikes
-    z[stray] += rng.choice([-1.0, 1.0], int(stray.sum())) * rng.uniform(5e-4, 3e-3, int(stray.sum()))
-    z[(rng.random(n) < dropout) | (z < near) | (z > far)] = np.nan
-    return np.c_[x, np.zeros(n), z]
+    z = np.where(np.all(np.abs(on_plate[:2]) <= 0.5 * PLATE_M, axis=0), z, np.nan)
+    return _measured(x, z, rng, noise_m, dropout, spikes)
 
 
 def profiler_views(target: str, n: int, radius: float, rng: np.random.Generator, cone_deg: float,
@@ -281,9 +287,7 @@ def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm",
     spec = {"setup": scene.setup, "target": target, "laser": {"unit": unit, "noise": f * scene.noise_m},
             "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}}
     if scene.joints is not None:  # the joint angles the controller reports, degrees, as other sessions have them
-        header = ",".join(["profile"] + [f"joint{k + 1}" for k in range(scene.joints.shape[1])])
-        atomic_write(out / "joints.csv", header + "\n" + "".join(
-            f"{n}," + ",".join(repr(float(v)) for v in np.degrees(q)) + "\n" for n, q in zip(names, scene.joints)))
+        write_joint_table(out / "joints.csv", names, scene.joints, id_column="profile")
         spec["joints"] = {"file": "joints.csv", "unit": "deg", "arm": scene.arm}
     atomic_write(out / "session.yaml", yaml.safe_dump(spec, sort_keys=False))
     info = setup_info(scene.setup)

@@ -34,7 +34,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import DegenerateMotionError
 from ..frames.motions import MotionSet
 from ..frames.setups import robot_world_A
-from ..geometry.se3 import invert, make_transform
+from ..geometry.se3 import invert, make_transform, perpendicular_basis
 from ._common import top_eigenvector
 from .observability import MIN_AXIS_SPREAD, MIN_ROTATION, rotation_spread, rotation_spread_absolute
 from .refine import TranslationPriors
@@ -136,14 +136,6 @@ def _rotation_between(b: NDArray[np.float64], a: NDArray[np.float64]) -> NDArray
     return np.where(near[..., None, None], half_turn, R)
 
 
-def _perpendicular_basis(e: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Two unit vectors completing ``e`` (..., 3) to a right-handed orthonormal basis."""
-    helper = np.where(np.abs(e[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
-    u = np.cross(e, helper)
-    u /= np.linalg.norm(u, axis=-1, keepdims=True)
-    return u, np.cross(e, u)
-
-
 def _reciprocal_condition(N: NDArray[np.float64]) -> NDArray[np.float64]:
     w = np.linalg.eigvalsh(N)
     return np.where(w[..., -1] > 0, w[..., 0] / np.where(w[..., -1] > 0, w[..., -1], 1.0), 0.0)
@@ -162,7 +154,7 @@ def _one_axis(motions: MotionSet) -> LowDofSolution:
     b_par = np.einsum("...ki,...ki->...k", b, np.broadcast_to(e, b.shape))
     b_perp = b - b_par[..., None] * e
     e_cross_b = np.cross(np.broadcast_to(e, b.shape), b)
-    u, w = _perpendicular_basis(e_a)
+    u, w = perpendicular_basis(e_a)
     RmI = motions.R_A - np.eye(3)
     c_u = np.einsum("...kij,...j->...ki", RmI, u)
     c_w = np.einsum("...kij,...j->...ki", RmI, w)

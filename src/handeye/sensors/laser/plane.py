@@ -32,7 +32,7 @@ from scipy.spatial.transform import Rotation
 
 from ...errors import DegenerateMotionError
 from ...frames.setups import robot_world_A
-from ...geometry.se3 import make_transform
+from ...geometry.se3 import make_transform, perpendicular_basis
 from .model import LASER_NOISE_M, START_POINTS, Profiles, rotation_from_columns
 
 __all__ = ["PlaneProfiles", "plane_profiles_start", "searched_start"]
@@ -45,14 +45,6 @@ AMBIGUOUS_DEG = 1.0
 #: The closed form's null space must stand out by this factor (its smallest singular value against
 #: the next): else the profiles' poses do not determine X's rotation and the plane.
 SEPARATION = 5.0
-
-
-def _basis(n0: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Two unit vectors perpendicular to ``n0`` and to each other."""
-    helper = np.eye(3)[int(np.argmin(np.abs(n0)))]
-    e1 = np.cross(n0, helper)
-    e1 /= np.linalg.norm(e1)
-    return e1, np.cross(n0, e1)
 
 
 class PlaneProfiles(Profiles):
@@ -91,7 +83,7 @@ class PlaneProfiles(Profiles):
             # same profiles, as cross-validation's folds are, starts from the whole's), or refuse
             X0, n, d = self._searched_start(A[self.owner[rows]], self.points[rows])
         if self._chart is None:
-            self._chart = (n, *_basis(n))
+            self._chart = (n, *perpendicular_basis(n))
         n0, e1, e2 = self._chart
         if n @ n0 < 0:  # the same plane with the normal the chart's way
             n, d = -n, -d
@@ -138,7 +130,7 @@ class PlaneProfiles(Profiles):
         """The plane as a frame: its z axis the normal, its origin the plane's point nearest the
         frame's origin (a plane has no in-plane position nor turn about its normal)."""
         n, _ = self._normal(p)
-        e1, e2 = _basis(n)
+        e1, e2 = perpendicular_basis(n)
         return make_transform(np.column_stack([e1, e2, n]), p[2] * n)
 
     def Z_std(self, p, cov_p) -> NDArray[np.float64]:
@@ -201,7 +193,7 @@ def _polished(A: NDArray[np.float64], points: NDArray[np.float64], R0: NDArray[n
     q = np.einsum("mij,mj->mi", R, points @ R0.T) + tA
     centre = q.mean(axis=0)
     n0 = np.linalg.svd(q - centre, full_matrices=False)[2][2]
-    e1, e2 = _basis(n0)
+    e1, e2 = perpendicular_basis(n0)
 
     def unpack(u):
         m = n0 + u[6] * e1 + u[7] * e2
