@@ -11,11 +11,22 @@ from ..planning.poses import ROBOTS
 from ..robot.kinematics import arm_names
 from ..simulate import DEFAULT_TARGETS, laser_scene, simulate_kinematic_session, simulate_session, write_laser_session
 from ..simulate.laser import TARGETS as LASER_TARGETS
+from ..simulate.linescan import linescan_scene, write_linescan_session
 from ._common import image_size_arg, number_arg, out_folder, sensor_target, whole_arg
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     out_folder(args.out)
+    if args.sensor == "line_scan":
+        if args.robot != "arm" or args.arm is not None or args.target is not None:
+            raise InputMismatchError("--sensor line_scan simulates a 6-axis arm's controller poses and a chessboard; leave "
+                                     "--robot, --arm and --target out")
+        sc = linescan_scene(args.poses, args.setup, args.seed)
+        write_linescan_session(args.out, sc, rng=args.seed)
+        print(f"wrote line-scan session {args.out} ({args.poses} scans of a {sc.board[0]} x {sc.board[1]} chessboard, "
+              f"{args.setup}, {sc.width} px at {sc.line_rate:.0f} lines/s, the robot's clock {1e3 * sc.clock_offset:.0f} ms "
+              f"after the camera's); ground truth in {Path(args.out) / 'ground_truth.yaml'}")
+        return 0
     if args.sensor == "laser_line":
         if args.robot != "arm":
             raise InputMismatchError("--sensor laser_line simulates a 6-axis arm (its controller's poses, or with --arm its "
@@ -53,9 +64,10 @@ def register(sub) -> None:
         "with ground_truth.yaml (X, Z, K, dist).",
     )
     p.add_argument("-o", "--out", required=True, help="new session folder")
-    p.add_argument("--sensor", default="camera", choices=["camera", "laser_line"],
+    p.add_argument("--sensor", default="camera", choices=["camera", "laser_line", "line_scan"],
                    help="camera (default): rendered images of a board; laser_line: a laser line profiler's profiles of a "
-                   "ball or a plate (--poses of them; --arm for joint angles)")
+                   "ball or a plate (--poses of them; --arm for joint angles); line_scan: a line-scan camera's scans of a "
+                   "chessboard swept by the robot (--poses of them)")
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--poses", type=whole_arg(1), default=15, help="number of images (default 15)")
     p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS),

@@ -62,7 +62,8 @@ __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME
            "check_session_keys", "read_session_yaml", "pose_rows_inverted", "read_robot_poses", "joints_of_views",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
            "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session", "write_joint_table",
-           "load_joint_stream", "load_camera_stream", "write_joint_stream"]
+           "load_joint_stream", "load_camera_stream", "write_joint_stream", "read_image_times", "time_unit_scale",
+           "parsed_poses"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
 SESSION_FILE = "session.yaml"
@@ -190,7 +191,7 @@ def load_session(folder: str | Path, strict_images: bool = True, arm: str | None
     length_unit = str(_require(poses, "length_unit", f"{where}: poses"))
     angle_unit = str(poses.get("angle_unit", "rad"))
     values, names, robot_times = read_pose_table(csv_path, fmt, id_columns=("image",), notes=notes, times=True)
-    f2b = _parsed(values, fmt, length_unit, angle_unit, csv_path)
+    f2b = parsed_poses(values, fmt, length_unit, angle_unit, csv_path)
     inverted = pose_rows_inverted(poses, where)
     if inverted:  # the rows are base2flange: handeye uses their inverses
         f2b = invert(f2b)
@@ -199,8 +200,8 @@ def load_session(folder: str | Path, strict_images: bool = True, arm: str | None
         if names is not None:
             raise SessionError(f"{csv_path}: an 'image' and a time column: give either image names (poses paired with "
                                "images) or times (a robot stream, with the images' times in an images: table)")
-        robot_times = robot_times * _time_unit(poses, f"{where}: poses")
-        names, image_times, times_path = _read_image_times(folder, spec.get("images"), where, notes)
+        robot_times = robot_times * time_unit_scale(poses, f"{where}: poses")
+        names, image_times, times_path = read_image_times(folder, spec.get("images"), where, notes)
         stream = (robot_times, f2b, image_times, times_path)
         nearest = _nearest(robot_times, image_times)
         f2b, values = f2b[nearest], values[nearest]
@@ -345,7 +346,7 @@ def load_joint_stream(path: str | Path, arm: str | Chain, unit: str = "rad", tim
     (how the columns were read)."""
     if unit not in ("deg", "rad"):
         raise SessionError(f"{path}: joint unit {unit!r}; use deg or rad")
-    scale = _time_unit({"time_unit": time_unit}, str(path))
+    scale = time_unit_scale({"time_unit": time_unit}, str(path))
     try:
         chain = arm if isinstance(arm, Chain) else _arm_chain(str(arm), Path())
     except InputMismatchError as exc:
@@ -417,7 +418,8 @@ def _images_named(folder: Path, names: list[str], table: Path,
     return paths, missing, sorted(set(on_disk) - set(files)), len(on_disk)
 
 
-def _time_unit(spec: dict[str, Any], where: str) -> float:
+def time_unit_scale(spec: dict[str, Any], where: str) -> float:
+    """Seconds per unit of a block's ``time_unit`` (default s); an unknown unit is a SessionError."""
     unit = str(spec.get("time_unit", "s"))
     if unit not in TIME_UNITS:
         raise SessionError(f"{where}: time_unit {unit!r}; use one of {', '.join(TIME_UNITS)}")
@@ -430,7 +432,7 @@ def _nearest(times: NDArray[np.float64], query: NDArray[np.float64]) -> NDArray[
     return np.where(np.abs(query - times[k - 1]) <= np.abs(times[k] - query), k - 1, k)
 
 
-def _read_image_times(folder: Path, spec: Any, where: str, notes: list[str]
+def read_image_times(folder: Path, spec: Any, where: str, notes: list[str]
                       ) -> tuple[list[str], NDArray[np.float64], Path]:
     """The ``images:`` table of a session with a robot stream: a CSV with a header ``image, time``
     (the camera's clock), in ``time_unit`` (default s)."""
@@ -457,7 +459,7 @@ def _read_image_times(folder: Path, spec: Any, where: str, notes: list[str]
         raise SessionError(f"{path}: no rows after the header")
     if len(set(names)) != len(names):
         raise SessionError(f"{path}: duplicate image names {summarize(sorted({n for n in names if names.count(n) > 1}))}")
-    return names, np.asarray(times) * _time_unit(spec, f"{where}: images"), path
+    return names, np.asarray(times) * time_unit_scale(spec, f"{where}: images"), path
 
 
 def _match_image_names(names: list[str], on_disk: list[str], notes: list[str]) -> list[str | None]:
@@ -565,7 +567,7 @@ def read_robot_poses(folder: Path, poses: Any, where: str, notes: list[str], id_
     values, names = read_pose_table(table, fmt, id_columns=id_columns, notes=notes)
     if names is None:
         raise SessionError(f"{table}: the first column must be {first_column}")
-    f2b = _parsed(values, fmt, str(poses["length_unit"]), str(poses.get("angle_unit", "rad")), table)
+    f2b = parsed_poses(values, fmt, str(poses["length_unit"]), str(poses.get("angle_unit", "rad")), table)
     return (invert(f2b) if pose_rows_inverted(poses, where) else f2b), list(names), table
 
 
@@ -740,10 +742,12 @@ def _read_pose_file(
     """A pose CSV read and parsed into transforms (metres), with its ids and raw values; errors name
     the file and row."""
     values, ids = read_pose_table(path, fmt, id_columns=id_columns, notes=notes)
-    return _parsed(values, fmt, length_unit, angle_unit, path), ids, values
+    return parsed_poses(values, fmt, length_unit, angle_unit, path), ids, values
 
 
-def _parsed(values, fmt: str, length_unit: str, angle_unit: str, path: Path) -> NDArray[np.float64]:
+def parsed_poses(values, fmt: str, length_unit: str, angle_unit: str, path: Path) -> NDArray[np.float64]:
+    """The 4x4 poses of a pose table's ``values`` (:func:`~handeye.frames.poses.parse_poses`), a bad
+    format or value a SessionError naming ``path``."""
     try:
         return parse_poses(values, fmt, length_unit, angle_unit, what=str(path))
     except PoseFormatError as exc:
@@ -778,9 +782,9 @@ def _read_poses(folder: Path, spec: Any, key: str, notes: list[str], where_file:
     kind = str(spec.get("pose", kinds[0]))
     if kind not in kinds:
         raise SessionError(f"{where}: pose {kind!r}; use {kinds[0]} (the default) or {kinds[1]} (rows of the inverse)")
-    scale = _time_unit(spec, where)
+    scale = time_unit_scale(spec, where)
     values, ids, times = read_pose_table(path, fmt, notes=notes, times=True, headerless=True)
-    T = _parsed(values, fmt, length_unit, angle_unit, path)
+    T = parsed_poses(values, fmt, length_unit, angle_unit, path)
     inverted = kind == kinds[1]
     if inverted:
         T = invert(T)

@@ -1,0 +1,135 @@
+"""Line-scan camera sessions calibrated: each scan's target found, then the estimation core.
+
+A line-scan session (:mod:`handeye.io.linescan_session`: ``linescan:`` in session.yaml, ``images/``
+of pushbroom scans, the robot's trajectory with times) gives per scan the rows the camera exposed
+while the robot swept it (or the target) across its view plane. :func:`calibrate_linescan_session`
+finds the target's corners in each scan (a scan without the whole target is skipped, named), makes
+them a sensor model (:class:`~handeye.sensors.linescan.model.LineScanCorners`: each corner's distance
+from the view plane at its row's time and its pixel error along the line), and the estimation core
+(:func:`handeye.estimation.core.estimate`) fits X with the target's pose, the focal length,
+principal point and distortion along the line and the clocks' offset; cross-validates on held-out
+scans (their corners' errors at the target, mm), says what the capture leaves undetermined and
+gives the verdict: one :class:`~handeye.result.Calibration`, as for images.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._shared.lazy import lazy_module
+from .._shared.progress import Progress
+from ..errors import DegenerateMotionError
+from ..estimation.core import estimate
+from ..io.linescan_session import LineScanSession, load_linescan_session
+from ..options import CalibrationOptions
+from ..result import Calibration
+from ..robot.models import ControllerPoses
+from ..sensors.camera.targets import target_from_spec
+from ..sensors.linescan.model import LineScanCorners, Trajectory
+from ._sensor import sensor_options
+
+cv2 = lazy_module("cv2")
+
+__all__ = ["calibrate_linescan_session", "grid_orderings"]
+
+
+def grid_orderings(points: NDArray[np.float64]) -> list[NDArray[np.intp]]:
+    """The orders in which a detector may read a target's ``points`` (n, 3): as printed, and each
+    half turn or mirror image about the points' middle that maps them onto themselves (a scan
+    moving the other way is a mirror image; a square grid is also read transposed)."""
+    xy = np.asarray(points, float)[:, :2]
+    middle = xy.mean(axis=0)
+    out = []
+    for T in ([[1, 0], [0, 1]], [[-1, 0], [0, -1]], [[-1, 0], [0, 1]], [[1, 0], [0, -1]],
+              [[0, 1], [1, 0]], [[0, -1], [-1, 0]], [[0, -1], [1, 0]], [[0, 1], [-1, 0]]):
+        moved = (xy - middle) @ np.asarray(T, float).T + middle
+        gap = np.linalg.norm(moved[:, None] - xy[None], axis=2)
+        order = np.argmin(gap, axis=1)
+        if np.all(gap[np.arange(len(xy)), order] < 1e-9) and len(set(order.tolist())) == len(xy):
+            out.append(order.astype(np.intp))
+    return out
+
+
+def _detected(s: LineScanSession, progress: bool):
+    """Each scan's corners (u, row) and target points, or why it was skipped."""
+    target = target_from_spec(s.target_spec, where="target")
+
+    def one(path: Path):
+        gray = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        if gray is None:
+            return None, f"unreadable image {path}"
+        if gray.shape[1] != s.width:
+            return None, f"{gray.shape[1]} pixels along the line, the session says width: {s.width}"
+        det = target.detect(gray)
+        if det is None:
+            return None, "target not found in the scan"
+        return det, None
+
+    bar = Progress(len(s.image_paths), "finding the target in the scans", progress)
+    found = []
+    with ThreadPoolExecutor(max_workers=2) as pool:  # OpenCV releases the GIL while it searches
+        for result in pool.map(one, s.image_paths):
+            found.append(result)
+            bar.update()
+    bar.close()
+    return target, found
+
+
+def calibrate_linescan_session(folder: str | Path | LineScanSession, options: CalibrationOptions | None = None, *,
+                               progress: bool = False, **changes) -> Calibration:
+    """Calibrate a line-scan camera session (the module docstring).
+
+    Parameters
+    ----------
+    folder : path or LineScanSession
+    options : CalibrationOptions, optional
+        ``robot_accuracy`` (the controller's poses' stated accuracy, added to X's std) and ``folds``
+        are used; the options of image sessions are refused when changed.
+    progress : bool
+        A progress bar over the scans' detection.
+
+    Returns
+    -------
+    Calibration
+        X (``cam2flange`` eye-in-hand, ``cam2base`` eye-to-hand), Z the target's pose, the std, the
+        verdict; ``sensor`` holds the fitted focal length, principal point, distortion and clock
+        offset with their std; ``skipped`` the scans not used, with why.
+
+    Raises
+    ------
+    SessionError
+        A bad session, naming the file or key (:func:`~handeye.io.linescan_session.load_linescan_session`).
+    DegenerateMotionError
+        Fewer than 3 scans with the target, or scans whose poses cannot determine X.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from handeye.simulate.linescan import linescan_scene, write_linescan_session
+    >>> folder = write_linescan_session(tempfile.mkdtemp() + "/s", linescan_scene(6, "eye_in_hand", rng=1), rng=1)
+    >>> cal = calibrate_linescan_session(folder)
+    >>> cal.verdict, abs(cal.sensor.figures["focal_px"]["value"] / 2400 - 1) < 1e-3
+    ('good', True)
+    """
+    opts = sensor_options(options, changes, "a line-scan session")
+    s = folder if isinstance(folder, LineScanSession) else load_linescan_session(folder)
+    target, found = _detected(s, progress)
+    kept = [k for k, (det, _) in enumerate(found) if det is not None]
+    skipped = [(s.names[k], why) for k, (det, why) in enumerate(found) if det is None]
+    if len(kept) < 3:
+        why = f" ({'; '.join(f'{n}: {r}' for n, r in skipped[:5])})" if skipped else ""
+        raise DegenerateMotionError(f"{len(kept)} of {len(s.names)} scans show the target{why}: at least 3 are needed, "
+                                    "10-15 with the flange turned 10 deg or more about two or three axes to trust X")
+    model = LineScanCorners(s.setup, [s.names[k] for k in kept], [found[k][0].image_points for k in kept],
+                            [found[k][0].object_points for k in kept], s.starts[kept], s.line_rate,
+                            Trajectory(s.times, s.flange2base), s.focal, s.width, s.noise_px, str(s.target_spec["type"]),
+                            # a grid found whole may be read in a mirrored order; a coded target's ids are its own
+                            grid_orderings(target.object_points()) if all(len(found[k][0]) == len(target.object_points())
+                                                                          for k in kept) else None)
+    cal = estimate(model, ControllerPoses(model.flange2base_ref, opts.robot_accuracy), opts.folds)
+    return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + list(cal.notes), input_folder=s.folder)
