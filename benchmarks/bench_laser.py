@@ -1,12 +1,15 @@
 """Laser line profilers (issue 61): X from profiles of a ball, against the simulator's truth.
 
-    python benchmarks/bench_laser.py [--sessions 20] [--profiles 20] [--target sphere|plane]
+    python benchmarks/bench_laser.py [--sessions 20] [--profiles 20] [--target sphere|plane|edge|step|spheres]
     python benchmarks/bench_laser.py --speed [--profiles 100]
     python benchmarks/bench_laser.py --joints [--sessions 8] [--profiles 40]
 
 Each session (``handeye.simulate.laser_scene``): a 40 mm ball, ``--profiles`` profiles from within
 45 deg of its top, the laser plane up to 0.8 of the radius off the centre on either side (or, with
-``--target plane``, a 200 mm plate seen from within 45 deg of its normal); 0.02 mm noise along z,
+``--target plane``, a 200 mm plate seen from within 45 deg of its normal; ``--target edge``, a square
+block's edge seen within 30 deg of its faces' bisector, the laser line across it; ``--target step``,
+a 10 mm step seen within 30 deg of its normal; ``--target spheres``, a fixture of 40, 30 and 50 mm
+balls, each profile of one chosen at random); 0.02 mm noise along z,
 2% of the points without return, 0.2% spikes of 0.5-3 mm; both setups. Rows:
 
 * exact robot: X's median error (goal: 0.01 mm / 0.005 deg), within 3 std;
@@ -44,7 +47,8 @@ from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import perturb
 from handeye.options import ROBOT_ACCURACY
 from handeye.robot.models import ControllerPoses, JointAngles
-from handeye.sensors.laser.model import SphereProfiles
+from handeye.sensors.laser.edge import EdgeProfiles, StepProfiles
+from handeye.sensors.laser.model import SphereProfiles, SpheresProfiles
 from handeye.sensors.laser.plane import PlaneProfiles
 from handeye.simulate import laser as simulated_laser
 from handeye.simulate import laser_scene, write_laser_session
@@ -70,7 +74,10 @@ def _plain(model, flange2base) -> np.ndarray:
 
 def _model(target: str, setup: str, sc):
     names = [f"p{i}" for i in range(len(sc.profiles))]
-    return SphereProfiles(setup, names, sc.profiles, radius=sc.radius) if target == "sphere" else PlaneProfiles(
+    if target == "spheres":
+        return SpheresProfiles(setup, names, sc.profiles, 0.5 * np.asarray(simulated_laser.FIXTURE["diameters"]))
+    models = {"plane": PlaneProfiles, "edge": EdgeProfiles, "step": StepProfiles}
+    return SphereProfiles(setup, names, sc.profiles, radius=sc.radius) if target == "sphere" else models[target](
         setup, names, sc.profiles)
 
 
@@ -160,7 +167,8 @@ def main() -> None:
     parser.add_argument("--profiles", type=int, default=None)
     parser.add_argument("--speed", action="store_true")
     parser.add_argument("--joints", action="store_true", help="controller's poses against joint angles")
-    parser.add_argument("--target", default="sphere", choices=["sphere", "plane"], help="the target scanned (accuracy rows)")
+    parser.add_argument("--target", default="sphere", choices=list(simulated_laser.TARGETS),
+                        help="the target scanned (accuracy rows)")
     args = parser.parse_args()
     if args.joints:
         args.sessions = min(args.sessions, 8) if args.sessions == 20 else args.sessions

@@ -201,7 +201,7 @@ def test_a_plate_session_through_the_command_line(tmp_path, capsys):
         load_laser_session(folder)
     capsys.readouterr()
     assert main(["simulate", "--sensor", "laser_line", "--target", "chessboard", "--out", str(tmp_path / "b")]) != 0
-    assert "a laser line profiler scans a sphere or a plane" in capsys.readouterr().err
+    assert "a laser line profiler scans one of sphere, plane, edge, step, spheres" in capsys.readouterr().err
     assert main(["simulate", "--target", "plane", "--out", str(tmp_path / "c")]) != 0
     assert "add --sensor laser_line" in capsys.readouterr().err
 
@@ -333,6 +333,8 @@ def test_plan_for_a_laser_predicts_what_its_capture_gives(tmp_path, capsys, monk
     X, Z = make_transform(np.eye(3), [0.0, 0.05, 0.08]), make_transform(np.eye(3), [0.6, 0.0, 0.05])
     plan = plan_laser("eye_in_hand", X, Z, n_poses=16, rng=1, robot_accuracy=None)
     assert np.all(plan.std_data[3:] < plan.std_narrow[3:])
+    with pytest.raises(handeye.errors.InputMismatchError, match="edge: not yet"):  # no plan that would model a plane
+        plan_laser("eye_in_hand", X, Z, n_poses=16, target="edge")
     rng = np.random.default_rng(9)
     profiles = [profile_reading("sphere", T, 0.02, rng, 2e-5) for T in predicted_target2cam(X, Z, plan.flange2base,
                                                                                               "eye_in_hand")]
@@ -351,3 +353,160 @@ def test_plan_for_a_laser_predicts_what_its_capture_gives(tmp_path, capsys, monk
     assert main(["plan", "--sensor", "laser_line", "--intrinsics", "k.yaml", "--target-in-base", "0.6,0,0.05",
                  "--out", str(tmp_path / "b.csv")]) != 0
     assert "--intrinsics: a camera's" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+def test_x_from_profiles_of_a_block_edge(setup, monkeypatch):
+    """A square block's edge, 16 profiles across it, the ball's noise, dropouts and spikes, an exact
+    robot: the searched start within a degree, X within the ball's bar (0.01 mm / 0.005 deg) and 3
+    std, the faces' angle fitted (90 deg), the fit better than its start on held-out profiles; a
+    calibrated arm's error stated: X within 3 std."""
+    from handeye.sensors.laser.edge import EdgeProfiles
+    from handeye.simulate import laser as simulated_laser
+
+    monkeypatch.setitem(simulated_laser.PROFILER, "points", 1000)  # ~750 points a profile: a small test
+    sc = laser_scene(16, setup, rng=31, target="edge")
+    names = [f"p{i}" for i in range(16)]
+    X0, _ = EdgeProfiles(setup, names, sc.profiles).start(sc.flange2base, None, None)
+    assert np.degrees(rotation_error(X0, sc.X)) < 1.0 and 1e3 * translation_error(X0, sc.X) < 1.0
+    cal = estimate(EdgeProfiles(setup, names, sc.profiles), ControllerPoses(sc.flange2base))
+    assert 1e3 * translation_error(cal.X, sc.X) < 0.01 and np.degrees(rotation_error(cal.X, sc.X)) < 0.005
+    assert _within_3_std(cal, sc.X) and cal.verdict == "good"
+    angle = cal.sensor.figures["angle_deg"]
+    assert abs(angle["value"] - 90.0) < 0.01 and angle["std"] < 0.01 and cal.sensor.figures["convex"]
+    assert any("the faces meet at" in n for n in cal.notes)
+    cv = cal.cross_validation
+    assert cv["fit"]["mm"] < cv["closed-form start"]["mm"]
+    rough = laser_scene(20, setup, rng=32, target="edge", robot_error=(0.01, 0.05))
+    assert _within_3_std(estimate(EdgeProfiles(setup, [f"p{i}" for i in range(20)], rough.profiles),
+                                  ControllerPoses(rough.flange2base, (0.01, 0.05))), rough.X)
+
+
+def test_an_edge_with_few_turns_calibrates_what_it_determines_and_names_the_rest():
+    """8 profiles turned about varied axes: X right. Turns about the flange's z axis only: X's
+    rotation right, its translation along flange z named (std inf), the rest right; one flange
+    orientation only (pure translations): the rotation right, the whole translation named."""
+    from scipy.spatial.transform import Rotation
+
+    from handeye.frames.setups import predicted_target2cam
+    from handeye.geometry.se3 import make_transform
+    from handeye.sensors.laser.edge import EdgeProfiles
+    from handeye.simulate.laser import profile_reading
+
+    sc = laser_scene(8, "eye_in_hand", rng=5, target="edge")
+    cal = estimate(EdgeProfiles("eye_in_hand", [f"p{k}" for k in range(8)], sc.profiles), ControllerPoses(sc.flange2base))
+    assert cal.verdict == "good" and np.degrees(rotation_error(cal.X, sc.X)) < 0.01
+    rng = np.random.default_rng(5)
+    F0 = sc.flange2base[0]
+    for axis in ("z", None):
+        F = np.array([make_transform(F0[:3, :3] @ (Rotation.from_euler(axis, rng.uniform(-30, 30), degrees=True).as_matrix()
+                                                   if axis else np.eye(3)), F0[:3, 3] + rng.uniform(-0.015, 0.015, 3))
+                      for _ in range(16)])
+        profiles = [profile_reading("edge", T, 0.02, rng, 2e-5) for T in predicted_target2cam(sc.X, sc.Z, F, "eye_in_hand")]
+        model = EdgeProfiles("eye_in_hand", [f"p{k}" for k in range(16)], profiles)
+        cal = estimate(model, ControllerPoses(F))
+        if axis is None:  # the faces' lines' slopes and offsets: the rotation; the translation moves with the faces
+            assert cal.verdict == "partial" and np.degrees(rotation_error(cal.X, sc.X)) < 0.02
+            assert len(cal.unobservable) == 3 and np.all(np.isinf(cal.std[3:])) and np.all(cal.std[:3] < 0.02)
+            continue
+        assert cal.verdict == "partial" and np.degrees(rotation_error(cal.X, sc.X)) < 0.02
+        assert [u.parameter for u in cal.unobservable] == ["translation of cam2flange along the flange z axis"]
+        assert np.isinf(cal.std[5]) and np.all(np.abs(1e3 * (cal.X - sc.X)[:2, 3]) < 0.05)
+
+
+def test_x_from_profiles_of_a_step():
+    """A 10 mm step (two parallel faces), 16 profiles across it: X within the ball's bar, the step's
+    height right, the riser's points set aside."""
+    from handeye.sensors.laser.edge import StepProfiles
+
+    sc = laser_scene(16, "eye_to_hand", rng=33, target="step")
+    cal = estimate(StepProfiles("eye_to_hand", [f"p{i}" for i in range(16)], sc.profiles), ControllerPoses(sc.flange2base))
+    assert 1e3 * translation_error(cal.X, sc.X) < 0.01 and np.degrees(rotation_error(cal.X, sc.X)) < 0.005
+    assert _within_3_std(cal, sc.X) and cal.verdict == "good"
+    assert abs(cal.sensor.figures["height_mm"]["value"] - 10.0) < 0.005
+
+
+def _fixture_model(setup, sc, keep=None):
+    from handeye.sensors.laser.model import SpheresProfiles
+    from handeye.simulate.laser import FIXTURE
+
+    keep = range(len(sc.profiles)) if keep is None else keep
+    return SpheresProfiles(setup, [f"p{k}" for k in keep], [sc.profiles[k] for k in keep],
+                           0.5 * np.asarray(FIXTURE["diameters"]))
+
+
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+def test_x_from_a_fixture_of_balls_told_apart(setup, monkeypatch):
+    """Three balls (40, 30, 50 mm), each of 20 profiles on one of them: the profiles told apart, X
+    within the ball's bar and 3 std, each centre right, the notes name each ball's profiles; with a
+    calibrated arm's error stated, X within 3 std."""
+    from handeye.simulate import laser as simulated_laser
+    from handeye.simulate.laser import FIXTURE
+
+    monkeypatch.setitem(simulated_laser.PROFILER, "points", 1000)  # ~400 points on a ball: a small test
+    sc = laser_scene(20, setup, rng=41, target="spheres")
+    cal = estimate(_fixture_model(setup, sc), ControllerPoses(sc.flange2base))
+    assert 1e3 * translation_error(cal.X, sc.X) < 0.01 and np.degrees(rotation_error(cal.X, sc.X)) < 0.005
+    assert _within_3_std(cal, sc.X) and cal.verdict == "good"
+    truth = np.asarray(FIXTURE["centres"]) @ sc.Z[:3, :3].T + sc.Z[:3, 3]
+    assert np.abs(np.array(cal.sensor.figures["centres_m"]) - truth).max() < 2e-5
+    assert sum(cal.sensor.figures["profiles"]) == 20 and any(n.startswith("profiles per ball: ball 1 (40.0 mm)")
+                                                             for n in cal.notes)
+    rough = laser_scene(20, setup, rng=42, target="spheres", robot_error=(0.01, 0.05))
+    assert _within_3_std(estimate(_fixture_model(setup, rough), ControllerPoses(rough.flange2base, (0.01, 0.05))), rough.X)
+
+
+def test_a_ball_of_the_fixture_with_too_few_profiles_is_said(monkeypatch):
+    """One profile left on the 30 mm ball: the fit still holds, and a note says that ball got only one."""
+    from handeye.frames.setups import robot_world_A
+    from handeye.simulate import laser as simulated_laser
+    from handeye.simulate.laser import FIXTURE
+
+    monkeypatch.setitem(simulated_laser.PROFILER, "points", 1000)
+    sc = laser_scene(24, "eye_in_hand", rng=43, target="spheres")
+    # each profile's ball, from the truth: its points' centroid mapped into the fixture's frame
+    A = robot_world_A(sc.flange2base, "eye_in_hand") @ sc.X
+    mean = np.array([np.nanmean(p, axis=0) for p in sc.profiles])
+    at = np.einsum("nij,nj->ni", A[:, :3, :3], mean) + A[:, :3, 3]
+    ball = np.argmin(np.linalg.norm((at - sc.Z[:3, 3]) @ sc.Z[:3, :3] - np.asarray(FIXTURE["centres"])[:, None], axis=2),
+                     axis=0)
+    keep = [k for k in range(24) if ball[k] != 1] + [int(np.flatnonzero(ball == 1)[0])]
+    cal = estimate(_fixture_model("eye_in_hand", sc, keep), ControllerPoses(sc.flange2base[keep]))
+    assert np.degrees(rotation_error(cal.X, sc.X)) < 0.01
+    assert cal.sensor.figures["profiles"][1] == 1
+    assert any("ball 2 (30.0 mm) got only 1 profile" in n for n in cal.notes)
+
+
+@pytest.mark.parametrize("target", ["edge", "step", "spheres"])
+def test_edge_step_and_fixture_sessions_through_the_command_line(tmp_path, target):
+    """simulate --sensor laser_line --target edge|step|spheres, then calibrate: the target's spec in
+    session.yaml, X right, the result read back with the target's figures."""
+    folder = tmp_path / "s"
+    assert main(["simulate", "--sensor", "laser_line", "--target", target, "--out", str(folder), "--poses", "16",
+                 "--seed", "7"]) == 0
+    spec = yaml.safe_load((folder / "session.yaml").read_text())["target"]
+    assert spec == ({"type": "spheres", "diameters": [0.04, 0.03, 0.05]} if target == "spheres" else {"type": target})
+    assert main(["calibrate", str(folder), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
+    truth = yaml.safe_load((folder / "ground_truth.yaml").read_text())
+    back = handeye.load_result(tmp_path / "out")
+    assert back.sensor.target == target and back.verdict == "good"
+    assert 1e3 * translation_error(back.X, np.array(truth["sensor2flange"])) < 0.02
+    key = {"edge": "angle_deg", "step": "height_mm", "spheres": "centres_m"}[target]
+    assert key in back.sensor.figures
+
+
+def test_bad_edge_and_fixture_targets_are_refused_by_name(tmp_path):
+    """An unknown key of an edge, a fixture's diameters in millimetres written as metres, a fixture
+    spelled both ways or without its balls' size: each refused, naming the key and the spelling."""
+    folder = write_laser_session(tmp_path / "s", laser_scene(6, "eye_in_hand", rng=8, target="spheres"))
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    for target, message in [({"type": "edge", "angle": 90}, r"target \(edge\): unknown key 'angle'"),
+                            ({"type": "spheres", "diameters": [40, 30, 50]}, r"diameter 40 m: give it in metres"),
+                            ({"type": "spheres", "diameters": [0.04], "count": 1}, r"not both"),
+                            ({"type": "spheres", "count": 3}, r"count: K and diameter: d"),
+                            ({"type": "spheres", "diameter": 0.04, "count": 1}, r"count 1: the number of balls, 2 or more")]:
+        (folder / "session.yaml").write_text(yaml.safe_dump(spec | {"target": target}))
+        with pytest.raises(SessionError, match=message):
+            load_laser_session(folder)
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec | {"target": {"type": "spheres", "count": 3, "diameter": 0.04}}))
+    assert load_laser_session(folder).radii == (0.02, 0.02, 0.02)

@@ -123,13 +123,13 @@ def placements(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray]:
 
 
 def sensor_target(sensor: str, target: str | None, board: str) -> str:
-    """--target for --sensor: a laser line profiler's sphere (the default) or plane, a camera's board
+    """--target for --sensor: a laser line profiler's target (sphere, the default; plane, edge, ...), a camera's board
     (default ``board``); the other kind's target is a clear error (simulate and plan)."""
     if sensor == "laser_line":
         target = target or "sphere"
         if target not in LASER_TARGETS:
-            raise InputMismatchError(f"--target {target} is a board for cameras; a laser line profiler scans a "
-                                     f"{' or a '.join(LASER_TARGETS)} (--target sphere, the default, or --target plane)")
+            raise InputMismatchError(f"--target {target} is a board for cameras; a laser line profiler scans one of "
+                                     f"{', '.join(LASER_TARGETS)} (--target sphere is the default)")
         return target
     target = target or board
     if target in LASER_TARGETS:

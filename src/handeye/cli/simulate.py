@@ -33,7 +33,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                                      "joint angles too); leave --robot out")
         target = sensor_target(args.sensor, args.target, "charuco")
         write_laser_session(args.out, laser_scene(args.poses, args.setup, args.seed, arm=args.arm, target=target))
-        what = "a 40 mm ball" if target == "sphere" else "a 200 mm plate"
+        what = {"sphere": "a 40 mm ball", "plane": "a 200 mm plate", "edge": "a block's edge", "step": "a 10 mm step",
+                "spheres": "a fixture of 3 balls"}[target]
         arm = f", {args.arm}'s joint angles in joints.csv (the arm 1-3 mm off its nominal table)" if args.arm else ""
         print(f"wrote laser session {args.out} ({args.poses} profiles of {what}, {args.setup}{arm}); ground truth in "
               f"{Path(args.out) / 'ground_truth.yaml'}")

@@ -17,6 +17,10 @@
       noise: 0.02                   # optional: the sensor's noise along z, in that unit (default 0.02 mm)
     target: {type: sphere, diameter: 0.040}   # metres; without a diameter it is estimated
     # or target: {type: plane}                # a flat plate (fixed in the cell, or on the flange)
+    # or target: {type: edge}                 # a block's edge: two flat faces meeting at a line (angle fitted)
+    # or target: {type: step}                 # two parallel faces at different heights
+    # or target: {type: spheres, diameters: [0.04, 0.03, 0.05]}   # a fixture of balls, each profile of one
+    # or target: {type: spheres, count: 3, diameter: 0.04}        # balls alike
     poses: {file: poses.csv, format: "euler:xyz", length_unit: mm, angle_unit: deg}
 
 Nothing is fitted here (:mod:`handeye.pipelines.laser` does that); every key is checked (an unknown
@@ -56,9 +60,10 @@ __all__ = ["LaserSession", "is_laser_session", "load_laser_session", "LASER_KEYS
 LASER_KEYS = ("unit", "range", "noise")
 SESSION_KEYS = ("setup", "laser", "target", "poses", "joints")
 #: The targets a laser session can scan.
-TARGET_TYPES = ("sphere", "plane")
+TARGET_TYPES = ("sphere", "plane", "edge", "step", "spheres")
 #: The keys of each target.
-TARGET_KEYS = {"sphere": ("type", "diameter"), "plane": ("type",)}
+TARGET_KEYS = {"sphere": ("type", "diameter"), "plane": ("type",), "edge": ("type",), "step": ("type",),
+               "spheres": ("type", "diameters", "count", "diameter")}
 
 
 @dataclass(frozen=True)
@@ -80,6 +85,7 @@ class LaserSession:
     arm: Chain | None = None
     joints_path: Path | None = None
     target: str = "sphere"  #: one of :data:`TARGET_TYPES`
+    radii: tuple[float, ...] | None = None  #: a fixture's balls' radii (m), one per ball (``type: spheres``)
 
     @property
     def input_files(self) -> list[Path]:
@@ -117,16 +123,41 @@ def _laser_spec(spec: Any, where: str) -> tuple[str, tuple[float, float] | None,
     return unit, rng, noise
 
 
-def _target(target: Any, where: str) -> tuple[str, float | None]:
-    """The target's type and, for a ball, its radius (m; None: estimated)."""
+def _target(target: Any, where: str) -> tuple[str, float | None, tuple[float, ...] | None]:
+    """The target's type, a ball's radius (m; None: estimated, or not a ball) and a fixture's balls' radii."""
     if not isinstance(target, dict):
-        raise SessionError(f"{where}: target must be a mapping, e.g. {{type: sphere, diameter: 0.04}} (metres) or "
-                           "{type: plane}")
+        raise SessionError(f"{where}: target must be a mapping, e.g. {{type: sphere, diameter: 0.04}} (metres), "
+                           "{type: plane}, {type: edge}, {type: step} or {type: spheres, diameters: [0.04, 0.03]}")
     kind = str(target.get("type", ""))
     if kind not in TARGET_TYPES:
-        raise SessionError(f"{where}: target: a laser session scans a {' or a '.join(TARGET_TYPES)}, not {kind!r}")
+        raise SessionError(f"{where}: target: a laser session scans a {', a '.join(TARGET_TYPES[:-1])} or "
+                           f"{TARGET_TYPES[-1]}, not {kind!r}")
     check_keys(target, TARGET_KEYS[kind], f"{where}: target ({kind})")
-    return kind, _radius(target, where) if kind == "sphere" else None
+    if kind == "spheres":
+        return kind, None, _radii(target, where)
+    return kind, _radius(target, where) if kind == "sphere" else None, None
+
+
+def _radii(target: dict, where: str) -> tuple[float, ...]:
+    """A fixture's balls' radii (m): ``diameters: [...]`` (one per ball), or ``count`` balls alike of ``diameter``."""
+    spelling = ("give diameters: [d1, d2, ...] (one per ball, metres) or, for balls alike, count: K and diameter: d "
+                "(metres)")
+    if target.get("diameters") is not None:
+        if target.get("count") is not None or target.get("diameter") is not None:
+            raise SessionError(f"{where}: target (spheres): {spelling}, not both")
+        values = target["diameters"]
+        if not isinstance(values, (list, tuple)) or len(values) < 2:
+            raise SessionError(f"{where}: target (spheres): diameters {values!r}: {spelling}; one ball is type: sphere")
+        if any(d is None for d in values):
+            raise SessionError(f"{where}: target (spheres): diameters {values!r}: give every ball's diameter (metres)")
+        return tuple(float(_radius({"diameter": d}, where)) for d in values)
+    if target.get("count") is None or target.get("diameter") is None:
+        raise SessionError(f"{where}: target (spheres): {spelling}")
+    count = target["count"]
+    if isinstance(count, bool) or not isinstance(count, int) or count < 2:
+        raise SessionError(f"{where}: target (spheres): count {count!r}: the number of balls, 2 or more (one ball is "
+                           "type: sphere)")
+    return (float(_radius(target, where)),) * count
 
 
 def _radius(target: dict, where: str) -> float | None:
@@ -154,7 +185,7 @@ def load_laser_session(folder: str | Path, arm: str | None = None) -> LaserSessi
         raise SessionError(f"{where}: no laser: mapping; a laser session says its profiles' unit there")
     setup = check_setup(str(spec.get("setup", "")))
     unit, working, noise = _laser_spec(spec["laser"], where)
-    target, radius = _target(spec.get("target"), where)
+    target, radius, radii = _target(spec.get("target"), where)
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("profile",)) if spec.get("joints") else None
     if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
         names, f2b = list(joints[0]), joints[2].forward(joints[1])
@@ -164,7 +195,7 @@ def load_laser_session(folder: str | Path, arm: str | None = None) -> LaserSessi
     q = None if joints is None else joints_of_views(joints, names)
     paths = [_profile_of(folder, n) for n in names]
     return LaserSession(folder, setup, dict(spec["target"]), list(names), paths, f2b, unit, working, noise, radius, notes,
-                        q, None if joints is None else joints[2], None if joints is None else joints[3], target)
+                        q, None if joints is None else joints[2], None if joints is None else joints[3], target, radii)
 
 
 def _profile_of(folder: Path, name: str) -> Path:

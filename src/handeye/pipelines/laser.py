@@ -1,11 +1,15 @@
 """Laser line profiler sessions calibrated: every profile read, then the estimation core.
 
 A laser session (:mod:`handeye.io.laser_session`: ``laser:`` in session.yaml, ``profiles/``) gives
-per robot pose the points where the profiler's laser plane met a ball or a plate. :func:`calibrate_laser_session`
+per robot pose the points where the profiler's laser plane met a ball, a plate, a block's edge, a step or
+one ball of a fixture. :func:`calibrate_laser_session`
 reads each profile (in metres; points outside the stated measuring range left out; a profile that
 is missing or has no point left is skipped, named), makes them a sensor model
 (:class:`~handeye.sensors.laser.model.SphereProfiles`: every point's distance from the ball;
-:class:`~handeye.sensors.laser.plane.PlaneProfiles`: from the plate's plane), and the estimation core
+:class:`~handeye.sensors.laser.plane.PlaneProfiles`: from the plate's plane;
+:class:`~handeye.sensors.laser.edge.EdgeProfiles` and :class:`~handeye.sensors.laser.edge.StepProfiles`:
+from the nearer of the two faces; :class:`~handeye.sensors.laser.model.SpheresProfiles`: from the
+nearest ball of the fixture; :func:`laser_model` picks it), and the estimation core
 (:func:`handeye.estimation.core.estimate`) fits X with the ball's centre (and its radius when the
 session gives none) or the plane, the arm's table too when the session has joint angles; sets
 aside stray points, leaves out profiles the fit does not explain, cross-validates on held-out
@@ -25,12 +29,13 @@ from ..estimation.core import estimate
 from ..io.laser_session import LaserSession, load_laser_session
 from ..options import CalibrationOptions
 from ..result import Calibration
-from ..sensors.laser.model import SphereProfiles
+from ..sensors.laser.edge import EdgeProfiles, StepProfiles
+from ..sensors.laser.model import Profiles, SphereProfiles, SpheresProfiles
 from ..sensors.laser.plane import PlaneProfiles
 from ..sensors.laser.profiles import read_profile
 from ._sensor import robot_model, sensor_options
 
-__all__ = ["calibrate_laser_session", "read_profiles", "MIN_POINTS"]
+__all__ = ["calibrate_laser_session", "read_profiles", "laser_model", "MIN_POINTS"]
 
 #: A profile with fewer points than this (after the range) is skipped: too few to say where the ball is.
 MIN_POINTS = 20
@@ -60,6 +65,19 @@ def read_profiles(s: LaserSession) -> tuple[list[int], list, list[tuple[str, str
     if outside:
         notes.append(f"{outside} points outside the stated measuring range left out")
     return kept, profiles, skipped, notes
+
+
+def laser_model(s: LaserSession, names: list[str], profiles: list) -> Profiles:
+    """The sensor model of the session's target (``s.target``) for the profiles ``profiles`` of the views ``names``."""
+    if s.target == "plane":
+        return PlaneProfiles(s.setup, names, profiles, s.noise_m)
+    if s.target == "edge":
+        return EdgeProfiles(s.setup, names, profiles, s.noise_m)
+    if s.target == "step":
+        return StepProfiles(s.setup, names, profiles, s.noise_m)
+    if s.target == "spheres":
+        return SpheresProfiles(s.setup, names, profiles, s.radii, s.noise_m)
+    return SphereProfiles(s.setup, names, profiles, s.radius, s.noise_m)
 
 
 def calibrate_laser_session(folder: str | Path | LaserSession, options: CalibrationOptions | None = None, *,
@@ -108,8 +126,6 @@ def calibrate_laser_session(folder: str | Path | LaserSession, options: Calibrat
             f"{len(kept)} of {len(s.names)} profiles usable{why}: at least 3 are needed, 15-20 with the flange turned "
             "10 deg or more about two or three axes to trust X")
     names = [s.names[k] for k in kept]
-    model = (PlaneProfiles(s.setup, names, profiles, s.noise_m) if s.target == "plane" else
-             SphereProfiles(s.setup, names, profiles, s.radius, s.noise_m))
-    cal = estimate(model, robot_model(s, kept, opts.robot_accuracy), opts.folds)
+    cal = estimate(laser_model(s, names, profiles), robot_model(s, kept, opts.robot_accuracy), opts.folds)
     return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + notes + list(cal.notes),
                    input_folder=s.folder)

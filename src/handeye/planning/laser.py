@@ -37,6 +37,9 @@ from ..robot.models import ControllerPoses
 from ..sensors.laser.model import LASER_NOISE_M, SphereProfiles
 from ..sensors.laser.plane import PlaneProfiles
 from ..simulate.laser import TARGETS, profile_reading, profiler_views
+
+#: The targets a laser plan predicts the std for (its simulated capture goes through their models).
+PLANNED = ("sphere", "plane")
 from .poses import order_path
 
 __all__ = ["LaserPlan", "plan_laser", "NARROW_DEG"]
@@ -118,8 +121,10 @@ def plan_laser(setup: str, X: NDArray[np.float64], Z: NDArray[np.float64], n_pos
     LaserPlan
     """
     setup = check_setup(setup)
-    if target not in TARGETS:
-        raise InputMismatchError(f"target={target!r}: a laser plan is for a {' or a '.join(TARGETS)}")
+    if target not in PLANNED:
+        later = f" ({target}: not yet; plan with a sphere or a plane, or simulate the capture with handeye simulate " \
+                "--sensor laser_line --target " + target + ")" if target in TARGETS else ""
+        raise InputMismatchError(f"target={target!r}: a laser plan is for a {' or a '.join(PLANNED)}{later}")
     if n_poses < (16 if target == "plane" else 5):
         raise InputMismatchError(f"n_poses={n_poses}: a {target} needs at least {16 if target == 'plane' else 5} "
                                  "profiles (15-20 to trust X)")

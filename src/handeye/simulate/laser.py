@@ -51,7 +51,9 @@ class LaserScene(Scene):
     arm: str | None = None
     chain: Chain | None = None
     chain_true: Chain | None = None
-    target: str = "sphere"  #: 'sphere' (a ball of ``radius``) or 'plane' (a plate at the target frame's z = 0)
+    #: 'sphere' (a ball of ``radius``), 'plane' (a plate at the target frame's z = 0), 'edge' or 'step'
+    #: (:data:`BLOCK`'s, along the target frame's x axis) or 'spheres' (:data:`FIXTURE`'s balls)
+    target: str = "sphere"
 
 
 def _sensor_views(n: int, radius: float, rng: np.random.Generator, cone_deg: float, roll_deg: float = 180.0
@@ -138,13 +140,119 @@ def _plate_profile(target2sensor: NDArray[np.float64], rng: np.random.Generator,
     return _measured(x, z, rng, noise_m, dropout, spikes)
 
 
+#: The simulated block (``target='edge'``): its top (the target frame's z = 0, y <= 0) and its side
+#: meet along the target's x axis at ``angle_deg``; ``depth`` (m) back and down, ``width`` along the
+#: edge. A step (``target='step'``): the top's level, a riser at y = 0 and a lower level ``step`` (m)
+#: below, as far out. The views: within ``cone_deg`` (at most) of the faces' bisector (a step's normal),
+#: the laser line within ``roll_deg`` of across the edge, either way.
+BLOCK = {"angle_deg": 90.0, "depth": 0.1, "width": 0.2, "step": 0.01, "cone_deg": 30.0, "roll_deg": 40.0}
+#: The simulated ball fixture (``target='spheres'``): each ball's centre in the target frame (m) and diameter.
+FIXTURE = {"centres": [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.09, 0.0]], "diameters": [0.04, 0.03, 0.05]}
+
+
+def _block_faces(target: str) -> list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.intp]]]:
+    """The block (or the step's two blocks) as half-spaces ``n . q <= d`` in the target frame, each
+    with its label: 0 the top (the upper level), 1 the side (the lower level), 2 a step's riser, -1
+    the block's other faces (not measured)."""
+    a, depth, width, step = np.radians(BLOCK["angle_deg"]), BLOCK["depth"], BLOCK["width"], BLOCK["step"]
+    ends = [[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]
+    if target == "edge":
+        N = np.array([[0.0, 0.0, 1.0], [0.0, np.sin(a), -np.cos(a)], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]] + ends)
+        return [(N, np.array([0.0, 0.0, depth, depth, width / 2, width / 2]), np.array([0, 1, -1, -1, -1, -1]))]
+    N = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]] + ends)
+    upper = (N, np.array([0.0, 0.0, depth, depth, width / 2, width / 2]), np.array([0, 2, -1, -1, -1, -1]))
+    lower = (N, np.array([-step, depth, depth, depth, width / 2, width / 2]), np.array([1, -1, -1, -1, -1, -1]))
+    return [upper, lower]
+
+
+def _ray_depths(origins: NDArray[np.float64], direction: NDArray[np.float64], blocks) -> tuple[NDArray[np.float64],
+                                                                                              NDArray[np.intp]]:
+    """Where rays from ``origins`` (n, 3) along ``direction`` first enter one of the convex ``blocks``
+    (:func:`_block_faces`): the distance (inf: no hit) and the label of the face entered."""
+    depth, label = np.full(len(origins), np.inf), np.full(len(origins), -1, dtype=np.intp)
+    for N, d, labels in blocks:
+        nv, no = N @ direction, origins @ N.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (d - no) / nv
+        enter = np.where(nv < 0, t, -np.inf)
+        leave = np.where(nv > 0, t, np.inf).min(axis=1)
+        t_in, face = enter.max(axis=1), enter.argmax(axis=1)
+        hit = (t_in <= leave) & (t_in > 0) & ~np.any((nv == 0) & (no > d), axis=1) & (t_in < depth)
+        depth[hit], label[hit] = t_in[hit], labels[face[hit]]
+    return depth, label
+
+
+def _block_views(target: str, n: int, rng: np.random.Generator, cone_deg: float, roll_deg: float = 180.0
+                 ) -> NDArray[np.float64]:
+    """(n, 4, 4) sensor2target: the profiler looking at the block's edge (a step's riser) along the
+    faces' bisector (the step's normal), tilted within ``cone_deg`` (at most ``BLOCK['cone_deg']``),
+    the laser line across the edge within ``roll_deg`` (at most ``BLOCK['roll_deg']``) either way,
+    aimed within 10 mm of the edge, at a distance within the measuring range."""
+    near, far = PROFILER["near"], PROFILER["far"]
+    a = np.radians(BLOCK["angle_deg"]) if target == "edge" else np.pi
+    bisector = np.array([0.0, 0.0, 1.0]) + np.array([0.0, np.sin(a), -np.cos(a)])
+    bisector = bisector / np.linalg.norm(bisector) if target == "edge" else np.array([0.0, 0.0, 1.0])
+    across = np.cross([1.0, 0.0, 0.0], bisector)  # in the faces' bisector plane, across the edge
+    base = np.column_stack([across, np.cross(-bisector, across), -bisector])  # the sensor looking along -bisector
+    cone, roll = np.radians(min(cone_deg, BLOCK["cone_deg"])), min(roll_deg, BLOCK["roll_deg"])
+    out = np.empty((n, 4, 4))
+    for k in range(n):
+        turn = rng.uniform(-roll, roll) + rng.choice([0.0, 180.0])
+        axis = rng.normal(size=2) @ np.array([[1.0, 0.0, 0.0], across])
+        tilt = cone * np.sqrt(rng.uniform()) * axis / np.linalg.norm(axis)
+        R = Rotation.from_rotvec(tilt).as_matrix() @ base @ Rotation.from_euler("z", turn, degrees=True).as_matrix()
+        aim = np.array([rng.uniform(-0.25, 0.25) * BLOCK["width"], 0.0, 0.0]) + rng.uniform(-0.01, 0.01) * across
+        out[k] = make_transform(R, aim - R[:, 2] * rng.uniform(near + 0.3 * (far - near), far - 0.3 * (far - near)))
+    return out
+
+
+def _block_profile(target: str, target2sensor: NDArray[np.float64], rng: np.random.Generator, noise_m: float,
+                   dropout: float, spikes: float) -> NDArray[np.float64]:
+    """What the profiler measures of the block (the step) at ``target2sensor``: per x across its field
+    of view where its ray first enters the block, on the top and the side (a step's levels and riser),
+    with the ball's noise, dropouts and spikes (:func:`_profile`); elsewhere NaN."""
+    fov, n = PROFILER["fov"], PROFILER["points"]
+    sensor2target = invert(target2sensor)
+    x = np.linspace(-0.5 * fov, 0.5 * fov, n)
+    depth, label = _ray_depths(sensor2target[:3, 3] + x[:, None] * sensor2target[:3, 0], sensor2target[:3, 2],
+                               _block_faces(target))
+    return _measured(x, np.where(label >= 0, depth, np.nan), rng, noise_m, dropout, spikes)
+
+
+def _fixture_views(n: int, rng: np.random.Generator, cone_deg: float, roll_deg: float = 180.0) -> NDArray[np.float64]:
+    """(n, 4, 4) sensor2target: each view one ball of :data:`FIXTURE`'s, chosen at random, seen as
+    :func:`_sensor_views` sees a ball."""
+    centres, radii = np.asarray(FIXTURE["centres"], float), 0.5 * np.asarray(FIXTURE["diameters"], float)
+    balls = rng.integers(0, len(radii), n)
+    return np.array([make_transform(np.eye(3), centres[b]) @ _sensor_views(1, radii[b], rng, cone_deg, roll_deg)[0]
+                     for b in balls])
+
+
+def _fixture_profile(target2sensor: NDArray[np.float64], rng: np.random.Generator, noise_m: float, dropout: float,
+                     spikes: float) -> NDArray[np.float64]:
+    """What the profiler measures of :data:`FIXTURE`'s balls at ``target2sensor``: per x the nearest of
+    the balls' near sides (:func:`_profile`'s, with its noise, dropouts and spikes)."""
+    fov, n = PROFILER["fov"], PROFILER["points"]
+    x = np.linspace(-0.5 * fov, 0.5 * fov, n)
+    z = np.full(n, np.inf)
+    for c, d in zip(FIXTURE["centres"], FIXTURE["diameters"]):
+        cx, h, cz = target2sensor[:3, :3] @ np.asarray(c, float) + target2sensor[:3, 3]
+        inside = (d / 2) ** 2 - h**2 - (x - cx) ** 2
+        z = np.minimum(z, np.where(inside > 0, cz - np.sqrt(np.maximum(inside, 0.0)), np.inf))
+    return _measured(x, np.where(np.isfinite(z), z, np.nan), rng, noise_m, dropout, spikes)
+
+
 def profiler_views(target: str, n: int, radius: float, rng: np.random.Generator, cone_deg: float,
                    roll_deg: float = 180.0) -> NDArray[np.float64]:
-    """(n, 4, 4) sensor2target: ``n`` views of the ``target`` ('sphere' of ``radius``, or 'plane')
-    from within ``cone_deg`` of its +z, turned within ``roll_deg`` about the view direction, as
-    :func:`laser_scene` draws them (the planner's too)."""
+    """(n, 4, 4) sensor2target: ``n`` views of the ``target`` ('sphere' of ``radius``, 'plane', 'edge',
+    'step' or 'spheres') from within ``cone_deg`` of its +z (an edge's: of its faces' bisector), turned
+    within ``roll_deg`` about the view direction, as :func:`laser_scene` draws them (the planner's too)."""
     if target == "sphere":
         return _sensor_views(n, radius, rng, cone_deg, roll_deg)
+    if target in ("edge", "step"):
+        return _block_views(target, n, rng, cone_deg, roll_deg)
+    if target == "spheres":
+        return _fixture_views(n, rng, cone_deg, roll_deg)
     return _plate_views(n, rng, cone_deg, roll_deg)
 
 
@@ -154,11 +262,15 @@ def profile_reading(target: str, target2sensor: NDArray[np.float64], radius: flo
     points, NaN without return), with the noise, dropouts and spikes of :func:`laser_scene`."""
     if target == "sphere":
         return _profile(target2sensor, radius, rng, noise_m, dropout, spikes)
+    if target in ("edge", "step"):
+        return _block_profile(target, target2sensor, rng, noise_m, dropout, spikes)
+    if target == "spheres":
+        return _fixture_profile(target2sensor, rng, noise_m, dropout, spikes)
     return _plate_profile(target2sensor, rng, noise_m, dropout, spikes)
 
 
 #: The targets the simulator scans.
-TARGETS = ("sphere", "plane")
+TARGETS = ("sphere", "plane", "edge", "step", "spheres")
 
 
 def laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
@@ -179,8 +291,12 @@ def laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Ge
     off the nominal one by ``length_mm`` / ``angle_deg`` per entry (1-3 mm at the flange at the
     defaults), the joint angles reported with ``joint_noise_deg`` of encoder noise, ``flange2base``
     the nominal table's poses at them (:func:`_arm_laser_scene`; give no ``robot_error`` then: the
-    arm's own error replaces it). ``target``: 'sphere' (the ball) or 'plane' (a 200 mm plate at the
-    target frame's z = 0, seen from within ``cone_deg`` of its normal).
+    arm's own error replaces it). ``target``: 'sphere' (the ball), 'plane' (a 200 mm plate at the
+    target frame's z = 0, seen from within ``cone_deg`` of its normal), 'edge' (a block's top and side
+    meeting at :data:`BLOCK`'s angle along the target's x axis, seen along their bisector, the laser
+    line across the edge), 'step' (two levels :data:`BLOCK`'s step apart, the riser between them
+    along the target's x axis) or 'spheres' (:data:`FIXTURE`'s balls, each profile of one chosen at
+    random).
 
     Examples
     --------
@@ -190,7 +306,7 @@ def laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Ge
     """
     setup = check_setup(setup)
     if target not in TARGETS:
-        raise InputMismatchError(f"target={target!r}: the simulator scans a {' or a '.join(TARGETS)}")
+        raise InputMismatchError(f"target={target!r}: the simulator scans one of {', '.join(TARGETS)}")
     rng = np.random.default_rng(rng)
     if arm is not None:
         if robot_error is not None:
@@ -269,11 +385,31 @@ def _reaching(chain: Chain, flange2base: NDArray[np.float64], q0: NDArray[np.flo
     return res.x, float(np.max(np.abs(res.fun)))
 
 
+def _target_truth(scene: LaserScene) -> dict:
+    """The target's true figures in the frame it is fixed in (the base eye-in-hand, the flange eye-to-hand)."""
+    R, t = scene.Z[:3, :3], scene.Z[:3, 3]
+    if scene.target == "sphere":
+        return {"radius_m": float(scene.radius)}
+    if scene.target == "plane":
+        return {"normal": R[:, 2].tolist(), "distance_m": float(R[:, 2] @ t)}
+    if scene.target == "spheres":
+        return {"centres": (np.asarray(FIXTURE["centres"], float) @ R.T + t).tolist(),
+                "diameters": [float(d) for d in FIXTURE["diameters"]]}
+    faces = [(N[k], d[k]) for N, d, labels in _block_faces(scene.target) for k in range(len(labels)) if labels[k] in (0, 1)]
+    out = {"normals": [(R @ n).tolist() for n, _ in faces], "distances_m": [float(d + (R @ n) @ t) for n, d in faces]}
+    if scene.target == "edge":
+        out["angle_deg"] = float(BLOCK["angle_deg"])
+    else:
+        out["height_m"] = float(BLOCK["step"])
+    return out
+
+
 def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm", diameter: bool = True) -> Path:
     """Write a simulated laser capture as a laser session folder (the format in docs/guide.md):
     ``profiles/pNN.csv`` (``x,z`` in ``unit``, NaN left empty), ``poses.csv`` (first column
     ``profile``; quat_wxyz, mm, deg), ``session.yaml`` (``laser:`` with the unit and the noise, the
-    ball's diameter unless ``diameter`` is False) and ``ground_truth.yaml``. Returns the folder."""
+    target: the ball's diameter unless ``diameter`` is False, the fixture's balls' diameters) and
+    ``ground_truth.yaml`` (X, Z and the target's figures). Returns the folder."""
     out = check_output_folder(folder)
     (out / "profiles").mkdir(parents=True, exist_ok=True)
     f = 1e3 if unit == "mm" else 1.0
@@ -282,8 +418,11 @@ def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm",
         rows = "".join(f"{float(f * x)!r},{'' if not np.isfinite(z) else repr(float(f * z))}\n" for x, z in p[:, [0, 2]])
         atomic_write(out / "profiles" / name, "x,z\n" + rows)
     write_pose_table(out / "poses.csv", names, scene.flange2base, "quat_wxyz", "mm", "deg", id_column="profile")
-    target: dict = ({"type": "plane"} if scene.target == "plane" else
-                    {"type": "sphere"} | ({"diameter": 2 * scene.radius} if diameter else {}))
+    target: dict = {"type": scene.target}
+    if scene.target == "sphere" and diameter:
+        target["diameter"] = 2 * scene.radius
+    elif scene.target == "spheres":
+        target["diameters"] = [float(d) for d in FIXTURE["diameters"]]
     spec = {"setup": scene.setup, "target": target, "laser": {"unit": unit, "noise": f * scene.noise_m},
             "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}}
     if scene.joints is not None:  # the joint angles the controller reports, degrees, as other sessions have them
@@ -293,8 +432,7 @@ def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm",
     info = setup_info(scene.setup)
     truth = {"setup": scene.setup, info.x_name.replace("cam", "sensor"): scene.X.tolist(),
              info.z_name: scene.Z.tolist()}
-    truth |= ({"radius_m": float(scene.radius)} if scene.target == "sphere" else
-              {"normal": scene.Z[:3, 2].tolist(), "distance_m": float(scene.Z[:3, 2] @ scene.Z[:3, 3])})
+    truth |= _target_truth(scene)
     if scene.chain_true is not None:
         truth |= {"arm": scene.arm, "table_true": scene.chain_true.table.tolist()}
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))

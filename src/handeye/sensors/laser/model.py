@@ -24,6 +24,7 @@ Examples
 
 from __future__ import annotations
 
+from itertools import permutations
 from typing import Any
 
 import numpy as np
@@ -36,7 +37,8 @@ from ...frames.setups import check_setup, robot_world_A, setup_info
 from ...geometry.se3 import invert, make_transform
 from ..depth.model import sphere_start
 
-__all__ = ["Profiles", "SphereProfiles", "rotation_from_columns", "sphere_profiles_start", "LASER_NOISE_M"]
+__all__ = ["Profiles", "SphereProfiles", "SpheresProfiles", "rotation_from_columns", "sphere_profiles_start",
+           "spheres_profiles_start", "LASER_NOISE_M"]
 
 #: A profile's section in the report shows at most this many of its points.
 SECTION_POINTS = 400
@@ -208,6 +210,224 @@ class SphereProfiles(Profiles):
         s = float(np.sqrt(max(cov_p[3, 3], 0.0)))
         return [f"the ball's radius was estimated: {1e3 * p[3]:.3f} +- {1e3 * s:.3f} mm (give its diameter to fix it)"]
 
+class SpheresProfiles(SphereProfiles):
+    """Profiles of a fixture of balls, each profile of one of them: per view (``names``) the profile's
+    points (n_i, 3) in the sensor frame (NaN rows: no return), metres; ``radii`` (m) one per ball,
+    known. The unknowns: every ball's centre. Each point belongs to the ball whose surface it is
+    nearest at the current estimate (the balls are apart: smooth but at points between balls)."""
+
+    target = "spheres"
+
+    def __init__(self, setup: str, names: list[str], profiles: list[NDArray[np.float64]], radii,
+                 noise_m: float = LASER_NOISE_M) -> None:
+        Profiles.__init__(self, setup, names, profiles, noise_m)
+        self.radii = np.asarray(radii, dtype=float).ravel()
+        if len(self.radii) < 2 or np.any(self.radii <= 0):
+            raise InputMismatchError(f"radii {list(self.radii)}: a fixture has 2 or more balls, each of a positive "
+                                     "radius (m); one ball is SphereProfiles")
+        self.radius = None
+        self.param_names = [f"ball{k + 1}.{c}" for k in range(len(self.radii)) for c in "xyz"]
+        self.param_scale = np.full(len(self.param_names), 1e-3)
+        self._found: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None  # X and centres of the first start
+        self.profiles_per_ball: NDArray[np.intp] | None = None  #: per ball its profiles, at the start, then at the fit
+
+    def _nearest(self, q, p) -> tuple[NDArray[np.float64], NDArray[np.intp], NDArray[np.float64]]:
+        """Each point's offsets from the balls' centres (M, K, 3), its ball and its distance from that surface."""
+        d = q[:, None, :] - p.reshape(-1, 3)[None]
+        r = np.sqrt(np.einsum("mki,mki->mk", d, d)) - self.radii
+        ball = np.argmin(np.abs(r), axis=1)
+        return d, ball, r[np.arange(len(q)), ball]
+
+    def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
+        """Each point's distance (m; positive outside) from its nearest ball's surface."""
+        q = self._mapped(X, robot_world_A(flange2base, self.setup), rows)
+        return self._nearest(q, p)[2][:, None]
+
+    def jacobian(self, X, p, flange2base, rows) -> NDArray[np.float64]:
+        """The residuals' derivatives (M, 1, 6 + 3K): the ball's (:meth:`SphereProfiles.jacobian`) with the
+        point's ball's unit normal; ``-u`` with that ball's centre, nothing with the others'."""
+        A = robot_world_A(flange2base, self.setup)
+        d, ball, _ = self._nearest(self._mapped(X, A, rows), p)
+        u = d[np.arange(len(rows)), ball]
+        u /= np.linalg.norm(u, axis=1)[:, None]
+        centres = np.zeros((len(rows), len(p)))
+        for k in range(3):
+            centres[np.arange(len(rows)), 3 * ball + k] = -u[:, k]
+        return np.concatenate([self._x_jacobian(X, A, rows, u), centres], axis=1)[:, None, :]
+
+    def _section(self, sensor2target, p, x) -> NDArray[np.float64]:
+        """The balls' near sides in the laser plane at ``x`` (z, m): the nearest of them (NaN off all)."""
+        R, t = sensor2target[:3, :3], sensor2target[:3, 3]
+        z = np.full(len(x), np.inf)
+        for c, r in zip((p.reshape(-1, 3) - t) @ R, self.radii):
+            inside = r**2 - c[1] ** 2 - (x - c[0]) ** 2
+            z = np.minimum(z, np.where(inside >= 0, c[2] - np.sqrt(np.maximum(inside, 0.0)), np.inf))
+        return np.where(np.isfinite(z), z, np.nan)
+
+    def sections(self, X, p, flange2base, views, max_points: int = SECTION_POINTS) -> list[dict[str, NDArray[np.float64]]]:
+        """:meth:`Profiles.sections`; and each ball's profiles at the fit (``profiles_per_ball``: what
+        :meth:`notes` and :meth:`figures` say), each profile counted with the ball most of its points are nearest."""
+        A = robot_world_A(np.asarray(flange2base, dtype=float), self.setup)
+        rows = np.flatnonzero(np.isin(self.owner, views))
+        ball = self._nearest(self._mapped(X, A, rows), p)[1]
+        votes = np.zeros((len(self.names), len(self.radii)), dtype=np.intp)
+        np.add.at(votes, (self.owner[rows], ball), 1)
+        self.profiles_per_ball = np.bincount(np.argmax(votes[np.asarray(views)], axis=1), minlength=len(self.radii))
+        return super().sections(X, p, flange2base, views, max_points)
+
+    def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """:func:`spheres_profiles_start` on ``rows`` (default all; at most :data:`START_POINTS`); after a
+        first start, X and the centres polished from it when that fits (a part of the same profiles,
+        as cross-validation's folds are, starts from the whole's)."""
+        rows = np.arange(len(self.points)) if rows is None else np.asarray(rows)
+        if len(rows) > START_POINTS:
+            rows = rows[np.linspace(0, len(rows) - 1, START_POINTS).astype(np.intp)]
+        A = robot_world_A(np.asarray(flange2base, dtype=float), self.setup)
+        if self._found is not None:
+            rms, X0, centres = _balls_polished(A[self.owner[rows]], self.points[rows], self.radii, *self._found)
+            if rms <= 5 * self.noise_m:
+                return X0, centres.ravel()
+        X0, centres, ball = spheres_profiles_start(A, self.points[rows], self.owner[rows], self.radii)
+        if self._found is None:
+            self._found = (X0, centres)
+            self.profiles_per_ball = np.bincount(ball[ball >= 0], minlength=len(self.radii))
+        return X0, centres.ravel()
+
+    def Z(self, X, p) -> NDArray[np.float64]:
+        """The first ball's centre (a translation, as a ball's)."""
+        return make_transform(np.eye(3), p[:3])
+
+    def figures(self, p, cov_p) -> dict[str, Any]:
+        """Every ball's centre with its std, diameter and profiles."""
+        std = np.sqrt(np.clip(np.diag(cov_p), 0.0, None)).reshape(-1, 3)
+        counts = self.profiles_per_ball if self.profiles_per_ball is not None else np.zeros(len(self.radii), int)
+        return {"centres_m": [[float(v) for v in c] for c in p.reshape(-1, 3)],
+                "centres_std_mm": [[float(1e3 * v) for v in s] for s in std],
+                "diameters_mm": [float(2e3 * r) for r in self.radii], "profiles": [int(n) for n in counts]}
+
+    def notes(self, p, cov_p) -> list[str]:
+        """How many profiles each ball got; a ball with fewer than :data:`BALL_PROFILES` said clearly."""
+        counts = self.profiles_per_ball if self.profiles_per_ball is not None else np.zeros(len(self.radii), int)
+        balls = [f"ball {k + 1} ({2e3 * r:.1f} mm) {n}" for k, (r, n) in enumerate(zip(self.radii, counts))]
+        out = [f"profiles per ball: {', '.join(balls)}"]
+        for k, (r, n) in enumerate(zip(self.radii, counts)):
+            if n < BALL_PROFILES:
+                out.append(f"ball {k + 1} ({2e3 * r:.1f} mm) got only {n} profile{'' if n == 1 else 's'}: its centre rests on "
+                           f"{'them' if n > 1 else 'it'} alone and adds little to X; scan each ball {BALL_PROFILES} times "
+                           "or more, from different directions")
+        return out
+
+
+#: A ball of a fixture with fewer profiles than this is named in the notes.
+BALL_PROFILES = 3
+
+
+def _fixture_clusters(A: NDArray[np.float64], views: NDArray[np.intp], k: int, restarts: int = 20) -> NDArray[np.intp]:
+    """Each profile's ball (0 .. k-1) of a fixture: a ball is in front of the sensor at about the same
+    place in every profile (its circle's centre ``b_i``, within a few centimetres), so ``A_i X b_i``,
+    the ball's centre, is about ``R_A v + t_A`` with one unknown ``v`` (X's image of the profiles'
+    mean ``b``): k-means of those points with ``v`` fitted too (linear for given balls), from
+    ``restarts`` random partitions, the tightest."""
+    R, t = A[views, :3, :3], A[views, :3, 3]
+    n = len(views)
+    rng = np.random.default_rng(0)
+    best_cost, best = np.inf, np.zeros(n, dtype=np.intp)
+    for _ in range(restarts):
+        ball = rng.integers(0, k, n)
+        for _ in range(50):
+            M = np.zeros((n, 3, 3 + 3 * k))
+            M[:, :, :3] = R
+            for axis in range(3):
+                M[np.arange(n), axis, 3 + 3 * ball + axis] = -1.0
+            sol = np.linalg.lstsq(M.reshape(3 * n, -1), -t.ravel(), rcond=None)[0]
+            p = np.einsum("nij,j->ni", R, sol[:3]) + t
+            C = sol[3:].reshape(k, 3)
+            dist = np.linalg.norm(p[:, None] - C[None], axis=2)
+            new = np.argmin(dist, axis=1)
+            for j in range(k):  # an empty ball takes the profile farthest from its own
+                if not np.any(new == j):
+                    far = int(np.argmax(dist[np.arange(n), new]))
+                    new[far] = j
+            if np.array_equal(new, ball):
+                break
+            ball = new
+        cost = float(np.sum(dist[np.arange(n), ball] ** 2))
+        if cost < best_cost:
+            best_cost, best = cost, ball.copy()
+    return best
+
+
+def _balls_polished(A, points, radii, X0, centres0, ball=None) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
+    """X and the balls' centres fitted to the points (point ``m`` seen from ``A[m]``) from ``X0`` and
+    ``centres0`` (soft L1 of 1 mm; each point its own ``ball``, or the nearest): (robust RMS, X, centres)."""
+    R, tA = A[:, :3, :3], A[:, :3, 3]
+    K = len(radii)
+
+    def fun(u):
+        Rx = Rotation.from_rotvec(u[:3]).as_matrix() @ X0[:3, :3]
+        q = np.einsum("mij,mj->mi", R, points @ Rx.T + X0[:3, 3] + u[3:6]) + tA
+        r = np.linalg.norm(q[:, None] - (centres0 + u[6:].reshape(K, 3))[None], axis=2) - radii
+        return r[np.arange(len(q)), ball] if ball is not None else r[np.arange(len(q)), np.argmin(np.abs(r), axis=1)]
+
+    res = least_squares(fun, np.zeros(6 + 3 * K), method="trf", loss="soft_l1", f_scale=1e-3, x_scale=1e-3)
+    X = make_transform(Rotation.from_rotvec(res.x[:3]).as_matrix() @ X0[:3, :3], X0[:3, 3] + res.x[3:6])
+    return float(np.sqrt(np.median(fun(res.x) ** 2))), X, centres0 + res.x[6:].reshape(K, 3)
+
+
+def spheres_profiles_start(A: NDArray[np.float64], points: NDArray[np.float64], owner: NDArray[np.intp],
+                           radii: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.intp]]:
+    """X, the balls' centres (K, 3) and each view's ball (-1: none) from points ``p`` (M, 3; y = 0) of a
+    fixture of balls of ``radii``, each profile of one ball, point ``m`` seen from ``A[owner[m]]``:
+    the profiles told apart (:func:`_fixture_clusters`), each cluster given the ball whose radius its
+    largest circle is nearest (with balls alike, any), then each profile's circle put on one side of
+    the laser plane or the other, the patterns that map each cluster's centres onto one point best
+    (:func:`_rotation_from_circles`) polished on the points (:func:`_balls_polished`), the best.
+    Raises DegenerateMotionError when a ball gets no profile or the profiles fit no X."""
+    K = len(radii)
+    views, circle_centres, _ = _circles(points, owner, float(np.max(radii)))
+    if len(views) < 5:
+        raise DegenerateMotionError(f"{len(views)} profiles with a circle of 10 points or more: a fixture of {K} balls "
+                                    "needs 5 or more, 3 or more on each ball, with the flange turned between them")
+    cluster = _fixture_clusters(A, views, K)
+    rho = np.array([np.sqrt(max(float(np.mean(np.sum((points[owner == v][:, [0, 2]] - c[[0, 2]]) ** 2, axis=1))), 0.0))
+                    for v, c in zip(views, circle_centres)])
+    largest = np.array([np.max(rho[cluster == j]) if np.any(cluster == j) else 0.0 for j in range(K)])
+    # clusters to balls: the assignment that puts each cluster's largest circle nearest its ball's radius
+    orders = [np.array(o) for o in permutations(range(K))]
+    order = min(orders, key=lambda o: float(np.sum((largest - radii[o]) ** 2)))  # cluster j is ball order[j]
+    ball_of_view = np.full(int(owner.max()) + 1, -1, dtype=np.intp)
+    ball_of_view[views] = order[cluster]
+    counts = np.bincount(ball_of_view[views], minlength=K)
+    if np.any(counts == 0):
+        empty = ", ".join(f"ball {k + 1} ({2e3 * radii[k]:.1f} mm)" for k in np.flatnonzero(counts == 0))
+        raise DegenerateMotionError(
+            f"the profiles fall on {K - int(np.sum(counts == 0))} of the fixture's {K} balls: {empty} got no profile; "
+            "scan every ball (3 or more profiles each), or list only the balls scanned under target: diameters")
+    radius_of_view = np.where(ball_of_view >= 0, radii[np.maximum(ball_of_view, 0)], radii[0])
+    rows = np.isin(owner, views)
+    candidates = _rotation_from_circles(A, points[rows], owner[rows], radius_of_view, ball=ball_of_view)
+    few = np.flatnonzero(rows)
+    few = few[np.linspace(0, len(few) - 1, min(len(few), 1500)).astype(np.intp)]
+    best = None
+    for R_X, t_X in candidates:
+        X0 = make_transform(R_X, t_X)
+        q = np.einsum("mij,mj->mi", (A[owner[few]] @ X0)[:, :3, :3], points[few]) + (A[owner[few]] @ X0)[:, :3, 3]
+        b = ball_of_view[owner[few]]
+        centres0 = np.array([np.median(q[b == k], axis=0) if np.any(b == k) else np.zeros(3) for k in range(K)])
+        # the points' median lies on the near side: the centre is a radius further from the sensor
+        away = centres0 - np.array([np.median((A[owner[few]] @ X0)[b == k, :3, 3], axis=0) for k in range(K)])
+        centres0 += away / np.linalg.norm(away, axis=1)[:, None] * radii[:, None] * 0.8
+        found = _balls_polished(A[owner[few]], points[few], radii, X0, centres0, b)
+        if best is None or found[0] < best[0]:
+            best = found
+    if best is None or best[0] > GOOD_START_M:
+        raise DegenerateMotionError(
+            f"the profiles of the {K} balls fit no sensor pose ({'none' if best is None else f'{1e3 * best[0]:.2f} mm RMS'}"
+            "): check the diameters under target (metres, in the balls' order does not matter) and that the poses are "
+            "the profiles'; capture 3 or more profiles of each ball with the flange turned 10 deg or more between them")
+    return best[1], best[2], ball_of_view
+
+
 def _unshifted(X: NDArray[np.float64], centre: NDArray[np.float64], shift: NDArray[np.float64], setup: str
                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """X and the centre solved with the base moved by ``shift``, back in the base itself: the
@@ -342,11 +562,12 @@ def _fitted_rms(A, points, R_X, t_X, C, radius) -> float:
 ALL_SIDES, SIDE_STARTS = 12, 64
 
 
-def _circles(points: NDArray[np.float64], owner: NDArray[np.intp], radius: float
+def _circles(points: NDArray[np.float64], owner: NDArray[np.intp], radius: float | NDArray[np.float64]
              ) -> tuple[NDArray[np.intp], NDArray[np.float64], NDArray[np.float64]]:
     """Per profile with 10 points or more, the circle its points lie on in the laser plane (an
     algebraic fit: ``x^2 + z^2 = 2 a x + 2 b z + c``): the profiles, the circles' centres (x, 0, z)
-    and the ball's centre's distance from the plane, ``sqrt(r^2 - rho^2)``."""
+    and the ball's centre's distance from the plane, ``sqrt(r^2 - rho^2)`` (``radius``: the ball's, or
+    per view its ball's)."""
     views, centres, offsets = [], [], []
     for v in np.unique(owner):
         p = points[owner == v]
@@ -355,18 +576,21 @@ def _circles(points: NDArray[np.float64], owner: NDArray[np.intp], radius: float
         x, z = p[:, 0], p[:, 2]
         a, b, c = np.linalg.lstsq(np.c_[2 * x, 2 * z, np.ones(len(p))], x**2 + z**2, rcond=None)[0]
         rho2 = c + a * a + b * b
+        r = radius if np.ndim(radius) == 0 else radius[v]
         views.append(v)
         centres.append([a, 0.0, b])
-        offsets.append(np.sqrt(max(radius**2 - rho2, 0.0)))
+        offsets.append(np.sqrt(max(r**2 - rho2, 0.0)))
     return np.array(views, dtype=np.intp), np.array(centres), np.array(offsets)
 
 
 def _rotation_from_circles(A: NDArray[np.float64], points: NDArray[np.float64], owner: NDArray[np.intp],
-                           radius: float, keep: int = 3) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+                           radius: float | NDArray[np.float64], keep: int = 3, ball: NDArray[np.intp] | None = None
+                           ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
     """X's rotation from each profile's circle: the ball's centre is the circle's centre moved
     ``sqrt(r^2 - rho^2)`` along the laser plane's normal, to one side or the other; for each pattern
     of sides the centres must map onto one point, ``A_i X b_i = C``
-    (:func:`~handeye.sensors.depth.model.sphere_start`, linear); the ``keep`` patterns that do best
+    (:func:`~handeye.sensors.depth.model.sphere_start`, linear; with ``ball``, per view its ball of a
+    fixture, and ``radius`` per view: onto that ball's centre); the ``keep`` patterns that do best
     give the rotations returned, each with the translation its pattern gave (none with fewer than 5
     profiles)."""
     views, centres, offsets = _circles(points, owner, radius)
@@ -374,16 +598,17 @@ def _rotation_from_circles(A: NDArray[np.float64], points: NDArray[np.float64], 
     if n < 5:
         return []
     Av = A[views]
-    one = np.zeros(n, dtype=np.intp)
+    labels = np.zeros(n, dtype=np.intp) if ball is None else np.asarray(ball)[views]
+    n_balls = int(labels.max()) + 1
 
     def cost(signs):
         b = centres + np.c_[np.zeros(n), signs * offsets, np.zeros(n)]
         try:
-            X, C = sphere_start(Av, b, np.arange(n), one, 1)
+            X, C = sphere_start(Av, b, np.arange(n), labels, n_balls)
         except DegenerateMotionError:
             return np.inf, None
         q = np.einsum("nij,nj->ni", (Av @ X)[:, :3, :3], b) + (Av @ X)[:, :3, 3]
-        return float(np.sum((q - C[0]) ** 2)), X
+        return float(np.sum((q - C[labels]) ** 2)), X
     rng = np.random.default_rng(0)
     patterns = (((np.arange(2**n)[:, None] >> np.arange(n)) & 1) * 2 - 1 if n <= ALL_SIDES
                 else rng.choice([-1, 1], (SIDE_STARTS, n)))
