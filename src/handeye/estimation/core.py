@@ -120,7 +120,7 @@ class Fitted:
     p: NDArray[np.float64]
     d: NDArray[np.float64]
     cov: NDArray[np.float64]  #: of ``x`` (X's increment: rotation vector rad, translation m)
-    sigma: NDArray[np.float64]  #: per residual column, the scale of the sensor's noise shape
+    sigma: NDArray[np.float64]  #: per noise group (:func:`_groups`), the scale of the sensor's noise shape
     kept: NDArray[np.bool_]  #: per measurement row: not set aside as an outlier
     rows: NDArray[np.intp]  #: the rows the fit used (kept, in its views)
     jac: NDArray[np.float64] = field(repr=False)  #: whitened, over ``rows`` then the prior and pin rows (none for a downdate)
@@ -129,30 +129,43 @@ class Fitted:
     normal: NDArray[np.float64] | None = field(default=None, repr=False, compare=False)  #: jac^T jac (none for a downdate)
 
 
-def _columns(sensor: SensorModel) -> NDArray[np.intp]:
-    """Per residual column its noise group."""
-    c = np.asarray(sensor.shape).shape[1]
-    out = np.zeros(c, dtype=np.intp)
+def _groups(sensor: SensorModel) -> NDArray[np.intp]:
+    """Per measurement row and residual column (M, c) its noise group: the column's group
+    (``groups``), apart for each row set of ``row_groups`` when the sensor has it (a rig: each
+    sensor's noise its own)."""
+    shape = np.asarray(sensor.shape)
+    column = np.zeros(shape.shape[1], dtype=np.intp)
     for g, cols in enumerate(sensor.groups):
-        out[list(cols)] = g
+        column[list(cols)] = g
+    rows = getattr(sensor, "row_groups", None)
+    if rows is None:
+        return np.broadcast_to(column, shape.shape)
+    return np.asarray(rows, dtype=np.intp)[:, None] * len(sensor.groups) + column[None, :]
+
+
+def _group_scales(w: NDArray[np.float64], groups: NDArray[np.intp], n: int, robust: bool, dof_share: float = 1.0
+                  ) -> NDArray[np.float64]:
+    """Per noise group its scale, from residuals ``w`` (M, c) already divided by the shape, entry
+    ``[m, j]`` in group ``groups[m, j]``: the robust spread (1.4826 x median absolute) or the RMS
+    corrected for the unknowns' share (``n`` groups; 1 for a group without an entry)."""
+    out = np.ones(n)
+    v, g = np.abs(w).ravel(), groups.ravel()
+    for k in np.unique(g):
+        vk = v[g == k]
+        s = 1.4826 * float(np.median(vk)) if robust else float(np.sqrt(np.mean(vk**2) / max(dof_share, 1e-9)))
+        out[k] = max(s, 1e-12)
     return out
 
 
-def _group_scales(w: NDArray[np.float64], sensor: SensorModel, robust: bool, dof_share: float = 1.0) -> NDArray[np.float64]:
-    """Per column the noise scale of its group, from residuals ``w`` (M, c) already divided by the shape:
-    the robust spread (1.4826 x median absolute) or the RMS corrected for the unknowns' share."""
-    out = np.ones(w.shape[1])
-    for cols in sensor.groups:
-        v = np.abs(w[:, list(cols)]).ravel()
-        s = 1.4826 * float(np.median(v)) if robust else float(np.sqrt(np.mean(v**2) / max(dof_share, 1e-9)))
-        out[list(cols)] = max(s, 1e-12)
-    return out
+def _weight(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The whitening of ``rows``' residuals (len(rows), c): one over their shape times their group's scale."""
+    return 1.0 / (np.asarray(problem.sensor.shape)[rows] * sigma[_groups(problem.sensor)[rows]])
 
 
 def _function(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
     """The whitened residuals of ``rows``, the robot's prior and the pins, as a function of ``x``."""
     sensor, robot = problem.sensor, problem.robot
-    weight = 1.0 / (np.asarray(sensor.shape)[rows] * sigma)
+    weight = _weight(problem, rows, sigma)
 
     def fun(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
@@ -168,7 +181,7 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
     sensor, robot = problem.sensor, problem.robot
     if not hasattr(sensor, "jacobian") or robot.n_params:
         return "2-point"
-    weight = 1.0 / (np.asarray(sensor.shape)[rows] * sigma)
+    weight = _weight(problem, rows, sigma)
     pins = np.c_[PIN * problem.pins, np.zeros((len(problem.pins), len(problem.p0)))]
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -210,7 +223,8 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     owner = np.asarray(sensor.owner)
     in_views = np.ones(len(owner), bool) if views is None else np.isin(owner, np.asarray(views))
     x_scale = problem.scale()
-    cols = _columns(sensor)
+    groups = _groups(sensor)
+    n_groups = int(groups.max()) + 1 if groups.size else 1
     if start is not None:
         rows = np.flatnonzero(in_views & start.kept)
         fun = _function(problem, rows, start.sigma)
@@ -222,16 +236,16 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     rows = np.flatnonzero(in_views)
     X, p, d = problem.unpack(x)
     w0 = sensor.residuals(X, p, problem.robot.flange2base(d), rows) / shape[rows]
-    sigma = _group_scales(w0, sensor, robust=True)[cols]
+    sigma = _group_scales(w0, groups[rows], n_groups, robust=True)
     few = rows if len(rows) <= ROBUST_ROWS else rows[np.linspace(0, len(rows) - 1, ROBUST_ROWS).astype(np.intp)]
     res = least_squares(_function(problem, few, sigma), x, _jacobian(problem, few, sigma), method="trf",
                         loss="soft_l1", f_scale=2.0, x_scale=x_scale, xtol=1e-12, ftol=1e-12, gtol=1e-12)
     x = res.x
     X, p, d = problem.unpack(x)
     w = sensor.residuals(X, p, problem.robot.flange2base(d), rows) / shape[rows]
-    sigma = _group_scales(w, sensor, robust=True)[cols]
+    sigma = _group_scales(w, groups[rows], n_groups, robust=True)
     kept = np.zeros(len(owner), bool)
-    kept[rows] = np.all(np.abs(w) <= REJECT * sigma, axis=1)
+    kept[rows] = np.all(np.abs(w) <= REJECT * sigma[groups[rows]], axis=1)
     rows = np.flatnonzero(kept)
     n_unknowns = len(x)
     for _ in range(2):
@@ -241,8 +255,8 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
         X, p, d = problem.unpack(x)
         w = sensor.residuals(X, p, problem.robot.flange2base(d), rows) / shape[rows]
         share = max(w.size - n_unknowns, 1) / w.size
-        new = _group_scales(w, sensor, robust=False, dof_share=share)[cols]
-        if len(sensor.groups) == 1 and not problem.robot.n_params and not len(problem.pins):
+        new = _group_scales(w, groups[rows], n_groups, robust=False, dof_share=share)
+        if len(new) == 1 and not problem.robot.n_params and not len(problem.pins):
             # one noise scale and nothing else weighted against it: the scale does not move the solution,
             # only the whitening (the Jacobian and residuals rescaled, not solved again)
             res.jac, res.fun = res.jac * (sigma[0] / new[0]), res.fun * (sigma[0] / new[0])
@@ -415,13 +429,14 @@ def _start(sensor: SensorModel, robot: RobotModel, views: NDArray[np.intp] | Non
            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """X and ``p`` to start from, on ``views`` (default all) and the robot's poses at its prior (the
     controller's, or the nominal table's): the closed form on the views' poses when the sensor
-    measures them, else the sensor's own."""
+    measures them (the views whose pose is not finite left out), else the sensor's own."""
     F = robot.flange2base(np.zeros(robot.n_params))
     poses = sensor.view_poses()
     views = np.arange(len(sensor.names)) if views is None else np.asarray(views)
     rows = np.flatnonzero(np.isin(np.asarray(sensor.owner), views))
     X = Z = None
     if poses is not None:
+        views = views[np.isfinite(poses[views]).all(axis=(1, 2))]  # a view where the sensor saw no whole pose
         if len(views) < 3:
             raise DegenerateMotionError(f"{len(views)} views: at least 3 are needed, 10-20 with the flange turned "
                                         "30 deg or more about varied axes to trust X")
@@ -637,8 +652,11 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
     diag = Diagnostics(verdict=verdict, advice=advice, outliers=[int(v) for v, _ in checked.left_out],
                        consistency=score, consistency_limit=FIT_FACTOR, n_poses=len(names), names=names)
     sections = sensor.sections(full.X, full.p, F, views) if hasattr(sensor, "sections") else None
+    figures = sensor.figures(full.p, cov_p)
+    if hasattr(sensor, "joint_figures"):  # figures that need X's covariance with the sensor's unknowns (a rig's)
+        figures = figures | sensor.joint_figures(full.X, full.p, cov[:6 + n_p, :6 + n_p], F, full.rows)
     record = SensorFit(sensor.kind, sensor.target, [names[v] for v in views], per_view, fit_mm,
-                       sensor.figures(full.p, cov_p), int(len(full.rows)), int((~full.kept).sum()), held_mm, sections)
+                       figures, int(len(full.rows)), int((~full.kept).sum()), held_mm, sections)
     notes = [f"{sensor.kind} ({sensor.target}): {len(full.rows)} measurements fitted "
              f"({int((~full.kept).sum())} set aside beyond {REJECT:g} std), {fit_mm:.3f} mm RMS, with {robot.describe}"]
     notes += [f"view {names[v]} left out: {why}" for v, why in checked.left_out] + sensor.notes(full.p, cov_p)

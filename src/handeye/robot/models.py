@@ -5,6 +5,9 @@ The robot model says how the flange pose of view ``i`` follows from its own unkn
 
 * :class:`ControllerPoses`: the poses the controller reported, taken as they are (no unknowns); the
   robot's absolute accuracy, which X absorbs unseen, is added to X's std.
+* :class:`PoseErrors`: the controller's poses with each pose's own error an unknown (a prior of the
+  robot's stated accuracy): what several sensors that saw the same pose share, so that a rig's
+  relative poses are free of it.
 * :class:`JointAngles`: the joint angles through the arm's kinematic table, whose entries are
   unknowns with a Gaussian prior about their nominal values (the arm's tolerances); the entries
   that only move the base or the flange frame are left to X and the target's pose
@@ -35,9 +38,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputMismatchError
+from ..geometry.se3 import perturb
 from .kinematics import Chain, absorbed_parameters
 
-__all__ = ["RobotModel", "ControllerPoses", "JointAngles", "fitted_entries", "entry_priors", "LENGTH_PRIOR_M",
+__all__ = ["RobotModel", "ControllerPoses", "PoseErrors", "JointAngles", "fitted_entries", "entry_priors", "LENGTH_PRIOR_M",
            "ANGLE_PRIOR_RAD", "COMPLIANCE_PRIOR", "MIN_MOMENT_ARM"]
 
 #: The default prior std of a table entry: a length (m) and an angle (rad, 0.1 deg), an uncalibrated
@@ -111,6 +115,39 @@ class ControllerPoses(RobotModel):
     def flange2base(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
         """The poses as reported (there are no unknowns)."""
         return self.poses
+
+
+@dataclass(frozen=True)
+class PoseErrors(ControllerPoses):
+    """The controller's poses (N, 4, 4), each pose's error an unknown: a left rotation and a
+    translation (6 per pose, in units of the robot's stated ``accuracy`` per axis, deg and mm: the
+    prior). Sensors that saw the same pose share its error (a rig's), which then cancels in their
+    relative poses; the error common to all poses stays unseen and X's std still takes the accuracy."""
+
+    describe: str = "the controller's flange poses, each pose's own error fitted (prior: the robot's accuracy)"
+
+    def __post_init__(self) -> None:
+        if self.accuracy is None:
+            raise InputMismatchError("PoseErrors needs the robot's stated accuracy (deg, mm): the prior of each pose's error")
+
+    @property
+    def n_params(self) -> int:  # type: ignore[override]
+        """Six per pose."""
+        return 6 * len(self.poses)
+
+    @property
+    def names(self) -> list[str]:  # type: ignore[override]
+        """Each pose's rotation and translation error."""
+        return [f"pose{i}.{a}" for i in range(len(self.poses)) for a in ("rx", "ry", "rz", "x", "y", "z")]
+
+    def flange2base(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The poses moved by their errors ``d`` (in units of the accuracy)."""
+        e = np.asarray(d, float).reshape(-1, 6)
+        return perturb(self.poses, np.radians(self.accuracy[0]) * e[:, :3], 1e-3 * self.accuracy[1] * e[:, 3:])
+
+    def prior(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The errors in units of their prior std."""
+        return np.asarray(d, float)
 
 
 @dataclass(frozen=True)

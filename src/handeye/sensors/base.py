@@ -43,6 +43,12 @@ A new sensor is one package under ``sensors/`` whose model class has these membe
 ``jacobian(X, p, flange2base, rows)`` (optional)
     The residuals' derivatives (M, c, 6 + k) for a left increment of X and the sensor's unknowns:
     with it the fit needs one evaluation per step instead of one per unknown (the laser's has it).
+``joint_figures(X, p, cov, flange2base, rows)`` (optional)
+    Figures that need X's covariance with the sensor's unknowns (``cov`` over X's increment and
+    ``p``) or the fit's residuals on its ``rows``: a rig's per-sensor X, its std and residual.
+``row_groups`` (optional)
+    Per measurement row (M,) a set of rows whose noise is their own (a rig: one per sensor): each
+    noise group's scale is then fitted per row set too.
 ``sections(X, p, flange2base, views)`` (optional)
     Per view of ``views`` what the report draws of it in the sensor's own plane: the measured
     points, their residuals and the fitted target's section (:class:`~handeye.result.SensorFit`'s

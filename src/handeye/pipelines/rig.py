@@ -1,0 +1,152 @@
+"""Rigs calibrated: each sensor alone, then all in one fit, and a check between them.
+
+:func:`calibrate_rig` takes one sensor model per sensor (each over the rig's views; a view where a
+sensor saw nothing has no rows of it) and the robot's poses: it calibrates each sensor alone (its own
+answer, and the joint fit's start), then the rig as one model (:class:`~handeye.sensors.rig.Rig`:
+sensor 0's X, every other sensor's pose relative to it, the shared target) through the estimation
+core, each robot pose's error fitted (:class:`~handeye.robot.models.PoseErrors`, when the robot's
+accuracy is stated: the sensors share it): every X and every relative pose with its std from the
+joint fit. A sensor whose measurements
+fit the rig more than :data:`DISAGREE` times worse than the other sensors' (each against the noise
+it states) disagrees with the rest (a wrong focal length, a camera that moved): with three sensors
+or more it is named, left out of the joint fit, and keeps its own answer; with two, named in a note.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
+from ..estimation.core import estimate
+from ..result import Calibration
+from ..robot.models import ControllerPoses, PoseErrors, RobotModel
+from ..sensors.base import SensorModel
+from ..sensors.rig import Rig
+
+__all__ = ["RigCalibration", "calibrate_rig", "DISAGREE"]
+
+#: A sensor whose residual in the joint fit, against its stated noise, exceeds the other sensors'
+#: (their median) by this factor disagrees with the rest.
+DISAGREE = 1.5
+
+
+@dataclass(frozen=True)
+class RigCalibration:
+    """A rig's calibration: the joint fit (``joint``: sensor 0's X as ``X``, every sensor's X and the
+    relative poses in ``joint.sensor.figures``), each sensor's own (``alone``, by name), the sensors
+    that disagreed with the rest (named, with why; left out of ``joint``) and the sensors skipped."""
+
+    joint: Calibration | None
+    alone: dict[str, Calibration]
+    sensor_names: list[str]
+    disagreeing: list[tuple[str, str]] = field(default_factory=list)
+    skipped: list[tuple[str, str]] = field(default_factory=list)
+
+    def X(self, name: str):
+        """Sensor ``name``'s X: the joint fit's, or its own when it was left out."""
+        if self.joint is not None and name in self.joint.sensor.figures.get("X_per_sensor", {}):
+            return np.array(self.joint.sensor.figures["X_per_sensor"][name]["X"])
+        return self.alone[name].X
+
+
+def _shared(robot: RobotModel) -> RobotModel:
+    """The robot of the joint fit: the controller's poses with each pose's error fitted when the robot
+    states its accuracy (the sensors share each pose's error, which then cancels in their relative
+    poses: measured, a stereo pair's relative pose 0.12 -> 0.03 mm with 0.01 deg / 0.05 mm of robot
+    error), else as given."""
+    if type(robot) is ControllerPoses and robot.accuracy is not None:
+        return PoseErrors(robot.poses, robot.accuracy)
+    return robot
+
+
+def _stated_mm(member: SensorModel) -> float:
+    """A sensor's stated noise (mm), the median over its rows."""
+    return max(float(np.median(member.noise_mm(np.arange(len(member.owner))))), 1e-9)
+
+
+def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: RobotModel, *, shared_target: bool = True,
+                  folds: int | None = None) -> RigCalibration:
+    """Calibrate a rig (the module docstring).
+
+    Parameters
+    ----------
+    members : list of SensorModel
+        One per sensor, each over the rig's views.
+    sensor_names : list of str
+        Distinct names.
+    robot : RobotModel
+        The robot's poses (one table for the rig).
+    shared_target : bool
+        The sensors see one target.
+    folds : int, optional
+        Cross-validation folds of the joint fit.
+
+    Returns
+    -------
+    RigCalibration
+
+    Raises
+    ------
+    InputMismatchError
+        Names not distinct, or counts that differ.
+
+    Examples
+    --------
+    >>> from handeye.robot.models import ControllerPoses
+    >>> from handeye.sensors.camera.model import CameraCorners
+    >>> from handeye.simulate.rig import rig_scene
+    >>> sc = rig_scene(12, "eye_in_hand", rng=0)
+    >>> members = [CameraCorners(sc.setup, sc.names, c.image_points, c.object_points, c.K, c.dist) for c in sc.cameras]
+    >>> rig = calibrate_rig(members, ["left", "right"], ControllerPoses(sc.flange2base))
+    >>> rig.joint.verdict, sorted(rig.joint.sensor.figures["relative"])
+    ('good', ['right2left'])
+    """
+    if len(members) != len(sensor_names):
+        raise InputMismatchError(f"{len(members)} sensors and {len(sensor_names)} names: one name per sensor")
+    if len(set(sensor_names)) != len(sensor_names):
+        twice = sorted({n for n in sensor_names if sensor_names.count(n) > 1})
+        raise InputMismatchError(f"sensor name(s) {', '.join(twice)} given twice: each sensor needs its own name")
+    alone: dict[str, Calibration] = {}
+    skipped: list[tuple[str, str]] = []
+    for m, name in zip(members, sensor_names):
+        try:
+            alone[name] = estimate(m, robot, folds)
+        except HandEyeError as e:
+            skipped.append((name, str(e)))
+    kept = [k for k, n in enumerate(sensor_names) if n in alone]
+    disagreeing: list[tuple[str, str]] = []
+    joint = None
+    while len(kept) >= 2:
+        names = [sensor_names[k] for k in kept]
+        starts = [(alone[n].X, members[k].target_params(alone[n].Z) if shared_target else _own_params(members[k], alone[n]))
+                  for k, n in zip(kept, names)]
+        joint = estimate(Rig([members[k] for k in kept], names, starts, shared_target), _shared(robot), folds)
+        # each sensor's residual in the joint fit against the noise it states
+        ratio = np.array([_member_rms(joint, i) / _stated_mm(members[k]) for i, k in enumerate(kept)])
+        worst = int(np.argmax(ratio))
+        others = float(np.median(np.delete(ratio, worst)))
+        if ratio[worst] > DISAGREE * others:
+            why = (f"its measurements fit the rig {ratio[worst] / others:.1f}x worse than the other sensors' do (against "
+                   "each one's stated noise): a wrong intrinsic (focal length, distortion), a sensor that moved during the "
+                   "capture, or another sensor's data")
+            if len(kept) > 2:
+                disagreeing.append((names[worst], why + "; left out of the joint fit, its own answer kept"))
+                kept.pop(worst)
+                continue
+            joint = replace(joint, notes=list(joint.notes) + [
+                f"{names[worst]}: {why}; with two sensors it stays in (the other's data are the only check)"])
+        break
+    if joint is None and not alone:
+        raise DegenerateMotionError("no sensor of the rig could be calibrated: " + "; ".join(f"{n}: {w}" for n, w in skipped))
+    return RigCalibration(joint, alone, list(sensor_names), disagreeing, skipped)
+
+
+def _own_params(member: SensorModel, cal: Calibration):
+    raise InputMismatchError("sensors with targets of their own in one rig: not yet (give them one shared target)")
+
+
+def _member_rms(joint: Calibration, k: int) -> float:
+    """Sensor ``k``'s RMS residual (mm) in the joint fit."""
+    return float(joint.sensor.figures["rms_mm_per_sensor"][k])

@@ -1,0 +1,160 @@
+"""An area camera's target corners in pixels as a sensor model (:mod:`handeye.sensors.base`).
+
+Each view's corners are predicted through X, the target's pose and the flange pose: the target's
+points mapped into the camera frame (``inv(A_i X) Z P``) and projected with the camera's intrinsics
+(OpenCV's model, known: ``K``, ``dist``). The residuals (metres, at the target): the pixel error
+times the pixel's size at the corner's depth (fixed at the start, so that the fit cannot shrink it
+by moving away). The unknowns besides X: the target's pose (a chart about its start). The start:
+each view's pose by PnP, then the closed form.
+
+This is the model a rig's cameras share (:mod:`handeye.sensors.rig`); a single camera's images go
+through :mod:`handeye.pipelines.calibration`, which also estimates the intrinsics.
+
+Examples
+--------
+>>> import numpy as np
+>>> from handeye.estimation.core import estimate
+>>> from handeye.robot.models import ControllerPoses
+>>> from handeye.simulate.rig import rig_scene
+>>> sc = rig_scene(12, "eye_in_hand", rng=0, cameras=1)
+>>> cam = sc.cameras[0]
+>>> model = CameraCorners("eye_in_hand", sc.names, cam.image_points, cam.object_points, cam.K, cam.dist)
+>>> cal = estimate(model, ControllerPoses(sc.flange2base))
+>>> bool(1e3 * np.abs(cal.X[:3, 3] - cam.X[:3, 3]).max() < 0.5)
+True
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from ...errors import DegenerateMotionError, InputMismatchError
+from ...frames.setups import check_setup, robot_world_A
+from ...geometry.se3 import invert, make_transform
+from .pnp import project_camera_points, solve_pnp
+from .targets.base import Detection
+
+__all__ = ["CameraCorners", "CAMERA_NOISE_PX"]
+
+#: A corner's noise to state before any fit (px).
+CAMERA_NOISE_PX = 0.3
+
+
+class CameraCorners:
+    """An area camera's views of a target (the module docstring).
+
+    Parameters
+    ----------
+    setup : str
+    names : list of str
+        Per view its name (the image file).
+    image_points : list of (n_i, 2) arrays
+        Per view the corners found (px); a view may have none (the target not seen).
+    object_points : list of (n_i, 3) arrays
+        Their points in the target frame (m).
+    K, dist : arrays
+        The camera's intrinsics (OpenCV's model, up to 8 distortion coefficients).
+    noise_px : float
+        The corners' noise to state (px).
+    """
+
+    kind = "camera"
+    target = "board"
+    groups: tuple[tuple[int, ...], ...] = ((0, 1),)
+    param_names = ["target.rx", "target.ry", "target.rz", "target.x", "target.y", "target.z"]
+
+    def __init__(self, setup: str, names: list[str], image_points: list[NDArray[np.float64]],
+                 object_points: list[NDArray[np.float64]], K: NDArray[np.float64], dist: NDArray[np.float64],
+                 noise_px: float = CAMERA_NOISE_PX) -> None:
+        self.setup = check_setup(setup)
+        if not len(names) == len(image_points) == len(object_points):
+            raise InputMismatchError(f"{len(names)} views, {len(image_points)} corner sets and {len(object_points)} point "
+                                     "sets: give one of each per view (an empty one where the target was not seen)")
+        self.names = list(names)
+        self.uv = np.concatenate([np.asarray(c, float).reshape(-1, 2) for c in image_points])
+        self.points = np.concatenate([np.asarray(p, float).reshape(-1, 3) for p in object_points])
+        self.owner = np.concatenate([np.full(len(np.asarray(c).reshape(-1, 2)), k) for k, c in enumerate(image_points)]
+                                    ).astype(np.intp)
+        if len(self.points) != len(self.uv):
+            raise InputMismatchError("each view needs one target point per corner")
+        self.K, self.dist = np.asarray(K, float), np.asarray(dist, float).ravel()
+        self.noise_px = float(noise_px)
+        self.shape = np.ones((len(self.uv), 2))
+        self.param_scale = np.full(6, 1e-3)
+        self._chart: NDArray[np.float64] | None = None
+        self._mpp: NDArray[np.float64] | None = None
+        self._poses: NDArray[np.float64] | None = None
+
+    @property
+    def seen(self) -> NDArray[np.bool_]:
+        """Per view whether it has corners."""
+        return np.bincount(self.owner, minlength=len(self.names)) > 0
+
+    def view_poses(self) -> NDArray[np.float64]:
+        """Per view the target's pose in the camera frame by PnP (NaN for a view without corners)."""
+        if self._poses is None:
+            out = np.full((len(self.names), 4, 4), np.nan)
+            for v in np.flatnonzero(self.seen):
+                rows = self.owner == v
+                got = solve_pnp(Detection(np.arange(int(rows.sum())), self.uv[rows], self.points[rows]), self.K, self.dist)
+                if got is not None:
+                    out[v] = got[0]
+            self._poses = out
+        return self._poses
+
+    def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """X and the target from the closed form; the first start fixes the target's chart and each
+        corner's pixel size."""
+        if X is None or Z is None:
+            raise DegenerateMotionError("a camera's start needs the views' poses (PnP on 3 views or more)")
+        if self._chart is None:
+            self._chart = Z.copy()
+            self._mpp = self.pixel_size(X, Z, flange2base)
+        return X, self.target_params(Z)
+
+    def target_params(self, Z) -> NDArray[np.float64]:
+        """The unknowns ``p`` of the target's pose ``Z`` (after the first start: in its chart)."""
+        return np.r_[Rotation.from_matrix(Z[:3, :3] @ self._chart[:3, :3].T).as_rotvec(), Z[:3, 3]]
+
+    def pixel_size(self, X, Z, flange2base) -> NDArray[np.float64]:
+        """Per corner the size (m) of a pixel at its depth, X and Z given."""
+        cam = self._in_camera(X, Z, flange2base, np.arange(len(self.uv)))
+        return np.abs(cam[:, 2]) / np.sqrt(self.K[0, 0] * self.K[1, 1])
+
+    def _target2world(self, p) -> NDArray[np.float64]:
+        return make_transform(Rotation.from_rotvec(p[:3]).as_matrix() @ self._chart[:3, :3], p[3:6])
+
+    def _in_camera(self, X, Z, flange2base, rows) -> NDArray[np.float64]:
+        world2cam = invert(robot_world_A(np.asarray(flange2base, float), self.setup) @ X)[self.owner[rows]] @ Z
+        return np.einsum("mij,mj->mi", world2cam[:, :3, :3], self.points[rows]) + world2cam[:, :3, 3]
+
+    def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
+        """Per corner (m): its pixel error times the pixel's size at its depth."""
+        cam = self._in_camera(X, self._target2world(p), flange2base, rows)
+        return (project_camera_points(cam, self.K, self.dist) - self.uv[rows]) * self._mpp[rows, None]
+
+    def Z(self, X, p) -> NDArray[np.float64]:
+        """The target's pose (target2base eye-in-hand, target2flange eye-to-hand)."""
+        return self._target2world(p)
+
+    def Z_std(self, p, cov_p) -> NDArray[np.float64]:
+        """The target pose's std (deg, mm)."""
+        std = np.sqrt(np.clip(np.diag(cov_p)[:6], 0.0, None))
+        return np.r_[np.degrees(std[:3]), 1e3 * std[3:6]]
+
+    def figures(self, p, cov_p) -> dict[str, Any]:
+        """The intrinsics used (known)."""
+        return {"K": self.K.tolist(), "dist": self.dist.tolist()}
+
+    def notes(self, p, cov_p) -> list[str]:
+        """Nothing beyond the core's own notes."""
+        return []
+
+    def noise_mm(self, rows) -> NDArray[np.float64]:
+        """The corners' stated noise (px) at their pixel size (mm)."""
+        mpp = self._mpp[rows] if self._mpp is not None else np.full(len(rows), np.nan)
+        return 1e3 * self.noise_px * mpp

@@ -1,0 +1,183 @@
+"""A rig: several sensors on one robot, fitted as one sensor model (:mod:`handeye.sensors.base`).
+
+Sensor 0's X is the core's X; every other sensor ``k`` has its pose in sensor 0's frame,
+``sensor_k2sensor_0`` (6 unknowns each, a left increment about its start), so that ``X_k = X @
+sensor_k2sensor_0``. Sensors that see one target share its pose (``shared_target``: the first
+sensor's target unknowns, mapped into each sensor's own with its ``target_params``); else each
+keeps its own. Every sensor's measurements keep their own noise scale (``row_groups``). The robot's
+poses are the rig's: one table, each sensor's views a subset of it (a view where a sensor saw
+nothing has no rows of it).
+
+The relative poses come out of the joint fit with their covariance: two sensors calibrated from the
+same robot poses share the robot's error, which cancels in their relative pose.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import InputMismatchError
+from ..frames.metrics import std_deg_mm
+from ..geometry.se3 import invert, perturb, skew
+from .base import SensorModel
+
+__all__ = ["Rig"]
+
+
+class Rig:
+    """Several sensor models as one (the module docstring).
+
+    Parameters
+    ----------
+    members : list of SensorModel
+        One per sensor, each over all the rig's views (``names`` alike).
+    sensor_names : list of str
+        The sensors' names (distinct).
+    starts : list of (X, p)
+        Each sensor's X and unknowns to start from (its own calibration).
+    shared_target : bool
+        Whether the sensors see one target (its pose then one set of unknowns).
+    """
+
+    kind = "rig"
+
+    def __init__(self, members: list[SensorModel], sensor_names: list[str], starts: list[tuple[NDArray[np.float64],
+                 NDArray[np.float64]]], shared_target: bool = True) -> None:
+        if len(members) < 2 or not len(members) == len(sensor_names) == len(starts):
+            raise InputMismatchError(f"a rig of {len(members)} sensors, {len(sensor_names)} names and {len(starts)} starts: "
+                                     "two sensors or more, one name and one start each")
+        if len(set(sensor_names)) != len(sensor_names):
+            raise InputMismatchError(f"sensor names {sensor_names}: each sensor needs its own name")
+        first = members[0]
+        for m, name in zip(members, sensor_names):
+            if list(m.names) != list(first.names) or m.setup != first.setup:
+                raise InputMismatchError(f"sensor {name}: every sensor of a rig is over the rig's views and setup")
+            if np.asarray(m.shape).shape[1] != np.asarray(first.shape).shape[1] or m.groups != first.groups:
+                raise InputMismatchError(f"sensor {name}: a rig's sensors must give residuals alike (mixed kinds: not yet)")
+        if shared_target and not all(hasattr(m, "target_params") for m in members[1:]):
+            raise InputMismatchError("a shared target needs sensors that map its pose into their unknowns (target_params)")
+        self.members, self.sensor_names, self.shared_target = list(members), list(sensor_names), shared_target
+        self.setup, self.names, self.target, self.groups = first.setup, list(first.names), first.target, first.groups
+        self.owner = np.concatenate([np.asarray(m.owner) for m in members]).astype(np.intp)
+        self.shape = np.concatenate([np.asarray(m.shape) for m in members])
+        self.member = np.concatenate([np.full(len(m.owner), k) for k, m in enumerate(members)]).astype(np.intp)
+        self.row_groups = self.member
+        self.local = np.concatenate([np.arange(len(m.owner)) for m in members]).astype(np.intp)
+        X0 = self._X_start = np.asarray(starts[0][0], float)
+        self.rel0 = [invert(X0) @ X for X, _ in starts[1:]]  # sensor_k2sensor_0 to start from
+        self._p_starts = [np.asarray(p, float) for _, p in starts]
+        n_rel = 6 * (len(members) - 1)
+        own = [len(p) for p in self._p_starts]
+        self._slices: list[slice] = []
+        at = n_rel
+        for k, n in enumerate(own):
+            if shared_target and k > 0:
+                self._slices.append(slice(0, 0))
+                continue
+            self._slices.append(slice(at, at + n))
+            at += n
+        self.param_names = [f"{s}.{a}" for s in sensor_names[1:] for a in ("rx", "ry", "rz", "x", "y", "z")] + [
+            f"{sensor_names[k]}.{n}" for k, m in enumerate(members) for n in
+            (m.param_names if not (shared_target and k > 0) else [])]
+        self.param_scale = np.r_[np.full(n_rel, 1e-3)] if not own else np.r_[
+            np.full(n_rel, 1e-3), np.concatenate([np.asarray(m.param_scale, float) for k, m in enumerate(members)
+                                                  if not (shared_target and k > 0)])]
+
+    # the unknowns ------------------------------------------------------------------------------
+    def relative(self, p, k: int) -> NDArray[np.float64]:
+        """Sensor ``k``'s pose in sensor 0's frame (``sensor_k2sensor_0``)."""
+        if k == 0:
+            return np.eye(4)
+        u = p[6 * (k - 1):6 * k]
+        return perturb(self.rel0[k - 1], u[:3], u[3:])
+
+    def member_params(self, X, p, k: int) -> NDArray[np.float64]:
+        """Sensor ``k``'s own unknowns: its slice, or the shared target's pose in its terms."""
+        if self.shared_target and k > 0:
+            return self.members[k].target_params(self.members[0].Z(X, p[self._slices[0]]))
+        return p[self._slices[k]]
+
+    def view_poses(self) -> None:
+        """A rig starts from its sensors' own calibrations."""
+        return None
+
+    def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Sensor 0's X and, for the others, their start relative to it; the target's (or each
+        sensor's) unknowns from the sensors' own calibrations."""
+        p = [np.zeros(6 * (len(self.members) - 1))]
+        p += [self._p_starts[k] for k in range(len(self.members)) if not (self.shared_target and k > 0)]
+        return self._X_start, np.concatenate(p)
+
+    def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
+        """Each row's residual from its own sensor, with ``X_k = X @ sensor_k2sensor_0``."""
+        rows = np.asarray(rows)
+        out = np.empty((len(rows), self.shape.shape[1]))
+        for k, m in enumerate(self.members):
+            at = np.flatnonzero(self.member[rows] == k)
+            if at.size:
+                out[at] = m.residuals(X @ self.relative(p, k), self.member_params(X, p, k), flange2base,
+                                      self.local[rows[at]])
+        return out
+
+    def noise_mm(self, rows) -> NDArray[np.float64]:
+        """Each row's stated noise, from its own sensor."""
+        rows = np.asarray(rows)
+        out = np.empty(len(rows))
+        for k, m in enumerate(self.members):
+            at = np.flatnonzero(self.member[rows] == k)
+            if at.size:
+                out[at] = m.noise_mm(self.local[rows[at]])
+        return out
+
+    def Z(self, X, p) -> NDArray[np.float64]:
+        """Sensor 0's target."""
+        return self.members[0].Z(X, self.member_params(X, p, 0))
+
+    def Z_std(self, p, cov_p) -> NDArray[np.float64]:
+        """Sensor 0's target's std."""
+        s = self._slices[0]
+        return self.members[0].Z_std(p[s], cov_p[s, s])
+
+    def figures(self, p, cov_p) -> dict[str, Any]:
+        """Each other sensor's pose in sensor 0's frame with its std (deg, mm), from the joint fit."""
+        out: dict[str, Any] = {"sensors": list(self.sensor_names), "relative": {}}
+        for k in range(1, len(self.members)):
+            s = slice(6 * (k - 1), 6 * k)
+            out["relative"][f"{self.sensor_names[k]}2{self.sensor_names[0]}"] = {
+                "matrix": self.relative(p, k).tolist(), "std_deg_mm": std_deg_mm(cov_p[s, s]).tolist()}
+        return out
+
+    def joint_figures(self, X, p, cov, flange2base, rows) -> dict[str, Any]:
+        """Each sensor's X with its std (deg, mm) from the joint covariance ``cov`` of X's increment
+        and ``p`` (first order: ``X_k = X @ rel_k``, a left increment ``(a, b)`` of X and ``(c, e)``
+        of ``rel_k`` move X_k by ``a + R_X c`` and ``b + R_X e - [R_X t_rel]x a``), and each
+        sensor's RMS residual (mm) over the fit's ``rows``."""
+        out = {}
+        R_X = X[:3, :3]
+        for k in range(len(self.members)):
+            rel = self.relative(p, k)
+            J = np.zeros((6, cov.shape[0]))
+            J[:3, :3] = np.eye(3)
+            J[3:, 3:6] = np.eye(3)
+            J[3:, :3] = -skew(R_X @ rel[:3, 3])
+            if k > 0:
+                c = 6 + 6 * (k - 1)
+                J[:3, c:c + 3] = R_X
+                J[3:, c + 3:c + 6] = R_X
+            out[self.sensor_names[k]] = {"X": (X @ rel).tolist(), "std_deg_mm": std_deg_mm(J @ cov @ J.T).tolist()}
+        r = self.residuals(X, p, flange2base, rows)
+        rms = [float(1e3 * np.sqrt(np.mean(np.sum(r[self.member[rows] == k] ** 2, axis=1))))
+               if np.any(self.member[rows] == k) else None for k in range(len(self.members))]
+        return {"X_per_sensor": out, "rms_mm_per_sensor": rms}
+
+    def notes(self, p, cov_p) -> list[str]:
+        """Each sensor's pose in sensor 0's frame, with its std."""
+        out = []
+        for name, f in self.figures(p, cov_p)["relative"].items():
+            s = np.asarray(f["std_deg_mm"])
+            out.append(f"{name}: the sensors' relative pose known to {s[:3].max():.4f} deg / {s[3:].max():.4f} mm (std, "
+                       "largest axis; the robot's error cancels in it)")
+        return out

@@ -1,0 +1,166 @@
+"""Rigs: several cameras, one robot, one target, with ground truth.
+
+:func:`rig_scene` draws a stereo pair (or more cameras) on the flange looking at a board fixed in
+the cell (eye-in-hand), or cameras fixed around the cell looking at a board on the flange
+(eye-to-hand). Each camera sees the board in the views where all its corners fall inside its image
+(a camera may miss views, or be told to); the corners carry pixel noise, the controller's poses the
+robot's error.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from ..errors import InputMismatchError
+from ..frames.setups import check_setup, flange_poses, setup_info
+from ..geometry.se3 import invert, make_transform, random_rotations
+from ..sensors.camera.pnp import project_points_many
+from ..sensors.camera.targets.chessboard import Chessboard
+from ._common import _reported
+from .scenes import look_at
+
+__all__ = ["RigCamera", "RigScene", "rig_scene"]
+
+
+@dataclass(frozen=True)
+class RigCamera:
+    """One camera of a simulated rig: its X (cam2flange eye-in-hand, cam2base eye-to-hand), its
+    intrinsics, and per view the corners it found (empty where it missed the board)."""
+
+    name: str
+    X: NDArray[np.float64]
+    K: NDArray[np.float64]
+    dist: NDArray[np.float64]
+    image_points: list = field(default_factory=list)
+    object_points: list = field(default_factory=list)
+
+    @property
+    def seen(self) -> NDArray[np.bool_]:
+        """Per view whether the camera found the board."""
+        return np.array([len(p) > 0 for p in self.image_points])
+
+
+@dataclass(frozen=True)
+class RigScene:
+    """A simulated rig capture: the views' names, the controller's (``flange2base``) and the true
+    flange poses, the board's pose ``Z`` and each camera."""
+
+    setup: str
+    names: list[str]
+    flange2base: NDArray[np.float64]
+    flange2base_true: NDArray[np.float64]
+    Z: NDArray[np.float64]
+    cameras: list[RigCamera]
+
+    def relative(self, k: int) -> NDArray[np.float64]:
+        """The true pose of camera ``k`` in camera 0's frame (``cam_k2cam_0``)."""
+        return invert(self.cameras[0].X) @ self.cameras[k].X
+
+
+#: Each camera's image (px) and its intrinsics (f, distortion k1, k2).
+IMAGE = (1280, 1024)
+BOARD = (9, 6, 0.03)
+
+
+def _camera(rng: np.random.Generator) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    w, h = IMAGE
+    f = rng.uniform(1300, 1500)
+    return np.array([[f, 0, w / 2 + rng.uniform(-8, 8)], [0, f, h / 2 + rng.uniform(-8, 8)], [0, 0, 1.0]]), \
+        np.array([rng.uniform(-0.12, -0.05), rng.uniform(0.02, 0.08), 0.0, 0.0, 0.0])
+
+
+def rig_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
+              cameras: int = 2, noise_px: float = 0.2, robot_error: tuple[float, float] | None = None,
+              missing: dict[int, float] | None = None, baseline: float = 0.12) -> RigScene:
+    """A rig's capture (the module docstring).
+
+    ``cameras`` cameras: eye-in-hand a rig on the flange (camera 0 with a random mount; the others
+    ``baseline`` (m) beside it, turned in by a few degrees), eye-to-hand fixed around the cell 0.8 m
+    from the middle of the board's moves. ``n_views`` robot poses, each board view within 35 deg of
+    the cameras' common view; the corners with ``noise_px`` of pixel noise; ``robot_error`` (deg,
+    mm) as :func:`~handeye.simulate.laser.laser_scene`'s; ``missing``: per camera index the share of
+    views it is told to miss (a camera that saw less).
+
+    Examples
+    --------
+    >>> sc = rig_scene(10, "eye_in_hand", rng=0)
+    >>> len(sc.cameras), int(sc.cameras[1].seen.sum()) > 5
+    (2, True)
+    """
+    setup = check_setup(setup)
+    if cameras < 1 or n_views < 3:
+        raise InputMismatchError(f"cameras={cameras}, n_views={n_views}: at least 1 camera and 3 views")
+    rng = np.random.default_rng(rng)
+    board = Chessboard(*BOARD)
+    points = board.object_points()
+    middle = points.mean(axis=0)
+    intrinsics = [_camera(rng) for _ in range(cameras)]
+    if setup_info(setup).camera_on_flange:
+        X0 = make_transform(random_rotations(1, rng)[0], rng.uniform(-0.05, 0.05, 3))
+        rel = [np.eye(4)] + [make_transform(Rotation.from_euler("xyz", [rng.uniform(-3, 3), -k * 6.0 + rng.uniform(-2, 2),
+                                                                      rng.uniform(-3, 3)], degrees=True).as_matrix(),
+                                            [k * baseline, rng.uniform(-0.01, 0.01), rng.uniform(-0.01, 0.01)])
+                             for k in range(1, cameras)]
+        Xs = [X0 @ r for r in rel]
+        Z = make_transform(random_rotations(1, rng)[0], rng.uniform(-0.3, 0.3, 3) + [0.6, 0.0, 0.0])
+        # camera 0's viewpoints: within 35 deg of the board's normal (-z of the board frame faces it), 0.5-0.8 m
+        tilt = np.radians(35.0) * np.sqrt(rng.uniform(size=n_views))
+        az = rng.uniform(0, 2 * np.pi, n_views)
+        dist = rng.uniform(0.5, 0.8, n_views)
+        direction = np.c_[np.sin(tilt) * np.cos(az), np.sin(tilt) * np.sin(az), -np.cos(tilt)]
+        aim = middle + np.c_[rng.uniform(-0.04, 0.04, (n_views, 2)), np.zeros(n_views)]
+        cam2target = look_at(aim + dist[:, None] * direction, aim, rng.uniform(-np.pi, np.pi, n_views))
+        # the rig's middle (between the cameras) looks at the board: camera 0 sits half a baseline off it
+        shift = make_transform(np.eye(3), [-0.5 * baseline * (cameras - 1), 0.0, 0.0])
+        cam2target = cam2target @ shift
+        F = flange_poses(cam2target, X0, Z, setup)
+        target2cam = [invert(cam2target @ r) for r in rel]
+    else:
+        centre = np.array([0.6, 0.0, 0.3])
+        Z = make_transform(random_rotations(1, rng)[0], rng.uniform(-0.05, 0.05, 3) + [0.0, 0.0, 0.1])
+        az0 = rng.uniform(0, 2 * np.pi)
+        Xs = []
+        for k in range(cameras):  # around the cell, looking down at the middle of the board's moves
+            a = az0 + 2 * np.pi * k / max(cameras, 3)
+            pos = centre + 0.8 * np.array([np.cos(a) * np.sin(np.radians(40)), np.sin(a) * np.sin(np.radians(40)),
+                                           np.cos(np.radians(40))])
+            Xs.append(look_at(pos, centre, rng.uniform(-np.pi, np.pi))[0])
+        view = np.mean([X[:3, 3] for X in Xs], axis=0) - centre
+        view /= np.linalg.norm(view)
+        target2base = np.empty((n_views, 4, 4))
+        for i in range(n_views):  # the board faces the cameras (its -z towards them), turned within 35 deg
+            R = look_at(centre, centre - view, rng.uniform(-np.pi, np.pi))[0, :3, :3]  # +z away from the cameras
+            R = Rotation.from_rotvec(np.radians(35.0) * np.sqrt(rng.uniform()) * _unit(rng)).as_matrix() @ R
+            o = centre + rng.uniform(-0.08, 0.08, 3)
+            target2base[i] = make_transform(R, o - R @ middle)
+        F = target2base @ invert(Z)
+        rel = [invert(Xs[0]) @ X for X in Xs]
+        target2cam = [invert(X) @ target2base for X in Xs]
+    names = [f"v{i + 1:02d}" for i in range(n_views)]
+    cams = []
+    w, h = IMAGE
+    for k, (X, (K, d), T) in enumerate(zip(Xs, intrinsics, target2cam)):
+        owner = np.repeat(np.arange(n_views), len(points))
+        px = project_points_many(T, np.tile(points, (n_views, 1)), owner, K, d).reshape(n_views, len(points), 2)
+        depth = np.einsum("nij,mj->nmi", T[:, :3, :3], points)[..., 2] + T[:, None, 2, 3]
+        inside = np.all((px[..., 0] > 5) & (px[..., 0] < w - 5) & (px[..., 1] > 5) & (px[..., 1] < h - 5) & (depth > 0), axis=1)
+        drop = rng.random(n_views) < (missing or {}).get(k, 0.0)
+        img, obj = [], []
+        for i in range(n_views):
+            if inside[i] and not drop[i]:
+                img.append(px[i] + rng.normal(0.0, noise_px, px[i].shape))
+                obj.append(points)
+            else:
+                img.append(np.zeros((0, 2)))
+                obj.append(np.zeros((0, 3)))
+        cams.append(RigCamera(f"cam{k}", X, K, d, img, obj))
+    return RigScene(setup, names, _reported(F, robot_error, rng), F, Z, cams)
+
+
+def _unit(rng: np.random.Generator) -> NDArray[np.float64]:
+    v = rng.normal(size=3)
+    return v / np.linalg.norm(v)

@@ -1,0 +1,77 @@
+"""Rigs (issue 63): several cameras in one fit, their relative poses, and the sensor that disagrees."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from handeye.errors import InputMismatchError
+from handeye.frames.metrics import rotation_error, translation_error
+from handeye.pipelines.rig import calibrate_rig
+from handeye.robot.models import ControllerPoses, PoseErrors
+from handeye.sensors.camera.model import CameraCorners
+from handeye.simulate.rig import rig_scene
+
+ERROR = (0.01, 0.05)
+
+
+def _members(sc, focal_error=None):
+    out = []
+    for k, c in enumerate(sc.cameras):
+        K = c.K.copy()
+        K[:2, :2] *= 1.0 + (focal_error or {}).get(k, 0.0)
+        out.append(CameraCorners(sc.setup, sc.names, c.image_points, c.object_points, K, c.dist))
+    return out
+
+
+def _within(X, std, truth) -> bool:
+    rot = Rotation.from_matrix(X[:3, :3] @ truth[:3, :3].T).as_rotvec(degrees=True)
+    return bool(np.all(np.abs(rot) <= 3 * std[:3]) and np.all(1e3 * np.abs(X[:3, 3] - truth[:3, 3]) <= 3 * std[3:]))
+
+
+def test_stereo_pair_relative_pose_from_the_joint_fit():
+    """A stereo pair on the flange with a calibrated arm's error: the relative pose within 3 std and
+    better known than either X (the robot's error cancels in it); each camera's X from the joint fit
+    no worse than calibrated alone."""
+    sc = rig_scene(15, "eye_in_hand", rng=3001, robot_error=ERROR)
+    rig = calibrate_rig(_members(sc), ["left", "right"], ControllerPoses(sc.flange2base, ERROR))
+    assert rig.joint.verdict in ("good", "weak") and rig.disagreeing == []
+    rel = rig.joint.sensor.figures["relative"]["right2left"]
+    R, std = np.array(rel["matrix"]), np.array(rel["std_deg_mm"])
+    assert _within(R, std, sc.relative(1))
+    assert 1e3 * translation_error(R, sc.relative(1)) < 0.2 and rotation_error(R, sc.relative(1)) < 0.01
+    assert std[3:].max() < rig.joint.std[3:].min()  # the relative pose is better known than X
+    for name, cam in zip(["left", "right"], sc.cameras):
+        assert translation_error(rig.X(name), cam.X) <= 1.2 * translation_error(rig.alone[name].X, cam.X)
+    assert "each pose's own error fitted" in " ".join(rig.joint.notes)
+
+
+def test_three_fixed_cameras_one_with_a_wrong_focal_length_is_named():
+    """Three fixed cameras, the board on the flange, one camera missing a third of the views: every X
+    within 3 std; the same with one camera's focal length 5% off: that camera is named, left out, and
+    the others' X stay right."""
+    sc = rig_scene(15, "eye_to_hand", rng=4001, cameras=3, robot_error=ERROR, missing={2: 1 / 3})
+    rig = calibrate_rig(_members(sc), ["c0", "c1", "c2"], ControllerPoses(sc.flange2base, ERROR))
+    assert rig.disagreeing == []
+    for name, cam in zip(["c0", "c1", "c2"], sc.cameras):
+        f = rig.joint.sensor.figures["X_per_sensor"][name]
+        assert _within(np.array(f["X"]), np.hypot(f["std_deg_mm"], np.repeat(ERROR, 3)), cam.X)
+    bad = calibrate_rig(_members(sc, {1: 0.05}), ["c0", "c1", "c2"], ControllerPoses(sc.flange2base, ERROR))
+    assert [n for n, _ in bad.disagreeing] == ["c1"] and "wrong intrinsic" in bad.disagreeing[0][1]
+    assert sorted(bad.joint.sensor.figures["X_per_sensor"]) == ["c0", "c2"]
+    assert 1e3 * translation_error(bad.X("c0"), sc.cameras[0].X) < 1.0
+
+
+def test_bad_rigs_are_named():
+    """Two sensors with one name; a sensor that saw too few views is skipped by name and the others
+    still calibrated; per-pose errors need the robot's accuracy."""
+    sc = rig_scene(10, "eye_to_hand", rng=5, cameras=3, missing={2: 0.9})
+    members = _members(sc)
+    with pytest.raises(InputMismatchError, match="c0 given twice"):
+        calibrate_rig(members, ["c0", "c0", "c1"], ControllerPoses(sc.flange2base))
+    rig = calibrate_rig(members, ["c0", "c1", "c2"], ControllerPoses(sc.flange2base, ERROR))
+    assert [n for n, _ in rig.skipped] == ["c2"] and "at least 3" in rig.skipped[0][1]
+    assert sorted(rig.joint.sensor.figures["X_per_sensor"]) == ["c0", "c1"]
+    with pytest.raises(InputMismatchError, match="accuracy"):
+        PoseErrors(sc.flange2base)
