@@ -6,17 +6,29 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputMismatchError
-from ..frames.setups import SETUPS
+from ..frames.setups import SETUPS, setup_info
 from ..planning.poses import ROBOTS
 from ..robot.kinematics import arm_names
 from ..simulate import DEFAULT_TARGETS, laser_scene, simulate_kinematic_session, simulate_session, write_laser_session
 from ..simulate.laser import TARGETS as LASER_TARGETS
 from ..simulate.linescan import linescan_scene, write_linescan_session
+from ..simulate.rig import rig_scene, write_rig_session
 from ._common import image_size_arg, number_arg, out_folder, sensor_target, whole_arg
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     out_folder(args.out)
+    if args.sensor == "rig":
+        if args.robot != "arm" or args.arm is not None or args.target is not None:
+            raise InputMismatchError("--sensor rig simulates a 6-axis arm's controller poses and a chessboard; leave "
+                                     "--robot, --arm and --target out")
+        cameras = 2 if setup_info(args.setup).camera_on_flange else 3
+        sc = rig_scene(args.poses, args.setup, args.seed, cameras=cameras, robot_error=(0.01, 0.05))
+        write_rig_session(args.out, sc, rng=args.seed, noise_px=args.noise_px)
+        what = "a stereo pair on the flange" if cameras == 2 else "three cameras fixed around the cell"
+        print(f"wrote rig session {args.out} ({args.poses} poses, {what}, a chessboard; the robot 0.01 deg / 0.05 mm off); "
+              f"ground truth in {Path(args.out) / 'ground_truth.yaml'}")
+        return 0
     if args.sensor == "line_scan":
         if args.robot != "arm" or args.arm is not None or args.target is not None:
             raise InputMismatchError("--sensor line_scan simulates a 6-axis arm's controller poses and a chessboard; leave "
@@ -65,10 +77,11 @@ def register(sub) -> None:
         "with ground_truth.yaml (X, Z, K, dist).",
     )
     p.add_argument("-o", "--out", required=True, help="new session folder")
-    p.add_argument("--sensor", default="camera", choices=["camera", "laser_line", "line_scan"],
+    p.add_argument("--sensor", default="camera", choices=["camera", "laser_line", "line_scan", "rig"],
                    help="camera (default): rendered images of a board; laser_line: a laser line profiler's profiles of a "
                    "ball or a plate (--poses of them; --arm for joint angles); line_scan: a line-scan camera's scans of a "
-                   "chessboard swept by the robot (--poses of them)")
+                   "chessboard swept by the robot (--poses of them); rig: a stereo pair on the flange (eye_in_hand) or "
+                   "three fixed cameras (eye_to_hand)")
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--poses", type=whole_arg(1), default=15, help="number of images (default 15)")
     p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS),

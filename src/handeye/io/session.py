@@ -596,13 +596,31 @@ def has_section(folder: str | Path, key: str) -> bool:
     return isinstance(spec, dict) and spec.get(key) is not None
 
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, refusing a key given twice in one mapping (it would keep the last one
+    silently: two sensors of one name, a setting written twice)."""
+
+
+def _unique_mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
+    seen = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            raise yaml.constructor.ConstructorError(None, None, f"key {key!r} given twice", key_node.start_mark)
+        seen.add(key)
+    return loader.construct_mapping(node, deep)
+
+
+_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _unique_mapping)
+
+
 def load_yaml(path: Path, notes: list[str] | None = None) -> dict[str, Any]:
     """A YAML mapping from ``path`` (any encoding :func:`handeye._shared.io.read_text` reads; how
     it was read goes into ``notes``); one-line errors that name the file and the position."""
     path = Path(path)
     text = _text_of(path, notes)
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_UniqueKeyLoader)
     except yaml.YAMLError as exc:  # one line: the problem and where
         mark = getattr(exc, "problem_mark", None)
         at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""

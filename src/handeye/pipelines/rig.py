@@ -15,17 +15,24 @@ or more it is named, left out of the joint fit, and keeps its own answer; with t
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from ..estimation.core import estimate
+from ..io.rig_session import RigSession, load_rig_session
+from ..options import CalibrationOptions
 from ..result import Calibration
 from ..robot.models import ControllerPoses, PoseErrors, RobotModel
 from ..sensors.base import SensorModel
+from ..sensors.camera.detect import detect_images
+from ..sensors.camera.model import CameraCorners
+from ..sensors.camera.targets import target_from_spec
 from ..sensors.rig import Rig
+from ._sensor import sensor_options
 
-__all__ = ["RigCalibration", "calibrate_rig", "DISAGREE"]
+__all__ = ["RigCalibration", "calibrate_rig", "calibrate_rig_session", "DISAGREE"]
 
 #: A sensor whose residual in the joint fit, against its stated noise, exceeds the other sensors'
 #: (their median) by this factor disagrees with the rest.
@@ -138,6 +145,12 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
             joint = replace(joint, notes=list(joint.notes) + [
                 f"{names[worst]}: {why}; with two sensors it stays in (the other's data are the only check)"])
         break
+    if joint is not None and getattr(robot, "accuracy", None) is not None:
+        # each sensor's X takes the robot's error common to all poses whole, as X's std does
+        acc = np.repeat(np.asarray(robot.accuracy, float), 3)
+        per = {n: dict(f, std_deg_mm=np.hypot(f["std_deg_mm"], acc).tolist())
+               for n, f in joint.sensor.figures["X_per_sensor"].items()}
+        joint = replace(joint, sensor=replace(joint.sensor, figures=dict(joint.sensor.figures, X_per_sensor=per)))
     if joint is None and not alone:
         raise DegenerateMotionError("no sensor of the rig could be calibrated: " + "; ".join(f"{n}: {w}" for n, w in skipped))
     return RigCalibration(joint, alone, list(sensor_names), disagreeing, skipped)
@@ -150,3 +163,52 @@ def _own_params(member: SensorModel, cal: Calibration):
 def _member_rms(joint: Calibration, k: int) -> float:
     """Sensor ``k``'s RMS residual (mm) in the joint fit."""
     return float(joint.sensor.figures["rms_mm_per_sensor"][k])
+
+
+def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationOptions | None = None, *,
+                          progress: bool = False, **changes) -> Calibration:
+    """Calibrate a rig session folder (:mod:`handeye.io.rig_session`): the target found in every
+    sensor's images, then :func:`calibrate_rig`.
+
+    Returns
+    -------
+    Calibration
+        The joint fit: X is the first sensor's; ``sensor.figures`` holds every sensor's X with its
+        std (``X_per_sensor``), the relative poses (``relative``), each sensor's own answer
+        (``alone``) and the sensors that disagreed or were skipped; the notes say the same in words.
+        With one sensor left, that sensor's own calibration, with a note.
+
+    Raises
+    ------
+    SessionError
+        A bad session (:func:`~handeye.io.rig_session.load_rig_session`).
+    DegenerateMotionError
+        No sensor could be calibrated.
+    """
+    opts = sensor_options(options, changes, "a rig session")
+    s = folder if isinstance(folder, RigSession) else load_rig_session(folder)
+    target = target_from_spec(s.target_spec, where="target")
+    members, notes = [], list(s.notes)
+    for sensor in s.sensors:
+        paths = [p for p in sensor.images if p is not None]
+        found = iter(detect_images(paths, target, progress=progress))
+        image_points, object_points = [], []
+        for p in sensor.images:
+            det = next(found).detection if p is not None else None
+            image_points.append(np.zeros((0, 2)) if det is None else det.image_points)
+            object_points.append(np.zeros((0, 3)) if det is None else det.object_points)
+        seen = sum(len(u) > 0 for u in image_points)
+        notes.append(f"sensor {sensor.name}: the target found in {seen} of {len(paths)} images")
+        members.append(CameraCorners(s.setup, s.names, image_points, object_points, sensor.K, sensor.dist))
+    rig = calibrate_rig(members, [x.name for x in s.sensors], ControllerPoses(s.flange2base, opts.robot_accuracy), folds=opts.folds)
+    alone = {n: {"X": c.X.tolist(), "std_deg_mm": c.std.tolist(), "verdict": c.verdict} for n, c in rig.alone.items()}
+    words = [f"sensor {n} disagrees with the rest: {why}" for n, why in rig.disagreeing]
+    words += [f"sensor {n} skipped: {why}" for n, why in rig.skipped]
+    if rig.joint is None:
+        only = next(iter(rig.alone.values()))
+        return replace(only, notes=notes + words + ["one sensor left: its own calibration, no rig"] + list(only.notes),
+                       input_folder=s.folder)
+    figures = dict(rig.joint.sensor.figures, alone=alone, disagreeing=[n for n, _ in rig.disagreeing],
+                   skipped=[n for n, _ in rig.skipped])
+    return replace(rig.joint, sensor=replace(rig.joint.sensor, figures=figures), notes=notes + words + list(rig.joint.notes),
+                   skipped=[(n, w) for n, w in rig.skipped] + list(rig.joint.skipped), input_folder=s.folder)

@@ -14,7 +14,7 @@ from typing import Iterable
 import numpy as np
 from numpy.typing import NDArray
 
-from .._shared.io import check_output_folder
+from .._shared.io import atomic_write, check_output_folder
 from ..estimation.diagnostics import compare_solvers
 from ..result import Calibration
 from .files import (
@@ -22,6 +22,7 @@ from .files import (
     check_exports,
     default_frames,
     result_dict,
+    ros2_rig_launch_file,
     ros2_static_transform_command,
     urdf_joint,
     write_exports,
@@ -68,6 +69,11 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
     protect = list(protect) + list(cal.image_paths or [])
     paths = write_results(cal, out_dir, protect, parent_frame, child_frame, tool2flange)
     paths += write_exports(cal, out_dir, exports, protect, parent_frame, child_frame) if exports else []
+    if cal.sensor is not None and "X_per_sensor" in cal.sensor.figures:  # a rig: every sensor's frame
+        frames = {n: np.asarray(f["X"]) for n, f in cal.sensor.figures["X_per_sensor"].items()}
+        path = out_dir / "rig_static_tf.launch.py"
+        atomic_write(path, ros2_rig_launch_file(frames, parent_frame or default_frames(cal.setup)[0]), protect)
+        paths.append(path)
     if report:
         rows = None
         if compare:

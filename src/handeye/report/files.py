@@ -32,7 +32,7 @@ from ..robot.kinematics import chain_yaml
 from ..robot.urdf import chain_urdf
 
 __all__ = ["result_dict", "write_results", "ros2_static_transform_command", "urdf_joint", "default_frames",
-           "euler_angles", "ros2_launch_file", "ros1_launch_file", "easy_handeye_calibration", "in_tool_frame",
+           "euler_angles", "ros2_launch_file", "ros2_rig_launch_file", "ros1_launch_file", "easy_handeye_calibration", "in_tool_frame",
            "write_exports", "check_exports", "EXPORTS"]
 
 
@@ -94,6 +94,23 @@ def ros2_launch_file(T: NDArray[np.float64], parent: str, child: str) -> str:
             "def generate_launch_description():\n    return LaunchDescription([Node(\n"
             "        package='tf2_ros', executable='static_transform_publisher', name='handeye_static_tf',\n"
             f"        arguments=[{', '.join(args)}],\n    )])\n")
+
+
+def ros2_rig_launch_file(frames: dict[str, NDArray[np.float64]], parent: str) -> str:
+    """A ROS 2 Python launch file that publishes every sensor of a rig as a static transform from
+    ``parent`` (``frames``: sensor name -> ``sensor2parent``; child frames ``<name>_optical_frame``)."""
+    nodes = []
+    for name, T in frames.items():
+        q = Rotation.from_matrix(T[:3, :3]).as_quat(canonical=True)
+        args = [f"'--x', '{_num(T[0, 3])}'", f"'--y', '{_num(T[1, 3])}'", f"'--z', '{_num(T[2, 3])}'",
+                f"'--qx', '{_num(q[0])}'", f"'--qy', '{_num(q[1])}'", f"'--qz', '{_num(q[2])}'", f"'--qw', '{_num(q[3])}'",
+                f"'--frame-id', '{parent}'", f"'--child-frame-id', '{name}_optical_frame'"]
+        nodes.append("        Node(package='tf2_ros', executable='static_transform_publisher', "
+                     f"name='handeye_{name}_tf',\n             arguments=[{', '.join(args)}]),\n")
+    return ("# Written by handeye: every sensor of the rig as a static transform.\n"
+            "# ros2 launch ./rig_static_tf.launch.py\n"
+            "from launch import LaunchDescription\nfrom launch_ros.actions import Node\n\n\n"
+            "def generate_launch_description():\n    return LaunchDescription([\n" + "".join(nodes) + "    ])\n")
 
 
 def ros1_launch_file(T: NDArray[np.float64], parent: str, child: str) -> str:

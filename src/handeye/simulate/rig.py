@@ -10,20 +10,28 @@ robot's error.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
+import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from ..errors import InputMismatchError
-from ..frames.setups import check_setup, flange_poses, setup_info
+from .._shared.io import atomic_write, check_output_folder
+from .._shared.lazy import lazy_module
+from ..errors import HandEyeError, InputMismatchError
+from ..frames.setups import check_setup, flange_poses, robot_world_A, setup_info
 from ..geometry.se3 import invert, make_transform, random_rotations
+from ..io.session import write_pose_table
 from ..sensors.camera.pnp import project_points_many
+from ..sensors.camera.render import Renderer
 from ..sensors.camera.targets.chessboard import Chessboard
 from ._common import _reported
 from .scenes import look_at
 
-__all__ = ["RigCamera", "RigScene", "rig_scene"]
+cv2 = lazy_module("cv2")
+
+__all__ = ["RigCamera", "RigScene", "rig_scene", "write_rig_session"]
 
 
 @dataclass(frozen=True)
@@ -164,3 +172,40 @@ def rig_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Gene
 def _unit(rng: np.random.Generator) -> NDArray[np.float64]:
     v = rng.normal(size=3)
     return v / np.linalg.norm(v)
+
+
+def write_rig_session(folder: str | Path, scene: RigScene, rng: np.random.Generator | int | None = None,
+                      noise_px: float = 0.0) -> Path:
+    """Write a simulated rig capture as a rig session folder (:mod:`handeye.io.rig_session`): per
+    camera a folder of its rendered images (``v01.png``, ...; none where it missed the view), its
+    K and dist in session.yaml, ``poses.csv`` (first column ``view``; the controller's poses,
+    quat_wxyz, mm, deg) and ``ground_truth.yaml`` (every camera's X, the board's pose). Returns the
+    folder."""
+    out = check_output_folder(folder)
+    if (out / "session.yaml").exists():
+        raise HandEyeError(f"{out} already holds a session; choose an empty folder")
+    rng = np.random.default_rng(rng)
+    board = Chessboard(*BOARD)
+    texture = board.texture()
+    sensors, truth = {}, {"setup": scene.setup, setup_info(scene.setup).z_name: scene.Z.tolist(), "cameras": {}}
+    for cam in scene.cameras:
+        (out / cam.name).mkdir(parents=True, exist_ok=True)
+        renderer = Renderer(cam.K, cam.dist, IMAGE)
+        A = robot_world_A(scene.flange2base_true, scene.setup)
+        target2cam = invert(A @ cam.X) @ scene.Z
+        for name, T, seen in zip(scene.names, target2cam, cam.seen):
+            if not seen:
+                continue
+            ok, buf = cv2.imencode(".png", renderer.render(texture, T, rng=rng, noise_px=noise_px))
+            if not ok:
+                raise HandEyeError(f"could not encode {cam.name}/{name}.png")
+            atomic_write(out / cam.name / f"{name}.png", buf.tobytes())
+        sensors[cam.name] = {"camera": {"K": cam.K.tolist(), "dist": cam.dist.tolist()}, "images": cam.name}
+        truth["cameras"][cam.name] = {setup_info(scene.setup).x_name: cam.X.tolist()}
+    write_pose_table(out / "poses.csv", scene.names, scene.flange2base, "quat_wxyz", "mm", "deg", id_column="view")
+    spec = {"setup": scene.setup, "target": {"type": "chessboard", "cols": BOARD[0], "rows": BOARD[1], "square": BOARD[2]},
+            "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"},
+            "sensors": sensors}
+    atomic_write(out / "session.yaml", yaml.safe_dump(spec, sort_keys=False))
+    atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
+    return out

@@ -1,0 +1,117 @@
+"""Rig session folders read and checked: several cameras, one table of robot poses (docs/guide.md, "Rigs").
+
+::
+
+    SESSION/
+      session.yaml
+      poses.csv        # first column `view` (each robot pose's name), then the pose columns
+      left/            # one folder per sensor: its images named by the view (v01.png, ...)
+      right/
+
+``session.yaml``::
+
+    setup: eye_in_hand
+    target: {type: chessboard, cols: 9, rows: 6, square: 0.03}
+    poses: {file: poses.csv, format: quat_wxyz, length_unit: mm, angle_unit: deg}
+    sensors:
+      left:  {camera: {K: [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], dist: [k1, k2, p1, p2, k3]}, images: left}
+      right: {camera: {K: ..., dist: ...}, images: right}
+
+A sensor may miss a view (no image of that name in its folder: said in a note); a sensor's name is
+its key (a name given twice is an error). Nothing is measured here (:mod:`handeye.pipelines.rig`
+does that); every key is checked.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._shared.text import summarize
+from ..errors import SessionError
+from ..frames.setups import check_setup
+from ..sensors.camera.targets import target_from_spec
+from .session import POSES_KEYS, SESSION_FILE, check_keys, check_session_keys, has_section, read_camera, read_robot_poses, read_session_yaml
+
+__all__ = ["RigSession", "RigSensor", "load_rig_session", "is_rig_session", "SENSOR_KEYS", "IMAGE_SUFFIXES"]
+
+#: The keys of one sensor's block.
+SENSOR_KEYS = ("camera", "images")
+#: The image files a sensor's folder may hold.
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+
+
+@dataclass(frozen=True)
+class RigSensor:
+    """One camera of a rig: its name, intrinsics and per view its image (None where it has none)."""
+
+    name: str
+    K: NDArray[np.float64]
+    dist: NDArray[np.float64]
+    images: list[Path | None]
+
+
+@dataclass(frozen=True)
+class RigSession:
+    """A rig session's inputs, read and checked (no image read yet)."""
+
+    folder: Path
+    setup: str
+    target_spec: dict[str, Any]
+    names: list[str]  #: per robot pose: the view's name
+    flange2base: NDArray[np.float64]
+    sensors: list[RigSensor]
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def input_files(self) -> list[Path]:
+        """Every file the session is read from."""
+        return [self.folder / SESSION_FILE] + [p for s in self.sensors for p in s.images if p is not None]
+
+
+def is_rig_session(folder: str | Path) -> bool:
+    """Whether ``folder``'s session.yaml has a ``sensors:`` mapping."""
+    return has_section(folder, "sensors")
+
+
+def load_rig_session(folder: str | Path) -> RigSession:
+    """Read and check a rig session folder (the module docstring).
+
+    Raises :class:`SessionError` naming the file or key: no ``sensors:`` mapping or fewer than two
+    sensors, a sensor without its camera's K and dist or its folder, a bad target or pose table.
+    """
+    folder, spec, where, notes = read_session_yaml(folder)
+    sensors = spec.get("sensors")
+    if not isinstance(sensors, dict) or len(sensors) < 2:
+        raise SessionError(f"{where}: sensors must map two sensor names or more to their camera and images folder")
+    check_session_keys(spec, ("setup", "target", "poses", "sensors"), {"poses": POSES_KEYS}, where)
+    setup = check_setup(str(spec.get("setup", "")))
+    target_from_spec(spec.get("target"), where=f"{where}: target")
+    f2b, names, _ = read_robot_poses(folder, spec.get("poses"), where, notes, ("view",), "view")
+    out = []
+    for name, block in sensors.items():
+        at = f"{where}: sensors: {name}"
+        if not isinstance(block, dict):
+            raise SessionError(f"{at}: a mapping with camera (K, dist) and images (its folder)")
+        check_keys(block, SENSOR_KEYS, at)
+        if block.get("camera") is None:
+            raise SessionError(f"{at}: camera (K and dist) is missing: a rig's cameras need their intrinsics (calibrate each "
+                               "camera's first, e.g. with handeye calibrate on its own images)")
+        K, dist = read_camera(block["camera"], at)
+        if K is None:
+            raise SessionError(f"{at}: camera: K is missing")
+        images = folder / str(block.get("images", name))
+        if not images.is_dir():
+            raise SessionError(f"{at}: no folder {images} (its images, named by view)")
+        by_stem = {p.stem: p for p in images.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES}
+        paths = [by_stem.get(Path(n).stem) for n in names]
+        missing = [n for n, p in zip(names, paths) if p is None]
+        if missing:
+            notes.append(f"sensor {name}: no image for {len(missing)} of {len(names)} views ({summarize(missing)}): "
+                         "those views are not its")
+        out.append(RigSensor(str(name), K, np.zeros(5) if dist is None else dist, paths))
+    return RigSession(folder, setup, dict(spec["target"]), list(names), f2b, out, notes)
