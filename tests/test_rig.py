@@ -108,3 +108,29 @@ def test_rig_session_round_trip_and_bad_sessions(tmp_path):
     (folder / "session.yaml").write_text(yaml.safe_dump(spec))
     with pytest.raises(SessionError, match="cam1: camera .K and dist. is missing"):
         calibrate_rig_session(folder)
+
+
+def test_a_rig_of_sensors_with_residuals_of_different_widths():
+    """A camera (two residual columns) beside a laser profiler (one): the profiler's rows padded with
+    zeros in a noise group of their own, each sensor's columns in groups of their own; sensors that
+    see different targets share none."""
+    from handeye.sensors.laser.model import SphereProfiles
+    from handeye.sensors.rig import Rig
+    from handeye.simulate import laser_scene
+
+    sc = rig_scene(6, "eye_in_hand", rng=1)
+    c = sc.cameras[0]
+    camera = CameraCorners("eye_in_hand", sc.names, c.image_points, c.object_points, c.K, c.dist)
+    camera.start(sc.flange2base, c.X, sc.Z)
+    laser = SphereProfiles("eye_in_hand", sc.names, laser_scene(6, "eye_in_hand", rng=1).profiles, 0.02)
+    rig = Rig([camera, laser], ["camera", "laser"], [(c.X, camera.target_params(sc.Z)), (c.X, np.zeros(3))],
+              shared_target=False)
+    on_laser = rig.member == 1
+    assert rig.shape.shape == (len(rig.owner), 2)
+    assert set(rig.noise_groups[~on_laser].ravel()) == {0} and set(rig.noise_groups[on_laser, 0]) == {1}
+    assert set(rig.noise_groups[on_laser, 1]) == {2}
+    X, p = rig.start(sc.flange2base, None, None)
+    r = rig.residuals(X, p, sc.flange2base, np.arange(len(rig.owner)))
+    assert np.all(r[on_laser, 1] == 0) and np.all(np.isfinite(r)) and np.abs(r[~on_laser]).max() < 1e-2
+    with pytest.raises(InputMismatchError, match="share none"):
+        Rig([camera, laser], ["camera", "laser"], [(c.X, np.zeros(6)), (c.X, np.zeros(3))])

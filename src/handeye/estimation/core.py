@@ -132,11 +132,14 @@ class Fitted:
 def _groups(sensor: SensorModel) -> NDArray[np.intp]:
     """Per measurement row and residual column (M, c) its noise group: the column's group
     (``groups``), apart for each row set of ``row_groups`` when the sensor has it (a rig: each
-    sensor's noise its own)."""
+    sensor's noise its own), or the sensor's own ``noise_groups`` (M, c) when it gives them."""
     shape = np.asarray(sensor.shape)
     column = np.zeros(shape.shape[1], dtype=np.intp)
     for g, cols in enumerate(sensor.groups):
         column[list(cols)] = g
+    given = getattr(sensor, "noise_groups", None)
+    if given is not None:  # per entry, from the sensor (a rig of sensors with residuals of different widths)
+        return np.asarray(given, dtype=np.intp)
     rows = getattr(sensor, "row_groups", None)
     if rows is None:
         return np.broadcast_to(column, shape.shape)
@@ -179,6 +182,8 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
     them (``jacobian(X, p, flange2base, rows)``: (M, c, 6 + k), X's part for a left increment as
     ``x``'s) and the robot has no unknowns; else '2-point' (finite differences)."""
     sensor, robot = problem.sensor, problem.robot
+    if robot.n_params and getattr(robot, "param_view", None) is not None:
+        return _per_view_jacobian(problem, rows, sigma)
     if not hasattr(sensor, "jacobian") or robot.n_params:
         return "2-point"
     weight = _weight(problem, rows, sigma)
@@ -188,6 +193,43 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
         X, p, d = problem.unpack(x)
         J = sensor.jacobian(X, p, robot.flange2base(d), rows) * weight[..., None]
         return np.vstack([J.reshape(-1, J.shape[-1]), pins])
+    return jac
+
+
+def _per_view_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
+    """Finite differences of :func:`_function` for a robot whose unknowns each move one view's pose
+    (``param_view``: per unknown its view; each pose's own error): an unknown moves only its view's
+    rows and its own prior row, so the same unknown of every view is stepped at once (6 evaluations
+    for 6 unknowns per view, not 6 per view), besides one per unknown of X and the sensor."""
+    fun = _function(problem, rows, sigma)
+    view = np.asarray(problem.robot.param_view, dtype=np.intp)
+    n_x = 6 + len(problem.p0)
+    n_d = len(view)
+    c = np.asarray(problem.sensor.shape).shape[1]
+    entry_view = np.repeat(np.asarray(problem.sensor.owner)[rows], c)
+    first = np.r_[0, np.flatnonzero(np.diff(view)) + 1]
+    position = np.arange(n_d) - first[np.searchsorted(first, np.arange(n_d), side="right") - 1]
+
+    def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        f0 = fun(x)
+        J = np.zeros((len(f0), len(x)))
+        for j in range(n_x):
+            h = 1.5e-8 * max(1.0, abs(x[j]))
+            step = x.copy()
+            step[j] += h
+            J[:, j] = (fun(step) - f0) / h
+        for g in np.unique(position):
+            group = np.flatnonzero(position == g)
+            step = x.copy()
+            step[n_x + group] += 1.5e-8
+            df = (fun(step) - f0) / 1.5e-8
+            column = np.full(int(view.max()) + 1, -1)
+            column[view[group]] = n_x + group
+            at = column[entry_view]
+            hit = np.flatnonzero(at >= 0)
+            J[hit, at[hit]] = df[hit]
+            J[len(entry_view) + group, n_x + group] = df[len(entry_view) + group]
+        return J
     return jac
 
 

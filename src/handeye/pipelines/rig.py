@@ -127,8 +127,7 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
     joint = None
     while len(kept) >= 2:
         names = [sensor_names[k] for k in kept]
-        starts = [(alone[n].X, members[k].target_params(alone[n].Z) if shared_target else _own_params(members[k], alone[n]))
-                  for k, n in zip(kept, names)]
+        starts = [(alone[n].X, members[k].target_params(alone[n].Z)) for k, n in zip(kept, names)]
         joint = estimate(Rig([members[k] for k in kept], names, starts, shared_target), _shared(robot), folds)
         # each sensor's residual in the joint fit against the noise it states
         ratio = np.array([_member_rms(joint, i) / _stated_mm(members[k]) for i, k in enumerate(kept)])
@@ -154,10 +153,6 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
     if joint is None and not alone:
         raise DegenerateMotionError("no sensor of the rig could be calibrated: " + "; ".join(f"{n}: {w}" for n, w in skipped))
     return RigCalibration(joint, alone, list(sensor_names), disagreeing, skipped)
-
-
-def _own_params(member: SensorModel, cal: Calibration):
-    raise InputMismatchError("sensors with targets of their own in one rig: not yet (give them one shared target)")
 
 
 def _member_rms(joint: Calibration, k: int) -> float:

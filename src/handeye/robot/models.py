@@ -140,6 +140,11 @@ class PoseErrors(ControllerPoses):
         """Each pose's rotation and translation error."""
         return [f"pose{i}.{a}" for i in range(len(self.poses)) for a in ("rx", "ry", "rz", "x", "y", "z")]
 
+    @property
+    def param_view(self) -> NDArray[np.intp]:
+        """Per unknown the view whose pose it moves (the fit's finite differences step every view's at once)."""
+        return np.repeat(np.arange(len(self.poses)), 6)
+
     def flange2base(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
         """The poses moved by their errors ``d`` (in units of the accuracy)."""
         e = np.asarray(d, float).reshape(-1, 6)

@@ -49,6 +49,9 @@ A new sensor is one package under ``sensors/`` whose model class has these membe
 ``row_groups`` (optional)
     Per measurement row (M,) a set of rows whose noise is their own (a rig: one per sensor): each
     noise group's scale is then fitted per row set too.
+``noise_groups`` (optional)
+    Per entry (M, c) its noise group, given whole (a rig of sensors whose residuals differ in
+    width: the padding's entries, always 0, in a group of their own).
 ``sections(X, p, flange2base, views)`` (optional)
     Per view of ``views`` what the report draws of it in the sensor's own plane: the measured
     points, their residuals and the fitted target's section (:class:`~handeye.result.SensorFit`'s

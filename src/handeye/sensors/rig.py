@@ -4,7 +4,8 @@ Sensor 0's X is the core's X; every other sensor ``k`` has its pose in sensor 0'
 ``sensor_k2sensor_0`` (6 unknowns each, a left increment about its start), so that ``X_k = X @
 sensor_k2sensor_0``. Sensors that see one target share its pose (``shared_target``: the first
 sensor's target unknowns, mapped into each sensor's own with its ``target_params``); else each
-keeps its own. Every sensor's measurements keep their own noise scale (``row_groups``). The robot's
+keeps its own. Every sensor's measurements keep their own noise scale (``noise_groups``; a sensor
+with fewer residual columns, a laser's one beside a camera's two, padded with zeros). The robot's
 poses are the rig's: one table, each sensor's views a subset of it (a view where a sensor saw
 nothing has no rows of it).
 
@@ -55,16 +56,21 @@ class Rig:
         for m, name in zip(members, sensor_names):
             if list(m.names) != list(first.names) or m.setup != first.setup:
                 raise InputMismatchError(f"sensor {name}: every sensor of a rig is over the rig's views and setup")
-            if np.asarray(m.shape).shape[1] != np.asarray(first.shape).shape[1] or m.groups != first.groups:
-                raise InputMismatchError(f"sensor {name}: a rig's sensors must give residuals alike (mixed kinds: not yet)")
+
         if shared_target and not all(hasattr(m, "target_params") for m in members[1:]):
             raise InputMismatchError("a shared target needs sensors that map its pose into their unknowns (target_params)")
+        if shared_target and len({m.target for m in members}) > 1:
+            raise InputMismatchError(f"sensors that see different targets ({', '.join(sorted({m.target for m in members}))}) "
+                                     "share none: give shared_target=False")
         self.members, self.sensor_names, self.shared_target = list(members), list(sensor_names), shared_target
         self.setup, self.names, self.target, self.groups = first.setup, list(first.names), first.target, first.groups
         self.owner = np.concatenate([np.asarray(m.owner) for m in members]).astype(np.intp)
-        self.shape = np.concatenate([np.asarray(m.shape) for m in members])
+        self.width = max(np.asarray(m.shape).shape[1] for m in members)
+        # a narrower sensor's rows are padded with 0 residuals (shape 1) in a noise group of their own
+        self.shape = np.concatenate([np.pad(np.asarray(m.shape, float), ((0, 0), (0, self.width - np.asarray(m.shape).shape[1])),
+                                            constant_values=1.0) for m in members])
         self.member = np.concatenate([np.full(len(m.owner), k) for k, m in enumerate(members)]).astype(np.intp)
-        self.row_groups = self.member
+        self.noise_groups = self._noise_groups()
         self.local = np.concatenate([np.arange(len(m.owner)) for m in members]).astype(np.intp)
         X0 = self._X_start = np.asarray(starts[0][0], float)
         self.rel0 = [invert(X0) @ X for X, _ in starts[1:]]  # sensor_k2sensor_0 to start from
@@ -85,6 +91,20 @@ class Rig:
         self.param_scale = np.r_[np.full(n_rel, 1e-3)] if not own else np.r_[
             np.full(n_rel, 1e-3), np.concatenate([np.asarray(m.param_scale, float) for k, m in enumerate(members)
                                                   if not (shared_target and k > 0)])]
+
+    def _noise_groups(self) -> NDArray[np.intp]:
+        """Per entry its noise group: each sensor's column groups its own, the padding one more."""
+        blocks, at = [], 0
+        for m in self.members:
+            c = np.asarray(m.shape).shape[1]
+            column = np.zeros(self.width, dtype=np.intp)
+            for g, cols in enumerate(m.groups):
+                column[list(cols)] = at + g
+            at += len(m.groups)
+            column[c:] = -1
+            blocks.append(np.broadcast_to(column, (len(m.owner), self.width)))
+        out = np.concatenate(blocks)
+        return np.where(out < 0, at, out)
 
     # the unknowns ------------------------------------------------------------------------------
     def relative(self, p, k: int) -> NDArray[np.float64]:
@@ -114,11 +134,11 @@ class Rig:
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """Each row's residual from its own sensor, with ``X_k = X @ sensor_k2sensor_0``."""
         rows = np.asarray(rows)
-        out = np.empty((len(rows), self.shape.shape[1]))
+        out = np.zeros((len(rows), self.width))
         for k, m in enumerate(self.members):
             at = np.flatnonzero(self.member[rows] == k)
             if at.size:
-                out[at] = m.residuals(X @ self.relative(p, k), self.member_params(X, p, k), flange2base,
+                out[at, :np.asarray(m.shape).shape[1]] = m.residuals(X @ self.relative(p, k), self.member_params(X, p, k), flange2base,
                                       self.local[rows[at]])
         return out
 

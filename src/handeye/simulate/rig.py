@@ -209,3 +209,4 @@ def write_rig_session(folder: str | Path, scene: RigScene, rng: np.random.Genera
     atomic_write(out / "session.yaml", yaml.safe_dump(spec, sort_keys=False))
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return out
+

@@ -157,6 +157,12 @@ class SphereProfiles(Profiles):
         q = self._mapped(X0, A, rows)
         return X0, np.r_[centre, np.median(np.linalg.norm(q - centre, axis=1))]
 
+    def target_params(self, Z) -> NDArray[np.float64]:
+        """The unknowns ``p`` of the ball at ``Z``'s translation (its radius known)."""
+        if self.radius is None:
+            raise InputMismatchError("the ball's pose alone gives its centre, not its radius: give the diameter")
+        return np.asarray(Z, float)[:3, 3].copy()
+
     def jacobian(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """The residuals' derivatives (M, 1, 6 + k): for a left increment of X (rotation ``a``,
         translation ``b``: ``X p -> exp(a) R_X p + t_X + b``) ``d = |q - c| - r`` moves by
