@@ -1,6 +1,7 @@
 """Rigs (issue 63): several cameras, one robot, one target, in one fit, against the simulator's truth.
 
     python benchmarks/bench_rig.py [--sessions 20]
+    python benchmarks/bench_rig.py --mixed [--sessions 10]
 
 Each session (``handeye.simulate.rig.rig_scene``): 1280 x 1024 cameras (f 1,300-1,500 px), a 9 x 6
 board of 30 mm squares, corners with 0.2 px of noise, the controller's poses off by a calibrated
@@ -12,6 +13,10 @@ accuracy stated. Rows (goals from issue 63):
 * three fixed cameras, the board on the flange, 15 poses, one camera missing a third of the views:
   every X within 3 std (>= 95%);
 * the same with one camera given a focal length 5% off: named as the one that disagrees.
+
+``--mixed``: a camera beside a laser profiler on one flange (or fixed side by side, eye-to-hand;
+``handeye.simulate.rig.camera_laser_scene``: 20 profiles of a 40 mm ball, the camera seeing the
+board the ball rests on): both X and their relative pose within 3 std (goal >= 95%).
 """
 
 from __future__ import annotations
@@ -90,10 +95,41 @@ def fixed_three(sessions: int, focal_error: float = 0.0) -> None:
               f"({len(within)} X); {np.median(secs):.2f} s")
 
 
+def mixed(sessions: int) -> None:
+    from handeye.sensors.laser.model import SphereProfiles
+    from handeye.simulate.rig import camera_laser_scene
+    for setup in ("eye_in_hand", "eye_to_hand"):
+        ok, rel_t, secs = [], [], []
+        for s in range(sessions):
+            sc = camera_laser_scene(20, setup, rng=5000 + s, robot_error=ERROR)
+            camera = CameraCorners(setup, sc.names, sc.camera.image_points, sc.camera.object_points, sc.camera.K,
+                                   sc.camera.dist)
+            laser = SphereProfiles(setup, sc.names, sc.profiles, sc.radius)
+            t0 = time.perf_counter()
+            rig = calibrate_rig([laser, camera], ["laser", "camera"], ControllerPoses(sc.flange2base, ERROR),
+                                shared_target=False)
+            secs.append(time.perf_counter() - t0)
+            f = rig.joint.sensor.figures
+            rel = f["relative"]["camera2laser"]
+            ok.append([_within(np.array(f["X_per_sensor"]["laser"]["X"]), np.array(f["X_per_sensor"]["laser"]["std_deg_mm"]),
+                               sc.laser_X),
+                       _within(np.array(f["X_per_sensor"]["camera"]["X"]),
+                               np.array(f["X_per_sensor"]["camera"]["std_deg_mm"]), sc.camera.X),
+                       _within(np.array(rel["matrix"]), np.array(rel["std_deg_mm"]), sc.relative())])
+            rel_t.append(1e3 * translation_error(np.array(rel["matrix"]), sc.relative()))
+        share = 100 * np.mean(ok, axis=0)
+        print(f"camera + laser profiler, {setup}: within 3 std laser X {share[0]:.0f}%, camera X {share[1]:.0f}%, relative "
+              f"pose {share[2]:.0f}% (goal >= 95%); relative pose median {np.median(rel_t):.3f} mm; {np.median(secs):.1f} s")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sessions", type=int, default=20)
+    ap.add_argument("--mixed", action="store_true", help="a camera beside a laser profiler")
     a = ap.parse_args()
+    if a.mixed:
+        mixed(a.sessions)
+        return
     stereo(a.sessions)
     fixed_three(a.sessions)
     fixed_three(a.sessions, 0.05)

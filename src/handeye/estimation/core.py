@@ -180,7 +180,8 @@ def _function(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
 def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
     """The Jacobian of :func:`_function`'s residuals from the sensor's own derivatives, when it has
     them (``jacobian(X, p, flange2base, rows)``: (M, c, 6 + k), X's part for a left increment as
-    ``x``'s) and the robot has no unknowns; else '2-point' (finite differences)."""
+    ``x``'s) and the robot has no unknowns; finite differences by view for a robot whose unknowns
+    each move one view (:func:`_per_view_jacobian`); else '2-point' (finite differences)."""
     sensor, robot = problem.sensor, problem.robot
     if robot.n_params and getattr(robot, "param_view", None) is not None:
         return _per_view_jacobian(problem, rows, sigma)

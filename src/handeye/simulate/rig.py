@@ -27,11 +27,12 @@ from ..sensors.camera.pnp import project_points_many
 from ..sensors.camera.render import Renderer
 from ..sensors.camera.targets.chessboard import Chessboard
 from ._common import _reported
-from .scenes import look_at
+from .laser import profile_reading, profiler_views
+from .scenes import look_at, scene_from_viewpoints
 
 cv2 = lazy_module("cv2")
 
-__all__ = ["RigCamera", "RigScene", "rig_scene", "write_rig_session"]
+__all__ = ["RigCamera", "RigScene", "rig_scene", "write_rig_session", "CameraLaserScene", "camera_laser_scene"]
 
 
 @dataclass(frozen=True)
@@ -210,3 +211,75 @@ def write_rig_session(folder: str | Path, scene: RigScene, rng: np.random.Genera
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return out
 
+
+@dataclass(frozen=True)
+class CameraLaserScene:
+    """A camera and a laser profiler on one flange (eye-in-hand) or fixed side by side (eye-to-hand):
+    the camera's views of a small board (``camera``), the profiler's profiles of a ball (``profiles``,
+    its X ``laser_X``), the ball's pose ``Z_ball`` and the board's ``Z_board``."""
+
+    setup: str
+    names: list[str]
+    flange2base: NDArray[np.float64]
+    flange2base_true: NDArray[np.float64]
+    camera: RigCamera
+    laser_X: NDArray[np.float64]
+    profiles: list
+    radius: float
+    Z_ball: NDArray[np.float64]
+    Z_board: NDArray[np.float64]
+
+    def relative(self) -> NDArray[np.float64]:
+        """The camera's true pose in the profiler's frame (``cam2laser``)."""
+        return invert(self.laser_X) @ self.camera.X
+
+
+#: The mixed rig's board: small enough to stay in view while the profiler circles the ball beside it.
+SMALL_BOARD = (9, 6, 0.01)
+
+
+def camera_laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
+                       noise_px: float = 0.2, robot_error: tuple[float, float] | None = None,
+                       cone_deg: float = 25.0) -> CameraLaserScene:
+    """A camera beside a laser profiler (the profiler of :func:`~handeye.simulate.laser.laser_scene`,
+    scanning a 40 mm ball from within ``cone_deg`` of its top; the camera 60 mm beside it, looking the
+    same way, with a wider lens, at a 90 x 60 mm board the ball rests on): the views the robot took
+    for the profiler, each camera image kept where the whole board is in it.
+
+    Examples
+    --------
+    >>> sc = camera_laser_scene(12, "eye_in_hand", rng=0)
+    >>> len(sc.profiles), int(sc.camera.seen.sum()) >= 6
+    (12, True)
+    """
+
+    setup = check_setup(setup)
+    rng = np.random.default_rng(rng)
+    radius = 0.02
+    sensor2ball = profiler_views("sphere", n_views, radius, rng, cone_deg)
+    scene = scene_from_viewpoints(sensor2ball, setup, rng)
+    laser_X, Z_ball, F = scene.X, scene.Z, scene.flange2base
+    cam2laser = make_transform(Rotation.from_euler("xyz", [rng.uniform(-3, 3), -24.0, rng.uniform(-3, 3)], degrees=True)
+                               .as_matrix(), [0.06, rng.uniform(-0.01, 0.01), 0.0])
+    board = Chessboard(*SMALL_BOARD)
+    points = board.object_points()
+    K, dist = _camera(rng)
+    K[:2, :2] *= 0.6  # a wider lens: the board is near
+    # the board flat under the ball (the ball resting on it), in the target's frame: in view of the
+    # camera beside the profiler whichever way the profiler turns about the ball
+    X_cam = laser_X @ cam2laser
+    Z_board = Z_ball @ make_transform(np.eye(3), [0.0, 0.0, -radius]) @ make_transform(np.eye(3), -points.mean(axis=0))
+    A = robot_world_A(F, setup)
+    target2cam = invert(A @ X_cam) @ Z_board
+    w, h = IMAGE
+    px = project_points_many(target2cam, np.tile(points, (n_views, 1)), np.repeat(np.arange(n_views), len(points)), K,
+                             dist).reshape(n_views, len(points), 2)
+    depth = np.einsum("nij,mj->nmi", target2cam[:, :3, :3], points)[..., 2] + target2cam[:, None, 2, 3]
+    inside = np.all((px[..., 0] > 5) & (px[..., 0] < w - 5) & (px[..., 1] > 5) & (px[..., 1] < h - 5) & (depth > 0), axis=1)
+    img = [px[i] + rng.normal(0.0, noise_px, px[i].shape) if inside[i] else np.zeros((0, 2)) for i in range(n_views)]
+    obj = [points if inside[i] else np.zeros((0, 3)) for i in range(n_views)]
+    ball2sensor = invert(A @ laser_X) @ Z_ball
+    profiles = [profile_reading("sphere", T, radius, rng, 2e-5, 0.02, 0.002) for T in ball2sensor]
+    names = [f"v{i + 1:02d}" for i in range(n_views)]
+    return CameraLaserScene(setup, names, _reported(F, robot_error, rng), F, RigCamera("camera", X_cam, K, dist, img, obj),
+                            laser_X, profiles, radius, Z_ball, Z_board)
