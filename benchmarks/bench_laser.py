@@ -40,10 +40,9 @@ import time
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
 from handeye.estimation.core import estimate
-from handeye.frames.metrics import rotation_error, translation_error
+from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.geometry.se3 import perturb
 from handeye.options import ROBOT_ACCURACY
 from handeye.robot.models import ControllerPoses, JointAngles
@@ -52,12 +51,6 @@ from handeye.sensors.laser.model import SphereProfiles, SpheresProfiles
 from handeye.sensors.laser.plane import PlaneProfiles
 from handeye.simulate import laser as simulated_laser
 from handeye.simulate import laser_scene, write_laser_session
-
-
-def _within(cal, truth) -> bool:
-    rot = Rotation.from_matrix(cal.X[:3, :3] @ truth[:3, :3].T).as_rotvec(degrees=True)
-    return bool(np.all(np.abs(rot) <= 3 * cal.std[:3]) and np.all(np.abs(1e3 * (cal.X[:3, 3] - truth[:3, 3]))
-                                                                   <= 3 * cal.std[3:]))
 
 
 def _plain(model, flange2base) -> np.ndarray:
@@ -89,7 +82,7 @@ def accuracy(args) -> None:
                 sc = laser_scene(args.profiles, setup, 100 + seed, robot_error=error, target=args.target)
                 cal = estimate(_model(args.target, setup, sc), ControllerPoses(sc.flange2base, error))
                 err.append((1e3 * translation_error(cal.X, sc.X), np.degrees(rotation_error(cal.X, sc.X))))
-                within.append(_within(cal, sc.X))
+                within.append(within_std(cal.X, sc.X, cal.std))
                 cv = cal.cross_validation
                 beats.append(cv["fit"]["mm"] < cv["closed-form start"]["mm"])
                 if error is not None:
@@ -128,7 +121,7 @@ def joints(args) -> None:
             rows.append([arm_mm, 1e3 * translation_error(poses.X, sc.X), np.degrees(rotation_error(poses.X, sc.X)),
                          poses.prediction_error["mm"], 1e3 * translation_error(fitted.X, sc.X),
                          np.degrees(rotation_error(fitted.X, sc.X)), fitted.prediction_error["mm"],
-                         _within(fitted, sc.X)])
+                         within_std(fitted.X, sc.X, fitted.std)])
         r = np.array(rows, dtype=float)
         m = np.median(r, axis=0)
         ratio_x, ratio_held = np.median(r[:, 1] / r[:, 4]), np.median(r[:, 3] / r[:, 6])

@@ -28,19 +28,12 @@ import argparse
 import time
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from handeye.estimation.core import estimate
-from handeye.frames.metrics import rotation_error, translation_error
+from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.robot.models import ControllerPoses
 from handeye.sensors.linescan.model import LineScanCorners
 from handeye.simulate.linescan import linescan_scene
-
-
-def _within(cal, truth) -> bool:
-    rot = Rotation.from_matrix(cal.X[:3, :3] @ truth[:3, :3].T).as_rotvec(degrees=True)
-    return bool(np.all(np.abs(rot) <= 3 * cal.std[:3]) and np.all(np.abs(1e3 * (cal.X[:3, 3] - truth[:3, 3]))
-                                                                   <= 3 * cal.std[3:]))
 
 
 def run(sessions: int, scans: int) -> None:
@@ -60,7 +53,7 @@ def run(sessions: int, scans: int) -> None:
                 fig = cal.sensor.figures
                 focal.append(100 * abs(fig["focal_px"]["value"] / sc.focal - 1))
                 offset.append(1e3 * abs(fig["clock_offset_s"]["value"] - sc.clock_offset))
-                within.append(_within(cal, sc.X))
+                within.append(within_std(cal.X, sc.X, cal.std))
                 held = cal.cross_validation.errors
                 beats.append(held["fit"]["mm"] < held["closed-form start"]["mm"])
             print(f"{setup:11s} {label:29s} X median {np.median(tra):.4f} mm / {np.median(rot):.4f} deg "
@@ -95,7 +88,7 @@ def run_rendered(sessions: int, scans: int) -> None:
                 rot.append(rotation_error(cal.X, X))
                 tra.append(1e3 * translation_error(cal.X, X))
                 focal.append(100 * abs(cal.sensor.figures["focal_px"]["value"] / truth["focal_px"] - 1))
-                within.append(_within(cal, X))
+                within.append(within_std(cal.X, X, cal.std))
         print(f"{setup:11s} rendered scans, handeye calibrate: X median {np.median(tra):.4f} mm / {np.median(rot):.4f} deg "
               f"(max {np.max(tra):.3f} mm / {np.max(rot):.4f} deg); focal {np.median(focal):.4f}% (max {np.max(focal):.4f}%); "
               f"within 3 std {100 * np.mean(within):.0f}%; {np.median(secs):.1f} s per command")

@@ -25,20 +25,14 @@ import argparse
 import time
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from handeye.frames.metrics import rotation_error, translation_error
+from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.pipelines.rig import calibrate_rig
 from handeye.robot.models import ControllerPoses
 from handeye.sensors.camera.model import CameraCorners
 from handeye.simulate.rig import rig_scene
 
 ERROR = (0.01, 0.05)
-
-
-def _within(X, std, truth) -> bool:
-    rot = Rotation.from_matrix(X[:3, :3] @ truth[:3, :3].T).as_rotvec(degrees=True)
-    return bool(np.all(np.abs(rot) <= 3 * std[:3]) and np.all(np.abs(1e3 * (X[:3, 3] - truth[:3, 3])) <= 3 * std[3:]))
 
 
 def _members(sc, focal_error: dict[int, float] | None = None):
@@ -62,11 +56,11 @@ def stereo(sessions: int) -> None:
         R = np.array(rel["matrix"])
         rel_t.append(1e3 * translation_error(R, sc.relative(1)))
         rel_r.append(rotation_error(R, sc.relative(1)))
-        rel_in.append(_within(R, np.array(rel["std_deg_mm"]), sc.relative(1)))
+        rel_in.append(within_std(R, sc.relative(1), np.array(rel["std_deg_mm"])))
         for name, cam in zip(["left", "right"], sc.cameras):
             joint_t.append(1e3 * translation_error(rig.X(name), cam.X))
             alone_t.append(1e3 * translation_error(rig.alone[name].X, cam.X))
-        x_in.append(_within(rig.joint.X, rig.joint.std, sc.cameras[0].X))
+        x_in.append(within_std(rig.joint.X, sc.cameras[0].X, rig.joint.std))
     print(f"stereo pair, eye-in-hand, 15 poses: relative pose median {np.median(rel_t):.4f} mm / {np.median(rel_r):.5f} deg "
           f"(goal 0.05 mm / 0.01 deg), within 3 std {100 * np.mean(rel_in):.0f}%; each X joint median {np.median(joint_t):.3f} mm "
           f"vs alone {np.median(alone_t):.3f} mm (ratio per camera median {np.median(np.array(joint_t) / np.array(alone_t)):.2f}); "
@@ -86,7 +80,7 @@ def fixed_three(sessions: int, focal_error: float = 0.0) -> None:
             continue
         f = rig.joint.sensor.figures["X_per_sensor"]
         for name, cam in zip(["c0", "c1", "c2"], sc.cameras):
-            within.append(_within(np.array(f[name]["X"]), np.array(f[name]["std_deg_mm"]), cam.X))  # accuracy included
+            within.append(within_std(np.array(f[name]["X"]), cam.X, np.array(f[name]["std_deg_mm"])))  # accuracy included
     if focal_error:
         print(f"three fixed cameras, c1's focal length {100 * focal_error:+.0f}%: c1 named alone as disagreeing in "
               f"{sum(named)}/{sessions}; {np.median(secs):.2f} s")
@@ -111,11 +105,10 @@ def mixed(sessions: int) -> None:
             secs.append(time.perf_counter() - t0)
             f = rig.joint.sensor.figures
             rel = f["relative"]["camera2laser"]
-            ok.append([_within(np.array(f["X_per_sensor"]["laser"]["X"]), np.array(f["X_per_sensor"]["laser"]["std_deg_mm"]),
-                               sc.laser_X),
-                       _within(np.array(f["X_per_sensor"]["camera"]["X"]),
-                               np.array(f["X_per_sensor"]["camera"]["std_deg_mm"]), sc.camera.X),
-                       _within(np.array(rel["matrix"]), np.array(rel["std_deg_mm"]), sc.relative())])
+            per = f["X_per_sensor"]
+            ok.append([within_std(np.array(per["laser"]["X"]), sc.laser_X, np.array(per["laser"]["std_deg_mm"])),
+                       within_std(np.array(per["camera"]["X"]), sc.camera.X, np.array(per["camera"]["std_deg_mm"])),
+                       within_std(np.array(rel["matrix"]), sc.relative(), np.array(rel["std_deg_mm"]))])
             rel_t.append(1e3 * translation_error(np.array(rel["matrix"]), sc.relative()))
         share = 100 * np.mean(ok, axis=0)
         print(f"camera + laser profiler, {setup}: within 3 std laser X {share[0]:.0f}%, camera X {share[1]:.0f}%, relative "

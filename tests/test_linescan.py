@@ -5,11 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import yaml
-from scipy.spatial.transform import Rotation
 
 from handeye.errors import DegenerateMotionError, InputMismatchError, SessionError
 from handeye.estimation.core import estimate
-from handeye.frames.metrics import rotation_error, translation_error
+from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.frames.setups import predicted_target2cam
 from handeye.robot.models import ControllerPoses
 from handeye.sensors.linescan.model import LineScanCorners, Trajectory
@@ -22,11 +21,6 @@ def _model(sc, **kw) -> LineScanCorners:
                            1.03 * sc.focal, sc.width, **kw)
 
 
-def _within(cal, X) -> bool:
-    rot = Rotation.from_matrix(cal.X[:3, :3] @ X[:3, :3].T).as_rotvec(degrees=True)
-    return bool(np.all(np.abs(rot) <= 3 * cal.std[:3]) and np.all(1e3 * np.abs(cal.X[:3, 3] - X[:3, 3]) <= 3 * cal.std[3:]))
-
-
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 def test_x_focal_and_clock_from_scans(setup):
     """12 scans (0.1 px, 20 us jitter, the nominal focal length 3% off, the clocks 12 ms apart): X within
@@ -37,7 +31,7 @@ def test_x_focal_and_clock_from_scans(setup):
     cal = estimate(model, ControllerPoses(model.flange2base_ref))
     assert cal.verdict == "good"
     assert 1e3 * translation_error(cal.X, sc.X) < 0.2 and rotation_error(cal.X, sc.X) < 0.05
-    assert _within(cal, sc.X)
+    assert within_std(cal.X, sc.X, cal.std)
     fig = cal.sensor.figures
     assert abs(fig["focal_px"]["value"] / sc.focal - 1) < 1e-3
     assert abs(fig["clock_offset_s"]["value"] - sc.clock_offset) < 1e-4

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from handeye.errors import InputMismatchError
-from handeye.frames.metrics import rotation_error, translation_error
+from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.pipelines.rig import calibrate_rig
 from handeye.robot.models import ControllerPoses, PoseErrors
 from handeye.sensors.camera.model import CameraCorners
@@ -25,11 +24,6 @@ def _members(sc, focal_error=None):
     return out
 
 
-def _within(X, std, truth) -> bool:
-    rot = Rotation.from_matrix(X[:3, :3] @ truth[:3, :3].T).as_rotvec(degrees=True)
-    return bool(np.all(np.abs(rot) <= 3 * std[:3]) and np.all(1e3 * np.abs(X[:3, 3] - truth[:3, 3]) <= 3 * std[3:]))
-
-
 def test_stereo_pair_relative_pose_from_the_joint_fit():
     """A stereo pair on the flange with a calibrated arm's error: the relative pose within 3 std and
     better known than either X (the robot's error cancels in it); each camera's X from the joint fit
@@ -39,7 +33,7 @@ def test_stereo_pair_relative_pose_from_the_joint_fit():
     assert rig.joint.verdict in ("good", "weak") and rig.disagreeing == []
     rel = rig.joint.sensor.figures["relative"]["right2left"]
     R, std = np.array(rel["matrix"]), np.array(rel["std_deg_mm"])
-    assert _within(R, std, sc.relative(1))
+    assert within_std(R, sc.relative(1), std)
     assert 1e3 * translation_error(R, sc.relative(1)) < 0.2 and rotation_error(R, sc.relative(1)) < 0.01
     assert std[3:].max() < rig.joint.std[3:].min()  # the relative pose is better known than X
     for name, cam in zip(["left", "right"], sc.cameras):
@@ -56,7 +50,7 @@ def test_three_fixed_cameras_one_with_a_wrong_focal_length_is_named():
     assert rig.disagreeing == []
     for name, cam in zip(["c0", "c1", "c2"], sc.cameras):
         f = rig.joint.sensor.figures["X_per_sensor"][name]
-        assert _within(np.array(f["X"]), np.array(f["std_deg_mm"]), cam.X)  # the robot's accuracy in it
+        assert within_std(np.array(f["X"]), cam.X, np.array(f["std_deg_mm"]))  # the robot's accuracy in it
     bad = calibrate_rig(_members(sc, {1: 0.05}), ["c0", "c1", "c2"], ControllerPoses(sc.flange2base, ERROR))
     assert [n for n, _ in bad.disagreeing] == ["c1"] and "wrong intrinsic" in bad.disagreeing[0][1]
     assert sorted(bad.joint.sensor.figures["X_per_sensor"]) == ["c0", "c2"]
@@ -95,7 +89,7 @@ def test_rig_session_round_trip_and_bad_sessions(tmp_path):
     back = load_result(tmp_path / "out" / "result.json")
     for name in ("cam0", "cam1"):
         f = back.sensor.figures["X_per_sensor"][name]
-        assert _within(np.array(f["X"]), np.array(f["std_deg_mm"]), np.array(truth["cameras"][name]["cam2flange"]))
+        assert within_std(np.array(f["X"]), np.array(truth["cameras"][name]["cam2flange"]), np.array(f["std_deg_mm"]))
     assert "sensor cam1: no image for 1 of 8 views (v03)" in " ".join(back.notes)
     launch = (tmp_path / "out" / "rig_static_tf.launch.py").read_text()
     assert "'cam0_optical_frame'" in launch and "'cam1_optical_frame'" in launch

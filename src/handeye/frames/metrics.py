@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
 
 from ..geometry.se3 import rotation_angle
 
-__all__ = ["rotation_error", "translation_error", "std_deg_mm"]
+__all__ = ["rotation_error", "translation_error", "std_deg_mm", "within_std"]
 
 
 def rotation_error(T_est: ArrayLike, T_ref: ArrayLike) -> NDArray[np.float64] | float:
@@ -36,3 +37,12 @@ def std_deg_mm(cov: ArrayLike) -> NDArray[np.float64]:
     rotation in degrees, the translation in millimetres (``Calibration.std``'s units)."""
     d = np.sqrt(np.diag(np.asarray(cov, dtype=float)))
     return np.r_[np.degrees(d[:3]), 1e3 * d[3:]]
+
+
+def within_std(T_est: ArrayLike, T_ref: ArrayLike, std: ArrayLike, k: float = 3.0) -> bool:
+    """Whether ``T_est`` lies within ``k`` of its ``std`` (6: deg about each axis, then mm along it;
+    ``Calibration.std``'s units) of ``T_ref``, axis by axis: the rotation vector of
+    ``R_est R_ref^T`` in degrees, the translations' difference in millimetres."""
+    T_est, T_ref, std = (np.asarray(a, dtype=float) for a in (T_est, T_ref, std))
+    rot = Rotation.from_matrix(T_est[:3, :3] @ T_ref[:3, :3].T).as_rotvec(degrees=True)
+    return bool(np.all(np.abs(rot) <= k * std[:3]) and np.all(np.abs(1e3 * (T_est[:3, 3] - T_ref[:3, 3])) <= k * std[3:]))
