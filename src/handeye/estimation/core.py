@@ -133,13 +133,13 @@ def _groups(sensor: SensorModel) -> NDArray[np.intp]:
     """Per measurement row and residual column (M, c) its noise group: the column's group
     (``groups``), apart for each row set of ``row_groups`` when the sensor has it (a rig: each
     sensor's noise its own), or the sensor's own ``noise_groups`` (M, c) when it gives them."""
+    given = getattr(sensor, "noise_groups", None)
+    if given is not None:  # per entry, from the sensor (a rig of sensors with residuals of different widths)
+        return np.asarray(given, dtype=np.intp)
     shape = np.asarray(sensor.shape)
     column = np.zeros(shape.shape[1], dtype=np.intp)
     for g, cols in enumerate(sensor.groups):
         column[list(cols)] = g
-    given = getattr(sensor, "noise_groups", None)
-    if given is not None:  # per entry, from the sensor (a rig of sensors with residuals of different widths)
-        return np.asarray(given, dtype=np.intp)
     rows = getattr(sensor, "row_groups", None)
     if rows is None:
         return np.broadcast_to(column, shape.shape)

@@ -88,9 +88,9 @@ class Rig:
         self.param_names = [f"{s}.{a}" for s in sensor_names[1:] for a in ("rx", "ry", "rz", "x", "y", "z")] + [
             f"{sensor_names[k]}.{n}" for k, m in enumerate(members) for n in
             (m.param_names if not (shared_target and k > 0) else [])]
-        self.param_scale = np.r_[np.full(n_rel, 1e-3)] if not own else np.r_[
-            np.full(n_rel, 1e-3), np.concatenate([np.asarray(m.param_scale, float) for k, m in enumerate(members)
-                                                  if not (shared_target and k > 0)])]
+        self.param_scale = np.concatenate([np.full(n_rel, 1e-3)] + [np.asarray(m.param_scale, float)
+                                                                     for k, m in enumerate(members)
+                                                                     if not (shared_target and k > 0)])
 
     def _noise_groups(self) -> NDArray[np.intp]:
         """Per entry its noise group: each sensor's column groups its own, the padding one more."""

@@ -20,7 +20,7 @@ from scipy.spatial.transform import Rotation
 from .._shared.io import atomic_write, check_output_folder
 from .._shared.lazy import lazy_module
 from ..errors import HandEyeError, InputMismatchError
-from ..frames.setups import check_setup, flange_poses, robot_world_A, setup_info
+from ..frames.setups import check_setup, flange_poses, predicted_target2cam, setup_info
 from ..geometry.se3 import invert, make_transform, random_rotations
 from ..io.session import write_pose_table
 from ..sensors.camera.pnp import project_points_many
@@ -192,8 +192,7 @@ def write_rig_session(folder: str | Path, scene: RigScene, rng: np.random.Genera
     for cam in scene.cameras:
         (out / cam.name).mkdir(parents=True, exist_ok=True)
         renderer = Renderer(cam.K, cam.dist, IMAGE)
-        A = robot_world_A(scene.flange2base_true, scene.setup)
-        target2cam = invert(A @ cam.X) @ scene.Z
+        target2cam = predicted_target2cam(cam.X, scene.Z, scene.flange2base_true, scene.setup)
         for name, T, seen in zip(scene.names, target2cam, cam.seen):
             if not seen:
                 continue
@@ -269,8 +268,7 @@ def camera_laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.ra
     # camera beside the profiler whichever way the profiler turns about the ball
     X_cam = laser_X @ cam2laser
     Z_board = Z_ball @ make_transform(np.eye(3), [0.0, 0.0, -radius]) @ make_transform(np.eye(3), -points.mean(axis=0))
-    A = robot_world_A(F, setup)
-    target2cam = invert(A @ X_cam) @ Z_board
+    target2cam = predicted_target2cam(X_cam, Z_board, F, setup)
     w, h = IMAGE
     px = project_points_many(target2cam, np.tile(points, (n_views, 1)), np.repeat(np.arange(n_views), len(points)), K,
                              dist).reshape(n_views, len(points), 2)
@@ -278,7 +276,7 @@ def camera_laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.ra
     inside = np.all((px[..., 0] > 5) & (px[..., 0] < w - 5) & (px[..., 1] > 5) & (px[..., 1] < h - 5) & (depth > 0), axis=1)
     img = [px[i] + rng.normal(0.0, noise_px, px[i].shape) if inside[i] else np.zeros((0, 2)) for i in range(n_views)]
     obj = [points if inside[i] else np.zeros((0, 3)) for i in range(n_views)]
-    ball2sensor = invert(A @ laser_X) @ Z_ball
+    ball2sensor = predicted_target2cam(laser_X, Z_ball, F, setup)
     profiles = [profile_reading("sphere", T, radius, rng, 2e-5, 0.02, 0.002) for T in ball2sensor]
     names = [f"v{i + 1:02d}" for i in range(n_views)]
     return CameraLaserScene(setup, names, _reported(F, robot_error, rng), F, RigCamera("camera", X_cam, K, dist, img, obj),

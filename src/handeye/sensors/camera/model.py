@@ -30,11 +30,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from ...errors import DegenerateMotionError, InputMismatchError
-from ...frames.setups import check_setup, robot_world_A
-from ...geometry.se3 import invert, make_transform
+from ...frames.setups import check_setup, predicted_target2cam
+from ..target_pose import ChartedTarget
 from .pnp import project_camera_points, solve_pnp
 from .targets.base import Detection
 
@@ -44,7 +43,7 @@ __all__ = ["CameraCorners", "CAMERA_NOISE_PX"]
 CAMERA_NOISE_PX = 0.3
 
 
-class CameraCorners:
+class CameraCorners(ChartedTarget):
     """An area camera's views of a target (the module docstring).
 
     Parameters
@@ -85,8 +84,6 @@ class CameraCorners:
         self.noise_px = float(noise_px)
         self.shape = np.ones((len(self.uv), 2))
         self.param_scale = np.full(6, 1e-3)
-        self._chart: NDArray[np.float64] | None = None
-        self._mpp: NDArray[np.float64] | None = None
         self._poses: NDArray[np.float64] | None = None
 
     @property
@@ -111,40 +108,17 @@ class CameraCorners:
         corner's pixel size."""
         if X is None or Z is None:
             raise DegenerateMotionError("a camera's start needs the views' poses (PnP on 3 views or more)")
-        if self._chart is None:
-            self._chart = Z.copy()
-            self._mpp = self.pixel_size(X, Z, flange2base)
+        self._first_start(X, Z, flange2base, float(np.sqrt(self.K[0, 0] * self.K[1, 1])))
         return X, self.target_params(Z)
 
-    def target_params(self, Z) -> NDArray[np.float64]:
-        """The unknowns ``p`` of the target's pose ``Z`` (after the first start: in its chart)."""
-        return np.r_[Rotation.from_matrix(Z[:3, :3] @ self._chart[:3, :3].T).as_rotvec(), Z[:3, 3]]
-
-    def pixel_size(self, X, Z, flange2base) -> NDArray[np.float64]:
-        """Per corner the size (m) of a pixel at its depth, X and Z given."""
-        cam = self._in_camera(X, Z, flange2base, np.arange(len(self.uv)))
-        return np.abs(cam[:, 2]) / np.sqrt(self.K[0, 0] * self.K[1, 1])
-
-    def _target2world(self, p) -> NDArray[np.float64]:
-        return make_transform(Rotation.from_rotvec(p[:3]).as_matrix() @ self._chart[:3, :3], p[3:6])
-
     def _in_camera(self, X, Z, flange2base, rows) -> NDArray[np.float64]:
-        world2cam = invert(robot_world_A(np.asarray(flange2base, float), self.setup) @ X)[self.owner[rows]] @ Z
-        return np.einsum("mij,mj->mi", world2cam[:, :3, :3], self.points[rows]) + world2cam[:, :3, 3]
+        target2cam = predicted_target2cam(X, Z, np.asarray(flange2base, float), self.setup)[self.owner[rows]]
+        return np.einsum("mij,mj->mi", target2cam[:, :3, :3], self.points[rows]) + target2cam[:, :3, 3]
 
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """Per corner (m): its pixel error times the pixel's size at its depth."""
         cam = self._in_camera(X, self._target2world(p), flange2base, rows)
         return (project_camera_points(cam, self.K, self.dist) - self.uv[rows]) * self._mpp[rows, None]
-
-    def Z(self, X, p) -> NDArray[np.float64]:
-        """The target's pose (target2base eye-in-hand, target2flange eye-to-hand)."""
-        return self._target2world(p)
-
-    def Z_std(self, p, cov_p) -> NDArray[np.float64]:
-        """The target pose's std (deg, mm)."""
-        std = np.sqrt(np.clip(np.diag(cov_p)[:6], 0.0, None))
-        return np.r_[np.degrees(std[:3]), 1e3 * std[3:6]]
 
     def figures(self, p, cov_p) -> dict[str, Any]:
         """The intrinsics used (known)."""
@@ -153,8 +127,3 @@ class CameraCorners:
     def notes(self, p, cov_p) -> list[str]:
         """Nothing beyond the core's own notes."""
         return []
-
-    def noise_mm(self, rows) -> NDArray[np.float64]:
-        """The corners' stated noise (px) at their pixel size (mm)."""
-        mpp = self._mpp[rows] if self._mpp is not None else np.full(len(rows), np.nan)
-        return 1e3 * self.noise_px * mpp

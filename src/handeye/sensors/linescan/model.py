@@ -30,8 +30,9 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from ...errors import DegenerateMotionError, InputMismatchError
-from ...frames.setups import check_setup, robot_world_A
+from ...frames.setups import check_setup, predicted_target2cam, robot_world_A
 from ...geometry.se3 import invert, make_transform
+from ..target_pose import ChartedTarget
 from .resection import pushbroom_resection, resolve_mirrors
 
 __all__ = ["LineScanCorners", "Trajectory", "LINESCAN_NOISE_PX", "TRAJECTORY_MARGIN_S"]
@@ -74,7 +75,7 @@ def _interpolated(times, poses, t) -> NDArray[np.float64]:
     return make_transform(R, (1 - frac)[:, None] * poses[k, :3, 3] + frac[:, None] * poses[k + 1, :3, 3])
 
 
-class LineScanCorners:
+class LineScanCorners(ChartedTarget):
     """Scans of a planar target by a line-scan camera (the module docstring).
 
     Parameters
@@ -142,8 +143,6 @@ class LineScanCorners:
         self.shape = np.ones((len(self.uv), 2))
         speed = np.linalg.norm(self._sensor_velocity(np.arange(len(names)))[self.owner], axis=1)
         self.shape[:, 1] = speed / np.median(speed)  # a row's error moves the corner by the speed over the line rate
-        self._chart: NDArray[np.float64] | None = None  # the target's start pose: p's rotation is about it
-        self._mpp: NDArray[np.float64] | None = None  # per corner the pixel's size at its depth (m), fixed at the start
         self._view_poses: NDArray[np.float64] | None = None
         self.orderings = None if orderings is None else [np.asarray(o, dtype=np.intp) for o in orderings]
 
@@ -232,25 +231,15 @@ class LineScanCorners:
         each corner's pixel size."""
         if X is None or Z is None:
             raise DegenerateMotionError("a line-scan camera's start needs the scans' poses (at least 3 scans)")
-        if self._chart is None:
-            self._chart = Z.copy()
-            A = robot_world_A(np.asarray(flange2base, float), self.setup)
-            cam = invert(A[self.owner] @ X) @ Z  # target2cam at each corner's scan's reference
-            depth = np.einsum("mij,mj->mi", cam[:, :3, :3], self.points)[:, 2] + cam[:, 2, 3]
-            self._mpp = np.abs(depth) / self.focal0
-        rot = Rotation.from_matrix(Z[:3, :3] @ self._chart[:3, :3].T).as_rotvec()
-        return X, np.r_[rot, Z[:3, 3], self.focal0, 0.5 * self.width, 0.0, 0.0]
-
-    def _target2world(self, p) -> NDArray[np.float64]:
-        return make_transform(Rotation.from_rotvec(p[:3]).as_matrix() @ self._chart[:3, :3], p[3:6])
+        self._first_start(X, Z, flange2base, self.focal0)  # at each corner's scan's reference pose
+        return X, np.r_[self.target_params(Z), self.focal0, 0.5 * self.width, 0.0, 0.0]
 
     def _in_camera(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """The corners of ``rows`` in the camera frame at their rows' times."""
         owner = self.owner[rows]
         F = np.asarray(flange2base, float)[owner] @ self._relative(owner, self.s[rows] + p[9])
-        world2cam = invert(robot_world_A(F, self.setup) @ X)
-        q = self.points[rows] @ self._target2world(p)[:3, :3].T + p[3:6]
-        return np.einsum("mij,mj->mi", world2cam[:, :3, :3], q) + world2cam[:, :3, 3]
+        target2cam = predicted_target2cam(X, self._target2world(p), F, self.setup)
+        return np.einsum("mij,mj->mi", target2cam[:, :3, :3], self.points[rows]) + target2cam[:, :3, 3]
 
     def project(self, p, xn) -> NDArray[np.float64]:
         """The pixel along the line of normalised coordinates ``xn = x / z``."""
@@ -263,27 +252,14 @@ class LineScanCorners:
         du = self.project(p, c[:, 0] / c[:, 2]) - self.uv[rows, 0]
         return np.c_[du * self._mpp[rows], c[:, 1]]
 
-    def Z(self, X, p) -> NDArray[np.float64]:
-        """The target's pose (target2base eye-in-hand, target2flange eye-to-hand)."""
-        return self._target2world(p)
-
-    def Z_std(self, p, cov_p) -> NDArray[np.float64]:
-        """The target pose's std (deg, mm)."""
-        std = np.sqrt(np.clip(np.diag(cov_p)[:6], 0.0, None))
-        return np.r_[np.degrees(std[:3]), 1e3 * std[3:6]]
-
-    def intrinsics(self, p, cov_p) -> dict[str, Any]:
-        """The fitted intrinsics and clock offset with their std."""
+    def figures(self, p, cov_p) -> dict[str, Any]:
+        """The fitted intrinsics along the line and the clock offset, with their std."""
         std = np.sqrt(np.clip(np.diag(cov_p), 0.0, None))
         return {"focal_px": {"value": float(p[6]), "std": float(std[6]), "nominal": self.focal0},
                 "cx_px": {"value": float(p[7]), "std": float(std[7])},
                 "k1": {"value": float(p[8]), "std": float(std[8])},
                 "clock_offset_s": {"value": float(p[9]), "std": float(std[9])},
                 "line_rate_hz": self.line_rate, "width_px": self.width}
-
-    def figures(self, p, cov_p) -> dict[str, Any]:
-        """The intrinsics along the line and the clock offset (:meth:`intrinsics`)."""
-        return self.intrinsics(p, cov_p)
 
     def notes(self, p, cov_p) -> list[str]:
         """The focal length against its nominal value, and the clock offset."""
@@ -295,8 +271,3 @@ class LineScanCorners:
             out.append(f"the focal length is {100 * (p[6] / self.focal0 - 1):+.0f}% off its nominal {self.focal0:g} px: "
                        "check the lens and the pixel size the session states")
         return out
-
-    def noise_mm(self, rows) -> NDArray[np.float64]:
-        """The corners' stated noise (px) at their pixel size (mm)."""
-        mpp = self._mpp[rows] if self._mpp is not None else np.full(len(rows), np.nan)
-        return 1e3 * self.noise_px * mpp
