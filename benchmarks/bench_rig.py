@@ -35,21 +35,13 @@ from handeye.simulate.rig import rig_scene
 ERROR = (0.01, 0.05)
 
 
-def _members(sc, focal_error: dict[int, float] | None = None):
-    out = []
-    for k, c in enumerate(sc.cameras):
-        K = c.K.copy()
-        K[:2, :2] *= 1.0 + (focal_error or {}).get(k, 0.0)
-        out.append(CameraCorners(sc.setup, sc.names, c.image_points, c.object_points, K, c.dist))
-    return out
-
 
 def stereo(sessions: int) -> None:
     rel_t, rel_r, rel_in, joint_t, alone_t, x_in, secs = [], [], [], [], [], [], []
     for s in range(sessions):
         sc = rig_scene(15, "eye_in_hand", rng=3000 + s, robot_error=ERROR)
         t0 = time.perf_counter()
-        rig = calibrate_rig(_members(sc), ["left", "right"], ControllerPoses(sc.flange2base, ERROR))
+        rig = calibrate_rig(sc.camera_models(), ["left", "right"], ControllerPoses(sc.flange2base, ERROR))
         secs.append(time.perf_counter() - t0)
         f = rig.joint.sensor.figures
         rel = f["relative"]["right2left"]
@@ -72,7 +64,7 @@ def fixed_three(sessions: int, focal_error: float = 0.0) -> None:
     for s in range(sessions):
         sc = rig_scene(15, "eye_to_hand", rng=4000 + s, cameras=3, robot_error=ERROR, missing={2: 1 / 3})
         t0 = time.perf_counter()
-        rig = calibrate_rig(_members(sc, {1: focal_error} if focal_error else None), ["c0", "c1", "c2"],
+        rig = calibrate_rig(sc.camera_models({1: focal_error} if focal_error else None), ["c0", "c1", "c2"],
                             ControllerPoses(sc.flange2base, ERROR))
         secs.append(time.perf_counter() - t0)
         if focal_error:

@@ -15,21 +15,13 @@ from handeye.simulate.rig import rig_scene
 ERROR = (0.01, 0.05)
 
 
-def _members(sc, focal_error=None):
-    out = []
-    for k, c in enumerate(sc.cameras):
-        K = c.K.copy()
-        K[:2, :2] *= 1.0 + (focal_error or {}).get(k, 0.0)
-        out.append(CameraCorners(sc.setup, sc.names, c.image_points, c.object_points, K, c.dist))
-    return out
-
 
 def test_stereo_pair_relative_pose_from_the_joint_fit():
     """A stereo pair on the flange with a calibrated arm's error: the relative pose within 3 std and
     better known than either X (the robot's error cancels in it); each camera's X from the joint fit
     no worse than calibrated alone."""
     sc = rig_scene(15, "eye_in_hand", rng=3001, robot_error=ERROR)
-    rig = calibrate_rig(_members(sc), ["left", "right"], ControllerPoses(sc.flange2base, ERROR))
+    rig = calibrate_rig(sc.camera_models(), ["left", "right"], ControllerPoses(sc.flange2base, ERROR))
     assert rig.joint.verdict in ("good", "weak") and rig.disagreeing == []
     rel = rig.joint.sensor.figures["relative"]["right2left"]
     R, std = np.array(rel["matrix"]), np.array(rel["std_deg_mm"])
@@ -46,12 +38,12 @@ def test_three_fixed_cameras_one_with_a_wrong_focal_length_is_named():
     within 3 std; the same with one camera's focal length 5% off: that camera is named, left out, and
     the others' X stay right."""
     sc = rig_scene(12, "eye_to_hand", rng=4001, cameras=3, robot_error=ERROR, missing={2: 1 / 3})
-    rig = calibrate_rig(_members(sc), ["c0", "c1", "c2"], ControllerPoses(sc.flange2base, ERROR))
+    rig = calibrate_rig(sc.camera_models(), ["c0", "c1", "c2"], ControllerPoses(sc.flange2base, ERROR))
     assert rig.disagreeing == []
     for name, cam in zip(["c0", "c1", "c2"], sc.cameras):
         f = rig.joint.sensor.figures["X_per_sensor"][name]
         assert within_std(np.array(f["X"]), cam.X, np.array(f["std_deg_mm"]))  # the robot's accuracy in it
-    bad = calibrate_rig(_members(sc, {1: 0.05}), ["c0", "c1", "c2"], ControllerPoses(sc.flange2base, ERROR))
+    bad = calibrate_rig(sc.camera_models({1: 0.05}), ["c0", "c1", "c2"], ControllerPoses(sc.flange2base, ERROR))
     assert [n for n, _ in bad.disagreeing] == ["c1"] and "wrong intrinsic" in bad.disagreeing[0][1]
     assert sorted(bad.joint.sensor.figures["X_per_sensor"]) == ["c0", "c2"]
     assert 1e3 * translation_error(bad.X("c0"), sc.cameras[0].X) < 1.0
@@ -61,7 +53,7 @@ def test_bad_rigs_are_named():
     """Two sensors with one name; a sensor that saw too few views is skipped by name and the others
     still calibrated; per-pose errors need the robot's accuracy."""
     sc = rig_scene(10, "eye_to_hand", rng=5, cameras=3, missing={2: 0.9})
-    members = _members(sc)
+    members = sc.camera_models()
     with pytest.raises(InputMismatchError, match="c0 given twice"):
         calibrate_rig(members, ["c0", "c0", "c1"], ControllerPoses(sc.flange2base))
     rig = calibrate_rig(members, ["c0", "c1", "c2"], ControllerPoses(sc.flange2base, ERROR))

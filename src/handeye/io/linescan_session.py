@@ -36,7 +36,6 @@ from numpy.typing import NDArray
 
 from ..errors import SessionError
 from ..frames.setups import check_setup
-from ..geometry.se3 import invert
 from ..sensors.camera.targets import target_from_spec
 from ..sensors.linescan.model import LINESCAN_NOISE_PX
 from .session import (
@@ -44,9 +43,9 @@ from .session import (
     POSES_KEYS,
     SESSION_FILE,
     check_session_keys,
+    flange_poses_of,
     has_section,
-    parsed_poses,
-    pose_rows_inverted,
+    pose_table_path,
     read_image_times,
     read_pose_table,
     read_session_yaml,
@@ -128,20 +127,12 @@ def load_linescan_session(folder: str | Path) -> LineScanSession:
     if not 0 < noise < 50:
         raise SessionError(f"{where}: linescan: noise {noise:g}: the corners' noise in pixels (e.g. 0.2)")
     poses = spec.get("poses")
-    if not isinstance(poses, dict) or not {"file", "format", "length_unit"} <= set(poses):
-        raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit (m | mm) and angle_unit "
-                           "(deg | rad): the robot's trajectory, a time column first")
-    table = folder / str(poses["file"])
-    if not table.is_file():
-        raise SessionError(f"{table}: no such pose table (the robot's trajectory)")
-    fmt = str(poses["format"])
-    values, _, times = read_pose_table(table, fmt, id_columns=(), notes=notes, times=True)
+    table = pose_table_path(folder, poses, where, "the robot's trajectory, a time column first")
+    values, _, times = read_pose_table(table, str(poses["format"]), id_columns=(), notes=notes, times=True)
     if times is None:
         raise SessionError(f"{table}: no time column: a line-scan session's poses are the robot's trajectory, a time "
                            "column (the robot's clock) then the pose columns")
-    f2b = parsed_poses(values, fmt, str(poses["length_unit"]), str(poses.get("angle_unit", "rad")), table)
-    if pose_rows_inverted(poses, where):
-        f2b = invert(f2b)
+    f2b = flange_poses_of(values, poses, table, where)
     times = np.asarray(times, float) * time_unit_scale(poses, f"{where}: poses")
     names, starts, _ = read_image_times(folder, spec.get("images"), where, notes)
     paths = [folder / "images" / n for n in names]

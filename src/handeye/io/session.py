@@ -63,7 +63,7 @@ __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
            "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session", "write_joint_table",
            "load_joint_stream", "load_camera_stream", "write_joint_stream", "read_image_times", "time_unit_scale",
-           "parsed_poses"]
+           "parsed_poses", "pose_table_path", "flange_poses_of"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
 SESSION_FILE = "session.yaml"
@@ -557,18 +557,30 @@ def read_robot_poses(folder: Path, poses: Any, where: str, notes: list[str], id_
     ``pose``): the flange poses (inverted when the rows are base2flange), each view's name (the
     table's first column, one of ``id_columns``; ``first_column`` says what it must be when it is
     missing) and the table's path."""
-    if not isinstance(poses, dict) or not {"file", "format", "length_unit"} <= set(poses):
-        raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit (m | mm) and angle_unit "
-                           "(deg | rad)")
-    table = folder / str(poses["file"])
-    if not table.is_file():
-        raise SessionError(f"{table}: no such pose table")
-    fmt = str(poses["format"])
-    values, names = read_pose_table(table, fmt, id_columns=id_columns, notes=notes)
+    table = pose_table_path(folder, poses, where)
+    values, names = read_pose_table(table, str(poses["format"]), id_columns=id_columns, notes=notes)
     if names is None:
         raise SessionError(f"{table}: the first column must be {first_column}")
-    f2b = parsed_poses(values, fmt, str(poses["length_unit"]), str(poses.get("angle_unit", "rad")), table)
-    return (invert(f2b) if pose_rows_inverted(poses, where) else f2b), list(names), table
+    return flange_poses_of(values, poses, table, where), list(names), table
+
+
+def pose_table_path(folder: Path, poses: Any, where: str, what: str = "") -> Path:
+    """The pose table a ``poses:`` block names, checked: a mapping with ``file``, ``format`` and
+    ``length_unit``, and the file there (``what``: the table in words, for the messages)."""
+    if not isinstance(poses, dict) or not {"file", "format", "length_unit"} <= set(poses):
+        raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit (m | mm) and angle_unit "
+                           f"(deg | rad){': ' + what if what else ''}")
+    table = folder / str(poses["file"])
+    if not table.is_file():
+        raise SessionError(f"{table}: no such pose table{f' ({what})' if what else ''}")
+    return table
+
+
+def flange_poses_of(values: NDArray[np.float64], poses: dict, table: Path, where: str) -> NDArray[np.float64]:
+    """The flange poses of a pose table's rows ``values`` in the ``poses:`` block's format and units,
+    inverted when the rows are base2flange."""
+    f2b = parsed_poses(values, str(poses["format"]), str(poses["length_unit"]), str(poses.get("angle_unit", "rad")), table)
+    return invert(f2b) if pose_rows_inverted(poses, where) else f2b
 
 
 def joints_of_views(joints: tuple[list[str], NDArray[np.float64], Chain, Path], names: list[str]) -> NDArray[np.float64]:

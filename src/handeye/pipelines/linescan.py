@@ -14,26 +14,22 @@ gives the verdict: one :class:`~handeye.result.Calibration`, as for images.
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .._shared.lazy import lazy_module
-from .._shared.progress import Progress
 from ..errors import DegenerateMotionError
 from ..estimation.core import estimate
 from ..io.linescan_session import LineScanSession, load_linescan_session
 from ..options import CalibrationOptions
 from ..result import Calibration
 from ..robot.models import ControllerPoses
+from ..sensors.camera.detect import detect_images
 from ..sensors.camera.targets import target_from_spec
 from ..sensors.linescan.model import LineScanCorners, Trajectory
 from ._sensor import sensor_options
-
-cv2 = lazy_module("cv2")
 
 __all__ = ["calibrate_linescan_session", "grid_orderings"]
 
@@ -56,27 +52,15 @@ def grid_orderings(points: NDArray[np.float64]) -> list[NDArray[np.intp]]:
 
 
 def _detected(s: LineScanSession, progress: bool):
-    """Each scan's corners (u, row) and target points, or why it was skipped."""
+    """Each scan's corners (u, row) and target points, or why it was skipped (a scan of another
+    width than the session's is skipped whatever was found in it)."""
     target = target_from_spec(s.target_spec, where="target")
-
-    def one(path: Path):
-        gray = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-        if gray is None:
-            return None, f"unreadable image {path}"
-        if gray.shape[1] != s.width:
-            return None, f"{gray.shape[1]} pixels along the line, the session says width: {s.width}"
-        det = target.detect(gray)
-        if det is None:
-            return None, "target not found in the scan"
-        return det, None
-
-    bar = Progress(len(s.image_paths), "finding the target in the scans", progress)
     found = []
-    with ThreadPoolExecutor(max_workers=2) as pool:  # OpenCV releases the GIL while it searches
-        for result in pool.map(one, s.image_paths):
-            found.append(result)
-            bar.update()
-    bar.close()
+    for r in detect_images(s.image_paths, target, progress=progress):
+        if r.image_size is not None and r.image_size[0] != s.width:
+            found.append((None, f"{r.image_size[0]} pixels along the line, the session says width: {s.width}"))
+        else:
+            found.append((r.detection, r.error))
     return target, found
 
 

@@ -102,11 +102,9 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
     Examples
     --------
     >>> from handeye.robot.models import ControllerPoses
-    >>> from handeye.sensors.camera.model import CameraCorners
     >>> from handeye.simulate.rig import rig_scene
     >>> sc = rig_scene(12, "eye_in_hand", rng=0)
-    >>> members = [CameraCorners(sc.setup, sc.names, c.image_points, c.object_points, c.K, c.dist) for c in sc.cameras]
-    >>> rig = calibrate_rig(members, ["left", "right"], ControllerPoses(sc.flange2base))
+    >>> rig = calibrate_rig(sc.camera_models(), ["left", "right"], ControllerPoses(sc.flange2base))
     >>> rig.joint.verdict, sorted(rig.joint.sensor.figures["relative"])
     ('good', ['right2left'])
     """

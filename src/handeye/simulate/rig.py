@@ -23,6 +23,7 @@ from ..errors import HandEyeError, InputMismatchError
 from ..frames.setups import check_setup, flange_poses, predicted_target2cam, setup_info
 from ..geometry.se3 import invert, make_transform, random_rotations
 from ..io.session import write_pose_table
+from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.pnp import project_points_many
 from ..sensors.camera.render import Renderer
 from ..sensors.camera.targets.chessboard import Chessboard
@@ -64,6 +65,17 @@ class RigScene:
     flange2base_true: NDArray[np.float64]
     Z: NDArray[np.float64]
     cameras: list[RigCamera]
+
+    def camera_models(self, focal_error: dict[int, float] | None = None) -> list[CameraCorners]:
+        """Each camera's corners as a sensor model over every view
+        (:class:`~handeye.sensors.camera.model.CameraCorners`); ``focal_error``: per camera index a
+        relative error put on the focal length it is given (a camera with the wrong intrinsics)."""
+        out = []
+        for k, c in enumerate(self.cameras):
+            K = c.K.copy()
+            K[:2, :2] *= 1.0 + (focal_error or {}).get(k, 0.0)
+            out.append(CameraCorners(self.setup, self.names, c.image_points, c.object_points, K, c.dist))
+        return out
 
     def relative(self, k: int) -> NDArray[np.float64]:
         """The true pose of camera ``k`` in camera 0's frame (``cam_k2cam_0``)."""
