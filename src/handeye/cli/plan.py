@@ -16,7 +16,7 @@ from ..io.session import SESSION_FILE, load_yaml, write_pose_table
 from ..options import ROBOT_ACCURACY, CalibrationOptions
 from ..pipelines.folders import calibrate_session
 from ..planning.joints import suggest_joint_views
-from ..planning.laser import NARROW_DEG, plan_laser
+from ..planning.laser import NARROW_DEG, assumed_shape, plan_laser
 from ..planning.poses import (
     ROBOTS,
     easy_handeye_poses,
@@ -92,16 +92,19 @@ def _check_pose_format(args: argparse.Namespace) -> None:
 
 
 def _plan_laser(args: argparse.Namespace) -> int:
-    """--sensor laser_line: flange poses around a ball (or over a plate) for a laser profiler, and the
-    std they would give, beside the same number of profiles turned at most NARROW_DEG."""
+    """--sensor laser_line: flange poses around a ball (over a plate, across an edge or a step, around a
+    fixture's balls) for a laser profiler, and the std they would give, beside the same number of
+    profiles turned at most NARROW_DEG."""
     given = [name for name, value in (("--intrinsics", args.intrinsics), ("--standoff", args.standoff),
                                       ("--target-spec", args.target_spec), ("--session", args.session)) if value]
     if given:
         raise HandEyeError(f"{', '.join(given)}: a camera's; plan --sensor laser_line takes the profiler's placement "
-                           "(--cam-in-flange or --camera-in-base), the target's and --target sphere|plane")
+                           f"(--cam-in-flange or --camera-in-base), the target's and --target {'|'.join(LASER_TARGETS)}")
     target = sensor_target(args.sensor, args.target, "chessboard")
-    if target == "plane" and args.diameter is not None:
-        raise HandEyeError("--diameter is a ball's; a plate (--target plane) has none: leave it out")
+    if target != "sphere" and args.diameter is not None:
+        raise HandEyeError(f"--diameter is a ball's; --target {target} has none"
+                           + (" (the plan's fixture is the simulator's: see its output)" if target == "spheres" else "")
+                           + ": leave it out")
     diameter = 0.04 if args.diameter is None else args.diameter
     _check_pose_format(args)
     if setup_info(args.setup).camera_on_flange and not args.camera_in_base and not args.target_in_flange:
@@ -116,8 +119,9 @@ def _plan_laser(args: argparse.Namespace) -> int:
                       robot_accuracy=accuracy_arg(args.robot_accuracy), rng=args.seed)
     names = [f"p{k + 1:02d}.csv" for k in range(len(plan.flange2base))]
     write_pose_table(out, names, plan.flange2base, args.format, args.length_unit, args.angle_unit, id_column="profile")
-    print(f"{len(plan.flange2base)} profiles of the {target}, the profiler within {plan.cone_deg:g} deg of the "
-          f"{'ball' if target == 'sphere' else 'plate'}'s +z, turned about its view direction, in path order:")
+    axis = "its faces' bisector" if target == "edge" else "the target frame's +z"
+    print(f"{len(plan.flange2base)} profiles of {assumed_shape(target)}, the profiler within {plan.cone_deg:g} deg of "
+          f"{axis}, turned about its view direction, in path order:")
     print("  profile   flange x, y, z (mm)            flange rotation vector (deg)")
     for name, F in zip(names, plan.flange2base):
         print(f"  {name:8s}  {fmt_vec(1e3 * F[:3, 3], 1):30s} {fmt_vec(Rotation.from_matrix(F[:3, :3]).as_rotvec(degrees=True), 1)}")
@@ -129,11 +133,19 @@ def _plan_laser(args: argparse.Namespace) -> int:
     print(f"  from the profiles alone: rotation {fmt_vec(d[:3], 5)} deg, translation {fmt_vec(d[3:], 4)} mm")
     print(f"  the same number of profiles with the flange turned at most {NARROW_DEG:g} deg: " + (
         f"rotation {fmt_vec(n[:3], 5)} deg, translation {fmt_vec(n[3:], 4)} mm" if np.all(np.isfinite(n)) else
-        "X is not determined (the profiles of a plate at nearly one orientation only slide along it)")
-    + " (turns between profiles place X's translation; the ball's centre across the laser plane, its rotation)")
+        "X is not determined (profiles at nearly one orientation only slide along a plate, an edge or a step)")
+    + " (turns between profiles place X's translation; " + _LEVER[target] + ")")
     print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): flange2base per profile; it is the "
           "poses.csv of the laser session to capture (replace each row by the pose the robot reports)")
     return 0
+
+
+#: What places X's rotation, per laser target (the plan's last line).
+_LEVER = {"sphere": "the ball's centre across the laser plane, its rotation",
+          "spheres": "the balls' centres across the laser plane, its rotation",
+          "plane": "the plate's tilt in each profile, its rotation",
+          "edge": "the faces' tilts and the edge's crossing point in each profile, its rotation",
+          "step": "the levels' tilt and the riser's crossing point in each profile, its rotation"}
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
@@ -243,11 +255,12 @@ def register(sub) -> None:
                    help="YAML with K, dist (optional) and image_size [width, height], top level or under camera:")
     p.add_argument("--sensor", default="camera", choices=["camera", "laser_line"],
                    help="camera (default): views of a board; laser_line: a laser line profiler's profiles of a ball "
-                   "(--diameter) or a plate (--target plane); --target-in-base is then the ball's centre (or a point "
-                   "of the plate), its rotation by default 0,0,0: the profiler looks from above")
+                   "(--diameter), a plate, a block's edge, a step or a fixture of balls (--target); --target-in-base "
+                   "is then the ball's centre (a point of the plate, of the edge's line, the first ball's centre), its "
+                   "rotation by default 0,0,0: the profiler looks from above")
     p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS),
                    help="built-in target (the one 'handeye simulate' renders; default chessboard); see --target-spec; "
-                   "with --sensor laser_line: sphere (default) or plane")
+                   "with --sensor laser_line: sphere (default), plane, edge, step or spheres")
     p.add_argument("--diameter", type=number_arg(0.0, 1.0, above=True), default=None,
                    help="--sensor laser_line: the ball's diameter (m, default 0.04)")
     p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (e.g. your session.yaml)")

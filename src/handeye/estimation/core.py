@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.special import stdtrit
 
+from .._shared.threads import on_one_blas_thread
 from ..errors import DegenerateMotionError, HandEyeError
 from ..frames.metrics import std_deg_mm
 from ..frames.setups import setup_info
@@ -590,12 +591,14 @@ def _jackknife(problem: Problem, full: Fitted, views: NDArray[np.intp], max_grou
 
 
 def _widen(cov: NDArray[np.float64], jack: NDArray[np.float64] | None) -> tuple[NDArray[np.float64], float]:
-    """``cov`` with each axis widened to the jackknife's where that is larger; the largest factor."""
+    """``cov`` with each axis widened to the jackknife's where that is larger; the largest factor of
+    X's axes (a sensor's unknown no view reaches, e.g. a ball never scanned, has a variance of zero
+    and rounding in the jackknife's: no factor that means anything)."""
     if jack is None:
         return cov, 1.0
     ratio = np.sqrt(np.maximum(np.diag(jack), 1e-300) / np.maximum(np.diag(cov), 1e-300))
     D = np.diag(np.maximum(ratio, 1.0))
-    return D @ cov @ D, float(ratio.max())
+    return D @ cov @ D, float(ratio[:6].max())
 
 
 def _allowed_mm(problem: Problem, full: Fitted, accuracy: tuple[float, float] | None) -> float:
@@ -648,6 +651,7 @@ def _kinematic(robot: JointAngles, d: NDArray[np.float64], cov_d: NDArray[np.flo
                           (float(np.median(shift)), float(shift.max())), None, q)
 
 
+@on_one_blas_thread  # narrow matrices: a second BLAS thread waits more than it works
 def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *, uncertainty: bool = True,
              method: str | None = None) -> Calibration:
     """X (and the target's pose, the sensor's and the robot's unknowns) from ``sensor`` and ``robot``:

@@ -20,6 +20,7 @@ from scipy.spatial.transform import Rotation
 from .._shared.io import array_digest, files_digests_by_path, files_digests_soon
 from .._shared.progress import Progress
 from .._shared.text import sentences, summarize
+from .._shared.threads import one_blas_thread
 from ..errors import DegenerateMotionError, InputMismatchError
 from ..estimation.diagnostics import closed_form, compare_solvers, diagnose, scale_is_off
 from ..estimation.estimators import (
@@ -809,18 +810,9 @@ def calibrate(
     sync = None
     if session.robot_stream is not None:  # a robot stream: the images meet the robot at the clock offset
         obs, sync, robot, camera = _synchronised(obs, opts.offset_range, opts.time_offset, opts.keyframes)
-    with _one_blas_thread():
+    with one_blas_thread():
         cal = calibrate_observed(obs, opts, progress=progress)
     return cal if sync is None else judged(_with_sync(cal, sync, robot, camera, obs))
-
-
-def _one_blas_thread():
-    """One BLAS thread for the estimation: its many small LAPACK calls (SVDs of 12-21 columns) run
-    faster on one (200 views of 12 MP: 2.65 -> 2.42 s), and the numbers do not depend on how many
-    cores the machine has."""
-    from threadpoolctl import threadpool_limits
-
-    return threadpool_limits(1)
 
 
 #: Where a session's joint angles are used.

@@ -34,15 +34,18 @@ from ..frames.setups import check_setup, predicted_target2cam, setup_info
 from ..geometry.se3 import invert
 from ..options import ROBOT_ACCURACY
 from ..robot.models import ControllerPoses
-from ..sensors.laser.model import LASER_NOISE_M, SphereProfiles
+from ..sensors.laser.edge import EdgeProfiles, StepProfiles
+from ..sensors.laser.model import LASER_NOISE_M, Profiles, SphereProfiles, SpheresProfiles
 from ..sensors.laser.plane import PlaneProfiles
-from ..simulate.laser import TARGETS, profile_reading, profiler_views
-
-#: The targets a laser plan predicts the std for (its simulated capture goes through their models).
-PLANNED = ("sphere", "plane")
+from ..simulate.laser import BLOCK, FIXTURE, TARGETS, profile_reading, profiler_views
 from .poses import order_path
 
-__all__ = ["LaserPlan", "plan_laser", "NARROW_DEG"]
+#: The targets a laser plan predicts the std for (its simulated capture goes through their models).
+PLANNED = TARGETS
+#: The fewest profiles each target's closed-form start takes (a fixture: 3 or more on each of its balls).
+FEWEST = {"sphere": 5, "plane": 16, "edge": 10, "step": 10, "spheres": 12}
+
+__all__ = ["LaserPlan", "plan_laser", "assumed_shape", "NARROW_DEG", "FEWEST"]
 
 #: The comparison capture turns the flange at most this much (deg) between profiles.
 NARROW_DEG = 10.0
@@ -81,10 +84,7 @@ def _predicted_std(setup: str, target: str, X, Z, flange2base, radius: float, no
     they do not determine X."""
     profiles = [profile_reading(target, T, radius, rng, noise_m) for T in predicted_target2cam(X, Z, flange2base, setup)]
     keep = [k for k, p in enumerate(profiles) if np.isfinite(p[:, 2]).sum() >= 20]
-    names = [f"p{k + 1:02d}.csv" for k in keep]
-    shown = [profiles[k] for k in keep]
-    model = (SphereProfiles(setup, names, shown, radius, noise_m) if target == "sphere" else
-             PlaneProfiles(setup, names, shown, noise_m))
+    model = _model(setup, target, [f"p{k + 1:02d}.csv" for k in keep], [profiles[k] for k in keep], radius, noise_m)
     try:
         cal = estimate(model, ControllerPoses(flange2base[keep], accuracy))
     except DegenerateMotionError:
@@ -92,11 +92,36 @@ def _predicted_std(setup: str, target: str, X, Z, flange2base, radius: float, no
     return np.asarray(cal.std, dtype=float), np.asarray(cal.std_sources["data"], dtype=float)
 
 
+def _model(setup: str, target: str, names: list[str], profiles: list[NDArray[np.float64]], radius: float,
+           noise_m: float) -> Profiles:
+    """The laser model of ``target`` for these profiles (a fixture: :data:`FIXTURE`'s balls)."""
+    if target == "sphere":
+        return SphereProfiles(setup, names, profiles, radius, noise_m)
+    if target == "spheres":
+        return SpheresProfiles(setup, names, profiles, 0.5 * np.asarray(FIXTURE["diameters"]), noise_m)
+    return {"plane": PlaneProfiles, "edge": EdgeProfiles, "step": StepProfiles}[target](setup, names, profiles, noise_m)
+
+
+def assumed_shape(target: str) -> str:
+    """In words, the shape a plan for ``target`` predicts with where the session's own is not given
+    (an edge's angle, a step's height, a fixture's balls are the simulator's)."""
+    if target == "edge":
+        return f"a block's edge of {BLOCK['angle_deg']:g} deg, its line along the target frame's x"
+    if target == "step":
+        return f"a step of {1e3 * BLOCK['step']:g} mm, its riser along the target frame's x"
+    if target == "spheres":
+        balls = ", ".join(f"{1e3 * d:g} mm at ({', '.join(f'{1e3 * c:g}' for c in centre)}) mm"
+                          for d, centre in zip(FIXTURE["diameters"], FIXTURE["centres"]))
+        return f"a fixture of {len(FIXTURE['diameters'])} balls ({balls} in the target frame)"
+    return "a ball" if target == "sphere" else "a plate"
+
+
 def plan_laser(setup: str, X: NDArray[np.float64], Z: NDArray[np.float64], n_poses: int = 20, target: str = "sphere",
                radius: float = 0.02, noise_m: float = LASER_NOISE_M, cone_deg: float = 45.0,
                robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY,
                rng: np.random.Generator | int | None = 0) -> LaserPlan:
-    """Flange poses for a laser profiler's capture of a ball (or a plate) and X's predicted std.
+    """Flange poses for a laser profiler's capture of a ball, a plate, a block's edge, a step or a
+    fixture of balls, and X's predicted std.
 
     Parameters
     ----------
@@ -104,11 +129,14 @@ def plan_laser(setup: str, X: NDArray[np.float64], Z: NDArray[np.float64], n_pos
     X, Z : (4, 4)
         Rough placements: the profiler on the flange (``sensor2flange``) and the target in the base
         (eye-in-hand), or the profiler in the base and the target on the flange (eye-to-hand). The
-        target frame's origin is the ball's centre (a point on the plate), its +z the side the
-        profiler looks from.
+        target frame's origin is the ball's centre (a point on the plate; on an edge's or a step's
+        line, which runs along its x; the fixture's first ball's centre), its +z the side the profiler
+        looks from.
     n_poses : int
-        Profiles to capture (at least 16 for a plate, whose closed form needs them).
-    target : {'sphere', 'plane'}
+        Profiles to capture (at least :data:`FEWEST`'s: 16 for a plate, 10 for an edge or a step).
+    target : {'sphere', 'plane', 'edge', 'step', 'spheres'}
+        An edge's angle, a step's height and a fixture's balls are the simulator's
+        (:func:`assumed_shape`): the sessions' own are fitted, the plan's std is for those.
     radius, noise_m : float
         The ball's radius and the profiler's noise along z (m).
     cone_deg : float
@@ -122,16 +150,16 @@ def plan_laser(setup: str, X: NDArray[np.float64], Z: NDArray[np.float64], n_pos
     """
     setup = check_setup(setup)
     if target not in PLANNED:
-        later = f" ({target}: not yet; plan with a sphere or a plane, or simulate the capture with handeye simulate " \
-                "--sensor laser_line --target " + target + ")" if target in TARGETS else ""
-        raise InputMismatchError(f"target={target!r}: a laser plan is for a {' or a '.join(PLANNED)}{later}")
-    if n_poses < (16 if target == "plane" else 5):
-        raise InputMismatchError(f"n_poses={n_poses}: a {target} needs at least {16 if target == 'plane' else 5} "
-                                 "profiles (15-20 to trust X)")
+        raise InputMismatchError(f"target={target!r}: a laser plan is for one of {', '.join(PLANNED)}")
+    if n_poses < FEWEST[target]:
+        raise InputMismatchError(f"n_poses={n_poses}: a {target} needs at least {FEWEST[target]} profiles (15-20 to "
+                                 "trust X)")
     rng = np.random.default_rng(rng)
     flange2base = _flange_poses(setup, X, Z, profiler_views(target, n_poses, radius, rng, cone_deg))
     flange2base = flange2base[order_path(flange2base)]
     narrow = _flange_poses(setup, X, Z, profiler_views(target, n_poses, radius, rng, NARROW_DEG / 4, NARROW_DEG / 4))
     reported, data = _predicted_std(setup, target, X, Z, flange2base, radius, noise_m, robot_accuracy, rng)
     narrow_data = _predicted_std(setup, target, X, Z, narrow, radius, noise_m, robot_accuracy, rng)[1]
+    if target in ("edge", "step"):  # the simulator's block views tilt at most its own cone
+        cone_deg = min(cone_deg, BLOCK["cone_deg"])
     return LaserPlan(setup, target, flange2base, reported, data, narrow_data, robot_accuracy, cone_deg)

@@ -236,12 +236,15 @@ class SpheresProfiles(SphereProfiles):
         self.param_scale = np.full(len(self.param_names), 1e-3)
         self._found: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None  # X and centres of the first start
         self.profiles_per_ball: NDArray[np.intp] | None = None  #: per ball its profiles, at the start, then at the fit
+        #: per ball whether any profile fell on it (the first start says): a ball listed but never
+        #: scanned is left out of the fit, its centre not determined
+        self.scanned = np.ones(len(self.radii), bool)
 
     def _nearest(self, q, p) -> tuple[NDArray[np.float64], NDArray[np.intp], NDArray[np.float64]]:
         """Each point's offsets from the balls' centres (M, K, 3), its ball and its distance from that surface."""
         d = q[:, None, :] - p.reshape(-1, 3)[None]
         r = np.sqrt(np.einsum("mki,mki->mk", d, d)) - self.radii
-        ball = np.argmin(np.abs(r), axis=1)
+        ball = np.argmin(np.where(self.scanned, np.abs(r), np.inf), axis=1)
         return d, ball, r[np.arange(len(q)), ball]
 
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
@@ -265,7 +268,7 @@ class SpheresProfiles(SphereProfiles):
         """The balls' near sides in the laser plane at ``x`` (z, m): the nearest of them (NaN off all)."""
         R, t = sensor2target[:3, :3], sensor2target[:3, 3]
         z = np.full(len(x), np.inf)
-        for c, r in zip((p.reshape(-1, 3) - t) @ R, self.radii):
+        for c, r in zip(((p.reshape(-1, 3) - t) @ R)[self.scanned], self.radii[self.scanned]):
             inside = r**2 - c[1] ** 2 - (x - c[0]) ** 2
             z = np.minimum(z, np.where(inside >= 0, c[2] - np.sqrt(np.maximum(inside, 0.0)), np.inf))
         return np.where(np.isfinite(z), z, np.nan)
@@ -289,15 +292,26 @@ class SpheresProfiles(SphereProfiles):
         if len(rows) > START_POINTS:
             rows = rows[np.linspace(0, len(rows) - 1, START_POINTS).astype(np.intp)]
         A = robot_world_A(np.asarray(flange2base, dtype=float), self.setup)
+        on = self.scanned
         if self._found is not None:
-            rms, X0, centres = _balls_polished(A[self.owner[rows]], self.points[rows], self.radii, *self._found)
+            rms, X0, centres = _balls_polished(A[self.owner[rows]], self.points[rows], self.radii[on], self._found[0],
+                                               self._found[1][on])
             if rms <= 5 * self.noise_m:
-                return X0, centres.ravel()
-        X0, centres, ball = spheres_profiles_start(A, self.points[rows], self.owner[rows], self.radii)
+                return X0, self._all_balls(centres)
+        X0, centres, ball = spheres_profiles_start(A, self.points[rows], self.owner[rows], self.radii,
+                                                   2 * self.noise_m)
         if self._found is None:
-            self._found = (X0, centres)
             self.profiles_per_ball = np.bincount(ball[ball >= 0], minlength=len(self.radii))
-        return X0, centres.ravel()
+            self.scanned = self.profiles_per_ball > 0
+            self._found = (X0, centres)
+        return X0, self._all_balls(centres[self.scanned])
+
+    def _all_balls(self, centres: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The unknowns from the scanned balls' centres (k, 3): a ball never scanned held at the
+        scanned ones' mean (no point reaches it: its unknowns are left undetermined)."""
+        out = np.repeat(np.mean(centres, axis=0, keepdims=True), len(self.radii), axis=0)
+        out[self.scanned] = centres
+        return out.ravel()
 
     def Z(self, X, p) -> NDArray[np.float64]:
         """The first ball's centre (a translation, as a ball's)."""
@@ -306,8 +320,10 @@ class SpheresProfiles(SphereProfiles):
     def figures(self, p, cov_p) -> dict[str, Any]:
         """Every ball's centre with its std, diameter and profiles."""
         std = np.sqrt(np.clip(np.diag(cov_p), 0.0, None)).reshape(-1, 3)
+        centres = p.reshape(-1, 3).copy()
+        centres[~self.scanned], std[~self.scanned] = np.nan, np.nan  # a ball never scanned: not determined
         counts = self.profiles_per_ball if self.profiles_per_ball is not None else np.zeros(len(self.radii), int)
-        return {"centres_m": [[float(v) for v in c] for c in p.reshape(-1, 3)],
+        return {"centres_m": [[float(v) for v in c] for c in centres],
                 "centres_std_mm": [[float(1e3 * v) for v in s] for s in std],
                 "diameters_mm": [float(2e3 * r) for r in self.radii], "profiles": [int(n) for n in counts]}
 
@@ -317,7 +333,12 @@ class SpheresProfiles(SphereProfiles):
         balls = [f"ball {k + 1} ({2e3 * r:.1f} mm) {n}" for k, (r, n) in enumerate(zip(self.radii, counts))]
         out = [f"profiles per ball: {', '.join(balls)}"]
         for k, (r, n) in enumerate(zip(self.radii, counts)):
-            if n < BALL_PROFILES:
+            if not self.scanned[k]:
+                out.append(f"ball {k + 1} ({2e3 * r:.1f} mm), listed under target: diameters: no profile was told to be of it, "
+                           "so its centre is not determined and it is left out of the fit; X and the other balls' "
+                           f"centres rest on their profiles (scan it {BALL_PROFILES} times or more, or list only the "
+                           "balls scanned)")
+            elif n < BALL_PROFILES:
                 out.append(f"ball {k + 1} ({2e3 * r:.1f} mm) got only {n} profile{'' if n == 1 else 's'}: its centre rests on "
                            f"{'them' if n > 1 else 'it'} alone and adds little to X; scan each ball {BALL_PROFILES} times "
                            "or more, from different directions")
@@ -381,57 +402,76 @@ def _balls_polished(A, points, radii, X0, centres0, ball=None) -> tuple[float, N
 
 
 def spheres_profiles_start(A: NDArray[np.float64], points: NDArray[np.float64], owner: NDArray[np.intp],
-                           radii: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.intp]]:
-    """X, the balls' centres (K, 3) and each view's ball (-1: none) from points ``p`` (M, 3; y = 0) of a
-    fixture of balls of ``radii``, each profile of one ball, point ``m`` seen from ``A[owner[m]]``:
-    the profiles told apart (:func:`_fixture_clusters`), each cluster given the ball whose radius its
-    largest circle is nearest (with balls alike, any), then each profile's circle put on one side of
-    the laser plane or the other, the patterns that map each cluster's centres onto one point best
-    (:func:`_rotation_from_circles`) polished on the points (:func:`_balls_polished`), the best.
-    Raises DegenerateMotionError when a ball gets no profile or the profiles fit no X."""
+                           radii: NDArray[np.float64], good_m: float = 2 * LASER_NOISE_M
+                           ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.intp]]:
+    """X, the balls' centres (K, 3; NaN for a ball no profile fell on) and each view's ball (-1: none)
+    from points ``p`` (M, 3; y = 0) of a fixture of balls of ``radii``, each profile of one ball, point
+    ``m`` seen from ``A[owner[m]]``: the profiles told apart (:func:`_fixture_clusters`), each cluster
+    given the ball whose radius its largest circle is nearest (with balls alike, any), then each
+    profile's circle put on one side of the laser plane or the other, the patterns that map each
+    cluster's centres onto one point best (:func:`_rotation_from_circles`) polished on the points
+    (:func:`_balls_polished`), the best. When that fits worse than ``good_m`` (m, robust RMS), a ball
+    listed but never scanned is looked for: the same with each ball left out in turn, kept when it
+    fits twice as well (one ball's profiles split over two balls fit badly; a ball left out whose
+    profiles are there fits worse still). Raises DegenerateMotionError when the profiles fit no X."""
     K = len(radii)
     views, circle_centres, _ = _circles(points, owner, float(np.max(radii)))
     if len(views) < 5:
         raise DegenerateMotionError(f"{len(views)} profiles with a circle of 10 points or more: a fixture of {K} balls "
                                     "needs 5 or more, 3 or more on each ball, with the flange turned between them")
-    cluster = _fixture_clusters(A, views, K)
     rho = np.array([np.sqrt(max(float(np.mean(np.sum((points[owner == v][:, [0, 2]] - c[[0, 2]]) ** 2, axis=1))), 0.0))
                     for v, c in zip(views, circle_centres)])
-    largest = np.array([np.max(rho[cluster == j]) if np.any(cluster == j) else 0.0 for j in range(K)])
-    # clusters to balls: the assignment that puts each cluster's largest circle nearest its ball's radius
-    orders = [np.array(o) for o in permutations(range(K))]
-    order = min(orders, key=lambda o: float(np.sum((largest - radii[o]) ** 2)))  # cluster j is ball order[j]
-    ball_of_view = np.full(int(owner.max()) + 1, -1, dtype=np.intp)
-    ball_of_view[views] = order[cluster]
-    counts = np.bincount(ball_of_view[views], minlength=K)
-    if np.any(counts == 0):
-        empty = ", ".join(f"ball {k + 1} ({2e3 * radii[k]:.1f} mm)" for k in np.flatnonzero(counts == 0))
-        raise DegenerateMotionError(
-            f"the profiles fall on {K - int(np.sum(counts == 0))} of the fixture's {K} balls: {empty} got no profile; "
-            "scan every ball (3 or more profiles each), or list only the balls scanned under target: diameters")
-    radius_of_view = np.where(ball_of_view >= 0, radii[np.maximum(ball_of_view, 0)], radii[0])
-    rows = np.isin(owner, views)
-    candidates = _rotation_from_circles(A, points[rows], owner[rows], radius_of_view, ball=ball_of_view)
-    few = np.flatnonzero(rows)
-    few = few[np.linspace(0, len(few) - 1, min(len(few), 1500)).astype(np.intp)]
-    best = None
-    for R_X, t_X in candidates:
-        X0 = make_transform(R_X, t_X)
-        q = np.einsum("mij,mj->mi", (A[owner[few]] @ X0)[:, :3, :3], points[few]) + (A[owner[few]] @ X0)[:, :3, 3]
-        b = ball_of_view[owner[few]]
-        centres0 = np.array([np.median(q[b == k], axis=0) if np.any(b == k) else np.zeros(3) for k in range(K)])
-        # the points' median lies on the near side: the centre is a radius further from the sensor
-        away = centres0 - np.array([np.median((A[owner[few]] @ X0)[b == k, :3, 3], axis=0) for k in range(K)])
-        centres0 += away / np.linalg.norm(away, axis=1)[:, None] * radii[:, None] * 0.8
-        found = _balls_polished(A[owner[few]], points[few], radii, X0, centres0, b)
-        if best is None or found[0] < best[0]:
-            best = found
+    best = _fixture_start(A, points, owner, views, rho, radii, np.arange(K))
+    if K >= 2 and (best is None or best[0] > good_m):
+        for j in range(K):
+            found = _fixture_start(A, points, owner, views, rho, radii, np.delete(np.arange(K), j))
+            if found is not None and (best is None or found[0] < 0.5 * best[0]):
+                best = found
     if best is None or best[0] > GOOD_START_M:
         raise DegenerateMotionError(
             f"the profiles of the {K} balls fit no sensor pose ({'none' if best is None else f'{1e3 * best[0]:.2f} mm RMS'}"
             "): check the diameters under target (metres, in the balls' order does not matter) and that the poses are "
             "the profiles'; capture 3 or more profiles of each ball with the flange turned 10 deg or more between them")
-    return best[1], best[2], ball_of_view
+    return best[1], best[2], best[3]
+
+
+def _fixture_start(A, points, owner, views, rho, radii, balls):
+    """:func:`spheres_profiles_start` with the profiles on the balls ``balls`` (indices into
+    ``radii``) alone: (robust RMS, X, centres (K, 3; NaN off ``balls``), each view's ball), or None
+    when no pattern of sides gives an X."""
+    K, k = len(radii), len(balls)
+    cluster = _fixture_clusters(A, views, k)
+    largest = np.array([np.max(rho[cluster == j]) if np.any(cluster == j) else 0.0 for j in range(k)])
+    # clusters to balls: the assignment that puts each cluster's largest circle nearest its ball's radius
+    orders = [np.array(o) for o in permutations(range(k))]
+    order = min(orders, key=lambda o: float(np.sum((largest - radii[balls[o]]) ** 2)))  # cluster j: balls[order[j]]
+    local_of_view = np.full(int(owner.max()) + 1, -1, dtype=np.intp)  # each view's ball among ``balls``
+    local_of_view[views] = order[cluster]
+    radius_of_view = np.where(local_of_view >= 0, radii[balls][np.maximum(local_of_view, 0)], radii[balls[0]])
+    rows = np.isin(owner, views)
+    candidates = _rotation_from_circles(A, points[rows], owner[rows], radius_of_view, ball=local_of_view)
+    few = np.flatnonzero(rows)
+    few = few[np.linspace(0, len(few) - 1, min(len(few), 1500)).astype(np.intp)]
+    best = None
+    for R_X, t_X in candidates:
+        X0 = make_transform(R_X, t_X)
+        M = A[owner[few]] @ X0
+        q = np.einsum("mij,mj->mi", M[:, :3, :3], points[few]) + M[:, :3, 3]
+        b = local_of_view[owner[few]]
+        centres0 = np.array([np.median(q[b == j], axis=0) if np.any(b == j) else np.zeros(3) for j in range(k)])
+        # the points' median lies on the near side: the centre is a radius further from the sensor
+        away = centres0 - np.array([np.median(M[b == j, :3, 3], axis=0) if np.any(b == j) else np.zeros(3)
+                                    for j in range(k)])
+        centres0 += away / np.maximum(np.linalg.norm(away, axis=1), 1e-12)[:, None] * radii[balls][:, None] * 0.8
+        found = _balls_polished(A[owner[few]], points[few], radii[balls], X0, centres0, b)
+        if best is None or found[0] < best[0]:
+            best = found
+    if best is None:
+        return None
+    centres = np.full((K, 3), np.nan)
+    centres[balls] = best[2]
+    ball_of_view = np.where(local_of_view >= 0, balls[np.maximum(local_of_view, 0)], -1)
+    return best[0], best[1], centres, ball_of_view
 
 
 def _unshifted(X: NDArray[np.float64], centre: NDArray[np.float64], shift: NDArray[np.float64], setup: str
