@@ -9,9 +9,19 @@ from ..errors import InputMismatchError
 from ..frames.setups import SETUPS, setup_info
 from ..planning.poses import ROBOTS
 from ..robot.kinematics import arm_names
-from ..simulate import DEFAULT_TARGETS, laser_scene, simulate_kinematic_session, simulate_session, write_laser_session
+from ..simulate import (
+    DEFAULT_TARGETS,
+    depth_scene,
+    laser_scene,
+    simulate_kinematic_session,
+    simulate_session,
+    sphere_scene,
+    write_depth_session,
+    write_laser_session,
+)
 from ..simulate.laser import TARGETS as LASER_TARGETS
 from ..simulate.linescan import linescan_scene, write_linescan_session
+from ..simulate.mesh import mesh_scene, write_mesh_session
 from ..simulate.rig import rig_scene, write_rig_session
 from ._common import image_size_arg, number_arg, out_folder, sensor_target, whole_arg
 
@@ -22,13 +32,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         if args.robot != "arm" or args.arm is not None or args.target is not None:
             raise InputMismatchError("--sensor rig simulates a 6-axis arm's controller poses and a chessboard; leave "
                                      "--robot, --arm and --target out")
-        cameras = 2 if setup_info(args.setup).camera_on_flange else 3
+        on_flange = setup_info(args.setup).camera_on_flange
+        cameras = args.cameras or (2 if on_flange else 3)
         sc = rig_scene(args.poses, args.setup, args.seed, cameras=cameras, robot_error=(0.01, 0.05))
         write_rig_session(args.out, sc, rng=args.seed, noise_px=args.noise_px)
-        what = "a stereo pair on the flange" if cameras == 2 else "three cameras fixed around the cell"
+        what = ("a stereo pair on the flange" if cameras == 2 else f"{cameras} cameras on the flange") if on_flange else \
+            f"{cameras} cameras fixed around the cell"
         print(f"wrote rig session {args.out} ({args.poses} poses, {what}, a chessboard; the robot 0.01 deg / 0.05 mm off); "
               f"ground truth in {Path(args.out) / 'ground_truth.yaml'}")
         return 0
+    if args.cameras is not None:
+        raise InputMismatchError("--cameras is the number of cameras of a rig: give it with --sensor rig")
     if args.sensor == "line_scan":
         if args.robot != "arm" or args.arm is not None or args.target is not None:
             raise InputMismatchError("--sensor line_scan simulates a 6-axis arm's controller poses and a chessboard; leave "
@@ -39,6 +53,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
               f"{args.setup}, {sc.width} px at {sc.line_rate:.0f} lines/s, the robot's clock {1e3 * sc.clock_offset:.0f} ms "
               f"after the camera's); ground truth in {Path(args.out) / 'ground_truth.yaml'}")
         return 0
+    if args.sensor == "depth":
+        return _simulate_depth(args)
     if args.sensor == "laser_line":
         if args.robot != "arm":
             raise InputMismatchError("--sensor laser_line simulates a 6-axis arm (its controller's poses, or with --arm its "
@@ -68,6 +84,31 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _simulate_depth(args: argparse.Namespace) -> int:
+    """A depth camera's clouds: of a mesh (the default: a flange-sized disc on the flange, eye-to-hand),
+    a ball, or a board."""
+    if args.robot != "arm" or args.arm is not None:
+        raise InputMismatchError("--sensor depth simulates a 6-axis arm's controller poses; leave --robot and --arm out")
+    target = args.target or "mesh"
+    if target == "mesh":
+        sc = mesh_scene(args.poses, args.setup, args.seed, image_size=args.image_size)
+        write_mesh_session(args.out, sc)
+        what = "a flange-sized disc (target.stl) with bolt holes and a locating pin"
+    elif target == "sphere":
+        write_depth_session(args.out, sphere_scene(args.poses, args.setup, args.seed, image_size=args.image_size))
+        what = "a 50 mm ball"
+    elif target in DEFAULT_TARGETS:
+        write_depth_session(args.out, depth_scene(args.poses, args.setup, args.seed, target=target,
+                                                  image_size=args.image_size, noise_px=args.noise_px))
+        what = f"a {target} with its intensity images"
+    else:
+        raise InputMismatchError(f"--target {target}: a depth camera's simulated target is mesh (default), sphere or a "
+                                 f"board ({', '.join(DEFAULT_TARGETS)})")
+    print(f"wrote depth session {args.out} ({args.poses} clouds of {what}, {args.setup}); ground truth in "
+          f"{Path(args.out) / 'ground_truth.yaml'}")
+    return 0
+
+
 def register(sub) -> None:
     """Add the ``simulate`` command's parser to the sub-parsers ``sub``."""
     p = sub.add_parser(
@@ -77,16 +118,21 @@ def register(sub) -> None:
         "with ground_truth.yaml (X, Z, K, dist).",
     )
     p.add_argument("-o", "--out", required=True, help="new session folder")
-    p.add_argument("--sensor", default="camera", choices=["camera", "laser_line", "line_scan", "rig"],
-                   help="camera (default): rendered images of a board; laser_line: a laser line profiler's profiles of a "
+    p.add_argument("--sensor", default="camera", choices=["camera", "depth", "laser_line", "line_scan", "rig"],
+                   help="camera (default): rendered images of a board; depth: a depth camera's 640x480 clouds of a mesh "
+                   "(--target mesh, the default: a flange-sized disc on the flange), a ball (sphere) or a board; laser_line: "
+                   "a laser line profiler's profiles of a "
                    "ball or a plate (--poses of them; --arm for joint angles); line_scan: a line-scan camera's scans of a "
                    "chessboard swept by the robot (--poses of them); rig: a stereo pair on the flange (eye_in_hand) or "
                    "three fixed cameras (eye_to_hand)")
+    p.add_argument("--cameras", type=whole_arg(2), default=None,
+                   help="with --sensor rig: the number of cameras (default 2 on the flange, 3 fixed around the cell)")
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--poses", type=whole_arg(1), default=15, help="number of images (default 15)")
-    p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS),
+    p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS) + ["mesh"],
                    help="the board rendered (default charuco: it cannot be read from the wrong end, as handeye's advice "
-                   "recommends; chessboard for the thesis's set-up); with --sensor laser_line: sphere (default) or plane")
+                   "recommends; chessboard for the thesis's set-up); with --sensor laser_line: sphere (default) or plane; "
+                   "with --sensor depth: mesh (default), sphere or a board")
     p.add_argument("--noise-px", type=number_arg(0.0), default=0.2, help="feature position noise in pixels (default 0.2)")
     p.add_argument("--seed", type=whole_arg(0), default=None)
     p.add_argument("--image-size", type=image_size_arg, default=(640, 480), help="WIDTHxHEIGHT (default 640x480)")

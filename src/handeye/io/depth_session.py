@@ -11,9 +11,11 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from ..errors import SessionError
-from ..frames.setups import check_setup
+from ..frames.setups import check_setup, setup_info
+from ..geometry.se3 import make_transform
 from ..robot.kinematics import Chain
 from ..sensors.camera import target_from_spec
 from ..sensors.depth.clouds import CLOUD_SUFFIXES
@@ -30,11 +32,11 @@ from .session import (
     read_session_yaml,
 )
 
-__all__ = ["DepthSession", "is_depth_session", "load_depth_session"]
+__all__ = ["DepthSession", "MeshTarget", "is_depth_session", "load_depth_session"]
 
 #: What the pose table's first column must be, for the error that finds it is not.
 FIRST_COLUMN = ("'image' (a board: its intensity image in images/, the cloud of the same name in clouds/) or 'cloud' "
-                "(spheres: the cloud in clouds/)")
+                "(spheres, a mesh: the cloud in clouds/)")
 
 
 @dataclass(frozen=True)
@@ -59,10 +61,72 @@ class DepthSession:
     joints: NDArray[np.float64] | None = None
     arm: Chain | None = None
     joints_path: Path | None = None
+    #: a mesh target (``type: mesh``): its file, unit and, when the session gives it, its placement
+    #: (Z: target2flange eye-to-hand, target2base eye-in-hand, metres)
+    mesh: MeshTarget | None = None
 
     @property
     def kind(self) -> str:
-        return "spheres" if self.radii is not None else "board"
+        """What the clouds hold: 'spheres', 'mesh' or 'board'."""
+        return "spheres" if self.radii is not None else "mesh" if self.mesh is not None else "board"
+
+
+@dataclass(frozen=True)
+class MeshTarget:
+    """A known shape as the target (``target: {type: mesh, file: ..., unit: mm}``): the mesh or
+    template cloud's file, its unit, and the shape's placement Z (metres) when the session gives it
+    (``pose_in_flange`` eye-to-hand, ``pose_in_base`` eye-in-hand)."""
+
+    file: Path
+    unit: str
+    placement: NDArray[np.float64] | None = None
+
+
+#: The keys of a mesh target (besides the placement's, ``pose_in_flange`` or ``pose_in_base``).
+MESH_KEYS = ("type", "file", "unit")
+
+
+def _placement(value: Any, unit: str, where: str) -> NDArray[np.float64]:
+    """A placement as a 4x4 matrix (its translation in the mesh's ``unit``) or ``[x, y, z, rx, ry, rz]``
+    (``unit``; a rotation vector in degrees), in metres."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        a = np.zeros(0)
+    factor = 1e-3 if unit == "mm" else 1.0
+    if a.shape == (6,) and np.isfinite(a).all():
+        return make_transform(Rotation.from_rotvec(np.radians(a[3:])).as_matrix(), a[:3] * factor)
+    if a.shape == (4, 4) and np.isfinite(a).all() and np.allclose(a[:3, :3] @ a[:3, :3].T, np.eye(3), atol=1e-6) \
+            and np.allclose(a[3], [0, 0, 0, 1]):
+        return make_transform(a[:3, :3], a[:3, 3] * factor)
+    raise SessionError(f"{where}: the shape's placement is a 4x4 rigid transform or [x, y, z, rx, ry, rz] (translation in "
+                       f"the mesh's unit {unit}, rotation vector in degrees), got {value!r}")
+
+
+def _mesh(target: Any, folder: Path, setup: str, where: str) -> MeshTarget | None:
+    """The mesh target of ``target`` (None for another type), checked: its keys, its file, its unit
+    and placement (the one the setup's Z is: ``pose_in_flange`` eye-to-hand, ``pose_in_base`` eye-in-hand)."""
+    if not isinstance(target, dict) or str(target.get("type", "")).lower() != "mesh":
+        return None
+    key = "pose_in_" + setup_info(setup).z_name.split("2", 1)[1]
+    other = {"pose_in_flange", "pose_in_base"} - {key}
+    unknown = sorted(set(target) - set(MESH_KEYS) - {key})
+    if unknown:
+        hint = f" ({', '.join(other)} is the other setup's: with setup {setup} the shape's placement is {key})" \
+            if set(unknown) & other else ""
+        raise SessionError(f"{where}: target: unknown key(s) {', '.join(unknown)} for a mesh (keys: "
+                           f"{', '.join(MESH_KEYS + (key,))}){hint}")
+    if not target.get("file"):
+        raise SessionError(f"{where}: target: a mesh needs its file (file: flange.stl, beside session.yaml)")
+    unit = str(target.get("unit", ""))
+    if unit not in ("m", "mm"):
+        raise SessionError(f"{where}: target: a mesh's unit is m or mm (the unit its file's coordinates are in), got "
+                           f"{target.get('unit')!r}")
+    path = folder / str(target["file"])
+    if not path.is_file():
+        raise SessionError(f"{where}: target: no mesh file {path}")
+    placement = None if target.get(key) is None else _placement(target[key], unit, f"{where}: target: {key}")
+    return MeshTarget(path, unit, placement)
 
 
 def is_depth_session(folder: str | Path) -> bool:
@@ -134,7 +198,8 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     setup = check_setup(str(spec.get("setup", "")))
     target = spec.get("target")
     radii = _radii(target, where)
-    if radii is None:
+    mesh = _mesh(target, folder, setup, where)
+    if radii is None and mesh is None:
         target_from_spec(target, where=f"{where}: target")
     unit, working = _depth_spec(spec["depth"], where)
     K, dist = read_camera(spec.get("camera"), where)
@@ -146,11 +211,11 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     q = None if joints is None else joints_of_views(joints, names)
     clouds = [_cloud_of(folder, n, table) for n in names]
     images = None
-    if radii is None:
+    if radii is None and mesh is None:
         images = [folder / "images" / n for n in names]
         missing = [str(p.name) for p in images if not p.is_file()]
         if missing:
             raise SessionError(f"{folder / 'images'}: image file(s) missing: {', '.join(missing[:10])}")
     return DepthSession(folder, setup, dict(target), list(names), clouds, images, f2b, K, dist, unit, working, radii, notes,
                         None if joints is None else q, None if joints is None else joints[2],
-                        None if joints is None else joints[3])
+                        None if joints is None else joints[3], mesh)

@@ -4,7 +4,8 @@ A depth session is a session folder (docs/guide.md, "Depth cameras") whose ``ses
 ``depth:`` mapping::
 
     setup: eye_to_hand
-    target: {type: sphere, diameter: 0.05}     # or a board (chessboard, charuco, ...) as for images
+    target: {type: sphere, diameter: 0.05}     # or a board (chessboard, charuco, ...) as for images,
+                                               # or {type: mesh, file: flange.stl, unit: mm} (pipelines.mesh)
     camera: {K: ..., dist: ...}                # optional: the intensity image's intrinsics
     depth:
       unit: m                                  # the clouds' unit: m | mm
@@ -44,6 +45,7 @@ from ..sensors.depth.clouds import check_frame, plane_points, read_cloud
 from ..sensors.depth.model import BoardPoints, SphereCentres
 from ..sensors.depth.spheres import find_spheres
 from ._sensor import robot_model, sensor_options
+from .mesh import calibrate_mesh_session
 
 __all__ = ["calibrate_depth_session", "calibrate_depth", "calibrate_spheres", "measure_depth_session", "DepthViews"]
 
@@ -170,6 +172,8 @@ def calibrate_depth_session(folder: str | Path | DepthSession, options: Calibrat
     """
     opts = sensor_options(options, changes, "a depth session")
     s = folder if isinstance(folder, DepthSession) else load_depth_session(folder, arm=opts.arm)
+    if s.kind == "mesh":  # a known shape: found in each cloud, then every point against its surface
+        return calibrate_mesh_session(s, opts, fit_depth=fit_depth, progress=progress, jobs=jobs)
     v = measure_depth_session(s, progress, jobs)
     if len(v.index) < 3:
         raise DegenerateMotionError(

@@ -6,7 +6,8 @@
   shipped arms' tables, robots that cannot rotate freely;
 * :mod:`~handeye.simulate.streams`: continuous recordings on two clocks;
 * :mod:`~handeye.simulate.depth`: depth cameras' clouds of a board or a sphere;
-* :mod:`~handeye.simulate.laser`: laser line profilers' profiles of a ball.
+* :mod:`~handeye.simulate.laser`: laser line profilers' profiles of a ball;
+* :mod:`~handeye.simulate.mesh`: depth cameras' clouds of a known shape (a mesh), ray-cast.
 
 Sessions are written by :mod:`handeye.io.session`'s writers.
 """
@@ -38,6 +39,7 @@ from .arms import (
 )
 from .depth import DepthScene, SphereScene, depth_scene, sphere_scene, write_depth_session
 from .laser import LaserScene, laser_scene, write_laser_session
+from .mesh import MeshScene, flange_mesh, mesh_scene, write_mesh_session
 from .scenes import (
     Noise,
     Scene,
@@ -62,4 +64,4 @@ __all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look
            "KinematicScene", "kinematic_scene", "simulate_kinematic_session", "capture_joint_views",
            "low_dof_scene", "LOW_DOF_ROBOTS", "StreamScene", "stream_scene", "JointStreamScene", "joint_stream_scene",
            "simulate_stream_session", "DepthScene", "depth_scene", "SphereScene", "sphere_scene", "write_depth_session",
-           "LaserScene", "laser_scene", "write_laser_session"]
+           "LaserScene", "laser_scene", "write_laser_session", "MeshScene", "flange_mesh", "mesh_scene", "write_mesh_session"]

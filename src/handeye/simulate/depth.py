@@ -50,14 +50,14 @@ class DepthScene(Scene):
     chain_true: Chain | None = None
 
 
-def _pixel_rays(K, size) -> NDArray[np.float64]:
+def pixel_rays(K, size) -> NDArray[np.float64]:
     """(H, W, 3): each pixel's ray (z = 1) of a pinhole camera ``K`` without distortion."""
     w, h = size
     u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
     return np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones_like(u)], axis=-1)
 
 
-def _depth_reading(truth, mask, behind, rng: np.random.Generator, depth_scale: float, depth_bias: float,
+def depth_reading(truth, mask, behind, rng: np.random.Generator, depth_scale: float, depth_bias: float,
                    depth_noise: tuple[float, float], holes: float) -> NDArray[np.float32]:
     """What a depth camera measures of the true points ``truth`` (H, W, 3): each moved along its ray
     to depth ``depth_scale z + depth_bias`` plus noise ``depth_noise[0] + depth_noise[1] z^2``; the
@@ -74,7 +74,7 @@ def _depth_reading(truth, mask, behind, rng: np.random.Generator, depth_scale: f
 def _depth_image(K, size, target2cam, outline, background: float):
     """Per pixel, the true point (H, W, 3) where its ray meets the board's sheet (its ``outline``),
     else the background plane at depth ``background``; and the board's mask."""
-    rays = _pixel_rays(K, size)
+    rays = pixel_rays(K, size)
     R, t = target2cam[:3, :3], target2cam[:3, 3]
     normal = R[:, 2]  # the board's z axis in the camera frame
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -160,7 +160,7 @@ def depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Ge
     for T in scene.target2cam:
         truth, board = _depth_image(K, image_size, T, outline, background=2.5)
         behind = truth * (2.5 / truth[..., 2])[..., None]  # the background where the board is
-        clouds.append(_depth_reading(truth, board, behind, rng, depth_scale, depth_bias, depth_noise, holes))
+        clouds.append(depth_reading(truth, board, behind, rng, depth_scale, depth_bias, depth_noise, holes))
         px = project_points(T, obj, K, np.zeros(5))
         image_points.append(px + rng.normal(0.0, noise_px, px.shape))
     return DepthScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
@@ -211,7 +211,7 @@ def _stem_depth(rays, start, axis, radius: float, length: float):
 def _sphere_image(K, size, centre, radius, plane_point, plane_normal, stem=None):
     """Per pixel the true point where its ray meets the sphere (or the rod holding it, ``stem``:
     its direction in the camera frame and radius), else the background plane; and the sphere's mask."""
-    rays = _pixel_rays(K, size)
+    rays = pixel_rays(K, size)
     dd = np.einsum("hwi,hwi->hw", rays, rays)
     dc = rays @ centre
     disc = dc**2 - dd * (centre @ centre - radius**2)
@@ -277,7 +277,7 @@ def sphere_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.G
         rod = None if stem is None else (T[:3, :3] @ stem_axis, stem)
         truth, sphere = _sphere_image(K, image_size, centre, radius, wall, normal, rod)
         behind = _sphere_image(K, image_size, centre + 10.0, radius, wall, normal)[0]  # the wall where the sphere is
-        clouds.append(_depth_reading(truth, sphere, behind, rng, depth_scale, depth_bias, depth_noise, holes))
+        clouds.append(depth_reading(truth, sphere, behind, rng, depth_scale, depth_bias, depth_noise, holes))
     return SphereScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
                        image_size=tuple(image_size),
                        radius=radius, clouds=clouds, depth_scale=depth_scale, depth_bias=depth_bias, **_arm_fields(views))

@@ -38,8 +38,8 @@ from ..camera.pnp import project_points
 
 cv2 = lazy_module("cv2")
 
-__all__ = ["plane_points", "read_cloud", "check_cloud", "cloud_pinhole", "check_frame", "lift_points", "board_pose", "depth_sigma",
-           "MAX_DEPTH_M", "EDGE_JUMP", "FRAME_TOLERANCE_PX", "CLOUD_SUFFIXES"]
+__all__ = ["plane_points", "read_cloud", "read_points", "check_cloud", "cloud_pinhole", "check_frame", "lift_points",
+           "board_pose", "depth_sigma", "MAX_DEPTH_M", "EDGE_JUMP", "FRAME_TOLERANCE_PX", "CLOUD_SUFFIXES"]
 
 #: A depth beyond this many metres is no depth camera's working range: a cloud whose median depth
 #: is larger is taken to be in millimetres.
@@ -200,22 +200,8 @@ def _optional(module: str, extra: str, path: Path):
                            "(or save the cloud as a .npy of H x W x 3)") from None
 
 
-def read_cloud(path: str | Path, image_size: tuple[int, int] | None = None, unit: str = "m") -> NDArray[np.float64]:
-    """An organized cloud (H, W, 3), metres, NaN where there is no depth, from ``path``.
-
-    Parameters
-    ----------
-    path : str or Path
-        ``.npy`` (an H x W x 3 array), ``.ply`` (its vertex x, y, z, one per pixel in row-major order;
-        read with plyfile) or ``.pcd`` (PCL's format, organized: HEIGHT > 1, or one point per pixel;
-        read with pypcd4). Points at (0, 0, 0) are missing depth, as most cameras write it.
-    image_size : (width, height), optional
-        The registered intensity image's size: an unorganized PLY/PCD of that many points is
-        reshaped to it, and any other size refused (:func:`check_cloud`).
-    unit : {'m', 'mm'}
-        The unit the file is in.
-    """
-    path = Path(path)
+def _load(path: Path) -> NDArray:
+    """The array a cloud file holds (organized (H, W, 3) or (N, 3)), in its own unit; SessionError naming the file."""
     if not path.is_file():
         raise SessionError(f"{path}: no such cloud file")
     suffix = path.suffix.lower()
@@ -236,6 +222,26 @@ def read_cloud(path: str | Path, image_size: tuple[int, int] | None = None, unit
         raise
     except Exception as exc:  # a damaged file: whatever the reader raises, say which file
         raise SessionError(f"{path}: cannot read the cloud ({type(exc).__name__}: {exc})") from None
+    return cloud
+
+
+def read_cloud(path: str | Path, image_size: tuple[int, int] | None = None, unit: str = "m") -> NDArray[np.float64]:
+    """An organized cloud (H, W, 3), metres, NaN where there is no depth, from ``path``.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.npy`` (an H x W x 3 array), ``.ply`` (its vertex x, y, z, one per pixel in row-major order;
+        read with plyfile) or ``.pcd`` (PCL's format, organized: HEIGHT > 1, or one point per pixel;
+        read with pypcd4). Points at (0, 0, 0) are missing depth, as most cameras write it.
+    image_size : (width, height), optional
+        The registered intensity image's size: an unorganized PLY/PCD of that many points is
+        reshaped to it, and any other size refused (:func:`check_cloud`).
+    unit : {'m', 'mm'}
+        The unit the file is in.
+    """
+    path = Path(path)
+    cloud = _load(path)
     if cloud.ndim == 2 and cloud.shape[1] == 3 and image_size is not None:
         if len(cloud) != image_size[0] * image_size[1]:
             raise InputMismatchError(f"{path}: {len(cloud)} points, and its image is {image_size[0]}x{image_size[1]} "
@@ -248,6 +254,21 @@ def read_cloud(path: str | Path, image_size: tuple[int, int] | None = None, unit
     if cloud.ndim == 3 and cloud.shape[2] == 3:
         cloud[(cloud == 0).all(axis=2)] = np.nan
     return check_cloud(cloud, image_size, where=str(path))
+
+
+def read_points(path: str | Path, unit: str = "m") -> NDArray[np.float64]:
+    """The points (N, 3, metres) of a cloud file, organized or not (a scan cropped to a part, as 3D
+    scanners export it, has no image grid): ``.npy`` (H x W x 3 or N x 3), ``.ply`` or ``.pcd``, the
+    points without depth (NaN, or all three coordinates 0) left out. Nothing is checked of the depths
+    (a template cloud of a shape has none); :class:`SessionError` naming a file that cannot be read."""
+    path = Path(path)
+    if unit not in ("m", "mm"):
+        raise SessionError(f"{path}: the cloud's unit is m or mm, not {unit!r}")
+    cloud = np.asarray(_load(path), dtype=float)
+    if cloud.shape[-1:] != (3,) or cloud.ndim not in (2, 3):
+        raise SessionError(f"{path}: a cloud is an H x W x 3 or N x 3 array of points, got shape {cloud.shape}")
+    p = cloud.reshape(-1, 3) * (1e-3 if unit == "mm" else 1.0)
+    return p[np.isfinite(p).all(axis=1) & (p != 0).any(axis=1)]
 
 
 def cloud_pinhole(cloud: NDArray[np.float64], sample: int = 20000,

@@ -63,7 +63,8 @@ def as_measured(p: NDArray[np.float64], scale_step: float, bias: float,
     return q - (scale_step * radius)[:, None] * p / np.linalg.norm(p, axis=1, keepdims=True)
 
 
-def _depth_figures(p: NDArray[np.float64], cov_p: NDArray[np.float64], fit_depth: bool) -> dict[str, Any]:
+def depth_figures(p: NDArray[np.float64], cov_p: NDArray[np.float64], fit_depth: bool) -> dict[str, Any]:
+    """The depth scale and bias with their std (the last two of ``p``), as the result's figures."""
     if not fit_depth:
         return {"depth_scale": {"value": 1.0, "std": 0.0, "fitted": False},
                 "depth_bias_mm": {"value": 0.0, "std": 0.0, "fitted": False}}
@@ -72,8 +73,9 @@ def _depth_figures(p: NDArray[np.float64], cov_p: NDArray[np.float64], fit_depth
             "depth_bias_mm": {"value": float(1e3 * p[-1]), "std": float(1e3 * std[1]), "fitted": True}}
 
 
-class _Depth:
-    """What both depth models share: rows of 3D points in their ray frames, weighted by depth."""
+class DepthRows:
+    """What the depth models share: rows of 3D points in their ray frames, weighted by depth (the
+    mesh's too, :class:`~handeye.sensors.depth.mesh.MeshSurface`)."""
 
     kind = "depth camera"
     groups: tuple[tuple[int, ...], ...] = ((0,), (1, 2))
@@ -81,7 +83,7 @@ class _Depth:
 
     def notes(self, p, cov_p) -> list[str]:
         """The depth scale and bias when they differ from 1 and 0 beyond 3 std."""
-        f = _depth_figures(p, cov_p, self.fit_depth)
+        f = depth_figures(p, cov_p, self.fit_depth)
         scale, bias = f["depth_scale"], f["depth_bias_mm"]
         out = []
         if self.fit_depth and abs(scale["value"] - 1.0) > 3 * scale["std"]:
@@ -104,7 +106,7 @@ class _Depth:
         return 1e3 * depth_sigma(self.measured[rows, 2])
 
 
-class BoardPoints(_Depth):
+class BoardPoints(DepthRows):
     """A board's corners (in its own frame, ``object_points`` per view) measured in 3D (``points``
     per view, NaN rows: no depth), with the depth scale and bias (``fit_depth``).
 
@@ -171,10 +173,10 @@ class BoardPoints(_Depth):
 
     def figures(self, p, cov_p) -> dict[str, Any]:
         """The depth scale and bias."""
-        return _depth_figures(p, cov_p, self.fit_depth)
+        return depth_figures(p, cov_p, self.fit_depth)
 
 
-class SphereCentres(_Depth):
+class SphereCentres(DepthRows):
     """The centres of ``K`` balls measured in each view (``centres`` (N, 3) or (N, K, 3), NaN: not
     seen), with their covariances (``covariances``, their shape weights each centre: the cap a
     camera sees pins a ball least along the ray; default the depth noise along the ray, a third of
@@ -252,7 +254,7 @@ class SphereCentres(_Depth):
         std = 1e3 * np.sqrt(np.clip(np.diag(cov_p)[:3 * self.n_spheres], 0.0, None)).reshape(self.n_spheres, 3)
         return {"centres_m": self.centres(p).tolist(), "centres_std_mm": std.tolist(),
                 "radii_m": None if self.radius is None else sorted({float(r) for r in self.radius}),
-                **_depth_figures(p, cov_p, self.fit_depth)}
+                **depth_figures(p, cov_p, self.fit_depth)}
 
 
 def sphere_start(A: NDArray[np.float64], centres: NDArray[np.float64], view: NDArray[np.intp],

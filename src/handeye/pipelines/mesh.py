@@ -1,0 +1,211 @@
+"""A known shape (a mesh, or a template cloud of it) in a depth camera's clouds, through the core.
+
+A depth session whose target is ``{type: mesh, file: flange.stl, unit: mm}`` (optionally with the
+shape's placement, ``pose_in_flange`` eye-to-hand or ``pose_in_base`` eye-in-hand) is calibrated in
+named steps:
+
+1. :func:`measure_mesh_session`: the shape found in every cloud (organized or not) without any pose
+   guess (:func:`~handeye.sensors.depth.registration.find_shape`); a cloud where it is not found
+   is skipped, named with why;
+2. :func:`consistent_views`: the views' poses of the shape checked against each other through the
+   robot (the closed form on three views at a time, the largest agreeing set kept, as RANSAC): a
+   view that disagrees (a pose found turned over, a shape that turns into itself but for a small
+   pin) has its shape found again where the agreeing views put it, or is skipped, named;
+3. :class:`~handeye.sensors.depth.mesh.MeshSurface` with every view's points on the surface, and
+   :func:`~handeye.estimation.core.estimate`: X, Z, the depth scale and bias, what the capture and
+   the shape leave undetermined, the verdict.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._shared.progress import Progress
+from .._shared.threads import one_blas_thread
+from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
+from ..estimation.core import estimate
+from ..estimation.diagnostics import closed_form
+from ..frames.metrics import rotation_error, translation_error
+from ..frames.setups import constant_transforms, predicted_target2cam, robot_world_A
+from ..geometry.se3 import invert, mean_transform
+from ..io.depth_session import DepthSession
+from ..options import CalibrationOptions
+from ..result import Calibration
+from ..sensors.depth.clouds import MAX_DEPTH_M, read_points
+from ..sensors.depth.mesh import MeshSurface
+from ..sensors.depth.registration import ShapeMatch, find_shape, refine_shape
+from ..sensors.depth.shape import Shape, load_shape
+from ._sensor import robot_model
+
+__all__ = ["MeshViews", "measure_mesh_session", "consistent_views", "mesh_model", "calibrate_mesh_session",
+           "AGREE_DEG", "AGREE_SHARE"]
+
+#: Views agree when the target's pose each gives (through the robot and X) differ by less than this
+#: (deg) ...
+AGREE_DEG = 5.0
+#: ... and by less than this share of the shape's size (or 10 mm, whichever is more).
+AGREE_SHARE = 0.15
+
+
+@dataclass
+class MeshViews:
+    """What a mesh session's clouds gave, per measured view."""
+
+    index: list[int] = field(default_factory=list)  #: into the session's views
+    matches: list[ShapeMatch] = field(default_factory=list)
+    distance: list[float] = field(default_factory=list)  #: the shape's depth, m
+    skipped: list[tuple[str, str]] = field(default_factory=list)  #: (view, why)
+    notes: list[str] = field(default_factory=list)
+
+
+def read_scene(path: str | Path, unit: str) -> NDArray[np.float64]:
+    """A scene cloud's points (N, 3, m), organized or not, checked: some points, a plausible unit."""
+    q = read_points(path, unit)
+    if len(q) == 0:
+        raise InputMismatchError(f"{path}: no point has a depth: an empty capture")
+    median = float(np.median(q[:, 2]))
+    if median > MAX_DEPTH_M:
+        raise InputMismatchError(f"{path}: median depth {median:g} m: the cloud looks like millimetres; say depth: "
+                                 "{unit: mm} in session.yaml")
+    return q
+
+
+def _found(shape: Shape, path: Path, unit: str, k: int) -> ShapeMatch | str:
+    """The shape found in one cloud, or why not."""
+    try:
+        return find_shape(shape, read_scene(path, unit), where=str(path), rng=k)
+    except InputMismatchError as exc:
+        return str(exc)
+
+
+def measure_mesh_session(s: DepthSession, shape: Shape, progress: bool = False, jobs: int | None = None) -> MeshViews:
+    """The shape found in every cloud of ``s`` (``jobs`` clouds at a time, threads; default 2); a
+    cloud where it is not, skipped with why."""
+    out = MeshViews()
+    bar = Progress(len(s.cloud_paths), "finding the shape", progress)
+    with ThreadPoolExecutor(max_workers=max(1, jobs or 2)) as pool, one_blas_thread():
+        found = pool.map(_found, [shape] * len(s.cloud_paths), s.cloud_paths, [s.unit] * len(s.cloud_paths),
+                         range(len(s.cloud_paths)))
+        for k, match in enumerate(found):
+            bar.update()
+            if isinstance(match, str):
+                out.skipped.append((s.names[k], match))
+                continue
+            out.index.append(k)
+            out.matches.append(match)
+            out.distance.append(float(np.median(match.points[:, 2])))
+    bar.close()
+    return out
+
+
+def _disagreement(X, Z, F, T, setup) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per view, how far its own Z (through X and its robot pose) is from ``Z``: deg, m."""
+    Zi = constant_transforms(X, F, T, setup)
+    return np.degrees(rotation_error(Zi, Z)), translation_error(Zi, Z)
+
+
+def _agreeing(F, T, setup, placement, tol_m: float) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]]:
+    """The largest set of views whose poses ``T`` agree through the robot ``F`` (RANSAC over three
+    views at a time; one at a time with the ``placement`` known), refitted on it: (agree, X, Z)."""
+    n = len(T)
+    rng = np.random.default_rng(0)
+    best = (np.zeros(n, bool), np.inf)
+    if placement is not None:  # each view gives X whole
+        Xi = invert(robot_world_A(F, setup)) @ placement @ invert(T)
+        for j in range(n):
+            ok = (np.degrees(rotation_error(Xi, Xi[j])) < AGREE_DEG) & (translation_error(Xi, Xi[j]) < tol_m)
+            if ok.sum() > best[0].sum():
+                best = (ok, 0.0)
+        return best[0], mean_transform(Xi[best[0]]), placement
+    for _ in range(min(80, n * (n - 1) * (n - 2) // 6)):
+        pick = rng.choice(n, 3, replace=False)
+        try:
+            X, Z, _ = closed_form(F[pick], T[pick], setup, "daniilidis")
+        except HandEyeError:
+            continue
+        rot, tra = _disagreement(X, Z, F, T, setup)
+        ok = (rot < AGREE_DEG) & (tra < tol_m)
+        spread = float(np.median(tra[ok])) if ok.any() else np.inf
+        if ok.sum() > best[0].sum() or (ok.sum() == best[0].sum() and spread < best[1]):
+            best = (ok, spread)
+    agree = best[0]
+    if agree.sum() < 3:
+        raise DegenerateMotionError(f"no 3 of the {n} views' poses of the shape agree through the robot: check the poses' "
+                                    "format and unit, the setup, and that the shape is the part that was scanned")
+    X, Z, _ = closed_form(F[agree], T[agree], setup, "daniilidis")
+    return agree, X, Z
+
+
+def consistent_views(s: DepthSession, shape: Shape, v: MeshViews, progress: bool = False) -> MeshViews:
+    """``v`` with the views whose pose of the shape disagrees with the others' (through the robot)
+    found again where the others put it (:func:`~handeye.sensors.depth.registration.refine_shape`),
+    or skipped, named. A shape that turns into itself (its pose not whole in any view) is left as it is."""
+    if len(shape.free) or len(v.index) < 4:
+        return v
+    F = s.flange2base[v.index]
+    T = np.array([m.target2cam for m in v.matches])
+    tol = max(0.01, AGREE_SHARE * shape.size)
+    agree, X, Z = _agreeing(F, T, s.setup, None if s.mesh is None else s.mesh.placement, tol)
+    out = MeshViews(notes=list(v.notes), skipped=list(v.skipped))
+    for j, k in enumerate(v.index):
+        match = v.matches[j]
+        if not agree[j]:
+            guess = predicted_target2cam(X, Z, F[j], s.setup)
+            try:
+                match = refine_shape(shape, read_scene(s.cloud_paths[k], s.unit), guess, where=str(s.cloud_paths[k]))
+                rot, tra = _disagreement(X, Z, F[j][None], match.target2cam[None], s.setup)
+                if rot[0] >= 3 * AGREE_DEG or tra[0] >= tol:  # a disc's turn is pinned loosely by one view
+                    raise InputMismatchError("the shape where the other views put it does not fit its points")
+            except InputMismatchError as exc:
+                out.skipped.append((s.names[k], f"its pose of the shape disagrees with the other views' through the robot, "
+                                                f"and {exc}"))
+                continue
+            first, again = v.matches[j].target2cam, match.target2cam
+            out.notes.append(f"{s.names[k]}: the shape was found turned or elsewhere ({np.degrees(rotation_error(first, again)):.0f} "
+                             f"deg, {1e3 * translation_error(first, again):.0f} mm off); found again where the other views put it")
+        out.index.append(k)
+        out.matches.append(match)
+        out.distance.append(v.distance[j])
+    return out
+
+
+def mesh_model(s: DepthSession, shape: Shape, v: MeshViews, fit_depth: bool = True) -> MeshSurface:
+    """The measured views of ``s`` as a :class:`~handeye.sensors.depth.mesh.MeshSurface`."""
+    return MeshSurface(s.setup, [s.names[k] for k in v.index], shape, [m.points for m in v.matches],
+                       [m.normals for m in v.matches], np.array([m.target2cam for m in v.matches]),
+                       None if s.mesh is None else s.mesh.placement, fit_depth)
+
+
+def calibrate_mesh_session(s: DepthSession, options: CalibrationOptions, *, fit_depth: bool = True,
+                           progress: bool = False, jobs: int | None = None) -> Calibration:
+    """A depth session with a mesh target (the module's docstring): the shape read, found in every
+    cloud, the views made consistent, X fitted with every view's points against the surface.
+
+    Raises
+    ------
+    SessionError
+        The mesh file is not a mesh, or its size in the declared unit is implausible (a mesh in mm
+        declared m), naming the file.
+    DegenerateMotionError
+        Fewer than 3 views where the shape is found, or views that cannot determine X.
+    """
+    if s.mesh is None:
+        raise InputMismatchError(f"{s.folder}: the session's target is not a mesh")
+    shape = load_shape(s.mesh.file, s.mesh.unit)
+    v = measure_mesh_session(s, shape, progress, jobs)
+    v = consistent_views(s, shape, v, progress)
+    if len(v.index) < 3:
+        raise DegenerateMotionError(
+            f"the shape is found in {len(v.index)} of {len(s.names)} clouds ({'; '.join(f'{n}: {r}' for n, r in v.skipped[:5])}): "
+            "at least 3 are needed, 10-20 with the flange turned 30 deg or more about varied axes to trust X")
+    cal = estimate(mesh_model(s, shape, v, fit_depth), robot_model(s, v.index, options.robot_accuracy), options.folds)
+    used = {s.names[v.index[k]] for k in cal.pose_indices}
+    distances = [d for k, d in zip(v.index, v.distance) if s.names[k] in used]
+    figures = dict(cal.sensor.figures, distance_m=distances)
+    return replace(cal, sensor=replace(cal.sensor, figures=figures), skipped=list(v.skipped) + list(cal.skipped),
+                   notes=list(s.notes) + list(v.notes) + list(cal.notes), input_folder=s.folder)
