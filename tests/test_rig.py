@@ -26,7 +26,7 @@ def test_stereo_pair_relative_pose_from_the_joint_fit():
     rel = rig.joint.sensor.figures["relative"]["right2left"]
     R, std = np.array(rel["matrix"]), np.array(rel["std_deg_mm"])
     assert within_std(R, sc.relative(1), std)
-    assert 1e3 * translation_error(R, sc.relative(1)) < 0.2 and rotation_error(R, sc.relative(1)) < 0.01
+    assert 1e3 * translation_error(R, sc.relative(1)) < 0.2 and np.degrees(rotation_error(R, sc.relative(1))) < 0.01
     assert std[3:].max() < rig.joint.std[3:].min()  # the relative pose is better known than X
     for name, cam in zip(["left", "right"], sc.cameras):
         assert translation_error(rig.X(name), cam.X) <= 1.2 * translation_error(rig.alone[name].X, cam.X)
@@ -74,6 +74,7 @@ def test_rig_session_round_trip_and_bad_sessions(tmp_path):
     from handeye.errors import SessionError
     from handeye.pipelines.rig import calibrate_rig_session
     folder = tmp_path / "s"
+    assert main(["simulate", "--cameras", "3", "--out", str(folder)]) == 2  # --cameras is a rig's
     assert main(["simulate", "--sensor", "rig", "--poses", "8", "--out", str(folder), "--seed", "2"]) == 0
     (folder / "cam1" / "v03.png").unlink()
     assert main(["calibrate", str(folder), "--out", str(tmp_path / "out"), "--robot-accuracy", "0.01,0.05"]) == 0
@@ -120,3 +121,57 @@ def test_a_rig_of_sensors_with_residuals_of_different_widths():
     assert np.all(r[on_laser, 1] == 0) and np.all(np.isfinite(r)) and np.abs(r[~on_laser]).max() < 1e-2
     with pytest.raises(InputMismatchError, match="share none"):
         Rig([camera, laser], ["camera", "laser"], [(c.X, np.zeros(6)), (c.X, np.zeros(3))])
+
+
+def test_joint_fit_jacobian_against_central_differences():
+    """The joint fit's Jacobian (each pose's error stepped in every view at once, by 1.5e-8 of a
+    radian or metre; the sensors' relative poses stepped together, each moving its own rows) matches
+    central differences to 1e-6 in every column: a step of 1.5e-8 units of the robot's accuracy
+    left the pose errors' columns 2e-4 off, and the fits crawled to their tolerance."""
+    from handeye.estimation.core import Problem, _function, _groups, _jacobian
+    from handeye.sensors.rig import Rig
+
+    sc = rig_scene(6, "eye_to_hand", rng=4, cameras=3, robot_error=ERROR)
+    members = sc.camera_models()
+    for m, c in zip(members, sc.cameras):
+        m.start(sc.flange2base, c.X, sc.Z)
+    rig = Rig(members, ["c0", "c1", "c2"], [(c.X, m.target_params(sc.Z)) for m, c in zip(members, sc.cameras)])
+    robot = PoseErrors(sc.flange2base, ERROR)
+    X0, p0 = rig.start(sc.flange2base, None, None)
+    problem = Problem(rig, robot, X0, p0)
+    rows = np.arange(len(rig.owner))
+    sigma = np.full(int(_groups(rig).max()) + 1, 1e-4)
+    rng = np.random.default_rng(0)
+    x = np.r_[rng.normal(0, 1e-4, 6 + len(p0)), rng.normal(0, 1, robot.n_params)]
+    J = _jacobian(problem, rows, sigma)(x)
+    fun = _function(problem, rows, sigma)
+    h = np.r_[np.full(6 + len(p0), 1e-6), np.full(robot.n_params, 1e-2)]
+    central = np.empty_like(J)
+    for j in range(len(x)):
+        e = np.zeros(len(x))
+        e[j] = h[j]
+        central[:, j] = (fun(x + e) - fun(x - e)) / (2 * h[j])
+    assert np.all(np.linalg.norm(J - central, axis=0) <= 1e-6 * np.linalg.norm(central, axis=0))
+
+
+def test_rig_report_has_a_section_per_sensor():
+    """A rig's report: the rig's picture, then one section per sensor in the sensors' order (its X
+    with its std, its residual per view; the others' pose relative to the first); a sensor left out
+    for disagreeing keeps a section that says so, with its own X."""
+    import re
+
+    from handeye.report.html import report_html
+
+    sc = rig_scene(10, "eye_to_hand", rng=4002, cameras=3, robot_error=ERROR)
+    bad = calibrate_rig(sc.camera_models({1: 0.05}), ["c0", "c1", "c2"], ControllerPoses(sc.flange2base, ERROR))
+    assert [n for n, _ in bad.disagreeing] == ["c1"]
+    page = report_html(bad.joint)
+    assert re.findall(r'<section class="sensor" id="sensor-([^"]+)">', page) == ["c0", "c2", "c1"]
+    rig = page.split('<section id="rig">')[1].split('<section id="residuals">')[0]
+    assert rig.count("<img") == 1 + 2  # the picture, and the residual figure of each sensor in the joint fit
+    c1 = rig.split('id="sensor-c1">')[1].split("</section>")[0]
+    assert "disagrees with the rest" in c1 and "its own calibration" in c1 and "calibrated alone" in c1
+    c2 = rig.split('id="sensor-c2">')[1].split("</section>")[0]
+    assert "c22c0" in c2 and "in the joint fit" in c2
+    figures = bad.joint.sensor.figures
+    assert len(figures["view_rms_mm_per_sensor"]["c2"]) == 10 and figures["alone"]["c1"]["verdict"]

@@ -171,11 +171,29 @@ def _function(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
     sensor, robot = problem.sensor, problem.robot
     weight = _weight(problem, rows, sigma)
 
+    mask = _entry_mask(sensor, rows)
+
     def fun(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
         r = sensor.residuals(X, p, robot.flange2base(d), rows) * weight
-        return np.concatenate([r.ravel(), robot.prior(d), PIN * (problem.pins @ x[:6])])
+        return np.concatenate([r.ravel() if mask is None else r[mask], robot.prior(d), PIN * (problem.pins @ x[:6])])
     return fun
+
+
+def _entry_mask(sensor: SensorModel, rows: NDArray[np.intp]) -> NDArray[np.bool_] | None:
+    """Per row of ``rows`` and residual column whether it is a measurement (``entry_mask``: a rig
+    pads a narrower sensor's rows with zeros, which the fit leaves out: a laser profiler's beside a
+    camera's doubled the rows of every factorization), or None when every entry is."""
+    mask = getattr(sensor, "entry_mask", None)
+    return None if mask is None else np.asarray(mask, bool)[rows]
+
+
+def _entry_rows(sensor: SensorModel, rows: NDArray[np.intp]) -> NDArray[np.intp]:
+    """Per residual entry of :func:`_function` (before the prior and the pins) its position in ``rows``."""
+    mask = _entry_mask(sensor, rows)
+    if mask is None:
+        return np.repeat(np.arange(len(rows)), np.asarray(sensor.shape).shape[1])
+    return np.nonzero(mask)[0]
 
 
 def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
@@ -186,7 +204,7 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
     sensor, robot = problem.sensor, problem.robot
     if robot.n_params and getattr(robot, "param_view", None) is not None:
         return _per_view_jacobian(problem, rows, sigma)
-    if not hasattr(sensor, "jacobian") or robot.n_params:
+    if not hasattr(sensor, "jacobian") or robot.n_params or getattr(sensor, "entry_mask", None) is not None:
         return "2-point"
     weight = _weight(problem, rows, sigma)
     pins = np.c_[PIN * problem.pins, np.zeros((len(problem.pins), len(problem.p0)))]
@@ -202,37 +220,73 @@ def _per_view_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[
     """Finite differences of :func:`_function` for a robot whose unknowns each move one view's pose
     (``param_view``: per unknown its view; each pose's own error): an unknown moves only its view's
     rows and its own prior row, so the same unknown of every view is stepped at once (6 evaluations
-    for 6 unknowns per view, not 6 per view), besides one per unknown of X and the sensor."""
+    for 6 unknowns per view, not 6 per view), by 1.5e-8 of a radian or a metre (``param_size``: the
+    size of one of its units; a step of 1.5e-8 units of a robot's accuracy moved the residuals by
+    ~1e-8 of their size, where rounding left the derivative ~1e-4 off and the fits crawled to their
+    tolerance: 2-4x the iterations). The sensor's unknowns that move one block of rows each
+    (``param_block``, ``row_block``: a rig's sensor's pose relative to the first) are stepped
+    together when their blocks differ (:func:`_column_groups`); X's one at a time."""
     fun = _function(problem, rows, sigma)
     view = np.asarray(problem.robot.param_view, dtype=np.intp)
     n_x = 6 + len(problem.p0)
     n_d = len(view)
-    c = np.asarray(problem.sensor.shape).shape[1]
-    entry_view = np.repeat(np.asarray(problem.sensor.owner)[rows], c)
+    at_row = _entry_rows(problem.sensor, rows)
+    entry_view = np.asarray(problem.sensor.owner)[rows][at_row]
     first = np.r_[0, np.flatnonzero(np.diff(view)) + 1]
     position = np.arange(n_d) - first[np.searchsorted(first, np.arange(n_d), side="right") - 1]
+    size = getattr(problem.robot, "param_size", None)
+    h_d = 1.5e-8 / np.asarray(size, float) if size is not None else np.full(n_d, 1.5e-8)
+    blocks = getattr(problem.sensor, "param_block", None)
+    if blocks is None or len(problem.p0) == 0:
+        blocks, entry_block = np.full(len(problem.p0), -1), np.zeros(len(entry_view), dtype=np.intp)
+    else:
+        entry_block = np.asarray(problem.sensor.row_block, dtype=np.intp)[rows][at_row]
+    groups = [[j] for j in range(6)] + [[6 + j for j in g] for g in _column_groups(np.asarray(blocks, dtype=np.intp))]
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         f0 = fun(x)
         J = np.zeros((len(f0), len(x)))
-        for j in range(n_x):
-            h = 1.5e-8 * max(1.0, abs(x[j]))
+        for group in groups:
+            h = 1.5e-8 * np.maximum(1.0, np.abs(x[group]))
             step = x.copy()
-            step[j] += h
-            J[:, j] = (fun(step) - f0) / h
+            step[group] += h
+            df = fun(step) - f0
+            if len(group) == 1:
+                J[:, group[0]] = df / h[0]
+                continue
+            for j, hj in zip(group, h):  # columns of distinct blocks: each moves its own block's entries only
+                at = np.flatnonzero(entry_block == blocks[j - 6])
+                J[at, j] = df[at] / hj
         for g in np.unique(position):
             group = np.flatnonzero(position == g)
             step = x.copy()
-            step[n_x + group] += 1.5e-8
-            df = (fun(step) - f0) / 1.5e-8
+            step[n_x + group] += h_d[group]
+            df = fun(step) - f0
             column = np.full(int(view.max()) + 1, -1)
             column[view[group]] = n_x + group
             at = column[entry_view]
             hit = np.flatnonzero(at >= 0)
-            J[hit, at[hit]] = df[hit]
-            J[len(entry_view) + group, n_x + group] = df[len(entry_view) + group]
+            J[hit, at[hit]] = df[hit] / h_d[at[hit] - n_x]
+            J[len(entry_view) + group, n_x + group] = df[len(entry_view) + group] / h_d[group]
         return J
     return jac
+
+
+def _column_groups(blocks: NDArray[np.intp]) -> list[list[int]]:
+    """Columns that may be stepped together in finite differences: per column its block of rows
+    (-1: every row, alone in its group); greedily, each column into the first group without its block."""
+    groups: list[list[int]] = []
+    taken: list[set[int]] = []
+    for j, b in enumerate(blocks):
+        for group, used in zip(groups, taken):
+            if b >= 0 and -1 not in used and b not in used:
+                group.append(j)
+                used.add(int(b))
+                break
+        else:
+            groups.append([j])
+            taken.append({int(b)})
+    return groups
 
 
 def _cov(jac: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -326,7 +380,10 @@ def downdated(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> Fitted
     owner = np.asarray(problem.sensor.owner)
     c = np.asarray(problem.sensor.shape).shape[1]
     held = np.flatnonzero(~np.isin(owner[full.rows], np.asarray(views)))
-    drop = (c * held[:, None] + np.arange(c)).ravel()  # the rows of jac and fun left out
+    if getattr(problem.sensor, "entry_mask", None) is None:
+        drop = (c * held[:, None] + np.arange(c)).ravel()  # the rows of jac and fun left out
+    else:
+        drop = np.flatnonzero(np.isin(_entry_rows(problem.sensor, full.rows), held))
     J_h, r_h = full.jac[drop], full.fun[drop]
     step = np.linalg.lstsq(full.normal - J_h.T @ J_h, J_h.T @ r_h, rcond=None)[0]
     x = full.x + step

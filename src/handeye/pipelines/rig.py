@@ -41,9 +41,11 @@ DISAGREE = 1.5
 
 @dataclass(frozen=True)
 class RigCalibration:
-    """A rig's calibration: the joint fit (``joint``: sensor 0's X as ``X``, every sensor's X and the
-    relative poses in ``joint.sensor.figures``), each sensor's own (``alone``, by name), the sensors
-    that disagreed with the rest (named, with why; left out of ``joint``) and the sensors skipped."""
+    """A rig's calibration: the joint fit (``joint``: sensor 0's X as ``X``; in ``joint.sensor.figures``
+    every sensor's X, its residual per view, the relative poses, each sensor's own answer in short
+    (``alone``) and the sensors left out; their reasons in ``joint.notes``), each sensor's own
+    (``alone``, by name), the sensors that disagreed with the rest (named, with why; left out of
+    ``joint``) and the sensors skipped."""
 
     joint: Calibration | None
     alone: dict[str, Calibration]
@@ -150,7 +152,18 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
         joint = replace(joint, sensor=replace(joint.sensor, figures=dict(joint.sensor.figures, X_per_sensor=per)))
     if joint is None and not alone:
         raise DegenerateMotionError("no sensor of the rig could be calibrated: " + "; ".join(f"{n}: {w}" for n, w in skipped))
+    if joint is not None:  # each sensor's own answer and the sensors left out, in the joint fit's figures and notes
+        own = {n: {"X": c.X.tolist(), "std_deg_mm": c.std.tolist(), "verdict": c.verdict, "fit_rms_mm": c.sensor.fit_rms_mm,
+                   "heldout_mm": None if c.prediction_error is None else c.prediction_error["mm"]} for n, c in alone.items()}
+        figures = dict(joint.sensor.figures, alone=own, disagreeing=[n for n, _ in disagreeing], skipped=[n for n, _ in skipped])
+        joint = replace(joint, sensor=replace(joint.sensor, figures=figures), notes=_left_out(disagreeing, skipped) + list(joint.notes))
     return RigCalibration(joint, alone, list(sensor_names), disagreeing, skipped)
+
+
+def _left_out(disagreeing: list[tuple[str, str]], skipped: list[tuple[str, str]]) -> list[str]:
+    """The sensors left out of the joint fit, with why, in words."""
+    return ([f"sensor {n} disagrees with the rest: {why}" for n, why in disagreeing]
+            + [f"sensor {n} skipped: {why}" for n, why in skipped])
 
 
 def _member_rms(joint: Calibration, k: int) -> float:
@@ -167,8 +180,10 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     -------
     Calibration
         The joint fit: X is the first sensor's; ``sensor.figures`` holds every sensor's X with its
-        std (``X_per_sensor``), the relative poses (``relative``), each sensor's own answer
-        (``alone``) and the sensors that disagreed or were skipped; the notes say the same in words.
+        std (``X_per_sensor``), its residual per view (``view_rms_mm_per_sensor``), the relative
+        poses (``relative``), each sensor's own answer (``alone``: X, std, verdict, its fit's RMS and
+        held-out error, mm) and the sensors that disagreed or were skipped; the notes say the same
+        in words.
         With one sensor left, that sensor's own calibration, with a note.
 
     Raises
@@ -182,9 +197,10 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     s = folder if isinstance(folder, RigSession) else load_rig_session(folder)
     target = target_from_spec(s.target_spec, where="target")
     members, notes = [], list(s.notes)
+    # every sensor's images in one parallel detection (no worker idle at the end of each sensor's)
+    found = iter(detect_images([p for sensor in s.sensors for p in sensor.images if p is not None], target, progress=progress))
     for sensor in s.sensors:
         paths = [p for p in sensor.images if p is not None]
-        found = iter(detect_images(paths, target, progress=progress))
         image_points, object_points = [], []
         for p in sensor.images:
             det = next(found).detection if p is not None else None
@@ -194,14 +210,10 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
         notes.append(f"sensor {sensor.name}: the target found in {seen} of {len(paths)} images")
         members.append(CameraCorners(s.setup, s.names, image_points, object_points, sensor.K, sensor.dist))
     rig = calibrate_rig(members, [x.name for x in s.sensors], ControllerPoses(s.flange2base, opts.robot_accuracy), folds=opts.folds)
-    alone = {n: {"X": c.X.tolist(), "std_deg_mm": c.std.tolist(), "verdict": c.verdict} for n, c in rig.alone.items()}
-    words = [f"sensor {n} disagrees with the rest: {why}" for n, why in rig.disagreeing]
-    words += [f"sensor {n} skipped: {why}" for n, why in rig.skipped]
     if rig.joint is None:
         only = next(iter(rig.alone.values()))
-        return replace(only, notes=notes + words + ["one sensor left: its own calibration, no rig"] + list(only.notes),
+        return replace(only, notes=notes + _left_out(rig.disagreeing, rig.skipped) + ["one sensor left: its own calibration, "
+                                                                                       "no rig"] + list(only.notes),
                        input_folder=s.folder)
-    figures = dict(rig.joint.sensor.figures, alone=alone, disagreeing=[n for n, _ in rig.disagreeing],
-                   skipped=[n for n, _ in rig.skipped])
-    return replace(rig.joint, sensor=replace(rig.joint.sensor, figures=figures), notes=notes + words + list(rig.joint.notes),
+    return replace(rig.joint, notes=notes + list(rig.joint.notes),
                    skipped=[(n, w) for n, w in rig.skipped] + list(rig.joint.skipped), input_folder=s.folder)

@@ -8,6 +8,10 @@ import io
 import warnings
 
 import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from .files import euler_angles
 
 _COLOURS = {"good": "#1e7b34", "weak": "#b36b00", "partial": "#b36b00", "degenerate": "#b00020", "inconsistent": "#b00020",
             "not checked": "#555555"}
@@ -54,3 +58,16 @@ def _e(s: object) -> str:
 
 def _fmt(v, digits: int = 3) -> str:
     return ", ".join(f"{x:.{digits}f}" if np.isfinite(x) else "not determined" for x in np.atleast_1d(v))
+
+
+def _transform_table(T: NDArray[np.float64], std: NDArray[np.float64] | None) -> str:
+    rot = Rotation.from_matrix(T[:3, :3])
+    t_mm = 1e3 * T[:3, 3]
+    rows = [("translation (mm)", _fmt(t_mm, 3), _fmt(std[3:], 3) if std is not None else "—")]
+    rows.append(("rotation vector (deg)", _fmt(rot.as_rotvec(degrees=True), 4), _fmt(std[:3], 4) if std is not None else "—"))
+    rows.append(("quaternion w, x, y, z", _fmt(rot.as_quat(canonical=True, scalar_first=True), 6), ""))
+    rows.append(("roll, pitch, yaw (deg, fixed x-y-z)", _fmt(euler_angles(rot, "xyz", True), 4), ""))
+    body = "".join(f'<tr><td class="l">{_e(a)}</td><td>{b}</td><td>{c}</td></tr>' for a, b, c in rows)
+    matrix = "\n".join("  ".join(f"{v: .6f}" for v in row) for row in T)
+    return (f'<table><tr><th class="l"></th><th>value</th><th>std (1 sigma)</th></tr>{body}</table>'
+            f"<pre>{_e(matrix)}</pre>")

@@ -4,7 +4,8 @@ Sections (each a ``<section id=...>``): ``verdict`` (banner), ``result`` (X and 
 uncertainty, ready-to-paste ROS lines), ``residuals`` (per-pose charts), ``overlays`` (detected vs
 reprojected target points on every image, when images were used), ``scene`` (3D view of robot,
 camera and target poses), ``axes`` (the motions' rotation axes on the unit sphere), ``solvers``
-(every solver on the same data) and ``advice``. Every picture is embedded as a base64 PNG or JPEG;
+(every solver on the same data) and ``advice``; a rig's report also has ``rig`` (its picture and a
+section per sensor, :mod:`handeye.report._rig`). Every picture is embedded as a base64 PNG or JPEG;
 the page loads nothing from anywhere.
 """
 
@@ -16,7 +17,6 @@ from typing import Iterable
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from .._shared.io import atomic_write
 from .._shared.lazy import lazy_module
@@ -31,8 +31,9 @@ from ..robot.kinematics import display_unit
 from ..sensors.camera.detect import default_jobs
 from ..sensors.camera.pnp import project_points
 from ._overlay import jpeg, overlay_thumbnail, zoom_size
-from ._page import _COLOURS, _CSS, _e, _figure, _fmt, _img, _png
-from .files import euler_angles, result_dict
+from ._page import _COLOURS, _CSS, _e, _figure, _fmt, _img, _png, _transform_table
+from ._rig import RIG_FIGURES, is_rig, rig_sections
+from .files import result_dict
 
 cv2 = lazy_module("cv2")
 
@@ -240,19 +241,6 @@ def _rejected_thumbs(cal: Calibration) -> list[tuple[str, str]]:
 # the page
 
 
-def _transform_table(T: NDArray[np.float64], std: NDArray[np.float64] | None) -> str:
-    rot = Rotation.from_matrix(T[:3, :3])
-    t_mm = 1e3 * T[:3, 3]
-    rows = [("translation (mm)", _fmt(t_mm, 3), _fmt(std[3:], 3) if std is not None else "—")]
-    rows.append(("rotation vector (deg)", _fmt(rot.as_rotvec(degrees=True), 4), _fmt(std[:3], 4) if std is not None else "—"))
-    rows.append(("quaternion w, x, y, z", _fmt(rot.as_quat(canonical=True, scalar_first=True), 6), ""))
-    rows.append(("roll, pitch, yaw (deg, fixed x-y-z)", _fmt(euler_angles(rot, "xyz", True), 4), ""))
-    body = "".join(f'<tr><td class="l">{_e(a)}</td><td>{b}</td><td>{c}</td></tr>' for a, b, c in rows)
-    matrix = "\n".join("  ".join(f"{v: .6f}" for v in row) for row in T)
-    return (f'<table><tr><th class="l"></th><th>value</th><th>std (1 sigma)</th></tr>{body}</table>'
-            f"<pre>{_e(matrix)}</pre>")
-
-
 def _view_residual_figure(cal: Calibration) -> str:
     """Per view of a sensor's fit: its RMS residual and, when cross-validated, its held-out error (mm)."""
     sf = cal.sensor
@@ -346,8 +334,9 @@ def _sensor_residuals_section(cal: Calibration) -> str:
                         "others evenly.</p>" if len(shown) < len(sf.sections) else ""))
     if cal.skipped:
         parts.append("<p>Views not used: " + "; ".join(f"{_e(n)} ({_e(r)})" for n, r in cal.skipped) + "</p>")
+    shown = {k: v for k, v in sf.figures.items() if not (is_rig(cal) and k in RIG_FIGURES)}  # a rig's: in its own sections
     rows = "".join(f'<tr><td class="l">{_e(k)}</td><td class="l">{_e(_figure_text(v))}</td></tr>'
-                   for k, v in sf.figures.items())
+                   for k, v in shown.items())
     parts.append(f"<h3>The {_e(sf.sensor)}'s own figures</h3>"
                  f'<table><tr><th class="l">figure</th><th class="l">value</th></tr>{rows}</table></section>')
     return "".join(parts)
@@ -615,7 +604,7 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
              _verdict_section(cal, verdict, pres),
              _result_section(cal, data)]
     if cal.target2cam is None:  # a sensor's fit (depth, laser, ...): its views' residuals and figures
-        parts += [_sensor_residuals_section(cal), _kinematics_section(cal),
+        parts += [rig_sections(cal) if is_rig(cal) else "", _sensor_residuals_section(cal), _kinematics_section(cal),
                   '<section id="scene"><h2>Robot, sensor and target</h2>' + _img(_png(_scene_figure(cal)), "3D view")
                   + "</section>", _advice_section(cal, data), "</body></html>\n"]
         return "".join(parts)

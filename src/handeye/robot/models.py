@@ -145,6 +145,12 @@ class PoseErrors(ControllerPoses):
         """Per unknown the view whose pose it moves (the fit's finite differences step every view's at once)."""
         return np.repeat(np.arange(len(self.poses)), 6)
 
+    @property
+    def param_size(self) -> NDArray[np.float64]:
+        """Per unknown the size of one of its units (rad, m): the robot's stated accuracy on that axis."""
+        one = np.r_[np.full(3, np.radians(self.accuracy[0])), np.full(3, 1e-3 * self.accuracy[1])]
+        return np.tile(one, len(self.poses))
+
     def flange2base(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
         """The poses moved by their errors ``d`` (in units of the accuracy)."""
         e = np.asarray(d, float).reshape(-1, 6)

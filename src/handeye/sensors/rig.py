@@ -70,6 +70,9 @@ class Rig:
         self.shape = np.concatenate([np.pad(np.asarray(m.shape, float), ((0, 0), (0, self.width - np.asarray(m.shape).shape[1])),
                                             constant_values=1.0) for m in members])
         self.member = np.concatenate([np.full(len(m.owner), k) for k, m in enumerate(members)]).astype(np.intp)
+        # the entries that are measurements (none of the padding), for the core to fit those alone
+        widths = np.array([np.asarray(m.shape).shape[1] for m in members])
+        self.entry_mask = None if np.all(widths == self.width) else np.arange(self.width)[None, :] < widths[self.member][:, None]
         self.noise_groups = self._noise_groups()
         self.local = np.concatenate([np.arange(len(m.owner)) for m in members]).astype(np.intp)
         X0 = self._X_start = np.asarray(starts[0][0], float)
@@ -91,6 +94,12 @@ class Rig:
         self.param_scale = np.concatenate([np.full(n_rel, 1e-3)] + [np.asarray(m.param_scale, float)
                                                                      for k, m in enumerate(members)
                                                                      if not (shared_target and k > 0)])
+        # per unknown the sensor whose rows alone it moves (-1: every sensor's, the shared target), per
+        # row its sensor: the core's finite differences step unknowns of different sensors at once
+        self.row_block = self.member
+        self.param_block = np.concatenate([np.repeat(np.arange(1, len(members)), 6)] + [
+            np.full(len(self._p_starts[k]), -1 if shared_target else k) for k in range(len(members))
+            if not (shared_target and k > 0)]).astype(np.intp)
 
     def _noise_groups(self) -> NDArray[np.intp]:
         """Per entry its noise group: each sensor's column groups its own, the padding one more."""
@@ -174,7 +183,8 @@ class Rig:
         """Each sensor's X with its std (deg, mm) from the joint covariance ``cov`` of X's increment
         and ``p`` (first order: ``X_k = X @ rel_k``, a left increment ``(a, b)`` of X and ``(c, e)``
         of ``rel_k`` move X_k by ``a + R_X c`` and ``b + R_X e - [R_X t_rel]x a``), and each
-        sensor's RMS residual (mm) over the fit's ``rows``."""
+        sensor's RMS residual (mm) over the fit's ``rows``, over all and per view (``view_rms_mm_per_sensor``:
+        per view of the rig, None where the sensor has no row in the fit)."""
         out = {}
         R_X = X[:3, :3]
         for k in range(len(self.members)):
@@ -188,10 +198,18 @@ class Rig:
                 J[:3, c:c + 3] = R_X
                 J[3:, c + 3:c + 6] = R_X
             out[self.sensor_names[k]] = {"X": (X @ rel).tolist(), "std_deg_mm": std_deg_mm(J @ cov @ J.T).tolist()}
+        rows = np.asarray(rows)
         r = self.residuals(X, p, flange2base, rows)
         rms = [float(1e3 * np.sqrt(np.mean(np.sum(r[self.member[rows] == k] ** 2, axis=1))))
                if np.any(self.member[rows] == k) else None for k in range(len(self.members))]
-        return {"X_per_sensor": out, "rms_mm_per_sensor": rms}
+        per_view = {}
+        for k, name in enumerate(self.sensor_names):  # per view of the rig: the sensor's RMS (mm), None where it has no row
+            at = self.member[rows] == k
+            views = np.asarray(self.owner)[rows[at]]
+            sq = np.bincount(views, np.sum(r[at] ** 2, axis=1), minlength=len(self.names))
+            n = np.bincount(views, minlength=len(self.names))
+            per_view[name] = [float(1e3 * np.sqrt(a / b)) if b else None for a, b in zip(sq, n)]
+        return {"X_per_sensor": out, "rms_mm_per_sensor": rms, "view_rms_mm_per_sensor": per_view}
 
     def notes(self, p, cov_p) -> list[str]:
         """Each sensor's pose in sensor 0's frame, with its std."""
