@@ -443,6 +443,19 @@ def test_x_from_profiles_of_a_step():
     assert abs(cal.sensor.figures["height_mm"]["value"] - 10.0) < 0.005
 
 
+def _true_balls(sc):
+    """Each profile's ball of the simulated fixture, from the truth: its points' centroid mapped into
+    the fixture's frame, the nearest ball."""
+    from handeye.frames.setups import robot_world_A
+    from handeye.simulate.laser import FIXTURE
+
+    A = robot_world_A(sc.flange2base, sc.setup) @ sc.X
+    mean = np.array([np.nanmean(p, axis=0) for p in sc.profiles])
+    at = np.einsum("nij,nj->ni", A[:, :3, :3], mean) + A[:, :3, 3]
+    return np.argmin(np.linalg.norm((at - sc.Z[:3, 3]) @ sc.Z[:3, :3] - np.asarray(FIXTURE["centres"])[:, None], axis=2),
+                     axis=0)
+
+
 def _fixture_model(setup, sc, keep=None):
     from handeye.sensors.laser.model import SpheresProfiles
     from handeye.simulate.laser import FIXTURE
@@ -477,17 +490,11 @@ def test_x_from_a_fixture_of_balls_told_apart(setup, monkeypatch):
 def test_a_ball_listed_but_never_scanned_is_named_and_left_out(monkeypatch):
     """Three balls listed, the 30 mm one never scanned (eye-to-hand): the profiles split over all three
     balls gave a wrong X with 'inconsistent'; now that ball is found, named and left out, and X is right."""
-    from handeye.frames.setups import robot_world_A
     from handeye.simulate import laser as simulated_laser
-    from handeye.simulate.laser import FIXTURE
 
     monkeypatch.setitem(simulated_laser.PROFILER, "points", 1000)
     sc = laser_scene(24, "eye_to_hand", rng=44, target="spheres")
-    A = robot_world_A(sc.flange2base, "eye_to_hand") @ sc.X
-    mean = np.array([np.nanmean(p, axis=0) for p in sc.profiles])
-    at = np.einsum("nij,nj->ni", A[:, :3, :3], mean) + A[:, :3, 3]
-    ball = np.argmin(np.linalg.norm((at - sc.Z[:3, 3]) @ sc.Z[:3, :3] - np.asarray(FIXTURE["centres"])[:, None], axis=2),
-                     axis=0)
+    ball = _true_balls(sc)
     keep = [k for k in range(24) if ball[k] != 1]
     cal = estimate(_fixture_model("eye_to_hand", sc, keep), ControllerPoses(sc.flange2base[keep]))
     assert cal.verdict == "good" and 1e3 * translation_error(cal.X, sc.X) < 0.02
@@ -500,18 +507,11 @@ def test_a_ball_listed_but_never_scanned_is_named_and_left_out(monkeypatch):
 
 def test_a_ball_of_the_fixture_with_too_few_profiles_is_said(monkeypatch):
     """One profile left on the 30 mm ball: the fit still holds, and a note says that ball got only one."""
-    from handeye.frames.setups import robot_world_A
     from handeye.simulate import laser as simulated_laser
-    from handeye.simulate.laser import FIXTURE
 
     monkeypatch.setitem(simulated_laser.PROFILER, "points", 1000)
     sc = laser_scene(24, "eye_in_hand", rng=43, target="spheres")
-    # each profile's ball, from the truth: its points' centroid mapped into the fixture's frame
-    A = robot_world_A(sc.flange2base, "eye_in_hand") @ sc.X
-    mean = np.array([np.nanmean(p, axis=0) for p in sc.profiles])
-    at = np.einsum("nij,nj->ni", A[:, :3, :3], mean) + A[:, :3, 3]
-    ball = np.argmin(np.linalg.norm((at - sc.Z[:3, 3]) @ sc.Z[:3, :3] - np.asarray(FIXTURE["centres"])[:, None], axis=2),
-                     axis=0)
+    ball = _true_balls(sc)
     keep = [k for k in range(24) if ball[k] != 1] + [int(np.flatnonzero(ball == 1)[0])]
     cal = estimate(_fixture_model("eye_in_hand", sc, keep), ControllerPoses(sc.flange2base[keep]))
     assert np.degrees(rotation_error(cal.X, sc.X)) < 0.01
