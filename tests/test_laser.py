@@ -487,22 +487,30 @@ def test_x_from_a_fixture_of_balls_told_apart(setup, monkeypatch):
     assert within_std(fitted.X, rough.X, fitted.std)
 
 
-def test_a_ball_listed_but_never_scanned_is_named_and_left_out(monkeypatch):
-    """Three balls listed, the 30 mm one never scanned (eye-to-hand): the profiles split over all three
-    balls gave a wrong X with 'inconsistent'; now that ball is found, named and left out, and X is right."""
+@pytest.mark.parametrize("missing", [1, 0])
+def test_a_ball_listed_but_never_scanned_is_named_and_left_out(missing, monkeypatch):
+    """Three balls listed, one never scanned (eye-to-hand): with the 30 mm one missing, the profiles
+    split over all three balls gave a wrong X with 'inconsistent'; now that ball is found, named and
+    left out, and X is right. Z is the first scanned ball's centre (not a placeholder for the missing
+    first ball)."""
     from handeye.simulate import laser as simulated_laser
+    from handeye.simulate.laser import FIXTURE
 
     monkeypatch.setitem(simulated_laser.PROFILER, "points", 1000)
     sc = laser_scene(24, "eye_to_hand", rng=44, target="spheres")
     ball = _true_balls(sc)
-    keep = [k for k in range(24) if ball[k] != 1]
+    keep = [k for k in range(24) if ball[k] != missing]
     cal = estimate(_fixture_model("eye_to_hand", sc, keep), ControllerPoses(sc.flange2base[keep]))
     assert cal.verdict == "good" and 1e3 * translation_error(cal.X, sc.X) < 0.02
     assert within_std(cal.X, sc.X, cal.std)
-    assert any(n.startswith("ball 2 (30.0 mm), listed under target: diameters: no profile was told to be of it")
-               for n in cal.notes)
+    size = 1e3 * FIXTURE["diameters"][missing]
+    assert any(n.startswith(f"ball {missing + 1} ({size:.1f} mm), listed under target: diameters: no profile was told to "
+                            "be of it") for n in cal.notes)
     centres = np.array(cal.sensor.figures["centres_m"])
-    assert np.isnan(centres[1]).all() and np.isfinite(centres[[0, 2]]).all()
+    assert np.isnan(centres[missing]).all() and np.isfinite(np.delete(centres, missing, axis=0)).all()
+    first = 1 if missing == 0 else 0
+    truth = np.asarray(FIXTURE["centres"][first]) @ sc.Z[:3, :3].T + sc.Z[:3, 3]
+    assert np.abs(cal.Z[:3, 3] - truth).max() < 1e-4 and np.all(np.isfinite(cal.std_Z[3:]))
 
 
 def test_a_ball_of_the_fixture_with_too_few_profiles_is_said(monkeypatch):

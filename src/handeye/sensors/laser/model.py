@@ -314,8 +314,14 @@ class SpheresProfiles(SphereProfiles):
         return out.ravel()
 
     def Z(self, X, p) -> NDArray[np.float64]:
-        """The first ball's centre (a translation, as a ball's)."""
-        return make_transform(np.eye(3), p[:3])
+        """The first scanned ball's centre (a translation, as a ball's)."""
+        k = int(np.argmax(self.scanned))
+        return make_transform(np.eye(3), p[3 * k:3 * k + 3])
+
+    def Z_std(self, p, cov_p) -> NDArray[np.float64]:
+        """The first scanned ball's centre's std (mm); a ball's orientation is not defined (NaN)."""
+        k = int(np.argmax(self.scanned))
+        return np.r_[np.full(3, np.nan), 1e3 * np.sqrt(np.clip(np.diag(cov_p)[3 * k:3 * k + 3], 0.0, None))]
 
     def figures(self, p, cov_p) -> dict[str, Any]:
         """Every ball's centre with its std, diameter and profiles."""
