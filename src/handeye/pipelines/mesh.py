@@ -141,7 +141,7 @@ def _agreeing(F, T, setup, placement, tol_m: float) -> tuple[NDArray[np.bool_], 
     return agree, X, Z
 
 
-def consistent_views(s: DepthSession, shape: Shape, v: MeshViews, progress: bool = False) -> MeshViews:
+def consistent_views(s: DepthSession, shape: Shape, v: MeshViews) -> MeshViews:
     """``v`` with the views whose pose of the shape disagrees with the others' (through the robot)
     found again where the others put it (:func:`~handeye.sensors.depth.registration.refine_shape`),
     or skipped, named. A shape that turns into itself (its pose not whole in any view) is left as it is."""
@@ -198,7 +198,7 @@ def calibrate_mesh_session(s: DepthSession, options: CalibrationOptions, *, fit_
         raise InputMismatchError(f"{s.folder}: the session's target is not a mesh")
     shape = load_shape(s.mesh.file, s.mesh.unit)
     v = measure_mesh_session(s, shape, progress, jobs)
-    v = consistent_views(s, shape, v, progress)
+    v = consistent_views(s, shape, v)
     if len(v.index) < 3:
         raise DegenerateMotionError(
             f"the shape is found in {len(v.index)} of {len(s.names)} clouds ({'; '.join(f'{n}: {r}' for n, r in v.skipped[:5])}): "

@@ -32,6 +32,24 @@ img{max-width:100%} .note{color:#555;font-size:.9em} section{overflow-wrap:anywh
 """
 
 
+def _axis_triad(ax, T: NDArray[np.float64], length: float, lw: float = 1.5) -> None:
+    """The x, y, z axes (red, green, blue) of one frame ``(4, 4)`` or many ``(N, 4, 4)``: one line
+    per colour, broken by NaN between frames (a line per axis and frame takes minutes for 1,000)."""
+    T = np.asarray(T).reshape(-1, 4, 4)
+    o = T[:, :3, 3]
+    for k, c in enumerate(("#d62728", "#2ca02c", "#1f77b4")):
+        seg = np.stack([o, o + length * T[:, :3, k], np.full_like(o, np.nan)], axis=1).reshape(-1, 3)
+        ax.plot(*seg.T, color=c, lw=lw)
+
+
+def _equal_axes(ax, points: NDArray[np.float64], grow: float) -> None:
+    """A 3D axes' limits: a cube about the ``points`` (n, 3), ``grow`` times their largest extent across."""
+    centre, half = points.mean(axis=0), grow * (float(np.ptp(points, axis=0).max()) or 1.0)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+
+
 def _figure(figsize: tuple[float, float]):
     """A matplotlib Figure drawn off-screen: no pyplot, so no backend is chosen for the user."""
     from matplotlib.figure import Figure  # matplotlib loads only when a report is drawn

@@ -17,12 +17,11 @@ from ..frames.metrics import rotation_error, translation_error
 from ..frames.setups import setup_info, target2base
 from ..geometry.se3 import invert
 from ..result import Calibration
-from ._page import _e, _figure, _img, _png, _transform_table
+from ._page import _axis_triad, _e, _equal_axes, _figure, _img, _png, _transform_table
 
 #: The sensor figures the rig's sections show (left out of the sensor's table of figures).
 RIG_FIGURES = ("X_per_sensor", "view_rms_mm_per_sensor", "relative", "alone", "rms_mm_per_sensor", "sensors", "disagreeing",
                "skipped")
-_AXES = (("#d62728", 0), ("#2ca02c", 1), ("#1f77b4", 2))
 
 
 def is_rig(cal: Calibration) -> bool:
@@ -31,19 +30,14 @@ def is_rig(cal: Calibration) -> bool:
 
 
 def _triad(ax, T: NDArray[np.float64], length: float, lw: float, label: str | None = None) -> None:
-    o = T[:3, 3]
-    for colour, k in _AXES:
-        ax.plot(*np.c_[o, o + length * T[:3, k]], color=colour, lw=lw)
+    _axis_triad(ax, T, length, lw)
     if label:
-        ax.text(*o, f" {label}", fontsize=9)
+        ax.text(*T[:3, 3], f" {label}", fontsize=9)
 
 
 def _panel(ax, points: NDArray[np.float64], title: str) -> None:
     """Equal axes around ``points`` (n, 3), labelled."""
-    centre, half = points.mean(axis=0), 0.6 * (float(np.ptp(points, axis=0).max()) or 1.0)
-    ax.set_xlim(centre[0] - half, centre[0] + half)
-    ax.set_ylim(centre[1] - half, centre[1] + half)
-    ax.set_zlim(centre[2] - half, centre[2] + half)
+    _equal_axes(ax, points, 0.6)
     ax.set_box_aspect((1, 1, 1))
     for setter, axis in ((ax.set_xlabel, "x"), (ax.set_ylabel, "y"), (ax.set_zlabel, "z")):
         setter(f"{axis} (m)", fontsize=8)

@@ -31,7 +31,7 @@ from ..robot.kinematics import display_unit
 from ..sensors.camera.detect import default_jobs
 from ..sensors.camera.pnp import project_points
 from ._overlay import jpeg, overlay_thumbnail, zoom_size
-from ._page import _COLOURS, _CSS, _e, _figure, _fmt, _img, _png, _transform_table
+from ._page import _COLOURS, _CSS, _axis_triad, _e, _equal_axes, _figure, _fmt, _img, _png, _transform_table
 from ._rig import RIG_FIGURES, is_rig, rig_sections
 from .files import result_dict
 
@@ -93,16 +93,6 @@ def _residual_figure(cal: Calibration) -> str:
     return _png(fig)
 
 
-def _axis_triad(ax, T: NDArray[np.float64], length: float, lw: float = 1.5) -> None:
-    """The x, y, z axes (red, green, blue) of one frame ``(4, 4)`` or many ``(N, 4, 4)``: one line
-    per colour, broken by NaN between frames (a line per axis and frame takes minutes for 1,000)."""
-    T = np.asarray(T).reshape(-1, 4, 4)
-    o = T[:, :3, 3]
-    for k, c in enumerate(("#d62728", "#2ca02c", "#1f77b4")):
-        seg = np.stack([o, o + length * T[:, :3, k], np.full_like(o, np.nan)], axis=1).reshape(-1, 3)
-        ax.plot(*seg.T, color=c, lw=lw)
-
-
 def _scene_figure(cal: Calibration):
     """The robot base frame in 3D: flange path, camera and target frames (a matplotlib Figure)."""
     cam2base, tgt2base = camera2base(cal.X, cal.flange2base, cal.setup), target2base(cal.Z, cal.flange2base, cal.setup)
@@ -130,11 +120,7 @@ def _scene_figure(cal: Calibration):
             ax.plot(*c[:, :3].T, color="#8b4513", lw=1.5)
     _axis_triad(ax, tgt2base[few] if not on_flange else tgt2base[:1], L, lw=2)
     ax.scatter(*tgt2base[:, :3, 3].T, color="#8b4513", s=12, marker="s", label="target")
-    centre = pts.mean(axis=0)
-    half = 0.55 * (float(np.ptp(pts, axis=0).max()) or 1.0)
-    ax.set_xlim(centre[0] - half, centre[0] + half)
-    ax.set_ylim(centre[1] - half, centre[1] + half)
-    ax.set_zlim(centre[2] - half, centre[2] + half)
+    _equal_axes(ax, pts, 0.55)
     ax.set_box_aspect((1, 1, 1), zoom=0.95)
     ax.set_xlabel("x (m)", labelpad=8)
     ax.set_ylabel("y (m)", labelpad=8)

@@ -30,7 +30,7 @@ from ...frames.setups import check_setup, predicted_target2cam, robot_world_A, s
 from ...geometry.se3 import invert, make_transform
 from .clouds import depth_sigma
 from .model import LATERAL, DepthRows, depth_figures, sphere_start
-from .shape import Shape
+from .shape import Shape, twist_axis
 
 __all__ = ["MeshSurface", "twist"]
 
@@ -125,8 +125,7 @@ class MeshSurface(DepthRows):
         shape = self.shape_model
         rot = self.free[np.linalg.norm(self.free[:, :3], axis=1) > 1e-9]
         if len(rot) == 1:
-            w, v = rot[0, :3], rot[0, 3:]
-            a, c = w / np.linalg.norm(w), np.cross(w, v) / float(w @ w)
+            a, c = twist_axis(rot[0])
             c = c + a * float((shape.centre - c) @ a)
             pts = [c - 0.5 * shape.radius * a, c + 0.5 * shape.radius * a]
         elif len(rot) >= 3:
@@ -249,7 +248,5 @@ def _rigid(source: NDArray[np.float64], target: NDArray[np.float64]) -> NDArray[
     P = np.swapaxes(source[:, :3], 1, 2).reshape(-1, 3)
     Q = np.swapaxes(target[:, :3], 1, 2).reshape(-1, 3)
     cp, cq = P.mean(axis=0), Q.mean(axis=0)
-    U, _, Vt = np.linalg.svd((P - cp).T @ (Q - cq))
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
-    R = Vt.T @ D @ U.T
+    R = Rotation.align_vectors(Q - cq, P - cp)[0].as_matrix()
     return make_transform(R, cq - R @ cp)

@@ -31,7 +31,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from ...errors import InputMismatchError
-from ...geometry.se3 import make_transform
+from ...geometry.se3 import make_transform, perpendicular_basis
 from .clouds import depth_sigma
 from .shape import Shape, dominant_normals, voxel_pick, weakest_rotation
 
@@ -165,9 +165,9 @@ def _background_planes(p: NDArray[np.float64], shape: Shape, tol: float, voxel: 
         on = rest[np.abs(p[rest] @ normal[k] - tri[ok][k, 0] @ normal[k]) < tol]
         if len(on) < most:
             break
-        label = _plane_components(p[on], normal[k], link)
-        sizes = np.bincount(label)
-        big = sizes[label] >= most
+        piece = _plane_components(p[on], normal[k], link)
+        sizes = np.bincount(piece)
+        big = sizes[piece] >= most
         if not big.any():
             break
         background[on[big]] = True
@@ -177,9 +177,8 @@ def _background_planes(p: NDArray[np.float64], shape: Shape, tol: float, voxel: 
 def _plane_components(p: NDArray[np.float64], normal: NDArray[np.float64], link: float) -> NDArray[np.intp]:
     """Per point of ``p`` (on a plane of ``normal``) its connected piece's label: the points
     rasterised in the plane at ``link``, 8-connected cells one piece."""
-    u = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
-    u /= np.linalg.norm(u)
-    uv = np.c_[p @ u, p @ np.cross(normal, u)]
+    u, w = perpendicular_basis(normal)
+    uv = np.c_[p @ u, p @ w]
     cell = np.floor((uv - uv.min(axis=0)) / link).astype(np.int64)
     size = cell.max(axis=0) + 1
     if np.prod(size) > 4_000_000:  # a plane that reaches far (grazing rays): its occupied cells joined in a graph
@@ -205,13 +204,13 @@ def _seeds(p: NDArray[np.float64], shape: Shape, link: float) -> list[NDArray[np
     middle of the points within 0.8 radius of it (mean shift), those that meet merged; at most 8."""
     if len(p) < 2:
         return []
-    label = _components(p, link)
-    sizes = np.bincount(label)
+    piece = _components(p, link)
+    sizes = np.bincount(piece)
     seeds: list[NDArray[np.float64]] = []
     for c in np.argsort(-sizes)[:4]:
         if sizes[c] < 20:
             break
-        members = p[label == c]
+        members = p[piece == c]
         if np.linalg.norm(members.max(axis=0) - members.min(axis=0)) <= 1.5 * shape.size:
             seeds.append(members.mean(axis=0))
             continue
@@ -325,10 +324,15 @@ def _inliers(shape: Shape, T: NDArray[np.float64], q: NDArray[np.float64]) -> tu
     the normal, and near a sample), their signed distances, normals (shape frame) and shape-frame points."""
     x = _to_shape(T[None], q)[0]
     d, dist, n = shape.surface(x, exact=True)
-    sigma = depth_sigma(q[:, 2])
-    on = (np.abs(d) < 3.5 * sigma + 0.5 * shape.spacing) & (dist < 4.0 * sigma + 3.0 * shape.spacing)
-    on &= np.sum((n @ T[:3, :3].T) * q, axis=1) < 0
+    on = _on_surface(shape, d, dist, depth_sigma(q[:, 2])) & (np.sum((n @ T[:3, :3].T) * q, axis=1) < 0)
     return on, d, n, x
+
+
+def _on_surface(shape: Shape, d: NDArray[np.float64], dist: NDArray[np.float64], sigma: NDArray[np.float64]
+                ) -> NDArray[np.bool_]:
+    """Whether points at signed distance ``d`` along the normal and ``dist`` from their nearest sample,
+    of depth noise ``sigma``, lie on the surface: within 3.5 of their noise along the normal and near a sample."""
+    return (np.abs(d) < 3.5 * sigma + 0.5 * shape.spacing) & (dist < 4.0 * sigma + 3.0 * shape.spacing)
 
 
 def _covered(x: NDArray[np.float64], shape: Shape) -> bool:
@@ -378,13 +382,11 @@ def refine_shape(shape: Shape, points: NDArray[np.float64], target2cam: NDArray[
     rng = np.random.default_rng(rng)
     q = np.asarray(points, float).reshape(-1, 3)
     q = q[np.isfinite(q).all(axis=1) & (q[:, 2] > 0)]
-    T = np.asarray(target2cam, float)
-    near = _near(shape, T, q, 3000, rng)
-    if len(near) < MIN_INLIERS:
-        raise InputMismatchError(f"{where}: {len(near)} points where the other views put the shape: it is not there")
-    sigma = depth_sigma(near[:, 2])
-    tight = 3.0 * float(np.median(sigma)) + 3.0 * shape.spacing
-    T = icp(shape, T[None], near, sigma, np.geomspace(4.0 * tight, tight, 8))[0]
+    pulled = _pulled_in(shape, np.asarray(target2cam, float), q, rng)
+    if pulled is None:
+        raise InputMismatchError(f"{where}: fewer than {MIN_INLIERS} points where the other views put the shape: it is "
+                                 "not there")
+    T, _, tight = pulled
     near = _near(shape, T, q, 3000, rng)
     T = icp(shape, T[None], near, depth_sigma(near[:, 2]), np.full(5, tight))[0]
     return _match(shape, q, [(1.0, T)], max_points, rng, where)
@@ -395,12 +397,10 @@ def _refined(shape: Shape, q: NDArray[np.float64], T: NDArray[np.float64], rays:
     """A candidate pose refined on the full cloud's points near it, turned about the axis the
     surface pins least (a disc's own, where holes or a pin fix it) to the best of 24 turns, and
     refined again: (score, pose) (the score: :meth:`_Rays.score`), None when no point is near."""
-    near = _near(shape, T, q, 3000, rng)
-    if len(near) < MIN_INLIERS:
+    pulled = _pulled_in(shape, T, q, rng)
+    if pulled is None:
         return None
-    sigma = depth_sigma(near[:, 2])
-    tight = 3.0 * float(np.median(sigma)) + 3.0 * shape.spacing
-    T = icp(shape, T[None], near, sigma, np.geomspace(4.0 * tight, tight, 8))[0]
+    T, near, tight = pulled
     turns = _turns(shape, T, near, tight)
     if len(turns) > 1:  # the best three turns, each refined: a turn a few degrees off its best scores low
         few = near[rng.permutation(len(near))[:500]]
@@ -411,14 +411,26 @@ def _refined(shape: Shape, q: NDArray[np.float64], T: NDArray[np.float64], rays:
     return float(score.max()), turns[int(np.argmax(score))]
 
 
+def _pulled_in(shape: Shape, T: NDArray[np.float64], q: NDArray[np.float64], rng: np.random.Generator
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64], float] | None:
+    """Pose ``T`` pulled in by trimmed ICP on the cloud's points ``q`` near it (thresholds from 4x down
+    to the tight one, 3 of the depth noise and 3 sample spacings): (pose, those points, the tight
+    threshold), None when fewer than :data:`MIN_INLIERS` are near."""
+    near = _near(shape, T, q, 3000, rng)
+    if len(near) < MIN_INLIERS:
+        return None
+    sigma = depth_sigma(near[:, 2])
+    tight = 3.0 * float(np.median(sigma)) + 3.0 * shape.spacing
+    return icp(shape, T[None], near, sigma, np.geomspace(4.0 * tight, tight, 8))[0], near, tight
+
+
 def _score(shape: Shape, T: NDArray[np.float64], q: NDArray[np.float64], rays: _Rays, every: int = 1) -> NDArray[np.float64]:
     """Per pose (H, 4, 4): the cloud's points ``q`` on the shape's surface, plus :meth:`_Rays.score`
     (the shape's samples seen where they are, less twice those seen through; ``every`` one of them)
     in proportion."""
     x = _to_shape(T, np.broadcast_to(q, (len(T),) + q.shape))
     d, dist, n = shape.surface(x.reshape(-1, 3))
-    sigma = np.tile(depth_sigma(q[:, 2]), len(T))
-    on = (np.abs(d) < 3.5 * sigma + 0.5 * shape.spacing) & (dist < 4.0 * sigma + 3.0 * shape.spacing)
+    on = _on_surface(shape, d, dist, np.tile(depth_sigma(q[:, 2]), len(T)))
     on &= np.sum(n.reshape(x.shape) @ np.swapaxes(T[:, :3, :3], 1, 2) * q, axis=2).ravel() < 0
     return on.reshape(len(T), -1).sum(axis=1) + every * rays.score(shape, T, every=every)
 

@@ -34,9 +34,10 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from ...errors import SessionError
+from ...geometry.se3 import perpendicular_basis
 from .clouds import read_points
 
-__all__ = ["Shape", "load_shape", "shape_from_mesh", "shape_from_points", "free_twists", "describe_twist", "weakest_rotation",
+__all__ = ["Shape", "load_shape", "shape_from_mesh", "shape_from_points", "free_twists", "twist_axis", "describe_twist", "weakest_rotation",
            "dominant_normals", "voxel_pick", "MESH_SUFFIXES", "TEMPLATE_SUFFIXES", "MAX_SIZE_M", "MIN_SIZE_M", "SYMMETRY_SHARE",
            "SPIN_SHARE", "MAX_SAMPLES"]
 
@@ -124,13 +125,10 @@ class Shape:
             d = u[3:] / np.linalg.norm(u[3:])
             x = x - np.outer((x - self.centre) @ d, d)
         if len(rot) == 1:
-            w, v = rot[0, :3], rot[0, 3:]
-            a = w / np.linalg.norm(w)
-            c = np.cross(w, v) / float(w @ w)
-            e1 = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
-            e1 /= np.linalg.norm(e1)
+            a, c = twist_axis(rot[0])
+            e1, e2 = perpendicular_basis(a)
             y = x - c
-            angle = np.arctan2(y @ np.cross(a, e1), y @ e1)
+            angle = np.arctan2(y @ e2, y @ e1)
             R = Rotation.from_rotvec(np.outer(-angle, a)).as_matrix()
             x = c + np.einsum("mij,mj->mi", R, y)
         elif len(rot) >= 3:
@@ -245,14 +243,19 @@ def weakest_rotation(points: NDArray[np.float64], normals: NDArray[np.float64], 
     return axis, np.cross(axis, -coupling @ axis)  # the translation that goes with the turn fixes the axis's point
 
 
+def twist_axis(u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """A rotating twist's axis ``(w, v)`` (6): its unit direction and its point nearest the origin."""
+    w, v = u[:3], u[3:]
+    return w / np.linalg.norm(w), np.cross(w, v) / float(w @ w)
+
+
 def describe_twist(u: NDArray[np.float64], centre: NDArray[np.float64]) -> str:
     """A free twist of a shape in words: a rotation about an axis (through a point) or a slide."""
     w, v = u[:3], u[3:]
     if np.linalg.norm(w) < 1e-9 * max(np.linalg.norm(v), 1e-300):
         d = v / np.linalg.norm(v)
         return f"its translation along ({d[0]:+.2f}, {d[1]:+.2f}, {d[2]:+.2f}) (the shape slides along itself)"
-    a = w / np.linalg.norm(w)
-    point = np.cross(w, v) / float(w @ w)  # the axis's point nearest the origin
+    a, point = twist_axis(u)
     return (f"its rotation about the axis ({a[0]:+.2f}, {a[1]:+.2f}, {a[2]:+.2f}) through ({1e3 * point[0]:.1f}, "
             f"{1e3 * point[1]:.1f}, {1e3 * point[2]:.1f}) mm (the shape turns into itself)")
 
@@ -346,12 +349,11 @@ def shape_from_points(points: NDArray[np.float64], name: str = "template") -> Sh
     for a shape without deep hollows: a camera sees the side a normal points to)."""
     p = np.asarray(points, float)
     p = p[np.isfinite(p).all(axis=1)]
-    _, nb = cKDTree(p).query(p, k=min(12, len(p)))
+    d, nb = cKDTree(p).query(p, k=min(12, len(p)))
     local = p[nb] - p[nb].mean(axis=1, keepdims=True)
     _, _, Vt = np.linalg.svd(local, full_matrices=False)
     normals = Vt[:, 2]
     normals *= np.where(np.einsum("mi,mi->m", normals, p - p.mean(axis=0)) < 0, -1.0, 1.0)[:, None]
-    d, _ = cKDTree(p).query(p, k=2)
     return Shape(name, p, normals, float(np.median(d[:, 1])), free_twists(p, normals))
 
 
