@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 import pytest
 import yaml
+from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 import handeye
@@ -29,6 +30,7 @@ from handeye.io.session import load_camera_stream, load_joint_stream, load_sessi
 from handeye.pipelines.joints import along_parallel_axes
 from handeye.planning.joints import TABLE_DOMINATES, suggest_joint_views
 from handeye.robot.kinematics import absorbed_parameters, arm_names, load_arm
+from handeye.robot.meshes import FLANGE, arm_meshes
 from handeye.robot.urdf import chain_from_urdf, chain_urdf
 from handeye.simulate import (
     arm_forward_kinematics,
@@ -726,3 +728,30 @@ def test_calibrate_streams_takes_a_joint_recording(tmp_path, capsys):
     assert "leave --robot-pose out" in capsys.readouterr().err
     assert main(base + ["--robot-format", "quat_wxyz", "--pendant-joints"]) == 2
     assert "--pendant-joints describes joint angles" in capsys.readouterr().err
+
+
+def test_the_panda_meshes_ride_on_the_table_frames_and_join_link_to_link():
+    """The arm's own meshes (markerless calibration) are placed by the table's frames: at any pose
+    each link touches the one before it, and the hand sits on the flange; another arm's joints are
+    refused."""
+    panda, meshes = load_arm("panda"), arm_meshes("panda")
+    rng = np.random.default_rng(3)
+    q = panda.home["eye_to_hand"] + rng.uniform(-1, 1, (4, 7)) * panda.spread
+    link2base = meshes.link2base(panda, q)
+    posed = meshes.posed_vertices(link2base)
+    _, _, owner = meshes.merged()
+    for i in range(len(q)):
+        parts = [posed[i][owner == j] for j in range(len(meshes.links))]
+        for j in range(1, 8):  # link j against link j - 1: the collision meshes leave ~1 mm
+            assert cKDTree(parts[j - 1]).query(parts[j])[0].min() < 2e-3
+        hand = meshes.links[8]
+        assert hand.name == "hand" and hand.frame == FLANGE
+        # the hand's mounting face is on the flange: its lowest point along the flange's z is at the flange
+        flange2base = panda.forward(q[i:i + 1])[0]
+        hand_in_flange = (parts[8] - flange2base[:3, 3]) @ flange2base[:3, :3]
+        assert abs(hand_in_flange[:, 2].min()) < 0.03
+    assert np.allclose(link2base[:, 0], np.eye(4))  # link 0 on the base
+    with pytest.raises(InputMismatchError, match="7-joint arm"):
+        meshes.link2base(load_arm("ur5"), np.zeros((1, 6)))
+    with pytest.raises(InputMismatchError, match="no meshes of the arm 'ur5'"):
+        arm_meshes("ur5")

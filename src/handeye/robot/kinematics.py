@@ -179,6 +179,16 @@ class Chain:
             q = q + c * self._moment_arms(q, table)
         return self._frames(q, table)[-1] @ self.flange
 
+    def joint_frames(self, q: ArrayLike, deltas: ArrayLike | None = None) -> list[NDArray[np.float64]]:
+        """Each joint's frame after its rotation, in the base frame: n stacks (N, 4, 4) for joint
+        angles ``q`` (N, n), the table changed by ``deltas`` (n, 4) when given (the links' meshes
+        ride on them: :mod:`handeye.robot.meshes`). Compliance is not applied."""
+        q = np.asarray(q, dtype=float)
+        if q.ndim != 2 or q.shape[1] != self.n_joints:
+            raise InputMismatchError(f"{self.name} has {self.n_joints} joints; the joint angles have shape {q.shape}")
+        table = self.table if deltas is None else self.table + np.asarray(deltas, dtype=float).reshape(self.table.shape)
+        return self._frames(q, table)
+
     def moment_arms(self, q: ArrayLike, deltas: ArrayLike | None = None) -> NDArray[np.float64]:
         """(N, n): per joint the torque (N m) a 1 N load at the flange's origin makes about the
         joint's axis under gravity (``Chain.gravity``), i.e. the load's moment arm (m), signed
