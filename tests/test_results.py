@@ -34,6 +34,7 @@ def _round_trip(cal, folder):
     np.testing.assert_allclose(back.cov, cal.cov)
     assert back.verdict == cal.verdict and back.notes == cal.notes and back.setup == cal.setup
     assert back.diagnostics.advice == cal.diagnostics.advice
+    assert back.robot_accuracy == cal.robot_accuracy  # the robot's accuracy the std took
     assert back.prediction_error == cal.prediction_error
     np.testing.assert_allclose(back.flange2base, cal.flange2base)
     assert (back.target2cam is None) == (cal.target2cam is None)

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import shutil
+
+import cv2
 import numpy as np
 import pytest
 
 from handeye.errors import InputMismatchError
 from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.pipelines.rig import calibrate_rig
+from handeye.pipelines.verify import verify
 from handeye.robot.models import ControllerPoses, PoseErrors
 from handeye.sensors.camera.model import CameraCorners
 from handeye.simulate.rig import rig_scene
@@ -86,6 +90,34 @@ def test_rig_session_round_trip_and_bad_sessions(tmp_path):
     assert "sensor cam1: no image for 1 of 8 views (v03)" in " ".join(back.notes)
     launch = (tmp_path / "out" / "rig_static_tf.launch.py").read_text()
     assert "'cam0_optical_frame'" in launch and "'cam1_optical_frame'" in launch
+    # each sensor's own result files: its X with the joint fit's std, read back as one camera's result
+    for name in ("cam0", "cam1"):
+        own = load_result(tmp_path / "out" / "sensors" / name)
+        f = back.sensor.figures["X_per_sensor"][name]
+        assert np.allclose(own.X, f["X"]) and np.allclose(own.std, f["std_deg_mm"]) and own.verdict == back.verdict
+        assert own.sensor.sensor == "camera" and own.robot_accuracy == (0.01, 0.05)
+        assert own.notes[0].startswith(f"sensor {name} of a rig of 2")
+    assert np.allclose(back.X, load_result(tmp_path / "out" / "sensors" / "cam0").X)  # the first sensor's X is the rig's
+    assert np.allclose(back.std, load_result(tmp_path / "out" / "sensors" / "cam0").std)  # one std recipe for every sensor
+    assert "sensor cam1: no image for 1 of 8 views" in " ".join(load_result(tmp_path / "out" / "sensors" / "cam1").notes)
+    assert "cam1: no image" not in " ".join(load_result(tmp_path / "out" / "sensors" / "cam0").notes)
+    # handeye verify takes a sensor's own result, on a one-camera session of that camera's images
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    one = tmp_path / "cam1_only"
+    shutil.copytree(folder / "cam1", one / "images")
+    rows = (folder / "poses.csv").read_text().splitlines()
+    (one / "poses.csv").write_text("\n".join(["image" + rows[0][4:]] + [r.split(",", 1)[0] + ".png," + r.split(",", 1)[1]
+                                                                      for r in rows[1:] if not r.startswith("v03,")]) + "\n")
+    (one / "session.yaml").write_text(yaml.safe_dump({"setup": spec["setup"], "target": spec["target"], "poses": spec["poses"],
+                                                      "camera": spec["sensors"]["cam1"]["camera"]}))
+    with pytest.raises(InputMismatchError, match="the calibration's own inputs"):  # its own images are no second capture
+        verify(tmp_path / "out" / "sensors" / "cam1", one, progress=False)
+    rng = np.random.default_rng(0)
+    for p in (one / "images").iterdir():  # the same poses seen again: other bytes (sensor noise), the same geometry
+        image = cv2.imread(str(p))
+        cv2.imwrite(str(p), np.clip(image + rng.normal(0, 2, image.shape), 0, 255).astype(np.uint8))
+    again = verify(tmp_path / "out" / "sensors" / "cam1", one, progress=False)
+    assert again.verdict == "good" and again.rms_px < 2.0 and again.promised["mm"] > 0  # held against the mm it promised
     text = (folder / "session.yaml").read_text()
     (folder / "session.yaml").write_text(text.replace("  cam1:", "  cam0:", 1))
     with pytest.raises(SessionError, match="key 'cam0' given twice"):

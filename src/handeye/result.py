@@ -431,6 +431,9 @@ class Calibration:
     #: the std of X's six parameters (deg, mm) from each source: 'model' (the refinement's noise
     #: model, None for a closed form), 'jackknife' (the spread of X refitted without each pose)
     std_sources: dict[str, NDArray[np.float64] | None] | None = None
+    #: the robot's absolute accuracy (deg, mm per axis) that X's std took: the stated one, or raised to
+    #: what the views show of the robot's error; None when none was added (an exact robot)
+    robot_accuracy: tuple[float, float] | None = None
     #: SHA-256 of each image in ``image_names`` (verify refuses a calibration's own images), None without images
     image_sha256: list[str] | None = None
     #: the std of Z's six parameters (deg, mm; rotation about and translation along Z's parent axes): the

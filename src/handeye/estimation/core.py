@@ -62,7 +62,7 @@ from .validation import default_folds, fold_indices
 from .verdict import judged
 
 __all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "estimate", "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
-           "HELDOUT_FACTOR"]
+           "HELDOUT_FACTOR", "WEAKEST_NOTE"]
 
 #: Points whose residual exceeds this many of their std (after a robust first fit) are set aside.
 REJECT = 5.0
@@ -74,6 +74,8 @@ OUTLIER_FACTOR = 5.0
 FIT_FACTOR = 5.0
 #: Held-out views predicted this many times worse than the fit's residual: the verdict is inconsistent.
 HELDOUT_FACTOR = 4.0
+#: How the note on the direction of X the capture determines least well begins.
+WEAKEST_NOTE = "the capture determines X least well in"
 #: A direction of X whose std exceeds this (rad at 1 m, or m), or whose information is this small a
 #: share of the largest, is not determined by the capture.
 UNDETERMINED_STD, UNDETERMINED_SHARE = 1.0, 1e-13
@@ -505,7 +507,7 @@ def _weakest(cov_X: NDArray[np.float64], pins: NDArray[np.float64], setup: str) 
     words = _words(u, setup)
     std = float(np.sqrt(max(lam[k], 0.0)))
     size = f"{np.degrees(std):.3f} deg" if np.linalg.norm(u[:3]) >= np.linalg.norm(u[3:]) else f"{1e3 * std:.3f} mm"
-    return [f"the capture determines X least well in {words} (std {size} that way, before the robot's accuracy)"]
+    return [f"{WEAKEST_NOTE} {words} (std {size} that way, before the robot's accuracy)"]
 
 
 def _std_with_pins(cov_X: NDArray[np.float64], pins: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -114,5 +114,5 @@ def widened_uncertainty(cal: Calibration, cv_jack: NDArray[np.float64] | None,
                      f"which the {cal.estimator or cal.method} estimate holds fixed: give K and dist in session.yaml "
                      "from a calibration of their own to remove it")
     if cov is None:
-        return replace(cal, std_sources=sources, notes=notes)
-    return replace(cal, cov=cov, std=_std(cov), std_sources=sources, notes=notes)
+        return replace(cal, std_sources=sources, notes=notes, robot_accuracy=accuracy)
+    return replace(cal, cov=cov, std=_std(cov), std_sources=sources, notes=notes, robot_accuracy=accuracy)

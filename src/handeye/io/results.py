@@ -149,12 +149,14 @@ def load_result(path: str | Path) -> Calibration:
     sync = data.get("time_sync")
     sources = {k: (None if v is None else np.r_[_vector(v["rotation_deg"]), _vector(v["translation_mm"])])
                for k, v in (unc.get("sources") or {}).items()}
+    acc = unc.get("robot_accuracy")
     return Calibration(
         X=X, Z=Z, setup=setup, method=str(data.get("method", "")), flange2base=f2b, target2cam=t2c, pairs=pairs,
         cov=None if unc.get("cov") is None else np.array([_vector(r) for r in unc["cov"]]),
         std=_std_pair(unc, "std_rotation_deg", "std_translation_mm"),
         std_Z=_std_pair(data.get("Z"), "std_rotation_deg", "std_translation_mm"),
-        std_sources=sources or None, diagnostics=_diagnostics(data), estimator=data.get("estimator"),
+        std_sources=sources or None, robot_accuracy=None if not acc else (float(acc["rotation_deg"]), float(acc["translation_mm"])),
+        diagnostics=_diagnostics(data), estimator=data.get("estimator"),
         cross_validation=None if not cv else HeldOutErrors(dict(cv.get("per_estimator") or {}), cv.get("folds")),
         notes=list(data.get("notes") or []), inputs_sha256=data.get("inputs_sha256"),
         refinement=(data.get("refinement") or {}).get("type", "none"), sensor=_sensor(data),

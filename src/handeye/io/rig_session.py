@@ -24,6 +24,7 @@ does that); every key is checked.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -95,6 +96,9 @@ def load_rig_session(folder: str | Path) -> RigSession:
     out = []
     for name, block in sensors.items():
         at = f"{where}: sensors: {name}"
+        if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]*", str(name)):
+            raise SessionError(f"{at}: a sensor's name may hold letters, digits, '_', '-' and '.' (it names the sensor's "
+                               "folder of results and its ROS frame); rename it")
         if not isinstance(block, dict):
             raise SessionError(f"{at}: a mapping with camera (K, dist) and images (its folder)")
         check_keys(block, SENSOR_KEYS, at)

@@ -19,8 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .._shared.io import file_digest
 from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
-from ..estimation.core import estimate
+from ..estimation.core import WEAKEST_NOTE, estimate
+from ..estimation.uncertainty import robot_accuracy_cov
+from ..frames.metrics import std_deg_mm
 from ..io.rig_session import RigSession, load_rig_session
 from ..options import CalibrationOptions
 from ..result import Calibration
@@ -32,7 +35,7 @@ from ..sensors.camera.targets import target_from_spec
 from ..sensors.rig import Rig
 from ._sensor import sensor_options
 
-__all__ = ["RigCalibration", "calibrate_rig", "calibrate_rig_session", "DISAGREE"]
+__all__ = ["RigCalibration", "calibrate_rig", "calibrate_rig_session", "rig_members", "DISAGREE"]
 
 #: A sensor whose residual in the joint fit, against its stated noise, exceeds the other sensors'
 #: (their median) by this factor disagrees with the rest.
@@ -144,16 +147,20 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
             joint = replace(joint, notes=list(joint.notes) + [
                 f"{names[worst]}: {why}; with two sensors it stays in (the other's data are the only check)"])
         break
-    if joint is not None and getattr(robot, "accuracy", None) is not None:
-        # each sensor's X takes the robot's error common to all poses whole, as X's std does
-        acc = np.repeat(np.asarray(robot.accuracy, float), 3)
-        per = {n: dict(f, std_deg_mm=np.hypot(f["std_deg_mm"], acc).tolist())
-               for n, f in joint.sensor.figures["X_per_sensor"].items()}
+    if joint is not None and joint.robot_accuracy is not None:
+        # each sensor's X takes the robot's error common to all poses whole, as X's std does: the same
+        # accuracy (raised to what the views show) and the same formula as the first sensor's
+        per = {}
+        for n, f in joint.sensor.figures["X_per_sensor"].items():
+            cov = np.asarray(f["cov"]) + robot_accuracy_cov(np.asarray(f["X"]), joint.robot_accuracy)
+            per[n] = dict(f, std_deg_mm=std_deg_mm(cov).tolist(), cov=cov.tolist())
         joint = replace(joint, sensor=replace(joint.sensor, figures=dict(joint.sensor.figures, X_per_sensor=per)))
     if joint is None and not alone:
         raise DegenerateMotionError("no sensor of the rig could be calibrated: " + "; ".join(f"{n}: {w}" for n, w in skipped))
     if joint is not None:  # each sensor's own answer and the sensors left out, in the joint fit's figures and notes
-        own = {n: {"X": c.X.tolist(), "std_deg_mm": c.std.tolist(), "verdict": c.verdict, "fit_rms_mm": c.sensor.fit_rms_mm,
+        own = {n: {"kind": c.sensor.sensor, "target": c.sensor.target, "X": c.X.tolist(), "std_deg_mm": c.std.tolist(),
+                   "cov": None if c.cov is None else c.cov.tolist(), "Z": c.Z.tolist(), "verdict": c.verdict,
+                   "fit_rms_mm": c.sensor.fit_rms_mm,
                    "heldout_mm": None if c.prediction_error is None else c.prediction_error["mm"]} for n, c in alone.items()}
         figures = dict(joint.sensor.figures, alone=own, disagreeing=[n for n, _ in disagreeing], skipped=[n for n, _ in skipped])
         joint = replace(joint, sensor=replace(joint.sensor, figures=figures), notes=_left_out(disagreeing, skipped) + list(joint.notes))
@@ -169,6 +176,82 @@ def _left_out(disagreeing: list[tuple[str, str]], skipped: list[tuple[str, str]]
 def _member_rms(joint: Calibration, k: int) -> float:
     """Sensor ``k``'s RMS residual (mm) in the joint fit."""
     return float(joint.sensor.figures["rms_mm_per_sensor"][k])
+
+
+def _member_notes(notes: list[str], name: str, names: list[str]) -> list[str]:
+    """The rig's notes that concern sensor ``name``: those naming it, and those naming no sensor."""
+    def names_in(note: str) -> set[str]:
+        return {n for n in names if f"sensor {n}" in note or note.startswith(f"{n}:") or f"{n}2" in note or f"2{n}" in note}
+    return [n for n in notes if not names_in(n) or name in names_in(n)]
+
+
+def rig_members(cal: Calibration) -> dict[str, Calibration]:
+    """Each sensor's own result from a rig's calibration (:func:`calibrate_rig_session`): the joint
+    fit's X of that sensor with its covariance, the shared target, the rig's verdict and the notes
+    that concern it; a sensor left out of the joint fit (it disagreed with the rest) gets its own
+    calibration's X, std and verdict. A sensor that was skipped has none. Empty when ``cal`` is not
+    a rig's.
+
+    Each is a :class:`~handeye.result.Calibration` as one sensor's calibration is: written, it
+    reads back with :func:`handeye.load_result` and ``handeye verify`` takes it.
+
+    Examples
+    --------
+    >>> from handeye.robot.models import ControllerPoses
+    >>> from handeye.simulate.rig import rig_scene
+    >>> sc = rig_scene(12, "eye_in_hand", rng=0)
+    >>> rig = calibrate_rig(sc.camera_models(), ["left", "right"], ControllerPoses(sc.flange2base))
+    >>> members = rig_members(rig.joint)
+    >>> sorted(members), bool(np.allclose(members["left"].X, rig.joint.X))
+    (['left', 'right'], True)
+    """
+    if cal.sensor is None or "X_per_sensor" not in cal.sensor.figures:
+        return {}
+    f = cal.sensor.figures
+    names = list(f["sensors"]) + list(f.get("disagreeing", []))
+    first = f["sensors"][0]
+    out = {}
+    for k, name in enumerate(names):
+        joint = name in f["X_per_sensor"]
+        mine = f["X_per_sensor"][name] if joint else f["alone"][name]
+        seen = [(v, r) for v, r in zip(_view_names(cal), _per_view(f, name, cal)) if r is not None]
+        views, rms = [v for v, _ in seen], [r for _, r in seen]
+        figures = {"rig": {"sensors": names, "in_joint_fit": joint, "first_sensor": first},
+                   "alone": f["alone"].get(name)}
+        if joint and name != first:
+            figures["rig"]["pose_in_first_sensor"] = f["relative"][f"{name}2{first}"]
+        record = replace(cal.sensor, sensor=mine.get("kind", cal.sensor.sensor), target=mine.get("target", cal.sensor.target),
+                         views=views, residual_mm=np.asarray(rms, float), figures=figures, heldout_mm=None,
+                         sections=None, fit_rms_mm=float(np.sqrt(np.mean(np.square(rms)))) if rms else float("nan"))
+        cov = None if mine.get("cov") is None else np.asarray(mine["cov"], float)
+        how = (f"sensor {name} of a rig of {len(names)}: X from the joint fit of "
+               f"{', '.join(f['sensors'])}" if joint else
+               f"sensor {name} of a rig of {len(names)}: left out of the joint fit, its own calibration")
+        notes = _member_notes(list(cal.notes), name, names)
+        if name != first:  # the weakest direction the core names is the first sensor's X's
+            notes = [n for n in notes if not n.startswith(WEAKEST_NOTE)]
+        member = replace(cal, X=np.asarray(mine["X"], float), cov=cov, std=np.asarray(mine["std_deg_mm"], float), sensor=record,
+                         notes=[how] + notes)
+        if name in f.get("images_per_sensor", {}):  # a camera of a rig session: its images and intrinsics
+            im = f["images_per_sensor"][name]
+            member = replace(member, image_names=list(im["names"]), image_sha256=list(im["sha256"]),
+                             camera_matrix=np.asarray(im["K"], float), dist_coeffs=np.asarray(im["dist"], float),
+                             intrinsics_source="session.yaml", reprojection_rms=np.zeros(0))
+        if not joint:
+            member = replace(member, Z=np.asarray(mine["Z"], float), std_sources=None, std_Z=None, cross_validation=None,
+                             diagnostics=replace(cal.diagnostics, verdict=mine["verdict"]))
+        out[name] = member
+    return out
+
+
+def _view_names(cal: Calibration) -> list[str]:
+    """Every view of the rig, the fit's or not."""
+    return list(cal.diagnostics.names) if cal.diagnostics is not None and cal.diagnostics.names else list(cal.sensor.views)
+
+
+def _per_view(f: dict, name: str, cal: Calibration) -> list:
+    """Sensor ``name``'s RMS residual per view of the rig (None where it has none)."""
+    return f.get("view_rms_mm_per_sensor", {}).get(name) or [None] * len(_view_names(cal))
 
 
 def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationOptions | None = None, *,
@@ -215,5 +298,10 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
         return replace(only, notes=notes + _left_out(rig.disagreeing, rig.skipped) + ["one sensor left: its own calibration, "
                                                                                        "no rig"] + list(only.notes),
                        input_folder=s.folder)
-    return replace(rig.joint, notes=notes + list(rig.joint.notes),
+    # each camera's images by name and digest: its own result refuses them in verify (they are no second capture)
+    images = {x.name: {"names": [p.name for p in x.images if p is not None],
+                       "sha256": [file_digest(p) for p in x.images if p is not None],
+                       "K": np.asarray(x.K).tolist(), "dist": np.asarray(x.dist).tolist()} for x in s.sensors}
+    joint = replace(rig.joint, sensor=replace(rig.joint.sensor, figures=dict(rig.joint.sensor.figures, images_per_sensor=images)))
+    return replace(joint, notes=notes + list(rig.joint.notes),
                    skipped=[(n, w) for n, w in rig.skipped] + list(rig.joint.skipped), input_folder=s.folder)

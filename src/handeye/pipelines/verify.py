@@ -26,6 +26,7 @@ from ..frames.setups import predicted_target2cam
 from ..io.results import load_result, result_path
 from ..io.session import Session, SessionError, load_session
 from ..result import Calibration
+from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.pnp import project_points
 from .calibration import observe
 
@@ -75,8 +76,9 @@ class Verification:
         return "\n".join(rows)
 
     def summary(self) -> str:
-        promise = ("" if self.promised is None else f"; the calibration promised {self.promised.get('px') or 0:.3f} px, "
-                   f"{self.promised['mm']:.3f} mm (cross-validated)")
+        said = [] if self.promised is None else [f"{self.promised[u]:.3f} {u}" for u in ("px", "mm")
+                                                 if self.promised.get(u) is not None]
+        promise = f"; the calibration promised {', '.join(said)} (cross-validated)" if said else ""
         lines = [f"verification: {self.verdict} ({len(self.names)} views: RMS {self.rms_px:.3f} px, {self.rms_mm:.3f} mm "
                  f"at the target; median {np.median(self.px):.3f} px, worst {self.px.max():.3f} px{promise})"]
         lines += [f"advice: {a}" for a in self.advice]
@@ -154,7 +156,7 @@ def verify(result: str | Path | Calibration, session: str | Path, jobs: int | No
     sess = load_session(session)
     if sess.setup != cal.setup:
         raise InputMismatchError(f"the result is {cal.setup} but {sess.folder} is {sess.setup}")
-    if cal.sensor is not None:
+    if cal.sensor is not None and cal.sensor.sensor != CameraCorners.kind:  # a rig's camera has its own result: checkable
         raise InputMismatchError(f"the result is a {cal.sensor.sensor}'s ({cal.sensor.target}); verify checks a camera's "
                                  "result on images: calibrate the second capture and compare, or cross-validate (check)")
     _refuse_own_images(sess, cal, path.name if path is not None else "the calibration")
@@ -178,16 +180,18 @@ def verify(result: str | Path | Calibration, session: str | Path, jobs: int | No
         advice.append(f"view(s) {summarize(flagged)} are predicted over {FLAG_FACTOR:g}x worse than the median: check "
                       "their robot poses (a wrong pose, a tool that moved) or their images")
     promised = cal.prediction_error
-    rms = float(np.sqrt(np.mean(px**2)))
-    if promised is None or promised.get("px") is None:
+    # in pixels when the calibration promised pixels; a sensor's fit (a rig's camera) promises mm at the target
+    unit = next((u for u in ("px", "mm") if promised is not None and promised.get(u)), None)
+    rms = float(np.sqrt(np.mean((px if unit == "px" else mm) ** 2)))
+    if unit is None:
         verdict = "not compared"
         advice.append("the result holds no cross-validated prediction error to compare with (a calibration from poses, "
                       "or refine='none'): judge the errors against your application's tolerance")
-    elif rms <= PROMISE_FACTOR * promised["px"]:
+    elif rms <= PROMISE_FACTOR * promised[unit]:
         verdict = "good"
     else:
         verdict = "worse than promised"
-        advice.append(f"the new views are predicted {rms / promised['px']:.1f}x worse than the calibration's own "
+        advice.append(f"the new views are predicted {rms / promised[unit]:.1f}x worse than the calibration's own "
                       "held-out views: the camera or the target moved since, the robot's errors differ in this part of "
                       "its workspace, or the calibration's poses did not cover it; recalibrate with poses like these")
     return Verification(sess.setup, names, px, mm, verdict, advice, promised, list(obs.skipped), flagged,

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from .._shared.io import atomic_write, check_output_folder
 from ..estimation.diagnostics import compare_solvers
+from ..pipelines.rig import rig_members
 from ..result import Calibration
 from .files import (
     EXPORTS,
@@ -52,7 +53,9 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
     robot software (keys of :data:`EXPORTS`: a ROS 2 launch file, a ROS 1 / MoveIt launch file,
     easy_handeye2's .calib; 'all'). ``tool2flange``: the robot's tool (TCP) frame, so that the
     result files also give the camera (eye-in-hand) or the target (eye-to-hand) relative to it.
-    Returns the paths written, the report last.
+    A rig's calibration (:func:`handeye.pipelines.rig.calibrate_rig_session`) also gets
+    ``rig_static_tf.launch.py`` and each sensor's own ``sensors/<name>/result.json`` and ``.yaml``
+    (:func:`handeye.pipelines.rig.rig_members`). Returns the paths written, the report last.
 
     Examples
     --------
@@ -74,6 +77,8 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
         path = out_dir / "rig_static_tf.launch.py"
         atomic_write(path, ros2_rig_launch_file(frames, parent_frame or default_frames(cal.setup)[0]), protect)
         paths.append(path)
+        for name, member in rig_members(cal).items():  # each sensor's own result files, as one sensor's calibration writes them
+            paths += write_results(member, out_dir / "sensors" / name, protect, parent_frame, f"{name}_optical_frame", tool2flange)
     if report:
         rows = None
         if compare:

@@ -282,6 +282,9 @@ def _uncertainty_dict(cal: Calibration) -> dict[str, Any]:
         "cov": [_finite_or_none(row) for row in cal.cov],
         "cov_parameters": "X: rotation vector increment (rad, left), translation (m)",
     }
+    if cal.robot_accuracy is not None:
+        out["robot_accuracy"] = {"rotation_deg": float(cal.robot_accuracy[0]), "translation_mm": float(cal.robot_accuracy[1]),
+                                 "meaning": "per axis, the robot's absolute accuracy X's std includes"}
     if cal.std_sources is not None:
         out["sources"] = {k: (None if v is None else {"rotation_deg": _finite_or_none(v[:3]),
                                                       "translation_mm": _finite_or_none(v[3:])})

@@ -180,7 +180,7 @@ class Rig:
         return out
 
     def joint_figures(self, X, p, cov, flange2base, rows) -> dict[str, Any]:
-        """Each sensor's X with its std (deg, mm) from the joint covariance ``cov`` of X's increment
+        """Each sensor's X with its std (deg, mm) and covariance (as ``Calibration.cov``) from the joint covariance ``cov`` of X's increment
         and ``p`` (first order: ``X_k = X @ rel_k``, a left increment ``(a, b)`` of X and ``(c, e)``
         of ``rel_k`` move X_k by ``a + R_X c`` and ``b + R_X e - [R_X t_rel]x a``), and each
         sensor's RMS residual (mm) over the fit's ``rows``, over all and per view (``view_rms_mm_per_sensor``:
@@ -197,7 +197,9 @@ class Rig:
                 c = 6 + 6 * (k - 1)
                 J[:3, c:c + 3] = R_X
                 J[3:, c + 3:c + 6] = R_X
-            out[self.sensor_names[k]] = {"X": (X @ rel).tolist(), "std_deg_mm": std_deg_mm(J @ cov @ J.T).tolist()}
+            cov_k = J @ cov @ J.T
+            out[self.sensor_names[k]] = {"X": (X @ rel).tolist(), "std_deg_mm": std_deg_mm(cov_k).tolist(), "cov": cov_k.tolist(),
+                                         "kind": self.members[k].kind, "target": self.members[k].target}
         rows = np.asarray(rows)
         r = self.residuals(X, p, flange2base, rows)
         rms = [float(1e3 * np.sqrt(np.mean(np.sum(r[self.member[rows] == k] ** 2, axis=1))))
