@@ -22,23 +22,28 @@ from ..simulate import (
 from ..simulate.laser import TARGETS as LASER_TARGETS
 from ..simulate.linescan import linescan_scene, write_linescan_session
 from ..simulate.mesh import mesh_scene, write_mesh_session
-from ..simulate.rig import rig_scene, write_rig_session
+from ..simulate.rig import rig_joint_scene, rig_scene, write_rig_session
 from ._common import image_size_arg, number_arg, out_folder, sensor_target, whole_arg
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     out_folder(args.out)
     if args.sensor == "rig":
-        if args.robot != "arm" or args.arm is not None or args.target is not None:
-            raise InputMismatchError("--sensor rig simulates a 6-axis arm's controller poses and a chessboard; leave "
-                                     "--robot, --arm and --target out")
+        if args.robot != "arm" or args.target is not None:
+            raise InputMismatchError("--sensor rig simulates a 6-axis arm (its controller's poses, or with --arm its joint "
+                                     "angles) and a chessboard; leave --robot and --target out")
         on_flange = setup_info(args.setup).camera_on_flange
         cameras = args.cameras or (2 if on_flange else 3)
-        sc = rig_scene(args.poses, args.setup, args.seed, cameras=cameras, robot_error=(0.01, 0.05))
+        if args.arm is not None:  # joint angles of an arm 1-3 mm off its nominal table, the cameras side by side
+            sc = rig_joint_scene(args.poses, args.setup, args.seed, arm=args.arm, cameras=cameras)
+            error = f"the {sc.chain.name}'s joint angles, its real table 1-3 mm off the nominal one"
+        else:
+            sc = rig_scene(args.poses, args.setup, args.seed, cameras=cameras, robot_error=(0.01, 0.05))
+            error = "the robot 0.01 deg / 0.05 mm off"
         write_rig_session(args.out, sc, rng=args.seed, noise_px=args.noise_px)
         what = ("a stereo pair on the flange" if cameras == 2 else f"{cameras} cameras on the flange") if on_flange else \
-            f"{cameras} cameras fixed around the cell"
-        print(f"wrote rig session {args.out} ({args.poses} poses, {what}, a chessboard; the robot 0.01 deg / 0.05 mm off); "
+            f"{cameras} cameras fixed {'side by side' if args.arm else 'around the cell'}"
+        print(f"wrote rig session {args.out} ({args.poses} poses, {what}, a chessboard; {error}); "
               f"ground truth in {Path(args.out) / 'ground_truth.yaml'}")
         return 0
     if args.cameras is not None:

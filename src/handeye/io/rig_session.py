@@ -5,6 +5,7 @@
     SESSION/
       session.yaml
       poses.csv        # first column `view` (each robot pose's name), then the pose columns
+      joints.csv       # optional: first column `view`, then the joint angles (a joints: block)
       left/            # one folder per sensor: its images named by the view (v01.png, ...)
       right/
 
@@ -17,6 +18,8 @@
       left:  {camera: {K: [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], dist: [k1, k2, p1, p2, k3]}, images: left}
       right: {camera: {K: ..., dist: ...}, images: right}
 
+With ``joints: {file: joints.csv, unit: deg, arm: ur5}`` the robot's poses are its joint angles
+through the arm's table (fitted with the rig, as for one sensor); ``poses:`` may then be left out.
 A sensor may miss a view (no image of that name in its folder: said in a note); a sensor's name is
 its key (a name given twice is an error). Nothing is measured here (:mod:`handeye.pipelines.rig`
 does that); every key is checked.
@@ -35,8 +38,21 @@ from numpy.typing import NDArray
 from .._shared.text import summarize
 from ..errors import SessionError
 from ..frames.setups import check_setup
+from ..robot.kinematics import Chain
 from ..sensors.camera.targets import target_from_spec
-from .session import POSES_KEYS, SESSION_FILE, check_keys, check_session_keys, has_section, read_camera, read_robot_poses, read_session_yaml
+from .session import (
+    JOINTS_KEYS,
+    POSES_KEYS,
+    SESSION_FILE,
+    check_keys,
+    check_session_keys,
+    has_section,
+    joints_of_views,
+    read_camera,
+    read_joints,
+    read_robot_poses,
+    read_session_yaml,
+)
 
 __all__ = ["RigSession", "RigSensor", "load_rig_session", "is_rig_session", "SENSOR_KEYS", "IMAGE_SUFFIXES"]
 
@@ -67,11 +83,16 @@ class RigSession:
     flange2base: NDArray[np.float64]
     sensors: list[RigSensor]
     notes: list[str] = field(default_factory=list)
+    #: a ``joints:`` table: each view's joint angles (rad), the arm's nominal table, the file
+    joints: NDArray[np.float64] | None = None
+    arm: Chain | None = None
+    joints_path: Path | None = None
 
     @property
     def input_files(self) -> list[Path]:
         """Every file the session is read from."""
-        return [self.folder / SESSION_FILE] + [p for s in self.sensors for p in s.images if p is not None]
+        tables = [self.joints_path] if self.joints_path is not None else []
+        return [self.folder / SESSION_FILE] + tables + [p for s in self.sensors for p in s.images if p is not None]
 
 
 def is_rig_session(folder: str | Path) -> bool:
@@ -79,20 +100,26 @@ def is_rig_session(folder: str | Path) -> bool:
     return has_section(folder, "sensors")
 
 
-def load_rig_session(folder: str | Path) -> RigSession:
-    """Read and check a rig session folder (the module docstring).
+def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
+    """Read and check a rig session folder (the module docstring); ``arm`` (``--arm``): the arm of
+    the ``joints:`` table instead of the one session.yaml names.
 
     Raises :class:`SessionError` naming the file or key: no ``sensors:`` mapping or fewer than two
-    sensors, a sensor without its camera's K and dist or its folder, a bad target or pose table.
+    sensors, a sensor without its camera's K and dist or its folder, a bad target, pose or joint table.
     """
     folder, spec, where, notes = read_session_yaml(folder)
     sensors = spec.get("sensors")
     if not isinstance(sensors, dict) or len(sensors) < 2:
         raise SessionError(f"{where}: sensors must map two sensor names or more to their camera and images folder")
-    check_session_keys(spec, ("setup", "target", "poses", "sensors"), {"poses": POSES_KEYS}, where)
+    check_session_keys(spec, ("setup", "target", "poses", "joints", "sensors"), {"poses": POSES_KEYS, "joints": JOINTS_KEYS},
+                       where)
     setup = check_setup(str(spec.get("setup", "")))
     target_from_spec(spec.get("target"), where=f"{where}: target")
-    f2b, names, _ = read_robot_poses(folder, spec.get("poses"), where, notes, ("view",), "view")
+    joints = read_joints(folder, spec["joints"], where, notes, arm, ("view",)) if spec.get("joints") else None
+    if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
+        names, f2b = list(joints[0]), joints[2].forward(joints[1])
+    else:
+        f2b, names, _ = read_robot_poses(folder, spec.get("poses"), where, notes, ("view",), "view")
     out = []
     for name, block in sensors.items():
         at = f"{where}: sensors: {name}"
@@ -118,4 +145,6 @@ def load_rig_session(folder: str | Path) -> RigSession:
             notes.append(f"sensor {name}: no image for {len(missing)} of {len(names)} views ({summarize(missing)}): "
                          "those views are not its")
         out.append(RigSensor(str(name), K, np.zeros(5) if dist is None else dist, paths))
-    return RigSession(folder, setup, dict(spec["target"]), list(names), f2b, out, notes)
+    q = None if joints is None else joints_of_views(joints, names)
+    return RigSession(folder, setup, dict(spec["target"]), list(names), f2b, out, notes, q,
+                      None if joints is None else joints[2], None if joints is None else joints[3])

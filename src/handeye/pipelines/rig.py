@@ -33,7 +33,7 @@ from ..sensors.camera.detect import detect_images
 from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.targets import target_from_spec
 from ..sensors.rig import Rig
-from ._sensor import sensor_options
+from ._sensor import robot_model, sensor_options
 
 __all__ = ["RigCalibration", "calibrate_rig", "calibrate_rig_session", "rig_members", "DISAGREE"]
 
@@ -228,10 +228,13 @@ def rig_members(cal: Calibration) -> dict[str, Calibration]:
                f"{', '.join(f['sensors'])}" if joint else
                f"sensor {name} of a rig of {len(names)}: left out of the joint fit, its own calibration")
         notes = _member_notes(list(cal.notes), name, names)
+        if cal.kinematic is not None:  # one arm, one table: written once, beside the rig's result
+            notes.append("the arm's table was fitted with the rig: its corrected table is the rig's (arm_corrected.yaml "
+                         "beside the rig's result.json)")
         if name != first:  # the weakest direction the core names is the first sensor's X's
             notes = [n for n in notes if not n.startswith(WEAKEST_NOTE)]
-        member = replace(cal, X=np.asarray(mine["X"], float), cov=cov, std=np.asarray(mine["std_deg_mm"], float), sensor=record,
-                         notes=[how] + notes)
+        member = replace(cal, kinematic=None, X=np.asarray(mine["X"], float), cov=cov, std=np.asarray(mine["std_deg_mm"], float),
+                         sensor=record, notes=[how] + notes)
         if name in f.get("images_per_sensor", {}):  # a camera of a rig session: its images and intrinsics
             im = f["images_per_sensor"][name]
             member = replace(member, image_names=list(im["names"]), image_sha256=list(im["sha256"]),
@@ -277,7 +280,7 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
         No sensor could be calibrated.
     """
     opts = sensor_options(options, changes, "a rig session")
-    s = folder if isinstance(folder, RigSession) else load_rig_session(folder)
+    s = folder if isinstance(folder, RigSession) else load_rig_session(folder, opts.arm)
     target = target_from_spec(s.target_spec, where="target")
     members, notes = [], list(s.notes)
     # every sensor's images in one parallel detection (no worker idle at the end of each sensor's)
@@ -292,7 +295,8 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
         seen = sum(len(u) > 0 for u in image_points)
         notes.append(f"sensor {sensor.name}: the target found in {seen} of {len(paths)} images")
         members.append(CameraCorners(s.setup, s.names, image_points, object_points, sensor.K, sensor.dist))
-    rig = calibrate_rig(members, [x.name for x in s.sensors], ControllerPoses(s.flange2base, opts.robot_accuracy), folds=opts.folds)
+    robot = robot_model(s, list(range(len(s.names))), opts.robot_accuracy)  # joint angles through the arm's table, or poses
+    rig = calibrate_rig(members, [x.name for x in s.sensors], robot, folds=opts.folds)
     if rig.joint is None:
         only = next(iter(rig.alone.values()))
         return replace(only, notes=notes + _left_out(rig.disagreeing, rig.skipped) + ["one sensor left: its own calibration, "

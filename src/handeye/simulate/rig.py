@@ -22,18 +22,20 @@ from .._shared.lazy import lazy_module
 from ..errors import HandEyeError, InputMismatchError
 from ..frames.setups import check_setup, flange_poses, predicted_target2cam, setup_info
 from ..geometry.se3 import invert, make_transform, random_rotations
-from ..io.session import write_pose_table
+from ..io.session import write_joint_table, write_pose_table
+from ..robot.kinematics import Chain
 from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.pnp import project_points_many
 from ..sensors.camera.render import Renderer
 from ..sensors.camera.targets.chessboard import Chessboard
 from ._common import _reported
+from .arms import kinematic_scene
 from .laser import profile_reading, profiler_views
 from .scenes import look_at, scene_from_viewpoints
 
 cv2 = lazy_module("cv2")
 
-__all__ = ["RigCamera", "RigScene", "rig_scene", "write_rig_session", "CameraLaserScene", "camera_laser_scene"]
+__all__ = ["RigCamera", "RigScene", "rig_scene", "rig_joint_scene", "write_rig_session", "CameraLaserScene", "camera_laser_scene"]
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,10 @@ class RigScene:
     flange2base_true: NDArray[np.float64]
     Z: NDArray[np.float64]
     cameras: list[RigCamera]
+    #: the joint angles the controller reported (N, n; rad) and the arm's nominal table, for a rig
+    #: on an arm whose real table differs (:func:`rig_joint_scene`); None for controller poses
+    joints: NDArray[np.float64] | None = None
+    chain: Chain | None = None
 
     def camera_models(self, focal_error: dict[int, float] | None = None) -> list[CameraCorners]:
         """Each camera's corners as a sensor model over every view
@@ -163,23 +169,56 @@ def rig_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Gene
         target2cam = [invert(X) @ target2base for X in Xs]
     names = [f"v{i + 1:02d}" for i in range(n_views)]
     cams = []
-    w, h = IMAGE
     for k, (X, (K, d), T) in enumerate(zip(Xs, intrinsics, target2cam)):
-        owner = np.repeat(np.arange(n_views), len(points))
-        px = project_points_many(T, np.tile(points, (n_views, 1)), owner, K, d).reshape(n_views, len(points), 2)
-        depth = np.einsum("nij,mj->nmi", T[:, :3, :3], points)[..., 2] + T[:, None, 2, 3]
-        inside = np.all((px[..., 0] > 5) & (px[..., 0] < w - 5) & (px[..., 1] > 5) & (px[..., 1] < h - 5) & (depth > 0), axis=1)
         drop = rng.random(n_views) < (missing or {}).get(k, 0.0)
-        img, obj = [], []
-        for i in range(n_views):
-            if inside[i] and not drop[i]:
-                img.append(px[i] + rng.normal(0.0, noise_px, px[i].shape))
-                obj.append(points)
-            else:
-                img.append(np.zeros((0, 2)))
-                obj.append(np.zeros((0, 3)))
-        cams.append(RigCamera(f"cam{k}", X, K, d, img, obj))
+        cams.append(RigCamera(f"cam{k}", X, K, d, *_corners(T, points, K, d, noise_px, rng, drop)))
     return RigScene(setup, names, _reported(F, robot_error, rng), F, Z, cams)
+
+
+def _corners(T: NDArray[np.float64], points: NDArray[np.float64], K: NDArray[np.float64], dist: NDArray[np.float64],
+             noise_px: float, rng: np.random.Generator, drop: NDArray[np.bool_] | None = None) -> tuple[list, list]:
+    """Per view the board's corners a camera finds at the true ``T`` (target2cam, N): all of them with
+    ``noise_px`` of noise where every corner is in the image and in front, none elsewhere or where
+    ``drop``."""
+    n = len(T)
+    w, h = IMAGE
+    px = project_points_many(T, np.tile(points, (n, 1)), np.repeat(np.arange(n), len(points)), K, dist).reshape(n, len(points), 2)
+    depth = np.einsum("nij,mj->nmi", T[:, :3, :3], points)[..., 2] + T[:, None, 2, 3]
+    inside = np.all((px[..., 0] > 5) & (px[..., 0] < w - 5) & (px[..., 1] > 5) & (px[..., 1] < h - 5) & (depth > 0), axis=1)
+    keep = inside if drop is None else inside & ~drop
+    img = [px[i] + rng.normal(0.0, noise_px, px[i].shape) if keep[i] else np.zeros((0, 2)) for i in range(n)]
+    return img, [points if keep[i] else np.zeros((0, 3)) for i in range(n)]
+
+
+def rig_joint_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
+                    arm: str = "ur5", cameras: int = 2, noise_px: float = 0.2, length_mm: float = 0.5,
+                    angle_deg: float = 0.05, baseline: float = 0.1) -> RigScene:
+    """A rig on an arm whose real kinematic table differs from its nominal one
+    (:func:`~handeye.simulate.arms.kinematic_scene`'s arm: every entry off by ``length_mm`` /
+    ``angle_deg``, the flange 1-3 mm from where the nominal table puts it): camera 0 where that
+    scene puts its camera, the others ``baseline`` (m) beside it, turned in by a few degrees; the
+    controller reports the joint angles (``joints``, with encoder noise) and the nominal table's
+    flange poses (``flange2base``). A camera that does not see the whole board in a view misses it.
+
+    Examples
+    --------
+    >>> sc = rig_joint_scene(10, "eye_in_hand", rng=0)
+    >>> sc.joints.shape, sc.chain.name
+    ((10, 6), 'UR5')
+    """
+    rng = np.random.default_rng(rng)
+    ks = kinematic_scene(n_views, setup, rng, arm=arm, length_mm=length_mm, angle_deg=angle_deg, pixel_px=noise_px)
+    points = ks.object_points
+    cams = [RigCamera("cam0", ks.X, ks.K, ks.dist, [p for p in ks.image_points], [points] * n_views)]
+    for k in range(1, cameras):
+        rel = make_transform(Rotation.from_euler("xyz", [rng.uniform(-3, 3), -k * 5.0 + rng.uniform(-2, 2), rng.uniform(-3, 3)],
+                                                 degrees=True).as_matrix(), [k * baseline, rng.uniform(-0.01, 0.01), 0.0])
+        X = ks.X @ rel
+        K, dist = _camera(rng)
+        img, obj = _corners(predicted_target2cam(X, ks.Z, ks.flange2base_true, setup), points, K, dist, noise_px, rng)
+        cams.append(RigCamera(f"cam{k}", X, K, dist, img, obj))
+    names = [f"v{i + 1:02d}" for i in range(n_views)]
+    return RigScene(ks.setup, names, ks.flange2base, ks.flange2base_true, ks.Z, cams, ks.joints, ks.chain)
 
 
 def _unit(rng: np.random.Generator) -> NDArray[np.float64]:
@@ -192,8 +231,8 @@ def write_rig_session(folder: str | Path, scene: RigScene, rng: np.random.Genera
     """Write a simulated rig capture as a rig session folder (:mod:`handeye.io.rig_session`): per
     camera a folder of its rendered images (``v01.png``, ...; none where it missed the view), its
     K and dist in session.yaml, ``poses.csv`` (first column ``view``; the controller's poses,
-    quat_wxyz, mm, deg) and ``ground_truth.yaml`` (every camera's X, the board's pose). Returns the
-    folder."""
+    quat_wxyz, mm, deg), or ``joints.csv`` (degrees) when the scene has joint angles, and
+    ``ground_truth.yaml`` (every camera's X, the board's pose). Returns the folder."""
     out = check_output_folder(folder)
     if (out / "session.yaml").exists():
         raise HandEyeError(f"{out} already holds a session; choose an empty folder")
@@ -214,10 +253,15 @@ def write_rig_session(folder: str | Path, scene: RigScene, rng: np.random.Genera
             atomic_write(out / cam.name / f"{name}.png", buf.tobytes())
         sensors[cam.name] = {"camera": {"K": cam.K.tolist(), "dist": cam.dist.tolist()}, "images": cam.name}
         truth["cameras"][cam.name] = {setup_info(scene.setup).x_name: cam.X.tolist()}
-    write_pose_table(out / "poses.csv", scene.names, scene.flange2base, "quat_wxyz", "mm", "deg", id_column="view")
-    spec = {"setup": scene.setup, "target": {"type": "chessboard", "cols": BOARD[0], "rows": BOARD[1], "square": BOARD[2]},
-            "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"},
-            "sensors": sensors}
+    spec: dict = {"setup": scene.setup, "target": {"type": "chessboard", "cols": BOARD[0], "rows": BOARD[1], "square": BOARD[2]}}
+    if scene.joints is not None:  # the controller's joint angles: the arm's table is fitted with the rig
+        write_joint_table(out / "joints.csv", scene.names, scene.joints, "deg", id_column="view",
+                          joint_names=list(scene.chain.joint_names) if scene.chain.joint_names else None)
+        spec["joints"] = {"file": "joints.csv", "unit": "deg", "arm": scene.chain.name.lower()}
+    else:
+        write_pose_table(out / "poses.csv", scene.names, scene.flange2base, "quat_wxyz", "mm", "deg", id_column="view")
+        spec["poses"] = {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}
+    spec["sensors"] = sensors
     atomic_write(out / "session.yaml", yaml.safe_dump(spec, sort_keys=False))
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return out
@@ -280,14 +324,7 @@ def camera_laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.ra
     # camera beside the profiler whichever way the profiler turns about the ball
     X_cam = laser_X @ cam2laser
     Z_board = Z_ball @ make_transform(np.eye(3), [0.0, 0.0, -radius]) @ make_transform(np.eye(3), -points.mean(axis=0))
-    target2cam = predicted_target2cam(X_cam, Z_board, F, setup)
-    w, h = IMAGE
-    px = project_points_many(target2cam, np.tile(points, (n_views, 1)), np.repeat(np.arange(n_views), len(points)), K,
-                             dist).reshape(n_views, len(points), 2)
-    depth = np.einsum("nij,mj->nmi", target2cam[:, :3, :3], points)[..., 2] + target2cam[:, None, 2, 3]
-    inside = np.all((px[..., 0] > 5) & (px[..., 0] < w - 5) & (px[..., 1] > 5) & (px[..., 1] < h - 5) & (depth > 0), axis=1)
-    img = [px[i] + rng.normal(0.0, noise_px, px[i].shape) if inside[i] else np.zeros((0, 2)) for i in range(n_views)]
-    obj = [points if inside[i] else np.zeros((0, 3)) for i in range(n_views)]
+    img, obj = _corners(predicted_target2cam(X_cam, Z_board, F, setup), points, K, dist, noise_px, rng)
     ball2sensor = predicted_target2cam(laser_X, Z_ball, F, setup)
     profiles = [profile_reading("sphere", T, radius, rng, 2e-5, 0.02, 0.002) for T in ball2sensor]
     names = [f"v{i + 1:02d}" for i in range(n_views)]
