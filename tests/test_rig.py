@@ -246,3 +246,41 @@ def test_a_rig_on_joint_angles_fits_the_arms_table_with_every_camera(tmp_path):
         assert within_std(own.X, np.array(truth["cameras"][name]["cam2base"]), own.std)
     with pytest.raises(SessionError, match="Panda has 7 joints"):
         calibrate_rig_session(folder, arm="panda")
+
+
+def test_a_camera_and_a_laser_profiler_from_one_session_folder(tmp_path):
+    """A mixed rig from a session folder: a camera's images of a board and a profiler's profiles of a
+    ball, one pose table; both X within their std, each sensor's own result files, the camera's
+    near-perfect corners making no false call on the profiler; a profiler's bad block is named."""
+    import yaml
+
+    from handeye import load_result
+    from handeye.cli import main
+    from handeye.errors import SessionError
+    from handeye.pipelines.rig import calibrate_rig_session
+    folder = tmp_path / "s"
+    assert main(["simulate", "--sensor", "rig", "--laser", "--poses", "12", "--seed", "2", "--out", str(folder)]) == 0
+    (folder / "laser" / "v05.csv").unlink()  # a view the profiler did not see
+    assert main(["calibrate", str(folder), "--out", str(tmp_path / "out"), "--robot-accuracy", "0.01,0.05"]) == 0
+    truth = yaml.safe_load((folder / "ground_truth.yaml").read_text())
+    rig = load_result(tmp_path / "out")
+    assert rig.sensor.target == "board + sphere" and not any("worse than the other" in n for n in rig.notes)
+    assert "sensor laser: no profile for 1 of 12 views (v05)" in " ".join(rig.notes)
+    for name, kind in (("camera", "camera"), ("laser", "laser line profiler")):
+        own = load_result(tmp_path / "out" / "sensors" / name)
+        assert own.sensor.sensor == kind
+        assert within_std(own.X, np.array(truth["sensors"][name]["cam2flange"]), own.std)
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    spec["sensors"]["laser"]["profiles"] = "nowhere"
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    with pytest.raises(SessionError, match="sensors: laser: no folder .*nowhere"):
+        calibrate_rig_session(folder)
+    spec["sensors"]["laser"]["profiles"] = "laser"
+    spec["sensors"]["laser"]["target"] = {"type": "chessboard"}
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    with pytest.raises(SessionError, match="sensors: laser: target: a laser session scans"):
+        calibrate_rig_session(folder)
+    spec["sensors"]["laser"]["target"] = {"type": "sphere", "diameter": 40}
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    with pytest.raises(SessionError, match="diameter 40 m: give it in metres"):
+        calibrate_rig_session(folder)

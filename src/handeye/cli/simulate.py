@@ -22,7 +22,7 @@ from ..simulate import (
 from ..simulate.laser import TARGETS as LASER_TARGETS
 from ..simulate.linescan import linescan_scene, write_linescan_session
 from ..simulate.mesh import mesh_scene, write_mesh_session
-from ..simulate.rig import rig_joint_scene, rig_scene, write_rig_session
+from ..simulate.rig import camera_laser_scene, rig_joint_scene, rig_scene, write_camera_laser_session, write_rig_session
 from ._common import image_size_arg, number_arg, out_folder, sensor_target, whole_arg
 
 
@@ -34,6 +34,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                                      "angles) and a chessboard; leave --robot and --target out")
         on_flange = setup_info(args.setup).camera_on_flange
         cameras = args.cameras or (2 if on_flange else 3)
+        if args.laser:  # a camera beside a laser profiler: the ball on a small board
+            if args.arm is not None or args.cameras is not None:
+                raise InputMismatchError("--laser simulates one camera beside one laser profiler on controller poses; leave "
+                                         "--arm and --cameras out")
+            write_camera_laser_session(args.out, camera_laser_scene(args.poses, args.setup, args.seed, robot_error=(0.01, 0.05)),
+                                       rng=args.seed, noise_px=args.noise_px)
+            print(f"wrote rig session {args.out} ({args.poses} poses, a camera and a laser profiler "
+                  f"{'on the flange' if on_flange else 'fixed side by side'}: a small chessboard and a 40 mm ball; the robot "
+                  f"0.01 deg / 0.05 mm off); ground truth in {Path(args.out) / 'ground_truth.yaml'}")
+            return 0
         if args.arm is not None:  # joint angles of an arm 1-3 mm off its nominal table, the cameras side by side
             sc = rig_joint_scene(args.poses, args.setup, args.seed, arm=args.arm, cameras=cameras)
             error = f"the {sc.chain.name}'s joint angles, its real table 1-3 mm off the nominal one"
@@ -46,8 +56,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         print(f"wrote rig session {args.out} ({args.poses} poses, {what}, a chessboard; {error}); "
               f"ground truth in {Path(args.out) / 'ground_truth.yaml'}")
         return 0
-    if args.cameras is not None:
-        raise InputMismatchError("--cameras is the number of cameras of a rig: give it with --sensor rig")
+    if args.cameras is not None or args.laser:
+        raise InputMismatchError(f"{'--cameras' if args.cameras is not None else '--laser'} describes a rig: give it with "
+                                 "--sensor rig")
     if args.sensor == "line_scan":
         if args.robot != "arm" or args.arm is not None or args.target is not None:
             raise InputMismatchError("--sensor line_scan simulates a 6-axis arm's controller poses and a chessboard; leave "
@@ -132,6 +143,8 @@ def register(sub) -> None:
                    "three fixed cameras (eye_to_hand)")
     p.add_argument("--cameras", type=whole_arg(2), default=None,
                    help="with --sensor rig: the number of cameras (default 2 on the flange, 3 fixed around the cell)")
+    p.add_argument("--laser", action="store_true",
+                   help="with --sensor rig: a camera beside a laser profiler (a small board and a 40 mm ball) instead of cameras")
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--poses", type=whole_arg(1), default=15, help="number of images (default 15)")
     p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS) + ["mesh"],

@@ -54,7 +54,7 @@ from .session import (
     read_session_yaml,
 )
 
-__all__ = ["LaserSession", "is_laser_session", "load_laser_session", "LASER_KEYS", "TARGET_TYPES"]
+__all__ = ["LaserSession", "is_laser_session", "load_laser_session", "rig_laser", "LASER_KEYS", "TARGET_TYPES"]
 
 #: The keys of ``laser:``, and of session.yaml around it.
 LASER_KEYS = ("unit", "range", "noise")
@@ -198,9 +198,23 @@ def load_laser_session(folder: str | Path, arm: str | None = None) -> LaserSessi
                         q, None if joints is None else joints[2], None if joints is None else joints[3], target, radii)
 
 
-def _profile_of(folder: Path, name: str) -> Path:
-    path = folder / "profiles" / name
+def rig_laser(folder: Path, setup: str, names: list[str], flange2base: NDArray[np.float64], laser: Any, profiles: Path,
+              target: Any, where: str) -> LaserSession:
+    """A rig's laser profiler (:mod:`handeye.io.rig_session`) as a laser session over the rig's views
+    ``names``: its ``laser:`` block, its folder of ``profiles`` named by view (``v01.csv``; a view
+    with no file is one it did not see) and its ``target``, checked as a laser session's are."""
+    unit, working, noise = _laser_spec(laser, where)
+    kind, radius, radii = _target(target, where)
+    if not profiles.is_dir():
+        raise SessionError(f"{where}: no folder {profiles} (its profiles, named by view: v01.csv, ...)")
+    paths = [_profile_of(profiles.parent, n, profiles.name) for n in names]
+    return LaserSession(folder, setup, dict(target), list(names), paths, flange2base, unit, working, noise, radius, [],
+                        target=kind, radii=radii)
+
+
+def _profile_of(folder: Path, name: str, sub: str = "profiles") -> Path:
+    path = folder / sub / name
     if path.suffix.lower() in PROFILE_SUFFIXES:
         return path
-    found = [folder / "profiles" / (name + s) for s in PROFILE_SUFFIXES if (folder / "profiles" / (name + s)).is_file()]
+    found = [folder / sub / (name + s) for s in PROFILE_SUFFIXES if (folder / sub / (name + s)).is_file()]
     return found[0] if found else path

@@ -1,4 +1,4 @@
-"""Rig session folders read and checked: several cameras, one table of robot poses (docs/guide.md, "Rigs").
+"""Rig session folders read and checked: several sensors, one table of robot poses (docs/guide.md, "Rigs").
 
 ::
 
@@ -17,6 +17,12 @@
     sensors:
       left:  {camera: {K: [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], dist: [k1, k2, p1, p2, k3]}, images: left}
       right: {camera: {K: ..., dist: ...}, images: right}
+
+A laser profiler is a sensor too (a camera beside a profiler on a welding torch, two profilers on
+one seam): ``{laser: {unit: mm, range: [80, 160]}, profiles: laser, target: {type: sphere,
+diameter: 0.04}}``, its profiles named by view (``v01.csv``), its target (any a laser session
+takes) its own or, left out, the session's. Sensors that see different targets each keep their own
+target's unknowns.
 
 With ``joints: {file: joints.csv, unit: deg, arm: ur5}`` the robot's poses are its joint angles
 through the arm's table (fitted with the rig, as for one sensor); ``poses:`` may then be left out.
@@ -40,6 +46,7 @@ from ..errors import SessionError
 from ..frames.setups import check_setup
 from ..robot.kinematics import Chain
 from ..sensors.camera.targets import target_from_spec
+from .laser_session import LaserSession, rig_laser
 from .session import (
     JOINTS_KEYS,
     POSES_KEYS,
@@ -56,20 +63,30 @@ from .session import (
 
 __all__ = ["RigSession", "RigSensor", "load_rig_session", "is_rig_session", "SENSOR_KEYS", "IMAGE_SUFFIXES"]
 
-#: The keys of one sensor's block.
+#: The keys of one camera's block, and of a laser profiler's (its target: the session's when left out).
 SENSOR_KEYS = ("camera", "images")
+LASER_SENSOR_KEYS = ("laser", "profiles", "target")
 #: The image files a sensor's folder may hold.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
 
 @dataclass(frozen=True)
 class RigSensor:
-    """One camera of a rig: its name, intrinsics and per view its image (None where it has none)."""
+    """One sensor of a rig: a camera (its intrinsics and per view its image, None where it has none)
+    or a laser profiler (``laser``: a laser session over the rig's views, its own target)."""
 
     name: str
-    K: NDArray[np.float64]
-    dist: NDArray[np.float64]
-    images: list[Path | None]
+    K: NDArray[np.float64] | None = None
+    dist: NDArray[np.float64] | None = None
+    images: list[Path | None] = field(default_factory=list)
+    laser: LaserSession | None = None
+
+    @property
+    def files(self) -> list[Path]:
+        """The sensor's input files."""
+        if self.laser is not None:
+            return [p for p in self.laser.profile_paths if p.is_file()]
+        return [p for p in self.images if p is not None]
 
 
 @dataclass(frozen=True)
@@ -92,12 +109,34 @@ class RigSession:
     def input_files(self) -> list[Path]:
         """Every file the session is read from."""
         tables = [self.joints_path] if self.joints_path is not None else []
-        return [self.folder / SESSION_FILE] + tables + [p for s in self.sensors for p in s.images if p is not None]
+        return [self.folder / SESSION_FILE] + tables + [p for s in self.sensors for p in s.files]
+
+    @property
+    def shared_target(self) -> bool:
+        """Whether the sensors see one target: all cameras (the session's board), or all profilers
+        scanning the one target the session names."""
+        return all(s.laser is None for s in self.sensors) or (
+            all(s.laser is not None for s in self.sensors) and len({str(s.laser.target_spec) for s in self.sensors}) == 1)
 
 
 def is_rig_session(folder: str | Path) -> bool:
     """Whether ``folder``'s session.yaml has a ``sensors:`` mapping."""
     return has_section(folder, "sensors")
+
+
+def _camera(folder: Path, name: str, block: dict, names: list[str], at: str) -> RigSensor:
+    """A rig's camera: its intrinsics and per view its image (None where it has none)."""
+    if block.get("camera") is None:
+        raise SessionError(f"{at}: camera (K and dist) is missing: a rig's cameras need their intrinsics (calibrate each "
+                           "camera's first, e.g. with handeye calibrate on its own images)")
+    K, dist = read_camera(block["camera"], at)
+    if K is None:
+        raise SessionError(f"{at}: camera: K is missing")
+    images = folder / str(block.get("images", name))
+    if not images.is_dir():
+        raise SessionError(f"{at}: no folder {images} (its images, named by view)")
+    by_stem = {p.stem: p for p in images.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES}
+    return RigSensor(name, K, np.zeros(5) if dist is None else dist, [by_stem.get(Path(n).stem) for n in names])
 
 
 def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
@@ -114,7 +153,8 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
     check_session_keys(spec, ("setup", "target", "poses", "joints", "sensors"), {"poses": POSES_KEYS, "joints": JOINTS_KEYS},
                        where)
     setup = check_setup(str(spec.get("setup", "")))
-    target_from_spec(spec.get("target"), where=f"{where}: target")
+    if any(isinstance(b, dict) and "laser" not in b for b in sensors.values()):  # the cameras' board
+        target_from_spec(spec.get("target"), where=f"{where}: target")
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("view",)) if spec.get("joints") else None
     if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
         names, f2b = list(joints[0]), joints[2].forward(joints[1])
@@ -127,24 +167,21 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
             raise SessionError(f"{at}: a sensor's name may hold letters, digits, '_', '-' and '.' (it names the sensor's "
                                "folder of results and its ROS frame); rename it")
         if not isinstance(block, dict):
-            raise SessionError(f"{at}: a mapping with camera (K, dist) and images (its folder)")
-        check_keys(block, SENSOR_KEYS, at)
-        if block.get("camera") is None:
-            raise SessionError(f"{at}: camera (K and dist) is missing: a rig's cameras need their intrinsics (calibrate each "
-                               "camera's first, e.g. with handeye calibrate on its own images)")
-        K, dist = read_camera(block["camera"], at)
-        if K is None:
-            raise SessionError(f"{at}: camera: K is missing")
-        images = folder / str(block.get("images", name))
-        if not images.is_dir():
-            raise SessionError(f"{at}: no folder {images} (its images, named by view)")
-        by_stem = {p.stem: p for p in images.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES}
-        paths = [by_stem.get(Path(n).stem) for n in names]
-        missing = [n for n, p in zip(names, paths) if p is None]
-        if missing:
-            notes.append(f"sensor {name}: no image for {len(missing)} of {len(names)} views ({summarize(missing)}): "
-                         "those views are not its")
-        out.append(RigSensor(str(name), K, np.zeros(5) if dist is None else dist, paths))
+            raise SessionError(f"{at}: a mapping with camera (K, dist) and images (its folder), or laser and profiles")
+        if "laser" in block:
+            check_keys(block, LASER_SENSOR_KEYS, at)
+            laser = rig_laser(folder, setup, names, f2b, block["laser"], folder / str(block.get("profiles", name)),
+                              block.get("target", spec.get("target")), at)
+            out.append(RigSensor(str(name), laser=laser))
+            seen = [p for p in laser.profile_paths if p.is_file()]
+        else:
+            check_keys(block, SENSOR_KEYS, at)
+            out.append(_camera(folder, str(name), block, names, at))
+            seen = out[-1].files
+        if len(seen) < len(names):
+            missing = [n for n in names if not any(Path(p).stem == Path(n).stem for p in seen)]
+            notes.append(f"sensor {name}: no {'profile' if 'laser' in block else 'image'} for {len(missing)} of {len(names)} "
+                         f"views ({summarize(missing)}): those views are not its")
     q = None if joints is None else joints_of_views(joints, names)
-    return RigSession(folder, setup, dict(spec["target"]), list(names), f2b, out, notes, q,
+    return RigSession(folder, setup, dict(spec.get("target") or {}), list(names), f2b, out, notes, q,
                       None if joints is None else joints[2], None if joints is None else joints[3])

@@ -24,7 +24,7 @@ from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from ..estimation.core import WEAKEST_NOTE, estimate
 from ..estimation.uncertainty import robot_accuracy_cov
 from ..frames.metrics import std_deg_mm
-from ..io.rig_session import RigSession, load_rig_session
+from ..io.rig_session import RigSensor, RigSession, load_rig_session
 from ..options import CalibrationOptions
 from ..result import Calibration
 from ..robot.models import ControllerPoses, PoseErrors, RobotModel
@@ -34,11 +34,12 @@ from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.targets import target_from_spec
 from ..sensors.rig import Rig
 from ._sensor import robot_model, sensor_options
+from .laser import laser_model, read_profiles
 
 __all__ = ["RigCalibration", "calibrate_rig", "calibrate_rig_session", "rig_members", "DISAGREE"]
 
 #: A sensor whose residual in the joint fit, against its stated noise, exceeds the other sensors'
-#: (their median) by this factor disagrees with the rest.
+#: (their median, or their stated noise when they fit better than it) by this factor disagrees with the rest.
 DISAGREE = 1.5
 
 
@@ -135,7 +136,9 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
         # each sensor's residual in the joint fit against the noise it states
         ratio = np.array([_member_rms(joint, i) / _stated_mm(members[k]) for i, k in enumerate(kept)])
         worst = int(np.argmax(ratio))
-        others = float(np.median(np.delete(ratio, worst)))
+        # sensors that fit better than they state are held to 1: a camera whose corners are found to 0.02 px
+        # where 0.2 px is stated makes no other sensor look worse
+        others = max(float(np.median(np.delete(ratio, worst))), 1.0)
         if ratio[worst] > DISAGREE * others:
             why = (f"its measurements fit the rig {ratio[worst] / others:.1f}x worse than the other sensors' do (against "
                    "each one's stated noise): a wrong intrinsic (focal length, distortion), a sensor that moved during the "
@@ -257,6 +260,19 @@ def _per_view(f: dict, name: str, cal: Calibration) -> list:
     return f.get("view_rms_mm_per_sensor", {}).get(name) or [None] * len(_view_names(cal))
 
 
+def _laser_member(sensor: RigSensor, names: list[str], notes: list[str]) -> SensorModel:
+    """A rig's laser profiler as a sensor model over the rig's views: its profiles read (a view
+    without one, or whose profile is skipped, has no rows), the notes and skips said by name."""
+    kept, profiles, skipped, more = read_profiles(sensor.laser)
+    full = [np.zeros((0, 3))] * len(names)
+    for k, p in zip(kept, profiles):
+        full[k] = p
+    notes += [f"sensor {sensor.name}: {n}" for n in more]
+    notes += [f"sensor {sensor.name}: profile {v} skipped: {why}" for v, why in skipped if not why.startswith("missing")]
+    notes.append(f"sensor {sensor.name}: {len(kept)} of {len(names)} profiles used")
+    return laser_model(sensor.laser, names, full)
+
+
 def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationOptions | None = None, *,
                           progress: bool = False, **changes) -> Calibration:
     """Calibrate a rig session folder (:mod:`handeye.io.rig_session`): the target found in every
@@ -281,11 +297,15 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     """
     opts = sensor_options(options, changes, "a rig session")
     s = folder if isinstance(folder, RigSession) else load_rig_session(folder, opts.arm)
-    target = target_from_spec(s.target_spec, where="target")
+    cameras = [sensor for sensor in s.sensors if sensor.laser is None]
     members, notes = [], list(s.notes)
-    # every sensor's images in one parallel detection (no worker idle at the end of each sensor's)
-    found = iter(detect_images([p for sensor in s.sensors for p in sensor.images if p is not None], target, progress=progress))
+    # every camera's images in one parallel detection (no worker idle at the end of each camera's)
+    found = iter(detect_images([p for sensor in cameras for p in sensor.images if p is not None],
+                               target_from_spec(s.target_spec, where="target"), progress=progress) if cameras else [])
     for sensor in s.sensors:
+        if sensor.laser is not None:
+            members.append(_laser_member(sensor, s.names, notes))
+            continue
         paths = [p for p in sensor.images if p is not None]
         image_points, object_points = [], []
         for p in sensor.images:
@@ -296,7 +316,7 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
         notes.append(f"sensor {sensor.name}: the target found in {seen} of {len(paths)} images")
         members.append(CameraCorners(s.setup, s.names, image_points, object_points, sensor.K, sensor.dist))
     robot = robot_model(s, list(range(len(s.names))), opts.robot_accuracy)  # joint angles through the arm's table, or poses
-    rig = calibrate_rig(members, [x.name for x in s.sensors], robot, folds=opts.folds)
+    rig = calibrate_rig(members, [x.name for x in s.sensors], robot, shared_target=s.shared_target, folds=opts.folds)
     if rig.joint is None:
         only = next(iter(rig.alone.values()))
         return replace(only, notes=notes + _left_out(rig.disagreeing, rig.skipped) + ["one sensor left: its own calibration, "
@@ -305,7 +325,7 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     # each camera's images by name and digest: its own result refuses them in verify (they are no second capture)
     images = {x.name: {"names": [p.name for p in x.images if p is not None],
                        "sha256": [file_digest(p) for p in x.images if p is not None],
-                       "K": np.asarray(x.K).tolist(), "dist": np.asarray(x.dist).tolist()} for x in s.sensors}
+                       "K": np.asarray(x.K).tolist(), "dist": np.asarray(x.dist).tolist()} for x in s.sensors if x.laser is None}
     joint = replace(rig.joint, sensor=replace(rig.joint.sensor, figures=dict(rig.joint.sensor.figures, images_per_sensor=images)))
     return replace(joint, notes=notes + list(rig.joint.notes),
                    skipped=[(n, w) for n, w in rig.skipped] + list(rig.joint.skipped), input_folder=s.folder)

@@ -63,7 +63,8 @@ class Rig:
             raise InputMismatchError(f"sensors that see different targets ({', '.join(sorted({m.target for m in members}))}) "
                                      "share none: give shared_target=False")
         self.members, self.sensor_names, self.shared_target = list(members), list(sensor_names), shared_target
-        self.setup, self.names, self.target, self.groups = first.setup, list(first.names), first.target, first.groups
+        self.setup, self.names, self.groups = first.setup, list(first.names), first.groups
+        self.target = first.target if shared_target else " + ".join(dict.fromkeys(m.target for m in members))
         self.owner = np.concatenate([np.asarray(m.owner) for m in members]).astype(np.intp)
         self.width = max(np.asarray(m.shape).shape[1] for m in members)
         # a narrower sensor's rows are padded with 0 residuals (shape 1) in a noise group of their own

@@ -29,7 +29,7 @@ from ..robot.kinematics import Chain, load_arm
 from ._common import _real_chain, _reported
 from .scenes import Scene, scene_from_viewpoints
 
-__all__ = ["LaserScene", "laser_scene", "write_laser_session", "profiler_views", "profile_reading", "PROFILER", "TARGETS"]
+__all__ = ["LaserScene", "laser_scene", "write_laser_session", "write_profile", "profiler_views", "profile_reading", "PROFILER", "TARGETS"]
 
 #: The simulated profiler: field of view along x (m), measuring range along z (m), points per profile.
 PROFILER = {"fov": 0.08, "near": 0.08, "far": 0.16, "points": 2000}
@@ -404,6 +404,15 @@ def _target_truth(scene: LaserScene) -> dict:
     return out
 
 
+def write_profile(path: str | Path, points: NDArray[np.float64], unit: str = "mm") -> Path:
+    """Write one profile (n, 3; metres, y = 0) as a profile file: ``x,z`` in ``unit``, a point
+    without a return (NaN) left empty; atomically. Returns the path."""
+    f = 1e3 if unit == "mm" else 1.0
+    rows = "".join(f"{float(f * x)!r},{'' if not np.isfinite(z) else repr(float(f * z))}\n" for x, z in points[:, [0, 2]])
+    atomic_write(path, "x,z\n" + rows)
+    return Path(path)
+
+
 def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm", diameter: bool = True) -> Path:
     """Write a simulated laser capture as a laser session folder (the format in docs/guide.md):
     ``profiles/pNN.csv`` (``x,z`` in ``unit``, NaN left empty), ``poses.csv`` (first column
@@ -415,8 +424,7 @@ def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm",
     f = 1e3 if unit == "mm" else 1.0
     names = [f"p{k + 1:02d}.csv" for k in range(len(scene.profiles))]
     for name, p in zip(names, scene.profiles):
-        rows = "".join(f"{float(f * x)!r},{'' if not np.isfinite(z) else repr(float(f * z))}\n" for x, z in p[:, [0, 2]])
-        atomic_write(out / "profiles" / name, "x,z\n" + rows)
+        write_profile(out / "profiles" / name, p, unit)
     write_pose_table(out / "poses.csv", names, scene.flange2base, "quat_wxyz", "mm", "deg", id_column="profile")
     target: dict = {"type": scene.target}
     if scene.target == "sphere" and diameter:

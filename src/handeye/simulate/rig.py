@@ -30,12 +30,13 @@ from ..sensors.camera.render import Renderer
 from ..sensors.camera.targets.chessboard import Chessboard
 from ._common import _reported
 from .arms import kinematic_scene
-from .laser import profile_reading, profiler_views
+from .laser import profile_reading, profiler_views, write_profile
 from .scenes import look_at, scene_from_viewpoints
 
 cv2 = lazy_module("cv2")
 
-__all__ = ["RigCamera", "RigScene", "rig_scene", "rig_joint_scene", "write_rig_session", "CameraLaserScene", "camera_laser_scene"]
+__all__ = ["RigCamera", "RigScene", "rig_scene", "rig_joint_scene", "write_rig_session", "CameraLaserScene", "camera_laser_scene",
+           "write_camera_laser_session"]
 
 
 @dataclass(frozen=True)
@@ -289,6 +290,8 @@ class CameraLaserScene:
         return invert(self.laser_X) @ self.camera.X
 
 
+#: The mixed rig's profiler's noise along z (m).
+PROFILE_NOISE_M = 2e-5
 #: The mixed rig's board: small enough to stay in view while the profiler circles the ball beside it.
 SMALL_BOARD = (9, 6, 0.01)
 
@@ -326,7 +329,47 @@ def camera_laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.ra
     Z_board = Z_ball @ make_transform(np.eye(3), [0.0, 0.0, -radius]) @ make_transform(np.eye(3), -points.mean(axis=0))
     img, obj = _corners(predicted_target2cam(X_cam, Z_board, F, setup), points, K, dist, noise_px, rng)
     ball2sensor = predicted_target2cam(laser_X, Z_ball, F, setup)
-    profiles = [profile_reading("sphere", T, radius, rng, 2e-5, 0.02, 0.002) for T in ball2sensor]
+    profiles = [profile_reading("sphere", T, radius, rng, PROFILE_NOISE_M, 0.02, 0.002) for T in ball2sensor]
     names = [f"v{i + 1:02d}" for i in range(n_views)]
     return CameraLaserScene(setup, names, _reported(F, robot_error, rng), F, RigCamera("camera", X_cam, K, dist, img, obj),
                             laser_X, profiles, radius, Z_ball, Z_board)
+
+
+def write_camera_laser_session(folder: str | Path, scene: CameraLaserScene, rng: np.random.Generator | int | None = None,
+                               noise_px: float = 0.0) -> Path:
+    """Write a camera beside a laser profiler (:func:`camera_laser_scene`) as a rig session folder
+    (:mod:`handeye.io.rig_session`): ``camera/`` the camera's rendered images of the small board
+    (none where it missed the view), ``laser/`` the profiler's profiles of the ball (``x,z`` in mm),
+    ``poses.csv`` (first column ``view``; the controller's poses), session.yaml (the board as the
+    session's target, the ball as the profiler's own) and ``ground_truth.yaml`` (both X, the board's
+    and the ball's poses). Returns the folder."""
+    out = check_output_folder(folder)
+    if (out / "session.yaml").exists():
+        raise HandEyeError(f"{out} already holds a session; choose an empty folder")
+    rng = np.random.default_rng(rng)
+    cam, info = scene.camera, setup_info(scene.setup)
+    (out / "camera").mkdir(parents=True, exist_ok=True)
+    (out / "laser").mkdir(parents=True, exist_ok=True)
+    renderer, texture = Renderer(cam.K, cam.dist, IMAGE), Chessboard(*SMALL_BOARD).texture()
+    for name, T, seen in zip(scene.names, predicted_target2cam(cam.X, scene.Z_board, scene.flange2base_true, scene.setup),
+                             cam.seen):
+        if seen:
+            ok, buf = cv2.imencode(".png", renderer.render(texture, T, rng=rng, noise_px=noise_px))
+            if not ok:
+                raise HandEyeError(f"could not encode camera/{name}.png")
+            atomic_write(out / "camera" / f"{name}.png", buf.tobytes())
+    for name, p in zip(scene.names, scene.profiles):
+        write_profile(out / "laser" / f"{name}.csv", p, "mm")
+    write_pose_table(out / "poses.csv", scene.names, scene.flange2base, "quat_wxyz", "mm", "deg", id_column="view")
+    board = {"type": "chessboard", "cols": SMALL_BOARD[0], "rows": SMALL_BOARD[1], "square": SMALL_BOARD[2]}
+    spec = {"setup": scene.setup, "target": board,
+            "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"},
+            "sensors": {"camera": {"camera": {"K": cam.K.tolist(), "dist": cam.dist.tolist()}, "images": "camera"},
+                        "laser": {"laser": {"unit": "mm", "noise": 1e3 * PROFILE_NOISE_M}, "profiles": "laser",
+                                  "target": {"type": "sphere", "diameter": 2 * scene.radius}}}}
+    atomic_write(out / "session.yaml", yaml.safe_dump(spec, sort_keys=False))
+    truth = {"setup": scene.setup, "sensors": {"camera": {info.x_name: cam.X.tolist()},
+                                               "laser": {info.x_name: scene.laser_X.tolist()}},
+             "board": {info.z_name: scene.Z_board.tolist()}, "ball": {info.z_name: scene.Z_ball.tolist()}}
+    atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
+    return out
