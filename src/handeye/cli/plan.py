@@ -28,6 +28,7 @@ from ..planning.poses import (
     visible_mask,
     write_plan,
 )
+from ..planning.rig import RigPlanCamera, plan_rig
 from ..sensors.camera.targets import target_from_spec
 from ..simulate import DEFAULT_TARGETS
 from ..simulate.laser import TARGETS as LASER_TARGETS
@@ -148,8 +149,58 @@ _LEVER = {"sphere": "the ball's centre across the laser plane, its rotation",
           "step": "the levels' tilt and the riser's crossing point in each profile, its rotation"}
 
 
+def _rig_cameras(args: argparse.Namespace, K: np.ndarray, dist: np.ndarray, size: tuple[int, int]) -> list[RigPlanCamera]:
+    """The first camera (--intrinsics) and each --rig-camera NAME,INTRINSICS,X,Y,Z[,RX,RY,RZ] (its pose
+    in the first camera's frame: metres and a rotation vector in degrees)."""
+    cameras = [RigPlanCamera("cam0", np.eye(4), K, size, dist)]
+    for text in args.rig_camera:
+        parts = text.split(",")
+        if len(parts) not in (5, 8) or not parts[0] or not parts[1]:
+            raise HandEyeError(f"--rig-camera {text!r}: give NAME,INTRINSICS,X,Y,Z[,RX,RY,RZ]: the camera's name, its "
+                               "intrinsics YAML and its pose in the first camera's frame (m; rotation vector, deg)")
+        if parts[0] in [c.name for c in cameras]:
+            raise HandEyeError(f"--rig-camera {text!r}: the name {parts[0]!r} is taken (the first camera is cam0): each "
+                               "camera needs its own name")
+        K_k, dist_k, size_k = load_camera(parts[1])
+        cameras.append(RigPlanCamera(parts[0], pose_arg(",".join(parts[2:]), f"--rig-camera {parts[0]}"), K_k, size_k,
+                                     dist_k))
+    return cameras
+
+
+def _plan_rig(args: argparse.Namespace, obj: np.ndarray, K: np.ndarray, dist: np.ndarray, size: tuple[int, int]) -> int:
+    """--rig-camera: poses in which every camera of the rig sees the whole target, and each one's std."""
+    if args.robot != "arm" or args.reach_box or args.z_range or args.check_runs:
+        raise HandEyeError("--rig-camera plans a 6-axis arm's poses for a rig; leave --robot, --reach-box, --z-range and "
+                           "--check-runs out")
+    X, Z = placements(args)
+    out = _new_file(args.out)
+    out_folder(str(out.parent))
+    plan = plan_rig(args.setup, X, Z, obj, _rig_cameras(args, K, dist, size), n_poses=args.poses or 15,
+                    standoff=args.standoff, tilt_max_deg=args.tilt_max, margin_px=args.margin_px, noise_px=args.noise_px,
+                    robot_accuracy=accuracy_arg(args.robot_accuracy))
+    names = [f"v{k + 1:02d}" for k in range(len(plan.flange2base))]
+    write_pose_table(out, names, plan.flange2base, args.format, args.length_unit, args.angle_unit, id_column="view",
+                     protect=[p for p in [args.intrinsics, args.target_spec] + [t.split(",")[1] for t in args.rig_camera] if p])
+    print(f"{len(names)} poses chosen from {plan.n_candidates} in which every camera ({', '.join(plan.names)}) keeps the "
+          f"whole target {args.margin_px:g} px inside its image; in path order:")
+    print("  view   flange x, y, z (mm)            flange rotation vector (deg)")
+    for name, F in zip(names, plan.flange2base):
+        print(f"  {name:5s}  {fmt_vec(1e3 * F[:3, 3], 1):30s} {fmt_vec(Rotation.from_matrix(F[:3, :3]).as_rotvec(degrees=True), 1)}")
+    acc = plan.robot_accuracy
+    print(f"\npredicted std of each camera's X as the rig's calibration would report it ({plan.noise_px:g} px of corner "
+          "noise" + (f", the robot's absolute accuracy {acc[0]:g} deg / {acc[1]:g} mm per axis in it" if acc else "")
+          + "):")
+    for name, s in plan.std_per_camera.items():
+        print(f"  {name:8s} rotation {fmt_vec(s[:3], 4)} deg, translation {fmt_vec(s[3:], 3)} mm")
+    print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): flange2base per view; it is the "
+          "poses.csv of the rig session to capture (first column view; replace each row by the pose the robot reports)")
+    return 0
+
+
 def _cmd_plan(args: argparse.Namespace) -> int:
     if args.sensor == "laser_line":
+        if args.rig_camera:
+            raise HandEyeError("--rig-camera plans for a rig of cameras; leave it out with --sensor laser_line")
         return _plan_laser(args)
     if args.diameter is not None:
         raise HandEyeError("--diameter is a laser target's (a ball's): add --sensor laser_line, or leave it out")
@@ -169,6 +220,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     else:
         spec = DEFAULT_TARGETS[args.target]
     obj = target_from_spec(spec).object_points()
+    if args.rig_camera:
+        return _plan_rig(args, obj, K, dist, size)
     X, Z = placements(args)
     box = floats_arg(args.reach_box, "--reach-box", (6,))
     out = _new_file(args.out)
@@ -279,6 +332,10 @@ def register(sub) -> None:
                    help="number of poses (default 12; with --session, of next views: default 5)")
     p.add_argument("--session", help="a joint session already captured: propose the next joint configurations that "
                    "determine the entries of the arm's table it left undetermined (written to --out as CSV, degrees)")
+    p.add_argument("--rig-camera", action="append", default=[], metavar="NAME,INTRINSICS,X,Y,Z[,RX,RY,RZ]",
+                   help="plan for a rig: another camera, its intrinsics YAML and its rough pose in the first camera's "
+                   "(--intrinsics, named cam0) frame (m; rotation vector, deg); repeat for each; the poses are those "
+                   "every camera can use (written with a first column view, as a rig session's poses.csv)")
     p.add_argument("--noise-px", type=number_arg(0.0, above=True), default=0.3, help="pixel noise for the predicted std (default 0.3)")
     p.add_argument("--robot-accuracy", metavar="DEG,MM",
                    help=f"the robot's absolute accuracy per axis, added to the predicted std as calibrate adds it "

@@ -1,5 +1,6 @@
 """Planning what to capture: robot poses that determine X well for a camera (:mod:`~handeye.planning.poses`,
-``handeye plan``) or a laser line profiler (:mod:`~handeye.planning.laser`), and the joint
+``handeye plan``), a rig of cameras (:mod:`~handeye.planning.rig`) or a laser line profiler
+(:mod:`~handeye.planning.laser`), and the joint
 configurations that would determine what a joint fit left undetermined (:mod:`~handeye.planning.joints`)."""
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from .poses import (
     Plan,
     candidate_views,
     choose_next,
+    choose_views,
     easy_handeye_poses,
     order_path,
     plan_poses,
@@ -20,7 +22,9 @@ from .poses import (
     visible_mask,
     write_plan,
 )
+from .rig import RigPlan, RigPlanCamera, plan_rig
 
 __all__ = ["Plan", "ROBOTS", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
            "visible_mask", "simulate_errors", "write_plan", "order_path", "candidate_views", "choose_next",
-           "JointViews", "suggest_joint_views", "TABLE_DOMINATES", "LaserPlan", "plan_laser"]
+           "JointViews", "suggest_joint_views", "TABLE_DOMINATES", "LaserPlan", "plan_laser", "RigPlan", "RigPlanCamera",
+           "plan_rig", "choose_views"]

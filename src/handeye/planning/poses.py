@@ -45,7 +45,7 @@ from ..simulate import look_at
 from ..solvers.refine import refine_reprojection
 
 __all__ = ["Plan", "ROBOTS", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
-           "visible_mask", "simulate_errors", "write_plan", "order_path", "candidate_views", "choose_next"]
+           "visible_mask", "simulate_errors", "write_plan", "order_path", "candidate_views", "choose_next", "choose_views"]
 
 TILTS_DEG = (0.0, 10.0, 20.0, 30.0, 37.5, 45.0, 52.5, 60.0)
 AZIMUTHS = 12
@@ -192,11 +192,11 @@ def _criterion(info_inv: NDArray[np.float64], weight: NDArray[np.float64]) -> ND
     return np.einsum("...ii,i->...", info_inv[..., :6, :6], weight)
 
 
-def _choose(infos: NDArray[np.float64], n: int, weight: NDArray[np.float64], max_passes: int = 8,
-            prior: NDArray[np.float64] | None = None) -> list[int]:
+def choose_views(infos: NDArray[np.float64], n: int, weight: NDArray[np.float64], max_passes: int = 8,
+                 prior: NDArray[np.float64] | None = None) -> list[int]:
     """A-optimal selection of ``n`` of the candidate informations: greedy, then exchanges; ``prior``
     (12, 12) holds what no pose can determine (a SCARA's vertical) fixed."""
-    ridge = 1e-9 * float(np.mean(np.trace(infos, axis1=1, axis2=2))) * np.eye(12)
+    ridge = 1e-9 * float(np.mean(np.trace(infos, axis1=1, axis2=2))) * np.eye(infos.shape[-1])
     if prior is not None:
         ridge = ridge + prior
     chosen: list[int] = []
@@ -384,7 +384,7 @@ def plan_poses(
     infos = reprojection_information(flange2base[idx], X, Z, setup, obj, K)
     weight = np.r_[np.full(3, standoff**2), np.ones(3)]  # rotation error seen at the standoff, in metres
     prior, unobservable = _gauge(robot, setup, float(np.mean(np.trace(infos, axis1=1, axis2=2))))
-    chosen = idx[_choose(infos, n_poses, weight, prior=prior)]
+    chosen = idx[choose_views(infos, n_poses, weight, prior=prior)]
     order = order_path(flange2base[chosen])
     chosen = chosen[order]
     info = reprojection_information(flange2base[chosen], X, Z, setup, obj, K).sum(axis=0)
