@@ -270,6 +270,9 @@ def test_a_camera_and_a_laser_profiler_from_one_session_folder(tmp_path):
         own = load_result(tmp_path / "out" / "sensors" / name)
         assert own.sensor.sensor == kind
         assert within_std(own.X, np.array(truth["sensors"][name]["cam2flange"]), own.std)
+    laser = load_result(tmp_path / "out" / "sensors" / "laser")  # its own target: the ball, with its radius
+    ball = np.array(truth["ball"]["target2base"])[:3, 3]
+    assert np.all(np.abs(laser.Z[:3, 3] - ball) * 1e3 < 3 * laser.std_Z[3:]) and "radius_mm" in laser.sensor.figures
     spec = yaml.safe_load((folder / "session.yaml").read_text())
     spec["sensors"]["laser"]["profiles"] = "nowhere"
     (folder / "session.yaml").write_text(yaml.safe_dump(spec))

@@ -219,8 +219,8 @@ def rig_members(cal: Calibration) -> dict[str, Calibration]:
         mine = f["X_per_sensor"][name] if joint else f["alone"][name]
         seen = [(v, r) for v, r in zip(_view_names(cal), _per_view(f, name, cal)) if r is not None]
         views, rms = [v for v, _ in seen], [r for _, r in seen]
-        figures = {"rig": {"sensors": names, "in_joint_fit": joint, "first_sensor": first},
-                   "alone": f["alone"].get(name)}
+        figures = dict(mine.get("figures") or {}) | {"rig": {"sensors": names, "in_joint_fit": joint, "first_sensor": first},
+                                                     "alone": f["alone"].get(name)}
         if joint and name != first:
             figures["rig"]["pose_in_first_sensor"] = f["relative"][f"{name}2{first}"]
         record = replace(cal.sensor, sensor=mine.get("kind", cal.sensor.sensor), target=mine.get("target", cal.sensor.target),
@@ -238,6 +238,9 @@ def rig_members(cal: Calibration) -> dict[str, Calibration]:
             notes = [n for n in notes if not n.startswith(WEAKEST_NOTE)]
         member = replace(cal, kinematic=None, X=np.asarray(mine["X"], float), cov=cov, std=np.asarray(mine["std_deg_mm"], float),
                          sensor=record, notes=[how] + notes)
+        if mine.get("Z") is not None:  # its own target (a profiler's ball beside a camera's board)
+            member = replace(member, Z=np.asarray(mine["Z"], float),
+                             std_Z=None if mine.get("Z_std_deg_mm") is None else np.asarray(mine["Z_std_deg_mm"], float))
         if name in f.get("images_per_sensor", {}):  # a camera of a rig session: its images and intrinsics
             im = f["images_per_sensor"][name]
             member = replace(member, image_names=list(im["names"]), image_sha256=list(im["sha256"]),

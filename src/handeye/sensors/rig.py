@@ -200,7 +200,7 @@ class Rig:
                 J[3:, c + 3:c + 6] = R_X
             cov_k = J @ cov @ J.T
             out[self.sensor_names[k]] = {"X": (X @ rel).tolist(), "std_deg_mm": std_deg_mm(cov_k).tolist(), "cov": cov_k.tolist(),
-                                         "kind": self.members[k].kind, "target": self.members[k].target}
+                                         "kind": self.members[k].kind, "target": self.members[k].target} | self._own(X, p, cov, k)
         rows = np.asarray(rows)
         r = self.residuals(X, p, flange2base, rows)
         rms = [float(1e3 * np.sqrt(np.mean(np.sum(r[self.member[rows] == k] ** 2, axis=1))))
@@ -214,6 +214,17 @@ class Rig:
             per_view[name] = [float(1e3 * np.sqrt(a / b)) if b else None for a, b in zip(sq, n)]
         return {"X_per_sensor": out, "rms_mm_per_sensor": rms, "view_rms_mm_per_sensor": per_view}
 
+    def _own(self, X, p, cov, k: int) -> dict[str, Any]:
+        """Sensor ``k``'s target pose (``Z``, with its std) and its own figures (a ball's radius, a depth
+        scale), from its unknowns in the joint fit: the shared target's when the sensors share one."""
+        m, s = self.members[k], self._slices[0 if self.shared_target else k]
+        own = self.member_params(X, p, k)
+        cov_own = cov[6 + s.start:6 + s.stop, 6 + s.start:6 + s.stop]
+        if self.shared_target and k > 0:  # the first sensor's target, in this sensor's terms: its Z and std are the first's
+            return {"Z": self.Z(X, p).tolist(), "Z_std_deg_mm": _listed(self.members[0].Z_std(p[s], cov_own))}
+        X_k = X @ self.relative(p, k)
+        return {"Z": m.Z(X_k, own).tolist(), "Z_std_deg_mm": _listed(m.Z_std(own, cov_own)), "figures": m.figures(own, cov_own)}
+
     def notes(self, p, cov_p) -> list[str]:
         """Each sensor's pose in sensor 0's frame, with its std."""
         out = []
@@ -222,3 +233,8 @@ class Rig:
             out.append(f"{name}: the sensors' relative pose known to {s[:3].max():.4f} deg / {s[3:].max():.4f} mm (std, "
                        "largest axis; the robot's error cancels in it)")
         return out
+
+
+def _listed(values) -> list | None:
+    """A std as result.json holds it (None when the sensor gives none)."""
+    return None if values is None else np.asarray(values, float).tolist()
