@@ -214,7 +214,7 @@ def rig_members(cal: Calibration) -> dict[str, Calibration]:
     names = list(f["sensors"]) + list(f.get("disagreeing", []))
     first = f["sensors"][0]
     out = {}
-    for k, name in enumerate(names):
+    for name in names:
         joint = name in f["X_per_sensor"]
         mine = f["X_per_sensor"][name] if joint else f["alone"][name]
         seen = [(v, r) for v, r in zip(_view_names(cal), _per_view(f, name, cal)) if r is not None]
