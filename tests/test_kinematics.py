@@ -755,3 +755,27 @@ def test_the_panda_meshes_ride_on_the_table_frames_and_join_link_to_link():
         meshes.link2base(load_arm("ur5"), np.zeros((1, 6)))
     with pytest.raises(InputMismatchError, match="no meshes of the arm 'ur5'"):
         arm_meshes("ur5")
+
+
+def test_the_links_motion_per_table_entry_and_the_fits_sensitivity_to_held_entries():
+    """``table_twists``: a point of a link moves, per unit of a table entry, as the link's pose moved
+    by that entry says (central differences of the posed point); ``consider_cov``: a line fitted with
+    a held slope of known std gets the intercept's std the held slope gives it, in closed form."""
+    from handeye.estimation.uncertainty import consider_cov
+
+    panda, meshes = load_arm("panda"), arm_meshes("panda")
+    q = panda.home["eye_to_hand"][None] + np.radians([[5, -10, 15, 5, -20, 10, 30]])
+    twists = meshes.table_twists(panda, q)
+    assert twists.shape == (28, 1, len(meshes.links), 6)
+    point = np.array([0.03, -0.02, 0.05])  # in link 5's frame
+    for e in (0, 9, 14, 27):  # joint 1's a, joint 3's alpha, joint 4's d, joint 7's theta
+        d = np.zeros(28)
+        d[e] = 1e-6
+        moved = [(meshes.link2base(panda, q, s * d.reshape(7, 4))[0, 5] @ np.r_[point, 1.0])[:3] for s in (1, -1)]
+        here = (meshes.link2base(panda, q)[0, 5] @ np.r_[point, 1.0])[:3]
+        w, v = twists[e, 0, 5, :3], twists[e, 0, 5, 3:]
+        assert np.allclose((moved[0] - moved[1]) / 2e-6, np.cross(w, here) + v, atol=1e-6)
+    # y = b + m x, with m held at its nominal value (std s): b's std from m is s * mean(x)
+    x = np.linspace(1.0, 3.0, 9)
+    cov = consider_cov(np.ones((9, 1)), np.ones(9), x[:, None], np.array([0.5]))
+    assert np.isclose(np.sqrt(cov[0, 0]), 0.5 * x.mean())

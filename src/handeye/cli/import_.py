@@ -9,7 +9,14 @@ from .._shared.io import atomic_write
 from ..errors import HandEyeError
 from ..estimation.diagnostics import diagnose
 from ..frames.setups import SETUPS
-from ..io.importers import import_easy_handeye, import_industrial_calibration, import_robcalibrator, import_rosbag, import_visp
+from ..io.importers import (
+    import_easy_handeye,
+    import_easyhec,
+    import_industrial_calibration,
+    import_robcalibrator,
+    import_rosbag,
+    import_visp,
+)
 from ..io.session import load_session
 from ..pipelines.calibration import observe
 from ._common import target_spec_arg, whole_arg
@@ -25,6 +32,8 @@ def _cmd_import(args: argparse.Namespace) -> int:
         summary = import_industrial_calibration(args.source, args.out)
     elif args.kind == "robcalibrator":
         summary = import_robcalibrator(args.source, args.out)
+    elif args.kind == "easyhec":
+        summary = import_easyhec(args.source, args.out, arm=args.arm)
     else:
         frames = None
         if args.robot_topic is None and args.joint_topic is None:
@@ -41,7 +50,8 @@ def _cmd_import(args: argparse.Namespace) -> int:
             "stream session": "a session (a robot stream, images with their times)",
             "stream posepairs": "a pose-pair folder of two streams",
             "joint streams": "two streams for calibrate-streams --arm (joints.csv, camera.csv)",
-            "laser session": "a laser profiler's session (profiles/, poses.csv)"}[summary.kind]
+            "laser session": "a laser profiler's session (profiles/, poses.csv)",
+            "silhouette session": "a markerless colour session (masks/, images/, joints.csv)"}[summary.kind]
     print(f"wrote {what} to {summary.folder}: {summary.robot_samples} robot and {summary.camera_samples} camera samples")
     for note in summary.notes:
         print(f"note: {note}")
@@ -98,6 +108,9 @@ SOURCES = {
     "robcalibrator": ("RobCalibrator's laser scans of a sphere (p1.yml ..., RobPoses.rob)", "RobCalibrator's folder of "
                       "laser profiles of a sphere (p1.yml ...: OpenCV YAML scan_line in mm), FANUC poses (RobPoses.rob: "
                       "x, y, z, w, p, r in mm and degrees) and calibration.sec (setup, radius), as a laser session."),
+    "easyhec": ("EasyHeC's markerless capture (color/, mask/, qpos/, K.txt)", "EasyHeC's folder of colour images, masks "
+                "of the robot and joint angles (qpos/: the arm's, then the fingers') with K.txt, as a silhouette session "
+                "(the camera fixed, the robot's own silhouette the target)."),
 }
 
 
@@ -121,6 +134,8 @@ def register(sub) -> None:
     parsers["visp"].add_argument("source", help="the ViSP folder")
     parsers["industrial-calibration"].add_argument("source", help="cal_data.yaml or its folder")
     parsers["robcalibrator"].add_argument("source", help="the folder of p1.yml ..., RobPoses.rob")
+    parsers["easyhec"].add_argument("source", help="the folder of color/, mask/, qpos/ and K.txt")
+    parsers["easyhec"].add_argument("--arm", default="panda", help="the arm whose joint angles qpos/ holds (default panda)")
     parsers["rosbag"].add_argument("--setup", choices=list(SETUPS), help="default eye_in_hand (a bag does not say)")
     parsers["visp"].add_argument("--setup", choices=list(SETUPS),
                                  help="default: the folder does not say; eye_to_hand when the images' poses are "

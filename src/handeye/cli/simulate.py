@@ -19,10 +19,12 @@ from ..simulate import (
     write_depth_session,
     write_laser_session,
 )
+from ..simulate.arm_depth import arm_depth_scene, write_arm_depth_session
 from ..simulate.laser import TARGETS as LASER_TARGETS
 from ..simulate.linescan import linescan_scene, write_linescan_session
 from ..simulate.mesh import mesh_scene, write_mesh_session
 from ..simulate.rig import camera_laser_scene, rig_joint_scene, rig_scene, write_camera_laser_session, write_rig_session
+from ..simulate.silhouette import silhouette_scene, write_silhouette_session
 from ._common import image_size_arg, number_arg, out_folder, sensor_target, whole_arg
 
 
@@ -71,6 +73,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         return 0
     if args.sensor == "depth":
         return _simulate_depth(args)
+    if args.sensor == "silhouette":
+        return _simulate_silhouette(args)
     if args.sensor == "laser_line":
         if args.robot != "arm":
             raise InputMismatchError("--sensor laser_line simulates a 6-axis arm (its controller's poses, or with --arm its "
@@ -100,12 +104,39 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _simulate_arm_depth(args: argparse.Namespace) -> int:
+    """A depth camera fixed in the cell and the arm itself as the target (markerless): always eye_to_hand."""
+    if args.robot != "arm":
+        raise InputMismatchError("--sensor depth --target arm simulates a meshed arm's joint angles; leave --robot out")
+    arm = args.arm or "panda"
+    sc = arm_depth_scene(args.poses, args.seed, arm=arm, image_size=args.image_size)
+    write_arm_depth_session(args.out, sc)
+    print(f"wrote depth session {args.out} ({args.poses} clouds of the {arm} itself, its joint angles in joints.csv, a "
+          f"camera fixed {1e3 * float(sc.X[2, 3]):.0f} mm above its base, eye_to_hand; a table and a box as clutter); "
+          f"ground truth in {Path(args.out) / 'ground_truth.yaml'}")
+    return 0
+
+
+def _simulate_silhouette(args: argparse.Namespace) -> int:
+    if args.robot != "arm" or args.target is not None or args.arm not in (None, "panda"):
+        raise InputMismatchError("--sensor silhouette simulates a Panda seen by a fixed camera (eye_to_hand), no target; "
+                                 "leave --robot and --target out")
+    sc = silhouette_scene(args.poses, args.seed, image_size=args.image_size)
+    write_silhouette_session(args.out, sc)
+    print(f"wrote silhouette session {args.out} ({args.poses} masks of a Panda, {args.image_size[0]}x{args.image_size[1]}, "
+          f"eye_to_hand, the masks' boundary off by ~1 px with a few blobs); ground truth in "
+          f"{Path(args.out) / 'ground_truth.yaml'}")
+    return 0
+
+
 def _simulate_depth(args: argparse.Namespace) -> int:
     """A depth camera's clouds: of a mesh (the default: a flange-sized disc on the flange, eye-to-hand),
     a ball, or a board."""
+    target = args.target or "mesh"
+    if target == "arm":  # markerless: a camera fixed in the cell sees the arm itself
+        return _simulate_arm_depth(args)
     if args.robot != "arm" or args.arm is not None:
         raise InputMismatchError("--sensor depth simulates a 6-axis arm's controller poses; leave --robot and --arm out")
-    target = args.target or "mesh"
     if target == "mesh":
         sc = mesh_scene(args.poses, args.setup, args.seed, image_size=args.image_size)
         write_mesh_session(args.out, sc)
@@ -134,23 +165,25 @@ def register(sub) -> None:
         "with ground_truth.yaml (X, Z, K, dist).",
     )
     p.add_argument("-o", "--out", required=True, help="new session folder")
-    p.add_argument("--sensor", default="camera", choices=["camera", "depth", "laser_line", "line_scan", "rig"],
+    p.add_argument("--sensor", default="camera", choices=["camera", "depth", "laser_line", "line_scan", "rig", "silhouette"],
                    help="camera (default): rendered images of a board; depth: a depth camera's 640x480 clouds of a mesh "
                    "(--target mesh, the default: a flange-sized disc on the flange), a ball (sphere) or a board; laser_line: "
                    "a laser line profiler's profiles of a "
                    "ball or a plate (--poses of them; --arm for joint angles); line_scan: a line-scan camera's scans of a "
                    "chessboard swept by the robot (--poses of them); rig: a stereo pair on the flange (eye_in_hand) or "
-                   "three fixed cameras (eye_to_hand)")
+                   "three fixed cameras (eye_to_hand); silhouette: a fixed colour camera's masks of a Panda (markerless, "
+                   "its joint angles, eye_to_hand; --poses of them)")
     p.add_argument("--cameras", type=whole_arg(2), default=None,
                    help="with --sensor rig: the number of cameras (default 2 on the flange, 3 fixed around the cell)")
     p.add_argument("--laser", action="store_true",
                    help="with --sensor rig: a camera beside a laser profiler (a small board and a 40 mm ball) instead of cameras")
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--poses", type=whole_arg(1), default=15, help="number of images (default 15)")
-    p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS) + ["mesh"],
+    p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS) + ["mesh", "arm"],
                    help="the board rendered (default charuco: it cannot be read from the wrong end, as handeye's advice "
                    "recommends; chessboard for the thesis's set-up); with --sensor laser_line: sphere (default) or plane; "
-                   "with --sensor depth: mesh (default), sphere or a board")
+                   "with --sensor depth: mesh (default), sphere, a board, or arm (the arm itself, markerless, its joint angles; "
+                   "always eye_to_hand; --arm panda, the arm with meshes)")
     p.add_argument("--noise-px", type=number_arg(0.0), default=0.2, help="feature position noise in pixels (default 0.2)")
     p.add_argument("--seed", type=whole_arg(0), default=None)
     p.add_argument("--image-size", type=image_size_arg, default=(640, 480), help="WIDTHxHEIGHT (default 640x480)")

@@ -19,7 +19,7 @@ from ..geometry.se3 import skew
 from ..options import ROBOT_ACCURACY
 from ..result import Calibration
 
-__all__ = ["robot_accuracy_cov", "robot_accuracy_from_data", "widened_uncertainty", "UNSEEN_FACTOR"]
+__all__ = ["robot_accuracy_cov", "robot_accuracy_from_data", "widened_uncertainty", "consider_cov", "UNSEEN_FACTOR"]
 
 
 def _std(cov_X: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -35,6 +35,18 @@ def robot_accuracy_cov(X: NDArray[np.float64], accuracy: tuple[float, float]) ->
     J = np.eye(6)
     J[3:, :3] = -skew(X[:3, 3])
     return J @ np.diag([s_rot**2] * 3 + [s_t**2] * 3) @ J.T
+
+
+def consider_cov(jacobian: NDArray[np.float64], sigma: NDArray[np.float64], held: NDArray[np.float64],
+                 held_std: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The covariance of a fit's unknowns from quantities it holds at their nominal values (Schmidt's
+    consider covariance): ``jacobian`` (M, P) of the residuals in the unknowns, ``sigma`` (M,) each
+    residual's relative noise, ``held`` (M, E) the residuals' derivatives in the held quantities, of
+    std ``held_std`` (E,). A held quantity off by ``e`` moves the least-squares answer by ``-S e``,
+    ``S = (J^T W J)^-1 J^T W H``: (P, P) ``S diag(held_std^2) S^T``."""
+    w = 1.0 / np.asarray(sigma, float)[:, None]
+    S = np.linalg.lstsq(jacobian * w, held * w, rcond=None)[0]
+    return (S * np.asarray(held_std, float) ** 2) @ S.T
 
 
 #: The robot's error that X absorbs unseen (its part constant over the capture) is taken as this many

@@ -69,6 +69,13 @@ def _std_reason(std: NDArray[np.float64], sources: dict, n_used: int) -> str | N
     if rot <= ACCEPT_DEG and mm <= ACCEPT_MM:
         return None
     jack, intr, robot = sources.get("jackknife"), sources.get("intrinsics"), sources.get("robot_accuracy")
+    table = sources.get("arm_table")
+    if table is not None and (3 * np.linalg.norm(table[3:]) > ACCEPT_MM or 3 * np.linalg.norm(table[:3]) > ACCEPT_DEG):
+        return (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg, and the arm's "
+                f"table alone gives {np.linalg.norm(table[3:]):.1f} mm / {np.linalg.norm(table[:3]):.2f} deg per std: the "
+                "links the camera sees are placed by the joint angles through the nominal table, whose error X takes "
+                "whole; calibrate the arm's table first (joint angles with a board: handeye calibrate writes "
+                "arm_corrected.yaml) and name it as the arm (joints: arm: arm_corrected.yaml), or use a board")
     if robot is not None and (3 * np.linalg.norm(robot[3:]) > ACCEPT_MM or 3 * np.linalg.norm(robot[:3]) > ACCEPT_DEG):
         return (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg, and the robot's "
                 f"accuracy alone gives {np.linalg.norm(robot[3:]):.1f} mm / {np.linalg.norm(robot[:3]):.2f} deg per std: "

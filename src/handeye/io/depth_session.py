@@ -32,7 +32,7 @@ from .session import (
     read_session_yaml,
 )
 
-__all__ = ["DepthSession", "MeshTarget", "is_depth_session", "load_depth_session"]
+__all__ = ["DepthSession", "MeshTarget", "ArmTarget", "is_depth_session", "load_depth_session", "ARM_KEYS"]
 
 #: What the pose table's first column must be, for the error that finds it is not.
 FIRST_COLUMN = ("'image' (a board: its intensity image in images/, the cloud of the same name in clouds/) or 'cloud' "
@@ -64,11 +64,15 @@ class DepthSession:
     #: a mesh target (``type: mesh``): its file, unit and, when the session gives it, its placement
     #: (Z: target2flange eye-to-hand, target2base eye-in-hand, metres)
     mesh: MeshTarget | None = None
+    #: the arm itself as the target (``type: arm``): its hand and fingers; the joint angles pose it
+    arm_target: ArmTarget | None = None
 
     @property
     def kind(self) -> str:
-        """What the clouds hold: 'spheres', 'mesh' or 'board'."""
-        return "spheres" if self.radii is not None else "mesh" if self.mesh is not None else "board"
+        """What the clouds hold: 'spheres', 'mesh', 'arm' or 'board'."""
+        if self.radii is not None:
+            return "spheres"
+        return "mesh" if self.mesh is not None else "arm" if self.arm_target is not None else "board"
 
 
 @dataclass(frozen=True)
@@ -80,6 +84,47 @@ class MeshTarget:
     file: Path
     unit: str
     placement: NDArray[np.float64] | None = None
+
+
+@dataclass(frozen=True)
+class ArmTarget:
+    """The arm itself as the target (``target: {type: arm}``, markerless): whether its maker's hand
+    is on the flange (``hand``, default true) and the gap between its fingers (``finger_opening``,
+    metres, default 0). The arm, its meshes and each cloud's joint angles come from ``joints:``."""
+
+    hand: bool = True
+    finger_opening: float = 0.0
+
+
+#: The keys of an arm target.
+ARM_KEYS = ("type", "hand", "finger_opening")
+
+
+def _arm_target(target: Any, setup: str, spec: dict, where: str) -> ArmTarget | None:
+    """The arm target of ``target`` (None for another type), checked: its keys, a camera fixed in
+    the cell (eye_to_hand), a ``joints:`` table to pose the arm by."""
+    if not isinstance(target, dict) or str(target.get("type", "")).lower() != "arm":
+        return None
+    unknown = sorted(set(target) - set(ARM_KEYS))
+    if unknown:
+        raise SessionError(f"{where}: target: unknown key(s) {', '.join(unknown)} for the arm (keys: {', '.join(ARM_KEYS)})")
+    if setup_info(setup).camera_on_flange:
+        raise SessionError(f"{where}: target: arm is the arm seen by a depth camera fixed in the cell: setup: eye_to_hand "
+                           f"(got {setup})")
+    if not spec.get("joints"):
+        raise SessionError(f"{where}: target: arm needs each cloud's joint angles: joints: {{file: joints.csv, unit: deg, "
+                           "arm: panda}} (the first column 'cloud')")
+    hand = target.get("hand", True)
+    if not isinstance(hand, bool):
+        raise SessionError(f"{where}: target: hand is true (the maker's gripper on the flange) or false, got {hand!r}")
+    try:
+        opening = float(target.get("finger_opening", 0.0))
+    except (TypeError, ValueError):
+        opening = float("nan")
+    if not 0.0 <= opening <= 0.1:
+        raise SessionError(f"{where}: target: finger_opening is the gap between the fingers in metres (0 to 0.08 for the "
+                           f"Franka Hand), got {target.get('finger_opening')!r}")
+    return ArmTarget(hand, opening)
 
 
 #: The keys of a mesh target (besides the placement's, ``pose_in_flange`` or ``pose_in_base``).
@@ -185,7 +230,8 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     A ``joints:`` table (as for image sessions: ``file``, ``unit``, ``arm``; its first column
     ``image`` or ``cloud``) gives each view's joint angles: the calibration then fits the arm's table
     with X; ``arm`` (``--arm``) overrides the table's arm. Without ``poses:`` the flange poses are
-    the nominal table's.
+    the nominal table's. ``target: {type: arm}`` (:class:`ArmTarget`): the arm itself is the target
+    (markerless, eye_to_hand only); the ``joints:`` table is then required: it poses the arm's meshes.
 
     Raises :class:`SessionError` naming the file: no ``depth:`` mapping, a bad target, a missing
     pose table, image or cloud, a pose table whose first column is neither ``image`` nor ``cloud``.
@@ -199,7 +245,9 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     target = spec.get("target")
     radii = _radii(target, where)
     mesh = _mesh(target, folder, setup, where)
-    if radii is None and mesh is None:
+    arm_target = _arm_target(target, setup, spec, where)
+    board = radii is None and mesh is None and arm_target is None
+    if board:
         target_from_spec(target, where=f"{where}: target")
     unit, working = _depth_spec(spec["depth"], where)
     K, dist = read_camera(spec.get("camera"), where)
@@ -211,11 +259,11 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     q = None if joints is None else joints_of_views(joints, names)
     clouds = [_cloud_of(folder, n, table) for n in names]
     images = None
-    if radii is None and mesh is None:
+    if board:
         images = [folder / "images" / n for n in names]
         missing = [str(p.name) for p in images if not p.is_file()]
         if missing:
             raise SessionError(f"{folder / 'images'}: image file(s) missing: {', '.join(missing[:10])}")
     return DepthSession(folder, setup, dict(target), list(names), clouds, images, f2b, K, dist, unit, working, radii, notes,
                         None if joints is None else q, None if joints is None else joints[2],
-                        None if joints is None else joints[3], mesh)
+                        None if joints is None else joints[3], mesh, arm_target)

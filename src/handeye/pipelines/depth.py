@@ -45,6 +45,7 @@ from ..sensors.depth.clouds import check_frame, plane_points, read_cloud
 from ..sensors.depth.model import BoardPoints, SphereCentres
 from ..sensors.depth.spheres import find_spheres
 from ._sensor import robot_model, sensor_options
+from .arm_depth import calibrate_arm_depth_session
 from .mesh import calibrate_mesh_session
 
 __all__ = ["calibrate_depth_session", "calibrate_depth", "calibrate_spheres", "measure_depth_session", "DepthViews"]
@@ -174,6 +175,8 @@ def calibrate_depth_session(folder: str | Path | DepthSession, options: Calibrat
     s = folder if isinstance(folder, DepthSession) else load_depth_session(folder, arm=opts.arm)
     if s.kind == "mesh":  # a known shape: found in each cloud, then every point against its surface
         return calibrate_mesh_session(s, opts, fit_depth=fit_depth, progress=progress, jobs=jobs)
+    if s.kind == "arm":  # the arm itself (markerless): every point against the arm posed at its joint angles
+        return calibrate_arm_depth_session(s, opts, fit_depth=fit_depth, progress=progress, jobs=jobs)
     v = measure_depth_session(s, progress, jobs)
     if len(v.index) < 3:
         raise DegenerateMotionError(

@@ -21,6 +21,7 @@ from ..io.laser_session import is_laser_session
 from ..io.linescan_session import is_linescan_session
 from ..io.rig_session import is_rig_session
 from ..io.session import POSEPAIRS_FILE, SESSION_FILE, PosePairs, load_pose_pairs, load_session, load_yaml
+from ..io.silhouette_session import is_silhouette_session
 from ..options import CalibrationOptions, options_from
 from ..result import Calibration, Diagnostics
 from .calibration import calibrate, calibrate_poses
@@ -29,6 +30,7 @@ from .joints import calibrate_joint_session
 from .laser import calibrate_laser_session
 from .linescan import calibrate_linescan_session
 from .rig import calibrate_rig_session
+from .silhouette import calibrate_silhouette_session
 from .streams import calibrate_streams, paired_delay_note
 
 __all__ = ["FolderCheck", "calibrate_folder", "calibrate_pairs", "calibrate_session", "check_folder"]
@@ -63,7 +65,8 @@ def calibrate_session(folder: str | Path, options: CalibrationOptions | None = N
     ``joints:`` table, :func:`handeye.pipelines.joints.calibrate_joint_session` (the arm's table
     fitted with X); a depth camera's session (``depth:``), :func:`handeye.pipelines.depth.calibrate_depth_session`;
     a laser line profiler's (``laser:``), :func:`handeye.pipelines.laser.calibrate_laser_session`; a line-scan
-    camera's (``linescan:``), :func:`handeye.pipelines.linescan.calibrate_linescan_session`; a rig's (``sensors:``),
+    camera's (``linescan:``), :func:`handeye.pipelines.linescan.calibrate_linescan_session`; a fixed colour camera's
+    that sees the arm (``silhouette:``), :func:`handeye.pipelines.silhouette.calibrate_silhouette_session`; a rig's (``sensors:``),
     :func:`handeye.pipelines.rig.calibrate_rig_session`."""
     opts = options_from(options, changes)
     folder = Path(folder)
@@ -73,6 +76,8 @@ def calibrate_session(folder: str | Path, options: CalibrationOptions | None = N
         return calibrate_laser_session(folder, opts, progress=progress)
     if is_linescan_session(folder):
         return calibrate_linescan_session(folder, opts, progress=progress)
+    if is_silhouette_session(folder):
+        return calibrate_silhouette_session(folder, opts, progress=progress)
     if is_rig_session(folder):
         return calibrate_rig_session(folder, opts, progress=progress)
     if opts.arm is not None or ((folder / SESSION_FILE).is_file()

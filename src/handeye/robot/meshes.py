@@ -32,11 +32,13 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
 
 from ..errors import InputMismatchError, SessionError
-from .kinematics import Chain
+from .kinematics import Chain, load_arm
 
-__all__ = ["LinkMesh", "ArmMeshes", "arm_meshes", "mesh_arm_names", "BASE", "FLANGE"]
+__all__ = ["LinkMesh", "ArmMeshes", "arm_meshes", "meshes_for", "mesh_arm_names", "BASE", "FLANGE", "CORRECTED_M",
+           "CORRECTED_RAD"]
 
 #: A link's ``frame`` when it is fixed to the arm's base (link 0).
 BASE = -1
@@ -119,6 +121,31 @@ class ArmMeshes:
         faces = np.concatenate([link.faces + o for link, o in zip(self.links, offsets[:-1])])
         owner = np.repeat(np.arange(len(self.links)), np.diff(offsets))
         return vertices, faces, owner
+
+    def table_twists(self, chain: Chain, joints: ArrayLike, step: float = 1e-6) -> NDArray[np.float64]:
+        """How every link moves per unit of each entry of the chain's table (E, N, L, 6; E the
+        table's entries row by row, joint k's ``a``, ``alpha``, ``d``, ``theta``): a rotation ``w``
+        and a translation ``v`` in the base frame, a point ``p`` of the link moving by ``w x p + v``
+        per metre or radian of the entry (central differences of :meth:`link2base`)."""
+        q = np.atleast_2d(np.asarray(joints, dtype=float))
+        T0 = self.link2base(chain, q)
+        out = np.empty((chain.table.size,) + T0.shape[:2] + (6,))
+        for e in range(chain.table.size):
+            d = np.zeros(chain.table.size)
+            d[e] = step
+            shape = chain.table.shape
+            dT = (self.link2base(chain, q, d.reshape(shape)) - self.link2base(chain, q, -d.reshape(shape))) / (2 * step)
+            W = dT[..., :3, :3] @ np.swapaxes(T0[..., :3, :3], -1, -2)  # skew(w) to first order
+            w = 0.5 * np.stack([W[..., 2, 1] - W[..., 1, 2], W[..., 0, 2] - W[..., 2, 0], W[..., 1, 0] - W[..., 0, 1]], axis=-1)
+            out[e] = np.concatenate([w, dT[..., :3, 3] - np.cross(w, T0[..., :3, 3])], axis=-1)
+        return out
+
+    def nearest_link(self, link2base: NDArray[np.float64], points: NDArray[np.float64]) -> NDArray[np.intp]:
+        """The link (index into ``links``) each of ``points`` (M, 3, base frame) lies on, for one
+        view's link poses ``link2base`` (L, 4, 4): the link of its nearest posed vertex."""
+        vertices, _, owner = self.merged()
+        posed = self.posed_vertices(np.asarray(link2base, float)[None])[0]
+        return owner[cKDTree(posed).query(np.asarray(points, float))[1]]
 
     def posed_vertices(self, link2base: NDArray[np.float64]) -> NDArray[np.float64]:
         """The merged vertices (N, V, 3) in the base frame for poses ``link2base`` (N, L, 4, 4)
@@ -207,3 +234,40 @@ def arm_meshes(name: str, hand: bool = True, finger_opening: float = 0.0) -> Arm
     if not 0.0 <= finger_opening <= 0.08:
         raise InputMismatchError(f"finger opening {finger_opening} m: the Franka Hand opens 0 to 0.08 m (give metres)")
     return _MESH_ARMS[key](hand, float(finger_opening))
+
+
+#: A table is a corrected one of a shipped arm's (its meshes ride on it) when no length differs by
+#: more than this (m) and no angle by more than :data:`CORRECTED_RAD`: a calibration's corrections
+#: are a few millimetres and tenths of a degree, another arm's table differs by centimetres.
+CORRECTED_M = 0.01
+CORRECTED_RAD = float(np.radians(1.0))
+
+
+def _close(chain: Chain, shipped: Chain) -> bool:
+    """Whether ``chain`` is ``shipped``'s table, or one corrected from it (:data:`CORRECTED_M`)."""
+    if chain.n_joints != shipped.n_joints or chain.convention != shipped.convention:
+        return False
+    gap = np.abs(chain.table - shipped.table)
+    lengths, angles = gap[:, [0, 2]], gap[:, [1, 3]]
+    frames = np.abs(chain.base - shipped.base)[:3], np.abs(chain.flange - shipped.flange)[:3]
+    return bool(lengths.max() <= CORRECTED_M and angles.max() <= CORRECTED_RAD
+                and all(f[:, 3].max() <= CORRECTED_M and f[:, :3].max() <= CORRECTED_RAD for f in frames))
+
+
+def meshes_for(chain: Chain, hand: bool = True, finger_opening: float = 0.0) -> ArmMeshes:
+    """The meshes of the arm whose table ``chain`` is: a shipped arm's, by its table (the shipped
+    one, or one a calibration corrected from it, ``arm_corrected.yaml``: the links ride on the same
+    frames), not by its name.
+
+    Raises
+    ------
+    InputMismatchError
+        No arm handeye has meshes of has that table (another arm's, a URDF's frames).
+    """
+    for name in mesh_arm_names():
+        if _close(chain, load_arm(name)):
+            return arm_meshes(name, hand, finger_opening)
+    raise InputMismatchError(f"the arm's table ({chain.name}, {chain.n_joints} joints, {chain.convention}) is not one handeye "
+                             f"has meshes for ({', '.join(mesh_arm_names())}: the shipped table, or one calibrated from it "
+                             f"within {1e3 * CORRECTED_M:g} mm / {np.degrees(CORRECTED_RAD):g} deg): the links would be placed "
+                             "wrong; name the arm (joints: arm: panda) or give its corrected table")

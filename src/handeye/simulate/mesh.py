@@ -27,7 +27,7 @@ from ._common import _reported, default_camera
 from .depth import depth_reading, pixel_rays
 from .scenes import Scene, look_at_viewpoints, scene_from_viewpoints
 
-__all__ = ["MeshScene", "flange_mesh", "mesh_scene", "write_mesh_session"]
+__all__ = ["MeshScene", "flange_mesh", "mesh_scene", "write_mesh_session", "ray_caster", "cast_rays"]
 
 
 def _trimesh():
@@ -75,8 +75,8 @@ class MeshScene(Scene):
     depth_bias: float = 0.0
 
 
-def _caster(mesh):
-    """A ray caster on ``mesh`` (Embree's when embreex is installed, else trimesh's own)."""
+def ray_caster(mesh):
+    """A ray caster on ``mesh`` (trimesh.Trimesh; Embree's when embreex is installed, else trimesh's own)."""
     trimesh = _trimesh()
     try:
         return importlib.import_module("trimesh.ray.ray_pyembree").RayMeshIntersector(mesh)
@@ -84,7 +84,8 @@ def _caster(mesh):
         return trimesh.ray.ray_triangle.RayMeshIntersector(mesh)
 
 
-def _cast(caster, n_target_faces: int, rays_cam: NDArray[np.float64], cam2target: NDArray[np.float64]):
+def cast_rays(caster, n_target_faces: int, rays_cam: NDArray[np.float64], cam2target: NDArray[np.float64]
+              ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """Per ray (camera frame, (P, 3)): the depth along it to the first hit (inf: none) and whether it hit the target."""
     origin = np.broadcast_to(cam2target[:3, 3], rays_cam.shape)
     direction = rays_cam @ cam2target[:3, :3].T
@@ -141,11 +142,11 @@ def mesh_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Gen
         rod = trimesh.creation.cylinder(0.035, 0.15, sections=64)
         rod.apply_translation([0.0, 0.0, -0.075 - 1e-4])
         parts.append(rod)
-    caster = _caster(trimesh.util.concatenate(parts))
+    caster = ray_caster(trimesh.util.concatenate(parts))
     rays = pixel_rays(K, image_size).reshape(-1, 3)
     clouds = []
     for c2t in cam2target:
-        t, on = _cast(caster, len(mesh.faces), rays, c2t)
+        t, on = cast_rays(caster, len(mesh.faces), rays, c2t)
         origin_cam = -c2t[:3, 3] @ c2t[:3, :3]  # the target's origin in the camera frame, and a wall behind it
         normal = -origin_cam / np.linalg.norm(origin_cam) + rng.normal(0.0, 0.3, 3)
         normal /= np.linalg.norm(normal)

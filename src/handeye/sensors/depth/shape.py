@@ -38,7 +38,8 @@ from ...geometry.se3 import perpendicular_basis
 from .clouds import read_points
 
 __all__ = ["Shape", "load_shape", "shape_from_mesh", "shape_from_points", "free_twists", "twist_axis", "describe_twist", "weakest_rotation",
-           "dominant_normals", "voxel_pick", "MESH_SUFFIXES", "TEMPLATE_SUFFIXES", "MAX_SIZE_M", "MIN_SIZE_M", "SYMMETRY_SHARE",
+           "dominant_normals", "voxel_pick", "sample_surface",
+           "MESH_SUFFIXES", "TEMPLATE_SUFFIXES", "MAX_SIZE_M", "MIN_SIZE_M", "SYMMETRY_SHARE",
            "SPIN_SHARE", "MAX_SAMPLES"]
 
 #: Files read as meshes (with trimesh) and as template clouds (a PLY without faces is a template).
@@ -324,14 +325,15 @@ def shape_from_mesh(mesh, name: str = "mesh", samples: int | None = None) -> Sha
     size = float(np.linalg.norm(mesh.extents))
     spacing = size / 600.0
     count = samples or int(np.clip(mesh.area / spacing**2, 2000, MAX_SAMPLES))
-    points, face = _sample(mesh, count)
+    points, face = sample_surface(mesh, count)
     normals = np.asarray(mesh.face_normals, float)[face]
     spacing = float(np.sqrt(mesh.area / count))
     return Shape(name, points, normals, spacing, free_twists(points, normals), mesh)
 
 
-def _sample(mesh, count: int) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
-    """``count`` points uniform over ``mesh``'s area (deterministic) and their faces."""
+def sample_surface(mesh, count: int) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """``count`` points uniform over ``mesh``'s area (a trimesh.Trimesh; deterministic, seed 0) and
+    the index of each one's face."""
     rng = np.random.default_rng(0)
     area = np.asarray(mesh.area_faces, float)
     face = rng.choice(len(area), count, p=area / area.sum())

@@ -1,0 +1,277 @@
+"""The arm itself as a depth camera's target (markerless, eye-to-hand): :class:`PosedArm` and
+:class:`ArmSurface`.
+
+A depth camera fixed in the cell (X = cam2base) sees the arm. At each view's joint angles the arm's
+link meshes (:mod:`handeye.robot.meshes`), placed by its kinematic table, are a known surface in
+the base frame: a different shape per view, but a known one, so each view's points carried into
+the base frame by X must lie on that view's posed arm. No target, no pose of it to fit.
+
+* :class:`PosedArm`: the links' surfaces sampled densely (every :data:`SPACING`) with their
+  faces' normals, posed per view in the base frame, a KD-tree per view; a point's residual is its
+  signed distance from the face of its nearest sample (exact on the face's plane);
+  :meth:`PosedArm.shape` gives a view's posed arm as a rigid shape for the global registration
+  (:func:`~handeye.sensors.depth.registration.find_shape`: X from one view without any guess).
+* :func:`fit_cam2base`: trimmed point-to-plane ICP of X over every view's points at once;
+  :func:`on_arm`: which of a cloud's points lie within a band of the posed arm at X (the
+  segmentation of the arm from the table, the floor, cables and whatever else the cloud holds).
+* :class:`ArmSurface`: those points as a sensor model (:mod:`handeye.sensors.base`): each point's
+  signed distance from the posed arm's surface along its normal, the point moved back along its ray
+  by the depth scale and bias as for the other depth targets; unknowns: X, the depth scale and
+  bias. The arm's table is the controller's (its joint angles through the nominal table): its
+  entries are not fitted here.
+
+Examples
+--------
+>>> import numpy as np
+>>> from handeye.robot.kinematics import load_arm
+>>> from handeye.robot.meshes import arm_meshes
+>>> from handeye.sensors.depth.arm import PosedArm
+>>> panda, meshes = load_arm("panda"), arm_meshes("panda")
+>>> arm = PosedArm(meshes, meshes.link2base(panda, np.radians([[0, -20, 0, -120, 0, 100, 45]])))
+>>> d, dist, n = arm.surface(np.zeros(1, dtype=np.intp), np.array([[0.0, 0.0, 1.5]]))
+>>> bool(d[0] > 0.3)            # 1.5 m above the base, well outside the arm
+True
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from ...errors import InputMismatchError, SessionError
+from ...frames.setups import check_setup, setup_info
+from ...geometry.se3 import perturb
+from ...robot.meshes import ArmMeshes
+from .clouds import depth_sigma
+from .model import LATERAL, DepthRows, depth_figures
+from .shape import Shape, sample_surface, shape_from_mesh
+
+__all__ = ["PosedArm", "ArmSurface", "fit_cam2base", "on_arm", "to_base", "SPACING", "BAND_SIGMA", "BAND_M", "FACES"]
+
+#: The links' surfaces are sampled this densely (m between samples): a point's nearest sample is
+#: on its own face but within ~1 mm of a face's edge.
+SPACING = 0.0025
+#: A point is on the arm when within this many of its depth noise of the posed surface, plus
+#: :data:`BAND_M` (the depth scale and bias not fitted yet, the meshes' own error), and near a sample.
+BAND_SIGMA = 4.0
+BAND_M = 0.002
+#: The fit's residual: of this many nearest samples, the one whose face's plane is nearest the
+#: point (the nearest sample alone biased X by up to 3 of its std on the simulator: points near a
+#: face's edge measured against the face beside theirs).
+FACES = 4
+
+
+def _trimesh():
+    try:
+        return importlib.import_module("trimesh")
+    except ImportError:
+        raise SessionError("the arm as the target needs trimesh and rtb-data: pip install 'handeye[markerless]'") from None
+
+
+class PosedArm:
+    """An arm's surface at every view's joint angles, in the base frame: per view its samples
+    (``points``, ``normals``) and a KD-tree on them.
+
+    Parameters
+    ----------
+    meshes : ArmMeshes
+        The arm's links (:func:`~handeye.robot.meshes.arm_meshes`).
+    link2base : ndarray (N, L, 4, 4)
+        Each view's pose of each link (:meth:`~handeye.robot.meshes.ArmMeshes.link2base`).
+    spacing : float
+        The samples' spacing (m).
+    """
+
+    def __init__(self, meshes: ArmMeshes, link2base: NDArray[np.float64], spacing: float = SPACING) -> None:
+        trimesh = _trimesh()
+        self.meshes, self.link2base = meshes, np.asarray(link2base, float)
+        if self.link2base.ndim != 4 or self.link2base.shape[1] != len(meshes.links):
+            raise InputMismatchError(f"link poses of shape {self.link2base.shape}: give (views, {len(meshes.links)}, 4, 4)")
+        local = []
+        for link in meshes.links:
+            mesh = trimesh.Trimesh(link.vertices, link.faces, process=False)
+            p, face = sample_surface(mesh, max(200, int(mesh.area / spacing**2)))
+            local.append((p, np.asarray(mesh.face_normals, float)[face]))
+        #: per sample (the same in every view) its link's index in ``meshes.links``
+        self.sample_link = np.repeat(np.arange(len(local)), [len(p) for p, _ in local])
+        self.points, self.normals, self.trees = [], [], []
+        for T in self.link2base:
+            pts = np.concatenate([p @ t[:3, :3].T + t[:3, 3] for (p, _), t in zip(local, T)])
+            self.points.append(pts)
+            self.normals.append(np.concatenate([n @ t[:3, :3].T for (_, n), t in zip(local, T)]))
+            self.trees.append(cKDTree(pts))
+
+    def subset(self, views: list[int] | NDArray[np.intp]) -> PosedArm:
+        """The arm at the views ``views`` only (their samples and trees shared, not made again)."""
+        views = [int(v) for v in views]
+        out = object.__new__(PosedArm)
+        out.meshes, out.link2base, out.sample_link = self.meshes, self.link2base[views], self.sample_link
+        out.points, out.normals, out.trees = ([getattr(self, a)[v] for v in views] for a in ("points", "normals", "trees"))
+        return out
+
+    @property
+    def n_views(self) -> int:
+        """The views the arm is posed at."""
+        return len(self.link2base)
+
+    def surface(self, owner: NDArray[np.intp], y: NDArray[np.float64], bound: float = np.inf, faces: int = 1
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """For points ``y`` (M, 3, base frame) of views ``owner`` (M,): the signed distance from the
+        face of each one's nearest sample (along its normal; outside > 0), the distance to that
+        sample, and the normal (M, 3, base frame); with ``faces`` > 1, of that many nearest samples
+        the one whose face's plane is nearest (a point near an edge, whose nearest sample lies on the
+        face beside its own); a point farther than ``bound`` (m) from every sample (a far point's
+        search is slow) gets infinite distances and a zero normal."""
+        d, dist, n = np.full(len(y), np.inf), np.full(len(y), np.inf), np.zeros((len(y), 3))
+        for v in np.unique(owner):
+            at = np.flatnonzero(owner == v)
+            r, k = self.trees[v].query(y[at], k=[1] if faces == 1 else faces, distance_upper_bound=bound)
+            hit = k[:, 0] < len(self.points[v])
+            at, r, k = at[hit], r[hit], np.minimum(k[hit], len(self.points[v]) - 1)
+            normal = self.normals[v][k]  # (m, faces, 3)
+            plane = np.where(np.isfinite(r), np.einsum("mki,mki->mk", y[at, None] - self.points[v][k], normal), np.inf)
+            pick = np.argmin(np.abs(plane), axis=1)
+            m = np.arange(len(at))
+            d[at], dist[at], n[at] = plane[m, pick], r[m, pick], normal[m, pick]
+        return d, dist, n
+
+    def shape(self, view: int) -> Shape:
+        """View ``view``'s posed arm as one rigid shape in the base frame (its target2cam is then
+        base2cam), for :func:`~handeye.sensors.depth.registration.find_shape`."""
+        vertices, faces, _ = self.meshes.merged()
+        posed = self.meshes.posed_vertices(self.link2base[view:view + 1])[0]
+        return shape_from_mesh(_trimesh().Trimesh(posed, faces, process=False), f"{self.meshes.arm} at view {view + 1}")
+
+
+def to_base(X: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Points ``q`` (M, 3, camera frame) in the base frame through ``X`` (cam2base)."""
+    return q @ X[:3, :3].T + X[:3, 3]
+
+
+def _facing(X: NDArray[np.float64], n: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Whether normals ``n`` (base frame) face the camera at points ``q`` (camera frame): a camera sees no back face."""
+    return np.einsum("mi,mi->m", n @ X[:3, :3], q) < 0
+
+
+def on_arm(arm: PosedArm, X: NDArray[np.float64], owner: NDArray[np.intp], q: NDArray[np.float64],
+           band_sigma: float = BAND_SIGMA, band_m: float = BAND_M) -> NDArray[np.bool_]:
+    """Per point ``q`` (M, 3, camera frame, of views ``owner``) whether it lies on the posed arm at
+    X: within ``band_sigma`` of its depth noise plus ``band_m`` of the surface along the normal,
+    within twice that of its nearest sample, on a face towards the camera."""
+    band = band_sigma * depth_sigma(q[:, 2]) + band_m
+    d, dist, n = arm.surface(owner, to_base(X, q), float(2.0 * band.max() + 2.0 * SPACING))
+    return (np.abs(d) < band) & (dist < 2.0 * band + 2.0 * SPACING) & _facing(X, n, q)
+
+
+def fit_cam2base(arm: PosedArm, X: NDArray[np.float64], owner: NDArray[np.intp], q: NDArray[np.float64],
+                 thresholds: NDArray[np.float64]) -> NDArray[np.float64]:
+    """X (cam2base) pulled in by trimmed point-to-plane ICP over every view's points at once: per
+    threshold (m), the points ``q`` (M, 3, camera frame, of views ``owner``) within it of their
+    nearest sample on a face towards the camera, weighted by their depth noise, one damped
+    Gauss-Newton step of X's left increment."""
+    X = np.asarray(X, float)
+    w0 = 1.0 / np.square(depth_sigma(q[:, 2]))
+    for tau in thresholds:
+        u = q @ X[:3, :3].T
+        d, dist, n = arm.surface(owner, u + X[:3, 3], float(tau))
+        w = np.where((dist < tau) & _facing(X, n, q), w0, 0.0)
+        d = np.where(w > 0, d, 0.0)
+        J = np.concatenate([np.cross(u, n), n], axis=1)
+        A = (J * w[:, None]).T @ J
+        A += (1e-6 * np.trace(A) + 1e-12) * np.eye(6)
+        step = np.linalg.solve(A, -(J * w[:, None]).T @ d)
+        X = perturb(X, step[:3], step[3:])
+    return X
+
+
+class ArmSurface(DepthRows):
+    """Every view's points on the arm (``points``: per view (m_i, 3), camera frame, m) against the
+    arm posed at that view's joint angles (``arm``: :class:`PosedArm`), from the start ``X0``
+    (cam2base, the global registration's and the views' ICP), with the depth scale and bias
+    (``fit_depth``).
+
+    The noise along a point's normal: the depth noise times the cosine between its ray and the
+    normal, and the noise across the rays (:data:`~handeye.sensors.depth.model.LATERAL`) times its sine.
+    Z, the target's pose, is none: the arm is posed by the joint angles; the result's Z is the
+    identity (the target taken as the flange itself), not fitted.
+    """
+
+    target = "arm"
+    groups: tuple[tuple[int, ...], ...] = ((0,),)
+
+    def __init__(self, setup: str, names: list[str], arm: PosedArm, points: list[NDArray[np.float64]],
+                 X0: NDArray[np.float64], fit_depth: bool = True) -> None:
+        self.setup = check_setup(setup)
+        if setup_info(self.setup).camera_on_flange:
+            raise InputMismatchError("the arm as the target is seen by a camera fixed in the cell: setup eye_to_hand")
+        if not len(names) == len(points) == arm.n_views:
+            raise InputMismatchError(f"{len(names)} views, {len(points)} point sets and the arm posed at {arm.n_views}: "
+                                     "give one of each per view")
+        self.names, self.arm, self.fit_depth = list(names), arm, fit_depth
+        self.X0 = np.asarray(X0, float)
+        self._rays(np.concatenate([np.asarray(q, float).reshape(-1, 3) for q in points]))
+        self.owner = np.repeat(np.arange(len(names)), [len(np.asarray(q).reshape(-1, 3)) for q in points])
+        _, _, n = arm.surface(self.owner, to_base(self.X0, self.measured), faces=FACES)
+        cos = np.clip(np.abs(np.einsum("mi,mi->m", self.basis[:, 0], n @ self.X0[:3, :3])), 0.0, 1.0)
+        z = self.measured[:, 2]
+        self.shape = np.sqrt((depth_sigma(z) * cos) ** 2 + (LATERAL * z) ** 2 * (1.0 - cos**2))[:, None]
+        self.param_names = ["depth.scale-1", "depth.bias"] if fit_depth else []
+        self.param_scale = np.full(len(self.param_names), 1e-3)
+
+    def view_poses(self) -> None:
+        """None: no view measures a target's pose (the model starts from its own ``X0``)."""
+        return None
+
+    def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``X0`` (the registration's), the depth scale 1 and bias 0."""
+        return self.X0.copy(), np.zeros(len(self.param_names))
+
+    def Z(self, X, p) -> NDArray[np.float64]:
+        """The identity: the arm has no target of its own (its links are posed by the joint angles)."""
+        return np.eye(4)
+
+    def Z_std(self, p, cov_p) -> NDArray[np.float64]:
+        """Zeros: Z is not fitted."""
+        return np.zeros(6)
+
+    def _moved(self, p, rows) -> NDArray[np.float64]:
+        """The rows' points moved back along their rays by the depth scale and bias."""
+        q = self.measured[rows]
+        if not self.fit_depth:
+            return q
+        s, b = 1.0 + p[-2], p[-1]
+        return q * ((q[:, 2] - b) / (s * q[:, 2]))[:, None]
+
+    def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
+        """Each row's signed distance (m) from its view's posed arm, along the surface's normal."""
+        return self.arm.surface(self.owner[rows], to_base(X, self._moved(p, rows)), faces=FACES)[0][:, None]
+
+    def jacobian(self, X, p, flange2base, rows) -> NDArray[np.float64]:
+        """The residuals' derivatives (M, 1, 6 + k): X's left increment, then the depth scale and bias."""
+        q = self._moved(p, rows)
+        u = q @ X[:3, :3].T
+        _, _, n = self.arm.surface(self.owner[rows], u + X[:3, 3], faces=FACES)
+        cols = [np.cross(u, n), n]
+        if self.fit_depth:
+            s = 1.0 + p[-2]
+            n_cam = n @ X[:3, :3]
+            raw = self.measured[rows]
+            cols += [(-np.einsum("mi,mi->m", n_cam, q) / s)[:, None],
+                     (-np.einsum("mi,mi->m", n_cam, raw) / (s * raw[:, 2]))[:, None]]
+        return np.concatenate(cols, axis=1)[:, None, :]
+
+    def figures(self, p, cov_p) -> dict[str, Any]:
+        """The arm, its links, the points fitted, the depth scale and bias."""
+        return {"arm": self.arm.meshes.arm, "links": [link.name for link in self.arm.meshes.links],
+                "points": int(len(self.owner)), **depth_figures(p, cov_p, self.fit_depth)}
+
+    def notes(self, p, cov_p) -> list[str]:
+        """The depth notes, and that the arm's table is not fitted."""
+        return super().notes(p, cov_p) + [
+            f"the arm ({self.arm.meshes.arm}) is the target: its links posed by the joint angles through its nominal "
+            "table (not fitted); Z is the identity (no target of its own)"]
+

@@ -1,0 +1,164 @@
+"""The arm itself in a depth camera's clouds (issue 62, markerless, depth): the Panda's meshes at
+the recorded joint angles registered to ray-cast clouds with clutter, X found with no guess and
+fitted through the core (through ``handeye simulate`` and ``handeye calibrate``), and bad input
+(the joint angles of another arm, an arm without meshes, a cloud without the arm, clouds in mm
+declared m, a camera on the flange) refused or skipped by name, nothing written over."""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import yaml
+from scipy.spatial import cKDTree
+
+from handeye.cli import main
+from handeye.errors import DegenerateMotionError, SessionError
+from handeye.frames.metrics import rotation_error, translation_error, within_std
+from handeye.io.depth_session import load_depth_session
+from handeye.io.results import load_result
+from handeye.pipelines._arm import CALIBRATED, table_tolerance
+from handeye.pipelines.arm_depth import arm_of_session, pooled_start, read_arm_clouds, start_arm
+from handeye.pipelines.depth import calibrate_depth_session
+from handeye.robot.kinematics import chain_yaml, load_arm
+from handeye.sensors.depth.shape import voxel_pick
+from handeye.simulate.arm_depth import arm_depth_scene, write_arm_depth_session
+
+pytest.importorskip("trimesh")
+pytest.importorskip("rtbdata")
+
+
+@pytest.fixture(scope="module")
+def scene():
+    """6 ray-cast clouds (320 x 240) of the Panda about its home, a table and a box beside it."""
+    return arm_depth_scene(6, rng=2, image_size=(320, 240))
+
+
+@pytest.fixture(scope="module")
+def session(scene, tmp_path_factory):
+    return write_arm_depth_session(tmp_path_factory.mktemp("arm") / "session", scene)
+
+
+def _digests(folder):
+    return {p.relative_to(folder): hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _copy(session, tmp_path):
+    return shutil.copytree(session, tmp_path / "copy")
+
+
+def test_the_arm_is_found_with_no_guess_of_x(scene, session):
+    s = load_depth_session(session)
+    c = read_arm_clouds(s)
+    agreed, X, notes = start_arm(s, arm_of_session(s), c)
+    assert agreed.index == c.index
+    assert np.degrees(rotation_error(X, scene.X)) < 0.5
+    assert 1e3 * translation_error(X, scene.X) < 5.0
+    assert "no guess" in notes[0]
+
+
+def test_every_view_searched_at_once_finds_the_arm_too(scene, session):
+    """The fallback for a camera too close to show the arm whole: every view's moving points at once."""
+    s = load_depth_session(session)
+    c = read_arm_clouds(s)
+    trees = [cKDTree(q[voxel_pick(q, 0.005)]) for q in c.points]
+    X, seen, candidates = pooled_start(arm_of_session(s), c, trees)
+    assert candidates >= 60 and seen > 1000
+    assert np.degrees(rotation_error(X, scene.X)) < 0.5 and 1e3 * translation_error(X, scene.X) < 5.0
+
+
+def test_x_is_recovered_through_the_command_line(scene, session, tmp_path, capsys):
+    before = _digests(session)
+    # weak: the links are placed through the nominal table, whose tolerance X takes whole (in its std)
+    assert main(["calibrate", str(session), "--out", str(tmp_path / "out")]) == 1
+    assert _digests(session) == before  # nothing written into the session
+    cal = load_result(tmp_path / "out")
+    assert cal.sensor.target == "arm" and cal.verdict == "weak" and not cal.skipped
+    assert "arm's table alone gives" in cal.diagnostics.advice[-1] and cal.std_sources["arm_table"][3:].max() > 1.0
+    assert within_std(cal.X, scene.X, cal.std_sources["data"])  # the exact arm: within the data's own std
+    assert np.degrees(rotation_error(cal.X, scene.X)) < 0.3
+    assert 1e3 * translation_error(cal.X, scene.X) < 2.0
+    assert abs(cal.sensor.figures["depth_scale"]["value"] - scene.depth_scale) < 5e-4
+
+
+def test_handeye_simulate_writes_an_arm_session(tmp_path, capsys):
+    out = tmp_path / "sim"
+    assert main(["simulate", "--sensor", "depth", "--target", "arm", "--poses", "2", "--seed", "1", "--image-size", "96x72",
+                 "--out", str(out)]) == 0
+    spec = yaml.safe_load((out / "session.yaml").read_text())
+    assert spec["target"] == {"type": "arm"} and spec["joints"]["arm"] == "panda" and spec["setup"] == "eye_to_hand"
+    assert "cam2base" in yaml.safe_load((out / "ground_truth.yaml").read_text())
+    assert main(["simulate", "--sensor", "depth", "--target", "arm", "--arm", "ur5", "--out", str(tmp_path / "ur5")]) != 0
+    assert "no meshes of the arm" in capsys.readouterr().err
+
+
+def test_a_cloud_without_the_arm_is_skipped_by_name(scene, session, tmp_path):
+    folder = _copy(session, tmp_path)
+    u, v = np.meshgrid(np.linspace(-0.4, 0.4, 320), np.linspace(-0.3, 0.3, 240))
+    wall = np.stack([u, v, np.full_like(u, 1.2)], axis=-1).astype(np.float32)  # a wall: the camera turned away
+    np.save(folder / "clouds" / "view03.npy", wall)
+    cal = calibrate_depth_session(folder)
+    assert [name for name, _ in cal.skipped] == ["view03.npy"]
+    assert "the arm is not in this cloud" in cal.skipped[0][1]
+    assert 1e3 * translation_error(cal.X, scene.X) < 2.0
+
+
+def test_joint_angles_of_another_arm_are_refused(session, tmp_path):
+    folder = _copy(session, tmp_path)
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    spec["joints"]["arm"] = "ur5"  # a 6-joint arm's table for the Panda's 7 angles
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    with pytest.raises(SessionError, match="joint"):
+        load_depth_session(folder)
+    table = (folder / "joints.csv").read_text().splitlines()
+    (folder / "joints.csv").write_text("\n".join(",".join(row.split(",")[:7]) for row in table) + "\n")
+    s = load_depth_session(folder)  # 6 angles for the ur5: read, but handeye has no meshes of it
+    with pytest.raises(SessionError, match="(?i).ur5.*not one handeye has meshes for"):
+        arm_of_session(s)
+    before = _digests(folder)
+    assert main(["calibrate", str(folder), "--out", str(tmp_path / "out")]) != 0
+    assert _digests(folder) == before and not (tmp_path / "out" / "result.json").exists()
+
+
+def test_clouds_in_mm_declared_m_are_named(session, tmp_path):
+    folder = _copy(session, tmp_path)
+    for path in (folder / "clouds").glob("*.npy"):
+        np.save(path, np.load(path) * 1000.0)
+    with pytest.raises(DegenerateMotionError, match="millimetres"):
+        calibrate_depth_session(folder)
+
+
+def test_an_arm_target_needs_a_fixed_camera_joints_and_known_keys(session, tmp_path):
+    folder = _copy(session, tmp_path)
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    for change, message in ((dict(setup="eye_in_hand"), "eye_to_hand"), (dict(joints=None), "joint angles"),
+                            (dict(target={"type": "arm", "colour": "white"}), "unknown key"),
+                            (dict(target={"type": "arm", "finger_opening": 40}), "metres")):
+        (folder / "session.yaml").write_text(yaml.safe_dump({**spec, **change}))
+        with pytest.raises(SessionError, match=message):
+            load_depth_session(folder)
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    assert load_depth_session(folder).kind == "arm"
+
+
+def test_a_corrected_table_of_the_arm_is_taken_with_a_calibrated_arms_tolerance(session, tmp_path):
+    """The arm is found by its table, not its name: a table calibrated from the Panda's
+    (arm_corrected.yaml) places its meshes, with a calibrated arm's tolerance in X's std; another
+    arm's table, or one centimetres off, is refused by name."""
+    folder = _copy(session, tmp_path)
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    panda = load_arm("panda")
+    for name, deltas, ok in (("corrected", 4e-4, True), ("far", 3e-2, False)):
+        rng = np.random.default_rng(0)
+        table = replace(panda.corrected(rng.normal(0.0, deltas, panda.table.shape)), name=f"Panda ({name})")
+        (folder / f"{name}.yaml").write_text(chain_yaml(table))
+        (folder / "session.yaml").write_text(yaml.safe_dump({**spec, "joints": {**spec["joints"], "arm": f"{name}.yaml"}}))
+        s = load_depth_session(folder)
+        if ok:
+            assert arm_of_session(s).meshes.arm == "panda" and table_tolerance(s.arm)[:2] == CALIBRATED
+        else:
+            with pytest.raises(SessionError, match="not one handeye has meshes for"):
+                arm_of_session(s)
