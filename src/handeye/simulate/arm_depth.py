@@ -15,7 +15,6 @@ Examples
 from __future__ import annotations
 
 import importlib
-import io
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,7 +31,7 @@ from ..robot.kinematics import Chain, load_arm
 from ..robot.meshes import arm_meshes
 from ._common import _real_chain, default_camera
 from .depth import depth_reading, pixel_rays
-from .mesh import cast_rays, ray_caster
+from .mesh import cast_rays, ray_caster, write_clouds
 from .scenes import Scene, look_at
 
 __all__ = ["ArmDepthScene", "arm_depth_scene", "write_arm_depth_session", "ARM_CENTRE"]
@@ -161,13 +160,7 @@ def write_arm_depth_session(folder: str | Path, scene: ArmDepthScene, *, organiz
     if len(scene.clouds) != len(scene.joints):
         raise InputMismatchError(f"{len(scene.clouds)} clouds and {len(scene.joints)} joint rows: one of each per view")
     out = check_output_folder(folder)
-    (out / "clouds").mkdir(parents=True, exist_ok=True)
-    names = [f"view{k + 1:02d}.npy" for k in range(len(scene.clouds))]
-    for name, cloud in zip(names, scene.clouds):
-        data = cloud if organized else cloud.reshape(-1, 3)[np.isfinite(cloud.reshape(-1, 3)).all(axis=1)]
-        buf = io.BytesIO()
-        np.save(buf, np.asarray(data, np.float32))
-        atomic_write(out / "clouds" / name, buf.getvalue())
+    names = write_clouds(out, scene.clouds, organized)
     write_joint_table(out / "joints.csv", names, scene.joints, "deg", id_column="cloud")
     spec = {"setup": scene.setup, "target": {"type": "arm"}, "depth": {"unit": "m"},
             "joints": {"file": "joints.csv", "unit": "deg", "arm": scene.arm}}

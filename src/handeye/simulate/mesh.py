@@ -27,7 +27,7 @@ from ._common import _reported, default_camera
 from .depth import depth_reading, pixel_rays
 from .scenes import Scene, look_at_viewpoints, scene_from_viewpoints
 
-__all__ = ["MeshScene", "flange_mesh", "mesh_scene", "write_mesh_session", "ray_caster", "cast_rays"]
+__all__ = ["MeshScene", "flange_mesh", "mesh_scene", "write_mesh_session", "write_clouds", "ray_caster", "cast_rays"]
 
 
 def _trimesh():
@@ -163,6 +163,19 @@ def mesh_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Gen
                      image_size=tuple(image_size), mesh=mesh, clouds=clouds, depth_scale=depth_scale, depth_bias=depth_bias)
 
 
+def write_clouds(folder: Path, clouds: list[NDArray[np.float64]], organized: bool = True) -> list[str]:
+    """Write each cloud as ``clouds/viewNN.npy`` (float32, metres; ``organized``: the image grid with
+    NaN holes, else the valid points alone), atomically; returns the files' names in order."""
+    (folder / "clouds").mkdir(parents=True, exist_ok=True)
+    names = [f"view{k + 1:02d}.npy" for k in range(len(clouds))]
+    for name, cloud in zip(names, clouds):
+        data = cloud if organized else cloud.reshape(-1, 3)[np.isfinite(cloud.reshape(-1, 3)).all(axis=1)]
+        buf = io.BytesIO()
+        np.save(buf, np.asarray(data, np.float32))
+        atomic_write(folder / "clouds" / name, buf.getvalue())
+    return names
+
+
 def write_mesh_session(folder: str | Path, scene: MeshScene, *, mesh_unit: str = "mm", organized: bool = True,
                        known_pose: bool = False) -> Path:
     """Write a simulated mesh capture as a depth session: ``target.stl`` (in ``mesh_unit``),
@@ -171,13 +184,7 @@ def write_mesh_session(folder: str | Path, scene: MeshScene, *, mesh_unit: str =
     (``target: {type: mesh, file: target.stl, unit: ...}``, with the mesh's true pose in the flange
     or base frame when ``known_pose``) and ``ground_truth.yaml``. Returns the folder."""
     out = check_output_folder(folder)
-    (out / "clouds").mkdir(parents=True, exist_ok=True)
-    names = [f"view{k + 1:02d}.npy" for k in range(len(scene.flange2base))]
-    for name, cloud in zip(names, scene.clouds):
-        data = cloud if organized else cloud.reshape(-1, 3)[np.isfinite(cloud.reshape(-1, 3)).all(axis=1)]
-        buf = io.BytesIO()
-        np.save(buf, np.asarray(data, np.float32))
-        atomic_write(out / "clouds" / name, buf.getvalue())
+    names = write_clouds(out, scene.clouds, organized)
     mesh = scene.mesh.copy()
     mesh.apply_scale(1e3 if mesh_unit == "mm" else 1.0)
     atomic_write(out / "target.stl", mesh.export(file_type="stl"))
