@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._shared.io import file_digest
+from .._shared.io import files_digests_soon
 from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from ..estimation.core import WEAKEST_NOTE, estimate
 from ..estimation.uncertainty import robot_accuracy_cov
@@ -302,9 +302,11 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     s = folder if isinstance(folder, RigSession) else load_rig_session(folder, opts.arm)
     cameras = [sensor for sensor in s.sensors if sensor.laser is None]
     members, notes = [], list(s.notes)
+    image_paths = [p for sensor in cameras for p in sensor.images if p is not None]
+    # each image's digest (its own result refuses them in verify), hashed on the core the fit leaves idle
+    hashed = files_digests_soon(image_paths, s.folder)
     # every camera's images in one parallel detection (no worker idle at the end of each camera's)
-    found = iter(detect_images([p for sensor in cameras for p in sensor.images if p is not None],
-                               target_from_spec(s.target_spec, where="target"), progress=progress) if cameras else [])
+    found = iter(detect_images(image_paths, target_from_spec(s.target_spec, where="target"), progress=progress) if cameras else [])
     for sensor in s.sensors:
         if sensor.laser is not None:
             members.append(_laser_member(sensor, s.names, notes))
@@ -326,8 +328,9 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
                                                                                        "no rig"] + list(only.notes),
                        input_folder=s.folder)
     # each camera's images by name and digest: its own result refuses them in verify (they are no second capture)
+    by_path = hashed.result()[1]
     images = {x.name: {"names": [p.name for p in x.images if p is not None],
-                       "sha256": [file_digest(p) for p in x.images if p is not None],
+                       "sha256": [by_path[str(p)] for p in x.images if p is not None],
                        "K": np.asarray(x.K).tolist(), "dist": np.asarray(x.dist).tolist()} for x in s.sensors if x.laser is None}
     joint = replace(rig.joint, sensor=replace(rig.joint.sensor, figures=dict(rig.joint.sensor.figures, images_per_sensor=images)))
     return replace(joint, notes=notes + list(rig.joint.notes),
