@@ -45,7 +45,8 @@ from ..simulate import look_at
 from ..solvers.refine import refine_reprojection
 
 __all__ = ["Plan", "ROBOTS", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
-           "visible_mask", "simulate_errors", "write_plan", "order_path", "candidate_views", "choose_next", "choose_views"]
+           "visible_mask", "simulate_errors", "write_plan", "order_path", "candidate_views", "choose_next", "choose_views",
+           "reported_std"]
 
 TILTS_DEG = (0.0, 10.0, 20.0, 30.0, 37.5, 45.0, 52.5, 60.0)
 AZIMUTHS = 12
@@ -393,12 +394,13 @@ def plan_poses(
     std[3:][np.diag(prior)[3:6] > 0] = np.inf
     accuracy = CalibrationOptions(robot_accuracy=robot_accuracy).robot_accuracy
     return Plan(setup, X, Z, flange2base[chosen], target2cam[chosen], cov, std, float(noise_px), int(keep.sum()),
-                robot, unobservable, _reported(std, cov, X, accuracy), accuracy)
+                robot, unobservable, reported_std(std, cov, X, accuracy), accuracy)
 
 
-def _reported(std: NDArray[np.float64], cov: NDArray[np.float64], X: NDArray[np.float64],
-              accuracy: tuple[float, float] | None) -> NDArray[np.float64]:
-    """The std calibrate reports: the pixels' covariance plus the robot's absolute accuracy."""
+def reported_std(std: NDArray[np.float64], cov: NDArray[np.float64], X: NDArray[np.float64],
+                 accuracy: tuple[float, float] | None) -> NDArray[np.float64]:
+    """The std calibrate reports (deg, mm): the pixels' covariance ``cov`` of X (its std ``std``, inf
+    where undetermined) plus the robot's absolute accuracy, which X takes whole."""
     if accuracy is None:
         return std
     return np.where(np.isinf(std), np.inf, std_deg_mm(cov + robot_accuracy_cov(X, accuracy)))

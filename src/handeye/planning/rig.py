@@ -18,12 +18,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import HandEyeError
-from ..estimation.uncertainty import robot_accuracy_cov
 from ..frames.metrics import std_deg_mm
 from ..frames.setups import check_setup, flange_poses, predicted_target2cam
 from ..geometry.se3 import skew
 from ..options import ROBOT_ACCURACY, CalibrationOptions
-from .poses import candidate_views, choose_views, order_path, reprojection_information, visible_mask
+from .poses import candidate_views, choose_views, order_path, reported_std, reprojection_information, visible_mask
 
 __all__ = ["RigPlanCamera", "RigPlan", "plan_rig"]
 
@@ -144,7 +143,10 @@ def plan_rig(setup: str, X: ArrayLike, Z: ArrayLike, object_points: ArrayLike, c
     chosen = chosen[order_path(F[chosen])]
     accuracy = CalibrationOptions(robot_accuracy=robot_accuracy).robot_accuracy
     cov = noise_px**2 * np.linalg.inv(infos[chosen].sum(axis=0))
-    per = {cam.name: _reported((M @ cov @ M.T)[:6, :6], X @ cam.cam2first, accuracy) for M, cam in zip(maps, cameras)}
+    per = {}
+    for M, cam in zip(maps, cameras):
+        cov_cam = (M @ cov @ M.T)[:6, :6]
+        per[cam.name] = reported_std(std_deg_mm(cov_cam), cov_cam, X @ cam.cam2first, accuracy)
     return RigPlan(setup, [c.name for c in cameras], F[chosen], per[cameras[0].name], per, len(F), float(noise_px), accuracy)
 
 
@@ -164,7 +166,3 @@ def _to_rig(X: NDArray[np.float64], cam2first: NDArray[np.float64], k: int, n: i
         M[3:6, c + 3:c + 6] = R
     return M
 
-
-def _reported(cov: NDArray[np.float64], X: NDArray[np.float64], accuracy: tuple[float, float] | None) -> NDArray[np.float64]:
-    """The std calibrate would report: the corners' covariance plus the robot's accuracy, which X takes whole."""
-    return std_deg_mm(cov if accuracy is None else cov + robot_accuracy_cov(X, accuracy))
