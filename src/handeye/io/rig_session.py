@@ -82,6 +82,13 @@ class RigSensor:
     laser: LaserSession | None = None
 
     @property
+    def seen(self) -> list[bool]:
+        """Per view of the rig whether the sensor has its image or profile."""
+        if self.laser is not None:
+            return [p.is_file() for p in self.laser.profile_paths]
+        return [p is not None for p in self.images]
+
+    @property
     def files(self) -> list[Path]:
         """The sensor's input files."""
         if self.laser is not None:
@@ -173,13 +180,11 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
             laser = rig_laser(folder, setup, names, f2b, block["laser"], folder / str(block.get("profiles", name)),
                               block.get("target", spec.get("target")), at)
             out.append(RigSensor(str(name), laser=laser))
-            seen = [p for p in laser.profile_paths if p.is_file()]
         else:
             check_keys(block, SENSOR_KEYS, at)
             out.append(_camera(folder, str(name), block, names, at))
-            seen = out[-1].files
-        if len(seen) < len(names):
-            missing = [n for n in names if not any(Path(p).stem == Path(n).stem for p in seen)]
+        missing = [n for n, seen in zip(names, out[-1].seen) if not seen]
+        if missing:
             notes.append(f"sensor {name}: no {'profile' if 'laser' in block else 'image'} for {len(missing)} of {len(names)} "
                          f"views ({summarize(missing)}): those views are not its")
     q = None if joints is None else joints_of_views(joints, names)
