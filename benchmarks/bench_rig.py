@@ -21,6 +21,12 @@ accuracy stated. Rows (goals from issue 63):
 ``handeye.simulate.rig.camera_laser_scene``: 20 profiles of a 40 mm ball, the camera seeing the
 board the ball rests on): both X and their relative pose within 3 std (goal >= 95%).
 
+``--depth``: a camera beside a depth camera (an RGB-D camera at 640 x 480) on one flange (or fixed side
+by side), both seeing the board (``handeye.simulate.rig.camera_depth_scene``: the clouds with depth
+noise growing with distance, a depth scale 0.2% off, holes and flying pixels), 15 poses: both X, their
+relative pose and the depth scale within 3 std (goal >= 95%), and the depth camera's X from the joint
+fit against it calibrated alone.
+
 ``--speed``: four cameras fixed around the cell, 20 views of 1280 x 1024 rendered by ``handeye simulate
 --sensor rig --cameras 4``, and the same images as four single-camera session folders: the whole
 command ``handeye calibrate RIG --out ...`` against the four ``handeye calibrate CAM_k --out ...`` run
@@ -144,6 +150,44 @@ def mixed(sessions: int) -> None:
               f"pose {share[2]:.0f}% (goal >= 95%); relative pose median {np.median(rel_t):.3f} mm; {np.median(secs):.1f} s")
 
 
+def depth(sessions: int) -> None:
+    from handeye.sensors.depth.clouds import plane_points
+    from handeye.sensors.depth.model import BoardPoints
+    from handeye.simulate.rig import camera_depth_scene
+    for setup in ("eye_in_hand", "eye_to_hand"):
+        ok, rel_t, ratio, secs = [], [], [], []
+        for s in range(sessions):
+            sc = camera_depth_scene(15, setup, rng=7000 + s, robot_error=ERROR)
+            camera = CameraCorners(setup, sc.names, sc.camera.image_points, sc.camera.object_points, sc.camera.K,
+                                   sc.camera.dist)
+            lifted = [np.zeros((0, 3)) if c is None else plane_points(c, u)[0] for c, u in zip(sc.clouds, sc.depth_points)]
+            board = [np.zeros((0, 3)) if c is None else _board_points() for c in sc.clouds]
+            d = BoardPoints(setup, sc.names, board, lifted)
+            t0 = time.perf_counter()
+            rig = calibrate_rig([camera, d], ["camera", "depth"], ControllerPoses(sc.flange2base, ERROR))
+            secs.append(time.perf_counter() - t0)
+            f = rig.joint.sensor.figures
+            rel, per = f["relative"]["depth2camera"], f["X_per_sensor"]
+            scale = per["depth"]["figures"]["depth_scale"]
+            ok.append([within_std(np.array(per["camera"]["X"]), sc.camera.X, np.array(per["camera"]["std_deg_mm"])),
+                       within_std(np.array(per["depth"]["X"]), sc.depth_X, np.array(per["depth"]["std_deg_mm"])),
+                       within_std(np.array(rel["matrix"]), sc.relative(), np.array(rel["std_deg_mm"])),
+                       abs(scale["value"] - sc.depth_scale) <= 3 * scale["std"]])
+            rel_t.append(1e3 * translation_error(np.array(rel["matrix"]), sc.relative()))
+            ratio.append(translation_error(np.array(per["depth"]["X"]), sc.depth_X)
+                         / translation_error(rig.alone["depth"].X, sc.depth_X))
+        share = 100 * np.mean(ok, axis=0)
+        print(f"camera + depth camera, {setup}: within 3 std camera X {share[0]:.0f}%, depth X {share[1]:.0f}%, relative "
+              f"pose {share[2]:.0f}%, depth scale {share[3]:.0f}% (goal >= 95%); relative pose median {np.median(rel_t):.3f} mm; "
+              f"depth X joint / alone (translation) median {np.median(ratio):.2f}; {np.median(secs):.1f} s")
+
+
+def _board_points() -> np.ndarray:
+    from handeye.sensors.camera.targets.chessboard import Chessboard
+    from handeye.simulate.rig import BOARD
+    return Chessboard(*BOARD).object_points()
+
+
 def _handeye() -> list[str]:
     """The ``handeye`` command of this interpreter's environment."""
     script = Path(sys.executable).with_name("handeye")
@@ -205,6 +249,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sessions", type=int, default=20)
     ap.add_argument("--mixed", action="store_true", help="a camera beside a laser profiler")
+    ap.add_argument("--depth", action="store_true", help="a camera beside a depth camera")
     ap.add_argument("--speed", action="store_true", help="a 4-camera rig's calibrate command against the cameras' one by one")
     ap.add_argument("--runs", type=int, default=3, help="--speed: repetitions")
     a = ap.parse_args()
@@ -213,6 +258,9 @@ def main() -> None:
         return
     if a.mixed:
         mixed(a.sessions)
+        return
+    if a.depth:
+        depth(a.sessions)
         return
     stereo(a.sessions)
     fixed_three(a.sessions)

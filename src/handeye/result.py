@@ -201,6 +201,10 @@ class SensorFit:
         ``points_mm`` (n, 2) measured, ``residual_mm`` (n,) theirs, ``curve_mm`` (m, 2) the fitted
         target's section there (NaN where it has none); None when the sensor draws nothing. Not in
         result.json (the raw measurements stay in the session).
+    params : ndarray or None
+        The sensor's unknowns as fitted (its model's ``param_names``, in order): what a later fit
+        starts from (a rig starts from each sensor's own). Not in result.json (``figures`` says
+        what of them a user reads).
     """
 
     sensor: str
@@ -213,6 +217,7 @@ class SensorFit:
     rejected: int = 0
     heldout_mm: NDArray[np.float64] | None = None
     sections: list[dict[str, NDArray[np.float64]]] | None = None
+    params: NDArray[np.float64] | None = None
 
 
 @dataclass(frozen=True)

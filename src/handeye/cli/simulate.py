@@ -23,7 +23,15 @@ from ..simulate.arm_depth import arm_depth_scene, write_arm_depth_session
 from ..simulate.laser import TARGETS as LASER_TARGETS
 from ..simulate.linescan import linescan_scene, write_linescan_session
 from ..simulate.mesh import mesh_scene, write_mesh_session
-from ..simulate.rig import camera_laser_scene, rig_joint_scene, rig_scene, write_camera_laser_session, write_rig_session
+from ..simulate.rig import (
+    camera_depth_scene,
+    camera_laser_scene,
+    rig_joint_scene,
+    rig_scene,
+    write_camera_depth_session,
+    write_camera_laser_session,
+    write_rig_session,
+)
 from ..simulate.silhouette import silhouette_scene, write_silhouette_session
 from ._common import image_size_arg, number_arg, out_folder, sensor_target, whole_arg
 
@@ -36,6 +44,18 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                                      "angles) and a chessboard; leave --robot and --target out")
         on_flange = setup_info(args.setup).camera_on_flange
         cameras = args.cameras or (2 if on_flange else 3)
+        if args.laser and args.depth:
+            raise InputMismatchError("--laser and --depth each put one sensor beside the camera: give one of them")
+        if args.depth:  # a camera beside an RGB-D camera, both seeing the board
+            if args.arm is not None or args.cameras is not None:
+                raise InputMismatchError("--depth simulates one camera beside one depth camera on controller poses; leave "
+                                         "--arm and --cameras out")
+            write_camera_depth_session(args.out, camera_depth_scene(args.poses, args.setup, args.seed, robot_error=(0.01, 0.05)),
+                                       rng=args.seed, noise_px=args.noise_px)
+            print(f"wrote rig session {args.out} ({args.poses} poses, a camera and a depth camera "
+                  f"{'on the flange' if on_flange else 'fixed side by side'}: a chessboard both see, the depth scale 0.2% off; "
+                  f"the robot 0.01 deg / 0.05 mm off); ground truth in {Path(args.out) / 'ground_truth.yaml'}")
+            return 0
         if args.laser:  # a camera beside a laser profiler: the ball on a small board
             if args.arm is not None or args.cameras is not None:
                 raise InputMismatchError("--laser simulates one camera beside one laser profiler on controller poses; leave "
@@ -58,9 +78,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         print(f"wrote rig session {args.out} ({args.poses} poses, {what}, a chessboard; {error}); "
               f"ground truth in {Path(args.out) / 'ground_truth.yaml'}")
         return 0
-    if args.cameras is not None or args.laser:
-        raise InputMismatchError(f"{'--cameras' if args.cameras is not None else '--laser'} describes a rig: give it with "
-                                 "--sensor rig")
+    if args.cameras is not None or args.laser or args.depth:
+        flag = "--cameras" if args.cameras is not None else "--laser" if args.laser else "--depth"
+        raise InputMismatchError(f"{flag} describes a rig: give it with --sensor rig")
     if args.sensor == "line_scan":
         if args.robot != "arm" or args.arm is not None or args.target is not None:
             raise InputMismatchError("--sensor line_scan simulates a 6-axis arm's controller poses and a chessboard; leave "
@@ -177,6 +197,9 @@ def register(sub) -> None:
                    help="with --sensor rig: the number of cameras (default 2 on the flange, 3 fixed around the cell)")
     p.add_argument("--laser", action="store_true",
                    help="with --sensor rig: a camera beside a laser profiler (a small board and a 40 mm ball) instead of cameras")
+    p.add_argument("--depth", action="store_true",
+                   help="with --sensor rig: a camera beside a depth camera (640x480 clouds and intensity images), both seeing "
+                   "the board, instead of cameras")
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--poses", type=whole_arg(1), default=15, help="number of images (default 15)")
     p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS) + ["mesh", "arm"],

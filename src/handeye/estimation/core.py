@@ -765,7 +765,7 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
     if hasattr(sensor, "joint_figures"):  # figures that need X's covariance with the sensor's unknowns (a rig's)
         figures = figures | sensor.joint_figures(full.X, full.p, cov[:6 + n_p, :6 + n_p], F, full.rows)
     record = SensorFit(sensor.kind, sensor.target, [names[v] for v in views], per_view, fit_mm,
-                       figures, int(len(full.rows)), int((~full.kept).sum()), held_mm, sections)
+                       figures, int(len(full.rows)), int((~full.kept).sum()), held_mm, sections, np.array(full.p, float))
     notes = [f"{sensor.kind} ({sensor.target}): {len(full.rows)} measurements fitted "
              f"({int((~full.kept).sum())} set aside beyond {REJECT:g} std), {fit_mm:.3f} mm RMS, with {robot.describe}"]
     notes += [f"view {names[v]} left out: {why}" for v, why in checked.left_out] + sensor.notes(full.p, cov_p)

@@ -21,6 +21,7 @@ from ..sensors.camera import target_from_spec
 from ..sensors.depth.clouds import CLOUD_SUFFIXES
 from .session import (
     CAMERA_KEYS,
+    IMAGE_SUFFIXES,
     JOINTS_KEYS,
     POSES_KEYS,
     check_session_keys,
@@ -32,7 +33,8 @@ from .session import (
     read_session_yaml,
 )
 
-__all__ = ["DepthSession", "MeshTarget", "ArmTarget", "is_depth_session", "load_depth_session", "ARM_KEYS"]
+__all__ = ["DepthSession", "MeshTarget", "ArmTarget", "is_depth_session", "load_depth_session", "rig_depth", "ARM_KEYS",
+           "RIG_DEPTH_KEYS"]
 
 #: What the pose table's first column must be, for the error that finds it is not.
 FIRST_COLUMN = ("'image' (a board: its intensity image in images/, the cloud of the same name in clouds/) or 'cloud' "
@@ -267,3 +269,42 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     return DepthSession(folder, setup, dict(target), list(names), clouds, images, f2b, K, dist, unit, working, radii, notes,
                         None if joints is None else q, None if joints is None else joints[2],
                         None if joints is None else joints[3], mesh, arm_target)
+
+
+#: The keys of a rig's depth camera (:mod:`handeye.io.rig_session`).
+RIG_DEPTH_KEYS = ("depth", "camera", "clouds", "images", "target")
+
+
+def _file_of(folder: Path, name: str, suffixes) -> Path:
+    """The file in ``folder`` named by view ``name`` with one of ``suffixes``; a path that does not
+    exist when there is none (a view the sensor missed)."""
+    found = [folder / (name + s) for s in suffixes if (folder / (name + s)).is_file()]
+    return found[0] if found else folder / (name + suffixes[0])
+
+
+def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[np.float64], block: dict, name: str,
+              target: Any, where: str) -> DepthSession:
+    """A rig's depth camera (:mod:`handeye.io.rig_session`) as a depth session over the rig's views
+    ``names``: its ``depth:`` mapping (unit, range), the intensity image's ``camera:`` (K, dist;
+    optional), its folder of ``clouds`` and, for a board, of intensity ``images``, both named by view
+    (``v01.npy`` and ``v01.png``; default the sensor's name, one folder for both) and its ``target``
+    (a board or spheres; default the session's). A view with no cloud (or, for a board, no image) is
+    one it did not see. Raises :class:`SessionError` naming the key."""
+    unit, working = _depth_spec(block.get("depth"), where)
+    radii = _radii(target, where)
+    if isinstance(target, dict) and str(target.get("type", "")).lower() in ("mesh", "arm"):
+        raise SessionError(f"{where}: target: a {target['type']} target is not taken in a rig yet: calibrate that depth "
+                           "camera in a depth session of its own (a board or spheres are taken here)")
+    if radii is None:
+        target_from_spec(target, where=f"{where}: target")
+    K, dist = read_camera(block.get("camera"), where)
+    clouds = folder / str(block.get("clouds", name))
+    images = folder / str(block.get("images", block.get("clouds", name)))
+    for sub, what in [(clouds, "clouds")] + ([] if radii is not None else [(images, "intensity images")]):
+        if not sub.is_dir():
+            raise SessionError(f"{where}: no folder {sub} (its {what}, named by view: v01{'.npy' if what == 'clouds' else '.png'}, ...)")
+    cloud_paths = [_file_of(clouds, n, CLOUD_SUFFIXES) for n in names]
+    image_paths = None if radii is not None else [_file_of(images, n, tuple(sorted(IMAGE_SUFFIXES, key=lambda x: x != ".png")))
+                                                     for n in names]
+    return DepthSession(folder, setup, dict(target or {}), list(names), cloud_paths, image_paths, flange2base, K, dist, unit,
+                        working, radii)

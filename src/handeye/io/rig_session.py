@@ -18,7 +18,11 @@
       left:  {camera: {K: [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], dist: [k1, k2, p1, p2, k3]}, images: left}
       right: {camera: {K: ..., dist: ...}, images: right}
 
-A laser profiler is a sensor too (a camera beside a profiler on a welding torch, two profilers on
+A depth camera is one too: ``{depth: {unit: m, range: [0.3, 1.5]}, camera: {K: ..., dist: ...},
+clouds: d435, target: ...}``, its clouds (``v01.npy``, .ply or .pcd) and, for a board, the
+intensity images they are registered to (``v01.png``; ``images:``, default the clouds' folder) named
+by view; its target a board (the session's, shared with the cameras: the board's pose is then one
+set of unknowns) or spheres. A laser profiler is a sensor too (a camera beside a profiler on a welding torch, two profilers on
 one seam): ``{laser: {unit: mm, range: [80, 160]}, profiles: laser, target: {type: sphere,
 diameter: 0.04}}``, its profiles named by view (``v01.csv``), its target (any a laser session
 takes) its own or, left out, the session's. Sensors that see different targets each keep their own
@@ -46,6 +50,7 @@ from ..errors import SessionError
 from ..frames.setups import check_setup
 from ..robot.kinematics import Chain
 from ..sensors.camera.targets import target_from_spec
+from .depth_session import RIG_DEPTH_KEYS, DepthSession, rig_depth
 from .laser_session import LaserSession, rig_laser
 from .session import (
     JOINTS_KEYS,
@@ -72,20 +77,32 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
 @dataclass(frozen=True)
 class RigSensor:
-    """One sensor of a rig: a camera (its intrinsics and per view its image, None where it has none)
-    or a laser profiler (``laser``: a laser session over the rig's views, its own target)."""
+    """One sensor of a rig: a camera (its intrinsics and per view its image, None where it has none),
+    a laser profiler (``laser``: a laser session over the rig's views, its own target) or a depth
+    camera (``depth``: a depth session over the rig's views)."""
 
     name: str
     K: NDArray[np.float64] | None = None
     dist: NDArray[np.float64] | None = None
     images: list[Path | None] = field(default_factory=list)
     laser: LaserSession | None = None
+    depth: DepthSession | None = None
+    #: the target it sees (a camera's: the session's)
+    target_spec: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def kind(self) -> str:
+        """'camera', 'laser' or 'depth'."""
+        return "laser" if self.laser is not None else "depth" if self.depth is not None else "camera"
 
     @property
     def seen(self) -> list[bool]:
-        """Per view of the rig whether the sensor has its image or profile."""
+        """Per view of the rig whether the sensor has its image, profile or cloud (and intensity image)."""
         if self.laser is not None:
             return [p.is_file() for p in self.laser.profile_paths]
+        if self.depth is not None:
+            images = self.depth.image_paths or [None] * len(self.depth.cloud_paths)
+            return [c.is_file() and (i is None or i.is_file()) for c, i in zip(self.depth.cloud_paths, images)]
         return [p is not None for p in self.images]
 
     @property
@@ -93,6 +110,8 @@ class RigSensor:
         """The sensor's input files."""
         if self.laser is not None:
             return [p for p in self.laser.profile_paths if p.is_file()]
+        if self.depth is not None:
+            return [p for p in self.depth.cloud_paths + (self.depth.image_paths or []) if p.is_file()]
         return [p for p in self.images if p is not None]
 
 
@@ -120,10 +139,11 @@ class RigSession:
 
     @property
     def shared_target(self) -> bool:
-        """Whether the sensors see one target: all cameras (the session's board), or all profilers
-        scanning the one target the session names."""
-        return all(s.laser is None for s in self.sensors) or (
-            all(s.laser is not None for s in self.sensors) and len({str(s.laser.target_spec) for s in self.sensors}) == 1)
+        """Whether the sensors see one target: the same target spec for every sensor (cameras and
+        depth cameras on the session's board, profilers on one ball), a depth camera's spheres never
+        (their centres are the camera's own unknowns)."""
+        return len({str(sorted(x.target_spec.items())) for x in self.sensors}) == 1 and not any(
+            x.depth is not None and x.depth.kind == "spheres" for x in self.sensors)
 
 
 def is_rig_session(folder: str | Path) -> bool:
@@ -131,7 +151,7 @@ def is_rig_session(folder: str | Path) -> bool:
     return has_section(folder, "sensors")
 
 
-def _camera(folder: Path, name: str, block: dict, names: list[str], at: str) -> RigSensor:
+def _camera(folder: Path, name: str, block: dict, names: list[str], target: Any, at: str) -> RigSensor:
     """A rig's camera: its intrinsics and per view its image (None where it has none)."""
     if block.get("camera") is None:
         raise SessionError(f"{at}: camera (K and dist) is missing: a rig's cameras need their intrinsics (calibrate each "
@@ -143,7 +163,8 @@ def _camera(folder: Path, name: str, block: dict, names: list[str], at: str) -> 
     if not images.is_dir():
         raise SessionError(f"{at}: no folder {images} (its images, named by view)")
     by_stem = {p.stem: p for p in images.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES}
-    return RigSensor(name, K, np.zeros(5) if dist is None else dist, [by_stem.get(Path(n).stem) for n in names])
+    return RigSensor(name, K, np.zeros(5) if dist is None else dist, [by_stem.get(Path(n).stem) for n in names],
+                     target_spec=dict(target or {}))
 
 
 def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
@@ -160,7 +181,7 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
     check_session_keys(spec, ("setup", "target", "poses", "joints", "sensors"), {"poses": POSES_KEYS, "joints": JOINTS_KEYS},
                        where)
     setup = check_setup(str(spec.get("setup", "")))
-    if any(isinstance(b, dict) and "laser" not in b for b in sensors.values()):  # the cameras' board
+    if any(isinstance(b, dict) and not {"laser", "depth"} & set(b) for b in sensors.values()):  # the cameras' board
         target_from_spec(spec.get("target"), where=f"{where}: target")
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("view",)) if spec.get("joints") else None
     if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
@@ -174,19 +195,26 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
             raise SessionError(f"{at}: a sensor's name may hold letters, digits, '_', '-' and '.' (it names the sensor's "
                                "folder of results and its ROS frame); rename it")
         if not isinstance(block, dict):
-            raise SessionError(f"{at}: a mapping with camera (K, dist) and images (its folder), or laser and profiles")
+            raise SessionError(f"{at}: a mapping with camera (K, dist) and images (its folder), laser and profiles, or depth "
+                               "and clouds")
+        target = block.get("target", spec.get("target"))
         if "laser" in block:
             check_keys(block, LASER_SENSOR_KEYS, at)
-            laser = rig_laser(folder, setup, names, f2b, block["laser"], folder / str(block.get("profiles", name)),
-                              block.get("target", spec.get("target")), at)
-            out.append(RigSensor(str(name), laser=laser))
+            laser = rig_laser(folder, setup, names, f2b, block["laser"], folder / str(block.get("profiles", name)), target, at)
+            out.append(RigSensor(str(name), laser=laser, target_spec=dict(target or {})))
+        elif "depth" in block:
+            check_keys(block, RIG_DEPTH_KEYS, at)
+            check_keys(block["depth"], ("unit", "range"), f"{at}: depth")
+            depth = rig_depth(folder, setup, names, f2b, block, str(name), target, at)
+            out.append(RigSensor(str(name), depth=depth, target_spec=dict(target or {})))
         else:
             check_keys(block, SENSOR_KEYS, at)
-            out.append(_camera(folder, str(name), block, names, at))
+            out.append(_camera(folder, str(name), block, names, target, at))
         missing = [n for n, seen in zip(names, out[-1].seen) if not seen]
         if missing:
-            notes.append(f"sensor {name}: no {'profile' if 'laser' in block else 'image'} for {len(missing)} of {len(names)} "
-                         f"views ({summarize(missing)}): those views are not its")
+            what = {"laser": "profile", "depth": "cloud", "camera": "image"}[out[-1].kind]
+            notes.append(f"sensor {name}: no {what} for {len(missing)} of {len(names)} views ({summarize(missing)}): those "
+                         "views are not its")
     q = None if joints is None else joints_of_views(joints, names)
     return RigSession(folder, setup, dict(spec.get("target") or {}), list(names), f2b, out, notes, q,
                       None if joints is None else joints[2], None if joints is None else joints[3])

@@ -32,8 +32,10 @@ from ..sensors.base import SensorModel
 from ..sensors.camera.detect import detect_images
 from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.targets import target_from_spec
+from ..sensors.depth.model import BoardPoints, SphereCentres
 from ..sensors.rig import Rig
 from ._sensor import robot_model, sensor_options
+from .depth import measure_depth_session
 from .laser import laser_model, read_profiles
 
 __all__ = ["RigCalibration", "calibrate_rig", "calibrate_rig_session", "rig_members", "DISAGREE"]
@@ -131,7 +133,7 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
     joint = None
     while len(kept) >= 2:
         names = [sensor_names[k] for k in kept]
-        starts = [(alone[n].X, members[k].target_params(alone[n].Z)) for k, n in zip(kept, names)]
+        starts = [(alone[n].X, alone[n].sensor.params) for n in names]  # each sensor's own fit: X and its unknowns
         joint = estimate(Rig([members[k] for k in kept], names, starts, shared_target), _shared(robot), folds)
         # each sensor's residual in the joint fit against the noise it states
         ratio = np.array([_member_rms(joint, i) / _stated_mm(members[k]) for i, k in enumerate(kept)])
@@ -276,6 +278,31 @@ def _laser_member(sensor: RigSensor, names: list[str], notes: list[str]) -> Sens
     return laser_model(sensor.laser, names, full)
 
 
+def _depth_member(sensor: RigSensor, names: list[str], notes: list[str], progress: bool) -> SensorModel:
+    """A rig's depth camera as a sensor model over the rig's views: the views it has measured as a
+    depth session's are (a board's corners lifted onto its plane in the cloud, or the spheres'
+    centres); a view it missed, or could not measure (said by name), has no rows."""
+    d = sensor.depth
+    seen = [k for k, ok in enumerate(sensor.seen) if ok]
+    mine = replace(d, names=[names[k] for k in seen], cloud_paths=[d.cloud_paths[k] for k in seen],
+                   image_paths=None if d.image_paths is None else [d.image_paths[k] for k in seen],
+                   flange2base=d.flange2base[seen])
+    v = measure_depth_session(mine, progress)
+    index = [seen[i] for i in v.index]
+    notes += [f"sensor {sensor.name}: {n}" for n in v.notes]
+    notes += [f"sensor {sensor.name}: view {view} skipped: {why}" for view, why in v.skipped]
+    notes.append(f"sensor {sensor.name}: {len(index)} of {len(names)} views measured in its clouds")
+    if d.kind == "spheres":
+        centres = np.full((len(names), len(d.radii), 3), np.nan)
+        covs = np.broadcast_to(np.eye(3), (len(names), len(d.radii), 3, 3)).copy()
+        centres[index], covs[index] = np.array(v.points).reshape(-1, len(d.radii), 3), np.array(v.covs).reshape(-1, len(d.radii), 3, 3)
+        return SphereCentres(d.setup, names, centres, covs, np.array(d.radii))
+    obj, pts = [np.zeros((0, 3))] * len(names), [np.zeros((0, 3))] * len(names)
+    for k, o, q in zip(index, v.object_points, v.points):
+        obj[k], pts[k] = o, q
+    return BoardPoints(d.setup, names, obj, pts)
+
+
 def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationOptions | None = None, *,
                           progress: bool = False, **changes) -> Calibration:
     """Calibrate a rig session folder (:mod:`handeye.io.rig_session`): the target found in every
@@ -300,7 +327,7 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     """
     opts = sensor_options(options, changes, "a rig session")
     s = folder if isinstance(folder, RigSession) else load_rig_session(folder, opts.arm)
-    cameras = [sensor for sensor in s.sensors if sensor.laser is None]
+    cameras = [sensor for sensor in s.sensors if sensor.kind == "camera"]
     members, notes = [], list(s.notes)
     image_paths = [p for sensor in cameras for p in sensor.images if p is not None]
     # each image's digest (its own result refuses them in verify), hashed on the core the fit leaves idle
@@ -308,8 +335,11 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     # every camera's images in one parallel detection (no worker idle at the end of each camera's)
     found = iter(detect_images(image_paths, target_from_spec(s.target_spec, where="target"), progress=progress) if cameras else [])
     for sensor in s.sensors:
-        if sensor.laser is not None:
+        if sensor.kind == "laser":
             members.append(_laser_member(sensor, s.names, notes))
+            continue
+        if sensor.kind == "depth":
+            members.append(_depth_member(sensor, s.names, notes, progress))
             continue
         paths = [p for p in sensor.images if p is not None]
         image_points, object_points = [], []
@@ -331,7 +361,7 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     by_path = hashed.result()[1]
     images = {x.name: {"names": [p.name for p in x.images if p is not None],
                        "sha256": [by_path[str(p)] for p in x.images if p is not None],
-                       "K": np.asarray(x.K).tolist(), "dist": np.asarray(x.dist).tolist()} for x in s.sensors if x.laser is None}
+                       "K": np.asarray(x.K).tolist(), "dist": np.asarray(x.dist).tolist()} for x in s.sensors if x.kind == "camera"}
     joint = replace(rig.joint, sensor=replace(rig.joint.sensor, figures=dict(rig.joint.sensor.figures, images_per_sensor=images)))
     return replace(joint, notes=notes + list(rig.joint.notes),
                    skipped=[(n, w) for n, w in rig.skipped] + list(rig.joint.skipped), input_folder=s.folder)

@@ -78,29 +78,34 @@ class Rig:
         self.local = np.concatenate([np.arange(len(m.owner)) for m in members]).astype(np.intp)
         X0 = self._X_start = np.asarray(starts[0][0], float)
         self.rel0 = [invert(X0) @ X for X, _ in starts[1:]]  # sensor_k2sensor_0 to start from
-        self._p_starts = [np.asarray(p, float) for _, p in starts]
+        p_starts = [np.asarray(p, float) for _, p in starts]
+        # per sensor how many of its unknowns are its target's pose: with a shared target the first
+        # sensor's, mapped into each other's terms (target_params); what follows is the sensor's own
+        # (a depth camera's scale and bias), fitted per sensor
+        Z0 = first.Z(X0, p_starts[0]) if shared_target else None
+        self._n_target = [len(m.target_params(Z0)) if shared_target else 0 for m in members]
+        self._p_starts = [p if k == 0 or not shared_target else p[self._n_target[k]:] for k, p in enumerate(p_starts)]
         n_rel = 6 * (len(members) - 1)
-        own = [len(p) for p in self._p_starts]
         self._slices: list[slice] = []
         at = n_rel
-        for k, n in enumerate(own):
-            if shared_target and k > 0:
-                self._slices.append(slice(0, 0))
-                continue
-            self._slices.append(slice(at, at + n))
-            at += n
+        for p0 in self._p_starts:
+            self._slices.append(slice(at, at + len(p0)))
+            at += len(p0)
+        own_names = [list(m.param_names)[self._n_target[k] if k else 0:] for k, m in enumerate(members)]
         self.param_names = [f"{s}.{a}" for s in sensor_names[1:] for a in ("rx", "ry", "rz", "x", "y", "z")] + [
-            f"{sensor_names[k]}.{n}" for k, m in enumerate(members) for n in
-            (m.param_names if not (shared_target and k > 0) else [])]
-        self.param_scale = np.concatenate([np.full(n_rel, 1e-3)] + [np.asarray(m.param_scale, float)
-                                                                     for k, m in enumerate(members)
-                                                                     if not (shared_target and k > 0)])
+            f"{sensor_names[k]}.{n}" for k in range(len(members)) for n in own_names[k]]
+        self.param_scale = np.concatenate([np.full(n_rel, 1e-3)] + [np.asarray(m.param_scale, float)[self._n_target[k] if k else 0:]
+                                                                     for k, m in enumerate(members)])
         # per unknown the sensor whose rows alone it moves (-1: every sensor's, the shared target), per
         # row its sensor: the core's finite differences step unknowns of different sensors at once
         self.row_block = self.member
-        self.param_block = np.concatenate([np.repeat(np.arange(1, len(members)), 6)] + [
-            np.full(len(self._p_starts[k]), -1 if shared_target else k) for k in range(len(members))
-            if not (shared_target and k > 0)]).astype(np.intp)
+        blocks = [np.repeat(np.arange(1, len(members)), 6)]
+        for k, p0 in enumerate(self._p_starts):
+            block = np.full(len(p0), k)
+            if k == 0 and shared_target:
+                block[:self._n_target[0]] = -1
+            blocks.append(block)
+        self.param_block = np.concatenate(blocks).astype(np.intp)
 
     def _noise_groups(self) -> NDArray[np.intp]:
         """Per entry its noise group: each sensor's column groups its own, the padding one more."""
@@ -125,10 +130,26 @@ class Rig:
         return perturb(self.rel0[k - 1], u[:3], u[3:])
 
     def member_params(self, X, p, k: int) -> NDArray[np.float64]:
-        """Sensor ``k``'s own unknowns: its slice, or the shared target's pose in its terms."""
+        """Sensor ``k``'s own unknowns: its slice, after the shared target's pose in its terms."""
         if self.shared_target and k > 0:
-            return self.members[k].target_params(self.members[0].Z(X, p[self._slices[0]]))
+            return np.r_[self.members[k].target_params(self.members[0].Z(X, p[self._slices[0]])), p[self._slices[k]]]
         return p[self._slices[k]]
+
+    def _member_cov(self, cov_p, k: int) -> NDArray[np.float64]:
+        """The covariance of sensor ``k``'s unknowns (:meth:`member_params`) from ``cov_p`` (over the rig's
+        unknowns): a shared target's block is the first sensor's (in its terms: for the figures and
+        notes of the sensor's own unknowns, a depth scale; its Z's std is the first's)."""
+        s = self._slices[k]
+        own = cov_p[s, s]
+        if not (self.shared_target and k > 0):
+            return own
+        n = self._n_target[k]
+        out = np.zeros((n + own.shape[0],) * 2)
+        out[n:, n:] = own
+        if n == self._n_target[0]:
+            t = slice(self._slices[0].start, self._slices[0].start + n)
+            out[:n, :n] = cov_p[t, t]
+        return out
 
     def view_poses(self) -> None:
         """A rig starts from its sensors' own calibrations."""
@@ -137,9 +158,7 @@ class Rig:
     def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Sensor 0's X and, for the others, their start relative to it; the target's (or each
         sensor's) unknowns from the sensors' own calibrations."""
-        p = [np.zeros(6 * (len(self.members) - 1))]
-        p += [self._p_starts[k] for k in range(len(self.members)) if not (self.shared_target and k > 0)]
-        return self._X_start, np.concatenate(p)
+        return self._X_start, np.concatenate([np.zeros(6 * (len(self.members) - 1))] + self._p_starts)
 
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """Each row's residual from its own sensor, with ``X_k = X @ sensor_k2sensor_0``."""
@@ -217,21 +236,28 @@ class Rig:
     def _own(self, X, p, cov, k: int) -> dict[str, Any]:
         """Sensor ``k``'s target pose (``Z``, with its std) and its own figures (a ball's radius, a depth
         scale), from its unknowns in the joint fit: the shared target's when the sensors share one."""
-        m, s = self.members[k], self._slices[0 if self.shared_target else k]
-        own = self.member_params(X, p, k)
-        cov_own = cov[6 + s.start:6 + s.stop, 6 + s.start:6 + s.stop]
+        m = self.members[k]
+        own, cov_own = self.member_params(X, p, k), self._member_cov(cov[6:, 6:], k)
+        figures = m.figures(own, cov_own)
         if self.shared_target and k > 0:  # the first sensor's target, in this sensor's terms: its Z and std are the first's
-            return {"Z": self.Z(X, p).tolist(), "Z_std_deg_mm": _listed(self.members[0].Z_std(p[s], cov_own))}
+            s = self._slices[0]
+            return {"Z": self.Z(X, p).tolist(), "Z_std_deg_mm": _listed(self.members[0].Z_std(p[s], cov[6 + s.start:6 + s.stop,
+                                                                                                      6 + s.start:6 + s.stop])),
+                    "figures": figures}
         X_k = X @ self.relative(p, k)
-        return {"Z": m.Z(X_k, own).tolist(), "Z_std_deg_mm": _listed(m.Z_std(own, cov_own)), "figures": m.figures(own, cov_own)}
+        return {"Z": m.Z(X_k, own).tolist(), "Z_std_deg_mm": _listed(m.Z_std(own, cov_own)), "figures": figures}
 
     def notes(self, p, cov_p) -> list[str]:
-        """Each sensor's pose in sensor 0's frame, with its std."""
+        """Each sensor's pose in sensor 0's frame, with its std; what each sensor's own unknowns say
+        (a depth scale beyond 3 std of 1), named by sensor."""
         out = []
         for name, f in self.figures(p, cov_p)["relative"].items():
             s = np.asarray(f["std_deg_mm"])
             out.append(f"{name}: the sensors' relative pose known to {s[:3].max():.4f} deg / {s[3:].max():.4f} mm (std, "
                        "largest axis; the robot's error cancels in it)")
+        for k, (m, name) in enumerate(zip(self.members, self.sensor_names)):
+            # no sensor's target depends on X (the argument of Z is the protocol's): the start's serves
+            out += [f"sensor {name}: {n}" for n in m.notes(self.member_params(self._X_start, p, k), self._member_cov(cov_p, k))]
         return out
 
 

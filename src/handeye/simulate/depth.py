@@ -71,7 +71,7 @@ def depth_reading(truth, mask, behind, rng: np.random.Generator, depth_scale: fl
     return cloud.astype(np.float32)
 
 
-def _depth_image(K, size, target2cam, outline, background: float):
+def board_depth_image(K, size, target2cam, outline, background: float):
     """Per pixel, the true point (H, W, 3) where its ray meets the board's sheet (its ``outline``),
     else the background plane at depth ``background``; and the board's mask."""
     rays = pixel_rays(K, size)
@@ -158,7 +158,7 @@ def depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Ge
         scene = scene_from_viewpoints(cam2target, setup, rng)
     image_points, clouds = [], []
     for T in scene.target2cam:
-        truth, board = _depth_image(K, image_size, T, outline, background=2.5)
+        truth, board = board_depth_image(K, image_size, T, outline, background=2.5)
         behind = truth * (2.5 / truth[..., 2])[..., None]  # the background where the board is
         clouds.append(depth_reading(truth, board, behind, rng, depth_scale, depth_bias, depth_noise, holes))
         px = project_points(T, obj, K, np.zeros(5))

@@ -9,7 +9,8 @@ robot's error.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import io
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,18 +26,19 @@ from ..geometry.se3 import invert, make_transform, random_rotations
 from ..io.session import write_joint_table, write_pose_table
 from ..robot.kinematics import Chain
 from ..sensors.camera.model import CameraCorners
-from ..sensors.camera.pnp import project_points_many
+from ..sensors.camera.pnp import project_points, project_points_many
 from ..sensors.camera.render import Renderer
 from ..sensors.camera.targets.chessboard import Chessboard
 from ._common import _reported
 from .arms import kinematic_scene
+from .depth import board_depth_image, depth_reading
 from .laser import profile_reading, profiler_views, write_profile
 from .scenes import look_at, scene_from_viewpoints
 
 cv2 = lazy_module("cv2")
 
 __all__ = ["RigCamera", "RigScene", "rig_scene", "rig_joint_scene", "write_rig_session", "CameraLaserScene", "camera_laser_scene",
-           "write_camera_laser_session"]
+           "write_camera_laser_session", "CameraDepthScene", "camera_depth_scene", "write_camera_depth_session"]
 
 
 @dataclass(frozen=True)
@@ -373,3 +375,118 @@ def write_camera_laser_session(folder: str | Path, scene: CameraLaserScene, rng:
              "board": {info.z_name: scene.Z_board.tolist()}, "ball": {info.z_name: scene.Z_ball.tolist()}}
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return out
+
+
+@dataclass(frozen=True)
+class CameraDepthScene:
+    """A camera and a depth camera on one flange (eye-in-hand) or fixed side by side (eye-to-hand),
+    both seeing one board: the camera's corners (``camera``), the depth camera's X (``depth_X``), its
+    intensity image's intrinsics and size, and per view its corners and organized cloud (None where
+    the whole board is not in its image), from depths ``depth_scale`` times the true ones plus
+    ``depth_bias``."""
+
+    setup: str
+    names: list[str]
+    flange2base: NDArray[np.float64]
+    flange2base_true: NDArray[np.float64]
+    Z: NDArray[np.float64]
+    camera: RigCamera
+    depth_X: NDArray[np.float64]
+    depth_K: NDArray[np.float64]
+    depth_size: tuple[int, int]
+    depth_points: list
+    clouds: list
+    depth_scale: float
+    depth_bias: float
+
+    def relative(self) -> NDArray[np.float64]:
+        """The depth camera's true pose in the camera's frame (``depth2camera``)."""
+        return invert(self.camera.X) @ self.depth_X
+
+
+def camera_depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
+                       noise_px: float = 0.2, robot_error: tuple[float, float] | None = None,
+                       depth_size: tuple[int, int] = (640, 480), depth_scale: float = 1.002, depth_bias: float = 0.0,
+                       depth_noise: tuple[float, float] = (1e-4, 5e-4), holes: float = 0.01) -> CameraDepthScene:
+    """A camera beside a depth camera (:func:`rig_scene`'s two cameras, the second an RGB-D camera with
+    a 60 deg lens at ``depth_size`` px): the camera's corners as :func:`rig_scene`'s; the depth camera's
+    clouds as :func:`~handeye.simulate.depth.depth_scene`'s (``depth_noise``, scale, bias, holes,
+    flying pixels on the board's edge) and its corners with ``noise_px`` in its registered intensity image.
+
+    Examples
+    --------
+    >>> sc = camera_depth_scene(8, "eye_in_hand", rng=0, depth_size=(320, 240))
+    >>> sc.clouds[0].shape, int(sum(c is not None for c in sc.clouds)) >= 4
+    ((240, 320, 3), True)
+    """
+    rng = np.random.default_rng(rng)
+    sc = rig_scene(n_views, setup, rng, cameras=2, noise_px=noise_px, robot_error=robot_error)
+    w, h = depth_size
+    f = 0.5 * w / np.tan(np.radians(30.0))
+    K = np.array([[f, 0.0, w / 2], [0.0, f, h / 2], [0.0, 0.0, 1.0]])
+    board = Chessboard(*BOARD)
+    points, outline = board.object_points(), board.texture().outline()
+    X = sc.cameras[1].X
+    image_points, clouds = [], []
+    for T in predicted_target2cam(X, sc.Z, sc.flange2base_true, sc.setup):
+        px = project_points(T, points, K, np.zeros(5))
+        depth = points @ T[2, :3] + T[2, 3]
+        if not (np.all(depth > 0) and np.all((px > 5) & (px < [w - 5, h - 5]))):
+            image_points.append(np.zeros((0, 2)))
+            clouds.append(None)
+            continue
+        truth, mask = board_depth_image(K, depth_size, T, outline, background=2.5)
+        behind = truth * (2.5 / truth[..., 2])[..., None]
+        clouds.append(depth_reading(truth, mask, behind, rng, depth_scale, depth_bias, depth_noise, holes))
+        image_points.append(px + rng.normal(0.0, noise_px, px.shape))
+    return CameraDepthScene(sc.setup, sc.names, sc.flange2base, sc.flange2base_true, sc.Z, replace(sc.cameras[0], name="camera"),
+                            X, K, tuple(depth_size), image_points, clouds, depth_scale, depth_bias)
+
+
+def write_camera_depth_session(folder: str | Path, scene: CameraDepthScene, rng: np.random.Generator | int | None = None,
+                               noise_px: float = 0.0) -> Path:
+    """Write a camera beside a depth camera (:func:`camera_depth_scene`) as a rig session folder
+    (:mod:`handeye.io.rig_session`): ``camera/`` the camera's rendered images, ``depth/`` the depth
+    camera's clouds (``v01.npy``, metres, float32) beside its rendered intensity images (``v01.png``;
+    neither where it missed the board), ``poses.csv`` (first column ``view``; the controller's poses),
+    session.yaml (the board the session's target, seen by both) and ``ground_truth.yaml`` (both X,
+    the board's pose, the depth scale and bias). Returns the folder."""
+    out = check_output_folder(folder)
+    if (out / "session.yaml").exists():
+        raise HandEyeError(f"{out} already holds a session; choose an empty folder")
+    rng = np.random.default_rng(rng)
+    cam, info = scene.camera, setup_info(scene.setup)
+    texture = Chessboard(*BOARD).texture()
+    for sub in ("camera", "depth"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+    renderer = Renderer(cam.K, cam.dist, IMAGE)
+    for name, T, seen in zip(scene.names, predicted_target2cam(cam.X, scene.Z, scene.flange2base_true, scene.setup), cam.seen):
+        if seen:
+            _write_png(out / "camera" / f"{name}.png", renderer.render(texture, T, rng=rng, noise_px=noise_px))
+    renderer = Renderer(scene.depth_K, np.zeros(5), scene.depth_size)
+    for name, T, cloud in zip(scene.names, predicted_target2cam(scene.depth_X, scene.Z, scene.flange2base_true, scene.setup),
+                              scene.clouds):
+        if cloud is None:
+            continue
+        _write_png(out / "depth" / f"{name}.png", renderer.render(texture, T, rng=rng, noise_px=noise_px))
+        buf = io.BytesIO()
+        np.save(buf, np.asarray(cloud, np.float32))
+        atomic_write(out / "depth" / f"{name}.npy", buf.getvalue())
+    write_pose_table(out / "poses.csv", scene.names, scene.flange2base, "quat_wxyz", "mm", "deg", id_column="view")
+    spec = {"setup": scene.setup, "target": {"type": "chessboard", "cols": BOARD[0], "rows": BOARD[1], "square": BOARD[2]},
+            "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"},
+            "sensors": {"camera": {"camera": {"K": cam.K.tolist(), "dist": cam.dist.tolist()}, "images": "camera"},
+                        "depth": {"depth": {"unit": "m"}, "camera": {"K": scene.depth_K.tolist(), "dist": [0.0] * 5},
+                                  "clouds": "depth"}}}
+    atomic_write(out / "session.yaml", yaml.safe_dump(spec, sort_keys=False))
+    truth = {"setup": scene.setup, "sensors": {"camera": {info.x_name: cam.X.tolist()}, "depth": {info.x_name: scene.depth_X.tolist()}},
+             info.z_name: scene.Z.tolist(), "depth_scale": float(scene.depth_scale), "depth_bias": float(scene.depth_bias)}
+    atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
+    return out
+
+
+def _write_png(path: Path, image) -> None:
+    ok, buf = cv2.imencode(".png", image)
+    if not ok:
+        raise HandEyeError(f"could not encode {path}")
+    atomic_write(path, buf.tobytes())

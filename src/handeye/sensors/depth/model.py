@@ -123,10 +123,13 @@ class BoardPoints(DepthRows):
             raise InputMismatchError(f"{len(names)} views, {len(object_points)} point sets and {len(points)} lifted sets: "
                                      "give one of each per view")
         self.names, self.fit_depth = list(names), fit_depth
-        keep = [np.isfinite(np.asarray(q, float)).all(axis=1) for q in points]
-        self.poses = np.array([board_pose(o, q)[0] for o, q in zip(object_points, points)])
-        self.obj = np.concatenate([np.asarray(o, float)[k] for o, k in zip(object_points, keep)])
-        self._rays(np.concatenate([np.asarray(q, float)[k] for q, k in zip(points, keep)]))
+        # a view with fewer than 4 corners in depth has no pose and no rows (a rig's sensor that missed it)
+        keep = [np.isfinite(np.asarray(q, float).reshape(-1, 3)).all(axis=1) for q in points]
+        keep = [k if k.sum() >= 4 else np.zeros_like(k) for k in keep]
+        self.poses = np.array([board_pose(o, q)[0] if k.any() else np.full((4, 4), np.nan)
+                               for o, q, k in zip(object_points, points, keep)])
+        self.obj = np.concatenate([np.asarray(o, float).reshape(-1, 3)[k] for o, k in zip(object_points, keep)])
+        self._rays(np.concatenate([np.asarray(q, float).reshape(-1, 3)[k] for q, k in zip(points, keep)]))
         self.owner = np.repeat(np.arange(len(names)), [int(k.sum()) for k in keep])
         z = self.measured[:, 2]
         normals = self.poses[self.owner, :3, 2]
@@ -148,8 +151,12 @@ class BoardPoints(DepthRows):
         Z = np.asarray(Z, dtype=float)
         if self._Zref is None:
             self._Zref = Z
-        rotvec = Rotation.from_matrix(Z[:3, :3] @ self._Zref[:3, :3].T).as_rotvec()
-        return np.asarray(X, dtype=float), np.r_[rotvec, Z[:3, 3] - self._Zref[:3, 3], np.zeros(len(self.param_names) - 6)]
+        return np.asarray(X, dtype=float), np.r_[self.target_params(Z), np.zeros(len(self.param_names) - 6)]
+
+    def target_params(self, Z: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The unknowns that move the reference pose to the board's pose ``Z`` (after the first start;
+        a rig's other sensors map a shared board into them)."""
+        return np.r_[Rotation.from_matrix(Z[:3, :3] @ self._Zref[:3, :3].T).as_rotvec(), Z[:3, 3] - self._Zref[:3, 3]]
 
     def Z(self, X, p) -> NDArray[np.float64]:
         """The board's pose: the reference moved by ``p[:6]``."""
