@@ -5,7 +5,7 @@ An area camera's (:class:`~handeye.sensors.camera.model.CameraCorners`) and a li
 a rotation vector about the pose the first start gave (the chart: smooth for every pose near it)
 and the translation. Their residuals are pixels times each corner's pixel size at its depth, fixed
 at that first start (so that the fit cannot shrink them by moving the target away), which also
-turns the stated pixel noise into millimetres.
+turns the stated pixel noise into millimetres; each is weighted by that size (its ``shape``).
 """
 
 from __future__ import annotations
@@ -28,6 +28,9 @@ class ChartedTarget:
     _chart: NDArray[np.float64] | None = None  #: the target's pose at the first start
     _mpp: NDArray[np.float64] | None = None  #: per point the pixel's size at its depth (m), fixed at the first start
     noise_px: float
+    shape: NDArray[np.float64]
+    #: the residual columns that are pixels times the pixel's size
+    pixel_columns: tuple[int, ...] = (0, 1)
 
     def _first_start(self, X: NDArray[np.float64], Z: NDArray[np.float64], flange2base: NDArray[np.float64],
                      focal: float) -> None:
@@ -39,6 +42,11 @@ class ChartedTarget:
         target2cam = predicted_target2cam(X, Z, np.asarray(flange2base, float), self.setup)[self.owner]
         depth = np.einsum("mj,mj->m", target2cam[:, 2, :3], self.points) + target2cam[:, 2, 3]
         self._mpp = np.abs(depth) / focal
+        # a corner's noise is pixels: its residual in metres is as large as its pixel at its depth, so
+        # each pixel column's rows are weighted by that size (else the far corners count too much)
+        weight = np.ones(np.shape(self.shape)[1])
+        weight[list(self.pixel_columns)] = 0.0
+        self.shape = np.asarray(self.shape, float) * (weight + (1.0 - weight) * (self._mpp / np.median(self._mpp))[:, None])
 
     def target_params(self, Z: NDArray[np.float64]) -> NDArray[np.float64]:
         """The unknowns of the target's pose ``Z`` (after the first start: in its chart)."""

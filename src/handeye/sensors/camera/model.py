@@ -110,11 +110,7 @@ class CameraCorners(ChartedTarget):
         corner's pixel size."""
         if X is None or Z is None:
             raise DegenerateMotionError("a camera's start needs the views' poses (PnP on 3 views or more)")
-        if self._mpp is None:
-            self._first_start(X, Z, flange2base, float(np.sqrt(self.K[0, 0] * self.K[1, 1])))
-            # a corner's noise is pixels: in metres at the target it is that times its pixel's size, which
-            # grows with its depth (the far corners' residuals are larger for the same pixel error)
-            self.shape = np.repeat((self._mpp / np.median(self._mpp))[:, None], 2, axis=1)
+        self._first_start(X, Z, flange2base, float(np.sqrt(self.K[0, 0] * self.K[1, 1])))
         return X, self.target_params(Z)
 
     def _in_camera(self, X, Z, flange2base, rows) -> NDArray[np.float64]:

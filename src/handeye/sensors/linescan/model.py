@@ -109,6 +109,7 @@ class LineScanCorners(ChartedTarget):
 
     kind = "line-scan camera"
     groups: tuple[tuple[int, ...], ...] = ((0,), (1,))
+    pixel_columns = (0,)  # along the line; the other is the distance from the view plane (m)
     param_names = ["target.rx", "target.ry", "target.rz", "target.x", "target.y", "target.z", "focal", "cx", "k1",
                    "clock offset"]
 
