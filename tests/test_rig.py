@@ -359,3 +359,16 @@ def test_a_depth_camera_seeing_a_ball_beside_a_camera_seeing_a_board():
     assert within_std(np.array(depth["X"]), sc.depth_X, np.array(depth["std_deg_mm"]))
     assert abs(depth["figures"]["depth_scale"]["value"] - 1.002) < 3 * depth["figures"]["depth_scale"]["std"]
     assert np.allclose(np.array(depth["Z"])[:3, 3], ball[:3, 3], atol=1e-3)
+
+
+def test_each_sensors_notes_are_its_own_even_when_one_name_begins_another():
+    """A rig's notes reach the sensors they name, matched whole: ``cam`` gets none of ``camera``'s."""
+    from handeye.pipelines.rig import _member_notes
+    names = ["cam", "camera", "c2"]
+    notes = ["sensor camera: the target found in 9 of 10 images", "sensor cam: no image for 1 of 10 views (v03): those views "
+             "are not its", "camera2cam: the sensors' relative pose known to 0.01 deg / 0.05 mm", "sensor c2 skipped: 2 views",
+             "camera: its measurements fit the rig 2.0x worse", "the std of X includes the robot's absolute accuracy",
+             "sensor cameras are named by their folders"]  # the last names no sensor of this rig
+    assert _member_notes(notes, "cam", names) == [notes[1], notes[2], notes[5], notes[6]]
+    assert _member_notes(notes, "camera", names) == [notes[0], notes[2], notes[4], notes[5], notes[6]]
+    assert _member_notes(notes, "c2", names) == [notes[3], notes[5], notes[6]]

@@ -184,10 +184,19 @@ def _member_rms(joint: Calibration, k: int) -> float:
 
 
 def _member_notes(notes: list[str], name: str, names: list[str]) -> list[str]:
-    """The rig's notes that concern sensor ``name``: those naming it, and those naming no sensor."""
-    def names_in(note: str) -> set[str]:
-        return {n for n in names if f"sensor {n}" in note or note.startswith(f"{n}:") or f"{n}2" in note or f"2{n}" in note}
-    return [n for n in notes if not names_in(n) or name in names_in(n)]
+    """The rig's notes that concern sensor ``name``: those about it, and those about no sensor.
+
+    A note about sensors begins by naming them, as the rig's notes are written: ``sensor NAME: ...``,
+    ``sensor NAME disagrees ...`` / ``skipped ...``, ``NAME: ...`` or a relative pose ``A2B: ...``;
+    the head is matched whole (a sensor ``cam`` is not in a note about ``camera``)."""
+    pairs = {f"{a}2{b}": {a, b} for a in names for b in names if a != b}
+
+    def about(note: str) -> set[str]:
+        head = note.split(":", 1)[0]
+        words = note.split(" ", 2)
+        out = {n for n in names if head in (n, f"sensor {n}") or (len(words) > 2 and words[0] == "sensor" and words[1] == n)}
+        return out | pairs.get(head, set())
+    return [n for n in notes if not about(n) or name in about(n)]
 
 
 def rig_members(cal: Calibration) -> dict[str, Calibration]:
