@@ -109,7 +109,9 @@ class LineScanCorners(ChartedTarget):
 
     kind = "line-scan camera"
     groups: tuple[tuple[int, ...], ...] = ((0,), (1,))
-    pixel_columns = (0,)  # along the line; the other is the distance from the view plane (m)
+    # not weighted by the pixel's size: on 20 simulated sessions the fit was no nearer with it (0.096 /
+    # 0.189 mm against 0.100 / 0.180), and with 6 scans farther in 3 of 3, its std 2-5x wider
+    pixel_columns: tuple[int, ...] = ()
     param_names = ["target.rx", "target.ry", "target.rz", "target.x", "target.y", "target.z", "focal", "cx", "k1",
                    "clock offset"]
 
