@@ -46,25 +46,19 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         cameras = args.cameras or (2 if on_flange else 3)
         if args.laser and args.depth:
             raise InputMismatchError("--laser and --depth each put one sensor beside the camera: give one of them")
-        if args.depth:  # a camera beside an RGB-D camera, both seeing the board
+        if args.depth or args.laser:  # a camera beside one other sensor: an RGB-D camera, or a profiler scanning a ball
+            flag, other = ("--depth", "depth camera") if args.depth else ("--laser", "laser profiler")
             if args.arm is not None or args.cameras is not None:
-                raise InputMismatchError("--depth simulates one camera beside one depth camera on controller poses; leave "
-                                         "--arm and --cameras out")
-            write_camera_depth_session(args.out, camera_depth_scene(args.poses, args.setup, args.seed, robot_error=(0.01, 0.05)),
-                                       rng=args.seed, noise_px=args.noise_px)
-            print(f"wrote rig session {args.out} ({args.poses} poses, a camera and a depth camera "
-                  f"{'on the flange' if on_flange else 'fixed side by side'}: a chessboard both see, the depth scale 0.2% off; "
-                  f"the robot 0.01 deg / 0.05 mm off); ground truth in {Path(args.out) / 'ground_truth.yaml'}")
-            return 0
-        if args.laser:  # a camera beside a laser profiler: the ball on a small board
-            if args.arm is not None or args.cameras is not None:
-                raise InputMismatchError("--laser simulates one camera beside one laser profiler on controller poses; leave "
-                                         "--arm and --cameras out")
-            write_camera_laser_session(args.out, camera_laser_scene(args.poses, args.setup, args.seed, robot_error=(0.01, 0.05)),
-                                       rng=args.seed, noise_px=args.noise_px)
-            print(f"wrote rig session {args.out} ({args.poses} poses, a camera and a laser profiler "
-                  f"{'on the flange' if on_flange else 'fixed side by side'}: a small chessboard and a 40 mm ball; the robot "
-                  f"0.01 deg / 0.05 mm off); ground truth in {Path(args.out) / 'ground_truth.yaml'}")
+                raise InputMismatchError(f"{flag} simulates one camera beside one {other} on controller poses; leave --arm "
+                                         "and --cameras out")
+            scene, write = (camera_depth_scene, write_camera_depth_session) if args.depth else \
+                (camera_laser_scene, write_camera_laser_session)
+            write(args.out, scene(args.poses, args.setup, args.seed, robot_error=(0.01, 0.05)), rng=args.seed,
+                  noise_px=args.noise_px)
+            seen = "a chessboard both see, the depth scale 0.2% off" if args.depth else "a small chessboard and a 40 mm ball"
+            print(f"wrote rig session {args.out} ({args.poses} poses, a camera and a {other} "
+                  f"{'on the flange' if on_flange else 'fixed side by side'}: {seen}; the robot 0.01 deg / 0.05 mm off); "
+                  f"ground truth in {Path(args.out) / 'ground_truth.yaml'}")
             return 0
         if args.arm is not None:  # joint angles of an arm 1-3 mm off its nominal table, the cameras side by side
             sc = rig_joint_scene(args.poses, args.setup, args.seed, arm=args.arm, cameras=cameras)
@@ -155,23 +149,28 @@ def _simulate_depth(args: argparse.Namespace) -> int:
     target = args.target or "mesh"
     if target == "arm":  # markerless: a camera fixed in the cell sees the arm itself
         return _simulate_arm_depth(args)
-    if args.robot != "arm" or args.arm is not None:
-        raise InputMismatchError("--sensor depth simulates a 6-axis arm's controller poses; leave --robot and --arm out")
+    if args.robot != "arm":
+        raise InputMismatchError("--sensor depth simulates a 6-axis arm (its controller's poses, or with --arm its joint "
+                                 "angles); leave --robot out")
     if target == "mesh":
-        sc = mesh_scene(args.poses, args.setup, args.seed, image_size=args.image_size)
+        if args.arm is not None and setup_info(args.setup).camera_on_flange:
+            raise InputMismatchError("--target mesh --arm simulates the shape on the arm's flange before a fixed camera: "
+                                     "give --setup eye_to_hand")
+        sc = mesh_scene(args.poses, args.setup, args.seed, image_size=args.image_size, arm=args.arm)
         write_mesh_session(args.out, sc)
         what = "a flange-sized disc (target.stl) with bolt holes and a locating pin"
     elif target == "sphere":
-        write_depth_session(args.out, sphere_scene(args.poses, args.setup, args.seed, image_size=args.image_size))
+        write_depth_session(args.out, sphere_scene(args.poses, args.setup, args.seed, image_size=args.image_size, arm=args.arm))
         what = "a 50 mm ball"
     elif target in DEFAULT_TARGETS:
         write_depth_session(args.out, depth_scene(args.poses, args.setup, args.seed, target=target,
-                                                  image_size=args.image_size, noise_px=args.noise_px))
+                                                  image_size=args.image_size, noise_px=args.noise_px, arm=args.arm))
         what = f"a {target} with its intensity images"
     else:
         raise InputMismatchError(f"--target {target}: a depth camera's simulated target is mesh (default), sphere or a "
                                  f"board ({', '.join(DEFAULT_TARGETS)})")
-    print(f"wrote depth session {args.out} ({args.poses} clouds of {what}, {args.setup}); ground truth in "
+    arm = f", {args.arm}'s joint angles in joints.csv (the arm 1-3 mm off its nominal table)" if args.arm else ""
+    print(f"wrote depth session {args.out} ({args.poses} clouds of {what}, {args.setup}{arm}); ground truth in "
           f"{Path(args.out) / 'ground_truth.yaml'}")
     return 0
 

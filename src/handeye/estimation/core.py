@@ -83,6 +83,9 @@ UNDETERMINED_STD, UNDETERMINED_SHARE = 1.0, 1e-13
 NULL_SHARE = 1e-12
 #: The weight of the rows that hold an undetermined direction at its start (1 / its std, m).
 PIN = 1e9
+#: A fold's one-step refit (:func:`downdated`) that moves an unknown by more than this many of its
+#: std is not trusted: the fold is fitted from the fit on all views instead.
+DOWNDATE_STD = 10.0
 #: The robust first round fits at most this many measurement rows, evenly taken (the plain rounds
 #: after it fit every row kept): it only has to find the outliers.
 ROBUST_ROWS = 50000
@@ -378,7 +381,8 @@ def _fitted(problem: Problem, res, sigma, kept, rows) -> Fitted:
 def downdated(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> Fitted:
     """The fit on ``views`` as one Gauss-Newton step from ``full`` (the fit on all views) without the
     other views' rows: at ``full``'s solution the whole gradient is zero, so the step is
-    ``(J_t^T J_t)^-1 J_h^T r_h`` with t the rows kept and h the rows left out."""
+    ``(J_t^T J_t)^-1 J_h^T r_h`` with t the rows kept and h the rows left out. A step beyond
+    :data:`DOWNDATE_STD` of an unknown's std is not taken: the fold is then fitted whole from ``full``."""
     owner = np.asarray(problem.sensor.owner)
     c = np.asarray(problem.sensor.shape).shape[1]
     held = np.flatnonzero(~np.isin(owner[full.rows], np.asarray(views)))
@@ -388,6 +392,11 @@ def downdated(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> Fitted
         drop = np.flatnonzero(np.isin(_entry_rows(problem.sensor, full.rows), held))
     J_h, r_h = full.jac[drop], full.fun[drop]
     step = np.linalg.lstsq(full.normal - J_h.T @ J_h, J_h.T @ r_h, rcond=None)[0]
+    std = np.sqrt(np.clip(np.diag(full.cov), 0.0, None))
+    if not np.all(np.abs(step) <= DOWNDATE_STD * std + 1e-15):
+        # a step no fold moves by: the linear model is off there (a Jacobian by finite differences of a
+        # surface's distance, a table entry the left-out views held); the fit itself from ``full``
+        return fit(problem, views, start=full)
     x = full.x + step
     X, p, d = problem.unpack(x)
     keep = np.ones(len(full.rows), bool)

@@ -88,8 +88,8 @@ def board_depth_image(K, size, target2cam, outline, background: float):
 
 
 @dataclass(frozen=True)
-class _ArmViews:
-    """Views of a target by an arm off its nominal table (:func:`_arm_views`)."""
+class ArmViews:
+    """Views of a target by an arm off its nominal table (:func:`arm_views`)."""
 
     scene: Scene  #: X, Z, the flange poses the controller's nominal table gives, the true target2cam
     joints: NDArray[np.float64]
@@ -98,8 +98,8 @@ class _ArmViews:
     chain_true: Chain
 
 
-def _arm_views(setup: str, points: NDArray[np.float64], K, image_size, n: int, rng: np.random.Generator, arm: str,
-               length_mm: float, angle_deg: float, joint_noise_deg: float) -> _ArmViews:
+def arm_views(setup: str, points: NDArray[np.float64], K, image_size, n: int, rng: np.random.Generator, arm: str,
+              length_mm: float, angle_deg: float, joint_noise_deg: float) -> ArmViews:
     """``n`` views of a target (``points`` in its frame) by ``arm`` whose real table is off its
     nominal one by ``length_mm`` / ``angle_deg`` per entry (1-3 mm at the flange at the defaults): the
     joint angles drawn about the arm's home until the camera sees the target whole, reported with
@@ -111,7 +111,7 @@ def _arm_views(setup: str, points: NDArray[np.float64], K, image_size, n: int, r
     true = _real_chain(chain, rng, length_mm, angle_deg)
     joints = q_true + np.radians(rng.normal(0.0, joint_noise_deg, q_true.shape))
     t2c = predicted_target2cam(X, Z, true.forward(q_true), setup)
-    return _ArmViews(Scene(setup, X, Z, chain.forward(joints), t2c), joints, arm, chain, true)
+    return ArmViews(Scene(setup, X, Z, chain.forward(joints), t2c), joints, arm, chain, true)
 
 
 def depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
@@ -133,7 +133,7 @@ def depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Ge
     (deg, mm): the reported flange poses are off by a constant and a heavy-tailed error per pose of
     that size per axis (``flange2base`` is what the controller reports; None: exact). ``arm`` (a
     shipped arm's name): the views are the arm's at joint angles drawn about its home
-    (:func:`_arm_views`: its real table off the nominal one by ``length_mm`` / ``angle_deg`` per
+    (:func:`arm_views`: its real table off the nominal one by ``length_mm`` / ``angle_deg`` per
     entry, the joints reported with ``joint_noise_deg``), ``flange2base`` its nominal table's poses.
     """
     setup = check_setup(setup)
@@ -145,7 +145,7 @@ def depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Ge
     outline = target_texture(tgt).outline()
     views = None
     if arm is not None:
-        views = _arm_views(setup, obj, K, image_size, n_views, rng, arm, length_mm, angle_deg, joint_noise_deg)
+        views = arm_views(setup, obj, K, image_size, n_views, rng, arm, length_mm, angle_deg, joint_noise_deg)
         scene = views.scene
     else:
         renderer = Renderer(K, np.zeros(5), image_size, supersample=1)
@@ -166,10 +166,11 @@ def depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Ge
     return DepthScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
                       image_size=tuple(image_size),
                       object_points=obj, image_points=image_points, clouds=clouds, depth_scale=depth_scale,
-                      depth_bias=depth_bias, target_spec=dict(spec), **_arm_fields(views))
+                      depth_bias=depth_bias, target_spec=dict(spec), **arm_fields(views))
 
 
-def _arm_fields(views: _ArmViews | None) -> dict:
+def arm_fields(views: ArmViews | None) -> dict:
+    """A scene's arm fields (joints, arm, chain, chain_true) from ``views``; none without an arm."""
     return {} if views is None else dict(joints=views.joints, arm=views.arm, chain=views.chain, chain_true=views.chain_true)
 
 
@@ -253,7 +254,7 @@ def sphere_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.G
     views = None
     if arm is not None:
         ball = radius * np.array([[0.0, 0.0, 0.0], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]])
-        views = _arm_views(setup, ball, K, image_size, n_views, rng, arm, length_mm, angle_deg, joint_noise_deg)
+        views = arm_views(setup, ball, K, image_size, n_views, rng, arm, length_mm, angle_deg, joint_noise_deg)
         scene = views.scene
     else:
         cam2target = look_at_viewpoints(n_views, rng, distance=distance, tilt_max_deg=tilt_max_deg, aim_jitter=0.0)
@@ -280,7 +281,7 @@ def sphere_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.G
         clouds.append(depth_reading(truth, sphere, behind, rng, depth_scale, depth_bias, depth_noise, holes))
     return SphereScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
                        image_size=tuple(image_size),
-                       radius=radius, clouds=clouds, depth_scale=depth_scale, depth_bias=depth_bias, **_arm_fields(views))
+                       radius=radius, clouds=clouds, depth_scale=depth_scale, depth_bias=depth_bias, **arm_fields(views))
 
 
 def write_depth_session(folder: str | Path, scene: DepthScene | SphereScene, unit: str = "m",

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import importlib
 import io
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -19,12 +19,13 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from .._shared.io import atomic_write, check_output_folder
-from ..errors import SessionError
+from ..errors import HandEyeError, SessionError
 from ..frames.setups import check_setup, predicted_target2cam, setup_info
 from ..geometry.se3 import invert
-from ..io.session import write_pose_table
+from ..io.session import write_joint_table, write_pose_table
+from ..robot.kinematics import Chain
 from ._common import _reported, default_camera
-from .depth import depth_reading, pixel_rays
+from .depth import arm_fields, arm_views, depth_reading, pixel_rays
 from .scenes import Scene, look_at_viewpoints, scene_from_viewpoints
 
 __all__ = ["MeshScene", "flange_mesh", "mesh_scene", "write_mesh_session", "write_clouds", "ray_caster", "cast_rays"]
@@ -73,6 +74,11 @@ class MeshScene(Scene):
     clouds: list = None  # type: ignore[assignment]
     depth_scale: float = 1.0
     depth_bias: float = 0.0
+    #: with an arm: the joint angles the controller reports (rad), the arm's name, its nominal and real tables
+    joints: NDArray[np.float64] | None = None
+    arm: str | None = None
+    chain: Chain | None = None
+    chain_true: Chain | None = None
 
 
 def ray_caster(mesh):
@@ -101,7 +107,8 @@ def mesh_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Gen
                mesh=None, image_size: tuple[int, int] = (640, 480), depth_noise: tuple[float, float] = (1e-4, 5e-4),
                depth_scale: float = 1.002, depth_bias: float = 0.0, holes: float = 0.01,
                distance: tuple[float, float] = (0.6, 1.2), tilt_max_deg: float = 50.0,
-               robot_error: tuple[float, float] | None = None, wrist: bool = True, translations: str | None = None
+               robot_error: tuple[float, float] | None = None, wrist: bool = True, translations: str | None = None,
+               arm: str | None = None, length_mm: float = 0.5, angle_deg: float = 0.05, joint_noise_deg: float = 0.002
                ) -> MeshScene:
     """A depth camera's capture of ``mesh`` (trimesh, metres; default :func:`flange_mesh`): on the
     flange in front of a fixed camera (eye-to-hand) or fixed in the cell, seen by the camera on the
@@ -114,7 +121,10 @@ def mesh_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Gen
     the pixels on the mesh's outline are flying pixels; ``robot_error`` as there. ``translations``:
     the flange keeps the first view's orientation and moves up to 0.1 m along each axis (``'any'``:
     what a known placement of the shape makes enough) or along the mesh's z axis only (``'axis'``:
-    a disc's own axis, about which such a capture cannot turn X).
+    a disc's own axis, about which such a capture cannot turn X). ``arm`` (a shipped arm's name): the
+    views are the arm's at joint angles drawn about its home, its real table off the nominal one by
+    ``length_mm`` / ``angle_deg`` per entry (:func:`~handeye.simulate.depth.arm_views`), ``flange2base``
+    its nominal table's poses at the joint angles it reports.
     """
     trimesh = _trimesh()
     setup = check_setup(setup)
@@ -123,12 +133,25 @@ def mesh_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Gen
     K = default_camera(image_size)[0]
     w, h = image_size
     centre = np.asarray(mesh.bounds, float).mean(axis=0)
-    cam2target = look_at_viewpoints(n_views, rng, distance=distance, tilt_max_deg=tilt_max_deg, aim_jitter=0.0,
-                                    centre=centre)
-    off = np.c_[rng.uniform(-w / 3, w / 3, n_views) / K[0, 0], rng.uniform(-h / 3, h / 3, n_views) / K[1, 1]]
-    turn = Rotation.from_rotvec(np.c_[off[:, 1], -off[:, 0], np.zeros(n_views)]).as_matrix()
-    cam2target[:, :3, :3] = cam2target[:, :3, :3] @ turn
-    scene = scene_from_viewpoints(cam2target, setup, rng)
+    views = None
+    if arm is not None:
+        if translations is not None or robot_error is not None:
+            raise HandEyeError("an arm's views are its joint angles: leave translations and robot_error out")
+        points = np.asarray(mesh.vertices, float)[:: max(1, len(mesh.vertices) // 200)]
+        views = arm_views(setup, points, K, image_size, n_views, rng, arm, length_mm, angle_deg, joint_noise_deg)
+        # a board is seen from its -z side, the shape from its +z (the wrist behind it): turned over about
+        # its x axis, in place (its points stay where the views were drawn to see them)
+        over = np.diag([1.0, -1.0, -1.0, 1.0])
+        scene = replace(views.scene, Z=views.scene.Z @ over, target2cam=views.scene.target2cam @ over)
+        views = replace(views, scene=scene)
+        cam2target = invert(scene.target2cam)
+    else:
+        cam2target = look_at_viewpoints(n_views, rng, distance=distance, tilt_max_deg=tilt_max_deg, aim_jitter=0.0,
+                                        centre=centre)
+        off = np.c_[rng.uniform(-w / 3, w / 3, n_views) / K[0, 0], rng.uniform(-h / 3, h / 3, n_views) / K[1, 1]]
+        turn = Rotation.from_rotvec(np.c_[off[:, 1], -off[:, 0], np.zeros(n_views)]).as_matrix()
+        cam2target[:, :3, :3] = cam2target[:, :3, :3] @ turn
+        scene = scene_from_viewpoints(cam2target, setup, rng)
     if translations is not None:
         F = np.repeat(scene.flange2base[:1], n_views, axis=0)
         if translations == "axis":
@@ -160,7 +183,8 @@ def mesh_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Gen
         mask = (on & (t < t_wall)).reshape(h, w)
         clouds.append(depth_reading(truth, mask, behind, rng, depth_scale, depth_bias, depth_noise, holes))
     return MeshScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
-                     image_size=tuple(image_size), mesh=mesh, clouds=clouds, depth_scale=depth_scale, depth_bias=depth_bias)
+                     image_size=tuple(image_size), mesh=mesh, clouds=clouds, depth_scale=depth_scale, depth_bias=depth_bias,
+                     **arm_fields(views))
 
 
 def write_clouds(folder: Path, clouds: list[NDArray[np.float64]], organized: bool = True) -> list[str]:
@@ -180,7 +204,8 @@ def write_mesh_session(folder: str | Path, scene: MeshScene, *, mesh_unit: str =
                        known_pose: bool = False) -> Path:
     """Write a simulated mesh capture as a depth session: ``target.stl`` (in ``mesh_unit``),
     ``clouds/viewNN.npy`` (float32 metres: H x W x 3, or N x 3 of the points with depth when not
-    ``organized``), ``poses.csv`` (quat_wxyz, mm, deg; first column ``cloud``), ``session.yaml``
+    ``organized``), ``poses.csv`` (quat_wxyz, mm, deg; first column ``cloud``), with an arm ``joints.csv``
+    (the joint angles the controller reports, degrees, and a ``joints:`` block), ``session.yaml``
     (``target: {type: mesh, file: target.stl, unit: ...}``, with the mesh's true pose in the flange
     or base frame when ``known_pose``) and ``ground_truth.yaml``. Returns the folder."""
     out = check_output_folder(folder)
@@ -189,6 +214,8 @@ def write_mesh_session(folder: str | Path, scene: MeshScene, *, mesh_unit: str =
     mesh.apply_scale(1e3 if mesh_unit == "mm" else 1.0)
     atomic_write(out / "target.stl", mesh.export(file_type="stl"))
     write_pose_table(out / "poses.csv", names, scene.flange2base, "quat_wxyz", "mm", "deg", id_column="cloud")
+    if scene.joints is not None:  # the joint angles the controller reports, degrees
+        write_joint_table(out / "joints.csv", names, scene.joints, id_column="cloud")
     info = setup_info(scene.setup)
     target: dict = {"type": "mesh", "file": "target.stl", "unit": mesh_unit}
     if known_pose:  # a 4x4 with its translation in the mesh's unit
@@ -197,8 +224,12 @@ def write_mesh_session(folder: str | Path, scene: MeshScene, *, mesh_unit: str =
         target[info.z_name.replace("target2", "pose_in_")] = np.round(Z, 12).tolist()
     spec = {"setup": scene.setup, "target": target, "depth": {"unit": "m"},
             "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}}
+    if scene.joints is not None:
+        spec["joints"] = {"file": "joints.csv", "unit": "deg", "arm": scene.arm}
     atomic_write(out / "session.yaml", yaml.safe_dump(spec, sort_keys=False))
     truth = {"setup": scene.setup, info.x_name: scene.X.tolist(), info.z_name: scene.Z.tolist(),
              "depth_scale": float(scene.depth_scale), "depth_bias": float(scene.depth_bias)}
+    if scene.chain_true is not None:
+        truth |= {"arm": scene.arm, "table_true": scene.chain_true.table.tolist()}
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return out
