@@ -22,8 +22,8 @@ A depth camera is one too: ``{depth: {unit: m, range: [0.3, 1.5]}, camera: {K: .
 clouds: d435, target: ...}``, its clouds (``v01.npy``, .ply or .pcd) and, for a board, the
 intensity images they are registered to (``v01.png``; ``images:``, default the clouds' folder) named
 by view; its target a board (the session's, shared with the cameras: the board's pose is then one
-set of unknowns) or spheres. A laser profiler is a sensor too (a camera beside a profiler on a welding torch, two profilers on
-one seam): ``{laser: {unit: mm, range: [80, 160]}, profiles: laser, target: {type: sphere,
+set of unknowns) or spheres. A laser profiler is a sensor too (a camera beside a profiler on a
+welding torch, two profilers on one seam): ``{laser: {unit: mm, range: [80, 160]}, profiles: laser, target: {type: sphere,
 diameter: 0.04}}``, its profiles named by view (``v01.csv``), its target (any a laser session
 takes) its own or, left out, the session's. Sensors that see different targets each keep their own
 target's unknowns.

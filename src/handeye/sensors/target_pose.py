@@ -5,7 +5,8 @@ An area camera's (:class:`~handeye.sensors.camera.model.CameraCorners`) and a li
 a rotation vector about the pose the first start gave (the chart: smooth for every pose near it)
 and the translation. Their residuals are pixels times each corner's pixel size at its depth, fixed
 at that first start (so that the fit cannot shrink them by moving the target away), which also
-turns the stated pixel noise into millimetres; each is weighted by that size (its ``shape``).
+turns the stated pixel noise into millimetres; the columns a model names in ``pixel_columns`` are
+weighted by that size too (their ``shape``: an area camera's; a line-scan camera's are not).
 """
 
 from __future__ import annotations
@@ -44,9 +45,9 @@ class ChartedTarget:
         self._mpp = np.abs(depth) / focal
         # a corner's noise is pixels: its residual in metres is as large as its pixel at its depth, so
         # each pixel column's rows are weighted by that size (else the far corners count too much)
-        weight = np.ones(np.shape(self.shape)[1])
-        weight[list(self.pixel_columns)] = 0.0
-        self.shape = np.asarray(self.shape, float) * (weight + (1.0 - weight) * (self._mpp / np.median(self._mpp))[:, None])
+        factor = np.ones(np.shape(self.shape))
+        factor[:, list(self.pixel_columns)] = (self._mpp / np.median(self._mpp))[:, None]
+        self.shape = np.asarray(self.shape, float) * factor
 
     def target_params(self, Z: NDArray[np.float64]) -> NDArray[np.float64]:
         """The unknowns of the target's pose ``Z`` (after the first start: in its chart)."""

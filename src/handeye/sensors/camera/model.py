@@ -5,7 +5,7 @@ points mapped into the camera frame (``inv(A_i X) Z P``) and projected with the 
 (OpenCV's model, known: ``K``, ``dist``). The residuals (metres, at the target): the pixel error
 times the pixel's size at the corner's depth (fixed at the start, so that the fit cannot shrink it
 by moving away), each weighted by that size (``shape``: a corner's noise is pixels, so a far corner's
-residual in metres is larger for the same pixel error; weighting the metres alike had put 8% more
+residual in metres is larger for the same pixel error; weighting the metres alike had put 14% more
 error in a stereo pair's relative pose, bench_rig.py). The unknowns besides X: the target's pose (a
 chart about its start). The start: each view's pose by PnP, then the closed form.
 
