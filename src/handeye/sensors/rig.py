@@ -57,7 +57,7 @@ class Rig:
             if list(m.names) != list(first.names) or m.setup != first.setup:
                 raise InputMismatchError(f"sensor {name}: every sensor of a rig is over the rig's views and setup")
 
-        if shared_target and not all(hasattr(m, "target_params") for m in members[1:]):
+        if shared_target and not all(hasattr(m, "target_params") for m in members):
             raise InputMismatchError("a shared target needs sensors that map its pose into their unknowns (target_params)")
         if shared_target and len({m.target for m in members}) > 1:
             raise InputMismatchError(f"sensors that see different targets ({', '.join(sorted({m.target for m in members}))}) "
