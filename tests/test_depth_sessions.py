@@ -254,3 +254,23 @@ def test_depth_sessions_in_a_fleet_and_with_exports(tmp_path, capsys, spheres):
         result = json.loads((tmp_path / "fleet" / name / "result.json").read_text())
         assert result["sensor"]["kind"] == "depth camera"
         assert (tmp_path / "fleet" / name / "handeye_static_tf.launch.py").is_file()
+
+
+def test_a_depth_session_with_joint_angles_fits_the_joints_compliance_when_asked(tmp_path):
+    """compliance=True reaches the depth camera's robot model (the options record, not a loose field):
+    the loaded joints' compliance is fitted with the table; without joint angles, or for a sensor
+    that fits no table, it is refused by name."""
+    from handeye.pipelines.linescan import calibrate_linescan_session
+    sc = depth_scene(8, "eye_to_hand", rng=2, arm="ur5", image_size=(240, 180))
+    folder = write_depth_session(tmp_path / "j", sc)
+    plain = calibrate_depth_session(folder)
+    loaded = calibrate_depth_session(folder, compliance=True)
+    assert not any(n.endswith(".compliance") for n in plain.kinematic.names)
+    assert any(n.endswith(".compliance") for n in loaded.kinematic.names)
+    assert main(["calibrate", str(folder), "--compliance", "--out", str(tmp_path / "out")]) in (0, 1)
+    assert "compliance" in json.dumps(json.loads((tmp_path / "out" / "result.json").read_text()))
+    poses = write_depth_session(tmp_path / "p", depth_scene(6, "eye_to_hand", rng=2, image_size=(240, 180)))
+    with pytest.raises(InputMismatchError, match="the session has none .a joints: table"):
+        calibrate_depth_session(poses, compliance=True)
+    with pytest.raises(InputMismatchError, match="compliance .--compliance.: options of image and pose sessions"):
+        calibrate_linescan_session(poses, compliance=True)

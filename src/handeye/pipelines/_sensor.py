@@ -13,6 +13,8 @@ __all__ = ["sensor_options", "robot_model"]
 #: The options of image and pose sessions that a sensor model's fit has no use for.
 IMAGE_ONLY = ("method", "refine", "pairs", "known", "robot_noise", "compliance", "strict_images", "keyframes",
               "offset_range", "time_offset")
+#: The options a sensor whose robot may be joint angles through the arm's table takes as well.
+TABLE_OPTIONS = ("compliance",)
 
 
 def _given(value: Any, default: Any) -> bool:
@@ -24,13 +26,15 @@ def _given(value: Any, default: Any) -> bool:
     return True
 
 
-def sensor_options(options: CalibrationOptions | None, changes: dict, what: str) -> CalibrationOptions:
-    """The options of a sensor model's calibration (``robot_accuracy``, ``folds``, ``arm``), refusing
-    by name those that only image and pose sessions use when they are given (``what``: the session
-    in words, for the message)."""
+def sensor_options(options: CalibrationOptions | None, changes: dict, what: str, table: bool = False) -> CalibrationOptions:
+    """The options of a sensor model's calibration (``robot_accuracy``, ``folds``, ``arm``; with
+    ``table``, a sensor whose joint angles fit the arm's table, ``compliance`` too), refusing by name
+    those that only image and pose sessions use when they are given (``what``: the session in
+    words, for the message)."""
     opts = options_from(options, changes)
     default = CalibrationOptions()
-    unused = [name for name in IMAGE_ONLY if _given(getattr(opts, name), getattr(default, name))]
+    unused = [name for name in IMAGE_ONLY if _given(getattr(opts, name), getattr(default, name))
+              and not (table and name in TABLE_OPTIONS)]
     unused += [] if opts.check else ["check"]
     if unused:
         flags = ", ".join(f"{name} (--{name.replace('_', '-')})" for name in unused)
@@ -39,10 +43,16 @@ def sensor_options(options: CalibrationOptions | None, changes: dict, what: str)
     return opts
 
 
-def robot_model(session: Any, index: list[int], accuracy: tuple[float, float] | None) -> RobotModel:
-    """The robot side of a sensor session's (depth, laser: its ``flange2base``, ``joints``, ``arm``)
-    views ``index``: joint angles through the arm's table when the session has them, else the
-    controller's poses with the robot's stated ``accuracy``."""
+def robot_model(session: Any, index: list[int], options: CalibrationOptions) -> RobotModel:
+    """The robot side of a sensor session's (depth, laser, rig: its ``flange2base``, ``joints``,
+    ``arm``) views ``index``: joint angles through the arm's table when the session has them (each
+    joint's compliance fitted too with ``options.compliance``), else the controller's poses with the
+    robot's stated accuracy (``options.robot_accuracy``). Raises InputMismatchError for a compliance
+    without joint angles."""
     if session.joints is not None:
-        return JointAngles(session.arm, session.joints[index])
-    return ControllerPoses(session.flange2base[index], accuracy)
+        return JointAngles(session.arm, session.joints[index], compliance=options.compliance)
+    if options.compliance:
+        raise InputMismatchError(f"{session.folder}: compliance=True (--compliance) fits the joints' compliance from joint "
+                                 "angles with the arm's table; the session has none (a joints: table in session.yaml): "
+                                 "leave compliance out")
+    return ControllerPoses(session.flange2base[index], options.robot_accuracy)

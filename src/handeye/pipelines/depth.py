@@ -171,18 +171,21 @@ def calibrate_depth_session(folder: str | Path | DepthSession, options: Calibrat
     >>> cal.verdict, cal.sensor.target
     ('good', 'spheres')
     """
-    opts = sensor_options(options, changes, "a depth session")
+    opts = sensor_options(options, changes, "a depth session", table=True)
     s = folder if isinstance(folder, DepthSession) else load_depth_session(folder, arm=opts.arm)
     if s.kind == "mesh":  # a known shape: found in each cloud, then every point against its surface
         return calibrate_mesh_session(s, opts, fit_depth=fit_depth, progress=progress, jobs=jobs)
     if s.kind == "arm":  # the arm itself (markerless): every point against the arm posed at its joint angles
+        if opts.compliance:
+            raise InputMismatchError(f"{s.folder}: compliance (--compliance): the arm as its own target is posed by its "
+                                     "given table, which is not fitted here; leave compliance out")
         return calibrate_arm_depth_session(s, opts, fit_depth=fit_depth, progress=progress, jobs=jobs)
     v = measure_depth_session(s, progress, jobs)
     if len(v.index) < 3:
         raise DegenerateMotionError(
             f"{len(v.index)} of {len(s.names)} views measured ({'; '.join(f'{n}: {r}' for n, r in v.skipped[:5])}): "
             "at least 3 are needed, 10-20 with the flange turned 30 deg or more about varied axes to trust X")
-    cal = estimate(sensor_model(s, v, fit_depth), robot_model(s, v.index, opts.robot_accuracy), opts.folds)
+    cal = estimate(sensor_model(s, v, fit_depth), robot_model(s, v.index, opts), opts.folds)
     return _with_session(cal, s, v)
 
 

@@ -117,7 +117,7 @@ def calibrate_laser_session(folder: str | Path | LaserSession, options: Calibrat
     >>> cal.verdict, cal.sensor.target, cal.sensor.figures["radius_mm"]["value"]
     ('good', 'sphere', 20.0)
     """
-    opts = sensor_options(options, changes, "a laser session")
+    opts = sensor_options(options, changes, "a laser session", table=True)
     s = folder if isinstance(folder, LaserSession) else load_laser_session(folder, arm=opts.arm)
     kept, profiles, skipped, notes = read_profiles(s)
     if len(kept) < 3:
@@ -126,6 +126,6 @@ def calibrate_laser_session(folder: str | Path | LaserSession, options: Calibrat
             f"{len(kept)} of {len(s.names)} profiles usable{why}: at least 3 are needed, 15-20 with the flange turned "
             "10 deg or more about two or three axes to trust X")
     names = [s.names[k] for k in kept]
-    cal = estimate(laser_model(s, names, profiles), robot_model(s, kept, opts.robot_accuracy), opts.folds)
+    cal = estimate(laser_model(s, names, profiles), robot_model(s, kept, opts), opts.folds)
     return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + notes + list(cal.notes),
                    input_folder=s.folder)

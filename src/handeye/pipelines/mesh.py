@@ -203,7 +203,7 @@ def calibrate_mesh_session(s: DepthSession, options: CalibrationOptions, *, fit_
         raise DegenerateMotionError(
             f"the shape is found in {len(v.index)} of {len(s.names)} clouds ({'; '.join(f'{n}: {r}' for n, r in v.skipped[:5])}): "
             "at least 3 are needed, 10-20 with the flange turned 30 deg or more about varied axes to trust X")
-    cal = estimate(mesh_model(s, shape, v, fit_depth), robot_model(s, v.index, options.robot_accuracy), options.folds)
+    cal = estimate(mesh_model(s, shape, v, fit_depth), robot_model(s, v.index, options), options.folds)
     used = {s.names[v.index[k]] for k in cal.pose_indices}
     distances = [d for k, d in zip(v.index, v.distance) if s.names[k] in used]
     figures = dict(cal.sensor.figures, distance_m=distances)

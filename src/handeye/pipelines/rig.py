@@ -334,7 +334,7 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     DegenerateMotionError
         No sensor could be calibrated.
     """
-    opts = sensor_options(options, changes, "a rig session")
+    opts = sensor_options(options, changes, "a rig session", table=True)
     s = folder if isinstance(folder, RigSession) else load_rig_session(folder, opts.arm)
     cameras = [sensor for sensor in s.sensors if sensor.kind == "camera"]
     members, notes = [], list(s.notes)
@@ -359,7 +359,7 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
         seen = sum(len(u) > 0 for u in image_points)
         notes.append(f"sensor {sensor.name}: the target found in {seen} of {len(paths)} images")
         members.append(CameraCorners(s.setup, s.names, image_points, object_points, sensor.K, sensor.dist))
-    robot = robot_model(s, list(range(len(s.names))), opts.robot_accuracy)  # joint angles through the arm's table, or poses
+    robot = robot_model(s, list(range(len(s.names))), opts)  # joint angles through the arm's table, or poses
     rig = calibrate_rig(members, [x.name for x in s.sensors], robot, shared_target=s.shared_target, folds=opts.folds)
     if rig.joint is None:
         only = next(iter(rig.alone.values()))
