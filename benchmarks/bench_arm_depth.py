@@ -28,14 +28,13 @@ Goals (issue 62): X within 2 mm / 0.3 deg (median over sessions) from 10 clouds;
 from __future__ import annotations
 
 import argparse
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
+from _timing import calibrate_seconds
 from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.pipelines.folders import calibrate_folder
 from handeye.simulate.arm_depth import arm_depth_scene, write_arm_depth_session
@@ -51,13 +50,6 @@ def _session(seed: int, views: int, root: Path, table_error: tuple[float, float]
             "within": within_std(cal.X, scene.X, cal.std_sources["data"]), "within_all": within_std(cal.X, scene.X, cal.std),
             "verdict": cal.verdict, "skipped": len(cal.skipped), "seconds": elapsed, "folder": folder,
             "distance": float(np.linalg.norm(scene.X[:3, 3] - [0.3, 0.0, 0.45]))}
-
-
-def _command_seconds(folder: Path, out: Path) -> float:
-    t = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "handeye.cli", "calibrate", str(folder), "--out", str(out)], check=True,
-                   capture_output=True)
-    return time.perf_counter() - t
 
 
 def _pair(text: str) -> tuple[float, float]:
@@ -95,8 +87,9 @@ def main() -> None:
               f"calibrate_folder: median {np.median([r['seconds'] for r in rows]):.1f} s per session, worst "
               f"{max(r['seconds'] for r in rows):.1f} s")
         if not args.no_timing:
-            seconds = _command_seconds(rows[0]["folder"], root / "out")
-            print(f"  whole command (handeye calibrate FOLDER --out OUT, {args.views} clouds): {seconds:.1f} s")
+            seconds, code = calibrate_seconds(rows[0]["folder"], root / "out")
+            print(f"  whole command (handeye calibrate FOLDER --out OUT, {args.views} clouds): {seconds:.1f} s, exit status "
+                  f"{code}")
 
 
 if __name__ == "__main__":

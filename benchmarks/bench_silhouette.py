@@ -30,8 +30,6 @@ Goals (issue 62): X within 5 mm / 0.5 deg (median) at 640x480, 10 views, within 
 from __future__ import annotations
 
 import argparse
-import subprocess
-import sys
 import tempfile
 import time
 from dataclasses import replace
@@ -39,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from _timing import calibrate_seconds
 from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.io.importers import import_easyhec
 from handeye.io.silhouette_session import load_silhouette_session
@@ -61,13 +60,6 @@ def _session(seed: int, views: int, root: Path, row: str) -> dict:
             "within": within_std(cal.X, scene.X, cal.std_sources["data"]), "within_all": within_std(cal.X, scene.X, cal.std),
             "iou": f["iou_mean"], "held": f["iou_heldout_mean"], "start_iou": f["start_iou"], "verdict": cal.verdict,
             "seconds": elapsed, "folder": folder, "std_mm": float(np.max(cal.std[3:]))}
-
-
-def _command_seconds(folder: Path, out: Path) -> tuple[float, int]:
-    t = time.perf_counter()
-    done = subprocess.run([sys.executable, "-m", "handeye.cli", "calibrate", str(folder), "--out", str(out)],
-                          capture_output=True)
-    return time.perf_counter() - t, done.returncode
 
 
 def _real(root: Path, timing: bool) -> None:
@@ -99,7 +91,7 @@ def _real(root: Path, timing: bool) -> None:
           f"{within_std(a.X, b.X, combined)}; verdicts {a.verdict}, {b.verdict}; IoU {a.sensor.figures['iou_mean']:.2f}, "
           f"{b.sensor.figures['iou_mean']:.2f}")
     if timing:
-        seconds, code = _command_seconds(folder, root / "real_out")
+        seconds, code = calibrate_seconds(folder, root / "real_out")
         print(f"  whole command (handeye calibrate, 10 views of 640x480): {seconds:.1f} s, exit status {code}")
 
 
@@ -135,7 +127,7 @@ def main() -> None:
                   f"{sum(r['start_iou'] > 0.85 for r in rows)} of {len(rows)}; verdicts {counts}")
             print(f"  calibrate_folder: median {np.median([r['seconds'] for r in rows]):.1f} s per session\n")
             if not args.no_timing and row == "default":
-                seconds, code = _command_seconds(rows[0]["folder"], root / "out")
+                seconds, code = calibrate_seconds(rows[0]["folder"], root / "out")
                 print(f"  whole command (handeye calibrate FOLDER --out OUT, {args.views} masks): {seconds:.1f} s, exit "
                       f"status {code}\n")
         if args.real:
