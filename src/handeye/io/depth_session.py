@@ -33,8 +33,8 @@ from .session import (
     read_session_yaml,
 )
 
-__all__ = ["DepthSession", "MeshTarget", "ArmTarget", "is_depth_session", "load_depth_session", "rig_depth", "ARM_KEYS",
-           "RIG_DEPTH_KEYS"]
+__all__ = ["DepthSession", "MeshTarget", "ArmTarget", "is_depth_session", "load_depth_session", "rig_depth", "arm_hand",
+           "ARM_KEYS", "RIG_DEPTH_KEYS"]
 
 #: What the pose table's first column must be, for the error that finds it is not.
 FIRST_COLUMN = ("'image' (a board: its intensity image in images/, the cloud of the same name in clouds/) or 'cloud' "
@@ -116,6 +116,13 @@ def _arm_target(target: Any, setup: str, spec: dict, where: str) -> ArmTarget | 
     if not spec.get("joints"):
         raise SessionError(f"{where}: target: arm needs each cloud's joint angles: joints: {{file: joints.csv, unit: deg, "
                            "arm: panda}} (the first column 'cloud')")
+    return ArmTarget(*arm_hand(target, where))
+
+
+def arm_hand(target: dict, where: str) -> tuple[bool, float]:
+    """The arm's hand of a target that is the arm itself (a depth camera's ``type: arm``, a
+    silhouette session's ``type: robot``): whether the maker's hand is on the flange (``hand``,
+    default true) and the gap between its fingers (``finger_opening``, metres, default 0), checked."""
     hand = target.get("hand", True)
     if not isinstance(hand, bool):
         raise SessionError(f"{where}: target: hand is true (the maker's gripper on the flange) or false, got {hand!r}")
@@ -126,7 +133,7 @@ def _arm_target(target: Any, setup: str, spec: dict, where: str) -> ArmTarget | 
     if not 0.0 <= opening <= 0.1:
         raise SessionError(f"{where}: target: finger_opening is the gap between the fingers in metres (0 to 0.08 for the "
                            f"Franka Hand), got {target.get('finger_opening')!r}")
-    return ArmTarget(hand, opening)
+    return hand, opening
 
 
 #: The keys of a mesh target (besides the placement's, ``pose_in_flange`` or ``pose_in_base``).

@@ -27,6 +27,7 @@ from ..errors import InputMismatchError, SessionError
 from ..frames.setups import check_setup, setup_info
 from ..robot.kinematics import Chain
 from ..robot.meshes import ArmMeshes, meshes_for
+from .depth_session import ARM_KEYS, arm_hand
 from .session import CAMERA_KEYS, JOINTS_KEYS, check_keys, check_session_keys, has_section, read_camera, read_joints, read_session_yaml
 
 cv2 = lazy_module("cv2")
@@ -37,7 +38,7 @@ __all__ = ["SilhouetteSession", "is_silhouette_session", "load_silhouette_sessio
 #: The keys of ``silhouette:``.
 SILHOUETTE_KEYS = ("masks", "images")
 #: The keys of ``target:`` (``type: robot``).
-ROBOT_TARGET_KEYS = ("type", "hand", "finger_opening")
+ROBOT_TARGET_KEYS = ARM_KEYS
 
 
 @dataclass(frozen=True)
@@ -95,14 +96,7 @@ def _target(spec: Any, where: str) -> tuple[bool, float]:
     if not isinstance(spec, dict) or str(spec.get("type", "")).lower() != "robot":
         raise SessionError(f"{where}: target: a silhouette session's target is the robot itself: target: {{type: robot}}")
     check_keys(spec, ROBOT_TARGET_KEYS, f"{where}: target")
-    hand = spec.get("hand", True)
-    if not isinstance(hand, bool):
-        raise SessionError(f"{where}: target: hand is true (the maker's gripper on the flange) or false, not {hand!r}")
-    try:
-        opening = float(spec.get("finger_opening", 0.0))
-    except (TypeError, ValueError):
-        raise SessionError(f"{where}: target: finger_opening is the gap between the fingers in metres") from None
-    return hand, opening
+    return arm_hand(spec, where)
 
 
 def _folder(folder: Path, spec: dict, key: str, default: str, where: str) -> Path:
