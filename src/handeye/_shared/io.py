@@ -14,6 +14,9 @@ from typing import Iterable
 import numpy as np
 
 from ..errors import HandEyeError
+from .lazy import lazy_module
+
+cv2 = lazy_module("cv2")
 
 _BOMS = ((b"\xef\xbb\xbf", "utf-8"), (b"\xff\xfe", "utf-16-le"), (b"\xfe\xff", "utf-16-be"))
 
@@ -104,6 +107,15 @@ def atomic_write(path: str | Path, data: str | bytes, protect: Iterable[str | Pa
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def write_png(path: str | Path, image: np.ndarray) -> None:
+    """``image`` encoded as PNG and written atomically to ``path`` (:func:`atomic_write`); an image
+    OpenCV cannot encode raises, naming the file."""
+    ok, buf = cv2.imencode(".png", image)
+    if not ok:
+        raise HandEyeError(f"could not encode {path} as PNG")
+    atomic_write(path, buf.tobytes())
 
 
 def array_digest(*arrays: np.ndarray) -> str:

@@ -21,7 +21,7 @@ import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.io import atomic_write, check_output_folder
+from .._shared.io import atomic_write, check_output_folder, write_png
 from .._shared.lazy import lazy_module
 from ..errors import HandEyeError, InputMismatchError
 from ..frames.setups import check_setup, flange_poses, setup_info
@@ -216,10 +216,7 @@ def write_linescan_session(folder: str | Path, scene: LineScanScene, nominal_foc
     (out / "images").mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(rng)
     for i, name in enumerate(scene.names):
-        ok, buf = cv2.imencode(".png", render_scan(scene, i, rng))
-        if not ok:
-            raise HandEyeError(f"could not encode {name}")
-        atomic_write(out / "images" / name, buf.tobytes())
+        write_png(out / "images" / name, render_scan(scene, i, rng))
     atomic_write(out / "images.csv", "image,time\n" + "".join(f"{n},{float(t)!r}\n" for n, t in zip(scene.names, scene.starts)))
     write_pose_table(out / "poses.csv", [repr(float(t)) for t in scene.trajectory.times], scene.trajectory.flange2base,
                      "quat_wxyz", "mm", "deg", id_column="time")

@@ -18,8 +18,7 @@ import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.io import atomic_write, check_output_folder
-from .._shared.lazy import lazy_module
+from .._shared.io import atomic_write, check_output_folder, write_png
 from ..errors import HandEyeError, InputMismatchError
 from ..frames.setups import check_setup, flange_poses, predicted_target2cam, setup_info
 from ..geometry.se3 import invert, make_transform, random_rotations
@@ -34,8 +33,6 @@ from .arms import kinematic_scene
 from .depth import board_depth_image, depth_reading
 from .laser import profile_reading, profiler_views, write_profile
 from .scenes import look_at, scene_from_viewpoints
-
-cv2 = lazy_module("cv2")
 
 __all__ = ["RigCamera", "RigScene", "rig_scene", "rig_joint_scene", "write_rig_session", "CameraLaserScene", "camera_laser_scene",
            "write_camera_laser_session", "CameraDepthScene", "camera_depth_scene", "write_camera_depth_session"]
@@ -250,10 +247,7 @@ def write_rig_session(folder: str | Path, scene: RigScene, rng: np.random.Genera
         for name, T, seen in zip(scene.names, target2cam, cam.seen):
             if not seen:
                 continue
-            ok, buf = cv2.imencode(".png", renderer.render(texture, T, rng=rng, noise_px=noise_px))
-            if not ok:
-                raise HandEyeError(f"could not encode {cam.name}/{name}.png")
-            atomic_write(out / cam.name / f"{name}.png", buf.tobytes())
+            write_png(out / cam.name / f"{name}.png", renderer.render(texture, T, rng=rng, noise_px=noise_px))
         sensors[cam.name] = {"camera": {"K": cam.K.tolist(), "dist": cam.dist.tolist()}, "images": cam.name}
         truth["cameras"][cam.name] = {setup_info(scene.setup).x_name: cam.X.tolist()}
     spec: dict = {"setup": scene.setup, "target": {"type": "chessboard", "cols": BOARD[0], "rows": BOARD[1], "square": BOARD[2]}}
@@ -356,10 +350,7 @@ def write_camera_laser_session(folder: str | Path, scene: CameraLaserScene, rng:
     for name, T, seen in zip(scene.names, predicted_target2cam(cam.X, scene.Z_board, scene.flange2base_true, scene.setup),
                              cam.seen):
         if seen:
-            ok, buf = cv2.imencode(".png", renderer.render(texture, T, rng=rng, noise_px=noise_px))
-            if not ok:
-                raise HandEyeError(f"could not encode camera/{name}.png")
-            atomic_write(out / "camera" / f"{name}.png", buf.tobytes())
+            write_png(out / "camera" / f"{name}.png", renderer.render(texture, T, rng=rng, noise_px=noise_px))
     for name, p in zip(scene.names, scene.profiles):
         write_profile(out / "laser" / f"{name}.csv", p, "mm")
     write_pose_table(out / "poses.csv", scene.names, scene.flange2base, "quat_wxyz", "mm", "deg", id_column="view")
@@ -462,13 +453,13 @@ def write_camera_depth_session(folder: str | Path, scene: CameraDepthScene, rng:
     renderer = Renderer(cam.K, cam.dist, IMAGE)
     for name, T, seen in zip(scene.names, predicted_target2cam(cam.X, scene.Z, scene.flange2base_true, scene.setup), cam.seen):
         if seen:
-            _write_png(out / "camera" / f"{name}.png", renderer.render(texture, T, rng=rng, noise_px=noise_px))
+            write_png(out / "camera" / f"{name}.png", renderer.render(texture, T, rng=rng, noise_px=noise_px))
     renderer = Renderer(scene.depth_K, np.zeros(5), scene.depth_size)
     for name, T, cloud in zip(scene.names, predicted_target2cam(scene.depth_X, scene.Z, scene.flange2base_true, scene.setup),
                               scene.clouds):
         if cloud is None:
             continue
-        _write_png(out / "depth" / f"{name}.png", renderer.render(texture, T, rng=rng, noise_px=noise_px))
+        write_png(out / "depth" / f"{name}.png", renderer.render(texture, T, rng=rng, noise_px=noise_px))
         buf = io.BytesIO()
         np.save(buf, np.asarray(cloud, np.float32))
         atomic_write(out / "depth" / f"{name}.npy", buf.getvalue())
@@ -484,9 +475,3 @@ def write_camera_depth_session(folder: str | Path, scene: CameraDepthScene, rng:
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return out
 
-
-def _write_png(path: Path, image) -> None:
-    ok, buf = cv2.imencode(".png", image)
-    if not ok:
-        raise HandEyeError(f"could not encode {path}")
-    atomic_write(path, buf.tobytes())

@@ -27,7 +27,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from .._shared.io import atomic_write, check_output_folder
+from .._shared.io import atomic_write, check_output_folder, write_png
 from .._shared.lazy import lazy_module
 from ..errors import InputMismatchError
 from ..geometry.se3 import make_transform
@@ -171,8 +171,7 @@ def write_silhouette_session(folder: str | Path, scene: SilhouetteScene) -> Path
     (out / "masks").mkdir(parents=True, exist_ok=True)
     names = [f"view{k + 1:02d}.png" for k in range(len(scene.masks))]
     for name, mask in zip(names, scene.masks):
-        ok, png = cv2.imencode(".png", mask.astype(np.uint8) * 255)
-        atomic_write(out / "masks" / name, png.tobytes())
+        write_png(out / "masks" / name, mask.astype(np.uint8) * 255)
     header = "image," + ",".join(f"q{j + 1}" for j in range(scene.joints.shape[1]))
     rows = [f"{n}," + ",".join(f"{v:.9f}" for v in q) for n, q in zip(names, scene.joints)]
     atomic_write(out / "joints.csv", "\n".join([header] + rows) + "\n")

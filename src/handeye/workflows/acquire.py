@@ -42,7 +42,7 @@ import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.io import atomic_write, check_output_folder
+from .._shared.io import atomic_write, check_output_folder, write_png
 from .._shared.lazy import lazy_module
 from .._shared.progress import Progress
 from ..errors import HandEyeError
@@ -519,11 +519,8 @@ def _save_state(folder: Path, tried: list[int], skipped: list[str], std: list[li
 
 
 def _save_image(folder: Path, name: str, img: NDArray[np.uint8]) -> None:
-    ok, buf = cv2.imencode(".png", img)
-    if not ok:
-        raise HandEyeError(f"cannot encode the image {name}")
     (folder / "images").mkdir(parents=True, exist_ok=True)
-    atomic_write(folder / "images" / name, buf.tobytes())
+    write_png(folder / "images" / name, img)
 
 
 def _model(measured: list, setup: str, X0, Z0, noise_px: float, n_points: int):
