@@ -140,10 +140,9 @@ class RigSession:
     @property
     def shared_target(self) -> bool:
         """Whether the sensors see one target: the same target spec for every sensor (cameras and
-        depth cameras on the session's board, profilers on one ball), a depth camera's spheres never
-        (their centres are the camera's own unknowns)."""
-        return len({str(sorted(x.target_spec.items())) for x in self.sensors}) == 1 and not any(
-            x.depth is not None and x.depth.kind == "spheres" for x in self.sensors)
+        depth cameras on the session's board, profilers on one ball). Whether its pose can be one
+        set of unknowns is the sensor models' to say (:func:`handeye.pipelines.rig.calibrate_rig_session`)."""
+        return len({str(sorted(x.target_spec.items())) for x in self.sensors}) == 1
 
 
 def is_rig_session(folder: str | Path) -> bool:

@@ -360,7 +360,10 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
         notes.append(f"sensor {sensor.name}: the target found in {seen} of {len(paths)} images")
         members.append(CameraCorners(s.setup, s.names, image_points, object_points, sensor.K, sensor.dist))
     robot = robot_model(s, list(range(len(s.names))), opts)  # joint angles through the arm's table, or poses
-    rig = calibrate_rig(members, [x.name for x in s.sensors], robot, shared_target=s.shared_target, folds=opts.folds)
+    # one target's pose for all, when every model can map it into its unknowns (a depth camera's balls
+    # cannot: their centres stay its own)
+    shared = s.shared_target and all(hasattr(m, "target_params") for m in members)
+    rig = calibrate_rig(members, [x.name for x in s.sensors], robot, shared_target=shared, folds=opts.folds)
     if rig.joint is None:
         only = next(iter(rig.alone.values()))
         return replace(only, notes=notes + _left_out(rig.disagreeing, rig.skipped) + ["one sensor left: its own calibration, "
