@@ -153,9 +153,11 @@ def mixed(sessions: int) -> None:
 
 
 def depth(sessions: int) -> None:
+    from handeye.sensors.camera.targets.chessboard import Chessboard
     from handeye.sensors.depth.clouds import plane_points
     from handeye.sensors.depth.model import BoardPoints
-    from handeye.simulate.rig import camera_depth_scene
+    from handeye.simulate.rig import BOARD, camera_depth_scene
+    points = Chessboard(*BOARD).object_points()  # the board both cameras see
     for setup in ("eye_in_hand", "eye_to_hand"):
         ok, rel_t, ratio, secs = [], [], [], []
         for s in range(sessions):
@@ -163,7 +165,7 @@ def depth(sessions: int) -> None:
             camera = CameraCorners(setup, sc.names, sc.camera.image_points, sc.camera.object_points, sc.camera.K,
                                    sc.camera.dist)
             lifted = [np.zeros((0, 3)) if c is None else plane_points(c, u)[0] for c, u in zip(sc.clouds, sc.depth_points)]
-            board = [np.zeros((0, 3)) if c is None else _board_points() for c in sc.clouds]
+            board = [np.zeros((0, 3)) if c is None else points for c in sc.clouds]
             d = BoardPoints(setup, sc.names, board, lifted)
             t0 = time.perf_counter()
             rig = calibrate_rig([camera, d], ["camera", "depth"], ControllerPoses(sc.flange2base, ERROR))
@@ -182,12 +184,6 @@ def depth(sessions: int) -> None:
         print(f"camera + depth camera, {setup}: within 3 std camera X {share[0]:.0f}%, depth X {share[1]:.0f}%, relative "
               f"pose {share[2]:.0f}%, depth scale {share[3]:.0f}% (goal >= 95%); relative pose median {np.median(rel_t):.3f} mm; "
               f"depth X joint / alone (translation) median {np.median(ratio):.2f}; {np.median(secs):.1f} s")
-
-
-def _board_points() -> np.ndarray:
-    from handeye.sensors.camera.targets.chessboard import Chessboard
-    from handeye.simulate.rig import BOARD
-    return Chessboard(*BOARD).object_points()
 
 
 def _handeye() -> list[str]:
