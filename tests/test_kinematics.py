@@ -24,18 +24,22 @@ import handeye.io.importers
 from handeye.cli import main
 from handeye.cli._printing import print_next_views
 from handeye.errors import InputMismatchError, SessionError
+from handeye.estimation.core import estimate
 from handeye.frames.metrics import rotation_error, translation_error
 from handeye.frames.setups import predicted_target2cam
+from handeye.geometry.se3 import make_transform
 from handeye.io.session import load_camera_stream, load_joint_stream, load_session, write_joint_session, write_pose_table
-from handeye.pipelines.joints import along_parallel_axes
 from handeye.planning.joints import TABLE_DOMINATES, suggest_joint_views
-from handeye.robot.kinematics import absorbed_parameters, arm_names, load_arm
+from handeye.robot.kinematics import absorbed_parameters, along_parallel_axes, arm_names, load_arm
 from handeye.robot.meshes import FLANGE, arm_meshes
+from handeye.robot.models import ControllerPoses
 from handeye.robot.urdf import chain_from_urdf, chain_urdf
+from handeye.sensors.camera.poses import TargetPoses
 from handeye.simulate import (
     arm_forward_kinematics,
     capture_joint_views,
     kinematic_scene,
+    random_scene,
     robot_accuracy_of,
     simulate_kinematic_session,
     simulate_session,
@@ -93,9 +97,9 @@ def test_x_from_joint_angles_beats_the_black_box_under_kinematic_errors(arm, set
     assert before > 5 * after
     assert cal.method == f"kinematic({sc.chain.name})" and cal.kinematic.nominal is sc.chain
     # cross-validated on the views themselves: each predicted from its joint angles by the fit without it, far
-    # closer than the black box predicts it from the nominal table's flange pose
+    # closer than the same pixel fit predicts it from the nominal table's flange pose
     held = cal.cross_validation
-    assert cal.prediction_error == held["kinematic"] and 2 * held["kinematic"]["px"] < held["pose (nominal flange poses)"]["px"]
+    assert cal.prediction_error == held["kinematic"] and 2 * held["kinematic"]["px"] < held["fit on the nominal table's poses"]["px"]
     # the arm's accuracy within the capture's joint ranges: the nominal table's error as found is the true one to
     # 10%; the corrected table's true error is within 3 of its predicted std
     q = sc.joints[cal.pose_indices]
@@ -133,6 +137,42 @@ def test_joint_angles_are_checked():
     # degrees declared as such, and poses alone (no detections): the fit across the viewing rays
     cal = handeye.calibrate_joints(np.degrees(sc.joints), sc.target2cam, "eye_in_hand", "ur5", joint_unit="deg")
     assert np.isfinite(cal.std).all() and any("viewing rays" in n for n in cal.notes)
+
+
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+def test_joint_angles_with_target_poses_alone_beat_the_black_box(setup):
+    """Target poses without their detections (a joint stream's, or another tool's PnP): the joint fit
+    in the estimation core across the poses' viewing rays (TargetPoses) puts X closer to the truth
+    than the black box on the nominal table's poses, within 3 of its std, with held-out views in mm
+    (measured on 8 sessions: 0.04-0.20 mm against 0.37-2.95 mm, 0.6-1.0 s each)."""
+    sc = kinematic_scene(30, setup, 1, arm="ur5")
+    cal = handeye.calibrate_joints(sc.joints, sc.target2cam, setup, sc.chain)
+    black = handeye.calibrate_poses(sc.flange2base, sc.target2cam, setup, progress=False)
+    err = np.degrees(rotation_error(cal.X, sc.X)), 1e3 * translation_error(cal.X, sc.X)
+    assert err[1] < 0.3 and err[1] < 0.5 * 1e3 * translation_error(black.X, sc.X)
+    assert err[0] <= 3 * np.linalg.norm(cal.std[:3]) and err[1] <= 3 * np.linalg.norm(cal.std[3:])
+    assert cal.prediction_error["px"] is None and cal.prediction_error["mm"] < 0.2
+    assert cal.kinematic.accuracy_mm["after_median"] < cal.kinematic.accuracy_mm["before_median"]
+
+
+def test_target_poses_as_a_sensor_model():
+    """TargetPoses (pose pairs as a sensor model): X from noisy poses through the core within 3 of
+    its std; a pose that puts the target behind the camera and a count that does not match are
+    refused by name."""
+    rng = np.random.default_rng(4)
+    scene = random_scene(15, "eye_to_hand", rng)
+    noisy = np.array([T @ make_transform(Rotation.from_rotvec(rng.normal(0, 2e-4, 3)).as_matrix(), rng.normal(0, 2e-4, 3))
+                      for T in scene.target2cam])
+    names = [f"v{i}" for i in range(15)]
+    cal = estimate(TargetPoses("eye_to_hand", names, noisy), ControllerPoses(scene.flange2base))
+    err = np.degrees(rotation_error(cal.X, scene.X)), 1e3 * translation_error(cal.X, scene.X)
+    assert err[1] < 1.0 and err[0] <= 3 * np.linalg.norm(cal.std[:3]) and err[1] <= 3 * np.linalg.norm(cal.std[3:])
+    behind = scene.target2cam.copy()
+    behind[3, 2, 3] *= -1
+    with pytest.raises(InputMismatchError, match="view v3: the target lies behind the camera"):
+        TargetPoses("eye_to_hand", names, behind)
+    with pytest.raises(InputMismatchError, match="15 views and target2cam of shape"):
+        TargetPoses("eye_to_hand", names, scene.target2cam[:14])
 
 
 def _joint_session(tmp_path, n=8, setup="eye_in_hand", arm="ur5", unit="deg", q=None, poses=True):

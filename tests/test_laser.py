@@ -298,6 +298,10 @@ def test_joint_angles_fit_the_arm_with_the_sensor(tmp_path, monkeypatch):
     assert 3 * translation_error(fitted.X, sc.X) < translation_error(poses.X, sc.X)
     assert 3 * fitted.prediction_error["mm"] < poses.prediction_error["mm"]
     assert within_std(fitted.X, sc.X, fitted.std)
+    # the arm's accuracy before and after, and which entries the capture determined, as for images
+    accuracy = fitted.kinematic.accuracy_mm
+    assert accuracy["after_median"] < 0.5 * accuracy["before_median"] and "workspace_after_median" in accuracy
+    assert any(n.startswith(f"{len(fitted.kinematic.names)} entries of UR5's kinematic table fitted") for n in fitted.notes)
 
 
 @pytest.mark.parametrize("n, seed, setup", [(12, 4, "eye_in_hand"), (14, 5, "eye_to_hand"), (10, 4, "eye_to_hand")])

@@ -60,6 +60,8 @@ MOVED = {f"handeye.{old}": tuple(f"handeye.{n}" for n in new) for old, new in {
     "streams": ("pipelines.streams",), "checking": ("pipelines.folders",), "verification": ("pipelines.verify",),
     "joint_planning": ("planning.joints",), "acquire": ("workflows.acquire",), "fleet": ("workflows.fleet",),
     "study": ("workflows.study",),
+    # refine_kinematic is gone: joint angles are the estimation core's robot model (robot.models.JointAngles)
+    "solvers.kinematic": ("robot.models", "estimation.core"),
 }.items()}
 install_moved(MOVED)
 

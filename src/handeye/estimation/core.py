@@ -53,6 +53,7 @@ from ..frames.metrics import std_deg_mm
 from ..frames.setups import setup_info
 from ..geometry.se3 import perturb
 from ..result import Calibration, Diagnostics, HeldOutErrors, KinematicModel, Observability, SensorFit, Unobservable
+from ..robot.kinematics import along_parallel_axes
 from ..robot.models import ControllerPoses, JointAngles, PoseErrors, RobotModel
 from ..sensors.base import SensorModel
 from ..solvers.refine import refine_pose
@@ -61,7 +62,7 @@ from .uncertainty import widened_uncertainty
 from .validation import default_folds, fold_indices
 from .verdict import judged
 
-__all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "estimate", "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
+__all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "view_rms_px", "estimate", "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
            "HELDOUT_FACTOR", "WEAKEST_NOTE"]
 
 #: Points whose residual exceeds this many of their std (after a robust first fit) are set aside.
@@ -171,17 +172,26 @@ def _weight(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]
     return 1.0 / (np.asarray(problem.sensor.shape)[rows] * sigma[_groups(problem.sensor)[rows]])
 
 
+def _measured(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
+    """The whitened residuals of ``rows`` (the measurement entries only) as a function of X, ``p``
+    and every view's flange pose."""
+    weight = _weight(problem, rows, sigma)
+    mask = _entry_mask(problem.sensor, rows)
+
+    def measured(X: NDArray[np.float64], p: NDArray[np.float64], flange2base: NDArray[np.float64]) -> NDArray[np.float64]:
+        r = problem.sensor.residuals(X, p, flange2base, rows) * weight
+        return r.ravel() if mask is None else r[mask]
+    return measured
+
+
 def _function(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
     """The whitened residuals of ``rows``, the robot's prior and the pins, as a function of ``x``."""
-    sensor, robot = problem.sensor, problem.robot
-    weight = _weight(problem, rows, sigma)
-
-    mask = _entry_mask(sensor, rows)
+    robot = problem.robot
+    measured = _measured(problem, rows, sigma)
 
     def fun(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
-        r = sensor.residuals(X, p, robot.flange2base(d), rows) * weight
-        return np.concatenate([r.ravel() if mask is None else r[mask], robot.prior(d), PIN * (problem.pins @ x[:6])])
+        return np.concatenate([measured(X, p, robot.flange2base(d)), robot.prior(d), PIN * (problem.pins @ x[:6])])
     return fun
 
 
@@ -408,16 +418,32 @@ def view_rms_mm(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flang
                 ) -> NDArray[np.float64]:
     """Per view of ``views``: the RMS length (mm) of its kept rows' residuals under ``fitted``
     (NaN for a view without a kept row)."""
+    return 1e3 * _view_rms(problem, fitted, views, flange2base)
+
+
+def view_rms_px(problem: Problem, fitted: Fitted, views: NDArray[np.intp]) -> NDArray[np.float64] | None:
+    """Per view of ``views``: the RMS pixel error of its kept rows under ``fitted``, for a sensor
+    whose residuals are pixels times a size (``pixel_size(rows)``, m per pixel); else None."""
+    size = getattr(problem.sensor, "pixel_size", None)
+    return None if size is None else _view_rms(problem, fitted, views, None, size)
+
+
+def _view_rms(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flange2base: NDArray[np.float64] | None = None,
+              size=None) -> NDArray[np.float64]:
+    """Per view of ``views`` the RMS length of its kept rows' residuals (each divided by ``size(rows)``
+    when given; NaN for a view without a kept row)."""
     sensor = problem.sensor
     owner = np.asarray(sensor.owner)
     rows = np.flatnonzero(np.isin(owner, views) & fitted.kept)
     F = problem.robot.flange2base(fitted.d) if flange2base is None else flange2base
     r = sensor.residuals(fitted.X, fitted.p, F, rows)
+    if size is not None:
+        r = r / np.asarray(size(rows), float)[:, None]
     sq = np.bincount(owner[rows], np.sum(r**2, axis=1), minlength=len(sensor.names))
     count = np.bincount(owner[rows], minlength=len(sensor.names))
     views = np.asarray(views)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return 1e3 * np.sqrt(sq[views] / count[views])
+        return np.sqrt(sq[views] / count[views])
 
 
 def _undetermined(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
@@ -606,31 +632,32 @@ def _cross_validation(problem: Problem, full: Fitted, views: NDArray[np.intp], f
     if n < 4:
         return {}, 0, np.full(n, np.nan)
     held = [views[i] for i in fold_indices(n, default_folds(n) if folds is None else min(folds, n))]
-    fitted_mm = np.full(n, np.nan)
-    start_mm = np.full(n, np.nan)
+    px = getattr(problem.sensor, "pixel_size", None) is not None
+    fitted_mm, start_mm, nominal_mm = (np.full((n, 2), np.nan) for _ in range(3))  # per view: mm, px
     position = {int(v): i for i, v in enumerate(views)}
     nominal = None
     if isinstance(problem.robot, JointAngles):
         nominal = Problem(problem.sensor, ControllerPoses(problem.robot.flange2base(np.zeros(problem.robot.n_params))),
                           problem.X0, problem.p0, problem.pins)
         nominal_full = fit(nominal, views)
-        nominal_mm = np.full(n, np.nan)
+
+    def errors(prob: Problem, fitted: Fitted, test: NDArray[np.intp]) -> NDArray[np.float64]:
+        return np.c_[view_rms_mm(prob, fitted, test), view_rms_px(prob, fitted, test) if px else np.full(len(test), np.nan)]
     for test in held:
         train = np.setdiff1d(views, test)
         at = [position[int(v)] for v in test]
-        fold = downdated(problem, full, train)
-        fitted_mm[at] = view_rms_mm(problem, fold, test)
+        fitted_mm[at] = errors(problem, downdated(problem, full, train), test)
         try:
             X0, p0 = _start(problem.sensor, problem.robot, train)
-            start_mm[at] = view_rms_mm(problem, replace(full, X=X0, p=p0, d=np.zeros(problem.robot.n_params)), test)
+            start_mm[at] = errors(problem, replace(full, X=X0, p=p0, d=np.zeros(problem.robot.n_params)), test)
         except HandEyeError:
             pass
         if nominal is not None:
-            nominal_mm[at] = view_rms_mm(nominal, downdated(nominal, nominal_full, train), test)
+            nominal_mm[at] = errors(nominal, downdated(nominal, nominal_full, train), test)
     table = {_name(problem.robot): _row(fitted_mm), "closed-form start": _row(start_mm)}
     if nominal is not None:
         table["fit on the nominal table's poses"] = _row(nominal_mm)
-    return table, len(held), fitted_mm
+    return table, len(held), fitted_mm[:, 0]
 
 
 def _name(robot: RobotModel) -> str:
@@ -638,9 +665,12 @@ def _name(robot: RobotModel) -> str:
     return "fit with the arm's table" if isinstance(robot, JointAngles) else "fit"
 
 
-def _row(mm: NDArray[np.float64]) -> dict[str, float | None]:
-    finite = mm[np.isfinite(mm)]
-    return {"px": None, "mm": float(np.sqrt(np.mean(finite**2))) if finite.size else None}
+def _row(errors: NDArray[np.float64]) -> dict[str, float | None]:
+    """The RMS over the views of their errors (per view: mm, px; px NaN for a sensor without pixels)."""
+    def rms(e: NDArray[np.float64]) -> float | None:
+        finite = e[np.isfinite(e)]
+        return float(np.sqrt(np.mean(finite**2))) if finite.size else None
+    return {"px": rms(errors[:, 1]), "mm": rms(errors[:, 0])}
 
 
 def _jackknife(problem: Problem, full: Fitted, views: NDArray[np.intp], max_groups: int = 100) -> NDArray[np.float64] | None:
@@ -716,7 +746,36 @@ def _kinematic(robot: JointAngles, d: NDArray[np.float64], cov_d: NDArray[np.flo
     q = robot.joints[views]
     shift = 1e3 * np.linalg.norm(corrected.forward(q)[:, :3, 3] - robot.chain.forward(q)[:, :3, 3], axis=1)
     return KinematicModel(robot.chain, corrected, list(robot.names), d * prior, std, prior, std < DETERMINED * prior,
-                          (float(np.median(shift)), float(shift.max())), None, q)
+                          (float(np.median(shift)), float(shift.max())), robot.accuracy_mm(d, cov_d, views), q)
+
+
+def _joints_of(entries: list[str]) -> str:
+    """'3, 5 and 7' for entries of joints 3, 5 and 7 (``joint<k>.<parameter>``)."""
+    words = [str(k) for k in sorted({int(e.split(".")[0].removeprefix("joint")) for e in entries})]
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
+
+
+def _table_notes(robot: JointAngles, model: KinematicModel) -> list[str]:
+    """The table's entries the fit determined, and those it did not with what would determine them."""
+    chain = model.nominal
+    notes = [f"{len(model.names)} entries of {chain.name}'s kinematic table fitted with X; {int(model.determined.sum())} "
+             "determined by the capture"]
+    if not model.undetermined:
+        return notes
+    parallel = [n for n in model.undetermined if n in along_parallel_axes(chain)]
+    sagging = [n for n in model.undetermined if n.endswith(".compliance")]
+    moved = [n for n in model.undetermined if n not in parallel and n not in sagging]
+    prior = f"{1e3 * robot.length_prior:g} mm, {np.degrees(robot.angle_prior):g} deg" + (
+        f", {np.degrees(robot.compliance_prior):g} deg/m" if robot.compliance else "")
+    notes.append(f"the capture does not determine {', '.join(model.undetermined)}: held near nominal by their prior "
+                 f"({prior}), whose uncertainty X's std includes"
+                 + (f"; {', '.join(parallel)} lie along parallel joint axes, where only their sum shows whatever the "
+                    "capture" if parallel else "")
+                 + (f"; move joint{'s' if len(_joints_of(moved)) > 1 else ''} {_joints_of(moved)} further between views (over a "
+                    "wider range, and together with the others) to determine them" if moved else "")
+                 + (f"; for the compliance of joint{'s' if len(_joints_of(sagging)) > 1 else ''} {_joints_of(sagging)}, vary how far "
+                    "the flange reaches out from those joints' axes between views (the load's moment arm)" if sagging else ""))
+    return notes
 
 
 @on_one_blas_thread  # narrow matrices: a second BLAS thread waits more than it works
@@ -789,7 +848,8 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
         std_Z=sensor.Z_std(full.p, cov_p), observability=Observability("general", unobs),
     )
     if isinstance(robot, JointAngles):
-        cal = replace(cal, kinematic=_kinematic(robot, full.d, cov[6 + n_p:, 6 + n_p:], views))
+        model = _kinematic(robot, full.d, cov[6 + n_p:, 6 + n_p:], views)
+        cal = replace(cal, kinematic=model, notes=cal.notes + _table_notes(robot, model))
     # the noise model widened by the jackknife, plus the robot's stated accuracy for controller poses
     data_cov = _widen(full.cov[:6, :6], None if jack is None else jack[:6, :6])[0]
     cal = widened_uncertainty(cal, None if jack is None else jack[:6, :6], accuracy, seen_mm=_robot_error_seen(

@@ -691,11 +691,15 @@ def refine_on_pixels(cal: Calibration, obs: Observations, ref: ReprojectionResul
                    estimator=PIXEL_ROBOT if robot_noise else PIXEL, **fields)
 
 
-def drop_pose_outliers(cal: Calibration, obs: Observations) -> tuple[list[int], list[tuple[str, str]]]:
+def drop_pose_outliers(cal: Calibration, obs: Observations, left_out: dict[int, str] | None = None
+                       ) -> tuple[list[int], list[tuple[str, str]]]:
     """When the poses decide: the used images without the outlier poses, and the outliers' images
-    as skipped (with why)."""
+    as skipped (with why: ``left_out``'s, per index of ``obs.used``, for views a later fit left out)."""
     skipped = []
     for k in sorted(set(range(len(obs.used))) - set(cal.pose_indices.tolist())):
+        if left_out and k in left_out:
+            skipped.append((obs.session.image_names[obs.used[k]], left_out[k]))
+            continue
         r, t = cal.diagnostics.outlier_residuals[k]
         skipped.append((obs.session.image_names[obs.used[k]], f"outlier: its robot pose and target pose disagree "
                         f"with the others by {r:.2f} deg / {t:.1f} mm"))

@@ -146,8 +146,8 @@ class FolderCheck:
                      "the fit to the others, beside the closed-form start refitted the same way):"]
         elif cal.kinematic is not None:
             lines = [f"held-out prediction error ({self.folds}-fold cross-validation; each view predicted from its joint "
-                     "angles by X, Z and the arm's table fitted without it, and from the nominal table's flange pose by "
-                     "the pose refinement on the others):"]
+                     "angles by X, Z and the arm's table fitted without it, beside the closed-form start and the fit on "
+                     "the nominal table's flange poses refitted the same way):"]
         else:
             lines = [f"held-out prediction error ({self.folds}-fold cross-validation; each view predicted from its robot "
                      "pose by X and Z fitted without it; the preferred refinement is replaced only by a candidate better "

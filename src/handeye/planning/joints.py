@@ -22,9 +22,8 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import InputMismatchError
 from ..frames.setups import predicted_target2cam
 from ..geometry.se3 import perturb
-from ..pipelines.joints import along_parallel_axes
 from ..result import Calibration
-from ..robot.kinematics import absorbed_parameters
+from ..robot.kinematics import absorbed_parameters, along_parallel_axes
 from ..sensors.camera.pnp import project_points_many
 
 __all__ = ["JointViews", "suggest_joint_views", "TABLE_DOMINATES"]

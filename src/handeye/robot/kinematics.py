@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import InputMismatchError
 
 __all__ = ["Chain", "PARAMETERS", "GRAVITY", "arm_names", "load_arm", "absorbed_parameters",
-           "check_joints_against_poses", "chain_yaml", "display_unit"]
+           "along_parallel_axes", "check_joints_against_poses", "chain_yaml", "display_unit"]
 
 #: A joint's parameters, in the order of a chain's table columns (and of its parameter vector).
 PARAMETERS = ("a", "alpha", "d", "theta")
@@ -259,6 +259,21 @@ def absorbed_parameters(chain: Chain) -> list[str]:
     first = ["theta", "d"] + (["a", "alpha"] if chain.convention == "mdh" else [])
     last = ["theta", "d"] + (["a", "alpha"] if chain.convention == "dh" else [])
     return [f"joint1.{p}" for p in first] + [f"joint{n}.{p}" for p in last]
+
+
+def along_parallel_axes(chain: Chain) -> set[str]:
+    """The offsets along joint axes parallel to the next or the previous one: a shift along two
+    parallel axes moves the flange the same way, so only the offsets' sum can be determined."""
+    alpha = chain.table[:, 1]
+    n = chain.n_joints
+    # standard DH: joint k's alpha is between axes k and k+1; modified: row k's alpha is between k-1 and k
+    between = [abs(np.sin(alpha[k])) < 1e-9 for k in range(n - 1)] if chain.convention == "dh" else \
+        [abs(np.sin(alpha[k + 1])) < 1e-9 for k in range(n - 1)]
+    out = set()
+    for k, parallel in enumerate(between):
+        if parallel:
+            out |= {f"joint{k + 1}.d", f"joint{k + 2}.d"}
+    return out
 
 
 def _arm_files() -> dict[str, object]:

@@ -42,7 +42,7 @@ from ..geometry.se3 import perturb
 from .kinematics import Chain, absorbed_parameters
 
 __all__ = ["RobotModel", "ControllerPoses", "PoseErrors", "JointAngles", "fitted_entries", "entry_priors", "LENGTH_PRIOR_M",
-           "ANGLE_PRIOR_RAD", "COMPLIANCE_PRIOR", "MIN_MOMENT_ARM"]
+           "ANGLE_PRIOR_RAD", "COMPLIANCE_PRIOR", "MIN_MOMENT_ARM", "ACCURACY_SAMPLES"]
 
 #: The default prior std of a table entry: a length (m) and an angle (rad, 0.1 deg), an uncalibrated
 #: arm's tolerances.
@@ -54,6 +54,8 @@ ANGLE_PRIOR_RAD = float(np.radians(0.1))
 COMPLIANCE_PRIOR = float(np.radians(0.2))
 #: A joint whose load's moment arm stays below this (m) over the capture has no compliance to fit.
 MIN_MOMENT_ARM = 1e-3
+#: Joint configurations the arm's accuracy is predicted over (:meth:`JointAngles.accuracy_mm`).
+ACCURACY_SAMPLES = 500
 
 
 def fitted_entries(chain: Chain, joints: NDArray[np.float64], compliance: bool = False
@@ -216,6 +218,42 @@ class JointAngles(RobotModel):
     def prior(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
         """The prior's whitened residuals: ``d`` itself (unit std in these units)."""
         return np.asarray(d, dtype=float)
+
+    def accuracy_mm(self, d: NDArray[np.float64], cov_d: NDArray[np.float64], views: NDArray[np.intp] | None = None
+                    ) -> dict[str, float]:
+        """The arm's absolute accuracy at the flange (mm) before and after the fit ``d`` (its
+        covariance ``cov_d``, in the units of ``d``), over joint angles drawn uniformly within the
+        range of each joint over ``views`` (default all: where the fit has seen the arm) and, when the
+        chain knows its joints' limits, over the whole workspace (``workspace_`` keys): before, how
+        far the nominal table puts the flange from the corrected one; after, the corrected table's
+        position std from its entries' covariance (first order, a finite-difference Jacobian).
+        Outside the capture's ranges 'before' is the corrected table extrapolated, and 'after' grows
+        with the entries the capture left to their prior."""
+        q = self.joints if views is None else self.joints[np.asarray(views)]
+        cov = np.asarray(cov_d, float) * np.outer(self.prior_std, self.prior_std)  # natural units
+        rng = np.random.default_rng(0)
+        out = self._accuracy_over(d, cov, rng.uniform(q.min(axis=0), q.max(axis=0), (ACCURACY_SAMPLES, q.shape[1])))
+        limits = self.chain.limits
+        if limits is not None:
+            whole = self._accuracy_over(d, cov, rng.uniform(limits[:, 0], limits[:, 1], (ACCURACY_SAMPLES, q.shape[1])))
+            out |= {f"workspace_{k}": v for k, v in whole.items() if k != "samples"}
+        return out
+
+    def _accuracy_over(self, d: NDArray[np.float64], cov: NDArray[np.float64], samples: NDArray[np.float64]
+                       ) -> dict[str, float]:
+        """:meth:`accuracy_mm` at the joint angles ``samples`` (S, n); ``cov`` in natural units."""
+        p = self.vector(d)
+        corrected = self.chain.forward_with(samples, p)[:, :3, 3]
+        before = 1e3 * np.linalg.norm(self.chain.forward(samples)[:, :3, 3] - corrected, axis=1)
+        J = np.empty((len(samples), 3, len(self._index)))
+        step = 1e-7
+        for j, k in enumerate(self._index):
+            moved = p.copy()
+            moved[k] += step
+            J[:, :, j] = (self.chain.forward_with(samples, moved)[:, :3, 3] - corrected) / step
+        after = 1e3 * np.sqrt(np.einsum("nij,jk,nik->n", J, cov, J))
+        return {"before_median": float(np.median(before)), "before_max": float(before.max()),
+                "after_median": float(np.median(after)), "after_max": float(after.max()), "samples": len(samples)}
 
     def corrected(self, d: NDArray[np.float64]) -> Chain:
         """The chain with the table corrected by ``d`` (and the fitted compliance, when fitted)."""

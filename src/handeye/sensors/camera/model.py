@@ -122,6 +122,10 @@ class CameraCorners(ChartedTarget):
         cam = self._in_camera(X, self._target2world(p), flange2base, rows)
         return (project_camera_points(cam, self.K, self.dist) - self.uv[rows]) * self._mpp[rows, None]
 
+    def pixel_size(self, rows: NDArray[np.intp]) -> NDArray[np.float64]:
+        """Per corner of ``rows`` its pixel's size (m) at its depth: its residual over it is pixels."""
+        return self._mpp[rows]
+
     def figures(self, p, cov_p) -> dict[str, Any]:
         """The intrinsics used (known)."""
         return {"K": self.K.tolist(), "dist": self.dist.tolist()}
