@@ -155,6 +155,35 @@ def test_joint_angles_with_target_poses_alone_beat_the_black_box(setup):
     assert cal.kinematic.accuracy_mm["after_median"] < cal.kinematic.accuracy_mm["before_median"]
 
 
+@pytest.mark.parametrize("arm", ["ur5", "panda"])
+def test_the_joint_fits_chained_jacobian_against_central_differences(arm):
+    """The joint fit's Jacobian by the chain rule (the residuals' derivatives by each view's flange
+    pose, 6 evaluations, times the pose's by the table's entries) matches central differences of the
+    whole residual in every column: what made a Panda's image joint fit 1.36x faster, a mesh's 1.7x."""
+    from handeye.estimation.core import Problem, _function, _groups, _jacobian
+    from handeye.robot.models import JointAngles
+    from handeye.sensors.camera.model import CameraCorners
+
+    sc = kinematic_scene(8, "eye_in_hand", 2, arm=arm)
+    model = CameraCorners("eye_in_hand", [str(i) for i in range(8)], list(sc.image_points), [sc.object_points] * 8,
+                          sc.K, sc.dist)
+    robot = JointAngles(sc.chain, sc.joints)
+    X0, p0 = model.start(sc.chain.forward(sc.joints), sc.X, sc.Z)
+    problem = Problem(model, robot, X0, p0)
+    rows = np.arange(len(model.owner))
+    sigma = np.full(int(_groups(model).max()) + 1, 1e-4)
+    x = np.r_[np.random.default_rng(0).normal(0, 1e-4, 6 + len(p0)), np.random.default_rng(1).normal(0, 1, robot.n_params)]
+    J = _jacobian(problem, rows, sigma)(x)
+    fun = _function(problem, rows, sigma)
+    h = np.r_[np.full(6 + len(p0), 1e-6), np.full(robot.n_params, 1e-3)]
+    central = np.empty_like(J)
+    for j in range(len(x)):
+        e = np.zeros(len(x))
+        e[j] = h[j]
+        central[:, j] = (fun(x + e) - fun(x - e)) / (2 * h[j])
+    assert np.all(np.linalg.norm(J - central, axis=0) <= 1e-5 * np.linalg.norm(central, axis=0))
+
+
 def test_target_poses_as_a_sensor_model():
     """TargetPoses (pose pairs as a sensor model): X from noisy poses through the core within 3 of
     its std; a pose that puts the target behind the camera and a count that does not match are

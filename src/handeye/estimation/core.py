@@ -219,6 +219,8 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
     sensor, robot = problem.sensor, problem.robot
     if robot.n_params and getattr(robot, "param_view", None) is not None:
         return _per_view_jacobian(problem, rows, sigma)
+    if robot.n_params and hasattr(robot, "pose_jacobian"):
+        return _chained_jacobian(problem, rows, sigma)
     if not hasattr(sensor, "jacobian") or robot.n_params or getattr(sensor, "entry_mask", None) is not None:
         return "2-point"
     weight = _weight(problem, rows, sigma)
@@ -228,6 +230,47 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
         X, p, d = problem.unpack(x)
         J = sensor.jacobian(X, p, robot.flange2base(d), rows) * weight[..., None]
         return np.vstack([J.reshape(-1, J.shape[-1]), pins])
+    return jac
+
+
+def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
+    """The Jacobian for a robot whose unknowns move the flange poses through a model of its own
+    (``pose_jacobian(d)``: joint angles through the arm's table, whose prior rows are ``d``
+    itself): X's and the sensor's columns by finite differences (or the sensor's own derivatives),
+    the robot's by the chain rule, the residuals' derivatives by each view's flange pose (its 6
+    increments stepped in every view at once) times the pose's by the unknowns. 6 evaluations of the
+    residuals for the robot's columns, not one per table entry (18 for a UR5, 22 for a Panda)."""
+    sensor, robot = problem.sensor, problem.robot
+    fun = _function(problem, rows, sigma)
+    measured = _measured(problem, rows, sigma)
+    weight = _weight(problem, rows, sigma)
+    own = hasattr(sensor, "jacobian") and getattr(sensor, "entry_mask", None) is None
+    entry_view = np.asarray(sensor.owner)[rows][_entry_rows(sensor, rows)]
+    n_x, n_d = 6 + len(problem.p0), robot.n_params
+    h = 1.5e-8
+
+    def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        X, p, d = problem.unpack(x)
+        F = robot.flange2base(d)
+        f0 = fun(x)
+        m = len(entry_view)
+        J = np.zeros((len(f0), len(x)))
+        if own:
+            J[:m, :n_x] = (sensor.jacobian(X, p, F, rows) * weight[..., None]).reshape(m, n_x)
+        else:
+            for j in range(n_x):
+                step = x.copy()
+                step[j] += h * max(1.0, abs(x[j]))
+                J[:m, j] = (fun(step)[:m] - f0[:m]) / (h * max(1.0, abs(x[j])))
+        J[m + n_d:, :6] = PIN * problem.pins
+        by_pose = np.empty((m, 6))
+        for a in range(6):  # every view's flange pose moved along its increment a at once
+            xi = np.zeros(6)
+            xi[a] = h
+            by_pose[:, a] = (measured(X, p, perturb(F, xi[:3], xi[3:])) - f0[:m]) / h
+        J[:m, n_x:] = np.einsum("ea,ead->ed", by_pose, robot.pose_jacobian(d)[entry_view])
+        J[m:m + n_d, n_x:] = np.eye(n_d)
+        return J
     return jac
 
 

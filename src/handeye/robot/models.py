@@ -36,6 +36,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from ..errors import InputMismatchError
 from ..geometry.se3 import perturb
@@ -218,6 +219,23 @@ class JointAngles(RobotModel):
     def prior(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
         """The prior's whitened residuals: ``d`` itself (unit std in these units)."""
         return np.asarray(d, dtype=float)
+
+    def pose_jacobian(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Per view how its flange pose moves with each unknown (N, 6, n_params): the left rotation
+        and the translation of :func:`~handeye.geometry.se3.perturb` per unit of ``d`` (finite
+        differences of the forward kinematics: the estimation core chains them with the sensor's
+        derivatives by the flange pose, 6 evaluations of the residuals instead of one per entry)."""
+        d = np.asarray(d, dtype=float)
+        F = self.flange2base(d)
+        out = np.empty((len(F), 6, len(d)))
+        h = 1e-6
+        for j in range(len(d)):
+            step = d.copy()
+            step[j] += h
+            Fj = self.flange2base(step)
+            out[:, :3, j] = Rotation.from_matrix(Fj[:, :3, :3] @ np.swapaxes(F[:, :3, :3], 1, 2)).as_rotvec() / h
+            out[:, 3:, j] = (Fj[:, :3, 3] - F[:, :3, 3]) / h
+        return out
 
     def accuracy_mm(self, d: NDArray[np.float64], cov_d: NDArray[np.float64], views: NDArray[np.intp] | None = None
                     ) -> dict[str, float]:
