@@ -5,9 +5,11 @@ detections), each view measures a whole pose. What a pose says reliably is where
 points lie across the camera's viewing rays; along the ray (the target's distance) PnP's pose is
 far less certain. So the residuals are those of a virtual target's points (a 0.2 x 0.15 m grid in
 the target's plane): the predicted point's offset across the measured point's viewing ray, in
-metres at its depth (what pixels measure, without PnP's depth error), weighted by its depth (a
-pose's error across the ray grows with the distance as a pixel's size does). The unknowns besides
-X: the target's pose (a chart about its start). The start: the closed form on the poses.
+metres at its depth (what pixels measure, without PnP's depth error), every point weighted alike.
+(Weighted by its depth, as a pixel's size grows, X was further from the truth on simulated joint
+streams: 0.18 mm against 0.12, median of 6; on 10 joint captures 0.094 against 0.102 mm.) The
+unknowns besides X: the target's pose (a chart about its start). The start: the closed form on
+the poses.
 
 Examples
 --------
@@ -57,6 +59,7 @@ class TargetPoses(ChartedTarget):
 
     kind = "camera"
     target = "target poses"
+    pixel_columns: tuple[int, ...] = ()  # every point weighted alike (the module docstring)
     groups: tuple[tuple[int, ...], ...] = ((0, 1),)
     param_names = ["target.rx", "target.ry", "target.rz", "target.x", "target.y", "target.z"]
 
@@ -87,8 +90,8 @@ class TargetPoses(ChartedTarget):
         return self._poses
 
     def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """X and the target from the closed form; the first start fixes the target's chart and
-        each point's weight (its depth)."""
+        """X and the target from the closed form; the first start fixes the target's chart and each
+        point's stated noise (:data:`POSE_NOISE` of its depth)."""
         if X is None or Z is None:
             raise DegenerateMotionError("target poses need 3 views or more for the closed form")
         self._first_start(X, Z, flange2base, 1.0 / POSE_NOISE)
