@@ -40,6 +40,7 @@ True
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -63,7 +64,7 @@ from .validation import default_folds, fold_indices
 from .verdict import judged
 
 __all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "view_rms_px", "estimate", "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
-           "HELDOUT_FACTOR", "WEAKEST_NOTE"]
+           "HELDOUT_FACTOR", "WEAKEST_NOTE", "Held"]
 
 #: Points whose residual exceeds this many of their std (after a robust first fit) are set aside.
 REJECT = 5.0
@@ -821,9 +822,14 @@ def _table_notes(robot: JointAngles, model: KinematicModel) -> list[str]:
     return notes
 
 
+#: What a fit holds at given values and X takes whole (:func:`estimate`'s ``held``): at the fitted X and
+#: ``p``, the name of X's std source, X's covariance (6, 6) from it, and a note for people.
+Held = Callable[[NDArray[np.float64], NDArray[np.float64]], tuple[str, NDArray[np.float64], str]]
+
+
 @on_one_blas_thread  # narrow matrices: a second BLAS thread waits more than it works
 def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *, uncertainty: bool = True,
-             method: str | None = None) -> Calibration:
+             method: str | None = None, held: Held | None = None) -> Calibration:
     """X (and the target's pose, the sensor's and the robot's unknowns) from ``sensor`` and ``robot``:
     the module docstring's steps, one :class:`~handeye.result.Calibration` with the verdict.
 
@@ -840,6 +846,11 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
         False skips the jackknife and cross-validation (X alone, e.g. inside a loop).
     method : str, optional
         The result's ``method`` (default: the sensor and robot in words).
+    held : callable, optional
+        Quantities the fit holds at given values whose error X takes whole (a markerless camera's arm
+        table: :func:`handeye.pipelines._arm.arm_table`): at the fit, ``held(X, p)`` gives the name
+        of the std source, X's covariance from them and a note; added to X's covariance before the
+        verdict judges its std.
 
     Raises
     ------
@@ -897,6 +908,10 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
     data_cov = _widen(full.cov[:6, :6], None if jack is None else jack[:6, :6])[0]
     cal = widened_uncertainty(cal, None if jack is None else jack[:6, :6], accuracy, seen_mm=_robot_error_seen(
         problem, full, views, per_view) if accuracy is not None else None, sensor=sensor.kind)
+    if held is not None:
+        source, cov_held, note = held(full.X, full.p)
+        cal = replace(cal, cov=cal.cov + cov_held, std_sources=dict(cal.std_sources, **{source: std_deg_mm(cov_held)}),
+                      notes=list(cal.notes) + [note])
     cal = replace(cal, std=_std_with_pins(cal.cov, problem.pins),
                   std_sources=dict(cal.std_sources, data=_std_with_pins(data_cov, problem.pins)))
     if widened > 1.5 and jack is not None:

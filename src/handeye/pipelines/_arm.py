@@ -4,7 +4,7 @@
 The links a markerless camera is fitted to are placed by the joint angles through the arm's table,
 taken as nominal. A real arm's table is off by its tolerances, which moves every link, and X takes
 that error whole: on the simulator, an arm 0.5-1 mm / 0.05 deg off per entry moved X by 5 mm while
-the fit's own std promised under 1 mm. :func:`with_arm_table` adds it to X's std: the fit's
+the fit's own std promised under 1 mm. :func:`arm_table` has the core add it to X's std: the fit's
 sensitivity to each entry (every point moved with its link, :meth:`~handeye.robot.meshes.ArmMeshes.table_twists`)
 through Schmidt's consider covariance (:func:`~handeye.estimation.uncertainty.consider_cov`), each
 entry with the prior of an uncalibrated arm (:func:`~handeye.robot.models.entry_priors`) for the
@@ -14,21 +14,20 @@ shipped nominal table, or of a calibrated one (:data:`CALIBRATED`) for a table c
 
 from __future__ import annotations
 
-from dataclasses import replace
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ..estimation.core import Held
 from ..estimation.uncertainty import consider_cov
-from ..estimation.verdict import judged
 from ..frames.metrics import std_deg_mm
-from ..result import Calibration
 from ..robot.kinematics import Chain, load_arm
 from ..robot.meshes import ArmMeshes, mesh_arm_names
 from ..robot.models import ANGLE_PRIOR_RAD, LENGTH_PRIOR_M, entry_priors
 from ..sensors.base import SensorModel
 
-__all__ = ["arm_table_cov", "with_arm_table", "table_tolerance", "CALIBRATED"]
+__all__ = ["arm_table_cov", "arm_table", "table_tolerance", "CALIBRATED"]
 
 #: The tolerance (m, rad) left in a table calibrated with X from joint angles and a board: what
 #: such a fit determines its entries to (tenths of a millimetre, hundredths of a degree).
@@ -66,24 +65,19 @@ def arm_table_cov(model: SensorModel, X: NDArray[np.float64], points: NDArray[np
     return consider_cov(J, np.asarray(model.shape, float)[:, 0], held, prior)[:6, :6]
 
 
-def with_arm_table(cal: Calibration, cov_table: NDArray[np.float64], sensor: str, chain: Chain) -> Calibration:
-    """``cal`` with ``cov_table`` (:func:`arm_table_cov`) in X's covariance and std (a source of its
-    own, ``arm_table``), a note saying so, and the verdict judged again on the wider std."""
-    cov = cal.cov + cov_table
-    std = np.where(np.isinf(cal.std), np.inf, std_deg_mm(cov))
-    part = std_deg_mm(cov_table)
+def arm_table(model: SensorModel, points: Callable[[NDArray[np.float64]], NDArray[np.float64]], meshes: ArmMeshes,
+              chain: Chain, joints: NDArray[np.float64], sensor: str) -> Held:
+    """The arm's table as what the core's fit holds (:func:`handeye.estimation.core.estimate`'s
+    ``held``): at the fitted X, its covariance from the table (:func:`arm_table_cov`; ``points(X)``
+    the model's rows in the base frame), the source ``arm_table`` and a note saying so; the core adds
+    it to X's covariance before it judges X's std (``sensor``: the camera in words)."""
     length, angle, words = table_tolerance(chain)
-    note = (f"the std of X includes the arm's table: the {sensor} sees links the joint angles place through the "
-            f"table given, whose entries' tolerance ({1e3 * length:g} mm / {np.degrees(angle):g} deg, {words}) X takes "
-            f"whole: up to {part[:3].max():.3f} deg / {part[3:].max():.2f} mm per std")
-    out = replace(cal, cov=cov, std=std, std_sources=dict(cal.std_sources or {}, arm_table=part), notes=list(cal.notes) + [note])
-    if out.verdict not in ("good", "weak"):
-        return out
-    # the core judged X's std before the table was in it: judge it again
-    advice = [a for a in out.diagnostics.advice if not a.startswith(STD_REASON)]
-    return judged(replace(out, diagnostics=replace(out.diagnostics, verdict="good", advice=advice),
-                          notes=[n for n in out.notes if not n.startswith(STD_REASON)]))
 
-
-#: How the verdict's reason about X's std begins (:mod:`handeye.estimation.verdict`).
-STD_REASON = "3 std of X are"
+    def held(X: NDArray[np.float64], p: NDArray[np.float64]) -> tuple[str, NDArray[np.float64], str]:
+        cov = arm_table_cov(model, X, points(X), meshes, chain, joints)
+        part = std_deg_mm(cov)
+        return "arm_table", cov, (
+            f"the std of X includes the arm's table: the {sensor} sees links the joint angles place through the table "
+            f"given, whose entries' tolerance ({1e3 * length:g} mm / {np.degrees(angle):g} deg, {words}) X takes whole: "
+            f"up to {part[:3].max():.3f} deg / {part[3:].max():.2f} mm per std")
+    return held

@@ -64,7 +64,7 @@ from ..sensors.depth.arm import SPACING, ArmSurface, PosedArm, fit_cam2base, on_
 from ..sensors.depth.clouds import depth_sigma
 from ..sensors.depth.registration import MIN_INLIERS, find_shape
 from ..sensors.depth.shape import voxel_pick
-from ._arm import arm_table_cov, with_arm_table
+from ._arm import arm_table
 from .mesh import read_scene
 
 __all__ = ["ArmClouds", "arm_of_session", "read_arm_clouds", "start_arm", "pooled_start", "consistent_arm_views", "segment_arm",
@@ -348,9 +348,9 @@ def calibrate_arm_depth_session(s: DepthSession, options: CalibrationOptions, *,
     c, X, notes = start_arm(s, arm, c, jobs)
     points = segment_arm(arm, c, X)
     model = ArmSurface(s.setup, [s.names[k] for k in c.index], arm.subset(c.index), points, X, fit_depth)
-    cal = estimate(model, ControllerPoses(s.flange2base[c.index], options.robot_accuracy), options.folds)
-    cal = with_arm_table(cal, arm_table_cov(model, cal.X, to_base(cal.X, model.measured), arm.meshes, s.arm, s.joints[c.index]),
-                         "depth camera", s.arm)
+    cal = estimate(model, ControllerPoses(s.flange2base[c.index], options.robot_accuracy), options.folds,
+                   held=arm_table(model, lambda X: to_base(X, model.measured), arm.meshes, s.arm, s.joints[c.index],
+                                  "depth camera"))
     distances = [float(np.median(p[:, 2])) for p in points]
     used = {s.names[c.index[k]] for k in cal.pose_indices}
     figures = dict(cal.sensor.figures, distance_m=[d for k, d in zip(c.index, distances) if s.names[k] in used])

@@ -43,7 +43,7 @@ from ..result import Calibration
 from ..robot.models import ControllerPoses
 from ..sensors.silhouette.model import ArmViews, SilhouetteContours
 from ..sensors.silhouette.start import coarse_cam2base, surface_samples
-from ._arm import arm_table_cov, with_arm_table
+from ._arm import arm_table
 from ._sensor import sensor_options
 
 __all__ = ["arm_views", "global_start", "outline_rounds", "heldout_ious", "pairing_notes", "calibrate_silhouette_session",
@@ -206,8 +206,8 @@ def calibrate_silhouette_session(folder: str | Path | SilhouetteSession, options
     points, owner = views.outline_points(X, spacing=1.0)
     model = SilhouetteContours(list(s.names), points, owner, s.K, s.dist, views.sdf, X)
     cal = estimate(model, ControllerPoses(s.flange2base, opts.robot_accuracy), opts.folds,
-                   method="colour camera (the arm's silhouette) fit")
-    cal = with_arm_table(cal, arm_table_cov(model, cal.X, model.points, s.meshes, s.arm, s.joints), "colour camera", s.arm)
+                   method="colour camera (the arm's silhouette) fit",
+                   held=arm_table(model, lambda X: model.points, s.meshes, s.arm, s.joints, "colour camera"))
     iou = views.ious(cal.X)
     held = heldout_ious(views, model, cal.X)
     pairing, _ = pairing_notes(views, cal.X, list(s.names))
