@@ -473,7 +473,7 @@ def view_rms_px(problem: Problem, fitted: Fitted, views: NDArray[np.intp]) -> ND
 
 
 def _view_rms(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flange2base: NDArray[np.float64] | None = None,
-              size=None) -> NDArray[np.float64]:
+              size: Callable[[NDArray[np.intp]], NDArray[np.float64]] | None = None) -> NDArray[np.float64]:
     """Per view of ``views`` the RMS length of its kept rows' residuals (each divided by ``size(rows)``
     when given; NaN for a view without a kept row)."""
     sensor = problem.sensor
