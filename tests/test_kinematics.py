@@ -205,6 +205,23 @@ def test_target_poses_as_a_sensor_model():
         TargetPoses("eye_to_hand", names, scene.target2cam[:14])
 
 
+def test_a_view_the_joint_fit_leaves_out_is_named_as_given_after_the_checks_outliers():
+    """View 2's joint angles 3 deg off (the black-box check leaves it out) and view 10's corners 4 px
+    off (the joint fit leaves it out): each is named by its own index, and the fit uses the others
+    (the joint fit's views were once named by their position among the views the check kept: view
+    10 was reported as 11)."""
+    sc = kinematic_scene(20, "eye_in_hand", 3, arm="ur5")
+    q = sc.joints.copy()
+    q[2, 0] += np.radians(3.0)
+    image_points = [p.copy() for p in sc.image_points]
+    image_points[10] = image_points[10] + np.random.default_rng(0).normal(0, 4.0, image_points[10].shape)
+    cal = handeye.calibrate_joints(q, sc.target2cam, "eye_in_hand", sc.chain, object_points=[sc.object_points] * 20,
+                                   image_points=image_points, K=sc.K, dist=sc.dist)
+    assert cal.pose_indices.tolist() == [k for k in range(20) if k not in (2, 10)]
+    assert [name for name, _ in cal.skipped] == ["10"] and any(n.startswith("view 10 left out") for n in cal.notes)
+    assert 1e3 * translation_error(cal.X, sc.X) < 0.3
+
+
 def _joint_session(tmp_path, n=8, setup="eye_in_hand", arm="ur5", unit="deg", q=None, poses=True):
     """A session folder with joints.csv (and the controller's poses.csv) of the simulated arm; the
     images are empty files (loading a session does not read them)."""

@@ -143,9 +143,9 @@ def _joint_calibration(start: Calibration, fit: Calibration, sensor: CameraCorne
     notes = list(start.notes) + [
         f"X, Z and the arm's table fitted to the {'pixels' if pixels else 'viewing rays of the target poses'} "
         f"({fit.sensor.fit_rms_mm:.3g} mm RMS at the target)"]
-    notes += [n for n in fit.notes if not n.startswith((f"{sensor.kind} (", "view "))]
+    # the core's views are named by their index in the input, so its notes and skipped views name them as given
+    notes += [n for n in fit.notes if not n.startswith(f"{sensor.kind} (")]
     notes += [f"{' and '.join(ignored)} not used: the fit of X, Z and the arm's table replaces the estimators"] if ignored else []
-    notes += [f"view {keep[int(v)]} left out by the joint fit: {why}" for v, why in fit.skipped]
     diag, observability = start.diagnostics, start.observability
     if fit.diagnostics.verdict in ("inconsistent", "partial"):  # the joint fit's own finding ('weak' is judged below)
         diag = replace(diag, verdict=fit.diagnostics.verdict, advice=list(fit.diagnostics.advice))
@@ -156,7 +156,7 @@ def _joint_calibration(start: Calibration, fit: Calibration, sensor: CameraCorne
     cal = replace(start, X=fit.X, Z=fit.Z, cov=fit.cov, std=fit.std, method=fit.method, estimator=KINEMATIC,
                   refinement="kinematic", flange2base=fit.flange2base, target2cam=start.target2cam[used],
                   pose_indices=keep[used], motions=None, notes=notes, kinematic=fit.kinematic, cross_validation=held,
-                  diagnostics=diag, observability=observability, skipped=[(str(int(keep[int(v)])), why) for v, why in fit.skipped],
+                  diagnostics=diag, observability=observability, skipped=list(fit.skipped),
                   std_sources=fit.std_sources, **camera)
     return cal if diag.verdict in ("inconsistent", "partial") else judged(cal)
 
