@@ -63,7 +63,7 @@ from .uncertainty import widened_uncertainty
 from .validation import default_folds, fold_indices
 from .verdict import judged
 
-__all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "view_rms_px", "estimate", "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
+__all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "estimate", "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
            "HELDOUT_FACTOR", "WEAKEST_NOTE", "Held"]
 
 #: Points whose residual exceeds this many of their std (after a robust first fit) are set aside.
@@ -462,32 +462,26 @@ def view_rms_mm(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flang
                 ) -> NDArray[np.float64]:
     """Per view of ``views``: the RMS length (mm) of its kept rows' residuals under ``fitted``
     (NaN for a view without a kept row)."""
-    return 1e3 * _view_rms(problem, fitted, views, flange2base)
+    return _view_rms(problem, fitted, views, flange2base)[:, 0]
 
 
-def view_rms_px(problem: Problem, fitted: Fitted, views: NDArray[np.intp]) -> NDArray[np.float64] | None:
-    """Per view of ``views``: the RMS pixel error of its kept rows under ``fitted``, for a sensor
-    whose residuals are pixels times a size (``pixel_size(rows)``, m per pixel); else None."""
-    size = getattr(problem.sensor, "pixel_size", None)
-    return None if size is None else _view_rms(problem, fitted, views, None, size)
-
-
-def _view_rms(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flange2base: NDArray[np.float64] | None = None,
-              size: Callable[[NDArray[np.intp]], NDArray[np.float64]] | None = None) -> NDArray[np.float64]:
-    """Per view of ``views`` the RMS length of its kept rows' residuals (each divided by ``size(rows)``
-    when given; NaN for a view without a kept row)."""
+def _view_rms(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flange2base: NDArray[np.float64] | None = None
+              ) -> NDArray[np.float64]:
+    """Per view of ``views`` (len(views), 2): the RMS length (mm) of its kept rows' residuals and,
+    for a sensor whose residuals are pixels times a size (``pixel_size(rows)``, m per pixel), their
+    RMS in pixels (else NaN); NaN for a view without a kept row. One evaluation of the residuals."""
     sensor = problem.sensor
     owner = np.asarray(sensor.owner)
     rows = np.flatnonzero(np.isin(owner, views) & fitted.kept)
     F = problem.robot.flange2base(fitted.d) if flange2base is None else flange2base
     r = sensor.residuals(fitted.X, fitted.p, F, rows)
-    if size is not None:
-        r = r / np.asarray(size(rows), float)[:, None]
-    sq = np.bincount(owner[rows], np.sum(r**2, axis=1), minlength=len(sensor.names))
+    size = getattr(sensor, "pixel_size", None)
+    sq_px = np.sum((r / np.asarray(size(rows), float)[:, None]) ** 2, axis=1) if size is not None else np.full(len(rows), np.nan)
+    sq = np.stack([np.bincount(owner[rows], v, minlength=len(sensor.names)) for v in (np.sum(r**2, axis=1), sq_px)], axis=1)
     count = np.bincount(owner[rows], minlength=len(sensor.names))
     views = np.asarray(views)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.sqrt(sq[views] / count[views])
+        return np.sqrt(sq[views] / count[views, None]) * np.array([1e3, 1.0])
 
 
 def _undetermined(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
@@ -676,7 +670,6 @@ def _cross_validation(problem: Problem, full: Fitted, views: NDArray[np.intp], f
     if n < 4:
         return {}, 0, np.full(n, np.nan)
     held = [views[i] for i in fold_indices(n, default_folds(n) if folds is None else min(folds, n))]
-    px = getattr(problem.sensor, "pixel_size", None) is not None
     fitted_mm, start_mm, nominal_mm = (np.full((n, 2), np.nan) for _ in range(3))  # per view: mm, px
     position = {int(v): i for i, v in enumerate(views)}
     nominal = None
@@ -684,20 +677,17 @@ def _cross_validation(problem: Problem, full: Fitted, views: NDArray[np.intp], f
         nominal = Problem(problem.sensor, ControllerPoses(problem.robot.flange2base(np.zeros(problem.robot.n_params))),
                           problem.X0, problem.p0, problem.pins)
         nominal_full = fit(nominal, views)
-
-    def errors(prob: Problem, fitted: Fitted, test: NDArray[np.intp]) -> NDArray[np.float64]:
-        return np.c_[view_rms_mm(prob, fitted, test), view_rms_px(prob, fitted, test) if px else np.full(len(test), np.nan)]
     for test in held:
         train = np.setdiff1d(views, test)
         at = [position[int(v)] for v in test]
-        fitted_mm[at] = errors(problem, downdated(problem, full, train), test)
+        fitted_mm[at] = _view_rms(problem, downdated(problem, full, train), test)
         try:
             X0, p0 = _start(problem.sensor, problem.robot, train)
-            start_mm[at] = errors(problem, replace(full, X=X0, p=p0, d=np.zeros(problem.robot.n_params)), test)
+            start_mm[at] = _view_rms(problem, replace(full, X=X0, p=p0, d=np.zeros(problem.robot.n_params)), test)
         except HandEyeError:
             pass
         if nominal is not None:
-            nominal_mm[at] = errors(nominal, downdated(nominal, nominal_full, train), test)
+            nominal_mm[at] = _view_rms(nominal, downdated(nominal, nominal_full, train), test)
     table = {_name(problem.robot): _row(fitted_mm), "closed-form start": _row(start_mm)}
     if nominal is not None:
         table["fit on the nominal table's poses"] = _row(nominal_mm)
