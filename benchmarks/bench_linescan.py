@@ -2,6 +2,7 @@
 
     python benchmarks/bench_linescan.py [--sessions 20] [--scans 12]
     python benchmarks/bench_linescan.py --rendered [--sessions 5]
+    python benchmarks/bench_linescan.py --arm ur5 [--sessions 10]
 
 Each session (``handeye.simulate.linescan.linescan_scene``): a 2,048-pixel line-scan camera (f =
 2,400 px, k1 = -0.03) scanning a 9 x 6 chessboard of 20 mm squares from 0.4 m, ``--scans`` scans
@@ -19,6 +20,14 @@ setups. Rows:
 * in every row the held-out error of the fit against its closed-form start (the linear pushbroom
   resection and the closed form): the fit must beat it.
 
+``--arm ur5``: the scans are a real arm's (``linescan_scene(arm=...)``: its table 1-3 mm off the
+nominal one at the flange, the joint angles reported along the trajectory with encoder noise): X,
+the focal length and held-out scans from the joint angles through the arm's table fitted with X
+(:func:`handeye.pipelines.linescan.linescan_joints`, every row's pose through the table) against
+the controller's poses (the nominal table's, each scan's pose error fitted with the default
+accuracy stated, as a session with poses only is calibrated), and against one pose per scan through
+the fitted table times the nominal move (the table's error taken as rigid over a scan).
+
 ``--rendered``: the same capture as a user has it: each scan rendered as a pushbroom image
 (``handeye simulate --sensor line_scan``), the chessboard found by OpenCV, ``handeye calibrate`` on the
 folder (the robot's default accuracy stated): the same figures, and the seconds of the whole command.
@@ -33,8 +42,8 @@ import numpy as np
 
 from handeye.estimation.core import estimate
 from handeye.frames.metrics import rotation_error, translation_error, within_std
-from handeye.pipelines.linescan import linescan_robot
-from handeye.robot.models import ControllerPoses
+from handeye.pipelines.linescan import linescan_joints, linescan_robot
+from handeye.robot.models import ControllerPoses, JointAngles
 from handeye.sensors.linescan.model import LineScanCorners
 from handeye.simulate.linescan import linescan_scene
 
@@ -67,6 +76,40 @@ def run(sessions: int, scans: int) -> None:
                   f"{np.max(focal):.4f}%); clock {np.median(offset):.3f} ms; within 3 std {100 * np.mean(within):.0f}%; "
                   f"fit beats start {sum(beats)}/{sessions}; {np.median(secs):.2f} s/session"
                   + (f"; the poses as exact (each scan's error not fitted): X median {np.median(plain):.4f} mm" if plain else ""))
+
+
+def run_arm(sessions: int, scans: int, arm: str) -> None:
+    """X and held-out scans by an arm 1-3 mm off its table: joint angles through the fitted table
+    against the controller's poses (the module docstring)."""
+    rows = {"joint trajectory through the table": [], "controller's poses": [], "one pose per scan, nominal move": []}
+    for setup in ("eye_in_hand", "eye_to_hand"):
+        for rows_of in rows.values():
+            rows_of.clear()
+        arm_mm, secs = [], []
+        for k in range(sessions):
+            sc = linescan_scene(scans, setup, rng=3000 + k, arm=arm)
+            arm_mm.append(np.median(1e3 * np.linalg.norm(sc.trajectory.flange2base[:, :3, 3]
+                                                         - sc.trajectory_true.flange2base[:, :3, 3], axis=1)))
+            model = LineScanCorners(setup, sc.names, sc.corners, sc.target_points, sc.starts, sc.line_rate, sc.trajectory,
+                                    1.03 * sc.focal, sc.width)
+            t0 = time.perf_counter()
+            robot = linescan_joints(sc.chain, sc.trajectory.times, sc.joints, model)
+            fits = {"joint trajectory through the table": estimate(model, robot)}
+            secs.append(time.perf_counter() - t0)
+            fits["controller's poses"] = estimate(model, linescan_robot(model.flange2base_ref, (0.1, 1.0)))
+            fits["one pose per scan, nominal move"] = estimate(model, JointAngles(sc.chain, robot.joints))
+            for name, cal in fits.items():
+                held = next(iter(cal.cross_validation.errors.values()))["mm"]
+                rows[name].append((1e3 * translation_error(cal.X, sc.X), np.degrees(rotation_error(cal.X, sc.X)),
+                                   within_std(cal.X, sc.X, cal.std), held,
+                                   100 * abs(cal.sensor.figures["focal_px"]["value"] / sc.focal - 1)))
+        print(f"{setup}, {arm} {np.median(arm_mm):.2f} mm off its table (median over sessions), {sessions} sessions of "
+              f"{scans} scans; the joint fit {np.median(secs):.1f} s per session")
+        for name, values in rows.items():
+            v = np.array(values, float)
+            print(f"  {name:36s} X median {np.median(v[:, 0]):.3f} mm / {np.median(v[:, 1]):.4f} deg (max {v[:, 0].max():.3f}"
+                  f" mm / {v[:, 1].max():.4f} deg); within 3 std {100 * v[:, 2].mean():.0f}%; held-out {np.median(v[:, 3]):.3f}"
+                  f" mm; focal {np.median(v[:, 4]):.3f}%")
 
 
 def run_rendered(sessions: int, scans: int) -> None:
@@ -106,8 +149,11 @@ def main() -> None:
     ap.add_argument("--sessions", type=int, default=20)
     ap.add_argument("--scans", type=int, default=12)
     ap.add_argument("--rendered", action="store_true", help="whole commands on rendered scans")
+    ap.add_argument("--arm", help="scans by this arm off its table: joint angles against the controller's poses")
     a = ap.parse_args()
-    if a.rendered:
+    if a.arm:
+        run_arm(a.sessions, a.scans, a.arm)
+    elif a.rendered:
         run_rendered(a.sessions, a.scans)
     else:
         run(a.sessions, a.scans)

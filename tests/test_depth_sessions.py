@@ -260,7 +260,7 @@ def test_a_depth_session_with_joint_angles_fits_the_joints_compliance_when_asked
     """compliance=True reaches the depth camera's robot model (the options record, not a loose field):
     the loaded joints' compliance is fitted with the table; without joint angles, or for a sensor
     that fits no table, it is refused by name."""
-    from handeye.pipelines.linescan import calibrate_linescan_session
+    from handeye.pipelines.silhouette import calibrate_silhouette_session
     sc = depth_scene(8, "eye_to_hand", rng=2, arm="ur5", image_size=(240, 180))
     folder = write_depth_session(tmp_path / "j", sc)
     plain = calibrate_depth_session(folder)
@@ -273,4 +273,4 @@ def test_a_depth_session_with_joint_angles_fits_the_joints_compliance_when_asked
     with pytest.raises(InputMismatchError, match="the session has none .a joints: table"):
         calibrate_depth_session(poses, compliance=True)
     with pytest.raises(InputMismatchError, match="compliance .--compliance.: options of image and pose sessions"):
-        calibrate_linescan_session(poses, compliance=True)
+        calibrate_silhouette_session(poses, compliance=True)

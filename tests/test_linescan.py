@@ -125,3 +125,70 @@ def test_session_round_trip_and_bad_sessions(tmp_path):
     (folder / "session.yaml").write_text(yaml.safe_dump(dict(spec, linescan=spec["linescan"] | {"width": 1024})))
     with pytest.raises(DegenerateMotionError, match="pixels along the line, the session says width: 1024"):
         calibrate_linescan_session(folder)
+
+
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+def test_joint_trajectory_fits_the_arms_table(setup):
+    """A UR5 whose table is 2-3 mm off its nominal one sweeps 12 scans; the controller reports its
+    joint angles along the trajectory. Through the arm's table fitted with X (every row's pose through
+    it), X lands within 0.3 mm / 0.05 deg and within 3 std, the focal length within 0.1%, and
+    held-out scans are predicted 5x better than from the controller's poses (each scan's pose error
+    fitted, the default accuracy stated), whose X is 5x further off in translation. One pose per scan
+    times the nominal move (the table's error taken as rigid over a scan) leaves X's rotation ~0.2
+    deg off: the table's error changes along the move."""
+    from handeye.pipelines.linescan import linescan_joints
+    from handeye.robot.models import JointAngles
+    sc = linescan_scene(12, setup, rng=3000, arm="ur5")
+    arm_error = 1e3 * np.linalg.norm(sc.trajectory.flange2base[:, :3, 3] - sc.trajectory_true.flange2base[:, :3, 3], axis=1)
+    assert 1.5 < np.median(arm_error) < 3.5
+    model = _model(sc)
+    robot = linescan_joints(sc.chain, sc.trajectory.times, sc.joints, model)
+    cal = estimate(model, robot)
+    error_mm, error_deg = 1e3 * translation_error(cal.X, sc.X), np.degrees(rotation_error(cal.X, sc.X))
+    assert error_mm < 0.3 and error_deg < 0.05 and within_std(cal.X, sc.X, cal.std) and cal.verdict == "good"
+    assert abs(cal.sensor.figures["focal_px"]["value"] / sc.focal - 1) < 1e-3
+    assert cal.kinematic is not None and cal.kinematic.accuracy_mm["after_median"] < 0.3 * cal.kinematic.accuracy_mm["before_median"]
+    poses = estimate(model, linescan_robot(model.flange2base_ref, (0.1, 1.0)))
+    held = cal.cross_validation.errors["fit with the arm's table"]["mm"]
+    assert 5 * held < poses.cross_validation.errors["fit"]["mm"]
+    assert 5 * error_mm < 1e3 * translation_error(poses.X, sc.X)
+    rigid = estimate(model, JointAngles(sc.chain, robot.joints), uncertainty=False)  # the nominal move from each scan's pose
+    assert np.degrees(rotation_error(rigid.X, sc.X)) > 3 * error_deg
+
+
+def test_joint_trajectory_sessions_and_their_faults(tmp_path):
+    """simulate --sensor line_scan --arm ur5, then calibrate: the arm's table fitted, X right from the
+    rendered scans; a joint table without a time column, times that go back, angles in degrees
+    called radians, compliance without joint angles, neither poses nor joints: each a clear error."""
+    from handeye import load_result
+    from handeye.cli import main
+    from handeye.pipelines.linescan import calibrate_linescan_session
+    folder = tmp_path / "s"
+    assert main(["simulate", "--sensor", "line_scan", "--arm", "ur5", "--poses", "8", "--out", str(folder),
+                 "--seed", "3"]) == 0
+    assert main(["calibrate", str(folder), "--out", str(tmp_path / "out")]) == 0
+    truth = yaml.safe_load((folder / "ground_truth.yaml").read_text())
+    back = load_result(tmp_path / "out" / "result.json")
+    assert back.verdict == "good" and (tmp_path / "out" / "arm_corrected.yaml").is_file()
+    assert 1e3 * translation_error(back.X, np.array(truth["cam2flange"])) < 0.3
+    assert np.degrees(rotation_error(back.X, np.array(truth["cam2flange"]))) < 0.05
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    text = (folder / "joints.csv").read_text()
+    lines = text.splitlines()
+    for name, content, change, match in [
+            ("no time", text.replace("time,", "image,", 1), {}, "first column must be"),
+            ("back", "\n".join(lines[:3] + [lines[2]] + lines[3:]) + "\n", {}, "duplicate times"),
+            ("radians", text, {"unit": "rad"}, "look like degrees")]:
+        (folder / "joints.csv").write_text(content)
+        (folder / "session.yaml").write_text(yaml.safe_dump(dict(spec, joints=spec["joints"] | change)))
+        with pytest.raises(SessionError, match=match):
+            calibrate_linescan_session(folder)
+    (folder / "joints.csv").write_text(text)
+    (folder / "session.yaml").write_text(yaml.safe_dump({k: v for k, v in spec.items() if k != "poses"}))
+    assert calibrate_linescan_session(folder, folds=2).kinematic is not None  # joint angles alone: the nominal table's poses
+    (folder / "session.yaml").write_text(yaml.safe_dump({k: v for k, v in spec.items() if k != "joints"}))
+    with pytest.raises(InputMismatchError, match="leave compliance out"):
+        calibrate_linescan_session(folder, compliance=True)
+    (folder / "session.yaml").write_text(yaml.safe_dump({k: v for k, v in spec.items() if k not in ("joints", "poses")}))
+    with pytest.raises(SessionError, match="neither a poses: nor a joints: block"):
+        calibrate_linescan_session(folder)

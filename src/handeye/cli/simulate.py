@@ -76,14 +76,16 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         flag = "--cameras" if args.cameras is not None else "--laser" if args.laser else "--depth"
         raise InputMismatchError(f"{flag} describes a rig: give it with --sensor rig")
     if args.sensor == "line_scan":
-        if args.robot != "arm" or args.arm is not None or args.target is not None:
-            raise InputMismatchError("--sensor line_scan simulates a 6-axis arm's controller poses and a chessboard; leave "
-                                     "--robot, --arm and --target out")
-        sc = linescan_scene(args.poses, args.setup, args.seed)
+        if args.robot != "arm" or args.target is not None:
+            raise InputMismatchError("--sensor line_scan simulates a 6-axis arm (its controller's poses, or with --arm its "
+                                     "joint angles) and a chessboard; leave --robot and --target out")
+        sc = linescan_scene(args.poses, args.setup, args.seed, arm=args.arm)
         write_linescan_session(args.out, sc, rng=args.seed)
+        arm = f", {args.arm}'s joint angles along the trajectory in joints.csv (the arm 1-3 mm off its nominal table)" \
+            if args.arm else ""
         print(f"wrote line-scan session {args.out} ({args.poses} scans of a {sc.board[0]} x {sc.board[1]} chessboard, "
               f"{args.setup}, {sc.width} px at {sc.line_rate:.0f} lines/s, the robot's clock {1e3 * sc.clock_offset:.0f} ms "
-              f"after the camera's); ground truth in {Path(args.out) / 'ground_truth.yaml'}")
+              f"after the camera's{arm}); ground truth in {Path(args.out) / 'ground_truth.yaml'}")
         return 0
     if args.sensor == "depth":
         return _simulate_depth(args)

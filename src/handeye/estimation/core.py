@@ -173,14 +173,26 @@ def _weight(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]
     return 1.0 / (np.asarray(problem.sensor.shape)[rows] * sigma[_groups(problem.sensor)[rows]])
 
 
+def _residuals(problem: Problem, X: NDArray[np.float64], p: NDArray[np.float64], d: NDArray[np.float64],
+               rows: NDArray[np.intp], flange2base: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+    """The sensor's residuals of ``rows`` at X, ``p`` and the robot's ``d``: every view's flange pose
+    from the robot (or ``flange2base`` as given) and, from a robot that follows the flange along each
+    view's move (``motion(d)``: a joint trajectory), the pose at any time of it."""
+    robot = problem.robot
+    if flange2base is None and getattr(robot, "motion", None) is not None:
+        return problem.sensor.residuals(X, p, robot.flange2base(d), rows, motion=robot.motion(d))
+    return problem.sensor.residuals(X, p, robot.flange2base(d) if flange2base is None else flange2base, rows)
+
+
 def _measured(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
-    """The whitened residuals of ``rows`` (the measurement entries only) as a function of X, ``p``
-    and every view's flange pose."""
+    """The whitened residuals of ``rows`` (the measurement entries only) as a function of X, ``p``,
+    the robot's ``d`` and (given) every view's flange pose."""
     weight = _weight(problem, rows, sigma)
     mask = _entry_mask(problem.sensor, rows)
 
-    def measured(X: NDArray[np.float64], p: NDArray[np.float64], flange2base: NDArray[np.float64]) -> NDArray[np.float64]:
-        r = problem.sensor.residuals(X, p, flange2base, rows) * weight
+    def measured(X: NDArray[np.float64], p: NDArray[np.float64], d: NDArray[np.float64],
+                 flange2base: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+        r = _residuals(problem, X, p, d, rows, flange2base) * weight
         return r.ravel() if mask is None else r[mask]
     return measured
 
@@ -192,7 +204,7 @@ def _function(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
 
     def fun(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
-        return np.concatenate([measured(X, p, robot.flange2base(d)), robot.prior(d), PIN * (problem.pins @ x[:6])])
+        return np.concatenate([measured(X, p, d), robot.prior(d), PIN * (problem.pins @ x[:6])])
     return fun
 
 
@@ -216,8 +228,12 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
     """The Jacobian of :func:`_function`'s residuals from the sensor's own derivatives, when it has
     them (``jacobian(X, p, flange2base, rows)``: (M, c, 6 + k), X's part for a left increment as
     ``x``'s) and the robot has no unknowns; finite differences by view for a robot whose unknowns
-    each move one view (:func:`_per_view_jacobian`); else '2-point' (finite differences)."""
+    each move one view (:func:`_per_view_jacobian`); the chain rule through each view's flange pose
+    for joint angles (:func:`_chained_jacobian`), but not along a joint trajectory, whose unknowns
+    move every row's pose of a view differently; else '2-point' (finite differences)."""
     sensor, robot = problem.sensor, problem.robot
+    if robot.n_params and getattr(robot, "motion", None) is not None:
+        return "2-point"
     if robot.n_params and getattr(robot, "param_view", None) is not None:
         return _per_view_jacobian(problem, rows, sigma)
     if robot.n_params and hasattr(robot, "pose_jacobian"):
@@ -268,7 +284,7 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
         for a in range(6):  # every view's flange pose moved along its increment a at once
             xi = np.zeros(6)
             xi[a] = h
-            by_pose[:, a] = (measured(X, p, perturb(F, xi[:3], xi[3:])) - f0[:m]) / h
+            by_pose[:, a] = (measured(X, p, d, perturb(F, xi[:3], xi[3:])) - f0[:m]) / h
         J[:m, n_x:] = np.einsum("ea,ead->ed", by_pose, robot.pose_jacobian(d)[entry_view])
         J[m:m + n_d, n_x:] = np.eye(n_d)
         return J
@@ -392,14 +408,14 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     shape = np.asarray(sensor.shape)
     rows = np.flatnonzero(in_views)
     X, p, d = problem.unpack(x)
-    w0 = sensor.residuals(X, p, problem.robot.flange2base(d), rows) / shape[rows]
+    w0 = _residuals(problem, X, p, d, rows) / shape[rows]
     sigma = _group_scales(w0, groups[rows], n_groups, robust=True)
     few = rows if len(rows) <= ROBUST_ROWS else rows[np.linspace(0, len(rows) - 1, ROBUST_ROWS).astype(np.intp)]
     res = least_squares(_function(problem, few, sigma), x, _jacobian(problem, few, sigma), method="trf",
                         loss="soft_l1", f_scale=2.0, x_scale=x_scale, xtol=1e-12, ftol=1e-12, gtol=1e-12)
     x = res.x
     X, p, d = problem.unpack(x)
-    w = sensor.residuals(X, p, problem.robot.flange2base(d), rows) / shape[rows]
+    w = _residuals(problem, X, p, d, rows) / shape[rows]
     sigma = _group_scales(w, groups[rows], n_groups, robust=True)
     kept = np.zeros(len(owner), bool)
     kept[rows] = np.all(np.abs(w) <= REJECT * sigma[groups[rows]], axis=1)
@@ -410,7 +426,7 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
                             method=_plain_method(problem, rows), x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
         x = res.x
         X, p, d = problem.unpack(x)
-        w = sensor.residuals(X, p, problem.robot.flange2base(d), rows) / shape[rows]
+        w = _residuals(problem, X, p, d, rows) / shape[rows]
         share = max(w.size - n_unknowns, 1) / w.size
         new = _group_scales(w, groups[rows], n_groups, robust=False, dof_share=share)
         if len(new) == 1 and not problem.robot.n_params and not len(problem.pins):
@@ -473,8 +489,7 @@ def _view_rms(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flange2
     sensor = problem.sensor
     owner = np.asarray(sensor.owner)
     rows = np.flatnonzero(np.isin(owner, views) & fitted.kept)
-    F = problem.robot.flange2base(fitted.d) if flange2base is None else flange2base
-    r = sensor.residuals(fitted.X, fitted.p, F, rows)
+    r = _residuals(problem, fitted.X, fitted.p, fitted.d, rows, flange2base)
     size = getattr(sensor, "pixel_size", None)
     sq_px = np.sum((r / np.asarray(size(rows), float)[:, None]) ** 2, axis=1) if size is not None else np.full(len(rows), np.nan)
     sq = np.stack([np.bincount(owner[rows], v, minlength=len(sensor.names)) for v in (np.sum(r**2, axis=1), sq_px)], axis=1)

@@ -38,7 +38,7 @@ from .._shared.text import summarize
 from ..errors import HandEyeError, InputMismatchError
 from ..frames.setups import check_setup, robot_world_A
 from ..geometry.se3 import from_rotvec_translation, invert, make_transform
-from ..robot.kinematics import arm_names, load_arm
+from ..robot.kinematics import arm_names, joints_at, load_arm
 from ..sensors.camera.targets import target_from_spec
 from .session import (
     POSEPAIRS_FILE,
@@ -274,7 +274,7 @@ def _joint_session_of_bag(reader, bag: Path, folder: Path, setup: str, joint_top
         raise InputMismatchError(f"{joint_topic}: {int(outside.sum())} of {len(t_img)} images lie outside the joint states' "
                                  f"time span ({t_joint[0]:.3f}-{t_joint[-1]:.3f} s): record both topics together")
     gaps = np.diff(t_joint).max(initial=0.0)
-    q_img = np.stack([np.interp(t_img, t_joint, q[:, k]) for k in range(q.shape[1])], axis=1)
+    q_img = joints_at(t_joint, q, t_img)
     write_joint_session(folder, setup, target, image_names, q_img, arm, camera=_camera_info(reader, camera_info_topic),
                         comment=f"imported by handeye from {bag.name}: joint angles of {joint_topic} interpolated at "
                         "each image's stamp", joint_names=names, unit="rad")

@@ -18,8 +18,13 @@
       noise: 0.2           # optional: the corners' noise (px)
     target: {type: chessboard, cols: 9, rows: 6, square: 0.02}
     poses: {file: poses.csv, format: quat_wxyz, length_unit: mm, angle_unit: deg}
+    joints: {file: joints.csv, unit: deg, arm: ur5}   # optional: the trajectory's joint angles
     images: {file: images.csv}
 
+A ``joints:`` table is the trajectory as joint angles: a ``time`` column (the robot's clock;
+``time_unit`` as a pose table's), then one column per joint. With it the arm's table is fitted with
+X (:mod:`handeye.pipelines.linescan`), and ``poses:`` may be left out (the nominal table's poses
+are the trajectory's); given too, the controller's poses are checked against the joint angles.
 The robot's clock and the camera's may differ by a fraction of a second: the offset is fitted. Nothing
 is measured here (:mod:`handeye.pipelines.linescan` does that); every key is checked (an unknown one
 is an error naming the nearest known key).
@@ -34,12 +39,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import SessionError
+from ..errors import InputMismatchError, SessionError
 from ..frames.setups import check_setup
+from ..robot.kinematics import Chain, check_joints_against_poses, joints_at
 from ..sensors.camera.targets import target_from_spec
 from ..sensors.linescan.model import LINESCAN_NOISE_PX
 from .session import (
     IMAGES_KEYS,
+    JOINTS_KEYS,
     POSES_KEYS,
     SESSION_FILE,
     check_session_keys,
@@ -47,6 +54,7 @@ from .session import (
     has_section,
     pose_table_path,
     read_image_times,
+    read_joint_trajectory,
     read_pose_table,
     read_session_yaml,
     time_unit_scale,
@@ -56,6 +64,8 @@ __all__ = ["LineScanSession", "load_linescan_session", "is_linescan_session", "L
 
 #: The keys of a ``linescan:`` block.
 LINESCAN_KEYS = ("width", "line_rate", "focal", "noise")
+#: The keys of a line-scan session's ``joints:`` block (a trajectory: its time column's unit too).
+TRAJECTORY_JOINTS_KEYS = JOINTS_KEYS + ("time_unit",)
 
 
 @dataclass(frozen=True)
@@ -75,6 +85,10 @@ class LineScanSession:
     focal: float
     noise_px: float
     notes: list[str] = field(default_factory=list)
+    #: with a ``joints:`` table: the trajectory's joint angles (rad) at ``times``, the arm, the table's path
+    joints: NDArray[np.float64] | None = None
+    arm: Chain | None = None
+    joints_path: Path | None = None
 
     @property
     def input_files(self) -> list[Path]:
@@ -99,18 +113,21 @@ def _positive(spec: dict, key: str, where: str, what: str) -> float:
     return value
 
 
-def load_linescan_session(folder: str | Path) -> LineScanSession:
+def load_linescan_session(folder: str | Path, arm: str | None = None) -> LineScanSession:
     """Read and check a line-scan session folder (the module docstring); nothing is measured yet.
+    ``arm`` (``--arm``): the arm of the ``joints:`` table, instead of the one session.yaml names.
 
     Raises :class:`SessionError` naming the file or key: no ``linescan:`` mapping, a missing or bad
-    width, line rate or focal length, a bad target, a trajectory without a time column, an image
-    missing, a scan whose time lies outside the trajectory.
+    width, line rate or focal length, a bad target, a trajectory without a time column, neither
+    poses nor joint angles, joint angles that disagree with the poses, an image missing, a scan
+    whose time lies outside the trajectory.
     """
     folder, spec, where, notes = read_session_yaml(folder)
     if not isinstance(spec.get("linescan"), dict):
         raise SessionError(f"{where}: no linescan: mapping (width, line_rate, focal)")
-    check_session_keys(spec, ("setup", "target", "linescan", "poses", "images"),
-                       {"linescan": LINESCAN_KEYS, "poses": POSES_KEYS, "images": IMAGES_KEYS}, where)
+    check_session_keys(spec, ("setup", "target", "linescan", "poses", "joints", "images"),
+                       {"linescan": LINESCAN_KEYS, "poses": POSES_KEYS, "joints": TRAJECTORY_JOINTS_KEYS,
+                        "images": IMAGES_KEYS}, where)
     setup = check_setup(str(spec.get("setup", "")))
     target_from_spec(spec.get("target"), where=f"{where}: target")
     ls = spec["linescan"]
@@ -126,14 +143,26 @@ def load_linescan_session(folder: str | Path) -> LineScanSession:
     noise = float(ls.get("noise", LINESCAN_NOISE_PX))
     if not 0 < noise < 50:
         raise SessionError(f"{where}: linescan: noise {noise:g}: the corners' noise in pixels (e.g. 0.2)")
-    poses = spec.get("poses")
-    table = pose_table_path(folder, poses, where, "the robot's trajectory, a time column first")
-    values, _, times = read_pose_table(table, str(poses["format"]), id_columns=(), notes=notes, times=True)
-    if times is None:
-        raise SessionError(f"{table}: no time column: a line-scan session's poses are the robot's trajectory, a time "
-                           "column (the robot's clock) then the pose columns")
-    f2b = flange_poses_of(values, poses, table, where)
-    times = np.asarray(times, float) * time_unit_scale(poses, f"{where}: poses")
+    joints = chain = joints_path = None
+    if spec.get("joints") is not None:
+        times, joints, chain, joints_path = read_joint_trajectory(folder, spec["joints"], where, notes, arm)
+        trajectory, f2b = joints_path, chain.forward(joints)  # the nominal table's poses: the arm's error is fitted
+    elif spec.get("poses") is None:
+        raise SessionError(f"{where}: neither a poses: nor a joints: block: give the robot's trajectory, as flange poses (poses:) "
+                           "or joint angles (joints:), each with a time column first")
+    if spec.get("poses") is not None:
+        poses = spec["poses"]
+        table = pose_table_path(folder, poses, where, "the robot's trajectory, a time column first")
+        values, _, pose_times = read_pose_table(table, str(poses["format"]), id_columns=(), notes=notes, times=True)
+        if pose_times is None:
+            raise SessionError(f"{table}: no time column: a line-scan session's poses are the robot's trajectory, a time "
+                               "column (the robot's clock) then the pose columns")
+        pose_times = np.asarray(pose_times, float) * time_unit_scale(poses, f"{where}: poses")
+        if joints is None:
+            trajectory, times, f2b = table, pose_times, flange_poses_of(values, poses, table, where)
+        else:
+            notes.append(_poses_against_joints(flange_poses_of(values, poses, table, where), pose_times, times, joints,
+                                               chain, joints_path))
     names, starts, _ = read_image_times(folder, spec.get("images"), where, notes)
     paths = [folder / "images" / n for n in names]
     missing = [p.name for p in paths if not p.is_file()]
@@ -141,8 +170,24 @@ def load_linescan_session(folder: str | Path) -> LineScanSession:
         raise SessionError(f"{folder / 'images'}: scan image(s) missing: {', '.join(missing[:10])}")
     outside = [n for n, t in zip(names, starts) if not times[0] - 1.0 <= t <= times[-1] + 1.0]
     if outside:
-        raise SessionError(f"{table}: the trajectory runs {times[0]:.3f}-{times[-1]:.3f} s; the scans "
+        raise SessionError(f"{trajectory}: the trajectory runs {times[0]:.3f}-{times[-1]:.3f} s; the scans "
                            f"{', '.join(outside[:5])} start outside it: give the trajectory around every scan, on a clock "
                            "within a fraction of a second of the camera's (images.csv's time)")
     return LineScanSession(folder, setup, dict(spec["target"]), list(names), paths, np.asarray(starts, float), times, f2b,
-                           int(width), line_rate, focal, noise, notes)
+                           int(width), line_rate, focal, noise, notes, joints, chain, joints_path)
+
+
+def _poses_against_joints(flange2base: NDArray[np.float64], pose_times: NDArray[np.float64], times: NDArray[np.float64],
+                          joints: NDArray[np.float64], chain: Chain, path: Path) -> str:
+    """The controller's poses checked against the joint angles through the arm's nominal table, at
+    the poses' times within the joint trajectory (the angles linear between samples): the finding,
+    or a SessionError naming what makes them agree (degrees read as radians, another arm, ...)."""
+    inside = (pose_times >= times[0]) & (pose_times <= times[-1])
+    if not inside.any():
+        raise SessionError(f"{path}: the joint angles run {times[0]:.3f}-{times[-1]:.3f} s and the poses "
+                           f"{pose_times[0]:.3f}-{pose_times[-1]:.3f} s: give both on the robot's clock")
+    q = joints_at(times, joints, pose_times[inside])
+    try:
+        return check_joints_against_poses(chain, q, flange2base[inside], f"{path.name}'s joint angles")
+    except InputMismatchError as exc:
+        raise SessionError(f"{path}: {exc}") from None

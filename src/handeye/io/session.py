@@ -58,7 +58,7 @@ from ..sensors.camera.targets import target_from_spec
 cv2 = lazy_module("cv2")  # only to read an image's size
 
 __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session",
-           "read_pose_table", "read_joints", "SessionError", "load_yaml", "has_section", "check_keys",
+           "read_pose_table", "read_joints", "read_joint_trajectory", "SessionError", "load_yaml", "has_section", "check_keys",
            "check_session_keys", "read_session_yaml", "pose_rows_inverted", "read_robot_poses", "joints_of_views",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
            "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session", "write_joint_table",
@@ -246,6 +246,23 @@ def read_joints(folder: Path, spec: Any, where: str, notes: list[str], override:
     return j.names, j.q, j.arm, j.path
 
 
+def read_joint_trajectory(folder: Path, spec: Any, where: str, notes: list[str], override: str | None = None
+                          ) -> tuple[NDArray[np.float64], NDArray[np.float64], Chain, Path]:
+    """A ``joints:`` block whose table is a trajectory (a line-scan camera's): a time column (the
+    robot's clock, ``time_unit`` as a pose table's) then one column per joint. Returns the times (s,
+    increasing), the joint angles (rad, as the arm's table takes them), the arm and the table's path."""
+    j = _read_joints(folder, spec, where, notes, override, TIME_COLUMNS)
+    try:
+        times = np.array([float(t) for t in j.names]) * time_unit_scale(spec, f"{where}: joints")
+    except ValueError:
+        raise SessionError(f"{j.path}: the time column holds a value that is not a number") from None
+    if len(times) < 2 or not np.all(np.diff(times) > 0):
+        k = int(np.flatnonzero(np.diff(times) <= 0)[0]) + 2 if len(times) > 1 else 1
+        raise SessionError(f"{j.path}: the times must increase, two rows or more (line {k}): sort the samples, drop "
+                           "repeats")
+    return times, j.q, j.arm, j.path
+
+
 def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override: str | None = None,
                  id_columns: tuple[str, ...] = ("image",)) -> _Joints:
     """The ``joints:`` block: ``file`` (an ``image`` column, then one column per joint), ``unit``
@@ -270,7 +287,8 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override
                            "or false")
     names, q = _joint_table(path, arm, unit, id_columns, notes, "write unit: deg under joints:")
     if len(set(names)) != len(names):
-        raise SessionError(f"{path}: duplicate image names [{summarize(sorted({x for x in names if names.count(x) > 1}))}]")
+        what = "times" if id_columns == TIME_COLUMNS else f"{id_columns[0]} names"
+        raise SessionError(f"{path}: duplicate {what} [{summarize(sorted({x for x in names if names.count(x) > 1}))}]")
     return _Joints(names, _model_angles(np.radians(q) if unit == "deg" else q, arm, pendant, path.name, notes), arm, path)
 
 

@@ -7,9 +7,10 @@ finds the target's corners in each scan (a scan without the whole target is skip
 them a sensor model (:class:`~handeye.sensors.linescan.model.LineScanCorners`: each corner's distance
 from the view plane at its row's time and its pixel error along the line), and the estimation core
 (:func:`handeye.estimation.core.estimate`) fits X with the target's pose, the focal length,
-principal point and distortion along the line and the clocks' offset; cross-validates on held-out
-scans (their corners' errors at the target, mm), says what the capture leaves undetermined and
-gives the verdict: one :class:`~handeye.result.Calibration`, as for images.
+principal point and distortion along the line and the clocks' offset (and the arm's table when the
+trajectory is joint angles: :func:`linescan_joints`); cross-validates on held-out scans (their
+corners' errors at the target, mm), says what the capture leaves undetermined and gives the
+verdict: one :class:`~handeye.result.Calibration`, as for images.
 """
 
 from __future__ import annotations
@@ -20,18 +21,19 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import DegenerateMotionError
+from ..errors import DegenerateMotionError, InputMismatchError
 from ..estimation.core import estimate
 from ..io.linescan_session import LineScanSession, load_linescan_session
 from ..options import CalibrationOptions
 from ..result import Calibration
-from ..robot.models import ControllerPoses, PoseErrors
+from ..robot.kinematics import Chain, joints_at
+from ..robot.models import ControllerPoses, JointTrajectory, PoseErrors, RobotModel
 from ..sensors.camera.detect import detect_images
 from ..sensors.camera.targets import target_from_spec
 from ..sensors.linescan.model import LineScanCorners, Trajectory
 from ._sensor import sensor_options
 
-__all__ = ["calibrate_linescan_session", "grid_orderings", "linescan_robot"]
+__all__ = ["calibrate_linescan_session", "grid_orderings", "linescan_robot", "linescan_joints"]
 
 
 def linescan_robot(flange2base_ref: NDArray[np.float64], accuracy: tuple[float, float] | None
@@ -48,6 +50,26 @@ def linescan_robot(flange2base_ref: NDArray[np.float64], accuracy: tuple[float, 
     precision the data would have given (0.03 -> 0.15 mm on 6 sessions): no real arm is exact.
     """
     return ControllerPoses(flange2base_ref, None) if accuracy is None else PoseErrors(flange2base_ref, accuracy)
+
+
+def linescan_joints(chain: Chain, times: NDArray[np.float64], joints: NDArray[np.float64], model: LineScanCorners,
+                    compliance: bool = False) -> JointTrajectory:
+    """The robot model of a line-scan capture whose trajectory is joint angles (``joints`` at the
+    robot's ``times``): every row's flange pose through the arm's table, whose entries are fitted
+    with X (:class:`~handeye.robot.models.JointTrajectory`); each scan's own pose, for the start and
+    the arm's accuracy, at its reference time (:attr:`LineScanCorners.t_ref`).
+
+    Examples
+    --------
+    >>> from handeye.simulate.linescan import linescan_scene
+    >>> sc = linescan_scene(4, "eye_in_hand", rng=0, arm="ur5")
+    >>> model = LineScanCorners("eye_in_hand", sc.names, sc.corners, sc.target_points, sc.starts, sc.line_rate,
+    ...                         sc.trajectory, sc.focal, sc.width)
+    >>> linescan_joints(sc.chain, sc.trajectory.times, sc.joints, model).joints.shape
+    (4, 6)
+    """
+    return JointTrajectory(chain, joints_at(times, joints, model.t_ref), compliance=compliance, times=times,
+                           trajectory=joints)
 
 
 def grid_orderings(points: NDArray[np.float64]) -> list[NDArray[np.intp]]:
@@ -88,8 +110,10 @@ def calibrate_linescan_session(folder: str | Path | LineScanSession, options: Ca
     ----------
     folder : path or LineScanSession
     options : CalibrationOptions, optional
-        ``robot_accuracy`` (the controller's poses' stated accuracy, added to X's std) and ``folds``
-        are used; the options of image sessions are refused when changed.
+        ``robot_accuracy`` (the controller's poses' stated accuracy: each scan's pose error fitted
+        with it as the prior), ``folds``, and for a trajectory of joint angles ``arm`` (instead of
+        the ``joints:`` table's) and ``compliance``; the options of image sessions are refused when
+        changed.
     progress : bool
         A progress bar over the scans' detection.
 
@@ -98,7 +122,8 @@ def calibrate_linescan_session(folder: str | Path | LineScanSession, options: Ca
     Calibration
         X (``cam2flange`` eye-in-hand, ``cam2base`` eye-to-hand), Z the target's pose, the std, the
         verdict; ``sensor`` holds the fitted focal length, principal point, distortion and clock
-        offset with their std; ``skipped`` the scans not used, with why.
+        offset with their std; ``skipped`` the scans not used, with why; with joint angles
+        ``kinematic``, the arm's table fitted and its accuracy before and after.
 
     Raises
     ------
@@ -116,8 +141,8 @@ def calibrate_linescan_session(folder: str | Path | LineScanSession, options: Ca
     >>> cal.verdict, abs(cal.sensor.figures["focal_px"]["value"] / 2400 - 1) < 1e-3
     ('good', True)
     """
-    opts = sensor_options(options, changes, "a line-scan session")
-    s = folder if isinstance(folder, LineScanSession) else load_linescan_session(folder)
+    opts = sensor_options(options, changes, "a line-scan session", table=True)
+    s = folder if isinstance(folder, LineScanSession) else load_linescan_session(folder, arm=opts.arm)
     target, found = _detected(s, progress)
     kept = [k for k, (det, _) in enumerate(found) if det is not None]
     skipped = [(s.names[k], why) for k, (det, why) in enumerate(found) if det is None]
@@ -131,5 +156,17 @@ def calibrate_linescan_session(folder: str | Path | LineScanSession, options: Ca
                             # a grid found whole may be read in a mirrored order; a coded target's ids are its own
                             grid_orderings(target.object_points()) if all(len(found[k][0]) == len(target.object_points())
                                                                           for k in kept) else None)
-    cal = estimate(model, linescan_robot(model.flange2base_ref, opts.robot_accuracy), opts.folds)
+    cal = estimate(model, _robot(s, model, opts), opts.folds)
     return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + list(cal.notes), input_folder=s.folder)
+
+
+def _robot(s: LineScanSession, model: LineScanCorners, opts: CalibrationOptions) -> RobotModel:
+    """The session's robot model: its joint angles through the arm's table when it has them, else the
+    controller's poses (:func:`linescan_robot`)."""
+    if s.joints is not None:
+        return linescan_joints(s.arm, s.times, s.joints, model, opts.compliance)
+    if opts.compliance:
+        raise InputMismatchError(f"{s.folder}: compliance=True (--compliance) fits the joints' compliance from joint "
+                                 "angles with the arm's table; the session's trajectory is poses (give it as a joints: "
+                                 "table) or leave compliance out")
+    return linescan_robot(model.flange2base_ref, opts.robot_accuracy)

@@ -22,7 +22,7 @@ from ..frames.poses import RobotPoseInput
 from ..frames.setups import check_setup
 from ..options import CalibrationOptions, options_from
 from ..result import Calibration, StreamSync
-from ..robot.kinematics import Chain, load_arm
+from ..robot.kinematics import Chain, joints_at, load_arm
 from .calibration import calibrate_poses
 from .joints import calibrate_joints, joint_angles
 
@@ -160,7 +160,7 @@ def calibrate_joint_streams(
     sync = synchronise(robot, camera, setup, opts.offset_range, opts.time_offset, opts.keyframes)
     kf, _, n_candidates = keyframes_at(robot, camera, sync.offset, opts.keyframes, setup, sync.fit)
     at = camera.times[kf] - sync.offset
-    q_kf = np.stack([np.interp(at, robot.times, q[:, j]) for j in range(chain.n_joints)], axis=1)
+    q_kf = joints_at(robot.times, q, at)
     cal = calibrate_joints(q_kf, camera.poses[kf], setup, chain, opts.replace(offset_range=None, time_offset=None))
     return _with_sync(cal, sync, robot, camera, kf, setup,
                       f"{len(kf)} keyframes calibrated with the arm's table, chosen among {n_candidates} camera samples "

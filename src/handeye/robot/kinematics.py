@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..errors import InputMismatchError
 
 __all__ = ["Chain", "PARAMETERS", "GRAVITY", "arm_names", "load_arm", "absorbed_parameters",
-           "along_parallel_axes", "check_joints_against_poses", "chain_yaml", "display_unit"]
+           "along_parallel_axes", "check_joints_against_poses", "chain_yaml", "display_unit", "joints_at"]
 
 #: A joint's parameters, in the order of a chain's table columns (and of its parameter vector).
 PARAMETERS = ("a", "alpha", "d", "theta")
@@ -239,6 +239,13 @@ def _coupling(value, n: int, name: str) -> tuple[int, int, float]:
         raise InputMismatchError(f"{name}: pendant_coupling {list(value)}: two different joints of 1..{n} and a finite "
                                  "factor")
     return j, i, f
+
+
+def joints_at(times: ArrayLike, joints: ArrayLike, at: ArrayLike) -> NDArray[np.float64]:
+    """Joint angles (N, n) sampled at increasing ``times`` (N,), at the times ``at`` (M,): each joint
+    linear between samples, held at the ends."""
+    q = np.asarray(joints, dtype=float)
+    return np.stack([np.interp(at, times, q[:, j]) for j in range(q.shape[1])], axis=1)
 
 
 def display_unit(name: str) -> tuple[float, str]:

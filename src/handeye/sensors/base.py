@@ -56,6 +56,11 @@ A new sensor is one package under ``sensors/`` whose model class has these membe
     Per view of ``views`` what the report draws of it in the sensor's own plane: the measured
     points, their residuals and the fitted target's section (:class:`~handeye.result.SensorFit`'s
     ``sections``; the laser's has it).
+``residuals(X, p, flange2base, rows, motion=...)`` (optional)
+    A sensor whose view spans a move (a line-scan camera's rows, each exposed at its own time) takes
+    ``motion``, the flange's pose at robot times (M,) -> (M, 4, 4), from a robot model that follows
+    the move (:class:`~handeye.robot.models.JointTrajectory`); the core passes it only from such a
+    robot, and the sensor then takes every row's pose from it instead of its view's pose.
 ``pixel_size(rows)`` (optional)
     Per measurement row the size (m) of one pixel of its residual, when the residuals are pixels
     times a size (an area camera's corners): cross-validation then gives held-out errors in pixels

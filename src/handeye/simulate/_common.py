@@ -10,13 +10,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 from numpy.typing import NDArray
+from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from .._shared.io import atomic_write, check_output_folder
 from .._shared.lazy import lazy_module
 from ..errors import HandEyeError
 from ..frames.setups import predicted_target2cam, setup_info
-from ..geometry.se3 import make_transform, perturb
+from ..geometry.se3 import invert, make_transform, perturb
 from ..robot.kinematics import Chain, absorbed_parameters
 from ..sensors.camera.pnp import project_points
 from ..sensors.camera.render import Renderer
@@ -263,6 +264,40 @@ def _real_chain(chain: Chain, rng: np.random.Generator, length_mm: float, angle_
     if compliance_deg_per_m > 0:
         true = replace(true, compliance=np.radians(compliance_deg_per_m) * rng.uniform(0.5, 1.5, chain.n_joints))
     return true
+
+
+#: A sensor on the flange (eye-in-hand) or a target on it (eye-to-hand) sits this far (m) out along the
+#: flange's axis, and up to this far (m) off it (:func:`arm_mount`).
+MOUNT_M = (0.05, 0.10)
+
+
+def arm_mount(chain: Chain, setup: str, rng: np.random.Generator, standoff: float
+              ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """X and Z of a cell built about ``chain``'s home for ``setup``: the sensor (eye-in-hand) or the
+    target (eye-to-hand, turned to face away from the flange) mounted on the flange
+    (:data:`MOUNT_M`, tilted ~5 deg, any turn about the flange's axis), and at home the sensor
+    looking down its z axis at the target's origin from ``standoff`` (m)."""
+    flange_home = chain.forward(chain.home[setup][None])[0]
+    mount = make_transform(Rotation.from_rotvec(rng.normal(0.0, np.radians(5.0), 3)).as_matrix()
+                           @ Rotation.from_euler("z", rng.uniform(-180, 180), degrees=True).as_matrix(),
+                           rng.uniform(-1, 1, 3) * [MOUNT_M[1], MOUNT_M[1], 0.0] + [0.0, 0.0, MOUNT_M[0]])
+    above = make_transform(Rotation.from_euler("x", 180, degrees=True).as_matrix(), [0.0, 0.0, standoff])  # sensor2target
+    if setup_info(setup).camera_on_flange:  # X: the sensor on the flange; Z: the target below it at home
+        return mount, flange_home @ mount @ invert(above)
+    Z = mount @ make_transform(Rotation.from_euler("x", 180, degrees=True).as_matrix(), np.zeros(3))
+    return flange_home @ Z @ above, Z  # X: the sensor above the target at home
+
+
+def reaching(chain: Chain, flange2base: NDArray[np.float64], q0: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """Joint angles from ``q0`` that take ``chain``'s flange to ``flange2base`` (least squares), and
+    how far they leave it (rad, and m / 0.1 m)."""
+    def gap(q):
+        E = invert(flange2base) @ chain.forward(q[None])[0]
+        return np.r_[Rotation.from_matrix(E[:3, :3]).as_rotvec(), E[:3, 3] / 0.1]
+
+    # a redundant arm (7 joints): more unknowns than the pose's 6, which Levenberg-Marquardt refuses
+    res = least_squares(gap, q0, method="lm" if len(q0) <= 6 else "trf", xtol=1e-14, ftol=1e-14)
+    return res.x, float(np.max(np.abs(res.fun)))
 
 
 def _reported(flange2base: NDArray[np.float64], error: tuple[float, float] | None, rng: np.random.Generator):

@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 import yaml
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from .._shared.io import atomic_write, check_output_folder
@@ -26,7 +25,7 @@ from ..frames.setups import check_setup, predicted_target2cam, setup_info
 from ..geometry.se3 import invert, make_transform
 from ..io.session import write_joint_table, write_pose_table
 from ..robot.kinematics import Chain, load_arm
-from ._common import _real_chain, _reported
+from ._common import _real_chain, _reported, arm_mount, reaching
 from .scenes import Scene, scene_from_viewpoints
 
 __all__ = ["LaserScene", "laser_scene", "write_laser_session", "write_profile", "profiler_views", "profile_reading", "PROFILER", "TARGETS"]
@@ -321,9 +320,8 @@ def laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Ge
                       profiles=profiles, radius=radius, noise_m=noise_m, flange2base_true=scene.flange2base, target=target)
 
 
-#: The arm's sensor (eye-in-hand) or ball (eye-to-hand) this far (m) off the flange, and the ball this
-#: far from the profiler at the arm's home.
-MOUNT_M, STANDOFF_M = (0.05, 0.10), 0.12
+#: The ball this far (m) from the profiler at the arm's home.
+STANDOFF_M = 0.12
 
 
 def _arm_laser_scene(n: int, setup: str, rng: np.random.Generator, radius, noise_m, dropout, spikes, cone_deg, arm: str,
@@ -335,17 +333,7 @@ def _arm_laser_scene(n: int, setup: str, rng: np.random.Generator, radius, noise
     profile is what the profiler sees from there (drawn again when it has fewer than 200 points)."""
     chain = load_arm(arm)
     home = chain.home[setup]
-    flange_home = chain.forward(home[None])[0]
-    mount = make_transform(Rotation.from_rotvec(rng.normal(0.0, np.radians(5.0), 3)).as_matrix()
-                           @ Rotation.from_euler("z", rng.uniform(-180, 180), degrees=True).as_matrix(),
-                           rng.uniform(-1, 1, 3) * [MOUNT_M[1], MOUNT_M[1], 0.0] + [0.0, 0.0, MOUNT_M[0]])
-    above = make_transform(Rotation.from_euler("x", 180, degrees=True).as_matrix(), [0.0, 0.0, STANDOFF_M])  # sensor2target
-    if setup_info(setup).camera_on_flange:  # X: the profiler on the flange; Z: the ball below it at home
-        X = mount
-        Z = flange_home @ X @ invert(above)
-    else:  # Z: the ball on the flange; X: the profiler above it at home
-        Z = mount @ make_transform(Rotation.from_euler("x", 180, degrees=True).as_matrix(), np.zeros(3))
-        X = flange_home @ Z @ above
+    X, Z = arm_mount(chain, setup, rng, STANDOFF_M)
     true = _real_chain(chain, rng, length_mm, angle_deg)
     limit = 1.5 * (chain.spread if chain.spread is not None else np.full(chain.n_joints, np.pi))
     joints, profiles, f_true = [], [], []
@@ -354,7 +342,7 @@ def _arm_laser_scene(n: int, setup: str, rng: np.random.Generator, radius, noise
             break
         s2t = profiler_views(target, 1, radius, rng, cone_deg)[0]
         wanted = (Z @ s2t @ invert(X) if setup_info(setup).camera_on_flange else X @ invert(s2t) @ invert(Z))
-        q, gap = _reaching(chain, wanted, home)
+        q, gap = reaching(chain, wanted, home)
         if gap > 1e-6 or np.any(np.abs(q - home) > limit):
             continue
         F = true.forward(q[None])[0]
@@ -372,17 +360,6 @@ def _arm_laser_scene(n: int, setup: str, rng: np.random.Generator, radius, noise
     return LaserScene(setup, X, Z, chain.forward(reported), predicted_target2cam(X, Z, F_true, setup), profiles=profiles,
                       radius=radius, noise_m=noise_m, flange2base_true=F_true, joints=reported, arm=arm, chain=chain,
                       chain_true=true, target=target)
-
-
-def _reaching(chain: Chain, flange2base: NDArray[np.float64], q0: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
-    """Joint angles from ``q0`` that take ``chain``'s flange to ``flange2base`` (least squares), and
-    how far they leave it (rad, and m / 0.1 m)."""
-    def gap(q):
-        E = invert(flange2base) @ chain.forward(q[None])[0]
-        return np.r_[Rotation.from_matrix(E[:3, :3]).as_rotvec(), E[:3, 3] / 0.1]
-
-    res = least_squares(gap, q0, method="lm", xtol=1e-14, ftol=1e-14)
-    return res.x, float(np.max(np.abs(res.fun)))
 
 
 def _target_truth(scene: LaserScene) -> dict:

@@ -17,7 +17,8 @@ and ``delta``.
 The flange's pose during a scan comes from the robot's time-stamped trajectory
 (:class:`Trajectory`): each scan's reference pose (at its middle row; the robot model's pose of the
 view, where the robot's error enters) times the trajectory's motion relative to it, interpolated at
-each row's time.
+each row's time; or, from joint angles along the trajectory, every row's pose through the arm's
+fitted table (:class:`~handeye.robot.models.JointTrajectory`'s ``motion``).
 """
 
 from __future__ import annotations
@@ -237,10 +238,15 @@ class LineScanCorners(ChartedTarget):
         self._first_start(X, Z, flange2base, self.focal0)  # at each corner's scan's reference pose
         return X, np.r_[self.target_params(Z), self.focal0, 0.5 * self.width, 0.0, 0.0]
 
-    def _in_camera(self, X, p, flange2base, rows) -> NDArray[np.float64]:
-        """The corners of ``rows`` in the camera frame at their rows' times."""
+    def _in_camera(self, X, p, flange2base, rows, motion=None) -> NDArray[np.float64]:
+        """The corners of ``rows`` in the camera frame at their rows' times: the flange's pose there
+        from the robot's ``motion`` (its pose at robot times) when given, else each scan's pose in
+        ``flange2base`` times the trajectory's move from it."""
         owner = self.owner[rows]
-        F = np.asarray(flange2base, float)[owner] @ self._relative(owner, self.s[rows] + p[9])
+        if motion is not None:  # a row's robot time: its scan's reference, the row's offset from it, the clocks'
+            F = motion(self.t_ref[owner] + self.s[rows] + p[9])
+        else:
+            F = np.asarray(flange2base, float)[owner] @ self._relative(owner, self.s[rows] + p[9])
         target2cam = predicted_target2cam(X, self._target2world(p), F, self.setup)
         return np.einsum("mij,mj->mi", target2cam[:, :3, :3], self.points[rows]) + target2cam[:, :3, 3]
 
@@ -248,10 +254,11 @@ class LineScanCorners(ChartedTarget):
         """The pixel along the line of normalised coordinates ``xn = x / z``."""
         return p[7] + p[6] * (xn + p[8] * xn**3)
 
-    def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
+    def residuals(self, X, p, flange2base, rows, motion=None) -> NDArray[np.float64]:
         """Per corner (m): its pixel error along the line times the pixel's size at its depth, and its
-        distance from the view plane at its row's time."""
-        c = self._in_camera(X, p, flange2base, rows)
+        distance from the view plane at its row's time (``motion``: the flange's pose at robot times,
+        from a robot model that follows the move, :class:`~handeye.robot.models.JointTrajectory`)."""
+        c = self._in_camera(X, p, flange2base, rows, motion)
         du = self.project(p, c[:, 0] / c[:, 2]) - self.uv[rows, 0]
         return np.c_[du * self._mpp[rows], c[:, 1]]
 
