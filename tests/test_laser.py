@@ -489,6 +489,11 @@ def test_x_from_a_fixture_of_balls_told_apart(setup, monkeypatch):
     rough = laser_scene(20, setup, rng=42, target="spheres", robot_error=(0.01, 0.05))
     fitted = estimate(_fixture_model(setup, rough), ControllerPoses(rough.flange2base, (0.01, 0.05)))
     assert within_std(fitted.X, rough.X, fitted.std)
+    # two profilers sharing the fixture in a rig: its unknowns (every centre) are not one pose's; refused by name
+    from handeye.sensors.rig import Rig
+    model = _fixture_model(setup, sc)
+    with pytest.raises(handeye.errors.InputMismatchError, match="shared_target=False"):
+        Rig([model, _fixture_model(setup, sc)], ["a", "b"], [(cal.X, cal.sensor.params)] * 2)
 
 
 @pytest.mark.parametrize("missing", [1, 0])

@@ -192,3 +192,35 @@ def test_joint_trajectory_sessions_and_their_faults(tmp_path):
     (folder / "session.yaml").write_text(yaml.safe_dump({k: v for k, v in spec.items() if k not in ("joints", "poses")}))
     with pytest.raises(SessionError, match="neither a poses: nor a joints: block"):
         calibrate_linescan_session(folder)
+
+
+def test_a_plan_of_scans_predicts_the_std_it_gives(tmp_path):
+    """plan_linescan about a board on the table: 10 scans (two flange poses each), X's predicted std
+    finite and tighter in translation than the same number of scans at one distance turned at most 10
+    deg; captures of such scans (other noise draws) calibrate within 3 of the predicted std; the CLI
+    writes the moves and refuses a camera's options by name."""
+    from handeye.cli import main
+    from handeye.geometry.se3 import make_transform
+    from handeye.pipelines.linescan import linescan_robot
+    from handeye.planning.linescan import _TOWARDS_CAMERA, plan_linescan
+    X = make_transform(np.eye(3), [0.0, 0.0, 0.05])
+    Z = make_transform(np.diag([1.0, -1.0, -1.0]), [0.6, 0.0, 0.0])  # printed side up, as a camera plan takes it
+    plan = plan_linescan("eye_in_hand", X, Z, n_scans=10, rng=0, robot_accuracy=None)
+    assert plan.moves.shape == (10, 2, 4, 4) and np.all(np.isfinite(plan.std_X))
+    assert np.linalg.norm(plan.std_data[3:]) < 0.5 * np.linalg.norm(plan.std_narrow[3:])
+    distance = np.linalg.norm(plan.moves[:, 0, :3, 3] - plan.moves[:, 1, :3, 3], axis=1)
+    assert np.allclose(distance, distance[0])  # one straight move of the same length per scan
+    for seed in (1, 2):
+        sc = linescan_scene(10, "eye_in_hand", seed, cell=(X, Z @ _TOWARDS_CAMERA), noise_px=0.2, jitter_s=0.0,
+                            clock_offset=0.0, k1=0.0)
+        model = LineScanCorners(sc.setup, sc.names, sc.corners, sc.target_points, sc.starts, sc.line_rate, sc.trajectory,
+                                sc.focal, sc.width, 0.2)
+        cal = estimate(model, linescan_robot(model.flange2base_ref, None))
+        assert within_std(cal.X, X, cal.std)
+    out = tmp_path / "scans.csv"
+    assert main(["plan", "--sensor", "line_scan", "--target-in-base", "0.6,0,0", "--poses", "8", "--out", str(out)]) == 0
+    lines = out.read_text().splitlines()
+    assert lines[0].startswith("scan,") and len(lines) == 17 and lines[1].startswith("s01.start,")
+    assert main(["plan", "--sensor", "line_scan", "--intrinsics", "k.yaml", "--out", str(tmp_path / "b.csv")]) == 2
+    assert main(["plan", "--line-camera", "2048,2400", "--intrinsics", "k.yaml", "--standoff", "0.5",
+                 "--out", str(tmp_path / "c.csv")]) == 2

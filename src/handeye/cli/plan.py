@@ -17,6 +17,8 @@ from ..options import ROBOT_ACCURACY, CalibrationOptions
 from ..pipelines.folders import calibrate_session
 from ..planning.joints import suggest_joint_views
 from ..planning.laser import NARROW_DEG, assumed_shape, plan_laser
+from ..planning.linescan import NARROW_DEG as LINESCAN_NARROW_DEG
+from ..planning.linescan import plan_linescan
 from ..planning.poses import (
     ROBOTS,
     easy_handeye_poses,
@@ -42,6 +44,7 @@ from ._common import (
     placements,
     pose_arg,
     sensor_target,
+    target_spec_arg,
     whole_arg,
 )
 from ._printing import fmt_vec, print_next_views
@@ -141,6 +144,53 @@ def _plan_laser(args: argparse.Namespace) -> int:
     return 0
 
 
+def _plan_linescan(args: argparse.Namespace) -> int:
+    """--sensor line_scan: straight scans across a chessboard for a line-scan camera, and the std they
+    would give, beside the same number of scans at one distance turned at most LINESCAN_NARROW_DEG."""
+    given = [name for name, value in (("--intrinsics", args.intrinsics), ("--session", args.session),
+                                      ("--rig-camera", args.rig_camera), ("--diameter", args.diameter),
+                                      ("--reach-box", args.reach_box), ("--z-range", args.z_range)) if value]
+    if given or args.robot != "arm":
+        raise HandEyeError(f"{', '.join(given) or '--robot ' + args.robot}: not for a line-scan plan; it takes the camera "
+                           "(--line-camera WIDTH,FOCAL), its placement (--cam-in-flange or --camera-in-base), the target's, "
+                           "--target or --target-spec, --standoff and --speed")
+    spec = target_spec_arg(args.target_spec)
+    points = None
+    if spec is not None or args.target is not None:  # else the simulator's chessboard
+        points = target_from_spec(spec or DEFAULT_TARGETS[sensor_target("camera", args.target, "chessboard")]).object_points()
+    camera = floats_arg(args.line_camera, "--line-camera", (2,))
+    width, focal = (None, None) if camera is None else (int(camera[0]), float(camera[1]))
+    _check_pose_format(args)
+    X, Z = placements(args)
+    out = _new_file(args.out)
+    out_folder(str(out.parent))
+    plan = plan_linescan(args.setup, X, Z, n_scans=args.poses or 12, points=points, focal=focal, width=width,
+                         distance=args.standoff or 0.4, speed=args.speed, noise_px=args.noise_px,
+                         robot_accuracy=accuracy_arg(args.robot_accuracy), rng=args.seed)
+    names = [f"s{k + 1:02d}.{end}" for k in range(len(plan.moves)) for end in ("start", "end")]
+    write_pose_table(out, names, plan.moves.reshape(-1, 4, 4), args.format, args.length_unit, args.angle_unit,
+                     id_column="scan")
+    print(f"{len(plan.moves)} straight scans across the board at {plan.speed:g} m/s, forth and back in turn, the camera "
+          f"within {plan.cone_deg:g} deg of the board's normal at {0.75 * plan.distance:.2f}-{1.25 * plan.distance:.2f} m "
+          f"(line rate {plan.line_rate:.0f} rows/s for square pixels); each scan's start and end:")
+    print("  scan         flange x, y, z (mm)            flange rotation vector (deg)")
+    for name, F in zip(names, plan.moves.reshape(-1, 4, 4)):
+        print(f"  {name:10s}   {fmt_vec(1e3 * F[:3, 3], 1):30s} {fmt_vec(Rotation.from_matrix(F[:3, :3]).as_rotvec(degrees=True), 1)}")
+    s, d, n = plan.std_X, plan.std_data, plan.std_narrow
+    acc = plan.robot_accuracy
+    print(f"\npredicted std of X as calibrate would report it: rotation {fmt_vec(s[:3], 4)} deg, translation "
+          f"{fmt_vec(s[3:], 3)} mm" + (f" (the robot's accuracy {acc[0]:g} deg / {acc[1]:g} mm per axis in it, each "
+                                       "scan's pose error fitted with it)" if acc is not None else ""))
+    print(f"  from the scans alone: rotation {fmt_vec(d[:3], 5)} deg, translation {fmt_vec(d[3:], 4)} mm")
+    print(f"  the same number of scans at one distance, turned at most {LINESCAN_NARROW_DEG:g} deg: " + (
+        f"rotation {fmt_vec(n[:3], 5)} deg, translation {fmt_vec(n[3:], 4)} mm" if np.all(np.isfinite(n)) else
+        "X is not determined") + " (turns between scans place X; distances tell the focal length from the distance)")
+    print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): per scan the flange's pose where its "
+          "straight move starts and where it ends; record the robot's trajectory (with times) and each scan's start time "
+          "for the line-scan session (docs/guide.md, 'Line-scan cameras')")
+    return 0
+
+
 #: What places X's rotation, per laser target (the plan's last line).
 _LEVER = {"sphere": "the ball's centre across the laser plane, its rotation",
           "spheres": "the balls' centres across the laser plane, its rotation",
@@ -198,6 +248,10 @@ def _plan_rig(args: argparse.Namespace, obj: np.ndarray, K: np.ndarray, dist: np
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
+    if args.sensor == "line_scan":
+        return _plan_linescan(args)
+    if args.line_camera is not None:
+        raise HandEyeError("--line-camera is a line-scan camera's: add --sensor line_scan, or leave it out")
     if args.sensor == "laser_line":
         if args.rig_camera:
             raise HandEyeError("--rig-camera plans for a rig of cameras; leave it out with --sensor laser_line")
@@ -306,11 +360,16 @@ def register(sub) -> None:
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--intrinsics",
                    help="YAML with K, dist (optional) and image_size [width, height], top level or under camera:")
-    p.add_argument("--sensor", default="camera", choices=["camera", "laser_line"],
+    p.add_argument("--sensor", default="camera", choices=["camera", "laser_line", "line_scan"],
                    help="camera (default): views of a board; laser_line: a laser line profiler's profiles of a ball "
                    "(--diameter), a plate, a block's edge, a step or a fixture of balls (--target); --target-in-base "
                    "is then the ball's centre (a point of the plate, of the edge's line, the first ball's centre), its "
-                   "rotation by default 0,0,0: the profiler looks from above")
+                   "rotation by default 0,0,0: the profiler looks from above; line_scan: a line-scan camera's straight "
+                   "scans across a chessboard (--line-camera, --standoff, --speed)")
+    p.add_argument("--line-camera", metavar="WIDTH,FOCAL",
+                   help="--sensor line_scan: pixels along the line and the focal length in pixels (default 2048,2400)")
+    p.add_argument("--speed", type=number_arg(0.0, above=True), default=0.2,
+                   help="--sensor line_scan: the scans' speed (m/s, default 0.2)")
     p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS),
                    help="built-in target (the one 'handeye simulate' renders; default chessboard); see --target-spec; "
                    "with --sensor laser_line: sphere (default), plane, edge, step or spheres")
@@ -319,7 +378,8 @@ def register(sub) -> None:
     p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (e.g. your session.yaml)")
     add_placements(p)
     p.add_argument("--standoff", type=number_arg(0.0, above=True),
-                   help="camera-to-target distance (m) of the middle views; the plan spreads them over 0.8-1.25x it")
+                   help="camera-to-target distance (m) of the middle views; the plan spreads them over 0.8-1.25x it "
+                   "(--sensor line_scan: 0.75-1.25x, default 0.4)")
     p.add_argument("--tilt-max", type=number_arg(0.0, 89.0), default=45.0,
                    help="largest view angle from the target normal (deg, default 45)")
     p.add_argument("--margin-px", type=number_arg(0.0), default=20.0, help="keep every target point this far inside the image")

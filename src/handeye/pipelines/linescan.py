@@ -40,7 +40,7 @@ def linescan_robot(flange2base_ref: NDArray[np.float64], accuracy: tuple[float, 
                    ) -> ControllerPoses | PoseErrors:
     """The robot model of a line-scan capture: each scan's reference pose with its own error fitted,
     the robot's stated ``accuracy`` its prior (:class:`~handeye.robot.models.PoseErrors`); the poses
-    as given when no accuracy is stated (an exact robot).
+    as given when no accuracy is stated, or (0, 0) (an exact robot).
 
     A scan is a short straight move, over which the arm's error is one rigid error; fitted, it no
     longer bends the focal length and X (the focal length trades with the distance). Measured
@@ -49,7 +49,8 @@ def linescan_robot(flange2base_ref: NDArray[np.float64], accuracy: tuple[float, 
     focal length within 0.02%. With an exact robot and the default accuracy stated, it costs
     precision the data would have given (0.03 -> 0.15 mm on 6 sessions): no real arm is exact.
     """
-    return ControllerPoses(flange2base_ref, None) if accuracy is None else PoseErrors(flange2base_ref, accuracy)
+    exact = accuracy is None or not any(accuracy)  # (0, 0): the robot stated exact, as the options take it
+    return ControllerPoses(flange2base_ref, None) if exact else PoseErrors(flange2base_ref, accuracy)
 
 
 def linescan_joints(chain: Chain, times: NDArray[np.float64], joints: NDArray[np.float64], model: LineScanCorners,

@@ -133,8 +133,9 @@ class PoseErrors(ControllerPoses):
     describe: str = "the controller's flange poses, each pose's own error fitted (prior: the robot's accuracy)"
 
     def __post_init__(self) -> None:
-        if self.accuracy is None:
-            raise InputMismatchError("PoseErrors needs the robot's stated accuracy (deg, mm): the prior of each pose's error")
+        if self.accuracy is None or not all(np.isfinite(a) and a > 0 for a in self.accuracy):
+            raise InputMismatchError(f"PoseErrors needs the robot's stated accuracy (deg, mm), both positive: the prior of "
+                                     f"each pose's error; got {self.accuracy} (an exact robot is ControllerPoses)")
 
     @property
     def n_params(self) -> int:  # type: ignore[override]

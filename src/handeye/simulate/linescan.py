@@ -75,9 +75,11 @@ class LineScanScene:
     k1: float
     width: int
     clock_offset: float
-    board: tuple[int, int, float]
+    board: tuple[int, int, float] | None  #: the chessboard's inner corners per row and column and square (None: other points)
     #: the camera's true pose in the board frame over the robot's clock (what :func:`render_scan` draws)
     cam_true: Trajectory | None = None
+    #: per scan the flange's true pose where its straight move starts and where it ends (N, 2, 4, 4)
+    moves: NDArray[np.float64] | None = None
     #: with an arm: the joint angles the controller reports (rad) at ``trajectory.times``, the arm's
     #: name, its nominal and real tables
     joints: NDArray[np.float64] | None = None
@@ -97,7 +99,8 @@ def linescan_scene(n_scans: int = 12, setup: str = "eye_in_hand", rng: np.random
                    jitter_s: float = 2e-5, robot_error: tuple[float, float] | None = None, clock_offset: float = 0.012,
                    focal: float | None = None, k1: float | None = None, depth_spread: float = 0.25,
                    arm: str | None = None, length_mm: float = 0.5, angle_deg: float = 0.05,
-                   joint_noise_deg: float = 0.002) -> LineScanScene:
+                   joint_noise_deg: float = 0.002, cell: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+                   points: NDArray[np.float64] | None = None, width: int | None = None) -> LineScanScene:
     """A line-scan camera's capture of a chessboard (the module docstring).
 
     ``n_scans`` scans (:data:`LINESCAN_CAMERA`: 2,048 pixels, f = 2,400 px; a 9 x 6 board of 20 mm
@@ -113,6 +116,10 @@ def linescan_scene(n_scans: int = 12, setup: str = "eye_in_hand", rng: np.random
     home, its real table off the nominal one by ``length_mm`` / ``angle_deg`` per entry (1-3 mm at
     the flange), the joint angles reported with ``joint_noise_deg`` of encoder noise per sample
     (``joints``), ``trajectory`` the nominal table's poses at them; give no ``robot_error`` then.
+    ``cell`` (X, Z): the camera's and the board's placement as given, not drawn (a plan's; the board's
+    +z towards the camera); ``points`` (n, 3; z = 0, m): another target's points than the chessboard's
+    (a plan's; such a scene is not rendered); ``width``: other pixels along the line than
+    :data:`LINESCAN_CAMERA`'s.
 
     Examples
     --------
@@ -123,20 +130,24 @@ def linescan_scene(n_scans: int = 12, setup: str = "eye_in_hand", rng: np.random
     setup = check_setup(setup)
     if n_scans < 1:
         raise InputMismatchError(f"n_scans={n_scans}: at least 1")
-    if arm is not None and robot_error is not None:
-        raise InputMismatchError("linescan_scene: give arm (its table's error) or robot_error (an error of the poses), "
-                                 "not both")
+    if arm is not None and (robot_error is not None or cell is not None):
+        raise InputMismatchError("linescan_scene: give arm (its table's error and its own cell) or robot_error (an error "
+                                 "of the poses) and cell, not both")
     rng = np.random.default_rng(rng)
     cam = LINESCAN_CAMERA
     f = float(cam["focal"] if focal is None else focal)
     k = float(cam["k1"] if k1 is None else k1)
-    width = int(cam["width"])
+    width = int(cam["width"] if width is None else width)
     cx = 0.5 * width + float(cam["cx_offset"])
     cols, rows, square = cam["board"]
-    board = Chessboard(cols, rows, square).object_points()
+    if points is None:
+        board = Chessboard(cols, rows, square).object_points()
+        half_path = 0.5 * np.hypot(cols, rows) * square + 0.04  # the board's half diagonal and a margin
+    else:
+        board = np.asarray(points, float).reshape(-1, 3)
+        half_path = 0.5 * float(np.hypot(*np.ptp(board[:, :2], axis=0))) + 0.06
     aim = board.mean(axis=0)
     line_rate = speed * f / distance
-    half_path = 0.5 * np.hypot(cols, rows) * square + 0.04  # the board's half diagonal and a margin
     direction = np.where(np.arange(n_scans) % 2 == 0, 1.0, -1.0)  # forth and back
     duration = 2 * half_path / speed
     mids = LEAD_S + 0.5 * duration + np.arange(n_scans) * (duration + 2 * LEAD_S + 3.0)  # after the robot has turned
@@ -150,10 +161,14 @@ def linescan_scene(n_scans: int = 12, setup: str = "eye_in_hand", rng: np.random
     chain = chain_true = None
     if arm is None:
         views = [_scan_view(rng, aim, distance, cone_deg, depth_spread) for _ in range(n_scans)]
-        scene = scene_from_viewpoints(make_transform(np.array([R for R, _ in views]), np.array([c for _, c in views])),
-                                      setup, rng)
-        X, Z = scene.X, scene.Z
-        errors = _reported(scene.flange2base, robot_error, rng) @ invert(scene.flange2base)  # per scan: reported = E @ true
+        mid = make_transform(np.array([R for R, _ in views]), np.array([c for _, c in views]))  # cam2target
+        if cell is None:
+            scene = scene_from_viewpoints(mid, setup, rng)
+            X, Z, flange_mid = scene.X, scene.Z, scene.flange2base
+        else:
+            X, Z = (np.asarray(T, float) for T in cell)
+            flange_mid = flange_poses(mid, X, Z, setup)
+        errors = _reported(flange_mid, robot_error, rng) @ invert(flange_mid)  # per scan: reported = E @ true
         moves = []
         for i, (R, centre) in enumerate(views):
             t, cam2target = motion(i, R, centre)
@@ -165,7 +180,7 @@ def linescan_scene(n_scans: int = 12, setup: str = "eye_in_hand", rng: np.random
         chain_true = _real_chain(chain, rng, length_mm, angle_deg)
         moves = [_arm_move(chain, chain_true, X, Z, setup, rng, i, lambda i: motion(i, *_scan_view(
             rng, aim, distance, cone_deg, depth_spread)), joint_noise_deg) for i in range(n_scans)]
-    times, poses_reported, joints, starts, lines, corners, points, names, cams = [], [], [], [], [], [], [], [], []
+    times, poses_reported, joints, starts, lines, corners, seen_points, names, cams = [], [], [], [], [], [], [], [], []
     for i, (t, cam2target, reported, q) in enumerate(moves):
         t_cross, c = _crossings(board, t, cam2target)
         xn = c[:, 0] / c[:, 2]
@@ -175,7 +190,7 @@ def linescan_scene(n_scans: int = 12, setup: str = "eye_in_hand", rng: np.random
         r += rng.normal(0.0, noise_px, len(board))
         seen = (u >= 0) & (u <= width - 1) & np.isfinite(t_cross)
         corners.append(np.c_[u, r][seen])
-        points.append(board[seen])
+        seen_points.append(board[seen])
         lines.append(int(np.ceil(duration * line_rate)))
         starts.append(start)
         times.append(t)
@@ -185,9 +200,11 @@ def linescan_scene(n_scans: int = 12, setup: str = "eye_in_hand", rng: np.random
         names.append(f"s{i + 1:02d}.png")
     times_all = np.concatenate(times)
     poses_true = flange_poses(np.concatenate(cams), X, Z, setup)
-    return LineScanScene(setup, X, Z, names, corners, points, np.array(starts), np.array(lines), line_rate,
+    ends = flange_poses(np.array([[c[0], c[-1]] for c in cams]), X, Z, setup)
+    return LineScanScene(setup, X, Z, names, corners, seen_points, np.array(starts), np.array(lines), line_rate,
                          Trajectory(times_all, np.concatenate(poses_reported)), Trajectory(times_all, poses_true), f, cx, k,
-                         width, clock_offset, (cols, rows, square), Trajectory(times_all, np.concatenate(cams)),
+                         width, clock_offset, (cols, rows, square) if points is None else None,
+                         Trajectory(times_all, np.concatenate(cams)), ends,
                          None if arm is None else np.concatenate(joints), arm, chain, chain_true)
 
 
@@ -274,8 +291,9 @@ def render_scan(scene: LineScanScene, i: int, rng: np.random.Generator | int | N
     then (``cam_true``), each pixel the board's printed pattern averaged over ``supersample`` x
     ``supersample`` points of it, with ``noise_grey`` of sensor noise. Off the printed sheet the
     background is mid grey."""
-    if scene.cam_true is None:
-        raise InputMismatchError("render_scan needs the camera's true move (cam_true): a scene from linescan_scene")
+    if scene.cam_true is None or scene.board is None:
+        raise InputMismatchError("render_scan draws a chessboard along the camera's true move: a scene from "
+                                 "linescan_scene without points=")
     rng = np.random.default_rng(rng)
     cols, rows, square = scene.board
     texture = Chessboard(cols, rows, square).texture(texels_per_m=12000.0)

@@ -313,6 +313,13 @@ class SpheresProfiles(SphereProfiles):
         out[self.scanned] = centres
         return out.ravel()
 
+    def target_params(self, Z) -> NDArray[np.float64]:
+        """Refused: the fixture's unknowns are every ball's centre, which one pose (``Z``: the first
+        ball's) does not give; a rig's sensors cannot share a fixture through it."""
+        raise InputMismatchError("a fixture of balls is fitted as every ball's centre, which one pose of it does not "
+                                 "give: sensors that share it in a rig cannot be mapped onto each other's balls; give "
+                                 "each sensor its own target (shared_target=False), or scan one ball")
+
     def Z(self, X, p) -> NDArray[np.float64]:
         """The first scanned ball's centre (a translation, as a ball's)."""
         k = int(np.argmax(self.scanned))
