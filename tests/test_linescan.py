@@ -95,6 +95,9 @@ def test_bad_inputs_are_named():
     with pytest.raises(InputMismatchError, match="one of each per scan"):
         LineScanCorners(sc.setup, sc.names[:3], sc.corners, sc.target_points, sc.starts, sc.line_rate, sc.trajectory,
                         2400.0, 2048)
+    assert isinstance(linescan_robot(sc.trajectory.flange2base[:4], (0.0, 0.0)), ControllerPoses)  # stated exact
+    with pytest.raises(InputMismatchError, match="positive in both"):  # each scan's error needs a prior on both axes
+        linescan_robot(sc.trajectory.flange2base[:4], (0.05, 0.0))
     flat = _model(linescan_scene(4, "eye_in_hand", rng=1, cone_deg=0.0))  # turned about the view direction only
     with pytest.raises(DegenerateMotionError, match="rotation axes are parallel"):
         estimate(flat, ControllerPoses(flat.flange2base_ref))

@@ -134,8 +134,9 @@ class PoseErrors(ControllerPoses):
 
     def __post_init__(self) -> None:
         if self.accuracy is None or not all(np.isfinite(a) and a > 0 for a in self.accuracy):
-            raise InputMismatchError(f"PoseErrors needs the robot's stated accuracy (deg, mm), both positive: the prior of "
-                                     f"each pose's error; got {self.accuracy} (an exact robot is ControllerPoses)")
+            raise InputMismatchError(f"robot accuracy {self.accuracy}: fitting each pose's error (a line-scan's scans, a "
+                                     "rig's views) takes the robot's accuracy as its prior, positive in both (deg, mm), "
+                                     "e.g. 0.03,0.3; or 0,0 for an exact robot (--robot-accuracy)")
 
     @property
     def n_params(self) -> int:  # type: ignore[override]
