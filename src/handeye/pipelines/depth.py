@@ -64,21 +64,25 @@ class DepthViews:
     notes: list = field(default_factory=list)
 
 
-def measure_depth_session(s: DepthSession, progress: bool = False, jobs: int | None = None) -> DepthViews:
+def measure_depth_session(s: DepthSession, progress: bool = False, jobs: int | None = None,
+                          detected: list | None = None) -> DepthViews:
     """Every view of ``s`` measured: a board's corners where their rays meet its plane fitted to
-    the cloud, or the spheres' centres; a view that cannot be measured is skipped with its reason."""
+    the cloud, or the spheres' centres; a view that cannot be measured is skipped with its reason.
+    ``detected``: the board already found in each view's intensity image (a rig detects every
+    sensor's images in one parallel pass)."""
     if s.kind == "spheres":
         return _measure_spheres(s, progress)
     v = DepthViews()
-    _measure_boards(s, progress, v, jobs)
+    _measure_boards(s, progress, v, jobs, detected)
     return v
 
 
-def _measure_boards(s: DepthSession, progress: bool, out: DepthViews, jobs: int | None) -> None:
-    target = target_from_spec(s.target_spec)
+def _measure_boards(s: DepthSession, progress: bool, out: DepthViews, jobs: int | None, detected: list | None) -> None:
     notes = out.notes
     frames = []
-    for k, res in enumerate(detect_images(s.image_paths or [], target, jobs=jobs, progress=progress)):
+    if detected is None:
+        detected = detect_images(s.image_paths or [], target_from_spec(s.target_spec), jobs=jobs, progress=progress)
+    for k, res in enumerate(detected):
         if res.detection is None:
             out.skipped.append((s.names[k], res.error or "target not found"))
             continue

@@ -287,16 +287,26 @@ def _laser_member(sensor: RigSensor, names: list[str], notes: list[str]) -> Sens
     return laser_model(sensor.laser, names, full)
 
 
-def _depth_member(sensor: RigSensor, names: list[str], notes: list[str], progress: bool) -> SensorModel:
+def _depth_images(sensor: RigSensor) -> list[Path]:
+    """The intensity images of a rig's depth camera that show a board, over the views it saw."""
+    d = sensor.depth
+    if d.kind == "spheres" or d.image_paths is None:
+        return []
+    return [d.image_paths[k] for k, ok in enumerate(sensor.seen) if ok]
+
+
+def _depth_member(sensor: RigSensor, names: list[str], notes: list[str], progress: bool, detected: list | None
+                  ) -> SensorModel:
     """A rig's depth camera as a sensor model over the rig's views: the views it has measured as a
     depth session's are (a board's corners lifted onto its plane in the cloud, or the spheres'
-    centres); a view it missed, or could not measure (said by name), has no rows."""
+    centres); a view it missed, or could not measure (said by name), has no rows. ``detected``: the
+    board found in its intensity images (:func:`_depth_images`) with the cameras'."""
     d = sensor.depth
     seen = [k for k, ok in enumerate(sensor.seen) if ok]
     mine = replace(d, names=[names[k] for k in seen], cloud_paths=[d.cloud_paths[k] for k in seen],
                    image_paths=None if d.image_paths is None else [d.image_paths[k] for k in seen],
                    flange2base=d.flange2base[seen])
-    v = measure_depth_session(mine, progress)
+    v = measure_depth_session(mine, progress, detected=detected)
     index = [seen[i] for i in v.index]
     notes += [f"sensor {sensor.name}: {n}" for n in v.notes]
     notes += [f"sensor {sensor.name}: view {view} skipped: {why}" for view, why in v.skipped]
@@ -341,14 +351,20 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     image_paths = [p for sensor in cameras for p in sensor.images if p is not None]
     # each image's digest (its own result refuses them in verify), hashed on the core the fit leaves idle
     hashed = files_digests_soon(image_paths, s.folder)
-    # every camera's images in one parallel detection (no worker idle at the end of each camera's)
-    found = iter(detect_images(image_paths, target_from_spec(s.target_spec, where="target"), progress=progress) if cameras else [])
+    # every camera's images, and the depth cameras' intensity images of the same board, in one parallel
+    # detection (no worker idle at the end of each sensor's)
+    same = [x for x in s.sensors if x.kind == "depth" and x.depth.target_spec == s.target_spec and _depth_images(x)]
+    depth_paths = [p for x in same for p in _depth_images(x)]
+    results = detect_images(image_paths + depth_paths, target_from_spec(s.target_spec, where="target"),
+                            progress=progress) if image_paths or depth_paths else []
+    found, depth_found = iter(results[:len(image_paths)]), iter(results[len(image_paths):])
     for sensor in s.sensors:
         if sensor.kind == "laser":
             members.append(_laser_member(sensor, s.names, notes))
             continue
         if sensor.kind == "depth":
-            members.append(_depth_member(sensor, s.names, notes, progress))
+            mine = [next(depth_found) for _ in _depth_images(sensor)] if any(sensor is x for x in same) else None
+            members.append(_depth_member(sensor, s.names, notes, progress, mine))
             continue
         paths = [p for p in sensor.images if p is not None]
         image_points, object_points = [], []
