@@ -126,19 +126,10 @@ def _plan_laser(args: argparse.Namespace) -> int:
     axis = "its faces' bisector" if target == "edge" else "the target frame's +z"
     print(f"{len(plan.flange2base)} profiles of {assumed_shape(target)}, the profiler within {plan.cone_deg:g} deg of "
           f"{axis}, turned about its view direction, in path order:")
-    print("  profile   flange x, y, z (mm)            flange rotation vector (deg)")
-    for name, F in zip(names, plan.flange2base):
-        print(f"  {name:8s}  {fmt_vec(1e3 * F[:3, 3], 1):30s} {fmt_vec(Rotation.from_matrix(F[:3, :3]).as_rotvec(degrees=True), 1)}")
-    s, d, n = plan.std_X, plan.std_data, plan.std_narrow
-    acc = plan.robot_accuracy
-    print(f"\npredicted std of X as calibrate would report it: rotation {fmt_vec(s[:3], 4)} deg, translation "
-          f"{fmt_vec(s[3:], 3)} mm" + (f" (the robot's absolute accuracy {acc[0]:g} deg / {acc[1]:g} mm per axis in it, "
-                                       "which no capture removes)" if acc is not None else ""))
-    print(f"  from the profiles alone: rotation {fmt_vec(d[:3], 5)} deg, translation {fmt_vec(d[3:], 4)} mm")
-    print(f"  the same number of profiles with the flange turned at most {NARROW_DEG:g} deg: " + (
-        f"rotation {fmt_vec(n[:3], 5)} deg, translation {fmt_vec(n[3:], 4)} mm" if np.all(np.isfinite(n)) else
-        "X is not determined (profiles at nearly one orientation only slide along a plate, an edge or a step)")
-    + " (turns between profiles place X's translation; " + _LEVER[target] + ")")
+    _print_plan("profile", names, plan.flange2base, plan, "which no capture removes", "profiles",
+                f"the same number of profiles with the flange turned at most {NARROW_DEG:g} deg",
+                "X is not determined (profiles at nearly one orientation only slide along a plate, an edge or a step)",
+                " (turns between profiles place X's translation; " + _LEVER[target] + ")")
     print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): flange2base per profile; it is the "
           "poses.csv of the laser session to capture (replace each row by the pose the robot reports)")
     return 0
@@ -173,22 +164,31 @@ def _plan_linescan(args: argparse.Namespace) -> int:
     print(f"{len(plan.moves)} straight scans across the board at {plan.speed:g} m/s, forth and back in turn, the camera "
           f"within {plan.cone_deg:g} deg of the board's normal at {0.75 * plan.distance:.2f}-{1.25 * plan.distance:.2f} m "
           f"(line rate {plan.line_rate:.0f} rows/s for square pixels); each scan's start and end:")
-    print("  scan         flange x, y, z (mm)            flange rotation vector (deg)")
-    for name, F in zip(names, plan.moves.reshape(-1, 4, 4)):
-        print(f"  {name:10s}   {fmt_vec(1e3 * F[:3, 3], 1):30s} {fmt_vec(Rotation.from_matrix(F[:3, :3]).as_rotvec(degrees=True), 1)}")
-    s, d, n = plan.std_X, plan.std_data, plan.std_narrow
-    acc = plan.robot_accuracy
-    print(f"\npredicted std of X as calibrate would report it: rotation {fmt_vec(s[:3], 4)} deg, translation "
-          f"{fmt_vec(s[3:], 3)} mm" + (f" (the robot's accuracy {acc[0]:g} deg / {acc[1]:g} mm per axis in it, each "
-                                       "scan's pose error fitted with it)" if acc is not None else ""))
-    print(f"  from the scans alone: rotation {fmt_vec(d[:3], 5)} deg, translation {fmt_vec(d[3:], 4)} mm")
-    print(f"  the same number of scans at one distance, turned at most {LINESCAN_NARROW_DEG:g} deg: " + (
-        f"rotation {fmt_vec(n[:3], 5)} deg, translation {fmt_vec(n[3:], 4)} mm" if np.all(np.isfinite(n)) else
-        "X is not determined") + " (turns between scans place X; distances tell the focal length from the distance)")
+    _print_plan("scan", names, plan.moves.reshape(-1, 4, 4), plan, "each scan's pose error fitted with it", "scans",
+                f"the same number of scans at one distance, turned at most {LINESCAN_NARROW_DEG:g} deg",
+                "X is not determined", " (turns between scans place X; distances tell the focal length from the distance)")
     print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): per scan the flange's pose where its "
           "straight move starts and where it ends; record the robot's trajectory (with times) and each scan's start time "
           "for the line-scan session (docs/guide.md, 'Line-scan cameras')")
     return 0
+
+
+def _print_plan(label: str, names: list[str], flange2base: np.ndarray, plan, accuracy_words: str, per: str, narrow: str,
+                undetermined: str, why: str) -> None:
+    """A sensor plan's flange poses by name, then X's predicted std as calibrate would report it (the
+    robot's accuracy in it: ``accuracy_words``), from the ``per`` alone, and for the ``narrow`` capture
+    (``undetermined`` when it cannot determine X; ``why``: what the plan's spread buys)."""
+    print(f"  {label:10s}   flange x, y, z (mm)            flange rotation vector (deg)")
+    for name, F in zip(names, flange2base):
+        print(f"  {name:10s}   {fmt_vec(1e3 * F[:3, 3], 1):30s} {fmt_vec(Rotation.from_matrix(F[:3, :3]).as_rotvec(degrees=True), 1)}")
+    s, d, n = plan.std_X, plan.std_data, plan.std_narrow
+    acc = plan.robot_accuracy
+    print(f"\npredicted std of X as calibrate would report it: rotation {fmt_vec(s[:3], 4)} deg, translation "
+          f"{fmt_vec(s[3:], 3)} mm" + (f" (the robot's absolute accuracy {acc[0]:g} deg / {acc[1]:g} mm per axis in it, "
+                                       f"{accuracy_words})" if acc is not None else ""))
+    print(f"  from the {per} alone: rotation {fmt_vec(d[:3], 5)} deg, translation {fmt_vec(d[3:], 4)} mm")
+    print(f"  {narrow}: " + (f"rotation {fmt_vec(n[:3], 5)} deg, translation {fmt_vec(n[3:], 4)} mm"
+                             if np.all(np.isfinite(n)) else undetermined) + why)
 
 
 #: What places X's rotation, per laser target (the plan's last line).
