@@ -157,6 +157,12 @@ def test_joint_trajectory_fits_the_arms_table(setup):
     assert 5 * error_mm < 1e3 * translation_error(poses.X, sc.X)
     rigid = estimate(model, JointAngles(sc.chain, robot.joints), uncertainty=False)  # the nominal move from each scan's pose
     assert np.degrees(rotation_error(rigid.X, sc.X)) > 3 * error_deg
+    from handeye.robot.models import JointTrajectory
+    times = sc.trajectory.times
+    with pytest.raises(InputMismatchError, match="must increase"):
+        JointTrajectory(sc.chain, robot.joints, times=times[::-1], trajectory=sc.joints)
+    with pytest.raises(InputMismatchError, match=r"joint angles \(T, 6\)"):
+        JointTrajectory(sc.chain, robot.joints, times=times, trajectory=sc.joints[:, :5])
 
 
 def test_joint_trajectory_sessions_and_their_faults(tmp_path):
