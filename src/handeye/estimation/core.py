@@ -52,7 +52,7 @@ from .._shared.threads import on_one_blas_thread
 from ..errors import DegenerateMotionError, HandEyeError
 from ..frames.metrics import std_deg_mm
 from ..frames.setups import setup_info
-from ..geometry.se3 import perturb
+from ..geometry.se3 import left_jacobian, perturb
 from ..result import Calibration, Diagnostics, HeldOutErrors, KinematicModel, Observability, SensorFit, Unobservable
 from ..robot.kinematics import along_parallel_axes
 from ..robot.models import ControllerPoses, JointAngles, PoseErrors, RobotModel
@@ -245,9 +245,18 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
-        J = sensor.jacobian(X, p, robot.flange2base(d), rows) * weight[..., None]
+        J = _own_jacobian(sensor, x, X, p, robot.flange2base(d), rows) * weight[..., None]
         return np.vstack([J.reshape(-1, J.shape[-1]), pins])
     return jac
+
+
+def _own_jacobian(sensor: SensorModel, x: NDArray[np.float64], X: NDArray[np.float64], p: NDArray[np.float64],
+                  flange2base: NDArray[np.float64], rows: NDArray[np.intp]) -> NDArray[np.float64]:
+    """The sensor's own derivatives (M, c, 6 + k) by ``x``: its X columns are for a left increment of X,
+    and ``x``'s rotation vector moves X by ``left_jacobian(x[:3])`` of them (exact away from the start)."""
+    J = sensor.jacobian(X, p, flange2base, rows)
+    J[..., :3] = J[..., :3] @ left_jacobian(x[:3])
+    return J
 
 
 def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
@@ -273,7 +282,7 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
         m = len(entry_view)
         J = np.zeros((len(f0), len(x)))
         if own:
-            J[:m, :n_x] = (sensor.jacobian(X, p, F, rows) * weight[..., None]).reshape(m, n_x)
+            J[:m, :n_x] = (_own_jacobian(sensor, x, X, p, F, rows) * weight[..., None]).reshape(m, n_x)
         else:
             for j in range(n_x):
                 step = x.copy()

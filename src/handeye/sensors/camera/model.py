@@ -34,9 +34,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...errors import DegenerateMotionError, InputMismatchError
-from ...frames.setups import check_setup, predicted_target2cam
+from ...frames.setups import check_setup, predicted_target2cam, robot_world_A_inv
+from ...geometry.se3 import left_jacobian, skew
 from ..target_pose import ChartedTarget
-from .pnp import project_camera_points, solve_pnp
+from .pnp import project_camera_points, projection_jacobians, solve_pnp
 from .targets.base import Detection
 
 __all__ = ["CameraCorners", "CAMERA_NOISE_PX"]
@@ -122,6 +123,26 @@ class CameraCorners(ChartedTarget):
         cam = self._in_camera(X, self._target2world(p), flange2base, rows)
         return (project_camera_points(cam, self.K, self.dist) - self.uv[rows]) * self._mpp[rows, None]
 
+    def jacobian(self, X, p, flange2base, rows) -> NDArray[np.float64]:
+        """The residuals' derivatives (M, 2, 12) for a left increment of X (rotation ``a``, translation
+        ``b``: ``R_X -> exp(a) R_X``, ``t_X -> t_X + b``) and the target's unknowns (its chart's
+        rotation vector ``r`` and its translation): a corner in the camera frame is
+        ``c = R_X^T (q - t_X)`` with ``q = inv(A_i) Z P``, so ``dc/da = R_X^T [q - t_X]x``,
+        ``dc/db = -R_X^T``, and through ``Z P = exp(r) R_chart P + t``, ``dc/dr = -R_X^T R_W [exp(r)
+        R_chart P]x J_l(r)`` (SO(3)'s left Jacobian), ``dc/dt = R_X^T R_W``; times the projection's
+        derivatives (:func:`~handeye.sensors.camera.pnp.projection_jacobians`) and the pixel's size."""
+        W = robot_world_A_inv(np.asarray(flange2base, float), self.setup)[self.owner[rows]]
+        Z = self._target2world(p)
+        u = self.points[rows] @ Z[:3, :3].T  # the points turned into the world, before Z's translation
+        q = np.einsum("mij,mj->mi", W[:, :3, :3], u + Z[:3, 3]) + W[:, :3, 3]
+        v = q - X[:3, 3]
+        R_t = X[:3, :3].T
+        _, d_point, _ = projection_jacobians(v @ X[:3, :3], self.K, self.dist)
+        to_c = np.einsum("ij,mjk->mik", R_t, W[:, :3, :3])  # R_X^T R_W
+        d_c = np.concatenate([R_t @ skew(v), np.broadcast_to(-R_t, (len(rows), 3, 3)),
+                              -to_c @ skew(u) @ left_jacobian(p[:3]), to_c], axis=2)
+        return np.einsum("mij,mjk->mik", d_point, d_c) * self._mpp[rows, None, None]
+
     def pixel_size(self, rows: NDArray[np.intp]) -> NDArray[np.float64]:
         """Per corner of ``rows`` its pixel's size (m) at its depth: its residual over it is pixels."""
         return self._mpp[rows]
@@ -133,3 +154,4 @@ class CameraCorners(ChartedTarget):
     def notes(self, p, cov_p) -> list[str]:
         """Nothing beyond the core's own notes."""
         return []
+
