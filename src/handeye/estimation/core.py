@@ -52,7 +52,7 @@ from .._shared.threads import on_one_blas_thread
 from ..errors import DegenerateMotionError, HandEyeError
 from ..frames.metrics import std_deg_mm
 from ..frames.setups import setup_info
-from ..geometry.se3 import left_jacobian, perturb
+from ..geometry.se3 import perturb, so3_left_jacobian
 from ..result import Calibration, Diagnostics, HeldOutErrors, KinematicModel, Observability, SensorFit, Unobservable
 from ..robot.kinematics import along_parallel_axes
 from ..robot.models import ControllerPoses, JointAngles, PoseErrors, RobotModel
@@ -253,9 +253,9 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
 def _own_jacobian(sensor: SensorModel, x: NDArray[np.float64], X: NDArray[np.float64], p: NDArray[np.float64],
                   flange2base: NDArray[np.float64], rows: NDArray[np.intp]) -> NDArray[np.float64]:
     """The sensor's own derivatives (M, c, 6 + k) by ``x``: its X columns are for a left increment of X,
-    and ``x``'s rotation vector moves X by ``left_jacobian(x[:3])`` of them (exact away from the start)."""
+    and ``x``'s rotation vector moves X by ``so3_left_jacobian(x[:3])`` of them (exact away from the start)."""
     J = sensor.jacobian(X, p, flange2base, rows)
-    J[..., :3] = J[..., :3] @ left_jacobian(x[:3])
+    J[..., :3] = J[..., :3] @ so3_left_jacobian(x[:3])
     return J
 
 
@@ -933,4 +933,3 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
             f"the std is widened up to {widened:.1f}x the fit's noise model by leaving views out (errors of a whole view: "
             "the robot's pose error, or a view that fits less well)"])
     return judged(cal) if verdict == "good" else cal
-

@@ -21,7 +21,6 @@ __all__ = [
     "invert",
     "compose",
     "skew",
-    "left_jacobian",
     "perpendicular_basis",
     "so3_left_jacobian",
     "pairwise_matmul",
@@ -265,17 +264,6 @@ def _rotvec_matrices(rotvec: ArrayLike) -> NDArray[np.float64]:
 def from_rotvec_translation(rotvec: ArrayLike, translation: ArrayLike) -> NDArray[np.float64]:
     """Transforms from rotation vectors (axis * angle, rad) and translations."""
     return make_transform(_rotvec_matrices(rotvec), translation)
-
-
-def left_jacobian(rotvec: ArrayLike) -> NDArray[np.float64]:
-    """SO(3)'s left Jacobian (3, 3) at the rotation vector ``rotvec``: ``exp(r + e) = exp(J_l e) exp(r)``
-    to first order in ``e`` (how a rotation vector's step moves the rotation, as a left increment)."""
-    r = np.asarray(rotvec, dtype=float)
-    theta = float(np.linalg.norm(r))
-    K = skew(r)
-    if theta < 1e-8:
-        return np.eye(3) + 0.5 * K
-    return np.eye(3) + (1 - np.cos(theta)) / theta**2 * K + (theta - np.sin(theta)) / theta**3 * K @ K
 
 
 def perturb(T: ArrayLike, rotvec: ArrayLike, translation: ArrayLike) -> NDArray[np.float64]:

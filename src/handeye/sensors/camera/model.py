@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from ...errors import DegenerateMotionError, InputMismatchError
 from ...frames.setups import check_setup, predicted_target2cam, robot_world_A_inv
-from ...geometry.se3 import left_jacobian, skew
+from ...geometry.se3 import skew, so3_left_jacobian
 from ..target_pose import ChartedTarget
 from .pnp import project_camera_points, projection_jacobians, solve_pnp
 from .targets.base import Detection
@@ -140,7 +140,7 @@ class CameraCorners(ChartedTarget):
         _, d_point, _ = projection_jacobians(v @ X[:3, :3], self.K, self.dist)
         to_c = np.einsum("ij,mjk->mik", R_t, W[:, :3, :3])  # R_X^T R_W
         d_c = np.concatenate([R_t @ skew(v), np.broadcast_to(-R_t, (len(rows), 3, 3)),
-                              -to_c @ skew(u) @ left_jacobian(p[:3]), to_c], axis=2)
+                              -to_c @ skew(u) @ so3_left_jacobian(p[:3]), to_c], axis=2)
         return np.einsum("mij,mjk->mik", d_point, d_c) * self._mpp[rows, None, None]
 
     def pixel_size(self, rows: NDArray[np.intp]) -> NDArray[np.float64]:
@@ -154,4 +154,3 @@ class CameraCorners(ChartedTarget):
     def notes(self, p, cov_p) -> list[str]:
         """Nothing beyond the core's own notes."""
         return []
-
