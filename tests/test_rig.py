@@ -180,21 +180,27 @@ def test_joint_fit_jacobian_against_central_differences():
     assert np.all(jacobian_error(problem, rows, sigma, x, h) <= 1e-6)
 
 
-@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
-def test_a_cameras_own_jacobian_matches_central_differences(setup):
+@pytest.mark.parametrize("setup,intrinsics", [("eye_in_hand", False), ("eye_to_hand", False), ("eye_in_hand", True)])
+def test_a_cameras_own_jacobian_matches_central_differences(setup, intrinsics):
     """CameraCorners' analytic derivatives (X's left increment, the target's chart through SO(3)'s left
-    Jacobian, OpenCV's projection), taken by the core through x's rotation vector 10 mrad from the start,
-    match central differences to 1e-6 in every column."""
+    Jacobian, OpenCV's projection; with the intrinsics refined, the projection's by fx fy cx cy k1 k2 p1
+    p2 k3), taken by the core through x's rotation vector 10 mrad from the start, match central
+    differences to 1e-6 in every column."""
     from handeye.estimation.core import Problem, _groups, _start
 
     sc = rig_scene(8, setup, rng=0, cameras=1)
     cam = sc.cameras[0]
-    model = CameraCorners(setup, sc.names, cam.image_points, cam.object_points, cam.K, cam.dist)
+    model = CameraCorners(setup, sc.names, cam.image_points, cam.object_points, cam.K, cam.dist, refine_intrinsics=intrinsics)
     robot = ControllerPoses(sc.flange2base)
     problem = Problem(model, robot, *_start(model, robot))
     rows = np.arange(len(model.owner))
-    x = np.r_[np.full(3, 1e-2), np.full(3, 1e-3), np.full(3, 1e-2), np.full(3, 1e-3)] * np.random.default_rng(1).normal(size=12)
-    assert np.all(jacobian_error(problem, rows, np.ones(int(_groups(model).max()) + 1), x, np.full(12, 1e-7)) <= 1e-6)
+    rng = np.random.default_rng(1)
+    x = np.r_[np.full(3, 1e-2), np.full(3, 1e-3), np.full(3, 1e-2), np.full(3, 1e-3)] * rng.normal(size=12)
+    h = np.full(12, 1e-7)
+    if intrinsics:  # 2 px of focal length and centre, 1e-2 of distortion
+        x = np.r_[x, np.full(4, 2.0) * rng.normal(size=4), np.full(5, 1e-2) * rng.normal(size=5)]
+        h = np.r_[h, np.full(4, 1e-4), np.full(5, 1e-5)]
+    assert np.all(jacobian_error(problem, rows, np.ones(int(_groups(model).max()) + 1), x, h) <= 1e-6)
 
 
 def test_rig_report_has_a_section_per_sensor():

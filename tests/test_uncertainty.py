@@ -31,7 +31,7 @@ from handeye.simulate import (
     scene_from_viewpoints,
     visible_viewpoints,
 )
-from handeye.solvers.refine import downdate_reprojection, refine_pose, refine_reprojection
+from handeye.solvers.refine import refine_pose, refine_reprojection
 
 
 def _mc_camera():
@@ -575,9 +575,14 @@ def test_calibrate_with_estimated_intrinsics_reports_their_error(tmp_path, monke
     assert "intrinsics" not in cal.std_sources
 
 
-def test_pixel_downdate_matches_a_refit_and_drops_nothing_when_asked():
-    """downdate_reprojection: X without one image within 2% of X's move of a refit without it; with
-    no image dropped, the fit itself (a ValueError before: an empty list to concatenate)."""
+@pytest.mark.parametrize("intrinsics", [False, True])
+def test_pixel_downdate_matches_a_refit_and_drops_nothing_when_asked(intrinsics):
+    """The pixel refinement's folds (the core's fit of the corners, downdated: CornersFit.on): X without
+    one image within 2% of X's move of a refit without it, the intrinsics too when refined; with no
+    image dropped, the fit itself."""
+    from handeye.estimation.estimators import corners_fit
+    from handeye.estimation.validation import Views
+
     rng = np.random.default_rng(4)
     size, K, dist, target = _mc_camera()
     renderer = Renderer(K, dist, size, supersample=1)
@@ -585,13 +590,16 @@ def test_pixel_downdate_matches_a_refit_and_drops_nothing_when_asked():
     scene = scene_from_viewpoints(visible_viewpoints(10, rng, renderer, target_texture(target).outline()), "eye_in_hand", rng)
     pixels = [renderer.project(obj, T) + rng.normal(0.0, 0.3, (len(obj), 2)) for T in scene.target2cam]
     cal = handeye.calibrate_poses(scene.flange2base, scene.target2cam, refine="none", uncertainty=False, check=False)
-    ref = refine_reprojection(cal.X, cal.Z, scene.flange2base, [obj] * 10, pixels, K, dist, "eye_in_hand")
-    X, Z, K1, d1 = downdate_reprojection(ref, [])
-    assert np.array_equal(X, ref.X) and np.array_equal(Z, ref.Z) and np.array_equal(K1, ref.K)
+    views = Views(scene.flange2base, scene.target2cam, "eye_in_hand", [obj] * 10, pixels, K, dist)
+    full = corners_fit(views, np.arange(10), cal.X, cal.Z, refine_intrinsics=intrinsics)
+    same = full.on(np.arange(10))
+    assert np.allclose(same[0], full.result.X, atol=1e-12) and np.allclose(same[1], full.result.Z, atol=1e-12)
     keep = np.arange(1, 10)
-    sub = refine_reprojection(ref.X, ref.Z, scene.flange2base[keep], [obj] * 9, pixels[1:], K, dist, "eye_in_hand")
-    X_down = downdate_reprojection(ref, [0])[0]
-    assert translation_error(X_down, sub.X) <= 0.02 * translation_error(ref.X, sub.X) + 1e-9
+    sub = corners_fit(views, keep, full.result.X, full.result.Z, refine_intrinsics=intrinsics).result
+    down = full.on(keep)
+    assert translation_error(down[0], sub.X) <= 0.02 * translation_error(full.result.X, sub.X) + 1e-9
+    if intrinsics:
+        assert abs(down[2][0, 0] - sub.K[0, 0]) <= 0.02 * abs(full.result.K[0, 0] - sub.K[0, 0]) + 1e-6
 
 
 def test_closed_form_alone_reports_a_std_that_holds_under_real_robot_errors():

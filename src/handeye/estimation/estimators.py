@@ -2,9 +2,12 @@
 
 Every closed form (AX = XB with Z the mean of the per-pose Z_i, and the robot-world ones), the pose
 refinement (Strobl-Hirzinger's weighting with a noise model, :func:`~handeye.solvers.refine.refine_pose`),
-and with images the pixel refinement (:func:`~handeye.solvers.refine.refine_reprojection`: robot
-poses exact, or corrected under a prior the user gives; intrinsics refined too when they were
-estimated from the same images). Fitting the training data better is not the test: on real
+and with images the pixel refinement: with the robot's poses exact, the one estimation core's fit
+of the camera's corners (:mod:`handeye.estimation.core`, :class:`~handeye.sensors.camera.model.CameraCorners`
+times :class:`~handeye.robot.models.ControllerPoses`, the intrinsics refined too when they were
+estimated from the same images; its folds and jackknife refits are the core's downdates), or with
+each pose corrected under a prior the user gives (:func:`~handeye.solvers.refine.refine_reprojection`,
+which eliminates the corrections). Fitting the training data better is not the test: on real
 captures a refinement can fit better and predict worse. :func:`choose` runs K-fold
 cross-validation (:mod:`handeye.estimation.validation`) of each on the user's own data and keeps the one with
 the smallest held-out error; the jackknife spread of X comes from refits of the chosen one without each pose
@@ -12,7 +15,8 @@ the smallest held-out error; the jackknife spread of X comes from refits of the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import copy
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,8 +25,12 @@ from scipy.spatial.transform import Rotation
 from .. import solvers
 from ..errors import HandEyeError
 from ..frames.motions import Pairs
+from ..robot.models import ControllerPoses
+from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.pnp import INTRINSICS, intrinsics_covariance, refine_pnp
-from ..solvers.refine import PoseRefinementResult, ReprojectionResult, downdate_reprojection, refine_pose, refine_reprojection, refit_pose
+from ..solvers.refine import PoseRefinementResult, ReprojectionResult, refine_pose, refine_reprojection, refit_pose
+from .core import Fitted, Problem, downdated
+from .core import fit as core_fit
 from .diagnostics import SCALE_TOLERANCE, board_scale, closed_form
 from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices, pnp_errors
 
@@ -86,33 +94,114 @@ def pose_candidates(method: str = "daniilidis", views: Views | None = None) -> d
     return out
 
 
+@dataclass(frozen=True)
+class CornersFit:
+    """The core's fit of a camera's corners with the robot's poses exact (:mod:`handeye.estimation.core`,
+    :class:`~handeye.sensors.camera.model.CameraCorners` times :class:`~handeye.robot.models.ControllerPoses`):
+    its problem and fit, which downdate to any subset of its views, and the same fit as the pixel
+    refinement's result (what the calibration reports)."""
+
+    problem: Problem
+    fitted: Fitted
+    result: ReprojectionResult
+
+    def on(self, idx: NDArray[np.intp]) -> tuple[NDArray[np.float64], ...]:
+        """X and Z fitted on the views ``idx`` (of those fitted), and K and dist when they are
+        refined: one Gauss-Newton downdate."""
+        sensor = self.problem.sensor
+        sub = downdated(self.problem, self.fitted, np.asarray(idx), guard=False)
+        XZ = (sub.X, sensor.Z(sub.X, sub.p))
+        return XZ + sensor.intrinsics(sub.p) if sensor.refine_intrinsics else XZ
+
+    def with_intrinsics(self, K: NDArray[np.float64], dist: NDArray[np.float64]) -> NDArray[np.float64]:
+        """X refitted on the same points with the intrinsics ``K``, ``dist`` (a plain least squares
+        from this fit, its noise scale kept)."""
+        sensor = copy.copy(self.problem.sensor)
+        sensor.K, sensor.dist = np.asarray(K, float), np.asarray(dist, float).ravel()
+        return core_fit(replace(self.problem, sensor=sensor), start=self.fitted, tol=REFIT_TOL).X
+
+
+def corners_fit(views: Views, idx: NDArray[np.intp], X0: NDArray[np.float64], Z0: NDArray[np.float64],
+                refine_intrinsics: bool = False) -> CornersFit:
+    """The robust pixel fit of X and the target (and the intrinsics) on the views ``idx``, started at
+    ``X0``, ``Z0``, by the one estimation core (every corner weighted by its pixel; points beyond 5 of
+    their std set aside)."""
+    idx = np.asarray(idx)
+    sensor = CameraCorners(views.setup, [str(i) for i in idx], [views.image_points[i] for i in idx],
+                           [views.object_points[i] for i in idx], views.K, views.dist, refine_intrinsics=refine_intrinsics)
+    flange2base = views.flange2base[idx]
+    X_start, p_start = sensor.start(flange2base, X0, Z0)
+    problem = Problem(sensor, ControllerPoses(flange2base), X_start, p_start)
+    fitted = core_fit(problem)
+    return CornersFit(problem, fitted, _as_reprojection(problem, fitted, (X0, Z0)))
+
+
+def _as_reprojection(problem: Problem, fitted: Fitted, start: tuple) -> ReprojectionResult:
+    """The core's fit of a camera's corners as a :class:`~handeye.solvers.refine.ReprojectionResult`."""
+    sensor = problem.sensor
+    flange2base = problem.robot.flange2base(fitted.d)
+    everything = np.arange(len(sensor.owner))
+
+    def pixels(X, p, rows):
+        return np.sum((sensor.residuals(X, p, flange2base, rows) / sensor.pixel_size(rows)[:, None]) ** 2, axis=1)
+
+    rows = fitted.rows
+    sq = pixels(fitted.X, fitted.p, rows)
+    n_views = len(sensor.names)
+    count = np.bincount(sensor.owner[rows], minlength=n_views)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per_view = np.sqrt(np.bincount(sensor.owner[rows], sq, minlength=n_views) / count)
+    before = pixels(problem.X0, problem.p0, everything)
+    kept = tuple(fitted.kept[sensor.owner == v] for v in range(n_views))
+    emptied = tuple(v for v, k in enumerate(kept) if len(k) and not k.any())
+    return ReprojectionResult(
+        fitted.X, sensor.Z(fitted.X, fitted.p), *sensor.intrinsics(fitted.p), float(np.sqrt(np.mean(sq))),
+        float(np.sqrt(np.mean(before))), per_view, len(rows), fitted.success, "the core's fit of the corners",
+        fitted.cov[:6, :6], float(fitted.sigma[0]), int(len(everything) - len(rows)), flange2base, 0, emptied, kept)
+
+
 def pixel_fit(views: Views, idx: NDArray[np.intp], X0: NDArray[np.float64], Z0: NDArray[np.float64],
               refine_intrinsics: bool = False, robot_sigma: tuple[float, float] | None = None) -> ReprojectionResult:
-    """The robust pixel refinement of X0, Z0 on the views ``idx``."""
+    """The robust pixel refinement of X0, Z0 on the views ``idx``: with the robot exact, the core's
+    fit of the corners (:func:`corners_fit`)."""
+    if robot_sigma is None:
+        return corners_fit(views, idx, X0, Z0, refine_intrinsics).result
     return refine_reprojection(X0, Z0, views.flange2base[idx], [views.object_points[i] for i in idx],
                                [views.image_points[i] for i in idx], views.K, views.dist, views.setup,
                                refine_intrinsics=refine_intrinsics, robust=True, robot_noise=robot_sigma)
 
 
-def _pixel(views: Views, method: str, refine_intrinsics: bool, robot_sigma) -> Fit:
-    """The pixel refinement. It is fitted on all of ``views`` once (robustly, kept as ``fit.full``
-    with the points it kept); each fit on a subset is one Gauss-Newton downdate of it
-    (:func:`~handeye.solvers.refine.downdate_reprojection`), or with robot pose corrections a refit
-    started there on those points: a cross-validation fold differs from the whole by a few images."""
+def _corners(views: Views, method: str, refine_intrinsics: bool = False) -> Fit:
+    """The pixel refinement with the robot exact: the core's fit of the corners (and the intrinsics)
+    on all of ``views`` (kept as ``fit.full``, its :class:`CornersFit` as ``fit.core``), from the
+    closed form ``method``; each fit on a subset is one Gauss-Newton downdate of it."""
+    full: list = []
+    core: list = []
+
+    def fit(flange2base, target2cam, setup, idx):
+        if not core:
+            X, Z, _ = closed_form(views.flange2base, views.target2cam, setup, method)
+            core.append(corners_fit(views, np.arange(len(views)), X, Z, refine_intrinsics))
+            full.append(core[0].result)
+        return core[0].on(idx)
+
+    fit.full = full
+    fit.core = core
+    return fit
+
+
+def _pixel_robot(views: Views, method: str, refine_intrinsics: bool, robot_sigma: tuple[float, float]) -> Fit:
+    """The pixel refinement with each robot pose corrected under the prior ``robot_sigma`` (rad, m;
+    :func:`~handeye.solvers.refine.refine_reprojection`, which eliminates the corrections). It is
+    fitted on all of ``views`` once (robustly, kept as ``fit.full`` with the points it kept); each
+    fit on a subset is a refit started there on those points."""
     full: list = []
 
     def fit(flange2base, target2cam, setup, idx):
         if not full:
-            all_idx = np.arange(len(views))
             X, Z, _ = closed_form(views.flange2base, views.target2cam, setup, method)
-            full.append(pixel_fit(views, all_idx, X, Z, refine_intrinsics, robot_sigma))
+            full.append(pixel_fit(views, np.arange(len(views)), X, Z, refine_intrinsics, robot_sigma))
         ref = full[0]
-        if ref.jacobian is not None:  # one Gauss-Newton downdate instead of a refit
-            try:
-                X, Z, K, dist = downdate_reprojection(ref, np.setdiff1d(np.arange(len(views)), idx))
-                return (X, Z, K, dist) if refine_intrinsics else (X, Z)
-            except np.linalg.LinAlgError:
-                pass
         keep = [ref.kept[i] for i in idx]
         sub = refine_reprojection(ref.X, ref.Z, views.flange2base[idx],
                                   [np.asarray(views.object_points[i])[k] for i, k in zip(idx, keep)],
@@ -130,11 +219,11 @@ def pixel_candidates(views: Views, method: str = "daniilidis", intrinsics_estima
     """The pixel refinements for ``views`` (which must have images): robot poses exact; with the
     intrinsics refined too when they were estimated from these images; with robot pose corrections
     when ``robot_sigma`` (rad, m) is given."""
-    out = {PIXEL: _pixel(views, method, False, None)}
+    out = {PIXEL: _corners(views, method)}
     if intrinsics_estimated:
-        out[PIXEL_INTRINSICS] = _pixel(views, method, True, None)
+        out[PIXEL_INTRINSICS] = _corners(views, method, True)
     if robot_sigma is not None:
-        out[PIXEL_ROBOT] = _pixel(views, method, intrinsics_estimated, robot_sigma)
+        out[PIXEL_ROBOT] = _pixel_robot(views, method, intrinsics_estimated, robot_sigma)
     return out
 
 
@@ -311,9 +400,10 @@ def _fit_with_intrinsics(name: str, fit: Fit, views: Views, X: NDArray[np.float6
     K[0, 2] += step[2]
     K[1, 2] += step[3]
     dist = np.ravel(views.dist) + step[4:]
-    if name == PIXEL:  # the pixel refinement reads the intrinsics, not the PnP poses: warm-started there
-        return refine_reprojection(X, Z, views.flange2base, list(views.object_points), list(views.image_points),
-                                   K, dist, views.setup, robust=False, tol=REFIT_TOL).X
+    if name == PIXEL:  # the pixel refinement reads the intrinsics, not the PnP poses: refitted from its fit
+        if not fit.core:
+            fit(views.flange2base, views.target2cam, views.setup, np.arange(len(views)))
+        return fit.core[0].with_intrinsics(K, dist)
     target2cam = np.array([refine_pnp(T, P, uv, K, dist)
                            for T, P, uv in zip(views.target2cam, views.object_points, views.image_points)])
     return fit(views.flange2base, target2cam, views.setup, np.arange(len(views)))[0]

@@ -22,7 +22,7 @@ columns with disjoint rows (12 + 6 residual evaluations instead of 12 + 6N).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +36,7 @@ from ..sensors.camera.pnp import project_points, project_points_many, projection
 from ..sensors.camera.targets import Detection
 from ._common import _normal_inverse, _xz_increment
 
-__all__ = ["PoseRefinementResult", "ReprojectionResult", "TranslationPriors", "downdate_reprojection", "pose_mahalanobis", "refine_pose",
+__all__ = ["PoseRefinementResult", "ReprojectionResult", "TranslationPriors", "pose_mahalanobis", "refine_pose",
            "refit_pose", "refine_reprojection", "predicted_target2cam"]
 
 
@@ -63,11 +63,6 @@ class ReprojectionResult:
     rejected_images: tuple[int, ...] = ()
     #: per image, the points the fit kept (robust=True; all points otherwise)
     kept: tuple[NDArray[np.bool_], ...] | None = None
-    #: the last least-squares fit at its optimum (for downdates): Jacobian, residuals and the first
-    #: pixel-residual row of each image (N + 1 entries); None for a robust loss or robot corrections
-    jacobian: NDArray[np.float64] | None = field(default=None, repr=False)
-    residual_vector: NDArray[np.float64] | None = field(default=None, repr=False)
-    rows: NDArray[np.intp] | None = field(default=None, repr=False)
 
 
 def refine_reprojection(
@@ -442,12 +437,11 @@ def _refine_with_corrections(X0, Z0, K0, d0, extra_dist, flange2base, obj, img, 
         X, Z, Kx, dx, _ = glob(x)
         return X, Z, Kx, dx, state["F"]
 
-    # the degrees of freedom count the corrections too; no Jacobian kept for downdates (refit)
-    return _reprojection_result(res, unpack, r0, counts, n_glob + 6 * n_img, loss, calls[0], downdates=False)
+    # the degrees of freedom count the corrections too
+    return _reprojection_result(res, unpack, r0, counts, n_glob + 6 * n_img, loss, calls[0])
 
 
-def _reprojection_result(res, unpack, r0, counts, n: int, loss: str, n_calls: int,
-                         downdates: bool = True) -> ReprojectionResult:
+def _reprojection_result(res, unpack, r0, counts, n: int, loss: str, n_calls: int) -> ReprojectionResult:
     """The :class:`ReprojectionResult` of a finished ``least_squares`` run (``r0``: residuals at the
     start; ``n``: the unknowns, for the residual variance's degrees of freedom)."""
     m_px = 2 * int(counts[-1])
@@ -456,44 +450,12 @@ def _reprojection_result(res, unpack, r0, counts, n: int, loss: str, n_calls: in
     r = res.fun[:m_px].reshape(-1, 2)
     per_image = np.array([np.sqrt(np.mean(np.sum(r[a:b] ** 2, axis=1))) if b > a else np.nan
                           for a, b in zip(counts[:-1], counts[1:])])
-    plain = downdates and loss == "linear" and res.x.size == n and n in (12, 21)  # no robot corrections: downdates apply
-    J = (res.jac.toarray() if hasattr(res.jac, "toarray") else np.asarray(res.jac)) if plain else None
     return ReprojectionResult(
         X, Z, K_out, d_out, float(np.sqrt(np.mean(np.sum(r**2, axis=1)))),
         float(np.sqrt(np.mean(r0[:m_px].reshape(-1, 2) ** 2) * 2)),
         per_image, int(counts[-1]), bool(res.success), str(res.message), cov_X, float(np.sqrt(sigma2)), 0,
-        F_out, n_calls, jacobian=J, residual_vector=res.fun.copy() if plain else None,
-        rows=2 * np.asarray(counts) if plain else None,
+        F_out, n_calls,
     )
-
-
-def downdate_reprojection(ref: ReprojectionResult, drop) -> tuple[NDArray[np.float64], ...]:
-    """``(X, Z, K, dist)`` of :func:`refine_reprojection` without the images ``drop``, from one
-    Gauss-Newton step off the fit on all of them (the gradient of the kept residuals at the optimum
-    is ``-J_d^T r_d``): ``delta = (J^T J - J_d^T J_d)^-1 J_d^T r_d``. Exact for a linear problem and
-    close for a converged nonlinear one; what cross-validation and the jackknife need, at the cost
-    of a 12x12 (21x21) solve instead of a refit. Raises ``LinAlgError`` when the rest cannot
-    determine the unknowns, ``ValueError`` when ``ref`` keeps no Jacobian (robot corrections)."""
-    if ref.jacobian is None:
-        raise InputMismatchError("no Jacobian kept for this refinement (robot pose corrections): refit instead")
-    drop = np.atleast_1d(np.asarray(drop, dtype=np.intp))
-    if drop.size == 0:  # nothing left out: the fit itself
-        return ref.X, ref.Z, ref.K, ref.dist
-    J, r, rows = ref.jacobian, ref.residual_vector, ref.rows
-    sel = np.concatenate([np.arange(rows[i], rows[i + 1]) for i in drop]).astype(np.intp)
-    Jd, rd = J[sel], r[sel]
-    delta = np.linalg.solve(J.T @ J - Jd.T @ Jd, Jd.T @ rd)
-    X, Z = _xz_increment(delta, ref.X, ref.Z)
-    K, dist = ref.K, ref.dist
-    if delta.size == 21:
-        K = K.copy()
-        K[0, 0] += delta[12]
-        K[1, 1] += delta[13]
-        K[0, 2] += delta[14]
-        K[1, 2] += delta[15]
-        dist = np.asarray(dist, dtype=float).copy()
-        dist[:5] += delta[16:21]
-    return X, Z, K, dist
 
 
 def _gauss_newton_cov_X(res, n: int, loss: str):
@@ -542,8 +504,7 @@ def _robust_reprojection(X0, Z0, flange2base, object_points, image_points, K, di
     return ReprojectionResult(
         second.X, second.Z, second.K, second.dist, second.rms_px, first.rms_px_before, second.per_image_rms_px,
         second.n_points, second.success, second.message, second.cov_X, second.sigma_px, rejected,
-        second.flange2base, second.n_evaluations, emptied, tuple(keep), second.jacobian, second.residual_vector,
-        second.rows,
+        second.flange2base, second.n_evaluations, emptied, tuple(keep),
     )
 
 

@@ -37,7 +37,7 @@ from ...errors import DegenerateMotionError, InputMismatchError
 from ...frames.setups import check_setup, predicted_target2cam, robot_world_A_inv
 from ...geometry.se3 import skew, so3_left_jacobian
 from ..target_pose import ChartedTarget
-from .pnp import project_camera_points, projection_jacobians, solve_pnp
+from .pnp import INTRINSICS, project_camera_points, projection_jacobians, solve_pnp
 from .targets.base import Detection
 
 __all__ = ["CameraCorners", "CAMERA_NOISE_PX"]
@@ -62,6 +62,10 @@ class CameraCorners(ChartedTarget):
         The camera's intrinsics (OpenCV's model, up to 8 distortion coefficients).
     noise_px : float
         The corners' noise to state (px).
+    refine_intrinsics : bool
+        Also fit the intrinsics (fx, fy, cx, cy and OpenCV's five distortion terms k1 k2 p1 p2 k3,
+        as increments of ``K``, ``dist``): for intrinsics estimated from the same images, which the
+        robot's poses tie together far better than a camera calibration alone.
     """
 
     kind = "camera"
@@ -71,7 +75,7 @@ class CameraCorners(ChartedTarget):
 
     def __init__(self, setup: str, names: list[str], image_points: list[NDArray[np.float64]],
                  object_points: list[NDArray[np.float64]], K: NDArray[np.float64], dist: NDArray[np.float64],
-                 noise_px: float = CAMERA_NOISE_PX) -> None:
+                 noise_px: float = CAMERA_NOISE_PX, refine_intrinsics: bool = False) -> None:
         self.setup = check_setup(setup)
         if not len(names) == len(image_points) == len(object_points):
             raise InputMismatchError(f"{len(names)} views, {len(image_points)} corner sets and {len(object_points)} point "
@@ -84,9 +88,17 @@ class CameraCorners(ChartedTarget):
         if len(self.points) != len(self.uv):
             raise InputMismatchError("each view needs one target point per corner")
         self.K, self.dist = np.asarray(K, float), np.asarray(dist, float).ravel()
+        self.refine_intrinsics = bool(refine_intrinsics)
         self.noise_px = float(noise_px)
         self.shape = np.ones((len(self.uv), 2))
         self.param_scale = np.full(6, 1e-3)
+        if self.refine_intrinsics:
+            if len(self.dist) > 5 and np.any(self.dist[5:]):
+                raise InputMismatchError(f"{len(self.dist)} distortion coefficients: refining the intrinsics takes OpenCV's "
+                                         "five (k1 k2 p1 p2 k3); give the intrinsics as known, or estimate them with five")
+            self.param_names = CameraCorners.param_names + list(INTRINSICS)
+            # ~1 mrad and ~1 mm of the pose move the pixels about as much as ~1 px of focal length or ~1e-3 of distortion
+            self.param_scale = np.r_[self.param_scale, np.ones(4), np.full(5, 1e-3)]
         self._poses: NDArray[np.float64] | None = None
 
     @property
@@ -112,7 +124,17 @@ class CameraCorners(ChartedTarget):
         if X is None or Z is None:
             raise DegenerateMotionError("a camera's start needs the views' poses (PnP on 3 views or more)")
         self._first_start(X, Z, flange2base, float(np.sqrt(self.K[0, 0] * self.K[1, 1])))
-        return X, self.target_params(Z)
+        return X, np.r_[self.target_params(Z), np.zeros(len(INTRINSICS) if self.refine_intrinsics else 0)]
+
+    def intrinsics(self, p: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``K`` and ``dist`` at the unknowns ``p`` (as given unless they are refined)."""
+        if not self.refine_intrinsics:
+            return self.K, self.dist
+        K = self.K.copy()
+        K[[0, 1, 0, 1], [0, 1, 2, 2]] += p[6:10]
+        dist = np.zeros(5)
+        dist[:min(5, len(self.dist))] = self.dist[:5]
+        return K, dist + p[10:15]
 
     def _in_camera(self, X, Z, flange2base, rows) -> NDArray[np.float64]:
         target2cam = predicted_target2cam(X, Z, np.asarray(flange2base, float), self.setup)[self.owner[rows]]
@@ -121,7 +143,7 @@ class CameraCorners(ChartedTarget):
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """Per corner (m): its pixel error times the pixel's size at its depth."""
         cam = self._in_camera(X, self._target2world(p), flange2base, rows)
-        return (project_camera_points(cam, self.K, self.dist) - self.uv[rows]) * self._mpp[rows, None]
+        return (project_camera_points(cam, *self.intrinsics(p)) - self.uv[rows]) * self._mpp[rows, None]
 
     def jacobian(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """The residuals' derivatives (M, 2, 12) for a left increment of X (rotation ``a``, translation
@@ -130,26 +152,34 @@ class CameraCorners(ChartedTarget):
         ``c = R_X^T (q - t_X)`` with ``q = inv(A_i) Z P``, so ``dc/da = R_X^T [q - t_X]x``,
         ``dc/db = -R_X^T``, and through ``Z P = exp(r) R_chart P + t``, ``dc/dr = -R_X^T R_W [exp(r)
         R_chart P]x J_l(r)`` (SO(3)'s left Jacobian), ``dc/dt = R_X^T R_W``; times the projection's
-        derivatives (:func:`~handeye.sensors.camera.pnp.projection_jacobians`) and the pixel's size."""
+        derivatives (:func:`~handeye.sensors.camera.pnp.projection_jacobians`) and the pixel's size;
+        then the projection's own derivatives by the intrinsics when they are refined."""
         W = robot_world_A_inv(np.asarray(flange2base, float), self.setup)[self.owner[rows]]
         Z = self._target2world(p)
         u = self.points[rows] @ Z[:3, :3].T  # the points turned into the world, before Z's translation
         q = np.einsum("mij,mj->mi", W[:, :3, :3], u + Z[:3, 3]) + W[:, :3, 3]
         v = q - X[:3, 3]
         R_t = X[:3, :3].T
-        _, d_point, _ = projection_jacobians(v @ X[:3, :3], self.K, self.dist)
+        _, d_point, d_intrinsics = projection_jacobians(v @ X[:3, :3], *self.intrinsics(p))
         to_c = np.einsum("ij,mjk->mik", R_t, W[:, :3, :3])  # R_X^T R_W
         d_c = np.concatenate([R_t @ skew(v), np.broadcast_to(-R_t, (len(rows), 3, 3)),
                               -to_c @ skew(u) @ so3_left_jacobian(p[:3]), to_c], axis=2)
-        return np.einsum("mij,mjk->mik", d_point, d_c) * self._mpp[rows, None, None]
+        jac = np.einsum("mij,mjk->mik", d_point, d_c)
+        if self.refine_intrinsics:
+            jac = np.concatenate([jac, d_intrinsics], axis=2)
+        return jac * self._mpp[rows, None, None]
 
     def pixel_size(self, rows: NDArray[np.intp]) -> NDArray[np.float64]:
         """Per corner of ``rows`` its pixel's size (m) at its depth: its residual over it is pixels."""
         return self._mpp[rows]
 
     def figures(self, p, cov_p) -> dict[str, Any]:
-        """The intrinsics used (known)."""
-        return {"K": self.K.tolist(), "dist": self.dist.tolist()}
+        """The intrinsics used (known, or refined with their std)."""
+        K, dist = self.intrinsics(p)
+        out: dict[str, Any] = {"K": K.tolist(), "dist": np.asarray(dist).tolist()}
+        if self.refine_intrinsics:
+            out["intrinsics_std"] = dict(zip(INTRINSICS, np.sqrt(np.clip(np.diag(cov_p)[6:15], 0.0, None)).tolist()))
+        return out
 
     def notes(self, p, cov_p) -> list[str]:
         """Nothing beyond the core's own notes."""
