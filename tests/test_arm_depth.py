@@ -15,6 +15,7 @@ import pytest
 import yaml
 from scipy.spatial import cKDTree
 
+import handeye
 from handeye.cli import main
 from handeye.errors import DegenerateMotionError, SessionError
 from handeye.frames.metrics import rotation_error, translation_error, within_std
@@ -162,3 +163,52 @@ def test_a_corrected_table_of_the_arm_is_taken_with_a_calibrated_arms_tolerance(
         else:
             with pytest.raises(SessionError, match="not one handeye has meshes for"):
                 arm_of_session(s)
+
+
+def test_the_arms_table_columns_match_central_differences():
+    """With the arm's table fitted (the arm itself the target), the core's Jacobian: the table's
+    columns (every point moved with its link, ArmMeshes.table_twists) and X's and the depth's at the
+    corrected table match central differences (X's at a small step: the residual, the distance from
+    the nearest of a few samples' faces, jumps where that face changes)."""
+    from handeye.estimation.core import Problem
+    from handeye.robot.meshes import arm_meshes
+    from handeye.robot.models import JointAngles
+    from handeye.sensors.depth.arm import ArmSurface, PosedArm, on_arm
+    from jacobians import jacobian_error
+
+    sc = arm_depth_scene(4, rng=2, image_size=(160, 120), clutter=False)
+    chain, meshes = load_arm("panda"), arm_meshes("panda")
+    arm = PosedArm(meshes, meshes.link2base(chain, sc.joints))
+    points = []
+    for k, cloud in enumerate(sc.clouds):
+        q = cloud.reshape(-1, 3)
+        q = q[np.isfinite(q).all(axis=1)]
+        points.append(q[on_arm(arm, sc.X, np.full(len(q), k), q)][:300])
+    model = ArmSurface("eye_to_hand", ["a", "b", "c", "d"], arm, points, sc.X, True, sc.joints, chain)
+    robot = JointAngles(chain, sc.joints)
+    problem = Problem(model, robot, sc.X, np.zeros(2))
+    rng = np.random.default_rng(0)
+    x = np.r_[rng.normal(0, 1e-4, 6), 1e-4, 1e-4, rng.normal(0, 0.3, robot.n_params)]
+    h = np.r_[np.full(8, 1e-8), np.full(robot.n_params, 1e-5)]
+    error = jacobian_error(problem, np.arange(len(model.owner)), np.ones(1), x, h)
+    assert np.all(error[8:] <= 1e-6) and np.all(error[:8] <= 1e-4)
+
+
+def test_fitting_the_arms_table_brings_x_closer_when_the_arm_is_off_it(tmp_path):
+    """The Panda 0.7 mm / 0.07 deg off its nominal table per entry: with the table held, X takes its
+    error whole (its std says so, 'weak'); fitted with X (fit_table=True, JointAngles through the core,
+    every point moved with its link), X is 3x closer or better, within 3 std, the verdict good, and the
+    notes say the table was fitted."""
+    from handeye.options import CalibrationOptions
+    from handeye.pipelines.arm_depth import calibrate_arm_depth_session
+    from handeye.robot.models import JointAngles
+
+    scene = arm_depth_scene(6, rng=2, image_size=(320, 240), table_error=(0.7, 0.07))
+    s = load_depth_session(write_arm_depth_session(tmp_path / "off", scene))
+    held = calibrate_arm_depth_session(s, CalibrationOptions())
+    fitted = calibrate_arm_depth_session(s, CalibrationOptions(), fit_table=True)
+    assert translation_error(fitted.X, scene.X) <= translation_error(held.X, scene.X) / 3
+    assert within_std(fitted.X, scene.X, fitted.std) and fitted.verdict == "good" and held.verdict == "weak"
+    assert any("fitted with X" in n for n in fitted.notes) and any("not fitted" in n for n in held.notes)
+    with pytest.raises(handeye.InputMismatchError, match="compliance"):
+        JointAngles(s.arm, s.joints, compliance=True).entry_columns(np.zeros((1, 28)))

@@ -181,7 +181,16 @@ def _residuals(problem: Problem, X: NDArray[np.float64], p: NDArray[np.float64],
     robot = problem.robot
     if flange2base is None and getattr(robot, "motion", None) is not None:
         return problem.sensor.residuals(X, p, robot.flange2base(d), rows, motion=robot.motion(d))
+    if flange2base is None and _fits_links(problem):
+        return problem.sensor.residuals(X, p, robot.flange2base(d), rows, table=robot.corrected(d))
     return problem.sensor.residuals(X, p, robot.flange2base(d) if flange2base is None else flange2base, rows)
+
+
+def _fits_links(problem: Problem) -> bool:
+    """Whether the sensor sees the arm's links (``sees_links``: the arm itself its target) and the
+    robot's unknowns are its table's entries: the sensor then takes the corrected table."""
+    return bool(getattr(problem.sensor, "sees_links", False)) and isinstance(problem.robot, JointAngles) \
+        and problem.robot.n_params > 0
 
 
 def _measured(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
@@ -234,6 +243,8 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
     sensor, robot = problem.sensor, problem.robot
     if robot.n_params and getattr(robot, "motion", None) is not None:
         return "2-point"
+    if _fits_links(problem):
+        return _links_jacobian(problem, rows, sigma)
     if robot.n_params and getattr(robot, "param_view", None) is not None:
         return _per_view_jacobian(problem, rows, sigma)
     if robot.n_params and hasattr(robot, "pose_jacobian"):
@@ -297,6 +308,31 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
         J[:m, n_x:] = np.einsum("ea,ead->ed", by_pose, robot.pose_jacobian(d)[entry_view])
         J[m:m + n_d, n_x:] = np.eye(n_d)
         return J
+    return jac
+
+
+def _links_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
+    """The Jacobian for a sensor that sees the arm's links, with the table's entries as the robot's
+    unknowns: the sensor's own derivatives at the corrected table (``jacobian(..., table=)``), and by
+    every entry of it (``link_jacobian``) taken to the fitted entries in units of their prior std
+    (:meth:`~handeye.robot.models.JointAngles.entry_columns`); the prior rows, ``d`` itself."""
+    sensor, robot = problem.sensor, problem.robot
+    weight = _weight(problem, rows, sigma)
+    n_x, n_d = 6 + len(problem.p0), robot.n_params
+
+    def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        X, p, d = problem.unpack(x)
+        table = robot.corrected(d)
+        own = sensor.jacobian(X, p, robot.flange2base(d), rows, table=table)
+        own[..., :3] = own[..., :3] @ so3_left_jacobian(x[:3])
+        by_entry = robot.entry_columns(sensor.link_jacobian(X, p, rows, table))
+        J = np.concatenate([own, by_entry], axis=2) * weight[..., None]
+        m = J.shape[0] * J.shape[1]
+        out = np.zeros((m + n_d + len(problem.pins), len(x)))
+        out[:m] = J.reshape(m, -1)
+        out[m:m + n_d, n_x:] = np.eye(n_d)
+        out[m + n_d:, :6] = PIN * problem.pins
+        return out
     return jac
 
 

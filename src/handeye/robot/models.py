@@ -225,6 +225,16 @@ class JointAngles(RobotModel):
         """The prior's whitened residuals: ``d`` itself (unit std in these units)."""
         return np.asarray(d, dtype=float)
 
+    def entry_columns(self, by_entry: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Derivatives by every entry of the table (``..., E``: natural units, row by row, as
+        :meth:`~handeye.robot.kinematics.Chain.parameter_names`) as derivatives by the unknowns ``d``
+        (``..., n_params``: the fitted entries, per unit of their prior std). Raises when the
+        joints' compliance is fitted (the links' poses do not take it)."""
+        if self.compliance:
+            raise InputMismatchError("the links' poses take the table's entries only: fit the arm's table without "
+                                     "compliance when the sensor sees the arm itself")
+        return np.asarray(by_entry, float)[..., self._index] * self.prior_std
+
     def pose_jacobian(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
         """Per view how its flange pose moves with each unknown (N, 6, n_params): the left rotation
         and the translation of :func:`~handeye.geometry.se3.perturb` per unit of ``d`` (finite

@@ -17,8 +17,11 @@ the base frame by X must lie on that view's posed arm. No target, no pose of it 
 * :class:`ArmSurface`: those points as a sensor model (:mod:`handeye.sensors.base`): each point's
   signed distance from the posed arm's surface along its normal, the point moved back along its ray
   by the depth scale and bias as for the other depth targets; unknowns: X, the depth scale and
-  bias. The arm's table is the controller's (its joint angles through the nominal table): its
-  entries are not fitted here.
+  bias. With the arm's joint angles and table (``joints``, ``chain``) the table's entries can be
+  fitted too (:class:`~handeye.robot.models.JointAngles`): the core passes the corrected table
+  (``residuals(..., table=)``), each point moves with the link it lies on (found at the start), and
+  ``link_jacobian`` gives its derivatives by every entry from the links' twists
+  (:meth:`~handeye.robot.meshes.ArmMeshes.table_twists`).
 
 Examples
 --------
@@ -45,6 +48,7 @@ from scipy.spatial import cKDTree
 from ...errors import InputMismatchError, SessionError
 from ...frames.setups import check_setup, setup_info
 from ...geometry.se3 import perturb
+from ...robot.kinematics import Chain
 from ...robot.meshes import ArmMeshes
 from .clouds import depth_sigma
 from .model import LATERAL, DepthRows, depth_figures
@@ -198,13 +202,17 @@ class ArmSurface(DepthRows):
     normal, and the noise across the rays (:data:`~handeye.sensors.depth.model.LATERAL`) times its sine.
     Z, the target's pose, is none: the arm is posed by the joint angles; the result's Z is the
     identity (the target taken as the flange itself), not fitted.
+
+    With ``joints`` (N, n; rad) and ``chain`` (the table ``arm`` was posed by), the fit can correct
+    the table (the module docstring): each point is assigned the link nearest it at ``X0``.
     """
 
     target = "arm"
     groups: tuple[tuple[int, ...], ...] = ((0,),)
 
     def __init__(self, setup: str, names: list[str], arm: PosedArm, points: list[NDArray[np.float64]],
-                 X0: NDArray[np.float64], fit_depth: bool = True) -> None:
+                 X0: NDArray[np.float64], fit_depth: bool = True, joints: NDArray[np.float64] | None = None,
+                 chain: Chain | None = None) -> None:
         self.setup = check_setup(setup)
         if setup_info(self.setup).camera_on_flange:
             raise InputMismatchError("the arm as the target is seen by a camera fixed in the cell: setup eye_to_hand")
@@ -221,6 +229,21 @@ class ArmSurface(DepthRows):
         self.shape = np.sqrt((depth_sigma(z) * cos) ** 2 + (LATERAL * z) ** 2 * (1.0 - cos**2))[:, None]
         self.param_names = ["depth.scale-1", "depth.bias"] if fit_depth else []
         self.param_scale = np.full(len(self.param_names), 1e-3)
+        self.joints, self.chain = (None, None) if joints is None else (np.atleast_2d(np.asarray(joints, float)), chain)
+        if self.joints is not None:
+            if chain is None or len(self.joints) != len(names):
+                raise InputMismatchError(f"{len(names)} views and joint angles of shape {self.joints.shape}: give the "
+                                         "table (chain) and one row of joint angles per view")
+            y0 = to_base(self.X0, self.measured)
+            self.link = np.empty(len(self.owner), dtype=np.intp)
+            for v in range(len(names)):
+                at = self.owner == v
+                self.link[at] = arm.meshes.nearest_link(arm.link2base[v], y0[at])
+
+    @property
+    def sees_links(self) -> bool:
+        """Whether the fit can correct the arm's table (its joint angles and table given)."""
+        return self.joints is not None
 
     def view_poses(self) -> None:
         """None: no view measures a target's pose (the model starts from its own ``X0``)."""
@@ -246,15 +269,35 @@ class ArmSurface(DepthRows):
         s, b = 1.0 + p[-2], p[-1]
         return q * ((q[:, 2] - b) / (s * q[:, 2]))[:, None]
 
-    def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
-        """Each row's signed distance (m) from its view's posed arm, along the surface's normal."""
-        return self.arm.surface(self.owner[rows], to_base(X, self._moved(p, rows)), faces=FACES)[0][:, None]
+    def _on_nominal(self, y: NDArray[np.float64], rows: NDArray[np.intp], table: Chain | None
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        """Points ``y`` (base frame) of ``rows`` carried from their links posed by ``table`` to the same
+        links posed by the nominal one (where the posed arm's samples are), and the rotation that did
+        it (None without ``table``)."""
+        if table is None:
+            return y, None
+        at = (self.owner[rows], self.link[rows])
+        nominal, moved = self.arm.link2base[at], self.arm.meshes.link2base(table, self.joints)[at]
+        R = nominal[:, :3, :3] @ np.swapaxes(moved[:, :3, :3], 1, 2)
+        return np.einsum("mij,mj->mi", R, y - moved[:, :3, 3]) + nominal[:, :3, 3], R
 
-    def jacobian(self, X, p, flange2base, rows) -> NDArray[np.float64]:
-        """The residuals' derivatives (M, 1, 6 + k): X's left increment, then the depth scale and bias."""
+    def residuals(self, X, p, flange2base, rows, table: Chain | None = None) -> NDArray[np.float64]:
+        """Each row's signed distance (m) from its view's posed arm, along the surface's normal (the
+        links posed by ``table`` when given, else by the table the arm was posed by)."""
+        y, _ = self._on_nominal(to_base(X, self._moved(p, rows)), rows, table)
+        return self.arm.surface(self.owner[rows], y, faces=FACES)[0][:, None]
+
+    def _normals(self, X, p, rows, table: Chain | None) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """The rows' points moved (camera frame), turned by X, and the surface's normals (base frame)."""
         q = self._moved(p, rows)
         u = q @ X[:3, :3].T
-        _, _, n = self.arm.surface(self.owner[rows], u + X[:3, 3], faces=FACES)
+        y, R = self._on_nominal(u + X[:3, 3], rows, table)
+        _, _, n = self.arm.surface(self.owner[rows], y, faces=FACES)
+        return q, u, (n if R is None else np.einsum("mji,mj->mi", R, n))
+
+    def jacobian(self, X, p, flange2base, rows, table: Chain | None = None) -> NDArray[np.float64]:
+        """The residuals' derivatives (M, 1, 6 + k): X's left increment, then the depth scale and bias."""
+        q, u, n = self._normals(X, p, rows, table)
         cols = [np.cross(u, n), n]
         if self.fit_depth:
             s = 1.0 + p[-2]
@@ -264,14 +307,26 @@ class ArmSurface(DepthRows):
                      (-np.einsum("mi,mi->m", n_cam, raw) / (s * raw[:, 2]))[:, None]]
         return np.concatenate(cols, axis=1)[:, None, :]
 
+    def link_jacobian(self, X, p, rows, table: Chain) -> NDArray[np.float64]:
+        """The residuals' derivatives (M, 1, E) by every entry of ``table`` (natural units, row by row):
+        a point's link moved by ``w x y + v`` (:meth:`~handeye.robot.meshes.ArmMeshes.table_twists`)
+        moves the surface under it, and its distance from it by minus that along the normal."""
+        _, u, n = self._normals(X, p, rows, table)
+        y = u + X[:3, 3]
+        twist = self.arm.meshes.table_twists(table, self.joints)[:, self.owner[rows], self.link[rows]]  # (E, M, 6)
+        moved = np.cross(twist[..., :3], y) + twist[..., 3:]
+        return -np.einsum("mi,emi->me", n, moved)[:, None, :]
+
     def figures(self, p, cov_p) -> dict[str, Any]:
         """The arm, its links, the points fitted, the depth scale and bias."""
         return {"arm": self.arm.meshes.arm, "links": [link.name for link in self.arm.meshes.links],
                 "points": int(len(self.owner)), **depth_figures(p, cov_p, self.fit_depth)}
 
     def notes(self, p, cov_p) -> list[str]:
-        """The depth notes, and that the arm's table is not fitted."""
+        """The depth notes, and how the arm's links were posed."""
+        posed = ("through its table, fitted with X (joint angles)" if self.sees_links else
+                 "through its nominal table (not fitted)")
         return super().notes(p, cov_p) + [
-            f"the arm ({self.arm.meshes.arm}) is the target: its links posed by the joint angles through its nominal "
-            "table (not fitted); Z is the identity (no target of its own)"]
+            f"the arm ({self.arm.meshes.arm}) is the target: its links posed by the joint angles {posed}; Z is the "
+            "identity (no target of its own)"]
 
