@@ -133,10 +133,10 @@ def corners_fit(views: Views, idx: NDArray[np.intp], X0: NDArray[np.float64], Z0
     X_start, p_start = sensor.start(flange2base, X0, Z0)
     problem = Problem(sensor, ControllerPoses(flange2base), X_start, p_start)
     fitted = core_fit(problem)
-    return CornersFit(problem, fitted, _as_reprojection(problem, fitted, (X0, Z0)))
+    return CornersFit(problem, fitted, _as_reprojection(problem, fitted))
 
 
-def _as_reprojection(problem: Problem, fitted: Fitted, start: tuple) -> ReprojectionResult:
+def _as_reprojection(problem: Problem, fitted: Fitted) -> ReprojectionResult:
     """The core's fit of a camera's corners as a :class:`~handeye.solvers.refine.ReprojectionResult`."""
     sensor = problem.sensor
     flange2base = problem.robot.flange2base(fitted.d)
@@ -163,7 +163,8 @@ def _as_reprojection(problem: Problem, fitted: Fitted, start: tuple) -> Reprojec
 def pixel_fit(views: Views, idx: NDArray[np.intp], X0: NDArray[np.float64], Z0: NDArray[np.float64],
               refine_intrinsics: bool = False, robot_sigma: tuple[float, float] | None = None) -> ReprojectionResult:
     """The robust pixel refinement of X0, Z0 on the views ``idx``: with the robot exact, the core's
-    fit of the corners (:func:`corners_fit`)."""
+    fit of the corners (:func:`corners_fit`); with each pose corrected under the prior ``robot_sigma``
+    (rad, m), :func:`~handeye.solvers.refine.refine_reprojection`."""
     if robot_sigma is None:
         return corners_fit(views, idx, X0, Z0, refine_intrinsics).result
     return refine_reprojection(X0, Z0, views.flange2base[idx], [views.object_points[i] for i in idx],

@@ -336,14 +336,15 @@ def calibrate_arm_depth_session(s: DepthSession, options: CalibrationOptions, *,
         Fit the arm's table with X (:class:`~handeye.robot.models.JointAngles`, the entries a board
         calibration fits, each with the table's tolerance as its prior:
         :func:`~handeye.pipelines._arm.table_tolerance`; every point moved with its link); else the
-        links are posed by the table as given and its tolerance is added to X's std. Measured (the
-        simulated Panda with its hand, 10 clouds of 640x480, 8 sessions per row): an arm 0.7 mm / 0.07
-        deg off per entry, X 4.1 mm off with the table held (verdict weak, 7-9 mm std) and 0.21 mm
-        fitted (0.05-0.57 mm, verdict good); 0.3 mm / 0.03 deg off, 1.8 mm against 0.26 mm. Not the
-        default yet: X was within 3 of the fitted std in 7 of 8 and 8 of 8 sessions, and with the
-        arm exactly on its table in 2 of 3, X 0.14-0.66 mm off where the table held gives 0.04-0.2 mm:
-        a point's distance from the nearest sample's face jumps where that face changes, so the fit
-        can stop short of its minimum by more than its std says. 7-12 s more per session.
+        links are posed by the table as given and its tolerance is added to X's std. Measured
+        (``benchmarks/bench_arm_depth.py --fit-table``: the simulated Panda with its hand, 10 clouds of
+        640x480): an arm 0.7 mm / 0.07 deg off per entry, X 4.2 mm off with the table held (verdict
+        weak, 7-9 mm std) and 0.21 mm fitted (worst 0.57 mm, verdict good; median of 10); 0.3 mm /
+        0.03 deg off, 1.8 mm against 0.26 mm (8). Not the default yet: X was within 3 of the fitted
+        std in 9 of 10, 8 of 8, and 9 of 10 with the arm exactly on its table, where it is 0.20 mm
+        off (worst 0.75) against 0.04 mm held: a point's distance from the nearest sample's face jumps
+        where that face changes, so the fit can stop short of its minimum by more than its std says.
+        About 10 s more per session.
     progress : bool
         Progress on stderr. ``jobs``: clouds searched at a time by the global registration (threads; default 2).
 
