@@ -184,7 +184,7 @@ def test_the_arms_table_columns_match_central_differences():
         q = cloud.reshape(-1, 3)
         q = q[np.isfinite(q).all(axis=1)]
         points.append(q[on_arm(arm, sc.X, np.full(len(q), k), q)][:300])
-    model = ArmSurface("eye_to_hand", ["a", "b", "c", "d"], arm, points, sc.X, True, sc.joints, chain)
+    model = ArmSurface("eye_to_hand", ["a", "b", "c", "d"], arm, points, sc.X, True, sc.joints)
     robot = JointAngles(chain, sc.joints)
     problem = Problem(model, robot, sc.X, np.zeros(2))
     rng = np.random.default_rng(0)

@@ -364,7 +364,7 @@ def calibrate_arm_depth_session(s: DepthSession, options: CalibrationOptions, *,
     names, joints = [s.names[k] for k in c.index], s.joints[c.index]
     if fit_table:
         length, angle, _ = table_tolerance(s.arm)
-        model = ArmSurface(s.setup, names, arm.subset(c.index), points, X, fit_depth, joints, s.arm)
+        model = ArmSurface(s.setup, names, arm.subset(c.index), points, X, fit_depth, joints)
         cal = estimate(model, JointAngles(s.arm, joints, length_prior=length, angle_prior=angle), options.folds)
     else:
         model = ArmSurface(s.setup, names, arm.subset(c.index), points, X, fit_depth)

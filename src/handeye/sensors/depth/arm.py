@@ -17,7 +17,7 @@ the base frame by X must lie on that view's posed arm. No target, no pose of it 
 * :class:`ArmSurface`: those points as a sensor model (:mod:`handeye.sensors.base`): each point's
   signed distance from the posed arm's surface along its normal, the point moved back along its ray
   by the depth scale and bias as for the other depth targets; unknowns: X, the depth scale and
-  bias. With the arm's joint angles and table (``joints``, ``chain``) the table's entries can be
+  bias. With the arm's joint angles (``joints``) the table's entries can be
   fitted too (:class:`~handeye.robot.models.JointAngles`): the core passes the corrected table
   (``residuals(..., table=)``), each point moves with the link it lies on (found at the start), and
   ``link_jacobian`` gives its derivatives by every entry from the links' twists
@@ -203,16 +203,15 @@ class ArmSurface(DepthRows):
     Z, the target's pose, is none: the arm is posed by the joint angles; the result's Z is the
     identity (the target taken as the flange itself), not fitted.
 
-    With ``joints`` (N, n; rad) and ``chain`` (the table ``arm`` was posed by), the fit can correct
-    the table (the module docstring): each point is assigned the link nearest it at ``X0``.
+    With ``joints`` (N, n; rad: those ``arm`` was posed at), the fit can correct the table it was
+    posed by (the module docstring): each point is assigned the link nearest it at ``X0``.
     """
 
     target = "arm"
     groups: tuple[tuple[int, ...], ...] = ((0,),)
 
     def __init__(self, setup: str, names: list[str], arm: PosedArm, points: list[NDArray[np.float64]],
-                 X0: NDArray[np.float64], fit_depth: bool = True, joints: NDArray[np.float64] | None = None,
-                 chain: Chain | None = None) -> None:
+                 X0: NDArray[np.float64], fit_depth: bool = True, joints: NDArray[np.float64] | None = None) -> None:
         self.setup = check_setup(setup)
         if setup_info(self.setup).camera_on_flange:
             raise InputMismatchError("the arm as the target is seen by a camera fixed in the cell: setup eye_to_hand")
@@ -229,11 +228,11 @@ class ArmSurface(DepthRows):
         self.shape = np.sqrt((depth_sigma(z) * cos) ** 2 + (LATERAL * z) ** 2 * (1.0 - cos**2))[:, None]
         self.param_names = ["depth.scale-1", "depth.bias"] if fit_depth else []
         self.param_scale = np.full(len(self.param_names), 1e-3)
-        self.joints, self.chain = (None, None) if joints is None else (np.atleast_2d(np.asarray(joints, float)), chain)
+        self.joints = None if joints is None else np.atleast_2d(np.asarray(joints, float))
         if self.joints is not None:
-            if chain is None or len(self.joints) != len(names):
-                raise InputMismatchError(f"{len(names)} views and joint angles of shape {self.joints.shape}: give the "
-                                         "table (chain) and one row of joint angles per view")
+            if len(self.joints) != len(names):
+                raise InputMismatchError(f"{len(names)} views and joint angles of shape {self.joints.shape}: give one row "
+                                         "of joint angles per view")
             y0 = to_base(self.X0, self.measured)
             self.link = np.empty(len(self.owner), dtype=np.intp)
             for v in range(len(names)):
@@ -242,7 +241,7 @@ class ArmSurface(DepthRows):
 
     @property
     def sees_links(self) -> bool:
-        """Whether the fit can correct the arm's table (its joint angles and table given)."""
+        """Whether the fit can correct the arm's table (its joint angles given)."""
         return self.joints is not None
 
     def view_poses(self) -> None:
