@@ -342,9 +342,9 @@ def calibrate_arm_depth_session(s: DepthSession, options: CalibrationOptions, *,
         weak, 7-9 mm std) and 0.21 mm fitted (worst 0.57 mm, verdict good; median of 10); 0.3 mm /
         0.03 deg off, 1.8 mm against 0.26 mm (8). Not the default yet: X was within 3 of the fitted
         std in 9 of 10, 8 of 8, and 9 of 10 with the arm exactly on its table, where it is 0.20 mm
-        off (worst 0.75) against 0.04 mm held: a point's distance from the nearest sample's face jumps
-        where that face changes, so the fit can stop short of its minimum by more than its std says.
-        About 10 s more per session.
+        off (worst 0.75) against 0.04 mm held; why X then strays beyond its std is not found yet (the
+        solver stops where a point's nearest face changes, but holding each point's face per round,
+        as ICP does, did not mend it). About 10 s more per session.
     progress : bool
         Progress on stderr. ``jobs``: clouds searched at a time by the global registration (threads; default 2).
 
