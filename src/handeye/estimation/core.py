@@ -262,10 +262,11 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
 
 
 def _own_jacobian(sensor: SensorModel, x: NDArray[np.float64], X: NDArray[np.float64], p: NDArray[np.float64],
-                  flange2base: NDArray[np.float64], rows: NDArray[np.intp]) -> NDArray[np.float64]:
-    """The sensor's own derivatives (M, c, 6 + k) by ``x``: its X columns are for a left increment of X,
+                  flange2base: NDArray[np.float64], rows: NDArray[np.intp], **table) -> NDArray[np.float64]:
+    """The sensor's own derivatives (M, c, 6 + k) by ``x`` (``table``: a corrected arm's table, for a sensor
+    that sees the links, which adds a column per entry): its X columns are for a left increment of X,
     and ``x``'s rotation vector moves X by ``so3_left_jacobian(x[:3])`` of them (exact away from the start)."""
-    J = sensor.jacobian(X, p, flange2base, rows)
+    J = sensor.jacobian(X, p, flange2base, rows, **table)
     J[..., :3] = J[..., :3] @ so3_left_jacobian(x[:3])
     return J
 
@@ -313,8 +314,8 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
 
 def _links_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
     """The Jacobian for a sensor that sees the arm's links, with the table's entries as the robot's
-    unknowns: the sensor's own derivatives at the corrected table (``jacobian(..., table=)``), and by
-    every entry of it (``link_jacobian``) taken to the fitted entries in units of their prior std
+    unknowns: the sensor's own derivatives at the corrected table (``jacobian(..., table=)``), whose
+    columns by every entry of it are taken to the fitted entries in units of their prior std
     (:meth:`~handeye.robot.models.JointAngles.entry_columns`); the prior rows, ``d`` itself."""
     sensor, robot = problem.sensor, problem.robot
     weight = _weight(problem, rows, sigma)
@@ -322,11 +323,8 @@ def _links_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
-        table = robot.corrected(d)
-        own = sensor.jacobian(X, p, robot.flange2base(d), rows, table=table)
-        own[..., :3] = own[..., :3] @ so3_left_jacobian(x[:3])
-        by_entry = robot.entry_columns(sensor.link_jacobian(X, p, rows, table))
-        J = np.concatenate([own, by_entry], axis=2) * weight[..., None]
+        own = _own_jacobian(sensor, x, X, p, robot.flange2base(d), rows, table=robot.corrected(d))
+        J = np.concatenate([own[..., :n_x], robot.entry_columns(own[..., n_x:])], axis=2) * weight[..., None]
         m = J.shape[0] * J.shape[1]
         out = np.zeros((m + n_d + len(problem.pins), len(x)))
         out[:m] = J.reshape(m, -1)

@@ -61,13 +61,13 @@ A new sensor is one package under ``sensors/`` whose model class has these membe
     ``motion``, the flange's pose at robot times (M,) -> (M, 4, 4), from a robot model that follows
     the move (:class:`~handeye.robot.models.JointTrajectory`); the core passes it only from such a
     robot, and the sensor then takes every row's pose from it instead of its view's pose.
-``sees_links``, ``residuals(..., table=...)``, ``jacobian(..., table=...)``, ``link_jacobian(X, p, rows, table)`` (optional)
+``sees_links``, ``residuals(..., table=...)``, ``jacobian(..., table=...)`` (optional)
     A sensor whose target is the arm itself (its links posed at each view's joint angles) with
     ``sees_links`` true takes ``table``, the arm's table corrected by the robot's unknowns, from
-    :class:`~handeye.robot.models.JointAngles`; ``link_jacobian`` gives the residuals' derivatives
+    :class:`~handeye.robot.models.JointAngles`; its ``jacobian`` then adds the residuals' derivatives
     (M, c, E) by every entry of it (natural units), which the robot model takes to its unknowns
     (:meth:`~handeye.robot.models.JointAngles.entry_columns`). A depth camera's
-    :class:`~handeye.sensors.depth.arm.ArmSurface` with its joint angles and table.
+    :class:`~handeye.sensors.depth.arm.ArmSurface` with its joint angles.
 ``pixel_size(rows)`` (optional)
     Per measurement row the size (m) of one pixel of its residual, when the residuals are pixels
     times a size (an area camera's corners): cross-validation then gives held-out errors in pixels

@@ -146,7 +146,7 @@ class CameraCorners(ChartedTarget):
         return (project_camera_points(cam, *self.intrinsics(p)) - self.uv[rows]) * self._mpp[rows, None]
 
     def jacobian(self, X, p, flange2base, rows) -> NDArray[np.float64]:
-        """The residuals' derivatives (M, 2, 12) for a left increment of X (rotation ``a``, translation
+        """The residuals' derivatives (M, 2, 12; 21 with the intrinsics) for a left increment of X (rotation ``a``, translation
         ``b``: ``R_X -> exp(a) R_X``, ``t_X -> t_X + b``) and the target's unknowns (its chart's
         rotation vector ``r`` and its translation): a corner in the camera frame is
         ``c = R_X^T (q - t_X)`` with ``q = inv(A_i) Z P``, so ``dc/da = R_X^T [q - t_X]x``,

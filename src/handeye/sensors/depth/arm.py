@@ -20,7 +20,7 @@ the base frame by X must lie on that view's posed arm. No target, no pose of it 
   bias. With the arm's joint angles (``joints``) the table's entries can be
   fitted too (:class:`~handeye.robot.models.JointAngles`): the core passes the corrected table
   (``residuals(..., table=)``), each point moves with the link it lies on (found at the start), and
-  ``link_jacobian`` gives its derivatives by every entry from the links' twists
+  ``jacobian(..., table=)`` adds its derivatives by every entry from the links' twists
   (:meth:`~handeye.robot.meshes.ArmMeshes.table_twists`).
 
 Examples
@@ -286,17 +286,17 @@ class ArmSurface(DepthRows):
         y, _ = self._on_nominal(to_base(X, self._moved(p, rows)), rows, table)
         return self.arm.surface(self.owner[rows], y, faces=FACES)[0][:, None]
 
-    def _normals(self, X, p, rows, table: Chain | None) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-        """The rows' points moved (camera frame), turned by X, and the surface's normals (base frame)."""
+    def jacobian(self, X, p, flange2base, rows, table: Chain | None = None) -> NDArray[np.float64]:
+        """The residuals' derivatives (M, 1, 6 + k): X's left increment, then the depth scale and bias;
+        with ``table``, at it, then (M, 1, 6 + k + E) by every entry of it (natural units, row by row): a
+        point's link moved by ``w x y + v`` (:meth:`~handeye.robot.meshes.ArmMeshes.table_twists`) moves
+        the surface under it, and its distance from it by minus that along the normal."""
         q = self._moved(p, rows)
         u = q @ X[:3, :3].T
         y, R = self._on_nominal(u + X[:3, 3], rows, table)
         _, _, n = self.arm.surface(self.owner[rows], y, faces=FACES)
-        return q, u, (n if R is None else np.einsum("mji,mj->mi", R, n))
-
-    def jacobian(self, X, p, flange2base, rows, table: Chain | None = None) -> NDArray[np.float64]:
-        """The residuals' derivatives (M, 1, 6 + k): X's left increment, then the depth scale and bias."""
-        q, u, n = self._normals(X, p, rows, table)
+        if R is not None:
+            n = np.einsum("mji,mj->mi", R, n)
         cols = [np.cross(u, n), n]
         if self.fit_depth:
             s = 1.0 + p[-2]
@@ -304,17 +304,11 @@ class ArmSurface(DepthRows):
             raw = self.measured[rows]
             cols += [(-np.einsum("mi,mi->m", n_cam, q) / s)[:, None],
                      (-np.einsum("mi,mi->m", n_cam, raw) / (s * raw[:, 2]))[:, None]]
+        if table is not None:
+            twist = self.arm.meshes.table_twists(table, self.joints)[:, self.owner[rows], self.link[rows]]  # (E, M, 6)
+            moved = np.cross(twist[..., :3], u + X[:3, 3]) + twist[..., 3:]
+            cols.append(-np.einsum("mi,emi->me", n, moved))
         return np.concatenate(cols, axis=1)[:, None, :]
-
-    def link_jacobian(self, X, p, rows, table: Chain) -> NDArray[np.float64]:
-        """The residuals' derivatives (M, 1, E) by every entry of ``table`` (natural units, row by row):
-        a point's link moved by ``w x y + v`` (:meth:`~handeye.robot.meshes.ArmMeshes.table_twists`)
-        moves the surface under it, and its distance from it by minus that along the normal."""
-        _, u, n = self._normals(X, p, rows, table)
-        y = u + X[:3, 3]
-        twist = self.arm.meshes.table_twists(table, self.joints)[:, self.owner[rows], self.link[rows]]  # (E, M, 6)
-        moved = np.cross(twist[..., :3], y) + twist[..., 3:]
-        return -np.einsum("mi,emi->me", n, moved)[:, None, :]
 
     def figures(self, p, cov_p) -> dict[str, Any]:
         """The arm, its links, the points fitted, the depth scale and bias."""
