@@ -389,3 +389,20 @@ def test_each_sensors_notes_are_its_own_even_when_one_name_begins_another():
     assert _member_notes(notes, "cam", names) == [notes[1], notes[2], notes[5], notes[6]]
     assert _member_notes(notes, "camera", names) == [notes[0], notes[2], notes[4], notes[5], notes[6]]
     assert _member_notes(notes, "c2", names) == [notes[3], notes[5], notes[6]]
+
+
+def test_a_views_file_is_found_by_its_name_or_stem_in_any_case(tmp_path):
+    """One finder for every sensor's per-view files (images, clouds, profiles): the name as given,
+    else the name or its stem with the first suffix of the given order that has a file, the suffix
+    in any case (a rig camera's 'V01.PGM' was missed before: its suffixes were not the session's);
+    None for a view without a file."""
+    from handeye.io.session import files_of_views
+
+    for name in ("v01.PGM", "v02.png", "v02.jpg", "v03.ply", "v03.npy", "scan.001.csv", "notes.txt"):
+        (tmp_path / name).write_bytes(b"x")
+    found = files_of_views(tmp_path, ["v01.png", "v02", "v03", "v04", "scan.001", "v02.jpg"], (".png", ".jpg", ".pgm"))
+    assert [p.name if p else None for p in found] == ["v01.PGM", "v02.png", None, None, None, "v02.jpg"]
+    clouds = files_of_views(tmp_path, ["v03.png", "v03"], (".npy", ".ply"))
+    assert [p.name for p in clouds] == ["v03.npy", "v03.npy"]
+    assert [p.name for p in files_of_views(tmp_path, ["scan.001"], (".csv",))] == ["scan.001.csv"]
+    assert files_of_views(tmp_path / "missing", ["v01"], (".png",)) == [None]

@@ -25,6 +25,7 @@ from .session import (
     JOINTS_KEYS,
     POSES_KEYS,
     check_session_keys,
+    files_of_views,
     has_section,
     joints_of_views,
     read_camera,
@@ -221,16 +222,15 @@ def _depth_spec(spec: Any, where: str) -> tuple[str, tuple[float, float] | None]
     return unit, (lo, hi)
 
 
-def _cloud_of(folder: Path, name: str, table: Path) -> Path:
-    """The cloud in ``clouds/`` named ``name`` (spheres) or with the image's stem (boards)."""
+def _clouds_of(folder: Path, names: list[str], table: Path) -> list[Path]:
+    """Per view the cloud in ``clouds/`` named ``name`` (spheres) or with the image's stem (boards)."""
     clouds = folder / "clouds"
-    direct = clouds / name
-    if direct.suffix.lower() in CLOUD_SUFFIXES and direct.is_file():
-        return direct
-    found = [clouds / (Path(name).stem + s) for s in CLOUD_SUFFIXES if (clouds / (Path(name).stem + s)).is_file()]
-    if not found:
-        raise SessionError(f"{table}: no cloud for {name!r} in {clouds} (expected {Path(name).stem}.npy, .ply or .pcd)")
-    return found[0]
+    out = []
+    for found, name in zip(files_of_views(clouds, names, CLOUD_SUFFIXES), names):
+        if found is None:
+            raise SessionError(f"{table}: no cloud for {name!r} in {clouds} (expected {Path(name).stem}.npy, .ply or .pcd)")
+        out.append(found)
+    return out
 
 
 def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSession:
@@ -266,7 +266,7 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     else:
         f2b, names, table = read_robot_poses(folder, spec.get("poses"), where, notes, ("image", "cloud"), FIRST_COLUMN)
     q = None if joints is None else joints_of_views(joints, names)
-    clouds = [_cloud_of(folder, n, table) for n in names]
+    clouds = _clouds_of(folder, names, table)
     images = None
     if board:
         images = [folder / "images" / n for n in names]
@@ -282,11 +282,10 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
 RIG_DEPTH_KEYS = ("depth", "camera", "clouds", "images", "target")
 
 
-def _file_of(folder: Path, name: str, suffixes) -> Path:
-    """The file in ``folder`` named by view ``name`` with one of ``suffixes``; a path that does not
-    exist when there is none (a view the sensor missed)."""
-    found = [folder / (name + s) for s in suffixes if (folder / (name + s)).is_file()]
-    return found[0] if found else folder / (name + suffixes[0])
+def _files_of(folder: Path, names: list[str], suffixes) -> list[Path]:
+    """Per view its file in ``folder`` with one of ``suffixes``; a path that does not exist when
+    there is none (a view the sensor missed)."""
+    return [found or folder / (name + suffixes[0]) for found, name in zip(files_of_views(folder, names, suffixes), names)]
 
 
 def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[np.float64], block: dict, name: str,
@@ -310,8 +309,7 @@ def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[n
     for sub, what in [(clouds, "clouds")] + ([] if radii is not None else [(images, "intensity images")]):
         if not sub.is_dir():
             raise SessionError(f"{where}: no folder {sub} (its {what}, named by view: v01{'.npy' if what == 'clouds' else '.png'}, ...)")
-    cloud_paths = [_file_of(clouds, n, CLOUD_SUFFIXES) for n in names]
-    image_paths = None if radii is not None else [_file_of(images, n, tuple(sorted(IMAGE_SUFFIXES, key=lambda x: x != ".png")))
-                                                     for n in names]
+    cloud_paths = _files_of(clouds, names, CLOUD_SUFFIXES)
+    image_paths = None if radii is not None else _files_of(images, names, sorted(IMAGE_SUFFIXES, key=lambda x: (x != ".png", x)))
     return DepthSession(folder, setup, dict(target or {}), list(names), cloud_paths, image_paths, flange2base, K, dist, unit,
                         working, radii)

@@ -47,6 +47,7 @@ from .session import (
     SESSION_FILE,
     check_keys,
     check_session_keys,
+    files_of_views,
     has_section,
     joints_of_views,
     read_joints,
@@ -193,7 +194,7 @@ def load_laser_session(folder: str | Path, arm: str | None = None) -> LaserSessi
         f2b, names, _ = read_robot_poses(folder, spec.get("poses"), where, notes, ("profile",),
                                          "'profile', naming each pose's profile file in profiles/")
     q = None if joints is None else joints_of_views(joints, names)
-    paths = [_profile_of(folder, n) for n in names]
+    paths = _profiles_of(folder / "profiles", names)
     return LaserSession(folder, setup, dict(spec["target"]), list(names), paths, f2b, unit, working, noise, radius, notes,
                         q, None if joints is None else joints[2], None if joints is None else joints[3], target, radii)
 
@@ -207,14 +208,12 @@ def rig_laser(folder: Path, setup: str, names: list[str], flange2base: NDArray[n
     kind, radius, radii = _target(target, where)
     if not profiles.is_dir():
         raise SessionError(f"{where}: no folder {profiles} (its profiles, named by view: v01.csv, ...)")
-    paths = [_profile_of(profiles.parent, n, profiles.name) for n in names]
+    paths = _profiles_of(profiles, names)
     return LaserSession(folder, setup, dict(target), list(names), paths, flange2base, unit, working, noise, radius, [],
                         target=kind, radii=radii)
 
 
-def _profile_of(folder: Path, name: str, sub: str = "profiles") -> Path:
-    path = folder / sub / name
-    if path.suffix.lower() in PROFILE_SUFFIXES:
-        return path
-    found = [folder / sub / (name + s) for s in PROFILE_SUFFIXES if (folder / sub / (name + s)).is_file()]
-    return found[0] if found else path
+def _profiles_of(folder: Path, names: list[str]) -> list[Path]:
+    """Per view its profile in ``folder`` (:func:`~handeye.io.session.files_of_views`); a path that
+    does not exist for a view without one (the reader names it)."""
+    return [found or folder / name for found, name in zip(files_of_views(folder, names, PROFILE_SUFFIXES), names)]

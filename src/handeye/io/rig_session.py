@@ -52,12 +52,14 @@ from ..robot.kinematics import Chain
 from ..sensors.camera.targets import target_from_spec
 from .depth_session import RIG_DEPTH_KEYS, DepthSession, rig_depth
 from .laser_session import LaserSession, rig_laser
+from .session import IMAGE_SUFFIXES as SESSION_IMAGE_SUFFIXES
 from .session import (
     JOINTS_KEYS,
     POSES_KEYS,
     SESSION_FILE,
     check_keys,
     check_session_keys,
+    files_of_views,
     has_section,
     joints_of_views,
     read_camera,
@@ -71,8 +73,8 @@ __all__ = ["RigSession", "RigSensor", "load_rig_session", "is_rig_session", "SEN
 #: The keys of one camera's block, and of a laser profiler's (its target: the session's when left out).
 SENSOR_KEYS = ("camera", "images")
 LASER_SENSOR_KEYS = ("laser", "profiles", "target")
-#: The image files a sensor's folder may hold.
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+#: The image files a sensor's folder may hold: an image session's (the png first).
+IMAGE_SUFFIXES = tuple(sorted(SESSION_IMAGE_SUFFIXES, key=lambda x: (x != ".png", x)))
 
 
 @dataclass(frozen=True)
@@ -161,8 +163,7 @@ def _camera(folder: Path, name: str, block: dict, names: list[str], target: Any,
     images = folder / str(block.get("images", name))
     if not images.is_dir():
         raise SessionError(f"{at}: no folder {images} (its images, named by view)")
-    by_stem = {p.stem: p for p in images.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES}
-    return RigSensor(name, K, np.zeros(5) if dist is None else dist, [by_stem.get(Path(n).stem) for n in names],
+    return RigSensor(name, K, np.zeros(5) if dist is None else dist, files_of_views(images, names, IMAGE_SUFFIXES),
                      target_spec=dict(target or {}))
 
 

@@ -38,7 +38,7 @@ import io
 import unicodedata
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 import yaml
@@ -63,7 +63,7 @@ __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
            "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session", "write_joint_table",
            "load_joint_stream", "load_camera_stream", "write_joint_stream", "read_image_times", "time_unit_scale",
-           "parsed_poses", "pose_table_path", "flange_poses_of"]
+           "parsed_poses", "pose_table_path", "flange_poses_of", "files_of_views"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
 SESSION_FILE = "session.yaml"
@@ -73,6 +73,28 @@ TIME_COLUMNS = ("time", "t", "stamp", "timestamp")
 #: Time units of stream files, in seconds.
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp"}
+
+
+def files_of_views(folder: Path, names: Sequence[str], suffixes: Sequence[str]) -> list[Path | None]:
+    """Per view of ``names`` its file in ``folder``: the name itself when it ends in one of
+    ``suffixes``, else the name or its stem followed by the first of ``suffixes`` (in their order)
+    there is a file for, the suffix in any case (``v01`` or ``v01.png`` finds ``v01.PLY``); None
+    for a view without one (a view the sensor missed). The folder is listed once."""
+    order = [str(x).lower() for x in suffixes]
+    listing: dict[tuple[str, str], Path] = {}
+    if folder.is_dir():
+        for path in sorted(folder.iterdir()):
+            if path.suffix.lower() in order and path.is_file():
+                listing.setdefault((path.stem, path.suffix.lower()), path)
+    out: list[Path | None] = []
+    for name in names:
+        own = Path(name)
+        found = listing.get((own.stem, own.suffix.lower())) if own.suffix.lower() in order else None
+        for base in (name, own.stem):
+            for suffix in order:
+                found = found or listing.get((base, suffix))
+        out.append(found)
+    return out
 
 
 @dataclass(frozen=True)
