@@ -63,7 +63,7 @@ from .uncertainty import widened_uncertainty
 from .validation import default_folds, fold_indices
 from .verdict import judged
 
-__all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "estimate", "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
+__all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "view_rms_px", "estimate", "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
            "HELDOUT_FACTOR", "WEAKEST_NOTE", "Held"]
 
 #: Points whose residual exceeds this many of their std (after a robust first fit) are set aside.
@@ -525,6 +525,14 @@ def view_rms_mm(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flang
     """Per view of ``views``: the RMS length (mm) of its kept rows' residuals under ``fitted``
     (NaN for a view without a kept row)."""
     return _view_rms(problem, fitted, views, flange2base)[:, 0]
+
+
+def view_rms_px(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flange2base: NDArray[np.float64] | None = None
+                ) -> NDArray[np.float64]:
+    """Per view of ``views``: the RMS length in pixels of its kept rows' residuals under ``fitted``,
+    for a sensor whose residuals are pixels times a size (``pixel_size``; NaN otherwise, and for a
+    view without a kept row)."""
+    return _view_rms(problem, fitted, views, flange2base)[:, 1]
 
 
 def _view_rms(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flange2base: NDArray[np.float64] | None = None

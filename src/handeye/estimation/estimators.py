@@ -29,7 +29,7 @@ from ..robot.models import ControllerPoses
 from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.pnp import INTRINSICS, intrinsics_covariance, refine_pnp
 from ..solvers.refine import PoseRefinementResult, ReprojectionResult, refine_pose, refine_reprojection, refit_pose
-from .core import Fitted, Problem, downdated
+from .core import Fitted, Problem, downdated, view_rms_px
 from .core import fit as core_fit
 from .diagnostics import SCALE_TOLERANCE, board_scale, closed_form
 from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices, pnp_errors
@@ -148,9 +148,7 @@ def _as_reprojection(problem: Problem, fitted: Fitted) -> ReprojectionResult:
     rows = fitted.rows
     sq = pixels(fitted.X, fitted.p, rows)
     n_views = len(sensor.names)
-    count = np.bincount(sensor.owner[rows], minlength=n_views)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        per_view = np.sqrt(np.bincount(sensor.owner[rows], sq, minlength=n_views) / count)
+    per_view = view_rms_px(problem, fitted, np.arange(n_views))
     before = pixels(problem.X0, problem.p0, everything)
     kept = tuple(fitted.kept[sensor.owner == v] for v in range(n_views))
     emptied = tuple(v for v, k in enumerate(kept) if len(k) and not k.any())
