@@ -21,7 +21,7 @@ from ..sensors.camera import target_from_spec
 from ..sensors.depth.clouds import CLOUD_SUFFIXES
 from .session import (
     CAMERA_KEYS,
-    IMAGE_SUFFIXES,
+    IMAGE_ORDER,
     JOINTS_KEYS,
     POSES_KEYS,
     check_session_keys,
@@ -310,6 +310,6 @@ def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[n
         if not sub.is_dir():
             raise SessionError(f"{where}: no folder {sub} (its {what}, named by view: v01{'.npy' if what == 'clouds' else '.png'}, ...)")
     cloud_paths = _files_of(clouds, names, CLOUD_SUFFIXES)
-    image_paths = None if radii is not None else _files_of(images, names, sorted(IMAGE_SUFFIXES, key=lambda x: (x != ".png", x)))
+    image_paths = None if radii is not None else _files_of(images, names, IMAGE_ORDER)
     return DepthSession(folder, setup, dict(target or {}), list(names), cloud_paths, image_paths, flange2base, K, dist, unit,
                         working, radii)

@@ -52,8 +52,8 @@ from ..robot.kinematics import Chain
 from ..sensors.camera.targets import target_from_spec
 from .depth_session import RIG_DEPTH_KEYS, DepthSession, rig_depth
 from .laser_session import LaserSession, rig_laser
-from .session import IMAGE_SUFFIXES as SESSION_IMAGE_SUFFIXES
 from .session import (
+    IMAGE_ORDER,
     JOINTS_KEYS,
     POSES_KEYS,
     SESSION_FILE,
@@ -74,7 +74,7 @@ __all__ = ["RigSession", "RigSensor", "load_rig_session", "is_rig_session", "SEN
 SENSOR_KEYS = ("camera", "images")
 LASER_SENSOR_KEYS = ("laser", "profiles", "target")
 #: The image files a sensor's folder may hold: an image session's (the png first).
-IMAGE_SUFFIXES = tuple(sorted(SESSION_IMAGE_SUFFIXES, key=lambda x: (x != ".png", x)))
+IMAGE_SUFFIXES = IMAGE_ORDER
 
 
 @dataclass(frozen=True)

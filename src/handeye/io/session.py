@@ -63,7 +63,7 @@ __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
            "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session", "write_joint_table",
            "load_joint_stream", "load_camera_stream", "write_joint_stream", "read_image_times", "time_unit_scale",
-           "parsed_poses", "pose_table_path", "flange_poses_of", "files_of_views"]
+           "parsed_poses", "pose_table_path", "flange_poses_of", "files_of_views", "IMAGE_ORDER"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
 SESSION_FILE = "session.yaml"
@@ -73,6 +73,8 @@ TIME_COLUMNS = ("time", "t", "stamp", "timestamp")
 #: Time units of stream files, in seconds.
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp"}
+#: The same, in the order a view's image is looked for (:func:`files_of_views`): the png first.
+IMAGE_ORDER = tuple(sorted(IMAGE_SUFFIXES, key=lambda x: (x != ".png", x)))
 
 
 def files_of_views(folder: Path, names: Sequence[str], suffixes: Sequence[str]) -> list[Path | None]:
@@ -89,11 +91,9 @@ def files_of_views(folder: Path, names: Sequence[str], suffixes: Sequence[str]) 
     out: list[Path | None] = []
     for name in names:
         own = Path(name)
-        found = listing.get((own.stem, own.suffix.lower())) if own.suffix.lower() in order else None
-        for base in (name, own.stem):
-            for suffix in order:
-                found = found or listing.get((base, suffix))
-        out.append(found)
+        given = [(own.stem, own.suffix.lower())] if own.suffix.lower() in order else []
+        tried = given + [(base, suffix) for base in (name, own.stem) for suffix in order]
+        out.append(next((listing[key] for key in tried if key in listing), None))
     return out
 
 
