@@ -258,7 +258,7 @@ def test_pose_noise_variances_are_found_from_the_closed_forms_start(seed):
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 def test_pose_jacobian_matches_finite_differences(setup):
     from handeye.geometry.se3 import make_transform, so3_left_jacobian
-    from handeye.solvers.refine import _pose_jacobian, _pose_residuals
+    from handeye.sensors.camera.poses import pose_jacobian, pose_residuals
 
     rng = np.random.default_rng(0)
     s = random_scene(6, setup, rng)
@@ -269,14 +269,61 @@ def test_pose_jacobian_matches_finite_differences(setup):
                 make_transform(Rotation.from_rotvec(x[6:9]).as_matrix() @ s.Z[:3, :3], s.Z[:3, 3] + x[9:12]))
 
     x = rng.normal(0, 0.3, 12)
-    fun = lambda x: _pose_residuals(*unpack(x), f, t, setup)[0].ravel()  # noqa: E731
+    fun = lambda x: pose_residuals(*unpack(x), f, t, setup)[0].ravel()  # noqa: E731
     h = 1e-6
     J_num = np.stack([(fun(x + h * e) - fun(x - h * e)) / (2 * h) for e in np.eye(12)], axis=1)
     X, Z = unpack(x)
-    J = _pose_jacobian(X, Z, f, t, setup, _pose_residuals(X, Z, f, t, setup)[0])
+    J = pose_jacobian(X, Z, f, t, setup, pose_residuals(X, Z, f, t, setup)[0])
     J[..., 0:3] = J[..., 0:3] @ so3_left_jacobian(x[:3])
     J[..., 6:9] = J[..., 6:9] @ so3_left_jacobian(x[6:9])
     assert np.abs(J.reshape(-1, 12) - J_num).max() < 1e-7
+
+
+@pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
+@pytest.mark.parametrize("n_poses", [5, 15])
+def test_the_cores_fit_of_whole_poses_is_the_pose_refinement(setup, n_poses):
+    """The pose refinement through the one estimation core (each view's residual whitened by its
+    6x6 covariance, the noise variances fitted by maximum likelihood: PoseDifferences) gives
+    refine_pose's X, Z, covariance and noise; with 5 poses, without the depth term."""
+    from handeye.estimation.estimators import poses_fit
+    from handeye.estimation.validation import Views
+
+    rng = np.random.default_rng(n_poses)
+    s = random_scene(n_poses, setup, rng)
+    f = perturb_poses(s.flange2base, np.radians(0.05), 0.2e-3, rng)
+    t = perturb_poses(s.target2cam, np.radians(0.02), 0.5e-3, rng)
+    X0, Z0, _ = closed_form(f, t, setup, "daniilidis")
+    ref = refine_pose(X0, Z0, f, t, setup)
+    core = poses_fit(Views(f, t, setup), X0, Z0)
+    assert np.abs(core.X - ref.X).max() < 1e-9 and np.abs(core.Z - ref.Z).max() < 1e-9
+    assert np.abs(core.cov_X - ref.cov_X).max() < 1e-6 * np.abs(ref.cov_X).max()
+    assert core.noise.keys() == ref.noise.keys()
+    assert all(abs(core.noise[k] - ref.noise[k]) <= 1e-6 * ref.noise[k] + 1e-15 for k in ref.noise)
+    assert (core.noise["camera_depth"] == 0.0) == (n_poses < 6)
+    assert core.rounds == ref.rounds and core.converged == ref.converged
+    # a subset refitted with the noise held moves X away from the whole's, towards the subset's own fit
+    X_sub, _ = core.on(np.arange(1, n_poses))
+    own = refine_pose(X0, Z0, f[1:], t[1:], setup).X
+    assert 0 < translation_error(X_sub, core.X) and translation_error(X_sub, own) < 0.5 * translation_error(core.X, own)
+
+
+def test_a_fit_of_correlated_residuals_needs_the_sensors_derivatives():
+    """A sensor with correlated residuals but no jacobian is refused by name, not fitted by finite
+    differences under weights that never move."""
+    from handeye.estimation.core import Problem
+    from handeye.estimation.core import fit as core_fit
+    from handeye.robot.models import ControllerPoses
+    from handeye.sensors.camera.poses import PoseDifferences
+
+    class NoDerivatives(PoseDifferences):
+        jacobian = property(lambda self: (_ for _ in ()).throw(AttributeError))
+
+    s = random_scene(8, "eye_in_hand", rng=1)
+    model = NoDerivatives("eye_in_hand", [str(i) for i in range(8)], s.target2cam)
+    assert not hasattr(model, "jacobian")
+    problem = Problem(model, ControllerPoses(s.flange2base), *model.start(s.flange2base, s.X, s.Z))
+    with pytest.raises(handeye.HandEyeError, match="correlated residuals needs the sensor's own derivatives"):
+        core_fit(problem)
 
 
 def test_pose_refinement_bad_arguments():

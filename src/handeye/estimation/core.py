@@ -57,7 +57,7 @@ from ..result import Calibration, Diagnostics, HeldOutErrors, KinematicModel, Ob
 from ..robot.kinematics import along_parallel_axes
 from ..robot.models import ControllerPoses, JointAngles, PoseErrors, RobotModel
 from ..sensors.base import SensorModel
-from ..solvers.refine import refine_pose
+from ..solvers.refine import VARIANCE_FLOOR, block_whitening, fit_variances, refine_pose, reweighted_fit
 from .diagnostics import closed_form
 from .uncertainty import widened_uncertainty
 from .validation import default_folds, fold_indices
@@ -135,6 +135,7 @@ class Fitted:
     fun: NDArray[np.float64] = field(repr=False)  #: the whitened residuals, likewise
     success: bool = True
     normal: NDArray[np.float64] | None = field(default=None, repr=False, compare=False)  #: jac^T jac (none for a downdate)
+    rounds: int = 1  #: for a sensor with correlated residuals: the rounds of its noise variances' estimation
 
 
 def _groups(sensor: SensorModel) -> NDArray[np.intp]:
@@ -168,9 +169,30 @@ def _group_scales(w: NDArray[np.float64], groups: NDArray[np.intp], n: int, robu
     return out
 
 
-def _weight(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The whitening of ``rows``' residuals (len(rows), c): one over their shape times their group's scale."""
-    return 1.0 / (np.asarray(problem.sensor.shape)[rows] * sigma[_groups(problem.sensor)[rows]])
+def _correlated(sensor: SensorModel) -> bool:
+    """Whether the sensor's residuals within a row are correlated (``noise_shapes``): each row's
+    covariance a sum of terms whose variances the fit estimates (a whole pose per view)."""
+    return hasattr(sensor, "noise_shapes")
+
+
+def _weight(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None
+            ) -> NDArray[np.float64]:
+    """The whitening of ``rows``' residuals: one over their shape times their group's scale
+    (len(rows), c); for a sensor with correlated residuals, per row the matrix (len(rows), c, c)
+    that whitens it under the variances ``sigma**2`` of its noise terms, their shapes at the
+    unknowns ``at`` (default: the start)."""
+    sensor = problem.sensor
+    if not _correlated(sensor):
+        return 1.0 / (np.asarray(sensor.shape)[rows] * sigma[_groups(sensor)[rows]])
+    X, p, d = problem.unpack(np.zeros(sum(problem.sizes)) if at is None else at)
+    return block_whitening(np.asarray(sigma, float) ** 2, sensor.noise_shapes(X, p, problem.robot.flange2base(d), rows))
+
+
+def _whiten(values: NDArray[np.float64], weight: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Residuals (M, c) or their derivatives (M, c, n) whitened by :func:`_weight`'s ``weight``."""
+    if weight.ndim == 3:  # a matrix per row
+        return weight @ values if values.ndim == 3 else np.einsum("mij,mj->mi", weight, values)
+    return values * weight if values.ndim == 2 else values * weight[..., None]
 
 
 def _residuals(problem: Problem, X: NDArray[np.float64], p: NDArray[np.float64], d: NDArray[np.float64],
@@ -193,23 +215,24 @@ def _fits_links(problem: Problem) -> bool:
         and problem.robot.n_params > 0
 
 
-def _measured(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
+def _measured(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None):
     """The whitened residuals of ``rows`` (the measurement entries only) as a function of X, ``p``,
-    the robot's ``d`` and (given) every view's flange pose."""
-    weight = _weight(problem, rows, sigma)
+    the robot's ``d`` and (given) every view's flange pose (``at``: :func:`_weight`'s)."""
+    weight = _weight(problem, rows, sigma, at)
     mask = _entry_mask(problem.sensor, rows)
 
     def measured(X: NDArray[np.float64], p: NDArray[np.float64], d: NDArray[np.float64],
                  flange2base: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
-        r = _residuals(problem, X, p, d, rows, flange2base) * weight
+        r = _whiten(_residuals(problem, X, p, d, rows, flange2base), weight)
         return r.ravel() if mask is None else r[mask]
     return measured
 
 
-def _function(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
-    """The whitened residuals of ``rows``, the robot's prior and the pins, as a function of ``x``."""
+def _function(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None):
+    """The whitened residuals of ``rows``, the robot's prior and the pins, as a function of ``x``
+    (``at``: where a sensor with correlated residuals takes their noise's shapes, :func:`_weight`)."""
     robot = problem.robot
-    measured = _measured(problem, rows, sigma)
+    measured = _measured(problem, rows, sigma, at)
 
     def fun(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
@@ -233,30 +256,31 @@ def _entry_rows(sensor: SensorModel, rows: NDArray[np.intp]) -> NDArray[np.intp]
     return np.nonzero(mask)[0]
 
 
-def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
+def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None):
     """The Jacobian of :func:`_function`'s residuals from the sensor's own derivatives, when it has
     them (``jacobian(X, p, flange2base, rows)``: (M, c, 6 + k), X's part for a left increment as
     ``x``'s) and the robot has no unknowns; finite differences by view for a robot whose unknowns
     each move one view (:func:`_per_view_jacobian`); the chain rule through each view's flange pose
     for joint angles (:func:`_chained_jacobian`), but not along a joint trajectory, whose unknowns
-    move every row's pose of a view differently; else '2-point' (finite differences)."""
+    move every row's pose of a view differently; else '2-point' (finite differences). ``at``:
+    :func:`_weight`'s."""
     sensor, robot = problem.sensor, problem.robot
     if robot.n_params and getattr(robot, "motion", None) is not None:
         return "2-point"
     if _fits_links(problem):
-        return _links_jacobian(problem, rows, sigma)
+        return _links_jacobian(problem, rows, sigma, at)
     if robot.n_params and getattr(robot, "param_view", None) is not None:
-        return _per_view_jacobian(problem, rows, sigma)
+        return _per_view_jacobian(problem, rows, sigma, at)
     if robot.n_params and hasattr(robot, "pose_jacobian"):
-        return _chained_jacobian(problem, rows, sigma)
+        return _chained_jacobian(problem, rows, sigma, at)
     if not hasattr(sensor, "jacobian") or robot.n_params or getattr(sensor, "entry_mask", None) is not None:
         return "2-point"
-    weight = _weight(problem, rows, sigma)
+    weight = _weight(problem, rows, sigma, at)
     pins = np.c_[PIN * problem.pins, np.zeros((len(problem.pins), len(problem.p0)))]
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
-        J = _own_jacobian(sensor, x, X, p, robot.flange2base(d), rows) * weight[..., None]
+        J = _whiten(_own_jacobian(sensor, x, X, p, robot.flange2base(d), rows), weight)
         return np.vstack([J.reshape(-1, J.shape[-1]), pins])
     return jac
 
@@ -271,7 +295,7 @@ def _own_jacobian(sensor: SensorModel, x: NDArray[np.float64], X: NDArray[np.flo
     return J
 
 
-def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
+def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None):
     """The Jacobian for a robot whose unknowns move the flange poses through a model of its own
     (``pose_jacobian(d)``: joint angles through the arm's table, whose prior rows are ``d``
     itself): X's and the sensor's columns by finite differences (or the sensor's own derivatives),
@@ -279,9 +303,9 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
     increments stepped in every view at once) times the pose's by the unknowns. 6 evaluations of the
     residuals for the robot's columns, not one per table entry (18 for a UR5, 22 for a Panda)."""
     sensor, robot = problem.sensor, problem.robot
-    fun = _function(problem, rows, sigma)
-    measured = _measured(problem, rows, sigma)
-    weight = _weight(problem, rows, sigma)
+    fun = _function(problem, rows, sigma, at)
+    measured = _measured(problem, rows, sigma, at)
+    weight = _weight(problem, rows, sigma, at)
     own = hasattr(sensor, "jacobian") and getattr(sensor, "entry_mask", None) is None
     entry_view = np.asarray(sensor.owner)[rows][_entry_rows(sensor, rows)]
     n_x, n_d = 6 + len(problem.p0), robot.n_params
@@ -294,7 +318,7 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
         m = len(entry_view)
         J = np.zeros((len(f0), len(x)))
         if own:
-            J[:m, :n_x] = (_own_jacobian(sensor, x, X, p, F, rows) * weight[..., None]).reshape(m, n_x)
+            J[:m, :n_x] = _whiten(_own_jacobian(sensor, x, X, p, F, rows), weight).reshape(m, n_x)
         else:
             for j in range(n_x):
                 step = x.copy()
@@ -312,19 +336,19 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
     return jac
 
 
-def _links_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
+def _links_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None):
     """The Jacobian for a sensor that sees the arm's links, with the table's entries as the robot's
     unknowns: the sensor's own derivatives at the corrected table (``jacobian(..., table=)``), whose
     columns by every entry of it are taken to the fitted entries in units of their prior std
     (:meth:`~handeye.robot.models.JointAngles.entry_columns`); the prior rows, ``d`` itself."""
     sensor, robot = problem.sensor, problem.robot
-    weight = _weight(problem, rows, sigma)
+    weight = _weight(problem, rows, sigma, at)
     n_x, n_d = 6 + len(problem.p0), robot.n_params
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
         own = _own_jacobian(sensor, x, X, p, robot.flange2base(d), rows, table=robot.corrected(d))
-        J = np.concatenate([own[..., :n_x], robot.entry_columns(own[..., n_x:])], axis=2) * weight[..., None]
+        J = _whiten(np.concatenate([own[..., :n_x], robot.entry_columns(own[..., n_x:])], axis=2), weight)
         m = J.shape[0] * J.shape[1]
         out = np.zeros((m + n_d + len(problem.pins), len(x)))
         out[:m] = J.reshape(m, -1)
@@ -334,7 +358,7 @@ def _links_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.
     return jac
 
 
-def _per_view_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]):
+def _per_view_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None):
     """Finite differences of :func:`_function` for a robot whose unknowns each move one view's pose
     (``param_view``: per unknown its view; each pose's own error): an unknown moves only its view's
     rows and its own prior row, so the same unknown of every view is stepped at once (6 evaluations
@@ -344,7 +368,7 @@ def _per_view_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[
     tolerance: 2-4x the iterations). The sensor's unknowns that move one block of rows each
     (``param_block``, ``row_block``: a rig's sensor's pose relative to the first) are stepped
     together when their blocks differ (:func:`_column_groups`); X's one at a time."""
-    fun = _function(problem, rows, sigma)
+    fun = _function(problem, rows, sigma, at)
     view = np.asarray(problem.robot.param_view, dtype=np.intp)
     n_x = 6 + len(problem.p0)
     n_d = len(view)
@@ -433,7 +457,8 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     Without ``start``: a robust fit (soft L1, each noise group's scale from the residuals' median),
     the rows beyond :data:`REJECT` of their std set aside, then two plain least-squares rounds on the
     rest with the scales re-estimated. With ``start`` (a fit on more views): its scales and rows kept,
-    one plain least squares from its solution.
+    one plain least squares from its solution. A sensor whose rows' residuals are correlated (each a
+    whole pose): :func:`_fit_correlated`.
     """
     sensor = problem.sensor
     owner = np.asarray(sensor.owner)
@@ -443,10 +468,12 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     n_groups = int(groups.max()) + 1 if groups.size else 1
     if start is not None:
         rows = np.flatnonzero(in_views & start.kept)
-        fun = _function(problem, rows, start.sigma)
-        res = least_squares(fun, start.x, _jacobian(problem, rows, start.sigma), method=_plain_method(problem, rows),
+        fun = _function(problem, rows, start.sigma, start.x)
+        res = least_squares(fun, start.x, _jacobian(problem, rows, start.sigma, start.x), method=_plain_method(problem, rows),
                             x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
         return _fitted(problem, res, start.sigma, start.kept, rows)
+    if _correlated(sensor):
+        return _fit_correlated(problem, np.flatnonzero(in_views), tol)
     x = np.zeros(sum(problem.sizes))
     shape = np.asarray(sensor.shape)
     rows = np.flatnonzero(in_views)
@@ -481,6 +508,56 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     res = least_squares(_function(problem, rows, sigma), x, _jacobian(problem, rows, sigma),
                         method=_plain_method(problem, rows), x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
     return _fitted(problem, res, sigma, kept, rows)
+
+
+def _fit_correlated(problem: Problem, rows: NDArray[np.intp], tol: float) -> Fitted:
+    """The fit of a sensor whose rows' residuals are correlated (``noise_terms``, ``noise_shapes``,
+    ``noise_start``: a whole pose per view): each row whitened by its covariance, a sum of terms
+    whose variances are estimated from the residuals by maximum likelihood, the fit repeated with
+    them until they are stable (:func:`~handeye.solvers.refine.reweighted_fit`, the pose
+    refinement's), and the variances then scaled by chi-square over the degrees of freedom (the
+    maximum likelihood's are low by the unknowns fitted), which scales the covariance alike. Every row
+    is kept: a row is a whole view, which the views' checks judge (the pose check before the fit, the
+    views the fit does not explain after it). ``sigma``: the terms' std."""
+    sensor, robot = problem.sensor, problem.robot
+
+    def at(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        X, p, d = problem.unpack(x)
+        return X, p, robot.flange2base(d)
+
+    def functions(theta: NDArray[np.float64], x: NDArray[np.float64]):
+        sigma = np.sqrt(theta)
+        jac = _jacobian(problem, rows, sigma, x)
+        if isinstance(jac, str):
+            raise HandEyeError(f"{sensor.kind} ({sensor.target}): a fit of correlated residuals needs the sensor's own "
+                               "derivatives (jacobian)")
+        return _function(problem, rows, sigma, x), jac
+
+    def variances(x: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        X, p, F = at(x)
+        return fit_variances(sensor.residuals(X, p, F, rows), sensor.noise_shapes(X, p, F, rows), theta)
+
+    x0 = np.zeros(sum(problem.sizes))
+    theta0 = np.maximum(sensor.noise_start(sensor.residuals(*at(x0), rows)), VARIANCE_FLOOR)
+    out = reweighted_fit(functions, variances, theta0, x0, x_scale=problem.scale(), tol=tol)
+    fun, _ = functions(out.theta, out.x)
+    f = fun(out.x)
+    factor = float(np.sum(f**2)) / max(len(f) - len(out.x), 1)
+    fun, jac = functions(out.theta * factor, out.x)
+    kept = np.zeros(len(sensor.owner), bool)
+    kept[rows] = True
+    res = _Solved(out.x, jac(out.x), fun(out.x), out.success and out.converged)
+    return replace(_fitted(problem, res, np.sqrt(out.theta * factor), kept, rows), rounds=out.rounds)
+
+
+@dataclass(frozen=True)
+class _Solved:
+    """A solution as :func:`_fitted` takes it (``least_squares``'s members that it reads)."""
+
+    x: NDArray[np.float64]
+    jac: NDArray[np.float64]
+    fun: NDArray[np.float64]
+    success: bool
 
 
 def _fitted(problem: Problem, res, sigma, kept, rows) -> Fitted:

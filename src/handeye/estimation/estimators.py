@@ -1,8 +1,10 @@
 """The estimators a calibration chooses from, and the choice: by what predicts held-out views best.
 
 Every closed form (AX = XB with Z the mean of the per-pose Z_i, and the robot-world ones), the pose
-refinement (Strobl-Hirzinger's weighting with a noise model, :func:`~handeye.solvers.refine.refine_pose`),
-and with images the pixel refinement: with the robot's poses exact, the one estimation core's fit
+refinement (Strobl-Hirzinger's weighting with a noise model: the one estimation core's fit of the camera's
+poses, :class:`~handeye.sensors.camera.poses.PoseDifferences` times :class:`~handeye.robot.models.ControllerPoses`,
+:func:`poses_fit`; its folds and jackknife refits are the core's refits with the noise held), and with
+images the pixel refinement: with the robot's poses exact, the one estimation core's fit
 of the camera's corners (:mod:`handeye.estimation.core`, :class:`~handeye.sensors.camera.model.CameraCorners`
 times :class:`~handeye.robot.models.ControllerPoses`, the intrinsics refined too when they were
 estimated from the same images; its folds and jackknife refits are the core's downdates), or with
@@ -28,14 +30,15 @@ from ..frames.motions import Pairs
 from ..robot.models import ControllerPoses
 from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.pnp import INTRINSICS, intrinsics_covariance, refine_pnp
-from ..solvers.refine import PoseRefinementResult, ReprojectionResult, refine_pose, refine_reprojection, refit_pose
+from ..sensors.camera.poses import NOISE_TERMS, PoseDifferences
+from ..solvers.refine import ReprojectionResult, refine_reprojection
 from .core import Fitted, Problem, downdated, view_rms_px
 from .core import fit as core_fit
 from .diagnostics import SCALE_TOLERANCE, board_scale, closed_form
 from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices, pnp_errors
 
-__all__ = ["Choice", "closed_fit", "pose_candidates", "pose_fit", "pixel_candidates", "choose", "intrinsics_cov", "POSE", "PIXEL",
-           "PIXEL_INTRINSICS", "PIXEL_ROBOT", "REFINE_INTRINSICS"]
+__all__ = ["Choice", "PosesFit", "closed_fit", "pose_candidates", "pose_fit", "poses_fit", "pixel_candidates", "choose",
+           "intrinsics_cov", "POSE", "PIXEL", "PIXEL_INTRINSICS", "PIXEL_ROBOT", "REFINE_INTRINSICS"]
 
 #: Closed forms left out of the choice: horaud_nonlinear costs 4x the others per fit and lands between
 #: horaud and the pose refinement, which are both candidates.
@@ -64,23 +67,92 @@ def closed_fit(method: str, pairs: Pairs = "auto") -> Fit:
     return fit
 
 
-def pose_fit(method: str, views: Views | None, start: PoseRefinementResult | None = None) -> Fit:
-    """The pose refinement. With ``views`` (all the poses), it is refined on them once (kept as
-    ``fit.full``; ``start``: that refinement, already made), and each fit on a subset starts there
-    with the noise variances held (:func:`~handeye.solvers.refine.refit_pose`): a cross-validation
-    fold differs from the whole by a few poses."""
+@dataclass(frozen=True)
+class PosesFit:
+    """The pose refinement as the one estimation core fits it (:func:`poses_fit`): its problem and
+    fit, which refit on any subset of its views, or on other poses of the same views, with the noise
+    held."""
+
+    problem: Problem
+    fitted: Fitted
+
+    @property
+    def X(self) -> NDArray[np.float64]:  # noqa: D102
+        return self.fitted.X
+
+    @property
+    def Z(self) -> NDArray[np.float64]:  # noqa: D102
+        return self.problem.sensor.Z(self.fitted.X, self.fitted.p)
+
+    @property
+    def cov_X(self) -> NDArray[np.float64]:
+        """X's covariance (rotation vector rad, translation m): the noise model's."""
+        return self.fitted.cov[:6, :6]
+
+    @property
+    def noise(self) -> dict[str, float]:
+        """The noise found, per term of :data:`~handeye.sensors.camera.poses.NOISE_TERMS` (rad, m;
+        the camera's depth 0 with fewer views than it needs)."""
+        found = dict(zip(self.problem.sensor.noise_terms, map(float, self.fitted.sigma)))
+        return {k: found.get(k, 0.0) for k in NOISE_TERMS}
+
+    @property
+    def converged(self) -> bool:
+        """Whether the fit and its noise estimates settled."""
+        return self.fitted.success
+
+    @property
+    def rounds(self) -> int:
+        """The rounds of the noise estimation."""
+        return self.fitted.rounds
+
+    def on(self, idx: NDArray[np.intp]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """X and Z refitted on the views ``idx`` (of those fitted), the noise held."""
+        sub = core_fit(self.problem, np.asarray(idx), start=self.fitted, tol=REFIT_TOL)
+        return sub.X, self.problem.sensor.Z(sub.X, sub.p)
+
+    def refit(self, flange2base: NDArray[np.float64], target2cam: NDArray[np.float64]
+              ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """X and Z refitted on other poses (e.g. the same views' PnP with other intrinsics), the noise held."""
+        sensor = PoseDifferences(self.problem.sensor.setup, [str(i) for i in range(len(target2cam))], target2cam,
+                                 terms=len(self.problem.sensor.noise_terms))
+        problem = Problem(sensor, ControllerPoses(np.asarray(flange2base, float)), *sensor.start(flange2base, self.X, self.Z))
+        sub = core_fit(problem, start=replace(self.fitted, x=np.zeros(len(self.fitted.x))), tol=REFIT_TOL)
+        return sub.X, sensor.Z(sub.X, sub.p)
+
+
+def poses_fit(views: Views, X0: NDArray[np.float64], Z0: NDArray[np.float64]) -> PosesFit:
+    """The pose refinement of X and Z on the poses of ``views`` from ``X0``, ``Z0`` (a closed form),
+    by the one estimation core (:mod:`handeye.estimation.core`): the camera's poses of the target,
+    each view's residual whitened by the pose refinement's noise model, its variances estimated from
+    the data (:class:`~handeye.sensors.camera.poses.PoseDifferences`), with the robot's poses as the
+    controller gave them. The same X, Z and noise as :func:`~handeye.solvers.refine.refine_pose`."""
+    sensor = PoseDifferences(views.setup, [str(i) for i in range(len(views))], views.target2cam)
+    flange2base = np.asarray(views.flange2base, float)
+    problem = Problem(sensor, ControllerPoses(flange2base), *sensor.start(flange2base, X0, Z0))
+    return PosesFit(problem, core_fit(problem))
+
+
+def pose_fit(method: str, views: Views | None, start: PosesFit | None = None) -> Fit:
+    """The pose refinement (:func:`poses_fit`) from the closed form ``method``. With ``views`` (all
+    the poses), it is fitted on them once (kept as ``fit.full``; ``start``: that fit, already made),
+    and each fit on a subset of them is refitted from it with the noise held (a cross-validation
+    fold differs from the whole by a few poses); on other poses of the same views (the intrinsics'
+    refits), likewise."""
     full: list = [] if start is None else [start]
 
     def fit(flange2base, target2cam, setup, idx):
         if views is None:
             X, Z, _ = closed_form(flange2base, target2cam, setup, method)
-            ref = refine_pose(X, Z, flange2base, target2cam, setup)
-            return ref.X, ref.Z
+            whole = poses_fit(Views(flange2base, target2cam, setup), X, Z)
+            return whole.X, whole.Z
         if not full:
             X, Z, _ = closed_form(views.flange2base, views.target2cam, setup, method)
-            full.append(refine_pose(X, Z, views.flange2base, views.target2cam, setup))
-        ref = full[0]
-        return refit_pose(ref.X, ref.Z, flange2base, target2cam, setup, ref.noise)
+            full.append(poses_fit(views, X, Z))
+        idx = np.asarray(idx)
+        if np.array_equal(flange2base, views.flange2base[idx]) and np.array_equal(target2cam, views.target2cam[idx]):
+            return full[0].on(idx)
+        return full[0].refit(flange2base, target2cam)
 
     fit.full = full
     return fit

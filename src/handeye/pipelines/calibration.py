@@ -30,6 +30,7 @@ from ..estimation.estimators import (
     POSE,
     REFINE_INTRINSICS,
     Choice,
+    PosesFit,
     choose,
     closed_fit,
     intrinsics_cov,
@@ -37,6 +38,7 @@ from ..estimation.estimators import (
     pixel_fit,
     pose_candidates,
     pose_fit,
+    poses_fit,
 )
 from ..estimation.partial import calibrate_partial, known_on_complete, parse_known
 from ..estimation.sync import (
@@ -74,7 +76,7 @@ from ..sensors.camera import (
 from ..sensors.camera.pnp import INTRINSICS
 from ..solvers.certifiable import certify
 from ..solvers.low_dof import partial_kind
-from ..solvers.refine import PoseRefinementResult, ReprojectionResult, refine_pose
+from ..solvers.refine import ReprojectionResult
 
 __all__ = ["Calibration", "CalibrationOptions", "Observations", "ROBOT_ACCURACY", "apply_choice", "calibrate", "certify_calibration",
            "calibrate_observed", "calibrate_poses", "observe", "refine_on_pixels", "refine_on_poses",
@@ -171,9 +173,10 @@ def calibrate_poses(
     refine : {'auto', 'pose', 'none'}
         'auto' (default): the estimator that predicts held-out poses best, by ``folds``-fold
         cross-validation (:mod:`handeye.estimation.estimators`): the closed forms (all but ``horaud_nonlinear``)
-        or the pose refinement. 'pose': X and Z refined jointly from the ``method`` solution by
-        :func:`handeye.solvers.refine.refine_pose` (Strobl-Hirzinger's optimal correction with noise
-        variances estimated from the data; ``pose_noise``). 'none': the closed form as is. Each
+        or the pose refinement. 'pose': X and Z refined jointly from the ``method`` solution:
+        Strobl-Hirzinger's optimal correction with noise variances estimated from the data
+        (``pose_noise``), as the estimation core fits it (:func:`handeye.estimation.estimators.poses_fit`,
+        the same X as :func:`handeye.solvers.refine.refine_pose`). 'none': the closed form as is. Each
         reports ``cov`` and ``std``: the noise model (none for a closed form), the jackknife spread
         and the robot's accuracy (``std_sources``).
     pairs : {'auto', 'all', 'consecutive'} or (K, 2) array
@@ -318,11 +321,11 @@ def _std(cov_X: NDArray[np.float64]) -> NDArray[np.float64]:
     return std_deg_mm(cov_X)
 
 
-def refine_on_poses(cal: Calibration, ref: PoseRefinementResult | None = None) -> Calibration:
-    """``cal`` with X and Z refined on its poses (:func:`~handeye.solvers.refine.refine_pose`, or the
-    refinement ``ref`` of them already made) and the uncertainty fields set."""
+def refine_on_poses(cal: Calibration, ref: PosesFit | None = None) -> Calibration:
+    """``cal`` with X and Z refined on its poses (:func:`~handeye.estimation.estimators.poses_fit`, or
+    the refinement ``ref`` of them already made) and the uncertainty fields set."""
     if ref is None:
-        ref = refine_pose(cal.X, cal.Z, cal.flange2base, cal.target2cam, cal.setup)
+        ref = poses_fit(Views(cal.flange2base, cal.target2cam, cal.setup), cal.X, cal.Z)
     notes = list(cal.notes)
     if not ref.converged:
         notes.append(f"pose refinement: the noise estimates did not settle in {ref.rounds} rounds; "
@@ -394,11 +397,11 @@ def _pose_refined(cal: Calibration, method: str, robot_accuracy: tuple[float, fl
     jackknife refits 3). The noise model alone, its three variances estimated from few residuals,
     covered X's error within 3 std on 80-94% of the axes of realistic 4-pose sessions, and on 30-90%
     of them between the halves of ViSP's 8-view 2022 capture."""
-    ref = refine_pose(cal.X, cal.Z, cal.flange2base, cal.target2cam, cal.setup)
+    views = Views(cal.flange2base, cal.target2cam, cal.setup) if obs is None else obs.views(np.asarray(cal.pose_indices))
+    ref = poses_fit(views, cal.X, cal.Z)
     cal = refine_on_poses(cal, ref)
     if not uncertainty:
         return cal
-    views = Views(cal.flange2base, cal.target2cam, cal.setup) if obs is None else obs.views(np.asarray(cal.pose_indices))
     return _uncertain(cal, pose_fit(method, views, ref), views, robot_accuracy, obs)
 
 
@@ -756,7 +759,7 @@ def calibrate(
         'reprojection': X and Z (and the intrinsics, when estimated) refined jointly on the pixel
         errors of every target point (:func:`handeye.solvers.refine.refine_reprojection`), starting
         from ``method``, with the robot poses taken as exact. 'pose': refined on the robot and PnP
-        poses (:func:`handeye.solvers.refine.refine_pose`), which allows for robot pose errors.
+        poses (:func:`handeye.estimation.estimators.poses_fit`), which allows for robot pose errors.
         'auto' (default): whichever of these, the closed forms and (with ``robot_noise``) the pixel
         refinement with robot pose corrections predicts held-out images best, by ``folds``-fold
         cross-validation (:mod:`handeye.estimation.estimators`); the std covers the spread of those fits too.

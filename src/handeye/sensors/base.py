@@ -68,6 +68,14 @@ A new sensor is one package under ``sensors/`` whose model class has these membe
     (M, c, E) by every entry of it (natural units), which the robot model takes to its unknowns
     (:meth:`~handeye.robot.models.JointAngles.entry_columns`). A depth camera's
     :class:`~handeye.sensors.depth.arm.ArmSurface` with its joint angles.
+``noise_terms``, ``noise_shapes(X, p, flange2base, rows)``, ``noise_start(residuals)`` (optional)
+    A sensor whose residuals within a row are correlated (a row is a view's whole pose: its 6
+    residuals share the robot's rotation error through the lever arm to the target): per row its
+    covariance is a sum of terms (``noise_terms``, names), each term's shape for a unit variance
+    (K, M, c, c) at the given unknowns, and the variances to start from. The core then whitens each
+    row by its covariance and fits the terms' variances by maximum likelihood (instead of ``shape``
+    and ``groups``), keeps every row, and needs ``jacobian``.
+    :class:`~handeye.sensors.camera.poses.PoseDifferences`, the pose refinement's noise model.
 ``pixel_size(rows)`` (optional)
     Per measurement row the size (m) of one pixel of its residual, when the residuals are pixels
     times a size (an area camera's corners): cross-validation then gives held-out errors in pixels

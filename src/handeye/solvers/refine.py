@@ -22,6 +22,7 @@ columns with disjoint rows (12 + 6 residual evaluations instead of 12 + 6N).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,14 +31,15 @@ from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
 
 from ..errors import InputMismatchError
-from ..frames.setups import check_setup, constant_transforms, predicted_target2cam, robot_world_A, robot_world_A_inv, setup_info
+from ..frames.setups import check_setup, predicted_target2cam, robot_world_A_inv, setup_info
 from ..geometry.se3 import invert, perturb, rotation_of_valid, skew, so3_left_jacobian
 from ..sensors.camera.pnp import project_points, project_points_many, projection_jacobians, solve_pnp
+from ..sensors.camera.poses import DEPTH_MIN_POSES, NOISE_TERMS, pose_jacobian, pose_noise_shapes, pose_noise_start, pose_residuals
 from ..sensors.camera.targets import Detection
 from ._common import _normal_inverse, _xz_increment
 
-__all__ = ["PoseRefinementResult", "ReprojectionResult", "TranslationPriors", "pose_mahalanobis", "refine_pose",
-           "refit_pose", "refine_reprojection", "predicted_target2cam"]
+__all__ = ["PoseRefinementResult", "ReprojectionResult", "Reweighted", "TranslationPriors", "VARIANCE_FLOOR", "block_whitening",
+           "fit_variances", "pose_mahalanobis", "refine_pose", "refine_reprojection", "reweighted_fit", "predicted_target2cam"]
 
 
 @dataclass(frozen=True)
@@ -636,88 +638,14 @@ class PoseRefinementResult:
     message: str
 
 
-def _pose_residuals(X, Z, flange2base, target2cam, setup):
-    """Per pose ``Z^-1 Z_i`` as [rotation vector, translation] in the target frame, and ``target2flange_i``."""
-    Zi = constant_transforms(X, flange2base, target2cam, setup)
-    t2f = X @ target2cam if setup_info(setup).camera_on_flange else Zi  # eye-to-hand: Z_i is target2flange
-    D = invert(Z) @ Zi
-    r = np.concatenate([rotation_of_valid(D[:, :3, :3]).as_rotvec(), D[:, :3, 3]], axis=1)  # products of rotations
-    return r, t2f, Zi
-
-
-def _right_jacobian_inv(phi):
-    """Inverse right Jacobians of SO(3) at rotation vectors ``phi`` (N, 3): ``d log(R exp(e)) / de``."""
-    theta = np.linalg.norm(phi, axis=1)
-    S = skew(phi)
-    small = theta < 1e-6
-    th = np.where(small, 1.0, theta)
-    c = np.where(small, 1.0 / 12.0, 1.0 / th**2 - (1.0 + np.cos(th)) / (2.0 * th * np.sin(th)))
-    return np.eye(3) + 0.5 * S + c[:, None, None] * (S @ S)
-
-
-def _pose_jacobian(X, Z, flange2base, target2cam, setup, r):
-    """Jacobian (N, 6, 12) of the pose residuals over [dX rotation, dX translation, dZ rotation, dZ
-    translation], left rotation increments as in ``refine_pose``'s parameterisation."""
-    robot = robot_world_A(flange2base, setup)
-    n = len(robot)
-    R_A, R_B, t_B = robot[:, :3, :3], target2cam[:, :3, :3], target2cam[:, :3, 3]
-    R_X, R_Z = X[:3, :3], Z[:3, :3]
-    Zi = constant_transforms(X, flange2base, target2cam, setup)
-    D_R = R_Z.T @ Zi[:, :3, :3]
-    Jinv = _right_jacobian_inv(r[:, :3])
-    J = np.zeros((n, 6, 12))
-    J[:, :3, 0:3] = Jinv @ np.swapaxes(R_X @ R_B, 1, 2)
-    J[:, :3, 6:9] = -Jinv @ np.swapaxes(D_R, 1, 2) @ R_Z.T
-    RzA = R_Z.T @ R_A
-    J[:, 3:, 0:3] = -RzA @ skew(t_B @ R_X.T)
-    J[:, 3:, 3:6] = RzA
-    J[:, 3:, 6:9] = R_Z.T @ skew(Zi[:, :3, 3] - Z[:3, 3])
-    J[:, 3:, 9:12] = -R_Z.T
-    return J
-
-
-def _noise_shapes(target2flange, target2cam):
-    """Per pose, the residual covariance of unit robot rotation noise, unit camera rotation noise,
-    unit translation noise and unit camera depth noise (4 x (N, 6, 6)).
-
-    The depth term is the camera's translation error along its optical axis, which PnP determines
-    several times less well than across it (the target's distance from its apparent size).
-
-    Robot noise perturbs the flange pose about the flange origin, camera noise the target pose
-    about the target origin (``T -> T exp(xi)``). In the target frame the camera's enters as is, the
-    robot's through the adjoint of ``flange2target``: a flange rotation also moves the target by the
-    lever arm between the two origins.
-    """
-    n = len(target2flange)
-    R = np.swapaxes(target2flange[:, :3, :3], 1, 2)  # flange2target rotation
-    p = -R @ target2flange[:, :3, 3, None]  # flange2target translation
-    ad_rot = np.concatenate([R, skew(p[..., 0]) @ R], axis=1)  # (N, 6, 3): adjoint's rotation columns
-    robot = ad_rot @ np.swapaxes(ad_rot, 1, 2)
-    cam = np.zeros((n, 6, 6))
-    cam[:, [0, 1, 2], [0, 1, 2]] = 1.0
-    tra = np.zeros((n, 6, 6))
-    tra[:, [3, 4, 5], [3, 4, 5]] = 1.0
-    axis = target2cam[:, 2, :3]  # the camera's optical axis in the target frame (where the residual lives)
-    depth = np.zeros((n, 6, 6))
-    depth[:, 3:, 3:] = axis[:, :, None] * axis[:, None, :]
-    return robot, cam, tra, depth
-
-
-#: The noise model's terms, in the order of its variances (``PoseRefinementResult.noise`` keys).
-NOISE_TERMS = ("robot_rotation", "camera_rotation", "translation", "camera_depth")
-#: From this many poses the camera's depth noise is a term of its own (fewer: in the translation term).
-#: Four variances from 4 poses' 12 residual degrees of freedom are too loose: X within 3 std on 94% of
-#: the axes of realistic 4-pose eye-in-hand sessions, 98% with three; from 8 poses 100% either way.
-DEPTH_MIN_POSES = 6
-
-
 def _theta(noise: dict[str, float]) -> NDArray[np.float64]:
     """The variances of a noise model's standard deviations (``PoseRefinementResult.noise``)."""
     return np.maximum([noise.get(k, 0.0) ** 2 for k in NOISE_TERMS], VARIANCE_FLOOR)
 
 
-def _fit_variances(r, shapes, theta0) -> NDArray[np.float64]:
-    """Maximum-likelihood variances ``theta`` of ``r_i ~ N(0, sum_k theta_k shapes_k[i])``.
+def fit_variances(r: NDArray[np.float64], shapes: NDArray[np.float64], theta0: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Maximum-likelihood variances ``theta`` of ``r_i ~ N(0, sum_k theta_k shapes_k[i])``: ``r`` (N, c)
+    the residuals, ``shapes`` (K, N, c, c) per term and residual its covariance for a unit variance.
 
     Fisher scoring over log theta (the expected Hessian of the variance-components problem) with
     step halving: every step lowers -2 log-likelihood. A quasi-Newton search (L-BFGS-B) took its
@@ -728,7 +656,7 @@ def _fit_variances(r, shapes, theta0) -> NDArray[np.float64]:
     the residuals' variance falls below :data:`NEGLIGIBLE_SHARE` is set to the floor: the data do
     not support it.
     """
-    shapes = np.stack(shapes)  # (K, N, 6, 6)
+    shapes = np.stack(shapes)  # (K, N, c, c)
     lo, hi = np.log(VARIANCE_FLOOR), 0.0
 
     def evaluate(log_t):
@@ -739,7 +667,7 @@ def _fit_variances(r, shapes, theta0) -> NDArray[np.float64]:
             return np.inf, None, None, None
         u = np.einsum("nij,nj->ni", Ci, r)
         A = np.einsum("nij,knjl->knil", Ci, shapes)  # C^-1 S_k
-        share = t * np.einsum("knii->k", A)  # each term's part of the residuals' 6N degrees of freedom
+        share = t * np.einsum("knii->k", A)  # each term's part of the residuals' cN degrees of freedom
         grad = share - t * np.einsum("ni,knij,nj->k", u, shapes, u)
         fisher = np.outer(t, t) * np.einsum("knij,lnji->kl", A, A)
         value = float(-np.sum(np.linalg.slogdet(Ci)[1]) + np.einsum("ni,ni->", r, u))  # log det C = -log det C^-1
@@ -770,7 +698,7 @@ def _fit_variances(r, shapes, theta0) -> NDArray[np.float64]:
     return np.exp(x)
 
 
-#: Most Fisher-scoring steps of :func:`_fit_variances`, and the largest change of a log variance per step.
+#: Most Fisher-scoring steps of :func:`fit_variances`, and the largest change of a log variance per step.
 SCORING_STEPS = 100
 MAX_LOG_STEP = 2.0
 #: A noise term carrying less than this share of the residuals' variance is not supported by the
@@ -781,20 +709,20 @@ NEGLIGIBLE_SHARE = 1e-9
 def _raw_pose_residuals(X, Z, flange2base, target2cam, setup: str, weighting: str) -> NDArray[np.float64]:
     """Per pose the unweighted residual of :func:`refine_pose`: ``Z^-1 Z_i`` (6), and for 'strobl'
     also the translation error in the base (flange) frame, ``Z_i Z^-1`` (3 more)."""
-    r, _, Zi = _pose_residuals(X, Z, flange2base, target2cam, setup)
+    r, _, Zi = pose_residuals(X, Z, flange2base, target2cam, setup)
     if weighting == "strobl":
         t_outer = (Zi @ invert(Z))[:, :3, 3]
         return np.concatenate([r, t_outer], axis=1)
     return r
 
 
-def _initial_variances(r: NDArray[np.float64], weighting: str) -> NDArray[np.float64]:
-    """Start of the variance estimates from the closed form's residuals: robot and camera rotation
-    (half of the rotation residual each) and translation; or rotation and translation ('strobl')."""
-    s_rot, s_tra = float(np.mean(r[:, :3] ** 2)), float(np.mean(r[:, 3:] ** 2))
+def _initial_variances(r: NDArray[np.float64], weighting: str, terms: int) -> NDArray[np.float64]:
+    """Start of the variance estimates from the closed form's residuals: the first ``terms`` of the
+    noise model's (:func:`~handeye.sensors.camera.poses.pose_noise_start`); or rotation and
+    translation ('strobl')."""
     if weighting == "noise_model":
-        return np.maximum([0.5 * s_rot, 0.5 * s_rot, 0.5 * s_tra, 0.5 * s_tra], VARIANCE_FLOOR)
-    return np.maximum([s_rot, s_tra], VARIANCE_FLOOR)
+        return np.maximum(pose_noise_start(r, terms), VARIANCE_FLOOR)
+    return np.maximum([float(np.mean(r[:, :3] ** 2)), float(np.mean(r[:, 3:] ** 2))], VARIANCE_FLOOR)
 
 
 def _pose_weights(theta, shapes, weighting: str, n: int) -> NDArray[np.float64]:
@@ -802,6 +730,12 @@ def _pose_weights(theta, shapes, weighting: str, n: int) -> NDArray[np.float64]:
     if weighting == "strobl":
         w = np.r_[np.full(3, 1 / np.sqrt(theta[0])), np.full(6, 1 / np.sqrt(2 * theta[1]))]
         return np.broadcast_to(np.diag(w), (n, 9, 9))
+    return block_whitening(theta, shapes)
+
+
+def block_whitening(theta: NDArray[np.float64], shapes: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Per residual block the matrix (N, c, c) that whitens it when its covariance is
+    ``sum_k theta_k shapes_k`` (``shapes`` (K, N, c, c)): the inverse of its Cholesky factor."""
     C = np.einsum("k,knij->nij", theta, np.stack(shapes))
     try:
         return np.linalg.inv(np.linalg.cholesky(C))  # whitening: L^-1 r has unit covariance
@@ -812,12 +746,50 @@ def _pose_weights(theta, shapes, weighting: str, n: int) -> NDArray[np.float64]:
         return np.linalg.inv(np.linalg.cholesky(C + ridge * np.eye(C.shape[-1])))
 
 
+@dataclass(frozen=True)
+class Reweighted:
+    """What :func:`reweighted_fit` found."""
+
+    x: NDArray[np.float64]
+    theta: NDArray[np.float64]  #: the noise variances, as the last round estimated them
+    rounds: int
+    converged: bool  #: whether the variances were stable (to 0.1%) within the rounds allowed
+    success: bool  #: the last least squares'
+    message: str
+
+
+def reweighted_fit(functions: Callable, variances: Callable, theta0: NDArray[np.float64], x0: NDArray[np.float64], *,
+                   x_scale: NDArray[np.float64], tol: float = 1e-10, max_rounds: int = 20) -> Reweighted:
+    """Least squares with the noise variances estimated from the data (the "automatic weighting" of
+    seed §2.2.4): the residuals whitened under the variances, fitted, the variances re-estimated from
+    the new residuals, and so on until they are stable.
+
+    ``functions(theta, x)`` gives the whitened residuals and their Jacobian (two functions of the
+    unknowns) under the variances ``theta``, with weights that depend on the unknowns taken at ``x``
+    (the round's start); ``variances(x, theta)`` the variances re-estimated at ``x`` from ``theta``.
+    :func:`refine_pose` and the estimation core's fit of a sensor whose views' residuals are
+    correlated (:mod:`handeye.estimation.core`) share it.
+    """
+    x, theta = np.asarray(x0, float), np.asarray(theta0, float)
+    converged, res, rounds = False, None, 0
+    for rounds in range(1, max_rounds + 1):
+        fun, jac = functions(theta, x)
+        res = least_squares(fun, x, jac=jac, method="trf", x_scale=x_scale, xtol=tol, ftol=tol, gtol=tol)
+        x = res.x
+        new = variances(x, theta)
+        converged = bool(np.all(np.abs(np.log(new / theta)) < 1e-3))
+        theta = new
+        if converged:
+            break
+    return Reweighted(x, theta, rounds, converged, bool(res is not None and res.success), "" if res is None else str(res.message))
+
+
 def _whitened_pose_jacobian(x, W, unpack, flange2base, target2cam, setup: str) -> NDArray[np.float64]:
     """The analytic Jacobian of the whitened pose residuals over the 12 rotation-vector and
     translation increments ``x``."""
     X, Z = unpack(x)
-    r, _, _ = _pose_residuals(X, Z, flange2base, target2cam, setup)
-    J = _pose_jacobian(X, Z, flange2base, target2cam, setup, r)
+    r, _, _ = pose_residuals(X, Z, flange2base, target2cam, setup)
+    J = pose_jacobian(X, Z, flange2base, target2cam, setup, r)
     J[..., 0:3] = J[..., 0:3] @ so3_left_jacobian(x[0:3])  # the parameters are rotation vectors
     J[..., 6:9] = J[..., 6:9] @ so3_left_jacobian(x[6:9])
     return (W @ J).reshape(-1, 12)
@@ -912,15 +884,18 @@ def refine_pose(
     def raw(x):
         return _raw_pose_residuals(*unpack(x), flange2base, target2cam, setup, weighting)
 
-    x = np.zeros(12)
-    r, target2flange, _ = _pose_residuals(X0, Z0, flange2base, target2cam, setup)
+    r, _, _ = pose_residuals(X0, Z0, flange2base, target2cam, setup)
     dof = 6 * n - 12
     # the priors: rows of their own, linear in the translation increments, whitened by their std
     prior_J, prior_f = priors.rows(X0, Z0) if priors is not None else (np.zeros((0, 12)), np.zeros(0))
     dof += len(prior_f)
     terms = len(NOISE_TERMS) if n >= DEPTH_MIN_POSES else len(NOISE_TERMS) - 1  # few poses: no depth term
-    shapes = _noise_shapes(target2flange, target2cam)[:terms] if weighting == "noise_model" else None
-    theta = _initial_variances(r, weighting)[:terms]
+
+    def shapes_at(x):
+        if weighting != "noise_model":
+            return None
+        _, target2flange, _ = pose_residuals(*unpack(x), flange2base, target2cam, setup)
+        return pose_noise_shapes(target2flange, target2cam)[:terms]
 
     def weighted_jac(x, W):
         if weighting == "strobl":  # central differences, 12 columns
@@ -932,52 +907,25 @@ def refine_pose(
     def weighted(x, W):
         return np.concatenate([np.einsum("nij,nj->ni", W, raw(x)).ravel(), prior_J @ x + prior_f])
 
-    converged, res = False, None
-    for rounds in range(1, max_rounds + 1):
-        W = _pose_weights(theta, shapes, weighting, n)
-        res = least_squares(lambda x, W=W: weighted(x, W), x,
-                            jac=lambda x, W=W: weighted_jac(x, W), method="trf",
-                            x_scale=np.full(12, 1e-3), xtol=1e-10, ftol=1e-10, gtol=1e-10)
-        x = res.x
-        X, Z = unpack(x)
-        r, target2flange, _ = _pose_residuals(X, Z, flange2base, target2cam, setup)
+    def functions(theta, x):
+        W = _pose_weights(theta, shapes_at(x), weighting, n)
+        return (lambda y: weighted(y, W)), (lambda y: weighted_jac(y, W))
+
+    def variances(x, theta):
         if weighting == "noise_model":
-            shapes = _noise_shapes(target2flange, target2cam)[:terms]
-            new = _fit_variances(r, shapes, theta)
-        else:
-            rr = raw(x)
-            new = np.maximum([np.mean(rr[:, :3] ** 2), np.mean(rr[:, 3:] ** 2)], VARIANCE_FLOOR)
-        converged = bool(np.all(np.abs(np.log(new / theta)) < 1e-3))
-        theta = new
-        if converged:
-            break
-    W = _pose_weights(theta, shapes, weighting, n)
+            return fit_variances(pose_residuals(*unpack(x), flange2base, target2cam, setup)[0], shapes_at(x), theta)
+        rr = raw(x)
+        return np.maximum([np.mean(rr[:, :3] ** 2), np.mean(rr[:, 3:] ** 2)], VARIANCE_FLOOR)
+
+    out = reweighted_fit(functions, variances, _initial_variances(r, weighting, terms), np.zeros(12),
+                         x_scale=np.full(12, 1e-3), tol=1e-10, max_rounds=max_rounds)
+    x, theta = out.x, out.theta
+    W = _pose_weights(theta, shapes_at(x), weighting, n)
     cov, noise = _pose_covariance(weighted_jac(x, W), weighted(x, W), theta, weighting, n, dof)
     X, Z = unpack(x)
+    r, _, _ = pose_residuals(X, Z, flange2base, target2cam, setup)
     return PoseRefinementResult(X, Z, cov[:6, :6], cov[6:, 6:], cov, {k: float(np.sqrt(v)) for k, v in noise.items()},
-                                r, rounds, converged, weighting, bool(res.success), str(res.message))
-
-
-def refit_pose(X0: NDArray[np.float64], Z0: NDArray[np.float64], flange2base: NDArray[np.float64],
-               target2cam: NDArray[np.float64], setup: str, noise: dict[str, float]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """X and Z of :func:`refine_pose` on other poses with the noise of an earlier refinement held
-    fixed (``noise``: its ``PoseRefinementResult.noise``): one weighted least-squares fit started
-    at ``X0``, ``Z0``, no variance re-estimation, no covariance. For cross-validation and jackknife
-    refits, which differ from the full fit by a few poses."""
-    theta = _theta(noise)
-    n = len(flange2base)
-    _, t2f, _ = _pose_residuals(X0, Z0, flange2base, target2cam, setup)
-    W = _pose_weights(theta, _noise_shapes(t2f, target2cam), "noise_model", n)
-
-    def unpack(x):
-        return _xz_increment(x, X0, Z0)
-
-    res = least_squares(
-        lambda x: np.einsum("nij,nj->ni", W, _raw_pose_residuals(*unpack(x), flange2base, target2cam, setup,
-                                                                 "noise_model")).ravel(),
-        np.zeros(12), jac=lambda x: _whitened_pose_jacobian(x, W, unpack, flange2base, target2cam, setup),
-        method="trf", x_scale=np.full(12, 1e-3), xtol=1e-8, ftol=1e-8, gtol=1e-8)
-    return unpack(res.x)
+                                r, out.rounds, out.converged, weighting, out.success, out.message)
 
 
 def pose_mahalanobis(
@@ -998,9 +946,9 @@ def pose_mahalanobis(
         raise InputMismatchError("pose_mahalanobis needs a 'noise_model' refinement")
     flange2base = np.asarray(flange2base, float)
     target2cam = np.asarray(target2cam, float)
-    r, target2flange, _ = _pose_residuals(result.X, result.Z, flange2base, target2cam, setup)
-    C = np.einsum("k,knij->nij", _theta(result.noise), np.stack(_noise_shapes(target2flange, target2cam)))
-    J = _pose_jacobian(result.X, result.Z, flange2base, target2cam, setup, r)
+    r, target2flange, _ = pose_residuals(result.X, result.Z, flange2base, target2cam, setup)
+    C = np.einsum("k,knij->nij", _theta(result.noise), np.stack(pose_noise_shapes(target2flange, target2cam)))
+    J = pose_jacobian(result.X, result.Z, flange2base, target2cam, setup, r)
     P = J @ result.cov @ np.swapaxes(J, 1, 2)
     sign = np.ones(len(r)) if fitted is None else np.where(fitted, -1.0, 1.0)
     V = C + sign[:, None, None] * P
