@@ -455,6 +455,58 @@ def test_robot_aware_robust_fit_drops_a_view_its_robot_pose_contradicts():
     assert clean.rejected_images == () and clean.n_rejected == 0
 
 
+def test_the_cores_robot_aware_pixel_fit_eliminates_each_poses_error(monkeypatch):
+    """The pixel refinement with each robot pose's error fitted, through the one estimation core
+    (CameraCorners x PoseErrors; from 16 views the errors eliminated view by view): X where the
+    solver's own eliminated refinement puts it (within 3% of the distance to the truth) with the same
+    std; the joint and the eliminated fit at the same optimum; a fold's downdate lands where a refit
+    on its views does; and a view 40 px off (a wrong robot pose) is set aside whole, X then what the
+    other views give."""
+    from handeye.estimation import core as core_module
+    from handeye.estimation.core import downdated
+    from handeye.estimation.core import fit as core_fit
+    from handeye.estimation.estimators import corners_fit
+    from handeye.estimation.validation import Views
+
+    n = 20
+    scene, f2b, poses, cal, obj, img, K, dist = _robot_noise_scene(np.random.default_rng(9), n_poses=n)
+    sigma = (np.radians(0.05), 0.2e-3)
+    views = Views(f2b, poses, "eye_in_hand", obj, img, K, dist)
+    core = corners_fit(views, np.arange(n), cal.X, cal.Z, robot_sigma=sigma)
+    assert core_module._eliminates(core.problem)
+    ref = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", robust=True, robot_noise=sigma)
+    assert translation_error(core.result.X, ref.X) < 0.03 * translation_error(ref.X, scene.X)
+    std_core, std_ref = np.sqrt(np.diag(core.result.cov_X)), np.sqrt(np.diag(ref.cov_X))
+    assert np.all(np.abs(std_core / std_ref - 1) < 0.1)
+    # the corrected poses moved towards the truth
+    assert translation_error(core.result.flange2base, scene.flange2base).mean() < translation_error(f2b, scene.flange2base).mean()
+    # a fold: the downdate (one step, each view's errors eliminated) against the refit on its views
+    train = np.setdiff1d(np.arange(n), [2, 7])
+    step = downdated(core.problem, core.fitted, train, guard=False)
+    refit = core_fit(core.problem, train, start=core.fitted)
+    assert translation_error(step.X, refit.X) < 0.02 * translation_error(refit.X, core.fitted.X)
+    assert np.all(step.d.reshape(n, 6)[[2, 7]] == 0)  # the views left out: predicted from the robot alone
+    # a view its robot pose contradicts goes whole
+    bad = [im.copy() for im in img]
+    bad[6] += 40.0
+    got = corners_fit(Views(f2b, poses, "eye_in_hand", obj, bad, K, dist), np.arange(n), cal.X, cal.Z, robot_sigma=sigma)
+    keep = np.flatnonzero(np.arange(n) != 6)
+    without = corners_fit(views, keep, cal.X, cal.Z, robot_sigma=sigma)
+    assert got.result.rejected_images == (6,) and got.result.n_rejected == len(obj[6])
+    # (the same up to the noise scale each estimates from its own rows)
+    assert translation_error(got.result.X, without.result.X) < 0.01 * translation_error(without.result.X, scene.X)
+    assert rotation_error(got.result.X, without.result.X) < 0.01 * rotation_error(without.result.X, scene.X)
+    assert core.result.rejected_images == () and core.result.n_rejected == 0
+    # the joint Jacobian below ELIMINATE_FROM: the same optimum, the same view set aside
+    monkeypatch.setattr(core_module, "ELIMINATE_FROM", 10**9)
+    joint = corners_fit(views, np.arange(n), cal.X, cal.Z, robot_sigma=sigma)
+    assert not core_module._eliminates(joint.problem)
+    assert translation_error(joint.result.X, core.result.X) < 1e-3 * translation_error(ref.X, scene.X)
+    assert np.abs(np.sqrt(np.diag(joint.result.cov_X)) / std_core - 1).max() < 1e-3
+    got = corners_fit(Views(f2b, poses, "eye_in_hand", obj, bad, K, dist), np.arange(n), cal.X, cal.Z, robot_sigma=sigma)
+    assert got.result.rejected_images == (6,)
+
+
 def test_robot_aware_refinement_with_a_long_distortion_model():
     """Beyond 8 distortion terms (thin prism, tilt) the analytic path does not apply: the joint
     problem is differenced image by image (12 + 6 groups of columns); with the extra terms zero it

@@ -4,12 +4,12 @@ Every closed form (AX = XB with Z the mean of the per-pose Z_i, and the robot-wo
 refinement (Strobl-Hirzinger's weighting with a noise model: the one estimation core's fit of the camera's
 poses, :class:`~handeye.sensors.camera.poses.PoseDifferences` times :class:`~handeye.robot.models.ControllerPoses`,
 :func:`poses_fit`; its folds and jackknife refits are the core's refits with the noise held), and with
-images the pixel refinement: with the robot's poses exact, the one estimation core's fit
-of the camera's corners (:mod:`handeye.estimation.core`, :class:`~handeye.sensors.camera.model.CameraCorners`
-times :class:`~handeye.robot.models.ControllerPoses`, the intrinsics refined too when they were
-estimated from the same images; its folds and jackknife refits are the core's downdates), or with
-each pose corrected under a prior the user gives (:func:`~handeye.solvers.refine.refine_reprojection`,
-which eliminates the corrections). Fitting the training data better is not the test: on real
+images the pixel refinement: the one estimation core's fit of the camera's corners
+(:mod:`handeye.estimation.core`, :class:`~handeye.sensors.camera.model.CameraCorners`) with the robot's
+poses exact (:class:`~handeye.robot.models.ControllerPoses`), the intrinsics refined too when they were
+estimated from the same images, or with each pose's error fitted under a prior the user gives
+(:class:`~handeye.robot.models.PoseErrors`, which the core eliminates view by view); its folds and
+jackknife refits are the core's downdates. Fitting the training data better is not the test: on real
 captures a refinement can fit better and predict worse. :func:`choose` runs K-fold
 cross-validation (:mod:`handeye.estimation.validation`) of each on the user's own data and keeps the one with
 the smallest held-out error; the jackknife spread of X comes from refits of the chosen one without each pose
@@ -27,11 +27,11 @@ from scipy.spatial.transform import Rotation
 from .. import solvers
 from ..errors import HandEyeError
 from ..frames.motions import Pairs
-from ..robot.models import ControllerPoses
+from ..robot.models import ControllerPoses, PoseErrors
 from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.pnp import INTRINSICS, intrinsics_covariance, refine_pnp
 from ..sensors.camera.poses import NOISE_TERMS, PoseDifferences
-from ..solvers.refine import ReprojectionResult, refine_reprojection
+from ..solvers.refine import ReprojectionResult
 from .core import Fitted, Problem, downdated, view_rms_px
 from .core import fit as core_fit
 from .diagnostics import SCALE_TOLERANCE, board_scale, closed_form
@@ -194,16 +194,20 @@ class CornersFit:
 
 
 def corners_fit(views: Views, idx: NDArray[np.intp], X0: NDArray[np.float64], Z0: NDArray[np.float64],
-                refine_intrinsics: bool = False) -> CornersFit:
+                refine_intrinsics: bool = False, robot_sigma: tuple[float, float] | None = None) -> CornersFit:
     """The robust pixel fit of X and the target (and the intrinsics) on the views ``idx``, started at
     ``X0``, ``Z0``, by the one estimation core (every corner weighted by its pixel; points beyond 5 of
-    their std set aside)."""
+    their std set aside): with the robot's poses exact, or with ``robot_sigma`` (rad, m) each pose's
+    error fitted under that prior (:class:`~handeye.robot.models.PoseErrors`; a view whose pose the
+    robust fit bends far beyond it is set aside whole)."""
     idx = np.asarray(idx)
     sensor = CameraCorners(views.setup, [str(i) for i in idx], [views.image_points[i] for i in idx],
                            [views.object_points[i] for i in idx], views.K, views.dist, refine_intrinsics=refine_intrinsics)
     flange2base = views.flange2base[idx]
     X_start, p_start = sensor.start(flange2base, X0, Z0)
-    problem = Problem(sensor, ControllerPoses(flange2base), X_start, p_start)
+    robot = ControllerPoses(flange2base) if robot_sigma is None else PoseErrors(
+        flange2base, (float(np.degrees(robot_sigma[0])), 1e3 * float(robot_sigma[1])))
+    problem = Problem(sensor, robot, X_start, p_start)
     fitted = core_fit(problem)
     return CornersFit(problem, fitted, _as_reprojection(problem, fitted))
 
@@ -232,56 +236,30 @@ def _as_reprojection(problem: Problem, fitted: Fitted) -> ReprojectionResult:
 
 def pixel_fit(views: Views, idx: NDArray[np.intp], X0: NDArray[np.float64], Z0: NDArray[np.float64],
               refine_intrinsics: bool = False, robot_sigma: tuple[float, float] | None = None) -> ReprojectionResult:
-    """The robust pixel refinement of X0, Z0 on the views ``idx``: with the robot exact, the core's
-    fit of the corners (:func:`corners_fit`); with each pose corrected under the prior ``robot_sigma``
-    (rad, m), :func:`~handeye.solvers.refine.refine_reprojection`."""
-    if robot_sigma is None:
-        return corners_fit(views, idx, X0, Z0, refine_intrinsics).result
-    return refine_reprojection(X0, Z0, views.flange2base[idx], [views.object_points[i] for i in idx],
-                               [views.image_points[i] for i in idx], views.K, views.dist, views.setup,
-                               refine_intrinsics=refine_intrinsics, robust=True, robot_noise=robot_sigma)
+    """The robust pixel refinement of X0, Z0 on the views ``idx``: the core's fit of the corners
+    (:func:`corners_fit`), with the robot exact or each pose corrected under the prior ``robot_sigma``
+    (rad, m)."""
+    return corners_fit(views, idx, X0, Z0, refine_intrinsics, robot_sigma).result
 
 
-def _corners(views: Views, method: str, refine_intrinsics: bool = False) -> Fit:
-    """The pixel refinement with the robot exact: the core's fit of the corners (and the intrinsics)
-    on all of ``views`` (kept as ``fit.full``, its :class:`CornersFit` as ``fit.core``), from the
-    closed form ``method``; each fit on a subset is one Gauss-Newton downdate of it."""
+def _corners(views: Views, method: str, refine_intrinsics: bool = False, robot_sigma: tuple[float, float] | None = None
+             ) -> Fit:
+    """The pixel refinement: the core's fit of the corners (and the intrinsics; ``robot_sigma``: and
+    each robot pose's error under that prior) on all of ``views`` (kept as ``fit.full``, its
+    :class:`CornersFit` as ``fit.core``), from the closed form ``method``; each fit on a subset is one
+    Gauss-Newton downdate of it."""
     full: list = []
     core: list = []
 
     def fit(flange2base, target2cam, setup, idx):
         if not core:
             X, Z, _ = closed_form(views.flange2base, views.target2cam, setup, method)
-            core.append(corners_fit(views, np.arange(len(views)), X, Z, refine_intrinsics))
+            core.append(corners_fit(views, np.arange(len(views)), X, Z, refine_intrinsics, robot_sigma))
             full.append(core[0].result)
         return core[0].on(idx)
 
     fit.full = full
     fit.core = core
-    return fit
-
-
-def _pixel_robot(views: Views, method: str, refine_intrinsics: bool, robot_sigma: tuple[float, float]) -> Fit:
-    """The pixel refinement with each robot pose corrected under the prior ``robot_sigma`` (rad, m;
-    :func:`~handeye.solvers.refine.refine_reprojection`, which eliminates the corrections). It is
-    fitted on all of ``views`` once (robustly, kept as ``fit.full`` with the points it kept); each
-    fit on a subset is a refit started there on those points."""
-    full: list = []
-
-    def fit(flange2base, target2cam, setup, idx):
-        if not full:
-            X, Z, _ = closed_form(views.flange2base, views.target2cam, setup, method)
-            full.append(pixel_fit(views, np.arange(len(views)), X, Z, refine_intrinsics, robot_sigma))
-        ref = full[0]
-        keep = [ref.kept[i] for i in idx]
-        sub = refine_reprojection(ref.X, ref.Z, views.flange2base[idx],
-                                  [np.asarray(views.object_points[i])[k] for i, k in zip(idx, keep)],
-                                  [np.asarray(views.image_points[i])[k] for i, k in zip(idx, keep)],
-                                  ref.K if refine_intrinsics else views.K, ref.dist if refine_intrinsics else views.dist,
-                                  setup, refine_intrinsics=refine_intrinsics, robot_noise=robot_sigma, tol=REFIT_TOL)
-        return (sub.X, sub.Z, sub.K, sub.dist) if refine_intrinsics else (sub.X, sub.Z)
-
-    fit.full = full
     return fit
 
 
@@ -294,7 +272,7 @@ def pixel_candidates(views: Views, method: str = "daniilidis", intrinsics_estima
     if intrinsics_estimated:
         out[PIXEL_INTRINSICS] = _corners(views, method, True)
     if robot_sigma is not None:
-        out[PIXEL_ROBOT] = _pixel_robot(views, method, intrinsics_estimated, robot_sigma)
+        out[PIXEL_ROBOT] = _corners(views, method, intrinsics_estimated, robot_sigma)
     return out
 
 

@@ -757,8 +757,9 @@ def calibrate(
         pose refinement with the ``known`` values (the pixel refinement does not run there yet).
     refine : {'auto', 'reprojection', 'pose', 'none'}
         'reprojection': X and Z (and the intrinsics, when estimated) refined jointly on the pixel
-        errors of every target point (:func:`handeye.solvers.refine.refine_reprojection`), starting
-        from ``method``, with the robot poses taken as exact. 'pose': refined on the robot and PnP
+        errors of every target point (the estimation core's fit of the corners,
+        :func:`handeye.estimation.estimators.corners_fit`), starting from ``method``, with the robot
+        poses taken as exact (with ``robot_noise``: each pose's error fitted under that prior). 'pose': refined on the robot and PnP
         poses (:func:`handeye.estimation.estimators.poses_fit`), which allows for robot pose errors.
         'auto' (default): whichever of these, the closed forms and (with ``robot_noise``) the pixel
         refinement with robot pose corrections predicts held-out images best, by ``folds``-fold
