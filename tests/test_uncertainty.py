@@ -309,7 +309,9 @@ def test_the_cores_fit_of_whole_poses_is_the_pose_refinement(setup, n_poses):
 
 def test_a_fit_of_correlated_residuals_needs_the_sensors_derivatives():
     """A sensor with correlated residuals but no jacobian is refused by name, not fitted by finite
-    differences under weights that never move."""
+    differences under weights that never move; and estimate() refuses whole poses (their noise is
+    fitted, not stated: on exact rotations it called the translation undetermined, on real pose pairs
+    every fit inconsistent), naming calibrate_poses."""
     from handeye.estimation.core import Problem
     from handeye.estimation.core import fit as core_fit
     from handeye.robot.models import ControllerPoses
@@ -324,6 +326,11 @@ def test_a_fit_of_correlated_residuals_needs_the_sensors_derivatives():
     problem = Problem(model, ControllerPoses(s.flange2base), *model.start(s.flange2base, s.X, s.Z))
     with pytest.raises(handeye.HandEyeError, match="correlated residuals needs the sensor's own derivatives"):
         core_fit(problem)
+    # nor does estimate() judge whole poses against a stated noise they do not have: it says where to go
+    from handeye.estimation.core import estimate
+    whole = PoseDifferences("eye_in_hand", [str(i) for i in range(8)], s.target2cam)
+    with pytest.raises(handeye.HandEyeError, match="calibrate_poses"):
+        estimate(whole, ControllerPoses(s.flange2base))
 
 
 def test_pose_refinement_bad_arguments():

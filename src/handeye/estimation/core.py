@@ -60,7 +60,7 @@ from ..sensors.base import SensorModel
 from ..solvers.refine import VARIANCE_FLOOR, block_whitening, fit_variances, refine_pose, reweighted_fit
 from .diagnostics import closed_form
 from .uncertainty import widened_uncertainty
-from .validation import default_folds, fold_indices
+from .validation import default_folds, fold_indices, held_out, jackknife_groups, jackknife_spread
 from .verdict import judged
 
 __all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "view_rms_px", "estimate", "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
@@ -1037,29 +1037,32 @@ def _cross_validation(problem: Problem, full: Fitted, views: NDArray[np.intp], f
     n = len(views)
     if n < 4:
         return {}, 0, np.full(n, np.nan)
-    held = [views[i] for i in fold_indices(n, default_folds(n) if folds is None else min(folds, n))]
-    fitted_mm, start_mm, nominal_mm = (np.full((n, 2), np.nan) for _ in range(3))  # per view: mm, px
-    position = {int(v): i for i, v in enumerate(views)}
+    held = fold_indices(n, default_folds(n) if folds is None else min(folds, n))
     nominal = None
     if isinstance(problem.robot, JointAngles):
         nominal = Problem(problem.sensor, ControllerPoses(problem.robot.flange2base(np.zeros(problem.robot.n_params))),
                           problem.X0, problem.p0, problem.pins)
         nominal_full = fit(nominal, views)
-    for test in held:
-        train = np.setdiff1d(views, test)
-        at = [position[int(v)] for v in test]
-        fitted_mm[at] = _view_rms(problem, downdated(problem, full, train), test)
+
+    def predict(train_at: NDArray[np.intp], test_at: NDArray[np.intp]) -> NDArray[np.float64]:
+        """Per test view: the fit's, the start's and the nominal table's errors (mm, px each)."""
+        train, test = views[train_at], views[test_at]
+        out = np.full((len(test), 6), np.nan)
+        out[:, 0:2] = _view_rms(problem, downdated(problem, full, train), test)
         try:
             X0, p0 = _start(problem.sensor, problem.robot, train)
-            start_mm[at] = _view_rms(problem, replace(full, X=X0, p=p0, d=np.zeros(problem.robot.n_params)), test)
+            out[:, 2:4] = _view_rms(problem, replace(full, X=X0, p=p0, d=np.zeros(problem.robot.n_params)), test)
         except HandEyeError:
             pass
         if nominal is not None:
-            nominal_mm[at] = _view_rms(nominal, downdated(nominal, nominal_full, train), test)
-    table = {_name(problem.robot): _row(fitted_mm), "closed-form start": _row(start_mm)}
+            out[:, 4:6] = _view_rms(nominal, downdated(nominal, nominal_full, train), test)
+        return out
+
+    errors = held_out(n, held, predict, 6, catch=())  # the fit's own failure is not a fold to skip
+    table = {_name(problem.robot): _row(errors[:, 0:2]), "closed-form start": _row(errors[:, 2:4])}
     if nominal is not None:
-        table["fit on the nominal table's poses"] = _row(nominal_mm)
-    return table, len(held), fitted_mm[:, 0]
+        table["fit on the nominal table's poses"] = _row(errors[:, 4:6])
+    return table, len(held), errors[:, 0]
 
 
 def _name(robot: RobotModel) -> str:
@@ -1082,12 +1085,10 @@ def _jackknife(problem: Problem, full: Fitted, views: NDArray[np.intp], max_grou
     n = len(views)
     if n < 4:
         return None
-    groups = [np.array([v]) for v in views] if n <= max_groups else [views[i] for i in fold_indices(n, max_groups)]
-    xs = np.array([downdated(problem, full, np.setdiff1d(views, g)).x[:len(full.cov)] for g in groups])
-    d = xs - xs.mean(axis=0)
-    g = len(xs)
-    factor = float(stdtrit(g - 1, 0.99865)) / 3.0
-    return factor**2 * (g - 1) / g * d.T @ d
+    groups = jackknife_groups(n, max_groups)
+    xs = np.array([downdated(problem, full, np.setdiff1d(views, views[g])).x[:len(full.cov)] for g in groups])
+    factor = float(stdtrit(len(xs) - 1, 0.99865)) / 3.0
+    return factor**2 * jackknife_spread(xs)
 
 
 def _widen(cov: NDArray[np.float64], jack: NDArray[np.float64] | None) -> tuple[NDArray[np.float64], float]:
@@ -1214,9 +1215,20 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
     ------
     DegenerateMotionError
         The views cannot determine X even in part (too few, or the start cannot be solved).
+    HandEyeError
+        The sensor's noise is not stated but fitted term by term (correlated residuals: whole poses,
+        :class:`~handeye.sensors.camera.poses.PoseDifferences`): the verdict here holds the fit
+        against a stated noise, which such a sensor does not have.
     """
     if len(sensor.names) != robot.n_views:
         raise HandEyeError(f"{len(sensor.names)} views measured and {robot.n_views} robot poses: give one per view")
+    if _correlated(sensor):
+        # its noise terms are fitted to the residuals, so no fit can exceed them: a verdict against them
+        # would pass anything; the pose check (outliers by their Mahalanobis distance) and the choice of
+        # estimator by held-out poses judge whole poses instead
+        raise HandEyeError(f"{sensor.kind} ({sensor.target}): whole poses have no stated noise to judge the fit against; "
+                           "calibrate them with handeye.calibrate_poses (the pose check, then the estimator that predicts "
+                           "held-out poses best), or fit them with handeye.estimation.core.fit")
     checked = _prepared(sensor, robot)
     problem, full, views = checked.problem, checked.full, checked.views
     _, n_p, _ = problem.sizes

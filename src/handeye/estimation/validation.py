@@ -28,8 +28,9 @@ from ..errors import HandEyeError
 from ..frames.setups import predicted_target2cam
 from ..sensors.camera.pnp import project_points
 
-__all__ = ["Views", "Fit", "default_folds", "fold_indices", "view_errors", "cross_validate", "CrossValidation", "jackknife_cov",
-           "jackknife_covs", "pnp_errors", "robot_error_seen", "VIRTUAL_TARGET"]
+__all__ = ["Views", "Fit", "default_folds", "fold_indices", "held_out", "jackknife_groups", "jackknife_spread", "view_errors",
+           "cross_validate", "CrossValidation", "jackknife_cov", "jackknife_covs", "pnp_errors", "robot_error_seen",
+           "VIRTUAL_TARGET", "FAILED_FIT"]
 
 #: Points of a virtual 0.2 m x 0.15 m target (target frame, metres): the held-out error of pose-only
 #: data is measured on them.
@@ -80,6 +81,42 @@ def fold_indices(n: int, folds: int = 5, seed: int = 0) -> list[NDArray[np.intp]
     folds = min(int(folds), n)
     order = np.random.default_rng(seed).permutation(n)
     return [np.sort(order[k::folds]) for k in range(folds)]
+
+
+#: What a fit on part of the views may raise when that part cannot determine it (degenerate motions,
+#: a singular system, too few points): its fold's views are then not predicted.
+FAILED_FIT = (HandEyeError, np.linalg.LinAlgError, ValueError)
+
+
+def held_out(n: int, held: Sequence[NDArray[np.intp]], predict: Callable[[NDArray[np.intp], NDArray[np.intp]], NDArray],
+             columns: int, catch: tuple[type[BaseException], ...] = FAILED_FIT) -> NDArray[np.float64]:
+    """Per view (n, ``columns``) its error predicted from the robot alone by a fit on the other views:
+    for each fold ``test`` of ``held``, ``predict(train, test)`` fits on the positions ``train`` (all
+    but ``test``) and gives the errors (len(test), ``columns``) of the views ``test``. A fold whose
+    fit raises one of ``catch`` leaves its views at infinity. The cross-validation of every
+    estimator (:func:`cross_validate`) and of the estimation core's fit
+    (:func:`handeye.estimation.core.estimate`)."""
+    out = np.full((n, columns), np.inf)
+    for test in held:
+        try:
+            out[test] = predict(np.setdiff1d(np.arange(n), test), test)
+        except catch:
+            continue
+    return out
+
+
+def jackknife_groups(n: int, max_groups: int) -> list[NDArray[np.intp]]:
+    """The positions a jackknife leaves out in turn: each view alone up to ``max_groups`` views, else
+    ``max_groups`` folds (:func:`fold_indices`)."""
+    return [np.array([i]) for i in range(n)] if n <= max_groups else fold_indices(n, max_groups)
+
+
+def jackknife_spread(estimates: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The jackknife covariance of ``g`` estimates (g, k), each from the data less one group:
+    ``(g - 1) / g * sum_k (e_k - mean e)(e_k - mean e)^T``."""
+    d = np.asarray(estimates, float) - np.mean(estimates, axis=0)
+    g = len(d)
+    return (g - 1) / g * d.T @ d
 
 
 _TINY = np.finfo(float).tiny
@@ -178,19 +215,14 @@ def cross_validate(fit: Fit, views: Views, folds: int | Sequence[NDArray[np.intp
     """
     n = len(views)
     held = fold_indices(n, folds, seed) if isinstance(folds, (int, np.integer)) else list(folds)
-    px = np.full(n, np.inf) if views.has_pixels else None
-    mm = np.full(n, np.inf)
-    for test in held:
-        train = np.setdiff1d(np.arange(n), test)
-        try:
-            X, Z, *intrinsics = fit(views.flange2base[train], views.target2cam[train], views.setup, train)
-        except (HandEyeError, np.linalg.LinAlgError, ValueError):
-            continue
+
+    def predict(train: NDArray[np.intp], test: NDArray[np.intp]) -> NDArray[np.float64]:
+        X, Z, *intrinsics = fit(views.flange2base[train], views.target2cam[train], views.setup, train)
         e_px, e_mm = view_errors(X, Z, views, test, *intrinsics)
-        mm[test] = e_mm
-        if px is not None:
-            px[test] = e_px
-    return CrossValidation(name, px, mm, len(held))
+        return np.stack([e_mm, e_mm if e_px is None else e_px], axis=1)
+
+    errors = held_out(n, held, predict, 2)
+    return CrossValidation(name, errors[:, 1] if views.has_pixels else None, errors[:, 0], len(held))
 
 
 def jackknife_cov(fit: Fit, views: Views, X: NDArray[np.float64], max_groups: int = 10) -> NDArray[np.float64] | None:
@@ -207,13 +239,12 @@ def jackknife_covs(fit: Fit, views: Views, X: NDArray[np.float64], Z: NDArray[np
                    max_groups: int = 10) -> tuple[NDArray[np.float64] | None, NDArray[np.float64] | None]:
     """:func:`jackknife_cov` of X and, from the same refits, of Z (None when ``Z`` is None)."""
     n = len(views)
-    groups = [np.array([i]) for i in range(n)] if n <= max_groups else fold_indices(n, max_groups)
     Xk, Zk = [], []
-    for out in groups:
+    for out in jackknife_groups(n, max_groups):
         train = np.setdiff1d(np.arange(n), out)
         try:
             solved = fit(views.flange2base[train], views.target2cam[train], views.setup, train)
-        except (HandEyeError, np.linalg.LinAlgError, ValueError):
+        except FAILED_FIT:
             continue
         Xk.append(solved[0])
         Zk.append(solved[1])
@@ -223,8 +254,6 @@ def jackknife_covs(fit: Fit, views: Views, X: NDArray[np.float64], Z: NDArray[np
 
 
 def _spread(Tk: NDArray[np.float64], T: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The jackknife covariance of the refits ``Tk`` about ``T``."""
-    d = np.concatenate([Rotation.from_matrix(Tk[:, :3, :3] @ T[:3, :3].T).as_rotvec(), Tk[:, :3, 3] - T[:3, 3]], axis=1)
-    d -= d.mean(axis=0)
-    g = len(d)
-    return (g - 1) / g * d.T @ d
+    """The jackknife covariance of the refits ``Tk`` about ``T`` (:func:`jackknife_spread`)."""
+    return jackknife_spread(np.concatenate([Rotation.from_matrix(Tk[:, :3, :3] @ T[:3, :3].T).as_rotvec(),
+                                            Tk[:, :3, 3] - T[:3, 3]], axis=1))

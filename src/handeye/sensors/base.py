@@ -74,7 +74,8 @@ A new sensor is one package under ``sensors/`` whose model class has these membe
     covariance is a sum of terms (``noise_terms``, names), each term's shape for a unit variance
     (K, M, c, c) at the given unknowns, and the variances to start from. The core then whitens each
     row by its covariance and fits the terms' variances by maximum likelihood (instead of ``shape``
-    and ``groups``), keeps every row, and needs ``jacobian``.
+    and ``groups``), keeps every row, and needs ``jacobian``; ``estimate`` refuses such a sensor (its
+    noise fitted, it has none stated to judge the fit against): ``fit`` and ``downdated`` take it.
     :class:`~handeye.sensors.camera.poses.PoseDifferences`, the pose refinement's noise model.
 ``pixel_size(rows)`` (optional)
     Per measurement row the size (m) of one pixel of its residual, when the residuals are pixels
