@@ -66,13 +66,8 @@ class TargetPoses(ChartedTarget):
     param_names = ["target.rx", "target.ry", "target.rz", "target.x", "target.y", "target.z"]
 
     def __init__(self, setup: str, names: list[str], target2cam: ArrayLike) -> None:
-        self.setup = check_setup(setup)
-        poses = np.asarray(target2cam, dtype=float)
-        if poses.ndim != 3 or poses.shape[1:] != (4, 4) or len(poses) != len(names):
-            raise InputMismatchError(f"{len(names)} views and target2cam of shape {poses.shape}: give one 4x4 pose per view")
-        self.names = list(names)
-        self._poses = poses
-        seen = np.flatnonzero(np.isfinite(poses).all(axis=(1, 2)))
+        seen = self._given(setup, names, target2cam)
+        poses = self._poses
         m = len(VIRTUAL_POINTS)
         self.owner = np.repeat(seen, m).astype(np.intp)
         self.points = np.tile(VIRTUAL_POINTS, (len(seen), 1))
@@ -86,6 +81,16 @@ class TargetPoses(ChartedTarget):
         self.noise_px = 1.0  # the stated noise is POSE_NOISE of the depth: a "pixel" of that size
         self.shape = np.ones((len(self.owner), 2))
         self.param_scale = np.full(6, 1e-3)
+
+    def _given(self, setup: str, names: list[str], target2cam: ArrayLike) -> NDArray[np.intp]:
+        """The setup, the names and the poses checked and kept; the views whose pose is finite."""
+        self.setup = check_setup(setup)
+        poses = np.asarray(target2cam, dtype=float)
+        if poses.ndim != 3 or poses.shape[1:] != (4, 4) or len(poses) != len(names):
+            raise InputMismatchError(f"{len(names)} views and target2cam of shape {poses.shape}: give one 4x4 pose per view")
+        self.names = list(names)
+        self._poses = poses
+        return np.flatnonzero(np.isfinite(poses).all(axis=(1, 2)))
 
     def view_poses(self) -> NDArray[np.float64]:
         """The poses given."""
@@ -206,7 +211,7 @@ def pose_noise_start(r: NDArray[np.float64], terms: int) -> NDArray[np.float64]:
 LEVER = 0.1
 
 
-class PoseDifferences(ChartedTarget):
+class PoseDifferences(TargetPoses):
     """A camera's poses of the target, one per view, each a whole measurement: the pose
     refinement's residual and noise model (seed §2.2.4, :func:`~handeye.solvers.refine.refine_pose`)
     as a sensor model of the estimation core.
@@ -222,12 +227,8 @@ class PoseDifferences(ChartedTarget):
 
     Parameters
     ----------
-    setup : str
-    names : list of str
-        Per view its name.
-    target2cam : array_like (N, 4, 4)
-        Per view the target's pose in the camera frame (m); a view whose pose is not finite is one
-        the camera did not see the target in.
+    setup, names, target2cam
+        As for :class:`TargetPoses`.
     terms : int, optional
         How many of :data:`NOISE_TERMS` the noise model has (default: 4 from :data:`DEPTH_MIN_POSES`
         views, else 3): a refit on other poses holds an earlier fit's.
@@ -247,20 +248,12 @@ class PoseDifferences(ChartedTarget):
     True
     """
 
-    kind = "camera"
     target = "target poses, whole"
-    pixel_columns: tuple[int, ...] = ()
     groups: tuple[tuple[int, ...], ...] = ((0, 1, 2, 3, 4, 5),)  # one scale: the terms below are what the core fits
-    param_names = ["target.rx", "target.ry", "target.rz", "target.x", "target.y", "target.z"]
 
     def __init__(self, setup: str, names: list[str], target2cam: ArrayLike, terms: int | None = None) -> None:
-        self.setup = check_setup(setup)
-        poses = np.asarray(target2cam, dtype=float)
-        if poses.ndim != 3 or poses.shape[1:] != (4, 4) or len(poses) != len(names):
-            raise InputMismatchError(f"{len(names)} views and target2cam of shape {poses.shape}: give one 4x4 pose per view")
-        self.names = list(names)
-        self._poses = poses
-        seen = np.flatnonzero(np.isfinite(poses).all(axis=(1, 2)))
+        # not TargetPoses': a whole pose needs no virtual points in front of the camera
+        seen = self._given(setup, names, target2cam)
         if terms is None:
             terms = len(NOISE_TERMS) if len(seen) >= DEPTH_MIN_POSES else len(NOISE_TERMS) - 1
         self.noise_terms = NOISE_TERMS[:terms]
@@ -270,17 +263,6 @@ class PoseDifferences(ChartedTarget):
         self.param_scale = np.full(6, 1e-3)
         self.noise_px = 1.0  # the stated noise is POSE_NOISE of the depth: a "pixel" of that size
         self._scale = np.r_[np.full(3, LEVER), np.ones(3)]  # the residual's columns: rotation at the lever, metres
-
-    def view_poses(self) -> NDArray[np.float64]:
-        """The poses given."""
-        return self._poses
-
-    def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """X and the target from the closed form; the first start fixes the target's chart."""
-        if X is None or Z is None:
-            raise DegenerateMotionError("target poses need 3 views or more for the closed form")
-        self._first_start(X, Z, flange2base, 1.0 / POSE_NOISE)
-        return X, self.target_params(Z)
 
     def _poses_of(self, flange2base, rows) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         views = self.owner[rows]
@@ -310,11 +292,3 @@ class PoseDifferences(ChartedTarget):
     def noise_start(self, residuals: NDArray[np.float64]) -> NDArray[np.float64]:
         """The variances to start from, from the residuals at the start (:func:`pose_noise_start`)."""
         return pose_noise_start(residuals / self._scale, len(self.noise_terms))
-
-    def figures(self, p, cov_p) -> dict[str, Any]:
-        """Nothing beyond the core's own figures."""
-        return {}
-
-    def notes(self, p, cov_p) -> list[str]:
-        """Nothing beyond the core's own notes."""
-        return []
