@@ -360,57 +360,26 @@ def _links_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.
 
 
 def _per_view_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None):
-    """Finite differences of :func:`_function` for a robot whose unknowns each move one view's pose
-    (``param_view``: per unknown its view; each pose's own error): an unknown moves only its view's
-    rows and its own prior row, so the same unknown of every view is stepped at once (6 evaluations
-    for 6 unknowns per view, not 6 per view), by 1.5e-8 of a radian or a metre (``param_size``: the
-    size of one of its units; a step of 1.5e-8 units of a robot's accuracy moved the residuals by
-    ~1e-8 of their size, where rounding left the derivative ~1e-4 off and the fits crawled to their
-    tolerance: 2-4x the iterations). The sensor's unknowns that move one block of rows each
-    (``param_block``, ``row_block``: a rig's sensor's pose relative to the first) are stepped
-    together when their blocks differ (:func:`_column_groups`); X's one at a time."""
-    fun = _function(problem, rows, sigma, at)
-    view = np.asarray(problem.robot.param_view, dtype=np.intp)
-    n_x = 6 + len(problem.p0)
-    n_d = len(view)
-    at_row = _entry_rows(problem.sensor, rows)
-    entry_view = np.asarray(problem.sensor.owner)[rows][at_row]
-    first = np.r_[0, np.flatnonzero(np.diff(view)) + 1]
-    position = np.arange(n_d) - first[np.searchsorted(first, np.arange(n_d), side="right") - 1]
-    size = getattr(problem.robot, "param_size", None)
-    h_d = 1.5e-8 / np.asarray(size, float) if size is not None else np.full(n_d, 1.5e-8)
-    blocks = getattr(problem.sensor, "param_block", None)
-    if blocks is None or len(problem.p0) == 0:
-        blocks, entry_block = np.full(len(problem.p0), -1), np.zeros(len(entry_view), dtype=np.intp)
-    else:
-        entry_block = np.asarray(problem.sensor.row_block, dtype=np.intp)[rows][at_row]
-    groups = [[j] for j in range(6)] + [[6 + j for j in g] for g in _column_groups(np.asarray(blocks, dtype=np.intp))]
+    """The Jacobian of :func:`_function` for a robot whose unknowns each move one view's pose
+    (``param_view``: per unknown its view; each pose's own error), from the finite differences of
+    :class:`_Eliminated` (the same unknown of every view stepped at once; X's and the sensor's
+    columns, the sensor's by blocks of rows); the prior rows (``d`` itself) by the same steps, the pins
+    exact."""
+    parts = _Eliminated(problem, rows, sigma, np.zeros(problem.robot.n_params), at=at)
+    n_x, n_d, pins = parts.n_g, problem.robot.n_params, problem.pins
+    column = parts.index[parts.entry_view]  # (E, n_per): each entry's view's unknowns
+    hit = column >= 0
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        f0 = fun(x)
-        J = np.zeros((len(f0), len(x)))
-        for group in groups:
-            h = 1.5e-8 * np.maximum(1.0, np.abs(x[group]))
-            step = x.copy()
-            step[group] += h
-            df = fun(step) - f0
-            if len(group) == 1:
-                J[:, group[0]] = df / h[0]
-                continue
-            for j, hj in zip(group, h):  # columns of distinct blocks: each moves its own block's entries only
-                at = np.flatnonzero(entry_block == blocks[j - 6])
-                J[at, j] = df[at] / hj
-        for g in np.unique(position):
-            group = np.flatnonzero(position == g)
-            step = x.copy()
-            step[n_x + group] += h_d[group]
-            df = fun(step) - f0
-            column = np.full(int(view.max()) + 1, -1)
-            column[view[group]] = n_x + group
-            at = column[entry_view]
-            hit = np.flatnonzero(at >= 0)
-            J[hit, at[hit]] = df[hit] / h_d[at[hit] - n_x]
-            J[len(entry_view) + group, n_x + group] = df[len(entry_view) + group] / h_d[group]
+        parts.evaluate_at(x)
+        m = len(parts.f)
+        J = np.zeros((m + n_d + len(pins), len(x)))
+        J[:m, :n_x] = parts.by_globals(x[:n_x])
+        J[np.nonzero(hit)[0], n_x + column[hit]] = parts.by_errors()[hit]
+        # the prior's derivative as the steps give it (1 to ~1e-12): exactly 1 moved a line-scan fit's X
+        # by 3-5 um of its 0.07-0.28 mm error, which rounding-level changes of its Jacobian do
+        J[m + np.arange(n_d), n_x + np.arange(n_d)] = ((parts.d + parts.h) - parts.d) / parts.h
+        J[m + n_d:, :6] = PIN * pins
         return J
     return jac
 
@@ -438,10 +407,10 @@ class _Eliminated:
     the pins; ``d``: the errors at the last ``g`` evaluated."""
 
     def __init__(self, problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], d0: NDArray[np.float64],
-                 loss: str = "linear", f_scale: float = 1.0) -> None:
+                 loss: str = "linear", f_scale: float = 1.0, at: NDArray[np.float64] | None = None) -> None:
         self.problem, self.rows, self.loss, self.f_scale = problem, rows, loss, f_scale
-        self.measured = _measured(problem, rows, sigma)
-        self.weight = _weight(problem, rows, sigma)
+        self.measured = _measured(problem, rows, sigma, at)
+        self.weight = _weight(problem, rows, sigma, at)
         sensor, robot = problem.sensor, problem.robot
         view = np.asarray(robot.param_view, dtype=np.intp)
         first = np.r_[0, np.flatnonzero(np.diff(view)) + 1]
@@ -471,9 +440,22 @@ class _Eliminated:
             return np.ones_like(r)
         return 1.0 / np.sqrt(1.0 + (r / self.f_scale) ** 2)
 
+    def evaluate_at(self, x: NDArray[np.float64]) -> None:
+        """X, ``p``, the errors and the entries at the unknowns ``x`` (all of them, errors too), for
+        :meth:`by_globals` and :meth:`by_errors`."""
+        self.X, self.p, self.d = self.problem.unpack(x)
+        self.f = self.measured(self.X, self.p, self.d)
+
+    def by_errors(self) -> NDArray[np.float64]:
+        """:meth:`_by_errors` at the unknowns last evaluated."""
+        return self._by_errors(self.X, self.p, self.d, self.f)
+
     def _by_errors(self, X, p, d, f0) -> NDArray[np.float64]:
         """The entries' derivatives (E, n_per) by their view's errors: the same error of every view
-        stepped at once."""
+        stepped at once, by 1.5e-8 of a radian or a metre (``param_size``: the size of one of its
+        units; a step of 1.5e-8 units of a robot's accuracy moved the residuals by ~1e-8 of their
+        size, where rounding left the derivative ~1e-4 off and the fits crawled to their tolerance:
+        2-4x the iterations)."""
         A = np.zeros((len(f0), self.n_per))
         for a in range(self.n_per):
             at = self.index[:, a][self.index[:, a] >= 0]
@@ -490,7 +472,7 @@ class _Eliminated:
         N[:, np.arange(self.n_per), np.arange(self.n_per)] += w_prior
         return N
 
-    def _per_view(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
+    def _view_sums(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """Sums over each view's entries of ``values`` (E, k) -> (n_views, k)."""
         return np.stack([np.bincount(self.entry_view, values[:, k], minlength=self.n_views)
                          for k in range(values.shape[1])], axis=1)
@@ -508,7 +490,7 @@ class _Eliminated:
         for k in range(INNER_STEPS):
             w, w_prior = self._loss_weights(f), self._loss_weights(d)[self.index].reshape(self.n_views, self.n_per)
             d_view = np.where(self.index >= 0, d[self.index], 0.0)
-            grad = self._per_view(w[:, None] * A * f[:, None]) + w_prior * d_view
+            grad = self._view_sums(w[:, None] * A * f[:, None]) + w_prior * d_view
             step = np.linalg.solve(self._normal(A, w, w_prior), grad[..., None])[..., 0]
             d[self.index[self.index >= 0]] -= step[self.index >= 0]
             f = self.measured(X, p, d)
@@ -524,7 +506,7 @@ class _Eliminated:
         self._solve(g)
         return np.concatenate([self.f, self.d, PIN * (self.problem.pins @ g[:6])])
 
-    def _by_globals(self, g: NDArray[np.float64]) -> NDArray[np.float64]:
+    def by_globals(self, g: NDArray[np.float64]) -> NDArray[np.float64]:
         """The entries' derivatives (E, n_g) by X's increment and ``p``, the errors held: the sensor's
         own, or finite differences, the sensor's unknowns that move one block of rows each (a rig's
         sensor's pose relative to the first: ``param_block``, ``row_block``) stepped together when
@@ -553,10 +535,10 @@ class _Eliminated:
         self._solve(g)
         if self.A is None:
             self.A = self._by_errors(self.X, self.p, self.d, self.f)
-        J_g, A = self._by_globals(g), self.A
+        J_g, A = self.by_globals(g), self.A
         w = self._loss_weights(self.f)
         w_prior = self._loss_weights(self.d)[self.index].reshape(self.n_views, self.n_per)
-        cross = self._per_view((w[:, None, None] * A[:, :, None] * J_g[:, None, :]).reshape(len(A), -1))
+        cross = self._view_sums((w[:, None, None] * A[:, :, None] * J_g[:, None, :]).reshape(len(A), -1))
         dd = -np.linalg.solve(self._normal(A, w, w_prior), cross.reshape(self.n_views, self.n_per, self.n_g))
         out = np.zeros((len(self.f) + len(self.d) + len(self.problem.pins), self.n_g))
         out[:len(self.f)] = J_g + np.einsum("ea,eag->eg", A, dd[self.entry_view])
@@ -609,7 +591,7 @@ def _fit_eliminated(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.
         res = least_squares(elim.fun, x[:n_g], elim.jac, method="lm", x_scale=problem.scale()[:n_g], xtol=tol, ftol=tol,
                             gtol=tol)
     else:
-        res = least_squares(elim.fun, x[:n_g], elim.jac, method="trf", loss=loss, f_scale=2.0,
+        res = least_squares(elim.fun, x[:n_g], elim.jac, method="trf", loss=loss, f_scale=elim.f_scale,
                             x_scale=problem.scale()[:n_g], xtol=1e-12, ftol=1e-12, gtol=1e-12)
     fun, jac = elim.fun(res.x), elim.jac(res.x)
     return _Solved(np.r_[res.x, elim.d], jac, fun, bool(res.success)), elim

@@ -219,9 +219,9 @@ def cross_validate(fit: Fit, views: Views, folds: int | Sequence[NDArray[np.intp
     def predict(train: NDArray[np.intp], test: NDArray[np.intp]) -> NDArray[np.float64]:
         X, Z, *intrinsics = fit(views.flange2base[train], views.target2cam[train], views.setup, train)
         e_px, e_mm = view_errors(X, Z, views, test, *intrinsics)
-        return np.stack([e_mm, e_mm if e_px is None else e_px], axis=1)
+        return np.stack([e_mm] + ([] if e_px is None else [e_px]), axis=1)
 
-    errors = held_out(n, held, predict, 2)
+    errors = held_out(n, held, predict, 2 if views.has_pixels else 1)
     return CrossValidation(name, errors[:, 1] if views.has_pixels else None, errors[:, 0], len(held))
 
 
