@@ -75,6 +75,7 @@ def acquired(tmp_path_factory):
     return _run(tmp_path_factory.mktemp("acquired") / "session", target_std=TARGET)
 
 
+@pytest.mark.slow
 def test_sim_acquire_reaches_the_target_std_with_fewer_views_than_a_12_pose_plan(acquired):
     world, acq = acquired
     cal = acquired[1].calibration
@@ -90,6 +91,7 @@ def test_sim_acquire_reaches_the_target_std_with_fewer_views_than_a_12_pose_plan
     assert len(session.image_names) == acq.n_views and session.camera_matrix is not None
 
 
+@pytest.mark.slow
 def test_a_target_std_below_what_the_robot_shows_stops_the_capture_early(tmp_path):
     """0.5 mm per axis is above the assumed accuracy's floor (0.3 mm), so the capture starts; once
     the views show the arm's error, calibrate's std cannot reach it however many views follow, and
@@ -109,6 +111,7 @@ def test_a_target_std_below_the_robot_accuracy_floor_is_refused_before_moving(tm
     assert robot.commanded is None and not (tmp_path / "x").exists()  # nothing moved, nothing written
 
 
+@pytest.mark.slow
 def test_interrupted_and_resumed_capture_gives_the_same_session(tmp_path):
     def stop_at_3(n):
         if n == 3:
@@ -142,6 +145,7 @@ def test_manual_mode_driven_by_a_script(tmp_path, acquired):
         ManualRobot("quat_wxyz", "m", "rad", inp=io.StringIO("1, 2, 3\n"), out=io.StringIO()).move_to(np.zeros(7))
 
 
+@pytest.mark.slow
 def test_verify_reports_the_true_errors_of_a_second_capture(tmp_path, acquired):
     """The calibration of a simulated capture checked on 8 more views: the errors verify reports
     (detected vs predicted) match the true ones (true vs predicted, known to the simulator) within 20%."""
@@ -269,6 +273,7 @@ def test_cameras_opencv_file_genicam_stand_in_and_errors(tmp_path):
         make_camera("webcam")
 
 
+@pytest.mark.slow
 def test_acquire_command_with_verify(tmp_path, capsys):
     """The simulated cell renders the board given by --target-spec (the one printed; issue 60, item 4),
     and the run says in one sentence why it stopped and whether X is good."""

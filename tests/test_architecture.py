@@ -213,6 +213,7 @@ def test_setup_branches_live_in_setups():
     assert not found, found
 
 
+@pytest.mark.slow
 def test_every_error_a_user_can_see_is_a_handeye_error_from_errors_py():
     """Exceptions are defined in errors.py only, and handeye raises its own types (which keep
     ValueError as a base where callers caught it): no bare ValueError, TypeError, RuntimeError or

@@ -51,6 +51,7 @@ def _copy(session, tmp_path):
     return shutil.copytree(session, tmp_path / "copy")
 
 
+@pytest.mark.slow
 def test_the_arm_is_found_with_no_guess_of_x(scene, session):
     s = load_depth_session(session)
     c = read_arm_clouds(s)
@@ -61,6 +62,7 @@ def test_the_arm_is_found_with_no_guess_of_x(scene, session):
     assert "no guess" in notes[0]
 
 
+@pytest.mark.slow
 def test_every_view_searched_at_once_finds_the_arm_too(scene, session):
     """The fallback for a camera too close to show the arm whole: every view's moving points at once."""
     s = load_depth_session(session)
@@ -71,6 +73,7 @@ def test_every_view_searched_at_once_finds_the_arm_too(scene, session):
     assert np.degrees(rotation_error(X, scene.X)) < 0.5 and 1e3 * translation_error(X, scene.X) < 5.0
 
 
+@pytest.mark.slow
 def test_x_is_recovered_through_the_command_line(scene, session, tmp_path, capsys):
     before = _digests(session)
     # weak: the links are placed through the nominal table, whose tolerance X takes whole (in its std)
@@ -96,6 +99,7 @@ def test_handeye_simulate_writes_an_arm_session(tmp_path, capsys):
     assert "no meshes of the arm" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_a_cloud_without_the_arm_is_skipped_by_name(scene, session, tmp_path):
     folder = _copy(session, tmp_path)
     u, v = np.meshgrid(np.linspace(-0.4, 0.4, 320), np.linspace(-0.3, 0.3, 240))
@@ -194,6 +198,7 @@ def test_the_arms_table_columns_match_central_differences():
     assert np.all(error[8:] <= 1e-6) and np.all(error[:8] <= 1e-4)
 
 
+@pytest.mark.slow
 def test_fitting_the_arms_table_brings_x_closer_when_the_arm_is_off_it(tmp_path):
     """The Panda 0.7 mm / 0.07 deg off its nominal table per entry: with the table held, X takes its
     error whole (its std says so, 'weak'); fitted with X (fit_table=True, JointAngles through the core,

@@ -46,6 +46,7 @@ def _noisy(k, rng):
     return s, perturb_poses(s.flange2base, np.radians(0.5), 2e-3, rng)  # robot 0.5 deg / 2 mm
 
 
+@pytest.mark.slow
 def test_noisy_few_poses_global_minimum_and_honest_certificates():
     """200 scenes: the certified cost is at most every closed form's and every local refinement's
     from a closed form (1e-9 relative); certified optimal in >= 95%; a closed form or refinement

@@ -62,6 +62,7 @@ def test_example_command_prints_x(capsys):
     assert "std of X (daniilidis: jackknife + robot accuracy)" in closed  # a closed form's verdict has a std too
 
 
+@pytest.mark.slow
 def test_console_script_runs_as_subprocess(tmp_path):
     exe = shutil.which("handeye")
     cmd = [exe] if exe else [sys.executable, "-m", "handeye.cli"]
@@ -80,6 +81,7 @@ def test_console_script_runs_as_subprocess(tmp_path):
     assert cov.shape == (6, 6) and np.allclose(data["uncertainty"]["std_translation_mm"], 1e3 * np.sqrt(np.diag(cov)[3:]))
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the user cache folder of Linux ($XDG_CACHE_HOME)")
 def test_check_then_calibrate_detects_once(tmp_path, monkeypatch, capsys):
     """The command line keeps detections in the user's cache folder: ``check`` then ``calibrate`` on
@@ -230,6 +232,7 @@ def test_mistyped_options_and_commands_get_the_subcommand_usage_and_a_hint(capsy
     assert "unrecognized argument(s) 'another-folder'" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_wrong_euler_sequence_is_named_for_an_image_session(tmp_path, capsys):
     """The sample session (a symmetric chessboard) declared euler:XYZ instead of ZYX: the images
     were labelled against the wrongly read robot poses, so each other reading relabels them anew;

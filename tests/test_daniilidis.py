@@ -46,6 +46,7 @@ def test_noise_free_recovers_x_exactly(setup, n_poses):
     assert cal.motion_residuals.max() < 1e-6 and cal.pose_residuals.max() < 1e-6
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 def test_noise_free_many_random_scenes_consecutive_pairs(setup):
     rng = np.random.default_rng(7)

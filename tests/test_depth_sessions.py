@@ -98,6 +98,7 @@ def _session(tmp_path, scene, **kw):
     return write_depth_session(tmp_path / "session", scene, **kw)
 
 
+@pytest.mark.slow
 def test_a_sphere_session_through_the_command_line(tmp_path, capsys, spheres):
     """calibrate on a sphere session folder (clouds in mm): exit 0, the verdict good, X and the
     scale in result.yaml as in the library, the view beyond the stated range named, held-out views
@@ -130,6 +131,7 @@ def test_a_sphere_session_through_the_command_line(tmp_path, capsys, spheres):
     assert "9 of 10 views used" in out
 
 
+@pytest.mark.slow
 def test_a_board_session_with_rendered_images(tmp_path):
     """A board session: the corners detected in rendered intensity images, lifted from the clouds;
     X within 0.3 mm / 0.1 deg, the verdict good, every view used."""
@@ -225,6 +227,7 @@ def test_bad_robot_poses_in_a_depth_session_name_the_table(tmp_path):
         load_depth_session(folder)
 
 
+@pytest.mark.slow
 def test_robot_poses_in_the_wrong_order_are_called_inconsistent(tmp_path, spheres):
     """The clouds paired with another view's robot pose, or the robot poses inverted: not an answer
     to trust. The verdict is inconsistent (the residuals far beyond what the stated robot accuracy
@@ -239,6 +242,7 @@ def test_robot_poses_in_the_wrong_order_are_called_inconsistent(tmp_path, sphere
         assert any("the robot poses and the measurements disagree" in a for a in cal.diagnostics.advice)
 
 
+@pytest.mark.slow
 def test_depth_sessions_in_a_fleet_and_with_exports(tmp_path, capsys, spheres):
     """Two depth sessions in one ``calibrate`` (a fleet): both calibrated, each into its own folder
     with the same result files as any session; a depth result exports a ROS 2 launch file as any
@@ -256,6 +260,7 @@ def test_depth_sessions_in_a_fleet_and_with_exports(tmp_path, capsys, spheres):
         assert (tmp_path / "fleet" / name / "handeye_static_tf.launch.py").is_file()
 
 
+@pytest.mark.slow
 def test_a_depth_session_with_joint_angles_fits_the_joints_compliance_when_asked(tmp_path):
     """compliance=True reaches the depth camera's robot model (the options record, not a loose field):
     the loaded joints' compliance is fitted with the table; without joint angles, or for a sensor

@@ -29,6 +29,7 @@ def test_sequences_are_the_24():
     assert len(SEQUENCES) == 24 and len(set(SEQUENCES)) == 24
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 def test_clean_data_is_good(setup):
     rng = np.random.default_rng(1)
@@ -39,6 +40,7 @@ def test_clean_data_is_good(setup):
         assert d.outliers == [] and d.convention_hint is None
 
 
+@pytest.mark.slow
 def test_wrong_euler_sequence_is_named():
     """Angles written in one of the 24 sequences and declared as another: the written one is named."""
     rng = np.random.default_rng(2)
@@ -62,6 +64,7 @@ def test_inverted_robot_poses_are_named(setup):
         assert "inverted" in d.advice[0]
 
 
+@pytest.mark.slow
 def test_mm_declared_as_m_is_named():
     rng = np.random.default_rng(4)
     for _ in range(SCENES):
@@ -117,6 +120,7 @@ def _random_poses_run(args):
             translation_error(cal.X, X))
 
 
+@pytest.mark.slow
 def test_random_poses_are_named_and_left_out():
     """20% of the poses replaced by random ones: every replaced pose named, clean ones named in at
     most 5% of scenes, and the calibration on what is left within 1.5x of the clean-data error."""
@@ -170,6 +174,7 @@ def test_small_rotations_are_weak_with_advice():
         assert any("less than 5 deg" in a for a in d.advice)
 
 
+@pytest.mark.slow
 def test_public_name_and_check_command(tmp_path, capsys):
     """``handeye.diagnose`` (DESIGN §6) and ``handeye check``: exit 0 on the bundled example, 2 with
     the Euler sequence declared wrong (the right one named); calibrate-poses answers with that verdict

@@ -18,6 +18,7 @@ MAIN_ENTRIES = ["calibrate", "calibrate_poses", "calibrate_joints", "calibrate_s
                 "load_result", "parse_poses", "relative_motions", "solve", "write_calibration"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", WITH_EXAMPLES)
 def test_examples_run(name, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # an example that writes files writes them here

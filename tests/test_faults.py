@@ -490,6 +490,7 @@ CASES = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
 def test_fault(case: Case, bases, tmp_path, capsys):
     folder = tmp_path / "in"
@@ -604,6 +605,7 @@ def _write_posepairs(folder: Path, flange2base, target2cam) -> None:
         "camera_poses": {"file": CAMERA, "format": "rotvec", "length_unit": "m", "angle_unit": "rad"}}))
 
 
+@pytest.mark.slow
 def test_thousand_pose_pairs_in_bounded_time(tmp_path, capsys):
     """calibrate-poses and check on 1,000 pose pairs finish (all pairs would be 499,500 motions: the
     old all-pairs diagnostics did not finish in 60 s) and stay accurate. The bound is 5x the time

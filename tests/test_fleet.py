@@ -22,6 +22,7 @@ def fleet(tmp_path_factory):
     return root
 
 
+@pytest.mark.slow
 def test_fleet_local_and_dask_give_the_same_calibrations(fleet, capsys):
     cells = [str(fleet / f"cell{k}") for k in range(3)]
     status = main(["calibrate", *cells, str(fleet / "broken"), "--out", str(fleet / "local"), "--jobs", "2",
@@ -44,6 +45,7 @@ def test_fleet_needs_out_and_scheduler_needs_several(fleet, capsys):
     assert "give more than one session folder" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_fleet_passes_the_write_options_to_every_session(fleet, capsys):
     cells = [str(fleet / f"cell{k}") for k in range(2)]
     status = main(["calibrate", *cells, "--out", str(fleet / "named"), "--jobs", "1", "--no-progress",
@@ -64,6 +66,7 @@ def _worker_environment() -> tuple[str | None, str | None, bool, str]:
             dask.config.get("distributed.worker.profile.enabled"), dask.config.get("distributed.admin.tick.interval"))
 
 
+@pytest.mark.slow
 def test_sessions_side_by_side_run_one_thread_each():
     # two workers each spreading OpenCV and OpenBLAS over both cores fight over them; Dask's
     # eager malloc trimming cost its workers ~15%, its profiler ~5%, its 20 ms ticks more (issue 37's fleet)

@@ -323,6 +323,7 @@ def test_a_joint_session_is_checked(tmp_path):
         load_session(folder)
 
 
+@pytest.mark.slow
 def test_simulate_and_calibrate_a_joint_session_from_the_command_line(tmp_path):
     """`handeye simulate --arm ur5` renders a session with joints.csv; `handeye calibrate` fits the
     arm's table with X (X within 0.3 mm of the truth), prints it, and writes the corrected table
@@ -600,6 +601,7 @@ def test_what_the_capture_cannot_determine_is_named_held_and_planned(tmp_path):
     assert not set(views.targets) & set(more.kinematic.undetermined)
 
 
+@pytest.mark.slow
 def test_views_for_x_when_the_joints_moved_too_little(tmp_path):
     """A Panda seen from beside it, 25 views whose joints moved as little as the simulator's default
     capture: every entry is determined, but X's std is over TABLE_DOMINATES times what the capture
@@ -683,6 +685,7 @@ def test_the_cb3_universal_robots_tables():
         assert np.allclose(T[:3, 3], [a2 + a3, -(d4 + d6), d1 - d5], atol=1e-12), (name, T[:3, 3])
 
 
+@pytest.mark.slow
 def test_plan_proposes_the_next_joint_views_of_a_session(tmp_path, capsys):
     """``handeye plan --session``: a UR5 joint session whose fourth joint never moved gets joint
     configurations (degrees, the arm's joint names) that the fit predicts determine what it could
@@ -764,6 +767,7 @@ def test_the_joints_compliance_is_fitted_with_the_table(tmp_path, capsys):
     assert "the session has none (a joints: table" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_calibrate_streams_takes_a_joint_recording(tmp_path, capsys):
     """A UR5 1-3 mm off its table recorded as it moves for 40 s: joint angles at 100 Hz, the camera's
     poses at 15 Hz on a clock 37 ms ahead (1 ms jitter). `handeye calibrate-streams joints.csv

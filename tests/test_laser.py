@@ -83,6 +83,7 @@ def test_pure_translations_leave_the_translation_undetermined_and_say_so():
     assert np.degrees(rotation_error(cal.X, sc.X)) < 0.05
 
 
+@pytest.mark.slow
 def test_a_laser_session_through_the_command_line(tmp_path, capsys):
     """simulate --sensor laser_line, calibrate and check: the result files as for any sensor, the
     verdict good, exit 0."""
@@ -106,6 +107,7 @@ def test_a_laser_session_through_the_command_line(tmp_path, capsys):
         assert np.nanmedian(np.abs(on_curve - sec["points_mm"][:, 1])) < 0.05
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 def test_x_from_profiles_of_a_plate(setup):
     """A flat plate, 20 profiles from within 45 deg of its normal, the ball's noise, dropouts and
@@ -127,6 +129,7 @@ def test_x_from_profiles_of_a_plate(setup):
     assert within_std(cal.X, rough.X, cal.std)
 
 
+@pytest.mark.slow
 def test_a_plate_scanned_at_one_orientation_is_refused_with_the_moves_that_fix_it():
     """Profiles of a plane at one flange orientation only slide along it: X's rotation is not
     determined (a searched start finds turned X's that fit as well), and the error says which moves
@@ -138,6 +141,7 @@ def test_a_plate_scanned_at_one_orientation_is_refused_with_the_moves_that_fix_i
         estimate(PlaneProfiles("eye_in_hand", [f"p{i}" for i in range(12)], sc.profiles), ControllerPoses(flange2base))
 
 
+@pytest.mark.slow
 def test_a_plate_with_few_profiles_or_turns_about_one_axis_is_searched_for_and_judged():
     """Fewer profiles than the plate's closed form needs (12 < 16): a searched start, X right and
     good. Turns about the flange's z axis only: what the fit determines is calibrated (rotation
@@ -205,6 +209,7 @@ def _damaged(tmp_path, change):
     return folder
 
 
+@pytest.mark.slow
 def test_bad_laser_input_is_refused_or_skipped_by_name(tmp_path):
     """The issue's bad input: millimetres declared as metres, a y that is not 0, a diameter in mm
     written as metres, an unknown key (with the nearest one), an empty profile (a named skip), fewer
@@ -256,6 +261,7 @@ def test_bad_laser_input_is_refused_or_skipped_by_name(tmp_path):
     assert not (tmp_path / "never").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not REAL.is_dir(), reason="the real captures are not beside the checkout (../shared/data/real)")
 def test_a_real_fanuc_capture_of_a_ball(tmp_path):
     """RobCalibrator's FANUC + SSZN capture (15 profiles of an 80 mm ball): imported as a laser
@@ -280,6 +286,7 @@ def test_a_real_fanuc_capture_of_a_ball(tmp_path):
     shutil.rmtree(tmp_path / "s")
 
 
+@pytest.mark.slow
 def test_joint_angles_fit_the_arm_with_the_sensor(tmp_path, monkeypatch):
     """A UR5 off its nominal table by 1-3 mm at the flange: the session's joint angles, through the
     arm's table fitted with X, give X and held-out profiles at least 3x better than the controller's
@@ -304,6 +311,7 @@ def test_joint_angles_fit_the_arm_with_the_sensor(tmp_path, monkeypatch):
     assert any(n.startswith(f"{len(fitted.kinematic.names)} entries of UR5's kinematic table fitted") for n in fitted.notes)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n, seed, setup", [(12, 4, "eye_in_hand"), (14, 5, "eye_to_hand"), (10, 4, "eye_to_hand")])
 def test_few_profiles_of_a_ball_of_known_size_start_in_the_right_basin(n, seed, setup):
     """10-14 profiles, the diameter known: the start from each profile's circle keeps the translation
@@ -315,6 +323,7 @@ def test_few_profiles_of_a_ball_of_known_size_start_in_the_right_basin(n, seed, 
     assert np.degrees(rotation_error(cal.X, sc.X)) < 0.05 and cal.verdict == "good"
 
 
+@pytest.mark.slow
 def test_plan_for_a_laser_predicts_what_its_capture_gives(tmp_path, capsys, monkeypatch):
     """handeye plan --sensor laser_line: poses around the ball written as a laser session's poses.csv
     (first column profile), X's std predicted from the profiles alone and as calibrate reports it; a
@@ -352,6 +361,7 @@ def test_plan_for_a_laser_predicts_what_its_capture_gives(tmp_path, capsys, monk
     assert "--intrinsics: a camera's" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("target, setup", [("edge", "eye_to_hand"), ("step", "eye_in_hand"), ("spheres", "eye_to_hand")])
 def test_plan_for_an_edge_a_step_or_a_fixture_predicts_its_capture(target, setup, monkeypatch):
     """plan_laser for the other laser targets: a capture of exactly the planned poses (a new noise
@@ -375,6 +385,7 @@ def test_plan_for_an_edge_a_step_or_a_fixture_predicts_its_capture(target, setup
     assert np.all(np.abs(1e3 * (cal.X[:3, 3] - X[:3, 3])) <= 3 * plan.std_data[3:])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 def test_x_from_profiles_of_a_block_edge(setup, monkeypatch):
     """A square block's edge, 16 profiles across it, the ball's noise, dropouts and spikes, an exact
@@ -403,6 +414,7 @@ def test_x_from_profiles_of_a_block_edge(setup, monkeypatch):
     assert within_std(fitted.X, rough.X, fitted.std)
 
 
+@pytest.mark.slow
 def test_an_edge_with_few_turns_calibrates_what_it_determines_and_names_the_rest():
     """8 profiles turned about varied axes: X right. Turns about the flange's z axis only: X's
     rotation right, its translation along flange z named (std inf), the rest right; one flange
@@ -469,6 +481,7 @@ def _fixture_model(setup, sc, keep=None):
                            0.5 * np.asarray(FIXTURE["diameters"]))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 def test_x_from_a_fixture_of_balls_told_apart(setup, monkeypatch):
     """Three balls (40, 30, 50 mm), each of 20 profiles on one of them: the profiles told apart, X
@@ -496,6 +509,7 @@ def test_x_from_a_fixture_of_balls_told_apart(setup, monkeypatch):
         Rig([model, _fixture_model(setup, sc)], ["a", "b"], [(cal.X, cal.sensor.params)] * 2)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("missing", [1, 0])
 def test_a_ball_listed_but_never_scanned_is_named_and_left_out(missing, monkeypatch):
     """Three balls listed, one never scanned (eye-to-hand): with the 30 mm one missing, the profiles
@@ -536,6 +550,7 @@ def test_a_ball_of_the_fixture_with_too_few_profiles_is_said(monkeypatch):
     assert any("ball 2 (30.0 mm) got only 1 profile" in n for n in cal.notes)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("target", ["edge", "step", "spheres"])
 def test_edge_step_and_fixture_sessions_through_the_command_line(tmp_path, target):
     """simulate --sensor laser_line --target edge|step|spheres, then calibrate: the target's spec in

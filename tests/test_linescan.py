@@ -40,6 +40,7 @@ def test_x_focal_and_clock_from_scans(setup):
     assert held["fit"]["mm"] < held["closed-form start"]["mm"]
 
 
+@pytest.mark.slow
 def test_each_scans_pose_error_fitted_with_an_arms_error():
     """A calibrated arm's error (0.01 deg / 0.05 mm, stated), 12 scans eye-in-hand: with each scan's
     pose error fitted (the pipeline's robot model) X lands within the bar (0.2 mm / 0.05 deg, the
@@ -103,6 +104,7 @@ def test_bad_inputs_are_named():
         estimate(flat, ControllerPoses(flat.flange2base_ref))
 
 
+@pytest.mark.slow
 def test_session_round_trip_and_bad_sessions(tmp_path):
     """simulate --sensor line_scan, then calibrate: X and the focal length right from the rendered scans,
     result.json read back; a focal length in millimetres, a missing line rate, an unknown key, a scan of
@@ -130,6 +132,7 @@ def test_session_round_trip_and_bad_sessions(tmp_path):
         calibrate_linescan_session(folder)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 def test_joint_trajectory_fits_the_arms_table(setup):
     """A UR5 whose table is 2-3 mm off its nominal one sweeps 12 scans; the controller reports its
@@ -165,6 +168,7 @@ def test_joint_trajectory_fits_the_arms_table(setup):
         JointTrajectory(sc.chain, robot.joints, times=times, trajectory=sc.joints[:, :5])
 
 
+@pytest.mark.slow
 def test_joint_trajectory_sessions_and_their_faults(tmp_path):
     """simulate --sensor line_scan --arm ur5, then calibrate: the arm's table fitted, X right from the
     rendered scans; a joint table without a time column, times that go back, angles in degrees
@@ -203,6 +207,7 @@ def test_joint_trajectory_sessions_and_their_faults(tmp_path):
         calibrate_linescan_session(folder)
 
 
+@pytest.mark.slow
 def test_a_plan_of_scans_predicts_the_std_it_gives(tmp_path):
     """plan_linescan about a board on the table: 10 scans (two flange poses each), X's predicted std
     finite and tighter in translation than the same number of scans at one distance turned at most 10

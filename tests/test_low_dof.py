@@ -76,6 +76,7 @@ def test_noise_free_cartesian_rotation_exact_translation_named(setup):
     assert abs(u.direction[2]) > 0.999 and np.abs(part.X[:2, 3] - sc.X[:2, 3]).max() < 1e-9
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("setup", SETUPS)
 def test_noisy_scara_with_known_is_within_three_std(setup):
     """0.05 deg / 0.2 mm robot noise, 0.3 px: X's error within 3 reported std in >= 95% of 50 sessions."""
@@ -90,6 +91,7 @@ def test_noisy_scara_with_known_is_within_three_std(setup):
     assert covered >= 48, covered
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("setup", SETUPS)
 def test_noisy_cartesian_rotation_within_three_std_translation_unobservable(setup):
     covered = 0
@@ -157,6 +159,7 @@ def _pair_folder(folder, sc, setup):
     return folder
 
 
+@pytest.mark.slow
 def test_cli_names_what_is_undetermined_and_takes_known(tmp_path, capsys):
     sc = low_dof_scene(12, "eye_in_hand", "scara", 5)
     folder = _pair_folder(tmp_path / "scara", sc, "eye_in_hand")
@@ -256,6 +259,7 @@ def test_swapped_poses_are_named_and_left_out(robot, setup):
     assert clean.verdict == "partial" and clean.outliers == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("robot", ["scara", "cartesian"])
 def test_a_noisy_camera_does_not_hide_the_robots_low_dof_motion(robot):
     """PnP on a single AprilTag (4 corners, 0.5 px) strays by a degree and more from the one axis
@@ -293,6 +297,7 @@ def test_one_flipped_camera_pose_of_a_low_dof_robot_is_answered_and_named(robot)
         handeye.calibrate_poses(sc.flange2base, other.target2cam, "eye_in_hand", progress=False)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("robot", ["scara", "cartesian"])
 @pytest.mark.parametrize("setup", SETUPS)
 def test_another_scenes_low_dof_camera_poses_are_inconsistent_not_partial(robot, setup):

@@ -37,6 +37,7 @@ def scene():
     return mesh_scene(8, "eye_to_hand", rng=11)
 
 
+@pytest.mark.slow
 def test_the_shape_is_found_without_a_pose_guess(flange, scene):
     """Each cloud's pose of the disc within 1 deg / 4 mm of the truth (the camera's depth scale 1.002
     moves it ~2 mm along the ray), the points on its surface within the depth noise; a cloud of a
@@ -53,6 +54,7 @@ def test_the_shape_is_found_without_a_pose_guess(flange, scene):
         find_shape(flange, wall.reshape(-1, 3) + np.random.default_rng(0).normal(0, 5e-4, (240 * 320, 3)))
 
 
+@pytest.mark.slow
 def test_a_mesh_session_through_the_command_line(tmp_path, capsys, scene):
     """Unorganized clouds (N x 3, as a scanner exports a crop) and the mesh in mm: X within 0.5 mm /
     0.1 deg of the truth, the depth scale found; a cloud where the shape is not is skipped, named."""
@@ -84,6 +86,7 @@ def _views(shape, X, Z, F, setup, rng, spin=True):
     return points, normals, np.array(poses)
 
 
+@pytest.mark.slow
 def test_a_disc_that_turns_into_itself_says_what_it_leaves_undetermined():
     """A plain disc: its own rotation about its axis is free (Z fitted without it, said so); placed
     where the session says and moved along its axis only, X's rotation about that line is named
@@ -149,6 +152,7 @@ def test_handeye_simulate_writes_a_mesh_session(tmp_path, capsys):
     assert "flange-sized disc" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_joint_angles_with_a_mesh_target_fit_the_arms_table(tmp_path):
     """A shape on the flange of an arm 1-3 mm off its nominal table, seen by a fixed depth camera,
     with the joint angles the controller reports: X, Z and the table fitted from the clouds; the

@@ -101,6 +101,7 @@ def test_reach_box_is_respected_and_explained():
         plan_poses("eye_in_hand", X, Z, OBJ, K, SIZE, DIST, standoff=0.08)
 
 
+@pytest.mark.slow
 def test_plan_beats_easy_handeye_by_30_percent():
     """Issue 8's bar: 12 planned poses, 0.3 px, 100 runs each through PnP + Daniilidis + reprojection
     refinement: the RMS translation error of X is >= 30% lower than with easy_handeye's 17 poses
@@ -251,6 +252,7 @@ def test_plan_takes_a_session_yaml_as_intrinsics(tmp_path, capsys):
     assert "image_size" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 def test_a_rig_plan_every_camera_can_use_and_its_promise_kept(tmp_path, camera_yaml, capsys, setup):
     """plan --rig-camera: poses in which every camera of a stereo rig sees the whole board, written as a

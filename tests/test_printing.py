@@ -198,6 +198,7 @@ class _SquareDots(Target):
         return shapes, (self.cols + 1) * sq, (self.rows + 1) * sq
 
 
+@pytest.mark.slow
 def test_a_new_target_type_is_one_class_and_its_registration(tmp_path, capsys):
     """A target type handeye does not ship, registered from outside: simulate renders it, calibrate
     detects it and finds X, and `handeye target` prints it, detected at its stated scale; without

@@ -8,6 +8,7 @@ import shlex
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from handeye.cli import main
 
@@ -27,6 +28,7 @@ def test_the_python_example_runs_as_written():
     assert result.std.shape == (6,) and np.all(np.isfinite(result.std))
 
 
+@pytest.mark.slow
 def test_the_first_commands_run_as_written(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     lines = [ln.split("#", 1)[0].strip() for ln in _blocks("bash")[2].splitlines()]  # [0], [1]: the two commands

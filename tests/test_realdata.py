@@ -68,6 +68,7 @@ def real_results():
         return dict(zip(SETS, pool.map(_evaluate, SETS)))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SETS)
 def test_held_out_error_no_worse_than_opencv(real_results, name):
     r = real_results[name]
@@ -79,6 +80,7 @@ def test_held_out_error_no_worse_than_opencv(real_results, name):
     assert np.isfinite(r["handeye"]) and r["handeye"] <= r["opencv"][best]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SETS)
 def test_reported_std_is_the_jackknife_and_the_errors_it_cannot_see(real_results, name):
     r = real_results[name]
@@ -92,6 +94,7 @@ def test_reported_std_is_the_jackknife_and_the_errors_it_cannot_see(real_results
         assert 0.5 * jack <= std <= 2.0 * unseen
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SETS)
 def test_x_within_3_std_of_the_closed_forms_or_the_verdict_says_so(real_results, name):
     r = real_results[name]

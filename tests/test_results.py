@@ -57,6 +57,7 @@ def test_an_image_session_and_a_pose_pair_folder_read_back(tmp_path):
     assert a == b
 
 
+@pytest.mark.slow
 def test_a_depth_session_writes_the_same_keys_and_reads_back(tmp_path):
     folder = write_depth_session(tmp_path / "s", sphere_scene(8, "eye_to_hand", 6))
     cal = handeye.pipelines.depth.calibrate_depth_session(folder)
@@ -67,6 +68,7 @@ def test_a_depth_session_writes_the_same_keys_and_reads_back(tmp_path):
     np.testing.assert_array_equal(np.isfinite(back.std_Z), np.isfinite(cal.std_Z))  # a ball has no orientation: null
 
 
+@pytest.mark.slow
 def test_a_joint_session_reads_back(tmp_path):
     simulate_kinematic_session(tmp_path / "s", 8, "eye_in_hand", seed=2, image_size=(640, 480))
     cal = handeye.check_folder(tmp_path / "s", progress=False).calibration
@@ -76,6 +78,7 @@ def test_a_joint_session_reads_back(tmp_path):
     assert (tmp_path / "out" / "arm_corrected.yaml").is_file()
 
 
+@pytest.mark.slow
 def test_verify_takes_a_result_read_back(tmp_path):
     """verify with a Calibration object gives what it gives with the result's folder."""
     simulate_session(tmp_path / "a", setup="eye_in_hand", n_poses=8, seed=4)

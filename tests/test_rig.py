@@ -38,6 +38,7 @@ def test_stereo_pair_relative_pose_from_the_joint_fit():
     assert "each pose's own error fitted" in " ".join(rig.joint.notes)
 
 
+@pytest.mark.slow
 def test_three_fixed_cameras_one_with_a_wrong_focal_length_is_named():
     """Three fixed cameras, the board on the flange, one camera missing a third of the views: every X
     within 3 std; the same with one camera's focal length 5% off: that camera is named, left out, and
@@ -68,6 +69,7 @@ def test_bad_rigs_are_named():
         PoseErrors(sc.flange2base)
 
 
+@pytest.mark.slow
 def test_rig_session_round_trip_and_bad_sessions(tmp_path):
     """simulate --sensor rig, then calibrate: every camera's X right from rendered images, a ROS 2
     launch file with a frame per camera, result.json read back; a sensor named twice, a sensor
@@ -203,6 +205,7 @@ def test_a_cameras_own_jacobian_matches_central_differences(setup, intrinsics):
     assert np.all(jacobian_error(problem, rows, np.ones(int(_groups(model).max()) + 1), x, h) <= 1e-6)
 
 
+@pytest.mark.slow
 def test_rig_report_has_a_section_per_sensor():
     """A rig's report: the rig's picture, then one section per sensor in the sensors' order (its X
     with its std, its residual per view; the others' pose relative to the first); a sensor left out
@@ -226,6 +229,7 @@ def test_rig_report_has_a_section_per_sensor():
     assert len(figures["view_rms_mm_per_sensor"]["c2"]) == 10 and figures["alone"]["c1"]["verdict"]
 
 
+@pytest.mark.slow
 def test_a_rig_on_joint_angles_fits_the_arms_table_with_every_camera(tmp_path):
     """Joint angles work with rigs as with one sensor: on an arm 1-3 mm off its nominal table, the
     rig's fit through the joint angles puts every camera's X several times nearer than the
@@ -265,6 +269,7 @@ def test_a_rig_on_joint_angles_fits_the_arms_table_with_every_camera(tmp_path):
         calibrate_rig_session(folder, arm="panda")
 
 
+@pytest.mark.slow
 def test_a_camera_and_a_laser_profiler_from_one_session_folder(tmp_path):
     """A mixed rig from a session folder: a camera's images of a board and a profiler's profiles of a
     ball, one pose table; both X within their std, each sensor's own result files, the camera's
@@ -306,6 +311,7 @@ def test_a_camera_and_a_laser_profiler_from_one_session_folder(tmp_path):
         calibrate_rig_session(folder)
 
 
+@pytest.mark.slow
 def test_a_camera_and_a_depth_camera_share_the_board_from_one_session_folder(tmp_path):
     """A camera beside a depth camera (clouds and intensity images of the board both see): one board
     pose for both, the depth scale fitted per sensor, both X and their relative pose within 3 std, a

@@ -36,6 +36,7 @@ def test_the_sweep_spans_real_arms_accuracy():
         REALISTIC.scaled(-1)
 
 
+@pytest.mark.slow
 def test_a_rendered_realistic_session_calibrates_to_its_truth(tmp_path):
     sc = simulate_realistic_session(tmp_path / "s", 10, "eye_to_hand", 4)
     truth = yaml.safe_load((tmp_path / "s" / "ground_truth.yaml").read_text())
@@ -55,6 +56,7 @@ def _choice(folder):
     return obs, choose(views, pose_candidates("daniilidis", views) | pixel_candidates(views, "daniilidis"))
 
 
+@pytest.mark.slow
 def test_the_pixel_refinement_is_preferred_only_while_the_robot_is_exact(tmp_path):
     """An exact robot: the pixel fit's residual is the camera's (ratio ~1), the pixel refinement is
     preferred. An uncalibrated arm (~3 mm): the ratio is several, the pose refinement is preferred,
@@ -77,6 +79,7 @@ def test_the_pixel_refinement_is_preferred_only_while_the_robot_is_exact(tmp_pat
     assert np.median(better) < np.median(worse), (better, worse)
 
 
+@pytest.mark.slow
 def test_an_uncalibrated_arm_is_covered_once_its_accuracy_is_given(tmp_path):
     """The constant part of an uncalibrated arm's error (~3-4 mm here) moves X and no spread sees it:
     with the default robot_accuracy (a calibrated arm's 0.3 mm per axis) X was outside 3 std in 30%
@@ -107,6 +110,7 @@ def _pose_only(args):
     return covered, float(np.linalg.norm(cal.std[3:])), cal.verdict, named
 
 
+@pytest.mark.slow
 def test_the_default_std_covers_an_uncalibrated_arm_and_says_why():
     """The sweep's coverage, pose pairs alone (the full sweep with images and OpenCV:
     bench_robot_errors.py). A calibrated arm (~0.3 mm): X within 3 std and the std not inflated
@@ -129,6 +133,7 @@ def test_the_default_std_covers_an_uncalibrated_arm_and_says_why():
     assert sum(r[2] == "weak" and r[3] for r in uncalibrated) >= 10
 
 
+@pytest.mark.slow
 def test_the_robot_error_the_views_show(tmp_path):
     """robot_error_seen: what an exact robot's views show beyond the camera's noise is ~0; an
     uncalibrated arm's is several tenths of a millimetre per axis, and the default's std says so."""

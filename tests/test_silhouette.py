@@ -70,6 +70,7 @@ def test_renderer_fills_a_square_and_leaves_out_what_is_behind():
     assert iou(exact, drawn) == pytest.approx(400 / 441)
 
 
+@pytest.mark.slow
 def test_outline_model_derivatives_and_residuals(scene):
     """At the true X the outline points sit on the masks' boundaries (about the segmentation's pixel);
     the model's Jacobian matches finite differences."""
@@ -95,6 +96,7 @@ def _session(scene):
     return SimpleNamespace(meshes=arm_meshes("panda"), arm=scene.chain, joints=scene.joints, K=scene.K, dist=None)
 
 
+@pytest.mark.slow
 def test_simulated_session_through_the_command_line(tmp_path, capsys, scene):
     """``handeye calibrate`` on a simulated session: X within 5 mm / 0.5 deg of the truth and within
     3 of its std, the masks' IoU on the fit and held out reported; the inputs untouched."""
@@ -116,6 +118,7 @@ def test_simulated_session_through_the_command_line(tmp_path, capsys, scene):
     assert (tmp_path / "out" / "report.html").is_file()
 
 
+@pytest.mark.slow
 def test_easyhec_capture_is_imported_started_and_its_pairing_checked(easyhec):
     """EasyHeC's 10 views: the session reads (640x480 masks, 7 joint angles a view); the outline fit
     from the global start (no guess) and from EasyHeC's own hand-set initial guess (36 deg / 0.28 m
@@ -136,6 +139,7 @@ def test_easyhec_capture_is_imported_started_and_its_pairing_checked(easyhec):
     assert M.shape == (10, 10) and len(notes) >= 4 and "paired in the same order" in notes[0]
 
 
+@pytest.mark.slow
 def test_a_few_outline_rounds_converge_on_the_simulator(scene):
     """From 2 deg / 40 mm off, the outline rounds bring X within 10 mm / 0.5 deg of the truth."""
     views = arm_views(_session(scene), scene.masks)

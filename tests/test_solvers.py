@@ -387,6 +387,7 @@ def _unrelated_poses(seed: int, n: int = 12):
     return f2b, t2c
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("method, seed", [("andreff", 12), ("li", 5)])
 def test_a_solver_that_cannot_solve_the_motions_says_so(method, seed):
     """A singular linear estimate of the rotation was a bare numpy LinAlgError from
@@ -403,6 +404,7 @@ def test_a_solver_that_cannot_solve_the_motions_says_so(method, seed):
     assert handeye.calibrate_poses(f2b, t2c, "eye_to_hand", refine="none").verdict == "inconsistent"
 
 
+@pytest.mark.slow
 def test_three_noisy_poses_are_answered_with_a_finite_std():
     """Three poses (the fewest) with robot noise from 0.06 deg / 0.1 mm to 29 deg / 300 mm: the pose
     refinement's noise variances could end 1e13 apart, and then the whitening (Cholesky of a

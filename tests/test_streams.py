@@ -115,6 +115,7 @@ def simulated_streams():
         return list(pool.map(_simulated, runs))
 
 
+@pytest.mark.slow
 def test_simulated_streams_offset_within_2_ms_and_X_within_3_std(simulated_streams):
     for seed, setup, d_offset, std, ok, mm in simulated_streams:
         print(f"{setup} seed {seed}: offset error {d_offset * 1e3:+.2f} ms (std {std * 1e3:.2f}), X {mm:.2f} mm, "
@@ -133,6 +134,7 @@ def _eth_streams():
         {"file": ETH[2], "format": "quat_xyzw", "length_unit": "m", "pose": "cam2target"}, "eye_in_hand", folder)
 
 
+@pytest.mark.slow
 def test_eth_streams_calibrate_without_a_hand_pairing():
     """The real streams (50 Hz robot, 30 Hz camera): the offset is reported, and X lies within 3 mm
     of what pairing every 15th camera sample with the robot interpolated at the estimated offset
@@ -154,6 +156,7 @@ def test_eth_streams_calibrate_without_a_hand_pairing():
     assert cal.streams["robot_samples"] == 2817 and len(cal.streams["keyframe_camera_times_s"]) == 80
 
 
+@pytest.mark.slow
 def test_calibrate_streams_cli_on_eth(tmp_path, capsys):
     require_real(*ETH[:1])
     folder = realdata.REAL_DATA / ETH[0]
@@ -169,6 +172,7 @@ def test_calibrate_streams_cli_on_eth(tmp_path, capsys):
 
 # --- folders with times -----------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_pose_pair_folder_with_times_is_two_streams_and_a_wrong_pairing_is_named(tmp_path, capsys):
     """Stream files that also carry ids paired at equal stamps: handeye pairs them by time at the
     offset it estimates, and warns that the ids' pairing was off by it."""
@@ -227,6 +231,7 @@ def stream_session(tmp_path_factory):
     return folder, scene
 
 
+@pytest.mark.slow
 def test_image_session_with_times(stream_session):
     folder, scene = stream_session
     session = load_session(folder)
@@ -287,6 +292,7 @@ def _write_bag(session, bag: Path) -> None:
             w.write(c_img, int((t + 0.03) * 1e9), ts.serialize_cdr(msg, Image.__msgtype__))
 
 
+@pytest.mark.slow
 def test_ros2_bag_round_trips_into_a_session_that_calibrates(stream_session, tmp_path, capsys):
     folder, scene = stream_session
     session = load_session(folder)

@@ -131,6 +131,7 @@ def test_noise_free_every_solver_exact_from_two_motions(setup):
             assert err[:, 0].max() * 1e-3 < 1e-9 and np.radians(err[:, 1].max()) < 1e-9, (m, n, err.max(axis=0))
 
 
+@pytest.mark.slow
 def test_study_shows_exact_noise_free_results_at_two_motions():
     """The thesis's 31.3 mm / 2.45 deg median at 2 noise-free motions does not reappear."""
     res = run_setting(Setting("5.1", "no noise", 2, 2), runs=200, seed=(0, 0))
@@ -228,6 +229,7 @@ def _small_grid():
     return [s for s in S if s.figure == "5.1" and s.x in (2.0, 6.0)] + [s for s in S if s.figure == "5.4" and s.x == 0.3], F
 
 
+@pytest.mark.slow
 def test_same_seed_same_numbers_whatever_the_jobs():
     settings, _ = _small_grid()
     a = study(settings, runs=20, seed=3, jobs=1, progress=False)
@@ -241,6 +243,7 @@ def test_same_seed_same_numbers_whatever_the_jobs():
             assert not np.array_equal(ra.errors["daniilidis"], rc.errors["daniilidis"])
 
 
+@pytest.mark.slow
 def test_refined_beats_the_closed_forms_in_the_study():
     """The pose refinement (what calibrate_poses returns) against every closed form on the same
     100 runs at 15 motions, robot noise 0.3 mm / 0.3 deg (measured: translation 0.15-0.18x the
@@ -256,6 +259,7 @@ def test_refined_beats_the_closed_forms_in_the_study():
         assert refined["rot_median_deg"] < res.stats[m]["rot_median_deg"], m
 
 
+@pytest.mark.slow
 def test_study_files_and_cli(tmp_path, capsys):
     out = tmp_path / "study"
     assert main(["study", "--figures", "5.2", "--runs", "30", "--out", str(out), "--jobs", "1", "--no-progress"]) == 0
@@ -319,6 +323,7 @@ def test_nearly_parallel_axes_stay_exact():
         assert err[:, 0].max() * 1e-3 < 1e-9 and np.radians(err[:, 1].max()) < 1e-9, (m, err.max(axis=0))
 
 
+@pytest.mark.slow
 def test_study_on_a_local_dask_cluster_gives_the_local_numbers(tmp_path, capsys, monkeypatch):
     """The study on a 2-worker Dask LocalCluster (the cluster extra): the same numbers as the local
     processes with the same seed, bit for bit; through the CLI too."""

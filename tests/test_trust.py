@@ -94,6 +94,7 @@ def realistic_study():
         return list(pool.map(_one_session, tasks, chunksize=10))
 
 
+@pytest.mark.slow
 def test_realistic_sessions_are_answered_not_refused(realistic_study):
     """At most 2 of 200 solvable sessions called inconsistent (none raises)."""
     verdicts = [r[1] for r in realistic_study]
@@ -101,6 +102,7 @@ def test_realistic_sessions_are_answered_not_refused(realistic_study):
     assert len(verdicts) == 200 and verdicts.count("inconsistent") <= 2
 
 
+@pytest.mark.slow
 def test_realistic_std_covers_the_error(realistic_study):
     """X's error within 3 reported std (translation and rotation, as norms) in >= 95% of sessions,
     for each setup."""
@@ -110,6 +112,7 @@ def test_realistic_std_covers_the_error(realistic_study):
         assert np.mean(covered) >= 0.95
 
 
+@pytest.mark.slow
 def test_realistic_median_error_beats_every_opencv_method(realistic_study):
     for setup in ("eye_in_hand", "eye_to_hand"):
         rows = [r for r in realistic_study if r[0] == setup]
@@ -169,6 +172,7 @@ def test_a_board_scale_call_that_turns_on_which_poses_are_in_is_said_not_acted_o
     assert d.verdict == "inconsistent" and any("multiply it by 1.03" in a for a in d.advice)
 
 
+@pytest.mark.slow
 def test_a_wrong_square_size_is_not_trusted_as_declared(tmp_path):
     """Images of a 30 mm board declared as 25 mm: the verdict is inconsistent and names the factor,
     and X is not the one the declared size gives: it is estimated with the board at the scale the
@@ -229,6 +233,7 @@ def test_sample_with_a_wrong_square_size_is_not_good(tmp_path):
     assert main(["calibrate", str(folder), "--no-progress"]) == 2  # answered, but inconsistent: check's status
 
 
+@pytest.mark.slow
 def test_sample_with_two_swapped_poses(tmp_path, capsys):
     """The robot poses of images 3 and 7 swapped: both named, no traceback, X within 3 std."""
     folder = tmp_path / "s"

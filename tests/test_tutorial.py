@@ -7,6 +7,8 @@ import re
 import shlex
 from pathlib import Path
 
+import pytest
+
 from handeye.cli import main
 
 TUTORIAL = Path(__file__).resolve().parents[1] / "docs" / "tutorial.md"
@@ -24,6 +26,7 @@ def _commands() -> list[tuple[str, bool]]:
     return out
 
 
+@pytest.mark.slow
 def test_every_tutorial_command_runs_as_written_in_order(tmp_path, monkeypatch, capsys):
     commands = _commands()
     assert [c for c, _ in commands][:1] == ["handeye target --type charuco --out board.pdf"]

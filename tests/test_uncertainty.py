@@ -74,6 +74,7 @@ def _monte_carlo(runs: int, sigma_px: float, setup: str, seed: int):
     return rms(err_rot), float(np.sqrt(np.mean(var_rot))), rms(err_t), float(np.sqrt(np.mean(var_t)))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 def test_predicted_std_matches_monte_carlo(setup):
     """0.3 px noise on projected points, 15 poses, 200 runs: RMS error within 15% of the mean
@@ -185,6 +186,7 @@ def _pose_run(args):
             np.sum(np.radians(model[:3]) ** 2), np.sum((1e-3 * model[3:]) ** 2), list(cal.pose_noise.values()))
 
 
+@pytest.mark.slow
 def test_pose_refinement_predicted_std_matches_monte_carlo(pose_monte_carlo):
     """Robot 0.05 deg / 0.2 mm, camera 0.1 deg / 0.5 mm, 15 poses, 200 runs: the RMS error of X is
     within 15% of the mean predicted standard deviation, for rotation and for translation; the
@@ -202,6 +204,7 @@ def test_pose_refinement_predicted_std_matches_monte_carlo(pose_monte_carlo):
     assert abs(np.hypot(med[0], med[1]) / np.hypot(POSE_NOISE["robot_deg"], POSE_NOISE["cam_deg"]) - 1) < 0.2
 
 
+@pytest.mark.slow
 def test_pose_refinement_no_worse_than_best_closed_form(pose_monte_carlo):
     """On median error over the same 200 runs, the pose refinement against the best closed-form
     solver (the best of eight, chosen after the fact). Translation: at least 15% lower (measured
@@ -371,6 +374,7 @@ def _robot_aware_run(args):
     return errs, 1e6 * np.trace(robot.cov_X[3:, 3:])
 
 
+@pytest.mark.slow
 def test_robot_aware_reprojection_refinement_removes_the_robot_bias():
     """Robot poses off by 0.05 deg / 0.2 mm per axis, 0.3 px, 15 poses, 40 runs. Taking the robot
     poses as exact, the pixel refinement pulls X by the robot errors and claims 5x too small a
@@ -391,6 +395,7 @@ def test_robot_aware_reprojection_refinement_removes_the_robot_bias():
     assert abs(rms["robot"] / pred_t - 1) < 0.3
 
 
+@pytest.mark.slow
 def test_robot_aware_sparse_jacobian_matches_dense():
     """The corrections eliminated (variable projection on X, Z; each image's 6 solved for given X, Z)
     reach the optimum, covariance and corrected poses of the joint problem with scipy's dense
@@ -462,6 +467,7 @@ def test_robot_aware_robust_fit_drops_a_view_its_robot_pose_contradicts():
     assert clean.rejected_images == () and clean.n_rejected == 0
 
 
+@pytest.mark.slow
 def test_the_cores_robot_aware_pixel_fit_eliminates_each_poses_error(monkeypatch):
     """The pixel refinement with each robot pose's error fitted, through the one estimation core
     (CameraCorners x PoseErrors; from 16 views the errors eliminated view by view): X where the
@@ -585,6 +591,7 @@ def _named_run(args):
     return np.abs(np.concatenate([d_rot, 1e3 * (cal.X[:3, 3] - sc.X[:3, 3])])) / cal.std, cal.std_sources
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n, refine", [(4, "auto"), (8, "pose")])
 def test_std_covers_the_error_with_few_poses_or_a_named_estimator(n, refine):
     """With fewer than 5 poses (no choice to make) or refine='pose', the std is the one 'auto' reports:
@@ -643,6 +650,7 @@ def test_intrinsics_covariance_is_opencvs():
     assert corr > 0.8  # fx and fy move together: a per-parameter std alone would understate X's spread
 
 
+@pytest.mark.slow
 def test_intrinsics_error_is_propagated_to_x():
     """Intrinsics estimated from 8 rendered images (exact robot poses): X with them differs from X
     with the true intrinsics (the same detections) by what intrinsics_cov promises: over 12
@@ -708,6 +716,7 @@ def test_pixel_downdate_matches_a_refit_and_drops_nothing_when_asked(intrinsics)
         assert abs(down[2][0, 0] - sub.K[0, 0]) <= 0.02 * abs(full.result.K[0, 0] - sub.K[0, 0]) + 1e-6
 
 
+@pytest.mark.slow
 def test_closed_form_alone_reports_a_std_that_holds_under_real_robot_errors():
     """refine='none' (the closed form as is) has no noise model: its std is the jackknife spread
     plus the robot's accuracy (raised to what the poses show), as every estimator's. On pose-only

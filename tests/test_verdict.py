@@ -40,6 +40,7 @@ def _verdict(argv: list[str], capsys) -> tuple[int, str]:
     return status, found.group(1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["good", "weak", "inconsistent"])
 def test_check_and_calibrate_poses_give_one_verdict_and_exit_status(kind, tmp_path, capsys):
     """8 poses with 4 mm of camera noise: the poses alone look good, but 3 std of X exceed 5 mm; check
@@ -55,6 +56,7 @@ def test_check_and_calibrate_poses_give_one_verdict_and_exit_status(kind, tmp_pa
         assert not handeye.diagnose(f2b, t2c).verdict == "weak"
 
 
+@pytest.mark.slow
 def test_check_and_calibrate_agree_on_a_session_and_name_images(tmp_path, capsys):
     """The sample with the robot poses of images 3 and 7 swapped: check and calibrate give the same
     verdict and exit status, and name the two images by file, not by list position."""
@@ -203,6 +205,7 @@ def test_the_target_origin_can_be_the_centre(tmp_path, capsys):
     assert "origin: centre" in printed and "origin at the centre of the board" in printed
 
 
+@pytest.mark.slow
 def test_closed_forms_that_predict_far_worse_do_not_make_the_verdict_weak(tmp_path):
     """A rendered ChArUco session: the closed forms, on noisy PnP poses, land 2-3 mm from the pixel
     refinement's X, which is 0.1-0.2 mm from the truth (3 std: 1.8 mm). They predict held-out views

@@ -47,6 +47,7 @@ def rendered(tmp_path_factory):
     return get
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("target, setup, given", list(_cases()))
 def test_rendered_session_accuracy(rendered, target, setup, given):
     """15 rendered poses, 0.2 px feature noise: X within 1 mm / 0.1 deg with the intrinsics given,
@@ -137,6 +138,7 @@ def test_screw_congruence_compares_pitches_only_where_motions_turn():
     assert f"over the {np.isfinite(share).sum()} of {len(share)} motions that turn 20 deg or more" in cal.screw_congruence_text()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cols, rows", [(7, 5), (6, 6)])
 def test_modified_circle_grid_is_read_from_its_big_circle(tmp_path, cols, rows):
     """ROS-Industrial's modified circle grid, rendered (12 eye-in-hand views, 0.2 px noise, K given):
@@ -343,6 +345,7 @@ def _check_choice_on_real(cal, label):
     return cal
 
 
+@pytest.mark.slow
 def test_visp_eye_in_hand_2025_matches_visp(tmp_path):
     """The closed form, unchecked, agrees with ViSP's own result (both read the board as declared). The default
     calls the data inconsistent: the camera's translations are 0.90x the robot's, so the board is
@@ -573,6 +576,7 @@ def test_other_targets_render_detect_and_calibrate(tmp_path, target):
     assert rot < (0.3 if target == "apriltag" else 0.1) and trans < (2.0 if target == "apriltag" else 1.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("image_size, views", [((640, 480), 8), ((1000, 800), 3)])
 def test_chessboards_are_found_in_the_board_region_with_the_same_accuracy(tmp_path, image_size, views):
     """Chessboards in images >= PYRAMID_MIN_SIDE (VGA and up) are located on the half-size level and
@@ -615,6 +619,7 @@ def test_chessboards_are_found_in_the_board_region_with_the_same_accuracy(tmp_pa
     assert _chessboard_in_region(blank, size) is None and target.detect(blank) is None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scale", [1, 2])
 def test_board_region_search_on_real_images_matches_the_whole_image_search(scale):
     """ViSP's real Franka chessboard images (640x480), as taken and scaled 2x: the corners found in
@@ -673,6 +678,7 @@ def _charuco_renders(tmp_path, n: int):
     return scene, np.array(gt["K"]), np.array(gt["dist"]), target_from_spec(spec)
 
 
+@pytest.mark.slow
 def test_charuco_markers_found_at_a_quarter_give_the_true_corners(tmp_path, monkeypatch):
     """From QUARTER_SIZE_FROM_PX the markers are looked for at a quarter size first (issue 37: 12 MP
     detection ~1.9x faster), refined at half size, then at full: the same corners as the half-size
@@ -715,6 +721,7 @@ def test_charuco_markers_found_at_a_quarter_give_the_true_corners(tmp_path, monk
     assert at_quarter >= 2 and rms_quarter <= 1.02 * rms_half and rms_quarter < 0.2
 
 
+@pytest.mark.slow
 def test_charuco_markers_found_at_half_size_give_the_true_corners(tmp_path, monkeypatch):
     """ChArUco boards in images whose shorter side reaches HALF_SIZE_FROM_PX have their markers found
     at half size and their corners refined at full size: the same corners as the whole-image search
