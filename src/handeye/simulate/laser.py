@@ -28,7 +28,8 @@ from ..robot.kinematics import Chain, load_arm
 from ._common import _real_chain, _reported, arm_mount, reaching
 from .scenes import Scene, scene_from_viewpoints
 
-__all__ = ["LaserScene", "laser_scene", "write_laser_session", "write_profile", "profiler_views", "profile_reading", "PROFILER", "TARGETS"]
+__all__ = ["LaserScene", "laser_scene", "pendant_laser_scene", "write_laser_session", "write_profile",
+           "profiler_views", "profile_reading", "PROFILER", "TARGETS"]
 
 #: The simulated profiler: field of view along x (m), measuring range along z (m), points per profile.
 PROFILER = {"fov": 0.08, "near": 0.08, "far": 0.16, "points": 2000}
@@ -318,6 +319,51 @@ def laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Ge
     profiles = [profile_reading(target, T, radius, rng, noise_m, dropout, spikes) for T in invert(sensor2target)]
     return LaserScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam,
                       profiles=profiles, radius=radius, noise_m=noise_m, flange2base_true=scene.flange2base, target=target)
+
+
+def pendant_laser_scene(setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
+                        translations: int = 6, turns: tuple[int, int, int] = (3, 3, 3), turn_deg: tuple[float, float] = (4.0, 15.0),
+                        X: NDArray[np.float64] | None = None, radius: float = 0.04, standoff: float = 0.12,
+                        noise_m: float = 2e-5, robot_error: tuple[float, float] | None = (0.01, 0.05)) -> LaserScene:
+    """A capture of a ball as a user jogs it at the pendant (RobCalibrator's FANUC capture is one):
+    ``translations`` profiles at one orientation of the flange, then ``turns[k]`` profiles each with
+    the flange turned by ``turn_deg`` (deg, either sign) about the base's x, y and z axes (FANUC's W,
+    P and R), the flange moved each time so that the laser line cuts the ball within 0.8 of its
+    radius of its centre, ``standoff`` (m) in front of the profiler, within 20 mm across the line.
+    ``X``: the profiler's true pose (sensor2flange or sensor2base; default a random one within 50 mm
+    of the flange or 1 m of the base's origin). The profile and the robot's error as
+    :func:`laser_scene`'s.
+
+    Examples
+    --------
+    >>> sc = pendant_laser_scene("eye_in_hand", rng=0, translations=4, turns=(1, 1, 1))
+    >>> len(sc.profiles), bool(np.all([np.isfinite(p[:, 2]).sum() > 100 for p in sc.profiles]))
+    (7, True)
+    """
+    setup = check_setup(setup)
+    rng = np.random.default_rng(rng)
+    on_flange = setup_info(setup).camera_on_flange
+    base_scene = scene_from_viewpoints(profiler_views("sphere", 1, radius, rng, 0.0), setup, rng)
+    X = base_scene.X if X is None else np.asarray(X, float)
+    R0 = base_scene.flange2base[0, :3, :3]
+    rotations = [R0] * translations
+    for axis, n in enumerate(turns):
+        for _ in range(n):
+            angle = np.radians(rng.uniform(*turn_deg)) * rng.choice([-1.0, 1.0])
+            rotations.append(Rotation.from_rotvec(np.eye(3)[axis] * angle).as_matrix() @ R0)
+    ball = base_scene.Z[:3, 3]  # in the base eye-in-hand, in the flange eye-to-hand
+    F = []
+    for R in rotations:
+        w = np.array([rng.uniform(-0.02, 0.02), rng.uniform(-0.8, 0.8) * radius, standoff + rng.uniform(-0.01, 0.01)])
+        # eye-in-hand: the ball where F X w puts it; eye-to-hand: the ball on the flange where X w is
+        t = ball - R @ (X[:3, :3] @ w + X[:3, 3]) if on_flange else X[:3, :3] @ w + X[:3, 3] - R @ ball
+        F.append(make_transform(R, t))
+    F_true = np.array(F)
+    Z = make_transform(np.eye(3), ball)
+    target2sensor = predicted_target2cam(X, Z, F_true, setup)
+    profiles = [profile_reading("sphere", T, radius, rng, noise_m, 0.02, 0.002) for T in target2sensor]
+    return LaserScene(setup, X, Z, _reported(F_true, robot_error, rng), target2sensor, profiles=profiles, radius=radius,
+                      noise_m=noise_m, flange2base_true=F_true)
 
 
 #: The ball this far (m) from the profiler at the arm's home.

@@ -120,8 +120,9 @@ def mesh_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Gen
     0.2-0.4 m further. Noise, scale, bias and holes as :func:`~handeye.simulate.depth.depth_scene`'s;
     the pixels on the mesh's outline are flying pixels; ``robot_error`` as there. ``translations``:
     the flange keeps the first view's orientation and moves up to 0.1 m along each axis (``'any'``:
-    what a known placement of the shape makes enough) or along the mesh's z axis only (``'axis'``:
-    a disc's own axis, about which such a capture cannot turn X). ``arm`` (a shipped arm's name): the
+    what a known placement of the shape makes enough), along the mesh's z axis only (``'axis'``:
+    a disc's own axis, about which such a capture cannot turn X), or along one line but for the last
+    view, 80 mm off it (``'line'``: one axis jogged, then one step aside). ``arm`` (a shipped arm's name): the
     views are the arm's at joint angles drawn about its home, its real table off the nominal one by
     ``length_mm`` / ``angle_deg`` per entry (:func:`~handeye.simulate.depth.arm_views`), ``flange2base``
     its nominal table's poses at the joint angles it reports.
@@ -156,6 +157,12 @@ def mesh_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Gen
         F = np.repeat(scene.flange2base[:1], n_views, axis=0)
         if translations == "axis":
             F[:, :3, 3] += np.outer(rng.uniform(-0.1, 0.1, n_views), (F[0] @ scene.Z)[:3, 2])
+        elif translations == "line":  # all but the last view on one line, as a user jogs one axis, then one step off it
+            line = rng.normal(size=3)
+            line /= np.linalg.norm(line)
+            F[:-1, :3, 3] += np.outer(np.linspace(-0.1, 0.1, n_views - 1), line)
+            off = np.cross(line, rng.normal(size=3))
+            F[-1, :3, 3] += 0.08 * off / np.linalg.norm(off)
         else:
             F[:, :3, 3] += rng.uniform(-0.1, 0.1, (n_views, 3))
         scene = Scene(setup, scene.X, scene.Z, F, predicted_target2cam(scene.X, scene.Z, F, setup))

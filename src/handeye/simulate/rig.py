@@ -35,7 +35,8 @@ from .laser import profile_reading, profiler_views, write_profile
 from .scenes import look_at, scene_from_viewpoints
 
 __all__ = ["RigCamera", "RigScene", "rig_scene", "rig_joint_scene", "write_rig_session", "CameraLaserScene", "camera_laser_scene",
-           "write_camera_laser_session", "CameraDepthScene", "camera_depth_scene", "write_camera_depth_session"]
+           "write_camera_laser_session", "ProfilerPairScene", "profiler_pair_scene", "write_profiler_pair_session",
+           "CameraDepthScene", "camera_depth_scene", "write_camera_depth_session"]
 
 
 @dataclass(frozen=True)
@@ -365,6 +366,86 @@ def write_camera_laser_session(folder: str | Path, scene: CameraLaserScene, rng:
                                                "laser": {info.x_name: scene.laser_X.tolist()}},
              "board": {info.z_name: scene.Z_board.tolist()}, "ball": {info.z_name: scene.Z_ball.tolist()}}
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
+    return out
+
+
+@dataclass(frozen=True)
+class ProfilerPairScene:
+    """Two laser profilers on one flange (eye-in-hand) or fixed side by side (eye-to-hand) that scanned
+    one ball, each from robot poses of its own: per view its name, the controller's and the true poses,
+    and per profiler its X and its profiles (None where it did not scan)."""
+
+    setup: str
+    names: list[str]
+    flange2base: NDArray[np.float64]
+    flange2base_true: NDArray[np.float64]
+    X: list[NDArray[np.float64]]
+    profiles: list[list]
+    radius: float
+    Z_ball: NDArray[np.float64]
+
+    def relative(self) -> NDArray[np.float64]:
+        """The second profiler's true pose in the first one's frame."""
+        return invert(self.X[0]) @ self.X[1]
+
+
+def profiler_pair_scene(n_views: int = 12, setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
+                        robot_error: tuple[float, float] | None = None, radius: float = 0.02,
+                        cone_deg: float = 45.0) -> ProfilerPairScene:
+    """Two profilers (:func:`~handeye.simulate.laser.laser_scene`'s, the second 80 mm beside the first
+    and turned 20 deg) that scanned one ball: ``n_views`` robot poses for each, of its own (no pose
+    shared: each pose's own error does not cancel between them); the controller's poses off by
+    ``robot_error`` (deg, mm) as :func:`~handeye.simulate.laser.laser_scene`'s.
+
+    Examples
+    --------
+    >>> sc = profiler_pair_scene(6, "eye_in_hand", rng=0)
+    >>> len(sc.names), [sum(p is not None for p in ps) for ps in sc.profiles]
+    (12, [6, 6])
+    """
+    setup = check_setup(setup)
+    rng = np.random.default_rng(rng)
+    rel = make_transform(Rotation.from_euler("xyz", [0.0, 20.0, rng.uniform(-5, 5)], degrees=True).as_matrix(),
+                         [0.08, rng.uniform(-0.01, 0.01), 0.0])
+    first = scene_from_viewpoints(profiler_views("sphere", n_views, radius, rng, cone_deg), setup, rng)
+    X = [first.X, first.X @ rel]
+    F = [first.flange2base, flange_poses(profiler_views("sphere", n_views, radius, rng, cone_deg), X[1], first.Z, setup)]
+    F_true = np.concatenate(F)
+    n = len(F_true)
+    seen = [np.arange(n) < n_views, np.arange(n) >= n_views]
+    profiles = []
+    for k in range(2):
+        ball2sensor = predicted_target2cam(X[k], first.Z, F_true, setup)
+        profiles.append([profile_reading("sphere", T, radius, rng, PROFILE_NOISE_M, 0.02, 0.002) if s else None
+                         for T, s in zip(ball2sensor, seen[k])])
+    names = [f"v{i + 1:02d}" for i in range(n)]
+    return ProfilerPairScene(setup, names, _reported(F_true, robot_error, rng), F_true, X, profiles, radius, first.Z)
+
+
+def write_profiler_pair_session(folder: str | Path, scene: ProfilerPairScene) -> Path:
+    """Write :func:`profiler_pair_scene` as a rig session folder (:mod:`handeye.io.rig_session`):
+    ``laser_a/`` and ``laser_b/`` the profilers' profiles named by view (``x,z`` in mm; none where a
+    profiler did not scan), ``poses.csv`` (first column ``view``), session.yaml (the ball as both
+    profilers' target) and ``ground_truth.yaml``. Returns the folder."""
+    out = check_output_folder(folder)
+    if (out / "session.yaml").exists():
+        raise HandEyeError(f"{out} already holds a session; choose an empty folder")
+    info = setup_info(scene.setup)
+    sensors, truth = {}, {}
+    for name, X, profiles in zip(("laser_a", "laser_b"), scene.X, scene.profiles):
+        (out / name).mkdir(parents=True, exist_ok=True)
+        for view, p in zip(scene.names, profiles):
+            if p is not None:
+                write_profile(out / name / f"{view}.csv", p, "mm")
+        sensors[name] = {"laser": {"unit": "mm", "noise": 1e3 * PROFILE_NOISE_M}, "profiles": name}
+        truth[name] = {info.x_name: X.tolist()}
+    write_pose_table(out / "poses.csv", scene.names, scene.flange2base, "quat_wxyz", "mm", "deg", id_column="view")
+    spec = {"setup": scene.setup, "target": {"type": "sphere", "diameter": 2 * scene.radius},
+            "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"},
+            "sensors": sensors}
+    atomic_write(out / "session.yaml", yaml.safe_dump(spec, sort_keys=False))
+    atomic_write(out / "ground_truth.yaml", yaml.safe_dump({"setup": scene.setup, "sensors": truth,
+                                                            "ball": {info.z_name: scene.Z_ball.tolist()}}, sort_keys=False))
     return out
 
 
