@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
+from scipy.optimize import least_squares, linear_sum_assignment
 
 from ..errors import DegenerateMotionError
 from ..estimation.core import estimate
@@ -157,7 +157,21 @@ def pairing_notes(views: ArmViews, X: NDArray[np.float64], names: list[str]) -> 
     if notes:
         notes = [f"{len(notes)} of {len(names)} masks agree better with another view's joint angles than with their own: "
                  "check that the masks and the joint angles are paired in the same order (and taken at the same time)"] + notes
+        notes.append(_repairing(M, names))
     return notes, M
+
+
+def _repairing(M: NDArray[np.float64], names: list[str]) -> str:
+    """The one-to-one pairing of masks and joint angles that agrees best (the largest summed IoU of
+    ``M``, mask by joint angles: the assignment problem), in words: which masks it moves and the mean
+    IoU so paired against as given."""
+    masks, angles = linear_sum_assignment(-M)
+    moved = [(int(m), int(a)) for m, a in zip(masks, angles) if m != a]
+    given, best = float(np.mean(np.diag(M))), float(np.mean(M[masks, angles]))
+    pairs = ", ".join(f"{names[m]} with {names[a]}'s" for m, a in moved[:8]) + (f" and {len(moved) - 8} more" if len(moved) > 8 else "")
+    return (f"the one-to-one pairing that fits best takes the mask of {pairs} joint angles: mean IoU {best:.2f} so paired, "
+            f"{given:.2f} as given (X fitted to the given pairing; re-pair the files and calibrate again if that is how they "
+            "were taken)")
 
 
 def calibrate_silhouette_session(folder: str | Path | SilhouetteSession, options: CalibrationOptions | None = None, *,
@@ -226,7 +240,7 @@ def calibrate_silhouette_session(folder: str | Path | SilhouetteSession, options
 def _judged_pairing(cal: Calibration, pairing: list[str], n: int) -> Calibration:
     """``cal`` judged inconsistent when at least :data:`MISPAIRED_SHARE` of its ``n`` masks (and 2)
     agree better with another view's joint angles than with their own (``pairing``: the notes)."""
-    mispaired = max(len(pairing) - 1, 0)
+    mispaired = sum(note.startswith("the mask of ") for note in pairing)
     if mispaired < max(2, MISPAIRED_SHARE * n) or cal.diagnostics is None:
         return cal
     advice = [f"{mispaired} of {n} masks agree better with another view's joint angles than with their own: the masks and "
