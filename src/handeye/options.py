@@ -82,6 +82,11 @@ class CalibrationOptions:
         With joint angles: fit each joint's compliance with the arm's table (its deflection per metre
         of the moment arm of the flange's load, :meth:`handeye.robot.kinematics.Chain.moment_arms`). Joint
         angles only, as ``arm``.
+    hold, free : tuple of str
+        A sensor's unknowns beside X, by name (``depth_scale``, ``depth_bias``, ``radius``, ``focal``,
+        ...: :class:`~handeye.sensors.base.Nuisance`), to hold at their nominal or given value, or to
+        fit whatever the capture; the others are fitted where the capture determines them. Sensor
+        sessions only (not images or poses alone); over session.yaml's ``unknowns:``.
     """
 
     method: str = "daniilidis"
@@ -99,6 +104,8 @@ class CalibrationOptions:
     strict_images: bool = False
     arm: str | None = None
     compliance: bool = False
+    hold: tuple[str, ...] = ()
+    free: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         get(self.method)  # an unknown name: the registry's error lists the valid ones
@@ -122,6 +129,14 @@ class CalibrationOptions:
                                      "ignore it (use refine='auto' or 'reprojection', or leave robot_noise out)")
         if self.arm is not None and (not isinstance(self.arm, str) or not self.arm.strip()):
             raise InputMismatchError(f"arm={self.arm!r}; give a shipped arm's name, a DH table (.yaml) or a URDF (.urdf)")
+        for name in ("hold", "free"):
+            value = getattr(self, name)
+            names = (value,) if isinstance(value, str) else value
+            if not isinstance(names, (tuple, list)) or not all(isinstance(n, str) and n for n in names):
+                raise InputMismatchError(f"{name}={value!r}; give the unknowns' names, e.g. ('depth_scale', 'depth_bias')")
+            object.__setattr__(self, name, tuple(names))
+        if set(self.hold) & set(self.free):
+            raise InputMismatchError(f"{', '.join(sorted(set(self.hold) & set(self.free)))}: both held and freed; say one")
         if self.known is not None and not isinstance(self.known, dict):
             raise InputMismatchError(f"known={self.known!r}; give a dict such as {{'target2base.z': 0.012}}")
         if self.offset_range is not None:
@@ -145,9 +160,20 @@ class CalibrationOptions:
         """A copy with ``changes``, checked again."""
         return replace(self, **changes)
 
+    def for_images(self) -> "CalibrationOptions":
+        """The options checked for a camera's images or poses: ``hold`` and ``free`` name a sensor's
+        unknowns beside X, which a camera's fit does not have."""
+        given = [f"{name}={getattr(self, name)!r}" for name in ("hold", "free") if getattr(self, name)]
+        if given:
+            raise InputMismatchError(f"{', '.join(given)}: a camera's images and poses have no unknowns beside X and the "
+                                     "target to hold or free (depth cameras, laser profilers and line-scan cameras do); "
+                                     "leave them out")
+        return self
+
     def for_poses(self) -> "CalibrationOptions":
         """The options checked for poses alone (no images): 'reprojection' and ``robot_noise`` need
         the detections."""
+        self.for_images()
         if self.refine not in REFINES_POSES:
             raise InputMismatchError(f"refine={self.refine!r}; use 'auto', 'pose' or 'none' (pixel refinement needs "
                                      "the detections: use handeye.calibrate on a session)")

@@ -205,6 +205,12 @@ class SensorFit:
         The sensor's unknowns as fitted (its model's ``param_names``, in order): what a later fit
         starts from (a rig starts from each sensor's own). Not in result.json (``figures`` says
         what of them a user reads).
+    unknowns : list of dict
+        The sensor's unknowns beside X and Z that a capture may leave undetermined (a depth scale and
+        bias, a ball's radius, a focal length, a clock offset): per unknown its ``name``, ``value``
+        and ``std`` as a user reads them (std None when held), ``unit``, ``status`` ('fitted',
+        'held': not determined by the capture, or asked; 'given': the session's value) and ``why``.
+        X holds with these values.
     """
 
     sensor: str
@@ -218,6 +224,7 @@ class SensorFit:
     heldout_mm: NDArray[np.float64] | None = None
     sections: list[dict[str, NDArray[np.float64]]] | None = None
     params: NDArray[np.float64] | None = None
+    unknowns: list[dict[str, Any]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)

@@ -264,6 +264,12 @@ def add_calibrate_options(p: argparse.ArgumentParser, refines: tuple[str, ...] =
         g.add_argument("--urdf", metavar="ROBOT.urdf", help="the arm's URDF for the session's joint angles (the same as "
                        "--arm ROBOT.urdf; the chain from the URDF's root to its last joint's link, or the session's "
                        "base_link/tip_link)")
+    if "reprojection" in refines:  # a session folder: sensors other than cameras have unknowns beside X
+        g.add_argument("--hold", metavar="NAME[,NAME]", action="append", default=[],
+                       help="a sensor's unknowns beside X to hold at their nominal or given value (depth_scale, depth_bias, "
+                       "radius, focal, cx, k1): by default each is fitted where the capture determines it")
+        g.add_argument("--free", metavar="NAME[,NAME]", action="append", default=[],
+                       help="a sensor's unknowns beside X to fit whatever the capture (a given ball's radius, ...)")
     g.add_argument("--strict", action="store_true",
                    help="fail (exit 2) instead of answering when the check calls the data inconsistent")
     g.add_argument("--no-check", action="store_true",
@@ -305,7 +311,13 @@ def calibrate_options(args: argparse.Namespace) -> CalibrationOptions:
         robot_noise=None if robot_noise is None else tuple(robot_noise.tolist()), keyframes=args.keyframes,
         offset_range=None if rng is None else tuple(rng.tolist()), time_offset=args.time_offset,
         strict_images=getattr(args, "strict_images", False), arm=arm_arg(args),
-        compliance=getattr(args, "compliance", False))
+        compliance=getattr(args, "compliance", False), hold=_names_arg(getattr(args, "hold", [])),
+        free=_names_arg(getattr(args, "free", [])))
+
+
+def _names_arg(values: list[str]) -> tuple[str, ...]:
+    """Names given as repeated and comma-separated flags (``--hold a,b --hold c``)."""
+    return tuple(n.strip() for v in values for n in v.split(",") if n.strip())
 
 
 def arm_arg(args: argparse.Namespace) -> str | None:

@@ -42,28 +42,35 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
+from scipy.optimize._numdiff import approx_derivative
+from scipy.spatial.transform import Rotation
 from scipy.special import stdtrit
 
 from .._shared.threads import on_one_blas_thread
-from ..errors import DegenerateMotionError, HandEyeError
+from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from ..frames.metrics import std_deg_mm
-from ..frames.setups import setup_info
-from ..geometry.se3 import perturb, so3_left_jacobian
+from ..frames.motions import MotionSet
+from ..frames.setups import constant_transforms, setup_info
+from ..geometry.se3 import mean_transform, perturb, so3_left_jacobian
 from ..result import Calibration, Diagnostics, HeldOutErrors, KinematicModel, Observability, SensorFit, Unobservable
 from ..robot.kinematics import along_parallel_axes
 from ..robot.models import ControllerPoses, JointAngles, PoseErrors, RobotModel
-from ..sensors.base import SensorModel
+from ..sensors.base import Nuisance, SensorModel
+from ..solvers.low_dof import GENERAL, TRANSLATION_ONLY, low_dof_kind, motion_kind, solve_low_dof
+from ..solvers.observability import rotation_spread_absolute
 from ..solvers.refine import VARIANCE_FLOOR, block_whitening, fit_variances, refine_pose, reweighted_fit
 from .diagnostics import closed_form
 from .uncertainty import widened_uncertainty
 from .validation import default_folds, fold_indices, held_out, jackknife_groups, jackknife_spread
 from .verdict import judged
 
-__all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "view_rms_px", "estimate", "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
+__all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "view_rms_px", "estimate", "quick_rms_mm", "start_from_poses",
+           "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
            "HELDOUT_FACTOR", "WEAKEST_NOTE", "Held"]
 
 #: Points whose residual exceeds this many of their std (after a robust first fit) are set aside.
@@ -95,7 +102,12 @@ ROBUST_ROWS = 50000
 
 @dataclass(frozen=True)
 class Problem:
-    """A sensor model and a robot model, with the start and the directions of X held at it."""
+    """A sensor model and a robot model, with the start and the directions of X held at it.
+
+    The unknowns ``x``: X's increment (6), the sensor's unknowns that are not ``held`` (their
+    increments from ``p0``, in ``p``'s order) and the robot's ``d``. A held unknown is not one of them
+    (it stays at its value in ``p0``): held by a weighted row instead, its 1e18 on the normal
+    matrix's diagonal cut every singular value below 100 from the downdates' least squares."""
 
     sensor: SensorModel
     robot: RobotModel
@@ -103,20 +115,66 @@ class Problem:
     p0: NDArray[np.float64]
     #: (k, 6) unit directions of X's increment (rotation in rad at 1 m, translation in m) held at the start
     pins: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 6)))
+    #: the sensor's unknowns (positions in ``p``) held at their value in ``p0`` (a nuisance the capture
+    #: does not determine, or one the session gives)
+    held: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+
+    @property
+    def free(self) -> NDArray[np.intp]:
+        """The positions in ``p`` of the sensor's unknowns that are fitted (not held)."""
+        return np.setdiff1d(np.arange(len(self.p0)), np.asarray(self.held, dtype=np.intp))
 
     @property
     def sizes(self) -> tuple[int, int, int]:
-        """Unknowns of X, of the sensor and of the robot."""
-        return 6, len(self.p0), self.robot.n_params
+        """Unknowns of X, of the sensor (fitted) and of the robot."""
+        return 6, len(self.p0) - len(self.held), self.robot.n_params
 
     def unpack(self, x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """X, the sensor's ``p`` and the robot's ``d`` of the vector ``x``."""
         _, k, _ = self.sizes
-        return perturb(self.X0, x[0:3], x[3:6]), self.p0 + x[6:6 + k], x[6 + k:]
+        p = np.array(self.p0, dtype=float)
+        p[self.free] += x[6:6 + k]
+        return perturb(self.X0, x[0:3], x[3:6]), p, x[6 + k:]
+
+    def own_columns(self, J: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The sensor's derivatives (..., 6 + len(p0) [+ more]) by the unknowns of ``x``: X's and the
+        fitted ones of ``p`` (and whatever follows them, a table's entries)."""
+        if not len(self.held):
+            return J
+        keep = np.r_[np.arange(6), 6 + self.free, np.arange(6 + len(self.p0), J.shape[-1])]
+        return J[..., keep]
+
+    def pin_rows(self) -> NDArray[np.float64]:
+        """The rows (pins, 6 + k) whose product with X's increment and the sensor's fitted unknowns holds
+        the undetermined directions of X at the start (weighted by :data:`PIN`)."""
+        return np.c_[self.pins, np.zeros((len(self.pins), self.sizes[1]))]
+
+    @property
+    def n_pinned(self) -> int:
+        """The rows :meth:`pin_rows` adds to every fit."""
+        return len(self.pins)
 
     def scale(self) -> NDArray[np.float64]:
         """A typical size of each unknown (the solver's scaling)."""
-        return np.r_[np.full(6, 1e-3), np.asarray(self.sensor.param_scale, float), np.ones(self.robot.n_params)]
+        return np.r_[np.full(6, 1e-3), np.asarray(self.sensor.param_scale, float)[self.free], np.ones(self.robot.n_params)]
+
+    def full_cov_p(self, cov: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The covariance of all of ``p`` from ``cov`` (over ``x``): zero for a held unknown."""
+        return self.full_cov_xp(cov)[6:, 6:]
+
+    def full_cov_xp(self, cov: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The covariance of X's increment and all of ``p`` from ``cov`` (over ``x``): zero for a held unknown."""
+        at = np.r_[np.arange(6), 6 + self.free]
+        out = np.zeros((6 + len(self.p0),) * 2)
+        out[np.ix_(at, at)] = cov[:len(at), :len(at)]
+        return out
+
+    def relaid(self, x: NDArray[np.float64], other: "Problem") -> NDArray[np.float64]:
+        """``x`` of ``other`` (the same X0 and ``p0`` but for the held) as this problem's unknowns: the
+        sensor's unknowns this one holds dropped, those it fits that ``other`` held at zero increment."""
+        dp = np.zeros(len(self.p0))
+        dp[other.free] = x[6:6 + other.sizes[1]]
+        return np.r_[x[:6], dp[self.free], x[6 + other.sizes[1]:]]
 
 
 @dataclass(frozen=True)
@@ -233,10 +291,11 @@ def _function(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
     (``at``: where a sensor with correlated residuals takes their noise's shapes, :func:`_weight`)."""
     robot = problem.robot
     measured = _measured(problem, rows, sigma, at)
+    pins, n_g = problem.pin_rows(), 6 + problem.sizes[1]
 
     def fun(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
-        return np.concatenate([measured(X, p, d), robot.prior(d), PIN * (problem.pins @ x[:6])])
+        return np.concatenate([measured(X, p, d), robot.prior(d), PIN * (pins @ x[:n_g])])
     return fun
 
 
@@ -277,21 +336,22 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
     if not hasattr(sensor, "jacobian") or robot.n_params or getattr(sensor, "entry_mask", None) is not None:
         return "2-point"
     weight = _weight(problem, rows, sigma, at)
-    pins = np.c_[PIN * problem.pins, np.zeros((len(problem.pins), len(problem.p0)))]
+    pins = PIN * problem.pin_rows()
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
-        J = _whiten(_own_jacobian(sensor, x, X, p, robot.flange2base(d), rows), weight)
+        J = _whiten(_own_jacobian(problem, x, X, p, robot.flange2base(d), rows), weight)
         return np.vstack([J.reshape(-1, J.shape[-1]), pins])
     return jac
 
 
-def _own_jacobian(sensor: SensorModel, x: NDArray[np.float64], X: NDArray[np.float64], p: NDArray[np.float64],
+def _own_jacobian(problem: Problem, x: NDArray[np.float64], X: NDArray[np.float64], p: NDArray[np.float64],
                   flange2base: NDArray[np.float64], rows: NDArray[np.intp], **table) -> NDArray[np.float64]:
     """The sensor's own derivatives (M, c, 6 + k) by ``x`` (``table``: a corrected arm's table, for a sensor
     that sees the links, which adds a column per entry): its X columns are for a left increment of X,
-    and ``x``'s rotation vector moves X by ``so3_left_jacobian(x[:3])`` of them (exact away from the start)."""
-    J = sensor.jacobian(X, p, flange2base, rows, **table)
+    and ``x``'s rotation vector moves X by ``so3_left_jacobian(x[:3])`` of them (exact away from the start);
+    the columns of the sensor's held unknowns left out."""
+    J = problem.own_columns(problem.sensor.jacobian(X, p, flange2base, rows, **table))
     J[..., :3] = J[..., :3] @ so3_left_jacobian(x[:3])
     return J
 
@@ -309,7 +369,7 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
     weight = _weight(problem, rows, sigma, at)
     own = hasattr(sensor, "jacobian") and getattr(sensor, "entry_mask", None) is None
     entry_view = np.asarray(sensor.owner)[rows][_entry_rows(sensor, rows)]
-    n_x, n_d = 6 + len(problem.p0), robot.n_params
+    n_x, n_d = 6 + problem.sizes[1], robot.n_params
     h = 1.5e-8
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -319,13 +379,13 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
         m = len(entry_view)
         J = np.zeros((len(f0), len(x)))
         if own:
-            J[:m, :n_x] = _whiten(_own_jacobian(sensor, x, X, p, F, rows), weight).reshape(m, n_x)
+            J[:m, :n_x] = _whiten(_own_jacobian(problem, x, X, p, F, rows), weight).reshape(m, n_x)
         else:
             for j in range(n_x):
                 step = x.copy()
                 step[j] += h * max(1.0, abs(x[j]))
                 J[:m, j] = (fun(step)[:m] - f0[:m]) / (h * max(1.0, abs(x[j])))
-        J[m + n_d:, :6] = PIN * problem.pins
+        J[m + n_d:, :n_x] = PIN * problem.pin_rows()
         by_pose = np.empty((m, 6))
         for a in range(6):  # every view's flange pose moved along its increment a at once
             xi = np.zeros(6)
@@ -342,19 +402,19 @@ def _links_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.
     unknowns: the sensor's own derivatives at the corrected table (``jacobian(..., table=)``), whose
     columns by every entry of it are taken to the fitted entries in units of their prior std
     (:meth:`~handeye.robot.models.JointAngles.entry_columns`); the prior rows, ``d`` itself."""
-    sensor, robot = problem.sensor, problem.robot
+    robot = problem.robot
     weight = _weight(problem, rows, sigma, at)
-    n_x, n_d = 6 + len(problem.p0), robot.n_params
+    n_x, n_d = 6 + problem.sizes[1], robot.n_params
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
-        own = _own_jacobian(sensor, x, X, p, robot.flange2base(d), rows, table=robot.corrected(d))
+        own = _own_jacobian(problem, x, X, p, robot.flange2base(d), rows, table=robot.corrected(d))
         J = _whiten(np.concatenate([own[..., :n_x], robot.entry_columns(own[..., n_x:])], axis=2), weight)
         m = J.shape[0] * J.shape[1]
-        out = np.zeros((m + n_d + len(problem.pins), len(x)))
+        out = np.zeros((m + n_d + problem.n_pinned, len(x)))
         out[:m] = J.reshape(m, -1)
         out[m:m + n_d, n_x:] = np.eye(n_d)
-        out[m + n_d:, :6] = PIN * problem.pins
+        out[m + n_d:, :n_x] = PIN * problem.pin_rows()
         return out
     return jac
 
@@ -366,7 +426,7 @@ def _per_view_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[
     columns, the sensor's by blocks of rows); the prior rows (``d`` itself) by the same steps, the pins
     exact."""
     parts = _Eliminated(problem, rows, sigma, np.zeros(problem.robot.n_params), at=at)
-    n_x, n_d, pins = parts.n_g, problem.robot.n_params, problem.pins
+    n_x, n_d, pins = parts.n_g, problem.robot.n_params, problem.pin_rows()
     column = parts.index[parts.entry_view]  # (E, n_per): each entry's view's unknowns
     hit = column >= 0
 
@@ -379,7 +439,7 @@ def _per_view_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[
         # the prior's derivative as the steps give it (1 to ~1e-12): exactly 1 moved a line-scan fit's X
         # by 3-5 um of its 0.07-0.28 mm error, which rounding-level changes of its Jacobian do
         J[m + np.arange(n_d), n_x + np.arange(n_d)] = ((parts.d + parts.h) - parts.d) / parts.h
-        J[m + n_d:, :6] = PIN * pins
+        J[m + n_d:, :n_x] = PIN * pins
         return J
     return jac
 
@@ -415,19 +475,19 @@ class _Eliminated:
         view = np.asarray(robot.param_view, dtype=np.intp)
         first = np.r_[0, np.flatnonzero(np.diff(view)) + 1]
         self.position = np.arange(len(view)) - first[np.searchsorted(first, np.arange(len(view)), side="right") - 1]
-        self.n_views, self.n_per = int(view.max()) + 1, int(self.position.max()) + 1
+        self.n_views, self.n_per = robot.n_views, int(self.position.max()) + 1  # views without unknowns have none here
         self.index = np.full((self.n_views, self.n_per), -1)
         self.index[view, self.position] = np.arange(len(view))
         self.entry_view = np.asarray(sensor.owner)[rows][_entry_rows(sensor, rows)]
         size = getattr(robot, "param_size", None)
         self.h = 1.5e-8 / (np.asarray(size, float) if size is not None else np.ones(len(view)))
         self.own = hasattr(sensor, "jacobian") and getattr(sensor, "entry_mask", None) is None
-        self.n_g = 6 + len(problem.p0)
+        self.n_g = 6 + problem.sizes[1]
         blocks = getattr(sensor, "param_block", None)
-        if blocks is None or len(problem.p0) == 0:
-            self.blocks, self.entry_block = np.full(len(problem.p0), -1), np.zeros(len(self.entry_view), dtype=np.intp)
+        if blocks is None or problem.sizes[1] == 0:
+            self.blocks, self.entry_block = np.full(problem.sizes[1], -1), np.zeros(len(self.entry_view), dtype=np.intp)
         else:
-            self.blocks = np.asarray(blocks, dtype=np.intp)
+            self.blocks = np.asarray(blocks, dtype=np.intp)[problem.free]
             self.entry_block = np.asarray(sensor.row_block, dtype=np.intp)[rows][_entry_rows(sensor, rows)]
         self.columns = [[j] for j in range(6)] + [[6 + j for j in g] for g in _column_groups(self.blocks)]
         self.d = np.asarray(d0, float).copy()
@@ -504,7 +564,7 @@ class _Eliminated:
 
     def fun(self, g: NDArray[np.float64]) -> NDArray[np.float64]:  # noqa: D102
         self._solve(g)
-        return np.concatenate([self.f, self.d, PIN * (self.problem.pins @ g[:6])])
+        return np.concatenate([self.f, self.d, PIN * (self.problem.pin_rows() @ g)])
 
     def by_globals(self, g: NDArray[np.float64]) -> NDArray[np.float64]:
         """The entries' derivatives (E, n_g) by X's increment and ``p``, the errors held: the sensor's
@@ -514,7 +574,7 @@ class _Eliminated:
         problem = self.problem
         F = problem.robot.flange2base(self.d)
         if self.own:
-            J = _whiten(_own_jacobian(problem.sensor, np.r_[g, self.d], self.X, self.p, F, self.rows), self.weight)
+            J = _whiten(_own_jacobian(problem, np.r_[g, self.d], self.X, self.p, F, self.rows), self.weight)
             return J.reshape(len(self.f), self.n_g)
         J = np.zeros((len(self.f), self.n_g))
         for group in self.columns:
@@ -540,11 +600,11 @@ class _Eliminated:
         w_prior = self._loss_weights(self.d)[self.index].reshape(self.n_views, self.n_per)
         cross = self._view_sums((w[:, None, None] * A[:, :, None] * J_g[:, None, :]).reshape(len(A), -1))
         dd = -np.linalg.solve(self._normal(A, w, w_prior), cross.reshape(self.n_views, self.n_per, self.n_g))
-        out = np.zeros((len(self.f) + len(self.d) + len(self.problem.pins), self.n_g))
+        out = np.zeros((len(self.f) + len(self.d) + self.problem.n_pinned, self.n_g))
         out[:len(self.f)] = J_g + np.einsum("ea,eag->eg", A, dd[self.entry_view])
         seen = self.index >= 0
         out[len(self.f) + self.index[seen]] = dd[seen]
-        out[len(self.f) + len(self.d):, :6] = PIN * self.problem.pins
+        out[len(self.f) + len(self.d):] = PIN * self.problem.pin_rows()
         return out
 
 
@@ -553,9 +613,10 @@ def _contradicted(problem: Problem, d: NDArray[np.float64], rows: NDArray[np.int
     measurement rows among ``rows`` whose errors ``d`` are beyond :data:`CONTRADICTED_STD` of their
     prior on some axis and beyond 3x the median view's."""
     view = np.asarray(problem.robot.param_view, dtype=np.intp)
-    moved = np.zeros(int(view.max()) + 1)
+    moved = np.zeros(problem.robot.n_views)
     np.maximum.at(moved, view, np.abs(np.asarray(d, float)))
-    has = np.isin(np.arange(len(moved)), np.asarray(problem.sensor.owner)[rows])
+    # the views with measurements among ``rows`` and errors of their own (a pose left as reported has none)
+    has = np.isin(np.arange(len(moved)), np.asarray(problem.sensor.owner)[rows]) & np.isin(np.arange(len(moved)), view)
     if not has.any():
         return np.zeros(0, dtype=np.intp)
     return np.flatnonzero(has & (moved > CONTRADICTED_STD) & (moved > 3.0 * np.median(moved[has])))
@@ -585,7 +646,7 @@ def _fit_eliminated(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.
     """The least squares (or, ``loss='soft_l1'``, the robust first round's) of ``rows`` with each view's
     robot errors eliminated (:class:`_Eliminated`), from ``x``: the solution over every unknown, and the
     Jacobian and residuals over X and the sensor's unknowns alone."""
-    n_g = 6 + len(problem.p0)
+    n_g = 6 + problem.sizes[1]
     elim = _Eliminated(problem, rows, sigma, x[n_g:], loss, 2.0)
     if loss == "linear":
         res = least_squares(elim.fun, x[:n_g], elim.jac, method="lm", x_scale=problem.scale()[:n_g], xtol=tol, ftol=tol,
@@ -629,7 +690,7 @@ def _plain_method(problem: Problem, rows: NDArray[np.intp]) -> str:
     """The plain (linear loss) rounds' method: 'lm' (MINPACK: a QR of the Jacobian per step, where
     'trf' takes its SVD, 2.5x the time on a laser's 230,000 rows) whenever the residuals outnumber
     the unknowns, as MINPACK needs; else 'trf'."""
-    n_rows = len(rows) * np.asarray(problem.sensor.shape).shape[1] + problem.robot.n_params + len(problem.pins)
+    n_rows = len(rows) * np.asarray(problem.sensor.shape).shape[1] + problem.robot.n_params + problem.n_pinned
     return "lm" if n_rows > sum(problem.sizes) else "trf"
 
 
@@ -680,7 +741,7 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
         w = _residuals(problem, X, p, d, rows) / shape[rows]
         share = max(w.size - n_unknowns, 1) / w.size
         new = _group_scales(w, groups[rows], n_groups, robust=False, dof_share=share)
-        if len(new) == 1 and not problem.robot.n_params and not len(problem.pins):
+        if len(new) == 1 and not problem.robot.n_params and not problem.n_pinned:
             # one noise scale and nothing else weighted against it: the scale does not move the solution,
             # only the whitening (the Jacobian and residuals rescaled, not solved again)
             res.jac, res.fun = res.jac * (sigma[0] / new[0]), res.fun * (sigma[0] / new[0])
@@ -766,14 +827,9 @@ def _fitted(problem: Problem, res, sigma, kept, rows) -> Fitted:
                   res.jac.T @ res.jac)
 
 
-def downdated(problem: Problem, full: Fitted, views: NDArray[np.intp], guard: bool = True) -> Fitted:
-    """The fit on ``views`` as one Gauss-Newton step from ``full`` (the fit on all views) without the
-    other views' rows: at ``full``'s solution the whole gradient is zero, so the step is
-    ``(J_t^T J_t)^-1 J_h^T r_h`` with t the rows kept and h the rows left out. With ``guard``, a step
-    beyond :data:`DOWNDATE_STD` of an unknown's std is not taken: the fold is then fitted whole from
-    ``full``. (Without: for a sensor's exact Jacobian and no robot unknowns, whose linear model holds;
-    a camera's std from independent corners is several times too small when each view's robot error
-    moves all its corners alike, and the guard then refits a quarter of the folds for nothing.)"""
+def _left_out_rows(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """The rows of ``full``'s Jacobian that the views not in ``views`` give (their measurements and,
+    for a robot whose errors are eliminated view by view, their errors' prior rows), and those errors."""
     owner = np.asarray(problem.sensor.owner)
     c = np.asarray(problem.sensor.shape).shape[1]
     held = np.flatnonzero(~np.isin(owner[full.rows], np.asarray(views)))
@@ -785,6 +841,37 @@ def downdated(problem: Problem, full: Fitted, views: NDArray[np.intp], guard: bo
     if _eliminates(problem):  # each view's errors eliminated: its prior rows go with its measurements
         errors_out = np.flatnonzero(~np.isin(np.asarray(problem.robot.param_view), np.asarray(views)))
         drop = np.r_[drop, len(_entry_rows(problem.sensor, full.rows)) + errors_out]
+    return drop, errors_out
+
+
+def _x_information(problem: Problem, jac: NDArray[np.float64]) -> float:
+    """The least information (1 / variance, whitened) the whitened Jacobian ``jac`` (over the data's
+    rows, no pins) gives any direction of X beyond the problem's pins, the other unknowns taken out."""
+    info = jac.T @ jac
+    A, B, C = info[:6, :6], info[:6, 6:], info[6:, 6:]
+    S = A - B @ np.linalg.pinv(C, rcond=1e-14) @ B.T if C.size else A
+    if len(problem.pins):  # the pinned directions are free in every fold alike
+        Q = np.linalg.svd(problem.pins, full_matrices=True)[2][len(problem.pins):]
+        S = Q @ S @ Q.T
+    lam = np.linalg.eigvalsh(0.5 * (S + S.T))
+    return max(float(lam.min(initial=np.inf)), 0.0)
+
+
+#: A fold whose views give some direction of X less than this share of the information all views give
+#: it (one view left out carried the rest: the only view off a line of pure translations) cannot
+#: predict its held-out views: they are not counted in the held-out error.
+FOLD_SHARE = 1e-3
+
+
+def downdated(problem: Problem, full: Fitted, views: NDArray[np.intp], guard: bool = True) -> Fitted:
+    """The fit on ``views`` as one Gauss-Newton step from ``full`` (the fit on all views) without the
+    other views' rows: at ``full``'s solution the whole gradient is zero, so the step is
+    ``(J_t^T J_t)^-1 J_h^T r_h`` with t the rows kept and h the rows left out. With ``guard``, a step
+    beyond :data:`DOWNDATE_STD` of an unknown's std is not taken: the fold is then fitted whole from
+    ``full``. (Without: for a sensor's exact Jacobian and no robot unknowns, whose linear model holds;
+    a camera's std from independent corners is several times too small when each view's robot error
+    moves all its corners alike, and the guard then refits a quarter of the folds for nothing.)"""
+    drop, errors_out = _left_out_rows(problem, full, views)
     J_h, r_h = full.jac[drop], full.fun[drop]
     step = np.linalg.lstsq(full.normal - J_h.T @ J_h, J_h.T @ r_h, rcond=None)[0]
     std = np.sqrt(np.clip(np.diag(full.cov), 0.0, None))
@@ -796,8 +883,7 @@ def downdated(problem: Problem, full: Fitted, views: NDArray[np.intp], guard: bo
     x[:len(step)] += step
     x[len(step) + errors_out] = 0.0  # the views left out: predicted from the robot alone
     X, p, d = problem.unpack(x)
-    keep = np.ones(len(full.rows), bool)
-    keep[held] = False
+    keep = np.isin(np.asarray(problem.sensor.owner)[full.rows], np.asarray(views))
     return Fitted(x, X, p, d, full.cov, full.sigma, full.kept, full.rows[keep], np.zeros((0, len(x))), np.zeros(0))
 
 
@@ -844,7 +930,7 @@ def _undetermined(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
     one axis leave X's translation along it and the plane's distance free together, at 10 where the
     largest is 1e12."""
     jac = fitted.jac
-    n_pins = len(problem.pins)
+    n_pins = problem.n_pinned
     if n_pins:  # the pins' own rows are not information from the data
         jac = jac[:-n_pins]
     info = jac.T @ jac
@@ -951,6 +1037,50 @@ class _Checked:
     left_out: list[tuple[int, str]]
 
 
+def _as_turned(problem: Problem) -> Problem | None:
+    """For a robot whose flange never turned (every turn below the observability threshold, ~0.6 deg:
+    a user's jogs, the controller's rounding) or turned about one axis only: the problem with the
+    flange's rotations made exactly so (the same rotation; each turn's component about the dominant
+    axis), whose Jacobian has the null directions the noise of the real turns hides (pure
+    translations leave X's translation free with the target's position, but turns of 0.01 deg make
+    it 'determined' to 100 mm, and a fit wandered 1.5 m along it); None for a robot that turned."""
+    robot = problem.robot
+    if not isinstance(robot, ControllerPoses) or robot.n_views < 2:
+        return None
+    F = robot.flange2base(np.zeros(robot.n_params))
+    (largest, spread), axis = rotation_spread_absolute(F)
+    kind = low_dof_kind(largest, spread)
+    if kind == GENERAL:
+        return None
+    R0 = F[0, :3, :3]
+    turned = F.copy()
+    if kind == TRANSLATION_ONLY:
+        turned[:, :3, :3] = R0
+    else:
+        v = Rotation.from_matrix(np.swapaxes(R0, 0, 1) @ F[:, :3, :3]).as_rotvec()
+        turned[:, :3, :3] = R0 @ Rotation.from_rotvec(np.outer(v @ axis, axis)).as_matrix()
+    return replace(problem, robot=ControllerPoses(turned, robot.accuracy))
+
+
+def _jacobian_at(problem: Problem, full: Fitted) -> NDArray[np.float64]:
+    """The whitened Jacobian of ``problem`` at ``full``'s solution, over its rows (the sensor's own
+    derivatives, or finite differences)."""
+    x = full.x[:sum(problem.sizes)]
+    jac = _jacobian(problem, full.rows, full.sigma, x)
+    if callable(jac):
+        return jac(x)
+    return approx_derivative(_function(problem, full.rows, full.sigma, x), x, method="2-point")
+
+
+def _union(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """An orthonormal basis of the directions (rows) of ``a`` and ``b`` together."""
+    both = np.vstack([a, b])
+    if not len(both):
+        return np.zeros((0, 6))
+    _, s, W = np.linalg.svd(both, full_matrices=False)
+    return W[s > 1e-6]
+
+
 def _start(sensor: SensorModel, robot: RobotModel, views: NDArray[np.intp] | None = None
            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """X and ``p`` to start from, on ``views`` (default all) and the robot's poses at its prior (the
@@ -966,10 +1096,29 @@ def _start(sensor: SensorModel, robot: RobotModel, views: NDArray[np.intp] | Non
         if len(views) < 3:
             raise DegenerateMotionError(f"{len(views)} views: at least 3 are needed, 10-20 with the flange turned "
                                         "30 deg or more about varied axes to trust X")
-        X, Z, _ = closed_form(F[views], poses[views], sensor.setup, "daniilidis")
-        ref = refine_pose(X, Z, F[views], poses[views], sensor.setup)
-        X, Z = ref.X, ref.Z
+        X, Z = start_from_poses(F[views], poses[views], sensor.setup)
     return sensor.start(F, X, Z, rows)
+
+
+def start_from_poses(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """X and Z from views that each measured the target's whole pose: the closed form and the pose
+    refinement, or, for pure translations (the flange never turned: a user's jogs along the axes),
+    what they determine of X (:func:`~handeye.solvers.low_dof.solve_low_dof`: its rotation from the
+    translations, its translation at zero), which the fit then holds and names. Raises
+    DegenerateMotionError when not even that is determined (translations along one line), or for
+    turns about one axis only (the check's message says what to add)."""
+    try:
+        X, Z, _ = closed_form(flange2base, target2cam, setup, "daniilidis")
+    except DegenerateMotionError:
+        motions = MotionSet.from_poses(flange2base, target2cam, setup, "auto")
+        kind = motion_kind(motions)
+        if kind != TRANSLATION_ONLY:
+            raise
+        X = solve_low_dof(motions, kind).X
+        return X, mean_transform(constant_transforms(X, flange2base, target2cam, setup))
+    ref = refine_pose(X, Z, flange2base, target2cam, setup)
+    return ref.X, ref.Z
 
 
 def _outlier_views(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> list[tuple[int, str]]:
@@ -993,58 +1142,128 @@ def _outlier_views(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> l
     return out if len(out) <= len(views) // 3 else []
 
 
-def _prepared(sensor: SensorModel, robot: RobotModel) -> _Checked:
-    """The start, the fit with what the capture does not determine held at the start, and the
-    views the fit does not explain left out (refitted without them)."""
-    X0, p0 = _start(sensor, robot)
-    problem = Problem(sensor, robot, X0, p0)
-    views = np.unique(np.asarray(sensor.owner))
-    full = fit(problem)
-    pins = _undetermined(problem, full)
-    if len(pins):
-        problem = replace(problem, X0=full.X, p0=full.p, pins=pins)
+def _prepared(sensor: SensorModel, robot: RobotModel, start: tuple[NDArray[np.float64], NDArray[np.float64]],
+              held: dict[int, float] | None = None, previous: _Checked | None = None) -> _Checked:
+    """From ``start`` (X and ``p``), the fit with what the capture does not determine held at the
+    start and the unknowns of ``p`` in ``held`` (position -> value) held at their value, and the
+    views the fit does not explain left out (refitted without them). From a ``previous`` fit with
+    fewer unknowns held: one plain least squares from it, its views, rows and noise scales kept."""
+    held = held or {}
+    at = np.array(sorted(held), dtype=np.intp)
+    if previous is None:
+        X0, p0 = start
+        p0 = np.array(p0, dtype=float)
+        p0[at] = [held[k] for k in at]
+        problem = Problem(sensor, robot, X0, p0, held=at)
+        views, left_out = np.unique(np.asarray(sensor.owner)), []
         full = fit(problem)
-    left_out = _outlier_views(problem, full, views)
-    if left_out:
-        views = np.setdiff1d(views, [v for v, _ in left_out])
-        full = fit(problem, views)
+    else:
+        views, left_out = previous.views, list(previous.left_out)
+        p0 = previous.problem.p0.copy()
+        p0[at] = [held[k] for k in at]
+        problem = replace(previous.problem, p0=p0, held=at)
+        full = fit(problem, views, start=replace(previous.full, x=problem.relaid(previous.full.x, previous.problem)))
+    pins = _undetermined(problem, full)
+    turned = _as_turned(problem)
+    if turned is not None:  # what the robot's few turns (within its own noise) leave free, as if it had not turned
+        pins = _union(pins, _undetermined(turned, replace(full, jac=_jacobian_at(turned, full))))
+    if len(pins) and len(_union(problem.pins, pins)) > len(problem.pins):
+        problem = replace(problem, X0=full.X, p0=full.p, pins=_union(problem.pins, pins))
+        n_g = 6 + problem.sizes[1]
+        full = fit(problem, views, start=replace(full, x=np.r_[np.zeros(n_g), full.x[n_g:]]))
+    if previous is None:
+        left_out = _outlier_views(problem, full, views)
+        if left_out:
+            views = np.setdiff1d(views, [v for v, _ in left_out])
+            full = fit(problem, views)
     return _Checked(problem, full, views, left_out)
 
 
+#: Cross-validation refits this many folds from a start of their own (a fit that lands in another basin
+#: from its own start shows in their held-out error, which a step from the fit on all views cannot see);
+#: the other folds are one Gauss-Newton step from the fit on all views (:func:`downdated`) ...
+FRESH_FOLDS = 3
+#: ... unless those steps promise held-out views this many times better than the refits of the same
+#: folds predict them: every fold is then refitted from its own start.
+FRESH_RATIO = 1.5
+
+
+def _refitted(problem: Problem, full: Fitted, train: NDArray[np.intp], X0: NDArray[np.float64], p0: NDArray[np.float64]
+              ) -> Fitted:
+    """The fit on the views ``train`` from their own start ``X0``, ``p0`` (what a user with only those
+    views would get), the other views' rows kept as ``full`` kept them (to be predicted)."""
+    p0 = np.array(p0, dtype=float)
+    p0[problem.held] = problem.p0[problem.held]  # a held unknown stays at its value in every fold
+    fold = fit(replace(problem, X0=X0, p0=p0), train)
+    others = ~np.isin(np.asarray(problem.sensor.owner), train) & full.kept
+    return replace(fold, kept=fold.kept | others)
+
+
 def _cross_validation(problem: Problem, full: Fitted, views: NDArray[np.intp], folds: int | None
-                      ) -> tuple[dict[str, dict[str, float | None]], int, NDArray[np.float64]]:
+                      ) -> tuple[dict[str, dict[str, float | None]], int, NDArray[np.float64], int, list[int]]:
     """Per estimator its held-out RMS error (mm) over ``views``: the fit, and the closed-form start
-    (refitted per fold); for joint angles also the fit on the nominal table's poses. Returns the
-    table, the folds and the fit's per-view held-out errors."""
+    (refitted per fold); for joint angles also the fit on the nominal table's poses. The fit's folds:
+    :data:`FRESH_FOLDS` of them refitted from their own start, the others one step from the fit on
+    all views, or refitted too when the steps promise more than :data:`FRESH_RATIO` times better than
+    the refits. Returns the table, the folds, the fit's per-view held-out errors and how many folds
+    were refitted from their own start, and the views not predicted (:data:`FOLD_SHARE`)."""
     n = len(views)
     if n < 4:
-        return {}, 0, np.full(n, np.nan)
+        return {}, 0, np.full(n, np.nan), 0, []
     held = fold_indices(n, default_folds(n) if folds is None else min(folds, n))
     nominal = None
     if isinstance(problem.robot, JointAngles):
-        nominal = Problem(problem.sensor, ControllerPoses(problem.robot.flange2base(np.zeros(problem.robot.n_params))),
-                          problem.X0, problem.p0, problem.pins)
+        nominal = replace(problem, robot=ControllerPoses(problem.robot.flange2base(np.zeros(problem.robot.n_params))))
         nominal_full = fit(nominal, views)
 
-    def predict(train_at: NDArray[np.intp], test_at: NDArray[np.intp]) -> NDArray[np.float64]:
-        """Per test view: the fit's, the start's and the nominal table's errors (mm, px each)."""
+    # a fold whose views leave a direction of X free that all views determine (the one view off a line of
+    # pure translations left out) predicts its held-out views by nothing: they are not counted
+    turned = _as_turned(problem)
+    base = turned if turned is not None else problem
+    info_jac = _jacobian_at(turned, full) if turned is not None else full.jac
+    info_jac = info_jac[:-base.n_pinned] if base.n_pinned else info_jac
+    least = _x_information(base, info_jac)
+    alone: list[int] = []  # the views whose fold could not determine X without them
+
+    def predict(train_at: NDArray[np.intp], test_at: NDArray[np.intp], fresh: bool) -> NDArray[np.float64]:
+        """Per test view: the fit's (one step from the whole's), the start's, the nominal table's and
+        (``fresh``) the fit's from its own start errors (mm, px each)."""
         train, test = views[train_at], views[test_at]
-        out = np.full((len(test), 6), np.nan)
+        out = np.full((len(test), 8), np.nan)
+        if _x_information(base, np.delete(info_jac, _left_out_rows(base, full, train)[0], axis=0)) < FOLD_SHARE * least:
+            alone.extend(int(v) for v in test)
+            return out
         out[:, 0:2] = _view_rms(problem, downdated(problem, full, train), test)
         try:
             X0, p0 = _start(problem.sensor, problem.robot, train)
+        except HandEyeError:  # the fold cannot be started on its own: its views predicted by the step alone
+            X0 = p0 = None
+        if X0 is not None:
             out[:, 2:4] = _view_rms(problem, replace(full, X=X0, p=p0, d=np.zeros(problem.robot.n_params)), test)
-        except HandEyeError:
-            pass
+            if fresh:
+                out[:, 6:8] = _view_rms(problem, _refitted(problem, full, train, X0, p0), test)
         if nominal is not None:
             out[:, 4:6] = _view_rms(nominal, downdated(nominal, nominal_full, train), test)
         return out
 
-    errors = held_out(n, held, predict, 6, catch=())  # the fit's own failure is not a fold to skip
+    errors = held_out(n, held[:FRESH_FOLDS], lambda tr, te: predict(tr, te, True), 8, catch=())
+    sampled = np.concatenate(held[:FRESH_FOLDS])
+    refits, steps = errors[sampled, 6], errors[sampled, 0]
+    ok = np.isfinite(refits) & np.isfinite(steps)
+    promised = float(np.sqrt(np.mean(steps[ok] ** 2))) if ok.any() else np.nan
+    found = float(np.sqrt(np.mean(refits[ok] ** 2))) if ok.any() else np.nan
+    every = bool(ok.any() and found > FRESH_RATIO * max(promised, 1e-12))
+    rest = held[FRESH_FOLDS:]
+    if rest:
+        at = np.concatenate(rest)
+        errors[at] = held_out(n, rest, lambda tr, te: predict(tr, te, every), 8, catch=())[at]
+    fresh = np.isfinite(errors[:, 6])
+    errors[fresh, 0:2] = errors[fresh, 6:8]  # the refits' errors where a fold was refitted
     table = {_name(problem.robot): _row(errors[:, 0:2]), "closed-form start": _row(errors[:, 2:4])}
     if nominal is not None:
         table["fit on the nominal table's poses"] = _row(errors[:, 4:6])
-    return table, len(held), errors[:, 0]
+    n_fresh = min(FRESH_FOLDS, len(held)) + (len(rest) if every else 0)
+    return table, len(held), errors[:, 0], n_fresh, sorted(set(alone))
 
 
 def _name(robot: RobotModel) -> str:
@@ -1084,12 +1303,39 @@ def _widen(cov: NDArray[np.float64], jack: NDArray[np.float64] | None) -> tuple[
     return D @ cov @ D, float(ratio[:6].max())
 
 
+#: The rows on which the robot's share of the residual is measured (:func:`_robot_share_mm`), evenly taken.
+SHARE_ROWS = 20000
+
+
+def _robot_share_mm(problem: Problem, X: NDArray[np.float64], p: NDArray[np.float64], d: NDArray[np.float64],
+                    rows: NDArray[np.intp], accuracy: tuple[float, float]) -> float:
+    """The RMS (mm) by which a flange pose off by the robot's stated ``accuracy`` on every axis (deg,
+    mm: a rotation about the flange and a translation) moves the residuals of ``rows`` at X, ``p``
+    and ``d``: where this capture's measurements lie from the flange, and which of their directions a
+    pose error reaches (a point's distance from a ball sees only the pose's error along its normal)."""
+    rows = rows if len(rows) <= SHARE_ROWS else rows[np.linspace(0, len(rows) - 1, SHARE_ROWS).astype(np.intp)]
+    F = problem.robot.flange2base(d)
+    r0 = _residuals(problem, X, p, d, rows, F)
+    sq = np.zeros(len(rows))
+    steps = np.r_[np.full(3, np.radians(accuracy[0])), np.full(3, 1e-3 * accuracy[1])]
+    for a in range(6):
+        if steps[a] <= 0:
+            continue
+        xi = np.zeros(6)
+        xi[a] = steps[a]
+        sq += np.sum((_residuals(problem, X, p, d, rows, perturb(F, xi[:3], xi[3:])) - r0) ** 2, axis=1)
+    return float(1e3 * np.sqrt(np.mean(sq))) if len(rows) else 0.0
+
+
 def _allowed_mm(problem: Problem, full: Fitted, accuracy: tuple[float, float] | None) -> float:
     """The RMS residual (mm) a measurement may have, known before any fit: the sensor's stated noise
-    and the robot's stated accuracy (its rotation at the measurements' distance, ~1 m)."""
-    acc = (0.0, 0.0) if accuracy is None else accuracy
+    and what the robot's stated accuracy moves this capture's measurements by (:func:`_robot_share_mm`;
+    it was the accuracy at 1 m on every axis, 1.4 mm at the default, which let a laser fit 300 mm off
+    X's true value through at 5.4 mm RMS)."""
     noise = float(np.median(problem.sensor.noise_mm(full.rows))) if len(full.rows) else 0.0
-    return float(np.sqrt(3.0) * (acc[1] + np.radians(acc[0]) * 1e3) + noise)
+    if accuracy is None or not any(a > 0 for a in accuracy):
+        return noise
+    return noise + _robot_share_mm(problem, full.X, full.p, full.d, full.rows, accuracy)
 
 
 def _verdict(problem: Problem, full: Fitted, fit_mm: float, heldout_mm: float | None, n_out: int, n: int,
@@ -1102,7 +1348,8 @@ def _verdict(problem: Problem, full: Fitted, fit_mm: float, heldout_mm: float | 
         return "inconsistent", [
             f"the views' measurements are {fit_mm:.2f} mm (RMS) from the fit, far beyond the {allowed:.2f} mm the "
             "sensor's noise and the robot's accuracy allow: the robot poses and the measurements disagree (their "
-            "order, the pose format or unit, the setup, the measurements' unit)"], score
+            "order, the pose format or unit, the setup, the measurements' unit), or the fit started in another basin and "
+            "stayed there"], score
     # with each pose's error fitted the fit's residual holds none of it, while held-out views (predicted
     # from the robot alone) carry it whole: held against what the robot's accuracy allows instead
     reference = max(fit_mm, allowed) if isinstance(problem.robot, PoseErrors) else fit_mm
@@ -1110,7 +1357,8 @@ def _verdict(problem: Problem, full: Fitted, fit_mm: float, heldout_mm: float | 
         return "inconsistent", [
             f"held-out views are predicted {heldout_mm:.2f} mm (RMS) off, {heldout_mm / reference:.1f}x the fit's "
             f"{reference:.2f} mm: the robot poses and the measurements disagree (the setup, the pose format or unit, a "
-            "target that moved, or the order of the views)"], score
+            "target that moved, or the order of the views), or the fit lands elsewhere from another start (folds are fitted "
+            "from a start of their own: more views, turned about more axes, make the fit one)"], score
     if n_out > n // 3:
         return "inconsistent", [f"{n_out} of {n} views are not explained by the fit: too many to leave out; check the "
                                 "poses' format and unit, the setup, and that the target did not move"], score
@@ -1163,6 +1411,162 @@ def _table_notes(robot: JointAngles, model: KinematicModel) -> list[str]:
     return notes
 
 
+#: The short fit of a reading of the robot's poses (:func:`quick_rms_mm`) uses at most this many
+#: measurement rows, evenly taken, and this many evaluations of their residuals.
+QUICK_ROWS, QUICK_EVALS = 3000, 60
+
+
+def quick_rms_mm(sensor: SensorModel, robot: RobotModel, accuracy: tuple[float, float] | None = None
+                 ) -> tuple[float, float, tuple[NDArray[np.float64], NDArray[np.float64]] | None]:
+    """The sensor's closed-form start on ``robot``'s poses, then a short robust fit of X and the
+    sensor's unknowns on at most :data:`QUICK_ROWS` rows: the robust RMS (mm) of their residuals
+    (1.4826 times the median length; infinite when no start can be made), and what the sensor's noise
+    and the robot's ``accuracy`` allow there (mm)."""
+    start = None
+    try:
+        X0, p0 = start = _start(sensor, robot)
+        problem = Problem(sensor, robot, X0, p0)
+        n = len(np.asarray(sensor.owner))
+        rows = np.arange(n) if n <= QUICK_ROWS else np.linspace(0, n - 1, QUICK_ROWS).astype(np.intp)
+        shape, groups = np.asarray(sensor.shape), _groups(sensor)
+        X, p, d = problem.unpack(np.zeros(sum(problem.sizes)))
+        w0 = _residuals(problem, X, p, d, rows) / shape[rows]
+        sigma = _group_scales(w0, groups[rows], int(groups.max()) + 1, robust=True)
+        res = least_squares(_function(problem, rows, sigma), np.zeros(sum(problem.sizes)), _jacobian(problem, rows, sigma),
+                            method="trf", loss="soft_l1", f_scale=2.0, x_scale=problem.scale(), max_nfev=QUICK_EVALS)
+        X, p, d = problem.unpack(res.x)
+        r = _residuals(problem, X, p, d, rows)
+    except (HandEyeError, np.linalg.LinAlgError, ValueError, FloatingPointError):  # no start, or a fit that fails: fits nothing
+        return float("inf"), 0.0, start
+    length = np.linalg.norm(r, axis=1)
+    if not np.isfinite(length).all():
+        return float("inf"), 0.0, start
+    allowed = float(np.median(sensor.noise_mm(rows)))
+    if accuracy is not None and any(a > 0 for a in accuracy):
+        allowed += _robot_share_mm(problem, X, p, d, rows, accuracy)
+    return float(1e3 * 1.4826 * np.median(length)), allowed, start
+
+
+#: A nuisance the capture determines: its std (the jackknife's, where wider) below this share of its tolerance.
+NUISANCE_SHARE = 0.5
+
+
+def _nuisance_modes(sensor: SensorModel, hold, free) -> list[tuple[Nuisance, str]]:
+    """The sensor's nuisances, each with how it is to be fitted: ``hold`` (asked, or given by the
+    session and not freed), ``free`` (asked, or without a nominal value) or ``auto``; a name that is not
+    one of them is refused, naming those that are."""
+    nuisances = list(getattr(sensor, "nuisances", ()))
+    names = [n.name for n in nuisances]
+    for asked in (*hold, *free):
+        if asked not in names:
+            known = ", ".join(names) if names else "none"
+            raise InputMismatchError(f"{asked!r} is not an unknown of this {sensor.kind} ({sensor.target}) that can be held or "
+                                     f"freed: its are {known}")
+    both = sorted(set(hold) & set(free))
+    if both:
+        raise InputMismatchError(f"{', '.join(both)}: asked both held and freed; say one")
+    out = []
+    for n in nuisances:
+        if n.name in hold:
+            if n.nominal is None:
+                raise InputMismatchError(f"{n.name}: has no value to be held at (give it in session.yaml), or let it be fitted")
+            out.append((n, "hold"))
+        elif n.name in free or n.nominal is None:
+            out.append((n, "free"))
+        else:
+            out.append((n, "hold" if n.given else "auto"))
+    return out
+
+
+def _with_nuisances(sensor: SensorModel, robot: RobotModel, hold, free, uncertainty: bool,
+                    start: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+                    ) -> tuple[_Checked, NDArray[np.float64] | None, list[tuple[Nuisance, str, str]]]:
+    """The fit (:func:`_prepared`) with the sensor's nuisances held where asked or given, and each
+    ``auto`` one held too when the capture does not determine it: its std (widened by the jackknife,
+    which sees a nuisance that trades against X from view to view) beyond :data:`NUISANCE_SHARE` of
+    its tolerance, the worst first, refitted after each. Returns the fit, its jackknife and per
+    nuisance its status ('fitted', 'held' or 'given') and why."""
+    modes = _nuisance_modes(sensor, hold, free)
+    start = _start(sensor, robot) if start is None else start
+    why: dict[str, tuple[str, str]] = {}
+    for n, mode in modes:
+        if mode == "hold":
+            why[n.name] = ("given", "the session gives it") if n.given and n.name not in hold else ("held", "held as asked")
+    checked = None
+    while True:
+        held = {n.index: float(n.nominal) for n, _ in modes if n.name in why}
+        checked = _prepared(sensor, robot, start, held, checked)
+        jack = _jackknife(checked.problem, checked.full, checked.views) if uncertainty else None
+        std = np.sqrt(np.clip(np.diag(checked.problem.full_cov_p(_widen(checked.full.cov, jack)[0])), 0.0, None))
+        open_ = [(std[n.index] / n.tolerance, n) for n, mode in modes if mode == "auto" and n.name not in why]
+        worst = max(open_, key=lambda item: item[0], default=None)
+        if worst is None or worst[0] <= NUISANCE_SHARE:
+            break
+        ratio, n = worst
+        why[n.name] = ("held", f"the capture does not determine it: fitted, its std would be "
+                               f"{_amount(n.scale * std[n.index], n.unit)}, {ratio:.1f}x the "
+                               f"{_amount(n.scale * n.tolerance, n.unit)} a real one may be off by")
+    out = [(n, *why[n.name]) if n.name in why else (n, "fitted", "the capture determines it" if mode == "auto" else
+                                                      "fitted as asked" if n.name in free else "it has no nominal value")
+           for n, mode in modes]
+    return checked, jack, out
+
+
+def _held_cov(problem: Problem, full: Fitted, held: list[Nuisance]) -> NDArray[np.float64]:
+    """X's covariance (6, 6) from the held nuisances' tolerances: how X would follow each if it were
+    off its held value, ``dX = -(J^T J)^-1 J^T j_h dh`` (``J``: the fit's whitened Jacobian; ``j_h``:
+    the whitened residuals' change with the held unknown, by a step of a thousandth of its tolerance)."""
+    jac = full.jac[:-problem.n_pinned] if problem.n_pinned else full.jac
+    measured = _measured(problem, full.rows, full.sigma, full.x)
+    F = problem.robot.flange2base(full.d)
+    f0 = measured(full.X, full.p, full.d, F)
+    cols = np.zeros((len(jac), len(held)))
+    for k, n in enumerate(held):
+        p = full.p.copy()
+        h = 1e-3 * n.tolerance
+        p[n.index] += h
+        cols[:len(f0), k] = (measured(full.X, p, full.d, F) - f0) / h * n.tolerance
+    S = -np.linalg.lstsq(jac, cols, rcond=None)[0]
+    return S[:6] @ S[:6].T
+
+
+def _unknowns(nuisances: list[tuple[Nuisance, str, str]], p: NDArray[np.float64], cov_p: NDArray[np.float64]
+              ) -> list[dict[str, Any]]:
+    """The result's record of the sensor's nuisances: each name, value and std as a user reads them,
+    unit, status and why."""
+    out = []
+    for n, status, why in nuisances:
+        std = float(np.sqrt(max(cov_p[n.index, n.index], 0.0))) * abs(n.scale) if status == "fitted" else None
+        value = p[n.index] if status == "fitted" or n.nominal is None else n.nominal
+        out.append({"name": n.name, "value": n.shown(value), "std": std, "unit": n.unit, "status": status, "why": why,
+                    "tolerance": n.tolerance * abs(n.scale)})
+    return out
+
+
+def _figures_with(figures: dict[str, Any], nuisances: list[tuple[Nuisance, str, str]]) -> dict[str, Any]:
+    """The sensor's figures with each nuisance's entry (a mapping under its name, or its name with the
+    unit's suffix) saying whether it was fitted."""
+    out = dict(figures)
+    for n, status, _ in nuisances:
+        for key in (n.name, f"{n.name}_mm", f"{n.name}_px", f"{n.name}_s"):
+            if isinstance(out.get(key), dict):
+                out[key] = dict(out[key], fitted=status == "fitted", status=status)
+    return out
+
+
+def _nuisance_notes(unknowns: list[dict[str, Any]]) -> list[str]:
+    """A note per held nuisance: its value, why, and that X holds with it and its std takes its tolerance."""
+    return [f"{u['name']} held at {_amount(u['value'], u['unit'], '.6g')} ({u['why']}): X holds with this value, and its std "
+            f"includes the {_amount(u['tolerance'], u['unit'])} a real one may be off by; free it by name (--free {u['name']}, or "
+            f"unknowns: {{{u['name']}: free}} in session.yaml) once a capture determines it"
+            for u in unknowns if u["status"] != "fitted"]
+
+
+def _amount(value: float, unit: str, spec: str = ".3g") -> str:
+    """``value`` with its ``unit`` (none for a ratio), for a note."""
+    return f"{value:{spec}} {unit}" if unit else f"{value:{spec}}"
+
+
 #: What a fit holds at given values and X takes whole (:func:`estimate`'s ``held``): at the fitted X and
 #: ``p``, the name of X's std source, X's covariance (6, 6) from it, and a note for people.
 Held = Callable[[NDArray[np.float64], NDArray[np.float64]], tuple[str, NDArray[np.float64], str]]
@@ -1170,7 +1574,9 @@ Held = Callable[[NDArray[np.float64], NDArray[np.float64]], tuple[str, NDArray[n
 
 @on_one_blas_thread  # narrow matrices: a second BLAS thread waits more than it works
 def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *, uncertainty: bool = True,
-             method: str | None = None, held: Held | None = None) -> Calibration:
+             method: str | None = None, held: Held | None = None, hold: tuple[str, ...] | list[str] = (),
+             free: tuple[str, ...] | list[str] = (),
+             start: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None) -> Calibration:
     """X (and the target's pose, the sensor's and the robot's unknowns) from ``sensor`` and ``robot``:
     the module docstring's steps, one :class:`~handeye.result.Calibration` with the verdict.
 
@@ -1192,6 +1598,14 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
         table: :func:`handeye.pipelines._arm.arm_table`): at the fit, ``held(X, p)`` gives the name
         of the std source, X's covariance from them and a note; added to X's covariance before the
         verdict judges its std.
+    hold, free : sequence of str
+        The sensor's nuisances (:class:`~handeye.sensors.base.Nuisance`: ``depth_scale``, ``radius``,
+        ...) to hold at their nominal or given value, or to fit whatever the capture; the others are
+        fitted where the capture determines them (their std below :data:`NUISANCE_SHARE` of their
+        tolerance) and held otherwise, a given value held. X's std takes a held one's tolerance.
+    start : (X, p), optional
+        X and the sensor's unknowns to start from (default the sensor's own start on ``robot``'s
+        poses: the readings' check has made it already, :func:`~handeye.estimation.readings.check_readings`).
 
     Raises
     ------
@@ -1211,22 +1625,23 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
         raise HandEyeError(f"{sensor.kind} ({sensor.target}): whole poses have no stated noise to judge the fit against; "
                            "calibrate them with handeye.calibrate_poses (the pose check, then the estimator that predicts "
                            "held-out poses best), or fit them with handeye.estimation.core.fit")
-    checked = _prepared(sensor, robot)
+    checked, jack, nuisances = _with_nuisances(sensor, robot, hold, free, uncertainty, start)
     problem, full, views = checked.problem, checked.full, checked.views
     _, n_p, _ = problem.sizes
     F = robot.flange2base(full.d)
     per_view = view_rms_mm(problem, full, views)
     fit_mm = float(np.sqrt(np.nanmean(per_view**2)))
-    table, n_folds, held_mm = ({}, 0, None) if not uncertainty else _cross_validation(problem, full, views, folds)
+    table, n_folds, held_mm, n_fresh, alone = (({}, 0, None, 0, []) if not uncertainty else
+                                               _cross_validation(problem, full, views, folds))
     heldout = table.get(_name(robot), {}).get("mm") if table else None
-    jack = _jackknife(problem, full, views) if uncertainty else None
     cov, widened = _widen(full.cov, jack)
-    cov_p = cov[6:6 + n_p, 6:6 + n_p]
+    cov_p = problem.full_cov_p(cov)
     accuracy = robot.accuracy if isinstance(robot, ControllerPoses) else None
     verdict, advice, score = _verdict(problem, full, fit_mm, heldout, len(checked.left_out), len(sensor.names), accuracy)
     names = list(sensor.names)
-    fix = ("views that turn the flange about that axis, or move it along that direction, between measurements determine "
-           "it; or give it (known=)")
+    fix = getattr(sensor, "undetermined_fix", None) or (
+        "views that turn the flange about that axis, or move it along that direction, between measurements determine it; "
+        "or give it (known=)")
     unobs = _unobservable(problem.pins, full.X, sensor.setup, fix)
     if unobs and verdict == "good":
         verdict = "partial"
@@ -1235,15 +1650,26 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
     diag = Diagnostics(verdict=verdict, advice=advice, outliers=[int(v) for v, _ in checked.left_out],
                        consistency=score, consistency_limit=FIT_FACTOR, n_poses=len(names), names=names)
     sections = sensor.sections(full.X, full.p, F, views) if hasattr(sensor, "sections") else None
-    figures = sensor.figures(full.p, cov_p)
+    figures = _figures_with(sensor.figures(full.p, cov_p), nuisances)
     if hasattr(sensor, "joint_figures"):  # figures that need X's covariance with the sensor's unknowns (a rig's)
-        figures = figures | sensor.joint_figures(full.X, full.p, cov[:6 + n_p, :6 + n_p], F, full.rows)
+        figures = figures | sensor.joint_figures(full.X, full.p, problem.full_cov_xp(cov), F, full.rows)
+    unknowns = _unknowns(nuisances, full.p, cov_p)
     record = SensorFit(sensor.kind, sensor.target, [names[v] for v in views], per_view, fit_mm,
-                       figures, int(len(full.rows)), int((~full.kept).sum()), held_mm, sections, np.array(full.p, float))
+                       figures, int(len(full.rows)), int((~full.kept).sum()), held_mm, sections, np.array(full.p, float),
+                       unknowns)
     notes = [f"{sensor.kind} ({sensor.target}): {len(full.rows)} measurements fitted "
              f"({int((~full.kept).sum())} set aside beyond {REJECT:g} std), {fit_mm:.3f} mm RMS, with {robot.describe}"]
     notes += [f"view {names[v]} left out: {why}" for v, why in checked.left_out] + sensor.notes(full.p, cov_p)
+    notes += _nuisance_notes(unknowns)
     notes += _weakest(cov[:6, :6], problem.pins, sensor.setup)
+    if alone:
+        notes.append(f"{len(alone)} view(s) not predicted when held out ({', '.join(names[k] for k in alone[:5])}): "
+                     "without each, the other views leave a direction of X almost undetermined (that view alone determines it: "
+                     "take more views like it)")
+    if n_folds:
+        notes.append(f"held-out error: {n_fresh} of {n_folds} folds fitted from a start of their own (as a capture of only "
+                     "their views would be), " + ("the others one step from the fit on all views" if n_fresh < n_folds else
+                                                  "all of them") + " (docs/guide.md, the held-out error)")
     cal = Calibration(
         X=full.X, Z=sensor.Z(full.X, full.p), setup=sensor.setup,
         method=method or f"{sensor.kind} ({sensor.target}) fit",
@@ -1260,6 +1686,10 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
     data_cov = _widen(full.cov[:6, :6], None if jack is None else jack[:6, :6])[0]
     cal = widened_uncertainty(cal, None if jack is None else jack[:6, :6], accuracy, seen_mm=_robot_error_seen(
         problem, full, views, per_view) if accuracy is not None else None, sensor=sensor.kind)
+    held_unknowns = [n for n, status, _ in nuisances if status != "fitted"]
+    if held_unknowns:
+        cov_held = _held_cov(problem, full, held_unknowns)
+        cal = replace(cal, cov=cal.cov + cov_held, std_sources=dict(cal.std_sources, held_unknowns=std_deg_mm(cov_held)))
     if held is not None:
         source, cov_held, note = held(full.X, full.p)
         cal = replace(cal, cov=cal.cov + cov_held, std_sources=dict(cal.std_sources, **{source: std_deg_mm(cov_held)}),

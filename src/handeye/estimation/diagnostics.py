@@ -46,7 +46,7 @@ from ..solvers.refine import pose_mahalanobis, refine_pose
 from .validation import fold_indices
 
 __all__ = ["Diagnostics", "RobotPoseInput", "diagnose", "find_outliers", "consistency_score", "closed_form",
-           "compare_solvers", "board_scale", "scale_is_off"]
+           "compare_solvers", "board_scale", "scale_is_off", "pose_alternatives"]
 
 #: Consistency score (below) up to which data count as consistent.
 CONSISTENT = 3.0
@@ -113,7 +113,7 @@ def consistency_score(flange2base, target2cam, setup: str, kind: str | None = No
     return float(max(rot / ROT_UNIT_DEG, tra / TRANS_UNIT))
 
 
-def _alternatives(pose_input: RobotPoseInput) -> list[tuple[str, dict]]:
+def pose_alternatives(pose_input: RobotPoseInput) -> list[tuple[str, dict]]:
     """The usual mistakes in declaring poses as written: the other length unit, angle unit,
     quaternion order and Euler sequences: (hint, the changed declaration)."""
     fmt, lu, au = pose_input.format, pose_input.length_unit, pose_input.angle_unit
@@ -166,12 +166,12 @@ def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None, camer
             f[:, :3, 3] *= s
             out[hint] = (f, relabelled(f))
     else:
-        for hint, change in _alternatives(robot_input):
+        for hint, change in pose_alternatives(robot_input):
             f = _reread(robot_input, change)
             if f is not None:
                 out[hint] = (f, relabelled(f))
     if camera_input is not None:
-        for hint, change in _alternatives(camera_input):
+        for hint, change in pose_alternatives(camera_input):
             t = _reread(camera_input, change)
             if t is not None:
                 out[f"camera:{hint}"] = (flange2base, t)

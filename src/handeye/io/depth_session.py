@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from ..errors import SessionError
+from ..frames.poses import RobotPoseInput
 from ..frames.setups import check_setup, setup_info
 from ..geometry.se3 import make_transform
 from ..robot.kinematics import Chain
@@ -32,6 +33,7 @@ from .session import (
     read_joints,
     read_robot_poses,
     read_session_yaml,
+    read_unknowns,
 )
 
 __all__ = ["DepthSession", "MeshTarget", "ArmTarget", "is_depth_session", "load_depth_session", "rig_depth", "arm_hand",
@@ -69,6 +71,9 @@ class DepthSession:
     mesh: MeshTarget | None = None
     #: the arm itself as the target (``type: arm``): its hand and fingers; the joint angles pose it
     arm_target: ArmTarget | None = None
+    #: the pose table's rows as written, with their declaration (None without a pose table)
+    pose_input: RobotPoseInput | None = None
+    unknowns: dict[str, str] = field(default_factory=dict)  #: session.yaml's ``unknowns:`` (hold, free or auto by name)
 
     @property
     def kind(self) -> str:
@@ -248,7 +253,7 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     folder, spec, where, notes = read_session_yaml(folder)
     if spec.get("depth") is None:
         raise SessionError(f"{where}: no depth: mapping; a depth session says its clouds' unit there")
-    check_session_keys(spec, ("setup", "target", "camera", "depth", "poses", "joints"),
+    check_session_keys(spec, ("setup", "target", "camera", "depth", "poses", "joints", "unknowns"),
                        {"depth": ("unit", "range"), "poses": POSES_KEYS, "camera": CAMERA_KEYS, "joints": JOINTS_KEYS}, where)
     setup = check_setup(str(spec.get("setup", "")))
     target = spec.get("target")
@@ -262,9 +267,10 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     K, dist = read_camera(spec.get("camera"), where)
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("image", "cloud")) if spec.get("joints") else None
     if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
-        names, table, f2b = joints[0], joints[3], joints[2].forward(joints[1])
+        names, table, f2b, pose_input = joints[0], joints[3], joints[2].forward(joints[1]), None
     else:
-        f2b, names, table = read_robot_poses(folder, spec.get("poses"), where, notes, ("image", "cloud"), FIRST_COLUMN)
+        f2b, names, table, pose_input = read_robot_poses(folder, spec.get("poses"), where, notes, ("image", "cloud"),
+                                                         FIRST_COLUMN)
     q = None if joints is None else joints_of_views(joints, names)
     clouds = _clouds_of(folder, names, table)
     images = None
@@ -275,7 +281,7 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
             raise SessionError(f"{folder / 'images'}: image file(s) missing: {', '.join(missing[:10])}")
     return DepthSession(folder, setup, dict(target), list(names), clouds, images, f2b, K, dist, unit, working, radii, notes,
                         None if joints is None else q, None if joints is None else joints[2],
-                        None if joints is None else joints[3], mesh, arm_target)
+                        None if joints is None else joints[3], mesh, arm_target, pose_input, read_unknowns(spec, where))
 
 
 #: The keys of a rig's depth camera (:mod:`handeye.io.rig_session`).

@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import SessionError
+from ..frames.poses import RobotPoseInput
 from ..frames.setups import check_setup
 from ..robot.kinematics import Chain
 from ..sensors.laser.model import LASER_NOISE_M
@@ -53,13 +54,14 @@ from .session import (
     read_joints,
     read_robot_poses,
     read_session_yaml,
+    read_unknowns,
 )
 
 __all__ = ["LaserSession", "is_laser_session", "load_laser_session", "rig_laser", "LASER_KEYS", "TARGET_TYPES"]
 
 #: The keys of ``laser:``, and of session.yaml around it.
 LASER_KEYS = ("unit", "range", "noise")
-SESSION_KEYS = ("setup", "laser", "target", "poses", "joints")
+SESSION_KEYS = ("setup", "laser", "target", "poses", "joints", "unknowns")
 #: The targets a laser session can scan.
 TARGET_TYPES = ("sphere", "plane", "edge", "step", "spheres")
 #: The keys of each target.
@@ -87,6 +89,8 @@ class LaserSession:
     joints_path: Path | None = None
     target: str = "sphere"  #: one of :data:`TARGET_TYPES`
     radii: tuple[float, ...] | None = None  #: a fixture's balls' radii (m), one per ball (``type: spheres``)
+    pose_input: RobotPoseInput | None = None  #: the pose table's rows as written, with their declaration
+    unknowns: dict[str, str] = field(default_factory=dict)  #: session.yaml's ``unknowns:`` (hold, free or auto by name)
 
     @property
     def input_files(self) -> list[Path]:
@@ -189,14 +193,15 @@ def load_laser_session(folder: str | Path, arm: str | None = None) -> LaserSessi
     target, radius, radii = _target(spec.get("target"), where)
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("profile",)) if spec.get("joints") else None
     if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
-        names, f2b = list(joints[0]), joints[2].forward(joints[1])
+        names, f2b, pose_input = list(joints[0]), joints[2].forward(joints[1]), None
     else:
-        f2b, names, _ = read_robot_poses(folder, spec.get("poses"), where, notes, ("profile",),
+        f2b, names, _, pose_input = read_robot_poses(folder, spec.get("poses"), where, notes, ("profile",),
                                          "'profile', naming each pose's profile file in profiles/")
     q = None if joints is None else joints_of_views(joints, names)
     paths = _profiles_of(folder / "profiles", names)
     return LaserSession(folder, setup, dict(spec["target"]), list(names), paths, f2b, unit, working, noise, radius, notes,
-                        q, None if joints is None else joints[2], None if joints is None else joints[3], target, radii)
+                        q, None if joints is None else joints[2], None if joints is None else joints[3], target, radii,
+                        pose_input, read_unknowns(spec, where))
 
 
 def rig_laser(folder: Path, setup: str, names: list[str], flange2base: NDArray[np.float64], laser: Any, profiles: Path,

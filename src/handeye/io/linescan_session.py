@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import InputMismatchError, SessionError
+from ..frames.poses import RobotPoseInput
 from ..frames.setups import check_setup
 from ..robot.kinematics import Chain, check_joints_against_poses, joints_at
 from ..sensors.camera.targets import target_from_spec
@@ -57,6 +58,8 @@ from .session import (
     read_joint_trajectory,
     read_pose_table,
     read_session_yaml,
+    read_unknowns,
+    robot_pose_input,
     time_unit_scale,
 )
 
@@ -89,6 +92,9 @@ class LineScanSession:
     joints: NDArray[np.float64] | None = None
     arm: Chain | None = None
     joints_path: Path | None = None
+    #: without joints: the pose table's rows as written, with their declaration
+    pose_input: RobotPoseInput | None = None
+    unknowns: dict[str, str] = field(default_factory=dict)  #: session.yaml's ``unknowns:`` (hold, free or auto by name)
 
     @property
     def input_files(self) -> list[Path]:
@@ -125,7 +131,7 @@ def load_linescan_session(folder: str | Path, arm: str | None = None) -> LineSca
     folder, spec, where, notes = read_session_yaml(folder)
     if not isinstance(spec.get("linescan"), dict):
         raise SessionError(f"{where}: no linescan: mapping (width, line_rate, focal)")
-    check_session_keys(spec, ("setup", "target", "linescan", "poses", "joints", "images"),
+    check_session_keys(spec, ("setup", "target", "linescan", "poses", "joints", "images", "unknowns"),
                        {"linescan": LINESCAN_KEYS, "poses": POSES_KEYS, "joints": TRAJECTORY_JOINTS_KEYS,
                         "images": IMAGES_KEYS}, where)
     setup = check_setup(str(spec.get("setup", "")))
@@ -143,7 +149,7 @@ def load_linescan_session(folder: str | Path, arm: str | None = None) -> LineSca
     noise = float(ls.get("noise", LINESCAN_NOISE_PX))
     if not 0 < noise < 50:
         raise SessionError(f"{where}: linescan: noise {noise:g}: the corners' noise in pixels (e.g. 0.2)")
-    joints = chain = joints_path = None
+    joints = chain = joints_path = pose_input = None
     if spec.get("joints") is not None:
         times, joints, chain, joints_path = read_joint_trajectory(folder, spec["joints"], where, notes, arm)
         trajectory, f2b = joints_path, chain.forward(joints)  # the nominal table's poses: the arm's error is fitted
@@ -160,6 +166,7 @@ def load_linescan_session(folder: str | Path, arm: str | None = None) -> LineSca
         pose_times = np.asarray(pose_times, float) * time_unit_scale(poses, f"{where}: poses")
         if joints is None:
             trajectory, times, f2b = table, pose_times, flange_poses_of(values, poses, table, where)
+            pose_input = robot_pose_input(values, poses, where)
         else:
             notes.append(_poses_against_joints(flange_poses_of(values, poses, table, where), pose_times, times, joints,
                                                chain, joints_path))
@@ -174,7 +181,8 @@ def load_linescan_session(folder: str | Path, arm: str | None = None) -> LineSca
                            f"{', '.join(outside[:5])} start outside it: give the trajectory around every scan, on a clock "
                            "within a fraction of a second of the camera's (images.csv's time)")
     return LineScanSession(folder, setup, dict(spec["target"]), list(names), paths, np.asarray(starts, float), times, f2b,
-                           int(width), line_rate, focal, noise, notes, joints, chain, joints_path)
+                           int(width), line_rate, focal, noise, notes, joints, chain, joints_path, pose_input,
+                           read_unknowns(spec, where))
 
 
 def _poses_against_joints(flange2base: NDArray[np.float64], pose_times: NDArray[np.float64], times: NDArray[np.float64],

@@ -89,7 +89,8 @@ def _sensor(data: dict) -> SensorFit | None:
     held = s.get("heldout_mm")
     return SensorFit(s["kind"], s["target"], list(s["views"]), np.asarray(s["residual_mm"], float), float(s["fit_rms_mm"]),
                      dict(s.get("figures") or {}), int(s.get("points", 0)), int(s.get("rejected_points", 0)),
-                     None if held is None else np.array([np.nan if v is None else v for v in held], float))
+                     None if held is None else np.array([np.nan if v is None else v for v in held], float),
+                     unknowns=list(s.get("unknowns") or []))
 
 
 def _unobservable(data: dict) -> Observability:

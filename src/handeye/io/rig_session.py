@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 
 from .._shared.text import summarize
 from ..errors import SessionError
+from ..frames.poses import RobotPoseInput
 from ..frames.setups import check_setup
 from ..robot.kinematics import Chain
 from ..sensors.camera.targets import target_from_spec
@@ -66,6 +67,7 @@ from .session import (
     read_joints,
     read_robot_poses,
     read_session_yaml,
+    read_unknowns,
 )
 
 __all__ = ["RigSession", "RigSensor", "load_rig_session", "is_rig_session", "SENSOR_KEYS", "IMAGE_SUFFIXES"]
@@ -132,6 +134,8 @@ class RigSession:
     joints: NDArray[np.float64] | None = None
     arm: Chain | None = None
     joints_path: Path | None = None
+    pose_input: RobotPoseInput | None = None  #: the pose table's rows as written, with their declaration
+    unknowns: dict[str, str] = field(default_factory=dict)  #: session.yaml's ``unknowns:`` (hold, free or auto by name)
 
     @property
     def input_files(self) -> list[Path]:
@@ -178,16 +182,16 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
     sensors = spec.get("sensors")
     if not isinstance(sensors, dict) or len(sensors) < 2:
         raise SessionError(f"{where}: sensors must map two sensor names or more to their camera and images folder")
-    check_session_keys(spec, ("setup", "target", "poses", "joints", "sensors"), {"poses": POSES_KEYS, "joints": JOINTS_KEYS},
-                       where)
+    check_session_keys(spec, ("setup", "target", "poses", "joints", "sensors", "unknowns"),
+                       {"poses": POSES_KEYS, "joints": JOINTS_KEYS}, where)
     setup = check_setup(str(spec.get("setup", "")))
     if any(isinstance(b, dict) and not {"laser", "depth"} & set(b) for b in sensors.values()):  # the cameras' board
         target_from_spec(spec.get("target"), where=f"{where}: target")
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("view",)) if spec.get("joints") else None
     if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
-        names, f2b = list(joints[0]), joints[2].forward(joints[1])
+        names, f2b, pose_input = list(joints[0]), joints[2].forward(joints[1]), None
     else:
-        f2b, names, _ = read_robot_poses(folder, spec.get("poses"), where, notes, ("view",), "view")
+        f2b, names, _, pose_input = read_robot_poses(folder, spec.get("poses"), where, notes, ("view",), "view")
     out = []
     for name, block in sensors.items():
         at = f"{where}: sensors: {name}"
@@ -217,4 +221,5 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
                          "views are not its")
     q = None if joints is None else joints_of_views(joints, names)
     return RigSession(folder, setup, dict(spec.get("target") or {}), list(names), f2b, out, notes, q,
-                      None if joints is None else joints[2], None if joints is None else joints[3])
+                      None if joints is None else joints[2], None if joints is None else joints[3], pose_input,
+                      read_unknowns(spec, where))

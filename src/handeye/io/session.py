@@ -63,7 +63,8 @@ __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
            "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session", "write_joint_table",
            "load_joint_stream", "load_camera_stream", "write_joint_stream", "read_image_times", "time_unit_scale",
-           "parsed_poses", "pose_table_path", "flange_poses_of", "files_of_views", "IMAGE_ORDER"]
+           "parsed_poses", "pose_table_path", "flange_poses_of", "files_of_views", "IMAGE_ORDER", "robot_pose_input",
+           "read_unknowns", "UNKNOWN_MODES"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
 SESSION_FILE = "session.yaml"
@@ -581,6 +582,30 @@ def check_session_keys(spec: dict, top: tuple[str, ...], blocks: dict[str, tuple
         check_keys(spec.get(key), known, f"{where}: {key}")
 
 
+#: What ``unknowns:`` in session.yaml may say of each of a sensor's unknowns beside X (its depth scale and
+#: bias, a ball's radius, a line-scan camera's focal length, ...: :class:`~handeye.sensors.base.Nuisance`).
+UNKNOWN_MODES = ("auto", "hold", "free")
+
+
+def read_unknowns(spec: dict, where: str) -> dict[str, str]:
+    """session.yaml's ``unknowns:`` block (optional): per unknown's name (``depth_scale``, ``radius``,
+    ...) whether the fit holds it at its nominal or given value (``hold``), fits it whatever the
+    capture (``free``) or fits it where the capture determines it (``auto``, the default). The names
+    are checked against the sensor's own when it is fitted."""
+    block = spec.get("unknowns")
+    if block is None:
+        return {}
+    if not isinstance(block, dict):
+        raise SessionError(f"{where}: unknowns must be a mapping of an unknown's name to hold, free or auto, e.g. "
+                           "unknowns: {depth_scale: hold}")
+    out = {}
+    for name, mode in block.items():
+        if str(mode) not in UNKNOWN_MODES:
+            raise SessionError(f"{where}: unknowns: {repr(name)[:40]}: {repr(mode)[:40]}; say hold, free or auto")
+        out[str(name)] = str(mode)
+    return out
+
+
 def pose_rows_inverted(poses: dict, where: str) -> bool:
     """Whether a ``poses:`` block says its rows are the inverses of the flange poses
     (``pose: base2flange``; the default ``flange2base``: the controller's poses as it reports them)."""
@@ -592,16 +617,23 @@ def pose_rows_inverted(poses: dict, where: str) -> bool:
 
 
 def read_robot_poses(folder: Path, poses: Any, where: str, notes: list[str], id_columns: tuple[str, ...],
-                     first_column: str) -> tuple[NDArray[np.float64], list[str], Path]:
+                     first_column: str) -> tuple[NDArray[np.float64], list[str], Path, RobotPoseInput]:
     """A sensor session's ``poses:`` block (``file``, ``format``, ``length_unit``, ``angle_unit``,
     ``pose``): the flange poses (inverted when the rows are base2flange), each view's name (the
     table's first column, one of ``id_columns``; ``first_column`` says what it must be when it is
-    missing) and the table's path."""
+    missing), the table's path and the rows as written with their declaration (other readings of
+    them are tried when they fit nothing: :mod:`handeye.estimation.readings`)."""
     table = pose_table_path(folder, poses, where)
     values, names = read_pose_table(table, str(poses["format"]), id_columns=id_columns, notes=notes)
     if names is None:
         raise SessionError(f"{table}: the first column must be {first_column}")
-    return flange_poses_of(values, poses, table, where), list(names), table
+    return flange_poses_of(values, poses, table, where), list(names), table, robot_pose_input(values, poses, where)
+
+
+def robot_pose_input(values: NDArray[np.float64], poses: dict, where: str) -> RobotPoseInput:
+    """A pose table's rows ``values`` with the ``poses:`` block's declaration (format, units, inverted)."""
+    return RobotPoseInput(np.asarray(values, float), str(poses["format"]), str(poses["length_unit"]),
+                          str(poses.get("angle_unit", "rad")), pose_rows_inverted(poses, where))
 
 
 def pose_table_path(folder: Path, poses: Any, where: str, what: str = "") -> Path:

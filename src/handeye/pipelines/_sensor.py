@@ -2,13 +2,21 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
-from ..errors import InputMismatchError
-from ..options import CalibrationOptions, options_from
-from ..robot.models import ControllerPoses, JointAngles, RobotModel
+import numpy as np
+from numpy.typing import NDArray
 
-__all__ = ["sensor_options", "robot_model"]
+from ..errors import InputMismatchError
+from ..estimation.core import estimate
+from ..estimation.readings import Reading, check_readings
+from ..options import CalibrationOptions, options_from
+from ..result import Calibration
+from ..robot.models import ControllerPoses, JointAngles, RobotModel
+from ..sensors.base import SensorModel
+
+__all__ = ["sensor_options", "robot_model", "held_and_freed", "estimate_checked"]
 
 #: The options of image and pose sessions that a sensor model's fit has no use for.
 IMAGE_ONLY = ("method", "refine", "pairs", "known", "robot_noise", "compliance", "strict_images", "keyframes",
@@ -56,3 +64,26 @@ def robot_model(session: Any, index: list[int], options: CalibrationOptions) -> 
                                  "angles with the arm's table; the session has none (a joints: table in session.yaml): "
                                  "leave compliance out")
     return ControllerPoses(session.flange2base[index], options.robot_accuracy)
+
+
+def held_and_freed(session: Any, options: CalibrationOptions) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The sensor's unknowns to hold and to free: session.yaml's ``unknowns:`` (``session.unknowns``),
+    overridden by the options' ``hold`` and ``free`` (the command line's ``--hold``, ``--free``)."""
+    modes = dict(getattr(session, "unknowns", {}) or {})
+    modes |= {name: "hold" for name in options.hold} | {name: "free" for name in options.free}
+    return (tuple(n for n, m in modes.items() if m == "hold"), tuple(n for n, m in modes.items() if m == "free"))
+
+
+def estimate_checked(model: SensorModel, robot: RobotModel, session: Any, options: CalibrationOptions,
+                     index: list[int] | NDArray[np.intp] | None = None,
+                     rebuild: Callable[[Reading], tuple[SensorModel, RobotModel]] | None = None, **kw: Any) -> Calibration:
+    """The core's fit of a sensor session (:func:`~handeye.estimation.core.estimate`), after the robot
+    poses as declared are checked against the other readings of them on a cheap start
+    (:func:`~handeye.estimation.readings.check_readings`: a wrong Euler sequence, quaternion order, unit,
+    inversion or setup is named before any fit), with the unknowns held and freed as the session and
+    the options say (:func:`held_and_freed`). ``index``: the session's views (rows of its pose table)
+    the model's views are (default all)."""
+    start = check_readings(model, robot, session.pose_input, session.flange2base, None if index is None else np.asarray(index),
+                           rebuild)
+    hold, free = held_and_freed(session, options)
+    return estimate(model, robot, options.folds, hold=hold, free=free, start=start, **kw)

@@ -66,6 +66,7 @@ from ..sensors.depth.clouds import depth_sigma
 from ..sensors.depth.registration import MIN_INLIERS, find_shape
 from ..sensors.depth.shape import voxel_pick
 from ._arm import arm_table, table_tolerance
+from ._sensor import held_and_freed
 from .mesh import read_scene
 
 __all__ = ["ArmClouds", "arm_of_session", "read_arm_clouds", "start_arm", "pooled_start", "consistent_arm_views", "segment_arm",
@@ -362,13 +363,15 @@ def calibrate_arm_depth_session(s: DepthSession, options: CalibrationOptions, *,
     c, X, notes = start_arm(s, arm, c, jobs)
     points = segment_arm(arm, c, X)
     names, joints = [s.names[k] for k in c.index], s.joints[c.index]
+    hold, free = held_and_freed(s, options)
     if fit_table:
         length, angle, _ = table_tolerance(s.arm)
         model = ArmSurface(s.setup, names, arm.subset(c.index), points, X, fit_depth, joints)
-        cal = estimate(model, JointAngles(s.arm, joints, length_prior=length, angle_prior=angle), options.folds)
+        cal = estimate(model, JointAngles(s.arm, joints, length_prior=length, angle_prior=angle), options.folds, hold=hold,
+                       free=free)
     else:
         model = ArmSurface(s.setup, names, arm.subset(c.index), points, X, fit_depth)
-        cal = estimate(model, ControllerPoses(s.flange2base[c.index], options.robot_accuracy), options.folds,
+        cal = estimate(model, ControllerPoses(s.flange2base[c.index], options.robot_accuracy), options.folds, hold=hold, free=free,
                        held=arm_table(model, lambda X: to_base(X, model.measured), arm.meshes, s.arm, joints, "depth camera"))
     distances = [float(np.median(p[:, 2])) for p in points]
     used = {s.names[c.index[k]] for k in cal.pose_indices}

@@ -802,7 +802,7 @@ def calibrate(
     >>> cal.verdict, len(cal.image_names), cal.estimator is not None
     ('good', 12, True)
     """
-    opts = options_from(options, changes)  # bad options fail before any image work
+    opts = options_from(options, changes).for_images()  # bad options fail before any image work
     session = load_session(session_dir, strict_images=opts.strict_images, arm=opts.arm)
     if opts.compliance:
         raise InputMismatchError(f"{session.folder}: compliance=True fits the joints' compliance from joint angles with "

@@ -44,7 +44,7 @@ from ..sensors.camera import detect_images, target_from_spec
 from ..sensors.depth.clouds import check_frame, plane_points, read_cloud
 from ..sensors.depth.model import BoardPoints, SphereCentres
 from ..sensors.depth.spheres import find_spheres
-from ._sensor import robot_model, sensor_options
+from ._sensor import estimate_checked, robot_model, sensor_options
 from .arm_depth import calibrate_arm_depth_session
 from .mesh import calibrate_mesh_session
 
@@ -189,7 +189,7 @@ def calibrate_depth_session(folder: str | Path | DepthSession, options: Calibrat
         raise DegenerateMotionError(
             f"{len(v.index)} of {len(s.names)} views measured ({'; '.join(f'{n}: {r}' for n, r in v.skipped[:5])}): "
             "at least 3 are needed, 10-20 with the flange turned 30 deg or more about varied axes to trust X")
-    cal = estimate(sensor_model(s, v, fit_depth), robot_model(s, v.index, opts), opts.folds)
+    cal = estimate_checked(sensor_model(s, v, fit_depth), robot_model(s, v.index, opts), s, opts, v.index)
     return _with_session(cal, s, v)
 
 

@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DegenerateMotionError
-from ..estimation.core import estimate
 from ..io.laser_session import LaserSession, load_laser_session
 from ..options import CalibrationOptions
 from ..result import Calibration
@@ -33,7 +32,7 @@ from ..sensors.laser.edge import EdgeProfiles, StepProfiles
 from ..sensors.laser.model import Profiles, SphereProfiles, SpheresProfiles
 from ..sensors.laser.plane import PlaneProfiles
 from ..sensors.laser.profiles import read_profile
-from ._sensor import robot_model, sensor_options
+from ._sensor import estimate_checked, robot_model, sensor_options
 
 __all__ = ["calibrate_laser_session", "read_profiles", "laser_model", "MIN_POINTS"]
 
@@ -126,6 +125,6 @@ def calibrate_laser_session(folder: str | Path | LaserSession, options: Calibrat
             f"{len(kept)} of {len(s.names)} profiles usable{why}: at least 3 are needed, 15-20 with the flange turned "
             "10 deg or more about two or three axes to trust X")
     names = [s.names[k] for k in kept]
-    cal = estimate(laser_model(s, names, profiles), robot_model(s, kept, opts), opts.folds)
+    cal = estimate_checked(laser_model(s, names, profiles), robot_model(s, kept, opts), s, opts, kept)
     return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + notes + list(cal.notes),
                    input_folder=s.folder)

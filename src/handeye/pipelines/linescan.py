@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import DegenerateMotionError, InputMismatchError
-from ..estimation.core import estimate
+from ..estimation.readings import Reading
 from ..io.linescan_session import LineScanSession, load_linescan_session
 from ..options import CalibrationOptions
 from ..result import Calibration
@@ -31,7 +31,7 @@ from ..robot.models import ControllerPoses, JointTrajectory, PoseErrors, RobotMo
 from ..sensors.camera.detect import detect_images
 from ..sensors.camera.targets import target_from_spec
 from ..sensors.linescan.model import LineScanCorners, Trajectory
-from ._sensor import sensor_options
+from ._sensor import estimate_checked, sensor_options
 
 __all__ = ["calibrate_linescan_session", "grid_orderings", "linescan_robot", "linescan_joints"]
 
@@ -151,14 +151,24 @@ def calibrate_linescan_session(folder: str | Path | LineScanSession, options: Ca
         why = f" ({'; '.join(f'{n}: {r}' for n, r in skipped[:5])})" if skipped else ""
         raise DegenerateMotionError(f"{len(kept)} of {len(s.names)} scans show the target{why}: at least 3 are needed, "
                                     "10-15 with the flange turned 10 deg or more about two or three axes to trust X")
-    model = LineScanCorners(s.setup, [s.names[k] for k in kept], [found[k][0].image_points for k in kept],
-                            [found[k][0].object_points for k in kept], s.starts[kept], s.line_rate,
-                            Trajectory(s.times, s.flange2base), s.focal, s.width, s.noise_px, str(s.target_spec["type"]),
-                            # a grid found whole may be read in a mirrored order; a coded target's ids are its own
-                            grid_orderings(target.object_points()) if all(len(found[k][0]) == len(target.object_points())
-                                                                          for k in kept) else None)
-    cal = estimate(model, _robot(s, model, opts), opts.folds)
+    def rebuild(reading: Reading) -> tuple[LineScanCorners, RobotModel]:
+        """The scans as another reading of the trajectory's poses would place them."""
+        other = _scans_model(replace(s, setup=reading.setup, flange2base=reading.flange2base), kept, found, target)
+        return other, ControllerPoses(other.flange2base_ref, opts.robot_accuracy)
+
+    model = _scans_model(s, kept, found, target)
+    cal = estimate_checked(model, _robot(s, model, opts), s, opts, rebuild=None if s.joints is not None else rebuild)
     return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + list(cal.notes), input_folder=s.folder)
+
+
+def _scans_model(s: LineScanSession, kept: list[int], found: list, target) -> LineScanCorners:
+    """The scans ``kept`` of ``s`` (their detections ``found``) as a sensor model on the session's trajectory."""
+    return LineScanCorners(s.setup, [s.names[k] for k in kept], [found[k][0].image_points for k in kept],
+                           [found[k][0].object_points for k in kept], s.starts[kept], s.line_rate,
+                           Trajectory(s.times, s.flange2base), s.focal, s.width, s.noise_px, str(s.target_spec["type"]),
+                           # a grid found whole may be read in a mirrored order; a coded target's ids are its own
+                           grid_orderings(target.object_points()) if all(len(found[k][0]) == len(target.object_points())
+                                                                         for k in kept) else None)
 
 
 def _robot(s: LineScanSession, model: LineScanCorners, opts: CalibrationOptions) -> RobotModel:

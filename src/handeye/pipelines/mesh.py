@@ -28,8 +28,8 @@ from numpy.typing import NDArray
 from .._shared.progress import Progress
 from .._shared.threads import one_blas_thread
 from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
-from ..estimation.core import estimate
-from ..estimation.diagnostics import closed_form
+from ..estimation.core import estimate, start_from_poses
+from ..estimation.readings import check_readings
 from ..frames.metrics import rotation_error, translation_error
 from ..frames.setups import constant_transforms, predicted_target2cam, robot_world_A
 from ..geometry.se3 import invert, mean_transform
@@ -40,7 +40,7 @@ from ..sensors.depth.clouds import MAX_DEPTH_M, read_points
 from ..sensors.depth.mesh import MeshSurface
 from ..sensors.depth.registration import ShapeMatch, find_shape, refine_shape
 from ..sensors.depth.shape import Shape, load_shape
-from ._sensor import robot_model
+from ._sensor import held_and_freed, robot_model
 
 __all__ = ["MeshViews", "measure_mesh_session", "consistent_views", "mesh_model", "calibrate_mesh_session",
            "AGREE_DEG", "AGREE_SHARE"]
@@ -124,8 +124,8 @@ def _agreeing(F, T, setup, placement, tol_m: float) -> tuple[NDArray[np.bool_], 
         return best[0], mean_transform(Xi[best[0]]), placement
     for _ in range(min(80, n * (n - 1) * (n - 2) // 6)):
         pick = rng.choice(n, 3, replace=False)
-        try:
-            X, Z, _ = closed_form(F[pick], T[pick], setup, "daniilidis")
+        try:  # (pure translations: X's rotation from them, its translation left to the fit to name)
+            X, Z = start_from_poses(F[pick], T[pick], setup)
         except HandEyeError:
             continue
         rot, tra = _disagreement(X, Z, F, T, setup)
@@ -137,7 +137,7 @@ def _agreeing(F, T, setup, placement, tol_m: float) -> tuple[NDArray[np.bool_], 
     if agree.sum() < 3:
         raise DegenerateMotionError(f"no 3 of the {n} views' poses of the shape agree through the robot: check the poses' "
                                     "format and unit, the setup, and that the shape is the part that was scanned")
-    X, Z, _ = closed_form(F[agree], T[agree], setup, "daniilidis")
+    X, Z = start_from_poses(F[agree], T[agree], setup)
     return agree, X, Z
 
 
@@ -198,12 +198,16 @@ def calibrate_mesh_session(s: DepthSession, options: CalibrationOptions, *, fit_
         raise InputMismatchError(f"{s.folder}: the session's target is not a mesh")
     shape = load_shape(s.mesh.file, s.mesh.unit)
     v = measure_mesh_session(s, shape, progress, jobs)
+    if len(v.index) >= 3:  # the poses' reading checked on every view the shape was found in, before any is judged by them
+        check_readings(mesh_model(s, shape, v, fit_depth), robot_model(s, v.index, options), s.pose_input, s.flange2base,
+                       np.asarray(v.index))
     v = consistent_views(s, shape, v)
     if len(v.index) < 3:
         raise DegenerateMotionError(
             f"the shape is found in {len(v.index)} of {len(s.names)} clouds ({'; '.join(f'{n}: {r}' for n, r in v.skipped[:5])}): "
             "at least 3 are needed, 10-20 with the flange turned 30 deg or more about varied axes to trust X")
-    cal = estimate(mesh_model(s, shape, v, fit_depth), robot_model(s, v.index, options), options.folds)
+    hold, free = held_and_freed(s, options)
+    cal = estimate(mesh_model(s, shape, v, fit_depth), robot_model(s, v.index, options), options.folds, hold=hold, free=free)
     used = {s.names[v.index[k]] for k in cal.pose_indices}
     distances = [d for k, d in zip(v.index, v.distance) if s.names[k] in used]
     figures = dict(cal.sensor.figures, distance_m=distances)

@@ -22,6 +22,7 @@ import numpy as np
 from .._shared.io import files_digests_soon
 from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from ..estimation.core import WEAKEST_NOTE, estimate
+from ..estimation.readings import check_readings
 from ..estimation.uncertainty import robot_accuracy_cov
 from ..frames.metrics import std_deg_mm
 from ..io.rig_session import RigSensor, RigSession, load_rig_session
@@ -34,7 +35,7 @@ from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.targets import target_from_spec
 from ..sensors.depth.model import BoardPoints, SphereCentres
 from ..sensors.rig import Rig
-from ._sensor import robot_model, sensor_options
+from ._sensor import held_and_freed, robot_model, sensor_options
 from .depth import measure_depth_session
 from .laser import laser_model, read_profiles
 
@@ -66,14 +67,21 @@ class RigCalibration:
         return self.alone[name].X
 
 
-def _shared(robot: RobotModel) -> RobotModel:
-    """The robot of the joint fit: the controller's poses with each pose's error fitted when the robot
-    states its accuracy (the sensors share each pose's error, which then cancels in their relative
-    poses: measured, a stereo pair's relative pose 0.12 -> 0.03 mm with 0.01 deg / 0.05 mm of robot
-    error), else as given."""
-    if type(robot) is ControllerPoses and robot.accuracy is not None:
-        return PoseErrors(robot.poses, robot.accuracy)
-    return robot
+def _shared(robot: RobotModel, members: list[SensorModel]) -> RobotModel:
+    """The robot of the joint fit: the controller's poses with the error of each pose two sensors or
+    more saw fitted when the robot states its accuracy (the sensors share it, so it cancels in their
+    relative poses: measured, a stereo pair's relative pose 0.12 -> 0.03 mm with 0.01 deg / 0.05 mm of
+    robot error); a pose one sensor alone saw is left as reported (its error would take that sensor's
+    own measurements: two laser profilers that scanned a ball from poses of their own fitted each
+    profile to 0.01-0.03 mm where 0.16-0.18 mm was their noise, and through the controller's poses X
+    fitted 1.5x worse than one ball under both); else as given."""
+    if type(robot) is not ControllerPoses or robot.accuracy is None:
+        return robot
+    seen = np.zeros(robot.n_views, dtype=np.intp)
+    for m in members:
+        seen[np.unique(np.asarray(m.owner))] += 1
+    shared = np.flatnonzero(seen >= 2)
+    return PoseErrors(robot.poses, robot.accuracy, views=shared) if len(shared) else robot
 
 
 def _stated_mm(member: SensorModel) -> float:
@@ -81,8 +89,21 @@ def _stated_mm(member: SensorModel) -> float:
     return max(float(np.median(member.noise_mm(np.arange(len(member.owner))))), 1e-9)
 
 
+def _named(names: tuple[str, ...], member: SensorModel, sensor: str) -> tuple[str, ...]:
+    """Of the unknowns ``names`` (``radius``: every sensor's; ``laser_a.radius``: one sensor's), those of
+    ``member`` (sensor ``sensor``), as its own fit names them."""
+    own = {n.name for n in getattr(member, "nuisances", ())}
+    return tuple(dict.fromkeys(n.split(".", 1)[1] if n.startswith(f"{sensor}.") else n for n in names
+                               if (n in own) or (n.startswith(f"{sensor}.") and n.split(".", 1)[1] in own)))
+
+
+def _in_rig(names: tuple[str, ...], rig: Rig) -> tuple[str, ...]:
+    """The unknowns ``names`` as the rig's joint fit names them: each sensor's own (``<sensor>.<name>``)."""
+    return tuple(n.name for n in rig.nuisances if n.name in names or n.name.split(".", 1)[1] in names)
+
+
 def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: RobotModel, *, shared_target: bool = True,
-                  folds: int | None = None) -> RigCalibration:
+                  folds: int | None = None, hold: tuple[str, ...] = (), free: tuple[str, ...] = ()) -> RigCalibration:
     """Calibrate a rig (the module docstring).
 
     Parameters
@@ -97,6 +118,10 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
         The sensors see one target.
     folds : int, optional
         Cross-validation folds of the joint fit.
+    hold, free : tuple of str
+        The sensors' unknowns beside X to hold or to fit whatever the capture
+        (:func:`~handeye.estimation.core.estimate`): ``radius`` for every sensor's, ``laser_a.radius``
+        for one sensor's.
 
     Returns
     -------
@@ -121,11 +146,17 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
     if len(set(sensor_names)) != len(sensor_names):
         twice = sorted({n for n in sensor_names if sensor_names.count(n) > 1})
         raise InputMismatchError(f"sensor name(s) {', '.join(twice)} given twice: each sensor needs its own name")
+    every = {n.name for m, s in zip(members, sensor_names) for n in getattr(m, "nuisances", ())}
+    every |= {f"{s}.{n.name}" for m, s in zip(members, sensor_names) for n in getattr(m, "nuisances", ())}
+    unknown = [n for n in (*hold, *free) if n not in every]
+    if unknown:
+        raise InputMismatchError(f"{', '.join(unknown)}: not an unknown of the rig's sensors that can be held or freed; "
+                                 f"theirs are {', '.join(sorted(every)) or 'none'}")
     alone: dict[str, Calibration] = {}
     skipped: list[tuple[str, str]] = []
     for m, name in zip(members, sensor_names):
         try:
-            alone[name] = estimate(m, robot, folds)
+            alone[name] = estimate(m, robot, folds, hold=_named(hold, m, name), free=_named(free, m, name))
         except HandEyeError as e:
             skipped.append((name, str(e)))
     kept = [k for k, n in enumerate(sensor_names) if n in alone]
@@ -134,7 +165,9 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
     while len(kept) >= 2:
         names = [sensor_names[k] for k in kept]
         starts = [(alone[n].X, alone[n].sensor.params) for n in names]  # each sensor's own fit: X and its unknowns
-        joint = estimate(Rig([members[k] for k in kept], names, starts, shared_target), _shared(robot), folds)
+        kept_members = [members[k] for k in kept]
+        rig = Rig(kept_members, names, starts, shared_target)
+        joint = estimate(rig, _shared(robot, kept_members), folds, hold=_in_rig(hold, rig), free=_in_rig(free, rig))
         # each sensor's residual in the joint fit against the noise it states
         ratio = np.array([_member_rms(joint, i) / _stated_mm(members[k]) for i, k in enumerate(kept)])
         worst = int(np.argmax(ratio))
@@ -379,7 +412,11 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     # one target's pose for all, when every model can map it into its unknowns (a depth camera's balls
     # cannot: their centres stay its own)
     shared = s.shared_target and all(hasattr(m, "target_params") for m in members)
-    rig = calibrate_rig(members, [x.name for x in s.sensors], robot, shared_target=shared, folds=opts.folds)
+    if members:  # the poses' reading checked on the first sensor's views before any sensor is fitted
+        check_readings(members[0], robot, s.pose_input, s.flange2base)
+    hold, free = held_and_freed(s, opts)
+    rig = calibrate_rig(members, [x.name for x in s.sensors], robot, shared_target=shared, folds=opts.folds, hold=hold,
+                        free=free)
     if rig.joint is None:
         only = next(iter(rig.alone.values()))
         return replace(only, notes=notes + _left_out(rig.disagreeing, rig.skipped) + ["one sensor left: its own calibration, "

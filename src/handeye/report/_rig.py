@@ -139,8 +139,9 @@ def rig_sections(cal: Calibration) -> str:
                          + ":</p>" + _transform_table(X, std))
         rel = f.get("relative", {}).get(f"{name}2{joint[0]}")
         if rel is not None:
-            parts.append(f"<p>Its pose in {_e(joint[0])}'s frame ({_e(name)}2{_e(joint[0])}, the robot's error cancels in "
-                         "it):</p>" + _transform_table(np.asarray(rel["matrix"]), np.asarray(rel["std_deg_mm"])))
+            parts.append(f"<p>Its pose in {_e(joint[0])}'s frame ({_e(name)}2{_e(joint[0])}, the robot's error common to "
+                         "every pose cancels in it, each pose's own error where both saw the pose):</p>"
+                         + _transform_table(np.asarray(rel["matrix"]), np.asarray(rel["std_deg_mm"])))
         if name in per_view and views:
             parts.append(_img(_sensor_residual_figure(views, per_view[name], name), f"sensor {name}'s residual per view"))
         parts.append("</section>")

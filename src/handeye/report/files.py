@@ -299,7 +299,15 @@ def _sensor_dict(cal: Calibration) -> dict[str, Any]:
     return {"kind": sf.sensor, "target": sf.target, "views": list(sf.views),
             "residual_mm": [float(v) for v in sf.residual_mm],
             "heldout_mm": None if sf.heldout_mm is None else _finite_or_none(np.asarray(sf.heldout_mm)),
-            "fit_rms_mm": sf.fit_rms_mm, "points": sf.points, "rejected_points": sf.rejected, "figures": sf.figures}
+            "fit_rms_mm": sf.fit_rms_mm, "points": sf.points, "rejected_points": sf.rejected, "figures": sf.figures,
+            "unknowns": list(sf.unknowns), **({"x_holds_with": _holds_with(sf.unknowns)} if sf.unknowns else {})}
+
+
+def _holds_with(unknowns: list[dict[str, Any]]) -> str:
+    """The sentence result.json says of the sensor's unknowns: X holds with them, as fitted or held."""
+    words = [f"{u['name']} {u['value']:.6g}{' ' + u['unit'] if u['unit'] else ''} ({u['status']})" for u in unknowns]
+    return ("X holds with these values of the sensor's unknowns applied to its measurements: " + ", ".join(words)
+            + "; a held one's tolerance is in X's std (uncertainty.sources.held_unknowns)")
 
 
 def _residuals_dict(cal: Calibration) -> dict[str, Any]:

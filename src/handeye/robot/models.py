@@ -128,40 +128,51 @@ class PoseErrors(ControllerPoses):
     """The controller's poses (N, 4, 4), each pose's error an unknown: a left rotation and a
     translation (6 per pose, in units of the robot's stated ``accuracy`` per axis, deg and mm: the
     prior). Sensors that saw the same pose share its error (a rig's), which then cancels in their
-    relative poses; the error common to all poses stays unseen and X's std still takes the accuracy."""
+    relative poses; the error common to all poses stays unseen and X's std still takes the accuracy.
+
+    ``views``: the poses whose error is an unknown (default all): only where the views constrain it
+    (several sensors at one pose, or a view that measures a whole pose); a pose one profile of a ball
+    saw would take its error from that profile alone (a 6-DOF error at a 2 m lever absorbs a line of
+    points whole), so it is left as the controller reported it."""
 
     describe: str = "the controller's flange poses, each pose's own error fitted (prior: the robot's accuracy)"
+    views: NDArray[np.intp] | None = None
 
     def __post_init__(self) -> None:
         if self.accuracy is None or not all(np.isfinite(a) and a > 0 for a in self.accuracy):
             raise InputMismatchError(f"robot accuracy {self.accuracy}: fitting each pose's error (a line-scan's scans, a "
                                      "rig's views) takes the robot's accuracy as its prior, positive in both (deg, mm), "
                                      "e.g. 0.03,0.3; or 0,0 for an exact robot (--robot-accuracy)")
+        views = np.arange(len(self.poses)) if self.views is None else np.unique(np.asarray(self.views, dtype=np.intp))
+        if len(views) and (views.min() < 0 or views.max() >= len(self.poses)):
+            raise InputMismatchError(f"views {views.tolist()}: each must be one of the {len(self.poses)} poses")
+        object.__setattr__(self, "views", views)
 
     @property
     def n_params(self) -> int:  # type: ignore[override]
-        """Six per pose."""
-        return 6 * len(self.poses)
+        """Six per pose whose error is fitted."""
+        return 6 * len(self.views)
 
     @property
     def names(self) -> list[str]:  # type: ignore[override]
-        """Each pose's rotation and translation error."""
-        return [f"pose{i}.{a}" for i in range(len(self.poses)) for a in ("rx", "ry", "rz", "x", "y", "z")]
+        """Each fitted pose's rotation and translation error."""
+        return [f"pose{i}.{a}" for i in self.views for a in ("rx", "ry", "rz", "x", "y", "z")]
 
     @property
     def param_view(self) -> NDArray[np.intp]:
         """Per unknown the view whose pose it moves (the fit's finite differences step every view's at once)."""
-        return np.repeat(np.arange(len(self.poses)), 6)
+        return np.repeat(self.views, 6)
 
     @property
     def param_size(self) -> NDArray[np.float64]:
         """Per unknown the size of one of its units (rad, m): the robot's stated accuracy on that axis."""
         one = np.r_[np.full(3, np.radians(self.accuracy[0])), np.full(3, 1e-3 * self.accuracy[1])]
-        return np.tile(one, len(self.poses))
+        return np.tile(one, len(self.views))
 
     def flange2base(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The poses moved by their errors ``d`` (in units of the accuracy)."""
-        e = np.asarray(d, float).reshape(-1, 6)
+        """The poses moved by their errors ``d`` (in units of the accuracy; the poses without one as reported)."""
+        e = np.zeros((len(self.poses), 6))
+        e[self.views] = np.asarray(d, float).reshape(-1, 6)
         return perturb(self.poses, np.radians(self.accuracy[0]) * e[:, :3], 1e-3 * self.accuracy[1] * e[:, 3:])
 
     def prior(self, d: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -40,6 +40,13 @@ A new sensor is one package under ``sensors/`` whose model class has these membe
 ``noise_mm(rows)``
     The noise each row's residual may have before any fit (the sensor's stated noise, mm): what
     the verdict holds the fit's residual against.
+``nuisances`` (optional)
+    The sensor's unknowns beside X and Z that a capture may leave undetermined (a depth scale and
+    bias, a ball's radius, a line-scan camera's focal length and clock offset), each a
+    :class:`Nuisance`: its position in ``p``, its nominal value and a real device's tolerance about
+    it. The core fits each only where the capture determines it (its std from the data below half
+    the tolerance), else holds it at the nominal value, names it, and adds the tolerance's effect to
+    X's std; a value the session gives is held unless freed by name (``hold``/``free``).
 ``jacobian(X, p, flange2base, rows)`` (optional)
     The residuals' derivatives (M, c, 6 + k) for a left increment of X and the sensor's unknowns:
     with it the fit needs one evaluation per step instead of one per unknown (the laser's has it).
@@ -85,12 +92,42 @@ A new sensor is one package under ``sensors/`` whose model class has these membe
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["SensorModel"]
+__all__ = ["SensorModel", "Nuisance", "HOLD_MODES"]
+
+#: How a session or a user may ask for a nuisance: fitted where the capture determines it (``auto``),
+#: held at its nominal or given value (``hold``), or fitted whatever the capture (``free``).
+HOLD_MODES = ("auto", "hold", "free")
+
+
+@dataclass(frozen=True)
+class Nuisance:
+    """An unknown of a sensor model beside X and Z (:class:`SensorModel`'s ``nuisances``).
+
+    ``name`` is what a session and the command line call it (``depth_scale``, ``radius``, ...);
+    ``index`` its position in ``p``; ``nominal`` its value when held (in ``p``'s units; None: it has
+    none and is always fitted, a ball whose diameter nobody gave); ``tolerance`` how far a real
+    device may be from it (one std, ``p``'s units); ``given``: the session states the value (held
+    unless freed by name); the value a user reads is ``offset + scale * p[index]`` in ``unit``.
+    """
+
+    name: str
+    index: int
+    nominal: float | None
+    tolerance: float
+    given: bool = False
+    unit: str = ""
+    scale: float = 1.0
+    offset: float = 0.0
+
+    def shown(self, value: float) -> float:
+        """``value`` (``p``'s units) as a user reads it."""
+        return self.offset + self.scale * float(value)
 
 
 @runtime_checkable

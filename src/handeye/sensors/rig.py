@@ -15,6 +15,7 @@ same robot poses share the robot's error, which cancels in their relative pose.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -23,7 +24,7 @@ from numpy.typing import NDArray
 from ..errors import InputMismatchError
 from ..frames.metrics import std_deg_mm
 from ..geometry.se3 import invert, perturb, skew
-from .base import SensorModel
+from .base import Nuisance, SensorModel
 
 __all__ = ["Rig"]
 
@@ -122,6 +123,18 @@ class Rig:
         return np.where(out < 0, at, out)
 
     # the unknowns ------------------------------------------------------------------------------
+    @property
+    def nuisances(self) -> tuple[Nuisance, ...]:
+        """Every sensor's nuisances (a depth camera's scale and bias, a ball's radius) in the rig's
+        unknowns, named ``<sensor>.<name>``; a shared target's are the first sensor's."""
+        out = []
+        for k, m in enumerate(self.members):
+            skip = self._n_target[k] if (self.shared_target and k > 0) else 0
+            for n in getattr(m, "nuisances", ()):
+                if n.index >= skip:
+                    out.append(replace(n, name=f"{self.sensor_names[k]}.{n.name}", index=self._slices[k].start + n.index - skip))
+        return tuple(out)
+
     def relative(self, p, k: int) -> NDArray[np.float64]:
         """Sensor ``k``'s pose in sensor 0's frame (``sensor_k2sensor_0``)."""
         if k == 0:
@@ -254,7 +267,8 @@ class Rig:
         for name, f in self.figures(p, cov_p)["relative"].items():
             s = np.asarray(f["std_deg_mm"])
             out.append(f"{name}: the sensors' relative pose known to {s[:3].max():.4f} deg / {s[3:].max():.4f} mm (std, "
-                       "largest axis; the robot's error cancels in it)")
+                       "largest axis; the robot's error common to every pose cancels in it, each pose's own error only where "
+                       "both sensors saw that pose)")
         for k, (m, name) in enumerate(zip(self.members, self.sensor_names)):
             # no sensor's target depends on X (the argument of Z is the protocol's): the start's serves
             out += [f"sensor {name}: {n}" for n in m.notes(self.member_params(self._X_start, p, k), self._member_cov(cov_p, k))]

@@ -40,7 +40,7 @@ from .observability import MIN_AXIS_SPREAD, MIN_ROTATION, rotation_spread, rotat
 from .refine import TranslationPriors
 
 __all__ = ["GAUGE_STD", "GENERAL", "LowDofSolution", "ONE_AXIS", "TRANSLATION_ONLY", "gauge_priors", "gauge_rows",
-           "motion_kind", "partial_kind", "solve_low_dof"]
+           "motion_kind", "partial_kind", "solve_low_dof", "low_dof_kind"]
 
 GENERAL, ONE_AXIS, TRANSLATION_ONLY = "general", "one_axis", "translation_only"
 #: Below this reciprocal condition number the system that fixes the determined part of X is
@@ -81,7 +81,7 @@ def motion_kind(motions: MotionSet) -> str:
     kinds = []
     for dq in (motions.dq_a, motions.dq_b):
         largest, spread, _ = rotation_spread(dq)
-        kinds.append(_kind(largest, spread))
+        kinds.append(low_dof_kind(largest, spread))
     order = (GENERAL, ONE_AXIS, TRANSLATION_ONLY)
     return max(kinds, key=order.index)
 
@@ -217,8 +217,10 @@ def _pose_rotation_spread(flange2base, target2cam, setup: str) -> tuple[NDArray[
     return largest, spread
 
 
-def _kind(largest: float, spread: float, scale: float = 1.0) -> str:
-    """The kind of motions with these rotations, the thresholds of ``check_observability`` times ``scale``."""
+def low_dof_kind(largest: float, spread: float, scale: float = 1.0) -> str:
+    """The kind of motions with these rotations (``sin(theta/2)`` of the largest, and of the largest
+    off the dominant axis: :func:`~handeye.solvers.observability.rotation_spread`), by the thresholds
+    of ``check_observability`` times ``scale``."""
     return TRANSLATION_ONLY if largest < MIN_ROTATION * scale else ONE_AXIS if spread < MIN_AXIS_SPREAD * scale else GENERAL
 
 
@@ -269,12 +271,12 @@ def partial_kind(flange2base: NDArray[np.float64], target2cam: NDArray[np.float6
     low-DOF solver determines its part of X; else None (general data, or data that determine
     nothing: then the solver's reason is appended to ``reasons``)."""
     largest, spread = _pose_rotation_spread(flange2base, target2cam, setup)
-    robot = _kind(largest[0], spread[0])
+    robot = low_dof_kind(largest[0], spread[0])
     if robot == GENERAL:
         return None
     keep = np.ones(len(target2cam), bool)
     # the camera's rotations may stray from the robot's kind by its noise, and a few views by more
-    if robot not in (_kind(largest[1], spread[1]), _kind(largest[1], spread[1], CAMERA_ROTATION_NOISE)):
+    if robot not in (low_dof_kind(largest[1], spread[1]), low_dof_kind(largest[1], spread[1], CAMERA_ROTATION_NOISE)):
         keep = _camera_agreeing(target2cam, robot)
         if keep is None:
             return None

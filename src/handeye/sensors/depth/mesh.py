@@ -55,6 +55,10 @@ class MeshSurface(DepthRows):
 
     target = "mesh"
     groups: tuple[tuple[int, ...], ...] = ((0,),)
+    #: what fixes a direction of X the capture leaves free (pure translations: X's translation)
+    undetermined_fix = ("give the shape's placement (pose_in_flange eye-to-hand, pose_in_base eye-in-hand, in session.yaml's "
+                        "target:), which makes each view give X whole; or turn the flange 30 deg or more about two axes "
+                        "between views")
 
     def __init__(self, setup: str, names: list[str], shape: Shape, points: list[NDArray[np.float64]],
                  normals: list[NDArray[np.float64]], poses: NDArray[np.float64], placement: NDArray[np.float64] | None = None,

@@ -35,9 +35,15 @@ from scipy.spatial.transform import Rotation
 from ...errors import DegenerateMotionError, InputMismatchError
 from ...frames.setups import check_setup, predicted_target2cam, robot_world_A
 from ...geometry.se3 import make_transform, perturb
+from ..base import Nuisance
 from .clouds import board_pose, depth_sigma
 
-__all__ = ["BoardPoints", "SphereCentres", "LATERAL", "ray_frames"]
+__all__ = ["BoardPoints", "SphereCentres", "LATERAL", "ray_frames", "DEPTH_SCALE_TOLERANCE", "DEPTH_BIAS_TOLERANCE_M"]
+
+#: How far a depth camera's scale and bias may be off their nominal 1 and 0 (one std): a
+#: structured-light or stereo camera's depth trueness, a few tenths of a percent and a millimetre or
+#: two (what the core holds them at, with this in X's std, when a capture does not determine them).
+DEPTH_SCALE_TOLERANCE, DEPTH_BIAS_TOLERANCE_M = 0.005, 0.002
 
 #: Noise across the rays, per metre of depth, to start from (0.2 px at a focal length of ~700 px).
 LATERAL = 3e-4
@@ -80,6 +86,15 @@ class DepthRows:
     kind = "depth camera"
     groups: tuple[tuple[int, ...], ...] = ((0,), (1, 2))
     fit_depth = True
+
+    @property
+    def nuisances(self) -> tuple[Nuisance, ...]:
+        """The depth scale and bias (the last two of ``p``, when fitted): nominal 1 and 0."""
+        if not self.fit_depth:
+            return ()
+        k = len(self.param_names) - 2
+        return (Nuisance("depth_scale", k, 0.0, DEPTH_SCALE_TOLERANCE, offset=1.0),
+                Nuisance("depth_bias", k + 1, 0.0, DEPTH_BIAS_TOLERANCE_M, unit="mm", scale=1e3))
 
     def notes(self, p, cov_p) -> list[str]:
         """The depth scale and bias when they differ from 1 and 0 beyond 3 std."""

@@ -19,7 +19,7 @@ Examples
 >>> from handeye.sensors.laser.model import SphereProfiles
 >>> profiles = [np.array([[0.0, 0.0, 0.05], [0.01, 0.0, 0.049]])] * 3
 >>> SphereProfiles("eye_in_hand", ["a", "b", "c"], profiles, radius=0.02).param_names
-['centre.x', 'centre.y', 'centre.z']
+['centre.x', 'centre.y', 'centre.z', 'radius']
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ from scipy.spatial.transform import Rotation
 from ...errors import DegenerateMotionError, InputMismatchError
 from ...frames.setups import check_setup, robot_world_A, setup_info
 from ...geometry.se3 import invert, make_transform
+from ..base import Nuisance
 from ..depth.model import sphere_start
 
 __all__ = ["Profiles", "SphereProfiles", "SpheresProfiles", "rotation_from_columns", "sphere_profiles_start",
@@ -47,6 +48,9 @@ START_POINTS = 6000
 #: A laser profiler's noise along its measuring axis to state before any fit (m): 20 um, a
 #: Gocator 2300's or a Keyence LJ-X8000's repeatability at mid-range is a few um, its linearity tens.
 LASER_NOISE_M = 2e-5
+#: How far a calibration ball's radius may be off the diameter a session gives (one std, m): a
+#: precision ball's grade is a few micrometres; a coating or wear adds some.
+RADIUS_TOLERANCE_M = 2e-5
 
 
 def _points(profiles: list[NDArray[np.float64]]) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
@@ -127,7 +131,9 @@ class Profiles:
 
 class SphereProfiles(Profiles):
     """Profiles of a ball: per view (``names``) the profile's points (n_i, 3) in the sensor frame
-    (NaN rows: no return), metres; ``radius`` (m) known, or None to estimate it with the centre."""
+    (NaN rows: no return), metres; ``radius`` (m) given, or None to estimate it with the centre. The
+    unknowns: the centre and the radius (a given radius held at its value unless freed by name:
+    :attr:`nuisances`)."""
 
     target = "sphere"
 
@@ -135,8 +141,14 @@ class SphereProfiles(Profiles):
                  noise_m: float = LASER_NOISE_M) -> None:
         super().__init__(setup, names, profiles, noise_m)
         self.radius = radius
-        self.param_names = ["centre.x", "centre.y", "centre.z"] + ([] if radius is not None else ["radius"])
+        self.param_names = ["centre.x", "centre.y", "centre.z", "radius"]
         self.param_scale = np.full(len(self.param_names), 1e-3)
+
+    @property
+    def nuisances(self) -> tuple[Nuisance, ...]:
+        """The ball's radius: held at the diameter the session gives (a precision ball's, within
+        :data:`RADIUS_TOLERANCE_M`) unless freed by name, else fitted."""
+        return (Nuisance("radius", 3, self.radius, RADIUS_TOLERANCE_M, given=self.radius is not None, unit="mm", scale=1e3),)
 
     def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """:func:`sphere_profiles_start` on ``rows`` (default all; at most :data:`START_POINTS` of
@@ -153,7 +165,7 @@ class SphereProfiles(Profiles):
         X0, centre = _unshifted(X0, centre, shift, self.setup)
         A = robot_world_A(F, self.setup)
         if self.radius is not None:
-            return X0, centre
+            return X0, np.r_[centre, self.radius]
         q = self._mapped(X0, A, rows)
         return X0, np.r_[centre, np.median(np.linalg.norm(q - centre, axis=1))]
 
@@ -161,7 +173,7 @@ class SphereProfiles(Profiles):
         """The unknowns ``p`` of the ball at ``Z``'s translation (its radius known)."""
         if self.radius is None:
             raise InputMismatchError("the ball's pose alone gives its centre, not its radius: give the diameter")
-        return np.asarray(Z, float)[:3, 3].copy()
+        return np.r_[np.asarray(Z, float)[:3, 3], self.radius]
 
     def jacobian(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """The residuals' derivatives (M, 1, 6 + k): for a left increment of X (rotation ``a``,
@@ -171,24 +183,21 @@ class SphereProfiles(Profiles):
         A = robot_world_A(flange2base, self.setup)
         d = self._mapped(X, A, rows) - p[:3]
         u = d / np.sqrt(np.einsum("mi,mi->m", d, d))[:, None]
-        J = np.concatenate([self._x_jacobian(X, A, rows, u), -u]
-                           + ([] if self.radius is not None else [-np.ones((len(rows), 1))]), axis=1)
+        J = np.concatenate([self._x_jacobian(X, A, rows, u), -u, -np.ones((len(rows), 1))], axis=1)
         return J[:, None, :]
 
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """Each point's distance from the sphere (m; positive outside)."""
         A = robot_world_A(flange2base, self.setup)
         d = self._mapped(X, A, rows) - p[:3]
-        r = self.radius if self.radius is not None else p[3]
-        return (np.sqrt(np.einsum("mi,mi->m", d, d)) - r)[:, None]
+        return (np.sqrt(np.einsum("mi,mi->m", d, d)) - p[3])[:, None]
 
     def _section(self, sensor2target, p, x) -> NDArray[np.float64]:
         """The ball's near side in the laser plane at ``x`` (z, m): the centre in the sensor frame
         ``c``, the circle of radius ``sqrt(r^2 - c_y^2)`` about ``(c_x, c_z)``."""
         R, t = sensor2target[:3, :3], sensor2target[:3, 3]
         c = R.T @ (p[:3] - t)
-        r = self.radius if self.radius is not None else p[3]
-        inside = r**2 - c[1] ** 2 - (x - c[0]) ** 2
+        inside = p[3] ** 2 - c[1] ** 2 - (x - c[0]) ** 2
         return np.where(inside >= 0, c[2] - np.sqrt(np.maximum(inside, 0.0)), np.nan)
 
     def Z(self, X, p) -> NDArray[np.float64]:
@@ -202,11 +211,10 @@ class SphereProfiles(Profiles):
     def figures(self, p, cov_p) -> dict[str, Any]:
         """The ball's centre and radius."""
         std = np.sqrt(np.clip(np.diag(cov_p), 0.0, None))
-        out: dict[str, Any] = {"centre_m": [float(v) for v in p[:3]], "centre_std_mm": [float(1e3 * v) for v in std[:3]]}
-        if self.radius is None:
-            out["radius_mm"] = {"value": float(1e3 * p[3]), "std": float(1e3 * std[3]), "fitted": True}
-        else:
-            out["radius_mm"] = {"value": float(1e3 * self.radius), "std": 0.0, "fitted": False}
+        out: dict[str, Any] = {"centre_m": [float(v) for v in p[:3]], "centre_std_mm": [float(1e3 * v) for v in std[:3]],
+                               "radius_mm": {"value": float(1e3 * p[3]), "std": float(1e3 * std[3]), "fitted": True}}
+        if self.radius is not None:
+            out["radius_mm"]["given"] = float(1e3 * self.radius)
         return out
 
     def notes(self, p, cov_p) -> list[str]:
@@ -223,6 +231,7 @@ class SpheresProfiles(SphereProfiles):
     nearest at the current estimate (the balls are apart: smooth but at points between balls)."""
 
     target = "spheres"
+    nuisances: tuple[Nuisance, ...] = ()  # type: ignore[assignment]  # the balls' radii are given, their centres the unknowns
 
     def __init__(self, setup: str, names: list[str], profiles: list[NDArray[np.float64]], radii,
                  noise_m: float = LASER_NOISE_M) -> None:
@@ -593,21 +602,23 @@ GOOD_START_M = 1e-3
 
 def _best_start(A, points, candidates, radius, best=None):
     """Of the candidate rotations, each with its translation start, the one that leads to the best
-    fit: (R_X, t_X, C, rms) as the closed form gave them, the rms that of all of X and the centre
-    fitted to at most 1,500 of the points from them (:func:`_fitted_rms`), or ``best`` when none
-    beats it."""
+    fit: (R_X, t_X, C, rms) as X and the centre fitted to at most 1,500 of the points from them give
+    them (:func:`_polished`: the closed form's own translation can lie in another basin of the fit,
+    191 mm off on a simulated capture with one turn about two axes, where its polished one was 3 mm
+    off), the rms what that fit leaves; or ``best`` when none beats it."""
     few = np.linspace(0, len(points) - 1, min(len(points), 1500)).astype(np.intp)
     for R_X, t0 in candidates:
         t_X, C = _translation_start(A, points, R_X, t0, radius)
-        rms = _fitted_rms(A[few], points[few], R_X, t_X, C, radius)
+        rms, R_X, t_X, C = _polished(A[few], points[few], R_X, t_X, C, radius)
         if best is None or rms < best[3]:
             best = (R_X, t_X, C, rms)
     return best
 
 
-def _fitted_rms(A, points, R_X, t_X, C, radius) -> float:
-    """How well ``points`` fit the sphere once X and the centre (and the radius) are fitted together
-    from a start: the robust RMS distance (m) the fit leaves, what tells a good start from a bad one."""
+def _polished(A, points, R_X, t_X, C, radius) -> tuple[float, NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """X and the centre (and the radius) fitted together to ``points`` from a start: the robust RMS
+    distance (m) the fit leaves, what tells a good start from a bad one, and X's rotation and
+    translation and the centre it found."""
     R, tA = A[:, :3, :3], A[:, :3, 3]
 
     def fun(u):
@@ -619,7 +630,9 @@ def _fitted_rms(A, points, R_X, t_X, C, radius) -> float:
     u0 = np.r_[np.zeros(3), t_X, C] if radius is not None else np.r_[np.zeros(3), t_X, C, np.median(np.abs(fun(
         np.r_[np.zeros(3), t_X, C, 0.0])))]
     res = least_squares(fun, u0, method="trf", loss="soft_l1", f_scale=1e-3, x_scale=1e-3)
-    return float(np.sqrt(np.median(res.fun**2)))
+    u = res.x
+    return (float(np.sqrt(np.median(res.fun**2))), Rotation.from_rotvec(u[:3]).as_matrix() @ R_X, u[3:6].copy(),
+            u[6:9].copy())
 
 
 #: Up to this many profiles every pattern of sides is tried (2^n); beyond, the sides are chosen one

@@ -33,6 +33,7 @@ from scipy.spatial.transform import Rotation
 from ...errors import DegenerateMotionError, InputMismatchError
 from ...frames.setups import check_setup, predicted_target2cam, robot_world_A
 from ...geometry.se3 import invert, make_transform
+from ..base import Nuisance
 from ..target_pose import ChartedTarget
 from .resection import pushbroom_resection, resolve_mirrors
 
@@ -40,6 +41,10 @@ __all__ = ["LineScanCorners", "Trajectory", "LINESCAN_NOISE_PX", "TRAJECTORY_MAR
 
 #: A line-scan corner's noise to state before any fit (px along the line).
 LINESCAN_NOISE_PX = 0.2
+#: How far a line-scan camera's intrinsics may be off their nominal values (one std): the focal length
+#: (a share of the nominal: a lens's tolerance and the focus), the principal point (a share of the
+#: line's width: the sensor's placement behind the lens) and the radial distortion k1.
+FOCAL_TOLERANCE, CX_TOLERANCE, K1_TOLERANCE = 0.02, 0.02, 0.05
 #: Each scan keeps the trajectory's samples this far (s) beyond its first and last row: the room the
 #: clock offset has.
 TRAJECTORY_MARGIN_S = 0.5
@@ -261,6 +266,16 @@ class LineScanCorners(ChartedTarget):
         c = self._in_camera(X, p, flange2base, rows, motion)
         du = self.project(p, c[:, 0] / c[:, 2]) - self.uv[rows, 0]
         return np.c_[du * self._mpp[rows], c[:, 1]]
+
+    @property
+    def nuisances(self) -> tuple[Nuisance, ...]:
+        """The line's intrinsics about their nominal values (the focal length the session states, the
+        principal point at the line's middle, no distortion), each fitted where the capture determines
+        it; the clock offset, which has no nominal value, always fitted."""
+        return (Nuisance("focal", 6, self.focal0, FOCAL_TOLERANCE * self.focal0, unit="px"),
+                Nuisance("cx", 7, 0.5 * self.width, CX_TOLERANCE * self.width, unit="px"),
+                Nuisance("k1", 8, 0.0, K1_TOLERANCE),
+                Nuisance("clock_offset", 9, None, 0.01, unit="ms", scale=1e3))
 
     def figures(self, p, cov_p) -> dict[str, Any]:
         """The fitted intrinsics along the line and the clock offset, with their std."""
