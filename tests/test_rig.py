@@ -145,7 +145,7 @@ def test_a_rig_of_sensors_with_residuals_of_different_widths():
     camera = CameraCorners("eye_in_hand", sc.names, c.image_points, c.object_points, c.K, c.dist)
     camera.start(sc.flange2base, c.X, sc.Z)
     laser = SphereProfiles("eye_in_hand", sc.names, laser_scene(6, "eye_in_hand", rng=1).profiles, 0.02)
-    rig = Rig([camera, laser], ["camera", "laser"], [(c.X, camera.target_params(sc.Z)), (c.X, np.zeros(3))],
+    rig = Rig([camera, laser], ["camera", "laser"], [(c.X, camera.target_params(sc.Z)), (c.X, np.r_[np.zeros(3), 0.02])],
               shared_target=False)
     on_laser = rig.member == 1
     assert rig.shape.shape == (len(rig.owner), 2)
@@ -155,7 +155,7 @@ def test_a_rig_of_sensors_with_residuals_of_different_widths():
     r = rig.residuals(X, p, sc.flange2base, np.arange(len(rig.owner)))
     assert np.all(r[on_laser, 1] == 0) and np.all(np.isfinite(r)) and np.abs(r[~on_laser]).max() < 1e-2
     with pytest.raises(InputMismatchError, match="share none"):
-        Rig([camera, laser], ["camera", "laser"], [(c.X, np.zeros(6)), (c.X, np.zeros(3))])
+        Rig([camera, laser], ["camera", "laser"], [(c.X, np.zeros(6)), (c.X, np.r_[np.zeros(3), 0.02])])
 
 
 def test_joint_fit_jacobian_against_central_differences():
