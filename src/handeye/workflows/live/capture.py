@@ -64,7 +64,7 @@ cv2 = lazy_module("cv2")
 __all__ = ["LiveCapture", "LiveView", "StillSimCamera", "PoseFileRobot", "preview_frame", "page_calibration",
            "calibration_summary", "enough", "STATE_FILE", "MIN_VIEWS"]
 
-#: The capture's own record beside the session: the views removed, the std after each calibration.
+#: The capture's own record beside the session: the views removed (names, pose rows), the std after each calibration.
 STATE_FILE = "live.yaml"
 #: Views a calibration needs.
 MIN_VIEWS = 3
@@ -144,7 +144,7 @@ def _missed_and_axes(pts: NDArray[np.float64], det: Detection, all_points: NDArr
     """The target points not detected and the target's axes, projected through the PnP pose of the
     detected ones (full-size pixels), or (None, None) without a pose."""
     sol = solve_pnp(Detection(det.ids, pts, det.object_points), K, dist)
-    if sol is None:
+    if sol is None or not np.all(np.isfinite(sol[0])):  # too few points, or all on a line: no pose
         return None, None
     found = np.asarray(det.object_points, dtype=float)
     gap = np.min(np.linalg.norm(all_points[:, None, :] - found[None, :, :], axis=2), axis=1)
@@ -241,7 +241,7 @@ class LiveCapture:
     >>> world = SimWorld.default("eye_in_hand", seed=1)
     >>> robot = SimRobot(world)
     >>> live = LiveCapture(tempfile.mkdtemp() + "/cell", robot, StillSimCamera(SimCamera(world, robot)), "eye_in_hand",
-    ...                    world.target_spec, world.K, world.dist, world.image_size, world.X, world.Z)
+    ...                    world.target_spec, world.K, world.dist, world.image_size, world.X, world.Z, isolated=False)
     >>> live.start()
     >>> live.move_next().result(30)["ok"], live.take().result(30)["ok"]
     (True, True)
@@ -270,7 +270,7 @@ class LiveCapture:
         self.on_change = on_change or (lambda: None)
         self.on_frame = on_frame or (lambda header, jpeg: None)
         self.views: list[LiveView] = []
-        self.removed: list[str] = []
+        self.removed: list[dict[str, Any]] = []  #: the views removed: name and pose row
         self.history: list[dict[str, Any]] = []
         self.calibration: dict[str, Any] | None = None
         self.next_pose: dict[str, Any] | None = None
@@ -295,6 +295,7 @@ class LiveCapture:
         self._thumbs: dict[str, bytes] = {}
         self.isolated = bool(isolated)
         self._enough_said = False
+        self._search_width = self.detect_width
         self._pool: ProcessPoolExecutor | None = None
 
     # -- the page's actions (each returns a Future of {"ok": bool, "message": str}) ----------------------------
@@ -361,7 +362,7 @@ class LiveCapture:
                 "can_move": self.can_move,
                 "views": [{"name": v.name, "rms": round(v.rms, 4), "row": [float(x) for x in v.row], "taken_at": v.taken_at}
                           for v in self.views],
-                "removed": list(self.removed), "calibration": self.calibration, "history": list(self.history),
+                "removed": [d["name"] for d in self.removed], "calibration": self.calibration, "history": list(self.history),
                 "coverage": self.coverage, "next_pose": self.next_pose, "robot": dict(self.robot_state),
                 "camera": dict(self.camera_state), "messages": list(self.messages), "finished": self.finished,
                 "busy": self.busy,
@@ -370,7 +371,7 @@ class LiveCapture:
     def thumbnail(self, name: str) -> bytes | None:
         """A JPEG thumbnail of a view's image (taken or removed), or None for no such view."""
         with self._lock:
-            known = {v.name for v in self.views} | set(self.removed)
+            known = {v.name for v in self.views} | {d["name"] for d in self.removed}
         if name not in known:
             return None
         if name not in self._thumbs:
@@ -405,6 +406,11 @@ class LiveCapture:
 
     def _resume(self) -> None:
         """The views of a capture stopped in the folder (its poses as written), each observed again."""
+        state = self.folder / STATE_FILE
+        if state.is_file():
+            saved = yaml.safe_load(state.read_text()) or {}
+            self.removed = [{"name": str(d["name"]), "row": [float(x) for x in d["row"]]} for d in saved.get("removed", [])]
+            self.history = [dict(h) for h in saved.get("history", [])]
         if not (self.folder / SESSION_FILE).is_file():
             return
         session = load_session(self.folder)
@@ -423,11 +429,6 @@ class LiveCapture:
                                    f"({res.error or 'no pose'}): remove its row from poses.csv, or choose another folder")
             taken = (self.folder / "images" / name).stat().st_mtime
             self.views.append(LiveView(name, [float(x) for x in row], self._parsed(row), sol[0], float(sol[1]), taken))
-        state = self.folder / STATE_FILE
-        if state.is_file():
-            saved = yaml.safe_load(state.read_text()) or {}
-            self.removed = [str(n) for n in saved.get("removed", [])]
-            self.history = [dict(h) for h in saved.get("history", [])]
         self._say("info", f"continued the capture in {self.folder}: {len(self.views)} views")
 
     def _next_name(self) -> str:
@@ -437,13 +438,18 @@ class LiveCapture:
         return f"{max(used, default=-1) + 1:03d}.png"
 
     def _write_session(self) -> None:
-        """poses.csv and session.yaml of the views now (atomically), then the capture's own record."""
+        """poses.csv and session.yaml of the views now (atomically), then the capture's own record (with
+        the removed views' poses: nothing is lost). No view left: no session files (a session has a view)."""
         r = self.robot
+        if not self.views:
+            for name in ("poses.csv", SESSION_FILE):
+                (self.folder / name).unlink(missing_ok=True)
+            self._write_record()
+            return
         write_session(self.folder, self.setup, self.target_spec, [v.name for v in self.views], None, r.pose_format,
                       r.length_unit, r.angle_unit, camera=(self.K, self.dist), comment="captured by handeye live",
-                      rows=np.array([v.row for v in self.views]).reshape(len(self.views), -1))
-        atomic_write(self.folder / STATE_FILE, yaml.safe_dump({"removed": self.removed, "history": self.history},
-                                                             sort_keys=False))
+                      rows=np.array([v.row for v in self.views], dtype=float))
+        self._write_record()
 
     def _accept(self, image: NDArray[np.uint8], row: NDArray[np.float64], future: Future) -> None:
         """A view grabbed: its image written, the target found at full size (or the image set aside
@@ -477,7 +483,8 @@ class LiveCapture:
                 _done(future, False, f"no view {name} to remove (removed already?)")
                 return
             (self.folder / "removed").mkdir(exist_ok=True)
-            self.views, self.removed = keep, self.removed + [name]
+            gone = next(v for v in self.views if v.name == name)
+            self.views, self.removed = keep, self.removed + [{"name": name, "row": gone.row}]
             self._write_session()  # the row goes first: the session never names an image that is not there
             (self.folder / "images" / name).replace(self.folder / "removed" / name)
             self._dirty, self.finished = True, None
@@ -548,8 +555,12 @@ class LiveCapture:
             self._stop.wait(1.0)
             return
         captured = time.time()
-        header, jpeg = preview_frame(image, self.target, self.K, self.dist, self.detect_width, self.frame_width)
-        header["captured_at"] = captured
+        width = self._search_width
+        header, jpeg = preview_frame(image, self.target, self.K, self.dist, width, self.frame_width)
+        if not header["found"]:  # the next frame searches a copy twice as wide (a board at the image's edge, or
+            # small), up to the full size, then starts again: a frame without the board costs little
+            self._search_width = self.detect_width if width >= image.shape[1] else min(2 * width, image.shape[1])
+        header.update(captured_at=captured, searched_width=min(width, image.shape[1]))
         with self._lock:
             recovered = self.camera_state["error"] is not None
             self.camera_state.update(error=None, last_frame_at=captured)
