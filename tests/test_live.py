@@ -59,7 +59,7 @@ def _wait(predicate, timeout=60.0, what="the condition"):
         value = predicate()
         if value:
             return value
-        time.sleep(0.05)
+        time.sleep(0.1)
     raise AssertionError(f"timed out waiting for {what}")
 
 

@@ -332,6 +332,9 @@ class LiveCapture:
             self._say("warn", "the detection cache is off: each calibration finds the target in every image again (slower)")
         self._dirty = bool(self.views)
         self._plan()
+        if self.isolated:  # the calibration's process started now (~2 s of imports), not at the third view
+            self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+            self._pool.submit(ready)
         if move_first and self.can_move:  # before the camera starts: it would see nothing before
             self._guarded(self._move, Future())
         for name, loop in (("camera", self._camera_loop), ("robot", self._robot_loop), ("worker", self._worker_loop)):
@@ -737,6 +740,11 @@ class LiveCapture:
         with self._lock:
             self._next_k, self.next_pose, self.coverage = k, pose, coverage
         self._changed()
+
+
+def ready() -> bool:
+    """Nothing: run in the calibration's process at the start, it has the process import what a calibration needs."""
+    return True
 
 
 def page_calibration(folder: str, robot_accuracy, target_std: tuple[float, float], min_views: int,

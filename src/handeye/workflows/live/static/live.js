@@ -43,7 +43,8 @@
       ctx.drawImage(img, 0, 0);
       overlay(head);
       lastFrameAt = Date.now();
-      live.frames.push({ seq: head.seq, latency: Date.now() / 1000 - head.captured_at, found: head.found });
+      live.frames.push({ seq: head.seq, latency: Date.now() / 1000 - head.captured_at, found: head.found,
+                         busy: !!(live.state && live.state.busy) });
       if (live.frames.length > 2000) live.frames.shift();
       var st = $('frame-status');
       if (head.found) {
@@ -151,10 +152,12 @@
           return '<tr><td>' + r[0] + '</td>' + (r[1] || [null, null, null]).map(function (v) { return '<td>' + fmt(v, r[2]) + '</td>'; }).join('') + '</tr>';
         }).join('') + '</table>' +
         '<p>held-out error: ' + (held.px !== null && held.px !== undefined ? fmt(held.px, 2) + ' px, ' : '') + fmt(held.mm, 2) +
-        ' mm at the target (views predicted by fits on the others) · ' + esc(c.estimator) + '</p>' +
+        ' mm at the target (views predicted by fits on the others); estimator: ' + esc(c.estimator) + '</p>' +
         (c.advice.length ? '<p class="muted">' + c.advice.map(esc).join('<br>') + '</p>' : '');
       en.className = 'enough' + (c.enough ? ' yes' : '');
       en.textContent = (c.enough ? 'Enough. ' : '') + c.enough_text.charAt(0).toUpperCase() + c.enough_text.slice(1);
+    }
+    if (c && c.views) {  // when each view's calibration (or why there is none yet) was first shown
       var now = Date.now() / 1000;
       s.views.forEach(function (v) {
         if (c.views.indexOf(v.name) >= 0 && !(v.name in live.calibrations)) live.calibrations[v.name] = now - v.taken_at;
@@ -174,7 +177,7 @@
   // the std against the number of views, on a log scale, with the target dashed
   function plot(svg, history, key, target, label) {
     while (svg.firstChild) svg.removeChild(svg.firstChild);
-    var W = +svg.getAttribute('width'), H = +svg.getAttribute('height'), L = 34, B = 18, T = 14;
+    var W = +svg.getAttribute('width'), H = +svg.getAttribute('height'), L = 40, B = 18, T = 14;
     svg.appendChild(el('text', { x: 2, y: 10 }, label));
     var pts = history.filter(function (h) { return h[key] > 0 && isFinite(h[key]); });
     if (!pts.length) return;
@@ -184,7 +187,7 @@
     var X = function (n) { return L + (W - L - 6) * (n - n0) / (n1 - n0); };
     var Y = function (v) { return T + (H - T - B) * (hi - Math.log10(v)) / (hi - lo); };
     svg.appendChild(el('line', { x1: L, x2: W - 4, y1: Y(target), y2: Y(target), stroke: '#1b7f3b', 'stroke-dasharray': '4 3' }));
-    svg.appendChild(el('text', { x: W - 4, y: Y(target) - 3, 'text-anchor': 'end', fill: '#1b7f3b' }, 'target ' + target));
+    svg.appendChild(el('text', { x: L + 2, y: Y(target) + 11, fill: '#1b7f3b' }, 'target ' + target));
     svg.appendChild(el('polyline', { fill: 'none', stroke: '#1b5fbf', 'stroke-width': 2,
       points: pts.map(function (h) { return X(h.n) + ',' + Y(h[key]); }).join(' ') }));
     pts.forEach(function (h) { svg.appendChild(el('circle', { cx: X(h.n), cy: Y(h[key]), r: 2.5, fill: '#1b5fbf' })); });
