@@ -34,7 +34,7 @@ from handeye.pipelines.folders import calibrate_session
 from handeye.planning.poses import fronto_parallel_start
 from handeye.sensors.camera import target_from_spec
 from handeye.workflows.acquire import SimCamera, SimRobot, SimWorld
-from handeye.workflows.live import LiveCapture, StillSimCamera, preview_frame
+from handeye.workflows.live import LiveCapture, PoseFileRobot, StillSimCamera, preview_frame
 from handeye.workflows.live.capture import STATE_FILE
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -248,6 +248,81 @@ def test_a_stopped_capture_continues_with_its_views(tmp_path):
                     other.image_size, other.X, other.Z, isolated=False).start()
 
 
+@pytest.mark.slow
+def test_a_robot_moved_by_hand_reports_its_pose_in_a_file(tmp_path):
+    """--robot manual:POSE_FILE: the page shows the next pose to reach, cannot move the robot, and
+    takes each view at the pose the file holds; a file it cannot read is said, and no view is taken."""
+    world = SimWorld.default("eye_in_hand", seed=1)
+    arm = SimRobot(world)  # what the operator jogs; the page only reads the file
+    pose_file = tmp_path / "pose.txt"
+    robot = PoseFileRobot(pose_file, "quat_wxyz", "m", "rad")
+    live = LiveCapture(tmp_path / "cell", robot, StillSimCamera(SimCamera(world, arm)), "eye_in_hand", world.target_spec,
+                       world.K, world.dist, world.image_size, world.X, world.Z, can_move=False, isolated=False)
+    live.start()
+    try:
+        _wait(lambda: live.snapshot()["robot"]["error"], what="no pose file yet")
+        answer = live.move_next().result(30)
+        assert not answer["ok"] and "by hand" in answer["message"]
+        for k in range(2):
+            target = live.snapshot()["next_pose"]
+            assert target is not None and not target["can_move"]
+            arm.move_to(np.array(target["values"]))  # the operator jogs there; the robot program writes its pose
+            pose_file.write_text(" ".join(f"{v:.9f}" for v in arm.current_pose()))
+            answer = live.take().result(60)
+            assert answer["ok"], answer
+            _wait(lambda: live.snapshot()["next_pose"]["candidate"] != target["candidate"], what="the next pose")
+        pose_file.write_text("1, 2, 3")
+        _wait(lambda: "cannot read the pose" in (live.snapshot()["robot"]["error"] or ""), what="the file's error")
+        answer = live.take().result(60)
+        assert not answer["ok"] and "give the 7 numbers" in answer["message"]
+    finally:
+        live.stop()
+    session = load_session(tmp_path / "cell")
+    assert session.image_names == ["000.png", "001.png"] and session.robot_input.format == "quat_wxyz"
+
+
+@pytest.mark.slow
+def test_a_ur_moves_on_the_click_at_capped_speed_and_a_lost_connection_is_said(tmp_path):
+    """The UR backend against a stand-in of ur_rtde: "Move to the next pose" is one linear move to the
+    planner's pose in UR's format (the click confirms it: no terminal question) at the capped speed; a
+    controller that stops answering is said on the page and no view is taken."""
+    import types
+
+    from handeye.frames.poses import parse_poses
+    from handeye.workflows.acquire import URRobot
+
+    world = SimWorld.default("eye_in_hand", seed=1)
+    moves, state = [], {"pose": [0.4, 0.1, 0.3, 0.0, 3.1, 0.0], "up": True}
+
+    def actual():
+        if not state["up"]:
+            raise RuntimeError("RTDE receive: the controller does not answer")
+        return list(state["pose"])
+
+    control = types.SimpleNamespace(moveL=lambda pose, v, a: moves.append((list(pose), v, a)) or state.update(pose=list(pose)) or True)
+    robot = URRobot("192.0.2.1", speed=1.0, control=control, receive=types.SimpleNamespace(getActualTCPPose=actual), yes=True)
+    camera = types.SimpleNamespace(grab=lambda: np.full((480, 640), 128, np.uint8))
+    live = LiveCapture(tmp_path / "cell", robot, camera, "eye_in_hand", world.target_spec, world.K, world.dist,
+                       world.image_size, world.X, world.Z, isolated=False)
+    live.start()
+    try:
+        planned = live.snapshot()["next_pose"]
+        assert planned["format"] == "rotvec" and planned["can_move"]
+        assert live.move_next().result(30)["ok"]
+        assert len(moves) == 1 and moves[0][1] == URRobot.MAX_SPEED
+        assert np.allclose(parse_poses(np.array([moves[0][0]]), "rotvec", "m", "rad"),
+                           parse_poses(np.array([planned["values"]]), "rotvec", "m", "rad"))
+        answer = live.take().result(30)  # a grey image: no target, not taken
+        assert not answer["ok"] and "rejected/000.png" in answer["message"]
+        state["up"] = False
+        _wait(lambda: "does not answer" in (live.snapshot()["robot"]["error"] or ""), what="the lost controller")
+        answer = live.take().result(30)
+        assert not answer["ok"] and "does not answer" in answer["message"]
+    finally:
+        live.stop()
+    assert not (tmp_path / "cell" / "session.yaml").exists()
+
+
 # -- the server -------------------------------------------------------------------------------------------------
 aiohttp = pytest.importorskip("aiohttp", reason="handeye live's server needs aiohttp (pip install 'handeye[live]')")
 
@@ -293,6 +368,7 @@ async def _state_with(ws, predicate, timeout=60.0):
     raise AssertionError("timed out waiting for a state")
 
 
+@pytest.mark.slow
 def test_the_token_the_host_and_the_origin_are_required(tmp_path):
     async def probe(base):
         async with aiohttp.ClientSession(cookie_jar=aiohttp.CookieJar(unsafe=True)) as s:  # a browser keeps an IP's cookies

@@ -77,7 +77,7 @@ def _cmd_live(args: argparse.Namespace) -> int:
     live = LiveCapture(folder, robot, camera, args.setup, spec, K, dist, size, X0, Z0, results=args.results,
                        target_std=(0.05, 0.5) if target_std is None else tuple(target_std.tolist()),
                        min_views=args.min_poses, robot_accuracy=accuracy_arg(args.robot_accuracy),
-                       standoff=args.standoff, can_move=can_move, fps=args.fps)
+                       standoff=args.standoff, can_move=can_move, fps=args.fps, log=lambda text: print(text, flush=True))
 
     def ready(url: str) -> None:
         print(f"handeye live: the capture into {folder} is at {url}" + ("" if is_loopback(args.host) else

@@ -231,6 +231,8 @@ class LiveCapture:
         Frames a second at most; the width the preview searches at; the width of the frames sent.
     isolated : bool
         Calibrate in a process of its own (default); False: in the worker thread.
+    log : callable, optional
+        Called with each message the page shows, as one line (the command prints them: the server's log).
     on_change, on_frame
         Called (from the threads) after every change of the state, and with each frame (header, JPEG).
 
@@ -242,11 +244,11 @@ class LiveCapture:
     >>> robot = SimRobot(world)
     >>> live = LiveCapture(tempfile.mkdtemp() + "/cell", robot, StillSimCamera(SimCamera(world, robot)), "eye_in_hand",
     ...                    world.target_spec, world.K, world.dist, world.image_size, world.X, world.Z, isolated=False)
-    >>> live.start()
-    >>> live.move_next().result(30)["ok"], live.take().result(30)["ok"]
-    (True, True)
-    >>> live.snapshot()["views"][0]["name"]
-    '000.png'
+    >>> live.start(move_first=True)
+    >>> live.take().result(30)["ok"], live.move_next().result(30)["ok"], live.take().result(30)["ok"]
+    (True, True, True)
+    >>> [v["name"] for v in live.snapshot()["views"]]
+    ['000.png', '001.png']
     >>> live.stop()
     """
 
@@ -255,7 +257,8 @@ class LiveCapture:
                  target_std: tuple[float, float] = (0.05, 0.5), min_views: int = 6,
                  robot_accuracy: tuple[float, float] | None = ROBOT_ACCURACY, standoff: float = 0.5,
                  can_move: bool = True, fps: float = 8.0, detect_width: int = 320, frame_width: int = 640,
-                 isolated: bool = True, on_change: Callable[[], None] | None = None,
+                 isolated: bool = True, log: Callable[[str], None] | None = None,
+                 on_change: Callable[[], None] | None = None,
                  on_frame: Callable[[dict[str, Any], bytes], None] | None = None) -> None:
         self.folder = check_output_folder(folder)
         self.results = Path(results) if results else self.folder.with_name(self.folder.name + "-results")
@@ -267,6 +270,7 @@ class LiveCapture:
         self.target_std, self.min_views, self.robot_accuracy = tuple(target_std), int(min_views), robot_accuracy
         self.standoff, self.can_move, self.fps = float(standoff), bool(can_move), float(fps)
         self.detect_width, self.frame_width = int(detect_width), int(frame_width)
+        self.log = log or (lambda text: None)
         self.on_change = on_change or (lambda: None)
         self.on_frame = on_frame or (lambda header, jpeg: None)
         self.views: list[LiveView] = []
@@ -393,7 +397,7 @@ class LiveCapture:
     def _say(self, level: str, text: str) -> None:
         with self._lock:
             self.messages = (self.messages + [{"t": time.time(), "level": level, "text": text}])[-MAX_MESSAGES:]
-        print(f"handeye live: {text}", flush=True)
+        self.log(f"handeye live: {text}")
         self._changed()
 
     def _changed(self) -> None:
@@ -602,10 +606,11 @@ class LiveCapture:
             values, error = None, _in_words(exc)
         with self._lock:
             changed = (values, error) != (self.robot_state["values"], self.robot_state["error"])
-            if error is not None and error != self.robot_state["error"]:
-                self.messages = (self.messages + [{"t": time.time(), "level": "error", "text": f"robot: {error}"}])[-MAX_MESSAGES:]
+            new_error = error is not None and error != self.robot_state["error"]
             self.robot_state.update(values=values, error=error)
-        if changed:
+        if new_error:
+            self._say("error", f"robot: {error}")
+        elif changed:
             self._changed()
 
     def _move(self, future: Future) -> None:
