@@ -328,11 +328,15 @@ aiohttp = pytest.importorskip("aiohttp", reason="handeye live's server needs aio
 
 
 @contextmanager
-def _served(folder, token=None, **kw):
-    """A LiveServer on 127.0.0.1 (any free port) in a thread of its own; yields (base url, capture)."""
+def _served(folder, token=None, flaky=False, **kw):
+    """A LiveServer on 127.0.0.1 (any free port) in a thread of its own; yields (base url, capture);
+    ``flaky``: the robot and camera of the bad-input tests (their ``connected`` and ``mode`` switches)."""
     from handeye.workflows.live import LiveServer
 
     world, robot, camera = _sim()
+    if flaky:
+        robot = _FlakyRobot(world)
+        camera = _FlakyCamera(StillSimCamera(SimCamera(world, robot)))
     live = _capture(folder, world, robot, camera, **kw)
     server = LiveServer(live, token)
     box = {}
@@ -570,6 +574,8 @@ def test_the_page_in_chromium_takes_12_views_removes_one_and_writes_what_calibra
         _wait(lambda: driver.find_element("id", "done").is_displayed(), 300, "the report written")
         assert "report.html" in driver.find_element("id", "done").text and str(folder.resolve()) in driver.find_element("id", "done").text
         assert not _live(driver, "window.__live.errors.length")
+        # frames kept flowing while the calibrations ran (in their own process)
+        assert _live(driver, "window.__live.frames.filter(function (f) { return f.busy && f.found; }).length") > 0
     finally:
         driver.quit()
         server.stop()
@@ -583,3 +589,35 @@ def test_the_page_in_chromium_takes_12_views_removes_one_and_writes_what_calibra
     assert np.abs(np.array(written["X"]["matrix"]) - np.array(again["X"]["matrix"])).max() < 1e-9
     assert np.abs(page_X - np.array(again["X"]["matrix"])).max() < 1e-9
     assert written["verdict"] == again["verdict"]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(CHROMIUM is None or CHROMEDRIVER is None,
+                    reason="no chromium and chromium-driver on this machine (apt-get install chromium chromium-driver)")
+def test_the_page_says_when_the_camera_stops_the_robot_is_lost_or_a_view_has_no_target(tmp_path):
+    with _served(tmp_path / "cell", flaky=True) as (base, live):
+        driver = _browser(tmp_path)
+        try:
+            driver.get(base + "/")
+            _wait(lambda: "target found" in driver.find_element("id", "frame-status").text, 60, "the target on the page")
+            _click(driver, "take")
+            _wait(lambda: _n_views(driver) == 1, what="a view")
+            live.camera.mode = "blank"
+            _wait(lambda: "not found" in driver.find_element("id", "frame-status").text, 30, "the page saying no target")
+            _click(driver, "take")
+            _wait(lambda: "not taken" in driver.find_element("id", "answer").text, 60, "the page saying the view was not taken")
+            assert "rejected/001.png" in driver.find_element("id", "answer").text
+            live.camera.mode = "stopped"
+            _wait(lambda: "Camera: the camera gave no image" in driver.find_element("id", "banner").text, 30,
+                  "the page saying the camera stopped")
+            _wait(lambda: "no image from the camera" in driver.find_element("id", "frame-status").text, 30,
+                  "the page saying how long since the last frame")
+            live.camera.mode = "ok"
+            _wait(lambda: "Camera" not in driver.find_element("id", "banner").text, 30, "the camera back")
+            live.robot.connected = False
+            _wait(lambda: "Robot: RuntimeError: RTDE receive: connection lost" in driver.find_element("id", "banner").text, 30,
+                  "the page saying the robot is lost")
+            assert _n_views(driver) == 1 and "000.png" in driver.find_element("id", "views").text
+        finally:
+            driver.quit()
+            live.robot.connected = True

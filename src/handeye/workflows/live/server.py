@@ -28,6 +28,7 @@ import ipaddress
 import json
 import secrets
 import signal
+import socket
 import struct
 import webbrowser
 from importlib.resources import files
@@ -258,7 +259,11 @@ class LiveServer:
             await runner.cleanup()
             raise HandEyeError(f"cannot serve on {host}:{port} ({exc.strerror or exc}): choose another --port") from None
         self.port = runner.addresses[0][1]
-        shown = f"[{host}]" if ":" in host else host
+        if host in ("0.0.0.0", "::", ""):  # every address: the address others type is this machine's name
+            host_shown = socket.gethostname()
+        else:
+            host_shown = host
+        shown = f"[{host_shown}]" if ":" in host_shown else host_shown
         self.hosts = {f"{shown}:{self.port}", f"localhost:{self.port}"} if is_loopback(host) else set()
         url = f"http://{shown}:{self.port}/" + (f"?token={self.token}" if self.token else "")
         try:
