@@ -122,6 +122,7 @@ def test_views_are_written_as_taken_removed_into_removed_and_finish_equals_calib
         assert load_session(tmp_path / "cell").image_names == ["000.png", "001.png", "003.png", "004.png", "005.png"]
         cal = _calibrated(live, 5)
         assert cal["error"] is None and cal["views"] == ["000.png", "001.png", "003.png", "004.png", "005.png"]
+        assert live.move_next().result(60)["ok"]
         assert live.take().result(60)["ok"]  # a new name: the removed image is never overwritten
         assert load_session(tmp_path / "cell").image_names[-1] == "006.png"
         _calibrated(live, 6)
@@ -129,6 +130,8 @@ def test_views_are_written_as_taken_removed_into_removed_and_finish_equals_calib
         assert done["ok"], done
     finally:
         live.stop()
+    rows = load_session(tmp_path / "cell").robot_input.values  # each move asked right after a view went to a new pose
+    assert len(np.unique(np.round(rows, 6), axis=0)) == len(rows)
     written = json.loads((tmp_path / "cell-results" / "result.json").read_text())
     direct = calibrate_session(tmp_path / "cell", progress=False)
     assert np.abs(np.array(written["X"]["matrix"]) - direct.X).max() < 1e-9
@@ -270,7 +273,8 @@ def test_a_robot_moved_by_hand_reports_its_pose_in_a_file(tmp_path):
             pose_file.write_text(" ".join(f"{v:.9f}" for v in arm.current_pose()))
             answer = live.take().result(60)
             assert answer["ok"], answer
-            _wait(lambda: live.snapshot()["next_pose"]["candidate"] != target["candidate"], what="the next pose")
+            _wait(lambda: (p := live.snapshot()["next_pose"]) is not None and p["candidate"] != target["candidate"],
+                  what="the next pose")
         pose_file.write_text("1, 2, 3")
         _wait(lambda: "cannot read the pose" in (live.snapshot()["robot"]["error"] or ""), what="the file's error")
         answer = live.take().result(60)
@@ -583,6 +587,8 @@ def test_the_page_in_chromium_takes_12_views_removes_one_and_writes_what_calibra
     assert "Traceback" not in log and "Error handling request" not in log, log[-3000:]
     assert "004.png" not in load_session(folder).image_names and (folder / "removed" / "004.png").is_file()
     assert len(load_session(folder).image_names) == 11
+    rows = load_session(folder).robot_input.values  # every move went to a new pose (none to a plan made before a view)
+    assert len(np.unique(np.round(rows, 6), axis=0)) == len(rows)
     written = json.loads((tmp_path / "cell-results" / "result.json").read_text())
     assert main(["calibrate", str(folder), "--out", str(tmp_path / "again"), "--no-cache"]) in (0, 1)
     again = json.loads((tmp_path / "again" / "result.json").read_text())

@@ -70,6 +70,8 @@ STATE_FILE = "live.yaml"
 MIN_VIEWS = 3
 #: Messages kept for the page.
 MAX_MESSAGES = 12
+#: How long a move waits for the next pose to be chosen after the views changed (seconds).
+PLAN_WAIT_S = 60.0
 #: Two poses read around a grab that differ by more than this (deg, mm) mean the robot moved.
 STILL_DEG, STILL_MM = 0.05, 0.5
 
@@ -286,6 +288,7 @@ class LiveCapture:
         self.camera_state: dict[str, Any] = {"error": None, "last_frame_at": None}
         self.messages: list[dict[str, Any]] = []
         self.busy: str | None = None
+        self.planning = True  #: the next pose is being chosen again (the views changed)
         self._cam2target = candidate_views(self.obj, self.K, self.image_size, self.dist, self.standoff)
         self._tried: list[int] = []
         self._next_k: int | None = None
@@ -335,7 +338,7 @@ class LiveCapture:
         if detection_cache_dir() is None:
             self._say("warn", "the detection cache is off: each calibration finds the target in every image again (slower)")
         self._dirty = bool(self.views)
-        self._plan()
+        self._plan(force=True)
         if self.isolated:  # the calibration's process started now (~2 s of imports), not at the third view
             self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
             self._pool.submit(ready)
@@ -370,7 +373,7 @@ class LiveCapture:
                 "views": [{"name": v.name, "rms": round(v.rms, 4), "row": [float(x) for x in v.row], "taken_at": v.taken_at}
                           for v in self.views],
                 "removed": [d["name"] for d in self.removed], "calibration": self.calibration, "history": list(self.history),
-                "coverage": self.coverage, "next_pose": self.next_pose, "robot": dict(self.robot_state),
+                "coverage": self.coverage, "next_pose": self.next_pose, "planning": self.planning, "robot": dict(self.robot_state),
                 "camera": dict(self.camera_state), "messages": list(self.messages), "finished": self.finished,
                 "busy": self.busy,
             }
@@ -480,6 +483,7 @@ class LiveCapture:
             self._write_session()
             view.taken_at = time.time()
             self._dirty, self.finished = True, None
+            self._stale_plan()
         _done(future, True, f"view {name} taken ({len(res.detection)} points, RMS {sol[1]:.2f} px)")
         self._say("info", f"took view {name}: {len(self.views)} views ({len(res.detection)} points, PnP RMS {sol[1]:.2f} px)")
 
@@ -495,8 +499,14 @@ class LiveCapture:
             self._write_session()  # the row goes first: the session never names an image that is not there
             (self.folder / "images" / name).replace(self.folder / "removed" / name)
             self._dirty, self.finished = True, None
+            self._stale_plan()
         _done(future, True, f"view {name} removed (its image is in removed/{name})")
         self._say("info", f"removed view {name}: {len(self.views)} views")
+
+    def _stale_plan(self) -> None:
+        """The views changed: the next pose is chosen again (after the calibration), none offered meanwhile
+        (a move now would go where the planner chose before the last view: to the same pose again)."""
+        self._next_k, self.next_pose, self.planning = None, None, True
 
     def _finish(self, future: Future) -> None:
         if len(self.views) < MIN_VIEWS:
@@ -617,12 +627,15 @@ class LiveCapture:
         if not self.can_move:
             _done(future, False, "this robot is moved by hand: jog it to the pose shown")
             return
+        end = time.monotonic() + PLAN_WAIT_S  # a move asked right after a view waits for the pose chosen after it
+        while self.planning and not self._stop.is_set() and time.monotonic() < end:
+            self._stop.wait(0.05)
         with self._lock:
-            k = self._next_k
+            k, row = self._next_k, None if self.next_pose is None else self.next_pose["values"]
         if k is None:
-            _done(future, False, "no next pose: the planner has no candidate left")
+            _done(future, False, "the planner is choosing the next pose after the last view: move in a moment"
+                  if self.planning else "no next pose: the planner has no candidate left")
             return
-        row = self.next_pose["values"]
         with self._lock:
             self.robot_state["moving"] = True
         self._changed()
@@ -724,7 +737,7 @@ class LiveCapture:
                 pass
         return self.X0, self.Z0
 
-    def _plan(self) -> None:
+    def _plan(self, force: bool = False) -> None:
         """The next pose (the candidate view that narrows X most, as ``handeye acquire`` chooses) and the coverage."""
         X, Z = self._model()
         with self._lock:
@@ -743,7 +756,8 @@ class LiveCapture:
             "candidate": int(k), "can_move": self.can_move}
         coverage = _coverage(views, self.setup)
         with self._lock:
-            self._next_k, self.next_pose, self.coverage = k, pose, coverage
+            if force or not self._dirty:  # else the views changed meanwhile: the plan after the next calibration counts
+                self._next_k, self.next_pose, self.coverage, self.planning = k, pose, coverage, False
         self._changed()
 
 

@@ -231,7 +231,7 @@
       'after 2 views';
     var p = s.next_pose;
     $('next').innerHTML = p ? poseTable(p, p.values) + (p.can_move ? '' : '<p>Jog the robot to this pose, then take the view.</p>')
-      : '<p class="muted">none: no candidate view left</p>';
+      : '<p class="muted">' + (s.planning ? 'choosing the next pose after the last view…' : 'none: no candidate view left') + '</p>';
   }
 
   function renderDone(s) {
