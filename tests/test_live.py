@@ -508,6 +508,7 @@ def _take_by_clicks(driver, n_before):
           what="the move's answer")
     _click(driver, "take")
     _wait(lambda: _n_views(driver) == n_before + 1, what=f"view {n_before + 1} on the page")
+    _wait(lambda: _live(driver, "window.__live.pending() === 0"), what="the take's answer")  # the state may come first
     answer = driver.find_element("id", "answer").text
     assert "taken" in answer, answer
 
