@@ -412,3 +412,27 @@ def test_a_views_file_is_found_by_its_name_or_stem_in_any_case(tmp_path):
     assert [p.name for p in clouds] == ["v03.npy", "v03.npy"]
     assert [p.name for p in files_of_views(tmp_path, ["scan.001"], (".csv",))] == ["scan.001.csv"]
     assert files_of_views(tmp_path / "missing", ["v01"], (".png",)) == [None]
+
+
+@pytest.fixture(scope="module")
+def stereo_rig():
+    """A stereo pair on the flange (8 views, a calibrated arm's error stated), calibrated as a rig."""
+    sc = rig_scene(8, "eye_in_hand", rng=0, robot_error=ERROR)
+    return calibrate_rig(sc.camera_models(), ["cam0", "cam1"], ControllerPoses(sc.flange2base, ERROR))
+
+
+@pytest.mark.slow
+def test_rig_report_gives_each_sensors_distance_from_its_own_calibration_in_degrees(stereo_rig):
+    """Issue 77: the rig report printed the angle between a sensor's own X and the joint fit's in
+    radians labelled degrees (0.0199 'deg' was 1.14 deg)."""
+    import re
+
+    from handeye.report.html import report_html
+
+    page = report_html(stereo_rig.joint)
+    printed = re.findall(r"its own X ([0-9.]+) mm / ([0-9.]+) deg", page)
+    assert len(printed) == 2
+    for (mm, deg), name in zip(printed, ["cam0", "cam1"]):
+        own, joint = stereo_rig.alone[name].X, stereo_rig.X(name)
+        assert float(deg) == pytest.approx(np.degrees(rotation_error(own, joint)), abs=1e-4)
+        assert float(mm) == pytest.approx(1e3 * translation_error(own, joint), abs=1e-3)

@@ -130,8 +130,8 @@ def rig_sections(cal: Calibration) -> str:
                 line += f", held-out views {own['heldout_mm']:.3f} mm (cross-validated)"
             if name in joint:
                 A = np.asarray(own["X"])
-                line += (f", its own X {1e3 * translation_error(A, X):.3f} mm / {rotation_error(A, X):.4f} deg from the "
-                         "joint fit's")
+                line += (f", its own X {1e3 * translation_error(A, X):.3f} mm / {np.degrees(rotation_error(A, X)):.4f} deg "
+                         "from the joint fit's")
         parts.append(f"<p>{_e(line)}.</p>")
         if X is not None:
             parts.append(f"<p>X ({_e(name)}2{_e(setup_info(cal.setup).x_name.split('2', 1)[1])}), "
