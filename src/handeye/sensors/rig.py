@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from ..errors import InputMismatchError
 from ..frames.metrics import std_deg_mm
+from ..frames.setups import pose_name
 from ..geometry.se3 import invert, perturb, skew
 from .base import SensorModel
 
@@ -195,7 +196,7 @@ class Rig:
         out: dict[str, Any] = {"sensors": list(self.sensor_names), "relative": {}}
         for k in range(1, len(self.members)):
             s = slice(6 * (k - 1), 6 * k)
-            out["relative"][f"{self.sensor_names[k]}2{self.sensor_names[0]}"] = {
+            out["relative"][pose_name(self.sensor_names[k], self.sensor_names[0])] = {
                 "matrix": self.relative(p, k).tolist(), "std_deg_mm": std_deg_mm(cov_p[s, s]).tolist()}
         return out
 
