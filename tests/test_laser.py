@@ -584,3 +584,28 @@ def test_bad_edge_and_fixture_targets_are_refused_by_name(tmp_path):
             load_laser_session(folder)
     (folder / "session.yaml").write_text(yaml.safe_dump(spec | {"target": {"type": "spheres", "count": 3, "diameter": 0.04}}))
     assert load_laser_session(folder).radii == (0.02, 0.02, 0.02)
+
+
+@pytest.mark.slow
+def test_a_laser_result_gives_x_in_the_robots_own_pose_format(tmp_path):
+    """Issue 77: result.json's robot_format (X and Z as the robot's own pose rows, to teach a tool or a
+    work object) was written for camera sessions alone: a FANUC laser user got no x, y, z, w, p, r.
+    Every sensor's calibration now carries the session's pose format and units."""
+    from handeye.frames.poses import parse_poses
+    from handeye.io.session import write_pose_table
+    from handeye.report.files import result_dict
+
+    sc = laser_scene(12, "eye_in_hand", rng=3)
+    folder = write_laser_session(tmp_path / "s", sc)
+    names = [f"p{k + 1:02d}.csv" for k in range(12)]
+    write_pose_table(folder / "poses.csv", names, sc.flange2base, "euler:xyz", "mm", "deg", id_column="profile")
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    spec["poses"] = {"file": "poses.csv", "format": "euler:xyz", "length_unit": "mm", "angle_unit": "deg"}
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    cal = calibrate_laser_session(folder)
+    data = result_dict(cal)
+    for key, T in (("X", cal.X), ("Z", cal.Z)):
+        rows = data[key]["robot_format"]
+        assert (rows["format"], rows["length_unit"], rows["angle_unit"]) == ("euler:xyz", "mm", "deg")
+        assert np.allclose(parse_poses(np.array(rows["values"])[None], "euler:xyz", "mm", "deg")[0], T, atol=1e-12)
+    assert data["X"]["euler_input_convention"]["sequence"] == "xyz"

@@ -31,7 +31,7 @@ from ..robot.models import ControllerPoses, JointTrajectory, PoseErrors, RobotMo
 from ..sensors.camera.detect import detect_images
 from ..sensors.camera.targets import target_from_spec
 from ..sensors.linescan.model import LineScanCorners, Trajectory
-from ._sensor import sensor_options
+from ._sensor import sensor_options, session_robot_input
 
 __all__ = ["calibrate_linescan_session", "grid_orderings", "linescan_robot", "linescan_joints"]
 
@@ -158,7 +158,8 @@ def calibrate_linescan_session(folder: str | Path | LineScanSession, options: Ca
                             grid_orderings(target.object_points()) if all(len(found[k][0]) == len(target.object_points())
                                                                           for k in kept) else None)
     cal = estimate(model, _robot(s, model, opts), opts.folds)
-    return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + list(cal.notes), input_folder=s.folder)
+    return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + list(cal.notes), input_folder=s.folder,
+                   robot_input=session_robot_input(s.folder, cal.flange2base))
 
 
 def _robot(s: LineScanSession, model: LineScanCorners, opts: CalibrationOptions) -> RobotModel:

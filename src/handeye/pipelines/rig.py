@@ -35,7 +35,7 @@ from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.targets import target_from_spec
 from ..sensors.depth.model import BoardPoints, SphereCentres
 from ..sensors.rig import Rig
-from ._sensor import robot_model, sensor_options
+from ._sensor import robot_model, sensor_options, session_robot_input
 from .depth import measure_depth_session
 from .laser import laser_model, read_profiles
 
@@ -394,4 +394,5 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
                        "K": np.asarray(x.K).tolist(), "dist": np.asarray(x.dist).tolist()} for x in s.sensors if x.kind == "camera"}
     joint = replace(rig.joint, sensor=replace(rig.joint.sensor, figures=dict(rig.joint.sensor.figures, images_per_sensor=images)))
     return replace(joint, notes=notes + list(rig.joint.notes),
-                   skipped=[(n, w) for n, w in rig.skipped] + list(rig.joint.skipped), input_folder=s.folder)
+                   skipped=[(n, w) for n, w in rig.skipped] + list(rig.joint.skipped), input_folder=s.folder,
+                   robot_input=session_robot_input(s.folder, joint.flange2base))
