@@ -566,3 +566,39 @@ def test_rotation_axes_figure_draws_a_share_of_many_motions(sample_cal, monkeypa
     monkeypatch.setattr(html, "MAX_AXES_DRAWN", n)
     fig = html._axes_figure(sample_cal, sample_cal.motions)
     assert drawn[-1] == n and "drawn" not in fig._suptitle.get_text()
+
+
+@pytest.fixture(scope="module")
+def laser_cal():
+    """A laser profiler's calibration (10 profiles of a ball, an exact robot): a sensor's fit."""
+    from handeye.estimation.core import estimate
+    from handeye.robot.models import ControllerPoses
+    from handeye.sensors.laser.model import SphereProfiles
+    from handeye.simulate import laser_scene
+
+    sc = laser_scene(10, "eye_in_hand", rng=7)
+    return estimate(SphereProfiles("eye_in_hand", [f"p{k:02d}.csv" for k in range(10)], sc.profiles, radius=sc.radius),
+                    ControllerPoses(sc.flange2base))
+
+
+def test_a_sensors_report_says_what_its_fit_is(laser_cal):
+    """Issue 77: a sensor's report said '10 views, 0 motions' (a sensor's fit pairs none), Z's std '—'
+    where the terminal prints it, a held-out paragraph about the camera's refinements, and its figures
+    as raw keys and floats ('1200.', 'placement_given 1.'). Now: views alone, Z's std (a ball's
+    orientation 'not defined'), the sensor's own held-out account, figures in words."""
+    from handeye.report.html import report_html
+
+    page = report_html(laser_cal)
+    assert "· 10 views ·" in page and "motions" not in page.split("</h1>")[1].split("</p>")[0]
+    z = page.split("<h3>Z = target2base</h3>")[1].split("</table>")[0]
+    std = laser_cal.std_Z
+    assert f"<td>{', '.join(f'{v:.3f}' for v in std[3:])}</td>" in z and "not defined, not defined, not defined" in z
+    held = page.split("Held-out prediction error (cross-validated)</h3>")[1].split("</p>")[0]
+    assert "pixel refinement" not in held and "laser line profiler" in held and "closed-form start" in held
+    assert "<td class=\"l\">radius (mm)</td>" in page and "<td class=\"l\">centre (m)</td>" in page
+    from handeye.report.html import _figure_label, _figure_text
+
+    assert [_figure_label(k) for k in ("line_rate_hz", "clock_offset_s", "placement_given", "k1")] == [
+        "line rate (Hz)", "clock offset (s)", "placement given", "k1"]
+    assert [_figure_text(v) for v in (1200.0, True, False, 18000, [], [0.5, 2.0], None)] == [
+        "1200", "yes", "no", "18000", "none", "[0.5, 2]", "—"]

@@ -321,21 +321,57 @@ def _sensor_residuals_section(cal: Calibration) -> str:
     if cal.skipped:
         parts.append("<p>Views not used: " + "; ".join(f"{_e(n)} ({_e(r)})" for n, r in cal.skipped) + "</p>")
     shown = {k: v for k, v in sf.figures.items() if not (is_rig(cal) and k in RIG_FIGURES)}  # a rig's: in its own sections
-    rows = "".join(f'<tr><td class="l">{_e(k)}</td><td class="l">{_e(_figure_text(v))}</td></tr>'
+    rows = "".join(f'<tr><td class="l">{_e(_figure_label(k))}</td><td class="l">{_e(_figure_text(v))}</td></tr>'
                    for k, v in shown.items())
-    parts.append(f"<h3>The {_e(sf.sensor)}'s own figures</h3>"
-                 f'<table><tr><th class="l">figure</th><th class="l">value</th></tr>{rows}</table></section>')
+    if rows:  # a rig's figures are all in its sections: no empty table
+        parts.append(f"<h3>The {_e(sf.sensor)}'s own figures</h3>"
+                     f'<table><tr><th class="l">figure</th><th class="l">value</th></tr>{rows}</table>')
+    parts.append("</section>")
     return "".join(parts)
 
 
+#: A sensor figure's key's last word, when it is a unit, as the report writes the unit.
+FIGURE_UNITS = {"m": "m", "mm": "mm", "um": "µm", "px": "px", "s": "s", "ms": "ms", "hz": "Hz", "deg": "deg", "rad": "rad"}
+
+
+def _figure_label(key: str) -> str:
+    """A sensor figure's key in words: ``clock_offset_s`` is 'clock offset (s)', ``line_rate_hz`` 'line rate (Hz)'."""
+    words = str(key).split("_")
+    if len(words) > 1 and words[-1].lower() in FIGURE_UNITS:
+        return " ".join(words[:-1]) + f" ({FIGURE_UNITS[words[-1].lower()]})"
+    return " ".join(words)
+
+
+def _number(x: float, digits: int = 6) -> str:
+    """A number as people write it: a whole number without a point, else ``digits`` significant figures."""
+    x = float(x)
+    if np.isfinite(x) and x == round(x) and abs(x) < 1e15:
+        return str(int(round(x)))
+    return f"{x:.{digits}g}"
+
+
 def _figure_text(value) -> str:
-    """A sensor figure as text: a value with its std, or numbers rounded."""
+    """A sensor figure as text: a value with its std, yes or no, a whole number as one, numbers rounded
+    (a list in brackets, a table's rows split by semicolons), 'none' for an empty list."""
     if isinstance(value, dict) and "value" in value:
         return f"{value['value']:.6g} ± {value.get('std', 0.0):.3g}" + ("" if value.get("fitted", True) else " (not fitted)")
+    if isinstance(value, (bool, np.bool_)):
+        return "yes" if value else "no"
+    if value is None:
+        return "—"
+    if isinstance(value, str):
+        return value
     try:
-        return np.array2string(np.asarray(value, dtype=float), precision=4, separator=", ")
-    except (TypeError, ValueError):  # not numbers (None, text): as written
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):  # not numbers (a mapping, text): as written
         return str(value)
+    if a.ndim == 0:
+        return _number(a)
+    if a.size == 0:
+        return "none"
+    if a.ndim == 1:
+        return "[" + ", ".join(_number(x, 4) for x in a) + "]"
+    return "; ".join("[" + ", ".join(_number(x, 4) for x in row) + "]" for row in a.reshape(len(a), -1))
 
 
 def _verdict_section(cal: Calibration, verdict: str, pres: NDArray[np.float64]) -> str:
@@ -361,7 +397,7 @@ def _result_section(cal: Calibration, data: dict) -> str:
              + (f", RMS {cal.refined_rms:.3f} px over all target points" if cal.refined_rms is not None else "")
              + "</p>" + _transform_table(cal.X, cal.std)
              + _determined_table(cal, data)
-             + f"<h3>Z = {_e(data['Z_name'])}</h3>" + _transform_table(cal.Z, None)
+             + f"<h3>Z = {_e(data['Z_name'])}</h3>" + _transform_table(cal.Z, cal.std_Z)
              + "<h3>Paste into ROS 2</h3>"
              + f"<pre>{_e(data['ros']['static_transform_publisher'])}</pre><pre>{_e(data['ros']['urdf_joint'])}</pre>"]
     if cal.certificate is not None:
@@ -406,6 +442,19 @@ def _determined_table(cal: Calibration, data: dict) -> str:
     return "".join(parts)
 
 
+#: What the held-out table's rows are, by who made the calibration: a camera's estimators, or a
+#: sensor's fit beside its closed-form start.
+HELD_OUT_CAMERA = ("Each view predicted from its robot pose by X and Z fitted without it: where the target's points land "
+                   "against where the camera saw them. The estimator used is listed first: the preferred refinement (the "
+                   "pixel refinement while the robot's errors do not dominate its residuals, else the pose refinement) is "
+                   "replaced only by a candidate better by more than one standard error of the per-view differences, so "
+                   "the one used need not have the smallest error here.")
+HELD_OUT_SENSOR = ("Each view predicted from its robot {robot} by X and the target fitted without it (its fold of the "
+                   "cross-validation): how far its measurements lie from the target's model, in millimetres at the "
+                   "target. The {sensor}'s fit is listed first, then its closed-form start refitted the same way: the "
+                   "fit should predict the views it has not seen better than its start does.")
+
+
 def _cross_validation_table(cal: Calibration) -> str:
     """Held-out prediction error of every estimator tried, the one used first."""
     rows = sorted(cal.cross_validation.items(),  # the score the choice was made by: px with images, else mm
@@ -416,12 +465,9 @@ def _cross_validation_table(cal: Calibration) -> str:
         used = " (used)" if name == cal.estimator else ""
         body.append(f'<tr><td class="l">{_e(name)}{used}</td><td>{px}</td><td>{r["mm"]:.3f}</td></tr>')
     body = "".join(body)
-    return ("<h3>Held-out prediction error (cross-validated)</h3><p class=\"note\">Each view predicted from its robot "
-            "pose by X and Z fitted without it: where the target's points land against where the camera saw them. "
-            "The estimator used is listed first: the preferred refinement (the pixel refinement while the robot's "
-            "errors do not dominate its residuals, else the pose refinement) is replaced only by a candidate better by "
-            "more than one standard error of the per-view differences, so the one used need not have the smallest "
-            "error here.</p>"
+    text = HELD_OUT_CAMERA if cal.sensor is None else HELD_OUT_SENSOR.format(
+        robot="joint angles" if cal.kinematic is not None else "pose", sensor=cal.sensor.sensor)
+    return (f"<h3>Held-out prediction error (cross-validated)</h3><p class=\"note\">{_e(text)}</p>"
             f'<table><tr><th class="l">estimator</th><th>px</th><th>mm at the target</th></tr>{body}</table>')
 
 
@@ -585,7 +631,8 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
              f"<style>{_CSS}</style></head><body>",
              f"<h1>Hand-eye calibration ({_e(cal.setup.replace('_', '-'))})</h1>"
              f"<p class=\"note\">handeye {_e(__version__)} · method {_e(cal.method)} · {len(cal.flange2base)} "
-             f"{'poses' if cal.sensor is None else 'views'}, {len(cal.pairs)} motions · inputs sha256 "
+             + (f"poses, {len(cal.pairs)} motions" if cal.sensor is None else "views")  # a sensor's fit pairs no motions
+             + " · inputs sha256 "
              f"{_e((cal.inputs_sha256 or '')[:16])}…</p>",
              _verdict_section(cal, verdict, pres),
              _result_section(cal, data)]
