@@ -238,3 +238,30 @@ def test_a_plan_of_scans_predicts_the_std_it_gives(tmp_path):
     assert main(["plan", "--sensor", "line_scan", "--intrinsics", "k.yaml", "--out", str(tmp_path / "b.csv")]) == 2
     assert main(["plan", "--line-camera", "2048,2400", "--intrinsics", "k.yaml", "--standoff", "0.5",
                  "--out", str(tmp_path / "c.csv")]) == 2
+
+
+@pytest.mark.slow
+def test_the_report_draws_each_scan_with_the_fitted_grid():
+    """Issue 77: a line-scan camera's report had no picture of the fit on its scans. Each scan's
+    section: its corners in the scan's own plane (mm at the target, along the line and along the
+    move) with their error's size, and the board's grid (9 + 6 lines) through the corners where the
+    fit puts them, each as far from its corner as its residual says."""
+    from scipy.spatial import cKDTree
+
+    from handeye.report.html import report_html
+
+    sc = linescan_scene(8, "eye_in_hand", rng=1)
+    model = LineScanCorners("eye_in_hand", sc.names, sc.corners, sc.target_points, sc.starts, sc.line_rate, sc.trajectory,
+                            sc.focal, sc.width)
+    cal = estimate(model, ControllerPoses(model.flange2base_ref))
+    assert len(cal.sensor.sections) == 8
+    for sec, rms in zip(cal.sensor.sections, cal.sensor.residual_mm):
+        curve = sec["curve_mm"][np.isfinite(sec["curve_mm"]).all(axis=1)]
+        gap = cKDTree(curve).query(sec["points_mm"])[0]
+        assert np.isclose(np.sqrt(np.mean(sec["residual_mm"] ** 2)), rms, rtol=1e-6)
+        assert np.median(gap / sec["residual_mm"]) == pytest.approx(1.0, abs=0.35)  # the fitted corner is its residual away
+        assert np.isnan(sec["curve_mm"][:, 0]).sum() == 9 + 6
+        extent = np.ptp(sec["points_mm"], axis=0)
+        assert 80 < extent.max() < 250  # the 160 x 100 mm grid, turned: mm at the target along both axes
+    page = report_html(cal)
+    assert 'alt="each view with the fitted target&#x27;s section"' in page

@@ -173,3 +173,24 @@ def test_joint_angles_with_a_mesh_target_fit_the_arms_table(tmp_path):
         mesh_scene(8, "eye_to_hand", rng=0, arm="ur5", robot_error=(0.01, 0.05))
     # the command line writes it for a fixed camera (a camera on the flange finds a disc turned over too often)
     assert main(["simulate", "--sensor", "depth", "--arm", "ur5", "--setup", "eye_in_hand", "--out", str(tmp_path / "x")]) == 2
+
+
+def test_the_report_draws_each_cloud_with_the_posed_mesh(flange, scene):
+    """Issue 77: a mesh session's report had no picture of the fit on its clouds. Each view's
+    section: its points in its image (mm at the shape) with their signed distance from the surface,
+    and the mesh's sharp edges (the disc's rims, the holes, the pin) posed where the fit puts it:
+    on points of the surface itself, at the truth, the distances are 0 and the rims bound the points."""
+    names = [f"v{k}" for k in range(3)]
+    points, normals = [], []
+    for T in scene.target2cam[:3]:
+        facing = (flange.normals @ T[:3, :3].T) @ np.array([0.0, 0.0, -1.0]) > 0.3  # the side the camera sees
+        points.append(flange.points[facing] @ T[:3, :3].T + T[:3, 3])
+        normals.append(flange.normals[facing])
+    model = MeshSurface("eye_to_hand", names, flange, points, normals, scene.target2cam[:3])
+    X, p = model.start(scene.flange2base[:3], scene.X, scene.Z)
+    for sec in model.sections(X, p, scene.flange2base[:3], [0, 1, 2]):
+        assert np.abs(sec["residual_mm"]).max() < 1e-3
+        edges = sec["curve_mm"][np.isfinite(sec["curve_mm"]).all(axis=1)]
+        assert len(edges) > 200  # rims, holes, the pin
+        lo, hi = np.percentile(sec["points_mm"], [0, 100], axis=0)
+        assert np.abs(edges.min(axis=0) - lo).max() < 3 and np.abs(edges.max(axis=0) - hi).max() < 3

@@ -469,3 +469,24 @@ def test_a_rigs_every_sensor_on_the_terminal_with_readable_names(stereo_rig, tmp
     back = load_result(tmp_path)
     assert list(back.sensor.figures["relative"]) == ["cam1_to_cam0"]
     assert np.allclose(rig_members(back)["cam1"].sensor.figures["rig"]["pose_in_first_sensor"]["matrix"], rel["matrix"])
+
+
+@pytest.mark.slow
+def test_the_rig_report_draws_every_cameras_views_with_the_fitted_grid(stereo_rig):
+    """Issue 77: a rig's report had no picture of the fit on its images. A section per camera and
+    view (labelled so, with its own RMS): the corners in the image (mm at the target) and the
+    board's grid through the corners each camera's X in the joint fit predicts."""
+    from scipy.spatial import cKDTree
+
+    from handeye.report.html import report_html
+
+    cal = stereo_rig.joint
+    sections = cal.sensor.sections
+    per_view = cal.sensor.figures["view_rms_mm_per_sensor"]
+    assert [s["label"] for s in sections[:2]] == ["v01 cam0", "v01 cam1"] and len(sections) == 16
+    for sec in sections:
+        view, name = sec["label"].split()
+        assert sec["rms_mm"] == pytest.approx(per_view[name][int(view[1:]) - 1], rel=1e-6)
+        curve = sec["curve_mm"][np.isfinite(sec["curve_mm"]).all(axis=1)]
+        assert np.median(cKDTree(curve).query(sec["points_mm"])[0]) < 3 * sec["rms_mm"]
+    assert 'alt="each view with the fitted target&#x27;s section"' in report_html(cal)

@@ -257,53 +257,73 @@ def _view_residual_figure(cal: Calibration) -> str:
 MAX_SECTIONS = 24
 
 
+def _section_rms(sf) -> list[float]:
+    """Per section its RMS residual (mm): its own (``rms_mm``: a rig's, a section per sensor and view),
+    else its view's."""
+    return [float(sec.get("rms_mm", sf.residual_mm[k] if k < len(sf.residual_mm) else np.nan)) for k, sec in enumerate(sf.sections)]
+
+
 def _shown_sections(sf) -> list[int]:
-    """The views whose sections are drawn: all up to :data:`MAX_SECTIONS`, else the worst half of
+    """The sections drawn (those with points): all up to :data:`MAX_SECTIONS`, else the worst half of
     that by residual and the rest evenly over the others, in the views' order."""
-    n = len(sf.sections)
-    if n <= MAX_SECTIONS:
-        return list(range(n))
-    worst = list(np.argsort(-np.asarray(sf.residual_mm))[:MAX_SECTIONS // 2])
-    rest = [k for k in range(n) if k not in worst]
+    drawn = [k for k, sec in enumerate(sf.sections) if np.isfinite(np.asarray(sec["points_mm"], float)).any()]
+    if len(drawn) <= MAX_SECTIONS:
+        return drawn
+    rms = np.nan_to_num(np.asarray(_section_rms(sf))[drawn], nan=-1.0)
+    worst = [drawn[i] for i in np.argsort(-rms)[:MAX_SECTIONS // 2]]
+    rest = [k for k in drawn if k not in worst]
     return sorted(worst + [rest[i] for i in np.linspace(0, len(rest) - 1, MAX_SECTIONS - len(worst)).astype(int)])
 
 
+#: What a section is drawn in when the sensor does not say (``plane``): a laser profiler's own plane.
+LASER_PLANE = "the laser line profiler's plane (x across, z down)"
+
+
 def _sections_figure(cal: Calibration) -> str:
-    """Each drawn view in the sensor's own plane, in one grid of cells at one scale (one axes: a
-    figure of two dozen axes took a second to draw): its points coloured by residual, and the fitted
-    target's section through X (a profiler's profile and the ball's circle or the plate's line)."""
+    """Each drawn section (a view, or a rig's sensor in a view) in the sensor's own plane (a profiler's
+    laser plane, a camera's image, a line-scan camera's scan, a depth camera's image: its ``plane``),
+    in one grid of cells at one scale (one axes: a figure of two dozen axes took a second to draw):
+    its points coloured by residual (signed: a diverging scale about 0; a size: from 0), and the fitted
+    target through X (a ball's circle or a plate's line, a board's grid, a mesh's edges)."""
     sf = cal.sensor
     shown = _shown_sections(sf)
+    rms = _section_rms(sf)
     cols = min(6, len(shown))
-    boxes = [(np.nanmin(sf.sections[k]["points_mm"], axis=0), np.nanmax(sf.sections[k]["points_mm"], axis=0))
-             for k in shown]
-    cell = 1.25 * max(float(np.max(hi - lo)) for lo, hi in boxes)  # mm: the largest view's extent, and a margin
+    drawn = [np.vstack([sf.sections[k]["points_mm"], np.asarray(sf.sections[k]["curve_mm"], float).reshape(-1, 2)]) for k in shown]
+    boxes = [(np.nanmin(d, axis=0), np.nanmax(d, axis=0)) for d in drawn]  # the points and the target drawn
+    cell = 1.25 * max(max(float(np.max(hi - lo)) for lo, hi in boxes), 1e-3)  # mm: the largest view's extent, a margin
     fig = _figure((1.9 * cols + 1.2, 1.9 * (-(-len(shown) // cols)) + 0.6))
     ax = fig.subplots(1, 1)
     xs, zs, res = [], [], []
     for i, (k, (lo, hi)) in enumerate(zip(shown, boxes)):
         sec = sf.sections[k]
         offset = np.array([(i % cols) * cell, (i // cols) * cell]) - 0.5 * (lo + hi)  # the view's centre to its cell's
-        curve = sec["curve_mm"] + offset
+        curve = np.asarray(sec["curve_mm"], float).reshape(-1, 2) + offset
         ax.plot(curve[:, 0], curve[:, 1], "-", color="#555", lw=0.8)
         xs.append(sec["points_mm"][:, 0] + offset[0])
         zs.append(sec["points_mm"][:, 1] + offset[1])
         res.append(sec["residual_mm"])
-        ax.text((i % cols) * cell, (i // cols) * cell - 0.45 * cell, f"{sf.views[k]}: {sf.residual_mm[k]:.3f} mm",
+        label = sec.get("label", sf.views[k] if k < len(sf.views) else "")
+        ax.text((i % cols) * cell, (i // cols) * cell - 0.45 * cell, f"{label}: {rms[k]:.3f} mm",
                 ha="center", va="top", fontsize=6)
     res_all = np.concatenate(res)
     limit = max(float(np.nanpercentile(np.abs(res_all), 99)), 1e-3)
-    dots = ax.scatter(np.concatenate(xs), np.concatenate(zs), c=res_all, cmap="coolwarm", vmin=-limit, vmax=limit, s=2)
-    bar = 10.0 if cell > 20 else 1.0  # a scale bar: every cell is drawn at this one scale
+    signed = bool(np.nanmin(res_all) < 0)  # a signed distance (a profile, a surface) or a size (a corner's error)
+    scale = {"cmap": "coolwarm", "vmin": -limit, "vmax": limit} if signed else {"cmap": "viridis", "vmin": 0.0, "vmax": limit}
+    many = len(res_all) > 30 * len(shown)  # profiles and clouds: small dots; a board's corners: larger ones
+    dots = ax.scatter(np.concatenate(xs), np.concatenate(zs), c=res_all, s=2 if many else 9, **scale)
+    bar = float(10 ** np.floor(np.log10(max(cell / 4, 1e-3))))  # a scale bar: every cell is drawn at this one scale
     y0 = (-(-len(shown) // cols) - 0.5) * cell
     ax.plot([-0.4 * cell, -0.4 * cell + bar], [y0, y0], "k-", lw=1.5)
     ax.text(-0.4 * cell, y0 + 0.04 * cell, f"{bar:g} mm", fontsize=6, va="top")
     ax.set_aspect("equal")
-    ax.invert_yaxis()  # the sensor looks down its z
+    ax.invert_yaxis()  # the sensor looks down its z; an image's rows run down
     ax.axis("off")
-    fig.colorbar(dots, ax=ax, shrink=0.6, label="residual (mm)")
-    ax.set_title(f"each view in the {sf.sensor}'s plane (x across, z down, one scale): the points, and the fitted "
-                 f"{sf.target}'s section through X (line)", fontsize=8, pad=14)
+    fig.colorbar(dots, ax=ax, shrink=0.6, label="residual (mm)" if signed else "residual's size (mm)")
+    plane = sf.sections[shown[0]].get("plane", LASER_PLANE)
+    lines = any(np.isfinite(np.asarray(sf.sections[k]["curve_mm"], float)).any() for k in shown)
+    ax.set_title(f"each view in {plane}, one scale: the points coloured by their residual"
+                 + (f", and the fitted {sf.target} through X (lines)" if lines else ""), fontsize=8, pad=14)
     return _png(fig)
 
 
@@ -313,8 +333,8 @@ def _sensor_residuals_section(cal: Calibration) -> str:
     parts = ['<section id="residuals"><h2>Per-view residuals</h2>' + _img(_view_residual_figure(cal), "per-view residuals"),
              f"<p>{sf.points} measurements fitted, {sf.rejected} set aside as outliers (beyond 5 of their std); "
              f"{sf.fit_rms_mm:.3f} mm RMS.</p>"]
-    if sf.sections:
-        shown = _shown_sections(sf)
+    shown = _shown_sections(sf) if sf.sections else []
+    if shown:
         parts.append(_img(_sections_figure(cal), "each view with the fitted target's section")
                      + (f"<p>{len(shown)} of {len(sf.sections)} views drawn: the {MAX_SECTIONS // 2} that fit worst and "
                         "others evenly.</p>" if len(shown) < len(sf.sections) else ""))
@@ -361,6 +381,8 @@ def _figure_text(value) -> str:
         return "—"
     if isinstance(value, str):
         return value
+    if isinstance(value, (list, tuple)) and value and all(isinstance(v, str) for v in value):
+        return ", ".join(value)
     try:
         a = np.asarray(value, dtype=float)
     except (TypeError, ValueError):  # not numbers (a mapping, text): as written
