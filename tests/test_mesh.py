@@ -194,3 +194,24 @@ def test_the_report_draws_each_cloud_with_the_posed_mesh(flange, scene):
         assert len(edges) > 200  # rims, holes, the pin
         lo, hi = np.percentile(sec["points_mm"], [0, 100], axis=0)
         assert np.abs(edges.min(axis=0) - lo).max() < 3 and np.abs(edges.max(axis=0) - hi).max() < 3
+
+
+def test_every_extra_a_session_needs_is_named_at_once(tmp_path, monkeypatch, capsys):
+    """Issue 77: a mesh target's session with .ply clouds asked for the mesh extra, then, installed,
+    for depth. Before anything is read, calibrate names every extra the session needs that is not
+    installed, in one pip install line."""
+    import sys
+
+    folder = tmp_path / "s"
+    (folder / "clouds").mkdir(parents=True)
+    for k in range(3):
+        (folder / "clouds" / f"v{k}.ply").write_bytes(b"ply\n")
+    (folder / "session.yaml").write_text(yaml.safe_dump({
+        "setup": "eye_to_hand", "depth": {"unit": "m"}, "target": {"type": "mesh", "file": "flange.stl", "unit": "mm"},
+        "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}}))
+    for module in ("trimesh", "plyfile"):
+        monkeypatch.setitem(sys.modules, module, None)  # not installed
+    assert main(["calibrate", str(folder), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "pip install 'handeye[depth,mesh]'" in err and "trimesh (the mesh target flange.stl)" in err
+    assert "plyfile (.ply clouds in clouds/)" in err and not (tmp_path / "out").exists()
