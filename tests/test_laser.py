@@ -93,7 +93,7 @@ def test_a_laser_session_through_the_command_line(tmp_path, capsys):
     result = json.loads((tmp_path / "out" / "result.json").read_text())
     assert result["verdict"] == "good" and result["sensor"]["kind"] == "laser line profiler"
     truth = yaml.safe_load((folder / "ground_truth.yaml").read_text())
-    assert 1e3 * translation_error(np.array(result["X"]["matrix"]), np.array(truth["sensor2flange"])) < 0.02
+    assert 1e3 * translation_error(np.array(result["X"]["matrix"]), np.array(truth["cam2flange"])) < 0.02
     assert main(["check", str(folder), "--no-progress"]) == 0
     out = capsys.readouterr().out
     assert "laser line profiler (sphere): 20 of 20 views used" in out
@@ -190,7 +190,7 @@ def test_a_plate_session_through_the_command_line(tmp_path, capsys):
     truth = yaml.safe_load((folder / "ground_truth.yaml").read_text())
     back = handeye.load_result(tmp_path / "out")
     assert back.sensor.target == "plane" and back.verdict == "good"
-    assert 1e3 * translation_error(back.X, np.array(truth["sensor2flange"])) < 0.02
+    assert 1e3 * translation_error(back.X, np.array(truth["cam2flange"])) < 0.02
     spec = yaml.safe_load((folder / "session.yaml").read_text())
     spec["target"]["diameter"] = 0.04
     (folder / "session.yaml").write_text(yaml.safe_dump(spec))
@@ -564,7 +564,7 @@ def test_edge_step_and_fixture_sessions_through_the_command_line(tmp_path, targe
     truth = yaml.safe_load((folder / "ground_truth.yaml").read_text())
     back = handeye.load_result(tmp_path / "out")
     assert back.sensor.target == target and back.verdict == "good"
-    assert 1e3 * translation_error(back.X, np.array(truth["sensor2flange"])) < 0.02
+    assert 1e3 * translation_error(back.X, np.array(truth["cam2flange"])) < 0.02
     key = {"edge": "angle_deg", "step": "height_mm", "spheres": "centres_m"}[target]
     assert key in back.sensor.figures
 
@@ -609,3 +609,16 @@ def test_a_laser_result_gives_x_in_the_robots_own_pose_format(tmp_path):
         assert (rows["format"], rows["length_unit"], rows["angle_unit"]) == ("euler:xyz", "mm", "deg")
         assert np.allclose(parse_poses(np.array(rows["values"])[None], "euler:xyz", "mm", "deg")[0], T, atol=1e-12)
     assert data["X"]["euler_input_convention"]["sequence"] == "xyz"
+
+
+def test_the_simulators_ground_truth_names_x_as_the_result_does(tmp_path):
+    """Issue 77: a laser session's ground_truth.yaml named X sensor2flange where result.json says
+    cam2flange; both now say X's name (cam2flange eye-in-hand, cam2base eye-to-hand)."""
+    from handeye.frames.setups import setup_info
+
+    for setup in ("eye_in_hand", "eye_to_hand"):
+        sc = laser_scene(4, setup, rng=1)
+        truth = yaml.safe_load((write_laser_session(tmp_path / setup, sc) / "ground_truth.yaml").read_text())
+        info = setup_info(setup)
+        assert np.allclose(truth[info.x_name], sc.X) and np.allclose(truth[info.z_name], sc.Z)
+        assert not any(k.startswith("sensor2") for k in truth)

@@ -215,3 +215,20 @@ def test_every_extra_a_session_needs_is_named_at_once(tmp_path, monkeypatch, cap
     err = capsys.readouterr().err
     assert "pip install 'handeye[depth,mesh]'" in err and "trimesh (the mesh target flange.stl)" in err
     assert "plyfile (.ply clouds in clouds/)" in err and not (tmp_path / "out").exists()
+
+
+def test_a_mistyped_mesh_key_gets_the_nearest_one(tmp_path):
+    """Issue 77: the other session keys' errors say 'did you mean'; a mesh target's and an arm
+    target's did not."""
+    from handeye.io.depth_session import load_depth_session
+
+    (tmp_path / "session.yaml").write_text(yaml.safe_dump({
+        "setup": "eye_to_hand", "depth": {"unit": "m"}, "target": {"type": "mesh", "file": "flange.stl", "unti": "mm"},
+        "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}}))
+    with pytest.raises(SessionError, match=r"unknown key\(s\) unti \(did you mean 'unit'\?\) for a mesh"):
+        load_depth_session(tmp_path)
+    spec = yaml.safe_load((tmp_path / "session.yaml").read_text())
+    spec["target"] = {"type": "arm", "finger_openning": 0.02}
+    (tmp_path / "session.yaml").write_text(yaml.safe_dump(spec))
+    with pytest.raises(SessionError, match=r"finger_openning \(did you mean 'finger_opening'\?\) for the arm"):
+        load_depth_session(tmp_path)

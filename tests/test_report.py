@@ -602,3 +602,20 @@ def test_a_sensors_report_says_what_its_fit_is(laser_cal):
         "line rate (Hz)", "clock offset (s)", "placement given", "k1"]
     assert [_figure_text(v) for v in (1200.0, True, False, 18000, [], [0.5, 2.0], None)] == [
         "1200", "yes", "no", "18000", "none", "[0.5, 2]", "—"]
+
+
+def test_a_laser_profilers_ros_frame_is_named_for_a_profiler(laser_cal, tmp_path):
+    """Issue 77: a laser profiler's ROS snippets and launch files published X as camera_optical_frame;
+    its frame is laser_profiler_optical_frame (x along the line, z along the measuring axis), a
+    camera's stays camera_optical_frame, and --child-frame still renames it."""
+    from handeye.report import write_exports
+
+    ros = result_dict(laser_cal)["ros"]
+    assert ros["child_frame"] == "laser_profiler_optical_frame" and ros["parent_frame"] == "tool0"
+    assert ros["static_transform_publisher"].endswith("--child-frame-id laser_profiler_optical_frame")
+    launch = write_exports(laser_cal, tmp_path, ["ros2-launch"])[0].read_text()
+    assert "'laser_profiler_optical_frame'" in launch and "camera_optical_frame" not in launch
+    assert result_dict(laser_cal, child_frame="profiler")["ros"]["child_frame"] == "profiler"
+    cal = handeye.calibrate_poses(*(lambda s: (s.flange2base, s.target2cam))(random_scene(8, "eye_in_hand", rng=0)),
+                                  progress=False)
+    assert result_dict(cal)["ros"]["child_frame"] == "camera_optical_frame"
