@@ -427,14 +427,14 @@ def format_poses(
     return np.hstack([t, r])
 
 
-#: Rotation columns as robot makers name them (after x, y, z), the pose formats they are, and whose:
-#: a pose table may name its columns so for those formats (handeye's own names: :func:`pose_columns`).
+#: Rotation columns as robot makers name them (after x, y, z) where they are not handeye's own names
+#: (:func:`pose_columns`: a, b, c for every Euler sequence, KUKA's A, B, C among them), the pose
+#: formats they are, and whose: a pose table may name its columns so for those formats.
 VENDOR_COLUMNS = (
     (("w", "p", "r"), ("euler:xyz",), "FANUC's W, P, R: about the fixed x, y, z axes, format euler:xyz"),
     (("rx", "ry", "rz"), ("rotvec", "euler:xyz", "euler:XYZ"),
      "Universal Robots' RX, RY, RZ: a rotation vector, format rotvec; Yaskawa's and Denso's Rx, Ry, Rz: about the fixed "
      "x, y, z axes, format euler:xyz; Staubli's: about x, then the new y, then the new z, format euler:XYZ"),
-    (("a", "b", "c"), ("euler:",), "Euler angles (KUKA's A, B, C: format euler:ZYX)"),
     (("o", "a", "t"), ("euler:ZYZ",), "Kawasaki's O, A, T: about z, then the new y, then the new z, format euler:ZYZ"),
     (("q1", "q2", "q3", "q4"), ("quat_wxyz",), "ABB's q1, q2, q3, q4: a quaternion with its scalar first, format quat_wxyz"),
 )
@@ -462,7 +462,7 @@ the table declares euler:ZYX (whose columns are x, y, z, a, b, c): declare the f
     for names, formats, whose in VENDOR_COLUMNS:
         if tuple(header[3:]) != names:
             continue
-        if any(fmt == f or (f.endswith(":") and fmt.startswith(f)) for f in formats):
+        if fmt in formats:
             return expected
         raise PoseFormatError(f"{where}: columns {', '.join(names)} are {whose}; the table declares {fmt} (whose columns are "
                               f"{', '.join(expected)}): declare the format these columns are, or name them as {fmt}'s")
