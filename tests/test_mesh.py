@@ -232,3 +232,22 @@ def test_a_mistyped_mesh_key_gets_the_nearest_one(tmp_path):
     (tmp_path / "session.yaml").write_text(yaml.safe_dump(spec))
     with pytest.raises(SessionError, match=r"finger_openning \(did you mean 'finger_opening'\?\) for the arm"):
         load_depth_session(tmp_path)
+
+
+def test_the_extras_a_session_names_are_the_modules_installed_with_them(tmp_path):
+    """The modules io.extras checks are those the extras install (rtb-data's module is rtbdata): with
+    every extra installed (the test extra), a session needing each of them passes the check."""
+    import importlib.util
+
+    from handeye.io.extras import EXTRA_MODULES, check_extras, session_extras
+
+    for extra, modules in EXTRA_MODULES.items():
+        assert all(importlib.util.find_spec(m) is not None for m in modules), extra
+    (tmp_path / "clouds").mkdir()
+    for suffix in (".ply", ".pcd"):
+        (tmp_path / "clouds" / f"v{suffix}").write_bytes(b"")
+    (tmp_path / "session.yaml").write_text(yaml.safe_dump({
+        "setup": "eye_to_hand", "depth": {"unit": "m"}, "target": {"type": "arm"},
+        "joints": {"file": "joints.csv", "unit": "deg", "arm": "robot.urdf"}}))
+    assert sorted(session_extras(tmp_path)) == ["depth", "markerless", "urdf"]
+    check_extras(tmp_path)  # all installed: no error

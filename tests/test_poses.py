@@ -209,5 +209,5 @@ def test_pose_columns_named_by_the_robots_own_letters(tmp_path, fmt, columns, tr
         with pytest.raises(SessionError, match=f"does not match format '{other}'"):
             read_pose_table(path, other)
         return
-    with pytest.raises(PoseFormatError, match=rf"poses.csv: columns .* are .*format {truth}.* the table declares {other}"):
+    with pytest.raises(PoseFormatError, match=rf"poses.csv: header .* does not match format '{other}'.* columns .* are .*format {truth}"):
         read_pose_table(path, other)

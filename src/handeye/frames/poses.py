@@ -453,8 +453,9 @@ def vendor_columns(header: list[str], fmt: str, where: str) -> list[str]:
     >>> vendor_columns(["x", "y", "z", "w", "p", "r"], "euler:ZYX", "poses.csv")
     Traceback (most recent call last):
     ...
-    handeye.errors.PoseFormatError: poses.csv: columns w, p, r are FANUC's W, P, R: about the fixed x, y, z axes, format euler:xyz; \
-the table declares euler:ZYX (whose columns are x, y, z, a, b, c): declare the format these columns are, or name them as euler:ZYX's
+    handeye.errors.PoseFormatError: poses.csv: header x, y, z, w, p, r does not match format 'euler:ZYX', whose columns are x, y, z, \
+a, b, c: columns w, p, r are FANUC's W, P, R: about the fixed x, y, z axes, format euler:xyz; declare the format these columns are, \
+or name them as euler:ZYX's
     """
     expected = pose_columns(fmt)
     if header == expected or header[:3] != ["x", "y", "z"]:
@@ -464,7 +465,8 @@ the table declares euler:ZYX (whose columns are x, y, z, a, b, c): declare the f
             continue
         if fmt in formats:
             return expected
-        raise PoseFormatError(f"{where}: columns {', '.join(names)} are {whose}; the table declares {fmt} (whose columns are "
-                              f"{', '.join(expected)}): declare the format these columns are, or name them as {fmt}'s")
+        raise PoseFormatError(f"{where}: header {', '.join(header)} does not match format {fmt!r}, whose columns are "
+                              f"{', '.join(expected)}: columns {', '.join(names)} are {whose}; declare the format these "
+                              f"columns are, or name them as {fmt}'s")
     return header
 

@@ -22,7 +22,7 @@ from .session import SESSION_FILE, load_yaml
 __all__ = ["EXTRA_MODULES", "session_extras", "missing_extras", "check_extras"]
 
 #: Per extra (pyproject.toml's optional dependencies) the modules a session's files are read with.
-EXTRA_MODULES = {"mesh": ("trimesh",), "depth": ("plyfile", "pypcd4"), "markerless": ("trimesh", "rtb_data"),
+EXTRA_MODULES = {"mesh": ("trimesh",), "depth": ("plyfile", "pypcd4"), "markerless": ("trimesh", "rtbdata"),
                  "urdf": ("yourdfpy",)}
 #: The module a file of each suffix is read with, and its extra: a cloud (``.ply``, ``.pcd``) or a mesh.
 CLOUD_MODULES = {".ply": ("plyfile", "depth"), ".pcd": ("pypcd4", "depth")}
