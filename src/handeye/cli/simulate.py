@@ -189,8 +189,8 @@ def register(sub) -> None:
     p.add_argument("--sensor", default="camera", choices=["camera", "depth", "laser_line", "line_scan", "rig", "silhouette"],
                    help="camera (default): rendered images of a board; depth: a depth camera's 640x480 clouds of a mesh "
                    "(--target mesh, the default: a flange-sized disc on the flange), a ball (sphere) or a board; laser_line: "
-                   "a laser line profiler's profiles of a "
-                   "ball or a plate (--poses of them; --arm for joint angles); line_scan: a line-scan camera's scans of a "
+                   "a laser line profiler's profiles of a ball, a plate, a block's edge, a step or a fixture of balls "
+                   "(--target; --poses of them; --arm for joint angles); line_scan: a line-scan camera's scans of a "
                    "chessboard swept by the robot (--poses of them); rig: a stereo pair on the flange (eye_in_hand) or "
                    "three fixed cameras (eye_to_hand); silhouette: a fixed colour camera's masks of a Panda (markerless, "
                    "its joint angles, eye_to_hand; --poses of them)")
@@ -205,7 +205,8 @@ def register(sub) -> None:
     p.add_argument("--poses", type=whole_arg(1), default=15, help="number of images (default 15)")
     p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS) + ["mesh", "arm"],
                    help="the board rendered (default charuco: it cannot be read from the wrong end, as handeye's advice "
-                   "recommends; chessboard for the thesis's set-up); with --sensor laser_line: sphere (default) or plane; "
+                   f"recommends; chessboard for the thesis's set-up); with --sensor laser_line: {', '.join(LASER_TARGETS)} "
+                   f"({LASER_TARGETS[0]} the default); "
                    "with --sensor depth: mesh (default), sphere, a board, or arm (the arm itself, markerless, its joint angles; "
                    "always eye_to_hand; --arm panda, the arm with meshes)")
     p.add_argument("--noise-px", type=number_arg(0.0), default=0.2, help="feature position noise in pixels (default 0.2)")

@@ -30,7 +30,8 @@ from scipy.spatial.transform import Rotation
 from ..errors import InputMismatchError, PoseFormatError
 from ..geometry.se3 import invert, make_transform, orthonormality_error
 
-__all__ = ["parse_poses", "format_poses", "pose_columns", "validate_transforms", "matrix_layout", "RobotPoseInput", "FORMATS"]
+__all__ = ["parse_poses", "format_poses", "pose_columns", "validate_transforms", "matrix_layout", "RobotPoseInput", "FORMATS",
+           "VENDOR_COLUMNS", "vendor_columns"]
 
 FORMATS = ("matrix", "quat_wxyz", "quat_xyzw", "rotvec", "euler:<SEQ>")
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}
@@ -424,3 +425,48 @@ def format_poses(
     else:
         r = rot.as_euler(seq, degrees=(angle_unit == "deg"))
     return np.hstack([t, r])
+
+
+#: Rotation columns as robot makers name them (after x, y, z) where they are not handeye's own names
+#: (:func:`pose_columns`: a, b, c for every Euler sequence, KUKA's A, B, C among them), the pose
+#: formats they are, and whose: a pose table may name its columns so for those formats.
+VENDOR_COLUMNS = (
+    (("w", "p", "r"), ("euler:xyz",), "FANUC's W, P, R: about the fixed x, y, z axes, format euler:xyz"),
+    (("rx", "ry", "rz"), ("rotvec", "euler:xyz", "euler:XYZ"),
+     "Universal Robots' RX, RY, RZ: a rotation vector, format rotvec; Yaskawa's and Denso's Rx, Ry, Rz: about the fixed "
+     "x, y, z axes, format euler:xyz; Staubli's: about x, then the new y, then the new z, format euler:XYZ"),
+    (("o", "a", "t"), ("euler:ZYZ",), "Kawasaki's O, A, T: about z, then the new y, then the new z, format euler:ZYZ"),
+    (("q1", "q2", "q3", "q4"), ("quat_wxyz",), "ABB's q1, q2, q3, q4: a quaternion with its scalar first, format quat_wxyz"),
+)
+
+
+def vendor_columns(header: list[str], fmt: str, where: str) -> list[str]:
+    """A pose table's column names (lower case, after its id and time columns) as :func:`pose_columns`
+    names them for ``fmt`` when they are a robot maker's names for that format (:data:`VENDOR_COLUMNS`:
+    FANUC's x, y, z, w, p, r for ``euler:xyz``), else as given; a maker's names for another format are
+    refused, saying which format they are (``where``: the table, for the message).
+
+    Examples
+    --------
+    >>> vendor_columns(["x", "y", "z", "w", "p", "r"], "euler:xyz", "poses.csv")
+    ['x', 'y', 'z', 'a', 'b', 'c']
+    >>> vendor_columns(["x", "y", "z", "w", "p", "r"], "euler:ZYX", "poses.csv")
+    Traceback (most recent call last):
+    ...
+    handeye.errors.PoseFormatError: poses.csv: header x, y, z, w, p, r does not match format 'euler:ZYX', whose columns are x, y, z, \
+a, b, c: columns w, p, r are FANUC's W, P, R: about the fixed x, y, z axes, format euler:xyz; declare the format these columns are, \
+or name them as euler:ZYX's
+    """
+    expected = pose_columns(fmt)
+    if header == expected or header[:3] != ["x", "y", "z"]:
+        return header
+    for names, formats, whose in VENDOR_COLUMNS:
+        if tuple(header[3:]) != names:
+            continue
+        if fmt in formats:
+            return expected
+        raise PoseFormatError(f"{where}: header {', '.join(header)} does not match format {fmt!r}, whose columns are "
+                              f"{', '.join(expected)}: columns {', '.join(names)} are {whose}; declare the format these "
+                              f"columns are, or name them as {fmt}'s")
+    return header
+

@@ -5,6 +5,7 @@ measured here (:mod:`handeye.pipelines.depth` does that).
 
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -110,7 +111,8 @@ def _arm_target(target: Any, setup: str, spec: dict, where: str) -> ArmTarget | 
         return None
     unknown = sorted(set(target) - set(ARM_KEYS))
     if unknown:
-        raise SessionError(f"{where}: target: unknown key(s) {', '.join(unknown)} for the arm (keys: {', '.join(ARM_KEYS)})")
+        raise SessionError(f"{where}: target: unknown key(s) {', '.join(unknown)}{_did_you_mean(unknown, ARM_KEYS)} for the "
+                           f"arm (keys: {', '.join(ARM_KEYS)})")
     if setup_info(setup).camera_on_flange:
         raise SessionError(f"{where}: target: arm is the arm seen by a depth camera fixed in the cell: setup: eye_to_hand "
                            f"(got {setup})")
@@ -135,6 +137,13 @@ def arm_hand(target: dict, where: str) -> tuple[bool, float]:
         raise SessionError(f"{where}: target: finger_opening is the gap between the fingers in metres (0 to 0.08 for the "
                            f"Franka Hand), got {target.get('finger_opening')!r}")
     return hand, opening
+
+
+def _did_you_mean(unknown: list[str], known: tuple[str, ...]) -> str:
+    """`` (did you mean 'unit'?)`` for the known keys nearest to ``unknown`` ones (a typo), as the
+    other session keys' messages have it; empty when none is near."""
+    near = [m[0] for m in (difflib.get_close_matches(str(u), known, n=1, cutoff=0.5) for u in unknown) if m]
+    return f" (did you mean {', '.join(repr(n) for n in dict.fromkeys(near))}?)" if near else ""
 
 
 #: The keys of a mesh target (besides the placement's, ``pose_in_flange`` or ``pose_in_base``).
@@ -169,7 +178,8 @@ def _mesh(target: Any, folder: Path, setup: str, where: str) -> MeshTarget | Non
     if unknown:
         hint = f" ({', '.join(other)} is the other setup's: with setup {setup} the shape's placement is {key})" \
             if set(unknown) & other else ""
-        raise SessionError(f"{where}: target: unknown key(s) {', '.join(unknown)} for a mesh (keys: "
+        raise SessionError(f"{where}: target: unknown key(s) {', '.join(unknown)}"
+                           f"{_did_you_mean(sorted(set(unknown) - other), MESH_KEYS + (key,))} for a mesh (keys: "
                            f"{', '.join(MESH_KEYS + (key,))}){hint}")
     if not target.get("file"):
         raise SessionError(f"{where}: target: a mesh needs its file (file: flange.stl, beside session.yaml)")

@@ -48,7 +48,7 @@ from .._shared.io import atomic_write, read_text
 from .._shared.lazy import lazy_module
 from .._shared.text import summarize
 from ..errors import HandEyeError, InputMismatchError, PoseFormatError, SessionError
-from ..frames.poses import RobotPoseInput, format_poses, matrix_layout, parse_poses, pose_columns
+from ..frames.poses import RobotPoseInput, format_poses, matrix_layout, parse_poses, pose_columns, vendor_columns
 from ..frames.setups import check_setup
 from ..geometry.se3 import invert
 from ..robot.kinematics import Chain, check_joints_against_poses, load_arm
@@ -747,6 +747,7 @@ def read_pose_table(
     three_by_four = fmt == "matrix" and pose_header == expected[:12]  # 3x4 rows: the bottom row 0 0 0 1 implied
     if three_by_four:
         expected = expected[:12]
+    pose_header = vendor_columns(pose_header, fmt, str(path))  # a robot maker's names for its format: FANUC's w, p, r
     if pose_header != expected:
         stream = not times and rest and rest[0] in TIME_COLUMNS
         raise SessionError(

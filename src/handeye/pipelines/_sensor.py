@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
-from ..errors import InputMismatchError
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import HandEyeError, InputMismatchError
+from ..frames.poses import RobotPoseInput, pose_columns
+from ..io.session import SESSION_FILE, load_yaml, pose_rows_inverted
 from ..options import CalibrationOptions, options_from
 from ..robot.models import ControllerPoses, JointAngles, RobotModel
 
-__all__ = ["sensor_options", "robot_model"]
+__all__ = ["sensor_options", "robot_model", "session_robot_input"]
 
 #: The options of image and pose sessions that a sensor model's fit has no use for.
 IMAGE_ONLY = ("method", "refine", "pairs", "known", "robot_noise", "compliance", "strict_images", "keyframes",
@@ -56,3 +62,22 @@ def robot_model(session: Any, index: list[int], options: CalibrationOptions) -> 
                                  "angles with the arm's table; the session has none (a joints: table in session.yaml): "
                                  "leave compliance out")
     return ControllerPoses(session.flange2base[index], options.robot_accuracy)
+
+
+def session_robot_input(folder: str | Path, flange2base: NDArray[np.float64]) -> RobotPoseInput | None:
+    """The flange poses a sensor's fit used (``flange2base``) as the session's pose table writes them:
+    the format and units its ``poses:`` block declares. A sensor's calibration carries it as an image
+    session's does, so that result.json gives X and Z in the robot's own format (``robot_format``: a
+    FANUC's x, y, z, w, p, r) for every sensor. None when the session gives joint angles alone (no
+    pose format declared) or its description cannot be read (the session's reader says why)."""
+    try:
+        poses = load_yaml(Path(folder) / SESSION_FILE).get("poses")
+        if not isinstance(poses, dict) or not {"format", "length_unit"} <= set(poses):
+            return None
+        fmt, length_unit, angle_unit = str(poses["format"]), str(poses["length_unit"]), str(poses.get("angle_unit", "rad"))
+        empty = RobotPoseInput(np.zeros((0, len(pose_columns(fmt)))), fmt, length_unit, angle_unit,
+                               pose_rows_inverted(poses, str(folder)))
+        return empty.rewritten(flange2base)
+    except HandEyeError:
+        return None
+

@@ -44,7 +44,7 @@ from ..sensors.camera import detect_images, target_from_spec
 from ..sensors.depth.clouds import check_frame, plane_points, read_cloud
 from ..sensors.depth.model import BoardPoints, SphereCentres
 from ..sensors.depth.spheres import find_spheres
-from ._sensor import robot_model, sensor_options
+from ._sensor import robot_model, sensor_options, session_robot_input
 from .arm_depth import calibrate_arm_depth_session
 from .mesh import calibrate_mesh_session
 
@@ -209,7 +209,8 @@ def _with_session(cal: Calibration, s: DepthSession, v: DepthViews) -> Calibrati
     skipped = list(v.skipped) + list(cal.skipped)
     diag = replace(cal.diagnostics, advice=list(cal.diagnostics.advice) + advice) if advice else cal.diagnostics
     return replace(cal, sensor=replace(cal.sensor, figures=figures), skipped=skipped, diagnostics=diag,
-                   notes=list(s.notes) + list(v.notes) + list(cal.notes), input_folder=s.folder)
+                   notes=list(s.notes) + list(v.notes) + list(cal.notes), input_folder=s.folder,
+                   robot_input=session_robot_input(s.folder, cal.flange2base))
 
 
 def calibrate_depth(flange2base: NDArray[np.float64], object_points: list[NDArray[np.float64]],

@@ -33,7 +33,7 @@ from ..sensors.laser.edge import EdgeProfiles, StepProfiles
 from ..sensors.laser.model import Profiles, SphereProfiles, SpheresProfiles
 from ..sensors.laser.plane import PlaneProfiles
 from ..sensors.laser.profiles import read_profile
-from ._sensor import robot_model, sensor_options
+from ._sensor import robot_model, sensor_options, session_robot_input
 
 __all__ = ["calibrate_laser_session", "read_profiles", "laser_model", "MIN_POINTS"]
 
@@ -128,4 +128,5 @@ def calibrate_laser_session(folder: str | Path | LaserSession, options: Calibrat
     names = [s.names[k] for k in kept]
     cal = estimate(laser_model(s, names, profiles), robot_model(s, kept, opts), opts.folds)
     return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + notes + list(cal.notes),
-                   input_folder=s.folder)
+                   input_folder=s.folder,
+                   robot_input=session_robot_input(s.folder, cal.flange2base))

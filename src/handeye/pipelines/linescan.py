@@ -23,6 +23,8 @@ from numpy.typing import NDArray
 
 from ..errors import DegenerateMotionError, InputMismatchError
 from ..estimation.core import estimate
+from ..frames.setups import predicted_target2cam
+from ..geometry.se3 import invert
 from ..io.linescan_session import LineScanSession, load_linescan_session
 from ..options import CalibrationOptions
 from ..result import Calibration
@@ -31,9 +33,9 @@ from ..robot.models import ControllerPoses, JointTrajectory, PoseErrors, RobotMo
 from ..sensors.camera.detect import detect_images
 from ..sensors.camera.targets import target_from_spec
 from ..sensors.linescan.model import LineScanCorners, Trajectory
-from ._sensor import sensor_options
+from ._sensor import sensor_options, session_robot_input
 
-__all__ = ["calibrate_linescan_session", "grid_orderings", "linescan_robot", "linescan_joints"]
+__all__ = ["calibrate_linescan_session", "grid_orderings", "linescan_robot", "linescan_joints", "readings_note"]
 
 
 def linescan_robot(flange2base_ref: NDArray[np.float64], accuracy: tuple[float, float] | None
@@ -88,6 +90,29 @@ def grid_orderings(points: NDArray[np.float64]) -> list[NDArray[np.intp]]:
         if np.all(gap[np.arange(len(xy)), order] < 1e-9) and len(set(order.tolist())) == len(xy):
             out.append(order.astype(np.intp))
     return out
+
+
+def readings_note(cal: Calibration, points: NDArray[np.float64], orderings: list[NDArray[np.intp]] | None) -> list[str]:
+    """What a symmetric target's readings leave open of Z, in a note: the grid of ``points`` (its
+    target frame) maps onto itself turned a half turn about its normal (and, read mirrored, about its
+    x or y axis through its middle, which turns z out of the board), so Z is the reading the scans and
+    the robot's motion settled, and may be so turned from another tool's or a simulator's; X is the
+    same for every reading. Says which way Z's z axis points (into the board, away from the camera,
+    as handeye's target frame of images has it; or towards the camera, and the turn that gives the
+    other). No note for a target read one way (``orderings``: one, or None)."""
+    if orderings is None or len(orderings) < 2:
+        return []
+    middle = 1e3 * np.asarray(points, float)[:, :2].mean(axis=0)
+    cam_z = invert(predicted_target2cam(cal.X, cal.Z, cal.flange2base, cal.setup))[:, 2, 3]
+    towards = float(np.median(cam_z)) > 0
+    turns = "a half turn (a square grid: a quarter turn)" if len(orderings) > 4 else "a half turn"
+    return [f"the {cal.sensor.target} reads the same turned {turns} about its normal, or a half turn about its x or y axis, through "
+            f"its middle ({middle[0]:.1f}, {middle[1]:.1f}) mm in its frame (a scan moving the other way is a mirror image): "
+            "Z is the reading the scans and the robot's motion settled, and may be so turned from another tool's or a "
+            "simulator's (X is the same for every reading); "
+            + ("here Z's z axis points towards the camera: Z turned a half turn about its x axis through that middle has "
+               "it into the board, as handeye's target frame of images has it" if towards else
+               "here Z's z axis points into the board, away from the camera, as handeye's target frame of images has it")]
 
 
 def _detected(s: LineScanSession, progress: bool):
@@ -158,7 +183,9 @@ def calibrate_linescan_session(folder: str | Path | LineScanSession, options: Ca
                             grid_orderings(target.object_points()) if all(len(found[k][0]) == len(target.object_points())
                                                                           for k in kept) else None)
     cal = estimate(model, _robot(s, model, opts), opts.folds)
-    return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + list(cal.notes), input_folder=s.folder)
+    notes = list(s.notes) + list(cal.notes) + readings_note(cal, target.object_points(), model.orderings)
+    return replace(cal, skipped=skipped + list(cal.skipped), notes=notes, input_folder=s.folder,
+                   robot_input=session_robot_input(s.folder, cal.flange2base))
 
 
 def _robot(s: LineScanSession, model: LineScanCorners, opts: CalibrationOptions) -> RobotModel:

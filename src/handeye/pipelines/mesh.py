@@ -40,7 +40,7 @@ from ..sensors.depth.clouds import MAX_DEPTH_M, read_points
 from ..sensors.depth.mesh import MeshSurface
 from ..sensors.depth.registration import ShapeMatch, find_shape, refine_shape
 from ..sensors.depth.shape import Shape, load_shape
-from ._sensor import robot_model
+from ._sensor import robot_model, session_robot_input
 
 __all__ = ["MeshViews", "measure_mesh_session", "consistent_views", "mesh_model", "calibrate_mesh_session",
            "AGREE_DEG", "AGREE_SHARE"]
@@ -208,4 +208,5 @@ def calibrate_mesh_session(s: DepthSession, options: CalibrationOptions, *, fit_
     distances = [d for k, d in zip(v.index, v.distance) if s.names[k] in used]
     figures = dict(cal.sensor.figures, distance_m=distances)
     return replace(cal, sensor=replace(cal.sensor, figures=figures), skipped=list(v.skipped) + list(cal.skipped),
-                   notes=list(s.notes) + list(v.notes) + list(cal.notes), input_folder=s.folder)
+                   notes=list(s.notes) + list(v.notes) + list(cal.notes), input_folder=s.folder,
+                   robot_input=session_robot_input(s.folder, cal.flange2base))

@@ -415,8 +415,7 @@ def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm",
         spec["joints"] = {"file": "joints.csv", "unit": "deg", "arm": scene.arm}
     atomic_write(out / "session.yaml", yaml.safe_dump(spec, sort_keys=False))
     info = setup_info(scene.setup)
-    truth = {"setup": scene.setup, info.x_name.replace("cam", "sensor"): scene.X.tolist(),
-             info.z_name: scene.Z.tolist()}
+    truth = {"setup": scene.setup, info.x_name: scene.X.tolist(), info.z_name: scene.Z.tolist()}  # result.json's names
     truth |= _target_truth(scene)
     if scene.chain_true is not None:
         truth |= {"arm": scene.arm, "table_true": scene.chain_true.table.tolist()}
