@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from .._shared.text import shown
 from ..errors import SessionError
 from ..frames.setups import check_setup, setup_info
 from ..geometry.se3 import make_transform
@@ -32,6 +33,7 @@ from .session import (
     read_joints,
     read_robot_poses,
     read_session_yaml,
+    session_file,
 )
 
 __all__ = ["DepthSession", "MeshTarget", "ArmTarget", "is_depth_session", "load_depth_session", "rig_depth", "arm_hand",
@@ -126,14 +128,14 @@ def arm_hand(target: dict, where: str) -> tuple[bool, float]:
     default true) and the gap between its fingers (``finger_opening``, metres, default 0), checked."""
     hand = target.get("hand", True)
     if not isinstance(hand, bool):
-        raise SessionError(f"{where}: target: hand is true (the maker's gripper on the flange) or false, got {hand!r}")
+        raise SessionError(f"{where}: target: hand is true (the maker's gripper on the flange) or false, got {shown(hand)}")
     try:
         opening = float(target.get("finger_opening", 0.0))
     except (TypeError, ValueError):
         opening = float("nan")
     if not 0.0 <= opening <= 0.1:
         raise SessionError(f"{where}: target: finger_opening is the gap between the fingers in metres (0 to 0.08 for the "
-                           f"Franka Hand), got {target.get('finger_opening')!r}")
+                           f"Franka Hand), got {shown(target.get('finger_opening'))}")
     return hand, opening
 
 
@@ -155,7 +157,7 @@ def _placement(value: Any, unit: str, where: str) -> NDArray[np.float64]:
             and np.allclose(a[3], [0, 0, 0, 1]):
         return make_transform(a[:3, :3], a[:3, 3] * factor)
     raise SessionError(f"{where}: the shape's placement is a 4x4 rigid transform or [x, y, z, rx, ry, rz] (translation in "
-                       f"the mesh's unit {unit}, rotation vector in degrees), got {value!r}")
+                       f"the mesh's unit {unit}, rotation vector in degrees), got {shown(value)}")
 
 
 def _mesh(target: Any, folder: Path, setup: str, where: str) -> MeshTarget | None:
@@ -176,8 +178,8 @@ def _mesh(target: Any, folder: Path, setup: str, where: str) -> MeshTarget | Non
     unit = str(target.get("unit", ""))
     if unit not in ("m", "mm"):
         raise SessionError(f"{where}: target: a mesh's unit is m or mm (the unit its file's coordinates are in), got "
-                           f"{target.get('unit')!r}")
-    path = folder / str(target["file"])
+                           f"{shown(target.get('unit'))}")
+    path = session_file(folder, folder / str(target["file"]), "the mesh file")
     if not path.is_file():
         raise SessionError(f"{where}: target: no mesh file {path}")
     placement = None if target.get(key) is None else _placement(target[key], unit, f"{where}: target: {key}")
@@ -195,7 +197,7 @@ def _radii(target: Any, where: str) -> list[float] | None:
     d = target.get("diameter", target.get("diameters"))
     values = np.atleast_1d(np.asarray(d, dtype=float)) if d is not None else np.array([])
     if len(values) == 0 or not np.isfinite(values).all() or np.any(values <= 0):
-        raise SessionError(f"{where}: target: a sphere needs its diameter (metres; several: a list), got {d!r}")
+        raise SessionError(f"{where}: target: a sphere needs its diameter (metres; several: a list), got {shown(d)}")
     if np.any(values > 1.0):
         raise SessionError(f"{where}: target: sphere diameter {values.max():g} m: give it in metres (e.g. 0.05)")
     if len(values) > 1 and np.min(np.diff(np.sort(values))) < 0.005:
@@ -209,16 +211,16 @@ def _depth_spec(spec: Any, where: str) -> tuple[str, tuple[float, float] | None]
         raise SessionError(f"{where}: depth must be a mapping (unit: m | mm, range: [near, far] in metres)")
     unit = str(spec.get("unit", "m"))
     if unit not in ("m", "mm"):
-        raise SessionError(f"{where}: depth: unit is m or mm, not {unit!r}")
+        raise SessionError(f"{where}: depth: unit is m or mm, not {shown(unit)}")
     rng = spec.get("range")
     if rng is None:
         return unit, None
     try:
         lo, hi = (float(v) for v in rng)
     except (TypeError, ValueError):
-        raise SessionError(f"{where}: depth: range is [near, far] in metres, got {rng!r}") from None
+        raise SessionError(f"{where}: depth: range is [near, far] in metres, got {shown(rng)}") from None
     if not 0 <= lo < hi or hi > 50:
-        raise SessionError(f"{where}: depth: range [near, far] must be metres with near < far, got {rng!r}")
+        raise SessionError(f"{where}: depth: range [near, far] must be metres with near < far, got {shown(rng)}")
     return unit, (lo, hi)
 
 
@@ -226,9 +228,9 @@ def _clouds_of(folder: Path, names: list[str], table: Path) -> list[Path]:
     """Per view the cloud in ``clouds/`` named ``name`` (spheres) or with the image's stem (boards)."""
     clouds = folder / "clouds"
     out = []
-    for found, name in zip(files_of_views(clouds, names, CLOUD_SUFFIXES), names):
+    for found, name in zip(files_of_views(clouds, names, CLOUD_SUFFIXES, folder), names):
         if found is None:
-            raise SessionError(f"{table}: no cloud for {name!r} in {clouds} (expected {Path(name).stem}.npy, .ply or .pcd)")
+            raise SessionError(f"{table}: no cloud for {shown(name)} in {clouds} (expected {Path(name).stem}.npy, .ply or .pcd)")
         out.append(found)
     return out
 
@@ -269,7 +271,7 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     clouds = _clouds_of(folder, names, table)
     images = None
     if board:
-        images = [folder / "images" / n for n in names]
+        images = [session_file(folder, folder / "images" / n, f"the image of {shown(n)}") for n in names]
         missing = [str(p.name) for p in images if not p.is_file()]
         if missing:
             raise SessionError(f"{folder / 'images'}: image file(s) missing: {', '.join(missing[:10])}")
@@ -282,10 +284,10 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
 RIG_DEPTH_KEYS = ("depth", "camera", "clouds", "images", "target")
 
 
-def _files_of(folder: Path, names: list[str], suffixes) -> list[Path]:
-    """Per view its file in ``folder`` with one of ``suffixes``; a path that does not exist when
-    there is none (a view the sensor missed)."""
-    return [found or folder / (name + suffixes[0]) for found, name in zip(files_of_views(folder, names, suffixes), names)]
+def _files_of(root: Path, folder: Path, names: list[str], suffixes) -> list[Path]:
+    """Per view its file in ``folder`` (inside the session folder ``root``) with one of ``suffixes``;
+    a path that does not exist when there is none (a view the sensor missed)."""
+    return [found or folder / (name + suffixes[0]) for found, name in zip(files_of_views(folder, names, suffixes, root), names)]
 
 
 def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[np.float64], block: dict, name: str,
@@ -307,9 +309,10 @@ def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[n
     clouds = folder / str(block.get("clouds", name))
     images = folder / str(block.get("images", block.get("clouds", name)))
     for sub, what in [(clouds, "clouds")] + ([] if radii is not None else [(images, "intensity images")]):
+        session_file(folder, sub, f"its {what}' folder")
         if not sub.is_dir():
             raise SessionError(f"{where}: no folder {sub} (its {what}, named by view: v01{'.npy' if what == 'clouds' else '.png'}, ...)")
-    cloud_paths = _files_of(clouds, names, CLOUD_SUFFIXES)
-    image_paths = None if radii is not None else _files_of(images, names, IMAGE_ORDER)
+    cloud_paths = _files_of(folder, clouds, names, CLOUD_SUFFIXES)
+    image_paths = None if radii is not None else _files_of(folder, images, names, IMAGE_ORDER)
     return DepthSession(folder, setup, dict(target or {}), list(names), cloud_paths, image_paths, flange2base, K, dist, unit,
                         working, radii)

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._shared.text import shown
 from ..errors import InputMismatchError, SessionError
 from ..frames.setups import check_setup
 from ..robot.kinematics import Chain, check_joints_against_poses, joints_at
@@ -57,6 +58,7 @@ from .session import (
     read_joint_trajectory,
     read_pose_table,
     read_session_yaml,
+    session_file,
     time_unit_scale,
 )
 
@@ -107,7 +109,7 @@ def _positive(spec: dict, key: str, where: str, what: str) -> float:
     except KeyError:
         raise SessionError(f"{where}: linescan: {key} is missing: {what}") from None
     except (TypeError, ValueError):
-        raise SessionError(f"{where}: linescan: {key} {spec[key]!r} is not a number: {what}") from None
+        raise SessionError(f"{where}: linescan: {key} {shown(spec[key])} is not a number: {what}") from None
     if not value > 0 or not np.isfinite(value):
         raise SessionError(f"{where}: linescan: {key} {value:g}: {what}, a positive number")
     return value
@@ -164,7 +166,7 @@ def load_linescan_session(folder: str | Path, arm: str | None = None) -> LineSca
             notes.append(_poses_against_joints(flange_poses_of(values, poses, table, where), pose_times, times, joints,
                                                chain, joints_path))
     names, starts, _ = read_image_times(folder, spec.get("images"), where, notes)
-    paths = [folder / "images" / n for n in names]
+    paths = [session_file(folder, folder / "images" / n, f"the scan {shown(n)}") for n in names]
     missing = [p.name for p in paths if not p.is_file()]
     if missing:
         raise SessionError(f"{folder / 'images'}: scan image(s) missing: {', '.join(missing[:10])}")

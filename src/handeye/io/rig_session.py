@@ -66,6 +66,7 @@ from .session import (
     read_joints,
     read_robot_poses,
     read_session_yaml,
+    session_file,
 )
 
 __all__ = ["RigSession", "RigSensor", "load_rig_session", "is_rig_session", "SENSOR_KEYS", "IMAGE_SUFFIXES"]
@@ -160,10 +161,10 @@ def _camera(folder: Path, name: str, block: dict, names: list[str], target: Any,
     K, dist = read_camera(block["camera"], at)
     if K is None:
         raise SessionError(f"{at}: camera: K is missing")
-    images = folder / str(block.get("images", name))
+    images = session_file(folder, folder / str(block.get("images", name)), "its images' folder")
     if not images.is_dir():
         raise SessionError(f"{at}: no folder {images} (its images, named by view)")
-    return RigSensor(name, K, np.zeros(5) if dist is None else dist, files_of_views(images, names, IMAGE_SUFFIXES),
+    return RigSensor(name, K, np.zeros(5) if dist is None else dist, files_of_views(images, names, IMAGE_SUFFIXES, folder),
                      target_spec=dict(target or {}))
 
 

@@ -26,6 +26,7 @@ import numpy as np
 import yaml
 from numpy.typing import ArrayLike, NDArray
 
+from .._shared.text import shown
 from ..errors import InputMismatchError
 
 __all__ = ["Chain", "PARAMETERS", "GRAVITY", "arm_names", "load_arm", "absorbed_parameters",
@@ -92,7 +93,7 @@ class Chain:
 
     def __post_init__(self) -> None:
         if self.convention not in ("dh", "mdh"):
-            raise InputMismatchError(f"{self.name}: convention {self.convention!r}; use 'dh' or 'mdh'")
+            raise InputMismatchError(f"{self.name}: convention {shown(self.convention)}; use 'dh' or 'mdh'")
         table = np.asarray(self.table, dtype=float)
         if table.ndim != 2 or table.shape[1] != 4 or not np.isfinite(table).all():
             raise InputMismatchError(f"{self.name}: the table must be finite rows of a, alpha, d, theta; got shape "
@@ -306,7 +307,7 @@ def load_arm(name: str | Path) -> Chain:
     files = _arm_files()
     key = str(name).lower().replace("-", "").replace("_", "")
     if key not in files:
-        raise InputMismatchError(f"unknown arm {name!r}; handeye has the kinematics of: {', '.join(sorted(files))} "
+        raise InputMismatchError(f"unknown arm {shown(name)}; handeye has the kinematics of: {', '.join(sorted(files))} "
                                  "(or give a YAML file of your arm's DH table, or build a handeye.robot.kinematics.Chain)")
     return _chain_from_yaml(files[key].read_text(encoding="utf-8"), key)
 

@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._shared.lazy import lazy_module
+from ..._shared.text import shown
 from ...errors import InputMismatchError, SessionError
 from ...geometry.se3 import make_transform
 from ..camera.pnp import project_points
@@ -249,7 +250,7 @@ def read_cloud(path: str | Path, image_size: tuple[int, int] | None = None, unit
                                      "per pixel, NaN or 0 where there is no depth), registered to the image")
         cloud = cloud.reshape(image_size[1], image_size[0], 3)
     if unit not in ("m", "mm"):
-        raise SessionError(f"{path}: the cloud's unit is m or mm, not {unit!r}")
+        raise SessionError(f"{path}: the cloud's unit is m or mm, not {shown(unit)}")
     cloud = np.array(cloud, dtype=float) * (1e-3 if unit == "mm" else 1.0)
     if cloud.ndim == 3 and cloud.shape[2] == 3:
         cloud[(cloud == 0).all(axis=2)] = np.nan
@@ -263,7 +264,7 @@ def read_points(path: str | Path, unit: str = "m") -> NDArray[np.float64]:
     (a template cloud of a shape has none); :class:`SessionError` naming a file that cannot be read."""
     path = Path(path)
     if unit not in ("m", "mm"):
-        raise SessionError(f"{path}: the cloud's unit is m or mm, not {unit!r}")
+        raise SessionError(f"{path}: the cloud's unit is m or mm, not {shown(unit)}")
     cloud = np.asarray(_load(path), dtype=float)
     if cloud.shape[-1:] != (3,) or cloud.ndim not in (2, 3):
         raise SessionError(f"{path}: a cloud is an H x W x 3 or N x 3 array of points, got shape {cloud.shape}")

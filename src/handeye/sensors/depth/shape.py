@@ -33,6 +33,7 @@ from scipy.ndimage import distance_transform_edt
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
+from ..._shared.text import shown
 from ...errors import SessionError
 from ...geometry.se3 import perpendicular_basis
 from .clouds import read_points
@@ -290,7 +291,7 @@ def load_shape(path: str | Path, unit: str = "mm", *, samples: int | None = None
     """
     path = Path(path)
     if unit not in ("m", "mm"):
-        raise SessionError(f"{path}: the shape's unit is m or mm, not {unit!r}")
+        raise SessionError(f"{path}: the shape's unit is m or mm, not {shown(unit)}")
     if not path.is_file():
         raise SessionError(f"{path}: no such mesh file")
     factor = 1e-3 if unit == "mm" else 1.0

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from ..._shared.text import cut, shown
 from ...errors import SessionError
 
 __all__ = ["read_profile", "PROFILE_SUFFIXES", "MAX_PROFILE_M"]
@@ -37,7 +38,7 @@ def _from_csv(path: Path) -> NDArray[np.float64]:
         raise SessionError(f"{path}: empty profile file; expected a header x,z (or x,y,z) and one row per point")
     header = [c.strip().lower() for c in rows[0]]
     if header not in (["x", "z"], ["x", "y", "z"]):
-        raise SessionError(f"{path}: header {rows[0]} : give x,z (or x,y,z), the points in the sensor's laser plane")
+        raise SessionError(f"{path}: header {cut(str(rows[0]), 300)} : give x,z (or x,y,z), the points in the sensor's laser plane")
     values = np.full((len(rows) - 1, 3), np.nan)
     cols = [0, 2] if len(header) == 2 else [0, 1, 2]
     for k, row in enumerate(rows[1:]):
@@ -48,7 +49,7 @@ def _from_csv(path: Path) -> NDArray[np.float64]:
             try:
                 values[k, c] = float(cell) if cell and cell.lower() != "nan" else np.nan
             except ValueError:
-                raise SessionError(f"{path}: line {k + 2}: {cell!r} is not a number") from None
+                raise SessionError(f"{path}: line {k + 2}: {shown(cell)} is not a number") from None
         if len(header) == 2:
             values[k, 1] = 0.0
     return values

@@ -1,0 +1,330 @@
+"""Hostile sessions (issue 77, "Security and robustness"): a session folder from elsewhere must not make
+handeye open, quote or use a file outside it, hang, crash with a traceback, or answer wrong in silence.
+
+The canary cases put a file of known content beside the session folder and name it, every way a
+session can name a file (a view's name in a table, a file or folder key in session.yaml, a symbolic
+link inside the folder), for every sensor kind; the file must never be opened (every ``open`` is
+recorded by an audit hook, OpenCV's ``imread`` by a wrapper) and its content never shown.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Callable
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+import handeye
+from handeye.cli import main
+from handeye.errors import HandEyeError
+from handeye.io.session import load_yaml
+from handeye.simulate import laser_scene, simulate_session, sphere_scene, write_depth_session, write_laser_session
+from handeye.simulate.mesh import mesh_scene, write_mesh_session
+from handeye.simulate.silhouette import silhouette_scene, write_silhouette_session
+
+SRC = str(Path(handeye.__file__).parents[1])
+SECRET = "CANARY-7f3a: this line must never reach a message"
+
+# --- every file this process opens, while a case runs ------------------------------------------------
+
+_OPENED: list[str] = []
+_RECORDING = [False]
+
+
+def _audit(event: str, args: tuple) -> None:
+    if _RECORDING[0] and event == "open" and args and isinstance(args[0], (str, bytes, Path)):
+        _OPENED.append(str(args[0], "utf-8", "replace") if isinstance(args[0], bytes) else str(args[0]))
+
+
+sys.addaudithook(_audit)  # audit hooks stay for the process; this one records only while a case runs
+
+
+def _run_recording(argv: list[str], capsys, monkeypatch) -> tuple[int, str, list[Path]]:
+    """``handeye`` run with ``argv``: its exit status, everything it printed, every path it opened."""
+    imread = cv2.imread
+
+    def recorded_imread(path, *args, **kwargs):
+        _OPENED.append(str(path))
+        return imread(path, *args, **kwargs)
+
+    monkeypatch.setattr(cv2, "imread", recorded_imread)
+    _OPENED.clear()
+    _RECORDING[0] = True
+    try:
+        try:
+            status = main(argv)
+        except SystemExit as exc:
+            status = exc.code
+    finally:
+        _RECORDING[0] = False
+    out, err = capsys.readouterr()
+    return status, out + err, [Path(p).resolve() for p in _OPENED]
+
+
+# --- small good sessions of every sensor kind ---------------------------------------------------------
+
+def _rig(root: Path, cam: Path, laser: Path, sph: Path) -> Path:
+    """A rig by hand from three sessions' files: two cameras, a laser profiler and a depth camera over
+    the same views (the files' content is not read before the check this module tests)."""
+    rig = root / "rig"
+    rig.mkdir()
+    names = [f"v{k + 1:02d}" for k in range(4)]
+    images = sorted((cam / "images").iterdir())[:4]
+    profiles = sorted((laser / "profiles").iterdir())[:4]
+    clouds = sorted((sph / "clouds").iterdir())[:4]
+    for sub, files in (("cam0", images), ("cam1", images), ("prof", profiles), ("d", clouds)):
+        (rig / sub).mkdir()
+        for name, f in zip(names, files):
+            shutil.copy(f, rig / sub / (name + f.suffix))
+    table = (cam / "poses.csv").read_text().splitlines()
+    (rig / "poses.csv").write_text("\n".join(["view" + table[0][5:]] + [n + r[r.index(","):] for n, r in zip(names, table[1:])])
+                                   + "\n")
+    spec = yaml.safe_load((cam / "session.yaml").read_text())
+    camera = spec.pop("camera")
+    spec["sensors"] = {"cam0": {"camera": camera, "images": "cam0"}, "cam1": {"camera": camera, "images": "cam1"},
+                       "laser": {"laser": {"unit": "mm"}, "profiles": "prof", "target": {"type": "sphere", "diameter": 0.04}},
+                       "depth": {"depth": {"unit": "m"}, "clouds": "d", "target": {"type": "sphere", "diameter": 0.05}}}
+    (rig / "session.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    return rig
+
+
+def _linescan(root: Path, cam: Path) -> Path:
+    """A line-scan session by hand (a trajectory, the scans' times, scans): its files are named as
+    write_linescan_session names them; their content is not read before the check tested here."""
+    ls = root / "linescan"
+    (ls / "images").mkdir(parents=True)
+    for k, f in enumerate(sorted((cam / "images").iterdir())[:3]):
+        shutil.copy(f, ls / "images" / f"s{k + 1:02d}.png")
+    (ls / "poses.csv").write_text("time,x,y,z,qw,qx,qy,qz\n" + "".join(f"{t},{400 + 10 * t},0,300,0,1,0,0\n" for t in range(6)))
+    (ls / "images.csv").write_text("image,time\n" + "".join(f"s{k + 1:02d}.png,{k + 1}\n" for k in range(3)))
+    spec = {"setup": "eye_in_hand", "linescan": {"width": 320, "line_rate": 1000, "focal": 400},
+            "target": {"type": "chessboard", "cols": 9, "rows": 6, "square": 0.03},
+            "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"},
+            "images": {"file": "images.csv"}}
+    (ls / "session.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    return ls
+
+
+@pytest.fixture(scope="module")
+def sessions(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("good")
+    cam = root / "camera"
+    simulate_session(cam, n_poses=5, image_size=(320, 240), seed=5)
+    write_laser_session(root / "laser", laser_scene(5, rng=1))
+    write_depth_session(root / "spheres", sphere_scene(5, rng=1))
+    write_mesh_session(root / "mesh", mesh_scene(4, rng=1, image_size=(160, 120)))
+    write_silhouette_session(root / "silhouette", silhouette_scene(3, rng=1))
+    _rig(root, cam, root / "laser", root / "spheres")
+    _linescan(root, cam)
+    return {p.name: p for p in root.iterdir()}
+
+
+# --- the ways a session names a file, each pointed at the canary ---------------------------------------
+
+def first_cell(table: str, to: str) -> Callable[[Path], None]:
+    """The first view's name in ``table`` (its first column) made ``to``."""
+    def change(folder: Path) -> None:
+        lines = (folder / table).read_text().splitlines()
+        lines[1] = to + lines[1][lines[1].index(","):]
+        (folder / table).write_text("\n".join(lines) + "\n")
+    return change
+
+
+def key(path: tuple[str, ...], value) -> Callable[[Path], None]:
+    """session.yaml's key at ``path`` set to ``value``."""
+    def change(folder: Path) -> None:
+        spec = yaml.safe_load((folder / "session.yaml").read_text())
+        block = spec
+        for k in path[:-1]:
+            block = block.setdefault(k, {})
+        block[path[-1]] = value
+        (folder / "session.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    return change
+
+
+def link(sub: str, index: int = 0) -> Callable[[Path], None]:
+    """The ``index``-th file of ``sub`` replaced by a symbolic link to the canary of its suffix."""
+    def change(folder: Path) -> None:
+        victim = sorted((folder / sub).iterdir())[index]
+        victim.unlink()
+        victim.symlink_to(folder.parent / f"canary{victim.suffix}")
+    return change
+
+
+def outside_folder(name: str) -> Callable[[Path], None]:
+    """A folder ``name`` beside the session (the canary inside it under each view's name): a
+    session.yaml key naming ``../name`` reaches it."""
+    def change(folder: Path) -> None:
+        out = folder.parent / name
+        out.mkdir()
+        for view in ("v01", "v02", "v03", "v04"):
+            for suffix in (".png", ".csv", ".npy"):
+                shutil.copy(folder.parent / f"canary{suffix}", out / (view + suffix))
+        for f in (folder / "masks").iterdir() if (folder / "masks").is_dir() else []:
+            shutil.copy(folder.parent / "canary.png", out / f.name)
+    return change
+
+
+def both(*changes: Callable[[Path], None]) -> Callable[[Path], None]:
+    def change(folder: Path) -> None:
+        for c in changes:
+            c(folder)
+    return change
+
+
+CANARY_CASES = {
+    "camera-image-name": ("camera", first_cell("poses.csv", "../../canary.png")),
+    "camera-image-absolute": ("camera", lambda f: first_cell("poses.csv", str(f.parent / "canary.png"))(f)),
+    "camera-image-link": ("camera", link("images")),
+    "camera-pose-table": ("camera", key(("poses", "file"), "../canary.csv")),
+    "camera-joints-table": ("camera", key(("joints",), {"file": "../canary.csv", "unit": "deg", "arm": "ur5"})),
+    "camera-arm-table": ("camera", key(("joints",), {"file": "joints.csv", "unit": "deg", "arm": "../canary.yaml"})),
+    "session-yaml-link": ("camera", lambda f: ((f / "session.yaml").unlink(),
+                                               (f / "session.yaml").symlink_to(f.parent / "canary.yaml"))),
+    "laser-profile-name": ("laser", first_cell("poses.csv", "../../canary.csv")),
+    "laser-profile-link": ("laser", link("profiles")),
+    "laser-pose-table-link": ("laser", lambda f: ((f / "poses.csv").unlink(), (f / "poses.csv").symlink_to(f.parent / "canary.csv"))),
+    "depth-cloud-name": ("spheres", first_cell("poses.csv", "../../canary.npy")),
+    "depth-cloud-link": ("spheres", link("clouds")),
+    "depth-clouds-folder-link": ("spheres", lambda f: (shutil.rmtree(f / "clouds"), outside_folder("elsewhere")(f),
+                                                       (f / "clouds").symlink_to(f.parent / "elsewhere"))),
+    "mesh-file": ("mesh", key(("target", "file"), "../canary.stl")),
+    "linescan-scan-name": ("linescan", first_cell("images.csv", "../../canary.png")),
+    "linescan-scan-link": ("linescan", link("images")),
+    "linescan-times-table": ("linescan", key(("images", "file"), "../canary.csv")),
+    "silhouette-mask-name": ("silhouette", first_cell("joints.csv", "../../canary.png")),
+    "silhouette-mask-link": ("silhouette", link("masks")),
+    "silhouette-masks-folder": ("silhouette", both(outside_folder("elsewhere"), key(("silhouette", "masks"), "../elsewhere"))),
+    "rig-camera-folder": ("rig", both(outside_folder("elsewhere"), key(("sensors", "cam1", "images"), "../elsewhere"))),
+    "rig-camera-image-link": ("rig", link("cam1")),
+    "rig-laser-folder": ("rig", both(outside_folder("elsewhere"), key(("sensors", "laser", "profiles"), "../elsewhere"))),
+    "rig-laser-profile-link": ("rig", link("prof", 2)),
+    "rig-depth-folder": ("rig", both(outside_folder("elsewhere"), key(("sensors", "depth", "clouds"), "../elsewhere"))),
+    "rig-depth-cloud-link": ("rig", link("d", 1)),
+    "rig-view-name": ("rig", first_cell("poses.csv", "../../canary")),
+}
+
+
+def _mesh_link(folder: Path) -> None:
+    (folder / "target.stl").unlink()
+    (folder / "target.stl").symlink_to(folder.parent / "canary.stl")
+
+
+CANARY_CASES["mesh-file-link"] = ("mesh", _mesh_link)
+
+
+@pytest.mark.parametrize("case", sorted(CANARY_CASES))
+def test_no_file_outside_the_session_is_opened(case, sessions, tmp_path, capsys, monkeypatch):
+    """Every file a session names, for every sensor kind, pointed at a canary beside the session
+    folder: a one-line error naming the rule; the canary never opened, its content never shown."""
+    base, change = CANARY_CASES[case]
+    folder = tmp_path / "session"
+    shutil.copytree(sessions[base], folder, symlinks=True)
+    for suffix in (".png", ".csv", ".npy", ".stl", ".yaml", ".ply"):
+        (tmp_path / f"canary{suffix}").write_text(SECRET + "\n")
+    change(folder)
+    canaries = {p.resolve() for p in tmp_path.rglob("canary*")} | {p.resolve() for p in tmp_path.glob("elsewhere/*")}
+    status, printed, opened = _run_recording(["calibrate", str(folder), "--out", str(tmp_path / "out"), "--jobs", "1"],
+                                             capsys, monkeypatch)
+    assert SECRET not in printed and "CANARY" not in printed
+    assert not canaries & set(opened), sorted(canaries & set(opened))
+    assert status == 2, printed[-2000:]
+    last = printed.strip().splitlines()[-1]
+    if case == "session-yaml-link":  # the folder is then no session at all
+        assert "session.yaml" in last, last
+    else:
+        assert "lies outside the session folder" in last and "Traceback" not in printed, last
+
+
+def test_a_session_inside_its_folder_still_reads(sessions, tmp_path):
+    """Names with a sub-folder that stays inside, and a link inside the session to a file inside it,
+    are a session's own files: read as before."""
+    from handeye.io.laser_session import load_laser_session
+    folder = tmp_path / "laser"
+    shutil.copytree(sessions["laser"], folder)
+    (folder / "profiles" / "sub").mkdir()
+    first = sorted((folder / "profiles").glob("*.csv"))[0]
+    shutil.move(first, folder / "profiles" / "sub" / first.name)
+    first_cell("poses.csv", f"sub/{first.name}")(folder)
+    second = sorted((folder / "profiles").glob("*.csv"))[0]
+    (folder / "spare").mkdir()
+    shutil.move(second, folder / "spare" / second.name)
+    second.symlink_to(folder / "spare" / second.name)
+    s = load_laser_session(folder)
+    assert s.profile_paths[0] == folder / "profiles" / "sub" / first.name and s.profile_paths[0].is_file()
+    assert all(p.is_file() for p in s.profile_paths)
+
+
+# --- values that would take forever to quote -----------------------------------------------------------
+
+def _bomb(levels: int = 9) -> str:
+    """A billion-laughs YAML value: nine lists of nine aliases to the one before, 9**9 strings in all."""
+    out = ['&a0 ["lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol"]']
+    out += [f"&a{k} [" + ", ".join([f"*a{k - 1}"] * 9) + "]" for k in range(1, levels)]
+    return "[" + ", ".join(out) + "]"
+
+
+def test_alias_bomb_refused_when_read(tmp_path):
+    """The bound itself, in-process: the file is refused when read, before anything quotes its values."""
+    path = tmp_path / "session.yaml"
+    path.write_text(f"setup: eye_in_hand\nlaser: {{unit: mm, range: {_bomb()}}}\n")
+    with pytest.raises(HandEyeError, match=r"expand it to [0-9,]{11,} values"):
+        load_yaml(path)
+    path.write_text("a: &loop [1, *loop]\n")
+    with pytest.raises(HandEyeError, match="refers to its own anchor"):
+        load_yaml(path)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("where", ["laser-range", "poses-format"])
+def test_alias_bombs_are_refused_at_once(where, sessions, tmp_path):
+    """A billion-laughs value as ``laser: range:`` or ``poses: format:`` (the error quotes the value):
+    refused in well under a second, the message a line."""
+    folder = tmp_path / "laser"
+    shutil.copytree(sessions["laser"], folder)
+    text = (folder / "session.yaml").read_text()
+    if where == "laser-range":
+        text = text.replace("laser:\n", f"laser:\n  range: {_bomb()}\n")
+    else:
+        text = text.replace("  format: quat_wxyz\n", f"  format: {_bomb()}\n")
+    (folder / "session.yaml").write_text(text)
+    # a process of its own: were the bound lost, the test fails after a minute instead of hanging the suite
+    run = subprocess.run([sys.executable, "-m", "handeye.cli", "calibrate", str(folder), "--out", str(tmp_path / "out")],
+                         capture_output=True, text=True, timeout=60, env={**os.environ, "PYTHONPATH": SRC})
+    printed = run.stdout + run.stderr
+    assert run.returncode == 2 and len(printed) < 1000, printed[:2000]
+    assert "aliases" in printed and "Traceback" not in printed, printed
+
+
+def test_anchors_within_reason_still_read(tmp_path):
+    """An anchor used a few times (one camera block for two sensors) is YAML as users write it: read."""
+    path = tmp_path / "session.yaml"
+    path.write_text("a: &cam {K: [[1, 0, 1], [0, 1, 1], [0, 0, 1]], dist: [0, 0, 0, 0, 0]}\nb: *cam\nc: *cam\n")
+    assert load_yaml(path)["c"]["K"][0] == [1, 0, 1]
+
+
+@pytest.mark.parametrize("value", ["x" * 100_000, list(range(50_000))])
+def test_long_values_are_quoted_short(value, sessions, tmp_path, capsys, monkeypatch):
+    """A 100 kB string or a list of 50,000 numbers as ``laser: unit:``: the message quotes a line of it."""
+    folder = tmp_path / "laser"
+    shutil.copytree(sessions["laser"], folder)
+    key(("laser", "unit"), value)(folder)
+    status, printed, _ = _run_recording(["calibrate", str(folder), "--out", str(tmp_path / "out")], capsys, monkeypatch)
+    assert status == 2 and "unit" in printed and len(printed) < 600, printed[:2000]
+
+
+def test_reprlib_bound_is_what_messages_use():
+    from handeye._shared.text import cut, shown
+    deep = ["lol"]
+    for _ in range(8):
+        deep = [deep] * 9
+    assert len(shown(deep)) < 300 and len(shown("y" * 10**6)) < 100 and shown([0.08, 0.16]) == "[0.08, 0.16]"
+    assert cut("z" * 10**6) .count("z") < 200 and cut("short") == "short"
+    assert np.isfinite(len(shown(np.zeros(10**6))))
