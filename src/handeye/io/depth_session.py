@@ -263,11 +263,12 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     unit, working = _depth_spec(spec["depth"], where)
     K, dist = read_camera(spec.get("camera"), where)
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("image", "cloud")) if spec.get("joints") else None
-    if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
+    posed = not (spec.get("poses") is None and joints is not None)
+    if not posed:  # joint angles alone: the nominal table's flange poses
         names, table, f2b = joints[0], joints[3], joints[2].forward(joints[1])
     else:
         f2b, names, table = read_robot_poses(folder, spec.get("poses"), where, notes, ("image", "cloud"), FIRST_COLUMN)
-    q = None if joints is None else joints_of_views(joints, names)
+    q = None if joints is None else joints_of_views(joints, names, f2b if posed else None, notes)
     clouds = _clouds_of(folder, names, table)
     images = None
     if board:

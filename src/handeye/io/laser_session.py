@@ -190,12 +190,13 @@ def load_laser_session(folder: str | Path, arm: str | None = None) -> LaserSessi
     unit, working, noise = _laser_spec(spec["laser"], where)
     target, radius, radii = _target(spec.get("target"), where)
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("profile",)) if spec.get("joints") else None
-    if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
+    posed = not (spec.get("poses") is None and joints is not None)
+    if not posed:  # joint angles alone: the nominal table's flange poses
         names, f2b = list(joints[0]), joints[2].forward(joints[1])
     else:
         f2b, names, _ = read_robot_poses(folder, spec.get("poses"), where, notes, ("profile",),
                                          "'profile', naming each pose's profile file in profiles/")
-    q = None if joints is None else joints_of_views(joints, names)
+    q = None if joints is None else joints_of_views(joints, names, f2b if posed else None, notes)
     paths = _profiles_of(folder, folder / "profiles", names)
     return LaserSession(folder, setup, dict(spec["target"]), list(names), paths, f2b, unit, working, noise, radius, notes,
                         q, None if joints is None else joints[2], None if joints is None else joints[3], target, radii)

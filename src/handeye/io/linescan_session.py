@@ -190,6 +190,7 @@ def _poses_against_joints(flange2base: NDArray[np.float64], pose_times: NDArray[
                            f"{pose_times[0]:.3f}-{pose_times[-1]:.3f} s: give both on the robot's clock")
     q = joints_at(times, joints, pose_times[inside])
     try:
-        return check_joints_against_poses(chain, q, flange2base[inside], f"{path.name}'s joint angles")
+        return check_joints_against_poses(chain, q, flange2base[inside], f"{path.name}'s joint angles",
+                                          names=[f"the pose at {s:.3f} s" for s in pose_times[inside]])
     except InputMismatchError as exc:
         raise SessionError(f"{path}: {exc}") from None

@@ -185,7 +185,8 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
     if any(isinstance(b, dict) and not {"laser", "depth"} & set(b) for b in sensors.values()):  # the cameras' board
         target_from_spec(spec.get("target"), where=f"{where}: target")
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("view",)) if spec.get("joints") else None
-    if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
+    posed = not (spec.get("poses") is None and joints is not None)
+    if not posed:  # joint angles alone: the nominal table's flange poses
         names, f2b = list(joints[0]), joints[2].forward(joints[1])
     else:
         f2b, names, _ = read_robot_poses(folder, spec.get("poses"), where, notes, ("view",), "view")
@@ -216,6 +217,6 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
             what = {"laser": "profile", "depth": "cloud", "camera": "image"}[out[-1].kind]
             notes.append(f"sensor {name}: no {what} for {len(missing)} of {len(names)} views ({summarize(missing)}): those "
                          "views are not its")
-    q = None if joints is None else joints_of_views(joints, names)
+    q = None if joints is None else joints_of_views(joints, names, f2b if posed else None, notes)
     return RigSession(folder, setup, dict(spec.get("target") or {}), list(names), f2b, out, notes, q,
                       None if joints is None else joints[2], None if joints is None else joints[3])

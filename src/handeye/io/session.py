@@ -466,7 +466,8 @@ def _joint_session(folder: Path, setup: str, target_spec, K, dist, joints: _Join
                            + (f"; no joint angles for {summarize(absent)}" if absent else ""))
     q = joints.q[[index[n] for n in posed.image_names]]
     try:
-        finding = check_joints_against_poses(joints.arm, q, posed.flange2base, where=f"{joints.path.name}")
+        finding = check_joints_against_poses(joints.arm, q, posed.flange2base, where=f"{joints.path.name}",
+                                             names=list(posed.image_names))
     except InputMismatchError as exc:
         raise SessionError(f"{folder}: {exc}") from None
     return replace(posed, joints=q, arm=joints.arm, joints_path=joints.path, notes=notes + [finding])
@@ -654,16 +655,28 @@ def flange_poses_of(values: NDArray[np.float64], poses: dict, table: Path, where
     return invert(f2b) if pose_rows_inverted(poses, where) else f2b
 
 
-def joints_of_views(joints: tuple[list[str], NDArray[np.float64], Chain, Path], names: list[str]) -> NDArray[np.float64]:
+def joints_of_views(joints: tuple[list[str], NDArray[np.float64], Chain, Path], names: list[str],
+                    flange2base: NDArray[np.float64] | None = None, notes: list[str] | None = None) -> NDArray[np.float64]:
     """The joint angles of :func:`read_joints` in the order of the views ``names`` (the poses'
-    table's), which both tables must name alike."""
-    j_names, q, _, path = joints
+    table's), which both tables must name alike. With the controller's ``flange2base`` of those
+    views, the two are checked against each other as an image session's are
+    (:func:`~handeye.robot.kinematics.check_joints_against_poses`: another arm, degrees read as
+    radians, the columns reversed, rows swapped, named before any fit), the finding into ``notes``."""
+    j_names, q, arm, path = joints
     index = {n: k for k, n in enumerate(j_names)}
     absent = [n for n in names if n not in index]
     if absent or len(j_names) != len(names):
         raise SessionError(f"{path}: the joint angles and the poses must name the same views: {len(j_names)} and "
                            f"{len(names)} rows" + (f"; no joint angles for {', '.join(absent[:5])}" if absent else ""))
-    return q[[index[n] for n in names]]
+    q = q[[index[n] for n in names]]
+    if flange2base is not None:
+        try:
+            finding = check_joints_against_poses(arm, q, flange2base, where=path.name, names=list(names))
+        except InputMismatchError as exc:
+            raise SessionError(f"{path.parent}: {exc}") from None
+        if notes is not None:
+            notes.append(finding)
+    return q
 
 
 def has_section(folder: str | Path, key: str) -> bool:
