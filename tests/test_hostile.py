@@ -10,6 +10,7 @@ recorded by an audit hook, OpenCV's ``imread`` by a wrapper) and its content nev
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -417,6 +418,116 @@ def test_swapped_joint_rows_are_named_for_image_sessions_too():
     moved[4, :3, 3] += [0.05, 0.0, 0.0]
     with pytest.raises(HandEyeError, match=r"'004.png' \(50 mm / 0.0 deg\) put the flange far from the controller's pose"):
         check_joints_against_poses(ur5, q, moved, "joints.csv", names)
+
+
+# --- a view's file that holds nothing: skipped and named, the rest go on (docs/guide.md) ----------------
+
+def _profiles_read(folder: Path):
+    from handeye.io.laser_session import load_laser_session
+    from handeye.pipelines.laser import read_profiles
+    return read_profiles(load_laser_session(folder))
+
+
+@pytest.mark.parametrize("damage, why", [
+    (lambda p: p.write_bytes(np.random.default_rng(0).integers(0, 256, 4096, dtype=np.uint8).tobytes()),
+     r"not a text profile \(a NUL byte at byte \d+\): a binary or corrupt file"),
+    (lambda p: p.write_bytes(b""), r"empty profile file"),
+    (lambda p: p.write_text("x,z\n" + "".join(f"{k * 1e-3:.3f},120\n" for k in range(70_000))),
+     r"70,000 points, and a profile is one laser line's: a few thousand"),
+    (lambda p: (p.with_suffix(".npy").write_bytes(b"\x93NUMPY garbage"), p.unlink()), r"not a readable .npy array"),
+], ids=["random-bytes", "zero-bytes", "a-cloud-as-a-profile", "corrupt-npy"])
+def test_an_unusable_profile_is_skipped_and_named(damage, why, sessions, tmp_path):
+    """4 KB of random bytes (a UnicodeDecodeError traceback before), a 0-byte file (refused before, where
+    the guide says skipped), 70,000 points in one profile ("capture more profiles" before, the start
+    thrown by it), a corrupt .npy: that profile skipped with why, the others read."""
+    folder = tmp_path / "laser"
+    shutil.copytree(sessions["laser"], folder)
+    victim = sorted((folder / "profiles").iterdir())[2]
+    damage(victim)
+    kept, profiles, skipped, _ = _profiles_read(folder)
+    assert len(kept) == 4 and [name for name, _ in skipped] == [victim.name], skipped
+    assert re.search(why, skipped[0][1]), skipped
+
+
+def test_swapped_profile_columns_are_named(sessions, tmp_path):
+    """x and z swapped in every profile: the fit is as good (in the laser plane the swap is a half turn of
+    the sensor's frame), X half a turn off, exit 0 before; refused against the stated range after."""
+    folder = tmp_path / "laser"
+    shutil.copytree(sessions["laser"], folder)
+    assert yaml.safe_load((folder / "session.yaml").read_text())["laser"]["range"] == [80.0, 160.0]
+    _profiles_read(folder)
+    for path in (folder / "profiles").iterdir():
+        lines = path.read_text().splitlines()
+        path.write_text("\n".join(["x,z"] + [",".join(line.split(",")[::-1]) for line in lines[1:]]) + "\n")
+    with pytest.raises(HandEyeError, match=r"outside the stated range \[80, 160\] mm for 100% of the points, and their x "
+                                           r"within it: the x and z columns are swapped"):
+        _profiles_read(folder)
+    key(("laser", "range"), [300, 400])(folder)
+    with pytest.raises(HandEyeError, match=r"100% of the profiles' points lie outside the stated range \[300, 400\] mm"):
+        _profiles_read(folder)
+
+
+@pytest.fixture(scope="module")
+def plate(tmp_path_factory) -> Path:
+    return write_laser_session(tmp_path_factory.mktemp("plate") / "plate", laser_scene(8, rng=3, target="plane"))
+
+
+def test_profiles_of_another_target_than_declared_are_named(sessions, plate, tmp_path):
+    """A ball's profiles declared a plate, a plate's declared a ball: both said "capture more profiles"
+    before; now the target that fits is named, before any fit."""
+    ball = tmp_path / "ball"
+    shutil.copytree(sessions["laser"], ball)
+    key(("target",), {"type": "plane"})(ball)
+    with pytest.raises(HandEyeError, match=r"5 of 5 profiles are arcs of circles \(radius .* the target is a ball"):
+        _profiles_read(ball)
+    flat = tmp_path / "flat"
+    shutil.copytree(plate, flat)
+    _profiles_read(flat)  # as declared: read
+    key(("target",), {"type": "sphere", "diameter": 0.04})(flat)
+    with pytest.raises(HandEyeError, match=r"no profile is an arc: 8 of 8 are straight lines .* the target is a plate"):
+        _profiles_read(flat)
+
+
+@pytest.mark.parametrize("cloud", [np.full((120, 160, 3), np.nan), np.ones(7)], ids=["all-nan", "shape-7"])
+def test_an_unusable_ball_cloud_is_skipped_and_named(cloud, tmp_path):
+    """An all-NaN cloud and an array of shape (7,) in a ball session: refused before (the guide: a view
+    that cannot be measured is skipped by name); now that view skipped, named, the others measured."""
+    from handeye.io.depth_session import load_depth_session
+    from handeye.pipelines.depth import measure_depth_session
+    folder = tmp_path / "spheres"
+    write_depth_session(folder, sphere_scene(4, rng=1, image_size=(160, 120)))
+    np.save(folder / "clouds" / "view02.npy", cloud)
+    views = measure_depth_session(load_depth_session(folder))
+    assert [n for n, _ in views.skipped] == ["view02.npy"] and len(views.index) == 3, views.skipped
+    assert re.search(r"no point has a depth|an organized cloud is an H x W x 3 array", views.skipped[0][1])
+
+
+def test_an_unusable_mesh_cloud_is_skipped_and_named(sessions, tmp_path):
+    from handeye.pipelines.mesh import _found
+    from handeye.sensors.depth.shape import load_shape
+    folder = tmp_path / "mesh"
+    shutil.copytree(sessions["mesh"], folder)
+    np.save(folder / "clouds" / "view02.npy", np.ones(7))
+    why = _found(load_shape(folder / "target.stl", "mm"), folder / "clouds" / "view02.npy", "m", 0)
+    assert isinstance(why, str) and "a cloud is an H x W x 3 or N x 3 array of points, got shape (7,)" in why
+
+
+def test_a_scan_outside_the_trajectory_is_skipped_and_named(sessions, tmp_path):
+    """One scan's time beyond the trajectory: refused before (the guide: a scan that cannot be used is
+    skipped, named); now skipped with why, the others kept. Every scan outside: refused, as a clock
+    mismatch."""
+    from handeye.io.linescan_session import load_linescan_session
+    folder = tmp_path / "linescan"
+    shutil.copytree(sessions["linescan"], folder)
+    assert load_linescan_session(folder).names == ["s01.png", "s02.png", "s03.png"]
+    (folder / "images.csv").write_text("image,time\ns01.png,500\ns02.png,2\ns03.png,3\n")
+    s = load_linescan_session(folder)
+    assert s.names == ["s02.png", "s03.png"]
+    assert s.skipped == [("s01.png", "starts at 500.000 s, outside the trajectory (0.000-5.000 s): no robot pose for it")]
+    (folder / "images.csv").write_text("image,time\ns01.png,500\ns02.png,600\ns03.png,700\n")
+    with pytest.raises(HandEyeError, match=r"the trajectory runs 0.000-5.000 s; the scans s01.png, s02.png, s03.png start "
+                                           "outside it"):
+        load_linescan_session(folder)
 
 
 # --- every fit's time bounded ------------------------------------------------------------------------------

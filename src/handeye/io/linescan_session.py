@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._shared.text import shown
+from .._shared.text import shown, summarize
 from ..errors import InputMismatchError, SessionError
 from ..frames.setups import check_setup
 from ..robot.kinematics import Chain, check_joints_against_poses, joints_at
@@ -91,6 +91,8 @@ class LineScanSession:
     joints: NDArray[np.float64] | None = None
     arm: Chain | None = None
     joints_path: Path | None = None
+    #: scans left out as the session was read, with why (a scan whose time lies outside the trajectory)
+    skipped: list[tuple[str, str]] = field(default_factory=list)
 
     @property
     def input_files(self) -> list[Path]:
@@ -170,13 +172,19 @@ def load_linescan_session(folder: str | Path, arm: str | None = None) -> LineSca
     missing = [p.name for p in paths if not p.is_file()]
     if missing:
         raise SessionError(f"{folder / 'images'}: scan image(s) missing: {', '.join(missing[:10])}")
-    outside = [n for n, t in zip(names, starts) if not times[0] - 1.0 <= t <= times[-1] + 1.0]
-    if outside:
+    starts = np.asarray(starts, float)
+    inside = (starts >= times[0] - 1.0) & (starts <= times[-1] + 1.0)
+    if not inside.any():  # every scan: the clocks or the files disagree, not one scan
         raise SessionError(f"{trajectory}: the trajectory runs {times[0]:.3f}-{times[-1]:.3f} s; the scans "
-                           f"{', '.join(outside[:5])} start outside it: give the trajectory around every scan, on a clock "
+                           f"{summarize(names)} start outside it: give the trajectory around every scan, on a clock "
                            "within a fraction of a second of the camera's (images.csv's time)")
-    return LineScanSession(folder, setup, dict(spec["target"]), list(names), paths, np.asarray(starts, float), times, f2b,
-                           int(width), line_rate, focal, noise, notes, joints, chain, joints_path)
+    span = "-".join(f"{v:.3f}".replace("-0.000", "0.000") for v in (times[0], times[-1]))
+    skipped = [(n, f"starts at {t:.3f} s, outside the trajectory ({span} s): no robot pose for it")
+               for n, t, ok in zip(names, starts, inside) if not ok]
+    keep = np.flatnonzero(inside)
+    return LineScanSession(folder, setup, dict(spec["target"]), [names[k] for k in keep], [paths[k] for k in keep],
+                           starts[keep], times, f2b, int(width), line_rate, focal, noise, notes, joints, chain, joints_path,
+                           skipped)
 
 
 def _poses_against_joints(flange2base: NDArray[np.float64], pose_times: NDArray[np.float64], times: NDArray[np.float64],
