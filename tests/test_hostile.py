@@ -530,6 +530,52 @@ def test_a_scan_outside_the_trajectory_is_skipped_and_named(sessions, tmp_path):
         load_linescan_session(folder)
 
 
+# --- files that gave a traceback or an answer that blamed something else --------------------------------
+
+def test_meshes_without_a_part_are_named(sessions, tmp_path):
+    """A mesh whose vertices lie on one line ("Probabilities contain NaN" before) and a part flattened to a
+    plane, front and back on one another (a fit that blamed the robot's poses before): refused, named."""
+    import trimesh
+
+    from handeye.sensors.depth.shape import load_shape
+    mesh = trimesh.load(sessions["mesh"] / "target.stl")
+    v = np.asarray(mesh.vertices).copy()
+    line, flat = v * [1, 0, 0], v * [1, 1, 0]
+    for name, vertices in (("line.stl", line), ("flat.stl", flat)):
+        trimesh.Trimesh(vertices, mesh.faces, process=False).export(tmp_path / name)
+    with pytest.raises(HandEyeError, match=r"line.stl: the mesh has no area: its vertices lie on one line \(80 mm long\)"):
+        load_shape(tmp_path / "line.stl", "mm")
+    with pytest.raises(HandEyeError, match=r"flat.stl: the mesh is flat: its vertices lie in one plane .* faces point both "
+                                           "ways"):
+        load_shape(tmp_path / "flat.stl", "mm")
+    top = trimesh.creation.box((0.08, 0.06, 0.01)).slice_plane([0, 0, 0.0049], [0, 0, 1])  # one side of a plate: a surface
+    top.export(tmp_path / "top.stl")
+    assert load_shape(tmp_path / "top.stl", "m").points.shape[1] == 3
+
+
+def test_an_all_white_mask_is_named(sessions, tmp_path):
+    """Every pixel of a mask set: "Residuals are not finite" in the fit before; named at reading after."""
+    from handeye.io.silhouette_session import load_silhouette_session, read_masks
+    folder = tmp_path / "silhouette"
+    shutil.copytree(sessions["silhouette"], folder)
+    path = sorted((folder / "masks").iterdir())[1]
+    shape = cv2.imread(str(path), cv2.IMREAD_UNCHANGED).shape
+    cv2.imwrite(str(path), np.full(shape, 255, np.uint8))
+    with pytest.raises(HandEyeError, match=rf"{path.name}: every pixel is set: the mask marks the whole image"):
+        read_masks(load_silhouette_session(folder))
+
+
+def test_a_session_yaml_not_in_utf8_is_named(tmp_path):
+    """A 0x81 byte (no character in Windows-1252) said "unacceptable character #x0081"; now: not UTF-8, where."""
+    path = tmp_path / "session.yaml"
+    path.write_bytes(b"setup: eye_in_hand\n# Zelle \x81 Nord\nlaser: {unit: mm}\n")
+    with pytest.raises(HandEyeError, match=r"session.yaml: not UTF-8 text: byte 0x81 at line 2, column 9"):
+        load_yaml(path)
+    path.write_bytes(b"setup: eye_in_hand\n# bell \x07\n")
+    with pytest.raises(HandEyeError, match=r"character U\+0007 at line 2, column 8 is a control character"):
+        load_yaml(path)
+
+
 # --- every fit's time bounded ------------------------------------------------------------------------------
 
 def test_a_fit_that_does_not_converge_says_so(sessions, monkeypatch):

@@ -758,11 +758,23 @@ def load_yaml(path: Path, notes: list[str] | None = None) -> dict[str, Any]:
     path = Path(path)
     if path.name in (SESSION_FILE, POSEPAIRS_FILE):  # a folder's description: a link to elsewhere is not its
         session_file(path.parent, path, "the folder's description")
-    text = _text_of(path, notes)
+    read_as: list[str] = []
+    text = _text_of(path, read_as)
+    if notes is not None:
+        notes.extend(read_as)
     try:
         data = yaml.load(text, Loader=_UniqueKeyLoader)
     except SessionError as exc:  # aliases beyond reason (:func:`_bounded_single_node`)
         raise SessionError(f"{path}: {exc}") from None
+    except yaml.reader.ReaderError as exc:  # a character YAML does not take: most often bytes of another encoding
+        line, column = text.count("\n", 0, exc.position) + 1, exc.position - text.rfind("\n", 0, exc.position)
+        code = exc.character if isinstance(exc.character, int) else ord(exc.character)
+        if read_as and "not UTF-8" in read_as[0]:  # the byte that made it so, where it is
+            raise SessionError(f"{path}: not UTF-8 text: byte 0x{code:02X} at line {line}, column {column} is no "
+                               "character (read as Windows-1252 / Latin-1, it is a control code YAML refuses); save the "
+                               "file as UTF-8") from None
+        raise SessionError(f"{path}: character U+{code:04X} at line {line}, column {column} is a control character YAML "
+                           "refuses: remove it, or save the file as UTF-8 text") from None
     except yaml.YAMLError as exc:  # one line: the problem and where
         mark = getattr(exc, "problem_mark", None)
         at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""

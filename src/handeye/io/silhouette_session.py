@@ -182,5 +182,9 @@ def read_masks(s: SilhouetteSession) -> NDArray[np.bool_]:
                                f"{out[0].shape[0]}: every view's mask is of the camera's image size")
         if not m.any():
             raise SessionError(f"{mask}: no pixel is set: the arm is not in this view's mask (leave the view out)")
+        if m.all():  # no background: no outline to fit, every distance to it infinite
+            raise SessionError(f"{mask}: every pixel is set: the mask marks the whole image, not the arm's silhouette (a "
+                               "segmentation that failed, or a mask inverted: the arm's pixels are the set ones); leave "
+                               "the view out or segment it again")
         out.append(m)
     return np.array(out)
