@@ -124,6 +124,7 @@ def sessions(tmp_path_factory) -> dict[str, Path]:
     write_silhouette_session(root / "silhouette", silhouette_scene(3, rng=1))
     _rig(root, cam, root / "laser", root / "spheres")
     _linescan(root, cam)
+    shutil.copytree(Path(handeye.__file__).parent / "data" / "example_posepairs", root / "posepairs")
     return {p.name: p for p in root.iterdir()}
 
 
@@ -138,15 +139,15 @@ def first_cell(table: str, to: str) -> Callable[[Path], None]:
     return change
 
 
-def key(path: tuple[str, ...], value) -> Callable[[Path], None]:
-    """session.yaml's key at ``path`` set to ``value``."""
+def key(path: tuple[str, ...], value, file: str = "session.yaml") -> Callable[[Path], None]:
+    """session.yaml's (or ``file``'s) key at ``path`` set to ``value``."""
     def change(folder: Path) -> None:
-        spec = yaml.safe_load((folder / "session.yaml").read_text())
+        spec = yaml.safe_load((folder / file).read_text())
         block = spec
         for k in path[:-1]:
             block = block.setdefault(k, {})
         block[path[-1]] = value
-        (folder / "session.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+        (folder / file).write_text(yaml.safe_dump(spec, sort_keys=False))
     return change
 
 
@@ -210,6 +211,9 @@ CANARY_CASES = {
     "rig-depth-folder": ("rig", both(outside_folder("elsewhere"), key(("sensors", "depth", "clouds"), "../elsewhere"))),
     "rig-depth-cloud-link": ("rig", link("d", 1)),
     "rig-view-name": ("rig", first_cell("poses.csv", "../../canary")),
+    "posepairs-robot-table": ("posepairs", key(("robot_poses", "file"), "../canary.csv", "posepairs.yaml")),
+    "posepairs-camera-table-link": ("posepairs", lambda f: ((f / "target2cam.csv").unlink(),
+                                                            (f / "target2cam.csv").symlink_to(f.parent / "canary.csv"))),
 }
 
 
@@ -232,8 +236,8 @@ def test_no_file_outside_the_session_is_opened(case, sessions, tmp_path, capsys,
         (tmp_path / f"canary{suffix}").write_text(SECRET + "\n")
     change(folder)
     canaries = {p.resolve() for p in tmp_path.rglob("canary*")} | {p.resolve() for p in tmp_path.glob("elsewhere/*")}
-    status, printed, opened = _run_recording(["calibrate", str(folder), "--out", str(tmp_path / "out"), "--jobs", "1"],
-                                             capsys, monkeypatch)
+    argv = (["calibrate-poses", str(folder)] if base == "posepairs" else ["calibrate", str(folder), "--jobs", "1"])
+    status, printed, opened = _run_recording(argv + ["--out", str(tmp_path / "out")], capsys, monkeypatch)
     assert SECRET not in printed and "CANARY" not in printed
     assert not canaries & set(opened), sorted(canaries & set(opened))
     assert status == 2, printed[-2000:]
@@ -319,6 +323,18 @@ def test_long_values_are_quoted_short(value, sessions, tmp_path, capsys, monkeyp
     key(("laser", "unit"), value)(folder)
     status, printed, _ = _run_recording(["calibrate", str(folder), "--out", str(tmp_path / "out")], capsys, monkeypatch)
     assert status == 2 and "unit" in printed and len(printed) < 600, printed[:2000]
+
+
+def test_a_long_sensor_name_is_quoted_short(sessions, tmp_path):
+    from handeye.io.rig_session import load_rig_session
+    folder = tmp_path / "rig"
+    shutil.copytree(sessions["rig"], folder)
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    spec["sensors"]["n" * 100_000 + "!"] = spec["sensors"].pop("cam1")
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    with pytest.raises(HandEyeError) as info:
+        load_rig_session(folder)
+    assert "a sensor's name may hold letters" in str(info.value) and len(str(info.value)) < 600
 
 
 def test_reprlib_bound_is_what_messages_use():

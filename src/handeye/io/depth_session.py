@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.text import shown
+from .._shared.text import cut, shown
 from ..errors import SessionError
 from ..frames.setups import check_setup, setup_info
 from ..geometry.se3 import make_transform
@@ -302,7 +302,7 @@ def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[n
     unit, working = _depth_spec(block.get("depth"), where)
     radii = _radii(target, where)
     if isinstance(target, dict) and str(target.get("type", "")).lower() in ("mesh", "arm"):
-        raise SessionError(f"{where}: target: a {target['type']} target is not taken in a rig yet: calibrate that depth "
+        raise SessionError(f"{where}: target: a {cut(str(target['type']), 40)} target is not taken in a rig yet: calibrate that depth "
                            "camera in a depth session of its own (a board or spheres are taken here)")
     if radii is None:
         target_from_spec(target, where=f"{where}: target")

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._shared.text import summarize
+from .._shared.text import cut, summarize
 from ..errors import SessionError
 from ..frames.setups import check_setup
 from ..robot.kinematics import Chain
@@ -192,7 +192,7 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
         f2b, names, _ = read_robot_poses(folder, spec.get("poses"), where, notes, ("view",), "view")
     out = []
     for name, block in sensors.items():
-        at = f"{where}: sensors: {name}"
+        at = f"{where}: sensors: {cut(str(name), 80)}"
         if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]*", str(name)):
             raise SessionError(f"{at}: a sensor's name may hold letters, digits, '_', '-' and '.' (it names the sensor's "
                                "folder of results and its ROS frame); rename it")
