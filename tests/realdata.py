@@ -1,13 +1,14 @@
 """The real captures in ../shared/data/real, read into :class:`handeye.estimation.validation.Views`.
 
 Used by the real-data tests and by ``benchmarks/bench_realdata.py``. Image sets become session
-folders (images linked, never copied) in a scratch folder the caller owns, then go through
+folders (images copied, never into the repository) in a scratch folder the caller owns, then go through
 :func:`handeye.pipelines.calibration.observe` (detection, PnP, symmetric targets), as ``handeye calibrate``
 does. Each loader says how its files are read; the ABOUT.md of each set gives the conventions.
 """
 
 from __future__ import annotations
 
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,8 +42,8 @@ class RealSet:
 def _session(scratch: Path, setup, target, K, names, images, flange2base) -> Path:
     folder = scratch
     (folder / "images").mkdir(parents=True)
-    for name, src in zip(names, images):
-        (folder / "images" / name).symlink_to(src)
+    for name, src in zip(names, images):  # copies: a session reads no file outside its folder, links resolved
+        shutil.copyfile(src, folder / "images" / name)
     write_session(folder, setup, target, names, np.asarray(flange2base), "matrix", "m", "rad", camera=(K, [0.0] * 5))
     return folder
 

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from .._shared.text import shown
 from ..errors import InputMismatchError, PoseFormatError
 from ..geometry.se3 import invert, make_transform, orthonormality_error
 
@@ -69,7 +70,7 @@ class RobotPoseInput:
 
 def _parse_format(fmt: str) -> tuple[str, str | None]:
     if not isinstance(fmt, str):
-        raise PoseFormatError(f"pose format must be a string, got {fmt!r}; one of {', '.join(FORMATS)}")
+        raise PoseFormatError(f"pose format must be a string, got {shown(fmt)}; one of {', '.join(FORMATS)}")
     if fmt in ("matrix", "quat_wxyz", "quat_xyzw", "rotvec"):
         return fmt, None
     m = _EULER_RE.match(fmt)
@@ -77,15 +78,15 @@ def _parse_format(fmt: str) -> tuple[str, str | None]:
         seq = m.group(1)
         if not (seq.isupper() or seq.islower()):
             raise PoseFormatError(
-                f"Euler sequence {seq!r} mixes cases: use upper case for intrinsic rotations "
+                f"Euler sequence {shown(seq)} mixes cases: use upper case for intrinsic rotations "
                 f"(e.g. 'euler:ZYX', KUKA A,B,C) or lower case for extrinsic ones (e.g. 'euler:xyz', Fanuc W,P,R)"
             )
         s = seq.lower()
         if s[0] == s[1] or s[1] == s[2]:
-            raise PoseFormatError(f"Euler sequence {seq!r} repeats an axis in consecutive rotations")
+            raise PoseFormatError(f"Euler sequence {shown(seq)} repeats an axis in consecutive rotations")
         return "euler", seq
     raise PoseFormatError(
-        f"unknown pose format {fmt!r}; use one of: matrix, quat_wxyz, quat_xyzw, rotvec, "
+        f"unknown pose format {shown(fmt)}; use one of: matrix, quat_wxyz, quat_xyzw, rotvec, "
         f"euler:<sequence> (e.g. euler:ZYX intrinsic, euler:xyz extrinsic)"
     )
 
@@ -106,9 +107,9 @@ def pose_columns(fmt: str) -> list[str]:
 
 def _check_units(length_unit: str, angle_unit: str, what: str = "poses") -> float:
     if length_unit not in LENGTH_UNITS:
-        raise PoseFormatError(f"{what}: unknown length unit {length_unit!r}; use 'm' or 'mm'")
+        raise PoseFormatError(f"{what}: unknown length unit {shown(length_unit)}; use 'm' or 'mm'")
     if angle_unit not in ANGLE_UNITS:
-        raise PoseFormatError(f"{what}: unknown angle unit {angle_unit!r}; use 'rad' or 'deg'")
+        raise PoseFormatError(f"{what}: unknown angle unit {shown(angle_unit)}; use 'rad' or 'deg'")
     return LENGTH_UNITS[length_unit]
 
 
@@ -180,7 +181,7 @@ def parse_poses(
             [rows, np.tile([0.0, 0.0, 0.0, 1.0], (len(rows), 1))], axis=1)
     if rows.shape[1] != ncols:
         raise PoseFormatError(
-            f"{what}: format {format!r} needs {ncols} columns ({' '.join(pose_columns(format))}), "
+            f"{what}: format {shown(format)} needs {ncols} columns ({' '.join(pose_columns(format))}), "
             f"got {rows.shape[1]}"
         )
     if len(rows) == 0:
@@ -189,7 +190,7 @@ def parse_poses(
     if bad.any():
         i, j = np.argwhere(bad)[0]
         raise PoseFormatError(
-            f"{what}: row {i} column {pose_columns(format)[j]!r} is {rows[i, j]} (NaN or infinite); "
+            f"{what}: row {i} column {shown(pose_columns(format)[j])} is {rows[i, j]} (NaN or infinite); "
             f"{int(bad.any(axis=1).sum())} row(s) affected"
         )
 

@@ -19,6 +19,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from .._shared.text import shown
 from ..errors import InputMismatchError
 from ..geometry.dualquat import dq_conj
 from ..geometry.se3 import invert
@@ -82,7 +83,7 @@ def check_setup(setup: str) -> Setup:
     if type(setup) is Setup:
         return setup
     if not isinstance(setup, str) or setup not in _INFO:
-        raise InputMismatchError(f"unknown setup {setup!r}; use 'eye_in_hand' (camera on the flange) "
+        raise InputMismatchError(f"unknown setup {shown(setup)}; use 'eye_in_hand' (camera on the flange) "
                                  f"or 'eye_to_hand' (camera fixed, target on the flange)")
     return Setup(setup)
 

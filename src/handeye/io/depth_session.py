@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from .._shared.text import cut, shown
 from ..errors import SessionError
 from ..frames.setups import check_setup, setup_info
 from ..geometry.se3 import make_transform
@@ -33,6 +34,7 @@ from .session import (
     read_joints,
     read_robot_poses,
     read_session_yaml,
+    session_file,
 )
 
 __all__ = ["DepthSession", "MeshTarget", "ArmTarget", "is_depth_session", "load_depth_session", "rig_depth", "arm_hand",
@@ -128,14 +130,14 @@ def arm_hand(target: dict, where: str) -> tuple[bool, float]:
     default true) and the gap between its fingers (``finger_opening``, metres, default 0), checked."""
     hand = target.get("hand", True)
     if not isinstance(hand, bool):
-        raise SessionError(f"{where}: target: hand is true (the maker's gripper on the flange) or false, got {hand!r}")
+        raise SessionError(f"{where}: target: hand is true (the maker's gripper on the flange) or false, got {shown(hand)}")
     try:
         opening = float(target.get("finger_opening", 0.0))
     except (TypeError, ValueError):
         opening = float("nan")
     if not 0.0 <= opening <= 0.1:
         raise SessionError(f"{where}: target: finger_opening is the gap between the fingers in metres (0 to 0.08 for the "
-                           f"Franka Hand), got {target.get('finger_opening')!r}")
+                           f"Franka Hand), got {shown(target.get('finger_opening'))}")
     return hand, opening
 
 
@@ -164,7 +166,7 @@ def _placement(value: Any, unit: str, where: str) -> NDArray[np.float64]:
             and np.allclose(a[3], [0, 0, 0, 1]):
         return make_transform(a[:3, :3], a[:3, 3] * factor)
     raise SessionError(f"{where}: the shape's placement is a 4x4 rigid transform or [x, y, z, rx, ry, rz] (translation in "
-                       f"the mesh's unit {unit}, rotation vector in degrees), got {value!r}")
+                       f"the mesh's unit {unit}, rotation vector in degrees), got {shown(value)}")
 
 
 def _mesh(target: Any, folder: Path, setup: str, where: str) -> MeshTarget | None:
@@ -186,8 +188,8 @@ def _mesh(target: Any, folder: Path, setup: str, where: str) -> MeshTarget | Non
     unit = str(target.get("unit", ""))
     if unit not in ("m", "mm"):
         raise SessionError(f"{where}: target: a mesh's unit is m or mm (the unit its file's coordinates are in), got "
-                           f"{target.get('unit')!r}")
-    path = folder / str(target["file"])
+                           f"{shown(target.get('unit'))}")
+    path = session_file(folder, folder / str(target["file"]), "the mesh file")
     if not path.is_file():
         raise SessionError(f"{where}: target: no mesh file {path}")
     placement = None if target.get(key) is None else _placement(target[key], unit, f"{where}: target: {key}")
@@ -205,7 +207,7 @@ def _radii(target: Any, where: str) -> list[float] | None:
     d = target.get("diameter", target.get("diameters"))
     values = np.atleast_1d(np.asarray(d, dtype=float)) if d is not None else np.array([])
     if len(values) == 0 or not np.isfinite(values).all() or np.any(values <= 0):
-        raise SessionError(f"{where}: target: a sphere needs its diameter (metres; several: a list), got {d!r}")
+        raise SessionError(f"{where}: target: a sphere needs its diameter (metres; several: a list), got {shown(d)}")
     if np.any(values > 1.0):
         raise SessionError(f"{where}: target: sphere diameter {values.max():g} m: give it in metres (e.g. 0.05)")
     if len(values) > 1 and np.min(np.diff(np.sort(values))) < 0.005:
@@ -219,16 +221,16 @@ def _depth_spec(spec: Any, where: str) -> tuple[str, tuple[float, float] | None]
         raise SessionError(f"{where}: depth must be a mapping (unit: m | mm, range: [near, far] in metres)")
     unit = str(spec.get("unit", "m"))
     if unit not in ("m", "mm"):
-        raise SessionError(f"{where}: depth: unit is m or mm, not {unit!r}")
+        raise SessionError(f"{where}: depth: unit is m or mm, not {shown(unit)}")
     rng = spec.get("range")
     if rng is None:
         return unit, None
     try:
         lo, hi = (float(v) for v in rng)
     except (TypeError, ValueError):
-        raise SessionError(f"{where}: depth: range is [near, far] in metres, got {rng!r}") from None
+        raise SessionError(f"{where}: depth: range is [near, far] in metres, got {shown(rng)}") from None
     if not 0 <= lo < hi or hi > 50:
-        raise SessionError(f"{where}: depth: range [near, far] must be metres with near < far, got {rng!r}")
+        raise SessionError(f"{where}: depth: range [near, far] must be metres with near < far, got {shown(rng)}")
     return unit, (lo, hi)
 
 
@@ -236,9 +238,9 @@ def _clouds_of(folder: Path, names: list[str], table: Path) -> list[Path]:
     """Per view the cloud in ``clouds/`` named ``name`` (spheres) or with the image's stem (boards)."""
     clouds = folder / "clouds"
     out = []
-    for found, name in zip(files_of_views(clouds, names, CLOUD_SUFFIXES), names):
+    for found, name in zip(files_of_views(clouds, names, CLOUD_SUFFIXES, folder), names):
         if found is None:
-            raise SessionError(f"{table}: no cloud for {name!r} in {clouds} (expected {Path(name).stem}.npy, .ply or .pcd)")
+            raise SessionError(f"{table}: no cloud for {shown(name)} in {clouds} (expected {Path(name).stem}.npy, .ply or .pcd)")
         out.append(found)
     return out
 
@@ -271,15 +273,16 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     unit, working = _depth_spec(spec["depth"], where)
     K, dist = read_camera(spec.get("camera"), where)
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("image", "cloud")) if spec.get("joints") else None
-    if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
+    posed = not (spec.get("poses") is None and joints is not None)
+    if not posed:  # joint angles alone: the nominal table's flange poses
         names, table, f2b = joints[0], joints[3], joints[2].forward(joints[1])
     else:
         f2b, names, table = read_robot_poses(folder, spec.get("poses"), where, notes, ("image", "cloud"), FIRST_COLUMN)
-    q = None if joints is None else joints_of_views(joints, names)
+    q = None if joints is None else joints_of_views(joints, names, f2b if posed else None, notes)
     clouds = _clouds_of(folder, names, table)
     images = None
     if board:
-        images = [folder / "images" / n for n in names]
+        images = [session_file(folder, folder / "images" / n, f"the image of {shown(n)}") for n in names]
         missing = [str(p.name) for p in images if not p.is_file()]
         if missing:
             raise SessionError(f"{folder / 'images'}: image file(s) missing: {', '.join(missing[:10])}")
@@ -292,10 +295,10 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
 RIG_DEPTH_KEYS = ("depth", "camera", "clouds", "images", "target")
 
 
-def _files_of(folder: Path, names: list[str], suffixes) -> list[Path]:
-    """Per view its file in ``folder`` with one of ``suffixes``; a path that does not exist when
-    there is none (a view the sensor missed)."""
-    return [found or folder / (name + suffixes[0]) for found, name in zip(files_of_views(folder, names, suffixes), names)]
+def _files_of(root: Path, folder: Path, names: list[str], suffixes) -> list[Path]:
+    """Per view its file in ``folder`` (inside the session folder ``root``) with one of ``suffixes``;
+    a path that does not exist when there is none (a view the sensor missed)."""
+    return [found or folder / (name + suffixes[0]) for found, name in zip(files_of_views(folder, names, suffixes, root), names)]
 
 
 def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[np.float64], block: dict, name: str,
@@ -309,7 +312,7 @@ def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[n
     unit, working = _depth_spec(block.get("depth"), where)
     radii = _radii(target, where)
     if isinstance(target, dict) and str(target.get("type", "")).lower() in ("mesh", "arm"):
-        raise SessionError(f"{where}: target: a {target['type']} target is not taken in a rig yet: calibrate that depth "
+        raise SessionError(f"{where}: target: a {cut(str(target['type']), 40)} target is not taken in a rig yet: calibrate that depth "
                            "camera in a depth session of its own (a board or spheres are taken here)")
     if radii is None:
         target_from_spec(target, where=f"{where}: target")
@@ -317,9 +320,10 @@ def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[n
     clouds = folder / str(block.get("clouds", name))
     images = folder / str(block.get("images", block.get("clouds", name)))
     for sub, what in [(clouds, "clouds")] + ([] if radii is not None else [(images, "intensity images")]):
+        session_file(folder, sub, f"its {what}' folder")
         if not sub.is_dir():
             raise SessionError(f"{where}: no folder {sub} (its {what}, named by view: v01{'.npy' if what == 'clouds' else '.png'}, ...)")
-    cloud_paths = _files_of(clouds, names, CLOUD_SUFFIXES)
-    image_paths = None if radii is not None else _files_of(images, names, IMAGE_ORDER)
+    cloud_paths = _files_of(folder, clouds, names, CLOUD_SUFFIXES)
+    image_paths = None if radii is not None else _files_of(folder, images, names, IMAGE_ORDER)
     return DepthSession(folder, setup, dict(target or {}), list(names), cloud_paths, image_paths, flange2base, K, dist, unit,
                         working, radii)

@@ -14,13 +14,20 @@ from ..io.session import SESSION_FILE, load_yaml, pose_rows_inverted
 from ..options import CalibrationOptions, options_from
 from ..robot.models import ControllerPoses, JointAngles, RobotModel
 
-__all__ = ["sensor_options", "robot_model", "session_robot_input"]
+__all__ = ["sensor_options", "robot_model", "session_robot_input", "why_skipped"]
 
 #: The options of image and pose sessions that a sensor model's fit has no use for.
 IMAGE_ONLY = ("method", "refine", "pairs", "known", "robot_noise", "compliance", "strict_images", "keyframes",
               "offset_range", "time_offset")
 #: The options a sensor whose robot may be joint angles through the arm's table takes as well.
 TABLE_OPTIONS = ("compliance",)
+
+
+def why_skipped(exc: Exception, path: object) -> str:
+    """Why a view is skipped, from the error its file gave, without the file's path in front (the
+    skip names the view)."""
+    text = str(exc)
+    return text[len(str(path)) + 2:] if text.startswith(f"{path}: ") else text
 
 
 def _given(value: Any, default: Any) -> bool:

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.progress import Progress
-from ..errors import DegenerateMotionError, InputMismatchError
+from ..errors import DegenerateMotionError, InputMismatchError, UnusableViewError
 from ..estimation.core import estimate
 from ..io.depth_session import DepthSession, load_depth_session
 from ..options import ROBOT_ACCURACY, CalibrationOptions
@@ -44,7 +44,7 @@ from ..sensors.camera import detect_images, target_from_spec
 from ..sensors.depth.clouds import check_frame, plane_points, read_cloud
 from ..sensors.depth.model import BoardPoints, SphereCentres
 from ..sensors.depth.spheres import find_spheres
-from ._sensor import robot_model, sensor_options, session_robot_input
+from ._sensor import robot_model, sensor_options, session_robot_input, why_skipped
 from .arm_depth import calibrate_arm_depth_session
 from .mesh import calibrate_mesh_session
 
@@ -109,7 +109,11 @@ def _measure_spheres(s: DepthSession, progress: bool) -> DepthViews:
     bar = Progress(len(s.cloud_paths), "finding spheres", progress)
     for k, path in enumerate(s.cloud_paths):
         bar.update()
-        cloud = read_cloud(path, None, s.unit)
+        try:
+            cloud = read_cloud(path, None, s.unit)
+        except UnusableViewError as exc:  # no cloud to look in: this view skipped, named
+            out.skipped.append((s.names[k], why_skipped(exc, path)))
+            continue
         if s.K is not None:
             check_frame(cloud, s.K, s.dist, where=str(path))
         found = find_spheres(cloud, radii, rng=k, where=str(path))

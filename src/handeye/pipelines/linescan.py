@@ -171,11 +171,12 @@ def calibrate_linescan_session(folder: str | Path | LineScanSession, options: Ca
     s = folder if isinstance(folder, LineScanSession) else load_linescan_session(folder, arm=opts.arm)
     target, found = _detected(s, progress)
     kept = [k for k, (det, _) in enumerate(found) if det is not None]
-    skipped = [(s.names[k], why) for k, (det, why) in enumerate(found) if det is None]
+    skipped = list(s.skipped) + [(s.names[k], why) for k, (det, why) in enumerate(found) if det is None]
     if len(kept) < 3:
         why = f" ({'; '.join(f'{n}: {r}' for n, r in skipped[:5])})" if skipped else ""
-        raise DegenerateMotionError(f"{len(kept)} of {len(s.names)} scans show the target{why}: at least 3 are needed, "
-                                    "10-15 with the flange turned 10 deg or more about two or three axes to trust X")
+        raise DegenerateMotionError(f"{len(kept)} of {len(s.names) + len(s.skipped)} scans show the target{why}: at least 3 "
+                                    "are needed, 10-15 with the flange turned 10 deg or more about two or three axes to "
+                                    "trust X")
     model = LineScanCorners(s.setup, [s.names[k] for k in kept], [found[k][0].image_points for k in kept],
                             [found[k][0].object_points for k in kept], s.starts[kept], s.line_rate,
                             Trajectory(s.times, s.flange2base), s.focal, s.width, s.noise_px, str(s.target_spec["type"]),

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from .._shared.progress import Progress
 from .._shared.threads import one_blas_thread
-from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
+from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError, UnusableViewError
 from ..estimation.core import estimate
 from ..estimation.diagnostics import closed_form
 from ..frames.metrics import rotation_error, translation_error
@@ -79,7 +79,7 @@ def _found(shape: Shape, path: Path, unit: str, k: int) -> ShapeMatch | str:
     """The shape found in one cloud, or why not."""
     try:
         return find_shape(shape, read_scene(path, unit), where=str(path), rng=k)
-    except InputMismatchError as exc:
+    except (InputMismatchError, UnusableViewError) as exc:
         return str(exc)
 
 

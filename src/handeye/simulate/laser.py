@@ -393,7 +393,7 @@ def write_profile(path: str | Path, points: NDArray[np.float64], unit: str = "mm
 def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm", diameter: bool = True) -> Path:
     """Write a simulated laser capture as a laser session folder (the format in docs/guide.md):
     ``profiles/pNN.csv`` (``x,z`` in ``unit``, NaN left empty), ``poses.csv`` (first column
-    ``profile``; quat_wxyz, mm, deg), ``session.yaml`` (``laser:`` with the unit and the noise, the
+    ``profile``; quat_wxyz, mm, deg), ``session.yaml`` (``laser:`` with the unit, the range and the noise, the
     target: the ball's diameter unless ``diameter`` is False, the fixture's balls' diameters) and
     ``ground_truth.yaml`` (X, Z and the target's figures). Returns the folder."""
     out = check_output_folder(folder)
@@ -408,7 +408,9 @@ def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm",
         target["diameter"] = 2 * scene.radius
     elif scene.target == "spheres":
         target["diameters"] = [float(d) for d in FIXTURE["diameters"]]
-    spec = {"setup": scene.setup, "target": target, "laser": {"unit": unit, "noise": f * scene.noise_m},
+    # the profiler's measuring range too, as a real one states it: the reader checks the profiles against it
+    spec = {"setup": scene.setup, "target": target, "laser": {"unit": unit, "range": [f * PROFILER["near"], f * PROFILER["far"]],
+                                                              "noise": f * scene.noise_m},
             "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}}
     if scene.joints is not None:  # the joint angles the controller reports, degrees, as other sessions have them
         write_joint_table(out / "joints.csv", names, scene.joints, id_column="profile")
