@@ -15,18 +15,23 @@ import realdata
 from conftest import require_real
 from handeye.cli import main as cli_main
 from handeye.errors import InputMismatchError, SessionError
+from handeye.estimation.core import estimate
 from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.geometry.se3 import make_transform, perturb
 from handeye.io.depth_session import load_depth_session
 from handeye.io.session import write_pose_table
 from handeye.pipelines.folders import calibrate_folder
+from handeye.pipelines.scene import register_scene
+from handeye.robot.models import ControllerPoses
 from handeye.sensors.depth.scene import (
+    SceneSurface,
     describe_free,
     gather,
     match,
     pair_terms,
     prepare_view,
 )
+from handeye.sensors.depth.scene_start import centroid_start
 from handeye.sensors.depth.shape import free_twists
 from handeye.simulate.scene import scene_capture, write_scene_session
 
@@ -124,6 +129,25 @@ def test_what_a_shape_leaves_free_is_named():
     assert describe_free(free_twists(plane, np.tile([0.0, 0.0, 1.0], (3000, 1)))) == [
         "it slides in its plane and turns about its normal (+0.00, +0.00, +1.00) (a plane)"]
     assert describe_free(np.zeros((0, 6))) == []
+
+
+@pytest.mark.slow
+def test_pure_translations_leave_x_translation_undetermined_and_the_core_names_it():
+    """A flange that only translates cannot tell where the camera sits on it, whatever it sees: the
+    core pins those directions (std infinite, verdict 'partial') and fits the rotation."""
+    rng = np.random.default_rng(1)
+    first = _camera(np.array([0.0, 0.0, 0.3]))
+    shifts = [[0, 0, 0], [0.03, 0, 0], [0, 0.03, 0.02], [-0.03, 0.01, 0.04], [0.02, -0.03, -0.02]]
+    cams = np.array([first @ make_transform(np.eye(3), d) for d in shifts])
+    views = [prepare_view(_surface_view(c, 1e-4, rng), f"v{k}") for k, c in enumerate(cams)]
+    X = make_transform(Rotation.from_rotvec([0.3, -0.2, 1.0]).as_matrix(), [0.05, -0.02, 0.08])
+    flange2base = cams @ np.linalg.inv(X)
+    reg = register_scene(views, flange2base, X0=X)
+    cal = estimate(SceneSurface("eye_in_hand", views, reg.pairs, reg.X, start=centroid_start), ControllerPoses(flange2base))
+    assert cal.verdict == "partial" and np.all(np.isinf(cal.std[3:])) and np.all(np.isfinite(cal.std[:3]))
+    assert len(cal.observability.unobservable) == 3
+    assert all(u.parameter.startswith("translation of cam2flange") for u in cal.observability.unobservable)
+    assert float(np.degrees(rotation_error(cal.X, X))) < 3 * max(cal.std[:3])
 
 
 def _tiny_session(folder, target) -> None:
