@@ -121,19 +121,19 @@ def register_scene(views: list[SceneView], A: NDArray[np.float64], *, fit_depth:
     return Registered(X, depth, pairs, tau, candidates, start)
 
 
-def _same_as(views: list[SceneView], k: int, A: NDArray[np.float64], voxel: float) -> tuple[int, float] | None:
+def _same_as(views: list[SceneView], k: int, A: NDArray[np.float64], voxel: float) -> tuple[int, float, float] | None:
     """The view whose cloud, in the camera's frame, holds :data:`SAME_CLOUD` of view ``k``'s points
-    (voxels of ``voxel``) though the robot moved between them, with how far it moved (deg, on the
-    flange's rotation); None when there is none."""
+    (voxels of ``voxel``) though the robot moved between them, with how far it moved (deg, mm);
+    None when there is none."""
     I = np.broadcast_to(np.eye(4), (len(views), 4, 4))
     for j in range(len(views)):
         if j == k:
             continue
         pair = [views[k], views[j]]
         share = agreement(pair, I[:2], np.eye(4)[None], voxel)[0]
-        moved = float(np.degrees(rotation_error(A[k], A[j]))) + 1e3 * float(translation_error(A[k], A[j]))
-        if share > SAME_CLOUD and moved > 1.0:
-            return j, float(np.degrees(rotation_error(A[k], A[j])))
+        angle, shift = float(np.degrees(rotation_error(A[k], A[j]))), 1e3 * float(translation_error(A[k], A[j]))
+        if share > SAME_CLOUD and angle + shift > 1.0:
+            return j, angle, shift
     return None
 
 
@@ -154,11 +154,11 @@ def check_views(views: list[SceneView], A: NDArray[np.float64], reg: Registered,
     for k in np.flatnonzero(share < AGREE_SHARE * median):
         same = _same_as(views, int(k), A, 0.02 * size)
         if same is not None:
-            j, angle = same
+            j, angle, shift = same
             what = ("the object moved with the camera" if setup_info(setup).camera_on_flange else
                     "the object did not move with the flange")
-            why = (f"its cloud is {views[j].name}'s in the camera's frame, though the flange turned {angle:.0f} deg between "
-                   f"them: {what} (or one capture was saved twice)")
+            why = (f"its cloud is {views[j].name}'s in the camera's frame, though the flange moved {shift:.0f} mm and turned "
+                   f"{angle:.0f} deg between them: {what} (or one capture was saved twice)")
         else:
             why = (f"{100 * share[k]:.0f}% of its points lie on the other views' surfaces where its robot pose puts them "
                    f"(the median view: {100 * median:.0f}%): a cloud of another scene, an object that moved, or a robot "
