@@ -21,7 +21,7 @@ import handeye
 from handeye.estimation.validation import Fit, Views
 from handeye.frames.setups import constant_transforms
 from handeye.geometry.se3 import from_rotvec_translation, invert, make_transform, mean_transform
-from handeye.io.session import load_session, write_session
+from handeye.io.session import load_session, write_pose_table, write_session
 from handeye.pipelines.calibration import Observations, calibrate_observed, observe
 
 REAL_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
@@ -208,3 +208,29 @@ def worker_pool(workers: int = 2):
     from concurrent.futures import ProcessPoolExecutor
 
     return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver"), initializer=_one_thread)
+
+
+#: RegHEC's objects (../shared/data/real/reghec, ABOUT.md): five scanned from the same 9 poses by
+#: the camera on the flange, and a gripper with poses of its own.
+REGHEC_SHARED = ("Cone", "Cylinder", "Sphere", "Plane", "Duck")
+
+
+def reghec_session(obj: str, scratch: Path, setup: str = "eye_in_hand") -> Path:
+    """One of RegHEC's objects as a depth session with ``target: {type: scene}`` in ``scratch``: its
+    nine clouds linked (never copied) into ``clouds/``, ``RobotPoses.dat`` (per row ``a,b,c,x,y,z,``:
+    R = Rz(c) Ry(b) Rx(a), i.e. scipy's extrinsic "xyz" with [a, b, c], radians; the translation in
+    mm, as the source's RegHEC.cpp reads it) written as ``poses.csv``."""
+    src = REAL_DATA / "reghec" / obj
+    rows = [line.strip().rstrip(",").split(",") for line in (src / "RobotPoses.dat").read_text().splitlines() if line.strip()]
+    v = np.array(rows, float)
+    flange2base = make_transform(Rotation.from_euler("xyz", v[:, :3]).as_matrix(), v[:, 3:] / 1e3)
+    folder = Path(scratch)
+    (folder / "clouds").mkdir(parents=True)
+    names = [f"view{k + 1}d.pcd" for k in range(len(v))]
+    for name in names:
+        (folder / "clouds" / name).symlink_to(src / name)
+    write_pose_table(folder / "poses.csv", names, flange2base, "quat_wxyz", "mm", "deg", id_column="cloud")
+    spec = {"setup": setup, "target": {"type": "scene"}, "depth": {"unit": "m"},
+            "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}}
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    return folder

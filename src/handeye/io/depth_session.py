@@ -37,12 +37,12 @@ from .session import (
     session_file,
 )
 
-__all__ = ["DepthSession", "MeshTarget", "ArmTarget", "is_depth_session", "load_depth_session", "rig_depth", "arm_hand",
+__all__ = ["DepthSession", "MeshTarget", "ArmTarget", "SceneTarget", "is_depth_session", "load_depth_session", "rig_depth", "arm_hand",
            "ARM_KEYS", "RIG_DEPTH_KEYS"]
 
 #: What the pose table's first column must be, for the error that finds it is not.
 FIRST_COLUMN = ("'image' (a board: its intensity image in images/, the cloud of the same name in clouds/) or 'cloud' "
-                "(spheres, a mesh: the cloud in clouds/)")
+                "(spheres, a mesh, a scene: the cloud in clouds/)")
 
 
 @dataclass(frozen=True)
@@ -72,12 +72,16 @@ class DepthSession:
     mesh: MeshTarget | None = None
     #: the arm itself as the target (``type: arm``): its hand and fingers; the joint angles pose it
     arm_target: ArmTarget | None = None
+    #: whatever the camera sees as the target (``type: scene``): no target, no mesh
+    scene: SceneTarget | None = None
 
     @property
     def kind(self) -> str:
-        """What the clouds hold: 'spheres', 'mesh', 'arm' or 'board'."""
+        """What the clouds hold: 'spheres', 'mesh', 'arm', 'scene' or 'board'."""
         if self.radii is not None:
             return "spheres"
+        if self.scene is not None:
+            return "scene"
         return "mesh" if self.mesh is not None else "arm" if self.arm_target is not None else "board"
 
 
@@ -100,6 +104,35 @@ class ArmTarget:
 
     hand: bool = True
     finger_opening: float = 0.0
+
+
+@dataclass(frozen=True)
+class SceneTarget:
+    """Whatever the camera sees as the target (``target: {type: scene}``): no board, no mesh; X from
+    the views' clouds agreeing through the robot (:mod:`handeye.pipelines.scene`). ``fit_depth``
+    (``depth_scale: fit``): the depth's scale and bias fitted with X, else held at 1 and 0."""
+
+    fit_depth: bool = False
+
+
+#: The keys of a scene target.
+SCENE_KEYS = ("type", "depth_scale")
+
+
+def _scene(target: Any, where: str) -> SceneTarget | None:
+    """The scene target of ``target`` (None for another type), checked: its keys, the depth's scale
+    held (``depth_scale: hold``, the default) or fitted (``depth_scale: fit``)."""
+    if not isinstance(target, dict) or str(target.get("type", "")).lower() != "scene":
+        return None
+    unknown = sorted(set(target) - set(SCENE_KEYS))
+    if unknown:
+        raise SessionError(f"{where}: target: unknown key(s) {', '.join(unknown)} for a scene (keys: {', '.join(SCENE_KEYS)}; "
+                           "a scene needs nothing else: its clouds and the robot's poses are the calibration)")
+    depth = str(target.get("depth_scale", "hold")).lower()
+    if depth not in ("hold", "fit"):
+        raise SessionError(f"{where}: target: depth_scale is hold (1 and 0, the default) or fit (the depth's scale and "
+                           f"bias fitted with X), got {target.get('depth_scale')!r}")
+    return SceneTarget(depth == "fit")
 
 
 #: The keys of an arm target.
@@ -267,7 +300,8 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     radii = _radii(target, where)
     mesh = _mesh(target, folder, setup, where)
     arm_target = _arm_target(target, setup, spec, where)
-    board = radii is None and mesh is None and arm_target is None
+    scene = _scene(target, where)
+    board = radii is None and mesh is None and arm_target is None and scene is None
     if board:
         target_from_spec(target, where=f"{where}: target")
     unit, working = _depth_spec(spec["depth"], where)
@@ -288,7 +322,7 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
             raise SessionError(f"{folder / 'images'}: image file(s) missing: {', '.join(missing[:10])}")
     return DepthSession(folder, setup, dict(target), list(names), clouds, images, f2b, K, dist, unit, working, radii, notes,
                         None if joints is None else q, None if joints is None else joints[2],
-                        None if joints is None else joints[3], mesh, arm_target)
+                        None if joints is None else joints[3], mesh, arm_target, scene)
 
 
 #: The keys of a rig's depth camera (:mod:`handeye.io.rig_session`).
@@ -311,7 +345,7 @@ def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[n
     one it did not see. Raises :class:`SessionError` naming the key."""
     unit, working = _depth_spec(block.get("depth"), where)
     radii = _radii(target, where)
-    if isinstance(target, dict) and str(target.get("type", "")).lower() in ("mesh", "arm"):
+    if isinstance(target, dict) and str(target.get("type", "")).lower() in ("mesh", "arm", "scene"):
         raise SessionError(f"{where}: target: a {cut(str(target['type']), 40)} target is not taken in a rig yet: calibrate that depth "
                            "camera in a depth session of its own (a board or spheres are taken here)")
     if radii is None:

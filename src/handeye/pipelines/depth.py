@@ -47,6 +47,7 @@ from ..sensors.depth.spheres import find_spheres
 from ._sensor import robot_model, sensor_options, session_robot_input, why_skipped
 from .arm_depth import calibrate_arm_depth_session
 from .mesh import calibrate_mesh_session
+from .scene import calibrate_scene_session
 
 __all__ = ["calibrate_depth_session", "calibrate_depth", "calibrate_spheres", "measure_depth_session", "DepthViews"]
 
@@ -183,6 +184,8 @@ def calibrate_depth_session(folder: str | Path | DepthSession, options: Calibrat
     s = folder if isinstance(folder, DepthSession) else load_depth_session(folder, arm=opts.arm)
     if s.kind == "mesh":  # a known shape: found in each cloud, then every point against its surface
         return calibrate_mesh_session(s, opts, fit_depth=fit_depth, progress=progress, jobs=jobs)
+    if s.kind == "scene":  # no target: X from the views' clouds agreeing through the robot
+        return calibrate_scene_session(s, opts, progress=progress, jobs=jobs)
     if s.kind == "arm":  # the arm itself (markerless): every point against the arm posed at its joint angles
         if opts.compliance:
             raise InputMismatchError(f"{s.folder}: compliance (--compliance): the arm as its own target is posed by its "

@@ -30,6 +30,7 @@ from ..result import Calibration
 from ..robot.kinematics import display_unit
 from ..sensors.camera.detect import default_jobs
 from ..sensors.camera.pnp import project_points
+from ..sensors.depth.scene import common_frame
 from ._overlay import jpeg, overlay_thumbnail, zoom_size
 from ._page import _COLOURS, _CSS, _axis_triad, _e, _equal_axes, _figure, _fmt, _img, _png, _transform_table
 from ._rig import RIG_FIGURES, is_rig, rig_sections
@@ -327,14 +328,53 @@ def _sections_figure(cal: Calibration) -> str:
     return _png(fig)
 
 
+def _clouds_figure(cal: Calibration) -> str:
+    """The views' clouds registered through X (a scene as the target: ``sections`` with ``cloud_mm``),
+    seen along the common frame's three axes: above, coloured by view (where they overlap they
+    should lie on one surface); below, coloured by each point's residual."""
+    from matplotlib import colormaps  # matplotlib loads only when a report is drawn
+    from matplotlib.patches import Patch
+
+    sf = cal.sensor
+    clouds = [np.asarray(sec["cloud_mm"], float).reshape(-1, 3) for sec in sf.sections]
+    res = [np.asarray(sec["residual_mm"], float) for sec in sf.sections]
+    pts = np.concatenate(clouds) if clouds else np.zeros((0, 3))
+    label = np.concatenate([np.full(len(c), k) for k, c in enumerate(clouds)]) if clouds else np.zeros(0)
+    r = np.concatenate(res) if res else np.zeros(0)
+    order = np.random.default_rng(0).permutation(len(pts))  # no view drawn over all the others
+    pts, label, r = pts[order], label[order], r[order]
+    frame = common_frame(cal.setup)
+    fig = _figure((12.0, 7.0))
+    axes = fig.subplots(2, 3)
+    cmap = colormaps["tab20" if len(clouds) > 10 else "tab10"]
+    limit = max(float(np.percentile(np.abs(r), 98)), 1e-3) if len(r) else 1.0
+    for c, (a, b) in enumerate([(0, 1), (0, 2), (1, 2)]):
+        top, bottom = axes[0, c], axes[1, c]
+        top.scatter(pts[:, a], pts[:, b], c=cmap(label % cmap.N), s=1.5, linewidths=0)
+        dots = bottom.scatter(pts[:, a], pts[:, b], c=r, cmap="coolwarm", vmin=-limit, vmax=limit, s=1.5, linewidths=0)
+        for ax in (top, bottom):
+            ax.set_aspect("equal")
+            ax.set_xlabel(f"{'xyz'[a]} (mm)", fontsize=7)
+            ax.set_ylabel(f"{'xyz'[b]} (mm)", fontsize=7)
+            ax.tick_params(labelsize=6)
+    handles = [Patch(color=cmap(k % cmap.N), label=name) for k, name in enumerate(sf.views)]
+    axes[0, 2].legend(handles=handles, fontsize=6, loc="center left", bbox_to_anchor=(1.02, 0.5), frameon=False)
+    fig.colorbar(dots, ax=axes[1, :].tolist(), shrink=0.8, label="residual (mm)")
+    fig.suptitle(f"the views' clouds registered through X, in the {frame} frame (along its z, y and x axes): "
+                 "coloured by view (above) and by residual (below)", fontsize=9)
+    return _png(fig)
+
+
 def _sensor_residuals_section(cal: Calibration) -> str:
     """A sensor's fit: each view's residual, the views left out and the sensor's own figures."""
     sf = cal.sensor
     parts = ['<section id="residuals"><h2>Per-view residuals</h2>' + _img(_view_residual_figure(cal), "per-view residuals"),
              f"<p>{sf.points} measurements fitted, {sf.rejected} set aside as outliers (beyond 5 of their std); "
              f"{sf.fit_rms_mm:.3f} mm RMS.</p>"]
-    shown = _shown_sections(sf) if sf.sections else []
-    if shown:
+    shown = _shown_sections(sf) if sf.sections and "cloud_mm" not in sf.sections[0] else []
+    if sf.sections and "cloud_mm" in sf.sections[0]:  # a scene as the target: its registered clouds
+        parts.append(_img(_clouds_figure(cal), "the views' registered clouds, coloured by view"))
+    elif shown:
         parts.append(_img(_sections_figure(cal), "each view with the fitted target's section")
                      + (f"<p>{len(shown)} of {len(sf.sections)} views drawn: the {MAX_SECTIONS // 2} that fit worst and "
                         "others evenly.</p>" if len(shown) < len(sf.sections) else ""))
