@@ -59,19 +59,9 @@ from handeye.pipelines.mesh import consistent_views, measure_mesh_session, mesh_
 from handeye.robot.models import ControllerPoses
 from handeye.sensors.depth.shape import load_shape
 from handeye.simulate import mesh_scene, sphere_scene, write_depth_session, write_mesh_session
-from handeye.simulate.laser import pendant_laser_scene, write_laser_session
+from handeye.simulate.laser import FANUC_PROFILER_X, pendant_laser_scene, write_laser_session
 from handeye.simulate.linescan import linescan_scene, write_linescan_session
 from handeye.simulate.rig import profiler_pair_scene, rig_scene, write_profiler_pair_session, write_rig_session
-
-FAR_X = np.array([[-0.00507, -0.99984, -0.01720, -0.14994], [-0.99983, 0.00537, -0.01767, 0.71456],
-                  [0.01776, 0.01711, -0.99970, 0.48243], [0.0, 0.0, 0.0, 1.0]])
-
-
-def _orthonormal(T):
-    U, _, Vt = np.linalg.svd(T[:3, :3])
-    out = T.copy()
-    out[:3, :3] = U @ Vt
-    return out
 
 
 def _centres_only(model, F, setup, train) -> np.ndarray | None:
@@ -135,7 +125,7 @@ def flange_line(sessions: int, root: Path, placement: bool = True) -> None:
 
 def pendant_laser(sessions: int, root: Path) -> None:
     for seed in range(sessions):
-        sc = pendant_laser_scene("eye_in_hand", rng=seed, translations=6, turns=(1, 2, 1), X=_orthonormal(FAR_X))
+        sc = pendant_laser_scene("eye_in_hand", rng=seed, translations=6, turns=(1, 2, 1), X=FANUC_PROFILER_X)
         folder = write_laser_session(root / f"laser{seed}", sc)
         t = time.perf_counter()
         cal = calibrate_folder(folder, progress=False)
@@ -169,7 +159,7 @@ def profiler_pair(sessions: int, root: Path) -> None:
         cal = calibrate_folder(folder, progress=False)
         elapsed = time.perf_counter() - t
         f = cal.sensor.figures
-        rel, std = np.asarray(f["relative"]["laser_b2laser_a"]["matrix"]), np.asarray(f["relative"]["laser_b2laser_a"]["std_deg_mm"])
+        rel, std = np.asarray(f["relative"]["laser_b_to_laser_a"]["matrix"]), np.asarray(f["relative"]["laser_b_to_laser_a"]["std_deg_mm"])
         err = np.r_[np.degrees(rotation_error(rel, sc.relative())), 1e3 * translation_error(rel, sc.relative())]
         points = {}
         for name in ("laser_a", "laser_b"):

@@ -84,7 +84,7 @@ def stereo(sessions: int, error: tuple[float, float] | None = ERROR) -> None:
         rig = calibrate_rig(sc.camera_models(), ["left", "right"], ControllerPoses(sc.flange2base, error))
         secs.append(time.perf_counter() - t0)
         f = rig.joint.sensor.figures
-        rel = f["relative"]["right2left"]
+        rel = f["relative"]["right_to_left"]
         R = np.array(rel["matrix"])
         rel_t.append(1e3 * translation_error(R, sc.relative(1)))
         rel_r.append(np.degrees(rotation_error(R, sc.relative(1))))
@@ -141,7 +141,7 @@ def mixed(sessions: int) -> None:
                                 shared_target=False)
             secs.append(time.perf_counter() - t0)
             f = rig.joint.sensor.figures
-            rel = f["relative"]["camera2laser"]
+            rel = f["relative"]["camera_to_laser"]
             per = f["X_per_sensor"]
             ok.append([within_std(np.array(per["laser"]["X"]), sc.laser_X, np.array(per["laser"]["std_deg_mm"])),
                        within_std(np.array(per["camera"]["X"]), sc.camera.X, np.array(per["camera"]["std_deg_mm"])),
@@ -171,7 +171,7 @@ def depth(sessions: int) -> None:
             rig = calibrate_rig([camera, d], ["camera", "depth"], ControllerPoses(sc.flange2base, ERROR))
             secs.append(time.perf_counter() - t0)
             f = rig.joint.sensor.figures
-            rel, per = f["relative"]["depth2camera"], f["X_per_sensor"]
+            rel, per = f["relative"]["depth_to_camera"], f["X_per_sensor"]
             scale = per["depth"]["figures"]["depth_scale"]
             ok.append([within_std(np.array(per["camera"]["X"]), sc.camera.X, np.array(per["camera"]["std_deg_mm"])),
                        within_std(np.array(per["depth"]["X"]), sc.depth_X, np.array(per["depth"]["std_deg_mm"])),

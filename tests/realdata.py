@@ -1,13 +1,14 @@
 """The real captures in ../shared/data/real, read into :class:`handeye.estimation.validation.Views`.
 
 Used by the real-data tests and by ``benchmarks/bench_realdata.py``. Image sets become session
-folders (images linked, never copied) in a scratch folder the caller owns, then go through
+folders (images copied, never into the repository) in a scratch folder the caller owns, then go through
 :func:`handeye.pipelines.calibration.observe` (detection, PnP, symmetric targets), as ``handeye calibrate``
 does. Each loader says how its files are read; the ABOUT.md of each set gives the conventions.
 """
 
 from __future__ import annotations
 
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,7 +21,7 @@ import handeye
 from handeye.estimation.validation import Fit, Views
 from handeye.frames.setups import constant_transforms
 from handeye.geometry.se3 import from_rotvec_translation, invert, make_transform, mean_transform
-from handeye.io.session import load_session, write_session
+from handeye.io.session import load_session, write_pose_table, write_session
 from handeye.pipelines.calibration import Observations, calibrate_observed, observe
 
 REAL_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
@@ -41,8 +42,8 @@ class RealSet:
 def _session(scratch: Path, setup, target, K, names, images, flange2base) -> Path:
     folder = scratch
     (folder / "images").mkdir(parents=True)
-    for name, src in zip(names, images):
-        (folder / "images" / name).symlink_to(src)
+    for name, src in zip(names, images):  # copies: a session reads no file outside its folder, links resolved
+        shutil.copyfile(src, folder / "images" / name)
     write_session(folder, setup, target, names, np.asarray(flange2base), "matrix", "m", "rad", camera=(K, [0.0] * 5))
     return folder
 
@@ -207,3 +208,30 @@ def worker_pool(workers: int = 2):
     from concurrent.futures import ProcessPoolExecutor
 
     return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver"), initializer=_one_thread)
+
+
+#: RegHEC's objects (../shared/data/real/reghec, ABOUT.md): five scanned from the same 9 poses by
+#: the camera on the flange, and a gripper with poses of its own.
+REGHEC_SHARED = ("Cone", "Cylinder", "Sphere", "Plane", "Duck")
+
+
+def reghec_session(obj: str, scratch: Path, setup: str = "eye_in_hand") -> Path:
+    """One of RegHEC's objects as a depth session with ``target: {type: scene}`` in ``scratch``: its
+    nine clouds copied into ``clouds/`` (a session reads only files inside its folder, links
+    resolved, so links into the shared data would be refused), ``RobotPoses.dat`` (per row ``a,b,c,x,y,z,``:
+    R = Rz(c) Ry(b) Rx(a), i.e. scipy's extrinsic "xyz" with [a, b, c], radians; the translation in
+    mm, as the source's RegHEC.cpp reads it) written as ``poses.csv``."""
+    src = REAL_DATA / "reghec" / obj
+    rows = [line.strip().rstrip(",").split(",") for line in (src / "RobotPoses.dat").read_text().splitlines() if line.strip()]
+    v = np.array(rows, float)
+    flange2base = make_transform(Rotation.from_euler("xyz", v[:, :3]).as_matrix(), v[:, 3:] / 1e3)
+    folder = Path(scratch)
+    (folder / "clouds").mkdir(parents=True)
+    names = [f"view{k + 1}d.pcd" for k in range(len(v))]
+    for name in names:
+        shutil.copyfile(src / name, folder / "clouds" / name)
+    write_pose_table(folder / "poses.csv", names, flange2base, "quat_wxyz", "mm", "deg", id_column="cloud")
+    spec = {"setup": setup, "target": {"type": "scene"}, "depth": {"unit": "m"},
+            "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}}
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    return folder

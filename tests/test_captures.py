@@ -20,19 +20,8 @@ from handeye.pipelines.laser import calibrate_laser_session, laser_model, read_p
 from handeye.robot.models import ControllerPoses, PoseErrors
 from handeye.sensors.depth.model import SphereCentres
 from handeye.simulate import sphere_scene
-from handeye.simulate.laser import pendant_laser_scene, write_laser_session
+from handeye.simulate.laser import FANUC_PROFILER_X, pendant_laser_scene, write_laser_session
 from handeye.simulate.rig import profiler_pair_scene, write_profiler_pair_session
-
-#: The real FANUC capture's profiler pose (RobCalibrator's answer, calibration.sec): 0.87 m from the flange.
-FAR_X = np.array([[-0.00507, -0.99984, -0.01720, -0.14994], [-0.99983, 0.00537, -0.01767, 0.71456],
-                  [0.01776, 0.01711, -0.99970, 0.48243], [0.0, 0.0, 0.0, 1.0]])
-
-
-def _orthonormal(T):
-    U, _, Vt = np.linalg.svd(T[:3, :3])
-    out = T.copy()
-    out[:3, :3] = U @ Vt
-    return out
 
 
 def _within(cal, X, k: float = 3.0) -> bool:
@@ -48,7 +37,7 @@ def test_a_laser_start_is_the_polished_fit_not_the_closed_forms_basin(tmp_path):
     """A capture with one turn about W and R and two about P (10 profiles, the profiler 0.87 m from the
     flange): the closed form's own translation was 191 mm off, the fit from it landed 307 mm off at
     5.4 mm RMS; the start is now the candidate's polished fit."""
-    sc = pendant_laser_scene("eye_in_hand", rng=5, translations=6, turns=(1, 2, 1), X=_orthonormal(FAR_X))
+    sc = pendant_laser_scene("eye_in_hand", rng=5, translations=6, turns=(1, 2, 1), X=FANUC_PROFILER_X)
     s = load_laser_session(write_laser_session(tmp_path / "s", sc))
     kept, profiles, _, _ = read_profiles(s)
     model = laser_model(s, [s.names[k] for k in kept], profiles)
@@ -78,7 +67,7 @@ def test_a_fit_far_beyond_what_the_sensor_and_robot_allow_is_inconsistent_not_we
     """Started half a turn off, the laser's fit lands in another basin, 0.3 m from X, its residual
     far beyond what the profiler's noise and the robot's accuracy move these profiles by: the verdict
     says the data and the fit disagree, never 'weak, capture again'."""
-    sc = pendant_laser_scene("eye_in_hand", rng=5, translations=6, turns=(1, 2, 1), X=_orthonormal(FAR_X))
+    sc = pendant_laser_scene("eye_in_hand", rng=5, translations=6, turns=(1, 2, 1), X=FANUC_PROFILER_X)
     s = load_laser_session(write_laser_session(tmp_path / "s", sc))
     kept, profiles, _, _ = read_profiles(s)
     cal = core.estimate(_BadStart(laser_model(s, [s.names[k] for k in kept], profiles)),
@@ -93,7 +82,7 @@ def test_the_promised_held_out_error_is_what_refits_give(tmp_path):
     the held-out error the result promises (within 2x)."""
     ratios = []
     for seed in range(3):
-        sc = pendant_laser_scene("eye_in_hand", rng=seed, translations=6, turns=(1, 2, 1), X=_orthonormal(FAR_X))
+        sc = pendant_laser_scene("eye_in_hand", rng=seed, translations=6, turns=(1, 2, 1), X=FANUC_PROFILER_X)
         s = load_laser_session(write_laser_session(tmp_path / f"s{seed}", sc))
         kept, profiles, _, _ = read_profiles(s)
         model = laser_model(s, [s.names[k] for k in kept], profiles)
@@ -180,8 +169,8 @@ def test_two_profilers_with_poses_of_their_own_fit_no_pose_error_of_their_own(tm
     folder = write_profiler_pair_session(tmp_path / "pair", sc)
     cal = calibrate_folder(folder)
     f = cal.sensor.figures
-    rel = np.asarray(f["relative"]["laser_b2laser_a"]["matrix"])
-    std = np.asarray(f["relative"]["laser_b2laser_a"]["std_deg_mm"])
+    rel = np.asarray(f["relative"]["laser_b_to_laser_a"]["matrix"])
+    std = np.asarray(f["relative"]["laser_b_to_laser_a"]["std_deg_mm"])
     err = np.r_[np.degrees(rotation_error(rel, sc.relative())), 1e3 * translation_error(rel, sc.relative())]
     assert err[0] <= 3 * np.linalg.norm(std[:3]) and err[1] <= 3 * np.linalg.norm(std[3:])
     assert not any("each pose's own error fitted" in n for n in cal.notes)

@@ -363,3 +363,32 @@ def test_notes_fold_to_the_terminal_width_and_stay_one_line_in_a_pipe(monkeypatc
     assert len(folded) > 3 and all(len(line) <= 79 for line in folded)
     assert " ".join(line.strip() for line in folded) == "note: " + note
     assert wrapped(note, "note: ", io.StringIO()) == "note: " + note
+
+
+def test_the_help_names_every_importer_and_every_laser_target(capsys):
+    """Issue 77: handeye --help's import line omitted EasyHeC, and simulate --help listed sphere and
+    plane for laser_line where edges, steps and fixtures of balls exist too. Both lists now come from
+    the commands' own tables."""
+    from handeye.cli.import_ import SOURCES
+    from handeye.simulate.laser import TARGETS
+
+    assert main(["--help"]) == 0
+    top = " ".join(capsys.readouterr().out.split())
+    assert all(kind in top.split("import ", 1)[1].split(" target ", 1)[0] for kind in SOURCES) and "easyhec" in top
+    assert main(["simulate", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    laser = text.split("with --sensor laser_line:", 1)[1].split(";", 1)[0]
+    assert all(t in laser for t in TARGETS) and {"edge", "step", "spheres"} <= set(TARGETS)
+    assert "a block's edge, a step or a fixture of balls" in text
+
+
+def test_the_guides_laser_section_claims_nothing_missing_that_ships():
+    """Issue 77: the guide's laser section ended 'Not yet: edges and several balls as targets, and
+    line-scan cameras', all three documented (and shipped) in the same guide."""
+    from handeye.simulate.laser import TARGETS
+
+    guide = (Path(__file__).resolve().parents[1] / "docs" / "guide.md").read_text(encoding="utf-8")
+    laser = guide.split("\n## Laser")[1].split("\n## ")[0]
+    assert all(f"{{type: {t}" in laser for t in TARGETS) and "\n## Line-scan cameras" in guide
+    not_yet = " ".join(s for s in re.split(r"(?<=\.)\s", laser) if "Not yet" in s)
+    assert not any(word in not_yet for word in ("edge", "balls", "line-scan"))

@@ -92,3 +92,40 @@ def test_corners_on_the_fitted_plane_beat_corners_lifted_alone():
     assert np.median(err_plane) < 0.7 * np.nanmedian(err_alone)  # along the rays, where the depth noise is (0.48x here)
     with pytest.raises(InputMismatchError, match="view 1: only .* points with depth on the target"):
         plane_points(np.full_like(sc.clouds[0], np.nan), sc.image_points[0], where="view 1")
+
+
+def _grid_through_points(sec) -> float:
+    """The median distance (mm) from each point of a report section to the nearest corner of its
+    fitted grid (the curve's vertices)."""
+    from scipy.spatial import cKDTree
+
+    curve = np.asarray(sec["curve_mm"], float)
+    return float(np.median(cKDTree(curve[np.isfinite(curve).all(axis=1)]).query(sec["points_mm"])[0]))
+
+
+@pytest.mark.slow
+def test_the_report_draws_each_views_board_and_balls_where_the_fit_puts_them():
+    """Issue 77: a depth camera's report had no picture of the fit on its data. Each view's section:
+    the corners in the image (mm at the target) with their error's size, and the board's grid
+    through the corners the fit predicts (9 + 6 lines of a 10 x 7 board); a ball's outline about
+    its centre, of its radius."""
+    sc = depth_scene(8, "eye_in_hand", 5)
+    lifted = [lift_points(check_cloud(c, sc.image_size, f"view {k}"), p)[0]
+              for k, (c, p) in enumerate(zip(sc.clouds, sc.image_points))]
+    cal = calibrate_depth(sc.flange2base, [sc.object_points] * len(lifted), lifted, "eye_in_hand")
+    assert len(cal.sensor.sections) == len(cal.sensor.views)
+    for sec, rms in zip(cal.sensor.sections, cal.sensor.residual_mm):
+        assert np.all(sec["residual_mm"] >= 0) and np.isclose(np.sqrt(np.mean(sec["residual_mm"] ** 2)), rms, rtol=1e-6)
+        assert _grid_through_points(sec) < 3 * rms
+        assert np.isnan(sec["curve_mm"][:, 0]).sum() == len(np.unique(sc.object_points[:, 0])) + len(np.unique(sc.object_points[:, 1]))
+    from handeye.sensors.depth.model import SphereCentres
+
+    centres = np.array([[0.01, 0.02, 0.8], [0.05, -0.03, 0.9]])
+    balls = SphereCentres("eye_in_hand", ["a", "b"], centres, radii=np.array([0.025, 0.025]))
+    X = np.eye(4)
+    F = np.stack([make_transform(np.eye(3), -c) for c in centres])  # every view's centre at the origin of Z
+    sections = balls.sections(X, np.zeros(5), F, [0, 1])
+    for sec, c in zip(sections, centres):
+        ring = sec["curve_mm"][np.isfinite(sec["curve_mm"]).all(axis=1)]
+        assert np.allclose(ring.mean(axis=0), sec["points_mm"][0], atol=1.0) and sec["residual_mm"][0] < 1e-9  # perspective
+        assert np.allclose(np.linalg.norm(ring - sec["points_mm"][0], axis=1), 25.0, rtol=0.05)  # mm at the ball

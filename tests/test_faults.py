@@ -606,12 +606,12 @@ def _write_posepairs(folder: Path, flange2base, target2cam) -> None:
 
 
 @pytest.mark.slow
-def test_thousand_pose_pairs_in_bounded_time(tmp_path, capsys):
-    """calibrate-poses and check on 1,000 pose pairs finish (all pairs would be 499,500 motions: the
-    old all-pairs diagnostics did not finish in 60 s) and stay accurate. The bound is 5x the time
-    measured here, a guard against quadratic work, not a speed goal (benchmarks/bench_scale.py)."""
-    import time
-
+def test_thousand_pose_pairs_take_a_spread_of_pairs(tmp_path, capsys):
+    """calibrate-poses and check on 1,000 pose pairs stay accurate and take about 10,000 spread pairs,
+    not all 499,500 motions (the old all-pairs diagnostics did not finish in 60 s): a guard against
+    quadratic work that load cannot fail. How long they take is benchmarks/bench_scale.py's, as a
+    ratio against OpenCV's calibrateHandEye on the same poses (issue 77: a wall-clock bound here
+    failed on a loaded machine)."""
     from handeye.frames.metrics import rotation_error, translation_error
     from handeye.simulate import perturb_poses
 
@@ -621,9 +621,7 @@ def test_thousand_pose_pairs_in_bounded_time(tmp_path, capsys):
     T = perturb_poses(scene.target2cam, np.radians(0.02), 2e-4, rng)
     folder = tmp_path / "pp1000"
     _write_posepairs(folder, F, T)
-    start = time.perf_counter()
     status = main(["calibrate-poses", str(folder), "--out", str(tmp_path / "out")])
-    elapsed_calibrate = time.perf_counter() - start
     out, err = capsys.readouterr()
     assert status == 0 and "check: good" in out, out[-2000:]
     assert "calibrating 1000 poses" in err  # progress on stderr
@@ -631,8 +629,6 @@ def test_thousand_pose_pairs_in_bounded_time(tmp_path, capsys):
     assert result["X_name"] == "cam2flange"
     X = np.array(result["X"]["matrix"])
     assert np.degrees(rotation_error(X, scene.X)) < 0.01 and 1e3 * translation_error(X, scene.X) < 0.2
-    start = time.perf_counter()
+    assert 5_000 <= result["n_motions"] <= 12_000  # pairs='auto': a spread of ~10,000, not 499,500
     status = main(["check", str(folder)])
-    elapsed_check = time.perf_counter() - start
     assert status == 0 and "verdict: good (1000 poses" in capsys.readouterr().out
-    assert elapsed_calibrate < 30 and elapsed_check < 30, (elapsed_calibrate, elapsed_check)

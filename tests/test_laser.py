@@ -93,7 +93,7 @@ def test_a_laser_session_through_the_command_line(tmp_path, capsys):
     result = json.loads((tmp_path / "out" / "result.json").read_text())
     assert result["verdict"] == "good" and result["sensor"]["kind"] == "laser line profiler"
     truth = yaml.safe_load((folder / "ground_truth.yaml").read_text())
-    assert 1e3 * translation_error(np.array(result["X"]["matrix"]), np.array(truth["sensor2flange"])) < 0.02
+    assert 1e3 * translation_error(np.array(result["X"]["matrix"]), np.array(truth["cam2flange"])) < 0.02
     assert main(["check", str(folder), "--no-progress"]) == 0
     out = capsys.readouterr().out
     assert "laser line profiler (sphere): 20 of 20 views used" in out
@@ -190,7 +190,7 @@ def test_a_plate_session_through_the_command_line(tmp_path, capsys):
     truth = yaml.safe_load((folder / "ground_truth.yaml").read_text())
     back = handeye.load_result(tmp_path / "out")
     assert back.sensor.target == "plane" and back.verdict == "good"
-    assert 1e3 * translation_error(back.X, np.array(truth["sensor2flange"])) < 0.02
+    assert 1e3 * translation_error(back.X, np.array(truth["cam2flange"])) < 0.02
     spec = yaml.safe_load((folder / "session.yaml").read_text())
     spec["target"]["diameter"] = 0.04
     (folder / "session.yaml").write_text(yaml.safe_dump(spec))
@@ -564,7 +564,7 @@ def test_edge_step_and_fixture_sessions_through_the_command_line(tmp_path, targe
     truth = yaml.safe_load((folder / "ground_truth.yaml").read_text())
     back = handeye.load_result(tmp_path / "out")
     assert back.sensor.target == target and back.verdict == "good"
-    assert 1e3 * translation_error(back.X, np.array(truth["sensor2flange"])) < 0.02
+    assert 1e3 * translation_error(back.X, np.array(truth["cam2flange"])) < 0.02
     key = {"edge": "angle_deg", "step": "height_mm", "spheres": "centres_m"}[target]
     assert key in back.sensor.figures
 
@@ -584,3 +584,41 @@ def test_bad_edge_and_fixture_targets_are_refused_by_name(tmp_path):
             load_laser_session(folder)
     (folder / "session.yaml").write_text(yaml.safe_dump(spec | {"target": {"type": "spheres", "count": 3, "diameter": 0.04}}))
     assert load_laser_session(folder).radii == (0.02, 0.02, 0.02)
+
+
+@pytest.mark.slow
+def test_a_laser_result_gives_x_in_the_robots_own_pose_format(tmp_path):
+    """Issue 77: result.json's robot_format (X and Z as the robot's own pose rows, to teach a tool or a
+    work object) was written for camera sessions alone: a FANUC laser user got no x, y, z, w, p, r.
+    Every sensor's calibration now carries the session's pose format and units."""
+    from handeye.frames.poses import parse_poses
+    from handeye.io.session import write_pose_table
+    from handeye.report.files import result_dict
+
+    sc = laser_scene(12, "eye_in_hand", rng=3)
+    folder = write_laser_session(tmp_path / "s", sc)
+    names = [f"p{k + 1:02d}.csv" for k in range(12)]
+    write_pose_table(folder / "poses.csv", names, sc.flange2base, "euler:xyz", "mm", "deg", id_column="profile")
+    spec = yaml.safe_load((folder / "session.yaml").read_text())
+    spec["poses"] = {"file": "poses.csv", "format": "euler:xyz", "length_unit": "mm", "angle_unit": "deg"}
+    (folder / "session.yaml").write_text(yaml.safe_dump(spec))
+    cal = calibrate_laser_session(folder)
+    data = result_dict(cal)
+    for key, T in (("X", cal.X), ("Z", cal.Z)):
+        rows = data[key]["robot_format"]
+        assert (rows["format"], rows["length_unit"], rows["angle_unit"]) == ("euler:xyz", "mm", "deg")
+        assert np.allclose(parse_poses(np.array(rows["values"])[None], "euler:xyz", "mm", "deg")[0], T, atol=1e-12)
+    assert data["X"]["euler_input_convention"]["sequence"] == "xyz"
+
+
+def test_the_simulators_ground_truth_names_x_as_the_result_does(tmp_path):
+    """Issue 77: a laser session's ground_truth.yaml named X sensor2flange where result.json says
+    cam2flange; both now say X's name (cam2flange eye-in-hand, cam2base eye-to-hand)."""
+    from handeye.frames.setups import setup_info
+
+    for setup in ("eye_in_hand", "eye_to_hand"):
+        sc = laser_scene(4, setup, rng=1)
+        truth = yaml.safe_load((write_laser_session(tmp_path / setup, sc) / "ground_truth.yaml").read_text())
+        info = setup_info(setup)
+        assert np.allclose(truth[info.x_name], sc.X) and np.allclose(truth[info.z_name], sc.Z)
+        assert not any(k.startswith("sensor2") for k in truth)

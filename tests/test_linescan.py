@@ -120,6 +120,10 @@ def test_session_round_trip_and_bad_sessions(tmp_path):
     assert back.sensor.target == "chessboard" and back.verdict == "good"
     assert 1e3 * translation_error(back.X, np.array(truth["cam2flange"])) < 0.2
     assert abs(back.sensor.figures["focal_px"]["value"] / truth["focal_px"] - 1) < 1e-3
+    # Z is one of the chessboard's readings of the truth, and a note says so (issue 77)
+    assert min(np.abs(back.Z @ S - np.array(truth["target2base"])).max() for S in _readings(
+        [[x, y, 0] for x in (0, 0.16) for y in (0, 0.1)])) < 1e-3
+    assert any(n.startswith("the chessboard reads the same turned a half turn about its normal") for n in back.notes)
     spec = yaml.safe_load((folder / "session.yaml").read_text())
     for change, match in [({"focal": 16.0}, "not millimetres"), ({"line_rate": None}, "line_rate"),
                           ({"lens": 16}, "unknown key 'lens'")]:
@@ -238,3 +242,64 @@ def test_a_plan_of_scans_predicts_the_std_it_gives(tmp_path):
     assert main(["plan", "--sensor", "line_scan", "--intrinsics", "k.yaml", "--out", str(tmp_path / "b.csv")]) == 2
     assert main(["plan", "--line-camera", "2048,2400", "--intrinsics", "k.yaml", "--standoff", "0.5",
                  "--out", str(tmp_path / "c.csv")]) == 2
+
+
+@pytest.mark.slow
+def test_the_report_draws_each_scan_with_the_fitted_grid():
+    """Issue 77: a line-scan camera's report had no picture of the fit on its scans. Each scan's
+    section: its corners in the scan's own plane (mm at the target, along the line and along the
+    move) with their error's size, and the board's grid (9 + 6 lines) through the corners where the
+    fit puts them, each as far from its corner as its residual says."""
+    from scipy.spatial import cKDTree
+
+    from handeye.report.html import report_html
+
+    sc = linescan_scene(8, "eye_in_hand", rng=1)
+    model = LineScanCorners("eye_in_hand", sc.names, sc.corners, sc.target_points, sc.starts, sc.line_rate, sc.trajectory,
+                            sc.focal, sc.width)
+    cal = estimate(model, ControllerPoses(model.flange2base_ref))
+    assert len(cal.sensor.sections) == 8
+    for sec, rms in zip(cal.sensor.sections, cal.sensor.residual_mm):
+        curve = sec["curve_mm"][np.isfinite(sec["curve_mm"]).all(axis=1)]
+        gap = cKDTree(curve).query(sec["points_mm"])[0]
+        assert np.isclose(np.sqrt(np.mean(sec["residual_mm"] ** 2)), rms, rtol=1e-6)
+        assert np.median(gap / sec["residual_mm"]) == pytest.approx(1.0, abs=0.35)  # the fitted corner is its residual away
+        assert np.isnan(sec["curve_mm"][:, 0]).sum() == 9 + 6
+        extent = np.ptp(sec["points_mm"], axis=0)
+        assert 80 < extent.max() < 250  # the 160 x 100 mm grid, turned: mm at the target along both axes
+    page = report_html(cal)
+    assert 'alt="each view with the fitted target&#x27;s section"' in page
+
+
+def _readings(points):
+    """A grid's four readings (a half turn about its normal, its x axis, its y axis through its middle)
+    as transforms of its frame."""
+    from handeye.geometry.se3 import make_transform
+
+    cx, cy = np.asarray(points)[:, :2].mean(axis=0)
+    return [make_transform(np.diag(d), [(1 - d[0]) * cx, (1 - d[1]) * cy, 0.0])
+            for d in ([1, 1, 1], [-1, -1, 1], [1, -1, -1], [-1, 1, -1])]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("setup,rng", [("eye_in_hand", 1), ("eye_to_hand", 2)])
+def test_a_chessboards_readings_are_named_in_a_note(setup, rng):
+    """Issue 77: the line-scan Z came out a half turn from the simulator's (the chessboard's symmetry;
+    a scan moving the other way mirrors it, which turns z out of the board) with no note. Z is one of
+    the board's readings of the truth; the note names the readings, the board's middle and which way
+    Z's z axis points, with the turn that gives the other."""
+    from handeye.frames.setups import predicted_target2cam
+    from handeye.geometry.se3 import invert
+    from handeye.pipelines.linescan import grid_orderings, readings_note
+
+    sc = linescan_scene(8, setup, rng=rng)
+    orderings = grid_orderings(sc.target_points[0])
+    model = LineScanCorners(setup, sc.names, sc.corners, sc.target_points, sc.starts, sc.line_rate, sc.trajectory, sc.focal,
+                            sc.width, orderings=orderings)
+    cal = estimate(model, ControllerPoses(model.flange2base_ref))
+    assert min(np.abs(cal.Z @ S - sc.Z).max() for S in _readings(sc.target_points[0])) < 1e-3
+    [note] = readings_note(cal, sc.target_points[0], orderings)
+    assert "half turn about its normal, or a half turn about its x or y axis" in note and "(80.0, 50.0) mm" in note
+    towards = np.median(invert(predicted_target2cam(cal.X, cal.Z, cal.flange2base, setup))[:, 2, 3]) > 0
+    assert ("points towards the camera" in note) == towards and ("points into the board" in note) == (not towards)
+    assert readings_note(cal, sc.target_points[0], orderings[:1]) == []  # a target read one way: no note

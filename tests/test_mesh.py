@@ -173,3 +173,81 @@ def test_joint_angles_with_a_mesh_target_fit_the_arms_table(tmp_path):
         mesh_scene(8, "eye_to_hand", rng=0, arm="ur5", robot_error=(0.01, 0.05))
     # the command line writes it for a fixed camera (a camera on the flange finds a disc turned over too often)
     assert main(["simulate", "--sensor", "depth", "--arm", "ur5", "--setup", "eye_in_hand", "--out", str(tmp_path / "x")]) == 2
+
+
+def test_the_report_draws_each_cloud_with_the_posed_mesh(flange, scene):
+    """Issue 77: a mesh session's report had no picture of the fit on its clouds. Each view's
+    section: its points in its image (mm at the shape) with their signed distance from the surface,
+    and the mesh's sharp edges (the disc's rims, the holes, the pin) posed where the fit puts it:
+    on points of the surface itself, at the truth, the distances are 0 and the rims bound the points."""
+    names = [f"v{k}" for k in range(3)]
+    points, normals = [], []
+    for T in scene.target2cam[:3]:
+        facing = (flange.normals @ T[:3, :3].T) @ np.array([0.0, 0.0, -1.0]) > 0.3  # the side the camera sees
+        points.append(flange.points[facing] @ T[:3, :3].T + T[:3, 3])
+        normals.append(flange.normals[facing])
+    model = MeshSurface("eye_to_hand", names, flange, points, normals, scene.target2cam[:3])
+    X, p = model.start(scene.flange2base[:3], scene.X, scene.Z)
+    for sec in model.sections(X, p, scene.flange2base[:3], [0, 1, 2]):
+        assert np.abs(sec["residual_mm"]).max() < 1e-3
+        edges = sec["curve_mm"][np.isfinite(sec["curve_mm"]).all(axis=1)]
+        assert len(edges) > 200  # rims, holes, the pin
+        lo, hi = np.percentile(sec["points_mm"], [0, 100], axis=0)
+        assert np.abs(edges.min(axis=0) - lo).max() < 3 and np.abs(edges.max(axis=0) - hi).max() < 3
+
+
+def test_every_extra_a_session_needs_is_named_at_once(tmp_path, monkeypatch, capsys):
+    """Issue 77: a mesh target's session with .ply clouds asked for the mesh extra, then, installed,
+    for depth. Before anything is read, calibrate names every extra the session needs that is not
+    installed, in one pip install line."""
+    import sys
+
+    folder = tmp_path / "s"
+    (folder / "clouds").mkdir(parents=True)
+    for k in range(3):
+        (folder / "clouds" / f"v{k}.ply").write_bytes(b"ply\n")
+    (folder / "session.yaml").write_text(yaml.safe_dump({
+        "setup": "eye_to_hand", "depth": {"unit": "m"}, "target": {"type": "mesh", "file": "flange.stl", "unit": "mm"},
+        "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}}))
+    for module in ("trimesh", "plyfile"):
+        monkeypatch.setitem(sys.modules, module, None)  # not installed
+    assert main(["calibrate", str(folder), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "pip install 'handeye[depth,mesh]'" in err and "trimesh (the mesh target flange.stl)" in err
+    assert "plyfile (.ply clouds in clouds/)" in err and not (tmp_path / "out").exists()
+
+
+def test_a_mistyped_mesh_key_gets_the_nearest_one(tmp_path):
+    """Issue 77: the other session keys' errors say 'did you mean'; a mesh target's and an arm
+    target's did not."""
+    from handeye.io.depth_session import load_depth_session
+
+    (tmp_path / "session.yaml").write_text(yaml.safe_dump({
+        "setup": "eye_to_hand", "depth": {"unit": "m"}, "target": {"type": "mesh", "file": "flange.stl", "unti": "mm"},
+        "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}}))
+    with pytest.raises(SessionError, match=r"unknown key\(s\) unti \(did you mean 'unit'\?\) for a mesh"):
+        load_depth_session(tmp_path)
+    spec = yaml.safe_load((tmp_path / "session.yaml").read_text())
+    spec["target"] = {"type": "arm", "finger_openning": 0.02}
+    (tmp_path / "session.yaml").write_text(yaml.safe_dump(spec))
+    with pytest.raises(SessionError, match=r"finger_openning \(did you mean 'finger_opening'\?\) for the arm"):
+        load_depth_session(tmp_path)
+
+
+def test_the_extras_a_session_names_are_the_modules_installed_with_them(tmp_path):
+    """The modules io.extras checks are those the extras install (rtb-data's module is rtbdata): with
+    every extra installed (the test extra), a session needing each of them passes the check."""
+    import importlib.util
+
+    from handeye.io.extras import EXTRA_MODULES, check_extras, session_extras
+
+    for extra, modules in EXTRA_MODULES.items():
+        assert all(importlib.util.find_spec(m) is not None for m in modules), extra
+    (tmp_path / "clouds").mkdir()
+    for suffix in (".ply", ".pcd"):
+        (tmp_path / "clouds" / f"v{suffix}").write_bytes(b"")
+    (tmp_path / "session.yaml").write_text(yaml.safe_dump({
+        "setup": "eye_to_hand", "depth": {"unit": "m"}, "target": {"type": "arm"},
+        "joints": {"file": "joints.csv", "unit": "deg", "arm": "robot.urdf"}}))
+    assert sorted(session_extras(tmp_path)) == ["depth", "markerless", "urdf"]
+    check_extras(tmp_path)  # all installed: no error

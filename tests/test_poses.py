@@ -7,6 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from handeye import PoseFormatError, format_poses, parse_poses
+from handeye.errors import SessionError
 from handeye.frames.poses import pose_columns
 from handeye.geometry.se3 import make_transform, random_rotations
 
@@ -181,3 +182,32 @@ def test_transform_pair_validated_in_one_pass_as_one_by_one(rng):
     # column-major matrices (translation in the bottom row) are named as transposed
     with pytest.raises(PoseFormatError, match=r"B \(camera\): entry 0: .*look transposed"):
         validate_transform_pair(A, np.swapaxes(B, -1, -2), names, counted)
+
+
+@pytest.mark.parametrize("fmt,columns,truth", [
+    ("euler:xyz", "X,Y,Z,W,P,R", "euler:xyz"),          # FANUC
+    ("euler:ZYX", "X,Y,Z,A,B,C", "euler:ZYX"),          # KUKA (handeye's own names)
+    ("rotvec", "X,Y,Z,RX,RY,RZ", "rotvec"),             # Universal Robots (handeye's own names)
+    ("euler:xyz", "x,y,z,Rx,Ry,Rz", "euler:xyz"),       # Yaskawa, Denso
+    ("euler:ZYZ", "x,y,z,O,A,T", "euler:ZYZ"),          # Kawasaki
+    ("quat_wxyz", "x,y,z,q1,q2,q3,q4", "quat_wxyz"),    # ABB
+])
+def test_pose_columns_named_by_the_robots_own_letters(tmp_path, fmt, columns, truth):
+    """Issue 77: a pose table whose rotation columns carry the robot maker's letters for the declared
+    format (FANUC's W, P, R for euler:xyz, the guide's own laser example) was refused; it is read as
+    that format. A maker's letters for another format are refused, naming the format they are."""
+    from handeye.io.session import read_pose_table
+
+    T = make_transform(random_rotations(3, np.random.default_rng(0)), np.array([[500.0, -20, 300], [1, 2, 3], [4, 5, 6]]))
+    rows = format_poses(T, truth, "mm", "deg")
+    path = tmp_path / "poses.csv"
+    path.write_text("id," + columns + "\n" + "".join(f"p{k}," + ",".join(repr(float(v)) for v in r) + "\n" for k, r in enumerate(rows)))
+    values, ids = read_pose_table(path, fmt)
+    assert ids == ["p0", "p1", "p2"] and np.allclose(parse_poses(values, fmt, "mm", "deg"), T)
+    other = "euler:ZYX" if fmt != "euler:ZYX" else "rotvec"
+    if columns.lower().endswith("a,b,c"):  # handeye's own names for every Euler sequence: the header check's message
+        with pytest.raises(SessionError, match=f"does not match format '{other}'"):
+            read_pose_table(path, other)
+        return
+    with pytest.raises(PoseFormatError, match=rf"poses.csv: header .* does not match format '{other}'.* columns .* are .*format {truth}"):
+        read_pose_table(path, other)

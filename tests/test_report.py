@@ -566,3 +566,56 @@ def test_rotation_axes_figure_draws_a_share_of_many_motions(sample_cal, monkeypa
     monkeypatch.setattr(html, "MAX_AXES_DRAWN", n)
     fig = html._axes_figure(sample_cal, sample_cal.motions)
     assert drawn[-1] == n and "drawn" not in fig._suptitle.get_text()
+
+
+@pytest.fixture(scope="module")
+def laser_cal():
+    """A laser profiler's calibration (10 profiles of a ball, an exact robot): a sensor's fit."""
+    from handeye.estimation.core import estimate
+    from handeye.robot.models import ControllerPoses
+    from handeye.sensors.laser.model import SphereProfiles
+    from handeye.simulate import laser_scene
+
+    sc = laser_scene(10, "eye_in_hand", rng=7)
+    return estimate(SphereProfiles("eye_in_hand", [f"p{k:02d}.csv" for k in range(10)], sc.profiles, radius=sc.radius),
+                    ControllerPoses(sc.flange2base))
+
+
+def test_a_sensors_report_says_what_its_fit_is(laser_cal):
+    """Issue 77: a sensor's report said '10 views, 0 motions' (a sensor's fit pairs none), Z's std '—'
+    where the terminal prints it, a held-out paragraph about the camera's refinements, and its figures
+    as raw keys and floats ('1200.', 'placement_given 1.'). Now: views alone, Z's std (a ball's
+    orientation 'not defined'), the sensor's own held-out account, figures in words."""
+    from handeye.report.html import report_html
+
+    page = report_html(laser_cal)
+    assert "· 10 views ·" in page and "motions" not in page.split("</h1>")[1].split("</p>")[0]
+    z = page.split("<h3>Z = target2base</h3>")[1].split("</table>")[0]
+    std = laser_cal.std_Z
+    assert f"<td>{', '.join(f'{v:.3f}' for v in std[3:])}</td>" in z and "not defined, not defined, not defined" in z
+    held = page.split("Held-out prediction error (cross-validated)</h3>")[1].split("</p>")[0]
+    assert "pixel refinement" not in held and "laser line profiler" in held and "closed-form start" in held
+    assert "<td class=\"l\">radius (mm)</td>" in page and "<td class=\"l\">centre (m)</td>" in page
+    from handeye.report.html import _figure_label, _figure_text
+
+    assert [_figure_label(k) for k in ("line_rate_hz", "clock_offset_s", "placement_given", "k1")] == [
+        "line rate (Hz)", "clock offset (s)", "placement given", "k1"]
+    assert [_figure_text(v) for v in (1200.0, True, False, 18000, [], [0.5, 2.0], None)] == [
+        "1200", "yes", "no", "18000", "none", "[0.5, 2]", "—"]
+
+
+def test_a_laser_profilers_ros_frame_is_named_for_a_profiler(laser_cal, tmp_path):
+    """Issue 77: a laser profiler's ROS snippets and launch files published X as camera_optical_frame;
+    its frame is laser_profiler_optical_frame (x along the line, z along the measuring axis), a
+    camera's stays camera_optical_frame, and --child-frame still renames it."""
+    from handeye.report import write_exports
+
+    ros = result_dict(laser_cal)["ros"]
+    assert ros["child_frame"] == "laser_profiler_optical_frame" and ros["parent_frame"] == "tool0"
+    assert ros["static_transform_publisher"].endswith("--child-frame-id laser_profiler_optical_frame")
+    launch = write_exports(laser_cal, tmp_path, ["ros2-launch"])[0].read_text()
+    assert "'laser_profiler_optical_frame'" in launch and "camera_optical_frame" not in launch
+    assert result_dict(laser_cal, child_frame="profiler")["ros"]["child_frame"] == "profiler"
+    cal = handeye.calibrate_poses(*(lambda s: (s.flange2base, s.target2cam))(random_scene(8, "eye_in_hand", rng=0)),
+                                  progress=False)
+    assert result_dict(cal)["ros"]["child_frame"] == "camera_optical_frame"

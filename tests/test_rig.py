@@ -28,7 +28,7 @@ def test_stereo_pair_relative_pose_from_the_joint_fit():
     sc = rig_scene(15, "eye_in_hand", rng=3001, robot_error=ERROR)
     rig = calibrate_rig(sc.camera_models(), ["left", "right"], ControllerPoses(sc.flange2base, ERROR))
     assert rig.joint.verdict in ("good", "weak") and rig.disagreeing == []
-    rel = rig.joint.sensor.figures["relative"]["right2left"]
+    rel = rig.joint.sensor.figures["relative"]["right_to_left"]
     R, std = np.array(rel["matrix"]), np.array(rel["std_deg_mm"])
     assert within_std(R, sc.relative(1), std)
     assert 1e3 * translation_error(R, sc.relative(1)) < 0.2 and np.degrees(rotation_error(R, sc.relative(1))) < 0.01
@@ -224,7 +224,7 @@ def test_rig_report_has_a_section_per_sensor():
     c1 = rig.split('id="sensor-c1">')[1].split("</section>")[0]
     assert "disagrees with the rest" in c1 and "its own calibration" in c1 and "calibrated alone" in c1
     c2 = rig.split('id="sensor-c2">')[1].split("</section>")[0]
-    assert "c22c0" in c2 and "in the joint fit" in c2
+    assert "c2_to_c0" in c2 and "in the joint fit" in c2
     figures = bad.joint.sensor.figures
     assert len(figures["view_rms_mm_per_sensor"]["c2"]) == 10 and figures["alone"]["c1"]["verdict"]
 
@@ -329,7 +329,7 @@ def test_a_camera_and_a_depth_camera_share_the_board_from_one_session_folder(tmp
     cal = calibrate_rig_session(folder, robot_accuracy=(0.01, 0.05))
     assert cal.verdict == "good" and cal.sensor.target == "board", cal.notes
     assert "sensor depth: no cloud for 1 of 10 views (v03)" in " ".join(cal.notes)
-    rel = cal.sensor.figures["relative"]["depth2camera"]
+    rel = cal.sensor.figures["relative"]["depth_to_camera"]
     assert within_std(np.array(rel["matrix"]), sc.relative(), np.array(rel["std_deg_mm"]))
     # the board's pose is one set of unknowns; the depth camera's scale and bias are its own
     assert [n for n in cal.sensor.figures["alone"]] == ["camera", "depth"]
@@ -376,7 +376,7 @@ def test_a_depth_camera_seeing_a_ball_beside_a_camera_seeing_a_board():
                         shared_target=False)
     f = rig.joint.sensor.figures
     assert rig.joint.sensor.target == "board + spheres"
-    rel = f["relative"]["depth2camera"]
+    rel = f["relative"]["depth_to_camera"]
     assert within_std(np.array(rel["matrix"]), sc.relative(), np.array(rel["std_deg_mm"]))
     depth = f["X_per_sensor"]["depth"]
     assert within_std(np.array(depth["X"]), sc.depth_X, np.array(depth["std_deg_mm"]))
@@ -412,3 +412,81 @@ def test_a_views_file_is_found_by_its_name_or_stem_in_any_case(tmp_path):
     assert [p.name for p in clouds] == ["v03.npy", "v03.npy"]
     assert [p.name for p in files_of_views(tmp_path, ["scan.001"], (".csv",))] == ["scan.001.csv"]
     assert files_of_views(tmp_path / "missing", ["v01"], (".png",)) == [None]
+
+
+@pytest.fixture(scope="module")
+def stereo_rig():
+    """A stereo pair on the flange (8 views, a calibrated arm's error stated), calibrated as a rig."""
+    sc = rig_scene(8, "eye_in_hand", rng=0, robot_error=ERROR)
+    return calibrate_rig(sc.camera_models(), ["cam0", "cam1"], ControllerPoses(sc.flange2base, ERROR))
+
+
+@pytest.mark.slow
+def test_rig_report_gives_each_sensors_distance_from_its_own_calibration_in_degrees(stereo_rig):
+    """Issue 77: the rig report printed the angle between a sensor's own X and the joint fit's in
+    radians labelled degrees (0.0199 'deg' was 1.14 deg)."""
+    import re
+
+    from handeye.report.html import report_html
+
+    page = report_html(stereo_rig.joint)
+    printed = re.findall(r"its own X ([0-9.]+) mm / ([0-9.]+) deg", page)
+    assert len(printed) == 2
+    assert "own figures" not in page  # every figure of a rig's is in its sections: no empty table (issue 77)
+    for (mm, deg), name in zip(printed, ["cam0", "cam1"]):
+        own, joint = stereo_rig.alone[name].X, stereo_rig.X(name)
+        assert float(deg) == pytest.approx(np.degrees(rotation_error(own, joint)), abs=1e-4)
+        assert float(mm) == pytest.approx(1e3 * translation_error(own, joint), abs=1e-3)
+
+
+def test_a_rigs_every_sensor_on_the_terminal_with_readable_names(stereo_rig, tmp_path):
+    """Issue 77: a rig printed only its first sensor's X; the others' X and their relative pose were in
+    result.json alone, named cam12flange and cam12cam0 for a sensor called cam1. Now the terminal
+    prints every sensor's X and the relative pose with their std, named cam1_to_flange and
+    cam1_to_cam0, and a result written with the old keys reads back under the new ones."""
+    import io
+    import json
+
+    from handeye import load_result
+    from handeye.cli._printing import print_calibration
+    from handeye.pipelines.rig import rig_members
+    from handeye.report import write_results
+
+    cal = stereo_rig.joint
+    assert sorted(cal.sensor.figures["relative"]) == ["cam1_to_cam0"]
+    out = io.StringIO()
+    print_calibration(cal, out)
+    text = out.getvalue()
+    X1, rel = stereo_rig.X("cam1"), cal.sensor.figures["relative"]["cam1_to_cam0"]
+    assert f"cam1_to_flange  translation mm [{', '.join(f'{v: .3f}' for v in 1e3 * X1[:3, 3])}]" in text
+    assert f"cam1_to_cam0    translation mm [{', '.join(f'{v: .3f}' for v in 1e3 * np.array(rel['matrix'])[:3, 3])}]" in text
+    assert "cam12" not in text and "cam1_to_cam0: the sensors' relative pose known to" in text
+    write_results(cal, tmp_path)
+    data = json.loads((tmp_path / "result.json").read_text())
+    figures = data["sensor"]["figures"]
+    figures["relative"] = {"cam12cam0": figures["relative"]["cam1_to_cam0"]}  # as handeye 0.1 wrote it
+    (tmp_path / "result.json").write_text(json.dumps(data))
+    back = load_result(tmp_path)
+    assert list(back.sensor.figures["relative"]) == ["cam1_to_cam0"]
+    assert np.allclose(rig_members(back)["cam1"].sensor.figures["rig"]["pose_in_first_sensor"]["matrix"], rel["matrix"])
+
+
+@pytest.mark.slow
+def test_the_rig_report_draws_every_cameras_views_with_the_fitted_grid(stereo_rig):
+    """Issue 77: a rig's report had no picture of the fit on its images. A section per camera and
+    view (labelled so, with its own RMS): the corners in the image (mm at the target) and the
+    board's grid through the corners each camera's X in the joint fit predicts."""
+    from scipy.spatial import cKDTree
+
+    from handeye.report.html import report_html
+
+    cal = stereo_rig.joint
+    sections = cal.sensor.sections
+    per_view = cal.sensor.figures["view_rms_mm_per_sensor"]
+    assert [s["label"] for s in sections[:2]] == ["v01 cam0", "v01 cam1"] and len(sections) == 16
+    for sec in sections:
+        view, name = sec["label"].split()
+        assert sec["rms_mm"] == pytest.approx(per_view[name][int(view[1:]) - 1], rel=1e-6)
+        curve = sec["curve_mm"][np.isfinite(sec["curve_mm"]).all(axis=1)]
+        assert np.median(cKDTree(curve).query(sec["points_mm"])[0]) < 3 * sec["rms_mm"]
+    assert 'alt="each view with the fitted target&#x27;s section"' in report_html(cal)

@@ -299,12 +299,12 @@ def test_bundled_sample_session():
     assert size <= 2e6
 
 
-# --- real captures, turned into session folders whose images link to ../shared -------------
+# --- real captures, turned into session folders of copies of ../shared's images ------------
 
 def _write_session(folder: Path, setup, target, K, dist, names, images, flange2base):
     (folder / "images").mkdir(parents=True)
-    for name, src in zip(names, images):
-        (folder / "images" / name).symlink_to(src)
+    for name, src in zip(names, images):  # copies: a session reads no file outside its folder, links resolved
+        shutil.copyfile(src, folder / "images" / name)
     spec = {"setup": setup, "target": target, "camera": {"K": np.asarray(K).tolist(), "dist": list(dist)},
             "poses": {"file": "poses.csv", "format": "matrix", "length_unit": "m"}}
     (folder / "session.yaml").write_text(yaml.safe_dump(spec))

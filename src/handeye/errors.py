@@ -6,7 +6,8 @@ Every error says what is wrong, where, and what to do about it. They all derive 
 
 from __future__ import annotations
 
-__all__ = ["HandEyeError", "PoseFormatError", "DegenerateMotionError", "InputMismatchError", "SessionError", "TargetError"]
+__all__ = ["HandEyeError", "PoseFormatError", "DegenerateMotionError", "InputMismatchError", "SessionError", "UnusableViewError",
+           "TargetError"]
 
 
 class HandEyeError(Exception):
@@ -34,6 +35,12 @@ class DegenerateMotionError(HandEyeError):
 
 class SessionError(HandEyeError):
     """A capture folder that cannot be read: missing files or keys, malformed tables."""
+
+
+class UnusableViewError(SessionError):
+    """One view's file holds nothing to measure (empty, binary or corrupt, no point with a depth, an
+    array of no cloud's shape): a session's pipeline skips that view and names it, as it skips an
+    image without the target; read on its own, the file is refused."""
 
 
 class TargetError(HandEyeError):

@@ -20,6 +20,7 @@ from . import (
     calibrate_streams,
     check,
     import_,
+    live,
     plan,
     simulate,
     study,
@@ -33,7 +34,7 @@ from .target import TARGET_KINDS
 __all__ = ["main", "build_parser", "print_calibration", "SAMPLE_SESSION", "EXAMPLE_POSEPAIRS", "TARGET_KINDS"]
 
 #: The commands in the order ``handeye --help`` lists them; each module's ``register`` adds its parser.
-COMMANDS = (calibrate_poses, calibrate_streams, calibrate, check, verify, acquire, import_, target, simulate, plan, study)
+COMMANDS = (calibrate_poses, calibrate_streams, calibrate, check, verify, acquire, live, import_, target, simulate, plan, study)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -4,4 +4,5 @@ import sys
 
 from . import main
 
-sys.exit(main())
+if __name__ == "__main__":  # not when a spawned process (handeye live's calibrations) imports the main module again
+    sys.exit(main())

@@ -10,7 +10,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..estimation.verdict import headline
-from ..frames.setups import setup_info
+from ..frames.setups import pose_name, setup_info
 from ..result import Calibration
 from ..robot.kinematics import display_unit
 
@@ -81,6 +81,8 @@ def print_calibration(cal: Calibration, out=None) -> None:
                                                         if np.isinf(cal.std).any() else "") + "\n")
     else:  # uncertainty skipped (or too few poses to refit without one, and an exact robot): say so
         w(f"std of X: not computed ({cal.method}): the check below judges the poses, not how far X can be trusted\n")
+    if cal.sensor is not None and "X_per_sensor" in cal.sensor.figures:
+        _print_rig(cal, w)
     if cal.kinematic is not None:
         k = cal.kinematic
         big = np.argsort(-np.abs(k.correction / k.prior_std))[:4]
@@ -121,6 +123,35 @@ def print_calibration(cal: Calibration, out=None) -> None:
           + "\n")
     for note in cal.notes:
         w(wrapped(note, "note: ", out) + "\n")
+
+
+def _print_rig(cal: Calibration, w) -> None:
+    """A rig's every sensor: its X from the joint fit (or its own, when it was left out) and its pose
+    relative to the first sensor, each with its std."""
+    f = cal.sensor.figures
+    joint = list(f["X_per_sensor"])
+    parent = setup_info(cal.setup).x_name.split("2", 1)[1]
+    width = max(len(pose_name(n, parent)) for n in list(joint) + list(f.get("alone", {})))
+
+    def line(name: str, T, std, tail: str = "") -> None:
+        rot = Rotation.from_matrix(np.asarray(T, float)[:3, :3]).as_rotvec(degrees=True)
+        w(f"  {name:<{width}}  translation mm {fmt_vec(1e3 * np.asarray(T, float)[:3, 3], 3)}, rotation vec deg "
+          f"{fmt_vec(rot, 4)}" + ("" if std is None else f"; std {fmt_vec(std[:3], 4)} deg, {fmt_vec(std[3:], 3)} mm")
+          + tail + "\n")
+    w(f"every sensor of the rig (X of each from the joint fit of {', '.join(joint)}, its std with the robot's accuracy; "
+      f"the first, {joint[0]}, is X above):\n")
+    for name in joint:
+        s = f["X_per_sensor"][name]
+        line(pose_name(name, parent), s["X"], np.asarray(s["std_deg_mm"], float))
+    for name in joint[1:]:
+        rel = f.get("relative", {}).get(pose_name(name, joint[0]))
+        if rel is not None:
+            line(pose_name(name, joint[0]), rel["matrix"], np.asarray(rel["std_deg_mm"], float),
+                 " (the robot's error cancels in it)")
+    for name, own in f.get("alone", {}).items():
+        if name not in joint:
+            line(pose_name(name, parent), own["X"], None if own.get("std_deg_mm") is None else np.asarray(own["std_deg_mm"], float),
+                 f" (left out of the joint fit: its own calibration, {own.get('verdict')})")
 
 
 def _entry(name: str, value: float) -> str:

@@ -118,8 +118,7 @@ def register(sub) -> None:
     """Add the ``import`` command's parser to the sub-parsers ``sub``: one parser per source, with its options."""
     p = sub.add_parser(
         "import",
-        help="turn a ROS bag, easy_handeye samples, a ViSP, an industrial_calibration or a RobCalibrator dataset into a "
-        "handeye folder",
+        help=f"turn another tool's capture into a handeye folder: {', '.join(SOURCES)}",
         description="Turn another tool's capture into a handeye folder; 'handeye import KIND --help' for each.",
     )
     kinds = p.add_subparsers(dest="kind", metavar="KIND")

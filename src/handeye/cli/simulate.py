@@ -32,6 +32,7 @@ from ..simulate.rig import (
     write_camera_laser_session,
     write_rig_session,
 )
+from ..simulate.scene import scene_capture, write_scene_session
 from ..simulate.silhouette import silhouette_scene, write_silhouette_session
 from ._common import image_size_arg, number_arg, out_folder, sensor_target, whole_arg
 
@@ -151,6 +152,15 @@ def _simulate_depth(args: argparse.Namespace) -> int:
     target = args.target or "mesh"
     if target == "arm":  # markerless: a camera fixed in the cell sees the arm itself
         return _simulate_arm_depth(args)
+    if target == "scene":  # no target: whatever object the camera sees
+        if args.robot != "arm" or args.arm is not None:
+            raise InputMismatchError("--target scene simulates a 6-axis arm's controller poses; leave --robot and --arm out")
+        write_scene_session(args.out, scene_capture(args.poses, args.setup, args.seed, image_size=args.image_size))
+        where = "on a plate, the camera on the flange" if setup_info(args.setup).camera_on_flange else \
+            "on the flange, a camera fixed in the cell"
+        print(f"wrote depth session {args.out} ({args.poses} clouds of an irregular object {where}, 0.3-0.5 m away, "
+              f"target: {{type: scene}}: no target, no mesh); ground truth in {Path(args.out) / 'ground_truth.yaml'}")
+        return 0
     if args.robot != "arm":
         raise InputMismatchError("--sensor depth simulates a 6-axis arm (its controller's poses, or with --arm its joint "
                                  "angles); leave --robot out")
@@ -169,8 +179,8 @@ def _simulate_depth(args: argparse.Namespace) -> int:
                                                   image_size=args.image_size, noise_px=args.noise_px, arm=args.arm))
         what = f"a {target} with its intensity images"
     else:
-        raise InputMismatchError(f"--target {target}: a depth camera's simulated target is mesh (default), sphere or a "
-                                 f"board ({', '.join(DEFAULT_TARGETS)})")
+        raise InputMismatchError(f"--target {target}: a depth camera's simulated target is mesh (default), sphere, scene, "
+                                 f"arm or a board ({', '.join(DEFAULT_TARGETS)})")
     arm = f", {args.arm}'s joint angles in joints.csv (the arm 1-3 mm off its nominal table)" if args.arm else ""
     print(f"wrote depth session {args.out} ({args.poses} clouds of {what}, {args.setup}{arm}); ground truth in "
           f"{Path(args.out) / 'ground_truth.yaml'}")
@@ -189,8 +199,8 @@ def register(sub) -> None:
     p.add_argument("--sensor", default="camera", choices=["camera", "depth", "laser_line", "line_scan", "rig", "silhouette"],
                    help="camera (default): rendered images of a board; depth: a depth camera's 640x480 clouds of a mesh "
                    "(--target mesh, the default: a flange-sized disc on the flange), a ball (sphere) or a board; laser_line: "
-                   "a laser line profiler's profiles of a "
-                   "ball or a plate (--poses of them; --arm for joint angles); line_scan: a line-scan camera's scans of a "
+                   "a laser line profiler's profiles of a ball, a plate, a block's edge, a step or a fixture of balls "
+                   "(--target; --poses of them; --arm for joint angles); line_scan: a line-scan camera's scans of a "
                    "chessboard swept by the robot (--poses of them); rig: a stereo pair on the flange (eye_in_hand) or "
                    "three fixed cameras (eye_to_hand); silhouette: a fixed colour camera's masks of a Panda (markerless, "
                    "its joint angles, eye_to_hand; --poses of them)")
@@ -203,11 +213,13 @@ def register(sub) -> None:
                    "the board, instead of cameras")
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--poses", type=whole_arg(1), default=15, help="number of images (default 15)")
-    p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS) + ["mesh", "arm"],
+    p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS) + ["mesh", "arm", "scene"],
                    help="the board rendered (default charuco: it cannot be read from the wrong end, as handeye's advice "
-                   "recommends; chessboard for the thesis's set-up); with --sensor laser_line: sphere (default) or plane; "
-                   "with --sensor depth: mesh (default), sphere, a board, or arm (the arm itself, markerless, its joint angles; "
-                   "always eye_to_hand; --arm panda, the arm with meshes)")
+                   f"recommends; chessboard for the thesis's set-up); with --sensor laser_line: {', '.join(LASER_TARGETS)} "
+                   f"({LASER_TARGETS[0]} the default); "
+                   "with --sensor depth: mesh (default), sphere, a board, arm (the arm itself, markerless, its joint angles; "
+                   "always eye_to_hand; --arm panda, the arm with meshes) or scene (an irregular object, no target and no "
+                   "mesh given: X from the clouds' agreement)")
     p.add_argument("--noise-px", type=number_arg(0.0), default=0.2, help="feature position noise in pixels (default 0.2)")
     p.add_argument("--seed", type=whole_arg(0), default=None)
     p.add_argument("--image-size", type=image_size_arg, default=(640, 480), help="WIDTHxHEIGHT (default 640x480)")

@@ -62,6 +62,32 @@ def _norms(v: NDArray[np.float64]) -> tuple[float, float]:
 #: From this many poses, more of the same kind hardly narrow a std that leaving one pose out makes wide.
 MANY_POSES = 20
 
+#: How an arm handeye does not ship is given (the advice that says to record joint angles says it too).
+OWN_ARM = ("an arm handeye does not ship (handeye.robot.kinematics.arm_names() lists those it does: a FANUC with an "
+           "extended axis is not one) is named by a file: its URDF (joints: arm: robot.urdf, with base_link and tip_link "
+           "when its chain has other ends; pip install 'handeye[urdf]') or a DH table of your own (joints: arm: "
+           "my_arm.yaml: name, convention dh or mdh, joints: one row [a_m, alpha_rad, d_m, theta_offset_rad] per "
+           "revolute joint, flange: the flange in the last joint's frame, a 4x4; handeye/data/arms/*.yaml are examples, "
+           "docs/guide.md 'Joint angles'); an extended axis (a linear track or a positioner) is not modelled: hold it "
+           "still during the capture and give the arm's own joints")
+
+
+def _beyond(part: NDArray[np.float64] | None) -> bool:
+    """Whether a part of X's std (deg, mm per axis) alone puts 3 std beyond the acceptance."""
+    return part is not None and (3 * np.linalg.norm(part[3:]) > ACCEPT_MM or 3 * np.linalg.norm(part[:3]) > ACCEPT_DEG)
+
+
+def _fixed_cause(sources: dict) -> tuple[str, str] | None:
+    """When a part of X's std that no number of views narrows alone exceeds the acceptance: that part
+    in words and its fix in a few words (the advice says how); else None."""
+    if _beyond(sources.get("arm_table")):
+        return ("the tolerance of the arm's table the camera's links are placed by, not by these views",
+                "calibrate the arm's table and name it as the arm (the advice gives the commands)")
+    if _beyond(sources.get("robot_accuracy")):
+        return ("the robot's absolute accuracy, not by these views",
+                "record the arm's joint angles, or use a more accurate robot (the advice says how)")
+    return None
+
 
 def _std_reason(std: NDArray[np.float64], sources: dict, n_used: int) -> str | None:
     """Why 3 std of X cannot promise the acceptance, or None when they can."""
@@ -70,25 +96,29 @@ def _std_reason(std: NDArray[np.float64], sources: dict, n_used: int) -> str | N
         return None
     jack, intr, robot = sources.get("jackknife"), sources.get("intrinsics"), sources.get("robot_accuracy")
     table = sources.get("arm_table")
-    if table is not None and (3 * np.linalg.norm(table[3:]) > ACCEPT_MM or 3 * np.linalg.norm(table[:3]) > ACCEPT_DEG):
+    if _beyond(table):
         return (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg, and the arm's "
                 f"table alone gives {np.linalg.norm(table[3:]):.1f} mm / {np.linalg.norm(table[:3]):.2f} deg per std: the "
-                "links the camera sees are placed by the joint angles through the nominal table, whose error X takes "
-                "whole; calibrate the arm's table first (joint angles with a board: handeye calibrate writes "
-                "arm_corrected.yaml) and name it as the arm (joints: arm: arm_corrected.yaml), or use a board")
-    if robot is not None and (3 * np.linalg.norm(robot[3:]) > ACCEPT_MM or 3 * np.linalg.norm(robot[:3]) > ACCEPT_DEG):
+                "links the camera sees are placed by the joint angles through the arm's table, whose tolerance X takes "
+                "whole (the note on the arm's table gives it), so more views will not narrow it. Calibrate the arm's "
+                "table: capture a board with the same arm and its joint angles (a session with a joints: block, "
+                "docs/guide.md 'Joint angles'), run handeye calibrate BOARD_SESSION --out CAL (it writes "
+                "CAL/arm_corrected.yaml), then handeye calibrate THIS_SESSION --arm CAL/arm_corrected.yaml (or "
+                "joints: arm: arm_corrected.yaml in session.yaml): a calibrated table is taken at a tenth of the "
+                "nominal one's tolerance; or use a board")
+    if _beyond(robot):
         return (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg, and the robot's "
                 f"accuracy alone gives {np.linalg.norm(robot[3:]):.1f} mm / {np.linalg.norm(robot[:3]):.2f} deg per std: "
                 "a robot error constant over the capture moves X whole and no number of poses removes it; record the "
                 "arm's joint angles with each pose (joints.csv and a joints: block naming the arm in session.yaml, "
                 "then handeye calibrate SESSION --out OUT): handeye then fits the arm's table with X from the same "
                 "views (docs/guide.md, 'Joint angles'; on a real Panda capture that predicted held-out views 12x "
-                "better than any pose-only method); or use a more accurate robot, or give its accuracy if it is "
-                "better (--robot-accuracy DEG,MM)")
+                f"better than any pose-only method); {OWN_ARM}; or use a more accurate robot, or give its accuracy if "
+                "it is better (--robot-accuracy DEG,MM)")
     why = (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg"
            + (f" (leaving one pose out moves X by {np.linalg.norm(jack[3:]):.1f} mm / {np.linalg.norm(jack[:3]):.2f} deg "
               "per std)" if jack is not None else ""))
-    if intr is not None and (3 * np.linalg.norm(intr[3:]) > ACCEPT_MM or 3 * np.linalg.norm(intr[:3]) > ACCEPT_DEG):
+    if _beyond(intr):
         return why + (f"; the intrinsics estimated from these images alone give {np.linalg.norm(intr[3:]):.1f} mm / "
                       f"{np.linalg.norm(intr[:3]):.2f} deg per std: calibrate the camera on its own (views filling the "
                       "image, the target tilted) and give K and dist in session.yaml, or take more views that do")
@@ -142,13 +172,17 @@ def headline(cal: Calibration) -> str:
     rot, mm = (3 * v for v in _norms(cal.std))
     beyond = max(mm / ACCEPT_MM, rot / ACCEPT_DEG)
     known = f"X known to {mm:.1f} mm / {rot:.2f} deg (3 std)"
+    fixed = _fixed_cause(cal.std_sources or {})
+    if fixed is not None:  # more views will not help: say what does, not "capture again"
+        known += f", set by {fixed[0]}"
     if beyond <= 2:
-        return f"usable with care: {known}, a little beyond the {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg a calibration should promise"
+        return (f"usable with care: {known}, a little beyond the {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg a calibration should "
+                "promise" + (f"; {fixed[1]}" if fixed else ""))
     if beyond <= 5:
         return (f"poorly determined: {known}, {beyond:.1f}x the {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg a calibration "
-                "should promise; read the advice before using X")
+                "should promise; " + (fixed[1] if fixed else "read the advice before using X"))
     return (f"not usable as it is: {known}, {beyond:.0f}x the {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg a calibration should "
-            "promise; follow the advice and capture again")
+            "promise; " + (fixed[1] if fixed else "follow the advice and capture again"))
 
 
 def judge(evidence: Evidence) -> Judgement:

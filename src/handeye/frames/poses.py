@@ -27,10 +27,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from .._shared.text import shown
 from ..errors import InputMismatchError, PoseFormatError
 from ..geometry.se3 import invert, make_transform, orthonormality_error
 
-__all__ = ["parse_poses", "format_poses", "pose_columns", "validate_transforms", "matrix_layout", "RobotPoseInput", "FORMATS"]
+__all__ = ["parse_poses", "format_poses", "pose_columns", "validate_transforms", "matrix_layout", "RobotPoseInput", "FORMATS",
+           "VENDOR_COLUMNS", "vendor_columns"]
 
 FORMATS = ("matrix", "quat_wxyz", "quat_xyzw", "rotvec", "euler:<SEQ>")
 LENGTH_UNITS = {"m": 1.0, "mm": 1e-3}
@@ -68,7 +70,7 @@ class RobotPoseInput:
 
 def _parse_format(fmt: str) -> tuple[str, str | None]:
     if not isinstance(fmt, str):
-        raise PoseFormatError(f"pose format must be a string, got {fmt!r}; one of {', '.join(FORMATS)}")
+        raise PoseFormatError(f"pose format must be a string, got {shown(fmt)}; one of {', '.join(FORMATS)}")
     if fmt in ("matrix", "quat_wxyz", "quat_xyzw", "rotvec"):
         return fmt, None
     m = _EULER_RE.match(fmt)
@@ -76,15 +78,15 @@ def _parse_format(fmt: str) -> tuple[str, str | None]:
         seq = m.group(1)
         if not (seq.isupper() or seq.islower()):
             raise PoseFormatError(
-                f"Euler sequence {seq!r} mixes cases: use upper case for intrinsic rotations "
+                f"Euler sequence {shown(seq)} mixes cases: use upper case for intrinsic rotations "
                 f"(e.g. 'euler:ZYX', KUKA A,B,C) or lower case for extrinsic ones (e.g. 'euler:xyz', Fanuc W,P,R)"
             )
         s = seq.lower()
         if s[0] == s[1] or s[1] == s[2]:
-            raise PoseFormatError(f"Euler sequence {seq!r} repeats an axis in consecutive rotations")
+            raise PoseFormatError(f"Euler sequence {shown(seq)} repeats an axis in consecutive rotations")
         return "euler", seq
     raise PoseFormatError(
-        f"unknown pose format {fmt!r}; use one of: matrix, quat_wxyz, quat_xyzw, rotvec, "
+        f"unknown pose format {shown(fmt)}; use one of: matrix, quat_wxyz, quat_xyzw, rotvec, "
         f"euler:<sequence> (e.g. euler:ZYX intrinsic, euler:xyz extrinsic)"
     )
 
@@ -105,9 +107,9 @@ def pose_columns(fmt: str) -> list[str]:
 
 def _check_units(length_unit: str, angle_unit: str, what: str = "poses") -> float:
     if length_unit not in LENGTH_UNITS:
-        raise PoseFormatError(f"{what}: unknown length unit {length_unit!r}; use 'm' or 'mm'")
+        raise PoseFormatError(f"{what}: unknown length unit {shown(length_unit)}; use 'm' or 'mm'")
     if angle_unit not in ANGLE_UNITS:
-        raise PoseFormatError(f"{what}: unknown angle unit {angle_unit!r}; use 'rad' or 'deg'")
+        raise PoseFormatError(f"{what}: unknown angle unit {shown(angle_unit)}; use 'rad' or 'deg'")
     return LENGTH_UNITS[length_unit]
 
 
@@ -179,7 +181,7 @@ def parse_poses(
             [rows, np.tile([0.0, 0.0, 0.0, 1.0], (len(rows), 1))], axis=1)
     if rows.shape[1] != ncols:
         raise PoseFormatError(
-            f"{what}: format {format!r} needs {ncols} columns ({' '.join(pose_columns(format))}), "
+            f"{what}: format {shown(format)} needs {ncols} columns ({' '.join(pose_columns(format))}), "
             f"got {rows.shape[1]}"
         )
     if len(rows) == 0:
@@ -188,7 +190,7 @@ def parse_poses(
     if bad.any():
         i, j = np.argwhere(bad)[0]
         raise PoseFormatError(
-            f"{what}: row {i} column {pose_columns(format)[j]!r} is {rows[i, j]} (NaN or infinite); "
+            f"{what}: row {i} column {shown(pose_columns(format)[j])} is {rows[i, j]} (NaN or infinite); "
             f"{int(bad.any(axis=1).sum())} row(s) affected"
         )
 
@@ -424,3 +426,48 @@ def format_poses(
     else:
         r = rot.as_euler(seq, degrees=(angle_unit == "deg"))
     return np.hstack([t, r])
+
+
+#: Rotation columns as robot makers name them (after x, y, z) where they are not handeye's own names
+#: (:func:`pose_columns`: a, b, c for every Euler sequence, KUKA's A, B, C among them), the pose
+#: formats they are, and whose: a pose table may name its columns so for those formats.
+VENDOR_COLUMNS = (
+    (("w", "p", "r"), ("euler:xyz",), "FANUC's W, P, R: about the fixed x, y, z axes, format euler:xyz"),
+    (("rx", "ry", "rz"), ("rotvec", "euler:xyz", "euler:XYZ"),
+     "Universal Robots' RX, RY, RZ: a rotation vector, format rotvec; Yaskawa's and Denso's Rx, Ry, Rz: about the fixed "
+     "x, y, z axes, format euler:xyz; Staubli's: about x, then the new y, then the new z, format euler:XYZ"),
+    (("o", "a", "t"), ("euler:ZYZ",), "Kawasaki's O, A, T: about z, then the new y, then the new z, format euler:ZYZ"),
+    (("q1", "q2", "q3", "q4"), ("quat_wxyz",), "ABB's q1, q2, q3, q4: a quaternion with its scalar first, format quat_wxyz"),
+)
+
+
+def vendor_columns(header: list[str], fmt: str, where: str) -> list[str]:
+    """A pose table's column names (lower case, after its id and time columns) as :func:`pose_columns`
+    names them for ``fmt`` when they are a robot maker's names for that format (:data:`VENDOR_COLUMNS`:
+    FANUC's x, y, z, w, p, r for ``euler:xyz``), else as given; a maker's names for another format are
+    refused, saying which format they are (``where``: the table, for the message).
+
+    Examples
+    --------
+    >>> vendor_columns(["x", "y", "z", "w", "p", "r"], "euler:xyz", "poses.csv")
+    ['x', 'y', 'z', 'a', 'b', 'c']
+    >>> vendor_columns(["x", "y", "z", "w", "p", "r"], "euler:ZYX", "poses.csv")
+    Traceback (most recent call last):
+    ...
+    handeye.errors.PoseFormatError: poses.csv: header x, y, z, w, p, r does not match format 'euler:ZYX', whose columns are x, y, z, \
+a, b, c: columns w, p, r are FANUC's W, P, R: about the fixed x, y, z axes, format euler:xyz; declare the format these columns are, \
+or name them as euler:ZYX's
+    """
+    expected = pose_columns(fmt)
+    if header == expected or header[:3] != ["x", "y", "z"]:
+        return header
+    for names, formats, whose in VENDOR_COLUMNS:
+        if tuple(header[3:]) != names:
+            continue
+        if fmt in formats:
+            return expected
+        raise PoseFormatError(f"{where}: header {', '.join(header)} does not match format {fmt!r}, whose columns are "
+                              f"{', '.join(expected)}: columns {', '.join(names)} are {whose}; declare the format these "
+                              f"columns are, or name them as {fmt}'s")
+    return header
+

@@ -19,13 +19,14 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from .._shared.text import shown
 from ..errors import InputMismatchError
 from ..geometry.dualquat import dq_conj
 from ..geometry.se3 import invert
 
 __all__ = ["SETUPS", "Setup", "SetupInfo", "check_setup", "setup_info", "robot_world_A", "robot_world_A_inv", "robot_world_dq",
            "robot_world_inputs", "constant_transforms", "predicted_target2cam",
-           "flange_poses", "camera2base", "target2base"]
+           "flange_poses", "camera2base", "target2base", "pose_name"]
 
 SETUPS = ("eye_in_hand", "eye_to_hand")
 
@@ -82,7 +83,7 @@ def check_setup(setup: str) -> Setup:
     if type(setup) is Setup:
         return setup
     if not isinstance(setup, str) or setup not in _INFO:
-        raise InputMismatchError(f"unknown setup {setup!r}; use 'eye_in_hand' (camera on the flange) "
+        raise InputMismatchError(f"unknown setup {shown(setup)}; use 'eye_in_hand' (camera on the flange) "
                                  f"or 'eye_to_hand' (camera fixed, target on the flange)")
     return Setup(setup)
 
@@ -150,3 +151,17 @@ def target2base(Z: NDArray[np.float64], flange2base: NDArray[np.float64], setup:
     if _INFO[setup].camera_on_flange:
         return np.broadcast_to(Z, flange2base.shape)
     return flange2base @ Z
+
+
+def pose_name(child: str, parent: str) -> str:
+    """The name of the transform mapping coordinates in frame ``child`` into frame ``parent`` where a
+    frame is named by the user (a rig's sensors): ``cam1_to_cam0``, ``cam1_to_flange``. The frames
+    handeye names itself keep ``a2b`` (``cam2flange``, ``target2base``); a user's name may end in a
+    digit, and ``cam12cam0`` reads as nothing.
+
+    Examples
+    --------
+    >>> pose_name("cam1", "cam0"), pose_name("left", "flange")
+    ('cam1_to_cam0', 'left_to_flange')
+    """
+    return f"{child}_to_{parent}"

@@ -5,6 +5,7 @@ measured here (:mod:`handeye.pipelines.depth` does that).
 
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -13,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
+from .._shared.text import cut, shown
 from ..errors import SessionError
 from ..frames.poses import RobotPoseInput
 from ..frames.setups import check_setup, setup_info
@@ -34,14 +36,15 @@ from .session import (
     read_robot_poses,
     read_session_yaml,
     read_unknowns,
+    session_file,
 )
 
-__all__ = ["DepthSession", "MeshTarget", "ArmTarget", "is_depth_session", "load_depth_session", "rig_depth", "arm_hand",
+__all__ = ["DepthSession", "MeshTarget", "ArmTarget", "SceneTarget", "is_depth_session", "load_depth_session", "rig_depth", "arm_hand",
            "ARM_KEYS", "RIG_DEPTH_KEYS"]
 
 #: What the pose table's first column must be, for the error that finds it is not.
 FIRST_COLUMN = ("'image' (a board: its intensity image in images/, the cloud of the same name in clouds/) or 'cloud' "
-                "(spheres, a mesh: the cloud in clouds/)")
+                "(spheres, a mesh, a scene: the cloud in clouds/)")
 
 
 @dataclass(frozen=True)
@@ -74,12 +77,16 @@ class DepthSession:
     #: the pose table's rows as written, with their declaration (None without a pose table)
     pose_input: RobotPoseInput | None = None
     unknowns: dict[str, str] = field(default_factory=dict)  #: session.yaml's ``unknowns:`` (hold, free or auto by name)
+    #: whatever the camera sees as the target (``type: scene``): no target, no mesh
+    scene: SceneTarget | None = None
 
     @property
     def kind(self) -> str:
-        """What the clouds hold: 'spheres', 'mesh', 'arm' or 'board'."""
+        """What the clouds hold: 'spheres', 'mesh', 'arm', 'scene' or 'board'."""
         if self.radii is not None:
             return "spheres"
+        if self.scene is not None:
+            return "scene"
         return "mesh" if self.mesh is not None else "arm" if self.arm_target is not None else "board"
 
 
@@ -104,6 +111,35 @@ class ArmTarget:
     finger_opening: float = 0.0
 
 
+@dataclass(frozen=True)
+class SceneTarget:
+    """Whatever the camera sees as the target (``target: {type: scene}``): no board, no mesh; X from
+    the views' clouds agreeing through the robot (:mod:`handeye.pipelines.scene`). ``fit_depth``
+    (``depth_scale: fit``): the depth's scale and bias fitted with X, else held at 1 and 0."""
+
+    fit_depth: bool = False
+
+
+#: The keys of a scene target.
+SCENE_KEYS = ("type", "depth_scale")
+
+
+def _scene(target: Any, where: str) -> SceneTarget | None:
+    """The scene target of ``target`` (None for another type), checked: its keys, the depth's scale
+    held (``depth_scale: hold``, the default) or fitted (``depth_scale: fit``)."""
+    if not isinstance(target, dict) or str(target.get("type", "")).lower() != "scene":
+        return None
+    unknown = sorted(set(target) - set(SCENE_KEYS))
+    if unknown:
+        raise SessionError(f"{where}: target: unknown key(s) {', '.join(unknown)} for a scene (keys: {', '.join(SCENE_KEYS)}; "
+                           "a scene needs nothing else: its clouds and the robot's poses are the calibration)")
+    depth = str(target.get("depth_scale", "hold")).lower()
+    if depth not in ("hold", "fit"):
+        raise SessionError(f"{where}: target: depth_scale is hold (1 and 0, the default) or fit (the depth's scale and "
+                           f"bias fitted with X), got {target.get('depth_scale')!r}")
+    return SceneTarget(depth == "fit")
+
+
 #: The keys of an arm target.
 ARM_KEYS = ("type", "hand", "finger_opening")
 
@@ -115,7 +151,8 @@ def _arm_target(target: Any, setup: str, spec: dict, where: str) -> ArmTarget | 
         return None
     unknown = sorted(set(target) - set(ARM_KEYS))
     if unknown:
-        raise SessionError(f"{where}: target: unknown key(s) {', '.join(unknown)} for the arm (keys: {', '.join(ARM_KEYS)})")
+        raise SessionError(f"{where}: target: unknown key(s) {', '.join(unknown)}{_did_you_mean(unknown, ARM_KEYS)} for the "
+                           f"arm (keys: {', '.join(ARM_KEYS)})")
     if setup_info(setup).camera_on_flange:
         raise SessionError(f"{where}: target: arm is the arm seen by a depth camera fixed in the cell: setup: eye_to_hand "
                            f"(got {setup})")
@@ -131,15 +168,22 @@ def arm_hand(target: dict, where: str) -> tuple[bool, float]:
     default true) and the gap between its fingers (``finger_opening``, metres, default 0), checked."""
     hand = target.get("hand", True)
     if not isinstance(hand, bool):
-        raise SessionError(f"{where}: target: hand is true (the maker's gripper on the flange) or false, got {hand!r}")
+        raise SessionError(f"{where}: target: hand is true (the maker's gripper on the flange) or false, got {shown(hand)}")
     try:
         opening = float(target.get("finger_opening", 0.0))
     except (TypeError, ValueError):
         opening = float("nan")
     if not 0.0 <= opening <= 0.1:
         raise SessionError(f"{where}: target: finger_opening is the gap between the fingers in metres (0 to 0.08 for the "
-                           f"Franka Hand), got {target.get('finger_opening')!r}")
+                           f"Franka Hand), got {shown(target.get('finger_opening'))}")
     return hand, opening
+
+
+def _did_you_mean(unknown: list[str], known: tuple[str, ...]) -> str:
+    """`` (did you mean 'unit'?)`` for the known keys nearest to ``unknown`` ones (a typo), as the
+    other session keys' messages have it; empty when none is near."""
+    near = [m[0] for m in (difflib.get_close_matches(str(u), known, n=1, cutoff=0.5) for u in unknown) if m]
+    return f" (did you mean {', '.join(repr(n) for n in dict.fromkeys(near))}?)" if near else ""
 
 
 #: The keys of a mesh target (besides the placement's, ``pose_in_flange`` or ``pose_in_base``).
@@ -160,7 +204,7 @@ def _placement(value: Any, unit: str, where: str) -> NDArray[np.float64]:
             and np.allclose(a[3], [0, 0, 0, 1]):
         return make_transform(a[:3, :3], a[:3, 3] * factor)
     raise SessionError(f"{where}: the shape's placement is a 4x4 rigid transform or [x, y, z, rx, ry, rz] (translation in "
-                       f"the mesh's unit {unit}, rotation vector in degrees), got {value!r}")
+                       f"the mesh's unit {unit}, rotation vector in degrees), got {shown(value)}")
 
 
 def _mesh(target: Any, folder: Path, setup: str, where: str) -> MeshTarget | None:
@@ -174,15 +218,16 @@ def _mesh(target: Any, folder: Path, setup: str, where: str) -> MeshTarget | Non
     if unknown:
         hint = f" ({', '.join(other)} is the other setup's: with setup {setup} the shape's placement is {key})" \
             if set(unknown) & other else ""
-        raise SessionError(f"{where}: target: unknown key(s) {', '.join(unknown)} for a mesh (keys: "
+        raise SessionError(f"{where}: target: unknown key(s) {', '.join(unknown)}"
+                           f"{_did_you_mean(sorted(set(unknown) - other), MESH_KEYS + (key,))} for a mesh (keys: "
                            f"{', '.join(MESH_KEYS + (key,))}){hint}")
     if not target.get("file"):
         raise SessionError(f"{where}: target: a mesh needs its file (file: flange.stl, beside session.yaml)")
     unit = str(target.get("unit", ""))
     if unit not in ("m", "mm"):
         raise SessionError(f"{where}: target: a mesh's unit is m or mm (the unit its file's coordinates are in), got "
-                           f"{target.get('unit')!r}")
-    path = folder / str(target["file"])
+                           f"{shown(target.get('unit'))}")
+    path = session_file(folder, folder / str(target["file"]), "the mesh file")
     if not path.is_file():
         raise SessionError(f"{where}: target: no mesh file {path}")
     placement = None if target.get(key) is None else _placement(target[key], unit, f"{where}: target: {key}")
@@ -200,7 +245,7 @@ def _radii(target: Any, where: str) -> list[float] | None:
     d = target.get("diameter", target.get("diameters"))
     values = np.atleast_1d(np.asarray(d, dtype=float)) if d is not None else np.array([])
     if len(values) == 0 or not np.isfinite(values).all() or np.any(values <= 0):
-        raise SessionError(f"{where}: target: a sphere needs its diameter (metres; several: a list), got {d!r}")
+        raise SessionError(f"{where}: target: a sphere needs its diameter (metres; several: a list), got {shown(d)}")
     if np.any(values > 1.0):
         raise SessionError(f"{where}: target: sphere diameter {values.max():g} m: give it in metres (e.g. 0.05)")
     if len(values) > 1 and np.min(np.diff(np.sort(values))) < 0.005:
@@ -214,16 +259,16 @@ def _depth_spec(spec: Any, where: str) -> tuple[str, tuple[float, float] | None]
         raise SessionError(f"{where}: depth must be a mapping (unit: m | mm, range: [near, far] in metres)")
     unit = str(spec.get("unit", "m"))
     if unit not in ("m", "mm"):
-        raise SessionError(f"{where}: depth: unit is m or mm, not {unit!r}")
+        raise SessionError(f"{where}: depth: unit is m or mm, not {shown(unit)}")
     rng = spec.get("range")
     if rng is None:
         return unit, None
     try:
         lo, hi = (float(v) for v in rng)
     except (TypeError, ValueError):
-        raise SessionError(f"{where}: depth: range is [near, far] in metres, got {rng!r}") from None
+        raise SessionError(f"{where}: depth: range is [near, far] in metres, got {shown(rng)}") from None
     if not 0 <= lo < hi or hi > 50:
-        raise SessionError(f"{where}: depth: range [near, far] must be metres with near < far, got {rng!r}")
+        raise SessionError(f"{where}: depth: range [near, far] must be metres with near < far, got {shown(rng)}")
     return unit, (lo, hi)
 
 
@@ -231,9 +276,9 @@ def _clouds_of(folder: Path, names: list[str], table: Path) -> list[Path]:
     """Per view the cloud in ``clouds/`` named ``name`` (spheres) or with the image's stem (boards)."""
     clouds = folder / "clouds"
     out = []
-    for found, name in zip(files_of_views(clouds, names, CLOUD_SUFFIXES), names):
+    for found, name in zip(files_of_views(clouds, names, CLOUD_SUFFIXES, folder), names):
         if found is None:
-            raise SessionError(f"{table}: no cloud for {name!r} in {clouds} (expected {Path(name).stem}.npy, .ply or .pcd)")
+            raise SessionError(f"{table}: no cloud for {shown(name)} in {clouds} (expected {Path(name).stem}.npy, .ply or .pcd)")
         out.append(found)
     return out
 
@@ -260,38 +305,41 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
     radii = _radii(target, where)
     mesh = _mesh(target, folder, setup, where)
     arm_target = _arm_target(target, setup, spec, where)
-    board = radii is None and mesh is None and arm_target is None
+    scene = _scene(target, where)
+    board = radii is None and mesh is None and arm_target is None and scene is None
     if board:
         target_from_spec(target, where=f"{where}: target")
     unit, working = _depth_spec(spec["depth"], where)
     K, dist = read_camera(spec.get("camera"), where)
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("image", "cloud")) if spec.get("joints") else None
-    if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
+    posed = not (spec.get("poses") is None and joints is not None)
+    if not posed:  # joint angles alone: the nominal table's flange poses
         names, table, f2b, pose_input = joints[0], joints[3], joints[2].forward(joints[1]), None
     else:
         f2b, names, table, pose_input = read_robot_poses(folder, spec.get("poses"), where, notes, ("image", "cloud"),
                                                          FIRST_COLUMN)
-    q = None if joints is None else joints_of_views(joints, names)
+    q = None if joints is None else joints_of_views(joints, names, f2b if posed else None, notes)
     clouds = _clouds_of(folder, names, table)
     images = None
     if board:
-        images = [folder / "images" / n for n in names]
+        images = [session_file(folder, folder / "images" / n, f"the image of {shown(n)}") for n in names]
         missing = [str(p.name) for p in images if not p.is_file()]
         if missing:
             raise SessionError(f"{folder / 'images'}: image file(s) missing: {', '.join(missing[:10])}")
     return DepthSession(folder, setup, dict(target), list(names), clouds, images, f2b, K, dist, unit, working, radii, notes,
                         None if joints is None else q, None if joints is None else joints[2],
-                        None if joints is None else joints[3], mesh, arm_target, pose_input, read_unknowns(spec, where))
+                        None if joints is None else joints[3], mesh, arm_target, pose_input, read_unknowns(spec, where),
+                        scene)
 
 
 #: The keys of a rig's depth camera (:mod:`handeye.io.rig_session`).
 RIG_DEPTH_KEYS = ("depth", "camera", "clouds", "images", "target")
 
 
-def _files_of(folder: Path, names: list[str], suffixes) -> list[Path]:
-    """Per view its file in ``folder`` with one of ``suffixes``; a path that does not exist when
-    there is none (a view the sensor missed)."""
-    return [found or folder / (name + suffixes[0]) for found, name in zip(files_of_views(folder, names, suffixes), names)]
+def _files_of(root: Path, folder: Path, names: list[str], suffixes) -> list[Path]:
+    """Per view its file in ``folder`` (inside the session folder ``root``) with one of ``suffixes``;
+    a path that does not exist when there is none (a view the sensor missed)."""
+    return [found or folder / (name + suffixes[0]) for found, name in zip(files_of_views(folder, names, suffixes, root), names)]
 
 
 def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[np.float64], block: dict, name: str,
@@ -304,8 +352,8 @@ def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[n
     one it did not see. Raises :class:`SessionError` naming the key."""
     unit, working = _depth_spec(block.get("depth"), where)
     radii = _radii(target, where)
-    if isinstance(target, dict) and str(target.get("type", "")).lower() in ("mesh", "arm"):
-        raise SessionError(f"{where}: target: a {target['type']} target is not taken in a rig yet: calibrate that depth "
+    if isinstance(target, dict) and str(target.get("type", "")).lower() in ("mesh", "arm", "scene"):
+        raise SessionError(f"{where}: target: a {cut(str(target['type']), 40)} target is not taken in a rig yet: calibrate that depth "
                            "camera in a depth session of its own (a board or spheres are taken here)")
     if radii is None:
         target_from_spec(target, where=f"{where}: target")
@@ -313,9 +361,10 @@ def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[n
     clouds = folder / str(block.get("clouds", name))
     images = folder / str(block.get("images", block.get("clouds", name)))
     for sub, what in [(clouds, "clouds")] + ([] if radii is not None else [(images, "intensity images")]):
+        session_file(folder, sub, f"its {what}' folder")
         if not sub.is_dir():
             raise SessionError(f"{where}: no folder {sub} (its {what}, named by view: v01{'.npy' if what == 'clouds' else '.png'}, ...)")
-    cloud_paths = _files_of(clouds, names, CLOUD_SUFFIXES)
-    image_paths = None if radii is not None else _files_of(images, names, IMAGE_ORDER)
+    cloud_paths = _files_of(folder, clouds, names, CLOUD_SUFFIXES)
+    image_paths = None if radii is not None else _files_of(folder, images, names, IMAGE_ORDER)
     return DepthSession(folder, setup, dict(target or {}), list(names), cloud_paths, image_paths, flange2base, K, dist, unit,
                         working, radii)

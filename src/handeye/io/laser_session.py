@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._shared.text import shown
 from ..errors import SessionError
 from ..frames.poses import RobotPoseInput
 from ..frames.setups import check_setup
@@ -55,6 +56,7 @@ from .session import (
     read_robot_poses,
     read_session_yaml,
     read_unknowns,
+    session_file,
 )
 
 __all__ = ["LaserSession", "is_laser_session", "load_laser_session", "rig_laser", "LASER_KEYS", "TARGET_TYPES"]
@@ -109,16 +111,16 @@ def _laser_spec(spec: Any, where: str) -> tuple[str, tuple[float, float] | None,
     check_keys(spec, LASER_KEYS, f"{where}: laser")
     unit = str(spec.get("unit", ""))
     if unit not in ("m", "mm"):
-        raise SessionError(f"{where}: laser: unit is m or mm (the profiles' unit), not {unit!r}")
+        raise SessionError(f"{where}: laser: unit is m or mm (the profiles' unit), not {shown(unit)}")
     f = 1e-3 if unit == "mm" else 1.0
     rng = None
     if spec.get("range") is not None:
         try:
             lo, hi = (float(v) for v in spec["range"])
         except (TypeError, ValueError):
-            raise SessionError(f"{where}: laser: range is [near, far] along z, in {unit}; got {spec['range']!r}") from None
+            raise SessionError(f"{where}: laser: range is [near, far] along z, in {unit}; got {shown(spec['range'])}") from None
         if not lo < hi:
-            raise SessionError(f"{where}: laser: range [near, far] needs near < far, got {spec['range']!r}")
+            raise SessionError(f"{where}: laser: range [near, far] needs near < far, got {shown(spec['range'])}")
         rng = (f * lo, f * hi)
     noise = float(spec.get("noise", LASER_NOISE_M / f)) * f
     if not 0 < noise < 0.01:
@@ -136,7 +138,7 @@ def _target(target: Any, where: str) -> tuple[str, float | None, tuple[float, ..
     kind = str(target.get("type", ""))
     if kind not in TARGET_TYPES:
         raise SessionError(f"{where}: target: a laser session scans a {', a '.join(TARGET_TYPES[:-1])} or "
-                           f"{TARGET_TYPES[-1]}, not {kind!r}")
+                           f"{TARGET_TYPES[-1]}, not {shown(kind)}")
     check_keys(target, TARGET_KEYS[kind], f"{where}: target ({kind})")
     if kind == "spheres":
         return kind, None, _radii(target, where)
@@ -152,15 +154,15 @@ def _radii(target: dict, where: str) -> tuple[float, ...]:
             raise SessionError(f"{where}: target (spheres): {spelling}, not both")
         values = target["diameters"]
         if not isinstance(values, (list, tuple)) or len(values) < 2:
-            raise SessionError(f"{where}: target (spheres): diameters {values!r}: {spelling}; one ball is type: sphere")
+            raise SessionError(f"{where}: target (spheres): diameters {shown(values)}: {spelling}; one ball is type: sphere")
         if any(d is None for d in values):
-            raise SessionError(f"{where}: target (spheres): diameters {values!r}: give every ball's diameter (metres)")
+            raise SessionError(f"{where}: target (spheres): diameters {shown(values)}: give every ball's diameter (metres)")
         return tuple(float(_radius({"diameter": d}, where)) for d in values)
     if target.get("count") is None or target.get("diameter") is None:
         raise SessionError(f"{where}: target (spheres): {spelling}")
     count = target["count"]
     if isinstance(count, bool) or not isinstance(count, int) or count < 2:
-        raise SessionError(f"{where}: target (spheres): count {count!r}: the number of balls, 2 or more (one ball is "
+        raise SessionError(f"{where}: target (spheres): count {shown(count)}: the number of balls, 2 or more (one ball is "
                            "type: sphere)")
     return (float(_radius(target, where)),) * count
 
@@ -171,7 +173,7 @@ def _radius(target: dict, where: str) -> float | None:
     try:
         d = float(target["diameter"])
     except (TypeError, ValueError):
-        raise SessionError(f"{where}: target: diameter {target['diameter']!r}: give metres, e.g. 0.04") from None
+        raise SessionError(f"{where}: target: diameter {shown(target['diameter'])}: give metres, e.g. 0.04") from None
     if not 0 < d <= 1.0:
         raise SessionError(f"{where}: target: diameter {d:g} m: give it in metres (e.g. 0.04 for 40 mm)")
     return d / 2
@@ -192,13 +194,14 @@ def load_laser_session(folder: str | Path, arm: str | None = None) -> LaserSessi
     unit, working, noise = _laser_spec(spec["laser"], where)
     target, radius, radii = _target(spec.get("target"), where)
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("profile",)) if spec.get("joints") else None
-    if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
+    posed = not (spec.get("poses") is None and joints is not None)
+    if not posed:  # joint angles alone: the nominal table's flange poses
         names, f2b, pose_input = list(joints[0]), joints[2].forward(joints[1]), None
     else:
         f2b, names, _, pose_input = read_robot_poses(folder, spec.get("poses"), where, notes, ("profile",),
                                          "'profile', naming each pose's profile file in profiles/")
-    q = None if joints is None else joints_of_views(joints, names)
-    paths = _profiles_of(folder / "profiles", names)
+    q = None if joints is None else joints_of_views(joints, names, f2b if posed else None, notes)
+    paths = _profiles_of(folder, folder / "profiles", names)
     return LaserSession(folder, setup, dict(spec["target"]), list(names), paths, f2b, unit, working, noise, radius, notes,
                         q, None if joints is None else joints[2], None if joints is None else joints[3], target, radii,
                         pose_input, read_unknowns(spec, where))
@@ -211,14 +214,15 @@ def rig_laser(folder: Path, setup: str, names: list[str], flange2base: NDArray[n
     with no file is one it did not see) and its ``target``, checked as a laser session's are."""
     unit, working, noise = _laser_spec(laser, where)
     kind, radius, radii = _target(target, where)
+    session_file(folder, profiles, "its profiles' folder")
     if not profiles.is_dir():
         raise SessionError(f"{where}: no folder {profiles} (its profiles, named by view: v01.csv, ...)")
-    paths = _profiles_of(profiles, names)
+    paths = _profiles_of(folder, profiles, names)
     return LaserSession(folder, setup, dict(target), list(names), paths, flange2base, unit, working, noise, radius, [],
                         target=kind, radii=radii)
 
 
-def _profiles_of(folder: Path, names: list[str]) -> list[Path]:
-    """Per view its profile in ``folder`` (:func:`~handeye.io.session.files_of_views`); a path that
-    does not exist for a view without one (the reader names it)."""
-    return [found or folder / name for found, name in zip(files_of_views(folder, names, PROFILE_SUFFIXES), names)]
+def _profiles_of(root: Path, folder: Path, names: list[str]) -> list[Path]:
+    """Per view its profile in ``folder`` (:func:`~handeye.io.session.files_of_views`, inside the
+    session folder ``root``); a path that does not exist for a view without one (the reader names it)."""
+    return [found or folder / name for found, name in zip(files_of_views(folder, names, PROFILE_SUFFIXES, root), names)]

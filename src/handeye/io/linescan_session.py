@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._shared.text import shown, summarize
 from ..errors import InputMismatchError, SessionError
 from ..frames.poses import RobotPoseInput
 from ..frames.setups import check_setup
@@ -60,6 +61,7 @@ from .session import (
     read_session_yaml,
     read_unknowns,
     robot_pose_input,
+    session_file,
     time_unit_scale,
 )
 
@@ -95,6 +97,8 @@ class LineScanSession:
     #: without joints: the pose table's rows as written, with their declaration
     pose_input: RobotPoseInput | None = None
     unknowns: dict[str, str] = field(default_factory=dict)  #: session.yaml's ``unknowns:`` (hold, free or auto by name)
+    #: scans left out as the session was read, with why (a scan whose time lies outside the trajectory)
+    skipped: list[tuple[str, str]] = field(default_factory=list)
 
     @property
     def input_files(self) -> list[Path]:
@@ -113,7 +117,7 @@ def _positive(spec: dict, key: str, where: str, what: str) -> float:
     except KeyError:
         raise SessionError(f"{where}: linescan: {key} is missing: {what}") from None
     except (TypeError, ValueError):
-        raise SessionError(f"{where}: linescan: {key} {spec[key]!r} is not a number: {what}") from None
+        raise SessionError(f"{where}: linescan: {key} {shown(spec[key])} is not a number: {what}") from None
     if not value > 0 or not np.isfinite(value):
         raise SessionError(f"{where}: linescan: {key} {value:g}: {what}, a positive number")
     return value
@@ -171,18 +175,23 @@ def load_linescan_session(folder: str | Path, arm: str | None = None) -> LineSca
             notes.append(_poses_against_joints(flange_poses_of(values, poses, table, where), pose_times, times, joints,
                                                chain, joints_path))
     names, starts, _ = read_image_times(folder, spec.get("images"), where, notes)
-    paths = [folder / "images" / n for n in names]
+    paths = [session_file(folder, folder / "images" / n, f"the scan {shown(n)}") for n in names]
     missing = [p.name for p in paths if not p.is_file()]
     if missing:
         raise SessionError(f"{folder / 'images'}: scan image(s) missing: {', '.join(missing[:10])}")
-    outside = [n for n, t in zip(names, starts) if not times[0] - 1.0 <= t <= times[-1] + 1.0]
-    if outside:
+    starts = np.asarray(starts, float)
+    inside = (starts >= times[0] - 1.0) & (starts <= times[-1] + 1.0)
+    if not inside.any():  # every scan: the clocks or the files disagree, not one scan
         raise SessionError(f"{trajectory}: the trajectory runs {times[0]:.3f}-{times[-1]:.3f} s; the scans "
-                           f"{', '.join(outside[:5])} start outside it: give the trajectory around every scan, on a clock "
+                           f"{summarize(names)} start outside it: give the trajectory around every scan, on a clock "
                            "within a fraction of a second of the camera's (images.csv's time)")
-    return LineScanSession(folder, setup, dict(spec["target"]), list(names), paths, np.asarray(starts, float), times, f2b,
-                           int(width), line_rate, focal, noise, notes, joints, chain, joints_path, pose_input,
-                           read_unknowns(spec, where))
+    span = "-".join(f"{v:.3f}".replace("-0.000", "0.000") for v in (times[0], times[-1]))
+    skipped = [(n, f"starts at {t:.3f} s, outside the trajectory ({span} s): no robot pose for it")
+               for n, t, ok in zip(names, starts, inside) if not ok]
+    keep = np.flatnonzero(inside)
+    return LineScanSession(folder, setup, dict(spec["target"]), [names[k] for k in keep], [paths[k] for k in keep],
+                           starts[keep], times, f2b, int(width), line_rate, focal, noise, notes, joints, chain, joints_path,
+                           skipped=skipped, pose_input=pose_input, unknowns=read_unknowns(spec, where))
 
 
 def _poses_against_joints(flange2base: NDArray[np.float64], pose_times: NDArray[np.float64], times: NDArray[np.float64],
@@ -196,6 +205,7 @@ def _poses_against_joints(flange2base: NDArray[np.float64], pose_times: NDArray[
                            f"{pose_times[0]:.3f}-{pose_times[-1]:.3f} s: give both on the robot's clock")
     q = joints_at(times, joints, pose_times[inside])
     try:
-        return check_joints_against_poses(chain, q, flange2base[inside], f"{path.name}'s joint angles")
+        return check_joints_against_poses(chain, q, flange2base[inside], f"{path.name}'s joint angles",
+                                          names=[f"the pose at {s:.3f} s" for s in pose_times[inside]])
     except InputMismatchError as exc:
         raise SessionError(f"{path}: {exc}") from None

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..errors import SessionError
-from ..frames.setups import check_setup
+from ..frames.setups import check_setup, pose_name
 from ..result import Calibration, Diagnostics, HeldOutErrors, Observability, SensorFit, StreamSync, Unobservable
 from .session import load_yaml
 
@@ -88,9 +88,19 @@ def _sensor(data: dict) -> SensorFit | None:
         return None
     held = s.get("heldout_mm")
     return SensorFit(s["kind"], s["target"], list(s["views"]), np.asarray(s["residual_mm"], float), float(s["fit_rms_mm"]),
-                     dict(s.get("figures") or {}), int(s.get("points", 0)), int(s.get("rejected_points", 0)),
+                     _rig_poses_renamed(dict(s.get("figures") or {})), int(s.get("points", 0)), int(s.get("rejected_points", 0)),
                      None if held is None else np.array([np.nan if v is None else v for v in held], float),
                      unknowns=list(s.get("unknowns") or []))
+
+
+def _rig_poses_renamed(figures: dict) -> dict:
+    """A rig's relative poses keyed as they are now (``cam1_to_cam0``), read from a result that keyed
+    them ``cam12cam0`` (handeye 0.1's; read so for one release)."""
+    sensors, relative = figures.get("sensors"), figures.get("relative")
+    if not isinstance(sensors, list) or not sensors or not isinstance(relative, dict):
+        return figures
+    old = {f"{a}2{sensors[0]}": pose_name(a, sensors[0]) for a in sensors[1:]}
+    return dict(figures, relative={old.get(k, k) if old.get(k) not in relative else k: v for k, v in relative.items()})
 
 
 def _unobservable(data: dict) -> Observability:

@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._shared.text import summarize
+from .._shared.text import cut, summarize
 from ..errors import SessionError
 from ..frames.poses import RobotPoseInput
 from ..frames.setups import check_setup
@@ -68,6 +68,7 @@ from .session import (
     read_robot_poses,
     read_session_yaml,
     read_unknowns,
+    session_file,
 )
 
 __all__ = ["RigSession", "RigSensor", "load_rig_session", "is_rig_session", "SENSOR_KEYS", "IMAGE_SUFFIXES"]
@@ -164,10 +165,10 @@ def _camera(folder: Path, name: str, block: dict, names: list[str], target: Any,
     K, dist = read_camera(block["camera"], at)
     if K is None:
         raise SessionError(f"{at}: camera: K is missing")
-    images = folder / str(block.get("images", name))
+    images = session_file(folder, folder / str(block.get("images", name)), "its images' folder")
     if not images.is_dir():
         raise SessionError(f"{at}: no folder {images} (its images, named by view)")
-    return RigSensor(name, K, np.zeros(5) if dist is None else dist, files_of_views(images, names, IMAGE_SUFFIXES),
+    return RigSensor(name, K, np.zeros(5) if dist is None else dist, files_of_views(images, names, IMAGE_SUFFIXES, folder),
                      target_spec=dict(target or {}))
 
 
@@ -188,13 +189,14 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
     if any(isinstance(b, dict) and not {"laser", "depth"} & set(b) for b in sensors.values()):  # the cameras' board
         target_from_spec(spec.get("target"), where=f"{where}: target")
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("view",)) if spec.get("joints") else None
-    if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal table's flange poses
+    posed = not (spec.get("poses") is None and joints is not None)
+    if not posed:  # joint angles alone: the nominal table's flange poses
         names, f2b, pose_input = list(joints[0]), joints[2].forward(joints[1]), None
     else:
         f2b, names, _, pose_input = read_robot_poses(folder, spec.get("poses"), where, notes, ("view",), "view")
     out = []
     for name, block in sensors.items():
-        at = f"{where}: sensors: {name}"
+        at = f"{where}: sensors: {cut(str(name), 80)}"
         if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]*", str(name)):
             raise SessionError(f"{at}: a sensor's name may hold letters, digits, '_', '-' and '.' (it names the sensor's "
                                "folder of results and its ROS frame); rename it")
@@ -219,7 +221,7 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
             what = {"laser": "profile", "depth": "cloud", "camera": "image"}[out[-1].kind]
             notes.append(f"sensor {name}: no {what} for {len(missing)} of {len(names)} views ({summarize(missing)}): those "
                          "views are not its")
-    q = None if joints is None else joints_of_views(joints, names)
+    q = None if joints is None else joints_of_views(joints, names, f2b if posed else None, notes)
     return RigSession(folder, setup, dict(spec.get("target") or {}), list(names), f2b, out, notes, q,
                       None if joints is None else joints[2], None if joints is None else joints[3], pose_input,
                       read_unknowns(spec, where))

@@ -46,9 +46,9 @@ from numpy.typing import NDArray
 
 from .._shared.io import atomic_write, read_text
 from .._shared.lazy import lazy_module
-from .._shared.text import summarize
+from .._shared.text import cut, shown, summarize
 from ..errors import HandEyeError, InputMismatchError, PoseFormatError, SessionError
-from ..frames.poses import RobotPoseInput, format_poses, matrix_layout, parse_poses, pose_columns
+from ..frames.poses import RobotPoseInput, format_poses, matrix_layout, parse_poses, pose_columns, vendor_columns
 from ..frames.setups import check_setup
 from ..geometry.se3 import invert
 from ..robot.kinematics import Chain, check_joints_against_poses, load_arm
@@ -63,8 +63,8 @@ __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
            "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session", "write_joint_table",
            "load_joint_stream", "load_camera_stream", "write_joint_stream", "read_image_times", "time_unit_scale",
-           "parsed_poses", "pose_table_path", "flange_poses_of", "files_of_views", "IMAGE_ORDER", "robot_pose_input",
-           "read_unknowns", "UNKNOWN_MODES"]
+           "parsed_poses", "pose_table_path", "flange_poses_of", "files_of_views", "session_file", "IMAGE_ORDER",
+           "robot_pose_input", "read_unknowns", "UNKNOWN_MODES"]
 
 POSEPAIRS_FILE = "posepairs.yaml"
 SESSION_FILE = "session.yaml"
@@ -78,11 +78,36 @@ IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".pp
 IMAGE_ORDER = tuple(sorted(IMAGE_SUFFIXES, key=lambda x: (x != ".png", x)))
 
 
-def files_of_views(folder: Path, names: Sequence[str], suffixes: Sequence[str]) -> list[Path | None]:
+def session_file(root: Path, path: str | Path, what: str) -> Path:
+    """``path`` (a file or folder a session names, joined to its folder ``root``: ``root / name``)
+    checked to lie inside ``root`` once ``..`` and every symlink are resolved; returned as given. A
+    session read from elsewhere (a colleague's, a download) must not make handeye open, quote or
+    use a file beside or above it (``../../etc/passwd`` as a profile, a link to a key file as an
+    image): anything outside is a :class:`SessionError` naming the file and the rule, before the
+    file is opened. ``what``: the file in words."""
+    path = Path(path)
+    inside = Path(root).resolve()
+    try:
+        resolved = path.resolve()
+    except (OSError, RuntimeError):  # a symlink loop
+        resolved = None
+    if resolved is None or (resolved != inside and inside not in resolved.parents):
+        to = "" if resolved is None else f" (it resolves to {cut(resolved)})"
+        raise SessionError(f"{cut(path)}: {what} lies outside the session folder {root}{to}: a session reads only "
+                           "files inside its own folder, '..' and symbolic links resolved; copy the file into the folder")
+    return path
+
+
+def files_of_views(folder: Path, names: Sequence[str], suffixes: Sequence[str], root: Path | None = None
+                   ) -> list[Path | None]:
     """Per view of ``names`` its file in ``folder``: the name itself when it ends in one of
     ``suffixes``, else the name or its stem followed by the first of ``suffixes`` (in their order)
     there is a file for, the suffix in any case (``v01`` or ``v01.png`` finds ``v01.PLY``); None
-    for a view without one (a view the sensor missed). The folder is listed once."""
+    for a view without one (a view the sensor missed). The folder is listed once. Each file found
+    lies inside the session folder ``root`` (default ``folder``; :func:`session_file`): a link to
+    elsewhere is an error."""
+    root = folder if root is None else root
+    session_file(root, folder, "the folder of the views' files")
     order = [str(x).lower() for x in suffixes]
     listing: dict[tuple[str, str], Path] = {}
     if folder.is_dir():
@@ -92,9 +117,12 @@ def files_of_views(folder: Path, names: Sequence[str], suffixes: Sequence[str]) 
     out: list[Path | None] = []
     for name in names:
         own = Path(name)
+        if own.parent != Path() or own.is_absolute():  # a path, not a name: it too stays inside
+            session_file(root, folder / own, f"the file of view {shown(name)}")
         given = [(own.stem, own.suffix.lower())] if own.suffix.lower() in order else []
         tried = given + [(base, suffix) for base in (name, own.stem) for suffix in order]
-        out.append(next((listing[key] for key in tried if key in listing), None))
+        found = next((listing[key] for key in tried if key in listing), None)
+        out.append(None if found is None else session_file(root, found, f"the file of view {shown(name)}"))
     return out
 
 
@@ -201,7 +229,7 @@ def load_session(folder: str | Path, strict_images: bool = True, arm: str | None
     target_from_spec(target_spec, where=f"{where}: target")  # a bad target fails now, before any image work
     K, dist = read_camera(spec.get("camera"), where)
     if arm is not None and spec.get("joints") is None:
-        raise SessionError(f"{where}: arm {arm!r} was given for joint angles, and there is no joints: table (file, "
+        raise SessionError(f"{where}: arm {shown(arm)} was given for joint angles, and there is no joints: table (file, "
                            "unit) to use it with; leave the arm out, or add the joint angles")
     joints = _read_joints(folder, spec.get("joints"), where, notes, arm) if spec.get("joints") is not None else None
     if spec.get("poses") is None and joints is not None:  # joint angles alone: the nominal chain's flange poses
@@ -209,7 +237,7 @@ def load_session(folder: str | Path, strict_images: bool = True, arm: str | None
     poses = _require(spec, "poses", where)
     if not isinstance(poses, dict):
         raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit, angle_unit")
-    csv_path = folder / str(_require(poses, "file", f"{where}: poses"))
+    csv_path = session_file(folder, folder / str(_require(poses, "file", f"{where}: poses")), "the pose table")
     fmt = str(_require(poses, "format", f"{where}: poses"))
     length_unit = str(_require(poses, "length_unit", f"{where}: poses"))
     angle_unit = str(poses.get("angle_unit", "rad"))
@@ -293,11 +321,13 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override
     (``--arm``): the arm to use instead (a name, or a file relative to the current folder)."""
     if not isinstance(spec, dict):
         raise SessionError(f"{where}: joints must be a mapping with file, unit (deg or rad) and arm")
-    path = folder / str(_require(spec, "file", f"{where}: joints"))
+    path = session_file(folder, folder / str(_require(spec, "file", f"{where}: joints")), "the joints table")
     unit = str(_require(spec, "unit", f"{where}: joints"))
     if unit not in ("deg", "rad"):
-        raise SessionError(f"{where}: joints: unit {unit!r}; use deg or rad")
+        raise SessionError(f"{where}: joints: unit {shown(unit)}; use deg or rad")
     arm_name = str(override if override is not None else _require(spec, "arm", f"{where}: joints"))
+    if override is None and arm_name.lower().endswith((".urdf", ".yaml", ".yml")):  # the session's own file: inside it
+        session_file(folder, folder / arm_name, "the arm's table")
     try:
         arm = _arm_chain(arm_name, Path() if override is not None else folder, spec.get("base_link"), spec.get("tip_link"))
     except InputMismatchError as exc:
@@ -306,7 +336,7 @@ def _read_joints(folder: Path, spec: Any, where: str, notes: list[str], override
         notes.append(f"joint angles read with the arm given ({arm.name}), not session.yaml's ({spec.get('arm')})")
     pendant = spec.get("pendant", False)
     if not isinstance(pendant, bool):
-        raise SessionError(f"{where}: joints: pendant {pendant!r}; use true (the angles as the teach pendant shows them) "
+        raise SessionError(f"{where}: joints: pendant {shown(pendant)}; use true (the angles as the teach pendant shows them) "
                            "or false")
     names, q = _joint_table(path, arm, unit, id_columns, notes, "write unit: deg under joints:")
     if len(set(names)) != len(names):
@@ -367,7 +397,7 @@ def _joint_table(path: Path, arm: Chain, unit: str, first: tuple[str, ...], note
             try:
                 q[k, j] = float(cell)
             except ValueError:
-                raise SessionError(f"{path}: line {k + 2}, joint {j + 1}: {cell!r} is not a number") from None
+                raise SessionError(f"{path}: line {k + 2}, joint {j + 1}: {shown(cell)} is not a number") from None
     if not len(q):
         raise SessionError(f"{path}: no rows after the header")
     if not np.isfinite(q).all():
@@ -386,7 +416,7 @@ def load_joint_stream(path: str | Path, arm: str | Chain, unit: str = "rad", tim
     (``pendant``: recorded as the teach pendant shows them, converted), the arm's chain and notes
     (how the columns were read)."""
     if unit not in ("deg", "rad"):
-        raise SessionError(f"{path}: joint unit {unit!r}; use deg or rad")
+        raise SessionError(f"{path}: joint unit {shown(unit)}; use deg or rad")
     scale = time_unit_scale({"time_unit": time_unit}, str(path))
     try:
         chain = arm if isinstance(arm, Chain) else _arm_chain(str(arm), Path())
@@ -437,7 +467,8 @@ def _joint_session(folder: Path, setup: str, target_spec, K, dist, joints: _Join
                            + (f"; no joint angles for {summarize(absent)}" if absent else ""))
     q = joints.q[[index[n] for n in posed.image_names]]
     try:
-        finding = check_joints_against_poses(joints.arm, q, posed.flange2base, where=f"{joints.path.name}")
+        finding = check_joints_against_poses(joints.arm, q, posed.flange2base, where=f"{joints.path.name}",
+                                             names=list(posed.image_names))
     except InputMismatchError as exc:
         raise SessionError(f"{folder}: {exc}") from None
     return replace(posed, joints=q, arm=joints.arm, joints_path=joints.path, notes=notes + [finding])
@@ -448,14 +479,15 @@ def _images_named(folder: Path, names: list[str], table: Path,
     """The images a table's rows name in ``folder/images``: each row's path (its name as written
     when no file matches), the names with no file, the images no row names, and how many images
     the folder holds; a row may name an image of any suffix. No images folder: an error."""
-    image_dir = folder / "images"
+    image_dir = session_file(folder, folder / "images", "the images' folder")
     if not image_dir.is_dir():
         raise SessionError(f"{image_dir}: no images folder; the images named in {table.name} go there")
     all_files = sorted(p.name for p in image_dir.iterdir() if p.is_file())
     on_disk = [n for n in all_files if Path(n).suffix.lower() in IMAGE_SUFFIXES]
     files = _match_image_names(names, all_files, notes)
     missing = [n for n, f in zip(names, files) if f is None]
-    paths = [image_dir / (f if f is not None else n) for f, n in zip(files, names)]
+    paths = [session_file(folder, image_dir / (f if f is not None else n), f"the image of {shown(n)}")
+             for f, n in zip(files, names)]
     return paths, missing, sorted(set(on_disk) - set(files)), len(on_disk)
 
 
@@ -463,7 +495,7 @@ def time_unit_scale(spec: dict[str, Any], where: str) -> float:
     """Seconds per unit of a block's ``time_unit`` (default s); an unknown unit is a SessionError."""
     unit = str(spec.get("time_unit", "s"))
     if unit not in TIME_UNITS:
-        raise SessionError(f"{where}: time_unit {unit!r}; use one of {', '.join(TIME_UNITS)}")
+        raise SessionError(f"{where}: time_unit {shown(unit)}; use one of {', '.join(TIME_UNITS)}")
     return TIME_UNITS[unit]
 
 
@@ -480,13 +512,13 @@ def read_image_times(folder: Path, spec: Any, where: str, notes: list[str]
     if not isinstance(spec, dict) or "file" not in spec:
         raise SessionError(f"{where}: the poses are a robot stream (a time column), so the images need their times: "
                            "add images: {file: images.csv} with columns image, time")
-    path = folder / str(spec["file"])
+    path = session_file(folder, folder / str(spec["file"]), "the images' times")
     text = _text_of(path, notes)
     rows = [r for r in csv.reader(io.StringIO(text, newline=""), delimiter=_delimiter(text), skipinitialspace=True)
             if r and any(c.strip() for c in r)]
     header = [c.strip().lower() for c in rows[0]] if rows else []
     if len(header) != 2 or header[0] != "image" or header[1] not in TIME_COLUMNS:
-        raise SessionError(f"{path}: header {header}; expected image, time")
+        raise SessionError(f"{path}: header {cut(str(header), 300)}; expected image, time")
     names, times = [], []
     for k, row in enumerate(rows[1:]):
         if len(row) != 2:
@@ -494,7 +526,7 @@ def read_image_times(folder: Path, spec: Any, where: str, notes: list[str]
         try:
             times.append(float(row[1]))
         except ValueError:
-            raise SessionError(f"{path}: line {k + 2}, column 'time': {row[1].strip()!r} is not a number") from None
+            raise SessionError(f"{path}: line {k + 2}, column 'time': {shown(row[1].strip())} is not a number") from None
         names.append(row[0].strip())
     if not names:
         raise SessionError(f"{path}: no rows after the header")
@@ -557,7 +589,7 @@ def check_keys(mapping: Any, known: tuple[str, ...], where: str) -> None:
     for key in mapping:
         if key not in known:
             near = difflib.get_close_matches(str(key), known, n=1, cutoff=0.5)
-            raise SessionError(f"{where}: unknown key {key!r}" + (f" (did you mean {near[0]!r}?)" if near else "")
+            raise SessionError(f"{where}: unknown key {shown(key)}" + (f" (did you mean {shown(near[0])}?)" if near else "")
                                + f"; the keys there are {', '.join(known)}")
 
 
@@ -611,7 +643,7 @@ def pose_rows_inverted(poses: dict, where: str) -> bool:
     (``pose: base2flange``; the default ``flange2base``: the controller's poses as it reports them)."""
     kind = str(poses.get("pose", "flange2base"))
     if kind not in POSE_KINDS["robot_poses"]:
-        raise SessionError(f"{where}: poses: pose {kind!r}; use flange2base (the default: the controller's poses) or "
+        raise SessionError(f"{where}: poses: pose {shown(kind)}; use flange2base (the default: the controller's poses) or "
                            "base2flange (the table's rows are their inverses)")
     return kind == "base2flange"
 
@@ -642,7 +674,7 @@ def pose_table_path(folder: Path, poses: Any, where: str, what: str = "") -> Pat
     if not isinstance(poses, dict) or not {"file", "format", "length_unit"} <= set(poses):
         raise SessionError(f"{where}: poses must be a mapping with file, format, length_unit (m | mm) and angle_unit "
                            f"(deg | rad){': ' + what if what else ''}")
-    table = folder / str(poses["file"])
+    table = session_file(folder, folder / str(poses["file"]), "the pose table")
     if not table.is_file():
         raise SessionError(f"{table}: no such pose table{f' ({what})' if what else ''}")
     return table
@@ -655,16 +687,28 @@ def flange_poses_of(values: NDArray[np.float64], poses: dict, table: Path, where
     return invert(f2b) if pose_rows_inverted(poses, where) else f2b
 
 
-def joints_of_views(joints: tuple[list[str], NDArray[np.float64], Chain, Path], names: list[str]) -> NDArray[np.float64]:
+def joints_of_views(joints: tuple[list[str], NDArray[np.float64], Chain, Path], names: list[str],
+                    flange2base: NDArray[np.float64] | None = None, notes: list[str] | None = None) -> NDArray[np.float64]:
     """The joint angles of :func:`read_joints` in the order of the views ``names`` (the poses'
-    table's), which both tables must name alike."""
-    j_names, q, _, path = joints
+    table's), which both tables must name alike. With the controller's ``flange2base`` of those
+    views, the two are checked against each other as an image session's are
+    (:func:`~handeye.robot.kinematics.check_joints_against_poses`: another arm, degrees read as
+    radians, the columns reversed, rows swapped, named before any fit), the finding into ``notes``."""
+    j_names, q, arm, path = joints
     index = {n: k for k, n in enumerate(j_names)}
     absent = [n for n in names if n not in index]
     if absent or len(j_names) != len(names):
         raise SessionError(f"{path}: the joint angles and the poses must name the same views: {len(j_names)} and "
                            f"{len(names)} rows" + (f"; no joint angles for {', '.join(absent[:5])}" if absent else ""))
-    return q[[index[n] for n in names]]
+    q = q[[index[n] for n in names]]
+    if flange2base is not None:
+        try:
+            finding = check_joints_against_poses(arm, q, flange2base, where=path.name, names=list(names))
+        except InputMismatchError as exc:
+            raise SessionError(f"{path.parent}: {exc}") from None
+        if notes is not None:
+            notes.append(finding)
+    return q
 
 
 def has_section(folder: str | Path, key: str) -> bool:
@@ -697,14 +741,72 @@ def _unique_mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bool 
 
 _UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _unique_mapping)
 
+#: Values a YAML file's aliases (``*name``) may add to it, expanded: an anchor shared by a few keys is
+#: YAML as people write it; a billion-laughs file (aliases of aliases, 9**9 values from 1 kB) would
+#: make any message quoting a value, or any ``str()`` of it, run for hours.
+MAX_ALIAS_VALUES = 100_000
+_ALIASES = ("a file of settings holds a few hundred values; write them out (an anchor may stand for a block a few times, "
+            "not for aliases of aliases)")
+
+
+def _expanded_size(node: yaml.Node, memo: dict[int, int], active: set[int]) -> int:
+    """The number of values under ``node`` with every alias expanded (``memo``: per node already
+    counted; ``active``: the nodes being counted, an alias to one of them is a loop)."""
+    key = id(node)
+    if key in memo:
+        return memo[key]
+    if key in active:
+        raise SessionError(f"an alias (*name) at line {node.start_mark.line + 1} refers to its own anchor: {_ALIASES}")
+    active.add(key)
+    if isinstance(node, yaml.SequenceNode):
+        size = 1 + sum(_expanded_size(child, memo, active) for child in node.value)
+    elif isinstance(node, yaml.MappingNode):
+        size = 1 + sum(_expanded_size(k, memo, active) + _expanded_size(v, memo, active) for k, v in node.value)
+    else:
+        size = 1
+    active.discard(key)
+    memo[key] = size
+    return size
+
+
+def _bounded_single_node(self: _UniqueKeyLoader) -> yaml.Node | None:
+    """The document's node graph, refused before anything is built from it when its aliases expand
+    it by more than :data:`MAX_ALIAS_VALUES` values, or one refers to itself."""
+    node = yaml.composer.Composer.get_single_node(self)
+    if node is not None:
+        memo: dict[int, int] = {}
+        total = _expanded_size(node, memo, set())
+        if total - len(memo) > MAX_ALIAS_VALUES:
+            raise SessionError(f"its aliases (*name) expand it to {total:,} values: {_ALIASES}")
+    return node
+
+
+_UniqueKeyLoader.get_single_node = _bounded_single_node
+
 
 def load_yaml(path: Path, notes: list[str] | None = None) -> dict[str, Any]:
     """A YAML mapping from ``path`` (any encoding :func:`handeye._shared.io.read_text` reads; how
     it was read goes into ``notes``); one-line errors that name the file and the position."""
     path = Path(path)
-    text = _text_of(path, notes)
+    if path.name in (SESSION_FILE, POSEPAIRS_FILE):  # a folder's description: a link to elsewhere is not its
+        session_file(path.parent, path, "the folder's description")
+    read_as: list[str] = []
+    text = _text_of(path, read_as)
+    if notes is not None:
+        notes.extend(read_as)
     try:
         data = yaml.load(text, Loader=_UniqueKeyLoader)
+    except SessionError as exc:  # aliases beyond reason (:func:`_bounded_single_node`)
+        raise SessionError(f"{path}: {exc}") from None
+    except yaml.reader.ReaderError as exc:  # a character YAML does not take: most often bytes of another encoding
+        line, column = text.count("\n", 0, exc.position) + 1, exc.position - text.rfind("\n", 0, exc.position)
+        code = exc.character if isinstance(exc.character, int) else ord(exc.character)
+        if read_as and "not UTF-8" in read_as[0]:  # the byte that made it so, where it is
+            raise SessionError(f"{path}: not UTF-8 text: byte 0x{code:02X} at line {line}, column {column} is no "
+                               "character (read as Windows-1252 / Latin-1, it is a control code YAML refuses); save the "
+                               "file as UTF-8") from None
+        raise SessionError(f"{path}: character U+{code:04X} at line {line}, column {column} is a control character YAML "
+                           "refuses: remove it, or save the file as UTF-8 text") from None
     except yaml.YAMLError as exc:  # one line: the problem and where
         mark = getattr(exc, "problem_mark", None)
         at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
@@ -766,7 +868,7 @@ def read_pose_table(
     if implicit:  # no header: time, then the pose columns
         if len(header) != len(expected) + 1:
             raise SessionError(f"{path}: no header row, and its {len(header)} values per row are not a time and the "
-                               f"{len(expected)} columns of {fmt!r}: add a header ({', '.join(expected)}, after an "
+                               f"{len(expected)} columns of {shown(fmt)}: add a header ({', '.join(expected)}, after an "
                                "'id' or a 'time' column)")
         header = [TIME_COLUMNS[0]] + expected
         rows = [header] + rows
@@ -779,10 +881,11 @@ def read_pose_table(
     three_by_four = fmt == "matrix" and pose_header == expected[:12]  # 3x4 rows: the bottom row 0 0 0 1 implied
     if three_by_four:
         expected = expected[:12]
+    pose_header = vendor_columns(pose_header, fmt, str(path))  # a robot maker's names for its format: FANUC's w, p, r
     if pose_header != expected:
         stream = not times and rest and rest[0] in TIME_COLUMNS
         raise SessionError(
-            f"{path}: header {header} does not match format {fmt!r}, which needs the columns "
+            f"{path}: header {cut(str(header), 300)} does not match format {shown(fmt)}, which needs the columns "
             f"{', '.join(expected)} (after an '{id_columns[0]}' column)"
             + (f"; its '{rest[0]}' column makes it a stream, which this file's place does not take" if stream else ""))
     decimal_comma = delim != "," and any("," in c for r in rows[1:] for c in r)
@@ -802,7 +905,7 @@ def read_pose_table(
             try:
                 numbers[k, c] = float(cell.replace(",", ".") if decimal_comma else cell)
             except ValueError:
-                raise SessionError(f"{path}: line {line}, column '{names[c]}': {cell!r} is not a number") from None
+                raise SessionError(f"{path}: line {line}, column '{names[c]}': {shown(cell)} is not a number") from None
     if len(numbers) == 0:
         raise SessionError(f"{path}: no pose rows after the header")
     if id_col and any(not i for i in ids):
@@ -877,13 +980,15 @@ def _read_poses(folder: Path, spec: Any, key: str, notes: list[str], where_file:
     if not isinstance(spec, dict):
         raise SessionError(f"{where}: expected a mapping with file, format, length_unit, angle_unit")
     path = folder / str(_require(spec, "file", where))
+    if where_file == POSEPAIRS_FILE:  # a pose-pair folder's own file (streams named on the command line are the user's)
+        session_file(folder, path, f"the {key} table")
     fmt = str(_require(spec, "format", where))
     length_unit = str(_require(spec, "length_unit", where))
     angle_unit = str(spec.get("angle_unit", "rad"))
     kinds = POSE_KINDS[key]
     kind = str(spec.get("pose", kinds[0]))
     if kind not in kinds:
-        raise SessionError(f"{where}: pose {kind!r}; use {kinds[0]} (the default) or {kinds[1]} (rows of the inverse)")
+        raise SessionError(f"{where}: pose {shown(kind)}; use {kinds[0]} (the default) or {kinds[1]} (rows of the inverse)")
     scale = time_unit_scale(spec, where)
     values, ids, times = read_pose_table(path, fmt, notes=notes, times=True, headerless=True)
     T = parsed_poses(values, fmt, length_unit, angle_unit, path)
@@ -1154,7 +1259,7 @@ def write_joint_stream(path: str | Path, times: NDArray[np.float64], joints: NDA
     if q.ndim != 2 or len(times) != len(q):
         raise InputMismatchError(f"{len(times)} times for joint angles of shape {q.shape}")
     if unit not in ("deg", "rad"):
-        raise InputMismatchError(f"joint unit {unit!r}; use deg or rad")
+        raise InputMismatchError(f"joint unit {shown(unit)}; use deg or rad")
     q = np.degrees(q) if unit == "deg" else q
     columns = list(joint_names) if joint_names is not None else [f"joint{k + 1}" for k in range(q.shape[1])]
     if len(columns) != q.shape[1]:

@@ -23,12 +23,23 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.lazy import lazy_module
+from .._shared.text import shown
 from ..errors import InputMismatchError, SessionError
 from ..frames.setups import check_setup, setup_info
 from ..robot.kinematics import Chain
 from ..robot.meshes import ArmMeshes, meshes_for
 from .depth_session import ARM_KEYS, arm_hand
-from .session import CAMERA_KEYS, JOINTS_KEYS, check_keys, check_session_keys, has_section, read_camera, read_joints, read_session_yaml
+from .session import (
+    CAMERA_KEYS,
+    JOINTS_KEYS,
+    check_keys,
+    check_session_keys,
+    has_section,
+    read_camera,
+    read_joints,
+    read_session_yaml,
+    session_file,
+)
 
 cv2 = lazy_module("cv2")
 
@@ -102,8 +113,8 @@ def _target(spec: Any, where: str) -> tuple[bool, float]:
 def _folder(folder: Path, spec: dict, key: str, default: str, where: str) -> Path:
     value = spec.get(key, default)
     if not isinstance(value, str) or not value:
-        raise SessionError(f"{where}: silhouette: {key} is a folder name beside session.yaml, not {value!r}")
-    return folder / value
+        raise SessionError(f"{where}: silhouette: {key} is a folder name beside session.yaml, not {shown(value)}")
+    return session_file(folder, folder / value, f"the {key}' folder")
 
 
 def load_silhouette_session(folder: str | Path, arm: str | None = None) -> SilhouetteSession:
@@ -138,17 +149,18 @@ def load_silhouette_session(folder: str | Path, arm: str | None = None) -> Silho
     try:  # the meshes of the arm whose table this is (a shipped arm's, or one corrected from it)
         meshes = meshes_for(chain, hand=hand, finger_opening=opening)
     except InputMismatchError as exc:
-        raise SessionError(f"{where}: joints: arm {chain.name!r}: {exc}") from None
+        raise SessionError(f"{where}: joints: arm {shown(chain.name)}: {exc}") from None
     mask_dir = _folder(folder, spec["silhouette"], "masks", "masks", where)
     image_dir = _folder(folder, spec["silhouette"], "images", "images", where)
     if not mask_dir.is_dir():
         raise SessionError(f"{where}: silhouette: no masks folder {mask_dir}")
-    masks = [mask_dir / n for n in names]
+    masks = [session_file(folder, mask_dir / n, f"the mask of {shown(n)}") for n in names]
     missing = [p.name for p in masks if not p.is_file()]
     if missing:
         raise SessionError(f"{mask_dir}: mask(s) missing for {', '.join(missing[:10])} (named in {table.name}): give a mask "
                            "per view, named as in the joints table")
-    images = [(image_dir / n) if (image_dir / n).is_file() else None for n in names]
+    images = [session_file(folder, image_dir / n, f"the image of {shown(n)}") for n in names]
+    images = [p if p.is_file() else None for p in images]
     return SilhouetteSession(folder, setup, list(names), masks, images, q, chain, meshes, K,
                              None if dist is None or not np.any(dist) else dist, table, notes)
 
@@ -170,5 +182,9 @@ def read_masks(s: SilhouetteSession) -> NDArray[np.bool_]:
                                f"{out[0].shape[0]}: every view's mask is of the camera's image size")
         if not m.any():
             raise SessionError(f"{mask}: no pixel is set: the arm is not in this view's mask (leave the view out)")
+        if m.all():  # no background: no outline to fit, every distance to it infinite
+            raise SessionError(f"{mask}: every pixel is set: the mask marks the whole image, not the arm's silhouette (a "
+                               "segmentation that failed, or a mask inverted: the arm's pixels are the set ones); leave "
+                               "the view out or segment it again")
         out.append(m)
     return np.array(out)

@@ -11,18 +11,26 @@ from numpy.typing import NDArray
 from ..errors import InputMismatchError
 from ..estimation.core import estimate
 from ..estimation.readings import Reading, check_readings
+from ..frames.poses import RobotPoseInput
 from ..options import CalibrationOptions, options_from
 from ..result import Calibration
 from ..robot.models import ControllerPoses, JointAngles, RobotModel
 from ..sensors.base import SensorModel
 
-__all__ = ["sensor_options", "robot_model", "held_and_freed", "estimate_checked"]
+__all__ = ["sensor_options", "robot_model", "session_robot_input", "why_skipped", "held_and_freed", "estimate_checked"]
 
 #: The options of image and pose sessions that a sensor model's fit has no use for.
 IMAGE_ONLY = ("method", "refine", "pairs", "known", "robot_noise", "compliance", "strict_images", "keyframes",
               "offset_range", "time_offset")
 #: The options a sensor whose robot may be joint angles through the arm's table takes as well.
 TABLE_OPTIONS = ("compliance",)
+
+
+def why_skipped(exc: Exception, path: object) -> str:
+    """Why a view is skipped, from the error its file gave, without the file's path in front (the
+    skip names the view)."""
+    text = str(exc)
+    return text[len(str(path)) + 2:] if text.startswith(f"{path}: ") else text
 
 
 def _given(value: Any, default: Any) -> bool:
@@ -87,3 +95,14 @@ def estimate_checked(model: SensorModel, robot: RobotModel, session: Any, option
                            rebuild)
     hold, free = held_and_freed(session, options)
     return estimate(model, robot, options.folds, hold=hold, free=free, start=start, **kw)
+
+
+def session_robot_input(session: Any, flange2base: NDArray[np.float64]) -> RobotPoseInput | None:
+    """The flange poses a sensor's fit used (``flange2base``) as the session's pose table writes them:
+    the format and units its ``poses:`` block declares (``session.pose_input``). A sensor's
+    calibration carries it as an image session's does, so that result.json gives X and Z in the
+    robot's own format (``robot_format``: a FANUC's x, y, z, w, p, r) for every sensor. None when the
+    session gives joint angles alone (no pose format declared)."""
+    pose_input = getattr(session, "pose_input", None)
+    return None if pose_input is None else pose_input.rewritten(flange2base)
+

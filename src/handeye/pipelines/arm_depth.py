@@ -66,7 +66,7 @@ from ..sensors.depth.clouds import depth_sigma
 from ..sensors.depth.registration import MIN_INLIERS, find_shape
 from ..sensors.depth.shape import voxel_pick
 from ._arm import arm_table, table_tolerance
-from ._sensor import held_and_freed
+from ._sensor import held_and_freed, session_robot_input
 from .mesh import read_scene
 
 __all__ = ["ArmClouds", "arm_of_session", "read_arm_clouds", "start_arm", "pooled_start", "consistent_arm_views", "segment_arm",
@@ -377,7 +377,8 @@ def calibrate_arm_depth_session(s: DepthSession, options: CalibrationOptions, *,
     used = {s.names[c.index[k]] for k in cal.pose_indices}
     figures = dict(cal.sensor.figures, distance_m=[d for k, d in zip(c.index, distances) if s.names[k] in used])
     return replace(cal, sensor=replace(cal.sensor, figures=figures), skipped=list(c.skipped) + list(cal.skipped),
-                   notes=list(s.notes) + c.notes + notes + list(cal.notes), input_folder=s.folder)
+                   notes=list(s.notes) + c.notes + notes + list(cal.notes), input_folder=s.folder,
+                   robot_input=session_robot_input(s, cal.flange2base))
 
 
 def _too_few(s: DepthSession, c: ArmClouds) -> str:

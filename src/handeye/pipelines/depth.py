@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.progress import Progress
-from ..errors import DegenerateMotionError, InputMismatchError
+from ..errors import DegenerateMotionError, InputMismatchError, UnusableViewError
 from ..estimation.core import estimate
 from ..io.depth_session import DepthSession, load_depth_session
 from ..options import ROBOT_ACCURACY, CalibrationOptions
@@ -44,9 +44,10 @@ from ..sensors.camera import detect_images, target_from_spec
 from ..sensors.depth.clouds import check_frame, plane_points, read_cloud
 from ..sensors.depth.model import BoardPoints, SphereCentres
 from ..sensors.depth.spheres import find_spheres
-from ._sensor import estimate_checked, robot_model, sensor_options
+from ._sensor import estimate_checked, robot_model, sensor_options, session_robot_input, why_skipped
 from .arm_depth import calibrate_arm_depth_session
 from .mesh import calibrate_mesh_session
+from .scene import calibrate_scene_session
 
 __all__ = ["calibrate_depth_session", "calibrate_depth", "calibrate_spheres", "measure_depth_session", "DepthViews"]
 
@@ -109,7 +110,11 @@ def _measure_spheres(s: DepthSession, progress: bool) -> DepthViews:
     bar = Progress(len(s.cloud_paths), "finding spheres", progress)
     for k, path in enumerate(s.cloud_paths):
         bar.update()
-        cloud = read_cloud(path, None, s.unit)
+        try:
+            cloud = read_cloud(path, None, s.unit)
+        except UnusableViewError as exc:  # no cloud to look in: this view skipped, named
+            out.skipped.append((s.names[k], why_skipped(exc, path)))
+            continue
         if s.K is not None:
             check_frame(cloud, s.K, s.dist, where=str(path))
         found = find_spheres(cloud, radii, rng=k, where=str(path))
@@ -179,6 +184,8 @@ def calibrate_depth_session(folder: str | Path | DepthSession, options: Calibrat
     s = folder if isinstance(folder, DepthSession) else load_depth_session(folder, arm=opts.arm)
     if s.kind == "mesh":  # a known shape: found in each cloud, then every point against its surface
         return calibrate_mesh_session(s, opts, fit_depth=fit_depth, progress=progress, jobs=jobs)
+    if s.kind == "scene":  # no target: X from the views' clouds agreeing through the robot
+        return calibrate_scene_session(s, opts, progress=progress, jobs=jobs)
     if s.kind == "arm":  # the arm itself (markerless): every point against the arm posed at its joint angles
         if opts.compliance:
             raise InputMismatchError(f"{s.folder}: compliance (--compliance): the arm as its own target is posed by its "
@@ -209,7 +216,8 @@ def _with_session(cal: Calibration, s: DepthSession, v: DepthViews) -> Calibrati
     skipped = list(v.skipped) + list(cal.skipped)
     diag = replace(cal.diagnostics, advice=list(cal.diagnostics.advice) + advice) if advice else cal.diagnostics
     return replace(cal, sensor=replace(cal.sensor, figures=figures), skipped=skipped, diagnostics=diag,
-                   notes=list(s.notes) + list(v.notes) + list(cal.notes), input_folder=s.folder)
+                   notes=list(s.notes) + list(v.notes) + list(cal.notes), input_folder=s.folder,
+                   robot_input=session_robot_input(s, cal.flange2base))
 
 
 def calibrate_depth(flange2base: NDArray[np.float64], object_points: list[NDArray[np.float64]],

@@ -17,6 +17,7 @@ from ..errors import DegenerateMotionError
 from ..estimation.validation import default_folds
 from ..estimation.verdict import exit_status
 from ..io.depth_session import is_depth_session
+from ..io.extras import check_extras
 from ..io.laser_session import is_laser_session
 from ..io.linescan_session import is_linescan_session
 from ..io.rig_session import is_rig_session
@@ -70,6 +71,7 @@ def calibrate_session(folder: str | Path, options: CalibrationOptions | None = N
     :func:`handeye.pipelines.rig.calibrate_rig_session`."""
     opts = options_from(options, changes)
     folder = Path(folder)
+    check_extras(folder)  # every optional extra the session needs, named at once (a mesh and .ply clouds: mesh,depth)
     if is_depth_session(folder):
         return calibrate_depth_session(folder, opts, progress=progress, jobs=jobs)
     if is_laser_session(folder):

@@ -24,15 +24,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DegenerateMotionError
+from ..errors import DegenerateMotionError, UnusableViewError
 from ..io.laser_session import LaserSession, load_laser_session
 from ..options import CalibrationOptions
 from ..result import Calibration
 from ..sensors.laser.edge import EdgeProfiles, StepProfiles
 from ..sensors.laser.model import Profiles, SphereProfiles, SpheresProfiles
 from ..sensors.laser.plane import PlaneProfiles
-from ..sensors.laser.profiles import read_profile
-from ._sensor import estimate_checked, robot_model, sensor_options
+from ..sensors.laser.profiles import check_range, check_shape, read_profile
+from ._sensor import estimate_checked, robot_model, sensor_options, session_robot_input, why_skipped
 
 __all__ = ["calibrate_laser_session", "read_profiles", "laser_model", "MIN_POINTS"]
 
@@ -44,26 +44,34 @@ def read_profiles(s: LaserSession) -> tuple[list[int], list, list[tuple[str, str
     """Every profile of ``s`` read: the views kept, their points (metres, the range applied), the
     views skipped with why (missing, empty, too few points) and notes."""
     kept, profiles, skipped, notes = [], [], [], []
-    outside = 0
+    read = []
     for k, (name, path) in enumerate(zip(s.names, s.profile_paths)):
         if not path.is_file():
-            skipped.append((name, f"missing from {path.parent}"))
+            skipped.append((k, name, f"missing from {path.parent}"))
             continue
-        p = read_profile(path, s.unit)
+        try:
+            read.append((k, name, read_profile(path, s.unit)))
+        except UnusableViewError as exc:  # this view's file holds no profile: skipped, named
+            skipped.append((k, name, why_skipped(exc, path)))
+    if s.working_range is not None and read:  # mostly outside the range: the files, not a few stray points
+        check_range([p for _, _, p in read], s.working_range, s.unit, str(s.profile_paths[read[0][0]].parent))
+    outside = 0
+    for k, name, p in read:
         if s.working_range is not None:
             out = np.isfinite(p[:, 2]) & ((p[:, 2] < s.working_range[0]) | (p[:, 2] > s.working_range[1]))
             outside += int(out.sum())
             p[out] = np.nan
         n = int(np.isfinite(p).all(axis=1).sum())
         if n < MIN_POINTS:
-            skipped.append((name, "no return in the profile (all points empty or NaN)" if n == 0 else
+            skipped.append((k, name, "no return in the profile (all points empty or NaN)" if n == 0 else
                             f"only {n} points with a return (at least {MIN_POINTS} are needed)"))
             continue
         kept.append(k)
         profiles.append(p)
     if outside:
         notes.append(f"{outside} points outside the stated measuring range left out")
-    return kept, profiles, skipped, notes
+    check_shape(profiles, s.target, s.noise_m, str(s.profile_paths[0].parent) if s.profile_paths else str(s.folder))
+    return kept, profiles, [(name, why) for _, name, why in sorted(skipped, key=lambda s: s[0])], notes
 
 
 def laser_model(s: LaserSession, names: list[str], profiles: list) -> Profiles:
@@ -127,4 +135,5 @@ def calibrate_laser_session(folder: str | Path | LaserSession, options: Calibrat
     names = [s.names[k] for k in kept]
     cal = estimate_checked(laser_model(s, names, profiles), robot_model(s, kept, opts), s, opts, kept)
     return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + notes + list(cal.notes),
-                   input_folder=s.folder)
+                   input_folder=s.folder,
+                   robot_input=session_robot_input(s, cal.flange2base))

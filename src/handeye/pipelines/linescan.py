@@ -23,6 +23,8 @@ from numpy.typing import NDArray
 
 from ..errors import DegenerateMotionError, InputMismatchError
 from ..estimation.readings import Reading
+from ..frames.setups import predicted_target2cam
+from ..geometry.se3 import invert
 from ..io.linescan_session import LineScanSession, load_linescan_session
 from ..options import CalibrationOptions
 from ..result import Calibration
@@ -31,9 +33,9 @@ from ..robot.models import ControllerPoses, JointTrajectory, PoseErrors, RobotMo
 from ..sensors.camera.detect import detect_images
 from ..sensors.camera.targets import target_from_spec
 from ..sensors.linescan.model import LineScanCorners, Trajectory
-from ._sensor import estimate_checked, sensor_options
+from ._sensor import estimate_checked, sensor_options, session_robot_input
 
-__all__ = ["calibrate_linescan_session", "grid_orderings", "linescan_robot", "linescan_joints"]
+__all__ = ["calibrate_linescan_session", "grid_orderings", "linescan_robot", "linescan_joints", "readings_note"]
 
 
 def linescan_robot(flange2base_ref: NDArray[np.float64], accuracy: tuple[float, float] | None
@@ -88,6 +90,29 @@ def grid_orderings(points: NDArray[np.float64]) -> list[NDArray[np.intp]]:
         if np.all(gap[np.arange(len(xy)), order] < 1e-9) and len(set(order.tolist())) == len(xy):
             out.append(order.astype(np.intp))
     return out
+
+
+def readings_note(cal: Calibration, points: NDArray[np.float64], orderings: list[NDArray[np.intp]] | None) -> list[str]:
+    """What a symmetric target's readings leave open of Z, in a note: the grid of ``points`` (its
+    target frame) maps onto itself turned a half turn about its normal (and, read mirrored, about its
+    x or y axis through its middle, which turns z out of the board), so Z is the reading the scans and
+    the robot's motion settled, and may be so turned from another tool's or a simulator's; X is the
+    same for every reading. Says which way Z's z axis points (into the board, away from the camera,
+    as handeye's target frame of images has it; or towards the camera, and the turn that gives the
+    other). No note for a target read one way (``orderings``: one, or None)."""
+    if orderings is None or len(orderings) < 2:
+        return []
+    middle = 1e3 * np.asarray(points, float)[:, :2].mean(axis=0)
+    cam_z = invert(predicted_target2cam(cal.X, cal.Z, cal.flange2base, cal.setup))[:, 2, 3]
+    towards = float(np.median(cam_z)) > 0
+    turns = "a half turn (a square grid: a quarter turn)" if len(orderings) > 4 else "a half turn"
+    return [f"the {cal.sensor.target} reads the same turned {turns} about its normal, or a half turn about its x or y axis, through "
+            f"its middle ({middle[0]:.1f}, {middle[1]:.1f}) mm in its frame (a scan moving the other way is a mirror image): "
+            "Z is the reading the scans and the robot's motion settled, and may be so turned from another tool's or a "
+            "simulator's (X is the same for every reading); "
+            + ("here Z's z axis points towards the camera: Z turned a half turn about its x axis through that middle has "
+               "it into the board, as handeye's target frame of images has it" if towards else
+               "here Z's z axis points into the board, away from the camera, as handeye's target frame of images has it")]
 
 
 def _detected(s: LineScanSession, progress: bool):
@@ -146,11 +171,13 @@ def calibrate_linescan_session(folder: str | Path | LineScanSession, options: Ca
     s = folder if isinstance(folder, LineScanSession) else load_linescan_session(folder, arm=opts.arm)
     target, found = _detected(s, progress)
     kept = [k for k, (det, _) in enumerate(found) if det is not None]
-    skipped = [(s.names[k], why) for k, (det, why) in enumerate(found) if det is None]
+    skipped = list(s.skipped) + [(s.names[k], why) for k, (det, why) in enumerate(found) if det is None]
     if len(kept) < 3:
         why = f" ({'; '.join(f'{n}: {r}' for n, r in skipped[:5])})" if skipped else ""
-        raise DegenerateMotionError(f"{len(kept)} of {len(s.names)} scans show the target{why}: at least 3 are needed, "
-                                    "10-15 with the flange turned 10 deg or more about two or three axes to trust X")
+        raise DegenerateMotionError(f"{len(kept)} of {len(s.names) + len(s.skipped)} scans show the target{why}: at least 3 "
+                                    "are needed, 10-15 with the flange turned 10 deg or more about two or three axes to "
+                                    "trust X")
+
     def rebuild(reading: Reading) -> tuple[LineScanCorners, RobotModel]:
         """The scans as another reading of the trajectory's poses would place them."""
         other = _scans_model(replace(s, setup=reading.setup, flange2base=reading.flange2base), kept, found, target)
@@ -158,7 +185,9 @@ def calibrate_linescan_session(folder: str | Path | LineScanSession, options: Ca
 
     model = _scans_model(s, kept, found, target)
     cal = estimate_checked(model, _robot(s, model, opts), s, opts, rebuild=None if s.joints is not None else rebuild)
-    return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + list(cal.notes), input_folder=s.folder)
+    notes = list(s.notes) + list(cal.notes) + readings_note(cal, target.object_points(), model.orderings)
+    return replace(cal, skipped=skipped + list(cal.skipped), notes=notes, input_folder=s.folder,
+                   robot_input=session_robot_input(s, cal.flange2base))
 
 
 def _scans_model(s: LineScanSession, kept: list[int], found: list, target) -> LineScanCorners:

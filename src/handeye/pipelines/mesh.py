@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from .._shared.progress import Progress
 from .._shared.threads import one_blas_thread
-from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
+from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError, UnusableViewError
 from ..estimation.core import estimate, start_from_poses
 from ..estimation.readings import check_readings
 from ..frames.metrics import rotation_error, translation_error
@@ -40,7 +40,7 @@ from ..sensors.depth.clouds import MAX_DEPTH_M, read_points
 from ..sensors.depth.mesh import MeshSurface
 from ..sensors.depth.registration import ShapeMatch, find_shape, refine_shape
 from ..sensors.depth.shape import Shape, load_shape
-from ._sensor import held_and_freed, robot_model
+from ._sensor import held_and_freed, robot_model, session_robot_input
 
 __all__ = ["MeshViews", "measure_mesh_session", "consistent_views", "mesh_model", "calibrate_mesh_session",
            "AGREE_DEG", "AGREE_SHARE"]
@@ -79,7 +79,7 @@ def _found(shape: Shape, path: Path, unit: str, k: int) -> ShapeMatch | str:
     """The shape found in one cloud, or why not."""
     try:
         return find_shape(shape, read_scene(path, unit), where=str(path), rng=k)
-    except InputMismatchError as exc:
+    except (InputMismatchError, UnusableViewError) as exc:
         return str(exc)
 
 
@@ -212,4 +212,5 @@ def calibrate_mesh_session(s: DepthSession, options: CalibrationOptions, *, fit_
     distances = [d for k, d in zip(v.index, v.distance) if s.names[k] in used]
     figures = dict(cal.sensor.figures, distance_m=distances)
     return replace(cal, sensor=replace(cal.sensor, figures=figures), skipped=list(v.skipped) + list(cal.skipped),
-                   notes=list(s.notes) + list(v.notes) + list(cal.notes), input_folder=s.folder)
+                   notes=list(s.notes) + list(v.notes) + list(cal.notes), input_folder=s.folder,
+                   robot_input=session_robot_input(s, cal.flange2base))

@@ -25,6 +25,7 @@ from ..estimation.core import WEAKEST_NOTE, estimate
 from ..estimation.readings import check_readings
 from ..estimation.uncertainty import robot_accuracy_cov
 from ..frames.metrics import std_deg_mm
+from ..frames.setups import pose_name
 from ..io.rig_session import RigSensor, RigSession, load_rig_session
 from ..options import CalibrationOptions
 from ..result import Calibration
@@ -35,7 +36,7 @@ from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.targets import target_from_spec
 from ..sensors.depth.model import BoardPoints, SphereCentres
 from ..sensors.rig import Rig
-from ._sensor import held_and_freed, robot_model, sensor_options
+from ._sensor import held_and_freed, robot_model, sensor_options, session_robot_input
 from .depth import measure_depth_session
 from .laser import laser_model, read_profiles
 
@@ -139,7 +140,7 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
     >>> sc = rig_scene(12, "eye_in_hand", rng=0)
     >>> rig = calibrate_rig(sc.camera_models(), ["left", "right"], ControllerPoses(sc.flange2base))
     >>> rig.joint.verdict, sorted(rig.joint.sensor.figures["relative"])
-    ('good', ['right2left'])
+    ('good', ['right_to_left'])
     """
     if len(members) != len(sensor_names):
         raise InputMismatchError(f"{len(members)} sensors and {len(sensor_names)} names: one name per sensor")
@@ -220,9 +221,10 @@ def _member_notes(notes: list[str], name: str, names: list[str]) -> list[str]:
     """The rig's notes that concern sensor ``name``: those about it, and those about no sensor.
 
     A note about sensors begins by naming them, as the rig's notes are written: ``sensor NAME: ...``,
-    ``sensor NAME disagrees ...`` / ``skipped ...``, ``NAME: ...`` or a relative pose ``A2B: ...``;
-    the head is matched whole (a sensor ``cam`` is not in a note about ``camera``)."""
-    pairs = {f"{a}2{b}": {a, b} for a in names for b in names if a != b}
+    ``sensor NAME disagrees ...`` / ``skipped ...``, ``NAME: ...`` or a relative pose ``A_to_B: ...``
+    (``A2B: ...`` in results written before it was so named); the head is matched whole (a sensor
+    ``cam`` is not in a note about ``camera``)."""
+    pairs = {key: {a, b} for a in names for b in names if a != b for key in (pose_name(a, b), f"{a}2{b}")}
 
     def about(note: str) -> set[str]:
         head = note.split(":", 1)[0]
@@ -266,7 +268,7 @@ def rig_members(cal: Calibration) -> dict[str, Calibration]:
         figures = dict(mine.get("figures") or {}) | {"rig": {"sensors": names, "in_joint_fit": joint, "first_sensor": first},
                                                      "alone": f["alone"].get(name)}
         if joint and name != first:
-            figures["rig"]["pose_in_first_sensor"] = f["relative"][f"{name}2{first}"]
+            figures["rig"]["pose_in_first_sensor"] = f["relative"][pose_name(name, first)]
         record = replace(cal.sensor, sensor=mine.get("kind", cal.sensor.sensor), target=mine.get("target", cal.sensor.target),
                          views=views, residual_mm=np.asarray(rms, float), figures=figures, heldout_mm=None,
                          sections=None, fit_rms_mm=float(np.sqrt(np.mean(np.square(rms)))) if rms else float("nan"))
@@ -429,4 +431,5 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
                        "K": np.asarray(x.K).tolist(), "dist": np.asarray(x.dist).tolist()} for x in s.sensors if x.kind == "camera"}
     joint = replace(rig.joint, sensor=replace(rig.joint.sensor, figures=dict(rig.joint.sensor.figures, images_per_sensor=images)))
     return replace(joint, notes=notes + list(rig.joint.notes),
-                   skipped=[(n, w) for n, w in rig.skipped] + list(rig.joint.skipped), input_folder=s.folder)
+                   skipped=[(n, w) for n, w in rig.skipped] + list(rig.joint.skipped), input_folder=s.folder,
+                   robot_input=session_robot_input(s, joint.flange2base))

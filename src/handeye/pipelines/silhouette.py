@@ -44,7 +44,7 @@ from ..robot.models import ControllerPoses
 from ..sensors.silhouette.model import ArmViews, SilhouetteContours
 from ..sensors.silhouette.start import coarse_cam2base, surface_samples
 from ._arm import arm_table
-from ._sensor import sensor_options
+from ._sensor import sensor_options, session_robot_input
 
 __all__ = ["arm_views", "global_start", "outline_rounds", "heldout_ious", "pairing_notes", "calibrate_silhouette_session",
            "ROUNDS", "CANDIDATES", "SAMPLES"]
@@ -233,7 +233,8 @@ def calibrate_silhouette_session(folder: str | Path | SilhouetteSession, options
     notes = [f"the masks' agreement (IoU): {iou.mean():.3f} on the fit, {held.mean():.3f} on views left out of it (X fitted "
              f"to the others); the outline points are {np.median(np.abs(px)):.2f} px (median) from the masks' boundaries"]
     cal = replace(cal, sensor=replace(cal.sensor, figures=figures), notes=list(s.notes) + notes + pairing + list(cal.notes),
-                  input_folder=s.folder)
+                  input_folder=s.folder,
+                   robot_input=session_robot_input(s, cal.flange2base))
     return _judged_pairing(cal, pairing, len(s.names))
 
 

@@ -49,7 +49,8 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
     input images are always protected. ``compare``: draw every solver on the same data in the report
     (``cal.solver_comparison``, or computed here by :func:`handeye.estimation.diagnostics.compare_solvers`
     when it holds none). ``parent_frame`` / ``child_frame`` name the frames of the ROS snippets
-    (default ``tool0`` or ``base_link``, and ``camera_optical_frame``). ``exports``: more files for
+    (default ``tool0`` or ``base_link``, and ``camera_optical_frame``, a laser profiler's
+    ``laser_profiler_optical_frame``). ``exports``: more files for
     robot software (keys of :data:`EXPORTS`: a ROS 2 launch file, a ROS 1 / MoveIt launch file,
     easy_handeye2's .calib; 'all'). ``tool2flange``: the robot's tool (TCP) frame, so that the
     result files also give the camera (eye-in-hand) or the target (eye-to-hand) relative to it.

@@ -75,7 +75,10 @@ def _e(s: object) -> str:
 
 
 def _fmt(v, digits: int = 3) -> str:
-    return ", ".join(f"{x:.{digits}f}" if np.isfinite(x) else "not determined" for x in np.atleast_1d(v))
+    """Numbers to ``digits`` decimals; an infinite std is 'not determined' (by the data), a NaN one 'not
+    defined' (a ball's orientation: the target has none)."""
+    return ", ".join(f"{x:.{digits}f}" if np.isfinite(x) else "not defined" if np.isnan(x) else "not determined"
+                     for x in np.atleast_1d(v))
 
 
 def _transform_table(T: NDArray[np.float64], std: NDArray[np.float64] | None) -> str:

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..frames.metrics import rotation_error, translation_error
-from ..frames.setups import setup_info, target2base
+from ..frames.setups import pose_name, setup_info, target2base
 from ..geometry.se3 import invert
 from ..result import Calibration
 from ._page import _axis_triad, _e, _equal_axes, _figure, _img, _png, _transform_table
@@ -130,17 +130,17 @@ def rig_sections(cal: Calibration) -> str:
                 line += f", held-out views {own['heldout_mm']:.3f} mm (cross-validated)"
             if name in joint:
                 A = np.asarray(own["X"])
-                line += (f", its own X {1e3 * translation_error(A, X):.3f} mm / {rotation_error(A, X):.4f} deg from the "
-                         "joint fit's")
+                line += (f", its own X {1e3 * translation_error(A, X):.3f} mm / {np.degrees(rotation_error(A, X)):.4f} deg "
+                         "from the joint fit's")
         parts.append(f"<p>{_e(line)}.</p>")
         if X is not None:
-            parts.append(f"<p>X ({_e(name)}2{_e(setup_info(cal.setup).x_name.split('2', 1)[1])}), "
+            parts.append(f"<p>X ({_e(pose_name(name, setup_info(cal.setup).x_name.split('2', 1)[1]))}), "
                          + ("from the joint fit, its std with the robot's accuracy" if name in joint else "its own calibration")
                          + ":</p>" + _transform_table(X, std))
-        rel = f.get("relative", {}).get(f"{name}2{joint[0]}")
+        rel = f.get("relative", {}).get(pose_name(name, joint[0]))
         if rel is not None:
-            parts.append(f"<p>Its pose in {_e(joint[0])}'s frame ({_e(name)}2{_e(joint[0])}, the robot's error common to "
-                         "every pose cancels in it, each pose's own error where both saw the pose):</p>"
+            parts.append(f"<p>Its pose in {_e(joint[0])}'s frame ({_e(pose_name(name, joint[0]))}, the robot's error common "
+                         "to every pose cancels in it, each pose's own error where both saw the pose):</p>"
                          + _transform_table(np.asarray(rel["matrix"]), np.asarray(rel["std_deg_mm"])))
         if name in per_view and views:
             parts.append(_img(_sensor_residual_figure(views, per_view[name], name), f"sensor {name}'s residual per view"))

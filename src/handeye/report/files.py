@@ -36,11 +36,22 @@ __all__ = ["result_dict", "write_results", "ros2_static_transform_command", "urd
            "write_exports", "check_exports", "EXPORTS"]
 
 
-def default_frames(setup: str) -> tuple[str, str]:
+#: X's child frame in ROS by the sensor's kind, where it is not a camera's (``camera_optical_frame``):
+#: a laser profiler's frame (x along its line, z along its measuring axis) is an optical frame too.
+SENSOR_FRAMES = {"laser line profiler": "laser_profiler_optical_frame"}
+
+
+def default_frames(setup: str, sensor: str | None = None) -> tuple[str, str]:
     """``(parent, child)`` frame names for X: ROS-Industrial's ``tool0`` / ``base_link`` and the
-    camera's optical frame (OpenCV's camera frame: z forward, x right, y down, REP 103's *_optical_frame*)."""
+    sensor's optical frame (OpenCV's camera frame: z forward, x right, y down, REP 103's *_optical_frame*;
+    ``sensor``: the sensor's kind, :data:`SENSOR_FRAMES`, a camera's by default)."""
     info = setup_info(setup)
-    return info.ros_parent_frame, info.ros_child_frame
+    return info.ros_parent_frame, SENSOR_FRAMES.get(str(sensor), info.ros_child_frame)
+
+
+def _frames_of(cal: Calibration) -> tuple[str, str]:
+    """:func:`default_frames` of ``cal``'s setup and sensor."""
+    return default_frames(cal.setup, None if cal.sensor is None else cal.sensor.sensor)
 
 
 def euler_angles(rot: Rotation, seq: str, degrees: bool = False) -> NDArray[np.float64]:
@@ -167,7 +178,7 @@ def write_exports(cal: Calibration, out_dir: str | Path, exports: Iterable[str],
                   parent_frame: str | None = None, child_frame: str | None = None) -> list[Path]:
     """Write the ``exports`` (keys of :data:`EXPORTS`; 'all' for every one) into ``out_dir``, atomically."""
     exports = check_exports(exports)
-    parent, child = default_frames(cal.setup)
+    parent, child = _frames_of(cal)
     parent, child = parent_frame or parent, child_frame or child
     paths = []
     for e in exports:
@@ -394,7 +405,7 @@ def result_dict(cal: Calibration, parent_frame: str | None = None, child_frame: 
     adds the camera (eye-in-hand) or the target (eye-to-hand) relative to that tool (``tool``).
     """
     info = setup_info(cal.setup)
-    parent, child = default_frames(cal.setup)
+    parent, child = _frames_of(cal)
     parent, child = parent_frame or parent, child_frame or child
     out: dict[str, Any] = {
         "handeye_version": __version__,

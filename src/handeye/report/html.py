@@ -30,6 +30,7 @@ from ..result import Calibration
 from ..robot.kinematics import display_unit
 from ..sensors.camera.detect import default_jobs
 from ..sensors.camera.pnp import project_points
+from ..sensors.depth.scene import common_frame
 from ._overlay import jpeg, overlay_thumbnail, zoom_size
 from ._page import _COLOURS, _CSS, _axis_triad, _e, _equal_axes, _figure, _fmt, _img, _png, _transform_table
 from ._rig import RIG_FIGURES, is_rig, rig_sections
@@ -257,53 +258,110 @@ def _view_residual_figure(cal: Calibration) -> str:
 MAX_SECTIONS = 24
 
 
+def _section_rms(sf) -> list[float]:
+    """Per section its RMS residual (mm): its own (``rms_mm``: a rig's, a section per sensor and view),
+    else its view's."""
+    return [float(sec.get("rms_mm", sf.residual_mm[k] if k < len(sf.residual_mm) else np.nan)) for k, sec in enumerate(sf.sections)]
+
+
 def _shown_sections(sf) -> list[int]:
-    """The views whose sections are drawn: all up to :data:`MAX_SECTIONS`, else the worst half of
+    """The sections drawn (those with points): all up to :data:`MAX_SECTIONS`, else the worst half of
     that by residual and the rest evenly over the others, in the views' order."""
-    n = len(sf.sections)
-    if n <= MAX_SECTIONS:
-        return list(range(n))
-    worst = list(np.argsort(-np.asarray(sf.residual_mm))[:MAX_SECTIONS // 2])
-    rest = [k for k in range(n) if k not in worst]
+    drawn = [k for k, sec in enumerate(sf.sections) if np.isfinite(np.asarray(sec["points_mm"], float)).any()]
+    if len(drawn) <= MAX_SECTIONS:
+        return drawn
+    rms = np.nan_to_num(np.asarray(_section_rms(sf))[drawn], nan=-1.0)
+    worst = [drawn[i] for i in np.argsort(-rms)[:MAX_SECTIONS // 2]]
+    rest = [k for k in drawn if k not in worst]
     return sorted(worst + [rest[i] for i in np.linspace(0, len(rest) - 1, MAX_SECTIONS - len(worst)).astype(int)])
 
 
+#: What a section is drawn in when the sensor does not say (``plane``): a laser profiler's own plane.
+LASER_PLANE = "the laser line profiler's plane (x across, z down)"
+
+
 def _sections_figure(cal: Calibration) -> str:
-    """Each drawn view in the sensor's own plane, in one grid of cells at one scale (one axes: a
-    figure of two dozen axes took a second to draw): its points coloured by residual, and the fitted
-    target's section through X (a profiler's profile and the ball's circle or the plate's line)."""
+    """Each drawn section (a view, or a rig's sensor in a view) in the sensor's own plane (a profiler's
+    laser plane, a camera's image, a line-scan camera's scan, a depth camera's image: its ``plane``),
+    in one grid of cells at one scale (one axes: a figure of two dozen axes took a second to draw):
+    its points coloured by residual (signed: a diverging scale about 0; a size: from 0), and the fitted
+    target through X (a ball's circle or a plate's line, a board's grid, a mesh's edges)."""
     sf = cal.sensor
     shown = _shown_sections(sf)
+    rms = _section_rms(sf)
     cols = min(6, len(shown))
-    boxes = [(np.nanmin(sf.sections[k]["points_mm"], axis=0), np.nanmax(sf.sections[k]["points_mm"], axis=0))
-             for k in shown]
-    cell = 1.25 * max(float(np.max(hi - lo)) for lo, hi in boxes)  # mm: the largest view's extent, and a margin
+    drawn = [np.vstack([sf.sections[k]["points_mm"], np.asarray(sf.sections[k]["curve_mm"], float).reshape(-1, 2)]) for k in shown]
+    boxes = [(np.nanmin(d, axis=0), np.nanmax(d, axis=0)) for d in drawn]  # the points and the target drawn
+    cell = 1.25 * max(max(float(np.max(hi - lo)) for lo, hi in boxes), 1e-3)  # mm: the largest view's extent, a margin
     fig = _figure((1.9 * cols + 1.2, 1.9 * (-(-len(shown) // cols)) + 0.6))
     ax = fig.subplots(1, 1)
     xs, zs, res = [], [], []
     for i, (k, (lo, hi)) in enumerate(zip(shown, boxes)):
         sec = sf.sections[k]
         offset = np.array([(i % cols) * cell, (i // cols) * cell]) - 0.5 * (lo + hi)  # the view's centre to its cell's
-        curve = sec["curve_mm"] + offset
+        curve = np.asarray(sec["curve_mm"], float).reshape(-1, 2) + offset
         ax.plot(curve[:, 0], curve[:, 1], "-", color="#555", lw=0.8)
         xs.append(sec["points_mm"][:, 0] + offset[0])
         zs.append(sec["points_mm"][:, 1] + offset[1])
         res.append(sec["residual_mm"])
-        ax.text((i % cols) * cell, (i // cols) * cell - 0.45 * cell, f"{sf.views[k]}: {sf.residual_mm[k]:.3f} mm",
+        label = sec.get("label", sf.views[k] if k < len(sf.views) else "")
+        ax.text((i % cols) * cell, (i // cols) * cell - 0.45 * cell, f"{label}: {rms[k]:.3f} mm",
                 ha="center", va="top", fontsize=6)
     res_all = np.concatenate(res)
     limit = max(float(np.nanpercentile(np.abs(res_all), 99)), 1e-3)
-    dots = ax.scatter(np.concatenate(xs), np.concatenate(zs), c=res_all, cmap="coolwarm", vmin=-limit, vmax=limit, s=2)
-    bar = 10.0 if cell > 20 else 1.0  # a scale bar: every cell is drawn at this one scale
+    signed = bool(np.nanmin(res_all) < 0)  # a signed distance (a profile, a surface) or a size (a corner's error)
+    scale = {"cmap": "coolwarm", "vmin": -limit, "vmax": limit} if signed else {"cmap": "viridis", "vmin": 0.0, "vmax": limit}
+    many = len(res_all) > 30 * len(shown)  # profiles and clouds: small dots; a board's corners: larger ones
+    dots = ax.scatter(np.concatenate(xs), np.concatenate(zs), c=res_all, s=2 if many else 9, **scale)
+    bar = float(10 ** np.floor(np.log10(max(cell / 4, 1e-3))))  # a scale bar: every cell is drawn at this one scale
     y0 = (-(-len(shown) // cols) - 0.5) * cell
     ax.plot([-0.4 * cell, -0.4 * cell + bar], [y0, y0], "k-", lw=1.5)
     ax.text(-0.4 * cell, y0 + 0.04 * cell, f"{bar:g} mm", fontsize=6, va="top")
     ax.set_aspect("equal")
-    ax.invert_yaxis()  # the sensor looks down its z
+    ax.invert_yaxis()  # the sensor looks down its z; an image's rows run down
     ax.axis("off")
-    fig.colorbar(dots, ax=ax, shrink=0.6, label="residual (mm)")
-    ax.set_title(f"each view in the {sf.sensor}'s plane (x across, z down, one scale): the points, and the fitted "
-                 f"{sf.target}'s section through X (line)", fontsize=8, pad=14)
+    fig.colorbar(dots, ax=ax, shrink=0.6, label="residual (mm)" if signed else "residual's size (mm)")
+    plane = sf.sections[shown[0]].get("plane", LASER_PLANE)
+    lines = any(np.isfinite(np.asarray(sf.sections[k]["curve_mm"], float)).any() for k in shown)
+    ax.set_title(f"each view in {plane}, one scale: the points coloured by their residual"
+                 + (f", and the fitted {sf.target} through X (lines)" if lines else ""), fontsize=8, pad=14)
+    return _png(fig)
+
+
+def _clouds_figure(cal: Calibration) -> str:
+    """The views' clouds registered through X (a scene as the target: ``sections`` with ``cloud_mm``),
+    seen along the common frame's three axes: above, coloured by view (where they overlap they
+    should lie on one surface); below, coloured by each point's residual."""
+    from matplotlib import colormaps  # matplotlib loads only when a report is drawn
+    from matplotlib.patches import Patch
+
+    sf = cal.sensor
+    clouds = [np.asarray(sec["cloud_mm"], float).reshape(-1, 3) for sec in sf.sections]
+    res = [np.asarray(sec["residual_mm"], float) for sec in sf.sections]
+    pts = np.concatenate(clouds) if clouds else np.zeros((0, 3))
+    label = np.concatenate([np.full(len(c), k) for k, c in enumerate(clouds)]) if clouds else np.zeros(0)
+    r = np.concatenate(res) if res else np.zeros(0)
+    order = np.random.default_rng(0).permutation(len(pts))  # no view drawn over all the others
+    pts, label, r = pts[order], label[order], r[order]
+    frame = common_frame(cal.setup)
+    fig = _figure((12.0, 7.0))
+    axes = fig.subplots(2, 3)
+    cmap = colormaps["tab20" if len(clouds) > 10 else "tab10"]
+    limit = max(float(np.percentile(np.abs(r), 98)), 1e-3) if len(r) else 1.0
+    for c, (a, b) in enumerate([(0, 1), (0, 2), (1, 2)]):
+        top, bottom = axes[0, c], axes[1, c]
+        top.scatter(pts[:, a], pts[:, b], c=cmap(label % cmap.N), s=1.5, linewidths=0)
+        dots = bottom.scatter(pts[:, a], pts[:, b], c=r, cmap="coolwarm", vmin=-limit, vmax=limit, s=1.5, linewidths=0)
+        for ax in (top, bottom):
+            ax.set_aspect("equal")
+            ax.set_xlabel(f"{'xyz'[a]} (mm)", fontsize=7)
+            ax.set_ylabel(f"{'xyz'[b]} (mm)", fontsize=7)
+            ax.tick_params(labelsize=6)
+    handles = [Patch(color=cmap(k % cmap.N), label=name) for k, name in enumerate(sf.views)]
+    axes[0, 2].legend(handles=handles, fontsize=6, loc="center left", bbox_to_anchor=(1.02, 0.5), frameon=False)
+    fig.colorbar(dots, ax=axes[1, :].tolist(), shrink=0.8, label="residual (mm)")
+    fig.suptitle(f"the views' clouds registered through X, in the {frame} frame (along its z, y and x axes): "
+                 "coloured by view (above) and by residual (below)", fontsize=9)
     return _png(fig)
 
 
@@ -313,29 +371,69 @@ def _sensor_residuals_section(cal: Calibration) -> str:
     parts = ['<section id="residuals"><h2>Per-view residuals</h2>' + _img(_view_residual_figure(cal), "per-view residuals"),
              f"<p>{sf.points} measurements fitted, {sf.rejected} set aside as outliers (beyond 5 of their std); "
              f"{sf.fit_rms_mm:.3f} mm RMS.</p>"]
-    if sf.sections:
-        shown = _shown_sections(sf)
+    shown = _shown_sections(sf) if sf.sections and "cloud_mm" not in sf.sections[0] else []
+    if sf.sections and "cloud_mm" in sf.sections[0]:  # a scene as the target: its registered clouds
+        parts.append(_img(_clouds_figure(cal), "the views' registered clouds, coloured by view"))
+    elif shown:
         parts.append(_img(_sections_figure(cal), "each view with the fitted target's section")
                      + (f"<p>{len(shown)} of {len(sf.sections)} views drawn: the {MAX_SECTIONS // 2} that fit worst and "
                         "others evenly.</p>" if len(shown) < len(sf.sections) else ""))
     if cal.skipped:
         parts.append("<p>Views not used: " + "; ".join(f"{_e(n)} ({_e(r)})" for n, r in cal.skipped) + "</p>")
     shown = {k: v for k, v in sf.figures.items() if not (is_rig(cal) and k in RIG_FIGURES)}  # a rig's: in its own sections
-    rows = "".join(f'<tr><td class="l">{_e(k)}</td><td class="l">{_e(_figure_text(v))}</td></tr>'
+    rows = "".join(f'<tr><td class="l">{_e(_figure_label(k))}</td><td class="l">{_e(_figure_text(v))}</td></tr>'
                    for k, v in shown.items())
-    parts.append(f"<h3>The {_e(sf.sensor)}'s own figures</h3>"
-                 f'<table><tr><th class="l">figure</th><th class="l">value</th></tr>{rows}</table></section>')
+    if rows:  # a rig's figures are all in its sections: no empty table
+        parts.append(f"<h3>The {_e(sf.sensor)}'s own figures</h3>"
+                     f'<table><tr><th class="l">figure</th><th class="l">value</th></tr>{rows}</table>')
+    parts.append("</section>")
     return "".join(parts)
 
 
+#: A sensor figure's key's last word, when it is a unit, as the report writes the unit.
+FIGURE_UNITS = {"m": "m", "mm": "mm", "um": "µm", "px": "px", "s": "s", "ms": "ms", "hz": "Hz", "deg": "deg", "rad": "rad"}
+
+
+def _figure_label(key: str) -> str:
+    """A sensor figure's key in words: ``clock_offset_s`` is 'clock offset (s)', ``line_rate_hz`` 'line rate (Hz)'."""
+    words = str(key).split("_")
+    if len(words) > 1 and words[-1].lower() in FIGURE_UNITS:
+        return " ".join(words[:-1]) + f" ({FIGURE_UNITS[words[-1].lower()]})"
+    return " ".join(words)
+
+
+def _number(x: float, digits: int = 6) -> str:
+    """A number as people write it: a whole number without a point, else ``digits`` significant figures."""
+    x = float(x)
+    if np.isfinite(x) and x == round(x) and abs(x) < 1e15:
+        return str(int(round(x)))
+    return f"{x:.{digits}g}"
+
+
 def _figure_text(value) -> str:
-    """A sensor figure as text: a value with its std, or numbers rounded."""
+    """A sensor figure as text: a value with its std, yes or no, a whole number as one, numbers rounded
+    (a list in brackets, a table's rows split by semicolons), 'none' for an empty list."""
     if isinstance(value, dict) and "value" in value:
         return f"{value['value']:.6g} ± {value.get('std', 0.0):.3g}" + ("" if value.get("fitted", True) else " (not fitted)")
+    if isinstance(value, (bool, np.bool_)):
+        return "yes" if value else "no"
+    if value is None:
+        return "—"
+    if isinstance(value, str):
+        return value
+    if isinstance(value, (list, tuple)) and value and all(isinstance(v, str) for v in value):
+        return ", ".join(value)
     try:
-        return np.array2string(np.asarray(value, dtype=float), precision=4, separator=", ")
-    except (TypeError, ValueError):  # not numbers (None, text): as written
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):  # not numbers (a mapping, text): as written
         return str(value)
+    if a.ndim == 0:
+        return _number(a)
+    if a.size == 0:
+        return "none"
+    if a.ndim == 1:
+        return "[" + ", ".join(_number(x, 4) for x in a) + "]"
+    return "; ".join("[" + ", ".join(_number(x, 4) for x in row) + "]" for row in a.reshape(len(a), -1))
 
 
 def _verdict_section(cal: Calibration, verdict: str, pres: NDArray[np.float64]) -> str:
@@ -361,7 +459,7 @@ def _result_section(cal: Calibration, data: dict) -> str:
              + (f", RMS {cal.refined_rms:.3f} px over all target points" if cal.refined_rms is not None else "")
              + "</p>" + _transform_table(cal.X, cal.std)
              + _determined_table(cal, data)
-             + f"<h3>Z = {_e(data['Z_name'])}</h3>" + _transform_table(cal.Z, None)
+             + f"<h3>Z = {_e(data['Z_name'])}</h3>" + _transform_table(cal.Z, cal.std_Z)
              + "<h3>Paste into ROS 2</h3>"
              + f"<pre>{_e(data['ros']['static_transform_publisher'])}</pre><pre>{_e(data['ros']['urdf_joint'])}</pre>"]
     if cal.certificate is not None:
@@ -406,6 +504,19 @@ def _determined_table(cal: Calibration, data: dict) -> str:
     return "".join(parts)
 
 
+#: What the held-out table's rows are, by who made the calibration: a camera's estimators, or a
+#: sensor's fit beside its closed-form start.
+HELD_OUT_CAMERA = ("Each view predicted from its robot pose by X and Z fitted without it: where the target's points land "
+                   "against where the camera saw them. The estimator used is listed first: the preferred refinement (the "
+                   "pixel refinement while the robot's errors do not dominate its residuals, else the pose refinement) is "
+                   "replaced only by a candidate better by more than one standard error of the per-view differences, so "
+                   "the one used need not have the smallest error here.")
+HELD_OUT_SENSOR = ("Each view predicted from its robot {robot} by X and the target fitted without it (its fold of the "
+                   "cross-validation): how far its measurements lie from the target's model, in millimetres at the "
+                   "target. The {sensor}'s fit is listed first, then its closed-form start refitted the same way: the "
+                   "fit should predict the views it has not seen better than its start does.")
+
+
 def _cross_validation_table(cal: Calibration) -> str:
     """Held-out prediction error of every estimator tried, the one used first."""
     rows = sorted(cal.cross_validation.items(),  # the score the choice was made by: px with images, else mm
@@ -416,12 +527,9 @@ def _cross_validation_table(cal: Calibration) -> str:
         used = " (used)" if name == cal.estimator else ""
         body.append(f'<tr><td class="l">{_e(name)}{used}</td><td>{px}</td><td>{r["mm"]:.3f}</td></tr>')
     body = "".join(body)
-    return ("<h3>Held-out prediction error (cross-validated)</h3><p class=\"note\">Each view predicted from its robot "
-            "pose by X and Z fitted without it: where the target's points land against where the camera saw them. "
-            "The estimator used is listed first: the preferred refinement (the pixel refinement while the robot's "
-            "errors do not dominate its residuals, else the pose refinement) is replaced only by a candidate better by "
-            "more than one standard error of the per-view differences, so the one used need not have the smallest "
-            "error here.</p>"
+    text = HELD_OUT_CAMERA if cal.sensor is None else HELD_OUT_SENSOR.format(
+        robot="joint angles" if cal.kinematic is not None else "pose", sensor=cal.sensor.sensor)
+    return (f"<h3>Held-out prediction error (cross-validated)</h3><p class=\"note\">{_e(text)}</p>"
             f'<table><tr><th class="l">estimator</th><th>px</th><th>mm at the target</th></tr>{body}</table>')
 
 
@@ -585,7 +693,8 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
              f"<style>{_CSS}</style></head><body>",
              f"<h1>Hand-eye calibration ({_e(cal.setup.replace('_', '-'))})</h1>"
              f"<p class=\"note\">handeye {_e(__version__)} · method {_e(cal.method)} · {len(cal.flange2base)} "
-             f"{'poses' if cal.sensor is None else 'views'}, {len(cal.pairs)} motions · inputs sha256 "
+             + (f"poses, {len(cal.pairs)} motions" if cal.sensor is None else "views")  # a sensor's fit pairs no motions
+             + " · inputs sha256 "
              f"{_e((cal.inputs_sha256 or '')[:16])}…</p>",
              _verdict_section(cal, verdict, pres),
              _result_section(cal, data)]

@@ -26,6 +26,7 @@ import numpy as np
 import yaml
 from numpy.typing import ArrayLike, NDArray
 
+from .._shared.text import shown
 from ..errors import InputMismatchError
 
 __all__ = ["Chain", "PARAMETERS", "GRAVITY", "arm_names", "load_arm", "absorbed_parameters",
@@ -92,7 +93,7 @@ class Chain:
 
     def __post_init__(self) -> None:
         if self.convention not in ("dh", "mdh"):
-            raise InputMismatchError(f"{self.name}: convention {self.convention!r}; use 'dh' or 'mdh'")
+            raise InputMismatchError(f"{self.name}: convention {shown(self.convention)}; use 'dh' or 'mdh'")
         table = np.asarray(self.table, dtype=float)
         if table.ndim != 2 or table.shape[1] != 4 or not np.isfinite(table).all():
             raise InputMismatchError(f"{self.name}: the table must be finite rows of a, alpha, d, theta; got shape "
@@ -306,7 +307,7 @@ def load_arm(name: str | Path) -> Chain:
     files = _arm_files()
     key = str(name).lower().replace("-", "").replace("_", "")
     if key not in files:
-        raise InputMismatchError(f"unknown arm {name!r}; handeye has the kinematics of: {', '.join(sorted(files))} "
+        raise InputMismatchError(f"unknown arm {shown(name)}; handeye has the kinematics of: {', '.join(sorted(files))} "
                                  "(or give a YAML file of your arm's DH table, or build a handeye.robot.kinematics.Chain)")
     return _chain_from_yaml(files[key].read_text(encoding="utf-8"), key)
 
@@ -364,21 +365,61 @@ def chain_yaml(chain: Chain, comment: str = "") -> str:
 POSE_AGREEMENT = (20.0, 2.0)
 
 
+def _row_gaps(a: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per pose, the translation (mm) and rotation (deg) between two stacks of poses."""
+    dt = 1e3 * np.linalg.norm(a[..., :3, 3] - b[..., :3, 3], axis=-1)
+    cos = (np.einsum("...ij,...ij->...", a[..., :3, :3], b[..., :3, :3]) - 1) / 2
+    return dt, np.degrees(np.arccos(np.clip(cos, -1, 1)))
+
+
 def _pose_gap(a: NDArray[np.float64], b: NDArray[np.float64]) -> tuple[float, float]:
     """Median translation (mm) and rotation (deg) between two stacks of poses."""
-    dt = 1e3 * np.linalg.norm(a[:, :3, 3] - b[:, :3, 3], axis=1)
-    cos = (np.einsum("nij,nij->n", a[:, :3, :3], b[:, :3, :3]) - 1) / 2
-    return float(np.median(dt)), float(np.degrees(np.median(np.arccos(np.clip(cos, -1, 1)))))
+    dt, dr = _row_gaps(a, b)
+    return float(np.median(dt)), float(np.median(dr))
 
 
-def check_joints_against_poses(chain: Chain, q: ArrayLike, flange2base: ArrayLike, where: str = "joint angles") -> str:
+def _rows_apart(chain: Chain, q: NDArray[np.float64], flange2base: NDArray[np.float64], where: str,
+                names: list[str] | None) -> None:
+    """Raise, naming them, for rows whose joint angles put the flange beyond :data:`POSE_AGREEMENT`
+    of their own view's controller pose while the rest agree: two rows swapped (said so when each
+    agrees with the other's pose), a row of another view, a pose typed wrong. A fit would take them
+    as the robot's error and call the data inconsistent, without saying which rows."""
+    forward = chain.forward(q)
+    dt, dr = _row_gaps(forward, flange2base)
+    bad = np.flatnonzero((dt > POSE_AGREEMENT[0]) | (dr > POSE_AGREEMENT[1]))
+    if not len(bad):
+        return
+    label = (lambda k: repr(names[k])) if names is not None else (lambda k: f"row {k + 1}")
+    swapped, alone = [], set(bad.tolist())
+    for i in bad:
+        for j in bad:
+            if i < j and i in alone and j in alone:
+                gi, gj = _row_gaps(forward[[i, j]], flange2base[[j, i]])
+                if np.all(gi <= POSE_AGREEMENT[0]) and np.all(gj <= POSE_AGREEMENT[1]):
+                    swapped.append((int(i), int(j)))
+                    alone -= {i, j}
+    told = [f"{label(i)} and {label(j)} are swapped (each one's joint angles are the other's view)" for i, j in swapped]
+    rest = sorted(alone)
+    if rest:
+        far = ", ".join(f"{label(k)} ({dt[k]:.0f} mm / {dr[k]:.1f} deg)" for k in rest[:5])
+        told.append(f"{far}{f' and {len(rest) - 5} more' if len(rest) > 5 else ''} put the flange far from "
+                    "the controller's pose of the same view")
+    raise InputMismatchError(f"{where} through {chain.name}'s table agree with the controller's flange poses in "
+                             f"{len(q) - len(bad)} of {len(q)} views, not in these: {'; '.join(told)}: give each view its "
+                             "own joint angles and pose (or leave the view out)")
+
+
+def check_joints_against_poses(chain: Chain, q: ArrayLike, flange2base: ArrayLike, where: str = "joint angles",
+                               names: list[str] | None = None) -> str:
     """Check that joint angles ``q`` (N, n; radians) and the controller's ``flange2base`` (N, 4, 4)
     describe the same views through ``chain``.
 
     Returns the finding as a sentence (how far apart they are) when they agree within
-    :data:`POSE_AGREEMENT`. Otherwise raises, naming what makes them agree when one of the
-    usual slips does: the joints in degrees read as radians (or the reverse), the joint columns in
-    reverse order, the flange poses inverted (base in flange), another of the shipped arms.
+    :data:`POSE_AGREEMENT`, view by view. Otherwise raises, naming what makes them agree when one
+    of the usual slips does: the joints in degrees read as radians (or the reverse), the joint
+    columns in reverse order, the flange poses inverted (base in flange), another of the shipped
+    arms; or, when most views agree, the views that do not (``names``: the views' names, else
+    their rows), two of them swapped.
 
     Raises
     ------
@@ -388,6 +429,7 @@ def check_joints_against_poses(chain: Chain, q: ArrayLike, flange2base: ArrayLik
     flange2base = np.asarray(flange2base, dtype=float)
     gap = _pose_gap(chain.forward(q), flange2base)
     if gap[0] <= POSE_AGREEMENT[0] and gap[1] <= POSE_AGREEMENT[1]:
+        _rows_apart(chain, q, flange2base, where, names)
         return (f"{where} through {chain.name}'s table and the controller's flange poses agree to {gap[0]:.2f} mm / "
                 f"{gap[1]:.3f} deg (median): the arm's error the calibration fits, and the controller's own model")
     trials = {"the joint angles are in degrees, not radians (give the unit as deg)": (chain, np.radians(q), flange2base),

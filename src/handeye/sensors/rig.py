@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from ..errors import InputMismatchError
 from ..frames.metrics import std_deg_mm
+from ..frames.setups import pose_name
 from ..geometry.se3 import invert, perturb, skew
 from .base import Nuisance, SensorModel
 
@@ -208,7 +209,7 @@ class Rig:
         out: dict[str, Any] = {"sensors": list(self.sensor_names), "relative": {}}
         for k in range(1, len(self.members)):
             s = slice(6 * (k - 1), 6 * k)
-            out["relative"][f"{self.sensor_names[k]}2{self.sensor_names[0]}"] = {
+            out["relative"][pose_name(self.sensor_names[k], self.sensor_names[0])] = {
                 "matrix": self.relative(p, k).tolist(), "std_deg_mm": std_deg_mm(cov_p[s, s]).tolist()}
         return out
 
@@ -259,6 +260,21 @@ class Rig:
                     "figures": figures}
         X_k = X @ self.relative(p, k)
         return {"Z": m.Z(X_k, own).tolist(), "Z_std_deg_mm": _listed(m.Z_std(own, cov_own)), "figures": figures}
+
+    def sections(self, X, p, flange2base, views) -> list[dict[str, Any]]:
+        """What the report draws (:class:`~handeye.result.SensorFit`'s ``sections``): per view of
+        ``views``, each sensor's own section of it where it has one (its sensor model's ``sections``
+        at its X and unknowns in the joint fit), labelled by view and sensor, with its RMS (mm)."""
+        out = []
+        for k, (m, name) in enumerate(zip(self.members, self.sensor_names)):
+            if not hasattr(m, "sections"):
+                continue
+            seen = [v for v in views if np.any(np.asarray(m.owner) == v)]
+            for v, sec in zip(seen, m.sections(X @ self.relative(p, k), self.member_params(X, p, k), flange2base, seen)):
+                res = np.asarray(sec["residual_mm"], float)
+                out.append(dict(sec, label=f"{self.names[v]} {name}", view=int(v),
+                                rms_mm=float(np.sqrt(np.mean(res**2))) if res.size else float("nan")))
+        return sorted(out, key=lambda sec: sec["view"])
 
     def notes(self, p, cov_p) -> list[str]:
         """Each sensor's pose in sensor 0's frame, with its std; what each sensor's own unknowns say

@@ -18,7 +18,10 @@ from scipy.spatial.transform import Rotation
 from ..frames.setups import predicted_target2cam
 from ..geometry.se3 import make_transform
 
-__all__ = ["ChartedTarget"]
+__all__ = ["ChartedTarget", "grid_curve", "SECTION_PLANE_IMAGE"]
+
+#: What a camera's sections are drawn in (the report's picture of the fit on each view).
+SECTION_PLANE_IMAGE = "the image (mm at the target)"
 
 
 class ChartedTarget:
@@ -69,3 +72,19 @@ class ChartedTarget:
         """The points' stated noise (px) at their pixel size (mm)."""
         mpp = self._mpp[rows] if self._mpp is not None else np.full(len(rows), np.nan)
         return 1e3 * self.noise_px * mpp
+
+
+def grid_curve(board_points: NDArray[np.float64], drawn: NDArray[np.float64]) -> NDArray[np.float64]:
+    """A board's grid as the report draws it: ``drawn`` (n, d), where each of its points
+    ``board_points`` (n, 3; the target frame, a grid's rows and columns) is drawn (in a picture, or in
+    the camera's frame), joined along the board's rows and along its columns, NaN between the lines (m, d)."""
+    board_points, drawn = np.asarray(board_points, float), np.asarray(drawn, float)
+    lines = []
+    for along, across in ((0, 1), (1, 0)):
+        key = np.round(board_points[:, across], 6)
+        for value in np.unique(key):
+            at = np.flatnonzero(key == value)
+            if len(at) > 1:
+                lines += [drawn[at[np.argsort(board_points[at, along])]], np.full((1, drawn.shape[1]), np.nan)]
+    return np.concatenate(lines) if lines else np.full((1, drawn.shape[1]), np.nan)
+

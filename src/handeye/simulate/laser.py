@@ -29,7 +29,7 @@ from ._common import _real_chain, _reported, arm_mount, reaching
 from .scenes import Scene, scene_from_viewpoints
 
 __all__ = ["LaserScene", "laser_scene", "pendant_laser_scene", "write_laser_session", "write_profile",
-           "profiler_views", "profile_reading", "PROFILER", "TARGETS"]
+           "profiler_views", "profile_reading", "PROFILER", "TARGETS", "FANUC_PROFILER_X"]
 
 #: The simulated profiler: field of view along x (m), measuring range along z (m), points per profile.
 PROFILER = {"fov": 0.08, "near": 0.08, "far": 0.16, "points": 2000}
@@ -321,6 +321,12 @@ def laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Ge
                       profiles=profiles, radius=radius, noise_m=noise_m, flange2base_true=scene.flange2base, target=target)
 
 
+#: A real profiler's pose on a FANUC's flange (RobCalibrator's answer for its capture, calibration.sec:
+#: x, y, z, w, p, r = -149.94 mm, 714.56 mm, 482.43 mm, -0.980, -178.982, 89.710 deg): 0.87 m from the flange.
+FANUC_PROFILER_X = make_transform(Rotation.from_euler("xyz", [-0.98031, -178.98232, 89.70972], degrees=True).as_matrix(),
+                                  [-0.14994, 0.71456, 0.48243])
+
+
 def pendant_laser_scene(setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
                         translations: int = 6, turns: tuple[int, int, int] = (3, 3, 3), turn_deg: tuple[float, float] = (4.0, 15.0),
                         X: NDArray[np.float64] | None = None, radius: float = 0.04, standoff: float = 0.12,
@@ -439,7 +445,7 @@ def write_profile(path: str | Path, points: NDArray[np.float64], unit: str = "mm
 def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm", diameter: bool = True) -> Path:
     """Write a simulated laser capture as a laser session folder (the format in docs/guide.md):
     ``profiles/pNN.csv`` (``x,z`` in ``unit``, NaN left empty), ``poses.csv`` (first column
-    ``profile``; quat_wxyz, mm, deg), ``session.yaml`` (``laser:`` with the unit and the noise, the
+    ``profile``; quat_wxyz, mm, deg), ``session.yaml`` (``laser:`` with the unit, the range and the noise, the
     target: the ball's diameter unless ``diameter`` is False, the fixture's balls' diameters) and
     ``ground_truth.yaml`` (X, Z and the target's figures). Returns the folder."""
     out = check_output_folder(folder)
@@ -454,15 +460,16 @@ def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm",
         target["diameter"] = 2 * scene.radius
     elif scene.target == "spheres":
         target["diameters"] = [float(d) for d in FIXTURE["diameters"]]
-    spec = {"setup": scene.setup, "target": target, "laser": {"unit": unit, "noise": f * scene.noise_m},
+    # the profiler's measuring range too, as a real one states it: the reader checks the profiles against it
+    spec = {"setup": scene.setup, "target": target, "laser": {"unit": unit, "range": [f * PROFILER["near"], f * PROFILER["far"]],
+                                                              "noise": f * scene.noise_m},
             "poses": {"file": "poses.csv", "format": "quat_wxyz", "length_unit": "mm", "angle_unit": "deg"}}
     if scene.joints is not None:  # the joint angles the controller reports, degrees, as other sessions have them
         write_joint_table(out / "joints.csv", names, scene.joints, id_column="profile")
         spec["joints"] = {"file": "joints.csv", "unit": "deg", "arm": scene.arm}
     atomic_write(out / "session.yaml", yaml.safe_dump(spec, sort_keys=False))
     info = setup_info(scene.setup)
-    truth = {"setup": scene.setup, info.x_name.replace("cam", "sensor"): scene.X.tolist(),
-             info.z_name: scene.Z.tolist()}
+    truth = {"setup": scene.setup, info.x_name: scene.X.tolist(), info.z_name: scene.Z.tolist()}  # result.json's names
     truth |= _target_truth(scene)
     if scene.chain_true is not None:
         truth |= {"arm": scene.arm, "table_true": scene.chain_true.table.tolist()}

@@ -103,6 +103,19 @@ def cast_rays(caster, n_target_faces: int, rays_cam: NDArray[np.float64], cam2ta
     return t, hit_target
 
 
+def framed_viewpoints(n_views: int, rng: np.random.Generator, K: NDArray[np.float64], image_size: tuple[int, int],
+                      distance: tuple[float, float], tilt_max_deg: float, centre: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(n, 4, 4) cam2target: views of a shape about ``centre`` from ``distance`` (m) and within
+    ``tilt_max_deg`` of its z axis, the shape anywhere in the middle two thirds of the image."""
+    w, h = image_size
+    cam2target = look_at_viewpoints(n_views, rng, distance=distance, tilt_max_deg=tilt_max_deg, aim_jitter=0.0,
+                                    centre=centre)
+    off = np.c_[rng.uniform(-w / 3, w / 3, n_views) / K[0, 0], rng.uniform(-h / 3, h / 3, n_views) / K[1, 1]]
+    turn = Rotation.from_rotvec(np.c_[off[:, 1], -off[:, 0], np.zeros(n_views)]).as_matrix()
+    cam2target[:, :3, :3] = cam2target[:, :3, :3] @ turn
+    return cam2target
+
+
 def mesh_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Generator | int | None = None, *,
                mesh=None, image_size: tuple[int, int] = (640, 480), depth_noise: tuple[float, float] = (1e-4, 5e-4),
                depth_scale: float = 1.002, depth_bias: float = 0.0, holes: float = 0.01,
@@ -147,11 +160,7 @@ def mesh_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Gen
         views = replace(views, scene=scene)
         cam2target = invert(scene.target2cam)
     else:
-        cam2target = look_at_viewpoints(n_views, rng, distance=distance, tilt_max_deg=tilt_max_deg, aim_jitter=0.0,
-                                        centre=centre)
-        off = np.c_[rng.uniform(-w / 3, w / 3, n_views) / K[0, 0], rng.uniform(-h / 3, h / 3, n_views) / K[1, 1]]
-        turn = Rotation.from_rotvec(np.c_[off[:, 1], -off[:, 0], np.zeros(n_views)]).as_matrix()
-        cam2target[:, :3, :3] = cam2target[:, :3, :3] @ turn
+        cam2target = framed_viewpoints(n_views, rng, K, image_size, distance, tilt_max_deg, centre)
         scene = scene_from_viewpoints(cam2target, setup, rng)
     if translations is not None:
         F = np.repeat(scene.flange2base[:1], n_views, axis=0)

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 from ...errors import DegenerateMotionError, InputMismatchError
 from ...frames.setups import check_setup, predicted_target2cam, robot_world_A_inv
 from ...geometry.se3 import skew, so3_left_jacobian
-from ..target_pose import ChartedTarget
+from ..target_pose import SECTION_PLANE_IMAGE, ChartedTarget, grid_curve
 from .pnp import INTRINSICS, project_camera_points, projection_jacobians, solve_pnp
 from .targets.base import Detection
 
@@ -184,3 +184,18 @@ class CameraCorners(ChartedTarget):
     def notes(self, p, cov_p) -> list[str]:
         """Nothing beyond the core's own notes."""
         return []
+
+    def sections(self, X, p, flange2base, views) -> list[dict[str, Any]]:
+        """Per view of ``views`` what the report draws of it (:class:`~handeye.result.SensorFit`'s
+        ``sections``): its image in mm at the target (pixels times the view's median pixel size), the
+        corners as found with their error's size (mm), and the target's grid through the corners
+        projected through X (none where the view saw nothing)."""
+        out = []
+        for v in views:
+            rows = np.flatnonzero(self.owner == v)
+            r = self.residuals(X, p, flange2base, rows) if len(rows) else np.zeros((0, 2))
+            mpp = float(np.median(self._mpp[rows])) if len(rows) else 1.0
+            fitted = (self.uv[rows] + r / self._mpp[rows, None]) * mpp
+            out.append({"points_mm": 1e3 * self.uv[rows] * mpp, "residual_mm": 1e3 * np.linalg.norm(r, axis=1),
+                        "curve_mm": 1e3 * grid_curve(self.points[rows], fitted), "plane": SECTION_PLANE_IMAGE})
+        return out

@@ -32,7 +32,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._shared.lazy import lazy_module
-from ...errors import InputMismatchError, SessionError
+from ..._shared.text import cut, shown
+from ...errors import InputMismatchError, SessionError, UnusableViewError
 from ...geometry.se3 import make_transform
 from ..camera.pnp import project_points
 
@@ -221,7 +222,7 @@ def _load(path: Path) -> NDArray:
     except SessionError:
         raise
     except Exception as exc:  # a damaged file: whatever the reader raises, say which file
-        raise SessionError(f"{path}: cannot read the cloud ({type(exc).__name__}: {exc})") from None
+        raise UnusableViewError(f"{path}: cannot read the cloud ({type(exc).__name__}: {cut(str(exc), 200)})") from None
     return cloud
 
 
@@ -249,10 +250,15 @@ def read_cloud(path: str | Path, image_size: tuple[int, int] | None = None, unit
                                      "per pixel, NaN or 0 where there is no depth), registered to the image")
         cloud = cloud.reshape(image_size[1], image_size[0], 3)
     if unit not in ("m", "mm"):
-        raise SessionError(f"{path}: the cloud's unit is m or mm, not {unit!r}")
+        raise SessionError(f"{path}: the cloud's unit is m or mm, not {shown(unit)}")
     cloud = np.array(cloud, dtype=float) * (1e-3 if unit == "mm" else 1.0)
-    if cloud.ndim == 3 and cloud.shape[2] == 3:
-        cloud[(cloud == 0).all(axis=2)] = np.nan
+    if cloud.ndim != 3 or cloud.shape[2] != 3:  # no cloud at all: the view's file is unusable, not the session
+        raise UnusableViewError(f"{path}: an organized cloud is an H x W x 3 array (x, y, z per pixel); got shape "
+                                f"{cloud.shape}")
+    cloud[(cloud == 0).all(axis=2)] = np.nan
+    if not (np.isfinite(cloud).all(axis=2) & (cloud[..., 2] != 0)).any():
+        raise UnusableViewError(f"{path}: no point has a depth (all NaN or zero): an empty capture, or the depth "
+                                "stream was not enabled")
     return check_cloud(cloud, image_size, where=str(path))
 
 
@@ -263,10 +269,10 @@ def read_points(path: str | Path, unit: str = "m") -> NDArray[np.float64]:
     (a template cloud of a shape has none); :class:`SessionError` naming a file that cannot be read."""
     path = Path(path)
     if unit not in ("m", "mm"):
-        raise SessionError(f"{path}: the cloud's unit is m or mm, not {unit!r}")
+        raise SessionError(f"{path}: the cloud's unit is m or mm, not {shown(unit)}")
     cloud = np.asarray(_load(path), dtype=float)
     if cloud.shape[-1:] != (3,) or cloud.ndim not in (2, 3):
-        raise SessionError(f"{path}: a cloud is an H x W x 3 or N x 3 array of points, got shape {cloud.shape}")
+        raise UnusableViewError(f"{path}: a cloud is an H x W x 3 or N x 3 array of points, got shape {cloud.shape}")
     p = cloud.reshape(-1, 3) * (1e-3 if unit == "mm" else 1.0)
     return p[np.isfinite(p).all(axis=1) & (p != 0).any(axis=1)]
 

@@ -235,6 +235,32 @@ class MeshSurface(DepthRows):
             out.append(f"the shape {self.shape_model.name} does not determine {'; '.join(free)}: {held}")
         return out
 
+    def _section_curve(self, X, p, flange2base, view, rows, r) -> NDArray[np.float64]:
+        """The shape's edges (a mesh's sharp and open edges; none for a template cloud) posed where the
+        fit puts it."""
+        T = predicted_target2cam(X, self.Z(X, p), np.asarray(flange2base, float)[view:view + 1], self.setup)[0]
+        edges = _sharp_edges(self.shape_model.mesh) @ T[:3, :3].T + T[:3, 3]
+        edges[2::3] = np.nan  # each edge's third point: the break between lines
+        return edges if len(edges) else np.full((1, 3), np.nan)
+
+
+#: A mesh's edge is drawn when its faces meet at more than this angle (rad): a rim, a hole, a pin.
+SHARP_EDGE = np.radians(25.0)
+
+
+def _sharp_edges(mesh: Any) -> NDArray[np.float64]:
+    """A mesh's sharp edges (faces meeting at more than :data:`SHARP_EDGE`) and open ones, as
+    (3k, 3) points in its frame: each edge's two ends and a third row (the report's break between
+    lines); none (0, 3) for a template cloud (no mesh)."""
+    if mesh is None:
+        return np.zeros((0, 3))
+    sharp = np.asarray(mesh.face_adjacency_edges)[np.asarray(mesh.face_adjacency_angles) > SHARP_EDGE]
+    edges = np.sort(np.asarray(mesh.edges), axis=1)
+    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    pairs = np.concatenate([sharp.reshape(-1, 2), unique[counts == 1]])
+    vertices = np.asarray(mesh.vertices, float)
+    return np.concatenate([vertices[pairs], vertices[pairs[:, :1]]], axis=1).reshape(-1, 3) if len(pairs) else np.zeros((0, 3))
+
 
 def _complement(free: NDArray[np.float64], radius: float) -> NDArray[np.float64]:
     """An orthonormal basis (6, 6 - k) of the twists the shape determines (rotations at ``radius``)."""

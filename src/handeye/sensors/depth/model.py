@@ -36,9 +36,11 @@ from ...errors import DegenerateMotionError, InputMismatchError
 from ...frames.setups import check_setup, predicted_target2cam, robot_world_A
 from ...geometry.se3 import make_transform, perturb
 from ..base import Nuisance
+from ..target_pose import grid_curve
 from .clouds import board_pose, depth_sigma
 
-__all__ = ["BoardPoints", "SphereCentres", "LATERAL", "ray_frames", "DEPTH_SCALE_TOLERANCE", "DEPTH_BIAS_TOLERANCE_M"]
+__all__ = ["BoardPoints", "SphereCentres", "LATERAL", "SECTION_POINTS", "ray_frames", "DEPTH_SCALE_TOLERANCE",
+           "DEPTH_BIAS_TOLERANCE_M"]
 
 #: How far a depth camera's scale and bias may be off their nominal 1 and 0 (one std): a
 #: structured-light or stereo camera's depth trueness, a few tenths of a percent and a millimetre or
@@ -47,6 +49,8 @@ DEPTH_SCALE_TOLERANCE, DEPTH_BIAS_TOLERANCE_M = 0.005, 0.002
 
 #: Noise across the rays, per metre of depth, to start from (0.2 px at a focal length of ~700 px).
 LATERAL = 3e-4
+#: Most points of a view the report draws (:meth:`DepthRows.sections`).
+SECTION_POINTS = 1500
 
 
 def ray_frames(points: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -119,6 +123,37 @@ class DepthRows:
     def noise_mm(self, rows: NDArray[np.intp]) -> NDArray[np.float64]:
         """The depth noise at each row's depth (mm)."""
         return 1e3 * depth_sigma(self.measured[rows, 2])
+
+    def sections(self, X, p, flange2base, views, max_points: int = SECTION_POINTS) -> list[dict[str, Any]]:
+        """Per view of ``views`` what the report draws of it (:class:`~handeye.result.SensorFit`'s
+        ``sections``): in its image, mm at the target (each point's ``x / z`` and ``y / z`` times the
+        view's median depth), at most ``max_points`` of its points (evenly taken) with their residual
+        (a surface's signed distance, or the size of a point's error; mm), and the target drawn where
+        the fit puts it (:meth:`_section_curve`)."""
+        F = np.asarray(flange2base, float)
+        out = []
+        for v in views:
+            rows = np.flatnonzero(self.owner == v)
+            rows = rows[np.linspace(0, len(rows) - 1, min(len(rows), max_points)).astype(np.intp)] if len(rows) else rows
+            r = self.residuals(X, p, F, rows) if len(rows) else np.zeros((0, 1))
+            q = self.measured[rows]
+            depth = float(np.median(q[:, 2])) if len(rows) else 1.0
+            curve = self._section_curve(X, p, F, v, rows, r)
+            out.append({"points_mm": 1e3 * depth * q[:, :2] / q[:, 2:],
+                        "residual_mm": 1e3 * (r[:, 0] if r.shape[1] == 1 else np.linalg.norm(r, axis=1)),
+                        "curve_mm": 1e3 * depth * curve[:, :2] / curve[:, 2:], "plane": "its image (mm at the target)"})
+        return out
+
+    def _section_curve(self, X, p, flange2base, view: int, rows: NDArray[np.intp], r: NDArray[np.float64]
+                       ) -> NDArray[np.float64]:
+        """The target as the report draws it in view ``view``'s camera frame (m; NaN rows between lines):
+        nothing by default (the points' residuals show the fit)."""
+        return np.full((1, 3), np.nan)
+
+    def _predicted(self, rows: NDArray[np.intp], r: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Where the fit puts the points of ``rows`` (camera frame, m), from their residuals ``r`` in
+        their ray frames: the measured point less the residual turned back out of its frame."""
+        return self.measured[rows] - np.einsum("mji,mj->mi", self.basis[rows], r)
 
 
 class BoardPoints(DepthRows):
@@ -196,6 +231,10 @@ class BoardPoints(DepthRows):
     def figures(self, p, cov_p) -> dict[str, Any]:
         """The depth scale and bias."""
         return depth_figures(p, cov_p, self.fit_depth)
+
+    def _section_curve(self, X, p, flange2base, view, rows, r) -> NDArray[np.float64]:
+        """The board's grid through its corners where the fit puts them."""
+        return grid_curve(self.obj[rows], self._predicted(rows, r))
 
 
 class SphereCentres(DepthRows):
@@ -277,6 +316,21 @@ class SphereCentres(DepthRows):
         return {"centres_m": self.centres(p).tolist(), "centres_std_mm": std.tolist(),
                 "radii_m": None if self.radius is None else sorted({float(r) for r in self.radius}),
                 **depth_figures(p, cov_p, self.fit_depth)}
+
+    def _section_curve(self, X, p, flange2base, view, rows, r) -> NDArray[np.float64]:
+        """Each ball's outline where the fit puts its centre (a circle of its radius across the ray; a
+        cross of 5 mm when the radius is not known)."""
+        centres = self._predicted(rows, r)
+        out = []
+        for k, c in zip(rows, centres):
+            ray = ray_frames(c[None])[0]
+            if self.radius is None:
+                out += [c - 0.005 * ray[1], c + 0.005 * ray[1], [np.nan] * 3, c - 0.005 * ray[2], c + 0.005 * ray[2]]
+            else:
+                t = np.linspace(0, 2 * np.pi, 73)[:, None]
+                out += list(c + self.radius[k] * (np.cos(t) * ray[1] + np.sin(t) * ray[2]))
+            out.append([np.nan] * 3)
+        return np.array(out, float).reshape(-1, 3) if out else np.full((1, 3), np.nan)
 
 
 def sphere_start(A: NDArray[np.float64], centres: NDArray[np.float64], view: NDArray[np.intp],

@@ -33,6 +33,7 @@ from scipy.ndimage import distance_transform_edt
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
+from ..._shared.text import shown
 from ...errors import SessionError
 from ...geometry.se3 import perpendicular_basis
 from .clouds import read_points
@@ -290,7 +291,7 @@ def load_shape(path: str | Path, unit: str = "mm", *, samples: int | None = None
     """
     path = Path(path)
     if unit not in ("m", "mm"):
-        raise SessionError(f"{path}: the shape's unit is m or mm, not {unit!r}")
+        raise SessionError(f"{path}: the shape's unit is m or mm, not {shown(unit)}")
     if not path.is_file():
         raise SessionError(f"{path}: no such mesh file")
     factor = 1e-3 if unit == "mm" else 1.0
@@ -316,7 +317,34 @@ def load_shape(path: str | Path, unit: str = "mm", *, samples: int | None = None
     mesh = loaded.copy()
     mesh.apply_scale(factor)
     _checked_size(float(np.linalg.norm(mesh.extents)), unit, str(path))
+    _checked_surface(mesh, unit, str(path))
     return shape_from_mesh(mesh, path.name, samples)
+
+
+#: A mesh thinner than this share of its size across its thinnest direction is flat (a surface, not a part).
+FLAT_SHARE = 1e-4
+
+
+def _checked_surface(mesh, unit: str, where: str) -> None:
+    """Refuse a mesh with no surface to find (its vertices on one line: no area to sample) or a flat
+    one whose faces point both ways (a part flattened to a plane, front and back on one another):
+    the clouds then fit it from either side, the views disagree, and the fit would blame the robot."""
+    f = 1e3 if unit == "mm" else 1.0
+    v = np.asarray(mesh.vertices, float)
+    size = float(np.linalg.norm(mesh.extents))
+    _, s, Vt = np.linalg.svd(v - v.mean(axis=0), full_matrices=False)
+    if float(mesh.area) <= (FLAT_SHARE * size) ** 2 or (len(s) > 1 and s[1] <= FLAT_SHARE * s[0]):
+        raise SessionError(f"{where}: the mesh has no area: its vertices lie on one line ({f * size:.4g} {unit} long); "
+                           "give an STL, OBJ or PLY of the target's surface")
+    across = (v - v.mean(axis=0)) @ Vt[-1]
+    if float(np.ptp(across)) <= FLAT_SHARE * size:
+        normals = np.asarray(mesh.face_normals, float) @ Vt[-1]
+        weights = np.asarray(mesh.area_faces, float)
+        if weights[normals > 0.5].sum() > 0.1 * weights.sum() and weights[normals < -0.5].sum() > 0.1 * weights.sum():
+            raise SessionError(f"{where}: the mesh is flat: its vertices lie in one plane ({f * float(np.ptp(across)):.2g} "
+                               f"{unit} thick across {f * size:.4g} {unit}) and its faces point both ways, front and back "
+                               "on one another: a cloud fits it from either side, and the part's relief (its walls, "
+                               "bores, edges) is what pins its pose; give the part's solid mesh (or one side of it)")
 
 
 def shape_from_mesh(mesh, name: str = "mesh", samples: int | None = None) -> Shape:

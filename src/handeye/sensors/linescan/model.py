@@ -34,7 +34,7 @@ from ...errors import DegenerateMotionError, InputMismatchError
 from ...frames.setups import check_setup, predicted_target2cam, robot_world_A
 from ...geometry.se3 import invert, make_transform
 from ..base import Nuisance
-from ..target_pose import ChartedTarget
+from ..target_pose import ChartedTarget, grid_curve
 from .resection import pushbroom_resection, resolve_mirrors
 
 __all__ = ["LineScanCorners", "Trajectory", "LINESCAN_NOISE_PX", "TRAJECTORY_MARGIN_S"]
@@ -295,4 +295,31 @@ class LineScanCorners(ChartedTarget):
         if abs(p[6] / self.focal0 - 1) > 0.2:
             out.append(f"the focal length is {100 * (p[6] / self.focal0 - 1):+.0f}% off its nominal {self.focal0:g} px: "
                        "check the lens and the pixel size the session states")
+        return out
+
+    def sections(self, X, p, flange2base, views) -> list[dict[str, Any]]:
+        """Per scan of ``views`` what the report draws of it (:class:`~handeye.result.SensorFit`'s
+        ``sections``), in the scan's own plane in mm at the target: along the line, each pixel times
+        the scan's median pixel size; along the move, each row times the distance the robot moves the
+        scan per row. Its corners as found, their residual's size (mm), and the board's grid through
+        the corners where the fit puts them: each moved along the line by its pixel error, and to the
+        row where it crosses the view plane (its distance from the plane over the rate at which that
+        distance changes, first order; the clock offset stepped by 1 ms gives the rate)."""
+        F = np.asarray(flange2base, float)
+        views = np.asarray(views, dtype=np.intp)
+        speed = np.linalg.norm(self._sensor_velocity(views), axis=1)
+        q = np.array(p, float)
+        q[9] += 1e-3
+        out = []
+        for v, vel in zip(views, speed):
+            rows = np.flatnonzero(self.owner == v)
+            r = self.residuals(X, p, F, rows)
+            rate = (self.residuals(X, q, F, rows) - r) / 1e-3  # d(residual)/dt, m/s
+            dt = -r[:, 1] / np.where(np.abs(rate[:, 1]) > 1e-9, rate[:, 1], np.inf)  # to the view plane
+            mpp, step = float(np.median(self._mpp[rows])), vel / self.line_rate
+            u, row = self.uv[rows, 0], self.uv[rows, 1]
+            fitted = np.c_[(u + (r[:, 0] + rate[:, 0] * dt) / self._mpp[rows]) * mpp, (row + dt * self.line_rate) * step]
+            out.append({"points_mm": 1e3 * np.c_[u * mpp, row * step], "residual_mm": 1e3 * np.linalg.norm(r, axis=1),
+                        "curve_mm": 1e3 * grid_curve(self.points[rows], fitted),
+                        "plane": "its scan (along the line, along the move; mm at the target)"})
         return out

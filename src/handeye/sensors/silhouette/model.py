@@ -289,7 +289,7 @@ class SilhouetteContours:
             curve = np.concatenate([np.r_[c.reshape(-1, 2), c.reshape(-1, 2)[:1], [[np.nan, np.nan]]] for c in contours]) \
                 if contours else np.full((1, 2), np.nan)
             out.append({"points_mm": uv * mm, "residual_mm": 1e3 * self.residuals(X, p, flange2base, rows)[:, 0],
-                        "curve_mm": curve * mm})
+                        "curve_mm": curve * mm, "plane": "its image (mm at the arm: the outline points, the mask's boundary)"})
         return out
 
     def Z(self, X, p) -> NDArray[np.float64]:

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ...._shared.text import shown
 from ....errors import TargetError
 from .apriltag import AprilTag
 from .aruco_grid import ArucoGrid
@@ -72,7 +73,7 @@ def register_target(cls: type[Target]) -> type[Target]:
                           f"and implement {', '.join(missing) or 'its methods'}")
     for kind in cls.spec_types():
         if _REGISTRY.get(kind, cls) is not cls:
-            raise TargetError(f"target type {kind!r} is taken by {_REGISTRY[kind].__name__}")
+            raise TargetError(f"target type {shown(kind)} is taken by {_REGISTRY[kind].__name__}")
         _REGISTRY[kind] = cls
     return cls
 
@@ -123,10 +124,10 @@ def target_from_spec(spec: dict[str, Any], where: str = "target") -> Target:
     if not isinstance(spec, dict):
         raise TargetError(f"{where}: expected a mapping with type, cols, rows, square")
     if spec.get("origin", "corner") not in ORIGINS + ("center",):
-        raise TargetError(f"{where}: origin {spec.get('origin')!r}; use 'corner' (the default) or 'centre'")
+        raise TargetError(f"{where}: origin {shown(spec.get('origin'))}; use 'corner' (the default) or 'centre'")
     cls = _REGISTRY.get(spec.get("type"))
     if cls is None:
-        raise TargetError(f"{where}: unknown target type {spec.get('type')!r}; use one of {', '.join(_REGISTRY)}")
+        raise TargetError(f"{where}: unknown target type {shown(spec.get('type'))}; use one of {', '.join(_REGISTRY)}")
     try:
         return cls.from_spec(spec)
     except (TypeError, ValueError, TargetError) as exc:  # the size checks of the target classes: say where

@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...._shared.lazy import lazy_module
+from ...._shared.text import shown
 from ....errors import TargetError
 from .base import DARK, LIGHT, Detection, Target, Texture, aruco_dictionary, need, raster_rects
 
@@ -33,7 +34,7 @@ class AprilTag(Target):
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.square) and 0 < self.square < 1.0):
-            raise TargetError(f"apriltag: square (the tag side) must be in metres between 0 and 1, got {self.square!r}")
+            raise TargetError(f"apriltag: square (the tag side) must be in metres between 0 and 1, got {shown(self.square)}")
         aruco_dictionary(self.dictionary)
 
     @classmethod

@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...._shared.lazy import lazy_module
+from ...._shared.text import shown
 from ....errors import TargetError
 from .base import Detection, OpenCVBoard, Target, Texture, aruco_dictionary, need, raster_rects
 
@@ -39,10 +40,10 @@ class ArucoGrid(OpenCVBoard, Target):
         if not (int(self.cols) >= 1 and int(self.rows) >= 1 and int(self.cols) * int(self.rows) >= 2):
             raise TargetError(f"aruco_grid: cols and rows count markers; give at least 2 markers, got {self.cols} x {self.rows}")
         if not (np.isfinite(self.square) and 0 < self.square < 1.0):
-            raise TargetError(f"aruco_grid: square (the marker side) must be in metres between 0 and 1, got {self.square!r}")
+            raise TargetError(f"aruco_grid: square (the marker side) must be in metres between 0 and 1, got {shown(self.square)}")
         if not (np.isfinite(self.separation) and 0 < self.separation < 1.0):
             raise TargetError(f"aruco_grid: separation (the gap between markers) must be in metres between 0 and 1, "
-                              f"got {self.separation!r}")
+                              f"got {shown(self.separation)}")
         d = aruco_dictionary(self.dictionary)
         if int(self.cols) * int(self.rows) > len(d.bytesList):
             raise TargetError(f"aruco_grid: {self.cols * self.rows} markers, but {self.dictionary} has {len(d.bytesList)}")

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...._shared.lazy import lazy_module
+from ...._shared.text import shown
 from ....errors import TargetError
 
 cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays light
@@ -171,7 +172,7 @@ class Target:
         if int(self.cols) != self.cols or int(self.rows) != self.rows or self.cols < min_cols or self.rows < min_rows:
             raise TargetError(f"{self.type}: cols and rows must be integers >= {min_cols}, {min_rows}; got {self.cols} x {self.rows}")
         if not (np.isfinite(self.square) and 0 < self.square < 1.0):
-            raise TargetError(f"{self.type}: square must be a length in metres between 0 and 1, got {self.square!r}"
+            raise TargetError(f"{self.type}: square must be a length in metres between 0 and 1, got {shown(self.square)}"
                               + (" (millimetres? write 0.0236 for 23.6 mm)" if self.square >= 1.0 else ""))
 
 
@@ -184,7 +185,7 @@ def grid_points(cols: int, rows: int, square: float) -> NDArray[np.float64]:
 def aruco_dictionary(name: str) -> Any:
     """OpenCV's predefined aruco dictionary ``name`` (``DICT_6X6_250``, ``DICT_APRILTAG_36h11``, ...)."""
     if not isinstance(name, str) or not name.startswith("DICT_") or not hasattr(cv2.aruco, name):
-        raise TargetError(f"unknown aruco dictionary {name!r}; use an OpenCV name such as DICT_6X6_250 or DICT_APRILTAG_36h11")
+        raise TargetError(f"unknown aruco dictionary {shown(name)}; use an OpenCV name such as DICT_6X6_250 or DICT_APRILTAG_36h11")
     return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name))
 
 

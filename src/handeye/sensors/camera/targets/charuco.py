@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...._shared.lazy import lazy_module
+from ...._shared.text import shown
 from ....errors import TargetError
 from .base import Detection, OpenCVBoard, Target, Texture, aruco_dictionary, need, raster_rects
 
@@ -44,7 +45,7 @@ class Charuco(OpenCVBoard, Target):
     def __post_init__(self) -> None:
         self._check_size(3, 3)
         if not (0 < self.marker < self.square):
-            raise TargetError(f"charuco: marker side must be between 0 and the square side {self.square}, got {self.marker!r}")
+            raise TargetError(f"charuco: marker side must be between 0 and the square side {self.square}, got {shown(self.marker)}")
         board = cv2.aruco.CharucoBoard((int(self.cols), int(self.rows)), float(self.square), float(self.marker),
                                         aruco_dictionary(self.dictionary))
         object.__setattr__(self, "_board", board)
