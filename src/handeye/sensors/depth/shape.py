@@ -23,9 +23,10 @@ Examples
 from __future__ import annotations
 
 import importlib
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,7 +39,7 @@ from ...geometry.se3 import perpendicular_basis
 from .clouds import read_points
 
 __all__ = ["Shape", "load_shape", "shape_from_mesh", "shape_from_points", "free_twists", "twist_axis", "describe_twist", "weakest_rotation",
-           "dominant_normals", "voxel_pick", "sample_surface",
+           "dominant_normals", "NearestSamples", "voxel_pick", "sample_surface",
            "MESH_SUFFIXES", "TEMPLATE_SUFFIXES", "MAX_SIZE_M", "MIN_SIZE_M", "SYMMETRY_SHARE",
            "SPIN_SHARE", "MAX_SAMPLES"]
 
@@ -180,6 +181,50 @@ class _Grid:
         inside = np.all((c >= 0) & (c < self.n), axis=1)
         flat = np.where(inside, (c[:, 0] * self.n[1] + c[:, 1]) * self.n[2] + c[:, 2], len(self.table) - 1)
         return self.table[flat]
+
+
+class NearestSamples:
+    """A fit's searches of a surface's samples, remembered: per measurement row the ``kept`` samples
+    nearest it at its last search (their points and normals). A row that has moved by less than half
+    the gap between the distances of its ``nearest``-th and its last kept sample since then has the
+    same ``nearest`` samples among the kept ones (every other sample was at least as far as the last
+    kept one, and is at most the move nearer now): they are found among those few instead of by a new
+    search, with the same answer. A fit moves its points by far less than that between its steps.
+
+    Parameters
+    ----------
+    rows : int
+        The measurement rows.
+    nearest : int
+        The samples each lookup gives per row, nearest first.
+    kept : int
+        The samples kept per row (more than ``nearest``).
+    """
+
+    def __init__(self, rows: int, nearest: int, kept: int) -> None:
+        self.nearest, self.kept = nearest, kept
+        self.at = np.full((rows, 3), np.nan)  #: where each row was searched from
+        self.points = np.zeros((rows, kept, 3))  #: its nearest samples there, nearest first
+        self.normals = np.zeros((rows, kept, 3))  #: and their normals
+        self.slack = np.full(rows, -np.inf)  #: half the gap between the nearest-th and the last one's distance
+        self.lock = threading.Lock()
+
+    def lookup(self, rows: NDArray[np.intp], y: NDArray[np.float64], search: Callable[..., Any]
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The ``nearest`` samples of points ``y`` (M, 3) of ``rows`` (M,): their points and normals
+        (M, nearest, 3), nearest first, as a search gives them. ``search(rows, y)`` searches the rows
+        not answered from what is kept: per row the ``kept`` nearest samples' distances (m, kept),
+        points and normals (m, kept, 3), nearest first."""
+        with self.lock:
+            fresh = ~(np.linalg.norm(y - self.at[rows], axis=1) < self.slack[rows])  # NaN (never searched): fresh
+            if fresh.any():
+                r, points, normals = search(rows[fresh], y[fresh])
+                at = rows[fresh]
+                self.at[at], self.points[at], self.normals[at] = y[fresh], points, normals
+                self.slack[at] = 0.5 * (r[:, -1] - r[:, self.nearest - 1])
+            gap = y[:, None] - self.points[rows]  # (M, kept, 3)
+            order = np.argsort(np.einsum("mki,mki->mk", gap, gap), axis=1, kind="stable")[:, :self.nearest, None]
+            return np.take_along_axis(self.points[rows], order, axis=1), np.take_along_axis(self.normals[rows], order, axis=1)
 
 
 def voxel_pick(points: NDArray[np.float64], voxel: float) -> NDArray[np.intp]:
