@@ -219,13 +219,13 @@ def _group_start(s: DepthSession, arm: PosedArm, c: ArmClouds, views: list[int],
         first = _found(arm, c.index[j], moving, where) if len(moving) >= MIN_INLIERS else "too few points moved"
         return _found(arm, c.index[j], c.points[j], where) if isinstance(first, str) else first
 
-    with ThreadPoolExecutor(max_workers=max(1, min(jobs or 2, len(views)))) as pool, one_blas_thread():
+    few_owner, few = c.stacked(SCORE_POINTS)  # each candidate scored on a few points per view, the best refined
+    with ThreadPoolExecutor(max_workers=max(1, jobs or 2)) as pool, one_blas_thread():
         results = list(pool.map(found, views))
-    candidates = _distinct([X for f in results if not isinstance(f, str) for X in f])
+        candidates = _distinct([X for f in results if not isinstance(f, str) for X in f])
+        scored = list(pool.map(lambda X: _explained(arm, X, few_owner, few, 6), candidates))
     if not candidates:
         return "; ".join(f for f in results if isinstance(f, str))
-    few_owner, few = c.stacked(SCORE_POINTS)  # each candidate scored on a few points per view, the best refined
-    scored = [_explained(arm, X, few_owner, few, 6) for X in candidates]
     owner, q = c.stacked(ICP_POINTS)
     X, seen = _explained(arm, max(scored, key=lambda r: r[1])[0], owner, q, 4)
     return X, seen, len(candidates)
@@ -308,18 +308,24 @@ def consistent_arm_views(s: DepthSession, arm: PosedArm, c: ArmClouds, X: NDArra
     """``c`` without the views that show too little of the arm where X puts it, or whose own X (ICP
     from X on their points alone) is more than :data:`AGREE_DEG` or :data:`AGREE_M` from it (their
     joint angles are not the arm's pose in their cloud), each named; and X refitted on the rest."""
-    keep, skipped = [], list(c.skipped)
-    for j, k in enumerate(c.index):
+    def own(j: int) -> tuple[int, NDArray[np.float64] | None]:  # the view's points on the arm at X, and its own X
         q = c.points[j][:ICP_POINTS]
-        owner = np.full(len(q), k, dtype=np.intp)
+        owner = np.full(len(q), c.index[j], dtype=np.intp)
         seen = int(on_arm(arm, X, owner, q).sum())
         if seen < MIN_INLIERS:
+            return seen, None
+        tight = _tight(q)
+        return seen, fit_cam2base(arm, X, owner, q, np.r_[np.geomspace(4 * tight, tight, 6), tight, tight])
+
+    with ThreadPoolExecutor(max_workers=2) as pool, one_blas_thread():  # each view alone: on both cores
+        views = list(pool.map(own, range(len(c.index))))
+    keep, skipped = [], list(c.skipped)
+    for j, (k, (seen, X_j)) in enumerate(zip(c.index, views)):
+        if X_j is None:
             skipped.append((s.names[k], f"the arm is not in this cloud where the other views put the camera: {seen} of its "
                                         f"points lie on it (at least {MIN_INLIERS}); is the arm in view?"))
             continue
-        tight = _tight(q)
-        own = fit_cam2base(arm, X, owner, q, np.r_[np.geomspace(4 * tight, tight, 6), tight, tight])
-        rot, tra = float(np.degrees(rotation_error(own, X))), float(translation_error(own, X))
+        rot, tra = float(np.degrees(rotation_error(X_j, X))), float(translation_error(X_j, X))
         if rot > AGREE_DEG or tra > AGREE_M:
             skipped.append((s.names[k], f"its cloud puts the camera {rot:.1f} deg, {1e3 * tra:.0f} mm from where the other "
                                         "views do: its joint angles are not the arm's pose in it (another row, or the arm "
