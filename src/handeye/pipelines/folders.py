@@ -14,17 +14,16 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .._shared.lazy import lazy_module
-from ..errors import DegenerateMotionError
+from ..errors import DegenerateMotionError, HandEyeError
 from ..estimation.validation import default_folds
 from ..estimation.verdict import exit_status
-from ..io.session import POSEPAIRS_FILE, SESSION_FILE, PosePairs, has_section, load_pose_pairs, load_session, load_yaml
+from ..io.session import POSEPAIRS_FILE, SESSION_FILE, PosePairs, load_pose_pairs, load_session, load_yaml
 from ..options import CalibrationOptions, options_from
 from ..result import Calibration, Diagnostics
 from .calibration import calibrate, calibrate_poses
 
 # Each kind of session's pipeline, loaded when a session of that kind comes: a camera's session does
-# not pay for the depth, laser, line-scan, silhouette and rig pipelines' imports. calibrate_session
-# tells the kinds apart by their session.yaml section, as io's is_depth_session and the others do.
+# not pay for the depth, laser, line-scan, silhouette and rig pipelines' imports.
 _depth = lazy_module("handeye.pipelines.depth")
 _joints = lazy_module("handeye.pipelines.joints")
 _laser = lazy_module("handeye.pipelines.laser")
@@ -70,21 +69,34 @@ def calibrate_session(folder: str | Path, options: CalibrationOptions | None = N
     :func:`handeye.pipelines.rig.calibrate_rig_session`."""
     opts = options_from(options, changes)
     folder = Path(folder)
-    if has_section(folder, "depth"):
+    spec = _session_spec(folder)
+    if spec.get("depth") is not None:
         return _depth.calibrate_depth_session(folder, opts, progress=progress, jobs=jobs)
-    if has_section(folder, "laser"):
+    if spec.get("laser") is not None:
         return _laser.calibrate_laser_session(folder, opts, progress=progress)
-    if has_section(folder, "linescan"):
+    if spec.get("linescan") is not None:
         return _linescan.calibrate_linescan_session(folder, opts, progress=progress)
-    if has_section(folder, "silhouette"):
+    if spec.get("silhouette") is not None:
         return _silhouette.calibrate_silhouette_session(folder, opts, progress=progress)
-    if has_section(folder, "sensors"):
+    if spec.get("sensors") is not None:
         return _rig.calibrate_rig_session(folder, opts, progress=progress)
-    if opts.arm is not None or ((folder / SESSION_FILE).is_file()
-                                and load_yaml(folder / SESSION_FILE).get("joints") is not None):
+    if opts.arm is not None or spec.get("joints") is not None:
         session = load_session(folder, strict_images=opts.strict_images, arm=opts.arm)
         return _joints.calibrate_joint_session(session, opts, jobs=jobs, progress=progress)
     return calibrate(folder, opts, jobs=jobs, progress=progress)
+
+
+def _session_spec(folder: Path) -> dict:
+    """The folder's session.yaml as a mapping, read once to tell the kinds of session apart (its
+    ``depth:``, ``laser:``, ... section, as io's is_depth_session and the others do); empty when there
+    is none or it cannot be read (the session's reader then says why)."""
+    if not (folder / SESSION_FILE).is_file():
+        return {}
+    try:
+        spec = load_yaml(folder / SESSION_FILE)
+    except HandEyeError:
+        return {}
+    return spec if isinstance(spec, dict) else {}
 
 
 def calibrate_pairs(pairs: PosePairs, options: CalibrationOptions | None = None, *, progress: bool = True,
