@@ -64,7 +64,7 @@ from ..robot.models import ControllerPoses, JointAngles
 from ..sensors.depth.arm import COARSE_TAU, SPACING, ArmSurface, PosedArm, fit_cam2base, on_arm, to_base, within
 from ..sensors.depth.clouds import depth_sigma
 from ..sensors.depth.registration import MIN_INLIERS, find_shape
-from ..sensors.depth.shape import voxel_pick
+from ..sensors.depth.shape import search_tree, voxel_pick
 from ._arm import arm_table, table_tolerance
 from .mesh import read_scene
 
@@ -283,7 +283,7 @@ def start_arm(s: DepthSession, arm: PosedArm, c: ArmClouds, jobs: int | None = N
     DegenerateMotionError
         No candidate from any cloud that most views agree with: the arm is not found.
     """
-    trees = [cKDTree(q[voxel_pick(q, 0.5 * MOVED_M)]) for q in c.points]
+    trees = [search_tree(q[voxel_pick(q, 0.5 * MOVED_M)]) for q in c.points]
     why: list[str] = []
     groups = [list(range(first, min(first + GLOBAL_VIEWS, len(c.index)))) for first in range(0, len(c.index), GLOBAL_VIEWS)]
     for views in groups[:1] + [None] + groups[1:]:  # None: every view's moving points at once

@@ -43,7 +43,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from ...errors import InputMismatchError, SessionError
 from ...frames.setups import check_setup, setup_info
@@ -52,7 +51,7 @@ from ...robot.kinematics import Chain
 from ...robot.meshes import ArmMeshes
 from .clouds import depth_sigma
 from .model import LATERAL, DepthRows, depth_figures
-from .shape import NearestSamples, Shape, sample_surface, shape_from_mesh, voxel_pick
+from .shape import NearestSamples, Shape, sample_surface, search_tree, shape_from_mesh, voxel_pick
 
 __all__ = ["PosedArm", "ArmSurface", "fit_cam2base", "on_arm", "within", "to_base", "SPACING", "BAND_SIGMA", "BAND_M", "FACES",
            "COARSE_SPACING", "COARSE_TAU", "KEPT"]
@@ -121,9 +120,9 @@ class PosedArm:
             pts = np.concatenate([p @ t[:3, :3].T + t[:3, 3] for (p, _), t in zip(local, T)])
             self.points.append(pts)
             self.normals.append(np.concatenate([n @ t[:3, :3].T for (_, n), t in zip(local, T)]))
-            self.trees.append(cKDTree(pts))
+            self.trees.append(search_tree(pts))
         #: per view the wide rounds' samples: their KD-tree, points and normals
-        self.sparse = [(cKDTree(p[self.coarse]), p[self.coarse], n[self.coarse]) for p, n in zip(self.points, self.normals)]
+        self.sparse = [(search_tree(p[self.coarse]), p[self.coarse], n[self.coarse]) for p, n in zip(self.points, self.normals)]
 
     def subset(self, views: list[int] | NDArray[np.intp]) -> PosedArm:
         """The arm at the views ``views`` only (their samples and trees shared, not made again)."""
