@@ -217,3 +217,37 @@ def test_fitting_the_arms_table_brings_x_closer_when_the_arm_is_off_it(tmp_path)
     assert any("fitted with X" in n for n in fitted.notes) and any("not fitted" in n for n in held.notes)
     with pytest.raises(handeye.InputMismatchError, match="compliance"):
         JointAngles(s.arm, s.joints, compliance=True).entry_columns(np.zeros((1, 28)))
+
+
+def test_the_fits_remembered_searches_and_the_grouped_bounds_answer_as_new_searches():
+    """Issue 81: the fit answers a point from the few samples it kept at its last search while it has
+    moved less than half their margin (NearestSamples), and on_arm searches its points in groups of
+    bounds: both give exactly what a new search of every sample gives, over moves of X from 1 um to
+    3 mm (many of them beyond the margin: searched again)."""
+    from handeye.geometry.se3 import perturb
+    from handeye.robot.meshes import arm_meshes
+    from handeye.sensors.depth.arm import BAND_M, BAND_SIGMA, FACES, SPACING, ArmSurface, PosedArm, on_arm, to_base
+    from handeye.sensors.depth.clouds import depth_sigma
+
+    sc = arm_depth_scene(4, rng=2, image_size=(160, 120))
+    meshes = arm_meshes("panda")
+    arm = PosedArm(meshes, meshes.link2base(load_arm("panda"), sc.joints))
+    clouds = [c.reshape(-1, 3)[np.isfinite(c.reshape(-1, 3)).all(axis=1)] for c in sc.clouds]
+    owner, q = np.repeat(np.arange(4), [len(c) for c in clouds]), np.concatenate(clouds)
+    band = BAND_SIGMA * depth_sigma(q[:, 2]) + BAND_M
+    d, dist, n = arm.surface(owner, to_base(sc.X, q), float(2.0 * band.max() + 2.0 * SPACING))  # one bound for all
+    one_bound = (np.abs(d) < band) & (dist < 2.0 * band + 2.0 * SPACING) & (np.einsum("mi,mi->m", n @ sc.X[:3, :3], q) < 0)
+    on = on_arm(arm, sc.X, owner, q)
+    assert np.array_equal(on, one_bound) and on.sum() > 1000 and (~on).sum() > 1000  # the table and the box are off it
+    model = ArmSurface("eye_to_hand", list("abcd"), arm, [c[on_arm(arm, sc.X, np.full(len(c), k), c)] for k, c in
+                                                          enumerate(clouds)], sc.X)
+    rng = np.random.default_rng(0)
+    rows = np.arange(len(model.owner))
+    searched = model._nearest.slack.copy()
+    for step in 10 ** rng.uniform(-6, -2.5, 40):
+        X = perturb(sc.X, rng.normal(0, step, 3), rng.normal(0, step, 3))
+        p = rng.normal(0, 1e-3, 2)
+        some = rows if rng.random() < 0.5 else np.sort(rng.choice(rows, len(rows) // 3, replace=False))
+        expected = arm.surface(model.owner[some], to_base(X, model._moved(p, some)), faces=FACES)[0]
+        assert np.array_equal(model.residuals(X, p, None, some)[:, 0], expected)
+    assert not np.array_equal(searched, model._nearest.slack)  # some rows were searched again, some answered from memory

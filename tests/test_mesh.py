@@ -251,3 +251,33 @@ def test_the_extras_a_session_names_are_the_modules_installed_with_them(tmp_path
         "joints": {"file": "joints.csv", "unit": "deg", "arm": "robot.urdf"}}))
     assert sorted(session_extras(tmp_path)) == ["depth", "markerless", "urdf"]
     check_extras(tmp_path)  # all installed: no error
+
+
+def test_remembered_searches_give_the_nearest_samples_a_new_search_gives():
+    """Issue 81: NearestSamples answers a row from the samples it kept while the row has moved less
+    than half their margin, else searches again: the nearest samples are always those of a search of
+    every sample (brute force here), for moves below, near and beyond the margin."""
+    from scipy.spatial import cKDTree
+
+    from handeye.sensors.depth.shape import NearestSamples
+
+    rng = np.random.default_rng(1)
+    samples, normals = rng.random((3000, 3)), rng.normal(size=(3000, 3))
+    tree = cKDTree(samples)
+
+    def search(rows, y):
+        r, k = tree.query(y, k=5)
+        return r, samples[k], normals[k]
+
+    cache = NearestSamples(400, 2, 5)
+    y = rng.random((400, 3))
+    answered = 0
+    for step in np.r_[np.zeros(2), 10 ** rng.uniform(-4, -1, 30)]:
+        y = y + rng.normal(0, step, y.shape)
+        rows = np.sort(rng.choice(400, 300, replace=False))
+        before = cache.at[rows].copy()
+        points, near_normals = cache.lookup(rows, y[rows], search)
+        brute = np.argsort(np.linalg.norm(y[rows, None] - samples[None], axis=2), axis=1)[:, :2]
+        assert np.array_equal(points, samples[brute]) and np.array_equal(near_normals, normals[brute])
+        answered += int(np.sum(np.all(cache.at[rows] == before, axis=1)))
+    assert answered > 1000  # most lookups were answered from what was kept

@@ -1,40 +1,68 @@
 """The ``handeye`` command: one module per command (its parser, handler and printing), the
-shared option groups in :mod:`._common`."""
+shared option groups in :mod:`._common`.
+
+A command's module is imported when that command is called, not before: ``handeye calibrate``
+loads neither the simulator, the planner nor the capture loop, and ``handeye --help`` lists the
+commands from :data:`COMMANDS` alone."""
 
 from __future__ import annotations
 
 import argparse
 import contextlib
 import difflib
+import importlib
 import os
 import sys
-from typing import Sequence
+from types import ModuleType
+from typing import Any, Sequence
 
+from .._shared.lazy import lazy_module
 from .._version import __version__
 from ..errors import HandEyeError
-from ..sensors.camera.detect import CACHE_ENV, default_cache_dir
-from . import (
-    acquire,
-    calibrate,
-    calibrate_poses,
-    calibrate_streams,
-    check,
-    import_,
-    live,
-    plan,
-    simulate,
-    study,
-    target,
-    verify,
-)
-from ._common import EXAMPLE_POSEPAIRS, SAMPLE_SESSION
-from ._printing import print_calibration
-from .target import TARGET_KINDS
 
-__all__ = ["main", "build_parser", "print_calibration", "SAMPLE_SESSION", "EXAMPLE_POSEPAIRS", "TARGET_KINDS"]
+_detect = lazy_module("handeye.sensors.camera.detect")  # the detection cache's folder, on dispatch
 
-#: The commands in the order ``handeye --help`` lists them; each module's ``register`` adds its parser.
-COMMANDS = (calibrate_poses, calibrate_streams, calibrate, check, verify, acquire, live, import_, target, simulate, plan, study)
+#: The commands in the order ``handeye --help`` lists them: each one's module in this package (its
+#: ``register`` adds the parser, imported only when the command is called) and the line the list shows
+#: (the same as the module's parser's help: tests/test_architecture.py checks it).
+COMMANDS = {
+    "calibrate-poses": ("calibrate_poses", "calibrate from robot poses and camera-to-target poses (a pose-pair folder)"),
+    "calibrate-streams": ("calibrate_streams",
+                          "calibrate from a robot pose stream and a camera pose stream with separate clocks"),
+    "calibrate": ("calibrate", "calibrate from a capture session (images + robot poses)"),
+    "check": ("check", "check whether the data can give a good calibration (exit 0 good, 1 weak, 2 degenerate/inconsistent)"),
+    "verify": ("verify", "check a calibration on a second capture: each view predicted from its robot pose"),
+    "acquire": ("acquire", "capture a session: the robot moves, the camera shoots, handeye chooses each next pose and stops "
+                "when X is known well enough"),
+    "live": ("live", "capture from a page in the browser: the live image with the target found, the views taken, the "
+             "coverage, the planner's next pose and a calibration after every view"),
+    "import": ("import_", "turn another tool's capture into a handeye folder: rosbag, easy-handeye, visp, "
+               "industrial-calibration, robcalibrator, easyhec"),
+    "target": ("target", "write a printable calibration target (PDF or SVG, true to scale) and its session.yaml block"),
+    "simulate": ("simulate", "render a synthetic capture session with ground truth"),
+    "plan": ("plan", "plan robot poses for a good calibration and predict its accuracy"),
+    "study": ("study", "the Monte-Carlo study of the thesis's chapter 5 (every solver, any noise)"),
+}
+
+#: Names this package gives, from the module that holds each (loaded on first use, PEP 562).
+_NAMES = {"print_calibration": "_printing", "SAMPLE_SESSION": "_common", "EXAMPLE_POSEPAIRS": "_common",
+          "TARGET_KINDS": "target"}
+
+__all__ = ["COMMANDS", "main", "build_parser", "command_module", "print_calibration", "SAMPLE_SESSION",
+           "EXAMPLE_POSEPAIRS", "TARGET_KINDS"]
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _NAMES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{_NAMES[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def command_module(command: str) -> ModuleType:
+    """The module of ``command`` (a key of :data:`COMMANDS`), imported now."""
+    return importlib.import_module(f"{__name__}.{COMMANDS[command][0]}")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -50,8 +78,9 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The ``handeye`` parser with every command of :data:`COMMANDS`."""
+def build_parser(commands: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The ``handeye`` parser with every command of :data:`COMMANDS` (or, given ``commands``, those
+    commands' parsers, whose modules are imported, and the others by name and help line only)."""
     parser = _Parser(
         prog="handeye",
         description="Hand-eye calibration of a camera against a robot arm.",
@@ -59,8 +88,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"handeye {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for command in COMMANDS:
-        command.register(sub)
+    for name, (_, line) in COMMANDS.items():
+        if commands is None or name in commands:
+            command_module(name).register(sub)
+        else:
+            sub.add_parser(name, help=line)
     return parser
 
 
@@ -96,32 +128,32 @@ def _detection_cache(args: argparse.Namespace):
     """While a command runs: detections cached in the user's cache folder (unless
     ``$HANDEYE_CACHE_DIR`` says where, or is empty: no cache), or nowhere with ``--no-cache``. Set
     in the environment, so that the processes a fleet starts cache alike; restored afterwards."""
-    before = os.environ.get(CACHE_ENV)
+    env = _detect.CACHE_ENV
+    before = os.environ.get(env)
     if getattr(args, "no_cache", False):
-        os.environ[CACHE_ENV] = ""
+        os.environ[env] = ""
     elif before is None:
-        os.environ[CACHE_ENV] = str(default_cache_dir())
+        os.environ[env] = str(_detect.default_cache_dir())
     try:
         yield
     finally:
         if before is None:
-            os.environ.pop(CACHE_ENV, None)
+            os.environ.pop(env, None)
         else:
-            os.environ[CACHE_ENV] = before
+            os.environ[env] = before
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``handeye`` console script; returns the exit status."""
-    parser = build_parser()
     argv = list(sys.argv[1:] if argv is None else argv)
-    subs = _subparsers(parser)
     first = next((a for a in argv if not a.startswith("-")), None)
-    if first is not None and first not in subs:
-        near = difflib.get_close_matches(first, list(subs), n=1, cutoff=0.5)
+    if first is not None and first not in COMMANDS:
+        near = difflib.get_close_matches(first, list(COMMANDS), n=1, cutoff=0.5)
         if near:
             print(f"handeye: error: unknown command {first!r}; did you mean {near[0]!r}? (see 'handeye --help')",
                   file=sys.stderr)
             return 2
+    parser = build_parser([first] if first in COMMANDS else [])  # only the command called is imported
     try:
         args, extras = parser.parse_known_args(argv)
     except SystemExit as exc:  # a bad option (status 2, the error printed), --help or --version (0)

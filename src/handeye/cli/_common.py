@@ -13,22 +13,26 @@ from scipy.spatial.transform import Rotation
 
 from .. import solvers
 from .._shared.io import check_output_folder
+from .._shared.lazy import lazy_module
 from ..errors import HandEyeError, InputMismatchError
 from ..estimation.verdict import exit_status
 from ..frames.poses import ANGLE_UNITS, LENGTH_UNITS
 from ..frames.setups import setup_info
 from ..geometry.se3 import make_transform
 from ..io.session import load_yaml, read_intrinsics
-from ..options import PAIRS, REFINES, ROBOT_ACCURACY, CalibrationOptions
+from ..options import KEYFRAMES, PAIRS, REFINES, ROBOT_ACCURACY, CalibrationOptions
 from ..pipelines.calibration import certify_calibration
-from ..pipelines.streams import KEYFRAMES
-from ..report import EXPORTS, write_calibration
 from ..result import Calibration
 from ..robot.kinematics import arm_names
 from ..sensors.camera.targets import target_from_spec
-from ..simulate import DEFAULT_TARGETS, MIN_IMAGE_SIDE
-from ..simulate.laser import TARGETS as LASER_TARGETS
 from ._printing import print_calibration
+
+# Loaded when a command uses them, not when it parses: ``calibrate`` without --out writes no report,
+# and only ``simulate`` and ``plan`` ask the simulator about targets and image sizes.
+_report = lazy_module("handeye.report")
+_report_files = lazy_module("handeye.report.files")
+_simulate = lazy_module("handeye.simulate")
+_simulate_laser = lazy_module("handeye.simulate.laser")
 
 EXAMPLE_POSEPAIRS = "example_posepairs"
 
@@ -64,14 +68,14 @@ def number_arg(lo: float, hi: float = math.inf, above: bool = False):
 
 
 def image_size_arg(text: str) -> tuple[int, int]:
-    """argparse type: WIDTHxHEIGHT in pixels, each at least MIN_IMAGE_SIDE."""
+    """argparse type: WIDTHxHEIGHT in pixels, each at least the simulator's MIN_IMAGE_SIDE."""
     parts = text.lower().replace(" ", "").split("x")
     try:
         w, h = (int(v) for v in parts)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r}: give WIDTHxHEIGHT in pixels, e.g. 640x480") from None
-    if min(w, h) < MIN_IMAGE_SIDE:
-        raise argparse.ArgumentTypeError(f"{text}: each side must be at least {MIN_IMAGE_SIDE} px")
+    if min(w, h) < _simulate.MIN_IMAGE_SIDE:
+        raise argparse.ArgumentTypeError(f"{text}: each side must be at least {_simulate.MIN_IMAGE_SIDE} px")
     return w, h
 
 
@@ -127,14 +131,14 @@ def sensor_target(sensor: str, target: str | None, board: str) -> str:
     (default ``board``); the other kind's target is a clear error (simulate and plan)."""
     if sensor == "laser_line":
         target = target or "sphere"
-        if target not in LASER_TARGETS:
+        if target not in _simulate_laser.TARGETS:
             raise InputMismatchError(f"--target {target} is a board for cameras; a laser line profiler scans one of "
-                                     f"{', '.join(LASER_TARGETS)} (--target sphere is the default)")
+                                     f"{', '.join(_simulate_laser.TARGETS)} (--target sphere is the default)")
         return target
     target = target or board
-    if target in LASER_TARGETS:
+    if target in _simulate_laser.TARGETS:
         raise InputMismatchError(f"--target {target} is a laser profiler's target: add --sensor laser_line, or give a "
-                                 f"board ({', '.join(DEFAULT_TARGETS)})")
+                                 f"board ({', '.join(_simulate.DEFAULT_TARGETS)})")
     return target
 
 
@@ -207,12 +211,21 @@ def out_folder(out: str | None, inputs: Sequence[Path] = ()) -> Path | None:
         raise HandEyeError(f"--out: {exc}") from None
 
 
+def export_arg(text: str) -> str:
+    """argparse type: a name of the report's exports (``report.files.EXPORTS``) or 'all', checked when
+    --export is given (parsing a command does not import the report)."""
+    names = [*_report_files.EXPORTS, "all"]
+    if text not in names:
+        raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from {', '.join(names)})")
+    return text
+
+
 def add_out_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--out", help="write result.json, result.yaml and report.html into this folder")
     p.add_argument("--parent-frame", help="ROS frame X is given in (default: tool0 for eye_in_hand, base_link for eye_to_hand)")
     p.add_argument("--child-frame", help="ROS frame of the camera (default: camera_optical_frame; a laser profiler's: "
                    "laser_profiler_optical_frame)")
-    p.add_argument("--export", action="append", default=[], choices=list(EXPORTS) + ["all"],
+    p.add_argument("--export", action="append", default=[], type=export_arg, metavar="NAME",
                    help="with --out, also write: ros2-launch (a ROS 2 launch file publishing X), ros1-launch (the "
                    "ROS 1 launch file MoveIt Calibration writes), easy-handeye (easy_handeye2's .calib); repeat or all")
     p.add_argument("--tool", metavar="X,Y,Z[,RX,RY,RZ]",
@@ -342,7 +355,7 @@ def write_options(args: argparse.Namespace) -> dict:
 def write_outputs(cal: Calibration, args: argparse.Namespace) -> None:
     """Write the result files and the report (never into ``cal.input_folder``: write_calibration)."""
     if args.out:
-        for path in write_calibration(cal, args.out, **write_options(args)):
+        for path in _report.write_calibration(cal, args.out, **write_options(args)):
             print(f"wrote {path}")
     else:
         print("no --out: nothing written (--out FOLDER writes result.json, result.yaml and report.html)")

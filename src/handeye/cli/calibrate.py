@@ -8,14 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from .._shared.io import atomic_write
+from .._shared.lazy import lazy_module
 from ..errors import HandEyeError
 from ..estimation.verdict import exit_status
 from ..pipelines.calibration import certify_calibration
 from ..pipelines.folders import calibrate_session
-from ..planning.joints import suggest_joint_views
-from ..report.html import MAX_OVERLAYS
 from ..sensors.camera import preview
-from ..workflows.fleet import calibrate_many
 from ._common import (
     SAMPLE_SESSION,
     add_calibrate_options,
@@ -30,12 +28,17 @@ from ._common import (
 )
 from ._printing import fmt_vec, print_calibration, print_image_summary, print_next_views, print_sensor_views
 
+# Loaded when the session asks for them: a fleet (several folders), a report (--out), a joint fit's next views.
+_fleet = lazy_module("handeye.workflows.fleet")
+_html = lazy_module("handeye.report.html")
+_joint_planning = lazy_module("handeye.planning.joints")
+
 
 def _cmd_calibrate_many(args: argparse.Namespace) -> int:
     """calibrate with several session folders: each into --out/<name>/, on local processes or Dask."""
     if not args.out:
         raise HandEyeError("several sessions need --out: each session's files go into a folder of its own there")
-    items = calibrate_many(args.session, args.out, scheduler=args.scheduler, jobs=args.jobs,
+    items = _fleet.calibrate_many(args.session, args.out, scheduler=args.scheduler, jobs=args.jobs,
                            progress=not args.no_progress, certify=args.certify, write_options=write_options(args),
                            options=calibrate_options(args))
     status = 0
@@ -63,7 +66,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
                             "give a session folder, or --sample for the bundled sample session (not both)")
     out_folder(args.out, [session])
     # the report's thumbnails are cut while detection has the images decoded (not read again)
-    with preview.kept(MAX_OVERLAYS if args.out else 0):
+    with preview.kept(_html.MAX_OVERLAYS if args.out else 0):
         cal = calibrate_session(session, calibrate_options(args), jobs=args.jobs, progress=not args.no_progress)
         if args.strict and cal.verdict == "inconsistent":  # a sensor's fit answers; --strict refuses the answer
             raise HandEyeError(f"{session}: the verdict is inconsistent (--strict): "
@@ -88,7 +91,7 @@ def _suggest_views(cal, out: str | None) -> None:
     if k is None or cal.image_points is None:
         return
     try:
-        views = suggest_joint_views(cal)
+        views = _joint_planning.suggest_joint_views(cal)
     except HandEyeError as exc:  # a proposal, not the result: say why there is none
         print(f"next views: none proposed ({exc})")
         return

@@ -61,10 +61,10 @@ from ..options import CalibrationOptions
 from ..result import Calibration
 from ..robot.meshes import BASE, meshes_for
 from ..robot.models import ControllerPoses, JointAngles
-from ..sensors.depth.arm import SPACING, ArmSurface, PosedArm, fit_cam2base, on_arm, to_base
+from ..sensors.depth.arm import COARSE_TAU, SPACING, ArmSurface, PosedArm, fit_cam2base, on_arm, to_base, within
 from ..sensors.depth.clouds import depth_sigma
 from ..sensors.depth.registration import MIN_INLIERS, find_shape
-from ..sensors.depth.shape import voxel_pick
+from ..sensors.depth.shape import search_tree, voxel_pick
 from ._arm import arm_table, table_tolerance
 from ._sensor import held_and_freed, session_robot_input
 from .mesh import read_scene
@@ -88,8 +88,13 @@ MOVED_M = 0.01
 ICP_POINTS = 6000
 #: ... and for scoring the global registration's candidates ...
 SCORE_POINTS = 1500
-#: ... and the moving points per view of the search over every view at once.
+#: ... and the moving points per view of the search over every view at once, whose candidates go on
+#: from the ICP's wide rounds to its fine ones (and are scored) only these many, those with the most
+#: points within the wide rounds' last threshold: on the simulated Panda the candidate that won among
+#: all 61 was among the first 2 of them in each of 4 sessions (its basin's 3,000-3,600 points within
+#: that threshold, another basin's at most 2,450).
 POOLED_POINTS = 300
+POOLED_KEPT = 8
 
 
 @dataclass
@@ -169,12 +174,17 @@ def _found(arm: PosedArm, view: int, q: NDArray[np.float64], where: str) -> list
     return [invert(match.target2cam)] + [invert(T) for T in match.others]
 
 
+def _thresholds(q: NDArray[np.float64], steps: int, reach: float) -> NDArray[np.float64]:
+    """The ICP's thresholds (m): from ``reach`` down to the tight one in ``steps``, and twice the tight one."""
+    tight = _tight(q)
+    return np.r_[np.geomspace(reach, tight, steps), tight, tight]
+
+
 def _explained(arm: PosedArm, X: NDArray[np.float64], owner: NDArray[np.intp], q: NDArray[np.float64], steps: int = 10,
                reach: float = 0.05) -> tuple[NDArray[np.float64], int]:
     """Candidate X pulled in by ICP over every view's points (thresholds from ``reach`` (m) down to
     the tight one, in ``steps``), and how many of the points it puts on the arm."""
-    tight = _tight(q)
-    X = fit_cam2base(arm, X, owner, q, np.r_[np.geomspace(reach, tight, steps), tight, tight])
+    X = fit_cam2base(arm, X, owner, q, _thresholds(q, steps, reach))
     return X, int(on_arm(arm, X, owner, q).sum())
 
 
@@ -210,25 +220,27 @@ def _group_start(s: DepthSession, arm: PosedArm, c: ArmClouds, views: list[int],
         first = _found(arm, c.index[j], moving, where) if len(moving) >= MIN_INLIERS else "too few points moved"
         return _found(arm, c.index[j], c.points[j], where) if isinstance(first, str) else first
 
-    with ThreadPoolExecutor(max_workers=max(1, min(jobs or 2, len(views)))) as pool, one_blas_thread():
+    few_owner, few = c.stacked(SCORE_POINTS)  # each candidate scored on a few points per view, the best refined
+    with ThreadPoolExecutor(max_workers=max(1, jobs or 2)) as pool, one_blas_thread():
         results = list(pool.map(found, views))
-    candidates = _distinct([X for f in results if not isinstance(f, str) for X in f])
+        candidates = _distinct([X for f in results if not isinstance(f, str) for X in f])
+        scored = list(pool.map(lambda X: _explained(arm, X, few_owner, few, 6), candidates))
     if not candidates:
         return "; ".join(f for f in results if isinstance(f, str))
-    few_owner, few = c.stacked(SCORE_POINTS)  # each candidate scored on a few points per view, the best refined
-    scored = [_explained(arm, X, few_owner, few, 6) for X in candidates]
     owner, q = c.stacked(ICP_POINTS)
     X, seen = _explained(arm, max(scored, key=lambda r: r[1])[0], owner, q, 4)
     return X, seen, len(candidates)
 
 
-def pooled_start(arm: PosedArm, c: ArmClouds, trees: list[cKDTree]) -> tuple[NDArray[np.float64], int, int] | str:
+def pooled_start(arm: PosedArm, c: ArmClouds, trees: list[cKDTree], jobs: int | None = None
+                 ) -> tuple[NDArray[np.float64], int, int] | str:
     """The best X from every view at once: the moving points' centroid of each view (camera frame)
     against its moving links' centroid (base frame), X's rotation from those pairs (Kabsch, when the
     centroids spread) and from 60 evenly spread ones (the icosahedral group), its translation
-    matching the centroids' means; each candidate pulled in by ICP over a few moving points per view
-    from 30 cm down, the one that puts most points on the arm refined: (X, its points on the arm,
-    the candidates); or why none."""
+    matching the centroids' means; each candidate pulled in by the ICP's wide rounds over a few moving
+    points per view from 30 cm down (``jobs`` at a time, threads; default 2), the :data:`POOLED_KEPT`
+    with most points within their last threshold through the fine rounds, the one of those that puts
+    most points on the arm refined: (X, its points on the arm, the candidates); or why none."""
     moving = [_moving(c, j, trees, 8 * POOLED_POINTS)[:POOLED_POINTS] for j in range(len(c.index))]
     if sum(len(m) >= MIN_INLIERS for m in moving) < 3:
         return "fewer than 3 clouds in which enough of the arm moved"
@@ -240,8 +252,21 @@ def pooled_start(arm: PosedArm, c: ArmClouds, trees: list[cKDTree]) -> tuple[NDA
         rotations.insert(0, Rotation.align_vectors(base - base.mean(axis=0), cam - cam.mean(axis=0))[0].as_matrix())
     owner = np.repeat(np.asarray(c.index, dtype=np.intp), [len(m) for m in moving])
     q = np.concatenate(moving)
-    scored = [_explained(arm, make_transform(R, base.mean(axis=0) - R @ cam.mean(axis=0)), owner, q, 8, 0.3)
-              for R in rotations]
+    thresholds = _thresholds(q, 8, 0.3)
+    wide, fine = thresholds[thresholds > COARSE_TAU], thresholds[thresholds <= COARSE_TAU]
+
+    def pulled(R: NDArray[np.float64]) -> tuple[NDArray[np.float64], int]:
+        X = fit_cam2base(arm, make_transform(R, base.mean(axis=0) - R @ cam.mean(axis=0)), owner, q, wide)
+        return X, within(arm, X, owner, q, wide[-1], coarse=True)
+
+    def finished(X: NDArray[np.float64]) -> tuple[NDArray[np.float64], int]:  # as _explained's last rounds
+        X = fit_cam2base(arm, X, owner, q, fine)
+        return X, int(on_arm(arm, X, owner, q).sum())
+
+    with ThreadPoolExecutor(max_workers=max(1, jobs or 2)) as pool, one_blas_thread():
+        wide_X = list(pool.map(pulled, rotations))
+        kept = np.sort(np.argsort([-n for _, n in wide_X], kind="stable")[:POOLED_KEPT])  # in the candidates' order
+        scored = list(pool.map(finished, [wide_X[k][0] for k in kept]))
     few_owner, few = c.stacked(ICP_POINTS)
     X, seen = _explained(arm, max(scored, key=lambda r: r[1])[0], few_owner, few, 4)
     return X, seen, len(rotations)
@@ -259,12 +284,12 @@ def start_arm(s: DepthSession, arm: PosedArm, c: ArmClouds, jobs: int | None = N
     DegenerateMotionError
         No candidate from any cloud that most views agree with: the arm is not found.
     """
-    trees = [cKDTree(q[voxel_pick(q, 0.5 * MOVED_M)]) for q in c.points]
+    trees = [search_tree(q[voxel_pick(q, 0.5 * MOVED_M)]) for q in c.points]
     why: list[str] = []
     groups = [list(range(first, min(first + GLOBAL_VIEWS, len(c.index)))) for first in range(0, len(c.index), GLOBAL_VIEWS)]
     for views in groups[:1] + [None] + groups[1:]:  # None: every view's moving points at once
         searched = "every cloud's moving points" if views is None else ", ".join(s.names[c.index[j]] for j in views)
-        start = pooled_start(arm, c, trees) if views is None else _group_start(s, arm, c, views, trees, jobs)
+        start = pooled_start(arm, c, trees, jobs) if views is None else _group_start(s, arm, c, views, trees, jobs)
         if isinstance(start, str):
             why.append(f"{searched}: {start}")
             continue
@@ -284,18 +309,24 @@ def consistent_arm_views(s: DepthSession, arm: PosedArm, c: ArmClouds, X: NDArra
     """``c`` without the views that show too little of the arm where X puts it, or whose own X (ICP
     from X on their points alone) is more than :data:`AGREE_DEG` or :data:`AGREE_M` from it (their
     joint angles are not the arm's pose in their cloud), each named; and X refitted on the rest."""
-    keep, skipped = [], list(c.skipped)
-    for j, k in enumerate(c.index):
+    def own(j: int) -> tuple[int, NDArray[np.float64] | None]:  # the view's points on the arm at X, and its own X
         q = c.points[j][:ICP_POINTS]
-        owner = np.full(len(q), k, dtype=np.intp)
+        owner = np.full(len(q), c.index[j], dtype=np.intp)
         seen = int(on_arm(arm, X, owner, q).sum())
         if seen < MIN_INLIERS:
+            return seen, None
+        tight = _tight(q)
+        return seen, fit_cam2base(arm, X, owner, q, np.r_[np.geomspace(4 * tight, tight, 6), tight, tight])
+
+    with ThreadPoolExecutor(max_workers=2) as pool, one_blas_thread():  # each view alone: on both cores
+        views = list(pool.map(own, range(len(c.index))))
+    keep, skipped = [], list(c.skipped)
+    for j, (k, (seen, X_j)) in enumerate(zip(c.index, views)):
+        if X_j is None:
             skipped.append((s.names[k], f"the arm is not in this cloud where the other views put the camera: {seen} of its "
                                         f"points lie on it (at least {MIN_INLIERS}); is the arm in view?"))
             continue
-        tight = _tight(q)
-        own = fit_cam2base(arm, X, owner, q, np.r_[np.geomspace(4 * tight, tight, 6), tight, tight])
-        rot, tra = float(np.degrees(rotation_error(own, X))), float(translation_error(own, X))
+        rot, tra = float(np.degrees(rotation_error(X_j, X))), float(translation_error(X_j, X))
         if rot > AGREE_DEG or tra > AGREE_M:
             skipped.append((s.names[k], f"its cloud puts the camera {rot:.1f} deg, {1e3 * tra:.0f} mm from where the other "
                                         "views do: its joint angles are not the arm's pose in it (another row, or the arm "

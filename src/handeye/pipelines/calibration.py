@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from .._shared.io import array_digest, files_digests_by_path, files_digests_soon
+from .._shared.lazy import lazy_module
 from .._shared.progress import Progress
 from .._shared.text import sentences, summarize
 from .._shared.threads import one_blas_thread
@@ -41,17 +42,6 @@ from ..estimation.estimators import (
     poses_fit,
 )
 from ..estimation.partial import calibrate_partial, known_on_complete, parse_known
-from ..estimation.sync import (
-    MIN_SAMPLES,
-    PoseStream,
-    Synchronisation,
-    check_stream,
-    interpolate,
-    keyframes_at,
-    offset_cov,
-    synchronise,
-    timing_cost,
-)
 from ..estimation.uncertainty import UNSEEN_FACTOR, robot_accuracy_cov, robot_accuracy_from_data, widened_uncertainty
 from ..estimation.validation import Views, jackknife_covs, robot_error_seen
 from ..estimation.verdict import judged, solver_spread
@@ -77,6 +67,8 @@ from ..sensors.camera.pnp import INTRINSICS
 from ..solvers.certifiable import certify
 from ..solvers.low_dof import partial_kind
 from ..solvers.refine import ReprojectionResult
+
+_sync = lazy_module("handeye.estimation.sync")  # two clocks: loaded for a session with a robot stream only
 
 __all__ = ["Calibration", "CalibrationOptions", "Observations", "ROBOT_ACCURACY", "apply_choice", "calibrate", "certify_calibration",
            "calibrate_observed", "calibrate_poses", "observe", "refine_on_pixels", "refine_on_poses",
@@ -842,33 +834,33 @@ def _synchronised(obs: Observations, offset_range, time_offset, keyframes: int):
     there. Returns the observations, the synchronisation, and both streams."""
     session = obs.session
     setup = session.setup
-    robot = check_stream(session.robot_times, session.robot_stream, "robot stream")
+    robot = _sync.check_stream(session.robot_times, session.robot_stream, "robot stream")
     times = session.image_times[np.asarray(obs.used)]
     order = np.argsort(times, kind="stable")
     obs, times = obs.subset(order), times[order]
-    if len(times) >= max(STREAM_MIN_IMAGES, MIN_SAMPLES) and np.median(np.diff(times)) <= STREAM_MAX_PERIOD:
-        camera = check_stream(times, obs.target2cam, "images")
-        sync = synchronise(robot, camera, setup, offset_range, time_offset, keyframes)
-        kf, f2b, _ = keyframes_at(robot, camera, sync.offset, keyframes, setup, sync.fit)
+    if len(times) >= max(STREAM_MIN_IMAGES, _sync.MIN_SAMPLES) and np.median(np.diff(times)) <= STREAM_MAX_PERIOD:
+        camera = _sync.check_stream(times, obs.target2cam, "images")
+        sync = _sync.synchronise(robot, camera, setup, offset_range, time_offset, keyframes)
+        kf, f2b, _ = _sync.keyframes_at(robot, camera, sync.offset, keyframes, setup, sync.fit)
         obs = obs.subset(kf)
     else:
-        camera = PoseStream(times, obs.target2cam, "images")
+        camera = _sync.PoseStream(times, obs.target2cam, "images")
         offset = 0.0 if time_offset is None else float(time_offset)
-        f2b, inside = interpolate(robot, times - offset)
+        f2b, inside = _sync.interpolate(robot, times - offset)
         if not inside.all():
             raise SessionError(f"image(s) {summarize(np.asarray(session.image_names)[np.asarray(obs.used)][~inside])} "
                                "were taken outside the robot stream's time span (or in a gap of it)")
-        cost = timing_cost(robot, times - offset)
+        cost = _sync.timing_cost(robot, times - offset)
         note = (f"{len(times)} images are too few or too far apart to estimate the clock offset: the robot was "
                 f"interpolated at their times{'' if time_offset is None else f' minus the given {offset * 1e3:.1f} ms'}"
                 f"; it moved up to {np.nanmax(cost):.2f} deg/s + cm/s there, so each 10 ms of offset costs up to "
                 f"{np.nanmax(cost) / 100:.3f} deg + mm")
-        sync = Synchronisation(offset, 0.0, (offset, offset), None, None, [note])
+        sync = _sync.Synchronisation(offset, 0.0, (offset, offset), None, None, [note])
     ri = obs.robot_input
     return replace(obs, flange2base=f2b, robot_input=None if ri is None else ri.rewritten(f2b)), sync, robot, camera
 
 
-def _with_sync(cal: Calibration, sync: Synchronisation, robot: PoseStream, camera: PoseStream,
+def _with_sync(cal: Calibration, sync: _sync.Synchronisation, robot: _sync.PoseStream, camera: _sync.PoseStream,
                obs: Observations) -> Calibration:
     """``cal`` (from the synchronised images ``obs``) with the clock offset, its uncertainty in X's
     and the stream fields."""
@@ -876,7 +868,7 @@ def _with_sync(cal: Calibration, sync: Synchronisation, robot: PoseStream, camer
     name_to_time = dict(zip(session.image_names, session.image_times))
     used_times = np.array([name_to_time[n] for n in cal.image_names])
     if sync.offset_std > 0 and cal.cov is not None and np.isfinite(cal.cov).all():
-        cov = cal.cov + offset_cov(cal.X, cal.Z, cal.setup, robot, used_times, cal.target2cam, sync.offset,
+        cov = cal.cov + _sync.offset_cov(cal.X, cal.Z, cal.setup, robot, used_times, cal.target2cam, sync.offset,
                                    sync.offset_std)
         cal = replace(cal, cov=cov, std=_std(cov))
     return replace(cal, sync=StreamSync(sync.offset, sync.offset_std, sync.info(robot, camera, used_times)),

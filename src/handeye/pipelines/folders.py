@@ -13,26 +13,25 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from ..errors import DegenerateMotionError
+from .._shared.lazy import lazy_module
+from ..errors import DegenerateMotionError, HandEyeError
 from ..estimation.validation import default_folds
 from ..estimation.verdict import exit_status
-from ..io.depth_session import is_depth_session
 from ..io.extras import check_extras
-from ..io.laser_session import is_laser_session
-from ..io.linescan_session import is_linescan_session
-from ..io.rig_session import is_rig_session
 from ..io.session import POSEPAIRS_FILE, SESSION_FILE, PosePairs, load_pose_pairs, load_session, load_yaml
-from ..io.silhouette_session import is_silhouette_session
 from ..options import CalibrationOptions, options_from
 from ..result import Calibration, Diagnostics
 from .calibration import calibrate, calibrate_poses
-from .depth import calibrate_depth_session
-from .joints import calibrate_joint_session
-from .laser import calibrate_laser_session
-from .linescan import calibrate_linescan_session
-from .rig import calibrate_rig_session
-from .silhouette import calibrate_silhouette_session
-from .streams import calibrate_streams, paired_delay_note
+
+# Each kind of session's pipeline, loaded when a session of that kind comes: a camera's session does
+# not pay for the depth, laser, line-scan, silhouette and rig pipelines' imports.
+_depth = lazy_module("handeye.pipelines.depth")
+_joints = lazy_module("handeye.pipelines.joints")
+_laser = lazy_module("handeye.pipelines.laser")
+_linescan = lazy_module("handeye.pipelines.linescan")
+_rig = lazy_module("handeye.pipelines.rig")
+_silhouette = lazy_module("handeye.pipelines.silhouette")
+_streams = lazy_module("handeye.pipelines.streams")
 
 __all__ = ["FolderCheck", "calibrate_folder", "calibrate_pairs", "calibrate_session", "check_folder"]
 
@@ -72,21 +71,34 @@ def calibrate_session(folder: str | Path, options: CalibrationOptions | None = N
     opts = options_from(options, changes)
     folder = Path(folder)
     check_extras(folder)  # every optional extra the session needs, named at once (a mesh and .ply clouds: mesh,depth)
-    if is_depth_session(folder):
-        return calibrate_depth_session(folder, opts, progress=progress, jobs=jobs)
-    if is_laser_session(folder):
-        return calibrate_laser_session(folder, opts, progress=progress)
-    if is_linescan_session(folder):
-        return calibrate_linescan_session(folder, opts, progress=progress)
-    if is_silhouette_session(folder):
-        return calibrate_silhouette_session(folder, opts, progress=progress)
-    if is_rig_session(folder):
-        return calibrate_rig_session(folder, opts, progress=progress)
-    if opts.arm is not None or ((folder / SESSION_FILE).is_file()
-                                and load_yaml(folder / SESSION_FILE).get("joints") is not None):
+    spec = _session_spec(folder)
+    if spec.get("depth") is not None:
+        return _depth.calibrate_depth_session(folder, opts, progress=progress, jobs=jobs)
+    if spec.get("laser") is not None:
+        return _laser.calibrate_laser_session(folder, opts, progress=progress)
+    if spec.get("linescan") is not None:
+        return _linescan.calibrate_linescan_session(folder, opts, progress=progress)
+    if spec.get("silhouette") is not None:
+        return _silhouette.calibrate_silhouette_session(folder, opts, progress=progress)
+    if spec.get("sensors") is not None:
+        return _rig.calibrate_rig_session(folder, opts, progress=progress)
+    if opts.arm is not None or spec.get("joints") is not None:
         session = load_session(folder, strict_images=opts.strict_images, arm=opts.arm)
-        return calibrate_joint_session(session, opts, jobs=jobs, progress=progress)
+        return _joints.calibrate_joint_session(session, opts, jobs=jobs, progress=progress)
     return calibrate(folder, opts, jobs=jobs, progress=progress)
+
+
+def _session_spec(folder: Path) -> dict:
+    """The folder's session.yaml as a mapping, read once to tell the kinds of session apart (its
+    ``depth:``, ``laser:``, ... section, as io's is_depth_session and the others do); empty when there
+    is none or it cannot be read (the session's reader then says why)."""
+    if not (folder / SESSION_FILE).is_file():
+        return {}
+    try:
+        spec = load_yaml(folder / SESSION_FILE)
+    except HandEyeError:
+        return {}
+    return spec if isinstance(spec, dict) else {}
 
 
 def calibrate_pairs(pairs: PosePairs, options: CalibrationOptions | None = None, *, progress: bool = True,
@@ -97,9 +109,9 @@ def calibrate_pairs(pairs: PosePairs, options: CalibrationOptions | None = None,
     offset found."""
     opts = options_from(options, changes)
     if pairs.is_stream:
-        cal = calibrate_streams(pairs.robot_times, pairs.flange2base, pairs.camera_times, pairs.target2cam,
+        cal = _streams.calibrate_streams(pairs.robot_times, pairs.flange2base, pairs.camera_times, pairs.target2cam,
                                 pairs.setup, opts, robot_input=pairs.robot_input)
-        warning = paired_delay_note(pairs.paired_delays, cal.time_offset, cal.time_offset_std)
+        warning = _streams.paired_delay_note(pairs.paired_delays, cal.time_offset, cal.time_offset_std)
         notes = list(pairs.notes) + ([warning] if warning else [])
     else:
         cal = calibrate_poses(pairs.flange2base, pairs.target2cam, pairs.setup, opts, robot_input=pairs.robot_input,

@@ -223,8 +223,8 @@ def calibrate_silhouette_session(folder: str | Path | SilhouetteSession, options
                    method="colour camera (the arm's silhouette) fit",
                    held=arm_table(model, lambda X: model.points, s.meshes, s.arm, s.joints, "colour camera"))
     iou = views.ious(cal.X)
+    pairing, _ = pairing_notes(views, cal.X, list(s.names))  # the same rendering as the IoU's
     held = heldout_ious(views, model, cal.X)
-    pairing, _ = pairing_notes(views, cal.X, list(s.names))
     px = model.residuals_px(cal.X, np.arange(len(model.owner)))
     figures = dict(cal.sensor.figures, iou=iou.tolist(), iou_heldout=held.tolist(), iou_mean=float(iou.mean()),
                    iou_heldout_mean=float(held.mean()), fit_rms_px=float(np.sqrt(np.mean(px**2))),

@@ -15,8 +15,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.io import atomic_write, check_output_folder
+from .._shared.lazy import lazy_module
 from ..estimation.diagnostics import compare_solvers
-from ..pipelines.rig import rig_members
 from ..result import Calibration
 from .files import (
     EXPORTS,
@@ -31,6 +31,8 @@ from .files import (
 )
 from .html import SECTIONS, report_html, write_report
 from .verification import verification_html, write_verification
+
+_rig = lazy_module("handeye.pipelines.rig")  # a rig's members, when a rig's result is written (its import is heavy)
 
 __all__ = ["write_calibration", "result_dict", "write_results", "report_html", "write_report", "default_frames",
            "ros2_static_transform_command", "urdf_joint", "SECTIONS", "EXPORTS", "write_exports",
@@ -78,7 +80,7 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
         path = out_dir / "rig_static_tf.launch.py"
         atomic_write(path, ros2_rig_launch_file(frames, parent_frame or default_frames(cal.setup)[0]), protect)
         paths.append(path)
-        for name, member in rig_members(cal).items():  # each sensor's own result files, as one sensor's calibration writes them
+        for name, member in _rig.rig_members(cal).items():  # each sensor's own result files, as one sensor's calibration writes them
             paths += write_results(member, out_dir / "sensors" / name, protect, parent_frame, f"{name}_optical_frame", tool2flange)
     if report:
         rows = None

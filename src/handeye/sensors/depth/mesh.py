@@ -30,9 +30,15 @@ from ...frames.setups import check_setup, predicted_target2cam, robot_world_A, s
 from ...geometry.se3 import invert, make_transform
 from .clouds import depth_sigma
 from .model import LATERAL, DepthRows, depth_figures, sphere_start
-from .shape import Shape, twist_axis
+from .shape import NearestSamples, Shape, twist_axis
 
-__all__ = ["MeshSurface", "twist"]
+__all__ = ["MeshSurface", "twist", "KEPT"]
+
+#: The fit remembers this many nearest samples of the shape per point
+#: (:class:`~handeye.sensors.depth.shape.NearestSamples`; the nearest one is the point's): the core's fit
+#: of the simulator's disc on a UR5's joint angles (15 clouds) took 2.6x less CPU than with a new search
+#: at every step (5 kept: 2.3x).
+KEPT = 3
 
 
 def twist(xi: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -84,6 +90,7 @@ class MeshSurface(DepthRows):
         self.param_names = [f"Z.d{i + 1}" for i in range(k)] + (["depth.scale-1", "depth.bias"] if fit_depth else [])
         self.param_scale = np.r_[np.full(k, 1e-3), [1e-3, 1e-3] if fit_depth else []]
         self._Zref: NDArray[np.float64] | None = self.placement
+        self._nearest = NearestSamples(len(self.owner), 1, KEPT)
 
     @property
     def n_z(self) -> int:
@@ -167,14 +174,26 @@ class MeshSurface(DepthRows):
         x = np.einsum("mji,mj->mi", Tm[:, :3, :3], q - Tm[:, :3, 3])
         return q, Tm, x
 
-    def _surface(self, x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Signed distances and normals (shape frame) of points ``x``, exactly blind to what the shape
-        leaves free (:meth:`~handeye.sensors.depth.shape.Shape.canonical`)."""
+    def _search(self, rows: NDArray[np.intp], x: NDArray[np.float64]
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """The :data:`KEPT` samples of the shape nearest points ``x`` (shape frame): distances, points, normals."""
+        r, k = self.shape_model.tree.query(x, k=KEPT)
+        return r, self.shape_model.points[k], self.shape_model.normals[k]
+
+    def _nearest_sample(self, x: NDArray[np.float64], rows: NDArray[np.intp]
+                        ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``shape.surface(x, exact=True)``'s signed distance and normal, its searches remembered
+        (:class:`~handeye.sensors.depth.shape.NearestSamples`: the same answers)."""
+        points, normals = self._nearest.lookup(rows, x, self._search)
+        return np.einsum("mi,mi->m", x - points[:, 0], normals[:, 0]), normals[:, 0]
+
+    def _surface(self, x: NDArray[np.float64], rows: NDArray[np.intp]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Signed distances and normals (shape frame) of points ``x`` (of ``rows``), exactly blind to what the
+        shape leaves free (:meth:`~handeye.sensors.depth.shape.Shape.canonical`)."""
         if not len(self.free):
-            d, _, n = self.shape_model.surface(x, exact=True)
-            return d, n
+            return self._nearest_sample(x, rows)
         xc, R = self.shape_model.canonical(x)
-        d, _, n = self.shape_model.surface(xc, exact=True)
+        d, n = self._nearest_sample(xc, rows)
         n = np.einsum("mji,mj->mi", R, n)
         for u in self.free:  # the normal across every free motion (a facet's tilt would pin it a little)
             t = np.cross(u[:3], x) + u[3:]
@@ -185,12 +204,12 @@ class MeshSurface(DepthRows):
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """Each row's signed distance (m) from the shape's surface along its normal."""
         _, _, x = self._points(X, p, flange2base, rows)
-        return self._surface(x)[0][:, None]
+        return self._surface(x, np.asarray(rows))[0][:, None]
 
     def jacobian(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """The residuals' derivatives (M, 1, 6 + k): X's left increment, Z's unknowns, the depth's."""
         q, Tm, x = self._points(X, p, flange2base, rows)
-        _, n = self._surface(x)
+        _, n = self._surface(x, np.asarray(rows))
         u = q @ X[:3, :3].T  # the points in X's parent frame, before X's translation
         # x = inv(Z) A X q: a change of X q moves x by M = rot(inv(target2cam) inv(X)) = rot(inv(Z) A)
         M = np.einsum("mji,jk->mik", Tm[:, :3, :3], X[:3, :3].T)

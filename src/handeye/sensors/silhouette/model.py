@@ -114,6 +114,7 @@ class ArmViews:
         object.__setattr__(self, "edges", edges)  # frozen: set once here
         object.__setattr__(self, "sides", sides)
         object.__setattr__(self, "sdf", np.array([_padded_sdf(m) for m in self.masks]))
+        object.__setattr__(self, "_drawn", {})  # the last rendering, by cam2base and views: asked twice in a row
 
     @property
     def size(self) -> tuple[int, int]:
@@ -126,8 +127,15 @@ class ArmViews:
         return (V - cam2base[:3, 3]) @ cam2base[:3, :3]
 
     def render(self, cam2base: NDArray[np.float64], views: NDArray[np.intp] | None = None) -> NDArray[np.bool_]:
-        """The meshes' silhouettes (n, height, width) through ``cam2base``."""
-        return render_silhouettes(self.in_camera(cam2base, views), self.faces, self.K, self.size, self.dist)
+        """The meshes' silhouettes (n, height, width) through ``cam2base`` (the last one kept: the
+        pipeline asks for the same one twice, the IoU and the outline of a pose, or the IoU and the
+        pairing check of the result)."""
+        views = np.arange(len(self.masks)) if views is None else np.asarray(views, dtype=np.intp)
+        key = (np.asarray(cam2base, float).tobytes(), views.tobytes())
+        if key not in self._drawn:
+            self._drawn.clear()
+            self._drawn[key] = render_silhouettes(self.in_camera(cam2base, views), self.faces, self.K, self.size, self.dist)
+        return self._drawn[key].copy()
 
     def ious(self, cam2base: NDArray[np.float64], views: NDArray[np.intp] | None = None) -> NDArray[np.float64]:
         """Per view the IoU of the rendered silhouette with the mask."""
@@ -143,7 +151,7 @@ class ArmViews:
         frame and each one's view (M,), at most one per ``spacing`` pixels of the outline."""
         views = np.arange(len(self.masks)) if views is None else np.asarray(views)
         Vc = self.in_camera(cam2base, views)
-        drawn = render_silhouettes(Vc, self.faces, self.K, self.size, self.dist)
+        drawn = self.render(cam2base, views)
         points, owner = [], []
         for k, v in enumerate(views):
             p = self._view_outline(Vc[k], self.vertices[v], drawn[k], spacing)
@@ -241,12 +249,7 @@ class SilhouetteContours:
         """The rows' signed distances (pixels) from their mask's boundary, positive outside."""
         uv, _ = project(self._camera_points(X, rows), self.K, self.dist)
         uv = np.nan_to_num(uv, nan=-1e6)
-        out = np.empty(len(rows))
-        owner = self.owner[rows]
-        for v in np.unique(owner):
-            at = owner == v
-            out[at] = bilinear(self.sdf[v], uv[at])
-        return out
+        return bilinear(self.sdf, uv, views=self.owner[rows])
 
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """The rows' distances from their mask's boundary at their depth (m; (len(rows), 1))."""
@@ -259,11 +262,7 @@ class SilhouetteContours:
         pc = self._camera_points(X, rows)
         uv, _ = project(pc, self.K, self.dist)
         uv = np.nan_to_num(uv, nan=-1e6)
-        grad = np.zeros((len(rows), 2))
-        owner = self.owner[rows]
-        for v in np.unique(owner):
-            at = owner == v
-            grad[at] = bilinear(self.sdf[v], uv[at], gradient=True)[1]
+        grad = bilinear(self.sdf, uv, gradient=True, views=self.owner[rows])[1]
         Jp = projection_jacobian(pc, self.K, self.dist)  # (M, 2, 3)
         g = np.einsum("mi,mij->mj", grad, Jp)  # over the camera-frame point
         a = g @ X[:3, :3].T  # over the point in the base frame
