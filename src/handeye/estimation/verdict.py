@@ -86,6 +86,9 @@ def _fixed_cause(sources: dict) -> tuple[str, str] | None:
     if _beyond(sources.get("robot_accuracy")):
         return ("the robot's absolute accuracy, not by these views",
                 "record the arm's joint angles, or use a more accurate robot (the advice says how)")
+    if _beyond(sources.get("held_unknowns")):
+        return ("the tolerance of the sensor's unknowns held at their nominal values (a depth scale, a radius)",
+                "give their calibrated values, or capture views that determine them (the advice says how)")
     return None
 
 
@@ -115,6 +118,16 @@ def _std_reason(std: NDArray[np.float64], sources: dict, n_used: int) -> str | N
                 "views (docs/guide.md, 'Joint angles'; on a real Panda capture that predicted held-out views 12x "
                 f"better than any pose-only method); {OWN_ARM}; or use a more accurate robot, or give its accuracy if "
                 "it is better (--robot-accuracy DEG,MM)")
+    held = sources.get("held_unknowns")
+    if held is not None and (np.linalg.norm(held[3:]) >= 0.5 * np.linalg.norm(std[3:])
+                             or np.linalg.norm(held[:3]) >= 0.5 * np.linalg.norm(std[:3])):  # the largest part
+        return (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg, and the sensor's "
+                f"unknowns held at their nominal values give {np.linalg.norm(held[3:]):.1f} mm / "
+                f"{np.linalg.norm(held[:3]):.2f} deg per std (the capture does not determine them: the note on each names "
+                "it and the tolerance X takes): give each one's calibrated value in session.yaml (a depth camera's "
+                "depth_scale from its own calibration; a ball's diameter measured), or take views that determine it "
+                "(for a depth scale: the flange translated 10 cm or more toward and away from the object between "
+                "views), then free it (--free NAME)")
     why = (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg"
            + (f" (leaving one pose out moves X by {np.linalg.norm(jack[3:]):.1f} mm / {np.linalg.norm(jack[:3]):.2f} deg "
               "per std)" if jack is not None else ""))
