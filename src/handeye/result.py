@@ -416,7 +416,9 @@ class Calibration:
     #: check found the given size wrong (the target's points, Z and the camera's poses are at that size)
     target_scale: float = 1.0
     intrinsics_rms: float | None = None
-    refinement: str = "none"  #: "none", "pose" or "reprojection"
+    #: how X was refined: "none" (a closed form), "pose", "reprojection", "kinematic" (joint angles: the arm's
+    #: table fitted with X) or "sensor fit" (a sensor model fitted by handeye.estimation.core.estimate)
+    refinement: str = "none"
     refined_rms: float | None = None  #: RMS reprojection error (px) of all points after refinement
     #: pose refinement's noise estimates: robot rotation (deg), camera rotation (deg), translation (mm), camera depth (mm)
     pose_noise: dict[str, float] | None = None
@@ -436,12 +438,16 @@ class Calibration:
     image_points: list[NDArray[np.float64]] | None = field(default=None, repr=False)
     #: per solver: its closed-form X on the same poses, from handeye.estimation.diagnostics.compare_solvers
     solver_comparison: list[dict] | None = field(default=None, repr=False)
-    #: the estimator that gave X (a solver name, 'pose', 'reprojection', ...; see handeye.estimation.estimators)
+    #: the estimator that gave X (a solver name, 'pose', 'reprojection', ...: handeye.estimation.estimators;
+    #: 'kinematic' for joint angles, 'fit' or 'fit with the arm's table' for a sensor fit)
     estimator: str | None = None
     #: held-out prediction error per estimator tried (a mapping name -> {'px', 'mm'}); None when not cross-validated
     cross_validation: HeldOutErrors | None = None
     #: the std of X's six parameters (deg, mm) from each source: 'model' (the refinement's noise
-    #: model, None for a closed form), 'jackknife' (the spread of X refitted without each pose)
+    #: model, None for a closed form), 'jackknife' (the spread of X refitted without each pose),
+    #: 'robot_accuracy', 'intrinsics' (estimated from the same images and held fixed), 'board_scale',
+    #: and for a sensor fit 'data' (its noise model widened by the jackknife), 'held_unknowns' (the held
+    #: nuisances' tolerances), 'arm_table' (a markerless fit's arm table)
     std_sources: dict[str, NDArray[np.float64] | None] | None = None
     #: the robot's absolute accuracy (deg, mm per axis) that X's std took: the stated one, or raised to
     #: what the views show of the robot's error; None when none was added (an exact robot)

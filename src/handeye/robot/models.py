@@ -17,7 +17,10 @@ The robot model says how the flange pose of view ``i`` follows from its own unkn
   spans a move (a line-scan camera's scan, each row at its own time): the same table, and the
   flange's pose at any time of the move through it (``motion(d)``).
 
-Both are immutable; ``flange2base(d)`` gives every view's pose (N, 4, 4) for the unknowns ``d``.
+All four are immutable (frozen dataclasses); ``flange2base(d)`` gives every view's pose (N, 4, 4) for
+the unknowns ``d``. ``accuracy`` (deg, mm per axis) is, for :class:`ControllerPoses`, the robot's absolute
+accuracy that X's std takes; for :class:`PoseErrors`, also the prior std of each pose's error (the pixel
+refinement of images passes its ``robot_noise`` there); the joint-angle models have none.
 
 Examples
 --------
