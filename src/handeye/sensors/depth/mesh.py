@@ -27,7 +27,7 @@ from scipy.spatial.transform import Rotation
 
 from ...errors import DegenerateMotionError, InputMismatchError
 from ...frames.setups import check_setup, predicted_target2cam, robot_world_A, setup_info
-from ...geometry.se3 import invert, make_transform
+from ...geometry.se3 import invert, make_transform, so3_left_jacobian
 from .clouds import depth_sigma
 from .model import LATERAL, DepthRows, depth_figures, sphere_start
 from .shape import NearestSamples, Shape, twist_axis
@@ -188,8 +188,10 @@ class MeshSurface(DepthRows):
         return np.einsum("mi,mi->m", x - points[:, 0], normals[:, 0]), normals[:, 0]
 
     def _surface(self, x: NDArray[np.float64], rows: NDArray[np.intp]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Signed distances and normals (shape frame) of points ``x`` (of ``rows``), exactly blind to what the
-        shape leaves free (:meth:`~handeye.sensors.depth.shape.Shape.canonical`)."""
+        """Signed distances and their gradients (shape frame) of points ``x`` (of ``rows``), exactly blind to
+        what the shape leaves free (:meth:`~handeye.sensors.depth.shape.Shape.canonical`): the nearest
+        sample's normal, less its part along every free motion (not made unit again: the distance's
+        derivative is the projection itself; renormalised, the Jacobian was 1.5e-4 off on a plain disc)."""
         if not len(self.free):
             return self._nearest_sample(x, rows)
         xc, R = self.shape_model.canonical(x)
@@ -199,7 +201,7 @@ class MeshSurface(DepthRows):
             t = np.cross(u[:3], x) + u[3:]
             t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12)
             n = n - np.einsum("mi,mi->m", n, t)[:, None] * t
-        return d, n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+        return d, n
 
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """Each row's signed distance (m) from the shape's surface along its normal."""
@@ -216,7 +218,11 @@ class MeshSurface(DepthRows):
         m = np.einsum("mji,mj->mi", M, n)
         cols = [np.cross(u, m), m]
         if self.n_z:
-            cols.append(-np.concatenate([np.cross(x, n), n], axis=1) @ self.basis_Z)
+            # Z = Zref T(xi), xi = basis_Z p: x = R(w)^T (y - v) moves by [x]x J_l(-w) with the rotation w
+            # and by -R(w)^T with the translation v (R(w) and J_l(-w) the identity at the reference only)
+            xi = self.basis_Z @ np.asarray(p[:self.n_z], float)
+            R = Rotation.from_rotvec(xi[:3]).as_matrix()
+            cols.append(-np.concatenate([np.cross(x, n) @ so3_left_jacobian(-xi[:3]), n @ R.T], axis=1) @ self.basis_Z)
         if self.fit_depth:
             s = 1.0 + p[-2]
             n_cam = np.einsum("mij,mj->mi", Tm[:, :3, :3], n)
