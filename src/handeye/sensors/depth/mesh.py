@@ -113,8 +113,7 @@ class MeshSurface(DepthRows):
         views = views[np.isfinite(self.poses[views]).all(axis=(1, 2))]
         depth = np.zeros(2 if self.fit_depth else 0)
         if X is not None:
-            if self._Zref is None:
-                self._Zref = np.asarray(Z, float)
+            self._anchor(np.asarray(Z, float))
             return np.asarray(X, float), np.r_[self._z_coordinates(np.asarray(Z, float)), depth]
         if len(views) < 2:
             raise DegenerateMotionError(f"{len(views)} views with the shape's pose: at least 2 are needed to start")
@@ -125,10 +124,18 @@ class MeshSurface(DepthRows):
         c = self.poses[views, :3, :3] @ axis_point + self.poses[views, :3, 3]
         X0, centre = sphere_start(A, c, np.arange(len(views)), np.zeros(len(views), dtype=np.intp), 1)
         Z_i = A @ X0 @ self.poses[views]
-        Zref = Z_i[0].copy()
-        Zref[:3, 3] = centre[0] - Zref[:3, :3] @ axis_point
-        self._Zref = Zref
-        return X0, np.r_[np.zeros(self.n_z), depth]
+        Z0 = Z_i[0].copy()
+        Z0[:3, 3] = centre[0] - Z0[:3, :3] @ axis_point
+        # Z's unknowns from the reference the first start fixed (a fold's start had moved the reference the
+        # whole fit's unknowns are from: its Z 9 um off after cross-validation on a plain disc's capture)
+        first = self._Zref is None
+        self._anchor(Z0)
+        return X0, np.r_[np.zeros(self.n_z) if first else self._z_coordinates(Z0), depth]
+
+    def _anchor(self, Z: NDArray[np.float64]) -> None:
+        """The reference Z's unknowns move it from: the first start's Z (or the placement given), kept."""
+        if self._Zref is None:
+            self._Zref = np.array(Z, dtype=float)
 
     def _anchors(self) -> NDArray[np.float64]:
         """Points of the shape (4, k, homogeneous) that no free motion of it moves: the corners of a
