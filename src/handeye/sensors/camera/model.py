@@ -143,7 +143,7 @@ class CameraCorners(ChartedTarget):
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """Per corner (m): its pixel error times the pixel's size at its depth."""
         cam = self._in_camera(X, self._target2world(p), flange2base, rows)
-        return (project_camera_points(cam, *self.intrinsics(p)) - self.uv[rows]) * self._mpp[rows, None]
+        return (project_camera_points(cam, *self.intrinsics(p)) - self.uv[rows]) * self._pixel_size(rows)[:, None]
 
     def jacobian(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """The residuals' derivatives (M, 2, 12; 21 with the intrinsics) for a left increment of X (rotation ``a``, translation
@@ -167,11 +167,11 @@ class CameraCorners(ChartedTarget):
         jac = np.einsum("mij,mjk->mik", d_point, d_c)
         if self.refine_intrinsics:
             jac = np.concatenate([jac, d_intrinsics], axis=2)
-        return jac * self._mpp[rows, None, None]
+        return jac * self._pixel_size(rows)[:, None, None]
 
     def pixel_size(self, rows: NDArray[np.intp]) -> NDArray[np.float64]:
         """Per corner of ``rows`` its pixel's size (m) at its depth: its residual over it is pixels."""
-        return self._mpp[rows]
+        return self._pixel_size(rows)
 
     def figures(self, p, cov_p) -> dict[str, Any]:
         """The intrinsics used (known, or refined with their std)."""
@@ -194,8 +194,8 @@ class CameraCorners(ChartedTarget):
         for v in views:
             rows = np.flatnonzero(self.owner == v)
             r = self.residuals(X, p, flange2base, rows) if len(rows) else np.zeros((0, 2))
-            mpp = float(np.median(self._mpp[rows])) if len(rows) else 1.0
-            fitted = (self.uv[rows] + r / self._mpp[rows, None]) * mpp
+            mpp = float(np.median(self._pixel_size(rows))) if len(rows) else 1.0
+            fitted = (self.uv[rows] + r / self._pixel_size(rows)[:, None]) * mpp
             out.append({"points_mm": 1e3 * self.uv[rows] * mpp, "residual_mm": 1e3 * np.linalg.norm(r, axis=1),
                         "curve_mm": 1e3 * grid_curve(self.points[rows], fitted), "plane": SECTION_PLANE_IMAGE})
         return out

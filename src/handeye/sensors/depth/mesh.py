@@ -27,7 +27,7 @@ from scipy.spatial.transform import Rotation
 
 from ...errors import DegenerateMotionError, InputMismatchError
 from ...frames.setups import check_setup, predicted_target2cam, robot_world_A, setup_info
-from ...geometry.se3 import invert, make_transform
+from ...geometry.se3 import invert, make_transform, so3_left_jacobian
 from .clouds import depth_sigma
 from .model import LATERAL, DepthRows, depth_figures, sphere_start
 from .shape import NearestSamples, Shape, twist_axis
@@ -113,8 +113,7 @@ class MeshSurface(DepthRows):
         views = views[np.isfinite(self.poses[views]).all(axis=(1, 2))]
         depth = np.zeros(2 if self.fit_depth else 0)
         if X is not None:
-            if self._Zref is None:
-                self._Zref = np.asarray(Z, float)
+            self._anchor(np.asarray(Z, float))
             return np.asarray(X, float), np.r_[self._z_coordinates(np.asarray(Z, float)), depth]
         if len(views) < 2:
             raise DegenerateMotionError(f"{len(views)} views with the shape's pose: at least 2 are needed to start")
@@ -125,10 +124,18 @@ class MeshSurface(DepthRows):
         c = self.poses[views, :3, :3] @ axis_point + self.poses[views, :3, 3]
         X0, centre = sphere_start(A, c, np.arange(len(views)), np.zeros(len(views), dtype=np.intp), 1)
         Z_i = A @ X0 @ self.poses[views]
-        Zref = Z_i[0].copy()
-        Zref[:3, 3] = centre[0] - Zref[:3, :3] @ axis_point
-        self._Zref = Zref
-        return X0, np.r_[np.zeros(self.n_z), depth]
+        Z0 = Z_i[0].copy()
+        Z0[:3, 3] = centre[0] - Z0[:3, :3] @ axis_point
+        # Z's unknowns from the reference the first start fixed (a fold's start had moved the reference the
+        # whole fit's unknowns are from: its Z 9 um off after cross-validation on a plain disc's capture)
+        first = self._Zref is None
+        self._anchor(Z0)
+        return X0, np.r_[np.zeros(self.n_z) if first else self._z_coordinates(Z0), depth]
+
+    def _anchor(self, Z: NDArray[np.float64]) -> None:
+        """The reference Z's unknowns move it from: the first start's Z (or the placement given), kept."""
+        if self._Zref is None:
+            self._Zref = np.array(Z, dtype=float)
 
     def _anchors(self) -> NDArray[np.float64]:
         """Points of the shape (4, k, homogeneous) that no free motion of it moves: the corners of a
@@ -188,8 +195,10 @@ class MeshSurface(DepthRows):
         return np.einsum("mi,mi->m", x - points[:, 0], normals[:, 0]), normals[:, 0]
 
     def _surface(self, x: NDArray[np.float64], rows: NDArray[np.intp]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Signed distances and normals (shape frame) of points ``x`` (of ``rows``), exactly blind to what the
-        shape leaves free (:meth:`~handeye.sensors.depth.shape.Shape.canonical`)."""
+        """Signed distances and their gradients (shape frame) of points ``x`` (of ``rows``), exactly blind to
+        what the shape leaves free (:meth:`~handeye.sensors.depth.shape.Shape.canonical`): the nearest
+        sample's normal, less its part along every free motion (not made unit again: the distance's
+        derivative is the projection itself; renormalised, the Jacobian was 1.5e-4 off on a plain disc)."""
         if not len(self.free):
             return self._nearest_sample(x, rows)
         xc, R = self.shape_model.canonical(x)
@@ -199,7 +208,7 @@ class MeshSurface(DepthRows):
             t = np.cross(u[:3], x) + u[3:]
             t /= np.maximum(np.linalg.norm(t, axis=1, keepdims=True), 1e-12)
             n = n - np.einsum("mi,mi->m", n, t)[:, None] * t
-        return d, n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+        return d, n
 
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """Each row's signed distance (m) from the shape's surface along its normal."""
@@ -216,7 +225,11 @@ class MeshSurface(DepthRows):
         m = np.einsum("mji,mj->mi", M, n)
         cols = [np.cross(u, m), m]
         if self.n_z:
-            cols.append(-np.concatenate([np.cross(x, n), n], axis=1) @ self.basis_Z)
+            # Z = Zref T(xi), xi = basis_Z p: x = R(w)^T (y - v) moves by [x]x J_l(-w) with the rotation w
+            # and by -R(w)^T with the translation v (R(w) and J_l(-w) the identity at the reference only)
+            xi = self.basis_Z @ np.asarray(p[:self.n_z], float)
+            R = Rotation.from_rotvec(xi[:3]).as_matrix()
+            cols.append(-np.concatenate([np.cross(x, n) @ so3_left_jacobian(-xi[:3]), n @ R.T], axis=1) @ self.basis_Z)
         if self.fit_depth:
             s = 1.0 + p[-2]
             n_cam = np.einsum("mij,mj->mi", Tm[:, :3, :3], n)

@@ -199,18 +199,25 @@ class BoardPoints(DepthRows):
         """The closed form's X and Z; the depth exact. The first start's Z is the reference the
         board's unknowns move it from (a rotation vector on the left, a translation)."""
         Z = np.asarray(Z, dtype=float)
-        if self._Zref is None:
+        if self._Zref is None:  # the anchor: kept by every later start (a fold's unknowns in the same terms)
             self._Zref = Z
         return np.asarray(X, dtype=float), np.r_[self.target_params(Z), np.zeros(len(self.param_names) - 6)]
 
     def target_params(self, Z: NDArray[np.float64]) -> NDArray[np.float64]:
         """The unknowns that move the reference pose to the board's pose ``Z`` (after the first start;
         a rig's other sensors map a shared board into them)."""
+        self._reference()
         return np.r_[Rotation.from_matrix(Z[:3, :3] @ self._Zref[:3, :3].T).as_rotvec(), Z[:3, 3] - self._Zref[:3, 3]]
 
     def Z(self, X, p) -> NDArray[np.float64]:
         """The board's pose: the reference moved by ``p[:6]``."""
-        return perturb(self._Zref, p[0:3], p[3:6])
+        return perturb(self._reference(), p[0:3], p[3:6])
+
+    def _reference(self) -> NDArray[np.float64]:
+        """The board's pose its unknowns move it from: the first start's (refused before it)."""
+        if self._Zref is None:
+            raise DegenerateMotionError("the board's pose has no start yet: its unknowns are moves from the first start's")
+        return self._Zref
 
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """Measured minus predicted corners, in their ray frames (m)."""

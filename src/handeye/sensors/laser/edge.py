@@ -46,7 +46,7 @@ from scipy.spatial.transform import Rotation
 from ...errors import DegenerateMotionError
 from ...frames.setups import robot_world_A
 from ...geometry.se3 import make_transform, perpendicular_basis
-from .model import LASER_NOISE_M, START_POINTS, Profiles
+from .model import LASER_NOISE_M, Profiles
 from .plane import AMBIGUOUS_DEG, SEARCH_GIVE_UP_M, SEARCH_POINTS, SEARCH_ROTATIONS
 
 __all__ = ["EdgeProfiles", "StepProfiles", "faces_start", "profile_pieces"]
@@ -329,12 +329,16 @@ class EdgeProfiles(Profiles):
         self.param_names = [f"face{k + 1}.normal.{c}" for k in faces for c in "ab"] + ["face1.distance", "face2.distance"]
         self.param_scale = np.full(len(self.param_names), 1e-3)
         self.pieces = profile_pieces(self.points, self.owner)
+        #: the anchor, from the whole capture's start (the first poses started on), kept: the faces' charts
+        #: (and order), and whether their solid is the intersection of their half-spaces (a block), not their union
         self._charts: list | None = None
-        self._found: NDArray[np.float64] | None = None  # X's rotation the first search found, for the folds' starts
-        self.convex = True  # the faces' solid is the intersection of their half-spaces (a block), not their union
+        self.convex = True
 
     def _normals(self, p) -> NDArray[np.float64]:
         """Both faces' unit normals (2, 3)."""
+        if self._charts is None:
+            raise DegenerateMotionError(f"the {self.target}'s faces have no start yet: their unknowns are in charts the "
+                                        "first start fixes")
         if self.shared:
             n = _unit(self._charts[0], p[0], p[1])
             return np.array([n, n])
@@ -344,25 +348,30 @@ class EdgeProfiles(Profiles):
         return np.asarray(p[-2:], dtype=float)
 
     def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """:func:`faces_start` on ``rows`` (default all; at most :data:`START_POINTS`); after a first
-        search, from the rotation it found when that fits (a part of the same profiles, as
-        cross-validation's folds are, starts from the whole's). The faces' normals point to the
-        sensor's side; their order and charts are the first start's."""
-        rows = np.arange(len(self.points)) if rows is None else np.asarray(rows)
-        if len(rows) > START_POINTS:
-            rows = rows[np.linspace(0, len(rows) - 1, START_POINTS).astype(np.intp)]
-        F = np.asarray(flange2base, dtype=float)
-        A = robot_world_A(F, self.setup)
+        """:func:`faces_start` on ``rows`` (default all; at most :data:`START_POINTS`); a part of the
+        profiles (a fold of cross-validation) from the whole capture's rotation when that fits them.
+        The faces' normals point to the sensor's side; their order and charts are the whole capture's."""
+        A = robot_world_A(np.asarray(flange2base, dtype=float), self.setup)
+        whole = self._remembered(A, lambda: self._faces(A, self._start_rows(), None))
+        self._anchor(A, whole)
+        if rows is None or len(rows) == len(self.points):
+            X0, normals, d, _ = whole
+        else:
+            X0, normals, d, _ = self._faces(A, self._start_rows(rows), whole[0][:3, :3])
+        return X0, self._in_charts(normals, d)
+
+    def _faces(self, A, rows, near) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.intp]]:
+        """:func:`faces_start` on ``rows`` (from the rotation ``near`` first, when given and it fits),
+        the normals turned to the sensor's side: X, the normals, the distances and the rows."""
         piece, views, u, dist = self.pieces
         seen = np.isin(views, np.unique(self.owner[rows]))
         renumber = np.cumsum(seen) - 1
         pieces = (np.where(piece[rows] >= 0, np.where(seen[piece[rows]], renumber[piece[rows]], -1), -1),
                   views[seen], u[seen], dist[seen])
         found = None
-        if self._found is not None:
+        if near is not None:
             try:
-                found = faces_start(A, self.points[rows], self.owner[rows], pieces, self.shared, 5 * self.noise_m,
-                                    self._found)
+                found = faces_start(A, self.points[rows], self.owner[rows], pieces, self.shared, 5 * self.noise_m, near)
             except DegenerateMotionError:
                 found = None
             if found is not None and found[0] > 5 * self.noise_m:
@@ -373,26 +382,30 @@ class EdgeProfiles(Profiles):
                 found = faces_start(*args)
             except DegenerateMotionError:  # the directions leave the rotation open: search it on the points
                 found = faces_start(*args, fallback=True)
-            if self._found is None:
-                self._found = found[1][:3, :3]
         _, X0, normals, d = found
         M = A @ X0
         sensors = M[np.unique(self.owner[rows]), :3, 3]
         side = np.mean(sensors @ normals.T - d, axis=0) < 0  # the sensor's side of each face
-        normals, d = np.where(side[:, None], -normals, normals), np.where(side, -d, d)
-        if not self.shared and self._charts is None:
-            # a block (the faces' half-spaces intersected): each point lies behind the face it is not on
+        return X0, np.where(side[:, None], -normals, normals), np.where(side, -d, d), rows
+
+    def _anchor(self, A, whole) -> None:
+        """The charts, the faces' order (a step's upper face first: the larger distance) and, for an
+        edge, whether the faces make a block, from the whole capture's start; kept once set."""
+        if self._charts is not None:
+            return
+        X0, normals, d, rows = whole
+        if not self.shared:  # a block: each point lies behind the face it is not on
             r = self._mapped(X0, A, rows) @ normals.T - d
             self.convex = bool(np.median(np.max(r, axis=1) ** 2) <= np.median(np.min(r, axis=1) ** 2))
-        return X0, self._in_charts(normals, d)
+        if self.shared and d[0] < d[1]:
+            normals = normals[::-1]
+        self._charts = [_chart(n) for n in normals[:1 if self.shared else 2]]
 
     def _in_charts(self, normals, d) -> NDArray[np.float64]:
-        """The faces' normals and distances as ``p`` in the charts (fixed at the first start, with the
-        faces' order; a step's upper face first: the larger distance)."""
+        """The faces' normals and distances as ``p`` in the charts (a step's upper face first: the
+        larger distance; an edge's faces in the charts' order)."""
         if self.shared and d[0] < d[1]:
             normals, d = normals[::-1], d[::-1]
-        if self._charts is None:
-            self._charts = [_chart(n) for n in normals[:1 if self.shared else 2]]
         elif not self.shared and normals[0] @ self._charts[1][0] > normals[0] @ self._charts[0][0]:
             normals, d = normals[::-1], d[::-1]
         out = []

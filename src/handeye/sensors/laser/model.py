@@ -24,6 +24,7 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from itertools import permutations
 from typing import Any
 
@@ -83,10 +84,27 @@ class Profiles:
             raise InputMismatchError("profile points must lie in the laser plane (y = 0 in the sensor frame)")
         self.noise_m = noise_m
         self.shape = np.ones((len(self.points), 1))
+        self._starts: dict[bytes, Any] = {}  # the whole capture's start per robot-world poses (a pure function's answers)
 
     def view_poses(self) -> None:
         """A profile measures no whole pose."""
         return None
+
+    def _start_rows(self, rows: NDArray[np.intp] | None = None) -> NDArray[np.intp]:
+        """The rows a start uses: ``rows`` (default all), at most :data:`START_POINTS` of them, evenly taken."""
+        rows = np.arange(len(self.points)) if rows is None else np.asarray(rows)
+        if len(rows) > START_POINTS:
+            rows = rows[np.linspace(0, len(rows) - 1, START_POINTS).astype(np.intp)]
+        return rows
+
+    def _remembered(self, A: NDArray[np.float64], compute: Callable[[], Any]) -> Any:
+        """``compute()``, the start on every profile from the robot-world poses ``A``, remembered per
+        poses: the same answer however often and in whatever order it is asked (a fold of
+        cross-validation starts from it)."""
+        key = np.ascontiguousarray(A).tobytes()
+        if key not in self._starts:
+            self._starts[key] = compute()
+        return self._starts[key]
 
     def _mapped(self, X, A, rows) -> NDArray[np.float64]:
         """The points of ``rows`` in the target's frame (base eye-in-hand, flange eye-to-hand): with
@@ -243,10 +261,10 @@ class SpheresProfiles(SphereProfiles):
         self.radius = None
         self.param_names = [f"ball{k + 1}.{c}" for k in range(len(self.radii)) for c in "xyz"]
         self.param_scale = np.full(len(self.param_names), 1e-3)
-        self._found: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None  # X and centres of the first start
-        self.profiles_per_ball: NDArray[np.intp] | None = None  #: per ball its profiles, at the start, then at the fit
-        #: per ball whether any profile fell on it (the first start says): a ball listed but never
-        #: scanned is left out of the fit, its centre not determined
+        #: the anchor, from the whole capture's start (the first poses started on), kept: per ball its
+        #: profiles there (each profile with the ball most of its points are nearest), and whether any
+        #: profile fell on it: a ball listed but never scanned is left out of the fit, its centre not determined
+        self.profiles_per_ball: NDArray[np.intp] | None = None
         self.scanned = np.ones(len(self.radii), bool)
 
     def _nearest(self, q, p) -> tuple[NDArray[np.float64], NDArray[np.intp], NDArray[np.float64]]:
@@ -282,37 +300,36 @@ class SpheresProfiles(SphereProfiles):
             z = np.minimum(z, np.where(inside >= 0, c[2] - np.sqrt(np.maximum(inside, 0.0)), np.inf))
         return np.where(np.isfinite(z), z, np.nan)
 
-    def sections(self, X, p, flange2base, views, max_points: int = SECTION_POINTS) -> list[dict[str, NDArray[np.float64]]]:
-        """:meth:`Profiles.sections`; and each ball's profiles at the fit (``profiles_per_ball``: what
-        :meth:`notes` and :meth:`figures` say), each profile counted with the ball most of its points are nearest."""
-        A = robot_world_A(np.asarray(flange2base, dtype=float), self.setup)
+    def _per_ball(self, X, p, A, views) -> NDArray[np.intp]:
+        """Per ball the profiles of ``views`` at X and the centres ``p`` (each profile counted with the
+        ball most of its points are nearest)."""
         rows = np.flatnonzero(np.isin(self.owner, views))
         ball = self._nearest(self._mapped(X, A, rows), p)[1]
         votes = np.zeros((len(self.names), len(self.radii)), dtype=np.intp)
         np.add.at(votes, (self.owner[rows], ball), 1)
-        self.profiles_per_ball = np.bincount(np.argmax(votes[np.asarray(views)], axis=1), minlength=len(self.radii))
-        return super().sections(X, p, flange2base, views, max_points)
+        return np.bincount(np.argmax(votes[np.asarray(views)], axis=1), minlength=len(self.radii))
 
     def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """:func:`spheres_profiles_start` on ``rows`` (default all; at most :data:`START_POINTS`); after a
-        first start, X and the centres polished from it when that fits (a part of the same profiles,
-        as cross-validation's folds are, starts from the whole's)."""
-        rows = np.arange(len(self.points)) if rows is None else np.asarray(rows)
-        if len(rows) > START_POINTS:
-            rows = rows[np.linspace(0, len(rows) - 1, START_POINTS).astype(np.intp)]
+        """:func:`spheres_profiles_start` on ``rows`` (default all; at most :data:`START_POINTS`); a
+        part of the profiles (a fold of cross-validation) polished from the whole capture's start when
+        that fits them. The whole's start fixes the anchor: the balls scanned and their profiles."""
         A = robot_world_A(np.asarray(flange2base, dtype=float), self.setup)
+        every = self._start_rows()
+        whole = self._remembered(A, lambda: spheres_profiles_start(A, self.points[every], self.owner[every], self.radii,
+                                                                   2 * self.noise_m))
+        if self.profiles_per_ball is None:
+            ball = whole[2]
+            self.scanned = np.bincount(ball[ball >= 0], minlength=len(self.radii)) > 0
+            self.profiles_per_ball = self._per_ball(whole[0], self._all_balls(whole[1][self.scanned]), A,
+                                                    np.unique(self.owner))
+        if rows is None or len(rows) == len(self.points):
+            return whole[0], self._all_balls(whole[1][self.scanned])
+        rows = self._start_rows(rows)
         on = self.scanned
-        if self._found is not None:
-            rms, X0, centres = _balls_polished(A[self.owner[rows]], self.points[rows], self.radii[on], self._found[0],
-                                               self._found[1][on])
-            if rms <= 5 * self.noise_m:
-                return X0, self._all_balls(centres)
-        X0, centres, ball = spheres_profiles_start(A, self.points[rows], self.owner[rows], self.radii,
-                                                   2 * self.noise_m)
-        if self._found is None:
-            self.profiles_per_ball = np.bincount(ball[ball >= 0], minlength=len(self.radii))
-            self.scanned = self.profiles_per_ball > 0
-            self._found = (X0, centres)
+        rms, X0, centres = _balls_polished(A[self.owner[rows]], self.points[rows], self.radii[on], whole[0], whole[1][on])
+        if rms <= 5 * self.noise_m:
+            return X0, self._all_balls(centres)
+        X0, centres, _ = spheres_profiles_start(A, self.points[rows], self.owner[rows], self.radii, 2 * self.noise_m)
         return X0, self._all_balls(centres[self.scanned])
 
     def _all_balls(self, centres: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -344,14 +361,18 @@ class SpheresProfiles(SphereProfiles):
         std = np.sqrt(np.clip(np.diag(cov_p), 0.0, None)).reshape(-1, 3)
         centres = p.reshape(-1, 3).copy()
         centres[~self.scanned], std[~self.scanned] = np.nan, np.nan  # a ball never scanned: not determined
-        counts = self.profiles_per_ball if self.profiles_per_ball is not None else np.zeros(len(self.radii), int)
+        counts = self._counts()
         return {"centres_m": [[float(v) for v in c] for c in centres],
                 "centres_std_mm": [[float(1e3 * v) for v in s] for s in std],
                 "diameters_mm": [float(2e3 * r) for r in self.radii], "profiles": [int(n) for n in counts]}
 
+    def _counts(self) -> NDArray[np.intp]:
+        """Per ball its profiles at the whole capture's start (none before it)."""
+        return self.profiles_per_ball if self.profiles_per_ball is not None else np.zeros(len(self.radii), int)
+
     def notes(self, p, cov_p) -> list[str]:
         """How many profiles each ball got; a ball with fewer than :data:`BALL_PROFILES` said clearly."""
-        counts = self.profiles_per_ball if self.profiles_per_ball is not None else np.zeros(len(self.radii), int)
+        counts = self._counts()
         balls = [f"ball {k + 1} ({2e3 * r:.1f} mm) {n}" for k, (r, n) in enumerate(zip(self.radii, counts))]
         out = [f"profiles per ball: {', '.join(balls)}"]
         for k, (r, n) in enumerate(zip(self.radii, counts)):

@@ -33,7 +33,7 @@ from scipy.spatial.transform import Rotation
 from ...errors import DegenerateMotionError
 from ...frames.setups import robot_world_A
 from ...geometry.se3 import make_transform, perpendicular_basis
-from .model import LASER_NOISE_M, START_POINTS, Profiles, rotation_from_columns
+from .model import LASER_NOISE_M, Profiles, rotation_from_columns
 
 __all__ = ["PlaneProfiles", "plane_profiles_start", "searched_start"]
 
@@ -59,47 +59,55 @@ class PlaneProfiles(Profiles):
                  noise_m: float = LASER_NOISE_M) -> None:
         super().__init__(setup, names, profiles, noise_m)
         self.param_scale = np.array([1e-3, 1e-3, 1e-3])
+        #: the anchor: the normal's chart, from the whole capture's start (the first poses started on), kept
         self._chart: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
-        self._searched: NDArray[np.float64] | None = None  # X's rotation a search found, for the folds' starts
 
     def _normal(self, p) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The unit normal of ``p`` and the chart's unnormalised vector ``n0 + a e1 + b e2``."""
+        if self._chart is None:
+            raise DegenerateMotionError("the plate's normal has no start yet: its unknowns are in a chart the first start fixes")
         n0, e1, e2 = self._chart
         m = n0 + p[0] * e1 + p[1] * e2
         return m / np.linalg.norm(m), m
 
     def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """:func:`plane_profiles_start` on ``rows`` (default all; at most :data:`START_POINTS`), the
-        normal expressed in the chart the first start fixed."""
-        rows = np.arange(len(self.points)) if rows is None else np.asarray(rows)
-        if len(rows) > START_POINTS:
-            rows = rows[np.linspace(0, len(rows) - 1, START_POINTS).astype(np.intp)]
+        normal expressed in the chart of the whole capture's start. Too few turns for the closed form
+        (about one axis only, or fewer than 16 profiles): the fit may still determine part of X or all
+        of it; a part of the profiles (a fold of cross-validation) is polished from the whole's start
+        when that fits them, else searched (:func:`searched_start`), or refused."""
         A = robot_world_A(np.asarray(flange2base, dtype=float), self.setup)
-        try:
-            X0, n, d = plane_profiles_start(A, self.points[rows], self.owner[rows])
-        except DegenerateMotionError:
-            # too few turns for the closed form (about one axis only, or fewer than 16 profiles): the
-            # fit may still determine part of X or all of it; search for a start (once: a part of the
-            # same profiles, as cross-validation's folds are, starts from the whole's), or refuse
-            X0, n, d = self._searched_start(A[self.owner[rows]], self.points[rows])
+        whole = self._whole_start(A)
+        if rows is None or len(rows) == len(self.points):
+            X0, n, d = whole
+        else:
+            X0, n, d = self._started(A, self._start_rows(rows), whole)
         if self._chart is None:
-            self._chart = (n, *perpendicular_basis(n))
+            self._chart = (whole[1], *perpendicular_basis(whole[1]))
         n0, e1, e2 = self._chart
         if n @ n0 < 0:  # the same plane with the normal the chart's way
             n, d = -n, -d
         k = n / (n @ n0)  # n0 + a e1 + b e2, proportional to n
         return X0, np.array([k @ e1, k @ e2, d])
 
-    def _searched_start(self, A, points) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
-        """:func:`searched_start`, or, after one, a polish from the rotation it found when that fits."""
-        if self._searched is not None:
-            few = np.linspace(0, len(points) - 1, min(len(points), SEARCH_POINTS)).astype(np.intp)
-            rms, X0, n, d = _polished(A[few], points[few], self._searched)
-            if rms <= 5 * self.noise_m:
-                return X0, n, d
-        X0, n, d = searched_start(A, points, 5 * self.noise_m)
-        self._searched = X0[:3, :3]
-        return X0, n, d
+    def _whole_start(self, A) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+        """The start on every profile from the robot-world poses ``A``: the same answer whenever asked
+        (remembered per poses)."""
+        return self._remembered(A, lambda: self._started(A, self._start_rows(), None))
+
+    def _started(self, A, rows, near) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+        """:func:`plane_profiles_start` on ``rows``, else a polish from ``near`` (the whole's start,
+        when it fits them), else :func:`searched_start`."""
+        try:
+            return plane_profiles_start(A, self.points[rows], self.owner[rows])
+        except DegenerateMotionError:
+            A_rows, points = A[self.owner[rows]], self.points[rows]
+            if near is not None:
+                few = np.linspace(0, len(points) - 1, min(len(points), SEARCH_POINTS)).astype(np.intp)
+                rms, X0, n, d = _polished(A_rows[few], points[few], near[0][:3, :3])
+                if rms <= 5 * self.noise_m:
+                    return X0, n, d
+            return searched_start(A_rows, points, 5 * self.noise_m)
 
     def residuals(self, X, p, flange2base, rows) -> NDArray[np.float64]:
         """Each point's signed distance from the plane (m)."""

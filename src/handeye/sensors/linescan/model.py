@@ -135,9 +135,9 @@ class LineScanCorners(ChartedTarget):
         self.names, self.target = list(names), target
         self.line_rate, self.focal0, self.width, self.noise_px = float(line_rate), float(focal), int(width), float(noise_px)
         self.uv = np.concatenate([np.asarray(c, float).reshape(-1, 2) for c in corners])
-        self.points = np.concatenate([np.asarray(p, float).reshape(-1, 3) for p in target_points])
+        self._given = np.concatenate([np.asarray(p, float).reshape(-1, 3) for p in target_points])
         self.owner = np.concatenate([np.full(len(c), k) for k, c in enumerate(corners)]).astype(np.intp)
-        if len(self.points) != len(self.uv):
+        if len(self._given) != len(self.uv):
             raise InputMismatchError("each scan needs one target point per corner")
         starts = np.asarray(starts, float)
         rows_of = [np.asarray(c, float).reshape(-1, 2)[:, 1] for c in corners]
@@ -149,10 +149,10 @@ class LineScanCorners(ChartedTarget):
         self.flange2base_ref = trajectory.at(self.t_ref)
         self._relative_samples(starts, rows_of)
         self.param_scale = np.r_[np.full(6, 1e-3), 1.0, 1.0, 1e-3, 1e-3]
-        self.shape = np.ones((len(self.uv), 2))
         speed = np.linalg.norm(self._sensor_velocity(np.arange(len(names)))[self.owner], axis=1)
-        self.shape[:, 1] = speed / np.median(speed)  # a row's error moves the corner by the speed over the line rate
-        self._view_poses: NDArray[np.float64] | None = None
+        # a row's error moves the corner by the speed over the line rate
+        self.shape = np.c_[np.ones(len(self.uv)), speed / np.median(speed)]
+        self._resolved: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self.orderings = None if orderings is None else [np.asarray(o, dtype=np.intp) for o in orderings]
 
     # -- the trajectory ------------------------------------------------------------------------------
@@ -201,14 +201,26 @@ class LineScanCorners(ChartedTarget):
         return np.einsum("nji,nj->ni", A[0][:, :3, :3], (A[1][:, :3, 3] - A[0][:, :3, 3]) / (2 * h))
 
     # -- the sensor model ------------------------------------------------------------------------------
+    @property
+    def points(self) -> NDArray[np.float64]:
+        """The target's point (M, 3) of every corner: as given, or, with ``orderings``, each scan's in
+        the order that agrees with the robot (:meth:`view_poses`; resolved on first use, whichever
+        member asks first)."""
+        return self._given if self.orderings is None else self._resolution()[1]
+
     def view_poses(self) -> NDArray[np.float64]:
         """Per scan the target's pose in the camera frame at its reference time: the linear pushbroom
         resection with the nominal intrinsics, for each ordering of its corners (``orderings``) and
         both mirror images, the one that agrees with the robot
-        (:mod:`~handeye.sensors.linescan.resection`); the scans' target points are put in the order
-        chosen. Solved once."""
-        if self._view_poses is not None:
-            return self._view_poses
+        (:mod:`~handeye.sensors.linescan.resection`); the scans' target points (:attr:`points`) are in
+        the order chosen. Solved once."""
+        return self._resolution()[0]
+
+    def _resolution(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The scans' poses and the target's points in the order chosen (:meth:`view_poses`), solved
+        once from the measurements alone (the same whichever member asks first)."""
+        if self._resolved is not None:
+            return self._resolved
         n = len(self.names)
         w = self._sensor_velocity(np.arange(n))
         orders = self.orderings or [None]
@@ -222,17 +234,18 @@ class LineScanCorners(ChartedTarget):
                     raise InputMismatchError(f"scan {self.names[v]}: {len(rows)} corners, an ordering of {len(order)}")
                 try:
                     poses[v, 2 * j:2 * j + 2], velocities[v, 2 * j:2 * j + 2], _ = pushbroom_resection(
-                        self.points[rows[order], :2], self.uv[rows, 0], self.s[rows], self.focal0, 0.5 * self.width,
+                        self._given[rows[order], :2], self.uv[rows, 0], self.s[rows], self.focal0, 0.5 * self.width,
                         float(np.linalg.norm(w[v])))
                 except DegenerateMotionError as e:
                     raise DegenerateMotionError(f"scan {self.names[v]}: {e}") from None
         choice, _ = resolve_mirrors(poses, velocities, robot_world_A(self.flange2base_ref, self.setup), w)
+        points = self._given.copy()
         for v in range(n):
             rows = np.flatnonzero(self.owner == v)
             if orders[choice[v] // 2] is not None:
-                self.points[rows] = self.points[rows[orders[choice[v] // 2]]]
-        self._view_poses = poses[np.arange(n), choice]
-        return self._view_poses
+                points[rows] = self._given[rows[orders[choice[v] // 2]]]
+        self._resolved = (poses[np.arange(n), choice], points)
+        return self._resolved
 
     def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """X and the target from the closed form; the nominal focal length, the principal point at the
@@ -265,7 +278,7 @@ class LineScanCorners(ChartedTarget):
         from a robot model that follows the move, :class:`~handeye.robot.models.JointTrajectory`)."""
         c = self._in_camera(X, p, flange2base, rows, motion)
         du = self.project(p, c[:, 0] / c[:, 2]) - self.uv[rows, 0]
-        return np.c_[du * self._mpp[rows], c[:, 1]]
+        return np.c_[du * self._pixel_size(rows), c[:, 1]]
 
     @property
     def nuisances(self) -> tuple[Nuisance, ...]:
@@ -316,9 +329,9 @@ class LineScanCorners(ChartedTarget):
             r = self.residuals(X, p, F, rows)
             rate = (self.residuals(X, q, F, rows) - r) / 1e-3  # d(residual)/dt, m/s
             dt = -r[:, 1] / np.where(np.abs(rate[:, 1]) > 1e-9, rate[:, 1], np.inf)  # to the view plane
-            mpp, step = float(np.median(self._mpp[rows])), vel / self.line_rate
+            mpp, step = float(np.median(self._pixel_size(rows))), vel / self.line_rate
             u, row = self.uv[rows, 0], self.uv[rows, 1]
-            fitted = np.c_[(u + (r[:, 0] + rate[:, 0] * dt) / self._mpp[rows]) * mpp, (row + dt * self.line_rate) * step]
+            fitted = np.c_[(u + (r[:, 0] + rate[:, 0] * dt) / self._pixel_size(rows)) * mpp, (row + dt * self.line_rate) * step]
             out.append({"points_mm": 1e3 * np.c_[u * mpp, row * step], "residual_mm": 1e3 * np.linalg.norm(r, axis=1),
                         "curve_mm": 1e3 * grid_curve(self.points[rows], fitted),
                         "plane": "its scan (along the line, along the move; mm at the target)"})
