@@ -29,10 +29,15 @@ class ChartedTarget:
     that uses it has ``setup``, ``points`` (M, 3: the target's points), ``owner`` (M,) and
     ``noise_px``, and calls :meth:`_first_start` from its ``start``."""
 
-    _chart: NDArray[np.float64] | None = None  #: the target's pose at the first start
-    _mpp: NDArray[np.float64] | None = None  #: per point the pixel's size at its depth (m), fixed at the first start
+    #: the target's pose at the first start (None before it)
+    _chart: NDArray[np.float64] = None  # type: ignore[assignment]
+    #: per point the pixel's size at its depth (m), fixed at the first start (None before it)
+    _mpp: NDArray[np.float64] = None  # type: ignore[assignment]
     noise_px: float
     shape: NDArray[np.float64]
+    setup: str
+    owner: NDArray[np.intp]
+    points: NDArray[np.float64]
     #: the residual columns that are pixels times the pixel's size
     pixel_columns: tuple[int, ...] = (0, 1)
 

@@ -113,7 +113,9 @@ def profile_pieces(points: NDArray[np.float64], owner: NDArray[np.intp]
     (in the laser plane). A profile is split at the best two-line fit's breakpoint
     (:func:`_split`); each piece's line is refitted without its stray points."""
     piece = np.full(len(points), -1, dtype=np.intp)
-    views, directions, distances = [], [], []
+    views: list[Any] = []
+    directions: list[Any] = []
+    distances: list[Any] = []
     for v in np.unique(owner):
         rows = np.flatnonzero(owner == v)
         rows = rows[np.argsort(points[rows, 0], kind="stable")]
@@ -329,7 +331,7 @@ class EdgeProfiles(Profiles):
         self.param_names = [f"face{k + 1}.normal.{c}" for k in faces for c in "ab"] + ["face1.distance", "face2.distance"]
         self.param_scale = np.full(len(self.param_names), 1e-3)
         self.pieces = profile_pieces(self.points, self.owner)
-        self._charts: list | None = None
+        self._charts: list = None  # type: ignore[assignment]  # the normals' charts, set at the first start
         self._found: NDArray[np.float64] | None = None  # X's rotation the first search found, for the folds' starts
         self.convex = True  # the faces' solid is the intersection of their half-spaces (a block), not their union
 

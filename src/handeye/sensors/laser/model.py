@@ -24,6 +24,7 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from itertools import permutations
 from typing import Any
 
@@ -71,6 +72,9 @@ class Profiles:
 
     kind = "laser line profiler"
     groups: tuple[tuple[int, ...], ...] = ((0,),)
+    # each target's own (:class:`~handeye.sensors.base.SensorModel`'s residuals; the target's section in the laser plane)
+    residuals: Callable[..., NDArray[np.float64]]
+    _section: Callable[..., NDArray[np.float64]]
 
     def __init__(self, setup: str, names: list[str], profiles: list[NDArray[np.float64]],
                  noise_m: float = LASER_NOISE_M) -> None:
@@ -231,7 +235,7 @@ class SpheresProfiles(SphereProfiles):
     nearest at the current estimate (the balls are apart: smooth but at points between balls)."""
 
     target = "spheres"
-    nuisances: tuple[Nuisance, ...] = ()  # type: ignore[assignment]  # the balls' radii are given, their centres the unknowns
+    nuisances: tuple[Nuisance, ...] = ()  # the balls' radii are given, their centres the unknowns
 
     def __init__(self, setup: str, names: list[str], profiles: list[NDArray[np.float64]], radii,
                  noise_m: float = LASER_NOISE_M) -> None:
@@ -654,7 +658,7 @@ def _circles(points: NDArray[np.float64], owner: NDArray[np.intp], radius: float
         x, z = p[:, 0], p[:, 2]
         a, b, c = np.linalg.lstsq(np.c_[2 * x, 2 * z, np.ones(len(p))], x**2 + z**2, rcond=None)[0]
         rho2 = c + a * a + b * b
-        r = radius if np.ndim(radius) == 0 else radius[v]
+        r = radius if np.ndim(radius) == 0 else np.asarray(radius)[v]
         views.append(v)
         centres.append([a, 0.0, b])
         offsets.append(np.sqrt(max(r**2 - rho2, 0.0)))

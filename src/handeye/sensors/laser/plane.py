@@ -59,7 +59,8 @@ class PlaneProfiles(Profiles):
                  noise_m: float = LASER_NOISE_M) -> None:
         super().__init__(setup, names, profiles, noise_m)
         self.param_scale = np.array([1e-3, 1e-3, 1e-3])
-        self._chart: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
+        # the normal's chart, set at the first start (None before it)
+        self._chart: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] = None  # type: ignore[assignment]
         self._searched: NDArray[np.float64] | None = None  # X's rotation a search found, for the folds' starts
 
     def _normal(self, p) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
