@@ -108,7 +108,7 @@ from .verdict import judged
 
 __all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "view_rms_px", "estimate", "quick_rms_mm", "start_from_poses",
            "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
-           "HELDOUT_FACTOR", "WEAKEST_NOTE", "Held"]
+           "HELDOUT_FACTOR", "WEAKEST_NOTE", "Held", "Plan", "plan_of", "Strategy"]
 
 #: Points whose residual exceeds this many of their std (after a robust first fit) are set aside.
 REJECT = 5.0

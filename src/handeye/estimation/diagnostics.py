@@ -21,10 +21,11 @@ samples. :func:`diagnose` tells which.
 from __future__ import annotations
 
 import time
+from collections.abc import Sized
 from contextvars import ContextVar
 from itertools import combinations
 from math import comb
-from typing import Any, Sized, cast
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
