@@ -72,8 +72,16 @@ class Profiles:
 
     kind = "laser line profiler"
     groups: tuple[tuple[int, ...], ...] = ((0,),)
-    # each target's own (:class:`~handeye.sensors.base.SensorModel`'s residuals; the target's section in the laser plane)
+    # each target's own (:class:`~handeye.sensors.base.SensorModel`'s members; the target's section in the laser plane)
+    target: str
+    param_names: list[str]
+    param_scale: NDArray[np.float64]
+    start: Callable[..., tuple[NDArray[np.float64], NDArray[np.float64]]]
     residuals: Callable[..., NDArray[np.float64]]
+    Z: Callable[..., NDArray[np.float64]]
+    Z_std: Callable[..., NDArray[np.float64]]
+    figures: Callable[..., dict[str, Any]]
+    notes: Callable[..., list[str]]
     _section: Callable[..., NDArray[np.float64]]
 
     def __init__(self, setup: str, names: list[str], profiles: list[NDArray[np.float64]],
