@@ -1,5 +1,28 @@
 """One estimation core for every sensor: a sensor model times a robot model times a setup.
 
+Glossary (one meaning each, in the docstrings and the code's names):
+
+* ``X``, ``Z``: the sensor's pose (sensor2flange eye-in-hand, sensor2base eye-to-hand) and the
+  target's (target2base eye-in-hand, target2flange eye-to-hand). ``F``: every view's flange2base.
+* ``p``: the sensor's unknowns (the target's pose, a depth scale, ...); ``d``: the robot's (each
+  pose's error, the arm's table's entries); ``x``: what the least squares moves, X's increment (6),
+  the fitted unknowns of ``p`` (as increments from ``p0``) and ``d``; ``g``: ``x`` without ``d``.
+* ``views``: view indices, into the sensor's ``names`` and the robot's poses.
+* ``rows``: measurement rows, indices into the sensor's ``owner`` (M); a row has ``c`` residual
+  columns. ``entries``: the residuals the fit weighs, a row's columns (a rig's padding left out);
+  the whitened Jacobian has a line per entry, then the robot's prior rows and the pin rows.
+* ``sigma``: the noise scales the whitening divides by: per noise group the std of a residual of
+  unit shape (for correlated noise the groups are its terms).
+* ``at``: the unknowns ``x`` where the whitening of correlated noise takes its shapes (None: the start).
+* ``held``: not fitted, kept at a value: a sensor's unknown (:attr:`Problem.held`, a nuisance), or
+  what :func:`estimate`'s ``held`` quantities are. ``held-out``: a fold's views, predicted by the fit
+  to the others. ``left out``: views the fit does not explain, set aside and named. ``kept``:
+  measurement rows not set aside as outliers.
+* ``pins``: directions of X's increment the capture does not determine, held at the start by rows
+  weighted by :data:`PIN`. ``full``: the fit on every view that stays.
+* ``own``: the sensor's own derivatives (its ``jacobian``), as against finite differences.
+* ``table``: the arm's kinematic table. ``accuracy``: the robot's stated absolute accuracy (deg, mm).
+
 A sensor model (:mod:`handeye.sensors.base`) says what each view measured and how to predict it
 from X, its own unknowns ``p`` and the flange pose; a robot model (:mod:`handeye.robot.models`)
 says where the flange was, from the controller's poses or from joint angles through the arm's
@@ -42,7 +65,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
+from functools import cached_property
+from typing import Any, Literal, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -58,9 +82,22 @@ from ..frames.motions import MotionSet
 from ..frames.setups import constant_transforms, setup_info
 from ..geometry.se3 import mean_transform, perturb, so3_left_jacobian
 from ..result import Calibration, Diagnostics, HeldOutErrors, KinematicModel, Observability, SensorFit, Unobservable
-from ..robot.kinematics import along_parallel_axes
-from ..robot.models import ControllerPoses, JointAngles, PoseErrors, RobotModel
-from ..sensors.base import Nuisance, SensorModel
+from ..robot.kinematics import Chain, along_parallel_axes
+from ..robot.models import ChainedPoses, ControllerPoses, FittedTable, FollowsMotion, PerViewErrors, ReportedPoses, RobotModel
+from ..sensors.base import (
+    BlockedUnknowns,
+    CorrelatedNoise,
+    Differentiable,
+    DrawsSections,
+    HasNuisances,
+    JointFigures,
+    NamesItsFix,
+    Noise,
+    Nuisance,
+    SeesLinks,
+    SensorModel,
+    SpansMotion,
+)
 from ..solvers.low_dof import GENERAL, TRANSLATION_ONLY, low_dof_kind, motion_kind, solve_low_dof
 from ..solvers.observability import rotation_spread_absolute
 from ..solvers.refine import VARIANCE_FLOOR, block_whitening, fit_variances, refine_pose, reweighted_fit
@@ -71,7 +108,7 @@ from .verdict import judged
 
 __all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "view_rms_px", "estimate", "quick_rms_mm", "start_from_poses",
            "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
-           "HELDOUT_FACTOR", "WEAKEST_NOTE", "Held"]
+           "HELDOUT_FACTOR", "WEAKEST_NOTE", "Held", "Plan", "plan_of", "Strategy"]
 
 #: Points whose residual exceeds this many of their std (after a robust first fit) are set aside.
 REJECT = 5.0
@@ -99,6 +136,61 @@ DOWNDATE_STD = 10.0
 #: after it fit every row kept): it only has to find the outliers.
 ROBUST_ROWS = 50000
 
+#: How the fit takes its Jacobian (:class:`Plan`): finite differences (``least_squares``' own), the
+#: sensor's own derivatives, the chain rule through the robot's poses, finite differences view by view
+#: for a robot whose unknowns each move one view, or the sensor's derivatives by the arm's links.
+Strategy = Literal["differences", "own", "chained", "per view", "links"]
+
+
+@dataclass(frozen=True)
+class Plan:
+    """How the core fits one sensor model with one robot model, read once from the capabilities they
+    declare (:mod:`handeye.sensors.base`, :mod:`handeye.robot.models`).
+
+    ``takes``: what the sensor's residuals take from the robot beside every view's pose: nothing
+    (``'poses'``); the flange's pose along each view's move (``'motion'``: a robot that
+    :class:`~handeye.robot.models.FollowsMotion`, for a sensor that :class:`~handeye.sensors.base.SpansMotion`);
+    or the corrected arm's table (``'table'``: a sensor that :class:`~handeye.sensors.base.SeesLinks`
+    with a robot whose unknowns are its :class:`~handeye.robot.models.FittedTable`).
+    ``jacobian``: the :data:`Strategy`, the first that holds of: a robot with unknowns that follows a
+    move, whose unknowns move every row's pose of a view differently (differences); a sensor that sees
+    the links with such a robot (links); a robot whose unknowns each move one view (per view:
+    :func:`_per_view_jacobian`, from :data:`ELIMINATE_FROM` of them eliminated instead,
+    :class:`_Eliminated`); a robot with unknowns and its poses' derivatives (chained:
+    :func:`_chained_jacobian`); a :class:`~handeye.sensors.base.Differentiable` sensor without padded
+    entries and a robot without unknowns (own); else differences.
+    ``own``: the sensor's own derivatives serve for X's and ``p``'s columns (it is differentiable and
+    its entries are not padded). ``per_view``: the robot's unknowns each move one view;
+    ``eliminates``: they are eliminated view by view (:class:`_Eliminated`).
+    """
+
+    takes: Literal["poses", "motion", "table"]
+    jacobian: Strategy
+    own: bool
+    per_view: bool
+    eliminates: bool
+
+
+def plan_of(sensor: SensorModel, robot: RobotModel) -> Plan:
+    """The :class:`Plan` for ``sensor`` with ``robot``, from what they declare."""
+    moving = robot.n_params > 0
+    links = isinstance(sensor, SeesLinks) and sensor.sees_links and isinstance(robot, FittedTable) and moving
+    takes: Literal["poses", "motion", "table"] = "motion" if isinstance(robot, FollowsMotion) else "table" if links else "poses"
+    own = isinstance(sensor, Differentiable) and Noise.of(sensor).mask is None
+    per_view = moving and isinstance(robot, PerViewErrors)
+    strategy: Strategy
+    if moving and isinstance(robot, FollowsMotion):
+        strategy = "differences"
+    elif links:
+        strategy = "links"
+    elif per_view:
+        strategy = "per view"
+    elif moving and isinstance(robot, ChainedPoses):
+        strategy = "chained"
+    else:
+        strategy = "own" if own and not moving else "differences"
+    return Plan(takes, strategy, own, per_view, per_view and robot.n_params >= ELIMINATE_FROM)
+
 
 @dataclass(frozen=True)
 class Problem:
@@ -118,6 +210,11 @@ class Problem:
     #: the sensor's unknowns (positions in ``p``) held at their value in ``p0`` (a nuisance the capture
     #: does not determine, or one the session gives)
     held: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+
+    @cached_property
+    def plan(self) -> Plan:
+        """How the core fits this sensor with this robot (:func:`plan_of`), read once."""
+        return plan_of(self.sensor, self.robot)
 
     @property
     def free(self) -> NDArray[np.intp]:
@@ -164,9 +261,9 @@ class Problem:
 
     def full_cov_xp(self, cov: NDArray[np.float64]) -> NDArray[np.float64]:
         """The covariance of X's increment and all of ``p`` from ``cov`` (over ``x``): zero for a held unknown."""
-        at = np.r_[np.arange(6), 6 + self.free]
+        cols = np.r_[np.arange(6), 6 + self.free]
         out = np.zeros((6 + len(self.p0),) * 2)
-        out[np.ix_(at, at)] = cov[:len(at), :len(at)]
+        out[np.ix_(cols, cols)] = cov[:len(cols), :len(cols)]
         return out
 
     def relaid(self, x: NDArray[np.float64], other: "Problem") -> NDArray[np.float64]:
@@ -197,20 +294,8 @@ class Fitted:
 
 
 def _groups(sensor: SensorModel) -> NDArray[np.intp]:
-    """Per measurement row and residual column (M, c) its noise group: the column's group
-    (``groups``), apart for each row set of ``row_groups`` when the sensor has it (a rig: each
-    sensor's noise its own), or the sensor's own ``noise_groups`` (M, c) when it gives them."""
-    given = getattr(sensor, "noise_groups", None)
-    if given is not None:  # per entry, from the sensor (a rig of sensors with residuals of different widths)
-        return np.asarray(given, dtype=np.intp)
-    shape = np.asarray(sensor.shape)
-    column = np.zeros(shape.shape[1], dtype=np.intp)
-    for g, cols in enumerate(sensor.groups):
-        column[list(cols)] = g
-    rows = getattr(sensor, "row_groups", None)
-    if rows is None:
-        return np.broadcast_to(column, shape.shape)
-    return np.asarray(rows, dtype=np.intp)[:, None] * len(sensor.groups) + column[None, :]
+    """Per measurement row and residual column (M, c) its noise group (:class:`~handeye.sensors.base.Noise`'s)."""
+    return Noise.of(sensor).groups
 
 
 def _group_scales(w: NDArray[np.float64], groups: NDArray[np.intp], n: int, robust: bool, dof_share: float = 1.0
@@ -228,9 +313,9 @@ def _group_scales(w: NDArray[np.float64], groups: NDArray[np.intp], n: int, robu
 
 
 def _correlated(sensor: SensorModel) -> bool:
-    """Whether the sensor's residuals within a row are correlated (``noise_shapes``): each row's
-    covariance a sum of terms whose variances the fit estimates (a whole pose per view)."""
-    return hasattr(sensor, "noise_shapes")
+    """Whether the sensor's residuals within a row are correlated (:class:`~handeye.sensors.base.CorrelatedNoise`):
+    each row's covariance a sum of terms whose variances the fit estimates (a whole pose per view)."""
+    return isinstance(sensor, CorrelatedNoise)
 
 
 def _weight(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None
@@ -239,11 +324,11 @@ def _weight(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]
     (len(rows), c); for a sensor with correlated residuals, per row the matrix (len(rows), c, c)
     that whitens it under the variances ``sigma**2`` of its noise terms, their shapes at the
     unknowns ``at`` (default: the start)."""
-    sensor = problem.sensor
-    if not _correlated(sensor):
-        return 1.0 / (np.asarray(sensor.shape)[rows] * sigma[_groups(sensor)[rows]])
+    noise = Noise.of(problem.sensor)
+    if noise.correlated is None:
+        return 1.0 / (noise.shape[rows] * sigma[noise.groups[rows]])
     X, p, d = problem.unpack(np.zeros(sum(problem.sizes)) if at is None else at)
-    return block_whitening(np.asarray(sigma, float) ** 2, sensor.noise_shapes(X, p, problem.robot.flange2base(d), rows))
+    return block_whitening(np.asarray(sigma, float) ** 2, noise.correlated.noise_shapes(X, p, problem.robot.flange2base(d), rows))
 
 
 def _whiten(values: NDArray[np.float64], weight: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -257,20 +342,16 @@ def _residuals(problem: Problem, X: NDArray[np.float64], p: NDArray[np.float64],
                rows: NDArray[np.intp], flange2base: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
     """The sensor's residuals of ``rows`` at X, ``p`` and the robot's ``d``: every view's flange pose
     from the robot (or ``flange2base`` as given) and, from a robot that follows the flange along each
-    view's move (``motion(d)``: a joint trajectory), the pose at any time of it."""
-    robot = problem.robot
-    if flange2base is None and getattr(robot, "motion", None) is not None:
-        return problem.sensor.residuals(X, p, robot.flange2base(d), rows, motion=robot.motion(d))
-    if flange2base is None and _fits_links(problem):
-        return problem.sensor.residuals(X, p, robot.flange2base(d), rows, table=robot.corrected(d))
+    view's move (``motion(d)``: a joint trajectory), the pose at any time of it; a sensor that sees
+    the arm's links, the table corrected by ``d`` (:class:`Plan`'s ``takes``)."""
+    robot, takes = problem.robot, problem.plan.takes
+    if flange2base is None and takes == "motion":
+        return cast(SpansMotion, problem.sensor).residuals(X, p, robot.flange2base(d), rows,
+                                                            motion=cast(FollowsMotion, robot).motion(d))
+    if flange2base is None and takes == "table":
+        return cast(SeesLinks, problem.sensor).residuals(X, p, robot.flange2base(d), rows,
+                                                          table=cast(FittedTable, robot).corrected(d))
     return problem.sensor.residuals(X, p, robot.flange2base(d) if flange2base is None else flange2base, rows)
-
-
-def _fits_links(problem: Problem) -> bool:
-    """Whether the sensor sees the arm's links (``sees_links``: the arm itself its target) and the
-    robot's unknowns are its table's entries: the sensor then takes the corrected table."""
-    return bool(getattr(problem.sensor, "sees_links", False)) and isinstance(problem.robot, JointAngles) \
-        and problem.robot.n_params > 0
 
 
 def _measured(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None):
@@ -303,8 +384,8 @@ def _entry_mask(sensor: SensorModel, rows: NDArray[np.intp]) -> NDArray[np.bool_
     """Per row of ``rows`` and residual column whether it is a measurement (``entry_mask``: a rig
     pads a narrower sensor's rows with zeros, which the fit leaves out: a laser profiler's beside a
     camera's doubled the rows of every factorization), or None when every entry is."""
-    mask = getattr(sensor, "entry_mask", None)
-    return None if mask is None else np.asarray(mask, bool)[rows]
+    mask = Noise.of(sensor).mask
+    return None if mask is None else mask[rows]
 
 
 def _entry_rows(sensor: SensorModel, rows: NDArray[np.intp]) -> NDArray[np.intp]:
@@ -315,26 +396,25 @@ def _entry_rows(sensor: SensorModel, rows: NDArray[np.intp]) -> NDArray[np.intp]
     return np.nonzero(mask)[0]
 
 
-def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None):
-    """The Jacobian of :func:`_function`'s residuals from the sensor's own derivatives, when it has
-    them (``jacobian(X, p, flange2base, rows)``: (M, c, 6 + k), X's part for a left increment as
-    ``x``'s) and the robot has no unknowns; finite differences by view for a robot whose unknowns
-    each move one view (:func:`_per_view_jacobian`; from :data:`ELIMINATE_FROM` of them they are
-    eliminated instead, :class:`_Eliminated`); the chain rule through each view's flange pose
-    for joint angles (:func:`_chained_jacobian`), but not along a joint trajectory, whose unknowns
-    move every row's pose of a view differently; else '2-point' (finite differences). ``at``:
-    :func:`_weight`'s."""
-    sensor, robot = problem.sensor, problem.robot
-    if robot.n_params and getattr(robot, "motion", None) is not None:
+#: A Jacobian of the fit's residuals, as ``least_squares`` takes it: a function of ``x``, or '2-point'.
+Jacobian = Callable[[NDArray[np.float64]], NDArray[np.float64]] | Literal["2-point"]
+
+
+def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64],
+              at: NDArray[np.float64] | None = None) -> Jacobian:
+    """The Jacobian of :func:`_function`'s residuals by the strategy the problem's :class:`Plan` picked:
+    '2-point' for finite differences, else a function of ``x``. ``at``: :func:`_weight`'s."""
+    strategy = problem.plan.jacobian
+    if strategy == "differences":
         return "2-point"
-    if _fits_links(problem):
-        return _links_jacobian(problem, rows, sigma, at)
-    if robot.n_params and getattr(robot, "param_view", None) is not None:
-        return _per_view_jacobian(problem, rows, sigma, at)
-    if robot.n_params and hasattr(robot, "pose_jacobian"):
-        return _chained_jacobian(problem, rows, sigma, at)
-    if not hasattr(sensor, "jacobian") or robot.n_params or getattr(sensor, "entry_mask", None) is not None:
-        return "2-point"
+    return _JACOBIANS[strategy](problem, rows, sigma, at)
+
+
+def _sensor_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64],
+                     at: NDArray[np.float64] | None = None) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
+    """The Jacobian from the sensor's own derivatives (``jacobian(X, p, flange2base, rows)``: (M, c,
+    6 + k), X's part for a left increment as ``x``'s), for a robot without unknowns."""
+    robot = problem.robot
     weight = _weight(problem, rows, sigma, at)
     pins = PIN * problem.pin_rows()
 
@@ -346,12 +426,13 @@ def _jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
 
 
 def _own_jacobian(problem: Problem, x: NDArray[np.float64], X: NDArray[np.float64], p: NDArray[np.float64],
-                  flange2base: NDArray[np.float64], rows: NDArray[np.intp], **table) -> NDArray[np.float64]:
+                  flange2base: NDArray[np.float64], rows: NDArray[np.intp], table: Chain | None = None) -> NDArray[np.float64]:
     """The sensor's own derivatives (M, c, 6 + k) by ``x`` (``table``: a corrected arm's table, for a sensor
     that sees the links, which adds a column per entry): its X columns are for a left increment of X,
     and ``x``'s rotation vector moves X by ``so3_left_jacobian(x[:3])`` of them (exact away from the start);
     the columns of the sensor's held unknowns left out."""
-    J = problem.own_columns(problem.sensor.jacobian(X, p, flange2base, rows, **table))
+    J = problem.own_columns(cast(Differentiable, problem.sensor).jacobian(X, p, flange2base, rows) if table is None else
+                            cast(SeesLinks, problem.sensor).jacobian(X, p, flange2base, rows, table=table))
     J[..., :3] = J[..., :3] @ so3_left_jacobian(x[:3])
     return J
 
@@ -363,11 +444,11 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
     the robot's by the chain rule, the residuals' derivatives by each view's flange pose (its 6
     increments stepped in every view at once) times the pose's by the unknowns. 6 evaluations of the
     residuals for the robot's columns, not one per table entry (18 for a UR5, 22 for a Panda)."""
-    sensor, robot = problem.sensor, problem.robot
+    sensor, robot = problem.sensor, cast(ChainedPoses, problem.robot)
     fun = _function(problem, rows, sigma, at)
     measured = _measured(problem, rows, sigma, at)
     weight = _weight(problem, rows, sigma, at)
-    own = hasattr(sensor, "jacobian") and getattr(sensor, "entry_mask", None) is None
+    own = problem.plan.own
     entry_view = np.asarray(sensor.owner)[rows][_entry_rows(sensor, rows)]
     n_x, n_d = 6 + problem.sizes[1], robot.n_params
     h = 1.5e-8
@@ -402,7 +483,7 @@ def _links_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.
     unknowns: the sensor's own derivatives at the corrected table (``jacobian(..., table=)``), whose
     columns by every entry of it are taken to the fitted entries in units of their prior std
     (:meth:`~handeye.robot.models.JointAngles.entry_columns`); the prior rows, ``d`` itself."""
-    robot = problem.robot
+    robot = cast(FittedTable, problem.robot)
     weight = _weight(problem, rows, sigma, at)
     n_x, n_d = 6 + problem.sizes[1], robot.n_params
 
@@ -444,6 +525,10 @@ def _per_view_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[
     return jac
 
 
+#: The Jacobian of each :data:`Strategy` but finite differences (:func:`_jacobian`).
+_JACOBIANS = {"own": _sensor_jacobian, "chained": _chained_jacobian, "per view": _per_view_jacobian, "links": _links_jacobian}
+
+
 #: Gauss-Newton steps of each view's robot error for given X and sensor unknowns (:class:`_Eliminated`),
 #: and when they have settled (the step, in units of the error's prior std).
 INNER_STEPS, INNER_TOL = 24, 1e-10
@@ -471,7 +556,7 @@ class _Eliminated:
         self.problem, self.rows, self.loss, self.f_scale = problem, rows, loss, f_scale
         self.measured = _measured(problem, rows, sigma, at)
         self.weight = _weight(problem, rows, sigma, at)
-        sensor, robot = problem.sensor, problem.robot
+        sensor, robot = problem.sensor, cast(PerViewErrors, problem.robot)
         view = np.asarray(robot.param_view, dtype=np.intp)
         first = np.r_[0, np.flatnonzero(np.diff(view)) + 1]
         self.position = np.arange(len(view)) - first[np.searchsorted(first, np.arange(len(view)), side="right") - 1]
@@ -479,15 +564,13 @@ class _Eliminated:
         self.index = np.full((self.n_views, self.n_per), -1)
         self.index[view, self.position] = np.arange(len(view))
         self.entry_view = np.asarray(sensor.owner)[rows][_entry_rows(sensor, rows)]
-        size = getattr(robot, "param_size", None)
-        self.h = 1.5e-8 / (np.asarray(size, float) if size is not None else np.ones(len(view)))
-        self.own = hasattr(sensor, "jacobian") and getattr(sensor, "entry_mask", None) is None
+        self.h = 1.5e-8 / np.asarray(robot.param_size, float)
+        self.own = problem.plan.own
         self.n_g = 6 + problem.sizes[1]
-        blocks = getattr(sensor, "param_block", None)
-        if blocks is None or problem.sizes[1] == 0:
+        if not isinstance(sensor, BlockedUnknowns) or problem.sizes[1] == 0:
             self.blocks, self.entry_block = np.full(problem.sizes[1], -1), np.zeros(len(self.entry_view), dtype=np.intp)
         else:
-            self.blocks = np.asarray(blocks, dtype=np.intp)[problem.free]
+            self.blocks = np.asarray(sensor.param_block, dtype=np.intp)[problem.free]
             self.entry_block = np.asarray(sensor.row_block, dtype=np.intp)[rows][_entry_rows(sensor, rows)]
         self.columns = [[j] for j in range(6)] + [[6 + j for j in g] for g in _column_groups(self.blocks)]
         self.d = np.asarray(d0, float).copy()
@@ -518,17 +601,17 @@ class _Eliminated:
         2-4x the iterations)."""
         A = np.zeros((len(f0), self.n_per))
         for a in range(self.n_per):
-            at = self.index[:, a][self.index[:, a] >= 0]
+            stepped = self.index[:, a][self.index[:, a] >= 0]
             step = d.copy()
-            step[at] += self.h[at]
+            step[stepped] += self.h[stepped]
             A[:, a] = (self.measured(X, p, step) - f0) / self.h[self.index[self.entry_view, a]]
         return A
 
     def _normal(self, A: NDArray[np.float64], w: NDArray[np.float64], w_prior: NDArray[np.float64]) -> NDArray[np.float64]:
         """Per view ``A^T W A + W_prior`` (n_views, n_per, n_per)."""
         outer = (w[:, None, None] * A[:, :, None] * A[:, None, :]).reshape(len(A), -1)
-        N = np.stack([np.bincount(self.entry_view, outer[:, k], minlength=self.n_views)
-                      for k in range(outer.shape[1])], axis=1).reshape(self.n_views, self.n_per, self.n_per)
+        N = cast(NDArray[np.float64], np.stack([np.bincount(self.entry_view, outer[:, k], minlength=self.n_views)  # weighted: floats
+                                                for k in range(outer.shape[1])], axis=1)).reshape(self.n_views, self.n_per, self.n_per)
         N[:, np.arange(self.n_per), np.arange(self.n_per)] += w_prior
         return N
 
@@ -559,7 +642,7 @@ class _Eliminated:
             if k == INNER_STEPS // 2:  # slow to settle: the derivatives afresh
                 A = self._by_errors(X, p, d, f)
         self.d, self.f, self.X, self.p = d, f, X, p
-        self.A = None  # the derivatives at the optimum: when the Jacobian needs them
+        self.A: NDArray[np.float64] | None = None  # the derivatives at the optimum: when the Jacobian needs them
         self._at = g.tobytes()
 
     def fun(self, g: NDArray[np.float64]) -> NDArray[np.float64]:  # noqa: D102
@@ -587,8 +670,8 @@ class _Eliminated:
                 J[:, group[0]] = df / h[0]
                 continue
             for j, hj in zip(group, h):  # columns of distinct blocks: each moves its own block's entries only
-                at = np.flatnonzero(self.entry_block == self.blocks[j - 6])
-                J[at, j] = df[at] / hj
+                moved = np.flatnonzero(self.entry_block == self.blocks[j - 6])
+                J[moved, j] = df[moved] / hj
         return J
 
     def jac(self, g: NDArray[np.float64]) -> NDArray[np.float64]:  # noqa: D102
@@ -612,7 +695,7 @@ def _contradicted(problem: Problem, d: NDArray[np.float64], rows: NDArray[np.int
     """For a robot whose unknowns each move one view (in units of their prior std): the views with
     measurement rows among ``rows`` whose errors ``d`` are beyond :data:`CONTRADICTED_STD` of their
     prior on some axis and beyond 3x the median view's."""
-    view = np.asarray(problem.robot.param_view, dtype=np.intp)
+    view = np.asarray(cast(PerViewErrors, problem.robot).param_view, dtype=np.intp)
     moved = np.zeros(problem.robot.n_views)
     np.maximum.at(moved, view, np.abs(np.asarray(d, float)))
     # the views with measurements among ``rows`` and errors of their own (a pose left as reported has none)
@@ -623,14 +706,14 @@ def _contradicted(problem: Problem, d: NDArray[np.float64], rows: NDArray[np.int
 
 
 def _per_view(problem: Problem) -> bool:
-    """Whether the robot's unknowns each move one view (``param_view``: each pose's own error)."""
-    return problem.robot.n_params > 0 and getattr(problem.robot, "param_view", None) is not None
+    """Whether the robot's unknowns each move one view (:class:`~handeye.robot.models.PerViewErrors`)."""
+    return problem.plan.per_view
 
 
 def _eliminates(problem: Problem) -> bool:
     """Whether the fit eliminates the robot's unknowns view by view (:class:`_Eliminated`): from
     :data:`ELIMINATE_FROM` of them (fewer: the joint Jacobian, the same optimum)."""
-    return _per_view(problem) and problem.robot.n_params >= ELIMINATE_FROM
+    return problem.plan.eliminates
 
 
 #: From this many robot unknowns that each move one view (16 poses' errors) the fit eliminates them
@@ -704,7 +787,7 @@ def _cov(jac: NDArray[np.float64]) -> NDArray[np.float64]:
     of the QR's ``R`` when ``jac`` is tall (its singular values and right vectors, without the
     hundreds of thousands of rows of ``U``)."""
     if jac.shape[0] > 4 * jac.shape[1]:
-        jac = np.linalg.qr(jac, mode="r")
+        jac = cast(NDArray[np.float64], np.linalg.qr(jac, mode="r"))
     _, s, Vt = np.linalg.svd(jac, full_matrices=False)
     s = np.where(s > s.max() * 1e-14, s, np.inf) if s.size and s.max() > 0 else np.full_like(s, np.inf)
     return (Vt.T / s**2) @ Vt
@@ -714,8 +797,8 @@ def _plain_method(problem: Problem, rows: NDArray[np.intp]) -> str:
     """The plain (linear loss) rounds' method: 'lm' (MINPACK: a QR of the Jacobian per step, where
     'trf' takes its SVD, 2.5x the time on a laser's 230,000 rows) whenever the residuals outnumber
     the unknowns, as MINPACK needs; else 'trf'."""
-    n_rows = len(rows) * np.asarray(problem.sensor.shape).shape[1] + problem.robot.n_params + problem.n_pinned
-    return "lm" if n_rows > sum(problem.sizes) else "trf"
+    n_lines = len(rows) * np.asarray(problem.sensor.shape).shape[1] + problem.robot.n_params + problem.n_pinned
+    return "lm" if n_lines > sum(problem.sizes) else "trf"
 
 
 def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted | None = None,
@@ -805,8 +888,9 @@ def _fit_correlated(problem: Problem, rows: NDArray[np.intp], tol: float) -> Fit
     is kept: a row is a whole view, which the views' checks judge (the pose check before the fit, the
     views the fit does not explain after it). ``sigma``: the terms' std."""
     sensor, robot = problem.sensor, problem.robot
+    noise = cast(CorrelatedNoise, sensor)  # fit() comes here for such a sensor only
 
-    def at(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    def unpacked(x: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         X, p, d = problem.unpack(x)
         return X, p, robot.flange2base(d)
 
@@ -819,17 +903,17 @@ def _fit_correlated(problem: Problem, rows: NDArray[np.intp], tol: float) -> Fit
         return _function(problem, rows, sigma, x), jac
 
     def variances(x: NDArray[np.float64], theta: NDArray[np.float64]) -> NDArray[np.float64]:
-        X, p, F = at(x)
-        return fit_variances(sensor.residuals(X, p, F, rows), sensor.noise_shapes(X, p, F, rows), theta)
+        X, p, F = unpacked(x)
+        return fit_variances(sensor.residuals(X, p, F, rows), noise.noise_shapes(X, p, F, rows), theta)
 
     x0 = np.zeros(sum(problem.sizes))
-    theta0 = np.maximum(sensor.noise_start(sensor.residuals(*at(x0), rows)), VARIANCE_FLOOR)
+    theta0 = np.maximum(noise.noise_start(sensor.residuals(*unpacked(x0), rows)), VARIANCE_FLOOR)
     out = reweighted_fit(functions, variances, theta0, x0, x_scale=problem.scale(), tol=tol)
     fun, _ = functions(out.theta, out.x)
     f = fun(out.x)
     factor = float(np.sum(f**2)) / max(len(f) - len(out.x), 1)
     fun, jac = functions(out.theta * factor, out.x)
-    kept = np.zeros(len(sensor.owner), bool)
+    kept = np.zeros(len(sensor.owner), dtype=np.bool_)
     kept[rows] = True
     res = _Solved(out.x, jac(out.x), fun(out.x), out.success and out.converged)
     return replace(_fitted(problem, res, np.sqrt(out.theta * factor), kept, rows), rounds=out.rounds)
@@ -853,19 +937,19 @@ def _fitted(problem: Problem, res, sigma, kept, rows) -> Fitted:
                   res.jac.T @ res.jac)
 
 
-def _left_out_rows(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """The rows of ``full``'s Jacobian that the views not in ``views`` give (their measurements and,
-    for a robot whose errors are eliminated view by view, their errors' prior rows), and those errors."""
+def _held_out_entries(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """The lines of ``full``'s Jacobian that the views not in ``views`` give (their entries and, for a
+    robot whose errors are eliminated view by view, their errors' prior rows), and those errors."""
     owner = np.asarray(problem.sensor.owner)
     c = np.asarray(problem.sensor.shape).shape[1]
-    held = np.flatnonzero(~np.isin(owner[full.rows], np.asarray(views)))
-    if getattr(problem.sensor, "entry_mask", None) is None:
-        drop = (c * held[:, None] + np.arange(c)).ravel()  # the rows of jac and fun left out
+    out = np.flatnonzero(~np.isin(owner[full.rows], np.asarray(views)))  # positions in full.rows
+    if Noise.of(problem.sensor).mask is None:
+        drop = (c * out[:, None] + np.arange(c)).ravel()  # the lines of jac and fun held out
     else:
-        drop = np.flatnonzero(np.isin(_entry_rows(problem.sensor, full.rows), held))
+        drop = np.flatnonzero(np.isin(_entry_rows(problem.sensor, full.rows), out))
     errors_out = np.zeros(0, dtype=np.intp)
     if _eliminates(problem):  # each view's errors eliminated: its prior rows go with its measurements
-        errors_out = np.flatnonzero(~np.isin(np.asarray(problem.robot.param_view), np.asarray(views)))
+        errors_out = np.flatnonzero(~np.isin(np.asarray(cast(PerViewErrors, problem.robot).param_view), np.asarray(views)))
         drop = np.r_[drop, len(_entry_rows(problem.sensor, full.rows)) + errors_out]
     return drop, errors_out
 
@@ -897,7 +981,9 @@ def downdated(problem: Problem, full: Fitted, views: NDArray[np.intp], guard: bo
     ``full``. (Without: for a sensor's exact Jacobian and no robot unknowns, whose linear model holds;
     a camera's std from independent corners is several times too small when each view's robot error
     moves all its corners alike, and the guard then refits a quarter of the folds for nothing.)"""
-    drop, errors_out = _left_out_rows(problem, full, views)
+    if full.normal is None:
+        raise HandEyeError("a fit on fewer views is downdated from the fit on all views, not from another downdate")
+    drop, errors_out = _held_out_entries(problem, full, views)
     J_h, r_h = full.jac[drop], full.fun[drop]
     step = np.linalg.lstsq(full.normal - J_h.T @ J_h, J_h.T @ r_h, rcond=None)[0]
     std = np.sqrt(np.clip(np.diag(full.cov), 0.0, None))
@@ -937,7 +1023,7 @@ def _view_rms(problem: Problem, fitted: Fitted, views: NDArray[np.intp], flange2
     owner = np.asarray(sensor.owner)
     rows = np.flatnonzero(np.isin(owner, views) & fitted.kept)
     r = _residuals(problem, fitted.X, fitted.p, fitted.d, rows, flange2base)
-    size = getattr(sensor, "pixel_size", None)
+    size = Noise.of(sensor).pixel_size
     sq_px = np.sum((r / np.asarray(size(rows), float)[:, None]) ** 2, axis=1) if size is not None else np.full(len(rows), np.nan)
     sq = np.stack([np.bincount(owner[rows], v, minlength=len(sensor.names)) for v in (np.sum(r**2, axis=1), sq_px)], axis=1)
     count = np.bincount(owner[rows], minlength=len(sensor.names))
@@ -1071,7 +1157,7 @@ def _as_turned(problem: Problem) -> Problem | None:
     translations leave X's translation free with the target's position, but turns of 0.01 deg make
     it 'determined' to 100 mm, and a fit wandered 1.5 m along it); None for a robot that turned."""
     robot = problem.robot
-    if not isinstance(robot, ControllerPoses) or robot.n_views < 2:
+    if not isinstance(robot, ReportedPoses) or robot.n_views < 2:
         return None
     F = robot.flange2base(np.zeros(robot.n_params))
     (largest, spread), axis = rotation_spread_absolute(F)
@@ -1175,19 +1261,19 @@ def _prepared(sensor: SensorModel, robot: RobotModel, start: tuple[NDArray[np.fl
     views the fit does not explain left out (refitted without them). From a ``previous`` fit with
     fewer unknowns held: one plain least squares from it, its views, rows and noise scales kept."""
     held = held or {}
-    at = np.array(sorted(held), dtype=np.intp)
+    positions = np.array(sorted(held), dtype=np.intp)
     if previous is None:
         X0, p0 = start
         p0 = np.array(p0, dtype=float)
-        p0[at] = [held[k] for k in at]
-        problem = Problem(sensor, robot, X0, p0, held=at)
+        p0[positions] = [held[k] for k in positions]
+        problem = Problem(sensor, robot, X0, p0, held=positions)
         views, left_out = np.unique(np.asarray(sensor.owner)), []
         full = fit(problem)
     else:
         views, left_out = previous.views, list(previous.left_out)
         p0 = previous.problem.p0.copy()
-        p0[at] = [held[k] for k in at]
-        problem = replace(previous.problem, p0=p0, held=at)
+        p0[positions] = [held[k] for k in positions]
+        problem = replace(previous.problem, p0=p0, held=positions)
         full = fit(problem, views, start=replace(previous.full, x=problem.relaid(previous.full.x, previous.problem)))
     pins = _undetermined(problem, full)
     turned = _as_turned(problem)
@@ -1231,14 +1317,14 @@ def _cross_validation(problem: Problem, full: Fitted, views: NDArray[np.intp], f
     (refitted per fold); for joint angles also the fit on the nominal table's poses. The fit's folds:
     :data:`FRESH_FOLDS` of them refitted from their own start, the others one step from the fit on
     all views, or refitted too when the steps promise more than :data:`FRESH_RATIO` times better than
-    the refits. Returns the table, the folds, the fit's per-view held-out errors and how many folds
+    the refits. Returns the errors by estimator, the folds, the fit's per-view held-out errors and how many folds
     were refitted from their own start, and the views not predicted (:data:`FOLD_SHARE`)."""
     n = len(views)
     if n < 4:
         return {}, 0, np.full(n, np.nan), 0, []
-    held = fold_indices(n, default_folds(n) if folds is None else min(folds, n))
+    fold_views = fold_indices(n, default_folds(n) if folds is None else min(folds, n))
     nominal = None
-    if isinstance(problem.robot, JointAngles):
+    if isinstance(problem.robot, FittedTable):
         nominal = replace(problem, robot=ControllerPoses(problem.robot.flange2base(np.zeros(problem.robot.n_params))))
         nominal_full = fit(nominal, views)
 
@@ -1256,15 +1342,17 @@ def _cross_validation(problem: Problem, full: Fitted, views: NDArray[np.intp], f
         (``fresh``) the fit's from its own start errors (mm, px each)."""
         train, test = views[train_at], views[test_at]
         out = np.full((len(test), 8), np.nan)
-        if _x_information(base, np.delete(info_jac, _left_out_rows(base, full, train)[0], axis=0)) < FOLD_SHARE * least:
+        if _x_information(base, np.delete(info_jac, _held_out_entries(base, full, train)[0], axis=0)) < FOLD_SHARE * least:
             alone.extend(int(v) for v in test)
             return out
         out[:, 0:2] = _view_rms(problem, downdated(problem, full, train), test)
+        own_start: tuple[NDArray[np.float64], NDArray[np.float64]] | None
         try:
-            X0, p0 = _start(problem.sensor, problem.robot, train)
+            own_start = _start(problem.sensor, problem.robot, train)
         except HandEyeError:  # the fold cannot be started on its own: its views predicted by the step alone
-            X0 = p0 = None
-        if X0 is not None:
+            own_start = None
+        if own_start is not None:
+            X0, p0 = own_start
             out[:, 2:4] = _view_rms(problem, replace(full, X=X0, p=p0, d=np.zeros(problem.robot.n_params)), test)
             if fresh:
                 out[:, 6:8] = _view_rms(problem, _refitted(problem, full, train, X0, p0), test)
@@ -1272,29 +1360,29 @@ def _cross_validation(problem: Problem, full: Fitted, views: NDArray[np.intp], f
             out[:, 4:6] = _view_rms(nominal, downdated(nominal, nominal_full, train), test)
         return out
 
-    errors = held_out(n, held[:FRESH_FOLDS], lambda tr, te: predict(tr, te, True), 8, catch=())
-    sampled = np.concatenate(held[:FRESH_FOLDS])
+    errors = held_out(n, fold_views[:FRESH_FOLDS], lambda tr, te: predict(tr, te, True), 8, catch=())
+    sampled = np.concatenate(fold_views[:FRESH_FOLDS])
     refits, steps = errors[sampled, 6], errors[sampled, 0]
     ok = np.isfinite(refits) & np.isfinite(steps)
     promised = float(np.sqrt(np.mean(steps[ok] ** 2))) if ok.any() else np.nan
     found = float(np.sqrt(np.mean(refits[ok] ** 2))) if ok.any() else np.nan
     every = bool(ok.any() and found > FRESH_RATIO * max(promised, 1e-12))
-    rest = held[FRESH_FOLDS:]
+    rest = fold_views[FRESH_FOLDS:]
     if rest:
-        at = np.concatenate(rest)
-        errors[at] = held_out(n, rest, lambda tr, te: predict(tr, te, every), 8, catch=())[at]
+        rest_at = np.concatenate(rest)  # positions in views
+        errors[rest_at] = held_out(n, rest, lambda tr, te: predict(tr, te, every), 8, catch=())[rest_at]
     fresh = np.isfinite(errors[:, 6])
     errors[fresh, 0:2] = errors[fresh, 6:8]  # the refits' errors where a fold was refitted
-    table = {_name(problem.robot): _row(errors[:, 0:2]), "closed-form start": _row(errors[:, 2:4])}
+    by_estimator = {_name(problem.robot): _row(errors[:, 0:2]), "closed-form start": _row(errors[:, 2:4])}
     if nominal is not None:
-        table["fit on the nominal table's poses"] = _row(errors[:, 4:6])
-    n_fresh = min(FRESH_FOLDS, len(held)) + (len(rest) if every else 0)
-    return table, len(held), errors[:, 0], n_fresh, sorted(set(alone))
+        by_estimator["fit on the nominal table's poses"] = _row(errors[:, 4:6])
+    n_fresh = min(FRESH_FOLDS, len(fold_views)) + (len(rest) if every else 0)
+    return by_estimator, len(fold_views), errors[:, 0], n_fresh, sorted(set(alone))
 
 
 def _name(robot: RobotModel) -> str:
     """The estimator's name: the sensor's fit, with the arm's table when the robot is joint angles."""
-    return "fit with the arm's table" if isinstance(robot, JointAngles) else "fit"
+    return "fit with the arm's table" if isinstance(robot, FittedTable) else "fit"
 
 
 def _row(errors: NDArray[np.float64]) -> dict[str, float | None]:
@@ -1378,7 +1466,7 @@ def _verdict(problem: Problem, full: Fitted, fit_mm: float, heldout_mm: float | 
             "stayed there"], score
     # with each pose's error fitted the fit's residual holds none of it, while held-out views (predicted
     # from the robot alone) carry it whole: held against what the robot's accuracy allows instead
-    reference = max(fit_mm, allowed) if isinstance(problem.robot, PoseErrors) else fit_mm
+    reference = max(fit_mm, allowed) if isinstance(problem.robot, PerViewErrors) else fit_mm
     if heldout_mm is not None and heldout_mm > HELDOUT_FACTOR * max(reference, 0.1):
         return "inconsistent", [
             f"held-out views are predicted {heldout_mm:.2f} mm (RMS) off, {heldout_mm / reference:.1f}x the fit's "
@@ -1395,7 +1483,7 @@ def _verdict(problem: Problem, full: Fitted, fit_mm: float, heldout_mm: float | 
 DETERMINED = 0.5
 
 
-def _kinematic(robot: JointAngles, d: NDArray[np.float64], cov_d: NDArray[np.float64], views: NDArray[np.intp]
+def _kinematic(robot: FittedTable, d: NDArray[np.float64], cov_d: NDArray[np.float64], views: NDArray[np.intp]
                ) -> KinematicModel:
     """The arm's table the fit found: each entry's correction and std (natural units), whether the
     capture determines it, and how far the corrections move the flange over the capture."""
@@ -1414,7 +1502,7 @@ def _joints_of(entries: list[str]) -> str:
     return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
 
 
-def _table_notes(robot: JointAngles, model: KinematicModel) -> list[str]:
+def _table_notes(robot: FittedTable, model: KinematicModel) -> list[str]:
     """The table's entries the fit determined, and those it did not with what would determine them."""
     chain = model.nominal
     notes = [f"{len(model.names)} entries of {chain.name}'s kinematic table fitted with X; {int(model.determined.sum())} "
@@ -1481,7 +1569,7 @@ def _nuisance_modes(sensor: SensorModel, hold, free) -> list[tuple[Nuisance, str
     """The sensor's nuisances, each with how it is to be fitted: ``hold`` (asked, or given by the
     session and not freed), ``free`` (asked, or without a nominal value) or ``auto``; a name that is not
     one of them is refused, naming those that are."""
-    nuisances = list(getattr(sensor, "nuisances", ()))
+    nuisances = list(sensor.nuisances) if isinstance(sensor, HasNuisances) else []
     names = [n.name for n in nuisances]
     for asked in (*hold, *free):
         if asked not in names:
@@ -1520,7 +1608,7 @@ def _with_nuisances(sensor: SensorModel, robot: RobotModel, hold, free, uncertai
             why[n.name] = ("given", "the session gives it") if n.given and n.name not in hold else ("held", "held as asked")
     checked, unheld, last = None, {}, None
     while True:
-        held = {n.index: float(n.nominal) for n, _ in modes if n.name in why}
+        held = {n.index: float(cast(float, n.nominal)) for n, _ in modes if n.name in why}  # a held one has a nominal value
         try:
             checked = _prepared(sensor, robot, start, held, checked)
         except InputMismatchError:
@@ -1670,15 +1758,15 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
     F = robot.flange2base(full.d)
     per_view = view_rms_mm(problem, full, views)
     fit_mm = float(np.sqrt(np.nanmean(per_view**2)))
-    table, n_folds, held_mm, n_fresh, alone = (({}, 0, None, 0, []) if not uncertainty else
-                                               _cross_validation(problem, full, views, folds))
-    heldout = table.get(_name(robot), {}).get("mm") if table else None
+    by_estimator, n_folds, heldout_mm, n_fresh, alone = (({}, 0, None, 0, []) if not uncertainty else
+                                                         _cross_validation(problem, full, views, folds))
+    heldout_rms = by_estimator.get(_name(robot), {}).get("mm") if by_estimator else None
     cov, widened = _widen(full.cov, jack)
     cov_p = problem.full_cov_p(cov)
-    accuracy = robot.accuracy if isinstance(robot, ControllerPoses) else None
-    verdict, advice, score = _verdict(problem, full, fit_mm, heldout, len(checked.left_out), len(sensor.names), accuracy)
+    accuracy = robot.accuracy  # None for a robot whose error the fit models (the arm's table)
+    verdict, advice, score = _verdict(problem, full, fit_mm, heldout_rms, len(checked.left_out), len(sensor.names), accuracy)
     names = list(sensor.names)
-    fix = getattr(sensor, "undetermined_fix", None) or (
+    fix = (sensor.undetermined_fix if isinstance(sensor, NamesItsFix) else None) or (
         "views that turn the flange about that axis, or move it along that direction, between measurements determine it; "
         "or give it (known=)")
     unobs = _unobservable(problem.pins, full.X, sensor.setup, fix)
@@ -1688,13 +1776,13 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
                   f"its std infinite; {fix}"] + advice
     diag = Diagnostics(verdict=verdict, advice=advice, outliers=[int(v) for v, _ in checked.left_out],
                        consistency=score, consistency_limit=FIT_FACTOR, n_poses=len(names), names=names)
-    sections = sensor.sections(full.X, full.p, F, views) if hasattr(sensor, "sections") else None
+    sections = sensor.sections(full.X, full.p, F, views) if isinstance(sensor, DrawsSections) else None
     figures = _figures_with(sensor.figures(full.p, cov_p), nuisances)
-    if hasattr(sensor, "joint_figures"):  # figures that need X's covariance with the sensor's unknowns (a rig's)
+    if isinstance(sensor, JointFigures):  # figures that need X's covariance with the sensor's unknowns (a rig's)
         figures = figures | sensor.joint_figures(full.X, full.p, problem.full_cov_xp(cov), F, full.rows)
     unknowns = _unknowns(nuisances, full.p, cov_p)
     record = SensorFit(sensor.kind, sensor.target, [names[v] for v in views], per_view, fit_mm,
-                       figures, int(len(full.rows)), int((~full.kept).sum()), held_mm, sections, np.array(full.p, float),
+                       figures, int(len(full.rows)), int((~full.kept).sum()), heldout_mm, sections, np.array(full.p, float),
                        unknowns)
     notes = [f"{sensor.kind} ({sensor.target}): {len(full.rows)} measurements fitted "
              f"({int((~full.kept).sum())} set aside beyond {REJECT:g} std), {fit_mm:.3f} mm RMS, with {robot.describe}"]
@@ -1715,26 +1803,27 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
         flange2base=F[views], target2cam=None, pairs=np.zeros((0, 2), dtype=np.intp), cov=full.cov[:6, :6],
         diagnostics=diag, pose_indices=views, notes=notes, estimator=_name(robot), refinement="sensor fit", sensor=record,
         skipped=[(names[v], why) for v, why in checked.left_out],
-        cross_validation=HeldOutErrors(table, n_folds) if table else None,
+        cross_validation=HeldOutErrors(by_estimator, n_folds) if by_estimator else None,
         std_Z=sensor.Z_std(full.p, cov_p), observability=Observability("general", unobs),
     )
-    if isinstance(robot, JointAngles):
+    if isinstance(robot, FittedTable):
         model = _kinematic(robot, full.d, cov[6 + n_p:, 6 + n_p:], views)
         cal = replace(cal, kinematic=model, notes=cal.notes + _table_notes(robot, model))
     # the noise model widened by the jackknife, plus the robot's stated accuracy for controller poses
     data_cov = _widen(full.cov[:6, :6], None if jack is None else jack[:6, :6])[0]
     cal = widened_uncertainty(cal, None if jack is None else jack[:6, :6], accuracy, seen_mm=_robot_error_seen(
         problem, full, views, per_view) if accuracy is not None else None, sensor=sensor.kind)
+    cov_X, sources, notes = cast(NDArray[np.float64], cal.cov), dict(cal.std_sources or {}), list(cal.notes)  # both set by it
     held_unknowns = [n for n, status, _ in nuisances if status != "fitted"]
     if held_unknowns:
         cov_held = _held_cov(problem, full, held_unknowns)
-        cal = replace(cal, cov=cal.cov + cov_held, std_sources=dict(cal.std_sources, held_unknowns=std_deg_mm(cov_held)))
+        cov_X, sources["held_unknowns"] = cov_X + cov_held, std_deg_mm(cov_held)
     if held is not None:
         source, cov_held, note = held(full.X, full.p)
-        cal = replace(cal, cov=cal.cov + cov_held, std_sources=dict(cal.std_sources, **{source: std_deg_mm(cov_held)}),
-                      notes=list(cal.notes) + [note])
-    cal = replace(cal, std=_std_with_pins(cal.cov, problem.pins),
-                  std_sources=dict(cal.std_sources, data=_std_with_pins(data_cov, problem.pins)))
+        cov_X, sources[source] = cov_X + cov_held, std_deg_mm(cov_held)
+        notes.append(note)
+    cal = replace(cal, cov=cov_X, std=_std_with_pins(cov_X, problem.pins), notes=notes,
+                  std_sources=dict(sources, data=_std_with_pins(data_cov, problem.pins)))
     if widened > 1.5 and jack is not None:
         cal = replace(cal, notes=[n for n in cal.notes if not n.startswith("the std of X is widened")] + [
             f"the std is widened up to {widened:.1f}x the fit's noise model by leaving views out (errors of a whole view: "

@@ -21,9 +21,11 @@ samples. :func:`diagnose` tells which.
 from __future__ import annotations
 
 import time
+from collections.abc import Sized
 from contextvars import ContextVar
 from itertools import combinations
 from math import comb
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -80,7 +82,7 @@ def _solve(flange2base, target2cam, setup, kind: str | None = None) -> NDArray[n
             return memo[key].copy()
     motions = MotionSet.from_poses(flange2base, target2cam, setup, "auto")
     X = solve_low_dof(motions, kind).X if kind is not None else solvers.solve_motions(motions, "daniilidis")
-    if key is not None:
+    if memo is not None and key is not None:
         memo[key] = X.copy()
     return X
 
@@ -146,7 +148,8 @@ def _reread(pose_input: RobotPoseInput, change: dict) -> NDArray[np.float64] | N
 
 
 def _readings(flange2base, target2cam, robot_input: RobotPoseInput | None, camera_input: RobotPoseInput | None = None,
-              setup: str = "eye_in_hand", symmetries: list | None = None, camera_from_images: bool = False):
+              setup: str = "eye_in_hand", symmetries: list | None = None, camera_from_images: bool = False
+              ) -> dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]]:
     """Other readings of the inputs: hint -> (flange2base, target2cam). Camera hints start with
     ``camera:``; camera poses handeye computed from images are never read inverted (a user cannot
     invert them). With the ``symmetries`` of a symmetric target, each robot reading relabels the
@@ -241,7 +244,7 @@ def find_outliers(
         sets = np.array(list(combinations(range(n), 3)))
     else:
         sets = np.array([rng.choice(n, 3, replace=False) for _ in range(hypotheses)])
-    rot, tra = [], []
+    rots, tras = [], []
     for s in sets:
         try:
             X = _solve(flange2base[s], target2cam[s], setup, kind)
@@ -249,16 +252,16 @@ def find_outliers(
             continue
         Zi = constant_transforms(X, flange2base, target2cam, setup)
         Z = mean_transform(Zi[s])
-        rot.append(rotation_error(Zi, Z))
-        tra.append(translation_error(Zi, Z))
-    if not rot:
+        rots.append(rotation_error(Zi, Z))
+        tras.append(translation_error(Zi, Z))
+    if not rots:
         return everything, np.zeros((n, 2))
-    rot, tra = np.array(rot), np.array(tra)
+    rot, tra = np.array(rots), np.array(tras)
     # least median of the (scale-free) larger residual
     s_r, s_t = np.median(rot) + 1e-15, np.median(tra) + 1e-15
     best = int(np.argmin(np.median(np.maximum(rot / s_r, tra / s_t), axis=1)))
     r, t = rot[best], tra[best]
-    inliers = (r <= 3.0 * np.median(r) + 1e-12) & (t <= 3.0 * np.median(t) + 1e-12)
+    inliers = cast(NDArray[np.bool_], (r <= 3.0 * np.median(r) + 1e-12) & (t <= 3.0 * np.median(t) + 1e-12))
     resid = np.c_[np.degrees(r), 1e3 * t]
     for _ in range(5):
         if inliers.sum() < 4:
@@ -356,7 +359,7 @@ def diagnose(
     token = _SOLVE_MEMO.set({})
     try:
         diag = _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outliers, leave_one_out, rng,
-                         symmetries, _names(names, len(flange2base)), camera_from_images)
+                         symmetries, _names(names, len(cast(Sized, flange2base))), camera_from_images)
     finally:
         _SOLVE_MEMO.reset(token)
     return diag
@@ -590,8 +593,8 @@ def _partial_checks(diag: Diagnostics, flange2base, target2cam, setup: str, kind
             diag.consistency = consistency_score(flange2base[inliers], target2cam[inliers], setup, kind)
     if np.isfinite(diag.consistency) and _disagree(diag, given, inliers):
         return
-    if not inliers.all():
-        _name_outliers(diag, inliers, diag.pose_residuals)
+    if not inliers.all():  # found with the outliers: their residuals with them
+        _name_outliers(diag, inliers, cast(NDArray[np.float64], diag.pose_residuals))
 
 
 def _disagree(diag: Diagnostics, given: float, inliers: NDArray[np.bool_]) -> bool:
@@ -650,14 +653,15 @@ def _weak_advice(diag: Diagnostics, target2cam: NDArray[np.float64], n_used: int
     """Sentences for data that determine X, but poorly (small or one-sided rotations, few poses,
     a far target)."""
     weak = []
-    angles = diag.rotation_angles_deg
+    angles = cast(NDArray[np.float64], diag.rotation_angles_deg)  # the checks measured them before
+    shares = cast(NDArray[np.float64], diag.axis_shares)
     if np.median(angles) < SMALL_ROTATION_DEG:
         weak.append(
             f"most motions rotate less than {SMALL_ROTATION_DEG:g} deg (median {np.median(angles):.1f} deg): rotation "
             "errors then dominate; turn the flange by 20-45 deg between poses (thesis §4.1.2: large rotations)")
-    if diag.axis_shares[-1] < AXIS_SHARE_WEAK:
+    if shares[-1] < AXIS_SHARE_WEAK:
         weak.append(
-            f"little rotation about {_axis_name(diag.weakest_axis)} ({100 * diag.axis_shares[-1]:.1f}% of the "
+            f"little rotation about {_axis_name(cast(NDArray[np.float64], diag.weakest_axis))} ({100 * shares[-1]:.1f}% of the "
             "rotation): add rotations of >= 30 deg about it")
     if n_used < FEW_POSES:
         weak.append(f"only {n_used} usable poses: take 10-20 from varied viewpoints")
@@ -674,7 +678,7 @@ def _convention(flange2base, target2cam, setup: str, given: float, robot_input, 
     consistent), as (hint, advice); None when no usual mistake explains the data."""
     readings = _readings(flange2base, target2cam, robot_input, camera_input, setup, symmetries, camera_from_images)
     scores = {h: consistency_score(f, t, setup) for h, (f, t) in readings.items()}
-    hint = min(scores, key=scores.get) if scores else None
+    hint = min(scores, key=lambda h: scores[h]) if scores else None
     if hint is None or scores[hint] > CONSISTENT or scores[hint] >= given / 3:
         return None
     # readings that fit about as well (inverted robot and inverted camera poses can both fit exactly) are all
@@ -776,7 +780,7 @@ def _leave_one_out(flange2base, target2cam, setup, inliers) -> NDArray[np.float6
     # would refuse, or that Daniilidis cannot solve, moves X infinitely far
     motions = MotionSet.from_poses(flange2base[idx], target2cam[idx], setup, "auto")
     X = solvers.solve_motions(motions, "daniilidis")
-    groups = motion_groups(motions.pairs, len(idx))
+    groups = motion_groups(cast(NDArray[np.intp], motions.pairs), len(idx))
     Xk = solve_leave_one_out(motions, groups)
     ok = observable_leave_one_out(motions, groups) & np.isfinite(Xk).all(axis=(1, 2))
     Xk[~ok] = X
@@ -806,7 +810,7 @@ def compare_solvers(flange2base: NDArray[np.float64], target2cam: NDArray[np.flo
     Per solver: how far its X is from ``X_ref`` (deg, mm), the median per-pose consistency of Z
     (deg, mm) and the time taken (ms); ``error`` instead when it cannot solve these data.
     """
-    rows = []
+    rows: list[dict[str, Any]] = []
     for name in solvers.available(closed_forms=True):
         start = time.perf_counter()
         try:

@@ -18,7 +18,9 @@ the smallest held-out error; the jackknife spread of X comes from refits of the 
 from __future__ import annotations
 
 import copy
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Protocol, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,6 +69,29 @@ def closed_fit(method: str, pairs: Pairs = "auto") -> Fit:
     return fit
 
 
+class _Kept(Protocol):
+    """A :data:`~handeye.estimation.validation.Fit` that keeps the fit on all the views once it made it
+    (``full``: empty before)."""
+
+    full: list
+
+    def __call__(self, flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str,
+                 idx: NDArray[np.intp]) -> tuple: ...
+
+
+class _KeptCorners(_Kept, Protocol):
+    """The pixel refinement's: its :class:`CornersFit` too (``core``)."""
+
+    core: list[CornersFit]
+
+
+def _pixels(views: Views) -> tuple[Sequence[NDArray[np.float64]], Sequence[NDArray[np.float64]], NDArray[np.float64],
+                                   NDArray[np.float64]]:
+    """The object points, image points, K and dist of views with images (:attr:`Views.has_pixels`)."""
+    return cast(tuple[Sequence[NDArray[np.float64]], Sequence[NDArray[np.float64]], NDArray[np.float64], NDArray[np.float64]],
+                (views.object_points, views.image_points, views.K, views.dist))
+
+
 @dataclass(frozen=True)
 class PosesFit:
     """The pose refinement as the one estimation core fits it (:func:`poses_fit`): its problem and
@@ -75,6 +100,11 @@ class PosesFit:
 
     problem: Problem
     fitted: Fitted
+
+    @property
+    def sensor(self) -> PoseDifferences:
+        """The camera's poses (the problem's sensor)."""
+        return cast(PoseDifferences, self.problem.sensor)
 
     @property
     def X(self) -> NDArray[np.float64]:  # noqa: D102
@@ -93,7 +123,7 @@ class PosesFit:
     def noise(self) -> dict[str, float]:
         """The noise found, per term of :data:`~handeye.sensors.camera.poses.NOISE_TERMS` (rad, m;
         the camera's depth 0 with fewer views than it needs)."""
-        found = dict(zip(self.problem.sensor.noise_terms, map(float, self.fitted.sigma)))
+        found = dict(zip(self.sensor.noise_terms, map(float, self.fitted.sigma)))
         return {k: found.get(k, 0.0) for k in NOISE_TERMS}
 
     @property
@@ -114,8 +144,8 @@ class PosesFit:
     def refit(self, flange2base: NDArray[np.float64], target2cam: NDArray[np.float64]
               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """X and Z refitted on other poses (e.g. the same views' PnP with other intrinsics), the noise held."""
-        sensor = PoseDifferences(self.problem.sensor.setup, [str(i) for i in range(len(target2cam))], target2cam,
-                                 terms=len(self.problem.sensor.noise_terms))
+        sensor = PoseDifferences(self.sensor.setup, [str(i) for i in range(len(target2cam))], target2cam,
+                                 terms=len(self.sensor.noise_terms))
         problem = Problem(sensor, ControllerPoses(np.asarray(flange2base, float)), *sensor.start(flange2base, self.X, self.Z))
         sub = core_fit(problem, start=replace(self.fitted, x=np.zeros(len(self.fitted.x))), tol=REFIT_TOL)
         return sub.X, sensor.Z(sub.X, sub.p)
@@ -154,8 +184,9 @@ def pose_fit(method: str, views: Views | None, start: PosesFit | None = None) ->
             return full[0].on(idx)
         return full[0].refit(flange2base, target2cam)
 
-    fit.full = full
-    return fit
+    kept = cast(_Kept, fit)
+    kept.full = full
+    return kept
 
 
 def pose_candidates(method: str = "daniilidis", views: Views | None = None) -> dict[str, Fit]:
@@ -177,10 +208,15 @@ class CornersFit:
     fitted: Fitted
     result: ReprojectionResult
 
+    @property
+    def sensor(self) -> CameraCorners:
+        """The camera's corners (the problem's sensor)."""
+        return cast(CameraCorners, self.problem.sensor)
+
     def on(self, idx: NDArray[np.intp]) -> tuple[NDArray[np.float64], ...]:
         """X and Z fitted on the views ``idx`` (of those fitted), and K and dist when they are
         refined: one Gauss-Newton downdate."""
-        sensor = self.problem.sensor
+        sensor = self.sensor
         sub = downdated(self.problem, self.fitted, np.asarray(idx), guard=False)
         XZ = (sub.X, sensor.Z(sub.X, sub.p))
         return XZ + sensor.intrinsics(sub.p) if sensor.refine_intrinsics else XZ
@@ -188,7 +224,7 @@ class CornersFit:
     def with_intrinsics(self, K: NDArray[np.float64], dist: NDArray[np.float64]) -> NDArray[np.float64]:
         """X refitted on the same points with the intrinsics ``K``, ``dist`` (a plain least squares
         from this fit, its noise scale kept)."""
-        sensor = copy.copy(self.problem.sensor)
+        sensor = copy.copy(self.sensor)
         sensor.K, sensor.dist = np.asarray(K, float), np.asarray(dist, float).ravel()
         return core_fit(replace(self.problem, sensor=sensor), start=self.fitted, tol=REFIT_TOL).X
 
@@ -201,8 +237,9 @@ def corners_fit(views: Views, idx: NDArray[np.intp], X0: NDArray[np.float64], Z0
     error fitted under that prior (:class:`~handeye.robot.models.PoseErrors`; a view whose pose the
     robust fit bends far beyond it is set aside whole)."""
     idx = np.asarray(idx)
-    sensor = CameraCorners(views.setup, [str(i) for i in idx], [views.image_points[i] for i in idx],
-                           [views.object_points[i] for i in idx], views.K, views.dist, refine_intrinsics=refine_intrinsics)
+    object_points, image_points, K, dist = _pixels(views)
+    sensor = CameraCorners(views.setup, [str(i) for i in idx], [image_points[i] for i in idx],
+                           [object_points[i] for i in idx], K, dist, refine_intrinsics=refine_intrinsics)
     flange2base = views.flange2base[idx]
     X_start, p_start = sensor.start(flange2base, X0, Z0)
     robot = ControllerPoses(flange2base) if robot_sigma is None else PoseErrors(
@@ -214,7 +251,7 @@ def corners_fit(views: Views, idx: NDArray[np.intp], X0: NDArray[np.float64], Z0
 
 def _as_reprojection(problem: Problem, fitted: Fitted) -> ReprojectionResult:
     """The core's fit of a camera's corners as a :class:`~handeye.solvers.refine.ReprojectionResult`."""
-    sensor = problem.sensor
+    sensor = cast(CameraCorners, problem.sensor)
     flange2base = problem.robot.flange2base(fitted.d)
     everything = np.arange(len(sensor.owner))
 
@@ -249,7 +286,7 @@ def _corners(views: Views, method: str, refine_intrinsics: bool = False, robot_s
     :class:`CornersFit` as ``fit.core``), from the closed form ``method``; each fit on a subset is one
     Gauss-Newton downdate of it."""
     full: list = []
-    core: list = []
+    core: list[CornersFit] = []
 
     def fit(flange2base, target2cam, setup, idx):
         if not core:
@@ -258,9 +295,9 @@ def _corners(views: Views, method: str, refine_intrinsics: bool = False, robot_s
             full.append(core[0].result)
         return core[0].on(idx)
 
-    fit.full = full
-    fit.core = core
-    return fit
+    kept = cast(_KeptCorners, fit)
+    kept.full, kept.core = full, core
+    return kept
 
 
 def pixel_candidates(views: Views, method: str = "daniilidis", intrinsics_estimated: bool = False,
@@ -322,7 +359,7 @@ def choose(views: Views, candidates: dict[str, Fit], folds: int | None = None, s
         # the exact-robot model is plainly wrong here: a modest held-out gain is no evidence for its X
         finite = {name: v for name, v in finite.items()
                   if name not in (PIXEL, PIXEL_INTRINSICS) or v < PIXEL_MARGIN * finite[POSE]}
-    best = min(finite, key=finite.get)
+    best = min(finite, key=lambda name: finite[name])
     if prefer is None:
         pixel = _pixel_name(candidates)
         robot_dominates = ratio is not None and ratio > ROBOT_DOMINATES and not scale_off
@@ -366,8 +403,9 @@ def robot_error_ratio(views: Views, candidates: dict[str, Fit]) -> float | None:
     done = getattr(candidates.get(name), "full", None) if name is not None else None
     if not done or not views.has_pixels:
         return None
-    points = np.array([len(p) for p in views.object_points])
-    sq, count = float(np.sum(pnp_errors(views)[0] ** 2 * points)), int(2 * points.sum())
+    points = np.array([len(p) for p in _pixels(views)[0]])
+    px = cast(NDArray[np.float64], pnp_errors(views)[0])  # views with images: their errors in pixels
+    sq, count = float(np.sum(px ** 2 * points)), int(2 * points.sum())
     unknowns = 12 + (len(INTRINSICS) if name == PIXEL_INTRINSICS else 0)
     dof_pnp, dof_pixel = count - 6 * len(views), count - unknowns
     if dof_pnp <= 0 or dof_pixel <= 0 or sq <= 0:
@@ -418,10 +456,11 @@ def intrinsics_cov(name: str, fit: Fit, views: Views, X: NDArray[np.float64],
     gives 0.67: detection errors correlated within an image make the intrinsics' covariance, as
     OpenCV's, ~1.15x too small); added to the jackknife and the robot's accuracy, X's whole error
     is within 3 std on 87-100% of the axes at 8, 12 and 20 images (60-100% without it)."""
-    if name in REFINE_INTRINSICS or not views.has_pixels or len(np.ravel(views.dist)) != 5:
+    if name in REFINE_INTRINSICS or not views.has_pixels or len(np.ravel(_pixels(views)[3])) != 5:
         return None
     try:
-        cov_K = intrinsics_covariance(views.object_points, views.image_points, views.target2cam, views.K, views.dist)
+        object_points, image_points, K, dist = _pixels(views)
+        cov_K = intrinsics_covariance(object_points, image_points, views.target2cam, K, dist)
         lam, V = np.linalg.eigh(cov_K)
         # differences from X refitted the same way at the intrinsics as estimated (not the given X,
         # which a robust fit or another start may have put a hair away)
@@ -443,16 +482,18 @@ def intrinsics_cov(name: str, fit: Fit, views: Views, X: NDArray[np.float64],
 def _fit_with_intrinsics(name: str, fit: Fit, views: Views, X: NDArray[np.float64], Z: NDArray[np.float64],
                          step: NDArray[np.float64]) -> NDArray[np.float64]:
     """X fitted by ``name`` to the views with the intrinsics (fx fy cx cy k1 k2 p1 p2 k3) moved by ``step``."""
-    K = views.K.copy()
+    object_points, image_points, K_given, dist_given = _pixels(views)
+    K = K_given.copy()
     K[0, 0] += step[0]
     K[1, 1] += step[1]
     K[0, 2] += step[2]
     K[1, 2] += step[3]
-    dist = np.ravel(views.dist) + step[4:]
+    dist = np.ravel(dist_given) + step[4:]
     if name == PIXEL:  # the pixel refinement reads the intrinsics, not the PnP poses: refitted from its fit
-        if not fit.core:
+        corners = cast(_KeptCorners, fit)  # the pixel refinement's (:func:`_corners`)
+        if not corners.core:
             fit(views.flange2base, views.target2cam, views.setup, np.arange(len(views)))
-        return fit.core[0].with_intrinsics(K, dist)
+        return corners.core[0].with_intrinsics(K, dist)
     target2cam = np.array([refine_pnp(T, P, uv, K, dist)
-                           for T, P, uv in zip(views.target2cam, views.object_points, views.image_points)])
+                           for T, P, uv in zip(views.target2cam, object_points, image_points)])
     return fit(views.flange2base, target2cam, views.setup, np.arange(len(views)))[0]

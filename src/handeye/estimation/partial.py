@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, replace
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -90,7 +91,7 @@ def parse_known(known: dict | None, setup: str) -> list[Known]:
     for name, given in dict(known).items():
         m = re.fullmatch(r"\s*(\w+)\.([xyzXYZ])\s*", str(name))
         transform = m.group(1) if m else None
-        if transform not in (info.x_name, info.z_name):
+        if m is None or transform not in (info.x_name, info.z_name):
             hint = ""
             other = setup_info("eye_to_hand" if info.camera_on_flange else "eye_in_hand")
             if transform in (other.x_name, other.z_name):
@@ -246,6 +247,6 @@ def calibrate_partial(flange2base: NDArray[np.float64], target2cam: NDArray[np.f
                      + ", ".join(f"{k.name} = {k.value:.4f} +- {k.std:.4f} m" for k in used))
     return Calibration(
         X=X, Z=Z, setup=setup, method=f"low_dof_{kind}", flange2base=flange2base, target2cam=target2cam,
-        pairs=motions.pairs, cov=cov, std=std, motions=motions, refinement="pose" if refine else "none",
+        pairs=cast(NDArray[np.intp], motions.pairs), cov=cov, std=std, motions=motions, refinement="pose" if refine else "none",
         pose_noise=noise, notes=notes, estimator=f"low_dof_{kind}" + ("+pose" if refine else ""),
         observability=Observability(kind, unobservable, table))

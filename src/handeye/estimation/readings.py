@@ -34,6 +34,7 @@ from __future__ import annotations
 import copy
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -104,7 +105,7 @@ def _in_setup(sensor: SensorModel, setup: str) -> SensorModel:
     """``sensor`` read for ``setup`` (a shallow copy: its measurements are the same)."""
     if setup == sensor.setup:
         return sensor
-    other = copy.copy(sensor)
+    other: Any = copy.copy(sensor)  # its setup is read-only to the core, not to this copy
     other.setup = check_setup(setup)
     return other
 
@@ -151,7 +152,7 @@ def check_readings(sensor: SensorModel, robot: RobotModel, pose_input: RobotPose
     # the other formats and units when the poses as declared fit nothing
     if declared <= FIT_FACTOR * max(allowed, 0.05):
         readings = readings[:2]
-    fitting = []
+    fitting: list[tuple[Reading, float]] = []
     for k, reading in enumerate(readings):
         if k >= 2 and fitting:  # the setup or the inverted poses fit: no other reading is looked for
             break

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -178,7 +179,7 @@ def _alignment(a: NDArray[np.float64], b: NDArray[np.float64], max_lag: int) -> 
     undefined) by one rotation: ``max_R sum a . R b / sqrt(sum |a|^2 sum |b|^2)`` over the samples
     where both are defined (Kabsch: the singular values of ``sum a b^T``, the last one signed by the
     determinant); 1 for vectors that one rotation maps onto each other exactly."""
-    ma, mb = np.isfinite(a).all(axis=1), np.isfinite(b).all(axis=1)
+    ma, mb = cast(NDArray[np.bool_], np.isfinite(a).all(axis=1)), cast(NDArray[np.bool_], np.isfinite(b).all(axis=1))
     a0, b0 = np.where(ma[:, None], a, 0.0).T, np.where(mb[:, None], b, 0.0).T
     M = np.moveaxis(_xcorr(a0[:, None, :], b0[None, :, :], max_lag), -1, 0)  # (lags, 3, 3): sum a_i b_j
     count = np.rint(_xcorr(ma.astype(float), mb.astype(float), max_lag))
@@ -394,7 +395,7 @@ def refine_offset(robot: PoseStream, camera: PoseStream, X0: NDArray[np.float64]
 
 def _inliers(r: NDArray[np.float64], sigma: tuple[float, float], k: float = 5.0) -> NDArray[np.bool_]:
     z = np.hstack([r[:, :3] / sigma[0], r[:, 3:] / sigma[1]])
-    return (np.abs(z) <= k).all(axis=1)
+    return cast(NDArray[np.bool_], (np.abs(z) <= k).all(axis=1))
 
 
 def _jacobian(res: _Residuals, x: NDArray[np.float64], inl: NDArray[np.bool_]

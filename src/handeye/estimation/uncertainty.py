@@ -89,8 +89,9 @@ def widened_uncertainty(cal: Calibration, cv_jack: NDArray[np.float64] | None,
     robot = None if accuracy is None else robot_accuracy_cov(cal.X, accuracy)
     sources = {"model": None if model is None else _std(model), "jackknife": None if cv_jack is None else _std(cv_jack),
                "robot_accuracy": None if robot is None else _std(robot)}
-    if intrinsics is not None:
-        sources["intrinsics"] = _std(intrinsics)
+    intrinsics_std = None if intrinsics is None else _std(intrinsics)
+    if intrinsics_std is not None:
+        sources["intrinsics"] = intrinsics_std
     notes = list(cal.notes)
     if model is None or cv_jack is None:
         cov = model if cv_jack is None else cv_jack
@@ -102,7 +103,7 @@ def widened_uncertainty(cal: Calibration, cv_jack: NDArray[np.float64] | None,
             notes.append(f"the std of X is widened up to {ratio.max():.1f}x the noise model's: X moves more without "
                          "one pose than the model predicts (robot errors that depend on the pose, such as kinematic "
                          "errors, or outliers the check did not catch)")
-    if robot is not None:
+    if robot is not None and accuracy is not None and robot_accuracy is not None:  # all three or none
         cov = robot if cov is None else cov + robot
         if accuracy == robot_accuracy:
             notes.append(f"the std of X includes the robot's absolute accuracy, assumed {accuracy[0]:g} deg / "
@@ -119,10 +120,10 @@ def widened_uncertainty(cal: Calibration, cv_jack: NDArray[np.float64] | None,
                          f"the part of such an error that is constant over the capture, which X takes whole and no data "
                          f"show, is taken as {UNSEEN_FACTOR:g}x that; give the arm's accuracy if you know it "
                          "(robot_accuracy=(deg, mm), --robot-accuracy DEG,MM)")
-    if intrinsics is not None:
+    if intrinsics is not None and intrinsics_std is not None:
         cov = intrinsics if cov is None else cov + intrinsics
         notes.append(f"the std of X includes the error of the intrinsics estimated from these images (up to "
-                     f"{np.max(sources['intrinsics'][:3]):.3g} deg / {np.max(sources['intrinsics'][3:]):.3g} mm), "
+                     f"{np.max(intrinsics_std[:3]):.3g} deg / {np.max(intrinsics_std[3:]):.3g} mm), "
                      f"which the {cal.estimator or cal.method} estimate holds fixed: give K and dist in session.yaml "
                      "from a calibration of their own to remove it")
     if cov is None:

@@ -18,7 +18,7 @@ that estimators and data sets compare in one unit.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from typing import Callable, Sequence, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -155,7 +155,8 @@ def _errors_at(T: NDArray[np.float64], views: Views, idx: NDArray[np.intp], K, d
         measured = p @ views.target2cam[i, :3, :3].T + views.target2cam[i, :3, 3]
         depth = np.linalg.norm(measured, axis=1)  # 0 only for a point at the camera centre: it adds no error
         if px is not None:
-            d = project_points(T[k], scale * p, K, dist) - np.asarray(views.image_points[i], dtype=float)
+            seen = cast(Sequence[NDArray[np.float64]], views.image_points)  # has_pixels
+            d = project_points(T[k], scale * p, K, dist) - np.asarray(seen[i], dtype=float)
             px[k] = np.sqrt(np.mean(np.sum(d**2, axis=1)))
             f = 0.5 * (K[0, 0] + K[1, 1])
             mm[k] = 1e3 * np.sqrt(np.mean(np.sum(d**2, axis=1) * (depth / f) ** 2))

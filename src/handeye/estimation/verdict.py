@@ -11,6 +11,7 @@ so the same data get the same verdict whichever command looked at them.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -74,7 +75,7 @@ OWN_ARM = ("an arm handeye does not ship (handeye.robot.kinematics.arm_names() l
 
 def _beyond(part: NDArray[np.float64] | None) -> bool:
     """Whether a part of X's std (deg, mm per axis) alone puts 3 std beyond the acceptance."""
-    return part is not None and (3 * np.linalg.norm(part[3:]) > ACCEPT_MM or 3 * np.linalg.norm(part[:3]) > ACCEPT_DEG)
+    return part is not None and bool(3 * np.linalg.norm(part[3:]) > ACCEPT_MM or 3 * np.linalg.norm(part[:3]) > ACCEPT_DEG)
 
 
 def _fixed_cause(sources: dict) -> tuple[str, str] | None:
@@ -99,7 +100,7 @@ def _std_reason(std: NDArray[np.float64], sources: dict, n_used: int) -> str | N
         return None
     jack, intr, robot = sources.get("jackknife"), sources.get("intrinsics"), sources.get("robot_accuracy")
     table = sources.get("arm_table")
-    if _beyond(table):
+    if table is not None and _beyond(table):
         return (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg, and the arm's "
                 f"table alone gives {np.linalg.norm(table[3:]):.1f} mm / {np.linalg.norm(table[:3]):.2f} deg per std: the "
                 "links the camera sees are placed by the joint angles through the arm's table, whose tolerance X takes "
@@ -109,7 +110,7 @@ def _std_reason(std: NDArray[np.float64], sources: dict, n_used: int) -> str | N
                 "CAL/arm_corrected.yaml), then handeye calibrate THIS_SESSION --arm CAL/arm_corrected.yaml (or "
                 "joints: arm: arm_corrected.yaml in session.yaml): a calibrated table is taken at a tenth of the "
                 "nominal one's tolerance; or use a board")
-    if _beyond(robot):
+    if robot is not None and _beyond(robot):
         return (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg, and the robot's "
                 f"accuracy alone gives {np.linalg.norm(robot[3:]):.1f} mm / {np.linalg.norm(robot[:3]):.2f} deg per std: "
                 "a robot error constant over the capture moves X whole and no number of poses removes it; record the "
@@ -131,7 +132,7 @@ def _std_reason(std: NDArray[np.float64], sources: dict, n_used: int) -> str | N
     why = (f"3 std of X are {mm:.1f} mm / {rot:.2f} deg, beyond {ACCEPT_MM:g} mm / {ACCEPT_DEG:g} deg"
            + (f" (leaving one pose out moves X by {np.linalg.norm(jack[3:]):.1f} mm / {np.linalg.norm(jack[:3]):.2f} deg "
               "per std)" if jack is not None else ""))
-    if _beyond(intr):
+    if intr is not None and _beyond(intr):
         return why + (f"; the intrinsics estimated from these images alone give {np.linalg.norm(intr[3:]):.1f} mm / "
                       f"{np.linalg.norm(intr[:3]):.2f} deg per std: calibrate the camera on its own (views filling the "
                       "image, the target tilted) and give K and dist in session.yaml, or take more views that do")
@@ -229,7 +230,7 @@ def judged(cal: Calibration, spread: tuple[float, float] | None = None,
     found = judge(Evidence(cal.diagnostics, cal.std, cal.std_sources, spread, unfair_spread))
     if not found.added:
         return cal
-    diag = replace(cal.diagnostics, verdict=found.verdict, advice=found.reasons)
+    diag = replace(cast(Diagnostics, cal.diagnostics), verdict=found.verdict, advice=found.reasons)  # judge() needs them
     return replace(cal, diagnostics=diag, notes=list(cal.notes) + found.added)
 
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import yaml
@@ -28,6 +29,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._shared.text import shown
 from ..errors import InputMismatchError
+
+if TYPE_CHECKING:  # Python 3.11's place for it
+    from importlib.resources.abc import Traversable
 
 __all__ = ["Chain", "PARAMETERS", "GRAVITY", "arm_names", "load_arm", "absorbed_parameters",
            "along_parallel_axes", "check_joints_against_poses", "chain_yaml", "display_unit", "joints_at"]
@@ -246,6 +250,7 @@ def joints_at(times: ArrayLike, joints: ArrayLike, at: ArrayLike) -> NDArray[np.
     """Joint angles (N, n) sampled at increasing ``times`` (N,), at the times ``at`` (M,): each joint
     linear between samples, held at the ends."""
     q = np.asarray(joints, dtype=float)
+    at, times = np.asarray(at, dtype=float), np.asarray(times, dtype=float)
     return np.stack([np.interp(at, times, q[:, j]) for j in range(q.shape[1])], axis=1)
 
 
@@ -284,7 +289,7 @@ def along_parallel_axes(chain: Chain) -> set[str]:
     return out
 
 
-def _arm_files() -> dict[str, object]:
+def _arm_files() -> dict[str, Traversable]:
     folder = resources.files("handeye") / "data" / "arms"
     return {p.name[:-5]: p for p in folder.iterdir() if p.name.endswith(".yaml")}
 

@@ -22,6 +22,13 @@ the unknowns ``d``. ``accuracy`` (deg, mm per axis) is, for :class:`ControllerPo
 accuracy that X's std takes; for :class:`PoseErrors`, also the prior std of each pose's error (the pixel
 refinement of images passes its ``robot_noise`` there); the joint-angle models have none.
 
+:class:`RobotModel` is the contract every robot model meets (a protocol, checked by mypy); what a model
+can do beyond it, the estimation core asks by ``isinstance`` of one small protocol each:
+:class:`ReportedPoses` (the controller's poses, as reported), :class:`PerViewErrors` (each unknown
+moves one view's pose), :class:`ChainedPoses` (the poses' derivatives by the unknowns),
+:class:`FollowsMotion` (the flange's pose at any time of a move) and :class:`FittedTable` (the arm's
+table, corrected by the unknowns).
+
 Examples
 --------
 >>> import numpy as np
@@ -38,7 +45,9 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Protocol, cast, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,7 +57,8 @@ from ..errors import InputMismatchError
 from ..geometry.se3 import perturb
 from .kinematics import Chain, absorbed_parameters, joints_at
 
-__all__ = ["RobotModel", "ControllerPoses", "PoseErrors", "JointAngles", "JointTrajectory", "fitted_entries", "entry_priors",
+__all__ = ["RobotModel", "ReportedPoses", "PerViewErrors", "ChainedPoses", "FollowsMotion", "FittedTable", "ControllerPoses",
+           "PoseErrors", "JointAngles", "JointTrajectory", "fitted_entries", "entry_priors",
            "LENGTH_PRIOR_M", "ANGLE_PRIOR_RAD", "COMPLIANCE_PRIOR", "MIN_MOMENT_ARM", "ACCURACY_SAMPLES"]
 
 #: The default prior std of a table entry: a length (m) and an angle (rad, 0.1 deg), an uncalibrated
@@ -85,30 +95,90 @@ def entry_priors(names: list[str], length: float = LENGTH_PRIOR_M, angle: float 
                      else length for name in names])
 
 
-class RobotModel:
+@runtime_checkable
+class RobotModel(Protocol):
     """What every robot model has (see the module docstring): ``n_views``, ``n_params``, ``names`` (its
     unknowns), ``flange2base(d)``, ``prior(d)`` (whitened residual rows that hold ``d`` near its
     prior; empty without unknowns), ``accuracy`` ((deg, mm) that X absorbs unseen, None when the fit
     models the robot's error) and ``describe`` (in words)."""
 
-    n_params: int = 0
-    names: list[str] = []
-    accuracy: tuple[float, float] | None = None
-    describe: str = ""
+    @property
+    def n_views(self) -> int: ...
 
     @property
-    def n_views(self) -> int:  # noqa: D102
-        raise NotImplementedError
+    def n_params(self) -> int: ...
 
-    def flange2base(self, d: NDArray[np.float64]) -> NDArray[np.float64]:  # noqa: D102
-        raise NotImplementedError
+    @property
+    def names(self) -> list[str]: ...
 
-    def prior(self, d: NDArray[np.float64]) -> NDArray[np.float64]:  # noqa: D102
-        return np.zeros(0)
+    @property
+    def accuracy(self) -> tuple[float, float] | None: ...
+
+    @property
+    def describe(self) -> str: ...
+
+    def flange2base(self, d: NDArray[np.float64]) -> NDArray[np.float64]: ...
+
+    def prior(self, d: NDArray[np.float64]) -> NDArray[np.float64]: ...
+
+
+@runtime_checkable
+class ReportedPoses(RobotModel, Protocol):
+    """The controller's flange poses (N, 4, 4), as reported: what the fit starts from and, without
+    unknowns, takes as they are."""
+
+    @property
+    def poses(self) -> NDArray[np.float64]: ...
+
+
+@runtime_checkable
+class PerViewErrors(RobotModel, Protocol):
+    """Unknowns that each move one view's pose: per unknown its view (``param_view``) and the size of
+    one of its units (``param_size``, rad or m), for finite differences that step every view's at once."""
+
+    @property
+    def param_view(self) -> NDArray[np.intp]: ...
+
+    @property
+    def param_size(self) -> NDArray[np.float64]: ...
+
+
+@runtime_checkable
+class ChainedPoses(RobotModel, Protocol):
+    """Per view how its flange pose moves with each unknown (N, 6, n_params), for the chain rule."""
+
+    def pose_jacobian(self, d: NDArray[np.float64]) -> NDArray[np.float64]: ...
+
+
+@runtime_checkable
+class FollowsMotion(RobotModel, Protocol):
+    """The flange's pose at any robot time of a move, for the unknowns ``d``: ``motion(d)(t)`` (M, 4, 4)."""
+
+    def motion(self, d: NDArray[np.float64]) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]: ...
+
+
+@runtime_checkable
+class FittedTable(ChainedPoses, Protocol):
+    """Joint angles through the arm's table, whose entries the unknowns correct (in units of their prior std)."""
+
+    chain: Chain
+    joints: NDArray[np.float64]
+    prior_std: NDArray[np.float64]
+    length_prior: float
+    angle_prior: float
+    compliance: bool
+    compliance_prior: float
+
+    def corrected(self, d: NDArray[np.float64]) -> Chain: ...
+
+    def entry_columns(self, by_entry: NDArray[np.float64]) -> NDArray[np.float64]: ...
+
+    def accuracy_mm(self, d: NDArray[np.float64], cov_d: NDArray[np.float64],
+                    views: NDArray[np.intp] | None = None) -> dict[str, float]: ...
 
 
 @dataclass(frozen=True)
-class ControllerPoses(RobotModel):
+class ControllerPoses:
     """The flange poses the controller reported (N, 4, 4), with the robot's stated absolute
     accuracy per axis (deg, mm; None: exact), which X absorbs unseen."""
 
@@ -121,9 +191,23 @@ class ControllerPoses(RobotModel):
         """Number of views."""
         return len(self.poses)
 
+    @property
+    def n_params(self) -> int:
+        """None: the poses are taken as they are."""
+        return 0
+
+    @property
+    def names(self) -> list[str]:
+        """No unknowns."""
+        return []
+
     def flange2base(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
         """The poses as reported (there are no unknowns)."""
         return self.poses
+
+    def prior(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
+        """No prior rows (no unknowns)."""
+        return np.zeros(0)
 
 
 @dataclass(frozen=True)
@@ -152,31 +236,38 @@ class PoseErrors(ControllerPoses):
         object.__setattr__(self, "views", views)
 
     @property
-    def n_params(self) -> int:  # type: ignore[override]
-        """Six per pose whose error is fitted."""
-        return 6 * len(self.views)
+    def _fitted(self) -> tuple[NDArray[np.intp], tuple[float, float]]:
+        """``views`` and ``accuracy`` as checked (neither None after it)."""
+        return cast(NDArray[np.intp], self.views), cast(tuple[float, float], self.accuracy)
 
     @property
-    def names(self) -> list[str]:  # type: ignore[override]
+    def n_params(self) -> int:
+        """Six per pose whose error is fitted."""
+        return 6 * len(self._fitted[0])
+
+    @property
+    def names(self) -> list[str]:
         """Each fitted pose's rotation and translation error."""
-        return [f"pose{i}.{a}" for i in self.views for a in ("rx", "ry", "rz", "x", "y", "z")]
+        return [f"pose{i}.{a}" for i in self._fitted[0] for a in ("rx", "ry", "rz", "x", "y", "z")]
 
     @property
     def param_view(self) -> NDArray[np.intp]:
         """Per unknown the view whose pose it moves (the fit's finite differences step every view's at once)."""
-        return np.repeat(self.views, 6)
+        return np.repeat(self._fitted[0], 6)
 
     @property
     def param_size(self) -> NDArray[np.float64]:
         """Per unknown the size of one of its units (rad, m): the robot's stated accuracy on that axis."""
-        one = np.r_[np.full(3, np.radians(self.accuracy[0])), np.full(3, 1e-3 * self.accuracy[1])]
-        return np.tile(one, len(self.views))
+        views, accuracy = self._fitted
+        one = np.r_[np.full(3, np.radians(accuracy[0])), np.full(3, 1e-3 * accuracy[1])]
+        return np.tile(one, len(views))
 
     def flange2base(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
         """The poses moved by their errors ``d`` (in units of the accuracy; the poses without one as reported)."""
+        views, accuracy = self._fitted
         e = np.zeros((len(self.poses), 6))
-        e[self.views] = np.asarray(d, float).reshape(-1, 6)
-        return perturb(self.poses, np.radians(self.accuracy[0]) * e[:, :3], 1e-3 * self.accuracy[1] * e[:, 3:])
+        e[views] = np.asarray(d, float).reshape(-1, 6)
+        return perturb(self.poses, np.radians(accuracy[0]) * e[:, :3], 1e-3 * accuracy[1] * e[:, 3:])
 
     def prior(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
         """The errors in units of their prior std."""
@@ -184,7 +275,7 @@ class PoseErrors(ControllerPoses):
 
 
 @dataclass(frozen=True)
-class JointAngles(RobotModel):
+class JointAngles:
     """Joint angles (N, n; rad) through ``chain``, whose table entries (and, with ``compliance``, the
     joints' compliance) are unknowns with the prior std ``length_prior`` (m), ``angle_prior`` (rad)
     and ``compliance_prior`` (rad/m) about their nominal values. The unknowns ``d`` are in units of
@@ -224,6 +315,11 @@ class JointAngles(RobotModel):
     def n_params(self) -> int:
         """Number of table entries fitted."""
         return len(self.names)
+
+    @property
+    def accuracy(self) -> None:
+        """None: the fit models the arm's error (its table), which X then does not absorb unseen."""
+        return None
 
     def vector(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
         """``chain.forward_with``'s whole parameter vector for the unknowns ``d`` (natural units)."""
@@ -355,7 +451,8 @@ class JointTrajectory(JointAngles):
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "trajectory", q)
 
-    def motion(self, d: NDArray[np.float64]):
+    def motion(self, d: NDArray[np.float64]) -> Callable[[NDArray[np.float64]], NDArray[np.float64]]:
         """The flange's pose at robot times ``t`` (M,) -> (M, 4, 4), through the table corrected by ``d``."""
         p = self.vector(d)
-        return lambda t: self.chain.forward_with(joints_at(self.times, self.trajectory, t), p)
+        times, trajectory = cast(NDArray[np.float64], self.times), cast(NDArray[np.float64], self.trajectory)  # checked
+        return lambda t: self.chain.forward_with(joints_at(times, trajectory, t), p)

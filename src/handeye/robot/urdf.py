@@ -151,7 +151,7 @@ def _mdh_frames(points: list, axes: list) -> list[NDArray[np.float64]]:
     common normal to the next axis (the last one's x continues the one before), origin where that
     normal leaves the axis."""
     n = len(axes)
-    frames = []
+    frames: list[NDArray[np.float64]] = []
     x_prev = None
     for k in range(n):
         z = axes[k]

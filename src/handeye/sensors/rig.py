@@ -16,7 +16,7 @@ same robot poses share the robot's error, which cancels in their relative pose.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,7 +25,7 @@ from ..errors import InputMismatchError
 from ..frames.metrics import std_deg_mm
 from ..frames.setups import pose_name
 from ..geometry.se3 import invert, perturb, skew
-from .base import Nuisance, SensorModel
+from .base import DrawsSections, HasNuisances, Nuisance, SensorModel, SharesTarget
 
 __all__ = ["Rig"]
 
@@ -59,7 +59,7 @@ class Rig:
             if list(m.names) != list(first.names) or m.setup != first.setup:
                 raise InputMismatchError(f"sensor {name}: every sensor of a rig is over the rig's views and setup")
 
-        if shared_target and not all(hasattr(m, "target_params") for m in members):
+        if shared_target and not all(isinstance(m, SharesTarget) for m in members):
             raise InputMismatchError("a shared target needs sensors that map its pose into their unknowns (target_params)")
         if shared_target and len({m.target for m in members}) > 1:
             raise InputMismatchError(f"sensors that see different targets ({', '.join(sorted({m.target for m in members}))}) "
@@ -85,7 +85,8 @@ class Rig:
         # sensor's, mapped into each other's terms (target_params); what follows is the sensor's own
         # (a depth camera's scale and bias), fitted per sensor
         Z0 = first.Z(X0, p_starts[0]) if shared_target else None
-        self._n_target = [len(m.target_params(Z0)) if shared_target else 0 for m in members]
+        self._n_target = ([len(cast(SharesTarget, m).target_params(Z0)) for m in members] if Z0 is not None else
+                          [0] * len(members))
         self._p_starts = [p if k == 0 or not shared_target else p[self._n_target[k]:] for k, p in enumerate(p_starts)]
         n_rel = 6 * (len(members) - 1)
         self._slices: list[slice] = []
@@ -131,7 +132,7 @@ class Rig:
         out = []
         for k, m in enumerate(self.members):
             skip = self._n_target[k] if (self.shared_target and k > 0) else 0
-            for n in getattr(m, "nuisances", ()):
+            for n in m.nuisances if isinstance(m, HasNuisances) else ():
                 if n.index >= skip:
                     out.append(replace(n, name=f"{self.sensor_names[k]}.{n.name}", index=self._slices[k].start + n.index - skip))
         return tuple(out)
@@ -146,7 +147,8 @@ class Rig:
     def member_params(self, X, p, k: int) -> NDArray[np.float64]:
         """Sensor ``k``'s own unknowns: its slice, after the shared target's pose in its terms."""
         if self.shared_target and k > 0:
-            return np.r_[self.members[k].target_params(self.members[0].Z(X, p[self._slices[0]])), p[self._slices[k]]]
+            shared = cast(SharesTarget, self.members[k]).target_params(self.members[0].Z(X, p[self._slices[0]]))
+            return np.r_[shared, p[self._slices[k]]]
         return p[self._slices[k]]
 
     def _member_cov(self, cov_p, k: int) -> NDArray[np.float64]:
@@ -267,7 +269,7 @@ class Rig:
         at its X and unknowns in the joint fit), labelled by view and sensor, with its RMS (mm)."""
         out = []
         for k, (m, name) in enumerate(zip(self.members, self.sensor_names)):
-            if not hasattr(m, "sections"):
+            if not isinstance(m, DrawsSections):
                 continue
             seen = [v for v in views if np.any(np.asarray(m.owner) == v)]
             for v, sec in zip(seen, m.sections(X @ self.relative(p, k), self.member_params(X, p, k), flange2base, seen)):

@@ -41,6 +41,9 @@ class ChartedTarget:
     _mpp: NDArray[np.float64] | None = None  #: per point the pixel's size at its depth (m), fixed at the first start
     _stated_shape: NDArray[np.float64]
     noise_px: float
+    setup: str
+    owner: NDArray[np.intp]
+    points: NDArray[np.float64]
     #: the residual columns that are pixels times the pixel's size
     pixel_columns: tuple[int, ...] = (0, 1)
 

@@ -23,7 +23,7 @@ import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence, cast
 
 import numpy as np
 
@@ -145,7 +145,7 @@ def _cached(folder: Path, key: str, path: str) -> ImageResult | None:
     """The result stored under ``key``, or None (absent, or unreadable: detected again)."""
     try:
         with np.load(folder / key[:2] / f"{key}.npz", allow_pickle=False) as z:
-            size = tuple(int(v) for v in z["image_size"])
+            size = cast(tuple[int, int], tuple(int(v) for v in z["image_size"]))
             if not bool(z["found"]):
                 return ImageResult(Path(path), None, size, str(z["error"]))
             det = Detection(z["ids"].astype(np.intp), z["image_points"], z["object_points"])
@@ -157,8 +157,8 @@ def _cached(folder: Path, key: str, path: str) -> ImageResult | None:
 def _store(folder: Path, key: str, result: ImageResult) -> None:
     """Keep ``result`` under ``key`` (atomically; a cache that cannot be written is skipped)."""
     det = result.detection
-    arrays = dict(image_size=np.array(result.image_size), found=np.array(det is not None),
-                  error=np.array(result.error or ""))
+    arrays: dict[str, Any] = dict(image_size=np.array(result.image_size), found=np.array(det is not None),
+                                  error=np.array(result.error or ""))
     if det is not None:
         arrays.update(ids=np.asarray(det.ids), image_points=np.asarray(det.image_points),
                       object_points=np.asarray(det.object_points))
@@ -188,7 +188,7 @@ def _detect_one(args: tuple[str, Target, Path | None, bool]) -> ImageResult:
         if key is not None and (hit := _cached(cache, key, path)) is not None:
             return hit
     result = _detect_uncached(path, target, keep_preview)
-    if key is not None and result.image_size is not None and min(result.image_size) >= MIN_IMAGE_SIDE:
+    if cache is not None and key is not None and result.image_size is not None and min(result.image_size) >= MIN_IMAGE_SIDE:
         _store(cache, key, result)
     return result
 

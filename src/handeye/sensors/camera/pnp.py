@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -179,7 +181,7 @@ def calibrate_intrinsics(
 INTRINSICS = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")
 
 
-def intrinsics_covariance(object_points: list[NDArray[np.float64]], image_points: list[NDArray[np.float64]],
+def intrinsics_covariance(object_points: Sequence[NDArray[np.float64]], image_points: Sequence[NDArray[np.float64]],
                           target2cam: NDArray[np.float64], K: NDArray[np.float64],
                           dist: NDArray[np.float64]) -> NDArray[np.float64]:
     """Covariance (9, 9) of the intrinsics (:data:`INTRINSICS`) estimated from these views by
@@ -208,7 +210,7 @@ def intrinsics_covariance(object_points: list[NDArray[np.float64]], image_points
     dof = residuals - k - 6 * len(target2cam)
     if dof <= 0:
         raise InputMismatchError(f"{residuals} residuals cannot give the covariance of {k} intrinsics and {len(target2cam)} poses")
-    return rss / dof * np.linalg.pinv(S)
+    return np.asarray(rss / dof * np.linalg.pinv(S), dtype=float)
 
 
 def symmetry_costs(target2cam: NDArray[np.float64], flange2base: NDArray[np.float64], setup: str,

@@ -39,7 +39,7 @@ True
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -334,7 +334,8 @@ class ArmSurface(DepthRows):
         if table is None:
             return y, None
         at = (self.owner[rows], self.link[rows])
-        nominal, moved = self.arm.link2base[at], self.arm.meshes.link2base(table, self.joints)[at]
+        joints = cast(NDArray[np.float64], self.joints)  # a table comes with joint angles (sees_links)
+        nominal, moved = self.arm.link2base[at], self.arm.meshes.link2base(table, joints)[at]
         R = nominal[:, :3, :3] @ np.swapaxes(moved[:, :3, :3], 1, 2)
         return np.einsum("mij,mj->mi", R, y - moved[:, :3, 3]) + nominal[:, :3, 3], R
 
@@ -363,7 +364,8 @@ class ArmSurface(DepthRows):
             cols += [(-np.einsum("mi,mi->m", n_cam, q) / s)[:, None],
                      (-np.einsum("mi,mi->m", n_cam, raw) / (s * raw[:, 2]))[:, None]]
         if table is not None:
-            twist = self.arm.meshes.table_twists(table, self.joints)[:, self.owner[rows], self.link[rows]]  # (E, M, 6)
+            joints = cast(NDArray[np.float64], self.joints)  # a table comes with joint angles (sees_links)
+            twist = self.arm.meshes.table_twists(table, joints)[:, self.owner[rows], self.link[rows]]  # (E, M, 6)
             moved = np.cross(twist[..., :3], u + X[:3, 3]) + twist[..., 3:]
             cols.append(-np.einsum("mi,emi->me", n, moved))
         return np.concatenate(cols, axis=1)[:, None, :]

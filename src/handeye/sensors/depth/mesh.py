@@ -89,7 +89,7 @@ class MeshSurface(DepthRows):
         k = self.basis_Z.shape[1]
         self.param_names = [f"Z.d{i + 1}" for i in range(k)] + (["depth.scale-1", "depth.bias"] if fit_depth else [])
         self.param_scale = np.r_[np.full(k, 1e-3), [1e-3, 1e-3] if fit_depth else []]
-        self._Zref: NDArray[np.float64] | None = self.placement
+        self._Zref: NDArray[np.float64] = self.placement  # type: ignore[assignment]  # None until the first start without one
         self._nearest = NearestSamples(len(self.owner), 1, KEPT)
 
     @property
@@ -158,7 +158,7 @@ class MeshSurface(DepthRows):
             return np.zeros(0)
         D = invert(self._Zref) @ Z
         xi = np.r_[Rotation.from_matrix(D[:3, :3]).as_rotvec(), D[:3, 3]]
-        return np.linalg.lstsq(self.basis_Z, xi, rcond=None)[0]
+        return np.asarray(np.linalg.lstsq(self.basis_Z, xi, rcond=None)[0], dtype=float)
 
     def Z(self, X, p) -> NDArray[np.float64]:
         """The shape's pose: its placement, or the reference moved by Z's unknowns."""

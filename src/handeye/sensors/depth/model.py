@@ -26,6 +26,7 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -90,6 +91,10 @@ class DepthRows:
     kind = "depth camera"
     groups: tuple[tuple[int, ...], ...] = ((0,), (1, 2))
     fit_depth = True
+    # the members of the model it is part of (:class:`~handeye.sensors.base.SensorModel`)
+    param_names: list[str]
+    owner: NDArray[np.intp]
+    residuals: Callable[..., NDArray[np.float64]]
 
     @property
     def nuisances(self) -> tuple[Nuisance, ...]:
@@ -189,7 +194,7 @@ class BoardPoints(DepthRows):
         self.param_names = [f"Z.{k}" for k in ("rx", "ry", "rz", "x", "y", "z")] + (
             ["depth.scale-1", "depth.bias"] if fit_depth else [])
         self.param_scale = np.r_[np.full(6, 1e-3), [1e-3, 1e-3] if fit_depth else []]
-        self._Zref: NDArray[np.float64] | None = None  # the board's pose the unknowns move it from
+        self._Zref: NDArray[np.float64] = None  # type: ignore[assignment]  # the board's pose the unknowns move it from (first start)
 
     def view_poses(self) -> NDArray[np.float64]:
         """The board's pose in each view, a rigid fit to its lifted corners."""
@@ -349,7 +354,7 @@ def sphere_start(A: NDArray[np.float64], centres: NDArray[np.float64], view: NDA
     m = len(centres)
     R_A, t_A = A[view, :3, :3], A[view, :3, 3]
     cols = 12 + 3 * n_spheres
-    M = np.zeros((m, 3, cols))
+    M: NDArray[np.float64] = np.zeros((m, 3, cols))
     M[:, :, :9] = np.einsum("mij,mk->mijk", R_A, centres).reshape(m, 3, 9)  # R_A (R_X c), R_X row-major
     M[:, :, 9:12] = R_A
     for axis in range(3):

@@ -106,7 +106,7 @@ class _Rays:
         with np.errstate(invalid="ignore"):
             seen = np.any(np.abs(dz) < tol, axis=1)
             through = hit.any(axis=1) & np.all((dz > tol) | ~hit, axis=1)
-        return np.bincount(pose, seen - 2.0 * through, minlength=len(T))
+        return np.asarray(np.bincount(pose, seen - 2.0 * through, minlength=len(T)), dtype=float)  # weighted: floats
 
 
 def _to_shape(T: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -466,7 +466,7 @@ def _match(shape: Shape, q: NDArray[np.float64], ranked: list[tuple[float, NDArr
     keep = keep if len(keep) <= max_points else np.sort(rng.choice(keep, max_points, replace=False))
     sigma = depth_sigma(near[keep, 2])
     J = -np.concatenate([np.cross(x[keep], n[keep]), n[keep]], axis=1) / sigma[:, None]
-    cov = np.linalg.pinv(J.T @ J, rcond=1e-12)
+    cov = np.asarray(np.linalg.pinv(J.T @ J, rcond=1e-12), dtype=float)
     others = np.array([t for _, t in ranked[1:]]).reshape(-1, 4, 4)
     return ShapeMatch(T, near[keep], n[keep], float(np.sqrt(np.mean(d[keep] ** 2))), float(on.mean()), cov, others,
                       np.array([s / max(score, 1.0) for s, _ in ranked[1:]]))

@@ -40,7 +40,7 @@ Examples
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -167,7 +167,7 @@ def prepare_view(points: NDArray[np.float64], name: str, *, queries: int = QUERI
     if len(p) > max_points:
         p = p[_thinned(p, max_points)]
     k = min(NEIGHBOURS, len(p))
-    n, on_surface, share, flat, gap = _surfaces(p, k)
+    n, on_surface, _, flat, gap = _surfaces(p, k)
     cos = np.abs(np.einsum("mi,mi->m", p, n)) / np.linalg.norm(p, axis=1)
     spacing = float(np.median(gap))
     good = (flat < FLATNESS) & (cos > GRAZING_COS) & (gap < 5.0 * spacing)
@@ -226,6 +226,12 @@ class Pairs:
         return Pairs(self.view[keep], self.point[keep], self.ref_view[keep], self.ref_point[keep], self.distance[keep])
 
 
+def _no_pairs() -> Pairs:
+    """No pairs at all."""
+    return Pairs(np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp),
+                 np.zeros(0, dtype=np.intp), np.zeros(0))
+
+
 def match(views: list[SceneView], A: NDArray[np.float64], X: NDArray[np.float64], tau: float,
           normal_cos: float = NORMAL_COS, use: NDArray[np.bool_] | None = None, every: int = 1) -> Pairs:
     """Each query point of each view (``use``: of these views only; the references of all views
@@ -269,7 +275,7 @@ def match(views: list[SceneView], A: NDArray[np.float64], X: NDArray[np.float64]
         found = ref_view >= 0
         out.append((np.full(int(found.sum()), i), query[found], ref_view[found], ref_point[found], best[found]))
     if not out:
-        return Pairs(*(np.zeros(0, dtype=np.intp) for _ in range(4)), np.zeros(0))
+        return _no_pairs()
     cols = [np.concatenate([o[c] for o in out]) for c in range(5)]
     return Pairs(cols[0].astype(np.intp), cols[1].astype(np.intp), cols[2].astype(np.intp), cols[3].astype(np.intp), cols[4])
 
@@ -304,6 +310,18 @@ def _corrected(x: NDArray[np.float64], depth: NDArray[np.float64] | None) -> NDA
         return x
     s, b = 1.0 + depth[0], depth[1]
     return x * ((x[:, 2] - b) / (s * x[:, 2]))[:, None]
+
+
+@overload
+def pair_terms(g: _Gathered, A_i: NDArray[np.float64], A_j: NDArray[np.float64], X: NDArray[np.float64],
+               depth: NDArray[np.float64] | None = None, jacobian: Literal[True] = True
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
+
+
+@overload
+def pair_terms(g: _Gathered, A_i: NDArray[np.float64], A_j: NDArray[np.float64], X: NDArray[np.float64],
+               depth: NDArray[np.float64] | None = None, *, jacobian: Literal[False]
+               ) -> tuple[NDArray[np.float64], None]: ...
 
 
 def pair_terms(g: _Gathered, A_i: NDArray[np.float64], A_j: NDArray[np.float64], X: NDArray[np.float64],
@@ -350,7 +368,7 @@ def _solve_step(r: NDArray[np.float64], J: NDArray[np.float64], sigma: NDArray[n
     H = (J * weight[:, None]).T @ J
     g = (J * weight[:, None]).T @ r
     H += 1e-9 * np.trace(H) / len(H) * np.eye(len(H))
-    return -np.linalg.solve(H, g)
+    return np.asarray(-np.linalg.solve(H, g), dtype=float)
 
 
 def register(views: list[SceneView], A: NDArray[np.float64], X: NDArray[np.float64], taus: NDArray[np.float64], *,
@@ -365,7 +383,7 @@ def register(views: list[SceneView], A: NDArray[np.float64], X: NDArray[np.float
     views' distance: X's turn times it, plus its shift). Returns X, the depth's unknowns and the
     last pairs."""
     depth = None if depth is None else np.asarray(depth, float).copy()
-    pairs = Pairs(*(np.zeros(0, dtype=np.intp) for _ in range(4)), np.zeros(0))
+    pairs = _no_pairs()
     lever = float(np.median([np.linalg.norm(v.centroid) for v in views])) + float(np.linalg.norm(X[:3, 3]))
     for k, tau in enumerate(taus):
         for _ in range(rounds):

@@ -67,7 +67,7 @@ def _translations(views: list[SceneView], A: NDArray[np.float64], R: NDArray[np.
     c = np.array([v.centroid for v in views])
     RA, tA = A[:, :3, :3], A[:, :3, 3]
     n = len(views)
-    M = np.zeros((n, 3, 6))
+    M: NDArray[np.float64] = np.zeros((n, 3, 6))
     M[:, :, :3] = RA
     M[:, :, 3:] = -np.eye(3)
     M = M.reshape(3 * n, 6)

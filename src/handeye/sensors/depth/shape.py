@@ -83,6 +83,7 @@ class Shape:
     spin: tuple[NDArray[np.float64], NDArray[np.float64]] | None = field(init=False, repr=False)
     #: the directions most of the surface faces (k, 3; unit, shape frame): a disc's two faces
     faces: NDArray[np.float64] = field(init=False, repr=False)
+    _grids: dict[bool, _Grid] = field(init=False, repr=False)  #: the lookup grids, built on first use
 
     def __post_init__(self) -> None:
         lo, hi = self.points.min(axis=0), self.points.max(axis=0)
@@ -307,7 +308,7 @@ def twist_axis(u: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.
 def describe_twist(u: NDArray[np.float64], centre: NDArray[np.float64]) -> str:
     """A free twist of a shape in words: a rotation about an axis (through a point) or a slide."""
     w, v = u[:3], u[3:]
-    if np.linalg.norm(w) < 1e-9 * max(np.linalg.norm(v), 1e-300):
+    if np.linalg.norm(w) < 1e-9 * max(float(np.linalg.norm(v)), 1e-300):
         d = v / np.linalg.norm(v)
         return f"its translation along ({d[0]:+.2f}, {d[1]:+.2f}, {d[2]:+.2f}) (the shape slides along itself)"
     a, point = twist_axis(u)

@@ -113,7 +113,9 @@ def profile_pieces(points: NDArray[np.float64], owner: NDArray[np.intp]
     (in the laser plane). A profile is split at the best two-line fit's breakpoint
     (:func:`_split`); each piece's line is refitted without its stray points."""
     piece = np.full(len(points), -1, dtype=np.intp)
-    views, directions, distances = [], [], []
+    views: list[Any] = []
+    directions: list[Any] = []
+    distances: list[Any] = []
     for v in np.unique(owner):
         rows = np.flatnonzero(owner == v)
         rows = rows[np.argsort(points[rows, 0], kind="stable")]

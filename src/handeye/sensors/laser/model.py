@@ -72,6 +72,17 @@ class Profiles:
 
     kind = "laser line profiler"
     groups: tuple[tuple[int, ...], ...] = ((0,),)
+    # each target's own (:class:`~handeye.sensors.base.SensorModel`'s members; the target's section in the laser plane)
+    target: str
+    param_names: list[str]
+    param_scale: NDArray[np.float64]
+    start: Callable[..., tuple[NDArray[np.float64], NDArray[np.float64]]]
+    residuals: Callable[..., NDArray[np.float64]]
+    Z: Callable[..., NDArray[np.float64]]
+    Z_std: Callable[..., NDArray[np.float64]]
+    figures: Callable[..., dict[str, Any]]
+    notes: Callable[..., list[str]]
+    _section: Callable[..., NDArray[np.float64]]
 
     def __init__(self, setup: str, names: list[str], profiles: list[NDArray[np.float64]],
                  noise_m: float = LASER_NOISE_M) -> None:
@@ -249,7 +260,7 @@ class SpheresProfiles(SphereProfiles):
     nearest at the current estimate (the balls are apart: smooth but at points between balls)."""
 
     target = "spheres"
-    nuisances: tuple[Nuisance, ...] = ()  # type: ignore[assignment]  # the balls' radii are given, their centres the unknowns
+    nuisances: tuple[Nuisance, ...] = ()  # the balls' radii are given, their centres the unknowns
 
     def __init__(self, setup: str, names: list[str], profiles: list[NDArray[np.float64]], radii,
                  noise_m: float = LASER_NOISE_M) -> None:
@@ -675,7 +686,7 @@ def _circles(points: NDArray[np.float64], owner: NDArray[np.intp], radius: float
         x, z = p[:, 0], p[:, 2]
         a, b, c = np.linalg.lstsq(np.c_[2 * x, 2 * z, np.ones(len(p))], x**2 + z**2, rcond=None)[0]
         rho2 = c + a * a + b * b
-        r = radius if np.ndim(radius) == 0 else radius[v]
+        r = radius if np.ndim(radius) == 0 else np.asarray(radius)[v]
         views.append(v)
         centres.append([a, 0.0, b])
         offsets.append(np.sqrt(max(r**2 - rho2, 0.0)))

@@ -24,7 +24,7 @@ fitted table (:class:`~handeye.robot.models.JointTrajectory`'s ``motion``).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -223,7 +223,7 @@ class LineScanCorners(ChartedTarget):
             return self._resolved
         n = len(self.names)
         w = self._sensor_velocity(np.arange(n))
-        orders = self.orderings or [None]
+        orders = cast(list[NDArray[np.intp] | None], self.orderings or [None])
         k = 2 * len(orders)
         poses, velocities = np.empty((n, k, 4, 4)), np.empty((n, k, 3))
         for v in range(n):

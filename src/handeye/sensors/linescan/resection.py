@@ -157,7 +157,7 @@ def resolve_mirrors(target2cam: NDArray[np.float64], velocity: NDArray[np.float6
     axes_A = Rotation.from_matrix(RA_jr).as_rotvec()
     unit_w = w / np.linalg.norm(w, axis=1, keepdims=True)
     unit_V = velocity / np.linalg.norm(velocity, axis=2, keepdims=True)
-    best = None
+    best: tuple[float, NDArray[np.intp], NDArray[np.float64]] | None = None
     for c_r in range(k):
         RB_jr = RB[others] @ RB[r, c_r].T  # (m, K, 3, 3)
         pick = np.argmin(np.abs(_angle(RB_jr) - turn[r, others, None]), axis=1)
@@ -173,4 +173,6 @@ def resolve_mirrors(target2cam: NDArray[np.float64], velocity: NDArray[np.float6
         total = float(np.sum(cost[np.arange(n), choice]))
         if best is None or total < best[0]:
             best = (total, choice.astype(np.intp), R_X)
+    if best is None:
+        raise DegenerateMotionError("no candidate pose of the target in the scans: the resection found none")
     return best[1], best[2]

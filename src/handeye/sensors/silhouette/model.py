@@ -106,6 +106,7 @@ class ArmViews:
     edges: NDArray[np.intp] = field(init=False, repr=False)  #: the meshes' edges (E, 2), :func:`mesh_edges`
     sides: NDArray[np.intp] = field(init=False, repr=False)  #: the faces on each side of each edge (E, 2)
     sdf: NDArray[np.float32] = field(init=False, repr=False)  #: per view the mask's signed distance field (pixels)
+    _drawn: dict[tuple[bytes, bytes], Any] = field(init=False, repr=False, compare=False)  #: the last rendering
 
     def __post_init__(self) -> None:
         if len(self.vertices) != len(self.masks):

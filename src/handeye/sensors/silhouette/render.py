@@ -23,6 +23,8 @@ Examples
 
 from __future__ import annotations
 
+from typing import Literal, overload
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -149,6 +151,16 @@ def signed_distance(mask: ArrayLike) -> NDArray[np.float32]:
     inside = cv2.distanceTransform(m.astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     outside = cv2.distanceTransform((~m).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     return np.where(m, 0.5 - inside, outside - 0.5).astype(np.float32)
+
+
+@overload
+def bilinear(field: NDArray[np.floating], uv: NDArray[np.float64], gradient: Literal[False] = False,
+             views: NDArray[np.intp] | None = None) -> NDArray[np.float64]: ...
+
+
+@overload
+def bilinear(field: NDArray[np.floating], uv: NDArray[np.float64], gradient: Literal[True],
+             views: NDArray[np.intp] | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
 
 
 def bilinear(field: NDArray[np.floating], uv: NDArray[np.float64], gradient: bool = False,

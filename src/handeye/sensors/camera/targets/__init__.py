@@ -125,7 +125,7 @@ def target_from_spec(spec: dict[str, Any], where: str = "target") -> Target:
         raise TargetError(f"{where}: expected a mapping with type, cols, rows, square")
     if spec.get("origin", "corner") not in ORIGINS + ("center",):
         raise TargetError(f"{where}: origin {shown(spec.get('origin'))}; use 'corner' (the default) or 'centre'")
-    cls = _REGISTRY.get(spec.get("type"))
+    cls = _REGISTRY.get(str(spec.get("type")))
     if cls is None:
         raise TargetError(f"{where}: unknown target type {shown(spec.get('type'))}; use one of {', '.join(_REGISTRY)}")
     try:

@@ -192,6 +192,8 @@ def aruco_dictionary(name: str) -> Any:
 class OpenCVBoard:
     """A target backed by an OpenCV board object (``_board``, built in ``__post_init__``)."""
 
+    _board: Any
+
     def __reduce__(self):  # the cv2 board does not pickle: rebuild it from the public fields (worker processes)
         return (type(self), tuple(getattr(self, f.name) for f in fields(self) if not f.name.startswith("_")))
 

@@ -73,7 +73,7 @@ class Charuco(OpenCVBoard, Target):
                 corners, ids = self._detect_from_reduced(detector, gray, (half,))
         if ids is None:
             corners, ids, _, _ = detector.detectBoard(gray)
-        if ids is None or len(ids) < 4:
+        if ids is None or corners is None or len(ids) < 4:
             return None
         ids = ids.ravel().astype(np.intp)
         return Detection(ids, corners.reshape(-1, 2).astype(float), self.object_points()[ids])

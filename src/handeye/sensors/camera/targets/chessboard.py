@@ -62,6 +62,8 @@ class Chessboard(Target):
             if not ok:
                 return None
             corners = cv2.cornerSubPix(gray, corners, (5, 5), (-1, -1), SUBPIX_CRITERIA)
+        if corners is None:
+            return None
         pts = corners.reshape(-1, 2).astype(float)
         ids = np.arange(len(pts))
         return Detection(ids, pts, self.object_points())

@@ -78,7 +78,7 @@ class ModifiedCircleGrid(CircleGrid):
                 f"spacing {1e3 * self.square:.2f} mm")
 
 
-def _big_corner(grid: NDArray[np.float64], keypoints) -> tuple[int, int] | None:
+def _big_corner(grid: NDArray[np.floating], keypoints) -> tuple[int, int] | None:
     """(row, column) of the grid's largest blob when it stands out (:data:`ORIGIN_SIZE_RATIO` times
     the median blob, :data:`ORIGIN_MARGIN` times the next) and sits at a corner; else None."""
     if not keypoints:
@@ -95,7 +95,7 @@ def _big_corner(grid: NDArray[np.float64], keypoints) -> tuple[int, int] | None:
     return (r, c) if r in (0, rows - 1) and c in (0, cols - 1) else None
 
 
-def _reading(grid: NDArray[np.float64], corner: tuple[int, int]) -> NDArray[np.intp] | None:
+def _reading(grid: NDArray[np.floating], corner: tuple[int, int]) -> NDArray[np.intp] | None:
     """The detector's indices in the target's order: from ``corner``, along its column then its row
     (``x`` first), or the other way round for a square grid, whichever turns the image's x axis onto
     its y axis the way the image's own axes turn (z into the board); None when neither does (a
