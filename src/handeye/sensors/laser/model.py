@@ -632,6 +632,10 @@ LIFTED_PROFILES = 15
 GOOD_START_M = 1e-3
 
 
+#: Half a turn about the sensor's y axis (the laser plane's normal): x and z reversed.
+FLIP_Y = np.diag([-1.0, 1.0, -1.0])
+
+
 def _best_start(A, points, candidates, radius, best=None):
     """Of the candidate rotations, each with its translation start, the one that leads to the best
     fit: (R_X, t_X, C, rms) as X and the centre fitted to at most 1,500 of the points from them give
@@ -639,7 +643,10 @@ def _best_start(A, points, candidates, radius, best=None):
     191 mm off on a simulated capture with one turn about two axes, where its polished one was 3 mm
     off), the rms what that fit leaves; or ``best`` when none beats it."""
     few = np.linspace(0, len(points) - 1, min(len(points), 1500)).astype(np.intp)
-    for R_X, t0 in candidates:
+    # each rotation also turned half a turn about the laser plane's normal: the profiles of pure
+    # translations fit both nearly alike (a simulated pendant capture started 176 deg off, and its fit
+    # stayed there at 1.6 mm RMS), the turns tell them apart once polished
+    for R_X, t0 in [c for R, t0 in candidates for c in ((R, t0), (R @ FLIP_Y, t0))]:
         t_X, C = _translation_start(A, points, R_X, t0, radius)
         rms, R_X, t_X, C = _polished(A[few], points[few], R_X, t_X, C, radius)
         if best is None or rms < best[3]:
