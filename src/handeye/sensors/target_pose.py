@@ -42,6 +42,8 @@ class ChartedTarget:
     _stated_shape: NDArray[np.float64]
     noise_px: float
     setup: str
+    kind: str
+    target: str
     owner: NDArray[np.intp]
     points: NDArray[np.float64]
     #: the residual columns that are pixels times the pixel's size
@@ -79,14 +81,19 @@ class ChartedTarget:
                                "fixed by the first start (the core's, from the closed form on the views' poses)")
         return self._mpp[rows]
 
+    def _anchor(self) -> NDArray[np.float64]:
+        """The target's pose at the first start (refused by name before it)."""
+        if self._chart is None:
+            raise HandEyeError(f"{self.kind} ({self.target}): no start yet; its pixel sizes and the target's chart are "
+                               "fixed by the first start (the core's, from the closed form on the views' poses)")
+        return self._chart
+
     def target_params(self, Z: NDArray[np.float64]) -> NDArray[np.float64]:
         """The unknowns of the target's pose ``Z`` (after the first start: in its chart)."""
-        return np.r_[Rotation.from_matrix(Z[:3, :3] @ self._chart[:3, :3].T).as_rotvec(), Z[:3, 3]]
+        return np.r_[Rotation.from_matrix(Z[:3, :3] @ self._anchor()[:3, :3].T).as_rotvec(), Z[:3, 3]]
 
     def _target2world(self, p: NDArray[np.float64]) -> NDArray[np.float64]:
-        if self._chart is None:
-            self._pixel_size(np.zeros(0, dtype=np.intp))  # refused by name
-        return make_transform(Rotation.from_rotvec(p[:3]).as_matrix() @ self._chart[:3, :3], p[3:6])
+        return make_transform(Rotation.from_rotvec(p[:3]).as_matrix() @ self._anchor()[:3, :3], p[3:6])
 
     def Z(self, X: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.float64]:
         """The target's pose (target2base eye-in-hand, target2flange eye-to-hand)."""

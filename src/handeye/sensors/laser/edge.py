@@ -336,15 +336,20 @@ class EdgeProfiles(Profiles):
         self._charts: list | None = None
         self.convex = True
 
-    def _normals(self, p) -> NDArray[np.float64]:
-        """Both faces' unit normals (2, 3)."""
+    def _charted(self) -> list:
+        """The faces' charts, fixed by the first start (refused by name before it)."""
         if self._charts is None:
             raise DegenerateMotionError(f"the {self.target}'s faces have no start yet: their unknowns are in charts the "
                                         "first start fixes")
+        return self._charts
+
+    def _normals(self, p) -> NDArray[np.float64]:
+        """Both faces' unit normals (2, 3)."""
+        charts = self._charted()
         if self.shared:
-            n = _unit(self._charts[0], p[0], p[1])
+            n = _unit(charts[0], p[0], p[1])
             return np.array([n, n])
-        return np.array([_unit(c, p[2 * k], p[2 * k + 1]) for k, c in enumerate(self._charts)])
+        return np.array([_unit(c, p[2 * k], p[2 * k + 1]) for k, c in enumerate(charts)])
 
     def _distances(self, p) -> NDArray[np.float64]:
         return np.asarray(p[-2:], dtype=float)
@@ -408,10 +413,10 @@ class EdgeProfiles(Profiles):
         larger distance; an edge's faces in the charts' order)."""
         if self.shared and d[0] < d[1]:
             normals, d = normals[::-1], d[::-1]
-        elif not self.shared and normals[0] @ self._charts[1][0] > normals[0] @ self._charts[0][0]:
+        elif not self.shared and normals[0] @ self._charted()[1][0] > normals[0] @ self._charted()[0][0]:
             normals, d = normals[::-1], d[::-1]
         out = []
-        for n, c in zip(normals[:1 if self.shared else 2], self._charts):
+        for n, c in zip(normals[:1 if self.shared else 2], self._charted()):
             k = n / (n @ c[0])  # c0 + a c1 + b c2, proportional to n
             out += [k @ c[1], k @ c[2]]
         return np.r_[out, d]
@@ -437,7 +442,7 @@ class EdgeProfiles(Profiles):
         A = robot_world_A(flange2base, self.setup)
         q, face, n = self._nearer(X, p, A, rows)
         cols = [self._x_jacobian(X, A, rows, n[face])]
-        for k, c in enumerate(self._charts):
+        for k, c in enumerate(self._charted()):
             m = c[0] + p[2 * k] * c[1] + p[2 * k + 1] * c[2]
             project = (np.eye(3) - np.outer(n[k], n[k])) / np.linalg.norm(m)
             on = (face == k) | self.shared
@@ -537,7 +542,8 @@ class StepProfiles(EdgeProfiles):
     def Z_std(self, p, cov_p) -> NDArray[np.float64]:
         """The normal's tilt (deg, two axes; about it NaN) and the upper face's distance (mm; in the
         face NaN)."""
-        m = self._charts[0][0] + p[0] * self._charts[0][1] + p[1] * self._charts[0][2]
+        chart = self._charted()[0]
+        m = chart[0] + p[0] * chart[1] + p[1] * chart[2]
         tilt = np.degrees(np.sqrt(np.clip(np.diag(cov_p)[:2], 0.0, None)) / np.linalg.norm(m))
         return np.r_[tilt, np.nan, np.nan, np.nan, 1e3 * np.sqrt(max(cov_p[2, 2], 0.0))]
 

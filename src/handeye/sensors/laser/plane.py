@@ -62,11 +62,15 @@ class PlaneProfiles(Profiles):
         #: the anchor: the normal's chart, from the whole capture's start (the first poses started on), kept
         self._chart: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
 
-    def _normal(self, p) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The unit normal of ``p`` and the chart's unnormalised vector ``n0 + a e1 + b e2``."""
+    def _anchor(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """The normal's chart, fixed by the first start (refused by name before it)."""
         if self._chart is None:
             raise DegenerateMotionError("the plate's normal has no start yet: its unknowns are in a chart the first start fixes")
-        n0, e1, e2 = self._chart
+        return self._chart
+
+    def _normal(self, p) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The unit normal of ``p`` and the chart's unnormalised vector ``n0 + a e1 + b e2``."""
+        n0, e1, e2 = self._anchor()
         m = n0 + p[0] * e1 + p[1] * e2
         return m / np.linalg.norm(m), m
 
@@ -120,7 +124,7 @@ class PlaneProfiles(Profiles):
         A = robot_world_A(flange2base, self.setup)
         n, m = self._normal(p)
         q = self._mapped(X, A, rows)
-        _, e1, e2 = self._chart
+        _, e1, e2 = self._anchor()
         project = (np.eye(3) - np.outer(n, n)) / np.linalg.norm(m)
         J = np.c_[self._x_jacobian(X, A, rows, np.broadcast_to(n, q.shape)), q @ (project @ e1), q @ (project @ e2),
                   -np.ones(len(rows))]

@@ -202,7 +202,7 @@ class LineScanCorners(ChartedTarget):
 
     # -- the sensor model ------------------------------------------------------------------------------
     @property
-    def points(self) -> NDArray[np.float64]:
+    def points(self) -> NDArray[np.float64]:  # type: ignore[override]  # read-only: resolved on first use
         """The target's point (M, 3) of every corner: as given, or, with ``orderings``, each scan's in
         the order that agrees with the robot (:meth:`view_poses`; resolved on first use, whichever
         member asks first)."""
