@@ -284,3 +284,16 @@ def test_advice_to_record_joint_angles_says_how_to_give_an_arm_handeye_does_not_
     mine, shipped = load_arm(tmp_path / "my_arm.yaml"), load_arm("lrmate200id")
     q = np.random.default_rng(0).uniform(-1.5, 1.5, (20, 6))
     assert np.allclose(mine.forward(q), shipped.forward(q), atol=1e-12)
+
+
+def test_held_unknowns_that_make_most_of_the_std_are_named_with_how_to_free_them():
+    """Issue 76: a weak verdict whose std is mostly the tolerance of unknowns held at nominal values
+    (a depth camera's scale the views do not determine) says so and how to fix it, instead of asking
+    for more poses; a small held part leaves the usual reason."""
+    std = np.array([0.1, 0.1, 0.1, 2.0, 2.0, 2.0])
+    held = np.array([0.01, 0.01, 0.01, 1.6, 1.6, 1.6])
+    found = judge(Evidence(handeye.Diagnostics(verdict="good", advice=[]), std, {"held_unknowns": held}))
+    assert found.verdict == "weak" and "unknowns held at their nominal values give 2.8 mm" in found.added[0]
+    assert "--free NAME" in found.added[0] and "take more (10-20)" not in found.added[0]
+    small = judge(Evidence(handeye.Diagnostics(verdict="good", advice=[]), std, {"held_unknowns": 0.2 * held}))
+    assert small.verdict == "weak" and "unknowns held" not in small.added[0]
