@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from .._shared.threads import on_one_blas_thread
 from ..errors import HandEyeError, InputMismatchError, PoseFormatError
 from ..frames.poses import RobotPoseInput, parse_poses
 from ..frames.setups import SETUPS, check_setup, setup_info
@@ -109,6 +110,7 @@ def _in_setup(sensor: SensorModel, setup: str) -> SensorModel:
     return other
 
 
+@on_one_blas_thread  # narrow matrices: a second BLAS thread spins more than it works
 def check_readings(sensor: SensorModel, robot: RobotModel, pose_input: RobotPoseInput | None,
                    flange2base_rows: NDArray[np.float64] | None = None, index: NDArray[np.intp] | None = None,
                    rebuild: Callable[[Reading], tuple[SensorModel, RobotModel]] | None = None
