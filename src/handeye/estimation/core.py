@@ -56,7 +56,7 @@ from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from ..frames.metrics import std_deg_mm
 from ..frames.motions import MotionSet
 from ..frames.setups import constant_transforms, setup_info
-from ..geometry.se3 import mean_transform, perturb, so3_left_jacobian
+from ..geometry.se3 import mean_transform, perturb, skew, so3_left_jacobian
 from ..result import Calibration, Diagnostics, HeldOutErrors, KinematicModel, Observability, SensorFit, Unobservable
 from ..robot.kinematics import along_parallel_axes
 from ..robot.models import ControllerPoses, JointAngles, PoseErrors, RobotModel
@@ -98,6 +98,9 @@ DOWNDATE_STD = 10.0
 #: The robust first round fits at most this many measurement rows, evenly taken (the plain rounds
 #: after it fit every row kept): it only has to find the outliers.
 ROBUST_ROWS = 50000
+#: The tolerance of the plain rounds whose solution only sets the noise scales for the next (the last
+#: round fits to the fit's own, 1e-10).
+ROUND_TOL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -372,29 +375,61 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
     n_x, n_d = 6 + problem.sizes[1], robot.n_params
     h = 1.5e-8
 
+    checked: list[bool] = []  # whether the flange pose's columns from X's agreed with differences (first call)
+
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
         F = robot.flange2base(d)
         f0 = fun(x)
         m = len(entry_view)
         J = np.zeros((len(f0), len(x)))
+        by_pose = None
         if own:
-            J[:m, :n_x] = _whiten(_own_jacobian(problem, x, X, p, F, rows), weight).reshape(m, n_x)
+            raw = _whiten(problem.own_columns(sensor.jacobian(X, p, F, rows)), weight).reshape(m, n_x)
+            J[:m, :n_x] = raw
+            J[:m, :3] = raw[:, :3] @ so3_left_jacobian(x[:3])
+            if not checked or checked[0]:
+                by_pose = np.einsum("ea,eab->eb", raw[:, :6], _pose_as_x(X, F, sensor.setup)[entry_view])
         else:
             for j in range(n_x):
                 step = x.copy()
                 step[j] += h * max(1.0, abs(x[j]))
                 J[:m, j] = (fun(step)[:m] - f0[:m]) / (h * max(1.0, abs(x[j])))
         J[m + n_d:, :n_x] = PIN * problem.pin_rows()
-        by_pose = np.empty((m, 6))
-        for a in range(6):  # every view's flange pose moved along its increment a at once
-            xi = np.zeros(6)
-            xi[a] = h
-            by_pose[:, a] = (measured(X, p, d, perturb(F, xi[:3], xi[3:])) - f0[:m]) / h
+        if by_pose is None or not checked:
+            differences = np.empty((m, 6))
+            for a in range(6):  # every view's flange pose moved along its increment a at once
+                xi = np.zeros(6)
+                xi[a] = h
+                differences[:, a] = (measured(X, p, d, perturb(F, xi[:3], xi[3:])) - f0[:m]) / h
+            if by_pose is not None:  # a sensor whose residuals see the flange pose other than through A X: differences
+                checked.append(bool(np.linalg.norm(by_pose - differences) <= 1e-3 * max(np.linalg.norm(differences), 1e-300)))
+            if by_pose is None or not checked[0]:
+                by_pose = differences
         J[:m, n_x:] = np.einsum("ea,ead->ed", by_pose, robot.pose_jacobian(d)[entry_view])
         J[m:m + n_d, n_x:] = np.eye(n_d)
         return J
     return jac
+
+
+def _pose_as_x(X: NDArray[np.float64], flange2base: NDArray[np.float64], setup: str) -> NDArray[np.float64]:
+    """Per view (N, 6, 6) the left increment of X (:func:`~handeye.geometry.se3.perturb`'s: rotation, then
+    translation) that moves the sensor where the target is fixed, ``A X`` (:func:`~handeye.frames.setups.robot_world_A`),
+    as the increment of the view's flange pose does, to first order: residuals that see the flange pose
+    through ``A X`` alone have their derivatives by it from X's. Eye-in-hand ``(R_F^T r, -[t_X]x R_F^T r + R_F^T t)``,
+    eye-to-hand ``(-r, [t_X - t_F]x r - t)``."""
+    R, t = flange2base[:, :3, :3], flange2base[:, :3, 3]
+    out = np.zeros((len(flange2base), 6, 6))
+    if setup_info(setup).camera_on_flange:
+        Rt = np.swapaxes(R, 1, 2)
+        out[:, :3, :3] = Rt
+        out[:, 3:, :3] = -skew(X[:3, 3]) @ Rt
+        out[:, 3:, 3:] = Rt
+    else:
+        out[:, :3, :3] = -np.eye(3)
+        out[:, 3:, :3] = skew(X[:3, 3] - t)
+        out[:, 3:, 3:] = -np.eye(3)
+    return out
 
 
 def _links_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None):
@@ -758,8 +793,11 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     kept[rows] = np.all(np.abs(w) <= REJECT * sigma[groups[rows]], axis=1) & ~np.isin(owner[rows], contradicted)
     rows = np.flatnonzero(kept)
     n_unknowns = len(x)
+    # the two rounds before the last only set the noise scales, which do not move with x to first order at the
+    # optimum: to ROUND_TOL (but for one scale and nothing weighted against it, whose first round is the last)
+    final = n_groups == 1 and not problem.robot.n_params and not problem.n_pinned
     for _ in range(2):
-        res, _ = _solved(problem, rows, sigma, x, tol)
+        res, _ = _solved(problem, rows, sigma, x, tol if final else max(tol, ROUND_TOL))
         x = res.x
         X, p, d = problem.unpack(x)
         w = _residuals(problem, X, p, d, rows) / shape[rows]
