@@ -1145,11 +1145,12 @@ def _union(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64
     return W[s > 1e-6]
 
 
-def _start(sensor: SensorModel, robot: RobotModel, views: NDArray[np.intp] | None = None
+def _start(sensor: SensorModel, robot: RobotModel, views: NDArray[np.intp] | None = None, refine: bool = True
            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """X and ``p`` to start from, on ``views`` (default all) and the robot's poses at its prior (the
-    controller's, or the nominal table's): the closed form on the views' poses when the sensor
-    measures them (the views whose pose is not finite left out), else the sensor's own."""
+    controller's, or the nominal table's): the closed form on the views' poses (and, ``refine``, the
+    pose refinement: :func:`start_from_poses`) when the sensor measures them (the views whose pose is
+    not finite left out), else the sensor's own."""
     F = robot.flange2base(np.zeros(robot.n_params))
     poses = sensor.view_poses()
     views = np.arange(len(sensor.names)) if views is None else np.asarray(views)
@@ -1160,7 +1161,7 @@ def _start(sensor: SensorModel, robot: RobotModel, views: NDArray[np.intp] | Non
         if len(views) < 3:
             raise DegenerateMotionError(f"{len(views)} views: at least 3 are needed, 10-20 with the flange turned "
                                         "30 deg or more about varied axes to trust X")
-        X, Z = start_from_poses(F[views], poses[views], sensor.setup)
+        X, Z = start_from_poses(F[views], poses[views], sensor.setup, refine)
     return sensor.start(F, X, Z, rows)
 
 
@@ -1484,15 +1485,16 @@ def _table_notes(robot: JointAngles, model: KinematicModel) -> list[str]:
 QUICK_ROWS, QUICK_EVALS = 3000, 60
 
 
-def quick_rms_mm(sensor: SensorModel, robot: RobotModel, accuracy: tuple[float, float] | None = None
+def quick_rms_mm(sensor: SensorModel, robot: RobotModel, accuracy: tuple[float, float] | None = None, refine: bool = True
                  ) -> tuple[float, float, tuple[NDArray[np.float64], NDArray[np.float64]] | None]:
-    """The sensor's closed-form start on ``robot``'s poses, then a short robust fit of X and the
-    sensor's unknowns on at most :data:`QUICK_ROWS` rows: the robust RMS (mm) of their residuals
-    (1.4826 times the median length; infinite when no start can be made), and what the sensor's noise
-    and the robot's ``accuracy`` allow there (mm)."""
+    """The sensor's closed-form start on ``robot``'s poses (``refine``: refined as the fit's own start
+    is, :func:`_start`), then a short robust fit of X and the sensor's unknowns on at most
+    :data:`QUICK_ROWS` rows: the robust RMS (mm) of their residuals (1.4826 times the median length;
+    infinite when no start can be made), and what the sensor's noise and the robot's ``accuracy``
+    allow there (mm)."""
     start = None
     try:
-        X0, p0 = start = _start(sensor, robot)
+        X0, p0 = start = _start(sensor, robot, refine=refine)
         problem = Problem(sensor, robot, X0, p0)
         n = len(np.asarray(sensor.owner))
         rows = np.arange(n) if n <= QUICK_ROWS else np.linspace(0, n - 1, QUICK_ROWS).astype(np.intp)
