@@ -80,7 +80,7 @@ from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from ..frames.metrics import std_deg_mm
 from ..frames.motions import MotionSet
 from ..frames.setups import constant_transforms, setup_info
-from ..geometry.se3 import mean_transform, perturb, so3_left_jacobian
+from ..geometry.se3 import mean_transform, perturb, skew, so3_left_jacobian
 from ..result import Calibration, Diagnostics, HeldOutErrors, KinematicModel, Observability, SensorFit, Unobservable
 from ..robot.kinematics import Chain, along_parallel_axes
 from ..robot.models import ChainedPoses, ControllerPoses, FittedTable, FollowsMotion, PerViewErrors, ReportedPoses, RobotModel
@@ -135,6 +135,16 @@ DOWNDATE_STD = 10.0
 #: The robust first round fits at most this many measurement rows, evenly taken (the plain rounds
 #: after it fit every row kept): it only has to find the outliers.
 ROBUST_ROWS = 50000
+#: The tolerance of the plain rounds whose solution only sets the noise scales for the next (the last
+#: round fits to the fit's own, 1e-10).
+ROUND_TOL = 1e-6
+#: The robust first round's tolerance with the robot's poses as given (no unknowns of its own): the round
+#: only finds the points to set aside at 5 of their std, which the last 1e-6 of the solution does not
+#: move (the arm in depth clouds: 199 -> 152 evaluations, silhouettes 136 -> 79, X within 5e-5 mm).
+#: With the robot's unknowns (each pose's error, the arm's table) 1e-12: a line-scan capture of 6 scans
+#: with each pose's error fitted went from good to weak from the looser round's end (its plain rounds
+#: then stop elsewhere along a direction the few scans barely determine).
+ROBUST_TOL = 1e-6
 
 #: How the fit takes its Jacobian (:class:`Plan`): finite differences (``least_squares``' own), the
 #: sensor's own derivatives, the chain rule through the robot's poses, finite differences view by view
@@ -155,7 +165,7 @@ class Plan:
     ``jacobian``: the :data:`Strategy`, the first that holds of: a robot with unknowns that follows a
     move, whose unknowns move every row's pose of a view differently (differences); a sensor that sees
     the links with such a robot (links); a robot whose unknowns each move one view (per view:
-    :func:`_per_view_jacobian`, from :data:`ELIMINATE_FROM` of them eliminated instead,
+    :func:`_per_view_jacobian`, from :data:`ELIMINATE_FROM` of them, or :data:`ELIMINATE_ENTRIES` measurements each, eliminated instead,
     :class:`_Eliminated`); a robot with unknowns and its poses' derivatives (chained:
     :func:`_chained_jacobian`); a :class:`~handeye.sensors.base.Differentiable` sensor without padded
     entries and a robot without unknowns (own); else differences.
@@ -189,7 +199,11 @@ def plan_of(sensor: SensorModel, robot: RobotModel) -> Plan:
         strategy = "chained"
     else:
         strategy = "own" if own and not moving else "differences"
-    return Plan(takes, strategy, own, per_view, per_view and robot.n_params >= ELIMINATE_FROM)
+    noise = Noise.of(sensor)
+    entries = int(np.count_nonzero(noise.mask)) if noise.mask is not None else int(noise.shape.size)
+    n = robot.n_params
+    eliminates = per_view and (n >= ELIMINATE_FROM or entries >= ELIMINATE_ENTRIES * n)
+    return Plan(takes, strategy, own, per_view, eliminates)
 
 
 @dataclass(frozen=True)
@@ -453,29 +467,61 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
     n_x, n_d = 6 + problem.sizes[1], robot.n_params
     h = 1.5e-8
 
+    checked: list[bool] = []  # whether the flange pose's columns from X's agreed with differences (first call)
+
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
         F = robot.flange2base(d)
         f0 = fun(x)
         m = len(entry_view)
         J = np.zeros((len(f0), len(x)))
+        by_pose = None
         if own:
-            J[:m, :n_x] = _whiten(_own_jacobian(problem, x, X, p, F, rows), weight).reshape(m, n_x)
+            raw = _whiten(problem.own_columns(cast(Differentiable, sensor).jacobian(X, p, F, rows)), weight).reshape(m, n_x)
+            J[:m, :n_x] = raw
+            J[:m, :3] = raw[:, :3] @ so3_left_jacobian(x[:3])
+            if not checked or checked[0]:
+                by_pose = np.einsum("ea,eab->eb", raw[:, :6], _pose_as_x(X, F, sensor.setup)[entry_view])
         else:
             for j in range(n_x):
                 step = x.copy()
                 step[j] += h * max(1.0, abs(x[j]))
                 J[:m, j] = (fun(step)[:m] - f0[:m]) / (h * max(1.0, abs(x[j])))
         J[m + n_d:, :n_x] = PIN * problem.pin_rows()
-        by_pose = np.empty((m, 6))
-        for a in range(6):  # every view's flange pose moved along its increment a at once
-            xi = np.zeros(6)
-            xi[a] = h
-            by_pose[:, a] = (measured(X, p, d, perturb(F, xi[:3], xi[3:])) - f0[:m]) / h
+        if by_pose is None or not checked:
+            differences = np.empty((m, 6))
+            for a in range(6):  # every view's flange pose moved along its increment a at once
+                xi = np.zeros(6)
+                xi[a] = h
+                differences[:, a] = (measured(X, p, d, perturb(F, xi[:3], xi[3:])) - f0[:m]) / h
+            if by_pose is not None:  # a sensor whose residuals see the flange pose other than through A X: differences
+                checked.append(bool(np.linalg.norm(by_pose - differences) <= 1e-3 * max(float(np.linalg.norm(differences)), 1e-300)))
+            if by_pose is None or not checked[0]:
+                by_pose = differences
         J[:m, n_x:] = np.einsum("ea,ead->ed", by_pose, robot.pose_jacobian(d)[entry_view])
         J[m:m + n_d, n_x:] = np.eye(n_d)
         return J
     return jac
+
+
+def _pose_as_x(X: NDArray[np.float64], flange2base: NDArray[np.float64], setup: str) -> NDArray[np.float64]:
+    """Per view (N, 6, 6) the left increment of X (:func:`~handeye.geometry.se3.perturb`'s: rotation, then
+    translation) that moves the sensor where the target is fixed, ``A X`` (:func:`~handeye.frames.setups.robot_world_A`),
+    as the increment of the view's flange pose does, to first order: residuals that see the flange pose
+    through ``A X`` alone have their derivatives by it from X's. Eye-in-hand ``(R_F^T r, -[t_X]x R_F^T r + R_F^T t)``,
+    eye-to-hand ``(-r, [t_X - t_F]x r - t)``."""
+    R, t = flange2base[:, :3, :3], flange2base[:, :3, 3]
+    out = np.zeros((len(flange2base), 6, 6))
+    if setup_info(setup).camera_on_flange:
+        Rt = np.swapaxes(R, 1, 2)
+        out[:, :3, :3] = Rt
+        out[:, 3:, :3] = -skew(X[:3, 3]) @ Rt
+        out[:, 3:, 3:] = Rt
+    else:
+        out[:, :3, :3] = -np.eye(3)
+        out[:, 3:, :3] = skew(X[:3, 3] - t)
+        out[:, 3:, 3:] = -np.eye(3)
+    return out
 
 
 def _links_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None):
@@ -712,7 +758,8 @@ def _per_view(problem: Problem) -> bool:
 
 def _eliminates(problem: Problem) -> bool:
     """Whether the fit eliminates the robot's unknowns view by view (:class:`_Eliminated`): from
-    :data:`ELIMINATE_FROM` of them (fewer: the joint Jacobian, the same optimum)."""
+    :data:`ELIMINATE_FROM` of them, or with :data:`ELIMINATE_ENTRIES` measurements or more per unknown
+    (fewer: the joint Jacobian, the same optimum)."""
     return problem.plan.eliminates
 
 
@@ -722,6 +769,12 @@ def _eliminates(problem: Problem) -> bool:
 #: 54 corners per view, 10 views 0.28 s joint against 0.36 s eliminated, 20 views 0.70 against 0.42 s,
 #: 40 views 3.4 against 0.76 s; a line-scan camera's 12 scans 1.4 s joint against 2.4 s eliminated.
 ELIMINATE_FROM = 96
+#: ... or from this many measurements per robot unknown: the joint Jacobian's factorization grows with
+#: the rows times the square of the unknowns, while eliminating them costs the residuals' evaluations. A
+#: camera and a laser profiler on 15 shared poses (14,800 entries, 164 per pose's error): the whole
+#: command 14.7 -> 8.7 s eliminated; a camera and a depth camera (37-46 per error): 4.7 s joint, 5.1 s
+#: eliminated.
+ELIMINATE_ENTRIES = 100
 
 #: The most evaluations one least squares of the fit may take. From its closed-form start a fit
 #: converges in tens (the sensor suites' sessions: 43 at most; data the verdict calls inconsistent,
@@ -841,8 +894,11 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     kept[rows] = np.all(np.abs(w) <= REJECT * sigma[groups[rows]], axis=1) & ~np.isin(owner[rows], contradicted)
     rows = np.flatnonzero(kept)
     n_unknowns = len(x)
+    # the two rounds before the last only set the noise scales, which do not move with x to first order at the
+    # optimum: to ROUND_TOL (but for one scale and nothing weighted against it, whose first round is the last)
+    final = n_groups == 1 and not problem.robot.n_params and not problem.n_pinned
     for _ in range(2):
-        res, _ = _solved(problem, rows, sigma, x, tol)
+        res, _ = _solved(problem, rows, sigma, x, tol if final else max(tol, ROUND_TOL))
         x = res.x
         X, p, d = problem.unpack(x)
         w = _residuals(problem, X, p, d, rows) / shape[rows]
@@ -866,9 +922,10 @@ def _solved(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64]
     if _eliminates(problem):
         res, _ = _fit_eliminated(problem, rows, sigma, x, tol, "soft_l1" if robust else "linear")
     elif robust:
+        loose = ROBUST_TOL if not problem.robot.n_params else 1e-12
         res = _converged(least_squares(_function(problem, rows, sigma, x), x, _jacobian(problem, rows, sigma, x), method="trf",
-                                       loss="soft_l1", f_scale=2.0, x_scale=problem.scale(), xtol=1e-12, ftol=1e-12,
-                                       gtol=1e-12, max_nfev=MAX_EVALUATIONS))
+                                       loss="soft_l1", f_scale=2.0, x_scale=problem.scale(), xtol=loose, ftol=loose, gtol=loose,
+                                       max_nfev=MAX_EVALUATIONS))
     else:
         res = _converged(least_squares(_function(problem, rows, sigma, x), x, _jacobian(problem, rows, sigma, x),
                                        method=_plain_method(problem, rows), x_scale=problem.scale(), xtol=tol, ftol=tol,
@@ -1193,11 +1250,12 @@ def _union(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64
     return W[s > 1e-6]
 
 
-def _start(sensor: SensorModel, robot: RobotModel, views: NDArray[np.intp] | None = None
+def _start(sensor: SensorModel, robot: RobotModel, views: NDArray[np.intp] | None = None, refine: bool = True
            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """X and ``p`` to start from, on ``views`` (default all) and the robot's poses at its prior (the
-    controller's, or the nominal table's): the closed form on the views' poses when the sensor
-    measures them (the views whose pose is not finite left out), else the sensor's own."""
+    controller's, or the nominal table's): the closed form on the views' poses (and, ``refine``, the
+    pose refinement: :func:`start_from_poses`) when the sensor measures them (the views whose pose is
+    not finite left out), else the sensor's own."""
     F = robot.flange2base(np.zeros(robot.n_params))
     poses = sensor.view_poses()
     views = np.arange(len(sensor.names)) if views is None else np.asarray(views)
@@ -1208,18 +1266,20 @@ def _start(sensor: SensorModel, robot: RobotModel, views: NDArray[np.intp] | Non
         if len(views) < 3:
             raise DegenerateMotionError(f"{len(views)} views: at least 3 are needed, 10-20 with the flange turned "
                                         "30 deg or more about varied axes to trust X")
-        X, Z = start_from_poses(F[views], poses[views], sensor.setup)
+        X, Z = start_from_poses(F[views], poses[views], sensor.setup, refine)
     return sensor.start(F, X, Z, rows)
 
 
-def start_from_poses(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str
+def start_from_poses(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str, refine: bool = True
                      ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """X and Z from views that each measured the target's whole pose: the closed form and the pose
-    refinement, or, for pure translations (the flange never turned: a user's jogs along the axes),
+    """X and Z from views that each measured the target's whole pose: the closed form and (``refine``)
+    the pose refinement, or, for pure translations (the flange never turned: a user's jogs along the axes),
     what they determine of X (:func:`~handeye.solvers.low_dof.solve_low_dof`: its rotation from the
     translations, its translation at zero), which the fit then holds and names. Raises
     DegenerateMotionError when not even that is determined (translations along one line), or for
-    turns about one axis only (the check's message says what to add)."""
+    turns about one axis only (the check's message says what to add). Without ``refine``: the closed
+    form alone, a RANSAC's hypothesis from three views (the refinement's noise variances estimated
+    from 3 poses took 20 rounds, 0.15 s a hypothesis, where the closed form takes 1 ms)."""
     try:
         X, Z, _ = closed_form(flange2base, target2cam, setup, "daniilidis")
     except DegenerateMotionError:
@@ -1229,6 +1289,8 @@ def start_from_poses(flange2base: NDArray[np.float64], target2cam: NDArray[np.fl
             raise
         X = solve_low_dof(motions, kind).X
         return X, mean_transform(constant_transforms(X, flange2base, target2cam, setup))
+    if not refine:
+        return X, Z
     ref = refine_pose(X, Z, flange2base, target2cam, setup)
     return ref.X, ref.Z
 
@@ -1550,15 +1612,16 @@ def _table_notes(robot: FittedTable, model: KinematicModel) -> list[str]:
 QUICK_ROWS, QUICK_EVALS = 3000, 60
 
 
-def quick_rms_mm(sensor: SensorModel, robot: RobotModel, accuracy: tuple[float, float] | None = None
+def quick_rms_mm(sensor: SensorModel, robot: RobotModel, accuracy: tuple[float, float] | None = None, refine: bool = True
                  ) -> tuple[float, float, tuple[NDArray[np.float64], NDArray[np.float64]] | None]:
-    """The sensor's closed-form start on ``robot``'s poses, then a short robust fit of X and the
-    sensor's unknowns on at most :data:`QUICK_ROWS` rows: the robust RMS (mm) of their residuals
-    (1.4826 times the median length; infinite when no start can be made), and what the sensor's noise
-    and the robot's ``accuracy`` allow there (mm)."""
+    """The sensor's closed-form start on ``robot``'s poses (``refine``: refined as the fit's own start
+    is, :func:`_start`), then a short robust fit of X and the sensor's unknowns on at most
+    :data:`QUICK_ROWS` rows: the robust RMS (mm) of their residuals (1.4826 times the median length;
+    infinite when no start can be made), and what the sensor's noise and the robot's ``accuracy``
+    allow there (mm)."""
     start = None
     try:
-        X0, p0 = start = _start(sensor, robot)
+        X0, p0 = start = _start(sensor, robot, refine=refine)
         problem = Problem(sensor, robot, X0, p0)
         n = len(np.asarray(sensor.owner))
         rows = np.arange(n) if n <= QUICK_ROWS else np.linspace(0, n - 1, QUICK_ROWS).astype(np.intp)

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._shared.threads import on_one_blas_thread
 from ..errors import HandEyeError, InputMismatchError, PoseFormatError
 from ..frames.poses import RobotPoseInput, parse_poses
 from ..frames.setups import SETUPS, check_setup, setup_info
@@ -110,6 +111,7 @@ def _in_setup(sensor: SensorModel, setup: str) -> SensorModel:
     return other
 
 
+@on_one_blas_thread  # narrow matrices: a second BLAS thread spins more than it works
 def check_readings(sensor: SensorModel, robot: RobotModel, pose_input: RobotPoseInput | None,
                    flange2base_rows: NDArray[np.float64] | None = None, index: NDArray[np.intp] | None = None,
                    rebuild: Callable[[Reading], tuple[SensorModel, RobotModel]] | None = None
@@ -161,7 +163,10 @@ def check_readings(sensor: SensorModel, robot: RobotModel, pose_input: RobotPose
         else:
             F = reading.flange2base if index is None else reading.flange2base[np.asarray(index)]
             s, r = _in_setup(sensor, reading.setup), ControllerPoses(F, accuracy)
-        rms, allowed_here, _ = quick_rms_mm(s, ControllerPoses(r.flange2base(np.zeros(r.n_params)), accuracy), accuracy)
+        # from the closed form alone: the short fit polishes it, and a reading that is not the poses' made the
+        # pose refinement's noise variances crawl (0.9 s of a mesh session's 1 ms closed form)
+        rms, allowed_here, _ = quick_rms_mm(s, ControllerPoses(r.flange2base(np.zeros(r.n_params)), accuracy), accuracy,
+                                            refine=False)
         if rms <= FIT_FACTOR * max(allowed_here, 0.05) and rms * BETTER < declared:
             fitting.append((reading, rms))
             if k >= 2:

@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.progress import Progress
+from .._shared.threads import on_one_blas_thread
 from ..errors import DegenerateMotionError, InputMismatchError, UnusableViewError
 from ..estimation.core import estimate
 from ..io.depth_session import DepthSession, load_depth_session
@@ -138,6 +139,7 @@ def sensor_model(s: DepthSession, v: DepthViews, fit_depth: bool = True) -> Boar
     return BoardPoints(s.setup, names, v.object_points, v.points, fit_depth)
 
 
+@on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
 def calibrate_depth_session(folder: str | Path | DepthSession, options: CalibrationOptions | None = None, *,
                             fit_depth: bool = True, progress: bool = False, jobs: int | None = None,
                             **changes) -> Calibration:

@@ -18,6 +18,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._shared.threads import on_one_blas_thread
 from ..errors import InputMismatchError
 from ..estimation.core import estimate
 from ..estimation.verdict import judged
@@ -161,6 +162,7 @@ def _joint_calibration(start: Calibration, fit: Calibration, sensor: CameraCorne
     return cal if diag.verdict in ("inconsistent", "partial") else judged(cal)
 
 
+@on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
 def calibrate_joint_session(session: Session, options: CalibrationOptions | None = None, *, jobs: int | None = None,
                             progress: bool = True, **changes) -> Calibration:
     """:func:`calibrate_joints` on a capture session whose ``session.yaml`` has a ``joints:``

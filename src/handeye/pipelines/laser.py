@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._shared.threads import on_one_blas_thread
 from ..errors import DegenerateMotionError, UnusableViewError
 from ..io.laser_session import LaserSession, load_laser_session
 from ..options import CalibrationOptions
@@ -87,6 +88,7 @@ def laser_model(s: LaserSession, names: list[str], profiles: list) -> Profiles:
     return SphereProfiles(s.setup, names, profiles, s.radius, s.noise_m)
 
 
+@on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
 def calibrate_laser_session(folder: str | Path | LaserSession, options: CalibrationOptions | None = None, *,
                             progress: bool = False, **changes) -> Calibration:
     """Calibrate a laser line profiler session (the module docstring).

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from .._shared.threads import on_one_blas_thread
 from ..errors import DegenerateMotionError, InputMismatchError
 from ..estimation.readings import Reading
 from ..frames.setups import predicted_target2cam
@@ -128,6 +129,7 @@ def _detected(s: LineScanSession, progress: bool):
     return target, found
 
 
+@on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
 def calibrate_linescan_session(folder: str | Path | LineScanSession, options: CalibrationOptions | None = None, *,
                                progress: bool = False, **changes) -> Calibration:
     """Calibrate a line-scan camera session (the module docstring).

@@ -124,8 +124,9 @@ def _agreeing(F, T, setup, placement, tol_m: float) -> tuple[NDArray[np.bool_], 
         return best[0], mean_transform(Xi[best[0]]), placement
     for _ in range(min(80, n * (n - 1) * (n - 2) // 6)):
         pick = rng.choice(n, 3, replace=False)
-        try:  # (pure translations: X's rotation from them, its translation left to the fit to name)
-            X, Z = start_from_poses(F[pick], T[pick], setup)
+        try:  # (pure translations: X's rotation from them, its translation left to the fit to name); the closed
+            # form alone: a hypothesis only sorts the views, the agreeing ones are refined together below
+            X, Z = start_from_poses(F[pick], T[pick], setup, refine=False)
         except HandEyeError:
             continue
         rot, tra = _disagreement(X, Z, F, T, setup)

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .._shared.io import files_digests_soon
+from .._shared.threads import on_one_blas_thread
 from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from ..estimation.core import WEAKEST_NOTE, estimate
 from ..estimation.readings import check_readings
@@ -357,6 +358,7 @@ def _depth_member(sensor: RigSensor, names: list[str], notes: list[str], progres
     return BoardPoints(d.setup, names, obj, pts)
 
 
+@on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
 def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationOptions | None = None, *,
                           progress: bool = False, **changes) -> Calibration:
     """Calibrate a rig session folder (:mod:`handeye.io.rig_session`): the target found in every

@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares, linear_sum_assignment
 
+from .._shared.threads import on_one_blas_thread
 from ..errors import DegenerateMotionError
 from ..estimation.core import estimate
 from ..frames.metrics import rotation_error, translation_error
@@ -174,6 +175,7 @@ def _repairing(M: NDArray[np.float64], names: list[str]) -> str:
             "were taken)")
 
 
+@on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
 def calibrate_silhouette_session(folder: str | Path | SilhouetteSession, options: CalibrationOptions | None = None, *,
                                  progress: bool = False, **changes) -> Calibration:
     """Calibrate a fixed colour camera from the arm's silhouettes (the module's docstring).

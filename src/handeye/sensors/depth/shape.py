@@ -232,9 +232,14 @@ class NearestSamples:
                 at = rows[fresh]
                 self.at[at], self.points[at], self.normals[at] = y[fresh], points, normals
                 self.slack[at] = 0.5 * (r[:, -1] - r[:, self.nearest - 1])
-            gap = y[:, None] - self.points[rows]  # (M, kept, 3)
-            order = np.argsort(np.einsum("mki,mki->mk", gap, gap), axis=1, kind="stable")[:, :self.nearest, None]
-            return np.take_along_axis(self.points[rows], order, axis=1), np.take_along_axis(self.normals[rows], order, axis=1)
+            points = self.points[rows]
+            gap = y[:, None] - points  # (M, kept, 3)
+            d2 = np.einsum("mki,mki->mk", gap, gap)
+            if self.nearest == 1:  # the first nearest, as the stable sort's first (a third of a mesh fit's evaluation)
+                k = np.argmin(d2, axis=1)
+                return points[np.arange(len(k)), k][:, None], self.normals[rows, k][:, None]
+            order = np.argsort(d2, axis=1, kind="stable")[:, :self.nearest, None]
+            return np.take_along_axis(points, order, axis=1), np.take_along_axis(self.normals[rows], order, axis=1)
 
 
 def voxel_pick(points: NDArray[np.float64], voxel: float) -> NDArray[np.intp]:
