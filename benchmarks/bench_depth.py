@@ -1,4 +1,4 @@
-"""Depth cameras: X from board corners lifted to 3D from organized clouds (``handeye.sensors.depth``, ``handeye.pipelines.depth``)
+"""Depth cameras: X from board corners lifted to 3D from organized clouds (``handeye.sensors.depth``, ``handeye.pipelines.depth.pipeline``)
 against the same views through the 2D path (the intensity image's corners, PnP, handeye's
 default pose pipeline), on simulated captures with the depth camera's own errors.
 
@@ -49,12 +49,12 @@ from handeye.errors import TargetError
 from handeye.estimation.core import estimate
 from handeye.frames.metrics import rotation_error, translation_error
 from handeye.options import ROBOT_ACCURACY
-from handeye.pipelines.depth import calibrate_depth, calibrate_spheres
+from handeye.pipelines.depth.pipeline import calibrate_depth, calibrate_spheres
+from handeye.pipelines.depth.simulate_board import depth_scene, sphere_scene
 from handeye.robot.models import ControllerPoses, JointAngles
 from handeye.sensors.camera import Detection, solve_pnp
 from handeye.sensors.depth import find_spheres, fit_sphere, lift_points, plane_points
 from handeye.sensors.depth.model import BoardPoints, SphereCentres
-from handeye.simulate import depth_scene, sphere_scene
 
 
 def _errors(X, truth, setup):

@@ -47,12 +47,12 @@ from handeye.estimation.core import estimate
 from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.geometry.se3 import perturb
 from handeye.options import ROBOT_ACCURACY
+from handeye.pipelines.laser import simulate as simulated_laser
+from handeye.pipelines.laser.simulate import laser_scene, write_laser_session
 from handeye.robot.models import ControllerPoses, JointAngles
 from handeye.sensors.laser.edge import EdgeProfiles, StepProfiles
 from handeye.sensors.laser.model import SphereProfiles, SpheresProfiles
 from handeye.sensors.laser.plane import PlaneProfiles
-from handeye.simulate import laser as simulated_laser
-from handeye.simulate import laser_scene, write_laser_session
 
 
 def _plain(model, flange2base) -> np.ndarray:

@@ -1,6 +1,6 @@
 """A known shape in depth clouds (issue 62): X from a flange-sized mesh on the flange, found in each
 cloud without any pose guess, every point fitted against the mesh's surface
-(``handeye.sensors.depth.registration``, ``handeye.sensors.depth.mesh``, ``handeye.pipelines.mesh``).
+(``handeye.sensors.depth.registration``, ``handeye.sensors.depth.mesh``, ``handeye.pipelines.depth.mesh``).
 
     python benchmarks/bench_mesh.py [--sessions 20] [--views 15] [--seed 0] [--setup eye_in_hand] [--arm ur5] [--no-timing]
 
@@ -36,8 +36,8 @@ import numpy as np
 from _timing import calibrate_seconds
 from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.frames.setups import SETUPS, setup_info
+from handeye.pipelines.depth.simulate_mesh import mesh_scene, write_mesh_session
 from handeye.pipelines.folders import calibrate_folder
-from handeye.simulate import mesh_scene, write_mesh_session
 
 
 def _session(seed: int, views: int, root: Path, setup: str, arm: str | None = None) -> dict:
