@@ -406,8 +406,8 @@ def _kind_name_uses(tree: ast.AST, names: set[str], sections: set[str]) -> list[
 
 def test_a_sensor_kind_is_two_folders_and_one_registration():
     """Issue 78: a kind of sensor is sensors/<kind>/ (its mathematics), pipelines/<kind>/ (its session
-    reader, pipeline, simulator and planner) and one registration (its ``KIND``, registered in
-    pipelines/kinds.py). calibrate, check, the rig, simulate, plan and the report look kinds up: nothing
+    reader, pipeline, simulator and planner) and one registration (pipelines/kinds.py's ``register_kind``
+    of its names and hooks). calibrate, check, the rig, simulate, plan and the report look kinds up: nothing
     outside a kind's two folders compares with its section, command-line or display name or looks its
     section up, and only the registry and other kinds (a rig composes its sensors') import its folder."""
     from handeye.pipelines import kinds
@@ -417,7 +417,7 @@ def test_a_sensor_kind_is_two_folders_and_one_registration():
     assert sorted(folders) == sorted(p.name for p in (SRC / "pipelines").iterdir() if (p / "__init__.py").is_file())
     for name, kind in folders.items():
         assert (SRC / "sensors" / name / "__init__.py").is_file(), f"{name}: no sensors/{name}/ folder"
-        assert __import__(kind.package, fromlist=["KIND"]).KIND is kind
+        assert kind.package == f"handeye.pipelines.{name}"
         for hook in ("calibrate", "extras", "rig_member", "rig_extras", "simulate", "plan", "members"):
             if getattr(kind, hook) is not None:
                 assert callable(kind.hook(hook)), (name, hook)
@@ -439,3 +439,42 @@ def test_a_sensor_kind_is_two_folders_and_one_registration():
                             if dst == own[0] or dst.startswith(own[0] + ".")]
     assert not switches, "\n".join(switches)
     assert not imports, "\n".join(imports)
+
+
+@pytest.mark.parametrize("old, name, new", [
+    ("handeye.io.laser_session", "load_laser_session", "handeye.pipelines.laser.session"),
+    ("handeye.simulate.laser", "laser_scene", "handeye.pipelines.laser.simulate"),
+    ("handeye.planning.laser", "plan_laser", "handeye.pipelines.laser.plan"),
+    ("handeye.io.rig_session", "load_rig_session", "handeye.pipelines.rig.session"),
+    ("handeye.simulate.mesh", "mesh_scene", "handeye.pipelines.depth.simulate_mesh"),
+])
+def test_a_kinds_old_modules_import_from_their_old_path_with_a_deprecation_warning(old, name, new):
+    """Issue 78: a kind's session reader, simulator and planner left io/, simulate/ and planning/ for its
+    folder; their old paths import for one release, warn where to import from, and forward every name."""
+    code = (f"import warnings; warnings.simplefilter('error')\n"
+            f"try:\n    import {old}\nexcept DeprecationWarning as w:\n    print('warned', w)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.startswith(f"warned {old} has moved: import from {new}"), out
+    with pytest.warns(DeprecationWarning):
+        module = __import__(old, fromlist=["_"])
+    assert getattr(module, name) is getattr(__import__(new, fromlist=["_"]), name)
+
+
+@pytest.mark.parametrize("package, name, new", [
+    ("handeye.simulate", "laser_scene", "handeye.pipelines.laser.simulate"),
+    ("handeye.simulate", "sphere_scene", "handeye.pipelines.depth.simulate_board"),
+    ("handeye.planning", "plan_linescan", "handeye.pipelines.linescan.plan"),
+    ("handeye.pipelines.laser", "calibrate_laser_session", "handeye.pipelines.laser.pipeline"),
+    ("handeye.pipelines.rig", "rig_members", "handeye.pipelines.rig.pipeline"),
+    ("handeye.io.extras", "check_extras", "handeye.pipelines.folders"),
+])
+def test_names_that_left_a_package_still_import_from_it_with_a_deprecation_warning(package, name, new):
+    """Issue 78: ``from handeye.simulate import laser_scene`` and ``from handeye.pipelines.laser import
+    calibrate_laser_session`` (a module that became the laser's folder) keep working one release."""
+    import importlib
+
+    with pytest.warns(DeprecationWarning, match=f"{package}.{name} has moved: import it from {new}"):
+        value = getattr(importlib.import_module(package), name)
+    assert value is getattr(importlib.import_module(new), name)
+    with pytest.raises(AttributeError, match="no attribute"):
+        getattr(importlib.import_module(package), "no_such_name")

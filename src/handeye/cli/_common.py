@@ -252,8 +252,8 @@ def export_arg(text: str) -> str:
 def add_out_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--out", help="write result.json, result.yaml and report.html into this folder")
     p.add_argument("--parent-frame", help="ROS frame X is given in (default: tool0 for eye_in_hand, base_link for eye_to_hand)")
-    p.add_argument("--child-frame", help="ROS frame of the camera (default: camera_optical_frame; a laser profiler's: "
-                   "laser_profiler_optical_frame)")
+    own = "; ".join(f"a {k.display}'s: {k.frame}" for k in sensor_kinds() if k.frame)
+    p.add_argument("--child-frame", help=f"ROS frame of the camera (default: camera_optical_frame; {own})")
     p.add_argument("--export", action="append", default=[], type=export_arg, metavar="NAME",
                    help="with --out, also write: ros2-launch (a ROS 2 launch file publishing X), ros1-launch (the "
                    "ROS 1 launch file MoveIt Calibration writes), easy-handeye (easy_handeye2's .calib); repeat or all")

@@ -1,5 +1,5 @@
-"""A depth camera, everything but its mathematics (that is :mod:`handeye.sensors.depth`), and its
-registration (:data:`KIND`).
+"""A depth camera, everything but its mathematics (that is :mod:`handeye.sensors.depth`); its
+registration is in :mod:`handeye.pipelines.kinds`.
 
 * :mod:`~handeye.pipelines.depth.session`: a depth session's ``depth:`` section, its clouds, its target (a board,
   balls, a mesh, the arm itself, or whatever the camera sees);
@@ -16,19 +16,7 @@ DeprecationWarning, for one release.
 from __future__ import annotations
 
 from ..._shared.moved import forward_names
-from ..sensor_kind import SensorKind
 
-__all__ = ["KIND"]
-
-#: The depth camera's registration (:mod:`handeye.pipelines.kinds`).
-KIND = SensorKind(
-    section="depth", cli="depth", display="depth camera", package=__name__,
-    calibrate="pipeline:calibrate_depth_session", extras="session:extras", rig_member="pipeline:rig_member",
-    rig_extras="session:rig_extras", simulate="simulate:simulate_command",
-    targets=("mesh", "sphere", "arm", "scene"),
-    simulate_help="a depth camera's 640x480 clouds of a mesh (--target mesh, the default: a flange-sized disc on the "
-    "flange), a ball (sphere), a board, the arm itself (arm: markerless, its joint angles, always eye_to_hand; --arm "
-    "panda, the arm with meshes) or an irregular object (scene: no target and no mesh given, X from the clouds' agreement)",
-)
+__all__: list[str] = []  # its modules are its face; its registration is in handeye.pipelines.kinds
 
 __getattr__ = forward_names(__name__)  # the pipeline's names, from when this was its module

@@ -10,7 +10,7 @@ from pathlib import Path
 from ...errors import InputMismatchError
 from ...frames.setups import setup_info
 from ...simulate import DEFAULT_TARGETS
-from ..sensor_kind import SimulateRequest
+from ..kinds import SimulateRequest
 from .simulate_arm import arm_depth_scene, write_arm_depth_session
 from .simulate_board import depth_scene, sphere_scene, write_depth_session
 from .simulate_mesh import mesh_scene, write_mesh_session

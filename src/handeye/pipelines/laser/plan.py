@@ -38,7 +38,7 @@ from ...robot.models import ControllerPoses
 from ...sensors.laser.edge import EdgeProfiles, StepProfiles
 from ...sensors.laser.model import LASER_NOISE_M, Profiles, SphereProfiles, SpheresProfiles
 from ...sensors.laser.plane import PlaneProfiles
-from ..sensor_kind import PlanRequest, SensorPlan
+from ..kinds import PlanRequest, SensorPlan
 from .simulate import BLOCK, FIXTURE, TARGETS, profile_reading, profiler_views
 
 #: The targets a laser plan predicts the std for (its simulated capture goes through their models).

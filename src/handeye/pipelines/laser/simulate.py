@@ -27,7 +27,7 @@ from ...io.session import write_joint_table, write_pose_table
 from ...robot.kinematics import Chain, load_arm
 from ...simulate import arm_mount, reaching, real_chain, reported_poses
 from ...simulate.scenes import Scene, scene_from_viewpoints
-from ..sensor_kind import SimulateRequest
+from ..kinds import SimulateRequest
 
 __all__ = ["LaserScene", "laser_scene", "pendant_laser_scene", "write_laser_session", "write_profile",
            "profiler_views", "profile_reading", "PROFILER", "TARGETS", "FANUC_PROFILER_X", "simulate_command"]

@@ -39,7 +39,7 @@ from ...options import ROBOT_ACCURACY
 from ...sensors.camera.targets import target_from_spec
 from ...sensors.linescan.model import LINESCAN_NOISE_PX, LineScanCorners
 from ...simulate import DEFAULT_TARGETS
-from ..sensor_kind import PlanRequest, SensorPlan
+from ..kinds import PlanRequest, SensorPlan
 from .pipeline import linescan_robot
 from .simulate import LINESCAN_CAMERA, LineScanScene, linescan_scene
 

@@ -37,7 +37,7 @@ from ...sensors.camera.targets.chessboard import Chessboard
 from ...sensors.linescan.model import Trajectory
 from ...simulate import arm_mount, reaching, real_chain, reported_poses
 from ...simulate.scenes import scene_from_viewpoints
-from ..sensor_kind import SimulateRequest
+from ..kinds import SimulateRequest
 
 cv2 = lazy_module("cv2")
 

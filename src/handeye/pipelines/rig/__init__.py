@@ -1,6 +1,6 @@
 """A rig (several sensors on one robot, one fit), everything but its mathematics (that is
-:mod:`handeye.sensors.rig`), and its registration (:data:`KIND`). Its sensors are cameras or other
-kinds that can be a rig's (their registration names a ``rig_member``: a depth camera, a laser profiler).
+:mod:`handeye.sensors.rig`); its registration is in :mod:`handeye.pipelines.kinds`. Its sensors are cameras
+or other kinds that can be a rig's (their registration names a ``rig_member``: a depth camera, a laser profiler).
 
 * :mod:`~handeye.pipelines.rig.session`: a rig session's ``sensors:`` section, each sensor read by its kind;
 * :mod:`~handeye.pipelines.rig.pipeline`: each sensor alone, then all in one fit, the sensor that disagrees named;
@@ -14,22 +14,7 @@ was the pipeline's module: its names still import from here, with a DeprecationW
 from __future__ import annotations
 
 from ..._shared.moved import forward_names
-from ..sensor_kind import KindOption, SensorKind
 
-__all__ = ["KIND"]
-
-#: The rig's registration (:mod:`handeye.pipelines.kinds`).
-KIND = SensorKind(
-    section="sensors", cli="rig", display="rig", package=__name__,
-    calibrate="pipeline:calibrate_rig_session", extras="session:extras", members="pipeline:rig_members",
-    simulate="simulate:simulate_command",
-    simulate_help="a stereo pair on the flange (eye_in_hand) or three fixed cameras (eye_to_hand)",
-    options=(KindOption("simulate", "--cameras", "the number of cameras (default 2 on the flange, 3 fixed around the cell)",
-                        "whole", 2),
-             KindOption("simulate", "--laser", "a camera beside a laser profiler (a small board and a 40 mm ball) instead "
-                        "of cameras", "flag"),
-             KindOption("simulate", "--depth", "a camera beside a depth camera (640x480 clouds and intensity images), both "
-                        "seeing the board, instead of cameras", "flag")),
-)
+__all__: list[str] = []  # its modules are its face; its registration is in handeye.pipelines.kinds
 
 __getattr__ = forward_names(__name__)  # the pipeline's names, from when this was its module

@@ -32,8 +32,8 @@ from ...simulate import reported_poses
 from ...simulate.arms import kinematic_scene
 from ...simulate.scenes import look_at, scene_from_viewpoints
 from ..depth.simulate_board import board_depth_image, depth_reading
+from ..kinds import SimulateRequest
 from ..laser.simulate import profile_reading, profiler_views, write_profile
-from ..sensor_kind import SimulateRequest
 
 __all__ = ["RigCamera", "RigScene", "rig_scene", "rig_joint_scene", "write_rig_session", "CameraLaserScene", "camera_laser_scene",
            "write_camera_laser_session", "ProfilerPairScene", "profiler_pair_scene", "write_profiler_pair_session",

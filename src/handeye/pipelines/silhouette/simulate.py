@@ -34,7 +34,7 @@ from ...geometry.se3 import make_transform
 from ...robot.kinematics import Chain, load_arm
 from ...robot.meshes import arm_meshes
 from ...sensors.silhouette.render import render_silhouettes, signed_distance
-from ..sensor_kind import SimulateRequest
+from ..kinds import SimulateRequest
 
 cv2 = lazy_module("cv2")
 
