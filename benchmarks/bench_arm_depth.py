@@ -1,11 +1,11 @@
 """The arm itself in a depth camera's clouds (issue 62, markerless, depth): X = cam2base of a depth
 camera fixed in the cell from the Panda's own link meshes at the recorded joint angles, found with
 no guess of X and fitted with every view's points on the arm (``handeye.sensors.depth.arm``,
-``handeye.pipelines.arm_depth``).
+``handeye.pipelines.depth.arm``).
 
     python benchmarks/bench_arm_depth.py [--sessions 20] [--views 10] [--seed 0] [--table-error MM,DEG] [--fit-table] [--no-timing]
 
-Each session (``handeye.simulate.arm_depth.arm_depth_scene``): the Panda with its hand (rtb-data's
+Each session (``handeye.pipelines.depth.simulate_arm.arm_depth_scene``): the Panda with its hand (rtb-data's
 meshes) at ``--views`` joint configurations uniform within its spread about the eye-to-hand home
 (j1 +-30, j2 +-20, j3 +-30, j4 +-25, j5 +-40, j6 +-25, j7 +-60 deg), a camera fixed 0.8-1.5 m from
 the middle of its reach (either side or in front, 15-45 deg above the horizon), ray-cast 640x480
@@ -38,11 +38,11 @@ import numpy as np
 
 from _timing import calibrate_seconds
 from handeye.frames.metrics import rotation_error, translation_error, within_std
-from handeye.io.depth_session import load_depth_session
 from handeye.options import CalibrationOptions
-from handeye.pipelines.arm_depth import calibrate_arm_depth_session
+from handeye.pipelines.depth.arm import calibrate_arm_depth_session
+from handeye.pipelines.depth.session import load_depth_session
+from handeye.pipelines.depth.simulate_arm import arm_depth_scene, write_arm_depth_session
 from handeye.pipelines.folders import calibrate_folder
-from handeye.simulate.arm_depth import arm_depth_scene, write_arm_depth_session
 
 
 def _session(seed: int, views: int, root: Path, table_error: tuple[float, float] | None, fit_table: bool) -> dict:

@@ -50,18 +50,19 @@ from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.frames.poses import parse_poses
 from handeye.frames.setups import robot_world_A
 from handeye.geometry.se3 import invert, make_transform
-from handeye.io.depth_session import load_depth_session
-from handeye.io.laser_session import load_laser_session
 from handeye.io.session import read_pose_table, write_pose_table
+from handeye.pipelines.depth.mesh import consistent_views, measure_mesh_session, mesh_model
+from handeye.pipelines.depth.session import load_depth_session
+from handeye.pipelines.depth.simulate_board import sphere_scene, write_depth_session
+from handeye.pipelines.depth.simulate_mesh import mesh_scene, write_mesh_session
 from handeye.pipelines.folders import calibrate_folder
-from handeye.pipelines.laser import laser_model, read_profiles
-from handeye.pipelines.mesh import consistent_views, measure_mesh_session, mesh_model
+from handeye.pipelines.laser.pipeline import laser_model, read_profiles
+from handeye.pipelines.laser.session import load_laser_session
+from handeye.pipelines.laser.simulate import FANUC_PROFILER_X, pendant_laser_scene, write_laser_session
+from handeye.pipelines.linescan.simulate import linescan_scene, write_linescan_session
+from handeye.pipelines.rig.simulate import profiler_pair_scene, rig_scene, write_profiler_pair_session, write_rig_session
 from handeye.robot.models import ControllerPoses
 from handeye.sensors.depth.shape import load_shape
-from handeye.simulate import mesh_scene, sphere_scene, write_depth_session, write_mesh_session
-from handeye.simulate.laser import FANUC_PROFILER_X, pendant_laser_scene, write_laser_session
-from handeye.simulate.linescan import linescan_scene, write_linescan_session
-from handeye.simulate.rig import profiler_pair_scene, rig_scene, write_profiler_pair_session, write_rig_session
 
 
 def _centres_only(model, F, setup, train) -> np.ndarray | None:

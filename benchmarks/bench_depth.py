@@ -1,4 +1,4 @@
-"""Depth cameras: X from board corners lifted to 3D from organized clouds (``handeye.sensors.depth``, ``handeye.pipelines.depth``)
+"""Depth cameras: X from board corners lifted to 3D from organized clouds (``handeye.sensors.depth``, ``handeye.pipelines.depth.pipeline``)
 against the same views through the 2D path (the intensity image's corners, PnP, handeye's
 default pose pipeline), on simulated captures with the depth camera's own errors.
 
@@ -7,7 +7,7 @@ default pose pipeline), on simulated captures with the depth camera's own errors
 
 The 3D path takes each corner where its ray meets the board's plane fitted to the cloud
 (``plane_points``); the corners lifted alone (``lift_points``, four pixels each) are printed too.
-Each session (``handeye.simulate.depth_scene``): 15 views at 0.5-1 m, depth noise 0.2 mm at
+Each session (``handeye.pipelines.depth.simulate_board.depth_scene``): 15 views at 0.5-1 m, depth noise 0.2 mm at
 0.5 m to 0.6 mm at 1 m (growing with the square of the distance), depth scale 1.002, 1% holes,
 flying pixels on the board's edges, 0.2 px corner noise; both setups. Printed per setup: the
 median X error of each path (rotation, translation, and translation along the camera's optical
@@ -15,7 +15,7 @@ axis), the share of sessions with X within 3 reported std (the 3D path; per axis
 depth scale within 3 std. Goals (issue 39): 3D path median within 0.3 mm / 0.1 deg, X within 3
 std in >= 95%, the depth scale within 3 std; the 3D path better along the optical axis.
 
-Then the target-free mode (``handeye.simulate.sphere_scene``): a 50 mm ball on the flange
+Then the target-free mode (``handeye.pipelines.depth.simulate_board.sphere_scene``): a 50 mm ball on the flange
 (eye-to-hand) or fixed in the cell (eye-in-hand), 15 views at 0.5-1 m from directions within 60 deg,
 a tilted wall behind it, the same depth errors and flying pixels on its outline; the ball found in
 each cloud (``fit_sphere``) and X fitted to the centres (``calibrate_spheres``). Goals: median
@@ -49,12 +49,12 @@ from handeye.errors import TargetError
 from handeye.estimation.core import estimate
 from handeye.frames.metrics import rotation_error, translation_error
 from handeye.options import ROBOT_ACCURACY
-from handeye.pipelines.depth import calibrate_depth, calibrate_spheres
+from handeye.pipelines.depth.pipeline import calibrate_depth, calibrate_spheres
+from handeye.pipelines.depth.simulate_board import depth_scene, sphere_scene
 from handeye.robot.models import ControllerPoses, JointAngles
 from handeye.sensors.camera import Detection, solve_pnp
 from handeye.sensors.depth import find_spheres, fit_sphere, lift_points, plane_points
 from handeye.sensors.depth.model import BoardPoints, SphereCentres
-from handeye.simulate import depth_scene, sphere_scene
 
 
 def _errors(X, truth, setup):

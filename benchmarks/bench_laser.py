@@ -4,7 +4,7 @@
     python benchmarks/bench_laser.py --speed [--profiles 100]
     python benchmarks/bench_laser.py --joints [--sessions 8] [--profiles 40]
 
-Each session (``handeye.simulate.laser_scene``): a 40 mm ball, ``--profiles`` profiles from within
+Each session (``handeye.pipelines.laser.simulate.laser_scene``): a 40 mm ball, ``--profiles`` profiles from within
 45 deg of its top, the laser plane up to 0.8 of the radius off the centre on either side (or, with
 ``--target plane``, a 200 mm plate seen from within 45 deg of its normal; ``--target edge``, a square
 block's edge seen within 30 deg of its faces' bisector, the laser line across it; ``--target step``,
@@ -47,12 +47,12 @@ from handeye.estimation.core import estimate
 from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.geometry.se3 import perturb
 from handeye.options import ROBOT_ACCURACY
+from handeye.pipelines.laser import simulate as simulated_laser
+from handeye.pipelines.laser.simulate import laser_scene, write_laser_session
 from handeye.robot.models import ControllerPoses, JointAngles
 from handeye.sensors.laser.edge import EdgeProfiles, StepProfiles
 from handeye.sensors.laser.model import SphereProfiles, SpheresProfiles
 from handeye.sensors.laser.plane import PlaneProfiles
-from handeye.simulate import laser as simulated_laser
-from handeye.simulate import laser_scene, write_laser_session
 
 
 def _plain(model, flange2base) -> np.ndarray:

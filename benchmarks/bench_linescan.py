@@ -4,7 +4,7 @@
     python benchmarks/bench_linescan.py --rendered [--sessions 5]
     python benchmarks/bench_linescan.py --arm ur5 [--sessions 10]
 
-Each session (``handeye.simulate.linescan.linescan_scene``): a 2,048-pixel line-scan camera (f =
+Each session (``handeye.pipelines.linescan.simulate.linescan_scene``): a 2,048-pixel line-scan camera (f =
 2,400 px, k1 = -0.03) scanning a 9 x 6 chessboard of 20 mm squares from 0.4 m, ``--scans`` scans
 each from within 30 deg of the board's normal, moving at 0.2 m/s across the view plane, forth and
 back; the corners with 0.1 px of noise along the line and across, the rows with 20 us of timing
@@ -15,7 +15,7 @@ setups. Rows:
   3 std (goal >= 95%);
 * a calibrated arm's error (0.01 deg / 0.05 mm per axis: a constant and a heavy-tailed error per
   scan), that accuracy stated, each scan's pose error fitted with it as the prior (as the pipeline
-  does, :func:`handeye.pipelines.linescan.linescan_robot`): the same figures, and X's error with
+  does, :func:`handeye.pipelines.linescan.pipeline.linescan_robot`): the same figures, and X's error with
   the poses taken as exact (the fit before);
 * in every row the held-out error of the fit against its closed-form start (the linear pushbroom
   resection and the closed form): the fit must beat it.
@@ -23,7 +23,7 @@ setups. Rows:
 ``--arm ur5``: the scans are a real arm's (``linescan_scene(arm=...)``: its table 1-3 mm off the
 nominal one at the flange, the joint angles reported along the trajectory with encoder noise): X,
 the focal length and held-out scans from the joint angles through the arm's table fitted with X
-(:func:`handeye.pipelines.linescan.linescan_joints`, every row's pose through the table) against
+(:func:`handeye.pipelines.linescan.pipeline.linescan_joints`, every row's pose through the table) against
 the controller's poses (the nominal table's, each scan's pose error fitted with the default
 accuracy stated, as a session with poses only is calibrated), and against one pose per scan through
 the fitted table times the nominal move (the table's error taken as rigid over a scan).
@@ -42,10 +42,10 @@ import numpy as np
 
 from handeye.estimation.core import estimate
 from handeye.frames.metrics import rotation_error, translation_error, within_std
-from handeye.pipelines.linescan import linescan_joints, linescan_robot
+from handeye.pipelines.linescan.pipeline import linescan_joints, linescan_robot
+from handeye.pipelines.linescan.simulate import linescan_scene
 from handeye.robot.models import ControllerPoses, JointAngles
 from handeye.sensors.linescan.model import LineScanCorners
-from handeye.simulate.linescan import linescan_scene
 
 
 def run(sessions: int, scans: int) -> None:

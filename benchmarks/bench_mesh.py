@@ -1,10 +1,10 @@
 """A known shape in depth clouds (issue 62): X from a flange-sized mesh on the flange, found in each
 cloud without any pose guess, every point fitted against the mesh's surface
-(``handeye.sensors.depth.registration``, ``handeye.sensors.depth.mesh``, ``handeye.pipelines.mesh``).
+(``handeye.sensors.depth.registration``, ``handeye.sensors.depth.mesh``, ``handeye.pipelines.depth.mesh``).
 
     python benchmarks/bench_mesh.py [--sessions 20] [--views 15] [--seed 0] [--setup eye_in_hand] [--arm ur5] [--no-timing]
 
-Each session (``handeye.simulate.mesh_scene``): a disc 80 mm across and 12 mm thick with 4 bolt holes
+Each session (``handeye.pipelines.depth.simulate_mesh.mesh_scene``): a disc 80 mm across and 12 mm thick with 4 bolt holes
 and a 6 mm locating pin off the centre (``flange_mesh``) on the flange, in front of the 70 mm wrist
 it is mounted on and a tilted wall; eye-to-hand, 15 ray-cast 640x480 clouds at 0.6-1.2 m from
 directions within 50 deg of the disc's axis; depth noise 0.1 mm + 0.5 mm z^2, depth scale 1.002,
@@ -36,8 +36,8 @@ import numpy as np
 from _timing import calibrate_seconds
 from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.frames.setups import SETUPS, setup_info
+from handeye.pipelines.depth.simulate_mesh import mesh_scene, write_mesh_session
 from handeye.pipelines.folders import calibrate_folder
-from handeye.simulate import mesh_scene, write_mesh_session
 
 
 def _session(seed: int, views: int, root: Path, setup: str, arm: str | None = None) -> dict:

@@ -4,7 +4,7 @@
     python benchmarks/bench_rig.py --mixed [--sessions 10]
     python benchmarks/bench_rig.py --speed [--runs 3]
 
-Each session (``handeye.simulate.rig.rig_scene``): 1280 x 1024 cameras (f 1,300-1,500 px), a 9 x 6
+Each session (``handeye.pipelines.rig.simulate.rig_scene``): 1280 x 1024 cameras (f 1,300-1,500 px), a 9 x 6
 board of 30 mm squares, corners with 0.2 px of noise, the controller's poses off by a calibrated
 arm's error (0.01 deg / 0.05 mm per axis: a constant and a heavy-tailed error per pose), that
 accuracy stated. Rows (goals from issue 63):
@@ -19,11 +19,11 @@ accuracy stated. Rows (goals from issue 63):
 * the same with one camera given a focal length 5% off: named as the one that disagrees.
 
 ``--mixed``: a camera beside a laser profiler on one flange (or fixed side by side, eye-to-hand;
-``handeye.simulate.rig.camera_laser_scene``: 20 profiles of a 40 mm ball, the camera seeing the
+``handeye.pipelines.rig.simulate.camera_laser_scene``: 20 profiles of a 40 mm ball, the camera seeing the
 board the ball rests on): both X and their relative pose within 3 std (goal >= 95%).
 
 ``--depth``: a camera beside a depth camera (an RGB-D camera at 640 x 480) on one flange (or fixed side
-by side), both seeing the board (``handeye.simulate.rig.camera_depth_scene``: the clouds with depth
+by side), both seeing the board (``handeye.pipelines.rig.simulate.camera_depth_scene``: the clouds with depth
 noise growing with distance, a depth scale 0.2% off, holes and flying pixels), 15 poses: both X, their
 relative pose and the depth scale within 3 std (goal >= 95%), and the depth camera's X from the joint
 fit against it calibrated alone.
@@ -49,13 +49,13 @@ from pathlib import Path
 import numpy as np
 
 from handeye.frames.metrics import rotation_error, translation_error, within_std
-from handeye.io.rig_session import load_rig_session
 from handeye.io.session import write_session
-from handeye.pipelines.rig import calibrate_rig
+from handeye.pipelines.rig.pipeline import calibrate_rig
+from handeye.pipelines.rig.session import load_rig_session
+from handeye.pipelines.rig.simulate import rig_scene
 from handeye.robot.models import ControllerPoses
 from handeye.sensors.camera.detect import CACHE_ENV
 from handeye.sensors.camera.model import CameraCorners
-from handeye.simulate.rig import rig_scene
 
 ERROR = (0.01, 0.05)
 
@@ -127,8 +127,8 @@ def fixed_three(sessions: int, focal_error: float = 0.0) -> None:
 
 
 def mixed(sessions: int) -> None:
+    from handeye.pipelines.rig.simulate import camera_laser_scene
     from handeye.sensors.laser.model import SphereProfiles
-    from handeye.simulate.rig import camera_laser_scene
     for setup in ("eye_in_hand", "eye_to_hand"):
         ok, rel_t, secs = [], [], []
         for s in range(sessions):
@@ -153,10 +153,10 @@ def mixed(sessions: int) -> None:
 
 
 def depth(sessions: int) -> None:
+    from handeye.pipelines.rig.simulate import BOARD, camera_depth_scene
     from handeye.sensors.camera.targets.chessboard import Chessboard
     from handeye.sensors.depth.clouds import plane_points
     from handeye.sensors.depth.model import BoardPoints
-    from handeye.simulate.rig import BOARD, camera_depth_scene
     points = Chessboard(*BOARD).object_points()  # the board both cameras see
     for setup in ("eye_in_hand", "eye_to_hand"):
         ok, rel_t, ratio, secs = [], [], [], []

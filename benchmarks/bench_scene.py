@@ -1,9 +1,9 @@
 """Whatever a depth camera sees as the target (issue 79): X from the views' clouds agreeing through
-the robot, no board, no mesh, no guess (``handeye.sensors.depth.scene``, ``handeye.pipelines.scene``).
+the robot, no board, no mesh, no guess (``handeye.sensors.depth.scene``, ``handeye.pipelines.depth.scene``).
 
     python benchmarks/bench_scene.py [--sessions 20] [--setup eye_in_hand] [--seed 0] [--real] [--speed] [--repeat 3]
 
-Simulator (``handeye.simulate.scene.scene_capture``): an irregular object (a lumpy potato with a
+Simulator (``handeye.pipelines.depth.simulate_scene.scene_capture``): an irregular object (a lumpy potato with a
 block and a peg stuck in it, ~12 cm), 9 ray-cast 640x480 clouds at 0.3-0.5 m from directions within
 45 deg of its top, depth noise 0.1 mm + 0.5 mm z^2, 2% holes, 3 blots without depth per view, flying
 pixels on its outline; eye-in-hand it stands on a 0.22 m plate, eye-to-hand it sits on the wrist; X
@@ -47,13 +47,13 @@ import realdata  # noqa: E402
 from handeye.frames.metrics import rotation_error, translation_error, within_std  # noqa: E402
 from handeye.frames.setups import SETUPS, robot_world_A  # noqa: E402
 from handeye.geometry.se3 import mean_transform, perturb  # noqa: E402
-from handeye.io.depth_session import load_depth_session  # noqa: E402
+from handeye.pipelines.depth.scene import read_scene_views  # noqa: E402
+from handeye.pipelines.depth.session import load_depth_session  # noqa: E402
+from handeye.pipelines.depth.simulate_scene import scene_capture, write_scene_session  # noqa: E402
 from handeye.pipelines.folders import calibrate_folder  # noqa: E402
-from handeye.pipelines.scene import read_scene_views  # noqa: E402
 from handeye.sensors.depth.clouds import read_points  # noqa: E402
 from handeye.sensors.depth.scene import gather, match, pair_spread  # noqa: E402
 from handeye.sensors.depth.scene_start import centroid_start  # noqa: E402
-from handeye.simulate.scene import scene_capture, write_scene_session  # noqa: E402
 
 
 def _simulated(seed: int, root: Path, setup: str) -> dict:

@@ -1,10 +1,10 @@
 """Markerless hand-eye from colour images (issue 62, "the robot itself"): X from the Panda's silhouette
-against masks of it, rendered on the CPU (``handeye.sensors.silhouette``, ``handeye.pipelines.silhouette``).
+against masks of it, rendered on the CPU (``handeye.sensors.silhouette``, ``handeye.pipelines.silhouette.pipeline``).
 
     python benchmarks/bench_silhouette.py [--sessions 10] [--views 10] [--seed 0] [--rows default,wavy,table]
                                           [--real] [--no-timing]
 
-Each session (``handeye.simulate.silhouette.silhouette_scene``): the Panda with its hand (rtb-data's
+Each session (``handeye.pipelines.silhouette.simulate.silhouette_scene``): the Panda with its hand (rtb-data's
 meshes) at joint angles spread about its home, a camera fixed 1-2 m from the arm looking at it
 (640x480, f = 525 px), each mask drawn 4x finer and averaged down, its boundary moved by a random
 field of 1 px (std) and two blobs per view; written as a session folder and calibrated through
@@ -40,10 +40,10 @@ import numpy as np
 from _timing import calibrate_seconds
 from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.io.importers import import_easyhec
-from handeye.io.silhouette_session import load_silhouette_session
 from handeye.pipelines.folders import calibrate_folder
-from handeye.pipelines.silhouette import calibrate_silhouette_session
-from handeye.simulate.silhouette import silhouette_scene, write_silhouette_session
+from handeye.pipelines.silhouette.pipeline import calibrate_silhouette_session
+from handeye.pipelines.silhouette.session import load_silhouette_session
+from handeye.pipelines.silhouette.simulate import silhouette_scene, write_silhouette_session
 
 EASYHEC = Path(__file__).resolve().parents[2] / "shared" / "data" / "real" / "easyhec-franka-markerless"
 ROWS = {"default": {}, "wavy": {"correlation_px": 6.0}, "table": {"table_mm": 0.5, "table_deg": 0.05}}

@@ -373,3 +373,108 @@ def test_the_setup_is_checked_once_per_call_and_travels_inward(monkeypatch):
     assert pickle.loads(pickle.dumps(cal.setup)) is not None and pickle.loads(pickle.dumps(cal.setup)) == "eye_to_hand"
     with pytest.raises(handeye.InputMismatchError, match="unknown setup 'eye_on_hand'"):
         setups.check_setup("eye_on_hand")
+
+
+def _kind_name_uses(tree: ast.AST, names: set[str], sections: set[str]) -> list[tuple[int, str]]:
+    """Where ``tree`` switches on one of ``names``: compares with it (``==``, ``!=``, ``in``, ``not in``,
+    a tuple or set of them too), or looks one of ``sections`` up (``x.get(name)``, ``x[name]``, a dict of
+    them indexed); a result's ``figures`` are the sensor model's own record, looked up by its own keys."""
+    def named(node, among) -> str | None:
+        if isinstance(node, ast.Constant) and node.value in among:
+            return node.value
+        if isinstance(node, (ast.Tuple, ast.Set, ast.List)):
+            return next((n.value for n in node.elts if isinstance(n, ast.Constant) and n.value in among), None)
+        return None
+
+    def figures(node) -> bool:
+        return isinstance(node, ast.Name) and node.id == "figures" or isinstance(node, ast.Attribute) and node.attr == "figures"
+
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Compare):
+            hit = next((h for h in (named(n, names) for n in [node.left, *node.comparators]) if h), None)
+            if hit:
+                found.append((node.lineno, f"compares with {hit!r}"))
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in ("get", "pop") \
+                and node.args and named(node.args[0], sections) and not figures(node.func.value):
+            found.append((node.lineno, f"looks up {named(node.args[0], sections)!r}"))
+        elif isinstance(node, ast.Subscript) and not figures(node.value) and (
+                named(node.slice, sections) or isinstance(node.value, ast.Dict) and named(ast.Tuple(node.value.keys), names)):
+            found.append((node.lineno, f"looks up {named(node.slice, sections) or 'a dict keyed by its names'!r}"))
+    return found
+
+
+def test_a_sensor_kind_is_two_folders_and_one_registration():
+    """Issue 78: a kind of sensor is sensors/<kind>/ (its mathematics), pipelines/<kind>/ (its session
+    reader, pipeline, simulator and planner) and one registration (pipelines/kinds.py's ``register_kind``
+    of its names and hooks). calibrate, check, the rig, simulate, plan and the report look kinds up: nothing
+    outside a kind's two folders compares with its section, command-line or display name or looks its
+    section up, and only the registry and other kinds (a rig composes its sensors') import its folder."""
+    from handeye.pipelines import kinds
+
+    registered = kinds.sensor_kinds()
+    folders = {k.package.rsplit(".", 1)[1]: k for k in registered}
+    assert sorted(folders) == sorted(p.name for p in (SRC / "pipelines").iterdir() if (p / "__init__.py").is_file())
+    for name, kind in folders.items():
+        assert (SRC / "sensors" / name / "__init__.py").is_file(), f"{name}: no sensors/{name}/ folder"
+        assert kind.package == f"handeye.pipelines.{name}"
+        for hook in ("calibrate", "extras", "rig_member", "rig_extras", "simulate", "plan", "members"):
+            if getattr(kind, hook) is not None:
+                assert callable(kind.hook(hook)), (name, hook)
+    switches, imports = [], []
+    for module, path in MODULES.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        in_a_kind = module == "handeye.pipelines.kinds" or any(module.startswith(f"handeye.pipelines.{n}.") or
+                                                               module == f"handeye.pipelines.{n}" for n in folders)
+        for name, kind in folders.items():
+            own = (f"handeye.pipelines.{name}", f"handeye.sensors.{name}")
+            if any(module == o or module.startswith(o + ".") for o in own):
+                continue
+            # another kind's folder may name this kind in its own records (a rig's --laser option, a block's depth)
+            sections = set() if in_a_kind or module.startswith("handeye.sensors.") else {kind.section}
+            names = {kind.section, kind.cli, kind.display}
+            switches += [f"{module}:{line} {what} (the {kind.display}'s)" for line, what in _kind_name_uses(tree, names, sections)]
+            if not in_a_kind:
+                imports += [f"{module}:{line} imports {dst}" for dst, _, line, _ in EDGES[module]
+                            if dst == own[0] or dst.startswith(own[0] + ".")]
+    assert not switches, "\n".join(switches)
+    assert not imports, "\n".join(imports)
+
+
+@pytest.mark.parametrize("old, name, new", [
+    ("handeye.io.laser_session", "load_laser_session", "handeye.pipelines.laser.session"),
+    ("handeye.simulate.laser", "laser_scene", "handeye.pipelines.laser.simulate"),
+    ("handeye.planning.laser", "plan_laser", "handeye.pipelines.laser.plan"),
+    ("handeye.io.rig_session", "load_rig_session", "handeye.pipelines.rig.session"),
+    ("handeye.simulate.mesh", "mesh_scene", "handeye.pipelines.depth.simulate_mesh"),
+])
+def test_a_kinds_old_modules_import_from_their_old_path_with_a_deprecation_warning(old, name, new):
+    """Issue 78: a kind's session reader, simulator and planner left io/, simulate/ and planning/ for its
+    folder; their old paths import for one release, warn where to import from, and forward every name."""
+    code = (f"import warnings; warnings.simplefilter('error')\n"
+            f"try:\n    import {old}\nexcept DeprecationWarning as w:\n    print('warned', w)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.startswith(f"warned {old} has moved: import from {new}"), out
+    with pytest.warns(DeprecationWarning):
+        module = __import__(old, fromlist=["_"])
+    assert getattr(module, name) is getattr(__import__(new, fromlist=["_"]), name)
+
+
+@pytest.mark.parametrize("package, name, new", [
+    ("handeye.simulate", "laser_scene", "handeye.pipelines.laser.simulate"),
+    ("handeye.simulate", "sphere_scene", "handeye.pipelines.depth.simulate_board"),
+    ("handeye.planning", "plan_linescan", "handeye.pipelines.linescan.plan"),
+    ("handeye.pipelines.laser", "calibrate_laser_session", "handeye.pipelines.laser.pipeline"),
+    ("handeye.pipelines.rig", "rig_members", "handeye.pipelines.rig.pipeline"),
+    ("handeye.io.extras", "check_extras", "handeye.pipelines.folders"),
+])
+def test_names_that_left_a_package_still_import_from_it_with_a_deprecation_warning(package, name, new):
+    """Issue 78: ``from handeye.simulate import laser_scene`` and ``from handeye.pipelines.laser import
+    calibrate_laser_session`` (a module that became the laser's folder) keep working one release."""
+    import importlib
+
+    with pytest.warns(DeprecationWarning, match=f"{package}.{name} has moved: import it from {new}"):
+        value = getattr(importlib.import_module(package), name)
+    assert value is getattr(importlib.import_module(new), name)
+    with pytest.raises(AttributeError, match="no attribute"):
+        getattr(importlib.import_module(package), "no_such_name")

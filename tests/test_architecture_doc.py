@@ -20,18 +20,19 @@ import handeye
 from handeye.errors import HandEyeError
 from handeye.estimation.core import estimate
 from handeye.geometry.se3 import invert, make_transform
-from handeye.io.depth_session import load_depth_session
-from handeye.io.laser_session import load_laser_session
-from handeye.io.linescan_session import load_linescan_session
-from handeye.io.rig_session import load_rig_session
+from handeye.pipelines.depth.session import load_depth_session
+from handeye.pipelines.laser.session import load_laser_session
+from handeye.pipelines.linescan.session import load_linescan_session
+from handeye.pipelines.rig.session import load_rig_session
 from handeye.io.session import load_pose_pairs, load_session, write_joint_table, write_pose_table
-from handeye.io.silhouette_session import load_silhouette_session
+from handeye.pipelines.silhouette.session import load_silhouette_session
 from handeye.report.files import result_dict
 from handeye.robot.kinematics import load_arm
 from handeye.robot.models import ControllerPoses
 from handeye.sensors.camera.targets import target_types
 from handeye.sensors.depth.model import SphereCentres
-from handeye.simulate import random_scene, sphere_scene
+from handeye.simulate import random_scene
+from handeye.pipelines.depth.simulate_board import sphere_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "architecture.md"

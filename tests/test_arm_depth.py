@@ -19,14 +19,14 @@ import handeye
 from handeye.cli import main
 from handeye.errors import DegenerateMotionError, SessionError
 from handeye.frames.metrics import rotation_error, translation_error, within_std
-from handeye.io.depth_session import load_depth_session
 from handeye.io.results import load_result
 from handeye.pipelines._arm import CALIBRATED, table_tolerance
-from handeye.pipelines.arm_depth import arm_of_session, pooled_start, read_arm_clouds, start_arm
-from handeye.pipelines.depth import calibrate_depth_session
+from handeye.pipelines.depth.arm import arm_of_session, pooled_start, read_arm_clouds, start_arm
+from handeye.pipelines.depth.pipeline import calibrate_depth_session
+from handeye.pipelines.depth.session import load_depth_session
+from handeye.pipelines.depth.simulate_arm import arm_depth_scene, write_arm_depth_session
 from handeye.robot.kinematics import chain_yaml, load_arm
 from handeye.sensors.depth.shape import voxel_pick
-from handeye.simulate.arm_depth import arm_depth_scene, write_arm_depth_session
 
 pytest.importorskip("trimesh")
 pytest.importorskip("rtbdata")
@@ -205,7 +205,7 @@ def test_fitting_the_arms_table_brings_x_closer_when_the_arm_is_off_it(tmp_path)
     every point moved with its link), X is 3x closer or better, within 3 std, the verdict good, and the
     notes say the table was fitted."""
     from handeye.options import CalibrationOptions
-    from handeye.pipelines.arm_depth import calibrate_arm_depth_session
+    from handeye.pipelines.depth.arm import calibrate_arm_depth_session
     from handeye.robot.models import JointAngles
 
     scene = arm_depth_scene(6, rng=2, image_size=(320, 240), table_error=(0.7, 0.07))

@@ -14,14 +14,14 @@ from handeye.estimation import core
 from handeye.estimation.readings import check_readings
 from handeye.frames.metrics import rotation_error, translation_error
 from handeye.frames.poses import RobotPoseInput, format_poses
-from handeye.io.laser_session import load_laser_session
+from handeye.pipelines.depth.simulate_board import sphere_scene
 from handeye.pipelines.folders import calibrate_folder
-from handeye.pipelines.laser import calibrate_laser_session, laser_model, read_profiles
+from handeye.pipelines.laser.pipeline import calibrate_laser_session, laser_model, read_profiles
+from handeye.pipelines.laser.session import load_laser_session
+from handeye.pipelines.laser.simulate import FANUC_PROFILER_X, pendant_laser_scene, write_laser_session
+from handeye.pipelines.rig.simulate import profiler_pair_scene, write_profiler_pair_session
 from handeye.robot.models import ControllerPoses, PoseErrors
 from handeye.sensors.depth.model import SphereCentres
-from handeye.simulate import sphere_scene
-from handeye.simulate.laser import FANUC_PROFILER_X, pendant_laser_scene, write_laser_session
-from handeye.simulate.rig import profiler_pair_scene, write_profiler_pair_session
 
 
 def _within(cal, X, k: float = 3.0) -> bool:
@@ -175,7 +175,7 @@ def test_two_profilers_with_poses_of_their_own_fit_no_pose_error_of_their_own(tm
     """Two profilers that scanned one ball from poses of their own: no pose's error is fitted (it would
     take each profile whole); each profiler fits the controller's poses as well as the best X that puts
     one ball under both, and the relative pose's std covers its error."""
-    from handeye.pipelines.rig import _shared
+    from handeye.pipelines.rig.pipeline import _shared
 
     sc = profiler_pair_scene(12, "eye_in_hand", rng=3, robot_error=(0.02, 0.1))
     folder = write_profiler_pair_session(tmp_path / "pair", sc)
@@ -234,8 +234,8 @@ def test_a_flanges_depth_bias_is_held_where_translations_cannot_determine_it(tmp
     """A flange (its placement given) at 6 pure translations, 5 on one line: the depth bias is not
     determined (its std would be several times a real camera's tolerance), so it is held at 0, named,
     and X's std takes its tolerance; result.json says what X holds with."""
+    from handeye.pipelines.depth.simulate_mesh import mesh_scene, write_mesh_session
     from handeye.report import write_calibration
-    from handeye.simulate import mesh_scene, write_mesh_session
 
     sc = mesh_scene(6, "eye_to_hand", rng=0, translations="line", robot_error=(0.01, 0.1), image_size=(320, 240))
     cal = calibrate_folder(write_mesh_session(tmp_path / "s", sc, known_pose=True), progress=False)
@@ -254,7 +254,7 @@ def test_a_flanges_depth_bias_is_held_where_translations_cannot_determine_it(tmp
 def test_pure_translations_without_a_placement_name_the_free_translation(tmp_path):
     """The same flange without its placement: the views agree (they were refused as if the poses were
     wrong); X's rotation is fitted, its translation named free with what fixes it, its std infinite."""
-    from handeye.simulate import mesh_scene, write_mesh_session
+    from handeye.pipelines.depth.simulate_mesh import mesh_scene, write_mesh_session
 
     sc = mesh_scene(6, "eye_to_hand", rng=0, translations="line", robot_error=(0.01, 0.1), image_size=(320, 240))
     cal = calibrate_folder(write_mesh_session(tmp_path / "s", sc), progress=False)
@@ -269,7 +269,7 @@ def test_a_sensors_unknowns_are_held_or_freed_by_name(tmp_path, capsys):
     """session.yaml's unknowns: and --hold/--free name a sensor's unknowns beside X; a name that is not
     one of them is refused, naming those that are; a camera's images take none."""
     from handeye.cli import main
-    from handeye.simulate import write_depth_session
+    from handeye.pipelines.depth.simulate_board import write_depth_session
 
     folder = write_depth_session(tmp_path / "s", sphere_scene(10, "eye_to_hand", rng=3))
     spec = yaml.safe_load((folder / "session.yaml").read_text())

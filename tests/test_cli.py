@@ -370,7 +370,7 @@ def test_the_help_names_every_importer_and_every_laser_target(capsys):
     plane for laser_line where edges, steps and fixtures of balls exist too. Both lists now come from
     the commands' own tables."""
     from handeye.cli.import_ import SOURCES
-    from handeye.simulate.laser import TARGETS
+    from handeye.pipelines.laser.simulate import TARGETS
 
     assert main(["--help"]) == 0
     top = " ".join(capsys.readouterr().out.split())
@@ -385,7 +385,7 @@ def test_the_help_names_every_importer_and_every_laser_target(capsys):
 def test_the_guides_laser_section_claims_nothing_missing_that_ships():
     """Issue 77: the guide's laser section ended 'Not yet: edges and several balls as targets, and
     line-scan cameras', all three documented (and shipped) in the same guide."""
-    from handeye.simulate.laser import TARGETS
+    from handeye.pipelines.laser.simulate import TARGETS
 
     guide = (Path(__file__).resolve().parents[1] / "docs" / "guide.md").read_text(encoding="utf-8")
     laser = guide.split("\n## Laser")[1].split("\n## ")[0]

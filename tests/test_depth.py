@@ -9,9 +9,9 @@ import pytest
 from handeye.errors import InputMismatchError
 from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import make_transform
-from handeye.pipelines.depth import calibrate_depth
+from handeye.pipelines.depth.pipeline import calibrate_depth
+from handeye.pipelines.depth.simulate_board import depth_scene
 from handeye.sensors.depth import board_pose, check_cloud, lift_points, plane_points
-from handeye.simulate import depth_scene
 
 
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])

@@ -16,10 +16,10 @@ from handeye.cli import main
 from handeye.errors import DegenerateMotionError, HandEyeError, InputMismatchError, TargetError
 from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import invert, make_transform
-from handeye.io.depth_session import load_depth_session
-from handeye.pipelines.depth import calibrate_depth_session, calibrate_spheres
+from handeye.pipelines.depth.pipeline import calibrate_depth_session, calibrate_spheres
+from handeye.pipelines.depth.session import load_depth_session
+from handeye.pipelines.depth.simulate_board import depth_scene, sphere_scene, write_depth_session
 from handeye.sensors.depth import check_frame, find_spheres, fit_sphere, read_cloud
-from handeye.simulate import depth_scene, sphere_scene, write_depth_session
 
 
 @pytest.fixture(scope="module")
@@ -268,7 +268,7 @@ def test_a_depth_session_with_joint_angles_fits_the_joints_compliance_when_asked
     """compliance=True reaches the depth camera's robot model (the options record, not a loose field):
     the loaded joints' compliance is fitted with the table; without joint angles, or for a sensor
     that fits no table, it is refused by name."""
-    from handeye.pipelines.silhouette import calibrate_silhouette_session
+    from handeye.pipelines.silhouette.pipeline import calibrate_silhouette_session
     sc = depth_scene(8, "eye_to_hand", rng=2, arm="ur5", image_size=(240, 180))
     folder = write_depth_session(tmp_path / "j", sc)
     plain = calibrate_depth_session(folder)

@@ -26,9 +26,11 @@ import handeye
 from handeye.cli import main
 from handeye.errors import HandEyeError
 from handeye.io.session import load_yaml
-from handeye.simulate import laser_scene, simulate_session, sphere_scene, write_depth_session, write_laser_session
-from handeye.simulate.mesh import mesh_scene, write_mesh_session
-from handeye.simulate.silhouette import silhouette_scene, write_silhouette_session
+from handeye.pipelines.depth.simulate_board import sphere_scene, write_depth_session
+from handeye.pipelines.depth.simulate_mesh import mesh_scene, write_mesh_session
+from handeye.pipelines.laser.simulate import laser_scene, write_laser_session
+from handeye.pipelines.silhouette.simulate import silhouette_scene, write_silhouette_session
+from handeye.simulate import simulate_session
 
 SRC = str(Path(handeye.__file__).parents[1])
 SECRET = "CANARY-7f3a: this line must never reach a message"
@@ -251,7 +253,7 @@ def test_no_file_outside_the_session_is_opened(case, sessions, tmp_path, capsys,
 def test_a_session_inside_its_folder_still_reads(sessions, tmp_path):
     """Names with a sub-folder that stays inside, and a link inside the session to a file inside it,
     are a session's own files: read as before."""
-    from handeye.io.laser_session import load_laser_session
+    from handeye.pipelines.laser.session import load_laser_session
     folder = tmp_path / "laser"
     shutil.copytree(sessions["laser"], folder)
     (folder / "profiles" / "sub").mkdir()
@@ -326,7 +328,7 @@ def test_long_values_are_quoted_short(value, sessions, tmp_path, capsys, monkeyp
 
 
 def test_a_long_sensor_name_is_quoted_short(sessions, tmp_path):
-    from handeye.io.rig_session import load_rig_session
+    from handeye.pipelines.rig.session import load_rig_session
     folder = tmp_path / "rig"
     shutil.copytree(sessions["rig"], folder)
     spec = yaml.safe_load((folder / "session.yaml").read_text())
@@ -407,9 +409,9 @@ def test_joint_angles_are_checked_against_the_poses(kind, case, armed, tmp_path)
     """Laser, depth and rig sessions compare the joint angles with the controller's poses as image and
     line-scan sessions do: the slip named when the session is read (a reversed table had the laser fit
     running past 120 s; another arm and two swapped rows ended in a generic INCONSISTENT DATA)."""
-    from handeye.io.depth_session import load_depth_session
-    from handeye.io.laser_session import load_laser_session
-    from handeye.io.rig_session import load_rig_session
+    from handeye.pipelines.depth.session import load_depth_session
+    from handeye.pipelines.laser.session import load_laser_session
+    from handeye.pipelines.rig.session import load_rig_session
     load = {"laser": load_laser_session, "depth": load_depth_session, "rig": load_rig_session}[kind]
     folder = tmp_path / kind
     shutil.copytree(armed[kind], folder)
@@ -439,8 +441,8 @@ def test_swapped_joint_rows_are_named_for_image_sessions_too():
 # --- a view's file that holds nothing: skipped and named, the rest go on (docs/guide.md) ----------------
 
 def _profiles_read(folder: Path):
-    from handeye.io.laser_session import load_laser_session
-    from handeye.pipelines.laser import read_profiles
+    from handeye.pipelines.laser.pipeline import read_profiles
+    from handeye.pipelines.laser.session import load_laser_session
     return read_profiles(load_laser_session(folder))
 
 
@@ -508,8 +510,8 @@ def test_profiles_of_another_target_than_declared_are_named(sessions, plate, tmp
 def test_an_unusable_ball_cloud_is_skipped_and_named(cloud, tmp_path):
     """An all-NaN cloud and an array of shape (7,) in a ball session: refused before (the guide: a view
     that cannot be measured is skipped by name); now that view skipped, named, the others measured."""
-    from handeye.io.depth_session import load_depth_session
-    from handeye.pipelines.depth import measure_depth_session
+    from handeye.pipelines.depth.pipeline import measure_depth_session
+    from handeye.pipelines.depth.session import load_depth_session
     folder = tmp_path / "spheres"
     write_depth_session(folder, sphere_scene(4, rng=1, image_size=(160, 120)))
     np.save(folder / "clouds" / "view02.npy", cloud)
@@ -519,7 +521,7 @@ def test_an_unusable_ball_cloud_is_skipped_and_named(cloud, tmp_path):
 
 
 def test_an_unusable_mesh_cloud_is_skipped_and_named(sessions, tmp_path):
-    from handeye.pipelines.mesh import _found
+    from handeye.pipelines.depth.mesh import _found
     from handeye.sensors.depth.shape import load_shape
     folder = tmp_path / "mesh"
     shutil.copytree(sessions["mesh"], folder)
@@ -532,7 +534,7 @@ def test_a_scan_outside_the_trajectory_is_skipped_and_named(sessions, tmp_path):
     """One scan's time beyond the trajectory: refused before (the guide: a scan that cannot be used is
     skipped, named); now skipped with why, the others kept. Every scan outside: refused, as a clock
     mismatch."""
-    from handeye.io.linescan_session import load_linescan_session
+    from handeye.pipelines.linescan.session import load_linescan_session
     folder = tmp_path / "linescan"
     shutil.copytree(sessions["linescan"], folder)
     assert load_linescan_session(folder).names == ["s01.png", "s02.png", "s03.png"]
@@ -571,7 +573,7 @@ def test_meshes_without_a_part_are_named(sessions, tmp_path):
 
 def test_an_all_white_mask_is_named(sessions, tmp_path):
     """Every pixel of a mask set: "Residuals are not finite" in the fit before; named at reading after."""
-    from handeye.io.silhouette_session import load_silhouette_session, read_masks
+    from handeye.pipelines.silhouette.session import load_silhouette_session, read_masks
     folder = tmp_path / "silhouette"
     shutil.copytree(sessions["silhouette"], folder)
     path = sorted((folder / "masks").iterdir())[1]
@@ -599,7 +601,7 @@ def test_a_fit_that_does_not_converge_says_so(sessions, monkeypatch):
     what to check, instead of running on (here the cap lowered to 2 evaluations on a good session, and
     any residual counted as beyond the noise)."""
     import handeye.estimation.core as core
-    from handeye.pipelines.laser import calibrate_laser_session
+    from handeye.pipelines.laser.pipeline import calibrate_laser_session
     monkeypatch.setattr(core, "MAX_EVALUATIONS", 2)
     monkeypatch.setattr(core, "UNCONVERGED_RMS", 0.0)
     with pytest.raises(HandEyeError, match=r"the fit did not converge in 2 evaluations: .* the joint columns' order"):
@@ -613,8 +615,8 @@ def test_joint_columns_reversed_past_the_check_stop_at_the_cap(armed):
     profiles); now the first fit stops at the cap and says so."""
     import dataclasses
 
-    from handeye.io.laser_session import load_laser_session
-    from handeye.pipelines.laser import calibrate_laser_session
+    from handeye.pipelines.laser.pipeline import calibrate_laser_session
+    from handeye.pipelines.laser.session import load_laser_session
     s = load_laser_session(armed["laser"])
     with pytest.raises(HandEyeError, match=r"did not converge in 200 evaluations"):
         calibrate_laser_session(dataclasses.replace(s, joints=s.joints[:, ::-1]))

@@ -17,12 +17,12 @@ from handeye.cli import main
 from handeye.errors import DegenerateMotionError, SessionError
 from handeye.estimation.core import estimate
 from handeye.frames.metrics import rotation_error, translation_error, within_std
-from handeye.io.laser_session import load_laser_session
-from handeye.pipelines.laser import calibrate_laser_session
+from handeye.pipelines.laser.pipeline import calibrate_laser_session
+from handeye.pipelines.laser.session import load_laser_session
+from handeye.pipelines.laser.simulate import laser_scene, write_laser_session
 from handeye.robot.models import ControllerPoses
 from handeye.sensors.laser.model import SphereProfiles
 from handeye.sensors.laser.plane import PlaneProfiles
-from handeye.simulate import laser_scene, write_laser_session
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real" / "robcalibrator-laser"
 
@@ -68,7 +68,7 @@ def test_pure_translations_leave_the_translation_undetermined_and_say_so():
         flange2base[k, :3, :3] = R
         flange2base[k, :3, 3] = sensor2base[k, :3, 3] - R @ sc.X[:3, 3]
     profiles = []
-    from handeye.simulate.laser import _profile
+    from handeye.pipelines.laser.simulate import _profile
 
     rng = np.random.default_rng(0)
     for F in flange2base:
@@ -151,7 +151,7 @@ def test_a_plate_with_few_profiles_or_turns_about_one_axis_is_searched_for_and_j
 
     from handeye.frames.setups import predicted_target2cam
     from handeye.geometry.se3 import make_transform
-    from handeye.simulate.laser import profile_reading
+    from handeye.pipelines.laser.simulate import profile_reading
 
     sc = laser_scene(12, "eye_in_hand", rng=5, target="plane")
     cal = estimate(PlaneProfiles("eye_in_hand", [f"p{k}" for k in range(12)], sc.profiles), ControllerPoses(sc.flange2base))
@@ -293,7 +293,7 @@ def test_joint_angles_fit_the_arm_with_the_sensor(tmp_path, monkeypatch):
     poses of the same profiles (bench_laser.py --joints measures it over sessions)."""
     from dataclasses import replace
 
-    from handeye.simulate import laser as simulated_laser
+    from handeye.pipelines.laser import simulate as simulated_laser
 
     monkeypatch.setitem(simulated_laser.PROFILER, "points", 500)  # ~250 points on the ball: a small test
     sc = laser_scene(30, "eye_in_hand", 501, arm="ur5", length_mm=0.7, angle_deg=0.07)
@@ -331,9 +331,9 @@ def test_plan_for_a_laser_predicts_what_its_capture_gives(tmp_path, capsys, monk
     same number of profiles turned at most 10 deg places X's translation worse (the lever)."""
     from handeye.frames.setups import predicted_target2cam
     from handeye.geometry.se3 import make_transform
-    from handeye.planning.laser import plan_laser
-    from handeye.simulate import laser as simulated_laser
-    from handeye.simulate.laser import profile_reading
+    from handeye.pipelines.laser import simulate as simulated_laser
+    from handeye.pipelines.laser.plan import plan_laser
+    from handeye.pipelines.laser.simulate import profile_reading
 
     monkeypatch.setitem(simulated_laser.PROFILER, "points", 500)  # ~250 points on the ball: a small test
     X, Z = make_transform(np.eye(3), [0.0, 0.05, 0.08]), make_transform(np.eye(3), [0.6, 0.0, 0.05])
@@ -368,9 +368,9 @@ def test_plan_for_an_edge_a_step_or_a_fixture_predicts_its_capture(target, setup
     draw, through the target's model) lands within 3 of the predicted std from the profiles alone."""
     from handeye.frames.setups import predicted_target2cam
     from handeye.geometry.se3 import make_transform
-    from handeye.planning.laser import _model, plan_laser
-    from handeye.simulate import laser as simulated_laser
-    from handeye.simulate.laser import profile_reading
+    from handeye.pipelines.laser import simulate as simulated_laser
+    from handeye.pipelines.laser.plan import _model, plan_laser
+    from handeye.pipelines.laser.simulate import profile_reading
 
     monkeypatch.setitem(simulated_laser.PROFILER, "points", 600)
     X, Z = make_transform(np.eye(3), [0.0, 0.05, 0.08]), make_transform(np.eye(3), [0.6, 0.0, 0.05])
@@ -392,8 +392,8 @@ def test_x_from_profiles_of_a_block_edge(setup, monkeypatch):
     robot: the searched start within a degree, X within the ball's bar (0.01 mm / 0.005 deg) and 3
     std, the faces' angle fitted (90 deg), the fit better than its start on held-out profiles; a
     calibrated arm's error stated: X within 3 std."""
+    from handeye.pipelines.laser import simulate as simulated_laser
     from handeye.sensors.laser.edge import EdgeProfiles
-    from handeye.simulate import laser as simulated_laser
 
     monkeypatch.setitem(simulated_laser.PROFILER, "points", 1000)  # ~750 points a profile: a small test
     sc = laser_scene(16, setup, rng=31, target="edge")
@@ -423,8 +423,8 @@ def test_an_edge_with_few_turns_calibrates_what_it_determines_and_names_the_rest
 
     from handeye.frames.setups import predicted_target2cam
     from handeye.geometry.se3 import make_transform
+    from handeye.pipelines.laser.simulate import profile_reading
     from handeye.sensors.laser.edge import EdgeProfiles
-    from handeye.simulate.laser import profile_reading
 
     sc = laser_scene(8, "eye_in_hand", rng=5, target="edge")
     cal = estimate(EdgeProfiles("eye_in_hand", [f"p{k}" for k in range(8)], sc.profiles), ControllerPoses(sc.flange2base))
@@ -463,7 +463,7 @@ def _true_balls(sc):
     """Each profile's ball of the simulated fixture, from the truth: its points' centroid mapped into
     the fixture's frame, the nearest ball."""
     from handeye.frames.setups import robot_world_A
-    from handeye.simulate.laser import FIXTURE
+    from handeye.pipelines.laser.simulate import FIXTURE
 
     A = robot_world_A(sc.flange2base, sc.setup) @ sc.X
     mean = np.array([np.nanmean(p, axis=0) for p in sc.profiles])
@@ -473,8 +473,8 @@ def _true_balls(sc):
 
 
 def _fixture_model(setup, sc, keep=None):
+    from handeye.pipelines.laser.simulate import FIXTURE
     from handeye.sensors.laser.model import SpheresProfiles
-    from handeye.simulate.laser import FIXTURE
 
     keep = range(len(sc.profiles)) if keep is None else keep
     return SpheresProfiles(setup, [f"p{k}" for k in keep], [sc.profiles[k] for k in keep],
@@ -487,8 +487,8 @@ def test_x_from_a_fixture_of_balls_told_apart(setup, monkeypatch):
     """Three balls (40, 30, 50 mm), each of 20 profiles on one of them: the profiles told apart, X
     within the ball's bar and 3 std, each centre right, the notes name each ball's profiles; with a
     calibrated arm's error stated, X within 3 std."""
-    from handeye.simulate import laser as simulated_laser
-    from handeye.simulate.laser import FIXTURE
+    from handeye.pipelines.laser import simulate as simulated_laser
+    from handeye.pipelines.laser.simulate import FIXTURE
 
     monkeypatch.setitem(simulated_laser.PROFILER, "points", 1000)  # ~400 points on a ball: a small test
     sc = laser_scene(20, setup, rng=41, target="spheres")
@@ -516,8 +516,8 @@ def test_a_ball_listed_but_never_scanned_is_named_and_left_out(missing, monkeypa
     split over all three balls gave a wrong X with 'inconsistent'; now that ball is found, named and
     left out, and X is right. Z is the first scanned ball's centre (not a placeholder for the missing
     first ball)."""
-    from handeye.simulate import laser as simulated_laser
-    from handeye.simulate.laser import FIXTURE
+    from handeye.pipelines.laser import simulate as simulated_laser
+    from handeye.pipelines.laser.simulate import FIXTURE
 
     monkeypatch.setitem(simulated_laser.PROFILER, "points", 1000)
     sc = laser_scene(24, "eye_to_hand", rng=44, target="spheres")
@@ -538,7 +538,7 @@ def test_a_ball_listed_but_never_scanned_is_named_and_left_out(missing, monkeypa
 
 def test_a_ball_of_the_fixture_with_too_few_profiles_is_said(monkeypatch):
     """One profile left on the 30 mm ball: the fit still holds, and a note says that ball got only one."""
-    from handeye.simulate import laser as simulated_laser
+    from handeye.pipelines.laser import simulate as simulated_laser
 
     monkeypatch.setitem(simulated_laser.PROFILER, "points", 1000)
     sc = laser_scene(24, "eye_in_hand", rng=43, target="spheres")

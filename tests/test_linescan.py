@@ -10,11 +10,11 @@ from handeye.errors import DegenerateMotionError, InputMismatchError, SessionErr
 from handeye.estimation.core import estimate
 from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.frames.setups import predicted_target2cam
-from handeye.pipelines.linescan import linescan_robot
+from handeye.pipelines.linescan.pipeline import linescan_robot
+from handeye.pipelines.linescan.simulate import linescan_scene
 from handeye.robot.models import ControllerPoses, PoseErrors
 from handeye.sensors.linescan.model import LineScanCorners, Trajectory
 from handeye.sensors.linescan.resection import pushbroom_resection
-from handeye.simulate.linescan import linescan_scene
 
 
 def _model(sc, **kw) -> LineScanCorners:
@@ -61,7 +61,7 @@ def test_each_scans_pose_error_fitted_with_an_arms_error():
 def test_corners_in_a_mirrored_or_turned_order():
     """A detector reads a scan moving the other way in mirrored order: given the grid's orders, each
     scan's is found from the robot's motion, and X is as with the true order."""
-    from handeye.pipelines.linescan import grid_orderings
+    from handeye.pipelines.linescan.pipeline import grid_orderings
     sc = linescan_scene(10, "eye_in_hand", rng=3)
     orders = grid_orderings(sc.target_points[0])
     rng = np.random.default_rng(0)
@@ -111,7 +111,7 @@ def test_session_round_trip_and_bad_sessions(tmp_path):
     the wrong width: each a clear error or a named skip."""
     from handeye import load_result
     from handeye.cli import main
-    from handeye.pipelines.linescan import calibrate_linescan_session
+    from handeye.pipelines.linescan.pipeline import calibrate_linescan_session
     folder = tmp_path / "s"
     assert main(["simulate", "--sensor", "line_scan", "--poses", "6", "--out", str(folder), "--seed", "4"]) == 0
     assert main(["calibrate", str(folder), "--out", str(tmp_path / "out")]) == 0
@@ -146,7 +146,7 @@ def test_joint_trajectory_fits_the_arms_table(setup):
     fitted, the default accuracy stated), whose X is 5x further off in translation. One pose per scan
     times the nominal move (the table's error taken as rigid over a scan) leaves X's rotation ~0.2
     deg off: the table's error changes along the move."""
-    from handeye.pipelines.linescan import linescan_joints
+    from handeye.pipelines.linescan.pipeline import linescan_joints
     from handeye.robot.models import JointAngles
     sc = linescan_scene(12, setup, rng=3000, arm="ur5")
     arm_error = 1e3 * np.linalg.norm(sc.trajectory.flange2base[:, :3, 3] - sc.trajectory_true.flange2base[:, :3, 3], axis=1)
@@ -179,7 +179,7 @@ def test_joint_trajectory_sessions_and_their_faults(tmp_path):
     called radians, compliance without joint angles, neither poses nor joints: each a clear error."""
     from handeye import load_result
     from handeye.cli import main
-    from handeye.pipelines.linescan import calibrate_linescan_session
+    from handeye.pipelines.linescan.pipeline import calibrate_linescan_session
     folder = tmp_path / "s"
     assert main(["simulate", "--sensor", "line_scan", "--arm", "ur5", "--poses", "8", "--out", str(folder),
                  "--seed", "3"]) == 0
@@ -219,8 +219,8 @@ def test_a_plan_of_scans_predicts_the_std_it_gives(tmp_path):
     writes the moves and refuses a camera's options by name."""
     from handeye.cli import main
     from handeye.geometry.se3 import make_transform
-    from handeye.pipelines.linescan import linescan_robot
-    from handeye.planning.linescan import _TOWARDS_CAMERA, plan_linescan
+    from handeye.pipelines.linescan.pipeline import linescan_robot
+    from handeye.pipelines.linescan.plan import _TOWARDS_CAMERA, plan_linescan
     X = make_transform(np.eye(3), [0.0, 0.0, 0.05])
     Z = make_transform(np.diag([1.0, -1.0, -1.0]), [0.6, 0.0, 0.0])  # printed side up, as a camera plan takes it
     plan = plan_linescan("eye_in_hand", X, Z, n_scans=10, rng=0, robot_accuracy=None)
@@ -290,7 +290,7 @@ def test_a_chessboards_readings_are_named_in_a_note(setup, rng):
     Z's z axis points, with the turn that gives the other."""
     from handeye.frames.setups import predicted_target2cam
     from handeye.geometry.se3 import invert
-    from handeye.pipelines.linescan import grid_orderings, readings_note
+    from handeye.pipelines.linescan.pipeline import grid_orderings, readings_note
 
     sc = linescan_scene(8, setup, rng=rng)
     orderings = grid_orderings(sc.target_points[0])

@@ -18,12 +18,12 @@ from handeye.estimation.core import estimate
 from handeye.frames.metrics import rotation_error, translation_error
 from handeye.frames.setups import predicted_target2cam
 from handeye.geometry.se3 import make_transform
-from handeye.io.depth_session import load_depth_session
+from handeye.pipelines.depth.session import load_depth_session
+from handeye.pipelines.depth.simulate_mesh import flange_mesh, mesh_scene, write_mesh_session
 from handeye.robot.models import ControllerPoses
 from handeye.sensors.depth.mesh import MeshSurface, twist
 from handeye.sensors.depth.registration import find_shape
 from handeye.sensors.depth.shape import load_shape, shape_from_mesh
-from handeye.simulate import flange_mesh, mesh_scene, write_mesh_session
 
 
 @pytest.fixture(scope="module")
@@ -159,7 +159,7 @@ def test_joint_angles_with_a_mesh_target_fit_the_arms_table(tmp_path):
     held-out views are predicted better than from the nominal table's poses, and the one-step refits
     of cross-validation stay sane (their Jacobian by finite differences of the surface's distance had
     sent a fold's X 150 mm off: held-out 31 mm, X's std widened 360,000x)."""
-    from handeye.pipelines.depth import calibrate_depth_session
+    from handeye.pipelines.depth.pipeline import calibrate_depth_session
     sc = mesh_scene(8, "eye_to_hand", rng=0, arm="ur5", image_size=(240, 180))
     folder = write_mesh_session(tmp_path / "s", sc)
     assert (folder / "joints.csv").is_file() and yaml.safe_load((folder / "session.yaml").read_text())["joints"]["arm"] == "ur5"
@@ -220,7 +220,7 @@ def test_every_extra_a_session_needs_is_named_at_once(tmp_path, monkeypatch, cap
 def test_a_mistyped_mesh_key_gets_the_nearest_one(tmp_path):
     """Issue 77: the other session keys' errors say 'did you mean'; a mesh target's and an arm
     target's did not."""
-    from handeye.io.depth_session import load_depth_session
+    from handeye.pipelines.depth.session import load_depth_session
 
     (tmp_path / "session.yaml").write_text(yaml.safe_dump({
         "setup": "eye_to_hand", "depth": {"unit": "m"}, "target": {"type": "mesh", "file": "flange.stl", "unti": "mm"},
@@ -239,7 +239,8 @@ def test_the_extras_a_session_names_are_the_modules_installed_with_them(tmp_path
     every extra installed (the test extra), a session needing each of them passes the check."""
     import importlib.util
 
-    from handeye.io.extras import EXTRA_MODULES, check_extras, session_extras
+    from handeye.io.extras import EXTRA_MODULES
+    from handeye.pipelines.folders import check_extras, session_extras
 
     for extra, modules in EXTRA_MODULES.items():
         assert all(importlib.util.find_spec(m) is not None for m in modules), extra

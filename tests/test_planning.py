@@ -259,7 +259,7 @@ def test_a_rig_plan_every_camera_can_use_and_its_promise_kept(tmp_path, camera_y
     rig session's poses.csv; a capture of exactly those poses (0.3 px of corner noise) calibrated as a
     rig puts every camera's X within 3 of the std the plan predicted; bad --rig-camera values named."""
     from handeye.frames.metrics import within_std
-    from handeye.pipelines.rig import calibrate_rig
+    from handeye.pipelines.rig.pipeline import calibrate_rig
     from handeye.robot.models import ControllerPoses
     from handeye.sensors.camera.model import CameraCorners
     X, Z = _mounting(setup)

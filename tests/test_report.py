@@ -572,9 +572,9 @@ def test_rotation_axes_figure_draws_a_share_of_many_motions(sample_cal, monkeypa
 def laser_cal():
     """A laser profiler's calibration (10 profiles of a ball, an exact robot): a sensor's fit."""
     from handeye.estimation.core import estimate
+    from handeye.pipelines.laser.simulate import laser_scene
     from handeye.robot.models import ControllerPoses
     from handeye.sensors.laser.model import SphereProfiles
-    from handeye.simulate import laser_scene
 
     sc = laser_scene(10, "eye_in_hand", rng=7)
     return estimate(SphereProfiles("eye_in_hand", [f"p{k:02d}.csv" for k in range(10)], sc.profiles, radius=sc.radius),

@@ -16,8 +16,9 @@ import pytest
 import handeye
 from handeye.cli import main
 from handeye.errors import SessionError
+from handeye.pipelines.depth.simulate_board import sphere_scene, write_depth_session
 from handeye.report import write_calibration, write_exports
-from handeye.simulate import simulate_kinematic_session, simulate_session, sphere_scene, write_depth_session
+from handeye.simulate import simulate_kinematic_session, simulate_session
 
 BUNDLED = Path(handeye.__file__).parent / "data"
 COMMON = {"X", "Z", "X_name", "Z_name", "setup", "method", "estimator", "verdict", "check", "notes", "uncertainty",
@@ -60,7 +61,7 @@ def test_an_image_session_and_a_pose_pair_folder_read_back(tmp_path):
 @pytest.mark.slow
 def test_a_depth_session_writes_the_same_keys_and_reads_back(tmp_path):
     folder = write_depth_session(tmp_path / "s", sphere_scene(8, "eye_to_hand", 6))
-    cal = handeye.pipelines.depth.calibrate_depth_session(folder)
+    cal = handeye.pipelines.depth.pipeline.calibrate_depth_session(folder)
     data, back = _round_trip(cal, tmp_path / "out")
     assert COMMON <= set(data) and "sensor" in data and "images" not in data
     assert back.sensor.figures == json.loads(json.dumps(cal.sensor.figures))

@@ -10,11 +10,11 @@ import pytest
 
 from handeye.errors import InputMismatchError
 from handeye.frames.metrics import rotation_error, translation_error, within_std
-from handeye.pipelines.rig import calibrate_rig
+from handeye.pipelines.rig.pipeline import calibrate_rig
+from handeye.pipelines.rig.simulate import rig_scene
 from handeye.pipelines.verify import verify
 from handeye.robot.models import ControllerPoses, PoseErrors
 from handeye.sensors.camera.model import CameraCorners
-from handeye.simulate.rig import rig_scene
 from jacobians import jacobian_error
 
 ERROR = (0.01, 0.05)
@@ -79,7 +79,7 @@ def test_rig_session_round_trip_and_bad_sessions(tmp_path):
     from handeye import load_result
     from handeye.cli import main
     from handeye.errors import SessionError
-    from handeye.pipelines.rig import calibrate_rig_session
+    from handeye.pipelines.rig.pipeline import calibrate_rig_session
     folder = tmp_path / "s"
     assert main(["simulate", "--cameras", "3", "--out", str(folder)]) == 2  # --cameras is a rig's
     assert main(["simulate", "--sensor", "rig", "--poses", "8", "--out", str(folder), "--seed", "2"]) == 0
@@ -136,9 +136,9 @@ def test_a_rig_of_sensors_with_residuals_of_different_widths():
     """A camera (two residual columns) beside a laser profiler (one): the profiler's rows padded with
     zeros in a noise group of their own, each sensor's columns in groups of their own; sensors that
     see different targets share none."""
+    from handeye.pipelines.laser.simulate import laser_scene
     from handeye.sensors.laser.model import SphereProfiles
     from handeye.sensors.rig import Rig
-    from handeye.simulate import laser_scene
 
     sc = rig_scene(6, "eye_in_hand", rng=1)
     c = sc.cameras[0]
@@ -240,9 +240,9 @@ def test_a_rig_on_joint_angles_fits_the_arms_table_with_every_camera(tmp_path):
     from handeye import load_result
     from handeye.cli import main
     from handeye.errors import SessionError
-    from handeye.pipelines.rig import calibrate_rig_session
+    from handeye.pipelines.rig.pipeline import calibrate_rig_session
+    from handeye.pipelines.rig.simulate import rig_joint_scene
     from handeye.robot.models import JointAngles
-    from handeye.simulate.rig import rig_joint_scene
     sc = rig_joint_scene(12, "eye_to_hand", rng=3)  # benchmarked: 2.2-34x nearer, median 5.6x, over 8 such sessions
     names = [c.name for c in sc.cameras]
     poses = calibrate_rig(sc.camera_models(), names, ControllerPoses(sc.flange2base, (0.05, 1.0)))
@@ -279,7 +279,7 @@ def test_a_camera_and_a_laser_profiler_from_one_session_folder(tmp_path):
     from handeye import load_result
     from handeye.cli import main
     from handeye.errors import SessionError
-    from handeye.pipelines.rig import calibrate_rig_session
+    from handeye.pipelines.rig.pipeline import calibrate_rig_session
     folder = tmp_path / "s"
     assert main(["simulate", "--sensor", "rig", "--laser", "--poses", "12", "--seed", "2", "--out", str(folder)]) == 0
     (folder / "laser" / "v05.csv").unlink()  # a view the profiler did not see
@@ -320,9 +320,9 @@ def test_a_camera_and_a_depth_camera_share_the_board_from_one_session_folder(tmp
 
     from handeye import load_result
     from handeye.errors import SessionError
-    from handeye.pipelines.rig import calibrate_rig_session, rig_members
+    from handeye.pipelines.rig.pipeline import calibrate_rig_session, rig_members
+    from handeye.pipelines.rig.simulate import camera_depth_scene, write_camera_depth_session
     from handeye.report.files import write_results
-    from handeye.simulate.rig import camera_depth_scene, write_camera_depth_session
     sc = camera_depth_scene(10, "eye_in_hand", rng=4, robot_error=(0.01, 0.05), depth_size=(320, 240))
     folder = write_camera_depth_session(tmp_path / "s", sc, rng=4)
     (folder / "depth" / "v03.npy").unlink()  # a view the depth camera did not see
@@ -363,8 +363,8 @@ def test_a_depth_camera_seeing_a_ball_beside_a_camera_seeing_a_board():
     fixed in the cell (its depth scale fitted) beside a camera's board corners, one robot."""
     from handeye.frames.setups import predicted_target2cam
     from handeye.geometry.se3 import make_transform
+    from handeye.pipelines.rig.simulate import camera_depth_scene
     from handeye.sensors.depth.model import SphereCentres
-    from handeye.simulate.rig import camera_depth_scene
     sc = camera_depth_scene(12, "eye_in_hand", rng=6, robot_error=(0.01, 0.05), depth_size=(160, 120))
     rng = np.random.default_rng(6)
     ball = sc.Z @ make_transform(np.eye(3), [0.12, 0.075, -0.03])  # a ball beside the board, in the base frame
@@ -386,7 +386,7 @@ def test_a_depth_camera_seeing_a_ball_beside_a_camera_seeing_a_board():
 
 def test_each_sensors_notes_are_its_own_even_when_one_name_begins_another():
     """A rig's notes reach the sensors they name, matched whole: ``cam`` gets none of ``camera``'s."""
-    from handeye.pipelines.rig import _member_notes
+    from handeye.pipelines.rig.pipeline import _member_notes
     names = ["cam", "camera", "c2"]
     notes = ["sensor camera: the target found in 9 of 10 images", "sensor cam: no image for 1 of 10 views (v03): those views "
              "are not its", "camera2cam: the sensors' relative pose known to 0.01 deg / 0.05 mm", "sensor c2 skipped: 2 views",
@@ -449,7 +449,7 @@ def test_a_rigs_every_sensor_on_the_terminal_with_readable_names(stereo_rig, tmp
 
     from handeye import load_result
     from handeye.cli._printing import print_calibration
-    from handeye.pipelines.rig import rig_members
+    from handeye.pipelines.rig.pipeline import rig_members
     from handeye.report import write_results
 
     cal = stereo_rig.joint

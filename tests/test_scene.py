@@ -1,5 +1,5 @@
 """Whatever a depth camera sees as the target (issue 79): the views' clouds registered with X, no
-board, no mesh, no guess (handeye.sensors.depth.scene, scene_start, handeye.pipelines.scene)."""
+board, no mesh, no guess (handeye.sensors.depth.scene, scene_start, handeye.pipelines.depth.scene)."""
 
 from __future__ import annotations
 
@@ -18,10 +18,11 @@ from handeye.errors import InputMismatchError, SessionError
 from handeye.estimation.core import estimate
 from handeye.frames.metrics import rotation_error, translation_error, within_std
 from handeye.geometry.se3 import make_transform, perturb
-from handeye.io.depth_session import load_depth_session
 from handeye.io.session import write_pose_table
+from handeye.pipelines.depth.scene import register_scene
+from handeye.pipelines.depth.session import load_depth_session
+from handeye.pipelines.depth.simulate_scene import scene_capture, write_scene_session
 from handeye.pipelines.folders import calibrate_folder
-from handeye.pipelines.scene import register_scene
 from handeye.robot.models import ControllerPoses
 from handeye.sensors.depth.scene import (
     SceneSurface,
@@ -33,7 +34,6 @@ from handeye.sensors.depth.scene import (
 )
 from handeye.sensors.depth.scene_start import centroid_start
 from handeye.sensors.depth.shape import free_twists
-from handeye.simulate.scene import scene_capture, write_scene_session
 
 
 def _camera(position, aim=(0.0, 0.0, 0.0)) -> np.ndarray:

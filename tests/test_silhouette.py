@@ -21,12 +21,12 @@ from handeye.errors import SessionError
 from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import perturb
 from handeye.io.importers import import_easyhec
-from handeye.io.silhouette_session import load_silhouette_session, read_masks
-from handeye.pipelines.silhouette import arm_views, global_start, outline_rounds, pairing_notes
+from handeye.pipelines.silhouette.pipeline import arm_views, global_start, outline_rounds, pairing_notes
+from handeye.pipelines.silhouette.session import load_silhouette_session, read_masks
+from handeye.pipelines.silhouette.simulate import silhouette_scene, write_silhouette_session
 from handeye.robot.meshes import arm_meshes
 from handeye.sensors.silhouette.model import SilhouetteContours
 from handeye.sensors.silhouette.render import bilinear, iou, project, render_silhouettes, signed_distance
-from handeye.simulate.silhouette import silhouette_scene, write_silhouette_session
 
 pytest.importorskip("rtbdata", reason="the Panda's meshes come from rtb-data (pip install 'handeye[markerless]')")
 

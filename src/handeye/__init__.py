@@ -50,9 +50,9 @@ MOVED = {f"handeye.{old}": tuple(f"handeye.{n}" for n in new) for old, new in {
     **{f"vision.targets.{m}": (f"sensors.camera.targets.{m}",) for m in
        ("base", "chessboard", "charuco", "circles", "modified_circles", "apriltag", "aruco_grid")},
     "printing": ("sensors.camera.printing",),
-    "depth": ("sensors.depth", "pipelines.depth", "io.depth_session"),
+    "depth": ("sensors.depth", "pipelines.depth.pipeline", "pipelines.depth.session"),
     "depth.clouds": ("sensors.depth.clouds",), "depth.spheres": ("sensors.depth.spheres",),
-    "depth.fit": ("pipelines.depth",), "depth.session": ("pipelines.depth", "io.depth_session"),
+    "depth.fit": ("pipelines.depth.pipeline",), "depth.session": ("pipelines.depth.pipeline", "pipelines.depth.session"),
     "diagnostics": ("estimation.diagnostics",), "validation": ("estimation.validation",),
     "estimators": ("estimation.estimators",), "partial": ("estimation.partial",), "verdict": ("estimation.verdict",),
     "sync": ("estimation.sync",), "session": ("io.session",), "importers": ("io.importers",),
@@ -62,8 +62,32 @@ MOVED = {f"handeye.{old}": tuple(f"handeye.{n}" for n in new) for old, new in {
     "study": ("workflows.study",),
     # refine_kinematic is gone: joint angles are the estimation core's robot model (robot.models.JointAngles)
     "solvers.kinematic": ("robot.models", "estimation.core"),
+    # a sensor kind is two folders (sensors/<kind>/ and pipelines/<kind>/): its session reader, simulator
+    # and planner left io/, simulate/ and planning/
+    **{f"io.{kind}_session": (f"pipelines.{kind}.session",) for kind in ("depth", "laser", "linescan", "rig", "silhouette")},
+    **{f"simulate.{kind}": (f"pipelines.{kind}.simulate",) for kind in ("laser", "linescan", "rig", "silhouette")},
+    "simulate.depth": ("pipelines.depth.simulate_board",), "simulate.mesh": ("pipelines.depth.simulate_mesh",),
+    "simulate.arm_depth": ("pipelines.depth.simulate_arm",),
+    "simulate.scene": ("pipelines.depth.simulate_scene",),
+    "pipelines.mesh": ("pipelines.depth.mesh",), "pipelines.arm_depth": ("pipelines.depth.arm",),
+    "pipelines.scene": ("pipelines.depth.scene",),
+    "planning.laser": ("pipelines.laser.plan",), "planning.linescan": ("pipelines.linescan.plan",),
 }.items()}
-install_moved(MOVED)
+#: Names that left a package that stays (package -> {name: the module that holds it now}); a kind's
+#: folder that was its pipeline's module (``handeye.pipelines.laser``) forwards every name of it ("*").
+MOVED_NAMES = {
+    "handeye.simulate": {
+        **dict.fromkeys(("DepthScene", "SphereScene", "depth_scene", "sphere_scene", "write_depth_session"),
+                        "handeye.pipelines.depth.simulate_board"),
+        **dict.fromkeys(("MeshScene", "flange_mesh", "mesh_scene", "write_mesh_session"), "handeye.pipelines.depth.simulate_mesh"),
+        **dict.fromkeys(("LaserScene", "laser_scene", "write_laser_session"), "handeye.pipelines.laser.simulate")},
+    "handeye.planning": {**dict.fromkeys(("LaserPlan", "plan_laser"), "handeye.pipelines.laser.plan"),
+                         **dict.fromkeys(("LineScanPlan", "plan_linescan"), "handeye.pipelines.linescan.plan")},
+    "handeye.io.extras": dict.fromkeys(("session_extras", "missing_extras", "check_extras"), "handeye.pipelines.folders"),
+    **{f"handeye.pipelines.{kind}": {"*": f"handeye.pipelines.{kind}.pipeline"}
+       for kind in ("depth", "laser", "linescan", "rig", "silhouette")},
+}
+install_moved(MOVED, MOVED_NAMES)
 
 if TYPE_CHECKING:  # what the names are, for type checkers and editors
     from . import estimation, frames, io, pipelines, planning, report, robot, sensors, simulate, solvers, workflows

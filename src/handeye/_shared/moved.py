@@ -3,6 +3,11 @@
 ``import handeye.pipelines.calibration`` (and ``from handeye.pipelines.calibration import calibrate``) finds a stand-in
 module whose names are looked up, on first use, in the modules that now hold them; the warning says
 where to import from instead. Nothing is copied: the stand-in forwards every name.
+
+A package that stays but whose names moved (``from handeye.simulate import laser_scene``, the laser's
+simulator now in its kind's folder; ``handeye.pipelines.laser``, once a module, now the laser's folder)
+forwards them the same way: its ``__getattr__`` is :func:`forward_names`, and the table of what went
+where is :func:`install`'s ``names``.
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ import types
 import warnings
 from typing import Any
 
-__all__ = ["install", "moved_module"]
+__all__ = ["install", "moved_module", "forward_names"]
 
 
 class _Forward(types.ModuleType):
@@ -62,7 +67,32 @@ class _Finder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         pass
 
 
-def install(table: dict[str, tuple[str, ...]]) -> None:
-    """Make the old paths of ``table`` (old name -> the modules that now hold its names) importable."""
+#: Per package that stays, the names that left it and the module that holds each now (``install``'s ``names``).
+_MOVED_NAMES: dict[str, dict[str, str]] = {}
+
+
+def install(table: dict[str, tuple[str, ...]], names: dict[str, dict[str, str]] | None = None) -> None:
+    """Make the old paths of ``table`` (old name -> the modules that now hold its names) importable,
+    and the names of ``names`` (package -> {name: the module that now holds it}) found from the
+    packages they left (each package's ``__getattr__`` is :func:`forward_names`)."""
+    _MOVED_NAMES.update(names or {})
     if not any(isinstance(f, _Finder) for f in sys.meta_path):
         sys.meta_path.insert(0, _Finder(table))
+
+
+def forward_names(package: str):
+    """A module ``__getattr__`` for ``package``: a name that moved out of it comes from its new module,
+    with a DeprecationWarning naming that module; any other missing name is an AttributeError."""
+
+    def __getattr__(name: str) -> Any:
+        moved = _MOVED_NAMES.get(package, {})
+        target = moved.get(name)
+        if target is None and "*" in moved and not name.startswith("__") and hasattr(importlib.import_module(moved["*"]), name):
+            target = moved["*"]  # a module that became a folder: every name of the module it became
+        if target is None:
+            raise AttributeError(f"module {package!r} has no attribute {name!r}")
+        warnings.warn(f"{package}.{name} has moved: import it from {target} (the old path goes in the next release)",
+                      DeprecationWarning, stacklevel=2)
+        return getattr(importlib.import_module(target), name)
+
+    return __getattr__

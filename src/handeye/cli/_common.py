@@ -22,6 +22,7 @@ from ..geometry.se3 import make_transform
 from ..io.session import load_yaml, read_intrinsics
 from ..options import KEYFRAMES, PAIRS, REFINES, ROBOT_ACCURACY, CalibrationOptions
 from ..pipelines.calibration import certify_calibration
+from ..pipelines.kinds import SensorKind, kinds_of_target, sensor_kinds
 from ..result import Calibration
 from ..robot.kinematics import arm_names
 from ..sensors.camera.targets import target_from_spec
@@ -32,7 +33,6 @@ from ._printing import print_calibration
 _report = lazy_module("handeye.report")
 _report_files = lazy_module("handeye.report.files")
 _simulate = lazy_module("handeye.simulate")
-_simulate_laser = lazy_module("handeye.simulate.laser")
 
 EXAMPLE_POSEPAIRS = "example_posepairs"
 
@@ -110,15 +110,16 @@ def load_camera(path: str) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
         raise HandEyeError(f"--intrinsics {exc}") from None
 
 
-def placements(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray]:
-    """Rough X and Z from --cam-in-flange / --target-in-base (eye-in-hand) or --camera-in-base /
+def placements(args: argparse.Namespace, target_rotation: Sequence[float] = (180.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    """Rough X and Z from --cam-in-flange / --target-in-base (eye-in-hand; ``target_rotation``: the
+    target's rotation vector, deg, when --target-in-base gives none) or --camera-in-base /
     --target-in-flange (eye-to-hand)."""
     if setup_info(args.setup).camera_on_flange:
         if args.camera_in_base or args.target_in_flange:
             raise HandEyeError("--camera-in-base and --target-in-flange are for eye_to_hand; eye_in_hand takes "
                                "--target-in-base and --cam-in-flange")
         return (pose_arg(args.cam_in_flange, "--cam-in-flange"),
-                pose_arg(args.target_in_base, "--target-in-base", (180.0, 0.0, 0.0), required=True))
+                pose_arg(args.target_in_base, "--target-in-base", tuple(target_rotation), required=True))
     if args.target_in_base or args.cam_in_flange:
         raise HandEyeError("--target-in-base and --cam-in-flange are for eye_in_hand; eye_to_hand takes "
                            "--camera-in-base and --target-in-flange")
@@ -126,20 +127,48 @@ def placements(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray]:
             pose_arg(args.target_in_flange, "--target-in-flange", (180.0, 0.0, 0.0)))
 
 
-def sensor_target(sensor: str, target: str | None, board: str) -> str:
-    """--target for --sensor: a laser line profiler's target (sphere, the default; plane, edge, ...), a camera's board
-    (default ``board``); the other kind's target is a clear error (simulate and plan)."""
-    if sensor == "laser_line":
-        target = target or "sphere"
-        if target not in _simulate_laser.TARGETS:
-            raise InputMismatchError(f"--target {target} is a board for cameras; a laser line profiler scans one of "
-                                     f"{', '.join(_simulate_laser.TARGETS)} (--target sphere is the default)")
-        return target
+def board_target(target: str | None, board: str) -> str:
+    """--target for a camera: a board (default ``board``); another kind's target (a laser's plane) is a
+    clear error that names the --sensor it needs (simulate and plan)."""
     target = target or board
-    if target in _simulate_laser.TARGETS:
-        raise InputMismatchError(f"--target {target} is a laser profiler's target: add --sensor laser_line, or give a "
-                                 f"board ({', '.join(_simulate.DEFAULT_TARGETS)})")
+    others = kinds_of_target(target)
+    if others:
+        raise InputMismatchError(f"--target {target} is a {' or a '.join(k.display for k in others)}'s target: add "
+                                 f"{' or '.join('--sensor ' + k.cli for k in others)}, or give a board "
+                                 f"({', '.join(_simulate.DEFAULT_TARGETS)})")
     return target
+
+
+def target_choices(boards: Sequence[str], command: str) -> list[str]:
+    """--target's choices: the boards, then every kind's own targets that ``command`` (``simulate``,
+    ``plan``) takes for it."""
+    return list(dict.fromkeys(list(boards) + [t for k in sensor_kinds() if getattr(k, command) for t in k.targets]))
+
+
+def add_kind_options(p: argparse.ArgumentParser, command: str) -> None:
+    """Every registered kind's own options of ``command`` (its registration's ``options``)."""
+    for kind in sensor_kinds():
+        for option in kind.options_of(command):
+            settings: dict = {"help": f"--sensor {kind.cli}: {option.help}"}
+            if option.type == "flag":
+                settings["action"] = "store_true"
+            else:
+                settings["default"] = None
+                settings["type"] = {"number": number_arg(option.low, option.high, option.above), "whole": whole_arg(int(option.low)),
+                                    "text": str}[option.type]
+            if option.metavar:
+                settings["metavar"] = option.metavar
+            p.add_argument(option.flag, **settings)
+
+
+def kind_options(args: argparse.Namespace, command: str, kind: SensorKind | None) -> dict:
+    """The options of ``kind`` (None: the camera) given to ``command``, by name; another kind's option
+    given is an error that names its --sensor."""
+    for other in sensor_kinds():
+        for option in other.options_of(command):
+            if other is not kind and getattr(args, option.dest) not in (None, False):
+                raise InputMismatchError(f"{option.flag} is a {other.display}'s: add --sensor {other.cli}, or leave it out")
+    return {option.dest: getattr(args, option.dest) for option in (kind.options_of(command) if kind else ())}
 
 
 def add_placements(p: argparse.ArgumentParser) -> None:
@@ -223,8 +252,8 @@ def export_arg(text: str) -> str:
 def add_out_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--out", help="write result.json, result.yaml and report.html into this folder")
     p.add_argument("--parent-frame", help="ROS frame X is given in (default: tool0 for eye_in_hand, base_link for eye_to_hand)")
-    p.add_argument("--child-frame", help="ROS frame of the camera (default: camera_optical_frame; a laser profiler's: "
-                   "laser_profiler_optical_frame)")
+    own = "; ".join(f"a {k.display}'s: {k.frame}" for k in sensor_kinds() if k.frame)
+    p.add_argument("--child-frame", help=f"ROS frame of the camera (default: camera_optical_frame; {own})")
     p.add_argument("--export", action="append", default=[], type=export_arg, metavar="NAME",
                    help="with --out, also write: ros2-launch (a ROS 2 launch file publishing X), ros1-launch (the "
                    "ROS 1 launch file MoveIt Calibration writes), easy-handeye (easy_handeye2's .calib); repeat or all")

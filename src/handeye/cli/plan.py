@@ -15,10 +15,8 @@ from ..frames.setups import SETUPS, predicted_target2cam, setup_info
 from ..io.session import SESSION_FILE, load_yaml, write_pose_table
 from ..options import ROBOT_ACCURACY, CalibrationOptions
 from ..pipelines.folders import calibrate_session
+from ..pipelines.kinds import PlanRequest, SensorKind, kind_named, sensor_kinds
 from ..planning.joints import suggest_joint_views
-from ..planning.laser import NARROW_DEG, assumed_shape, plan_laser
-from ..planning.linescan import NARROW_DEG as LINESCAN_NARROW_DEG
-from ..planning.linescan import plan_linescan
 from ..planning.poses import (
     ROBOTS,
     easy_handeye_poses,
@@ -33,17 +31,19 @@ from ..planning.poses import (
 from ..planning.rig import RigPlanCamera, plan_rig
 from ..sensors.camera.targets import target_from_spec
 from ..simulate import DEFAULT_TARGETS
-from ..simulate.laser import TARGETS as LASER_TARGETS
 from ._common import (
     accuracy_arg,
+    add_kind_options,
     add_placements,
+    board_target,
     floats_arg,
+    kind_options,
     load_camera,
     number_arg,
     out_folder,
     placements,
     pose_arg,
-    sensor_target,
+    target_choices,
     target_spec_arg,
     whole_arg,
 )
@@ -95,81 +95,34 @@ def _check_pose_format(args: argparse.Namespace) -> None:
         raise HandEyeError("--length-unit must be m or mm, --angle-unit deg or rad")
 
 
-def _plan_laser(args: argparse.Namespace) -> int:
-    """--sensor laser_line: flange poses around a ball (over a plate, across an edge or a step, around a
-    fixture's balls) for a laser profiler, and the std they would give, beside the same number of
-    profiles turned at most NARROW_DEG."""
-    given = [name for name, value in (("--intrinsics", args.intrinsics), ("--standoff", args.standoff),
-                                      ("--target-spec", args.target_spec), ("--session", args.session)) if value]
+#: The options of a camera's plan, by flag and name in the parsed arguments: another kind's plan takes
+#: those its registration names (``plan_takes``), and refuses the others given.
+_CAMERA_OPTIONS = (("--intrinsics", "intrinsics"), ("--target-spec", "target_spec"), ("--standoff", "standoff"),
+                   ("--session", "session"), ("--rig-camera", "rig_camera"), ("--reach-box", "reach_box"),
+                   ("--z-range", "z_range"), ("--check-runs", "check_runs"))
+
+
+def _plan_kind(args: argparse.Namespace, kind: SensorKind) -> int:
+    """--sensor of another kind than the camera: its registration's ``plan`` hook, its poses written
+    as the poses.csv to capture and X's predicted std printed."""
+    given = [flag for flag, name in _CAMERA_OPTIONS if getattr(args, name) and flag not in kind.plan_takes]
+    given += [f"--robot {args.robot}"] if args.robot != "arm" else []
     if given:
-        raise HandEyeError(f"{', '.join(given)}: a camera's; plan --sensor laser_line takes the profiler's placement "
-                           f"(--cam-in-flange or --camera-in-base), the target's and --target {'|'.join(LASER_TARGETS)}")
-    target = sensor_target(args.sensor, args.target, "chessboard")
-    if target != "sphere" and args.diameter is not None:
-        raise HandEyeError(f"--diameter is a ball's; --target {target} has none"
-                           + (" (the plan's fixture is the simulator's: see its output)" if target == "spheres" else "")
-                           + ": leave it out")
-    diameter = 0.04 if args.diameter is None else args.diameter
+        raise HandEyeError(f"{', '.join(given)}: a camera's; plan --sensor {kind.cli} takes {kind.plan_usage}")
+    options = kind_options(args, "plan", kind)
+    if args.target is not None and args.target not in kind.targets:
+        board_target(args.target, "chessboard")  # another kind's target: named
     _check_pose_format(args)
-    if setup_info(args.setup).camera_on_flange and not args.camera_in_base and not args.target_in_flange:
-        # the target's +z is the side the profiler looks from: a ball on a table is seen from above
-        X = pose_arg(args.cam_in_flange, "--cam-in-flange")
-        Z = pose_arg(args.target_in_base, "--target-in-base", (0.0, 0.0, 0.0), required=True)
-    else:
-        X, Z = placements(args)
+    X, Z = placements(args, kind.plan_target_rotation)
     out = _new_file(args.out)
     out_folder(str(out.parent))
-    plan = plan_laser(args.setup, X, Z, n_poses=args.poses or 20, target=target, radius=diameter / 2,
-                      robot_accuracy=accuracy_arg(args.robot_accuracy), rng=args.seed)
-    names = [f"p{k + 1:02d}.csv" for k in range(len(plan.flange2base))]
-    write_pose_table(out, names, plan.flange2base, args.format, args.length_unit, args.angle_unit, id_column="profile")
-    axis = "its faces' bisector" if target == "edge" else "the target frame's +z"
-    print(f"{len(plan.flange2base)} profiles of {assumed_shape(target)}, the profiler within {plan.cone_deg:g} deg of "
-          f"{axis}, turned about its view direction, in path order:")
-    _print_plan("profile", names, plan.flange2base, plan, "which no capture removes", "profiles",
-                f"the same number of profiles with the flange turned at most {NARROW_DEG:g} deg",
-                "X is not determined (profiles at nearly one orientation only slide along a plate, an edge or a step)",
-                " (turns between profiles place X's translation; " + _LEVER[target] + ")")
-    print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): flange2base per profile; it is the "
-          "poses.csv of the laser session to capture (replace each row by the pose the robot reports)")
-    return 0
-
-
-def _plan_linescan(args: argparse.Namespace) -> int:
-    """--sensor line_scan: straight scans across a chessboard for a line-scan camera, and the std they
-    would give, beside the same number of scans at one distance turned at most LINESCAN_NARROW_DEG."""
-    given = [name for name, value in (("--intrinsics", args.intrinsics), ("--session", args.session),
-                                      ("--rig-camera", args.rig_camera), ("--diameter", args.diameter),
-                                      ("--reach-box", args.reach_box), ("--z-range", args.z_range)) if value]
-    if given or args.robot != "arm":
-        raise HandEyeError(f"{', '.join(given) or '--robot ' + args.robot}: not for a line-scan plan; it takes the camera "
-                           "(--line-camera WIDTH,FOCAL), its placement (--cam-in-flange or --camera-in-base), the target's, "
-                           "--target or --target-spec, --standoff and --speed")
-    spec = target_spec_arg(args.target_spec)
-    points = None
-    if spec is not None or args.target is not None:  # else the simulator's chessboard
-        points = target_from_spec(spec or DEFAULT_TARGETS[sensor_target("camera", args.target, "chessboard")]).object_points()
-    camera = floats_arg(args.line_camera, "--line-camera", (2,))
-    width, focal = (None, None) if camera is None else (int(camera[0]), float(camera[1]))
-    _check_pose_format(args)
-    X, Z = placements(args)
-    out = _new_file(args.out)
-    out_folder(str(out.parent))
-    plan = plan_linescan(args.setup, X, Z, n_scans=args.poses or 12, points=points, focal=focal, width=width,
-                         distance=args.standoff or 0.4, speed=args.speed, noise_px=args.noise_px,
-                         robot_accuracy=accuracy_arg(args.robot_accuracy), rng=args.seed)
-    names = [f"s{k + 1:02d}.{end}" for k in range(len(plan.moves)) for end in ("start", "end")]
-    write_pose_table(out, names, plan.moves.reshape(-1, 4, 4), args.format, args.length_unit, args.angle_unit,
-                     id_column="scan")
-    print(f"{len(plan.moves)} straight scans across the board at {plan.speed:g} m/s, forth and back in turn, the camera "
-          f"within {plan.cone_deg:g} deg of the board's normal at {0.75 * plan.distance:.2f}-{1.25 * plan.distance:.2f} m "
-          f"(line rate {plan.line_rate:.0f} rows/s for square pixels); each scan's start and end:")
-    _print_plan("scan", names, plan.moves.reshape(-1, 4, 4), plan, "each scan's pose error fitted with it", "scans",
-                f"the same number of scans at one distance, turned at most {LINESCAN_NARROW_DEG:g} deg",
-                "X is not determined", " (turns between scans place X; distances tell the focal length from the distance)")
-    print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): per scan the flange's pose where its "
-          "straight move starts and where it ends; record the robot's trajectory (with times) and each scan's start time "
-          "for the line-scan session (docs/guide.md, 'Line-scan cameras')")
+    plan = kind.hook("plan")(PlanRequest(args.setup, X, Z, args.poses, args.seed, args.target, target_spec_arg(args.target_spec),
+                                         args.standoff, args.noise_px, accuracy_arg(args.robot_accuracy), options))
+    write_pose_table(out, plan.names, plan.flange2base, args.format, args.length_unit, args.angle_unit, id_column=plan.id_column)
+    print(plan.heading)
+    _print_plan(plan.label, plan.names, plan.flange2base, plan.plan, plan.accuracy, plan.per, plan.narrow, plan.undetermined,
+                plan.why)
+    print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): {plan.written}")
     return 0
 
 
@@ -189,14 +142,6 @@ def _print_plan(label: str, names: list[str], flange2base: np.ndarray, plan, acc
     print(f"  from the {per} alone: rotation {fmt_vec(d[:3], 5)} deg, translation {fmt_vec(d[3:], 4)} mm")
     print(f"  {narrow}: " + (f"rotation {fmt_vec(n[:3], 5)} deg, translation {fmt_vec(n[3:], 4)} mm"
                              if np.all(np.isfinite(n)) else undetermined) + why)
-
-
-#: What places X's rotation, per laser target (the plan's last line).
-_LEVER = {"sphere": "the ball's centre across the laser plane, its rotation",
-          "spheres": "the balls' centres across the laser plane, its rotation",
-          "plane": "the plate's tilt in each profile, its rotation",
-          "edge": "the faces' tilts and the edge's crossing point in each profile, its rotation",
-          "step": "the levels' tilt and the riser's crossing point in each profile, its rotation"}
 
 
 def _rig_cameras(args: argparse.Namespace, K: np.ndarray, dist: np.ndarray, size: tuple[int, int]) -> list[RigPlanCamera]:
@@ -248,19 +193,12 @@ def _plan_rig(args: argparse.Namespace, obj: np.ndarray, K: np.ndarray, dist: np
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
-    if args.sensor == "line_scan":
-        return _plan_linescan(args)
-    if args.line_camera is not None:
-        raise HandEyeError("--line-camera is a line-scan camera's: add --sensor line_scan, or leave it out")
-    if args.sensor == "laser_line":
-        if args.rig_camera:
-            raise HandEyeError("--rig-camera plans for a rig of cameras; leave it out with --sensor laser_line")
-        return _plan_laser(args)
-    if args.diameter is not None:
-        raise HandEyeError("--diameter is a laser target's (a ball's): add --sensor laser_line, or leave it out")
+    if args.sensor != "camera":
+        return _plan_kind(args, kind_named(args.sensor))
+    kind_options(args, "plan", None)  # another kind's options: refused, naming its --sensor
     if args.session:
         return _plan_next_views(args)
-    args.target = sensor_target(args.sensor, args.target, "chessboard")
+    args.target = board_target(args.target, "chessboard")
     if args.intrinsics is None or args.standoff is None:
         raise HandEyeError("plan needs --intrinsics and --standoff for a new capture (or --session SESSION for the next "
                            "views of a joint session)")
@@ -360,26 +298,19 @@ def register(sub) -> None:
     p.add_argument("--setup", default="eye_in_hand", choices=list(SETUPS))
     p.add_argument("--intrinsics",
                    help="YAML with K, dist (optional) and image_size [width, height], top level or under camera:")
-    p.add_argument("--sensor", default="camera", choices=["camera", "laser_line", "line_scan"],
-                   help="camera (default): views of a board; laser_line: a laser line profiler's profiles of a ball "
-                   "(--diameter), a plate, a block's edge, a step or a fixture of balls (--target); --target-in-base "
-                   "is then the ball's centre (a point of the plate, of the edge's line, the first ball's centre), its "
-                   "rotation by default 0,0,0: the profiler looks from above; line_scan: a line-scan camera's straight "
-                   "scans across a chessboard (--line-camera, --standoff, --speed)")
-    p.add_argument("--line-camera", metavar="WIDTH,FOCAL",
-                   help="--sensor line_scan: pixels along the line and the focal length in pixels (default 2048,2400)")
-    p.add_argument("--speed", type=number_arg(0.0, above=True), default=0.2,
-                   help="--sensor line_scan: the scans' speed (m/s, default 0.2)")
-    p.add_argument("--target", default=None, choices=list(DEFAULT_TARGETS) + list(LASER_TARGETS),
+    kinds = [k for k in sensor_kinds() if k.plan]
+    p.add_argument("--sensor", default="camera", choices=["camera"] + [k.cli for k in kinds],
+                   help="camera (default): views of a board; " + "; ".join(f"{k.cli}: {k.plan_help}" for k in kinds))
+    add_kind_options(p, "plan")
+    own = "; ".join(f"with --sensor {k.cli}: {', '.join(k.targets)} ({k.targets[0]} the default)" for k in kinds if k.targets)
+    p.add_argument("--target", default=None, choices=target_choices(DEFAULT_TARGETS, "plan"),
                    help="built-in target (the one 'handeye simulate' renders; default chessboard); see --target-spec; "
-                   "with --sensor laser_line: sphere (default), plane, edge, step or spheres")
-    p.add_argument("--diameter", type=number_arg(0.0, 1.0, above=True), default=None,
-                   help="--sensor laser_line: the ball's diameter (m, default 0.04)")
+                   + own)
     p.add_argument("--target-spec", help="YAML with a target: mapping as in session.yaml (e.g. your session.yaml)")
     add_placements(p)
     p.add_argument("--standoff", type=number_arg(0.0, above=True),
                    help="camera-to-target distance (m) of the middle views; the plan spreads them over 0.8-1.25x it "
-                   "(--sensor line_scan: 0.75-1.25x, default 0.4)")
+                   "(another --sensor's plan says its own spread, if it takes it)")
     p.add_argument("--tilt-max", type=number_arg(0.0, 89.0), default=45.0,
                    help="largest view angle from the target normal (deg, default 45)")
     p.add_argument("--margin-px", type=number_arg(0.0), default=20.0, help="keep every target point this far inside the image")

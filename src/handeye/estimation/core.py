@@ -52,7 +52,7 @@ Examples
 >>> from handeye.estimation.core import estimate
 >>> from handeye.robot.models import ControllerPoses
 >>> from handeye.sensors.depth.model import SphereCentres
->>> from handeye.simulate import sphere_scene
+>>> from handeye.pipelines.depth.simulate_board import sphere_scene
 >>> scene = sphere_scene(12, "eye_to_hand", rng=1)
 >>> centres = scene.target2cam[:, :3, 3]                  # the ball's centre in each view (exact here)
 >>> model = SphereCentres("eye_to_hand", [f"v{i}" for i in range(12)], centres, fit_depth=False)

@@ -16,7 +16,7 @@ Examples
 >>> from handeye.frames.poses import RobotPoseInput, format_poses
 >>> from handeye.robot.models import ControllerPoses
 >>> from handeye.sensors.depth.model import SphereCentres
->>> from handeye.simulate import sphere_scene
+>>> from handeye.pipelines.depth.simulate_board import sphere_scene
 >>> scene = sphere_scene(12, "eye_to_hand", rng=1)
 >>> rows = format_poses(scene.flange2base, "quat_xyzw", "mm")
 >>> declared = RobotPoseInput(rows, "quat_wxyz", "mm")       # the columns' order declared wrong

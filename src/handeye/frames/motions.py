@@ -27,7 +27,7 @@ from .poses import validate_transforms
 from .setups import check_setup, robot_world_A, robot_world_A_inv, robot_world_dq
 
 __all__ = ["relative_motions", "pair_indices", "screw_congruence", "motion_matrices", "validate_poses", "MotionSet",
-           "Pairs"]
+           "Pairs", "order_path"]
 
 Pairs = Union[Literal["all", "auto", "consecutive"], ArrayLike]
 
@@ -375,3 +375,36 @@ def screw_congruence(A: "ArrayLike | MotionSet", B: ArrayLike | None = None) -> 
         _, _, theta_a, d_a = screw_parameters(A)
         _, _, theta_b, d_b = screw_parameters(B)
     return np.abs(theta_a - theta_b), np.abs(d_a - d_b)
+
+
+def order_path(flange2base: NDArray[np.float64], metres_per_rad: float = 0.25) -> NDArray[np.intp]:
+    """An order of the poses that shortens the robot path: cost = distance + ``metres_per_rad`` x
+    rotation angle; nearest neighbour from the first pose, then 2-opt."""
+    n = len(flange2base)
+    if n < 3:
+        return np.arange(n)
+    t = flange2base[:, :3, 3]
+    R = flange2base[:, :3, :3]
+    dpos = np.linalg.norm(t[:, None] - t[None], axis=2)
+    cos = np.clip((np.einsum("aji,bji->ab", R, R) - 1) / 2, -1, 1)
+    cost = dpos + metres_per_rad * np.arccos(cos)
+    order = [0]
+    left = set(range(1, n))
+    while left:
+        k = min(left, key=lambda j: cost[order[-1], j])
+        order.append(k)
+        left.remove(k)
+    improved = True
+    while improved:
+        improved = False
+        for i in range(1, n - 1):
+            for j in range(i + 1, n):
+                a, b = order[i - 1], order[i]
+                c = order[j]
+                d = order[j + 1] if j + 1 < n else None
+                before = cost[a, b] + (cost[c, d] if d is not None else 0.0)
+                after = cost[a, c] + (cost[b, d] if d is not None else 0.0)
+                if after < before - 1e-12:
+                    order[i:j + 1] = order[i:j + 1][::-1]
+                    improved = True
+    return np.array(order)

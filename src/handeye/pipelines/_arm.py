@@ -1,5 +1,5 @@
-"""What the markerless pipelines share (the arm itself the target: :mod:`handeye.pipelines.arm_depth`,
-:mod:`handeye.pipelines.silhouette`): the arm's table in X's std.
+"""What the markerless pipelines share (the arm itself the target: :mod:`handeye.pipelines.depth.arm`,
+:mod:`handeye.pipelines.silhouette.pipeline`): the arm's table in X's std.
 
 The links a markerless camera is fitted to are placed by the joint angles through the arm's table,
 taken as nominal. A real arm's table is off by its tolerances, which moves every link, and X takes

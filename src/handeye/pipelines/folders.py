@@ -17,23 +17,20 @@ from .._shared.lazy import lazy_module
 from ..errors import DegenerateMotionError, HandEyeError
 from ..estimation.validation import default_folds
 from ..estimation.verdict import exit_status
-from ..io.extras import check_extras
+from ..io.extras import arm_extras, missing, refuse_missing
 from ..io.session import POSEPAIRS_FILE, SESSION_FILE, PosePairs, load_pose_pairs, load_session, load_yaml
 from ..options import CalibrationOptions, options_from
 from ..result import Calibration, Diagnostics
 from .calibration import calibrate, calibrate_poses
+from .kinds import session_kind
 
-# Each kind of session's pipeline, loaded when a session of that kind comes: a camera's session does
-# not pay for the depth, laser, line-scan, silhouette and rig pipelines' imports.
-_depth = lazy_module("handeye.pipelines.depth")
+# The pipelines of joint angles and of streams, loaded when such a folder comes (a kind of sensor's
+# pipeline loads through its registration's hook, when a session of that kind comes).
 _joints = lazy_module("handeye.pipelines.joints")
-_laser = lazy_module("handeye.pipelines.laser")
-_linescan = lazy_module("handeye.pipelines.linescan")
-_rig = lazy_module("handeye.pipelines.rig")
-_silhouette = lazy_module("handeye.pipelines.silhouette")
 _streams = lazy_module("handeye.pipelines.streams")
 
-__all__ = ["FolderCheck", "calibrate_folder", "calibrate_pairs", "calibrate_session", "check_folder"]
+__all__ = ["FolderCheck", "calibrate_folder", "calibrate_pairs", "calibrate_session", "check_folder", "session_extras",
+           "missing_extras", "check_extras"]
 
 
 def calibrate_folder(folder: str | Path, options: CalibrationOptions | None = None, *, jobs: int | None = None,
@@ -63,25 +60,16 @@ def calibrate_session(folder: str | Path, options: CalibrationOptions | None = N
                       progress: bool = True, **changes) -> Calibration:
     """:func:`handeye.calibrate` on a capture session of images; when its ``session.yaml`` has a
     ``joints:`` table, :func:`handeye.pipelines.joints.calibrate_joint_session` (the arm's table
-    fitted with X); a depth camera's session (``depth:``), :func:`handeye.pipelines.depth.calibrate_depth_session`;
-    a laser line profiler's (``laser:``), :func:`handeye.pipelines.laser.calibrate_laser_session`; a line-scan
-    camera's (``linescan:``), :func:`handeye.pipelines.linescan.calibrate_linescan_session`; a fixed colour camera's
-    that sees the arm (``silhouette:``), :func:`handeye.pipelines.silhouette.calibrate_silhouette_session`; a rig's (``sensors:``),
-    :func:`handeye.pipelines.rig.calibrate_rig_session`."""
+    fitted with X); a session of another kind of sensor (its section: ``depth:``, ``laser:``,
+    ``linescan:``, ``silhouette:``, a rig's ``sensors:``), that kind's pipeline
+    (:mod:`handeye.pipelines.kinds`: the ``calibrate`` hook of its registration)."""
     opts = options_from(options, changes)
     folder = Path(folder)
     check_extras(folder)  # every optional extra the session needs, named at once (a mesh and .ply clouds: mesh,depth)
     spec = _session_spec(folder)
-    if spec.get("depth") is not None:
-        return _depth.calibrate_depth_session(folder, opts, progress=progress, jobs=jobs)
-    if spec.get("laser") is not None:
-        return _laser.calibrate_laser_session(folder, opts, progress=progress)
-    if spec.get("linescan") is not None:
-        return _linescan.calibrate_linescan_session(folder, opts, progress=progress)
-    if spec.get("silhouette") is not None:
-        return _silhouette.calibrate_silhouette_session(folder, opts, progress=progress)
-    if spec.get("sensors") is not None:
-        return _rig.calibrate_rig_session(folder, opts, progress=progress)
+    kind = session_kind(spec)
+    if kind is not None:
+        return kind.hook("calibrate")(folder, opts, progress=progress, jobs=jobs)
     if opts.arm is not None or spec.get("joints") is not None:
         session = load_session(folder, strict_images=opts.strict_images, arm=opts.arm)
         return _joints.calibrate_joint_session(session, opts, jobs=jobs, progress=progress)
@@ -90,7 +78,7 @@ def calibrate_session(folder: str | Path, options: CalibrationOptions | None = N
 
 def _session_spec(folder: Path) -> dict:
     """The folder's session.yaml as a mapping, read once to tell the kinds of session apart (its
-    ``depth:``, ``laser:``, ... section, as io's is_depth_session and the others do); empty when there
+    ``depth:``, ``laser:``, ... section: :func:`handeye.pipelines.kinds.session_kind`); empty when there
     is none or it cannot be read (the session's reader then says why)."""
     if not (folder / SESSION_FILE).is_file():
         return {}
@@ -99,6 +87,48 @@ def _session_spec(folder: Path) -> dict:
     except HandEyeError:
         return {}
     return spec if isinstance(spec, dict) else {}
+
+
+def session_extras(folder: str | Path) -> dict[str, dict[str, str]]:
+    """Per extra the modules the session in ``folder`` needs and why (in words), from its
+    session.yaml and the suffixes of the files it points at (its kind's ``extras`` hook, and a URDF
+    as the arm); empty when it needs none, or when its description cannot be read (its reader then
+    says why).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> _ = (folder / "session.yaml").write_text("depth: {unit: m}\\ntarget: {type: mesh, file: flange.stl, unit: mm}\\n")
+    >>> (folder / "clouds").mkdir(); _ = (folder / "clouds" / "v01.ply").write_bytes(b"")
+    >>> sorted(session_extras(folder))
+    ['depth', 'mesh']
+    """
+    folder = Path(folder)
+    spec = _session_spec(folder)
+    needs: dict[str, dict[str, str]] = {}
+    kind = session_kind(spec)
+    if kind is not None and kind.extras is not None:
+        kind.hook("extras")(spec, folder, needs)
+    arm_extras(spec.get("joints"), needs)
+    return needs
+
+
+def missing_extras(folder: str | Path) -> dict[str, dict[str, str]]:
+    """:func:`session_extras` of the modules that are not installed."""
+    return missing(session_extras(folder))
+
+
+def check_extras(folder: str | Path) -> None:
+    """Refuse, before anything is read, a session whose optional extras are not all installed,
+    naming every one in one ``pip install`` line (:func:`session_extras`).
+
+    Raises
+    ------
+    SessionError
+        What is missing, what of the session needs it, and the one command that installs it all.
+    """
+    refuse_missing(folder, missing_extras(folder))
 
 
 def calibrate_pairs(pairs: PosePairs, options: CalibrationOptions | None = None, *, progress: bool = True,

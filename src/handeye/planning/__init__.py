@@ -1,13 +1,13 @@
 """Planning what to capture: robot poses that determine X well for a camera (:mod:`~handeye.planning.poses`,
-``handeye plan``), a rig of cameras (:mod:`~handeye.planning.rig`), a laser line profiler
-(:mod:`~handeye.planning.laser`) or a line-scan camera (:mod:`~handeye.planning.linescan`), and the joint
-configurations that would determine what a joint fit left undetermined (:mod:`~handeye.planning.joints`)."""
+``handeye plan``) or a rig of cameras (:mod:`~handeye.planning.rig`), and the joint configurations that
+would determine what a joint fit left undetermined (:mod:`~handeye.planning.joints`). Another kind of
+sensor plans in its own folder (``pipelines/<kind>/plan.py``: a laser line profiler's, a line-scan
+camera's); their old names here still import, with a DeprecationWarning, for one release."""
 
 from __future__ import annotations
 
+from .._shared.moved import forward_names
 from .joints import TABLE_DOMINATES, JointViews, suggest_joint_views
-from .laser import LaserPlan, plan_laser
-from .linescan import LineScanPlan, plan_linescan
 from .poses import (
     ROBOTS,
     Plan,
@@ -27,5 +27,6 @@ from .rig import RigPlan, RigPlanCamera, plan_rig
 
 __all__ = ["Plan", "ROBOTS", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
            "visible_mask", "simulate_errors", "write_plan", "order_path", "candidate_views", "choose_next",
-           "JointViews", "suggest_joint_views", "TABLE_DOMINATES", "LaserPlan", "plan_laser", "RigPlan", "RigPlanCamera",
-           "plan_rig", "choose_views", "LineScanPlan", "plan_linescan"]
+           "JointViews", "suggest_joint_views", "TABLE_DOMINATES", "RigPlan", "RigPlanCamera", "plan_rig", "choose_views"]
+
+__getattr__ = forward_names(__name__)  # the laser's and the line-scan camera's planners, moved to their kinds' folders

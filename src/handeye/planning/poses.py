@@ -34,6 +34,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import HandEyeError
 from ..estimation.uncertainty import robot_accuracy_cov
 from ..frames.metrics import rotation_error, std_deg_mm, translation_error
+from ..frames.motions import order_path
 from ..frames.setups import check_setup, flange_poses, predicted_target2cam, robot_world_A_inv, setup_info
 from ..geometry.se3 import invert, make_transform, skew
 from ..io.session import write_pose_table
@@ -221,39 +222,6 @@ def choose_views(infos: NDArray[np.float64], n: int, weight: NDArray[np.float64]
         if not improved:
             break
     return chosen
-
-
-def order_path(flange2base: NDArray[np.float64], metres_per_rad: float = 0.25) -> NDArray[np.intp]:
-    """An order of the poses that shortens the robot path: cost = distance + ``metres_per_rad`` x
-    rotation angle; nearest neighbour from the first pose, then 2-opt."""
-    n = len(flange2base)
-    if n < 3:
-        return np.arange(n)
-    t = flange2base[:, :3, 3]
-    R = flange2base[:, :3, :3]
-    dpos = np.linalg.norm(t[:, None] - t[None], axis=2)
-    cos = np.clip((np.einsum("aji,bji->ab", R, R) - 1) / 2, -1, 1)
-    cost = dpos + metres_per_rad * np.arccos(cos)
-    order = [0]
-    left = set(range(1, n))
-    while left:
-        k = min(left, key=lambda j: cost[order[-1], j])
-        order.append(k)
-        left.remove(k)
-    improved = True
-    while improved:
-        improved = False
-        for i in range(1, n - 1):
-            for j in range(i + 1, n):
-                a, b = order[i - 1], order[i]
-                c = order[j]
-                d = order[j + 1] if j + 1 < n else None
-                before = cost[a, b] + (cost[c, d] if d is not None else 0.0)
-                after = cost[a, c] + (cost[b, d] if d is not None else 0.0)
-                if after < before - 1e-12:
-                    order[i:j + 1] = order[i:j + 1][::-1]
-                    improved = True
-    return np.array(order)
 
 
 def _candidates(standoff: float, tilt_max_deg: float, centre: NDArray[np.float64]) -> NDArray[np.float64]:

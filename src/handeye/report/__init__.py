@@ -15,8 +15,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.io import atomic_write, check_output_folder
-from .._shared.lazy import lazy_module
 from ..estimation.diagnostics import compare_solvers
+from ..pipelines.kinds import kind_of_model
 from ..result import Calibration
 from .files import (
     EXPORTS,
@@ -31,8 +31,6 @@ from .files import (
 )
 from .html import SECTIONS, report_html, write_report
 from .verification import verification_html, write_verification
-
-_rig = lazy_module("handeye.pipelines.rig")  # a rig's members, when a rig's result is written (its import is heavy)
 
 __all__ = ["write_calibration", "result_dict", "write_results", "report_html", "write_report", "default_frames",
            "ros2_static_transform_command", "urdf_joint", "SECTIONS", "EXPORTS", "write_exports",
@@ -56,9 +54,9 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
     robot software (keys of :data:`EXPORTS`: a ROS 2 launch file, a ROS 1 / MoveIt launch file,
     easy_handeye2's .calib; 'all'). ``tool2flange``: the robot's tool (TCP) frame, so that the
     result files also give the camera (eye-in-hand) or the target (eye-to-hand) relative to it.
-    A rig's calibration (:func:`handeye.pipelines.rig.calibrate_rig_session`) also gets
+    A rig's calibration (:func:`handeye.pipelines.rig.pipeline.calibrate_rig_session`) also gets
     ``rig_static_tf.launch.py`` and each sensor's own ``sensors/<name>/result.json`` and ``.yaml``
-    (:func:`handeye.pipelines.rig.rig_members`). Returns the paths written, the report last.
+    (:func:`handeye.pipelines.rig.pipeline.rig_members`). Returns the paths written, the report last.
 
     Examples
     --------
@@ -80,7 +78,9 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
         path = out_dir / "rig_static_tf.launch.py"
         atomic_write(path, ros2_rig_launch_file(frames, parent_frame or default_frames(cal.setup)[0]), protect)
         paths.append(path)
-        for name, member in _rig.rig_members(cal).items():  # each sensor's own result files, as one sensor's calibration writes them
+        kind = kind_of_model(cal.sensor.sensor)  # its kind's hook: each sensor's own result (its import is heavy)
+        for name, member in (kind.hook("members")(cal).items() if kind is not None and kind.members else ()):
+            # each sensor's own result files, as one sensor's calibration writes them
             paths += write_results(member, out_dir / "sensors" / name, protect, parent_frame, f"{name}_optical_frame", tool2flange)
     if report:
         rows = None

@@ -103,12 +103,12 @@ def _status(cal: Calibration, name: str) -> str:
 
 def rig_sections(cal: Calibration) -> str:
     """The rig's picture and a section per sensor (the module docstring), as HTML."""
-    f = cal.sensor.figures
-    joint = list(f["X_per_sensor"])
-    alone = f.get("alone", {})
-    names = joint + [n for n in list(alone) + list(f.get("skipped", [])) if n not in joint]
-    rms = dict(zip(f.get("sensors", joint), f.get("rms_mm_per_sensor", [])))
-    per_view = f.get("view_rms_mm_per_sensor", {})
+    figures = cal.sensor.figures
+    joint = list(figures["X_per_sensor"])
+    alone = figures.get("alone", {})
+    names = joint + [n for n in list(alone) + list(figures.get("skipped", [])) if n not in joint]
+    rms = dict(zip(figures.get("sensors", joint), figures.get("rms_mm_per_sensor", [])))
+    per_view = figures.get("view_rms_mm_per_sensor", {})
     views = list(cal.diagnostics.names) if cal.diagnostics is not None and cal.diagnostics.names else []
     parts = ['<section id="rig"><h2>The rig</h2>' + _img(_png(rig_figure(cal)), "the rig's sensors")
              + f"<p>{len(joint)} sensor(s) in the joint fit ({_e(', '.join(joint))})"
@@ -118,7 +118,7 @@ def rig_sections(cal: Calibration) -> str:
         parts.append(f'<section class="sensor" id="sensor-{_e(name)}"><h3>Sensor {_e(name)}</h3>')
         own = alone.get(name)
         if name in joint:
-            X, std = np.asarray(f["X_per_sensor"][name]["X"]), np.asarray(f["X_per_sensor"][name]["std_deg_mm"])
+            X, std = np.asarray(figures["X_per_sensor"][name]["X"]), np.asarray(figures["X_per_sensor"][name]["std_deg_mm"])
             line = "in the joint fit" + (f": {rms[name]:.3f} mm RMS over its views" if rms.get(name) is not None else "")
         else:
             X = None if own is None else np.asarray(own["X"])
@@ -137,7 +137,7 @@ def rig_sections(cal: Calibration) -> str:
             parts.append(f"<p>X ({_e(pose_name(name, setup_info(cal.setup).x_name.split('2', 1)[1]))}), "
                          + ("from the joint fit, its std with the robot's accuracy" if name in joint else "its own calibration")
                          + ":</p>" + _transform_table(X, std))
-        rel = f.get("relative", {}).get(pose_name(name, joint[0]))
+        rel = figures.get("relative", {}).get(pose_name(name, joint[0]))
         if rel is not None:
             parts.append(f"<p>Its pose in {_e(joint[0])}'s frame ({_e(pose_name(name, joint[0]))}, the robot's error common "
                          "to every pose cancels in it, each pose's own error where both saw the pose):</p>"

@@ -27,6 +27,7 @@ from ..errors import HandEyeError
 from ..frames.poses import format_poses, pose_columns
 from ..frames.setups import setup_info
 from ..geometry.se3 import invert
+from ..pipelines.kinds import kind_of_model
 from ..result import Calibration
 from ..robot.kinematics import chain_yaml
 from ..robot.urdf import chain_urdf
@@ -36,17 +37,15 @@ __all__ = ["result_dict", "write_results", "ros2_static_transform_command", "urd
            "write_exports", "check_exports", "EXPORTS"]
 
 
-#: X's child frame in ROS by the sensor's kind, where it is not a camera's (``camera_optical_frame``):
-#: a laser profiler's frame (x along its line, z along its measuring axis) is an optical frame too.
-SENSOR_FRAMES = {"laser line profiler": "laser_profiler_optical_frame"}
-
-
 def default_frames(setup: str, sensor: str | None = None) -> tuple[str, str]:
     """``(parent, child)`` frame names for X: ROS-Industrial's ``tool0`` / ``base_link`` and the
     sensor's optical frame (OpenCV's camera frame: z forward, x right, y down, REP 103's *_optical_frame*;
-    ``sensor``: the sensor's kind, :data:`SENSOR_FRAMES`, a camera's by default)."""
+    ``sensor``: the sensor model's kind; another kind than a camera names its frame in its registration,
+    :attr:`handeye.pipelines.kinds.SensorKind.frame`: a laser profiler's, x along its line and z along its
+    measuring axis, is an optical frame too)."""
     info = setup_info(setup)
-    return info.ros_parent_frame, SENSOR_FRAMES.get(str(sensor), info.ros_child_frame)
+    kind = kind_of_model(sensor)
+    return info.ros_parent_frame, kind.frame if kind is not None and kind.frame else info.ros_child_frame
 
 
 def _frames_of(cal: Calibration) -> tuple[str, str]:

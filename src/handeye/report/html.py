@@ -276,8 +276,8 @@ def _shown_sections(sf) -> list[int]:
     return sorted(worst + [rest[i] for i in np.linspace(0, len(rest) - 1, MAX_SECTIONS - len(worst)).astype(int)])
 
 
-#: What a section is drawn in when the sensor does not say (``plane``): a laser profiler's own plane.
-LASER_PLANE = "the laser line profiler's plane (x across, z down)"
+#: What a section is drawn in when the sensor does not say (``plane``; a result written before each sensor said).
+SECTION_PLANE = "the sensor's own plane"
 
 
 def _sections_figure(cal: Calibration) -> str:
@@ -321,7 +321,7 @@ def _sections_figure(cal: Calibration) -> str:
     ax.invert_yaxis()  # the sensor looks down its z; an image's rows run down
     ax.axis("off")
     fig.colorbar(dots, ax=ax, shrink=0.6, label="residual (mm)" if signed else "residual's size (mm)")
-    plane = sf.sections[shown[0]].get("plane", LASER_PLANE)
+    plane = sf.sections[shown[0]].get("plane", SECTION_PLANE)
     lines = any(np.isfinite(np.asarray(sf.sections[k]["curve_mm"], float)).any() for k in shown)
     ax.set_title(f"each view in {plane}, one scale: the points coloured by their residual"
                  + (f", and the fitted {sf.target} through X (lines)" if lines else ""), fontsize=8, pad=14)

@@ -5,15 +5,18 @@
 * :mod:`~handeye.simulate.arms`: captures by arms with real robots' errors, joint angles through
   shipped arms' tables, robots that cannot rotate freely;
 * :mod:`~handeye.simulate.streams`: continuous recordings on two clocks;
-* :mod:`~handeye.simulate.depth`: depth cameras' clouds of a board or a sphere;
-* :mod:`~handeye.simulate.laser`: laser line profilers' profiles of a ball;
-* :mod:`~handeye.simulate.mesh`: depth cameras' clouds of a known shape (a mesh), ray-cast.
+* :mod:`~handeye.simulate._common`'s cells, arms as built and reported poses, which every kind of
+  sensor's simulator (``pipelines/<kind>/simulate.py``: a depth camera's, a laser profiler's, a
+  line-scan camera's, a rig's, a colour camera's masks) builds its captures on.
 
-Sessions are written by :mod:`handeye.io.session`'s writers.
+Sessions are written by :mod:`handeye.io.session`'s writers. The depth cameras' and the laser
+profilers' simulators that were here are in their kinds' folders (the old names still import, with a
+DeprecationWarning, for one release).
 """
 
 from __future__ import annotations
 
+from .._shared.moved import forward_names
 from ..frames.setups import flange_poses
 from ._common import (
     ARM_DH,
@@ -23,7 +26,13 @@ from ._common import (
     REALISTIC,
     RealisticErrors,
     arm_forward_kinematics,
+    arm_mount,
     default_camera,
+    reaching,
+    real_chain,
+    reported_poses,
+    sample_joints,
+    scene_layout,
 )
 from .arms import (
     LOW_DOF_ROBOTS,
@@ -37,9 +46,6 @@ from .arms import (
     simulate_kinematic_session,
     simulate_realistic_session,
 )
-from .depth import DepthScene, SphereScene, depth_scene, sphere_scene, write_depth_session
-from .laser import LaserScene, laser_scene, write_laser_session
-from .mesh import MeshScene, flange_mesh, mesh_scene, write_mesh_session
 from .scenes import (
     Noise,
     Scene,
@@ -63,5 +69,6 @@ __all__ = ["Scene", "SceneBatch", "Noise", "random_scene", "flange_poses", "look
            "realistic_scene", "arm_forward_kinematics", "ARM_DH", "robot_accuracy_of", "simulate_realistic_session",
            "KinematicScene", "kinematic_scene", "simulate_kinematic_session", "capture_joint_views",
            "low_dof_scene", "LOW_DOF_ROBOTS", "StreamScene", "stream_scene", "JointStreamScene", "joint_stream_scene",
-           "simulate_stream_session", "DepthScene", "depth_scene", "SphereScene", "sphere_scene", "write_depth_session",
-           "LaserScene", "laser_scene", "write_laser_session", "MeshScene", "flange_mesh", "mesh_scene", "write_mesh_session"]
+           "simulate_stream_session", "arm_mount", "reaching", "real_chain", "reported_poses", "sample_joints", "scene_layout"]
+
+__getattr__ = forward_names(__name__)  # the depth cameras' and laser profilers' simulators, moved to their kinds' folders

@@ -169,7 +169,7 @@ REALISTIC = RealisticErrors()
 EXACT = RealisticErrors(0.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-def _scene_layout(setup: str, object_points: NDArray[np.float64], rng: np.random.Generator,
+def scene_layout(setup: str, object_points: NDArray[np.float64], rng: np.random.Generator,
                   home: NDArray[np.float64] | None = None):
     """X and Z of a realistic cell: the camera 5-10 cm off the flange looking along it (eye-in-hand)
     or on a stand 0.6-0.8 m in front of the board on the flange (eye-to-hand). ``home``: the arm's
@@ -195,7 +195,7 @@ def _scene_layout(setup: str, object_points: NDArray[np.float64], rng: np.random
     return X, Z
 
 
-def _sample_joints(setup, X, Z, object_points, K, image_size, n, rng, margin_px=10.0, spread_deg=(25, 25, 25, 40, 40, 60),
+def sample_joints(setup, X, Z, object_points, K, image_size, n, rng, margin_px=10.0, spread_deg=(25, 25, 25, 40, 40, 60),
                    chain=None):
     """Joint angles around the home pose whose views see the whole target, 0.25-1.2 m away and
     less than 60 deg from face-on (``chain``: another arm than :data:`ARM_DH`, its home and spread)."""
@@ -249,7 +249,7 @@ def _camera_reading(target2cam_true, object_points, K, dist, errors: RealisticEr
     return poses, image_points, flipped
 
 
-def _real_chain(chain: Chain, rng: np.random.Generator, length_mm: float, angle_deg: float,
+def real_chain(chain: Chain, rng: np.random.Generator, length_mm: float, angle_deg: float,
                 compliance_deg_per_m: float = 0.0) -> Chain:
     """The arm as built: every entry of ``chain``'s table it owns (not one X or Z absorbs) off by
     Gaussian ``length_mm`` or ``angle_deg``, and each joint's compliance 0.5-1.5x
@@ -300,7 +300,7 @@ def reaching(chain: Chain, flange2base: NDArray[np.float64], q0: NDArray[np.floa
     return res.x, float(np.max(np.abs(res.fun)))
 
 
-def _reported(flange2base: NDArray[np.float64], error: tuple[float, float] | None, rng: np.random.Generator):
+def reported_poses(flange2base: NDArray[np.float64], error: tuple[float, float] | None, rng: np.random.Generator):
     """The controller's flange poses: off by a constant error (the arm's absolute error over a
     small capture) and heavy-tailed noise per pose (Student-t, 3 dof), each of ``error`` (deg, mm)
     per axis; the true ones when ``error`` is None."""

@@ -29,15 +29,15 @@ from ._common import (
     RealisticErrors,
     _camera_reading,
     _new_session_folder,
-    _real_chain,
     _robot_reading,
-    _sample_joints,
-    _scene_layout,
     _sees_target,
     _write_images,
     _write_truth,
     arm_forward_kinematics,
     default_camera,
+    real_chain,
+    sample_joints,
+    scene_layout,
 )
 
 
@@ -81,8 +81,8 @@ def realistic_scene(
     spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
     obj = target_from_spec(spec).object_points()
     K, dist = default_camera(image_size)
-    X, Z = _scene_layout(setup, obj, rng)
-    q = _sample_joints(setup, X, Z, obj, K, image_size, n_poses, rng)
+    X, Z = scene_layout(setup, obj, rng)
+    q = sample_joints(setup, X, Z, obj, K, image_size, n_poses, rng)
     dh = ARM_DH.copy()
     dh[:, [0, 2]] += 1e-3 * rng.normal(0.0, errors.dh_length_mm, (6, 2))
     dh[:, [1, 3]] += np.radians(rng.normal(0.0, errors.dh_angle_deg, (6, 2)))
@@ -137,9 +137,9 @@ def kinematic_scene(
     spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
     obj = target_from_spec(spec).object_points()
     K, dist = default_camera(image_size)
-    X, Z = _scene_layout(setup, obj, rng, chain.forward(chain.home[setup][None])[0])
-    q_true = _sample_joints(setup, X, Z, obj, K, image_size, n_poses, rng, chain=chain)
-    true = _real_chain(chain, rng, length_mm, angle_deg, compliance_deg_per_m)
+    X, Z = scene_layout(setup, obj, rng, chain.forward(chain.home[setup][None])[0])
+    q_true = sample_joints(setup, X, Z, obj, K, image_size, n_poses, rng, chain=chain)
+    true = real_chain(chain, rng, length_mm, angle_deg, compliance_deg_per_m)
     f2b_true = true.forward(q_true)
     joints = q_true + np.radians(rng.normal(0.0, joint_noise_deg, q_true.shape))
     t2c_true = predicted_target2cam(X, Z, f2b_true, setup)

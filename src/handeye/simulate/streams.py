@@ -27,13 +27,13 @@ from ._common import (
     REALISTIC,
     RealisticErrors,
     _camera_reading,
-    _real_chain,
     _robot_reading,
-    _sample_joints,
-    _scene_layout,
     _sees_target,
     arm_forward_kinematics,
     default_camera,
+    real_chain,
+    sample_joints,
+    scene_layout,
 )
 
 
@@ -86,7 +86,7 @@ def stream_scene(
     spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
     obj = target_from_spec(spec).object_points()
     K, dist = default_camera(image_size)
-    X, Z = _scene_layout(setup, obj, rng)
+    X, Z = scene_layout(setup, obj, rng)
     path = _waypoint_path(setup, X, Z, obj, K, image_size, duration, waypoint_s, rng)
     dh = ARM_DH.copy()
     dh[:, [0, 2]] += 1e-3 * rng.normal(0.0, errors.dh_length_mm, (6, 2))
@@ -108,11 +108,11 @@ def stream_scene(
 
 def _waypoint_path(setup, X, Z, obj, K, image_size, duration: float, waypoint_s: float, rng, chain=None):
     """A smooth joint path (clamped cubic spline, seconds to joint angles) through random waypoints
-    ``waypoint_s`` apart for ``duration`` seconds whose views see the target (:func:`_sample_joints`)."""
+    ``waypoint_s`` apart for ``duration`` seconds whose views see the target (:func:`sample_joints`)."""
     from scipy.interpolate import CubicSpline  # noqa: PLC0415  (scipy's interpolate costs import time)
 
     n_way = int(np.ceil(duration / waypoint_s)) + 1
-    q_way = _sample_joints(setup, X, Z, obj, K, image_size, n_way, rng, chain=chain)
+    q_way = sample_joints(setup, X, Z, obj, K, image_size, n_way, rng, chain=chain)
     return CubicSpline(np.arange(n_way) * waypoint_s, q_way, bc_type="clamped")
 
 
@@ -180,9 +180,9 @@ def joint_stream_scene(
     spec = dict(DEFAULT_TARGETS[target]) if isinstance(target, str) else dict(target)
     obj = target_from_spec(spec).object_points()
     K, dist = default_camera(image_size)
-    X, Z = _scene_layout(setup, obj, rng, chain.forward(chain.home[setup][None])[0])
+    X, Z = scene_layout(setup, obj, rng, chain.forward(chain.home[setup][None])[0])
     path = _waypoint_path(setup, X, Z, obj, K, image_size, duration, waypoint_s, rng, chain)
-    true = _real_chain(chain, rng, length_mm, angle_deg)
+    true = real_chain(chain, rng, length_mm, angle_deg)
     jitter = 1e-3 * jitter_ms
     t_robot = np.arange(0.0, duration, 1.0 / robot_hz)
     joints = path(t_robot) + np.radians(rng.normal(0.0, joint_noise_deg, (len(t_robot), chain.n_joints)))

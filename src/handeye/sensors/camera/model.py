@@ -17,7 +17,7 @@ Examples
 >>> import numpy as np
 >>> from handeye.estimation.core import estimate
 >>> from handeye.robot.models import ControllerPoses
->>> from handeye.simulate.rig import rig_scene
+>>> from handeye.pipelines.rig.simulate import rig_scene
 >>> sc = rig_scene(12, "eye_in_hand", rng=0, cameras=1)
 >>> cam = sc.cameras[0]
 >>> model = CameraCorners("eye_in_hand", sc.names, cam.image_points, cam.object_points, cam.K, cam.dist)

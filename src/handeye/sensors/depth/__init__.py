@@ -3,7 +3,7 @@
 A board's corners detected in the intensity image and lifted to 3D from the cloud
 (:mod:`~handeye.sensors.depth.clouds`), or spheres found in the cloud without any board
 (:mod:`~handeye.sensors.depth.spheres`); the depth noise model. X is fitted to those 3D points by
-:mod:`handeye.pipelines.depth` (thesis §6.1: other camera types).
+:mod:`handeye.pipelines.depth.pipeline` (thesis §6.1: other camera types).
 """
 
 from __future__ import annotations

@@ -26,7 +26,7 @@ polish is the start; fits as good as it with X's rotation more than
 
 Examples
 --------
->>> from handeye.simulate import laser_scene
+>>> from handeye.pipelines.laser.simulate import laser_scene
 >>> sc = laser_scene(20, "eye_in_hand", rng=3, target="edge")
 >>> model = EdgeProfiles("eye_in_hand", [f"p{k}" for k in range(20)], sc.profiles)
 >>> X0, p0 = model.start(sc.flange2base, None, None)   # the searched start, which the fit refines

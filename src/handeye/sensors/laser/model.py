@@ -154,7 +154,8 @@ class Profiles:
             pts = self.points[rows][:, [0, 2]]
             x = np.linspace(pts[:, 0].min(), pts[:, 0].max(), 200)
             out.append({"points_mm": 1e3 * pts, "residual_mm": 1e3 * self.residuals(X, p, F, rows)[:, 0],
-                        "curve_mm": 1e3 * np.c_[x, self._section(sensor2target[v], p, x)]})
+                        "curve_mm": 1e3 * np.c_[x, self._section(sensor2target[v], p, x)],
+                        "plane": "the laser line profiler's plane (x across, z down)"})
         return out
 
 

@@ -13,7 +13,7 @@ plane within 90 deg of it), and its distance ``d`` from the frame's origin.
 
 Examples
 --------
->>> from handeye.simulate import laser_scene
+>>> from handeye.pipelines.laser.simulate import laser_scene
 >>> sc = laser_scene(20, "eye_in_hand", rng=3, target="plane")
 >>> model = PlaneProfiles("eye_in_hand", [f"p{k}" for k in range(20)], sc.profiles)
 >>> X0, p0 = model.start(sc.flange2base, None, None)   # the closed form: a start, which the fit refines

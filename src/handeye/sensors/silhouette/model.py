@@ -15,7 +15,7 @@ its residual the mask's signed distance (pixels, read with sub-pixel bilinear in
 positive outside the mask) at the point's projection through X, times the point's depth over the
 focal length: millimetres at the arm, the unit every other sensor's residuals are in (the figures
 give pixels too). The outline points are found again between rounds by the pipeline
-(:mod:`handeye.pipelines.silhouette`) as X moves; within a fit they stay.
+(:mod:`handeye.pipelines.silhouette.pipeline`) as X moves; within a fit they stay.
 
 Neighbouring outline points share their errors (a boundary off by a pixel along a stretch, a mesh
 that differs from the real link): the noise model alone would claim too small a std, and the core's

@@ -1,6 +1,6 @@
 """Markerless hand-eye from colour images: the arm's meshes' silhouette against its masks, through the core.
 
-A silhouette session (:mod:`handeye.io.silhouette_session`: masks of the arm, its joint angles, the
+A silhouette session (:mod:`handeye.pipelines.silhouette.session`: masks of the arm, its joint angles, the
 camera matrix) is calibrated in named steps:
 
 1. :func:`arm_views`: the arm's meshes (rtb-data's, :mod:`handeye.robot.meshes`) posed at every
@@ -33,19 +33,19 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares, linear_sum_assignment
 
-from .._shared.threads import on_one_blas_thread
-from ..errors import DegenerateMotionError
-from ..estimation.core import estimate
-from ..frames.metrics import rotation_error, translation_error
-from ..geometry.se3 import perturb
-from ..io.silhouette_session import SilhouetteSession, load_silhouette_session, read_masks
-from ..options import CalibrationOptions
-from ..result import Calibration
-from ..robot.models import ControllerPoses
-from ..sensors.silhouette.model import ArmViews, SilhouetteContours
-from ..sensors.silhouette.start import coarse_cam2base, surface_samples
-from ._arm import arm_table
-from ._sensor import sensor_options, session_robot_input
+from ..._shared.threads import on_one_blas_thread
+from ...errors import DegenerateMotionError
+from ...estimation.core import estimate
+from ...frames.metrics import rotation_error, translation_error
+from ...geometry.se3 import perturb
+from ...options import CalibrationOptions
+from ...result import Calibration
+from ...robot.models import ControllerPoses
+from ...sensors.silhouette.model import ArmViews, SilhouetteContours
+from ...sensors.silhouette.start import coarse_cam2base, surface_samples
+from .._arm import arm_table
+from .._sensor import sensor_options, session_robot_input
+from .session import SilhouetteSession, load_silhouette_session, read_masks
 
 __all__ = ["arm_views", "global_start", "outline_rounds", "heldout_ious", "pairing_notes", "calibrate_silhouette_session",
            "ROUNDS", "CANDIDATES", "SAMPLES"]
@@ -177,7 +177,8 @@ def _repairing(M: NDArray[np.float64], names: list[str]) -> str:
 
 @on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
 def calibrate_silhouette_session(folder: str | Path | SilhouetteSession, options: CalibrationOptions | None = None, *,
-                                 progress: bool = False, **changes) -> Calibration:
+                                 progress: bool = False, jobs: int | None = None,
+                                 **changes) -> Calibration:
     """Calibrate a fixed colour camera from the arm's silhouettes (the module's docstring).
 
     Parameters
@@ -187,6 +188,8 @@ def calibrate_silhouette_session(folder: str | Path | SilhouetteSession, options
         ``robot_accuracy`` (the arm's stated accuracy, added to X's std), ``folds`` and ``arm`` are
         used; the options of image sessions are refused when changed.
     progress : bool
+        Unused; accepted as every pipeline does.
+    jobs : int, optional
         Unused; accepted as every pipeline does.
 
     Returns
@@ -205,7 +208,7 @@ def calibrate_silhouette_session(folder: str | Path | SilhouetteSession, options
     Examples
     --------
     >>> import tempfile
-    >>> from handeye.simulate.silhouette import silhouette_scene, write_silhouette_session
+    >>> from handeye.pipelines.silhouette.simulate import silhouette_scene, write_silhouette_session
     >>> folder = write_silhouette_session(tempfile.mkdtemp() + "/s", silhouette_scene(4, rng=3))
     >>> cal = calibrate_silhouette_session(folder)
     >>> cal.sensor.target, cal.sensor.figures["iou_mean"] > 0.9

@@ -1,6 +1,6 @@
 """Depth-camera session folders read and checked: ``session.yaml`` with a ``depth:`` mapping, the
 clouds in ``clouds/`` (and a board's intensity images in ``images/``), the robot poses; nothing is
-measured here (:mod:`handeye.pipelines.depth` does that).
+measured here (:mod:`handeye.pipelines.depth.pipeline` does that).
 """
 
 from __future__ import annotations
@@ -14,15 +14,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.text import cut, shown
-from ..errors import SessionError
-from ..frames.poses import RobotPoseInput
-from ..frames.setups import check_setup, setup_info
-from ..geometry.se3 import make_transform
-from ..robot.kinematics import Chain
-from ..sensors.camera import target_from_spec
-from ..sensors.depth.clouds import CLOUD_SUFFIXES
-from .session import (
+from ..._shared.text import cut, shown
+from ...errors import SessionError
+from ...frames.poses import RobotPoseInput
+from ...frames.setups import check_setup, setup_info
+from ...geometry.se3 import make_transform
+from ...io.extras import cloud_extras, mesh_extras, needed
+from ...io.session import (
     CAMERA_KEYS,
     IMAGE_ORDER,
     JOINTS_KEYS,
@@ -38,9 +36,13 @@ from .session import (
     read_unknowns,
     session_file,
 )
+from ...robot.kinematics import Chain
+from ...sensors.camera import target_from_spec
+from ...sensors.depth.clouds import CLOUD_SUFFIXES
 
 __all__ = ["DepthSession", "MeshTarget", "ArmTarget", "SceneTarget", "is_depth_session", "load_depth_session", "rig_depth", "arm_hand",
-           "ARM_KEYS", "RIG_DEPTH_KEYS"]
+           "ARM_KEYS", "RIG_DEPTH_KEYS",
+           "extras", "rig_extras"]
 
 #: What the pose table's first column must be, for the error that finds it is not.
 FIRST_COLUMN = ("'image' (a board: its intensity image in images/, the cloud of the same name in clouds/) or 'cloud' "
@@ -114,7 +116,7 @@ class ArmTarget:
 @dataclass(frozen=True)
 class SceneTarget:
     """Whatever the camera sees as the target (``target: {type: scene}``): no board, no mesh; X from
-    the views' clouds agreeing through the robot (:mod:`handeye.pipelines.scene`). ``fit_depth``
+    the views' clouds agreeing through the robot (:mod:`handeye.pipelines.depth.scene`). ``fit_depth``
     (``depth_scale: fit``): the depth's scale and bias fitted with X, else held at 1 and 0."""
 
     fit_depth: bool = False
@@ -332,7 +334,7 @@ def load_depth_session(folder: str | Path, arm: str | None = None) -> DepthSessi
                         scene)
 
 
-#: The keys of a rig's depth camera (:mod:`handeye.io.rig_session`).
+#: The keys of a rig's depth camera (:mod:`handeye.pipelines.rig.session`).
 RIG_DEPTH_KEYS = ("depth", "camera", "clouds", "images", "target")
 
 
@@ -344,7 +346,7 @@ def _files_of(root: Path, folder: Path, names: list[str], suffixes) -> list[Path
 
 def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[np.float64], block: dict, name: str,
               target: Any, where: str) -> DepthSession:
-    """A rig's depth camera (:mod:`handeye.io.rig_session`) as a depth session over the rig's views
+    """A rig's depth camera (:mod:`handeye.pipelines.rig.session`) as a depth session over the rig's views
     ``names``: its ``depth:`` mapping (unit, range), the intensity image's ``camera:`` (K, dist;
     optional), its folder of ``clouds`` and, for a board, of intensity ``images``, both named by view
     (``v01.npy`` and ``v01.png``; default the sensor's name, one folder for both) and its ``target``
@@ -368,3 +370,21 @@ def rig_depth(folder: Path, setup: str, names: list[str], flange2base: NDArray[n
     image_paths = None if radii is not None else _files_of(folder, images, names, IMAGE_ORDER)
     return DepthSession(folder, setup, dict(target or {}), list(names), cloud_paths, image_paths, flange2base, K, dist, unit,
                         working, radii)
+
+
+def extras(spec: dict[str, Any], folder: Path, needs: dict[str, dict[str, str]]) -> None:
+    """The optional extras a depth session needs (its registration's ``extras`` hook): its mesh
+    target's reader, the arm's meshes when the arm itself is the target, its clouds' readers."""
+    target = spec.get("target") if isinstance(spec.get("target"), dict) else {}
+    kind = str(target.get("type", ""))
+    if kind == "mesh":
+        mesh_extras(target, needs)
+    elif kind == "arm":
+        needed("markerless", "the arm itself as the target (its link meshes)", needs)
+    cloud_extras(folder / "clouds", "clouds/", needs)
+
+
+def rig_extras(block: dict[str, Any], name: str, folder: Path, needs: dict[str, dict[str, str]]) -> None:
+    """The optional extras a rig's depth camera needs: its clouds' readers (``block``: its block under ``sensors:``)."""
+    clouds = block.get("clouds", name)
+    cloud_extras(folder / str(clouds), f"{clouds}/ (sensor {name})", needs)

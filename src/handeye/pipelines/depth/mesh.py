@@ -25,22 +25,22 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from .._shared.progress import Progress
-from .._shared.threads import one_blas_thread
-from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError, UnusableViewError
-from ..estimation.core import estimate, start_from_poses
-from ..estimation.readings import check_readings
-from ..frames.metrics import rotation_error, translation_error
-from ..frames.setups import constant_transforms, predicted_target2cam, robot_world_A
-from ..geometry.se3 import invert, mean_transform
-from ..io.depth_session import DepthSession
-from ..options import CalibrationOptions
-from ..result import Calibration
-from ..sensors.depth.clouds import MAX_DEPTH_M, read_points
-from ..sensors.depth.mesh import MeshSurface
-from ..sensors.depth.registration import ShapeMatch, find_shape, refine_shape
-from ..sensors.depth.shape import Shape, load_shape
-from ._sensor import held_and_freed, robot_model, session_robot_input
+from ..._shared.progress import Progress
+from ..._shared.threads import one_blas_thread
+from ...errors import DegenerateMotionError, HandEyeError, InputMismatchError, UnusableViewError
+from ...estimation.core import estimate, start_from_poses
+from ...estimation.readings import check_readings
+from ...frames.metrics import rotation_error, translation_error
+from ...frames.setups import constant_transforms, predicted_target2cam, robot_world_A
+from ...geometry.se3 import invert, mean_transform
+from ...options import CalibrationOptions
+from ...result import Calibration
+from ...sensors.depth.clouds import MAX_DEPTH_M, read_points
+from ...sensors.depth.mesh import MeshSurface
+from ...sensors.depth.registration import ShapeMatch, find_shape, refine_shape
+from ...sensors.depth.shape import Shape, load_shape
+from .._sensor import held_and_freed, robot_model, session_robot_input
+from .session import DepthSession
 
 __all__ = ["MeshViews", "measure_mesh_session", "consistent_views", "mesh_model", "calibrate_mesh_session",
            "AGREE_DEG", "AGREE_SHARE"]

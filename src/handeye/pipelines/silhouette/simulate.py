@@ -8,7 +8,7 @@ drawn at twice the resolution and averaged down, its boundary moved by a smooth 
 detections beside the arm and holes in it). With ``table_mm`` / ``table_deg`` the real arm's table
 differs from the nominal one by that much (Gaussian, per entry); the session gives the nominal arm.
 
-:func:`write_silhouette_session` writes it as a silhouette session (:mod:`handeye.io.silhouette_session`)
+:func:`write_silhouette_session` writes it as a silhouette session (:mod:`handeye.pipelines.silhouette.session`)
 with ``ground_truth.yaml``.
 
 Examples
@@ -27,17 +27,18 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from .._shared.io import atomic_write, check_output_folder, write_png
-from .._shared.lazy import lazy_module
-from ..errors import InputMismatchError
-from ..geometry.se3 import make_transform
-from ..robot.kinematics import Chain, load_arm
-from ..robot.meshes import arm_meshes
-from ..sensors.silhouette.render import render_silhouettes, signed_distance
+from ..._shared.io import atomic_write, check_output_folder, write_png
+from ..._shared.lazy import lazy_module
+from ...errors import InputMismatchError
+from ...geometry.se3 import make_transform
+from ...robot.kinematics import Chain, load_arm
+from ...robot.meshes import arm_meshes
+from ...sensors.silhouette.render import render_silhouettes, signed_distance
+from ..kinds import SimulateRequest
 
 cv2 = lazy_module("cv2")
 
-__all__ = ["SilhouetteScene", "silhouette_scene", "write_silhouette_session", "segmentation_errors"]
+__all__ = ["SilhouetteScene", "silhouette_scene", "write_silhouette_session", "segmentation_errors", "simulate_command"]
 
 
 @dataclass(frozen=True)
@@ -182,3 +183,16 @@ def write_silhouette_session(folder: str | Path, scene: SilhouetteScene) -> Path
              "table_error": (scene.chain_true.table - scene.chain.table).tolist()}
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return out
+
+
+def simulate_command(request: SimulateRequest) -> str:
+    """``handeye simulate --sensor silhouette`` (the colour camera's registration's ``simulate`` hook):
+    a silhouette session of a Panda written to ``request.out``; returns what was written, in words."""
+    if request.robot != "arm" or request.target is not None or request.arm not in (None, "panda"):
+        raise InputMismatchError("--sensor silhouette simulates a Panda seen by a fixed camera (eye_to_hand), no target; "
+                                 "leave --robot and --target out")
+    sc = silhouette_scene(request.poses, request.seed, image_size=request.image_size)
+    write_silhouette_session(request.out, sc)
+    return (f"wrote silhouette session {request.out} ({request.poses} masks of a Panda, {request.image_size[0]}x"
+            f"{request.image_size[1]}, eye_to_hand, the masks' boundary off by ~1 px with a few blobs); ground truth in "
+            f"{Path(request.out) / 'ground_truth.yaml'}")

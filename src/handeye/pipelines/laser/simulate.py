@@ -19,17 +19,18 @@ import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.io import atomic_write, check_output_folder
-from ..errors import HandEyeError, InputMismatchError
-from ..frames.setups import check_setup, predicted_target2cam, setup_info
-from ..geometry.se3 import invert, make_transform
-from ..io.session import write_joint_table, write_pose_table
-from ..robot.kinematics import Chain, load_arm
-from ._common import _real_chain, _reported, arm_mount, reaching
-from .scenes import Scene, scene_from_viewpoints
+from ..._shared.io import atomic_write, check_output_folder
+from ...errors import HandEyeError, InputMismatchError
+from ...frames.setups import check_setup, predicted_target2cam, setup_info
+from ...geometry.se3 import invert, make_transform
+from ...io.session import write_joint_table, write_pose_table
+from ...robot.kinematics import Chain, load_arm
+from ...simulate import arm_mount, reaching, real_chain, reported_poses
+from ...simulate.scenes import Scene, scene_from_viewpoints
+from ..kinds import SimulateRequest
 
 __all__ = ["LaserScene", "laser_scene", "pendant_laser_scene", "write_laser_session", "write_profile",
-           "profiler_views", "profile_reading", "PROFILER", "TARGETS", "FANUC_PROFILER_X"]
+           "profiler_views", "profile_reading", "PROFILER", "TARGETS", "FANUC_PROFILER_X", "simulate_command"]
 
 #: The simulated profiler: field of view along x (m), measuring range along z (m), points per profile.
 PROFILER = {"fov": 0.08, "near": 0.08, "far": 0.16, "points": 2000}
@@ -317,7 +318,7 @@ def laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Ge
     sensor2target = profiler_views(target, n_views, radius, rng, cone_deg)
     scene = scene_from_viewpoints(sensor2target, setup, rng)
     profiles = [profile_reading(target, T, radius, rng, noise_m, dropout, spikes) for T in invert(sensor2target)]
-    return LaserScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam,
+    return LaserScene(setup, scene.X, scene.Z, reported_poses(scene.flange2base, robot_error, rng), scene.target2cam,
                       profiles=profiles, radius=radius, noise_m=noise_m, flange2base_true=scene.flange2base, target=target)
 
 
@@ -368,7 +369,7 @@ def pendant_laser_scene(setup: str = "eye_in_hand", rng: np.random.Generator | i
     Z = make_transform(np.eye(3), ball)
     target2sensor = predicted_target2cam(X, Z, F_true, setup)
     profiles = [profile_reading("sphere", T, radius, rng, noise_m, 0.02, 0.002) for T in target2sensor]
-    return LaserScene(setup, X, Z, _reported(F_true, robot_error, rng), target2sensor, profiles=profiles, radius=radius,
+    return LaserScene(setup, X, Z, reported_poses(F_true, robot_error, rng), target2sensor, profiles=profiles, radius=radius,
                       noise_m=noise_m, flange2base_true=F_true)
 
 
@@ -386,7 +387,7 @@ def _arm_laser_scene(n: int, setup: str, rng: np.random.Generator, radius, noise
     chain = load_arm(arm)
     home = chain.home[setup]
     X, Z = arm_mount(chain, setup, rng, STANDOFF_M)
-    true = _real_chain(chain, rng, length_mm, angle_deg)
+    true = real_chain(chain, rng, length_mm, angle_deg)
     limit = 1.5 * (chain.spread if chain.spread is not None else np.full(chain.n_joints, np.pi))
     joints, profiles, f_true = [], [], []
     for _ in range(50 * n):
@@ -475,3 +476,22 @@ def write_laser_session(folder: str | Path, scene: LaserScene, unit: str = "mm",
         truth |= {"arm": scene.arm, "table_true": scene.chain_true.table.tolist()}
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return out
+
+
+def simulate_command(request: SimulateRequest) -> str:
+    """``handeye simulate --sensor laser_line`` (the laser's registration's ``simulate`` hook): a laser
+    session of the target ``request.target`` (:data:`TARGETS`, a ball by default) written to
+    ``request.out``; returns what was written, in words."""
+    if request.robot != "arm":
+        raise InputMismatchError("--sensor laser_line simulates a 6-axis arm (its controller's poses, or with --arm its "
+                                 "joint angles too); leave --robot out")
+    target = request.target or TARGETS[0]
+    if target not in TARGETS:
+        raise InputMismatchError(f"--target {target}: a laser line profiler scans one of {', '.join(TARGETS)} (--target "
+                                 f"{TARGETS[0]} is the default)")
+    write_laser_session(request.out, laser_scene(request.poses, request.setup, request.seed, arm=request.arm, target=target))
+    what = {"sphere": "a 40 mm ball", "plane": "a 200 mm plate", "edge": "a block's edge", "step": "a 10 mm step",
+            "spheres": "a fixture of 3 balls"}[target]
+    arm = f", {request.arm}'s joint angles in joints.csv (the arm 1-3 mm off its nominal table)" if request.arm else ""
+    return (f"wrote laser session {request.out} ({request.poses} profiles of {what}, {request.setup}{arm}); ground truth in "
+            f"{Path(request.out) / 'ground_truth.yaml'}")

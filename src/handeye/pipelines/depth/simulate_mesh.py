@@ -18,15 +18,15 @@ import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.io import atomic_write, check_output_folder
-from ..errors import HandEyeError, SessionError
-from ..frames.setups import check_setup, predicted_target2cam, setup_info
-from ..geometry.se3 import invert
-from ..io.session import write_joint_table, write_pose_table
-from ..robot.kinematics import Chain
-from ._common import _reported, default_camera
-from .depth import arm_fields, arm_views, depth_reading, pixel_rays
-from .scenes import Scene, look_at_viewpoints, scene_from_viewpoints
+from ..._shared.io import atomic_write, check_output_folder
+from ...errors import HandEyeError, SessionError
+from ...frames.setups import check_setup, predicted_target2cam, setup_info
+from ...geometry.se3 import invert
+from ...io.session import write_joint_table, write_pose_table
+from ...robot.kinematics import Chain
+from ...simulate import default_camera, reported_poses
+from ...simulate.scenes import Scene, look_at_viewpoints, scene_from_viewpoints
+from .simulate_board import arm_fields, arm_views, depth_reading, pixel_rays
 
 __all__ = ["MeshScene", "flange_mesh", "mesh_scene", "write_mesh_session", "write_clouds", "ray_caster", "cast_rays"]
 
@@ -130,14 +130,14 @@ def mesh_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Gen
     ``n_views`` views at ``distance`` (m) from the mesh's centre, from directions within
     ``tilt_max_deg`` of its z axis, the mesh anywhere in the middle two thirds of the image; behind it
     the wrist it is mounted on (``wrist``: a 70 mm rod along -z, 150 mm long) and a tilted wall
-    0.2-0.4 m further. Noise, scale, bias and holes as :func:`~handeye.simulate.depth.depth_scene`'s;
+    0.2-0.4 m further. Noise, scale, bias and holes as :func:`~handeye.pipelines.depth.simulate_board.depth_scene`'s;
     the pixels on the mesh's outline are flying pixels; ``robot_error`` as there. ``translations``:
     the flange keeps the first view's orientation and moves up to 0.1 m along each axis (``'any'``:
     what a known placement of the shape makes enough), along the mesh's z axis only (``'axis'``:
     a disc's own axis, about which such a capture cannot turn X), or along one line but for the last
     view, 80 mm off it (``'line'``: one axis jogged, then one step aside). ``arm`` (a shipped arm's name): the
     views are the arm's at joint angles drawn about its home, its real table off the nominal one by
-    ``length_mm`` / ``angle_deg`` per entry (:func:`~handeye.simulate.depth.arm_views`), ``flange2base``
+    ``length_mm`` / ``angle_deg`` per entry (:func:`~handeye.pipelines.depth.simulate_board.arm_views`), ``flange2base``
     its nominal table's poses at the joint angles it reports.
     """
     trimesh = _trimesh()
@@ -198,7 +198,7 @@ def mesh_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.Gen
         behind = (rays * t_wall[:, None]).reshape(h, w, 3)
         mask = (on & (t < t_wall)).reshape(h, w)
         clouds.append(depth_reading(truth, mask, behind, rng, depth_scale, depth_bias, depth_noise, holes))
-    return MeshScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
+    return MeshScene(setup, scene.X, scene.Z, reported_poses(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
                      image_size=tuple(image_size), mesh=mesh, clouds=clouds, depth_scale=depth_scale, depth_bias=depth_bias,
                      **arm_fields(views))
 

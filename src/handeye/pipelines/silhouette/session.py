@@ -10,7 +10,7 @@ joints: {file: joints.csv, unit: rad, arm: panda}   # an arm handeye has meshes 
 ``joints.csv``: a header ``image,q1,...,q7``, then per view the mask's file name (in ``masks/``)
 and its joint angles. A mask is an 8-bit image (PNG, ...), the arm's pixels set (any value above
 127); the colour images in ``images/`` (same names) are optional: the report draws on them.
-Nothing is measured here (:mod:`handeye.pipelines.silhouette` does that).
+Nothing is measured here (:mod:`handeye.pipelines.silhouette.pipeline` does that).
 """
 
 from __future__ import annotations
@@ -22,14 +22,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._shared.lazy import lazy_module
-from .._shared.text import shown
-from ..errors import InputMismatchError, SessionError
-from ..frames.setups import check_setup, setup_info
-from ..robot.kinematics import Chain
-from ..robot.meshes import ArmMeshes, meshes_for
-from .depth_session import ARM_KEYS, arm_hand
-from .session import (
+from ..._shared.lazy import lazy_module
+from ..._shared.text import shown
+from ...errors import InputMismatchError, SessionError
+from ...frames.setups import check_setup, setup_info
+from ...io.extras import needed
+from ...io.session import (
     CAMERA_KEYS,
     JOINTS_KEYS,
     check_keys,
@@ -40,11 +38,14 @@ from .session import (
     read_session_yaml,
     session_file,
 )
+from ...robot.kinematics import Chain
+from ...robot.meshes import ArmMeshes, meshes_for
+from ..depth.session import ARM_KEYS, arm_hand
 
 cv2 = lazy_module("cv2")
 
 __all__ = ["SilhouetteSession", "is_silhouette_session", "load_silhouette_session", "read_mask", "read_masks", "SILHOUETTE_KEYS",
-           "ROBOT_TARGET_KEYS"]
+           "ROBOT_TARGET_KEYS", "extras"]
 
 #: The keys of ``silhouette:``.
 SILHOUETTE_KEYS = ("masks", "images")
@@ -188,3 +189,8 @@ def read_masks(s: SilhouetteSession) -> NDArray[np.bool_]:
                                "the view out or segment it again")
         out.append(m)
     return np.array(out)
+
+
+def extras(spec: dict[str, Any], folder: Path, needs: dict[str, dict[str, str]]) -> None:
+    """The optional extras a silhouette session needs (its registration's ``extras`` hook): the arm's link meshes."""
+    needed("markerless", "the arm's silhouette (its link meshes)", needs)

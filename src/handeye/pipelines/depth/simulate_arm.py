@@ -1,12 +1,12 @@
 """A depth camera fixed in the cell that sees the arm itself (markerless, eye-to-hand): clouds of a
 meshed arm (its link meshes, :mod:`handeye.robot.meshes`) at joint angles spread about its home,
 ray-cast with trimesh (Embree when installed), with the depth camera's noise, holes and flying
-pixels (:func:`~handeye.simulate.depth.depth_reading`), and clutter: the table the arm stands on
+pixels (:func:`~handeye.pipelines.depth.simulate_board.depth_reading`), and clutter: the table the arm stands on
 and a box beside it.
 
 Examples
 --------
->>> from handeye.simulate.arm_depth import arm_depth_scene
+>>> from handeye.pipelines.depth.simulate_arm import arm_depth_scene
 >>> scene = arm_depth_scene(3, rng=0, image_size=(160, 120))
 >>> len(scene.clouds), scene.clouds[0].shape, scene.joints.shape
 (3, (120, 160, 3), (3, 7))
@@ -22,17 +22,17 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
-from .._shared.io import atomic_write, check_output_folder
-from ..errors import InputMismatchError
-from ..frames.setups import setup_info
-from ..geometry.se3 import invert
-from ..io.session import write_joint_table
-from ..robot.kinematics import Chain, load_arm
-from ..robot.meshes import arm_meshes
-from ._common import _real_chain, default_camera
-from .depth import depth_reading, pixel_rays
-from .mesh import cast_rays, ray_caster, write_clouds
-from .scenes import Scene, look_at
+from ..._shared.io import atomic_write, check_output_folder
+from ...errors import InputMismatchError
+from ...frames.setups import setup_info
+from ...geometry.se3 import invert
+from ...io.session import write_joint_table
+from ...robot.kinematics import Chain, load_arm
+from ...robot.meshes import arm_meshes
+from ...simulate import default_camera, real_chain
+from ...simulate.scenes import Scene, look_at
+from .simulate_board import depth_reading, pixel_rays
+from .simulate_mesh import cast_rays, ray_caster, write_clouds
 
 __all__ = ["ArmDepthScene", "arm_depth_scene", "write_arm_depth_session", "ARM_CENTRE"]
 
@@ -106,7 +106,7 @@ def arm_depth_scene(n_views: int = 10, rng: np.random.Generator | int | None = N
     distance : (float, float)
         The camera's distance (m) from :data:`ARM_CENTRE`, drawn uniformly.
     depth_noise, depth_scale, depth_bias, holes
-        As :func:`~handeye.simulate.depth.depth_reading`: noise ``a + b z^2`` (m), the camera's depth
+        As :func:`~handeye.pipelines.depth.simulate_board.depth_reading`: noise ``a + b z^2`` (m), the camera's depth
         scale and bias, the share of pixels without depth; the arm's outline has flying pixels.
     clutter : bool
         The table under the arm and a box beside it in the scene.
@@ -125,7 +125,7 @@ def arm_depth_scene(n_views: int = 10, rng: np.random.Generator | int | None = N
     trimesh = importlib.import_module("trimesh")  # arm_meshes found it, or said to install it
     q = _joint_angles(chain, n_views, rng, "eye_to_hand") if joints is None else np.atleast_2d(np.asarray(joints, float))
     X = _camera(rng, distance) if cam2base is None else np.asarray(cam2base, float)
-    real = chain if table_error is None else _real_chain(chain, rng, *table_error)
+    real = chain if table_error is None else real_chain(chain, rng, *table_error)
     K = default_camera(image_size)[0]
     w, h = image_size
     rays = pixel_rays(K, image_size).reshape(-1, 3)

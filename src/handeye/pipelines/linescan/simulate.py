@@ -26,21 +26,22 @@ import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.io import atomic_write, check_output_folder, write_png
-from .._shared.lazy import lazy_module
-from ..errors import HandEyeError, InputMismatchError
-from ..frames.setups import check_setup, flange_poses, predicted_target2cam, setup_info
-from ..geometry.se3 import invert, make_transform
-from ..io.session import write_joint_table, write_pose_table
-from ..robot.kinematics import Chain, joints_at, load_arm
-from ..sensors.camera.targets.chessboard import Chessboard
-from ..sensors.linescan.model import Trajectory
-from ._common import _real_chain, _reported, arm_mount, reaching
-from .scenes import scene_from_viewpoints
+from ..._shared.io import atomic_write, check_output_folder, write_png
+from ..._shared.lazy import lazy_module
+from ...errors import HandEyeError, InputMismatchError
+from ...frames.setups import check_setup, flange_poses, predicted_target2cam, setup_info
+from ...geometry.se3 import invert, make_transform
+from ...io.session import write_joint_table, write_pose_table
+from ...robot.kinematics import Chain, joints_at, load_arm
+from ...sensors.camera.targets.chessboard import Chessboard
+from ...sensors.linescan.model import Trajectory
+from ...simulate import arm_mount, reaching, real_chain, reported_poses
+from ...simulate.scenes import scene_from_viewpoints
+from ..kinds import SimulateRequest
 
 cv2 = lazy_module("cv2")
 
-__all__ = ["LineScanScene", "linescan_scene", "render_scan", "write_linescan_session", "LINESCAN_CAMERA"]
+__all__ = ["LineScanScene", "linescan_scene", "render_scan", "write_linescan_session", "LINESCAN_CAMERA", "simulate_command"]
 
 #: The simulated camera: pixels along the line, focal length (px), principal point off the middle
 #: (px), radial distortion along the line, and the board (inner corners per row and column, square, m).
@@ -168,7 +169,7 @@ def linescan_scene(n_scans: int = 12, setup: str = "eye_in_hand", rng: np.random
         else:
             X, Z = (np.asarray(T, float) for T in cell)
             flange_mid = flange_poses(mid, X, Z, setup)
-        errors = _reported(flange_mid, robot_error, rng) @ invert(flange_mid)  # per scan: reported = E @ true
+        errors = reported_poses(flange_mid, robot_error, rng) @ invert(flange_mid)  # per scan: reported = E @ true
         moves = []
         for i, (R, centre) in enumerate(views):
             t, cam2target = motion(i, R, centre)
@@ -177,7 +178,7 @@ def linescan_scene(n_scans: int = 12, setup: str = "eye_in_hand", rng: np.random
     else:
         chain = load_arm(arm)
         X, Z = arm_mount(chain, setup, rng, distance)
-        chain_true = _real_chain(chain, rng, length_mm, angle_deg)
+        chain_true = real_chain(chain, rng, length_mm, angle_deg)
         moves = [_arm_move(chain, chain_true, X, Z, setup, rng, i, lambda i: motion(i, *_scan_view(
             rng, aim, distance, cone_deg, depth_spread)), joint_noise_deg) for i in range(n_scans)]
     times, poses_reported, joints, starts, lines, corners, seen_points, names, cams = [], [], [], [], [], [], [], [], []
@@ -352,3 +353,18 @@ def write_linescan_session(folder: str | Path, scene: LineScanScene, nominal_foc
         truth |= {"arm": scene.arm, "table_true": scene.chain_true.table.tolist()}
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return out
+
+
+def simulate_command(request: SimulateRequest) -> str:
+    """``handeye simulate --sensor line_scan`` (the line-scan camera's registration's ``simulate`` hook):
+    a line-scan session of a chessboard written to ``request.out``; returns what was written, in words."""
+    if request.robot != "arm" or request.target is not None:
+        raise InputMismatchError("--sensor line_scan simulates a 6-axis arm (its controller's poses, or with --arm its "
+                                 "joint angles) and a chessboard; leave --robot and --target out")
+    sc = linescan_scene(request.poses, request.setup, request.seed, arm=request.arm)
+    write_linescan_session(request.out, sc, rng=request.seed)
+    arm = f", {request.arm}'s joint angles along the trajectory in joints.csv (the arm 1-3 mm off its nominal table)" \
+        if request.arm else ""
+    return (f"wrote line-scan session {request.out} ({request.poses} scans of a {sc.board[0]} x {sc.board[1]} chessboard, "
+            f"{request.setup}, {sc.width} px at {sc.line_rate:.0f} lines/s, the robot's clock {1e3 * sc.clock_offset:.0f} ms "
+            f"after the camera's{arm}); ground truth in {Path(request.out) / 'ground_truth.yaml'}")

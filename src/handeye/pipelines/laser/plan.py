@@ -5,7 +5,7 @@ A ball's profile tells where its centre is across the laser plane only through t
 so X's rotation is known through the lever of the centre's offsets from the plane and of the
 flange's turns between profiles: the plan draws the views from all around the target's top
 (within ``cone_deg``, any roll, the laser plane cutting the ball on either side of its centre), as
-:func:`handeye.simulate.laser.profiler_views` does, and predicts X's std by calibrating a simulated
+:func:`handeye.pipelines.laser.simulate.profiler_views` does, and predicts X's std by calibrating a simulated
 capture of exactly those poses through the estimation core, the robot's stated accuracy in it.
 The same number of profiles with the flange turned at most :data:`NARROW_DEG` is predicted beside
 it: how much the turns widen the lever.
@@ -28,24 +28,25 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import DegenerateMotionError, InputMismatchError
-from ..estimation.core import estimate
-from ..frames.setups import check_setup, predicted_target2cam, setup_info
-from ..geometry.se3 import invert
-from ..options import ROBOT_ACCURACY
-from ..robot.models import ControllerPoses
-from ..sensors.laser.edge import EdgeProfiles, StepProfiles
-from ..sensors.laser.model import LASER_NOISE_M, Profiles, SphereProfiles, SpheresProfiles
-from ..sensors.laser.plane import PlaneProfiles
-from ..simulate.laser import BLOCK, FIXTURE, TARGETS, profile_reading, profiler_views
-from .poses import order_path
+from ...errors import DegenerateMotionError, InputMismatchError
+from ...estimation.core import estimate
+from ...frames.motions import order_path
+from ...frames.setups import check_setup, predicted_target2cam, setup_info
+from ...geometry.se3 import invert
+from ...options import ROBOT_ACCURACY
+from ...robot.models import ControllerPoses
+from ...sensors.laser.edge import EdgeProfiles, StepProfiles
+from ...sensors.laser.model import LASER_NOISE_M, Profiles, SphereProfiles, SpheresProfiles
+from ...sensors.laser.plane import PlaneProfiles
+from ..kinds import PlanRequest, SensorPlan
+from .simulate import BLOCK, FIXTURE, TARGETS, profile_reading, profiler_views
 
 #: The targets a laser plan predicts the std for (its simulated capture goes through their models).
 PLANNED = TARGETS
 #: The fewest profiles each target's closed-form start takes (a fixture: 3 or more on each of its balls).
 FEWEST = {"sphere": 5, "plane": 16, "edge": 10, "step": 10, "spheres": 12}
 
-__all__ = ["LaserPlan", "plan_laser", "assumed_shape", "NARROW_DEG", "FEWEST"]
+__all__ = ["LaserPlan", "plan_laser", "assumed_shape", "NARROW_DEG", "FEWEST", "plan_command"]
 
 #: The comparison capture turns the flange at most this much (deg) between profiles.
 NARROW_DEG = 10.0
@@ -163,3 +164,40 @@ def plan_laser(setup: str, X: NDArray[np.float64], Z: NDArray[np.float64], n_pos
     if target in ("edge", "step"):  # the simulator's block views tilt at most its own cone
         cone_deg = min(cone_deg, BLOCK["cone_deg"])
     return LaserPlan(setup, target, flange2base, reported, data, narrow_data, robot_accuracy, cone_deg)
+
+
+#: What places X's rotation, per target (the plan's last line).
+_LEVER = {"sphere": "the ball's centre across the laser plane, its rotation",
+          "spheres": "the balls' centres across the laser plane, its rotation",
+          "plane": "the plate's tilt in each profile, its rotation",
+          "edge": "the faces' tilts and the edge's crossing point in each profile, its rotation",
+          "step": "the levels' tilt and the riser's crossing point in each profile, its rotation"}
+
+
+def plan_command(request: PlanRequest) -> SensorPlan:
+    """``handeye plan --sensor laser_line`` (the laser's registration's ``plan`` hook): flange poses around
+    a ball (over a plate, across an edge or a step, around a fixture's balls) and the std they would give,
+    beside the same number of profiles turned at most :data:`NARROW_DEG`; ``options``: ``diameter``, the
+    ball's (m)."""
+    target = request.target or "sphere"
+    if target not in TARGETS:
+        raise InputMismatchError(f"--target {target}: a laser line profiler scans one of {', '.join(TARGETS)} (--target "
+                                 "sphere is the default)")
+    diameter = request.options.get("diameter")
+    if target != "sphere" and diameter is not None:
+        raise InputMismatchError(f"--diameter is a ball's; --target {target} has none"
+                                 + (" (the plan's fixture is the simulator's: see its output)" if target == "spheres" else "")
+                                 + ": leave it out")
+    plan = plan_laser(request.setup, request.X, request.Z, n_poses=request.poses or 20, target=target,
+                      radius=(0.04 if diameter is None else diameter) / 2, robot_accuracy=request.robot_accuracy,
+                      rng=request.seed)
+    axis = "its faces' bisector" if target == "edge" else "the target frame's +z"
+    return SensorPlan(
+        [f"p{k + 1:02d}.csv" for k in range(len(plan.flange2base))], plan.flange2base, "profile", plan,
+        f"{len(plan.flange2base)} profiles of {assumed_shape(target)}, the profiler within {plan.cone_deg:g} deg of {axis}, "
+        "turned about its view direction, in path order:",
+        "profile", "which no capture removes", "profiles", f"the same number of profiles with the flange turned at most "
+        f"{NARROW_DEG:g} deg", "X is not determined (profiles at nearly one orientation only slide along a plate, an edge "
+        "or a step)", " (turns between profiles place X's translation; " + _LEVER[target] + ")",
+        "flange2base per profile; it is the poses.csv of the laser session to capture (replace each row by the pose the "
+        "robot reports)")

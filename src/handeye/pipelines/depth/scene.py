@@ -27,19 +27,19 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from .._shared.progress import Progress
-from .._shared.threads import one_blas_thread
-from ..errors import DegenerateMotionError, InputMismatchError
-from ..estimation.core import estimate
-from ..frames.metrics import rotation_error, translation_error
-from ..frames.setups import robot_world_A, setup_info
-from ..io.depth_session import DepthSession
-from ..options import CalibrationOptions
-from ..result import Calibration
-from ..sensors.depth.scene import Pairs, SceneSurface, SceneView, pair_spread, prepare_view, register, scene_free, view_overlap
-from ..sensors.depth.scene_start import StartCandidate, agreement, centroid_start, scene_start
-from ._sensor import held_and_freed, robot_model
+from ..._shared.progress import Progress
+from ..._shared.threads import one_blas_thread
+from ...errors import DegenerateMotionError, InputMismatchError
+from ...estimation.core import estimate
+from ...frames.metrics import rotation_error, translation_error
+from ...frames.setups import robot_world_A, setup_info
+from ...options import CalibrationOptions
+from ...result import Calibration
+from ...sensors.depth.scene import Pairs, SceneSurface, SceneView, pair_spread, prepare_view, register, scene_free, view_overlap
+from ...sensors.depth.scene_start import StartCandidate, agreement, centroid_start, scene_start
+from .._sensor import held_and_freed, robot_model
 from .mesh import read_scene
+from .session import DepthSession
 
 __all__ = ["SceneViews", "read_scene_views", "register_scene", "check_views", "calibrate_scene_session", "Registered",
            "AGREE_SHARE", "SAME_CLOUD"]
@@ -183,9 +183,9 @@ def calibrate_scene_session(s: DepthSession, options: CalibrationOptions, *, fit
     Examples
     --------
     >>> import tempfile
-    >>> from handeye.io.depth_session import load_depth_session
+    >>> from handeye.pipelines.depth.session import load_depth_session
     >>> from handeye.options import CalibrationOptions
-    >>> from handeye.simulate.scene import scene_capture, write_scene_session
+    >>> from handeye.pipelines.depth.simulate_scene import scene_capture, write_scene_session
     >>> folder = write_scene_session(tempfile.mkdtemp() + "/s", scene_capture(8, "eye_to_hand", rng=4, image_size=(320, 240)))
     >>> cal = calibrate_scene_session(load_depth_session(folder), CalibrationOptions())
     >>> cal.sensor.target, cal.verdict in ("good", "weak")

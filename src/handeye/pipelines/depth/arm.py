@@ -27,10 +27,10 @@ angles from ``joints: {file: joints.csv, unit: deg, arm: panda}``) is calibrated
 Examples
 --------
 >>> import tempfile
->>> from handeye.pipelines.arm_depth import arm_of_session, calibrate_arm_depth_session, read_arm_clouds
->>> from handeye.io.depth_session import load_depth_session
+>>> from handeye.pipelines.depth.arm import arm_of_session, calibrate_arm_depth_session, read_arm_clouds
+>>> from handeye.pipelines.depth.session import load_depth_session
 >>> from handeye.options import CalibrationOptions
->>> from handeye.simulate.arm_depth import arm_depth_scene, write_arm_depth_session
+>>> from handeye.pipelines.depth.simulate_arm import arm_depth_scene, write_arm_depth_session
 >>> folder = write_arm_depth_session(tempfile.mkdtemp() + "/arm", arm_depth_scene(4, rng=2, image_size=(128, 96)))
 >>> s = load_depth_session(folder)
 >>> s.kind, arm_of_session(s).n_views, len(read_arm_clouds(s).index)
@@ -50,24 +50,24 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from .._shared.progress import Progress
-from .._shared.threads import one_blas_thread
-from ..errors import DegenerateMotionError, InputMismatchError, SessionError
-from ..estimation.core import estimate
-from ..frames.metrics import rotation_error, translation_error
-from ..geometry.se3 import invert, make_transform
-from ..io.depth_session import DepthSession
-from ..options import CalibrationOptions
-from ..result import Calibration
-from ..robot.meshes import BASE, meshes_for
-from ..robot.models import ControllerPoses, JointAngles
-from ..sensors.depth.arm import COARSE_TAU, SPACING, ArmSurface, PosedArm, fit_cam2base, on_arm, to_base, within
-from ..sensors.depth.clouds import depth_sigma
-from ..sensors.depth.registration import MIN_INLIERS, find_shape
-from ..sensors.depth.shape import search_tree, voxel_pick
-from ._arm import arm_table, table_tolerance
-from ._sensor import held_and_freed, session_robot_input
+from ..._shared.progress import Progress
+from ..._shared.threads import one_blas_thread
+from ...errors import DegenerateMotionError, InputMismatchError, SessionError
+from ...estimation.core import estimate
+from ...frames.metrics import rotation_error, translation_error
+from ...geometry.se3 import invert, make_transform
+from ...options import CalibrationOptions
+from ...result import Calibration
+from ...robot.meshes import BASE, meshes_for
+from ...robot.models import ControllerPoses, JointAngles
+from ...sensors.depth.arm import COARSE_TAU, SPACING, ArmSurface, PosedArm, fit_cam2base, on_arm, to_base, within
+from ...sensors.depth.clouds import depth_sigma
+from ...sensors.depth.registration import MIN_INLIERS, find_shape
+from ...sensors.depth.shape import search_tree, voxel_pick
+from .._arm import arm_table, table_tolerance
+from .._sensor import held_and_freed, session_robot_input
 from .mesh import read_scene
+from .session import DepthSession
 
 __all__ = ["ArmClouds", "arm_of_session", "read_arm_clouds", "start_arm", "pooled_start", "consistent_arm_views", "segment_arm",
            "calibrate_arm_depth_session", "AGREE_DEG", "AGREE_M", "MAX_POINTS", "GLOBAL_VIEWS"]
@@ -359,7 +359,7 @@ def calibrate_arm_depth_session(s: DepthSession, options: CalibrationOptions, *,
     Parameters
     ----------
     s : DepthSession
-        Read by :func:`~handeye.io.depth_session.load_depth_session`, ``target: {type: arm}``.
+        Read by :func:`~handeye.pipelines.depth.session.load_depth_session`, ``target: {type: arm}``.
     options : CalibrationOptions
         ``robot_accuracy`` and ``folds`` are used.
     fit_depth : bool

@@ -31,7 +31,7 @@ target's unknowns.
 With ``joints: {file: joints.csv, unit: deg, arm: ur5}`` the robot's poses are its joint angles
 through the arm's table (fitted with the rig, as for one sensor); ``poses:`` may then be left out.
 A sensor may miss a view (no image of that name in its folder: said in a note); a sensor's name is
-its key (a name given twice is an error). Nothing is measured here (:mod:`handeye.pipelines.rig`
+its key (a name given twice is an error). Nothing is measured here (:mod:`handeye.pipelines.rig.pipeline`
 does that); every key is checked.
 """
 
@@ -45,15 +45,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._shared.text import cut, summarize
-from ..errors import SessionError
-from ..frames.poses import RobotPoseInput
-from ..frames.setups import check_setup
-from ..robot.kinematics import Chain
-from ..sensors.camera.targets import target_from_spec
-from .depth_session import RIG_DEPTH_KEYS, DepthSession, rig_depth
-from .laser_session import LaserSession, rig_laser
-from .session import (
+from ..._shared.text import cut, summarize
+from ...errors import SessionError
+from ...frames.poses import RobotPoseInput
+from ...frames.setups import check_setup
+from ...io.session import (
     IMAGE_ORDER,
     JOINTS_KEYS,
     POSES_KEYS,
@@ -70,54 +66,43 @@ from .session import (
     read_unknowns,
     session_file,
 )
+from ...robot.kinematics import Chain
+from ...sensors.camera.targets import target_from_spec
+from ..kinds import member_kind, sensor_kinds
 
-__all__ = ["RigSession", "RigSensor", "load_rig_session", "is_rig_session", "SENSOR_KEYS", "IMAGE_SUFFIXES"]
+__all__ = ["RigSession", "RigSensor", "load_rig_session", "is_rig_session", "extras", "SENSOR_KEYS", "IMAGE_SUFFIXES"]
 
-#: The keys of one camera's block, and of a laser profiler's (its target: the session's when left out).
+#: The keys of one camera's block (another kind's block: that kind's ``rig_member`` checks it).
 SENSOR_KEYS = ("camera", "images")
-LASER_SENSOR_KEYS = ("laser", "profiles", "target")
 #: The image files a sensor's folder may hold: an image session's (the png first).
 IMAGE_SUFFIXES = IMAGE_ORDER
 
 
 @dataclass(frozen=True)
 class RigSensor:
-    """One sensor of a rig: a camera (its intrinsics and per view its image, None where it has none),
-    a laser profiler (``laser``: a laser session over the rig's views, its own target) or a depth
-    camera (``depth``: a depth session over the rig's views)."""
+    """One sensor of a rig: a camera (its intrinsics and per view its image, None where it has none)
+    or a sensor of another kind (``member``: what its kind's registration reads as a rig's sensor, over
+    the rig's views: a laser profiler's profiles, a depth camera's clouds; ``kind`` its section)."""
 
     name: str
     K: NDArray[np.float64] | None = None
     dist: NDArray[np.float64] | None = None
     images: list[Path | None] = field(default_factory=list)
-    laser: LaserSession | None = None
-    depth: DepthSession | None = None
+    member: Any = None
     #: the target it sees (a camera's: the session's)
     target_spec: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def kind(self) -> str:
-        """'camera', 'laser' or 'depth'."""
-        return "laser" if self.laser is not None else "depth" if self.depth is not None else "camera"
+    #: its kind's section in session.yaml ("laser", "depth"), "camera" for a camera
+    kind: str = "camera"
 
     @property
     def seen(self) -> list[bool]:
         """Per view of the rig whether the sensor has its image, profile or cloud (and intensity image)."""
-        if self.laser is not None:
-            return [p.is_file() for p in self.laser.profile_paths]
-        if self.depth is not None:
-            images = self.depth.image_paths or [None] * len(self.depth.cloud_paths)
-            return [c.is_file() and (i is None or i.is_file()) for c, i in zip(self.depth.cloud_paths, images)]
-        return [p is not None for p in self.images]
+        return list(self.member.seen) if self.member is not None else [p is not None for p in self.images]
 
     @property
     def files(self) -> list[Path]:
         """The sensor's input files."""
-        if self.laser is not None:
-            return [p for p in self.laser.profile_paths if p.is_file()]
-        if self.depth is not None:
-            return [p for p in self.depth.cloud_paths + (self.depth.image_paths or []) if p.is_file()]
-        return [p for p in self.images if p is not None]
+        return list(self.member.files) if self.member is not None else [p for p in self.images if p is not None]
 
 
 @dataclass(frozen=True)
@@ -148,13 +133,23 @@ class RigSession:
     def shared_target(self) -> bool:
         """Whether the sensors see one target: the same target spec for every sensor (cameras and
         depth cameras on the session's board, profilers on one ball). Whether its pose can be one
-        set of unknowns is the sensor models' to say (:func:`handeye.pipelines.rig.calibrate_rig_session`)."""
+        set of unknowns is the sensor models' to say (:func:`handeye.pipelines.rig.pipeline.calibrate_rig_session`)."""
         return len({str(sorted(x.target_spec.items())) for x in self.sensors}) == 1
 
 
 def is_rig_session(folder: str | Path) -> bool:
     """Whether ``folder``'s session.yaml has a ``sensors:`` mapping."""
     return has_section(folder, "sensors")
+
+
+def extras(spec: dict[str, Any], folder: Path, needs: dict[str, dict[str, str]]) -> None:
+    """The optional extras a rig session needs (its registration's ``extras`` hook): each sensor's,
+    by its kind's ``rig_extras`` (a depth camera's clouds' readers)."""
+    sensors = spec.get("sensors")
+    for name, block in (sensors.items() if isinstance(sensors, dict) else ()):
+        kind = member_kind(block) if isinstance(block, dict) else None
+        if kind is not None and kind.rig_extras is not None:
+            kind.hook("rig_extras")(block, str(name), folder, needs)
 
 
 def _camera(folder: Path, name: str, block: dict, names: list[str], target: Any, at: str) -> RigSensor:
@@ -186,7 +181,7 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
     check_session_keys(spec, ("setup", "target", "poses", "joints", "sensors", "unknowns"),
                        {"poses": POSES_KEYS, "joints": JOINTS_KEYS}, where)
     setup = check_setup(str(spec.get("setup", "")))
-    if any(isinstance(b, dict) and not {"laser", "depth"} & set(b) for b in sensors.values()):  # the cameras' board
+    if any(isinstance(b, dict) and member_kind(b) is None for b in sensors.values()):  # the cameras' board
         target_from_spec(spec.get("target"), where=f"{where}: target")
     joints = read_joints(folder, spec["joints"], where, notes, arm, ("view",)) if spec.get("joints") else None
     posed = not (spec.get("poses") is None and joints is not None)
@@ -201,24 +196,20 @@ def load_rig_session(folder: str | Path, arm: str | None = None) -> RigSession:
             raise SessionError(f"{at}: a sensor's name may hold letters, digits, '_', '-' and '.' (it names the sensor's "
                                "folder of results and its ROS frame); rename it")
         if not isinstance(block, dict):
-            raise SessionError(f"{at}: a mapping with camera (K, dist) and images (its folder), laser and profiles, or depth "
-                               "and clouds")
+            others = [f"{k.section}: for a {k.display}" for k in sensor_kinds() if k.rig_member is not None]
+            raise SessionError(f"{at}: a mapping with camera (K, dist) and images (its folder), or another kind's section "
+                               f"({', '.join(others)})")
         target = block.get("target", spec.get("target"))
-        if "laser" in block:
-            check_keys(block, LASER_SENSOR_KEYS, at)
-            laser = rig_laser(folder, setup, names, f2b, block["laser"], folder / str(block.get("profiles", name)), target, at)
-            out.append(RigSensor(str(name), laser=laser, target_spec=dict(target or {})))
-        elif "depth" in block:
-            check_keys(block, RIG_DEPTH_KEYS, at)
-            check_keys(block["depth"], ("unit", "range"), f"{at}: depth")
-            depth = rig_depth(folder, setup, names, f2b, block, str(name), target, at)
-            out.append(RigSensor(str(name), depth=depth, target_spec=dict(target or {})))
+        kind = member_kind(block)
+        if kind is not None:  # read by its kind, over the rig's views
+            member = kind.hook("rig_member")(folder, setup, names, f2b, block, str(name), target, at)
+            out.append(RigSensor(str(name), member=member, target_spec=dict(target or {}), kind=kind.section))
         else:
             check_keys(block, SENSOR_KEYS, at)
             out.append(_camera(folder, str(name), block, names, target, at))
         missing = [n for n, seen in zip(names, out[-1].seen) if not seen]
         if missing:
-            what = {"laser": "profile", "depth": "cloud", "camera": "image"}[out[-1].kind]
+            what = out[-1].member.missing if out[-1].member is not None else "image"
             notes.append(f"sensor {name}: no {what} for {len(missing)} of {len(names)} views ({summarize(missing)}): those "
                          "views are not its")
     q = None if joints is None else joints_of_views(joints, names, f2b if posed else None, notes)

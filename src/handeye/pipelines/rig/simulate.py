@@ -18,25 +18,26 @@ import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.io import atomic_write, check_output_folder, write_png
-from ..errors import HandEyeError, InputMismatchError
-from ..frames.setups import check_setup, flange_poses, predicted_target2cam, setup_info
-from ..geometry.se3 import invert, make_transform, random_rotations
-from ..io.session import write_joint_table, write_pose_table
-from ..robot.kinematics import Chain
-from ..sensors.camera.model import CameraCorners
-from ..sensors.camera.pnp import project_points, project_points_many
-from ..sensors.camera.render import Renderer
-from ..sensors.camera.targets.chessboard import Chessboard
-from ._common import _reported
-from .arms import kinematic_scene
-from .depth import board_depth_image, depth_reading
-from .laser import profile_reading, profiler_views, write_profile
-from .scenes import look_at, scene_from_viewpoints
+from ..._shared.io import atomic_write, check_output_folder, write_png
+from ...errors import HandEyeError, InputMismatchError
+from ...frames.setups import check_setup, flange_poses, predicted_target2cam, setup_info
+from ...geometry.se3 import invert, make_transform, random_rotations
+from ...io.session import write_joint_table, write_pose_table
+from ...robot.kinematics import Chain
+from ...sensors.camera.model import CameraCorners
+from ...sensors.camera.pnp import project_points, project_points_many
+from ...sensors.camera.render import Renderer
+from ...sensors.camera.targets.chessboard import Chessboard
+from ...simulate import reported_poses
+from ...simulate.arms import kinematic_scene
+from ...simulate.scenes import look_at, scene_from_viewpoints
+from ..depth.simulate_board import board_depth_image, depth_reading
+from ..kinds import SimulateRequest
+from ..laser.simulate import profile_reading, profiler_views, write_profile
 
 __all__ = ["RigCamera", "RigScene", "rig_scene", "rig_joint_scene", "write_rig_session", "CameraLaserScene", "camera_laser_scene",
            "write_camera_laser_session", "ProfilerPairScene", "profiler_pair_scene", "write_profiler_pair_session",
-           "CameraDepthScene", "camera_depth_scene", "write_camera_depth_session"]
+           "CameraDepthScene", "camera_depth_scene", "write_camera_depth_session", "simulate_command"]
 
 
 @dataclass(frozen=True)
@@ -110,7 +111,7 @@ def rig_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Gene
     ``baseline`` (m) beside it, turned in by a few degrees), eye-to-hand fixed around the cell 0.8 m
     from the middle of the board's moves. ``n_views`` robot poses, each board view within 35 deg of
     the cameras' common view; the corners with ``noise_px`` of pixel noise; ``robot_error`` (deg,
-    mm) as :func:`~handeye.simulate.laser.laser_scene`'s; ``missing``: per camera index the share of
+    mm) as :func:`~handeye.pipelines.laser.simulate.laser_scene`'s; ``missing``: per camera index the share of
     views it is told to miss (a camera that saw less).
 
     Examples
@@ -173,7 +174,7 @@ def rig_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Gene
     for k, (X, (K, d), T) in enumerate(zip(Xs, intrinsics, target2cam)):
         drop = rng.random(n_views) < (missing or {}).get(k, 0.0)
         cams.append(RigCamera(f"cam{k}", X, K, d, *_corners(T, points, K, d, noise_px, rng, drop)))
-    return RigScene(setup, names, _reported(F, robot_error, rng), F, Z, cams)
+    return RigScene(setup, names, reported_poses(F, robot_error, rng), F, Z, cams)
 
 
 def _corners(T: NDArray[np.float64], points: NDArray[np.float64], K: NDArray[np.float64], dist: NDArray[np.float64],
@@ -229,7 +230,7 @@ def _unit(rng: np.random.Generator) -> NDArray[np.float64]:
 
 def write_rig_session(folder: str | Path, scene: RigScene, rng: np.random.Generator | int | None = None,
                       noise_px: float = 0.0) -> Path:
-    """Write a simulated rig capture as a rig session folder (:mod:`handeye.io.rig_session`): per
+    """Write a simulated rig capture as a rig session folder (:mod:`handeye.pipelines.rig.session`): per
     camera a folder of its rendered images (``v01.png``, ...; none where it missed the view), its
     K and dist in session.yaml, ``poses.csv`` (first column ``view``; the controller's poses,
     quat_wxyz, mm, deg), or ``joints.csv`` (degrees) when the scene has joint angles, and
@@ -296,7 +297,7 @@ SMALL_BOARD = (9, 6, 0.01)
 def camera_laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
                        noise_px: float = 0.2, robot_error: tuple[float, float] | None = None,
                        cone_deg: float = 25.0) -> CameraLaserScene:
-    """A camera beside a laser profiler (the profiler of :func:`~handeye.simulate.laser.laser_scene`,
+    """A camera beside a laser profiler (the profiler of :func:`~handeye.pipelines.laser.simulate.laser_scene`,
     scanning a 40 mm ball from within ``cone_deg`` of its top; the camera 60 mm beside it, looking the
     same way, with a wider lens, at a 90 x 60 mm board the ball rests on): the views the robot took
     for the profiler, each camera image kept where the whole board is in it.
@@ -328,14 +329,14 @@ def camera_laser_scene(n_views: int = 20, setup: str = "eye_in_hand", rng: np.ra
     ball2sensor = predicted_target2cam(laser_X, Z_ball, F, setup)
     profiles = [profile_reading("sphere", T, radius, rng, PROFILE_NOISE_M, 0.02, 0.002) for T in ball2sensor]
     names = [f"v{i + 1:02d}" for i in range(n_views)]
-    return CameraLaserScene(setup, names, _reported(F, robot_error, rng), F, RigCamera("camera", X_cam, K, dist, img, obj),
+    return CameraLaserScene(setup, names, reported_poses(F, robot_error, rng), F, RigCamera("camera", X_cam, K, dist, img, obj),
                             laser_X, profiles, radius, Z_ball, Z_board)
 
 
 def write_camera_laser_session(folder: str | Path, scene: CameraLaserScene, rng: np.random.Generator | int | None = None,
                                noise_px: float = 0.0) -> Path:
     """Write a camera beside a laser profiler (:func:`camera_laser_scene`) as a rig session folder
-    (:mod:`handeye.io.rig_session`): ``camera/`` the camera's rendered images of the small board
+    (:mod:`handeye.pipelines.rig.session`): ``camera/`` the camera's rendered images of the small board
     (none where it missed the view), ``laser/`` the profiler's profiles of the ball (``x,z`` in mm),
     ``poses.csv`` (first column ``view``; the controller's poses), session.yaml (the board as the
     session's target, the ball as the profiler's own) and ``ground_truth.yaml`` (both X, the board's
@@ -392,10 +393,10 @@ class ProfilerPairScene:
 def profiler_pair_scene(n_views: int = 12, setup: str = "eye_in_hand", rng: np.random.Generator | int | None = None, *,
                         robot_error: tuple[float, float] | None = None, radius: float = 0.02,
                         cone_deg: float = 45.0) -> ProfilerPairScene:
-    """Two profilers (:func:`~handeye.simulate.laser.laser_scene`'s, the second 80 mm beside the first
+    """Two profilers (:func:`~handeye.pipelines.laser.simulate.laser_scene`'s, the second 80 mm beside the first
     and turned 20 deg) that scanned one ball: ``n_views`` robot poses for each, of its own (no pose
     shared: each pose's own error does not cancel between them); the controller's poses off by
-    ``robot_error`` (deg, mm) as :func:`~handeye.simulate.laser.laser_scene`'s.
+    ``robot_error`` (deg, mm) as :func:`~handeye.pipelines.laser.simulate.laser_scene`'s.
 
     Examples
     --------
@@ -419,11 +420,11 @@ def profiler_pair_scene(n_views: int = 12, setup: str = "eye_in_hand", rng: np.r
         profiles.append([profile_reading("sphere", T, radius, rng, PROFILE_NOISE_M, 0.02, 0.002) if s else None
                          for T, s in zip(ball2sensor, seen[k])])
     names = [f"v{i + 1:02d}" for i in range(n)]
-    return ProfilerPairScene(setup, names, _reported(F_true, robot_error, rng), F_true, X, profiles, radius, first.Z)
+    return ProfilerPairScene(setup, names, reported_poses(F_true, robot_error, rng), F_true, X, profiles, radius, first.Z)
 
 
 def write_profiler_pair_session(folder: str | Path, scene: ProfilerPairScene) -> Path:
-    """Write :func:`profiler_pair_scene` as a rig session folder (:mod:`handeye.io.rig_session`):
+    """Write :func:`profiler_pair_scene` as a rig session folder (:mod:`handeye.pipelines.rig.session`):
     ``laser_a/`` and ``laser_b/`` the profilers' profiles named by view (``x,z`` in mm; none where a
     profiler did not scan), ``poses.csv`` (first column ``view``), session.yaml (the ball as both
     profilers' target) and ``ground_truth.yaml``. Returns the folder."""
@@ -482,7 +483,7 @@ def camera_depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.ra
                        depth_noise: tuple[float, float] = (1e-4, 5e-4), holes: float = 0.01) -> CameraDepthScene:
     """A camera beside a depth camera (:func:`rig_scene`'s two cameras, the second an RGB-D camera with
     a 60 deg lens at ``depth_size`` px): the camera's corners as :func:`rig_scene`'s; the depth camera's
-    clouds as :func:`~handeye.simulate.depth.depth_scene`'s (``depth_noise``, scale, bias, holes,
+    clouds as :func:`~handeye.pipelines.depth.simulate_board.depth_scene`'s (``depth_noise``, scale, bias, holes,
     flying pixels on the board's edge) and its corners with ``noise_px`` in its registered intensity image.
 
     Examples
@@ -518,7 +519,7 @@ def camera_depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.ra
 def write_camera_depth_session(folder: str | Path, scene: CameraDepthScene, rng: np.random.Generator | int | None = None,
                                noise_px: float = 0.0) -> Path:
     """Write a camera beside a depth camera (:func:`camera_depth_scene`) as a rig session folder
-    (:mod:`handeye.io.rig_session`): ``camera/`` the camera's rendered images, ``depth/`` the depth
+    (:mod:`handeye.pipelines.rig.session`): ``camera/`` the camera's rendered images, ``depth/`` the depth
     camera's clouds (``v01.npy``, metres, float32) beside its rendered intensity images (``v01.png``;
     neither where it missed the board), ``poses.csv`` (first column ``view``; the controller's poses),
     session.yaml (the board the session's target, seen by both) and ``ground_truth.yaml`` (both X,
@@ -556,3 +557,41 @@ def write_camera_depth_session(folder: str | Path, scene: CameraDepthScene, rng:
     atomic_write(out / "ground_truth.yaml", yaml.safe_dump(truth, sort_keys=False))
     return out
 
+
+def simulate_command(request: SimulateRequest) -> str:
+    """``handeye simulate --sensor rig`` (the rig's registration's ``simulate`` hook): a rig session
+    written to ``request.out`` (a stereo pair on the flange or three cameras fixed around the cell;
+    ``options``: ``cameras``, their number, or ``depth`` / ``laser``: one camera beside a depth camera
+    or a laser profiler); returns what was written, in words."""
+    if request.robot != "arm" or request.target is not None:
+        raise InputMismatchError("--sensor rig simulates a 6-axis arm (its controller's poses, or with --arm its joint "
+                                 "angles) and a chessboard; leave --robot and --target out")
+    on_flange = setup_info(request.setup).camera_on_flange
+    n_cameras, laser, depth = request.options.get("cameras"), request.options.get("laser"), request.options.get("depth")
+    if laser and depth:
+        raise InputMismatchError("--laser and --depth each put one sensor beside the camera: give one of them")
+    if depth or laser:  # a camera beside one other sensor: an RGB-D camera, or a profiler scanning a ball
+        flag, other = ("--depth", "depth camera") if depth else ("--laser", "laser profiler")
+        if request.arm is not None or n_cameras is not None:
+            raise InputMismatchError(f"{flag} simulates one camera beside one {other} on controller poses; leave --arm "
+                                     "and --cameras out")
+        scene, write = (camera_depth_scene, write_camera_depth_session) if depth else \
+            (camera_laser_scene, write_camera_laser_session)
+        write(request.out, scene(request.poses, request.setup, request.seed, robot_error=(0.01, 0.05)), rng=request.seed,
+              noise_px=request.noise_px)
+        seen = "a chessboard both see, the depth scale 0.2% off" if depth else "a small chessboard and a 40 mm ball"
+        return (f"wrote rig session {request.out} ({request.poses} poses, a camera and a {other} "
+                f"{'on the flange' if on_flange else 'fixed side by side'}: {seen}; the robot 0.01 deg / 0.05 mm off); "
+                f"ground truth in {Path(request.out) / 'ground_truth.yaml'}")
+    cameras = n_cameras or (2 if on_flange else 3)
+    if request.arm is not None:  # joint angles of an arm 1-3 mm off its nominal table, the cameras side by side
+        sc = rig_joint_scene(request.poses, request.setup, request.seed, arm=request.arm, cameras=cameras)
+        error = f"the {sc.chain.name}'s joint angles, its real table 1-3 mm off the nominal one"
+    else:
+        sc = rig_scene(request.poses, request.setup, request.seed, cameras=cameras, robot_error=(0.01, 0.05))
+        error = "the robot 0.01 deg / 0.05 mm off"
+    write_rig_session(request.out, sc, rng=request.seed, noise_px=request.noise_px)
+    what = ("a stereo pair on the flange" if cameras == 2 else f"{cameras} cameras on the flange") if on_flange else \
+        f"{cameras} cameras fixed {'side by side' if request.arm else 'around the cell'}"
+    return (f"wrote rig session {request.out} ({request.poses} poses, {what}, a chessboard; {error}); "
+            f"ground truth in {Path(request.out) / 'ground_truth.yaml'}")

@@ -1,6 +1,6 @@
 """Line-scan camera sessions calibrated: each scan's target found, then the estimation core.
 
-A line-scan session (:mod:`handeye.io.linescan_session`: ``linescan:`` in session.yaml, ``images/``
+A line-scan session (:mod:`handeye.pipelines.linescan.session`: ``linescan:`` in session.yaml, ``images/``
 of pushbroom scans, the robot's trajectory with times) gives per scan the rows the camera exposed
 while the robot swept it (or the target) across its view plane. :func:`calibrate_linescan_session`
 finds the target's corners in each scan (a scan without the whole target is skipped, named), makes
@@ -21,20 +21,20 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from .._shared.threads import on_one_blas_thread
-from ..errors import DegenerateMotionError, InputMismatchError
-from ..estimation.readings import Reading
-from ..frames.setups import predicted_target2cam
-from ..geometry.se3 import invert
-from ..io.linescan_session import LineScanSession, load_linescan_session
-from ..options import CalibrationOptions
-from ..result import Calibration
-from ..robot.kinematics import Chain, joints_at
-from ..robot.models import ControllerPoses, JointTrajectory, PoseErrors, RobotModel
-from ..sensors.camera.detect import detect_images
-from ..sensors.camera.targets import target_from_spec
-from ..sensors.linescan.model import LineScanCorners, Trajectory
-from ._sensor import estimate_checked, sensor_options, session_robot_input
+from ..._shared.threads import on_one_blas_thread
+from ...errors import DegenerateMotionError, InputMismatchError
+from ...estimation.readings import Reading
+from ...frames.setups import predicted_target2cam
+from ...geometry.se3 import invert
+from ...options import CalibrationOptions
+from ...result import Calibration
+from ...robot.kinematics import Chain, joints_at
+from ...robot.models import ControllerPoses, JointTrajectory, PoseErrors, RobotModel
+from ...sensors.camera.detect import detect_images
+from ...sensors.camera.targets import target_from_spec
+from ...sensors.linescan.model import LineScanCorners, Trajectory
+from .._sensor import estimate_checked, sensor_options, session_robot_input
+from .session import LineScanSession, load_linescan_session
 
 __all__ = ["calibrate_linescan_session", "grid_orderings", "linescan_robot", "linescan_joints", "readings_note"]
 
@@ -65,7 +65,7 @@ def linescan_joints(chain: Chain, times: NDArray[np.float64], joints: NDArray[np
 
     Examples
     --------
-    >>> from handeye.simulate.linescan import linescan_scene
+    >>> from handeye.pipelines.linescan.simulate import linescan_scene
     >>> sc = linescan_scene(4, "eye_in_hand", rng=0, arm="ur5")
     >>> model = LineScanCorners("eye_in_hand", sc.names, sc.corners, sc.target_points, sc.starts, sc.line_rate,
     ...                         sc.trajectory, sc.focal, sc.width)
@@ -131,7 +131,8 @@ def _detected(s: LineScanSession, progress: bool):
 
 @on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
 def calibrate_linescan_session(folder: str | Path | LineScanSession, options: CalibrationOptions | None = None, *,
-                               progress: bool = False, **changes) -> Calibration:
+                               progress: bool = False, jobs: int | None = None,
+                               **changes) -> Calibration:
     """Calibrate a line-scan camera session (the module docstring).
 
     Parameters
@@ -144,6 +145,8 @@ def calibrate_linescan_session(folder: str | Path | LineScanSession, options: Ca
         changed.
     progress : bool
         A progress bar over the scans' detection.
+    jobs : int, optional
+        Unused (the scans are detected in one process); accepted as every pipeline does.
 
     Returns
     -------
@@ -156,14 +159,14 @@ def calibrate_linescan_session(folder: str | Path | LineScanSession, options: Ca
     Raises
     ------
     SessionError
-        A bad session, naming the file or key (:func:`~handeye.io.linescan_session.load_linescan_session`).
+        A bad session, naming the file or key (:func:`~handeye.pipelines.linescan.session.load_linescan_session`).
     DegenerateMotionError
         Fewer than 3 scans with the target, or scans whose poses cannot determine X.
 
     Examples
     --------
     >>> import tempfile
-    >>> from handeye.simulate.linescan import linescan_scene, write_linescan_session
+    >>> from handeye.pipelines.linescan.simulate import linescan_scene, write_linescan_session
     >>> folder = write_linescan_session(tempfile.mkdtemp() + "/s", linescan_scene(6, "eye_in_hand", rng=1), rng=1)
     >>> cal = calibrate_linescan_session(folder)
     >>> cal.verdict, abs(cal.sensor.figures["focal_px"]["value"] / 2400 - 1) < 1e-3

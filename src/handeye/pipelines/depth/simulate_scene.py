@@ -19,14 +19,14 @@ import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.io import atomic_write, check_output_folder
-from ..errors import SessionError
-from ..frames.setups import check_setup, setup_info
-from ..io.session import write_pose_table
-from ._common import _reported, default_camera
-from .depth import depth_reading, pixel_rays
-from .mesh import MeshScene, cast_rays, framed_viewpoints, ray_caster, write_clouds
-from .scenes import scene_from_viewpoints
+from ..._shared.io import atomic_write, check_output_folder
+from ...errors import SessionError
+from ...frames.setups import check_setup, setup_info
+from ...io.session import write_pose_table
+from ...simulate import default_camera, reported_poses
+from ...simulate.scenes import scene_from_viewpoints
+from .simulate_board import depth_reading, pixel_rays
+from .simulate_mesh import MeshScene, cast_rays, framed_viewpoints, ray_caster, write_clouds
 
 __all__ = ["irregular_mesh", "scene_capture", "write_scene_session"]
 
@@ -105,7 +105,7 @@ def scene_capture(n_views: int = 9, setup: str = "eye_in_hand", rng: np.random.G
     ``depth_noise[0] + depth_noise[1] z^2`` (m), a share ``holes`` of pixels without depth and
     ``blots`` patches without depth per view, flying pixels on the object's outline; depths ``depth_scale``
     times the true ones plus ``depth_bias`` (m).
-    ``robot_error`` (deg, mm): the controller's poses off by that much (:func:`~handeye.simulate.mesh.mesh_scene`'s).
+    ``robot_error`` (deg, mm): the controller's poses off by that much (:func:`~handeye.pipelines.depth.simulate_mesh.mesh_scene`'s).
     """
     trimesh = _trimesh()
     setup = check_setup(setup)
@@ -137,7 +137,7 @@ def scene_capture(n_views: int = 9, setup: str = "eye_in_hand", rng: np.random.G
         cloud = depth_reading(truth, on.reshape(h, w), behind, rng, depth_scale, depth_bias, depth_noise, holes)
         cloud[_blots(h, w, rng, blots)] = np.nan
         clouds.append(cloud)
-    return SceneCapture(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
+    return SceneCapture(setup, scene.X, scene.Z, reported_poses(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
                         image_size=tuple(image_size), mesh=mesh, clouds=clouds, depth_scale=depth_scale, depth_bias=depth_bias)
 
 

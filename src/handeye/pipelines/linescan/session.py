@@ -23,10 +23,10 @@
 
 A ``joints:`` table is the trajectory as joint angles: a ``time`` column (the robot's clock;
 ``time_unit`` as a pose table's), then one column per joint. With it the arm's table is fitted with
-X (:mod:`handeye.pipelines.linescan`), and ``poses:`` may be left out (the nominal table's poses
+X (:mod:`handeye.pipelines.linescan.pipeline`), and ``poses:`` may be left out (the nominal table's poses
 are the trajectory's); given too, the controller's poses are checked against the joint angles.
 The robot's clock and the camera's may differ by a fraction of a second: the offset is fitted. Nothing
-is measured here (:mod:`handeye.pipelines.linescan` does that); every key is checked (an unknown one
+is measured here (:mod:`handeye.pipelines.linescan.pipeline` does that); every key is checked (an unknown one
 is an error naming the nearest known key).
 """
 
@@ -39,14 +39,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._shared.text import shown, summarize
-from ..errors import InputMismatchError, SessionError
-from ..frames.poses import RobotPoseInput
-from ..frames.setups import check_setup
-from ..robot.kinematics import Chain, check_joints_against_poses, joints_at
-from ..sensors.camera.targets import target_from_spec
-from ..sensors.linescan.model import LINESCAN_NOISE_PX
-from .session import (
+from ..._shared.text import shown, summarize
+from ...errors import InputMismatchError, SessionError
+from ...frames.poses import RobotPoseInput
+from ...frames.setups import check_setup
+from ...io.session import (
     IMAGES_KEYS,
     JOINTS_KEYS,
     POSES_KEYS,
@@ -64,6 +61,9 @@ from .session import (
     session_file,
     time_unit_scale,
 )
+from ...robot.kinematics import Chain, check_joints_against_poses, joints_at
+from ...sensors.camera.targets import target_from_spec
+from ...sensors.linescan.model import LINESCAN_NOISE_PX
 
 __all__ = ["LineScanSession", "load_linescan_session", "is_linescan_session", "LINESCAN_KEYS"]
 

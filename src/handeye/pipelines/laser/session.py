@@ -23,7 +23,7 @@
     # or target: {type: spheres, count: 3, diameter: 0.04}        # balls alike
     poses: {file: poses.csv, format: "euler:xyz", length_unit: mm, angle_unit: deg}
 
-Nothing is fitted here (:mod:`handeye.pipelines.laser` does that); every key is checked (an unknown
+Nothing is fitted here (:mod:`handeye.pipelines.laser.pipeline` does that); every key is checked (an unknown
 one is an error naming the nearest known key).
 """
 
@@ -36,14 +36,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .._shared.text import shown
-from ..errors import SessionError
-from ..frames.poses import RobotPoseInput
-from ..frames.setups import check_setup
-from ..robot.kinematics import Chain
-from ..sensors.laser.model import LASER_NOISE_M
-from ..sensors.laser.profiles import PROFILE_SUFFIXES
-from .session import (
+from ..._shared.text import shown
+from ...errors import SessionError
+from ...frames.poses import RobotPoseInput
+from ...frames.setups import check_setup
+from ...io.session import (
     JOINTS_KEYS,
     POSES_KEYS,
     SESSION_FILE,
@@ -58,14 +55,20 @@ from .session import (
     read_unknowns,
     session_file,
 )
+from ...robot.kinematics import Chain
+from ...sensors.laser.model import LASER_NOISE_M
+from ...sensors.laser.profiles import PROFILE_SUFFIXES
 
-__all__ = ["LaserSession", "is_laser_session", "load_laser_session", "rig_laser", "LASER_KEYS", "TARGET_TYPES"]
+__all__ = ["LaserSession", "is_laser_session", "load_laser_session", "rig_laser", "LASER_KEYS", "TARGET_TYPES",
+           "RIG_KEYS"]
 
 #: The keys of ``laser:``, and of session.yaml around it.
 LASER_KEYS = ("unit", "range", "noise")
 SESSION_KEYS = ("setup", "laser", "target", "poses", "joints", "unknowns")
 #: The targets a laser session can scan.
 TARGET_TYPES = ("sphere", "plane", "edge", "step", "spheres")
+#: The keys of a rig's laser profiler's block under ``sensors:`` (its target: the session's when left out).
+RIG_KEYS = ("laser", "profiles", "target")
 #: The keys of each target.
 TARGET_KEYS = {"sphere": ("type", "diameter"), "plane": ("type",), "edge": ("type",), "step": ("type",),
                "spheres": ("type", "diameters", "count", "diameter")}
@@ -209,7 +212,7 @@ def load_laser_session(folder: str | Path, arm: str | None = None) -> LaserSessi
 
 def rig_laser(folder: Path, setup: str, names: list[str], flange2base: NDArray[np.float64], laser: Any, profiles: Path,
               target: Any, where: str) -> LaserSession:
-    """A rig's laser profiler (:mod:`handeye.io.rig_session`) as a laser session over the rig's views
+    """A rig's laser profiler (:mod:`handeye.pipelines.rig.session`) as a laser session over the rig's views
     ``names``: its ``laser:`` block, its folder of ``profiles`` named by view (``v01.csv``; a view
     with no file is one it did not see) and its ``target``, checked as a laser session's are."""
     unit, working, noise = _laser_spec(laser, where)

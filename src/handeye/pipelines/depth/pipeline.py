@@ -29,28 +29,31 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .._shared.progress import Progress
-from .._shared.threads import on_one_blas_thread
-from ..errors import DegenerateMotionError, InputMismatchError, UnusableViewError
-from ..estimation.core import estimate
-from ..io.depth_session import DepthSession, load_depth_session
-from ..options import ROBOT_ACCURACY, CalibrationOptions
-from ..result import Calibration
-from ..robot.models import ControllerPoses
-from ..sensors.camera import detect_images, target_from_spec
-from ..sensors.depth.clouds import check_frame, plane_points, read_cloud
-from ..sensors.depth.model import BoardPoints, SphereCentres
-from ..sensors.depth.spheres import find_spheres
-from ._sensor import estimate_checked, robot_model, sensor_options, session_robot_input, why_skipped
-from .arm_depth import calibrate_arm_depth_session
+from ..._shared.progress import Progress
+from ..._shared.threads import on_one_blas_thread
+from ...errors import DegenerateMotionError, InputMismatchError, UnusableViewError
+from ...estimation.core import estimate
+from ...io.session import check_keys
+from ...options import ROBOT_ACCURACY, CalibrationOptions
+from ...result import Calibration
+from ...robot.models import ControllerPoses
+from ...sensors.camera import detect_images, target_from_spec
+from ...sensors.depth.clouds import check_frame, plane_points, read_cloud
+from ...sensors.depth.model import BoardPoints, SphereCentres
+from ...sensors.depth.spheres import find_spheres
+from .._sensor import estimate_checked, robot_model, sensor_options, session_robot_input, why_skipped
+from .arm import calibrate_arm_depth_session
 from .mesh import calibrate_mesh_session
 from .scene import calibrate_scene_session
+from .session import RIG_DEPTH_KEYS, DepthSession, load_depth_session, rig_depth
 
-__all__ = ["calibrate_depth_session", "calibrate_depth", "calibrate_spheres", "measure_depth_session", "DepthViews"]
+__all__ = ["calibrate_depth_session", "calibrate_depth", "calibrate_spheres", "measure_depth_session", "DepthViews",
+           "DepthMember", "rig_member"]
 
 
 @dataclass
@@ -143,7 +146,7 @@ def sensor_model(s: DepthSession, v: DepthViews, fit_depth: bool = True) -> Boar
 def calibrate_depth_session(folder: str | Path | DepthSession, options: CalibrationOptions | None = None, *,
                             fit_depth: bool = True, progress: bool = False, jobs: int | None = None,
                             **changes) -> Calibration:
-    """Calibrate a depth session (:func:`~handeye.io.depth_session.load_depth_session`): measure
+    """Calibrate a depth session (:func:`~handeye.pipelines.depth.session.load_depth_session`): measure
     every view, fit X with the depth scale and bias (and the arm's table, with joint angles), leave
     out views the fit does not explain, cross-validate, judge.
 
@@ -176,7 +179,7 @@ def calibrate_depth_session(folder: str | Path | DepthSession, options: Calibrat
     Examples
     --------
     >>> import tempfile, handeye
-    >>> from handeye.simulate import sphere_scene, write_depth_session
+    >>> from handeye.pipelines.depth.simulate_board import sphere_scene, write_depth_session
     >>> folder = write_depth_session(tempfile.mkdtemp() + "/s", sphere_scene(10, "eye_to_hand", rng=3))
     >>> cal = calibrate_depth_session(folder)
     >>> cal.verdict, cal.sensor.target
@@ -252,3 +255,73 @@ def calibrate_spheres(flange2base: NDArray[np.float64], centres: NDArray[np.floa
     names = [f"view {i}" for i in range(len(flange2base))]
     return estimate(SphereCentres(setup, names, centres, covariances, radii, fit_depth),
                     ControllerPoses(np.asarray(flange2base, float), robot_accuracy), uncertainty=uncertainty)
+
+
+@dataclass(frozen=True)
+class DepthMember:
+    """A rig's depth camera (its registration's ``rig_member``): a depth session over the rig's views."""
+
+    session: DepthSession
+    #: what a view it missed lacks
+    missing: str = "cloud"
+
+    @property
+    def seen(self) -> list[bool]:
+        """Per view of the rig whether it has a cloud (and, for a board, an intensity image)."""
+        d = self.session
+        images = d.image_paths or [None] * len(d.cloud_paths)
+        return [c.is_file() and (i is None or i.is_file()) for c, i in zip(d.cloud_paths, images)]
+
+    @property
+    def files(self) -> list[Path]:
+        """Its clouds and intensity images."""
+        return [p for p in self.session.cloud_paths + (self.session.image_paths or []) if p.is_file()]
+
+    @property
+    def target_spec(self) -> dict[str, Any]:
+        """The target it sees."""
+        return self.session.target_spec
+
+    @property
+    def board_images(self) -> list[Path]:
+        """Its intensity images that show a board, over the views it saw (found with the cameras')."""
+        d = self.session
+        if d.kind == "spheres" or d.image_paths is None:
+            return []
+        return [d.image_paths[k] for k, ok in enumerate(self.seen) if ok]
+
+    def model(self, name: str, names: list[str], notes: list[str], progress: bool = False,
+              detected: list | None = None) -> BoardPoints | SphereCentres:
+        """Its sensor model over the rig's views ``names``: the views it has measured as a depth
+        session's are (a board's corners lifted onto its plane in the cloud, or the spheres' centres); a
+        view it missed, or could not measure (said by its ``name`` in ``notes``), has no rows.
+        ``detected``: the board found in :attr:`board_images` with the cameras' images."""
+        d = self.session
+        seen = [k for k, ok in enumerate(self.seen) if ok]
+        mine = replace(d, names=[names[k] for k in seen], cloud_paths=[d.cloud_paths[k] for k in seen],
+                       image_paths=None if d.image_paths is None else [d.image_paths[k] for k in seen],
+                       flange2base=d.flange2base[seen])
+        v = measure_depth_session(mine, progress, detected=detected)
+        index = [seen[i] for i in v.index]
+        notes += [f"sensor {name}: {n}" for n in v.notes]
+        notes += [f"sensor {name}: view {view} skipped: {why}" for view, why in v.skipped]
+        notes.append(f"sensor {name}: {len(index)} of {len(names)} views measured in its clouds")
+        if d.kind == "spheres":
+            centres = np.full((len(names), len(d.radii), 3), np.nan)
+            covs = np.broadcast_to(np.eye(3), (len(names), len(d.radii), 3, 3)).copy()
+            centres[index] = np.array(v.points).reshape(-1, len(d.radii), 3)
+            covs[index] = np.array(v.covs).reshape(-1, len(d.radii), 3, 3)
+            return SphereCentres(d.setup, names, centres, covs, np.array(d.radii))
+        obj, pts = [np.zeros((0, 3))] * len(names), [np.zeros((0, 3))] * len(names)
+        for k, o, q in zip(index, v.object_points, v.points):
+            obj[k], pts[k] = o, q
+        return BoardPoints(d.setup, names, obj, pts)
+
+
+def rig_member(folder: Path, setup: str, names: list[str], flange2base: NDArray[np.float64], block: dict[str, Any],
+               name: str, target: Any, where: str) -> DepthMember:
+    """A rig's depth camera read (its block under ``sensors:``: ``depth:``, ``camera:``, its folders of
+    ``clouds`` and ``images`` named by view, and its ``target``), checked as a depth session's are."""
+    check_keys(block, RIG_DEPTH_KEYS, where)
+    check_keys(block["depth"], ("unit", "range"), f"{where}: depth")
+    return DepthMember(rig_depth(folder, setup, names, flange2base, block, name, target, where))

@@ -1,6 +1,6 @@
 """Laser line profiler sessions calibrated: every profile read, then the estimation core.
 
-A laser session (:mod:`handeye.io.laser_session`: ``laser:`` in session.yaml, ``profiles/``) gives
+A laser session (:mod:`handeye.pipelines.laser.session`: ``laser:`` in session.yaml, ``profiles/``) gives
 per robot pose the points where the profiler's laser plane met a ball, a plate, a block's edge, a step or
 one ball of a fixture. :func:`calibrate_laser_session`
 reads each profile (in metres; points outside the stated measuring range left out; a profile that
@@ -19,23 +19,26 @@ gives the verdict: one :class:`~handeye.result.Calibration`, as for images.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from .._shared.threads import on_one_blas_thread
-from ..errors import DegenerateMotionError, UnusableViewError
-from ..io.laser_session import LaserSession, load_laser_session
-from ..options import CalibrationOptions
-from ..result import Calibration
-from ..sensors.laser.edge import EdgeProfiles, StepProfiles
-from ..sensors.laser.model import Profiles, SphereProfiles, SpheresProfiles
-from ..sensors.laser.plane import PlaneProfiles
-from ..sensors.laser.profiles import check_range, check_shape, read_profile
-from ._sensor import estimate_checked, robot_model, sensor_options, session_robot_input, why_skipped
+from ..._shared.threads import on_one_blas_thread
+from ...errors import DegenerateMotionError, UnusableViewError
+from ...io.session import check_keys
+from ...options import CalibrationOptions
+from ...result import Calibration
+from ...sensors.laser.edge import EdgeProfiles, StepProfiles
+from ...sensors.laser.model import Profiles, SphereProfiles, SpheresProfiles
+from ...sensors.laser.plane import PlaneProfiles
+from ...sensors.laser.profiles import check_range, check_shape, read_profile
+from .._sensor import estimate_checked, robot_model, sensor_options, session_robot_input, why_skipped
+from .session import RIG_KEYS, LaserSession, load_laser_session, rig_laser
 
-__all__ = ["calibrate_laser_session", "read_profiles", "laser_model", "MIN_POINTS"]
+__all__ = ["calibrate_laser_session", "read_profiles", "laser_model", "LaserMember", "rig_member", "MIN_POINTS"]
 
 #: A profile with fewer points than this (after the range) is skipped: too few to say where the ball is.
 MIN_POINTS = 20
@@ -90,7 +93,8 @@ def laser_model(s: LaserSession, names: list[str], profiles: list) -> Profiles:
 
 @on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
 def calibrate_laser_session(folder: str | Path | LaserSession, options: CalibrationOptions | None = None, *,
-                            progress: bool = False, **changes) -> Calibration:
+                            progress: bool = False, jobs: int | None = None,
+                            **changes) -> Calibration:
     """Calibrate a laser line profiler session (the module docstring).
 
     Parameters
@@ -102,6 +106,8 @@ def calibrate_laser_session(folder: str | Path | LaserSession, options: Calibrat
         when changed.
     progress : bool
         Unused (a laser session calibrates in seconds); accepted as every pipeline does.
+    jobs : int, optional
+        Unused (the profiles are read in one process); accepted as every pipeline does.
 
     Returns
     -------
@@ -120,7 +126,7 @@ def calibrate_laser_session(folder: str | Path | LaserSession, options: Calibrat
     Examples
     --------
     >>> import tempfile
-    >>> from handeye.simulate import laser_scene, write_laser_session
+    >>> from handeye.pipelines.laser.simulate import laser_scene, write_laser_session
     >>> folder = write_laser_session(tempfile.mkdtemp() + "/s", laser_scene(20, "eye_in_hand", rng=1))
     >>> cal = calibrate_laser_session(folder)
     >>> cal.verdict, cal.sensor.target, cal.sensor.figures["radius_mm"]["value"]
@@ -139,3 +145,54 @@ def calibrate_laser_session(folder: str | Path | LaserSession, options: Calibrat
     return replace(cal, skipped=skipped + list(cal.skipped), notes=list(s.notes) + notes + list(cal.notes),
                    input_folder=s.folder,
                    robot_input=session_robot_input(s, cal.flange2base))
+
+
+@dataclass(frozen=True)
+class LaserMember:
+    """A rig's laser profiler (its registration's ``rig_member``): a laser session over the rig's views."""
+
+    session: LaserSession
+    #: what a view it missed lacks
+    missing: str = "profile"
+
+    @property
+    def seen(self) -> list[bool]:
+        """Per view of the rig whether it has a profile."""
+        return [p.is_file() for p in self.session.profile_paths]
+
+    @property
+    def files(self) -> list[Path]:
+        """Its profiles."""
+        return [p for p in self.session.profile_paths if p.is_file()]
+
+    @property
+    def target_spec(self) -> dict[str, Any]:
+        """The target it scans."""
+        return self.session.target_spec
+
+    @property
+    def board_images(self) -> list[Path]:
+        """None: a profiler has no image of the session's board."""
+        return []
+
+    def model(self, name: str, names: list[str], notes: list[str], progress: bool = False,
+              detected: list | None = None) -> Profiles:
+        """Its sensor model over the rig's views ``names``: its profiles read (a view without one, or
+        whose profile is skipped, has no rows), the notes and skips said in ``notes`` by its ``name``."""
+        kept, profiles, skipped, more = read_profiles(self.session)
+        full = [np.zeros((0, 3))] * len(names)
+        for k, p in zip(kept, profiles):
+            full[k] = p
+        notes += [f"sensor {name}: {n}" for n in more]
+        notes += [f"sensor {name}: profile {v} skipped: {why}" for v, why in skipped if not why.startswith("missing")]
+        notes.append(f"sensor {name}: {len(kept)} of {len(names)} profiles used")
+        return laser_model(self.session, names, full)
+
+
+def rig_member(folder: Path, setup: str, names: list[str], flange2base: NDArray[np.float64], block: dict[str, Any],
+               name: str, target: Any, where: str) -> LaserMember:
+    """A rig's laser profiler read (its block under ``sensors:``: ``laser:``, its folder of ``profiles``
+    named by view, default the sensor's name, and its ``target``), checked as a laser session's are."""
+    check_keys(block, RIG_KEYS, where)
+    return LaserMember(rig_laser(folder, setup, names, flange2base, block["laser"], folder / str(block.get("profiles", name)),
+                                 target, where))

@@ -21,11 +21,11 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InputMismatchError
-from ..frames.metrics import std_deg_mm
-from ..frames.setups import pose_name
-from ..geometry.se3 import invert, perturb, skew
-from .base import DrawsSections, HasNuisances, Nuisance, SensorModel, SharesTarget
+from ...errors import InputMismatchError
+from ...frames.metrics import std_deg_mm
+from ...frames.setups import pose_name
+from ...geometry.se3 import invert, perturb, skew
+from ..base import DrawsSections, HasNuisances, Nuisance, SensorModel, SharesTarget
 
 __all__ = ["Rig"]
 

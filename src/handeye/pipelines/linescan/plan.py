@@ -7,10 +7,10 @@ determines X (docs/guide.md, "Line-scan cameras"): the flange turned 10-30 deg a
 axes between scans (each turn a new view plane through the board), scans forth and back in turn (a
 clock offset shifts a forward scan one way and a backward one the other) and at different distances
 (the robot's known change of distance tells the focal length from the distance). The plan draws the
-scans as the simulator does (:func:`handeye.simulate.linescan.linescan_scene`, about the placements
+scans as the simulator does (:func:`handeye.pipelines.linescan.simulate.linescan_scene`, about the placements
 given) and predicts X's std by calibrating a simulated capture of exactly those scans through the
 estimation core, the robot's stated accuracy fitted per scan as calibrate fits it
-(:func:`handeye.pipelines.linescan.linescan_robot`). The same number of scans at one distance,
+(:func:`handeye.pipelines.linescan.pipeline.linescan_robot`). The same number of scans at one distance,
 turned at most :data:`NARROW_DEG`, is predicted beside it: what the turns and the distances buy.
 
 Examples
@@ -31,16 +31,19 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import DegenerateMotionError, InputMismatchError
-from ..estimation.core import estimate
-from ..frames.setups import check_setup
-from ..geometry.se3 import make_transform
-from ..options import ROBOT_ACCURACY
-from ..pipelines.linescan import linescan_robot
-from ..sensors.linescan.model import LINESCAN_NOISE_PX, LineScanCorners
-from ..simulate.linescan import LINESCAN_CAMERA, LineScanScene, linescan_scene
+from ...errors import DegenerateMotionError, InputMismatchError
+from ...estimation.core import estimate
+from ...frames.setups import check_setup
+from ...geometry.se3 import make_transform
+from ...options import ROBOT_ACCURACY
+from ...sensors.camera.targets import target_from_spec
+from ...sensors.linescan.model import LINESCAN_NOISE_PX, LineScanCorners
+from ...simulate import DEFAULT_TARGETS
+from ..kinds import PlanRequest, SensorPlan
+from .pipeline import linescan_robot
+from .simulate import LINESCAN_CAMERA, LineScanScene, linescan_scene
 
-__all__ = ["LineScanPlan", "plan_linescan", "NARROW_DEG", "FEWEST_SCANS"]
+__all__ = ["LineScanPlan", "plan_linescan", "NARROW_DEG", "FEWEST_SCANS", "plan_command"]
 
 #: The comparison capture turns the camera at most this much (deg) from the board's normal, at one distance.
 NARROW_DEG = 10.0
@@ -146,3 +149,42 @@ def plan_linescan(setup: str, X: NDArray[np.float64], Z: NDArray[np.float64], n_
     return LineScanPlan(setup, scene.moves, speed, scene.line_rate, distance, reported, data, narrow_data, robot_accuracy,
                         cone_deg)
 
+
+def _line_camera(text: str | None) -> tuple[int | None, float | None]:
+    """--line-camera WIDTH,FOCAL: pixels along the line and the focal length (px); (None, None) when not given."""
+    if text is None:
+        return None, None
+    try:
+        width, focal = (float(v) for v in text.replace(" ", "").split(","))
+    except ValueError:
+        raise InputMismatchError(f"--line-camera {text!r}: give WIDTH,FOCAL, the pixels along the line and the focal "
+                                 "length in pixels, e.g. 2048,2400") from None
+    if not (np.isfinite(width) and np.isfinite(focal)) or width < 2 or focal <= 0:
+        raise InputMismatchError(f"--line-camera {text!r}: the width (px) must be 2 or more and the focal length positive")
+    return int(width), focal
+
+
+def plan_command(request: PlanRequest) -> SensorPlan:
+    """``handeye plan --sensor line_scan`` (the line-scan camera's registration's ``plan`` hook): straight
+    scans across a chessboard (or the ``target`` / ``target_spec`` given) and the std they would give,
+    beside the same number of scans at one distance turned at most :data:`NARROW_DEG`; ``options``:
+    ``line_camera`` (WIDTH,FOCAL) and ``speed`` (m/s)."""
+    points = None
+    if request.target_spec is not None or request.target is not None:  # else the simulator's chessboard
+        points = target_from_spec(request.target_spec or DEFAULT_TARGETS[request.target]).object_points()
+    width, focal = _line_camera(request.options.get("line_camera"))
+    speed = request.options.get("speed")
+    plan = plan_linescan(request.setup, request.X, request.Z, n_scans=request.poses or 12, points=points, focal=focal,
+                         width=width, distance=request.standoff or 0.4, speed=0.2 if speed is None else speed,
+                         noise_px=request.noise_px, robot_accuracy=request.robot_accuracy, rng=request.seed)
+    return SensorPlan(
+        [f"s{k + 1:02d}.{end}" for k in range(len(plan.moves)) for end in ("start", "end")], plan.moves.reshape(-1, 4, 4),
+        "scan", plan,
+        f"{len(plan.moves)} straight scans across the board at {plan.speed:g} m/s, forth and back in turn, the camera within "
+        f"{plan.cone_deg:g} deg of the board's normal at {0.75 * plan.distance:.2f}-{1.25 * plan.distance:.2f} m (line rate "
+        f"{plan.line_rate:.0f} rows/s for square pixels); each scan's start and end:",
+        "scan", "each scan's pose error fitted with it", "scans",
+        f"the same number of scans at one distance, turned at most {NARROW_DEG:g} deg", "X is not determined",
+        " (turns between scans place X; distances tell the focal length from the distance)",
+        "per scan the flange's pose where its straight move starts and where it ends; record the robot's trajectory (with "
+        "times) and each scan's start time for the line-scan session (docs/guide.md, 'Line-scan cameras')")

@@ -19,27 +19,24 @@ from pathlib import Path
 
 import numpy as np
 
-from .._shared.io import files_digests_soon
-from .._shared.threads import on_one_blas_thread
-from ..errors import DegenerateMotionError, HandEyeError, InputMismatchError
-from ..estimation.core import WEAKEST_NOTE, estimate
-from ..estimation.readings import check_readings
-from ..estimation.uncertainty import robot_accuracy_cov
-from ..frames.metrics import std_deg_mm
-from ..frames.setups import pose_name
-from ..io.rig_session import RigSensor, RigSession, load_rig_session
-from ..options import CalibrationOptions
-from ..result import Calibration
-from ..robot.models import ControllerPoses, PoseErrors, RobotModel
-from ..sensors.base import SensorModel
-from ..sensors.camera.detect import detect_images
-from ..sensors.camera.model import CameraCorners
-from ..sensors.camera.targets import target_from_spec
-from ..sensors.depth.model import BoardPoints, SphereCentres
-from ..sensors.rig import Rig
-from ._sensor import held_and_freed, robot_model, sensor_options, session_robot_input
-from .depth import measure_depth_session
-from .laser import laser_model, read_profiles
+from ..._shared.io import files_digests_soon
+from ..._shared.threads import on_one_blas_thread
+from ...errors import DegenerateMotionError, HandEyeError, InputMismatchError
+from ...estimation.core import WEAKEST_NOTE, estimate
+from ...estimation.readings import check_readings
+from ...estimation.uncertainty import robot_accuracy_cov
+from ...frames.metrics import std_deg_mm
+from ...frames.setups import pose_name
+from ...options import CalibrationOptions
+from ...result import Calibration
+from ...robot.models import ControllerPoses, PoseErrors, RobotModel
+from ...sensors.base import SensorModel
+from ...sensors.camera.detect import detect_images
+from ...sensors.camera.model import CameraCorners
+from ...sensors.camera.targets import target_from_spec
+from ...sensors.rig import Rig
+from .._sensor import held_and_freed, robot_model, sensor_options, session_robot_input
+from .session import RigSession, load_rig_session
 
 __all__ = ["RigCalibration", "calibrate_rig", "calibrate_rig_session", "rig_members", "DISAGREE"]
 
@@ -137,7 +134,7 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
     Examples
     --------
     >>> from handeye.robot.models import ControllerPoses
-    >>> from handeye.simulate.rig import rig_scene
+    >>> from handeye.pipelines.rig.simulate import rig_scene
     >>> sc = rig_scene(12, "eye_in_hand", rng=0)
     >>> rig = calibrate_rig(sc.camera_models(), ["left", "right"], ControllerPoses(sc.flange2base))
     >>> rig.joint.verdict, sorted(rig.joint.sensor.figures["relative"])
@@ -248,7 +245,7 @@ def rig_members(cal: Calibration) -> dict[str, Calibration]:
     Examples
     --------
     >>> from handeye.robot.models import ControllerPoses
-    >>> from handeye.simulate.rig import rig_scene
+    >>> from handeye.pipelines.rig.simulate import rig_scene
     >>> sc = rig_scene(12, "eye_in_hand", rng=0)
     >>> rig = calibrate_rig(sc.camera_models(), ["left", "right"], ControllerPoses(sc.flange2base))
     >>> members = rig_members(rig.joint)
@@ -310,58 +307,11 @@ def _per_view(f: dict, name: str, cal: Calibration) -> list:
     return f.get("view_rms_mm_per_sensor", {}).get(name) or [None] * len(_view_names(cal))
 
 
-def _laser_member(sensor: RigSensor, names: list[str], notes: list[str]) -> SensorModel:
-    """A rig's laser profiler as a sensor model over the rig's views: its profiles read (a view
-    without one, or whose profile is skipped, has no rows), the notes and skips said by name."""
-    kept, profiles, skipped, more = read_profiles(sensor.laser)
-    full = [np.zeros((0, 3))] * len(names)
-    for k, p in zip(kept, profiles):
-        full[k] = p
-    notes += [f"sensor {sensor.name}: {n}" for n in more]
-    notes += [f"sensor {sensor.name}: profile {v} skipped: {why}" for v, why in skipped if not why.startswith("missing")]
-    notes.append(f"sensor {sensor.name}: {len(kept)} of {len(names)} profiles used")
-    return laser_model(sensor.laser, names, full)
-
-
-def _depth_images(sensor: RigSensor) -> list[Path]:
-    """The intensity images of a rig's depth camera that show a board, over the views it saw."""
-    d = sensor.depth
-    if d.kind == "spheres" or d.image_paths is None:
-        return []
-    return [d.image_paths[k] for k, ok in enumerate(sensor.seen) if ok]
-
-
-def _depth_member(sensor: RigSensor, names: list[str], notes: list[str], progress: bool, detected: list | None
-                  ) -> SensorModel:
-    """A rig's depth camera as a sensor model over the rig's views: the views it has measured as a
-    depth session's are (a board's corners lifted onto its plane in the cloud, or the spheres'
-    centres); a view it missed, or could not measure (said by name), has no rows. ``detected``: the
-    board found in its intensity images (:func:`_depth_images`) with the cameras'."""
-    d = sensor.depth
-    seen = [k for k, ok in enumerate(sensor.seen) if ok]
-    mine = replace(d, names=[names[k] for k in seen], cloud_paths=[d.cloud_paths[k] for k in seen],
-                   image_paths=None if d.image_paths is None else [d.image_paths[k] for k in seen],
-                   flange2base=d.flange2base[seen])
-    v = measure_depth_session(mine, progress, detected=detected)
-    index = [seen[i] for i in v.index]
-    notes += [f"sensor {sensor.name}: {n}" for n in v.notes]
-    notes += [f"sensor {sensor.name}: view {view} skipped: {why}" for view, why in v.skipped]
-    notes.append(f"sensor {sensor.name}: {len(index)} of {len(names)} views measured in its clouds")
-    if d.kind == "spheres":
-        centres = np.full((len(names), len(d.radii), 3), np.nan)
-        covs = np.broadcast_to(np.eye(3), (len(names), len(d.radii), 3, 3)).copy()
-        centres[index], covs[index] = np.array(v.points).reshape(-1, len(d.radii), 3), np.array(v.covs).reshape(-1, len(d.radii), 3, 3)
-        return SphereCentres(d.setup, names, centres, covs, np.array(d.radii))
-    obj, pts = [np.zeros((0, 3))] * len(names), [np.zeros((0, 3))] * len(names)
-    for k, o, q in zip(index, v.object_points, v.points):
-        obj[k], pts[k] = o, q
-    return BoardPoints(d.setup, names, obj, pts)
-
-
 @on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
 def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationOptions | None = None, *,
-                          progress: bool = False, **changes) -> Calibration:
-    """Calibrate a rig session folder (:mod:`handeye.io.rig_session`): the target found in every
+                          progress: bool = False, jobs: int | None = None,
+                          **changes) -> Calibration:
+    """Calibrate a rig session folder (:mod:`handeye.pipelines.rig.session`): the target found in every
     sensor's images, then :func:`calibrate_rig`.
 
     Returns
@@ -377,31 +327,28 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     Raises
     ------
     SessionError
-        A bad session (:func:`~handeye.io.rig_session.load_rig_session`).
+        A bad session (:func:`~handeye.pipelines.rig.session.load_rig_session`).
     DegenerateMotionError
         No sensor could be calibrated.
     """
     opts = sensor_options(options, changes, "a rig session", table=True)
     s = folder if isinstance(folder, RigSession) else load_rig_session(folder, opts.arm)
-    cameras = [sensor for sensor in s.sensors if sensor.kind == "camera"]
+    cameras = [sensor for sensor in s.sensors if sensor.member is None]
     members, notes = [], list(s.notes)
     image_paths = [p for sensor in cameras for p in sensor.images if p is not None]
     # each image's digest (its own result refuses them in verify), hashed on the core the fit leaves idle
     hashed = files_digests_soon(image_paths, s.folder)
-    # every camera's images, and the depth cameras' intensity images of the same board, in one parallel
-    # detection (no worker idle at the end of each sensor's)
-    same = [x for x in s.sensors if x.kind == "depth" and x.depth.target_spec == s.target_spec and _depth_images(x)]
-    depth_paths = [p for x in same for p in _depth_images(x)]
-    results = detect_images(image_paths + depth_paths, target_from_spec(s.target_spec, where="target"),
-                            progress=progress) if image_paths or depth_paths else []
-    found, depth_found = iter(results[:len(image_paths)]), iter(results[len(image_paths):])
+    # every camera's images, and the other sensors' images of the same board (a depth camera's intensity
+    # images), in one parallel detection (no worker idle at the end of each sensor's)
+    same = [x for x in s.sensors if x.member is not None and x.member.target_spec == s.target_spec and x.member.board_images]
+    board_paths = [p for x in same for p in x.member.board_images]
+    results = detect_images(image_paths + board_paths, target_from_spec(s.target_spec, where="target"), jobs=jobs,
+                            progress=progress) if image_paths or board_paths else []
+    found, board_found = iter(results[:len(image_paths)]), iter(results[len(image_paths):])
     for sensor in s.sensors:
-        if sensor.kind == "laser":
-            members.append(_laser_member(sensor, s.names, notes))
-            continue
-        if sensor.kind == "depth":
-            mine = [next(depth_found) for _ in _depth_images(sensor)] if any(sensor is x for x in same) else None
-            members.append(_depth_member(sensor, s.names, notes, progress, mine))
+        if sensor.member is not None:  # another kind's sensor: its model from its own measurements
+            mine = [next(board_found) for _ in sensor.member.board_images] if any(sensor is x for x in same) else None
+            members.append(sensor.member.model(sensor.name, s.names, notes, progress, mine))
             continue
         paths = [p for p in sensor.images if p is not None]
         image_points, object_points = [], []
@@ -430,7 +377,7 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     by_path = hashed.result()[1]
     images = {x.name: {"names": [p.name for p in x.images if p is not None],
                        "sha256": [by_path[str(p)] for p in x.images if p is not None],
-                       "K": np.asarray(x.K).tolist(), "dist": np.asarray(x.dist).tolist()} for x in s.sensors if x.kind == "camera"}
+                       "K": np.asarray(x.K).tolist(), "dist": np.asarray(x.dist).tolist()} for x in cameras}
     joint = replace(rig.joint, sensor=replace(rig.joint.sensor, figures=dict(rig.joint.sensor.figures, images_per_sensor=images)))
     return replace(joint, notes=notes + list(rig.joint.notes),
                    skipped=[(n, w) for n, w in rig.skipped] + list(rig.joint.skipped), input_folder=s.folder,

@@ -11,21 +11,21 @@ import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.io import atomic_write, check_output_folder
-from .._shared.lazy import lazy_module
-from ..errors import HandEyeError
-from ..frames.setups import check_setup, predicted_target2cam, setup_info
-from ..io.session import write_joint_table, write_pose_table
-from ..robot.kinematics import Chain, load_arm
-from ..sensors.camera.pnp import project_points
-from ..sensors.camera.render import Renderer, target_texture
-from ..sensors.camera.targets import target_from_spec
+from ..._shared.io import atomic_write, check_output_folder
+from ..._shared.lazy import lazy_module
+from ...errors import HandEyeError
+from ...frames.setups import check_setup, predicted_target2cam, setup_info
+from ...io.session import write_joint_table, write_pose_table
+from ...robot.kinematics import Chain, load_arm
+from ...sensors.camera.pnp import project_points
+from ...sensors.camera.render import Renderer, target_texture
+from ...sensors.camera.targets import target_from_spec
 
 cv2 = lazy_module("cv2")
 
 
-from ._common import DEFAULT_TARGETS, _real_chain, _reported, _sample_joints, _scene_layout, default_camera
-from .scenes import Scene, look_at_viewpoints, scene_from_viewpoints, visible_viewpoints
+from ...simulate import DEFAULT_TARGETS, default_camera, real_chain, reported_poses, sample_joints, scene_layout
+from ...simulate.scenes import Scene, look_at_viewpoints, scene_from_viewpoints, visible_viewpoints
 
 
 @dataclass(frozen=True)
@@ -106,9 +106,9 @@ def arm_views(setup: str, points: NDArray[np.float64], K, image_size, n: int, rn
     ``joint_noise_deg`` of encoder noise; ``flange2base`` the nominal table's poses at them (what the
     controller reports), ``target2cam`` where the real arm put the target."""
     chain = load_arm(arm)
-    X, Z = _scene_layout(setup, points, rng, chain.forward(chain.home[setup][None])[0])
-    q_true = _sample_joints(setup, X, Z, points, K, image_size, n, rng, chain=chain)
-    true = _real_chain(chain, rng, length_mm, angle_deg)
+    X, Z = scene_layout(setup, points, rng, chain.forward(chain.home[setup][None])[0])
+    q_true = sample_joints(setup, X, Z, points, K, image_size, n, rng, chain=chain)
+    true = real_chain(chain, rng, length_mm, angle_deg)
     joints = q_true + np.radians(rng.normal(0.0, joint_noise_deg, q_true.shape))
     t2c = predicted_target2cam(X, Z, true.forward(q_true), setup)
     return ArmViews(Scene(setup, X, Z, chain.forward(joints), t2c), joints, arm, chain, true)
@@ -163,7 +163,7 @@ def depth_scene(n_views: int = 15, setup: str = "eye_in_hand", rng: np.random.Ge
         clouds.append(depth_reading(truth, board, behind, rng, depth_scale, depth_bias, depth_noise, holes))
         px = project_points(T, obj, K, np.zeros(5))
         image_points.append(px + rng.normal(0.0, noise_px, px.shape))
-    return DepthScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
+    return DepthScene(setup, scene.X, scene.Z, reported_poses(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
                       image_size=tuple(image_size),
                       object_points=obj, image_points=image_points, clouds=clouds, depth_scale=depth_scale,
                       depth_bias=depth_bias, target_spec=dict(spec), **arm_fields(views))
@@ -279,7 +279,7 @@ def sphere_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.G
         truth, sphere = _sphere_image(K, image_size, centre, radius, wall, normal, rod)
         behind = _sphere_image(K, image_size, centre + 10.0, radius, wall, normal)[0]  # the wall where the sphere is
         clouds.append(depth_reading(truth, sphere, behind, rng, depth_scale, depth_bias, depth_noise, holes))
-    return SphereScene(setup, scene.X, scene.Z, _reported(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
+    return SphereScene(setup, scene.X, scene.Z, reported_poses(scene.flange2base, robot_error, rng), scene.target2cam, K=K,
                        image_size=tuple(image_size),
                        radius=radius, clouds=clouds, depth_scale=depth_scale, depth_bias=depth_bias, **arm_fields(views))
 
@@ -287,7 +287,7 @@ def sphere_scene(n_views: int = 15, setup: str = "eye_to_hand", rng: np.random.G
 def write_depth_session(folder: str | Path, scene: DepthScene | SphereScene, unit: str = "m",
                         working_range: tuple[float, float] | None = None,
                         rng: np.random.Generator | int | None = 0) -> Path:
-    """Write a simulated depth capture as a depth session (``handeye.io.depth_session``'s format):
+    """Write a simulated depth capture as a depth session (``handeye.pipelines.depth.session``'s format):
     ``clouds/viewNN.npy`` (float32, in ``unit``), for a board the rendered intensity images
     ``images/viewNN.png``, ``poses.csv`` (quat_wxyz, mm, deg), with an arm ``joints.csv`` (the
     joint angles the controller reports, degrees), ``session.yaml`` (with the intensity image's K,
