@@ -1,7 +1,8 @@
 """docs/architecture.md is true to the code: every session.yaml (and posepairs.yaml) it shows is read
 by its reader from a folder made to match it, the readers refuse an unknown key in every mapping the
-page says they check and ignore one in those it says they do not, and result.json's keys are those
-its tables name."""
+page says they check and ignore one in those it says they do not, result.json's keys are those
+its tables name, and section 6's table has one row per registered sensor kind, with its names, hooks
+and two folders."""
 
 from __future__ import annotations
 
@@ -20,11 +21,13 @@ import handeye
 from handeye.errors import HandEyeError
 from handeye.estimation.core import estimate
 from handeye.geometry.se3 import invert, make_transform
+from handeye.io.session import load_pose_pairs, load_session, write_joint_table, write_pose_table
 from handeye.pipelines.depth.session import load_depth_session
+from handeye.pipelines.depth.simulate_board import sphere_scene
+from handeye.pipelines.kinds import sensor_kinds
 from handeye.pipelines.laser.session import load_laser_session
 from handeye.pipelines.linescan.session import load_linescan_session
 from handeye.pipelines.rig.session import load_rig_session
-from handeye.io.session import load_pose_pairs, load_session, write_joint_table, write_pose_table
 from handeye.pipelines.silhouette.session import load_silhouette_session
 from handeye.report.files import result_dict
 from handeye.robot.kinematics import load_arm
@@ -32,9 +35,9 @@ from handeye.robot.models import ControllerPoses
 from handeye.sensors.camera.targets import target_types
 from handeye.sensors.depth.model import SphereCentres
 from handeye.simulate import random_scene
-from handeye.pipelines.depth.simulate_board import sphere_scene
 
 ROOT = Path(__file__).resolve().parents[1]
+SRC = ROOT / "src" / "handeye"
 DOC = ROOT / "docs" / "architecture.md"
 FILES = ROOT / "src" / "handeye" / "report" / "files.py"
 
@@ -258,3 +261,45 @@ def test_result_json_has_the_keys_the_page_names():
         assert set(data["uncertainty"]["sources"]) <= sources, set(data["uncertainty"]["sources"]) - sources
         if "sensor" in data:
             assert set(data["sensor"]) <= set(tables["sensor"]), set(data["sensor"]) - set(tables["sensor"])
+
+
+HOOKS = ("calibrate", "extras", "rig_member", "rig_extras", "members", "simulate", "plan")
+
+
+def _kind_rows() -> list[list[str]]:
+    """Section 6's table of the registered kinds (after ``<!-- kinds -->``): each row's cells."""
+    text = DOC.read_text(encoding="utf-8").split("<!-- kinds -->\n", 1)[1].split("\n\n", 1)[0]
+    return [[cell.strip() for cell in row.strip().strip("|").split("|")] for row in text.splitlines()[2:]]
+
+
+def _folder_cell_is_true(cell: str, folder: Path) -> list[str]:
+    """What a folder's cell says that is false: a module it names that ``folder`` lacks (or one it says
+    the folder has not, ``no `plan.py```, that it has), a name it gives that no module there defines."""
+    source = "".join(p.read_text(encoding="utf-8") for p in folder.glob("*.py"))
+    wrong = []
+    for no, module in re.findall(r"(no )?`(\w+\.py)`", cell):
+        if (folder / module).is_file() == bool(no):
+            wrong.append(f"{folder.name}/{module} {'exists' if no else 'is missing'}")
+    wrong += [f"{folder.name}/: no {name}" for name in re.findall(r"`([A-Za-z_]\w*)`", cell)
+              if not re.search(rf"^(class|def) {name}\b", source, flags=re.M)]
+    return wrong
+
+
+def test_section_6_has_a_row_per_registered_kind_with_its_names_hooks_and_folders():
+    """Issue 78: a kind is two folders and one registration; the page's table says which, for every
+    kind ``register_kind`` made known (and no other): its section, --sensor and display names, each hook
+    its registration names, and its sensors/<kind>/ and pipelines/<kind>/ with the modules they hold."""
+    rows = _kind_rows()
+    kinds = sensor_kinds()
+    assert [r[1] for r in rows] == [f"`{k.section}`" for k in kinds], (
+        "docs/architecture.md section 6: the table's rows are not the registered kinds, in registration order "
+        f"(rows {[r[1] for r in rows]}, kinds {[k.section for k in kinds]})")
+    for row, kind in zip(rows, kinds):
+        folder = kind.package.rsplit(".", 1)[1]
+        assert row[0].startswith(f"`{kind.display}`") and row[2] == f"`{kind.cli}`", (kind.section, row[:3])
+        named = dict(re.findall(r"`(\w+)` `(\w+:\w+)`", row[3]))
+        assert named == {h: getattr(kind, h) for h in HOOKS if getattr(kind, h)}, (kind.section, named)
+        assert row[4].startswith(f"`sensors/{folder}/`") and row[5].startswith(f"`pipelines/{folder}/`"), (kind.section, row[4:])
+        wrong = _folder_cell_is_true(row[4].split(":", 1)[1], SRC / "sensors" / folder)
+        wrong += _folder_cell_is_true(row[5].split(":", 1)[1], SRC / "pipelines" / folder)
+        assert not wrong, f"docs/architecture.md section 6, {kind.section}'s row: " + "; ".join(wrong)
