@@ -28,8 +28,15 @@ from handeye.errors import HandEyeError
 from handeye.estimation.core import Problem, _function, _groups, _jacobian, _start
 from handeye.frames.setups import predicted_target2cam, robot_world_A
 from handeye.geometry.se3 import perturb
+from handeye.pipelines.depth.simulate_arm import arm_depth_scene
+from handeye.pipelines.depth.simulate_mesh import flange_mesh
+from handeye.pipelines.depth.simulate_scene import scene_capture
+from handeye.pipelines.laser.simulate import FIXTURE, laser_scene
 from handeye.pipelines.linescan.pipeline import grid_orderings, linescan_joints
+from handeye.pipelines.linescan.simulate import linescan_scene
+from handeye.pipelines.rig.simulate import camera_laser_scene, rig_scene
 from handeye.pipelines.silhouette.pipeline import arm_views
+from handeye.pipelines.silhouette.simulate import silhouette_scene
 from handeye.robot.kinematics import load_arm
 from handeye.robot.meshes import arm_meshes
 from handeye.robot.models import ControllerPoses, JointAngles, RobotModel
@@ -48,15 +55,7 @@ from handeye.sensors.laser.plane import PlaneProfiles
 from handeye.sensors.linescan.model import LineScanCorners
 from handeye.sensors.rig import Rig
 from handeye.sensors.silhouette.model import SilhouetteContours
-from handeye.pipelines.depth.simulate_mesh import flange_mesh
-from handeye.pipelines.laser.simulate import laser_scene
 from handeye.simulate import random_scene
-from handeye.pipelines.depth.simulate_arm import arm_depth_scene
-from handeye.pipelines.laser.simulate import FIXTURE
-from handeye.pipelines.linescan.simulate import linescan_scene
-from handeye.pipelines.rig.simulate import camera_laser_scene, rig_scene
-from handeye.pipelines.depth.simulate_scene import scene_capture
-from handeye.pipelines.silhouette.simulate import silhouette_scene
 
 #: A Jacobian column's largest distance from central differences, over their length (every model's is
 #: within 2e-6 of them: the differences' own error; a camera's distortion columns, a disc's canonical normals).

@@ -33,7 +33,7 @@ from scipy.spatial.transform import Rotation
 from ...errors import DegenerateMotionError
 from ...frames.setups import robot_world_A
 from ...geometry.se3 import make_transform, perpendicular_basis, so3_left_jacobian
-from .model import LASER_NOISE_M, START_POINTS, Profiles, rotation_from_columns
+from .model import LASER_NOISE_M, Profiles, rotation_from_columns
 
 __all__ = ["PlaneProfiles", "plane_profiles_start", "searched_start"]
 
