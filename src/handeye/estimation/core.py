@@ -857,13 +857,17 @@ def _plain_method(problem: Problem, rows: NDArray[np.intp]) -> str:
 
 
 def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted | None = None,
-        tol: float = 1e-10) -> Fitted:
+        tol: float = 1e-10, scales: NDArray[np.float64] | None = None) -> Fitted:
     """The fit of ``problem`` on ``views`` (default all).
 
     Without ``start``: a robust fit (soft L1, each noise group's scale from the residuals' median),
     the rows beyond :data:`REJECT` of their std set aside, then two plain least-squares rounds on the
     rest with the scales re-estimated. With ``start`` (a fit on more views): its scales and rows kept,
-    one plain least squares from its solution. A sensor whose rows' residuals are correlated (each a
+    one plain least squares from its solution. With ``scales`` (a fold's refit: the fit on all views'
+    noise scales): the robust fit and the rows set aside as without, then one plain least squares
+    weighted by them (the two rounds that re-estimate the scales skipped: they weigh noise groups
+    against each other, which moves a fold's solution little and one scale's not at all). A sensor
+    whose rows' residuals are correlated (each a
     whole pose): :func:`_fit_correlated`. A robot whose unknowns each move one view (each pose's
     error): they are eliminated view by view (:class:`_Eliminated`), and a view whose error the
     robust fit bends far beyond its prior is set aside whole (:data:`CONTRADICTED_STD`: a wrong pose
@@ -895,6 +899,9 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     kept = np.zeros(len(owner), bool)
     kept[rows] = np.all(np.abs(w) <= REJECT * sigma[groups[rows]], axis=1) & ~np.isin(owner[rows], contradicted)
     rows = np.flatnonzero(kept)
+    if scales is not None:
+        res, _ = _solved(problem, rows, scales, x, tol)
+        return _fitted(problem, res, scales, kept, rows)
     n_unknowns = len(x)
     # the two rounds before the last only set the noise scales, which do not move with x to first order at the
     # optimum: to ROUND_TOL (but for one scale and nothing weighted against it, whose first round is the last)
@@ -1372,7 +1379,7 @@ def _refitted(problem: Problem, full: Fitted, train: NDArray[np.intp], X0: NDArr
     views would get), the other views' rows kept as ``full`` kept them (to be predicted)."""
     p0 = np.array(p0, dtype=float)
     p0[problem.held] = problem.p0[problem.held]  # a held unknown stays at its value in every fold
-    fold = fit(replace(problem, X0=X0, p0=p0), train)
+    fold = fit(replace(problem, X0=X0, p0=p0), train, scales=full.sigma)
     others = ~np.isin(np.asarray(problem.sensor.owner), train) & full.kept
     return replace(fold, kept=fold.kept | others)
 
