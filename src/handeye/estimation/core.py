@@ -867,8 +867,7 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     noise scales): the robust fit and the rows set aside as without, then one plain least squares
     weighted by them (the two rounds that re-estimate the scales skipped: they weigh noise groups
     against each other, which moves a fold's solution little and one scale's not at all). A sensor
-    whose rows' residuals are correlated (each a
-    whole pose): :func:`_fit_correlated`. A robot whose unknowns each move one view (each pose's
+    whose rows' residuals are correlated (each a whole pose): :func:`_fit_correlated`. A robot whose unknowns each move one view (each pose's
     error): they are eliminated view by view (:class:`_Eliminated`), and a view whose error the
     robust fit bends far beyond its prior is set aside whole (:data:`CONTRADICTED_STD`: a wrong pose
     or a swapped measurement, which would pull X with it).
@@ -1390,7 +1389,8 @@ def _cross_validation(problem: Problem, full: Fitted, views: NDArray[np.intp], f
     (refitted per fold); for joint angles also the fit on the nominal table's poses. The fit's folds:
     :data:`FRESH_FOLDS` of them refitted from their own start, the others one step from the fit on
     all views, or refitted too when the steps promise more than :data:`FRESH_RATIO` times better than
-    the refits. Returns the errors by estimator, the folds, the fit's per-view held-out errors and how many folds
+    the refits (a sensor whose start does not depend on the views, a rig's: refitted from the fit on
+    all views). Returns the errors by estimator, the folds, the fit's per-view held-out errors and how many folds
     were refitted from their own start, the views not predicted (:data:`FOLD_SHARE`), and the held-out
     RMS (mm) the steps from the fit on all views give (None without folds)."""
     n = len(views)
