@@ -867,10 +867,11 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     noise scales): the robust fit and the rows set aside as without, then one plain least squares
     weighted by them (the two rounds that re-estimate the scales skipped: they weigh noise groups
     against each other, which moves a fold's solution little and one scale's not at all). A sensor
-    whose rows' residuals are correlated (each a whole pose): :func:`_fit_correlated`. A robot whose unknowns each move one view (each pose's
-    error): they are eliminated view by view (:class:`_Eliminated`), and a view whose error the
-    robust fit bends far beyond its prior is set aside whole (:data:`CONTRADICTED_STD`: a wrong pose
-    or a swapped measurement, which would pull X with it).
+    whose rows' residuals are correlated (each a whole pose): :func:`_fit_correlated`. A robot whose
+    unknowns each move one view (each pose's error): they are eliminated view by view
+    (:class:`_Eliminated`), and a view whose error the robust fit bends far beyond its prior is set
+    aside whole (:data:`CONTRADICTED_STD`: a wrong pose or a swapped measurement, which would pull X
+    with it).
     """
     sensor = problem.sensor
     owner = np.asarray(sensor.owner)
