@@ -291,12 +291,22 @@ def arm_mount(chain: Chain, setup: str, rng: np.random.Generator, standoff: floa
 def reaching(chain: Chain, flange2base: NDArray[np.float64], q0: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
     """Joint angles from ``q0`` that take ``chain``'s flange to ``flange2base`` (least squares), and
     how far they leave it (rad, and m / 0.1 m)."""
+    base2flange = invert(flange2base)
+
+    def gaps(Q):  # (k, n) joint angles at once: one batched forward kinematics
+        E = base2flange @ chain.forward(Q)
+        return np.c_[Rotation.from_matrix(E[:, :3, :3]).as_rotvec(), E[:, :3, 3] / 0.1]
+
     def gap(q):
-        E = invert(flange2base) @ chain.forward(q[None])[0]
-        return np.r_[Rotation.from_matrix(E[:3, :3]).as_rotvec(), E[:3, 3] / 0.1]
+        return gaps(q[None])[0]
+
+    def jac(q):  # forward differences, every joint's step in one call (a line-scan scene spent 5.7 s in single calls)
+        h = 1.5e-8 * np.maximum(1.0, np.abs(q))
+        G = gaps(np.vstack([q, q + np.diag(h)]))
+        return ((G[1:] - G[0]) / h[:, None]).T
 
     # a redundant arm (7 joints): more unknowns than the pose's 6, which Levenberg-Marquardt refuses
-    res = least_squares(gap, q0, method="lm" if len(q0) <= 6 else "trf", xtol=1e-14, ftol=1e-14)
+    res = least_squares(gap, q0, jac, method="lm" if len(q0) <= 6 else "trf", xtol=1e-14, ftol=1e-14)
     return res.x, float(np.max(np.abs(res.fun)))
 
 
