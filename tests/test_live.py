@@ -462,7 +462,7 @@ class _Server:
         self.out = open(self.log, "a")
         self.proc = subprocess.Popen([sys.executable, "-m", "handeye.cli", "live", str(folder), "--robot", "sim", "--camera",
                                       "sim", "--no-browser", "--port", str(port), "--fps", "5"],
-                                     stdout=self.out, stderr=subprocess.STDOUT, env=env)
+                                     stdout=self.out, stderr=subprocess.STDOUT, env=env, start_new_session=True)
         m = _wait(lambda: re.search(r"is at (http://127\.0\.0\.1:(\d+)/)", self.log.read_text()) or self.proc.poll() is not None,
                   120, "the server's address")
         assert m is not True and self.proc.poll() is None, self.log.read_text()
@@ -472,7 +472,21 @@ class _Server:
         if self.proc.poll() is None:
             self.proc.send_signal(sig)
             self.proc.wait(60)
+        self._reap()
         self.out.close()
+
+    def kill(self):
+        """The server killed as a crash would (SIGKILL), then what it left behind (its calibration
+        process, orphaned, waits for work forever): the whole session's processes."""
+        self.proc.kill()
+        self.proc.wait(30)
+        self._reap()
+
+    def _reap(self):
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)  # the server's session: its pool's workers too
+        except ProcessLookupError:
+            pass
 
 
 def _browser(tmp_path, width=1400, height=1300):
@@ -557,8 +571,7 @@ def test_the_page_in_chromium_takes_12_views_removes_one_and_writes_what_calibra
               and _n_views(driver) == 9, 30, "the page reconnected")
         # the server killed mid-capture: the page says so; started again on the same folder, nothing is lost
         names = [v["name"] for v in _live(driver, "window.__live.state.views")]
-        server.proc.kill()
-        server.proc.wait(30)
+        server.kill()
         _wait(lambda: "lost" in driver.find_element("id", "banner").text, 10, "the page saying the server is gone")
         assert load_session(folder).image_names == names
         server.out.close()
