@@ -659,6 +659,14 @@ def _best_start(A, points, candidates, radius, best=None):
     return (R_X, t_X, C, rms) if best is None or rms < best[3] else best
 
 
+def x_increment_columns(v: NDArray[np.float64], g: NDArray[np.float64], rotvec: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Per point (M, 6) the derivatives of a residual by X's increment, a rotation vector ``rotvec``
+    left of X's rotation then a translation, from the point turned by X (``v = exp(rotvec) R_X p``)
+    and the residual's gradient ``g`` by the point in the flange frame (before ``R_A``): with
+    ``d(exp(u) w)/du = -[exp(u) w]x J_l(u)``, ``(v x g)^T J_l`` and ``g``."""
+    return np.c_[np.cross(v, g) @ so3_left_jacobian(rotvec), g]
+
+
 #: A candidate's polish is ranked after at most this many evaluations: a start in the right basin
 #: converges in 3-15 (a simulated 12-profile capture), one in another crawls to scipy's cap of 900
 #: (47 of 51 s a session); the best is then polished to the end.
@@ -687,8 +695,7 @@ def _polished(A, points, R_X, t_X, C, radius, max_nfev: int | None = None
         n = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
         nR = np.einsum("mi,mij->mj", n, R)  # n^T R_A
         J = np.empty((len(points), len(u)))
-        J[:, :3] = np.cross(v, nR) @ so3_left_jacobian(u[:3])  # -(nR)^T [v]x = (v x nR)^T
-        J[:, 3:6] = nR
+        J[:, :6] = x_increment_columns(v, nR, u[:3])
         J[:, 6:9] = -n
         if radius is None:
             J[:, 9] = -1.0

@@ -32,8 +32,8 @@ from scipy.spatial.transform import Rotation
 
 from ...errors import DegenerateMotionError
 from ...frames.setups import robot_world_A
-from ...geometry.se3 import make_transform, perpendicular_basis, so3_left_jacobian
-from .model import LASER_NOISE_M, Profiles, rotation_from_columns
+from ...geometry.se3 import make_transform, perpendicular_basis
+from .model import LASER_NOISE_M, Profiles, rotation_from_columns, x_increment_columns
 
 __all__ = ["PlaneProfiles", "plane_profiles_start", "searched_start"]
 
@@ -222,7 +222,7 @@ def _polished(A: NDArray[np.float64], points: NDArray[np.float64], R0: NDArray[n
         g = np.einsum("mji,j->mi", R, n)  # R_A^T n: the residual's gradient by the point before R_A
         m = n0 + u[6] * e1 + u[7] * e2
         dn = (np.eye(3) - np.outer(n, n)) / np.linalg.norm(m)  # the unit normal by its chart's vector
-        return np.column_stack([np.cross(v, g) @ so3_left_jacobian(u[:3]), g, q @ dn @ np.c_[e1, e2], -np.ones(len(q))])
+        return np.column_stack([x_increment_columns(v, g, u[:3]), q @ dn @ np.c_[e1, e2], -np.ones(len(q))])
 
     res = least_squares(fun, np.zeros(9), jac, loss="soft_l1", f_scale=1e-3, x_scale=1e-3, max_nfev=60)
     Rx, t, n, d = unpack(res.x)
