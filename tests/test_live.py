@@ -476,17 +476,37 @@ class _Server:
         self.out.close()
 
     def kill(self):
-        """The server killed as a crash would (SIGKILL), then what it left behind (its calibration
-        process, orphaned, waits for work forever): the whole session's processes."""
+        """The server killed as a crash would (SIGKILL): its calibration process must leave by itself
+        (before, it waited for work for ever); reaped in any case, so that a failure leaves nothing."""
         self.proc.kill()
         self.proc.wait(30)
+        gone = _wait_group_gone(self.proc.pid, 10)
         self._reap()
+        assert gone, "the server's calibration process outlived the killed server"
 
     def _reap(self):
         try:
             os.killpg(self.proc.pid, signal.SIGKILL)  # the server's session: its pool's workers too
         except ProcessLookupError:
             pass
+
+
+def _wait_group_gone(pgid: int, seconds: float) -> bool:
+    """Whether every process of the session ``pgid`` has exited (zombies count as exited) within ``seconds``."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        if not any(_running_in_group(stat, pgid) for stat in Path("/proc").glob("[0-9]*/stat")):
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def _running_in_group(stat: Path, pgid: int) -> bool:
+    try:
+        fields = stat.read_text().rsplit(")", 1)[1].split()  # state, ppid, pgrp, ...
+    except OSError:  # exited meanwhile
+        return False
+    return int(fields[2]) == pgid and fields[0] != "Z"
 
 
 def _browser(tmp_path, width=1400, height=1300):

@@ -19,6 +19,7 @@ from typing import Any, Sequence
 
 from .._shared.cluster import dask_client, dask_completed, single_threaded
 from .._shared.io import atomic_write, check_output_folder
+from .._shared.processes import exit_with_parent
 from .._shared.progress import Progress
 from ..errors import HandEyeError
 from ..pipelines.calibration import certify_calibration
@@ -117,7 +118,7 @@ def calibrate_many(folders: Sequence[str | Path], out_dir: str | Path, scheduler
                 bar.update()
         else:  # a fork server: a child forked after OpenCV's threads ran in this process would hang
             context = multiprocessing.get_context("forkserver") if "forkserver" in multiprocessing.get_all_start_methods() else None
-            with ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=context) as pool:
+            with ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=context, initializer=exit_with_parent) as pool:
                 for k, r in enumerate(pool.map(_one_beside_others, tasks)):
                     results[k] = r
                     bar.update()

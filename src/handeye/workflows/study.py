@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 
 from .._shared.cluster import dask_client, dask_completed, single_threaded
 from .._shared.io import atomic_write
+from .._shared.processes import exit_with_parent
 from .._shared.progress import Progress
 from ..errors import HandEyeError, InputMismatchError
 from ..frames.motions import motion_matrices, pair_indices
@@ -344,7 +345,8 @@ def study(
                 results[k] = res
                 bar.update()
         else:
-            with ProcessPoolExecutor(max_workers=jobs, initializer=_single_threaded_blas, mp_context=_clean_context()) as pool:
+            pool_options = {"initializer": exit_with_parent, "initargs": (_single_threaded_blas,), "mp_context": _clean_context()}
+            with ProcessPoolExecutor(max_workers=jobs, **pool_options) as pool:
                 for fut in as_completed([pool.submit(_run_indexed, t) for t in order]):
                     k, res = fut.result()
                     results[k] = res

@@ -41,6 +41,7 @@ from scipy.spatial.transform import Rotation
 
 from ..._shared.io import atomic_write, check_output_folder, write_png
 from ..._shared.lazy import lazy_module
+from ..._shared.processes import exit_with_parent
 from ...errors import HandEyeError
 from ...estimation.verdict import headline
 from ...frames.motions import relative_motions
@@ -340,7 +341,7 @@ class LiveCapture:
         self._dirty = bool(self.views)
         self._plan(force=True)
         if self.isolated:  # the calibration's process started now (~2 s of imports), not at the third view
-            self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+            self._pool = _calibration_pool()
             self._pool.submit(ready)
         if move_first and self.can_move:  # before the camera starts: it would see nothing before
             self._guarded(self._move, Future())
@@ -705,7 +706,7 @@ class LiveCapture:
             return page_calibration(*args)
         for attempt in (0, 1):
             if self._pool is None:
-                self._pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+                self._pool = _calibration_pool()
             try:
                 return self._pool.submit(page_calibration, *args).result()
             except BrokenProcessPool:
@@ -759,6 +760,12 @@ class LiveCapture:
             if force or not self._dirty:  # else the views changed meanwhile: the plan after the next calibration counts
                 self._next_k, self.next_pose, self.coverage, self.planning = k, pose, coverage, False
         self._changed()
+
+
+def _calibration_pool() -> ProcessPoolExecutor:
+    """The calibration's process: spawned (no threads of the server forked into it), and gone with the
+    server even when the server is killed outright."""
+    return ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"), initializer=exit_with_parent)
 
 
 def ready() -> bool:
