@@ -348,6 +348,11 @@ def test_plan_for_a_laser_predicts_what_its_capture_gives(tmp_path, capsys, monk
                                                                                               "eye_in_hand")]
     cal = estimate(SphereProfiles("eye_in_hand", [f"p{k}" for k in range(16)], profiles, 0.02),
                    ControllerPoses(plan.flange2base))
+    # the plan's std is estimate's without the folds (a tenth of a line-scan plan's time): the same std
+    unfolded = estimate(SphereProfiles("eye_in_hand", [f"p{k}" for k in range(16)], profiles, 0.02),
+                        ControllerPoses(plan.flange2base), held_out=False)
+    assert cal.cross_validation is not None and unfolded.cross_validation is None
+    np.testing.assert_allclose(unfolded.std, cal.std, rtol=1e-9)
     rot = Rotation.from_matrix(cal.X[:3, :3] @ X[:3, :3].T).as_rotvec(degrees=True)
     assert np.all(np.abs(rot) <= 3 * plan.std_data[:3]) and np.all(np.abs(1e3 * (cal.X[:3, 3] - X[:3, 3])) <= 3 * plan.std_data[3:])
     out = tmp_path / "poses.csv"

@@ -1801,7 +1801,7 @@ Held = Callable[[NDArray[np.float64], NDArray[np.float64]], tuple[str, NDArray[n
 
 @on_one_blas_thread  # narrow matrices: a second BLAS thread waits more than it works
 def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *, uncertainty: bool = True,
-             method: str | None = None, held: Held | None = None, hold: tuple[str, ...] | list[str] = (),
+             held_out: bool = True, method: str | None = None, held: Held | None = None, hold: tuple[str, ...] | list[str] = (),
              free: tuple[str, ...] | list[str] = (),
              start: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None) -> Calibration:
     """X (and the target's pose, the sensor's and the robot's unknowns) from ``sensor`` and ``robot``:
@@ -1818,6 +1818,10 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
         Cross-validation folds (default: one per view up to 10 views, else 5).
     uncertainty : bool
         False skips the jackknife and cross-validation (X alone, e.g. inside a loop).
+    held_out : bool
+        False skips the cross-validation alone: X's std is the same (the fit's, widened by the
+        jackknife, plus the robot's accuracy), the held-out error is not measured and the verdict
+        judges the fit alone (a planner predicting the std of a simulated capture).
     method : str, optional
         The result's ``method`` (default: the sensor and robot in words).
     held : callable, optional
@@ -1858,8 +1862,8 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
     F = robot.flange2base(full.d)
     per_view = view_rms_mm(problem, full, views)
     fit_mm = float(np.sqrt(np.nanmean(per_view**2)))
-    by_estimator, n_folds, heldout_mm, n_fresh, alone, stepped = (({}, 0, None, 0, [], None) if not uncertainty else
-                                                                  _cross_validation(problem, full, views, folds))
+    by_estimator, n_folds, heldout_mm, n_fresh, alone, stepped = (({}, 0, None, 0, [], None) if not (uncertainty and held_out)
+                                                                  else _cross_validation(problem, full, views, folds))
     heldout_rms = by_estimator.get(_name(robot), {}).get("mm") if by_estimator else None
     cov, widened = _widen(full.cov, jack)
     cov_p = problem.full_cov_p(cov)

@@ -87,7 +87,7 @@ def _predicted_std(setup: str, target: str, X, Z, flange2base, radius: float, no
     keep = [k for k, p in enumerate(profiles) if np.isfinite(p[:, 2]).sum() >= 20]
     model = _model(setup, target, [f"p{k + 1:02d}.csv" for k in keep], [profiles[k] for k in keep], radius, noise_m)
     try:
-        cal = estimate(model, ControllerPoses(flange2base[keep], accuracy))
+        cal = estimate(model, ControllerPoses(flange2base[keep], accuracy), held_out=False)  # the std alone: no folds
     except DegenerateMotionError:
         return np.full(6, np.inf), np.full(6, np.inf)
     return np.asarray(cal.std, dtype=float), np.asarray(cal.std_sources["data"], dtype=float)

@@ -83,7 +83,7 @@ def _predicted_std(scene: LineScanScene, focal: float, noise_px: float, accuracy
     model = LineScanCorners(scene.setup, scene.names, scene.corners, scene.target_points, scene.starts, scene.line_rate,
                             scene.trajectory, focal, scene.width, noise_px)
     try:
-        cal = estimate(model, linescan_robot(model.flange2base_ref, accuracy))
+        cal = estimate(model, linescan_robot(model.flange2base_ref, accuracy), held_out=False)  # the std alone: no folds
     except DegenerateMotionError:
         return np.full(6, np.inf), np.full(6, np.inf)
     return np.asarray(cal.std, dtype=float), np.asarray(cal.std_sources["data"], dtype=float)
