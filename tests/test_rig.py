@@ -55,6 +55,20 @@ def test_three_fixed_cameras_one_with_a_wrong_focal_length_is_named():
     assert 1e3 * translation_error(bad.X("c0"), sc.cameras[0].X) < 1.0
 
 
+@pytest.mark.slow
+def test_two_cameras_one_with_a_focal_length_10_percent_long_is_named_first():
+    """Two cameras, one focal length 10% long: which of two is wrong no fit can tell, but the pair
+    disagrees: the headline and the first advice name that camera (not the robot's accuracy), the
+    verdict is not good; without the error, no such word."""
+    from handeye.estimation.verdict import headline
+    sc = rig_scene(9, "eye_in_hand", rng=7, cameras=2, robot_error=ERROR)
+    rig = calibrate_rig(sc.camera_models(), ["c0", "c1"], ControllerPoses(sc.flange2base, ERROR))
+    assert "disagreeing_pair" not in rig.joint.sensor.figures and "fits the rig" not in headline(rig.joint)
+    bad = calibrate_rig(sc.camera_models({1: 0.10}), ["c0", "c1"], ControllerPoses(sc.flange2base, ERROR))
+    assert bad.joint.verdict != "good" and bad.joint.sensor.figures["disagreeing_pair"]["sensor"] == "c1"
+    assert headline(bad.joint).startswith("check c1 before using X") and bad.joint.diagnostics.advice[0].startswith("c1 fits")
+
+
 def test_bad_rigs_are_named():
     """Two sensors with one name; a sensor that saw too few views is skipped by name and the others
     still calibrated; per-pose errors need the robot's accuracy."""

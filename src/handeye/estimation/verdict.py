@@ -181,6 +181,10 @@ def headline(cal: Calibration) -> str:
         return "the robot poses and the measurements do not agree on one X"
     if verdict != "weak":
         return HEADLINES.get(verdict, "")
+    pair = cal.sensor.figures.get("disagreeing_pair") if cal.sensor is not None else None
+    if pair:  # a rig's two sensors disagree: which is wrong no number says, and more views will not tell
+        return (f"check {pair['sensor']} before using X: it fits the rig {pair['ratio']:.1f}x worse than {pair['other']} "
+                "(a wrong intrinsic, or a sensor that moved); the advice says how")
     if cal.std is None or not np.all(np.isfinite(cal.std)):
         return "the data leave X poorly determined"
     rot, mm = (3 * v for v in _norms(cal.std))

@@ -21,7 +21,7 @@ from ._page import _axis_triad, _e, _equal_axes, _figure, _img, _png, _transform
 
 #: The sensor figures the rig's sections show (left out of the sensor's table of figures).
 RIG_FIGURES = ("X_per_sensor", "view_rms_mm_per_sensor", "relative", "alone", "rms_mm_per_sensor", "sensors", "disagreeing",
-               "skipped", "images_per_sensor")
+               "skipped", "images_per_sensor", "disagreeing_pair")
 
 
 def is_rig(cal: Calibration) -> bool:

@@ -181,8 +181,18 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
                 disagreeing.append((names[worst], why + "; left out of the joint fit, its own answer kept"))
                 kept.pop(worst)
                 continue
-            joint = replace(joint, notes=list(joint.notes) + [
-                f"{names[worst]}: {why}; with two sensors it stays in (the other's data are the only check)"])
+            # which of two is wrong the data cannot tell, that one is: the answer stands, not as good, and
+            # the advice says so first (the robot's accuracy the fit infers takes the disagreement too)
+            diag = joint.diagnostics
+            figures = dict(joint.sensor.figures, disagreeing_pair={"sensor": names[worst], "other": names[1 - worst],
+                                                                    "ratio": float(ratio[worst] / others)})
+            joint = replace(joint, sensor=replace(joint.sensor, figures=figures), notes=list(joint.notes) + [
+                f"{names[worst]}: {why}; with two sensors it stays in (the other's data are the only check)"],
+                diagnostics=replace(diag, verdict="weak" if diag.verdict == "good" else diag.verdict, advice=[
+                    f"{names[worst]} fits the rig {ratio[worst] / others:.1f}x worse than {names[1 - worst]} does: check its "
+                    f"intrinsics (focal length, distortion) and that it did not move, then calibrate again (its own answer "
+                    f"is beside the rig's, sensors/{names[worst]}/); the X and the robot accuracy below take the "
+                    "disagreement in"] + list(diag.advice)))
         break
     if joint is not None and joint.robot_accuracy is not None:
         # each sensor's X takes the robot's error common to all poses whole, as X's std does: the same
