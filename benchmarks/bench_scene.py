@@ -165,6 +165,14 @@ def real(args) -> None:
             alone, free = _per_view_free(folder, cal.X)
             print(f"  {obj:9s} {np.round(d[:3], 3)} deg {np.round(d[3:], 2)} mm; |d|/std max {np.max(np.abs(d) / cal.std):.2f}; "
                   f"views' spread with X alone {alone:.3f} mm, each view's pose free {free:.3f} mm", flush=True)
+        print("\neach against the mean of the other four, in the std of that difference (the object's and the four's "
+              "mean's, taken independent; the robot's error common to all five, which cancels in it, is in both):")
+        for obj, (cal, _) in cals.items():
+            others = [c for o, (c, _) in cals.items() if o != obj]
+            d = _difference(cal.X, mean_transform(np.array([c.X for c in others])))
+            std = np.sqrt(cal.std**2 + np.mean([c.std**2 for c in others], axis=0) / len(others))
+            print(f"  {obj:9s} {np.round(d[:3], 3)} deg {np.round(d[3:], 2)} mm; |d|/std {np.round(np.abs(d) / std, 1)}, "
+                  f"max {np.max(np.abs(d) / std):.2f}", flush=True)
         both = {}
         for setup in SETUPS:
             cal = calibrate_folder(realdata.reghec_session("GripperOpen", Path(tmp) / f"gripper_{setup}", setup), progress=False)
