@@ -441,6 +441,31 @@ def test_a_sensor_kind_is_two_folders_and_one_registration():
     assert not imports, "\n".join(imports)
 
 
+def _protocol_members() -> set[str]:
+    """The members sensors/base.py's capability protocols declare (every protocol but ``SensorModel``, whose
+    members every model has)."""
+    tree = ast.parse((SRC / "sensors" / "base.py").read_text(encoding="utf-8"))
+    return {n.name if isinstance(n, ast.FunctionDef) else n.target.id
+            for c in tree.body if isinstance(c, ast.ClassDef) and c.name != "SensorModel"
+            and any(getattr(b, "id", "") == "Protocol" for b in c.bases)
+            for n in c.body if isinstance(n, ast.FunctionDef) or isinstance(n, ast.AnnAssign) and isinstance(n.target, ast.Name)}
+
+
+def test_a_sensor_capability_is_asked_of_its_protocol_not_probed_by_name():
+    """Issue 78: the contract is declared (sensors/base.py, one protocol per capability); nothing asks a
+    model for one with ``hasattr(model, "target_params")`` or ``getattr(model, "nuisances", ())``, which
+    a type checker cannot follow and a renamed member silently defeats: ``isinstance(model, SharesTarget)``."""
+    members = _protocol_members()
+    assert {"target_params", "nuisances", "sections"} <= members and "setup" not in members, sorted(members)
+    probes = []
+    for module, path in MODULES.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("hasattr", "getattr") \
+                    and len(node.args) >= 2 and isinstance(node.args[1], ast.Constant) and node.args[1].value in members:
+                probes.append(f"{module}:{node.lineno} {node.func.id}(..., {node.args[1].value!r})")
+    assert not probes, "\n".join(probes)
+
+
 @pytest.mark.parametrize("old, name, new", [
     ("handeye.io.laser_session", "load_laser_session", "handeye.pipelines.laser.session"),
     ("handeye.simulate.laser", "laser_scene", "handeye.pipelines.laser.simulate"),
