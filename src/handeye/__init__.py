@@ -84,6 +84,8 @@ MOVED_NAMES = {
     "handeye.planning": {**dict.fromkeys(("LaserPlan", "plan_laser"), "handeye.pipelines.laser.plan"),
                          **dict.fromkeys(("LineScanPlan", "plan_linescan"), "handeye.pipelines.linescan.plan")},
     "handeye.io.extras": dict.fromkeys(("session_extras", "missing_extras", "check_extras"), "handeye.pipelines.folders"),
+    "handeye.io.importers": {"import_robcalibrator": "handeye.pipelines.laser.importers",
+                             "import_easyhec": "handeye.pipelines.silhouette.importers"},
     **{f"handeye.pipelines.{kind}": {"*": f"handeye.pipelines.{kind}.pipeline"}
        for kind in ("depth", "laser", "linescan", "rig", "silhouette")},
 }

@@ -37,7 +37,7 @@ if TYPE_CHECKING:  # the registry imports nothing heavy: the command line reads 
     from numpy.typing import NDArray
 
 __all__ = ["SensorKind", "KindOption", "SimulateRequest", "PlanRequest", "SensorPlan", "register_kind", "unregister_kind",
-           "sensor_kinds", "kind_named", "session_kind", "member_kind", "kind_of_model", "kinds_of_target"]
+           "sensor_kinds", "kind_named", "session_kind", "member_kind", "kind_of_model", "kinds_of_target", "importer_of"]
 
 
 @dataclass(frozen=True)
@@ -110,6 +110,9 @@ class SensorKind:
         The target's rotation (a rotation vector, degrees) when ``--target-in-base`` gives none.
     options : tuple of KindOption
         Its own options.
+    imports : tuple of (str, str)
+        ``(source, "module:function")``: ``handeye import <source>``, another tool's capture written as a
+        session of this kind; ``function(folder, out, **options) -> ImportSummary`` (:func:`importer_of`).
     """
 
     section: str
@@ -131,6 +134,7 @@ class SensorKind:
     plan_usage: str = ""
     plan_target_rotation: tuple[float, float, float] = (180.0, 0.0, 0.0)
     options: tuple[KindOption, ...] = ()
+    imports: tuple[tuple[str, str], ...] = ()
 
     def hook(self, name: str) -> Callable[..., Any]:
         """The function of hook ``name`` (``"calibrate"``, ``"simulate"``, ...), imported on first use.
@@ -143,6 +147,10 @@ class SensorKind:
         where = getattr(self, name, None)
         if not isinstance(where, str) or ":" not in where:
             raise HandEyeError(f"a {self.display} has no {name} (its registration names none)")
+        return self._imported(where)
+
+    def _imported(self, where: str) -> Callable[..., Any]:
+        """The function ``"module:function"`` of this kind's folder, imported."""
         module, _, function = where.partition(":")
         return getattr(importlib.import_module(f"{self.package}.{module}"), function)
 
@@ -268,6 +276,14 @@ def kind_of_model(display: str | None) -> SensorKind | None:
     return next((k for k in _KINDS.values() if k.display == display), None)
 
 
+def importer_of(source: str) -> Callable[..., Any] | None:
+    """The function that writes another tool's capture ``source`` (``handeye import <source>``:
+    ``robcalibrator``) as a session of the kind whose registration :attr:`~SensorKind.imports` it; None
+    when no kind does (a camera's sources: :mod:`handeye.io.importers`)."""
+    kind, where = next(((k, w) for k in _KINDS.values() for s, w in k.imports if s == source), (None, ""))
+    return None if kind is None else kind._imported(where)
+
+
 def kinds_of_target(target: str | None) -> tuple[SensorKind, ...]:
     """The kinds whose own ``--target`` name ``target`` is (``plane``: a laser's; ``sphere``: a depth
     camera's and a laser's); none for a board."""
@@ -288,7 +304,7 @@ register_kind(SensorKind(
 register_kind(SensorKind(
     section="laser", cli="laser_line", display="laser line profiler", package="handeye.pipelines.laser",
     calibrate="pipeline:calibrate_laser_session", rig_member="pipeline:rig_member",
-    simulate="simulate:simulate_command", plan="plan:plan_command",
+    simulate="simulate:simulate_command", plan="plan:plan_command", imports=(("robcalibrator", "importers:import_robcalibrator"),),
     targets=("sphere", "plane", "edge", "step", "spheres"), frame="laser_profiler_optical_frame",
     simulate_help="a laser line profiler's profiles of a ball, a plate, a block's edge, a step or a fixture of balls "
     "(--target; --poses of them; --arm for joint angles)",
@@ -315,6 +331,7 @@ register_kind(SensorKind(
 register_kind(SensorKind(
     section="silhouette", cli="silhouette", display="colour camera", package="handeye.pipelines.silhouette",
     calibrate="pipeline:calibrate_silhouette_session", extras="session:extras", simulate="simulate:simulate_command",
+    imports=(("easyhec", "importers:import_easyhec"),),
     simulate_help="a fixed colour camera's masks of a Panda (markerless, its joint angles, eye_to_hand; --poses of them)",
 ))
 register_kind(SensorKind(
