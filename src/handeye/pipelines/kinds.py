@@ -36,8 +36,11 @@ if TYPE_CHECKING:  # the registry imports nothing heavy: the command line reads 
     import numpy as np
     from numpy.typing import NDArray
 
+    from ..result import Calibration
+
 __all__ = ["SensorKind", "KindOption", "SimulateRequest", "PlanRequest", "SensorPlan", "register_kind", "unregister_kind",
-           "sensor_kinds", "kind_named", "session_kind", "member_kind", "kind_of_model", "kinds_of_target", "importer_of"]
+           "sensor_kinds", "kind_named", "session_kind", "member_kind", "kind_of_model", "kinds_of_target", "joins_sensors",
+           "importer_of"]
 
 
 @dataclass(frozen=True)
@@ -113,6 +116,11 @@ class SensorKind:
     imports : tuple of (str, str)
         ``(source, "module:function")``: ``handeye import <source>``, another tool's capture written as a
         session of this kind; ``function(folder, out, **options) -> ImportSummary`` (:func:`importer_of`).
+    several : bool
+        Its result is several sensors' one fit (a rig's), with the figures a rig's model gives them
+        (:mod:`handeye.sensors.rig`: ``X_per_sensor``, ``relative``, ``alone``, ...): the report draws
+        every sensor and writes their frames (``rig_static_tf.launch.py``), the terminal prints each
+        one's X (:func:`joins_sensors`).
     """
 
     section: str
@@ -135,6 +143,7 @@ class SensorKind:
     plan_target_rotation: tuple[float, float, float] = (180.0, 0.0, 0.0)
     options: tuple[KindOption, ...] = ()
     imports: tuple[tuple[str, str], ...] = ()
+    several: bool = False
 
     def hook(self, name: str) -> Callable[..., Any]:
         """The function of hook ``name`` (``"calibrate"``, ``"simulate"``, ...), imported on first use.
@@ -284,6 +293,13 @@ def importer_of(source: str) -> Callable[..., Any] | None:
     return None if kind is None else kind._imported(where)
 
 
+def joins_sensors(calibration: Calibration) -> bool:
+    """Whether ``calibration`` is several sensors' one fit (a rig's): its sensor's kind (a result's
+    ``sensor.kind``, the display name) is registered :attr:`~SensorKind.several`."""
+    kind = None if calibration.sensor is None else kind_of_model(calibration.sensor.sensor)
+    return kind is not None and kind.several
+
+
 def kinds_of_target(target: str | None) -> tuple[SensorKind, ...]:
     """The kinds whose own ``--target`` name ``target`` is (``plane``: a laser's; ``sphere``: a depth
     camera's and a laser's); none for a board."""
@@ -337,7 +353,7 @@ register_kind(SensorKind(
 register_kind(SensorKind(
     section="sensors", cli="rig", display="rig", package="handeye.pipelines.rig",
     calibrate="pipeline:calibrate_rig_session", extras="session:extras", members="pipeline:rig_members",
-    simulate="simulate:simulate_command",
+    simulate="simulate:simulate_command", several=True,
     simulate_help="a stereo pair on the flange (eye_in_hand) or three fixed cameras (eye_to_hand)",
     options=(KindOption("simulate", "--cameras", "the number of cameras (default 2 on the flange, 3 fixed around the cell)",
                         "whole", 2),

@@ -26,13 +26,14 @@ from ..estimation.verdict import headline as verdict_headline
 from ..frames.motions import MotionSet
 from ..frames.setups import camera2base, predicted_target2cam, setup_info, target2base
 from ..geometry.se3 import screw_parameters
+from ..pipelines.kinds import joins_sensors
 from ..result import Calibration
 from ..robot.kinematics import display_unit
 from ..sensors.camera.detect import default_jobs
 from ..sensors.camera.pnp import project_points
 from ._overlay import jpeg, overlay_thumbnail, zoom_size
 from ._page import _COLOURS, _CSS, _axis_triad, _e, _equal_axes, _figure, _fmt, _img, _png, _transform_table
-from ._rig import RIG_FIGURES, is_rig, rig_sections
+from ._rig import RIG_FIGURES, rig_sections
 from .files import result_dict
 
 cv2 = lazy_module("cv2")
@@ -383,7 +384,7 @@ def _sensor_residuals_section(cal: Calibration) -> str:
                         "others evenly.</p>" if len(shown) < len(sf.sections) else ""))
     if cal.skipped:
         parts.append("<p>Views not used: " + "; ".join(f"{_e(n)} ({_e(r)})" for n, r in cal.skipped) + "</p>")
-    shown = {k: v for k, v in sf.figures.items() if not (is_rig(cal) and k in RIG_FIGURES)}  # a rig's: in its own sections
+    shown = {k: v for k, v in sf.figures.items() if not (joins_sensors(cal) and k in RIG_FIGURES)}  # a rig's: in its own sections
     rows = "".join(f'<tr><td class="l">{_e(_figure_label(k))}</td><td class="l">{_e(_figure_text(v))}</td></tr>'
                    for k, v in shown.items())
     if rows:  # a rig's figures are all in its sections: no empty table
@@ -702,7 +703,7 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
              _verdict_section(cal, verdict, pres),
              _result_section(cal, data)]
     if cal.target2cam is None:  # a sensor's fit (depth, laser, ...): its views' residuals and figures
-        parts += [rig_sections(cal) if is_rig(cal) else "", _sensor_residuals_section(cal), _kinematics_section(cal),
+        parts += [rig_sections(cal) if joins_sensors(cal) else "", _sensor_residuals_section(cal), _kinematics_section(cal),
                   '<section id="scene"><h2>Robot, sensor and target</h2>' + _img(_png(_scene_figure(cal)), "3D view")
                   + "</section>", _advice_section(cal, data), "</body></html>\n"]
         return "".join(parts)
