@@ -47,8 +47,9 @@ __all__ = ["SensorKind", "KindOption", "SimulateRequest", "PlanRequest", "Sensor
 class KindOption:
     """A command-line option of one kind's own (``plan --diameter``, ``simulate --cameras``), added to
     ``command``'s parser for it: ``type`` is ``"flag"`` (on or off), ``"number"`` (in ``[low, high]``,
-    ``(low, high]`` when ``above``), ``"whole"`` (>= ``low``) or ``"text"``; given with another
-    ``--sensor``, the command refuses it, naming the kind it belongs to."""
+    ``(low, high]`` when ``above``), ``"whole"`` (>= ``low``), ``"text"`` or ``"texts"`` (given once per
+    value, a list); given with another ``--sensor``, the command refuses it, naming the kind it belongs
+    to, unless it ``chooses`` its kind when no ``--sensor`` is given (``plan --rig-camera``: a rig)."""
 
     command: str
     flag: str
@@ -58,6 +59,7 @@ class KindOption:
     high: float = float("inf")
     above: bool = False
     metavar: str | None = None
+    chooses: bool = False
 
     @property
     def dest(self) -> str:
@@ -188,7 +190,8 @@ class SimulateRequest:
 @dataclass(frozen=True)
 class PlanRequest:
     """What ``handeye plan --sensor <cli>`` asks a kind's ``plan`` hook for: the sensor's rough pose
-    ``X`` and the target's ``Z`` (metres), the command's arguments, its own options in ``options``."""
+    ``X`` and the target's ``Z`` (metres), the command's arguments (``intrinsics``: a camera's YAML,
+    ``tilt_max_deg``, ``margin_px``: a board's views), its own options in ``options``."""
 
     setup: str
     X: NDArray[np.float64]
@@ -201,6 +204,9 @@ class PlanRequest:
     noise_px: float = 0.3
     robot_accuracy: tuple[float, float] | None = None
     options: dict[str, Any] = field(default_factory=dict)
+    intrinsics: str | None = None
+    tilt_max_deg: float = 45.0
+    margin_px: float = 20.0
 
 
 @dataclass(frozen=True)
@@ -210,7 +216,8 @@ class SensorPlan:
     (its ``std_X``, ``std_data``, ``std_narrow`` and ``robot_accuracy``) in the words ``label`` (a
     row), ``accuracy`` (what the robot's accuracy is in it), ``per`` (the data alone), ``narrow`` (the
     narrow capture it is compared with), ``undetermined`` (said when that cannot determine X) and
-    ``why`` (what the plan's spread buys); ``written``: what the file is, after its name."""
+    ``why`` (what the plan's spread buys); ``written``: what the file is, after its name. A plan with
+    ``lines`` (a rig's: each camera's std) prints them instead of X's std."""
 
     names: list[str]
     flange2base: NDArray[np.float64]
@@ -224,6 +231,7 @@ class SensorPlan:
     undetermined: str
     why: str
     written: str
+    lines: tuple[str, ...] = ()
 
 
 _KINDS: dict[str, SensorKind] = {}
@@ -353,12 +361,21 @@ register_kind(SensorKind(
 register_kind(SensorKind(
     section="sensors", cli="rig", display="rig", package="handeye.pipelines.rig",
     calibrate="pipeline:calibrate_rig_session", extras="session:extras", members="pipeline:rig_members",
-    simulate="simulate:simulate_command", several=True,
+    simulate="simulate:simulate_command", plan="plan:plan_command", several=True,
     simulate_help="a stereo pair on the flange (eye_in_hand) or three fixed cameras (eye_to_hand)",
+    plan_help="poses in which every camera of a rig sees the whole board (--intrinsics: the first camera's; a "
+    "--rig-camera per other camera), each camera's predicted std",
+    plan_takes=("--intrinsics", "--target-spec", "--standoff"),
+    plan_usage="--intrinsics (the first camera's), a --rig-camera per other camera, the first camera's placement "
+    "(--cam-in-flange or --camera-in-base), the target's, --target or --target-spec and --standoff",
     options=(KindOption("simulate", "--cameras", "the number of cameras (default 2 on the flange, 3 fixed around the cell)",
                         "whole", 2),
              KindOption("simulate", "--laser", "a camera beside a laser profiler (a small board and a 40 mm ball) instead "
                         "of cameras", "flag"),
+             KindOption("plan", "--rig-camera", "another camera of the rig: its name, its intrinsics YAML and its rough "
+                        "pose in the first camera's frame (m, rotation vector in deg); once per camera: poses every "
+                        "camera can use (written with a first column view, as a rig session's poses.csv); without "
+                        "--sensor, it plans for a rig", "texts", metavar="NAME,INTRINSICS,X,Y,Z[,RX,RY,RZ]", chooses=True),
              KindOption("simulate", "--depth", "a camera beside a depth camera (640x480 clouds and intensity images), both "
                         "seeing the board, instead of cameras", "flag")),
 ))
