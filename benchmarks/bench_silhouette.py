@@ -39,8 +39,8 @@ import numpy as np
 
 from _timing import calibrate_seconds
 from handeye.frames.metrics import rotation_error, translation_error, within_std
-from handeye.io.importers import import_easyhec
 from handeye.pipelines.folders import calibrate_folder
+from handeye.pipelines.silhouette.importers import import_easyhec
 from handeye.pipelines.silhouette.pipeline import calibrate_silhouette_session
 from handeye.pipelines.silhouette.session import load_silhouette_session
 from handeye.pipelines.silhouette.simulate import silhouette_scene, write_silhouette_session

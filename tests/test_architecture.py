@@ -404,12 +404,32 @@ def _kind_name_uses(tree: ast.AST, names: set[str], sections: set[str]) -> list[
     return found
 
 
+def _kind_blind_uses(tree: ast.AST, sections: set[str]) -> list[tuple[int, str]]:
+    """Where ``tree`` knows a kind without asking the registry: tests a sensor figure's presence
+    (``"X_per_sensor" in cal.sensor.figures``: ask the result's kind, :func:`~handeye.pipelines.kinds.joins_sensors`)
+    or writes one of ``sections`` in a session.yaml (a mapping with ``setup`` and ``laser``: a kind's
+    session is written in its folder)."""
+    def figures(node) -> bool:
+        return isinstance(node, ast.Name) and node.id == "figures" or isinstance(node, ast.Attribute) and node.attr == "figures"
+
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Compare) and isinstance(node.left, ast.Constant) and isinstance(node.left.value, str) \
+                and isinstance(node.ops[0], (ast.In, ast.NotIn)) and figures(node.comparators[0]):
+            found.append((node.lineno, f"tests the figure {node.left.value!r}'s presence"))
+        elif isinstance(node, ast.Dict) and any(isinstance(k, ast.Constant) and k.value == "setup" for k in node.keys):
+            found += [(node.lineno, f"writes the section {k.value!r}") for k in node.keys
+                      if isinstance(k, ast.Constant) and k.value in sections]
+    return found
+
+
 def test_a_sensor_kind_is_two_folders_and_one_registration():
     """Issue 78: a kind of sensor is sensors/<kind>/ (its mathematics), pipelines/<kind>/ (its session
     reader, pipeline, simulator and planner) and one registration (pipelines/kinds.py's ``register_kind``
     of its names and hooks). calibrate, check, the rig, simulate, plan and the report look kinds up: nothing
-    outside a kind's two folders compares with its section, command-line or display name or looks its
-    section up, and only the registry and other kinds (a rig composes its sensors') import its folder."""
+    outside a kind's two folders compares with its section, command-line or display name, looks its
+    section up or writes it, or tells its results by a figure's presence, and only the registry and other
+    kinds (a rig composes its sensors') import its folders (the report draws what a sensor's sections hold)."""
     from handeye.pipelines import kinds
 
     registered = kinds.sensor_kinds()
@@ -435,10 +455,39 @@ def test_a_sensor_kind_is_two_folders_and_one_registration():
             names = {kind.section, kind.cli, kind.display}
             switches += [f"{module}:{line} {what} (the {kind.display}'s)" for line, what in _kind_name_uses(tree, names, sections)]
             if not in_a_kind:
+                # sensors/ may compose other kinds' mathematics (a rig's, a laser's ball); the rest asks the kind's hooks
+                theirs = own[:1] if module.startswith("handeye.sensors.") else own
                 imports += [f"{module}:{line} imports {dst}" for dst, _, line, _ in EDGES[module]
-                            if dst == own[0] or dst.startswith(own[0] + ".")]
+                            if any(dst == o or dst.startswith(o + ".") for o in theirs)]
+        if not in_a_kind and not module.startswith("handeye.sensors."):
+            switches += [f"{module}:{line} {what}" for line, what in _kind_blind_uses(tree, {k.section for k in registered})]
     assert not switches, "\n".join(switches)
     assert not imports, "\n".join(imports)
+
+
+def _protocol_members() -> set[str]:
+    """The members sensors/base.py's capability protocols declare (every protocol but ``SensorModel``, whose
+    members every model has)."""
+    tree = ast.parse((SRC / "sensors" / "base.py").read_text(encoding="utf-8"))
+    return {n.name if isinstance(n, ast.FunctionDef) else n.target.id
+            for c in tree.body if isinstance(c, ast.ClassDef) and c.name != "SensorModel"
+            and any(getattr(b, "id", "") == "Protocol" for b in c.bases)
+            for n in c.body if isinstance(n, ast.FunctionDef) or isinstance(n, ast.AnnAssign) and isinstance(n.target, ast.Name)}
+
+
+def test_a_sensor_capability_is_asked_of_its_protocol_not_probed_by_name():
+    """Issue 78: the contract is declared (sensors/base.py, one protocol per capability); nothing asks a
+    model for one with ``hasattr(model, "target_params")`` or ``getattr(model, "nuisances", ())``, which
+    a type checker cannot follow and a renamed member silently defeats: ``isinstance(model, SharesTarget)``."""
+    members = _protocol_members()
+    assert {"target_params", "nuisances", "sections"} <= members and "setup" not in members, sorted(members)
+    probes = []
+    for module, path in MODULES.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("hasattr", "getattr") \
+                    and len(node.args) >= 2 and isinstance(node.args[1], ast.Constant) and node.args[1].value in members:
+                probes.append(f"{module}:{node.lineno} {node.func.id}(..., {node.args[1].value!r})")
+    assert not probes, "\n".join(probes)
 
 
 @pytest.mark.parametrize("old, name, new", [

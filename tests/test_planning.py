@@ -15,6 +15,7 @@ from handeye.estimation.diagnostics import diagnose
 from handeye.frames.poses import parse_poses
 from handeye.geometry.se3 import invert, make_transform
 from handeye.io.session import read_pose_table
+from handeye.pipelines.rig.plan import RigPlanCamera, plan_rig
 from handeye.planning.poses import (
     easy_handeye_poses,
     fronto_parallel_start,
@@ -25,7 +26,6 @@ from handeye.planning.poses import (
     simulate_errors,
     visible_mask,
 )
-from handeye.planning.rig import RigPlanCamera, plan_rig
 from handeye.sensors.camera.pnp import project_points
 from handeye.sensors.camera.targets import target_from_spec
 from handeye.simulate import DEFAULT_TARGETS, default_camera
@@ -250,6 +250,26 @@ def test_plan_takes_a_session_yaml_as_intrinsics(tmp_path, capsys):
     assert main(["plan", "--intrinsics", str(lone), "--target-in-base", "0.6,0.1,0", "--standoff", "0.5",
                  "--out", str(tmp_path / "p.csv")]) == 2
     assert "image_size" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_a_rig_plans_through_its_registrations_plan_hook(tmp_path, camera_yaml, capsys):
+    """Issue 78: a rig's plan was reached by the camera's --rig-camera only, not through its kind's plan
+    hook as every other kind's. Now ``plan --sensor rig`` plans it (the rig's registration names
+    ``plan``), ``plan --rig-camera`` alone still does and writes the same poses, and another kind
+    refuses --rig-camera, naming the rig."""
+    from handeye.pipelines.kinds import kind_named
+    rig = kind_named("rig")
+    assert rig.plan is not None and rig.hook("plan").__module__ == "handeye.pipelines.rig.plan"
+    common = ["--intrinsics", str(camera_yaml), "--cam-in-flange", "0,0,0.05", "--target-in-base", "0.6,0,0",
+              "--standoff", "0.7", "--poses", "6", "--rig-camera", f"right,{camera_yaml},0.12,0,0,0,-6,0"]
+    assert main(["plan", "--sensor", "rig", *common, "--out", str(tmp_path / "a.csv")]) == 0
+    assert "every camera (cam0, right)" in capsys.readouterr().out
+    assert main(["plan", *common, "--out", str(tmp_path / "b.csv")]) == 0
+    assert (tmp_path / "a.csv").read_text() == (tmp_path / "b.csv").read_text()
+    assert main(["plan", "--sensor", "laser_line", "--target-in-base", "0.6,0,0", "--rig-camera", f"r,{camera_yaml},0.1,0,0",
+                 "--out", str(tmp_path / "c.csv")]) == 2
+    assert "--rig-camera is a rig's: add --sensor rig" in capsys.readouterr().err
 
 
 @pytest.mark.slow

@@ -20,7 +20,7 @@ from handeye.cli import main
 from handeye.errors import SessionError
 from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import perturb
-from handeye.io.importers import import_easyhec
+from handeye.pipelines.silhouette.importers import import_easyhec
 from handeye.pipelines.silhouette.pipeline import arm_views, global_start, outline_rounds, pairing_notes
 from handeye.pipelines.silhouette.session import load_silhouette_session, read_masks
 from handeye.pipelines.silhouette.simulate import silhouette_scene, write_silhouette_session

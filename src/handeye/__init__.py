@@ -72,6 +72,7 @@ MOVED = {f"handeye.{old}": tuple(f"handeye.{n}" for n in new) for old, new in {
     "pipelines.mesh": ("pipelines.depth.mesh",), "pipelines.arm_depth": ("pipelines.depth.arm",),
     "pipelines.scene": ("pipelines.depth.scene",),
     "planning.laser": ("pipelines.laser.plan",), "planning.linescan": ("pipelines.linescan.plan",),
+    "planning.rig": ("pipelines.rig.plan",),
 }.items()}
 #: Names that left a package that stays (package -> {name: the module that holds it now}); a kind's
 #: folder that was its pipeline's module (``handeye.pipelines.laser``) forwards every name of it ("*").
@@ -82,8 +83,11 @@ MOVED_NAMES = {
         **dict.fromkeys(("MeshScene", "flange_mesh", "mesh_scene", "write_mesh_session"), "handeye.pipelines.depth.simulate_mesh"),
         **dict.fromkeys(("LaserScene", "laser_scene", "write_laser_session"), "handeye.pipelines.laser.simulate")},
     "handeye.planning": {**dict.fromkeys(("LaserPlan", "plan_laser"), "handeye.pipelines.laser.plan"),
-                         **dict.fromkeys(("LineScanPlan", "plan_linescan"), "handeye.pipelines.linescan.plan")},
+                         **dict.fromkeys(("LineScanPlan", "plan_linescan"), "handeye.pipelines.linescan.plan"),
+                         **dict.fromkeys(("RigPlan", "RigPlanCamera", "plan_rig"), "handeye.pipelines.rig.plan")},
     "handeye.io.extras": dict.fromkeys(("session_extras", "missing_extras", "check_extras"), "handeye.pipelines.folders"),
+    "handeye.io.importers": {"import_robcalibrator": "handeye.pipelines.laser.importers",
+                             "import_easyhec": "handeye.pipelines.silhouette.importers"},
     **{f"handeye.pipelines.{kind}": {"*": f"handeye.pipelines.{kind}.pipeline"}
        for kind in ("depth", "laser", "linescan", "rig", "silhouette")},
 }

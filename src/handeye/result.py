@@ -199,8 +199,10 @@ class SensorFit:
     sections : list of dict or None
         Per view, what the report draws of it, in the sensor's own plane (a profiler's laser plane):
         ``points_mm`` (n, 2) measured, ``residual_mm`` (n,) theirs, ``curve_mm`` (m, 2) the fitted
-        target's section there (NaN where it has none); None when the sensor draws nothing. Not in
-        result.json (the raw measurements stay in the session).
+        target's section there (NaN where it has none), optional ``plane`` (what it is drawn in, in
+        words), ``label``, ``rms_mm``; or, for 3D clouds registered in one frame (a scene's),
+        ``cloud_mm`` (n, 3), ``residual_mm`` (n,) and ``frame`` (that frame in words). None when the
+        sensor draws nothing. Not in result.json (the raw measurements stay in the session).
     params : ndarray or None
         The sensor's unknowns as fitted (its model's ``param_names``, in order): what a later fit
         starts from (a rig starts from each sensor's own). Not in result.json (``figures`` says

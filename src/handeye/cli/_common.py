@@ -152,6 +152,8 @@ def add_kind_options(p: argparse.ArgumentParser, command: str) -> None:
             settings: dict = {"help": f"--sensor {kind.cli}: {option.help}"}
             if option.type == "flag":
                 settings["action"] = "store_true"
+            elif option.type == "texts":  # given once per value
+                settings.update(action="append", default=None)
             else:
                 settings["default"] = None
                 settings["type"] = {"number": number_arg(option.low, option.high, option.above), "whole": whole_arg(int(option.low)),
@@ -159,6 +161,12 @@ def add_kind_options(p: argparse.ArgumentParser, command: str) -> None:
             if option.metavar:
                 settings["metavar"] = option.metavar
             p.add_argument(option.flag, **settings)
+
+
+def chosen_kind(args: argparse.Namespace, command: str) -> SensorKind | None:
+    """The kind whose own option that ``chooses`` it (:class:`~handeye.pipelines.kinds.KindOption`) was
+    given to ``command`` without ``--sensor`` (``plan --rig-camera``: a rig); None when none was."""
+    return next((k for k in sensor_kinds() for o in k.options_of(command) if o.chooses and getattr(args, o.dest)), None)
 
 
 def kind_options(args: argparse.Namespace, command: str, kind: SensorKind | None) -> dict:

@@ -11,6 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from ..estimation.verdict import headline
 from ..frames.setups import pose_name, setup_info
+from ..pipelines.kinds import joins_sensors
 from ..result import Calibration
 from ..robot.kinematics import display_unit
 
@@ -81,7 +82,7 @@ def print_calibration(cal: Calibration, out=None) -> None:
                                                         if np.isinf(cal.std).any() else "") + "\n")
     else:  # uncertainty skipped (or too few poses to refit without one, and an exact robot): say so
         w(f"std of X: not computed ({cal.method}): the check below judges the poses, not how far X can be trusted\n")
-    if cal.sensor is not None and "X_per_sensor" in cal.sensor.figures:
+    if joins_sensors(cal):
         _print_rig(cal, w)
     if cal.kinematic is not None:
         k = cal.kinematic

@@ -9,16 +9,10 @@ from .._shared.io import atomic_write
 from ..errors import HandEyeError
 from ..estimation.diagnostics import diagnose
 from ..frames.setups import SETUPS
-from ..io.importers import (
-    import_easy_handeye,
-    import_easyhec,
-    import_industrial_calibration,
-    import_robcalibrator,
-    import_rosbag,
-    import_visp,
-)
+from ..io.importers import import_easy_handeye, import_industrial_calibration, import_rosbag, import_visp
 from ..io.session import load_session
 from ..pipelines.calibration import observe
+from ..pipelines.kinds import importer_of
 from ._common import target_spec_arg, whole_arg
 
 
@@ -30,10 +24,8 @@ def _cmd_import(args: argparse.Namespace) -> int:
                               target=target_spec_arg(args.target_spec))
     elif args.kind == "industrial-calibration":
         summary = import_industrial_calibration(args.source, args.out)
-    elif args.kind == "robcalibrator":
-        summary = import_robcalibrator(args.source, args.out)
-    elif args.kind == "easyhec":
-        summary = import_easyhec(args.source, args.out, arm=args.arm)
+    elif importer_of(args.kind) is not None:  # another kind's session (a laser's, a silhouette's): its registration's
+        summary = importer_of(args.kind)(args.source, args.out, **({"arm": args.arm} if hasattr(args, "arm") else {}))
     else:
         frames = None
         if args.robot_topic is None and args.joint_topic is None:

@@ -28,7 +28,6 @@ from ..planning.poses import (
     visible_mask,
     write_plan,
 )
-from ..planning.rig import RigPlanCamera, plan_rig
 from ..sensors.camera.targets import target_from_spec
 from ..simulate import DEFAULT_TARGETS
 from ._common import (
@@ -36,13 +35,13 @@ from ._common import (
     add_kind_options,
     add_placements,
     board_target,
+    chosen_kind,
     floats_arg,
     kind_options,
     load_camera,
     number_arg,
     out_folder,
     placements,
-    pose_arg,
     target_choices,
     target_spec_arg,
     whole_arg,
@@ -98,8 +97,8 @@ def _check_pose_format(args: argparse.Namespace) -> None:
 #: The options of a camera's plan, by flag and name in the parsed arguments: another kind's plan takes
 #: those its registration names (``plan_takes``), and refuses the others given.
 _CAMERA_OPTIONS = (("--intrinsics", "intrinsics"), ("--target-spec", "target_spec"), ("--standoff", "standoff"),
-                   ("--session", "session"), ("--rig-camera", "rig_camera"), ("--reach-box", "reach_box"),
-                   ("--z-range", "z_range"), ("--check-runs", "check_runs"))
+                   ("--session", "session"), ("--reach-box", "reach_box"), ("--z-range", "z_range"),
+                   ("--check-runs", "check_runs"))
 
 
 def _plan_kind(args: argparse.Namespace, kind: SensorKind) -> int:
@@ -117,13 +116,25 @@ def _plan_kind(args: argparse.Namespace, kind: SensorKind) -> int:
     out = _new_file(args.out)
     out_folder(str(out.parent))
     plan = kind.hook("plan")(PlanRequest(args.setup, X, Z, args.poses, args.seed, args.target, target_spec_arg(args.target_spec),
-                                         args.standoff, args.noise_px, accuracy_arg(args.robot_accuracy), options))
+                                         args.standoff, args.noise_px, accuracy_arg(args.robot_accuracy), options,
+                                         args.intrinsics, args.tilt_max, args.margin_px))
     write_pose_table(out, plan.names, plan.flange2base, args.format, args.length_unit, args.angle_unit, id_column=plan.id_column)
     print(plan.heading)
-    _print_plan(plan.label, plan.names, plan.flange2base, plan.plan, plan.accuracy, plan.per, plan.narrow, plan.undetermined,
-                plan.why)
+    if plan.lines:  # its own std (a rig's: each camera's)
+        _print_poses(plan.label, plan.names, plan.flange2base)
+        print("\n".join(plan.lines))
+    else:
+        _print_plan(plan.label, plan.names, plan.flange2base, plan.plan, plan.accuracy, plan.per, plan.narrow, plan.undetermined,
+                    plan.why)
     print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): {plan.written}")
     return 0
+
+
+def _print_poses(label: str, names: list[str], flange2base: np.ndarray) -> None:
+    """A plan's flange poses by name (``label``: the names' column)."""
+    print(f"  {label:10s}   flange x, y, z (mm)            flange rotation vector (deg)")
+    for name, F in zip(names, flange2base):
+        print(f"  {name:10s}   {fmt_vec(1e3 * F[:3, 3], 1):30s} {fmt_vec(Rotation.from_matrix(F[:3, :3]).as_rotvec(degrees=True), 1)}")
 
 
 def _print_plan(label: str, names: list[str], flange2base: np.ndarray, plan, accuracy_words: str, per: str, narrow: str,
@@ -131,9 +142,7 @@ def _print_plan(label: str, names: list[str], flange2base: np.ndarray, plan, acc
     """A sensor plan's flange poses by name, then X's predicted std as calibrate would report it (the
     robot's accuracy in it: ``accuracy_words``), from the ``per`` alone, and for the ``narrow`` capture
     (``undetermined`` when it cannot determine X; ``why``: what the plan's spread buys)."""
-    print(f"  {label:10s}   flange x, y, z (mm)            flange rotation vector (deg)")
-    for name, F in zip(names, flange2base):
-        print(f"  {name:10s}   {fmt_vec(1e3 * F[:3, 3], 1):30s} {fmt_vec(Rotation.from_matrix(F[:3, :3]).as_rotvec(degrees=True), 1)}")
+    _print_poses(label, names, flange2base)
     s, d, n = plan.std_X, plan.std_data, plan.std_narrow
     acc = plan.robot_accuracy
     print(f"\npredicted std of X as calibrate would report it: rotation {fmt_vec(s[:3], 4)} deg, translation "
@@ -144,57 +153,12 @@ def _print_plan(label: str, names: list[str], flange2base: np.ndarray, plan, acc
                              if np.all(np.isfinite(n)) else undetermined) + why)
 
 
-def _rig_cameras(args: argparse.Namespace, K: np.ndarray, dist: np.ndarray, size: tuple[int, int]) -> list[RigPlanCamera]:
-    """The first camera (--intrinsics) and each --rig-camera NAME,INTRINSICS,X,Y,Z[,RX,RY,RZ] (its pose
-    in the first camera's frame: metres and a rotation vector in degrees)."""
-    cameras = [RigPlanCamera("cam0", np.eye(4), K, size, dist)]
-    for text in args.rig_camera:
-        parts = text.split(",")
-        if len(parts) not in (5, 8) or not parts[0] or not parts[1]:
-            raise HandEyeError(f"--rig-camera {text!r}: give NAME,INTRINSICS,X,Y,Z[,RX,RY,RZ]: the camera's name, its "
-                               "intrinsics YAML and its pose in the first camera's frame (m; rotation vector, deg)")
-        if parts[0] in [c.name for c in cameras]:
-            raise HandEyeError(f"--rig-camera {text!r}: the name {parts[0]!r} is taken (the first camera is cam0): each "
-                               "camera needs its own name")
-        K_k, dist_k, size_k = load_camera(parts[1])
-        cameras.append(RigPlanCamera(parts[0], pose_arg(",".join(parts[2:]), f"--rig-camera {parts[0]}"), K_k, size_k,
-                                     dist_k))
-    return cameras
-
-
-def _plan_rig(args: argparse.Namespace, obj: np.ndarray, K: np.ndarray, dist: np.ndarray, size: tuple[int, int]) -> int:
-    """--rig-camera: poses in which every camera of the rig sees the whole target, and each one's std."""
-    if args.robot != "arm" or args.reach_box or args.z_range or args.check_runs:
-        raise HandEyeError("--rig-camera plans a 6-axis arm's poses for a rig; leave --robot, --reach-box, --z-range and "
-                           "--check-runs out")
-    X, Z = placements(args)
-    out = _new_file(args.out)
-    out_folder(str(out.parent))
-    plan = plan_rig(args.setup, X, Z, obj, _rig_cameras(args, K, dist, size), n_poses=args.poses or 15,
-                    standoff=args.standoff, tilt_max_deg=args.tilt_max, margin_px=args.margin_px, noise_px=args.noise_px,
-                    robot_accuracy=accuracy_arg(args.robot_accuracy))
-    names = [f"v{k + 1:02d}" for k in range(len(plan.flange2base))]
-    write_pose_table(out, names, plan.flange2base, args.format, args.length_unit, args.angle_unit, id_column="view",
-                     protect=[p for p in [args.intrinsics, args.target_spec] + [t.split(",")[1] for t in args.rig_camera] if p])
-    print(f"{len(names)} poses chosen from {plan.n_candidates} in which every camera ({', '.join(plan.names)}) keeps the "
-          f"whole target {args.margin_px:g} px inside its image; in path order:")
-    print("  view   flange x, y, z (mm)            flange rotation vector (deg)")
-    for name, F in zip(names, plan.flange2base):
-        print(f"  {name:5s}  {fmt_vec(1e3 * F[:3, 3], 1):30s} {fmt_vec(Rotation.from_matrix(F[:3, :3]).as_rotvec(degrees=True), 1)}")
-    acc = plan.robot_accuracy
-    print(f"\npredicted std of each camera's X as the rig's calibration would report it ({plan.noise_px:g} px of corner "
-          "noise" + (f", the robot's absolute accuracy {acc[0]:g} deg / {acc[1]:g} mm per axis in it" if acc else "")
-          + "):")
-    for name, s in plan.std_per_camera.items():
-        print(f"  {name:8s} rotation {fmt_vec(s[:3], 4)} deg, translation {fmt_vec(s[3:], 3)} mm")
-    print(f"\nwrote {out} ({args.format}, {args.length_unit}, {args.angle_unit}): flange2base per view; it is the "
-          "poses.csv of the rig session to capture (first column view; replace each row by the pose the robot reports)")
-    return 0
-
-
 def _cmd_plan(args: argparse.Namespace) -> int:
     if args.sensor != "camera":
         return _plan_kind(args, kind_named(args.sensor))
+    chosen = chosen_kind(args, "plan")  # plan --rig-camera: a rig's plan, as before --sensor rig
+    if chosen is not None:
+        return _plan_kind(args, chosen)
     kind_options(args, "plan", None)  # another kind's options: refused, naming its --sensor
     if args.session:
         return _plan_next_views(args)
@@ -212,8 +176,6 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     else:
         spec = DEFAULT_TARGETS[args.target]
     obj = target_from_spec(spec).object_points()
-    if args.rig_camera:
-        return _plan_rig(args, obj, K, dist, size)
     X, Z = placements(args)
     box = floats_arg(args.reach_box, "--reach-box", (6,))
     out = _new_file(args.out)
@@ -323,10 +285,6 @@ def register(sub) -> None:
                    help="number of poses (default 12; with --session, of next views: default 5)")
     p.add_argument("--session", help="a joint session already captured: propose the next joint configurations that "
                    "determine the entries of the arm's table it left undetermined (written to --out as CSV, degrees)")
-    p.add_argument("--rig-camera", action="append", default=[], metavar="NAME,INTRINSICS,X,Y,Z[,RX,RY,RZ]",
-                   help="plan for a rig: another camera, its intrinsics YAML and its rough pose in the first camera's "
-                   "(--intrinsics, named cam0) frame (m; rotation vector, deg); repeat for each; the poses are those "
-                   "every camera can use (written with a first column view, as a rig session's poses.csv)")
     p.add_argument("--noise-px", type=number_arg(0.0, above=True), default=0.3, help="pixel noise for the predicted std (default 0.3)")
     p.add_argument("--robot-accuracy", metavar="DEG,MM",
                    help=f"the robot's absolute accuracy per axis, added to the predicted std as calibrate adds it "

@@ -15,11 +15,13 @@
   (image and pose files paired by name, the target finder, the intrinsics, ``static_camera``).
 
 The folders are ordinary handeye inputs: ``handeye calibrate`` / ``calibrate-poses`` read them.
+Another kind's session is imported in its folder (``pipelines/<kind>/importers.py``: RobCalibrator's
+laser scans, EasyHeC's masks), named by its registration's ``imports``; their old names here still
+import, with a DeprecationWarning, for one release.
 """
 
 from __future__ import annotations
 
-import json
 import re
 import xml.etree.ElementTree as ET
 from collections import defaultdict
@@ -28,12 +30,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.io import atomic_write, check_output_folder
+from .._shared.io import check_output_folder
 from .._shared.lazy import lazy_module
+from .._shared.moved import forward_names
 from .._shared.text import summarize
 from ..errors import HandEyeError, InputMismatchError
 from ..frames.setups import check_setup, robot_world_A
@@ -49,15 +51,16 @@ from .session import (
     write_joint_stream,
     write_pose_pairs,
     write_pose_stream,
-    write_pose_table,
     write_session,
     write_stream_session,
 )
 
 cv2 = lazy_module("cv2")
 
-__all__ = ["import_rosbag", "import_easy_handeye", "import_visp", "import_industrial_calibration", "import_robcalibrator",
-           "import_easyhec", "ImportSummary", "ROSBAGS_MISSING"]
+__getattr__ = forward_names(__name__)  # import_robcalibrator, import_easyhec: in their kinds' folders now
+
+__all__ = ["import_rosbag", "import_easy_handeye", "import_visp", "import_industrial_calibration", "ImportSummary",
+           "ROSBAGS_MISSING", "new_folder", "numbered_files"]
 
 #: What to say when the optional ``rosbags`` package is absent.
 ROSBAGS_MISSING = "reading bag files needs the rosbags package: pip install 'handeye[ros]'"
@@ -478,7 +481,9 @@ def _yaml_transform(d: dict) -> NDArray[np.float64]:
 
 
 
-def _new_folder(out: str | Path, inputs: list[Path]) -> Path:
+def new_folder(out: str | Path, inputs: list[Path]) -> Path:
+    """The folder ``out`` checked to take an import of ``inputs`` (never inside them, writable) and
+    holding no session or pose pairs yet."""
     folder = check_output_folder(out, inputs)
     if (folder / SESSION_FILE).exists() or (folder / POSEPAIRS_FILE).exists() or (folder / "images").exists():
         raise HandEyeError(f"{folder} already holds a session or pose pairs; choose an empty folder")
@@ -508,7 +513,7 @@ def _visp_pose(path: Path) -> NDArray[np.float64]:
     return from_rotvec_translation(v[3:], v[:3])
 
 
-def _numbered(folder: Path, pattern: str) -> dict[int, Path]:
+def numbered_files(folder: Path, pattern: str) -> dict[int, Path]:
     """The files of ``folder`` whose names match ``pattern`` (a regular expression whose one group
     is the number), by number."""
     out = {}
@@ -570,12 +575,12 @@ def import_visp(folder: str | Path, out: str | Path, setup: str = "eye_in_hand",
     if not src.is_dir():
         raise SessionError(f"{src}: no such folder")
     setup = check_setup(setup)
-    poses = _numbered(src, r"(?:.*_)?[rf]Pe_(\d+)\.yaml")
+    poses = numbered_files(src, r"(?:.*_)?[rf]Pe_(\d+)\.yaml")
     if len(poses) < 3:
         raise SessionError(f"{src}: fewer than 3 robot poses (*_rPe_<i>.yaml or *_fPe_<i>.yaml)")
-    cams = _numbered(src, r"(?:.*_)?cPo_(\d+)\.yaml")
-    images = _numbered(src, r".*image-(\d+)\.png")
-    dest = _new_folder(out, [src])
+    cams = numbered_files(src, r"(?:.*_)?cPo_(\d+)\.yaml")
+    images = numbered_files(src, r".*image-(\d+)\.png")
+    dest = new_folder(out, [src])
     if not images and cams:
         common = sorted(set(poses) & set(cams))
         f2b = np.array([_visp_pose(poses[k]) for k in common])
@@ -652,112 +657,8 @@ def import_industrial_calibration(cal_data: str | Path, out: str | Path) -> Impo
         except (KeyError, TypeError, ValueError) as exc:
             raise SessionError(f"{path}: data entry {k}: expected image and pose (x, y, z, qx, qy, qz, qw; {exc})") from None
     setup = "eye_to_hand" if data.get("static_camera") else "eye_in_hand"
-    dest = _new_folder(out, [root])
+    dest = new_folder(out, [root])
     names = _copy_images(images, dest)
     write_session(dest, setup, spec, names, np.array(f2b), "quat_xyzw", "m", "rad", camera=camera,
                   comment=f"imported by handeye from industrial_calibration's {path}")
     return ImportSummary(dest, "session", len(names), len(names), [])
-
-
-def _opencv_sequence(path: Path, key: str) -> NDArray[np.float64]:
-    """The numbers of ``key: [...]`` in an OpenCV FileStorage YAML (``%YAML:1.0``), ``.Nan`` as NaN
-    (PyYAML does not read OpenCV's ``.Nan``)."""
-    text = path.read_text(encoding="utf-8", errors="replace")
-    at = text.find(key + ":")
-    start, end = text.find("[", at), text.find("]", at)
-    if at < 0 or start < 0 or end < 0:
-        raise SessionError(f"{path}: no {key}: [...] sequence (an OpenCV FileStorage YAML)")
-    cells = [c for c in re.split(r"[\s,]+", text[start + 1:end]) if c]
-    try:
-        return np.array([np.nan if c.lower().lstrip("+-.") in ("nan", "inf") else float(c) for c in cells], dtype=float)
-    except ValueError as exc:
-        raise SessionError(f"{path}: {key}: not a sequence of numbers ({exc})") from None
-
-
-def import_robcalibrator(folder: str | Path, out: str | Path, diameter: float | None = None) -> ImportSummary:
-    """GilbertPan97/RobCalibrator's laser scans (``p1.yml`` ... one profile each: ``scan_line`` x, y,
-    z in mm; ``RobPoses.rob``: the FANUC flange poses x, y, z, w, p, r in mm and degrees, W, P, R
-    about the fixed axes, scipy's ``"xyz"``; ``calibration.sec``: the setup and the ball's radius)
-    as a laser session: ``profiles/pN.csv`` (x, z in mm), ``poses.csv``, ``session.yaml``.
-    ``diameter`` (m) when ``calibration.sec`` does not give the radius."""
-    src = Path(folder)
-    poses_file = src / "RobPoses.rob"
-    if not poses_file.is_file():
-        raise SessionError(f"{src}: no RobPoses.rob (RobCalibrator's robot poses)")
-    try:
-        poses = np.array(json.loads(poses_file.read_text(encoding="utf-8"))["RobPoses"], dtype=float)
-    except (ValueError, KeyError, TypeError) as exc:
-        raise SessionError(f"{poses_file}: expected JSON {{\"RobPoses\": [[x, y, z, w, p, r], ...]}} ({exc})") from None
-    scans = _numbered(src, r"p(\d+)\.yml")
-    missing = [k for k in range(1, len(poses) + 1) if k not in scans]
-    if missing or poses.ndim != 2 or poses.shape[1] != 6:
-        raise SessionError(f"{src}: {len(poses)} poses of 6 values in RobPoses.rob and scans p1.yml ... p{len(poses)}.yml"
-                           + (f"; missing {', '.join(f'p{k}.yml' for k in missing[:5])}" if missing else ""))
-    setup, notes = "eye_in_hand", []
-    sec = src / "calibration.sec"
-    if sec.is_file():
-        conf = json.loads(sec.read_text(encoding="utf-8"))
-        kind = str(conf.get("Config", {}).get("CalibType", "")).lower()
-        setup = "eye_to_hand" if "tohand" in kind or "onbase" in kind else "eye_in_hand"
-        radius = (conf.get("CalibObj") or {}).get("Radius")
-        if diameter is None and radius is not None:
-            diameter = 2e-3 * float(radius)
-            notes.append(f"the ball's diameter {2 * float(radius):g} mm from calibration.sec (its Radius, mm)")
-    dest = _new_folder(out, [src])
-    (dest / "profiles").mkdir(parents=True, exist_ok=True)
-    names = []
-    for k in range(1, len(poses) + 1):
-        xyz = _opencv_sequence(scans[k], "scan_line").reshape(-1, 3)
-        names.append(f"p{k}.csv")
-        rows = "".join(f"{x!r},{'' if not np.isfinite(z) else repr(float(z))}\n" for x, z in xyz[:, [0, 2]].tolist())
-        atomic_write(dest / "profiles" / names[-1], "x,z\n" + rows)
-    write_pose_table(dest / "poses.csv", names, None, "euler:xyz", "mm", "deg", id_column="profile", rows=poses)
-    target: dict[str, Any] = {"type": "sphere"} | ({} if diameter is None else {"diameter": float(diameter)})
-    spec = {"setup": setup, "target": target, "laser": {"unit": "mm"},
-            "poses": {"file": "poses.csv", "format": "euler:xyz", "length_unit": "mm", "angle_unit": "deg"}}
-    atomic_write(dest / SESSION_FILE, f"# imported by handeye from RobCalibrator's {src}\n" + yaml.safe_dump(spec, sort_keys=False))
-    return ImportSummary(dest, "laser session", len(names), len(names), notes)
-
-
-def _easyhec_files(folder: Path, sub: str, suffix: str) -> dict[str, Path]:
-    found = {p.stem: p for p in sorted((folder / sub).glob(f"*{suffix}"))} if (folder / sub).is_dir() else {}
-    if not found:
-        raise HandEyeError(f"{folder / sub}: no {suffix} files; EasyHeC's layout is color/, mask/, qpos/ and K.txt")
-    return found
-
-
-def import_easyhec(folder: str | Path, out: str | Path, arm: str = "panda") -> ImportSummary:
-    """EasyHeC's markerless capture (``color/NNNNNN.png``, ``mask/NNNNNN.png``, ``qpos/NNNNNN.txt``: the
-    arm's joint angles in radians, then its fingers', ``K.txt``) as a silhouette session (masks/,
-    images/, joints.csv, session.yaml with ``silhouette:``); the fingers' joints give the hand's opening."""
-    folder = Path(folder)
-    masks, qpos = _easyhec_files(folder, "mask", ".png"), _easyhec_files(folder, "qpos", ".txt")
-    colour = {p.stem: p for p in sorted((folder / "color").glob("*.png"))} if (folder / "color").is_dir() else {}
-    missing = sorted(set(qpos) ^ set(masks))
-    if missing:
-        raise HandEyeError(f"{folder}: {', '.join(missing[:5])} has a mask or joint angles but not both (mask/, qpos/)")
-    chain = load_arm(arm)
-    K = np.loadtxt(folder / "K.txt") if (folder / "K.txt").is_file() else None
-    if K is None or K.shape != (3, 3):
-        raise HandEyeError(f"{folder / 'K.txt'}: missing or not a 3x3 camera matrix")
-    rows, opening = [], []
-    for stem in sorted(qpos):
-        q = np.loadtxt(qpos[stem], ndmin=1)
-        if len(q) < chain.n_joints:
-            raise HandEyeError(f"{qpos[stem]}: {len(q)} joint angles; {chain.name} has {chain.n_joints}")
-        rows.append(f"{masks[stem].name}," + ",".join(f"{v:.12g}" for v in q[:chain.n_joints]))
-        opening.append(float(np.sum(q[chain.n_joints:chain.n_joints + 2])))
-    target = _new_folder(out, [folder])
-    for sub, files in (("masks", masks), ("images", colour)):
-        if files:
-            (target / sub).mkdir(parents=True, exist_ok=True)
-        for p in files.values():
-            atomic_write(target / sub / p.name, p.read_bytes())
-    atomic_write(target / "joints.csv", "\n".join(["image," + ",".join(f"q{j + 1}" for j in range(chain.n_joints))] + rows) + "\n")
-    spec = {"setup": "eye_to_hand", "target": {"type": "robot", "finger_opening": round(float(np.median(opening)), 6)},
-            "camera": {"K": K.tolist()}, "silhouette": {"masks": "masks"},
-            "joints": {"file": "joints.csv", "unit": "rad", "arm": arm}}
-    atomic_write(target / SESSION_FILE, yaml.safe_dump(spec, sort_keys=False))
-    notes = [] if np.ptp(opening) < 1e-3 else [f"the fingers' opening varies ({min(opening):.3f}-{max(opening):.3f} m): the "
-                                               "session uses the median for every view"]
-    return ImportSummary(target, "silhouette session", len(rows), len(rows), notes)

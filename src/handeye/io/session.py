@@ -47,7 +47,7 @@ from numpy.typing import NDArray
 from .._shared.io import atomic_write, read_text
 from .._shared.lazy import lazy_module
 from .._shared.text import cut, shown, summarize
-from ..errors import HandEyeError, InputMismatchError, PoseFormatError, SessionError
+from ..errors import InputMismatchError, PoseFormatError, SessionError
 from ..frames.poses import RobotPoseInput, format_poses, matrix_layout, parse_poses, pose_columns, vendor_columns
 from ..frames.setups import check_setup
 from ..geometry.se3 import invert
@@ -58,7 +58,7 @@ from ..sensors.camera.targets import target_from_spec
 cv2 = lazy_module("cv2")  # only to read an image's size
 
 __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session",
-           "read_pose_table", "read_joints", "read_joint_trajectory", "SessionError", "load_yaml", "has_section", "check_keys",
+           "read_pose_table", "read_joints", "read_joint_trajectory", "SessionError", "load_yaml", "check_keys",
            "check_session_keys", "read_session_yaml", "pose_rows_inverted", "read_robot_poses", "joints_of_views",
            "read_camera", "read_intrinsics", "write_pose_table", "write_session", "write_pose_stream", "write_stream_session",
            "write_pose_pairs", "SESSION_FILE", "POSEPAIRS_FILE", "write_joint_session", "write_joint_table",
@@ -710,18 +710,6 @@ def joints_of_views(joints: tuple[list[str], NDArray[np.float64], Chain, Path], 
             notes.append(finding)
     return q
 
-
-def has_section(folder: str | Path, key: str) -> bool:
-    """Whether ``folder``'s session.yaml has a ``key:`` mapping (``depth``, ``laser``: which sensor's
-    session it is); False when there is none or it cannot be read (the reader says why)."""
-    yml = Path(folder) / SESSION_FILE
-    if not yml.is_file():
-        return False
-    try:
-        spec = load_yaml(yml)
-    except HandEyeError:
-        return False
-    return isinstance(spec, dict) and spec.get(key) is not None
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):

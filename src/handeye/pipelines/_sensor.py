@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .._shared.progress import Progress
+from .._shared.threads import one_blas_thread
 from ..errors import InputMismatchError
 from ..estimation.core import estimate
 from ..estimation.readings import Reading, check_readings
@@ -17,7 +20,10 @@ from ..result import Calibration
 from ..robot.models import ControllerPoses, JointAngles, RobotModel
 from ..sensors.base import SensorModel
 
-__all__ = ["sensor_options", "robot_model", "session_robot_input", "why_skipped", "held_and_freed", "estimate_checked"]
+__all__ = ["sensor_options", "robot_model", "session_robot_input", "why_skipped", "held_and_freed", "estimate_checked",
+           "measure_views"]
+
+Measured = TypeVar("Measured")
 
 #: The options of image and pose sessions that a sensor model's fit has no use for.
 IMAGE_ONLY = ("method", "refine", "pairs", "known", "robot_noise", "compliance", "strict_images", "keyframes",
@@ -31,6 +37,34 @@ def why_skipped(exc: Exception, path: object) -> str:
     skip names the view)."""
     text = str(exc)
     return text[len(str(path)) + 2:] if text.startswith(f"{path}: ") else text
+
+
+def measure_views(measure: Callable[[int], Measured], names: Sequence[str], refused: tuple[type[Exception], ...], what: str,
+                  progress: bool = False, jobs: int | None = None) -> tuple[list[int], list[Measured], list[tuple[str, str]]]:
+    """Every view ``k`` of ``names`` measured by ``measure(k)``, ``jobs`` views at a time (threads, default
+    2, each on one BLAS thread), in the views' order, with a progress bar saying ``what``: the views
+    measured (their indices) and what each gave, and the views skipped, each named with why (the
+    message of an error of ``refused`` that its measurement raised; any other error propagates)."""
+    def attempt(k: int) -> Measured | str:
+        try:
+            return measure(k)
+        except refused as exc:
+            return str(exc)
+
+    index: list[int] = []
+    measured: list[Measured] = []
+    skipped: list[tuple[str, str]] = []
+    bar = Progress(len(names), what, progress)
+    with ThreadPoolExecutor(max_workers=max(1, jobs or 2)) as pool, one_blas_thread():
+        for k, result in enumerate(pool.map(attempt, range(len(names)))):
+            bar.update()
+            if isinstance(result, str):
+                skipped.append((names[k], result))
+            else:
+                index.append(k)
+                measured.append(result)
+    bar.close()
+    return index, measured, skipped
 
 
 def _given(value: Any, default: Any) -> bool:

@@ -36,16 +36,20 @@ if TYPE_CHECKING:  # the registry imports nothing heavy: the command line reads 
     import numpy as np
     from numpy.typing import NDArray
 
+    from ..result import Calibration
+
 __all__ = ["SensorKind", "KindOption", "SimulateRequest", "PlanRequest", "SensorPlan", "register_kind", "unregister_kind",
-           "sensor_kinds", "kind_named", "session_kind", "member_kind", "kind_of_model", "kinds_of_target"]
+           "sensor_kinds", "kind_named", "session_kind", "member_kind", "kind_of_model", "kinds_of_target", "joins_sensors",
+           "importer_of"]
 
 
 @dataclass(frozen=True)
 class KindOption:
     """A command-line option of one kind's own (``plan --diameter``, ``simulate --cameras``), added to
     ``command``'s parser for it: ``type`` is ``"flag"`` (on or off), ``"number"`` (in ``[low, high]``,
-    ``(low, high]`` when ``above``), ``"whole"`` (>= ``low``) or ``"text"``; given with another
-    ``--sensor``, the command refuses it, naming the kind it belongs to."""
+    ``(low, high]`` when ``above``), ``"whole"`` (>= ``low``), ``"text"`` or ``"texts"`` (given once per
+    value, a list); given with another ``--sensor``, the command refuses it, naming the kind it belongs
+    to, unless it ``chooses`` its kind when no ``--sensor`` is given (``plan --rig-camera``: a rig)."""
 
     command: str
     flag: str
@@ -55,6 +59,7 @@ class KindOption:
     high: float = float("inf")
     above: bool = False
     metavar: str | None = None
+    chooses: bool = False
 
     @property
     def dest(self) -> str:
@@ -110,6 +115,14 @@ class SensorKind:
         The target's rotation (a rotation vector, degrees) when ``--target-in-base`` gives none.
     options : tuple of KindOption
         Its own options.
+    imports : tuple of (str, str)
+        ``(source, "module:function")``: ``handeye import <source>``, another tool's capture written as a
+        session of this kind; ``function(folder, out, **options) -> ImportSummary`` (:func:`importer_of`).
+    several : bool
+        Its result is several sensors' one fit (a rig's), with the figures a rig's model gives them
+        (:mod:`handeye.sensors.rig`: ``X_per_sensor``, ``relative``, ``alone``, ...): the report draws
+        every sensor and writes their frames (``rig_static_tf.launch.py``), the terminal prints each
+        one's X (:func:`joins_sensors`).
     """
 
     section: str
@@ -131,6 +144,8 @@ class SensorKind:
     plan_usage: str = ""
     plan_target_rotation: tuple[float, float, float] = (180.0, 0.0, 0.0)
     options: tuple[KindOption, ...] = ()
+    imports: tuple[tuple[str, str], ...] = ()
+    several: bool = False
 
     def hook(self, name: str) -> Callable[..., Any]:
         """The function of hook ``name`` (``"calibrate"``, ``"simulate"``, ...), imported on first use.
@@ -143,6 +158,10 @@ class SensorKind:
         where = getattr(self, name, None)
         if not isinstance(where, str) or ":" not in where:
             raise HandEyeError(f"a {self.display} has no {name} (its registration names none)")
+        return self._imported(where)
+
+    def _imported(self, where: str) -> Callable[..., Any]:
+        """The function ``"module:function"`` of this kind's folder, imported."""
         module, _, function = where.partition(":")
         return getattr(importlib.import_module(f"{self.package}.{module}"), function)
 
@@ -171,7 +190,8 @@ class SimulateRequest:
 @dataclass(frozen=True)
 class PlanRequest:
     """What ``handeye plan --sensor <cli>`` asks a kind's ``plan`` hook for: the sensor's rough pose
-    ``X`` and the target's ``Z`` (metres), the command's arguments, its own options in ``options``."""
+    ``X`` and the target's ``Z`` (metres), the command's arguments (``intrinsics``: a camera's YAML,
+    ``tilt_max_deg``, ``margin_px``: a board's views), its own options in ``options``."""
 
     setup: str
     X: NDArray[np.float64]
@@ -184,6 +204,9 @@ class PlanRequest:
     noise_px: float = 0.3
     robot_accuracy: tuple[float, float] | None = None
     options: dict[str, Any] = field(default_factory=dict)
+    intrinsics: str | None = None
+    tilt_max_deg: float = 45.0
+    margin_px: float = 20.0
 
 
 @dataclass(frozen=True)
@@ -193,7 +216,8 @@ class SensorPlan:
     (its ``std_X``, ``std_data``, ``std_narrow`` and ``robot_accuracy``) in the words ``label`` (a
     row), ``accuracy`` (what the robot's accuracy is in it), ``per`` (the data alone), ``narrow`` (the
     narrow capture it is compared with), ``undetermined`` (said when that cannot determine X) and
-    ``why`` (what the plan's spread buys); ``written``: what the file is, after its name."""
+    ``why`` (what the plan's spread buys); ``written``: what the file is, after its name. A plan with
+    ``lines`` (a rig's: each camera's std) prints them instead of X's std."""
 
     names: list[str]
     flange2base: NDArray[np.float64]
@@ -207,6 +231,7 @@ class SensorPlan:
     undetermined: str
     why: str
     written: str
+    lines: tuple[str, ...] = ()
 
 
 _KINDS: dict[str, SensorKind] = {}
@@ -268,6 +293,21 @@ def kind_of_model(display: str | None) -> SensorKind | None:
     return next((k for k in _KINDS.values() if k.display == display), None)
 
 
+def importer_of(source: str) -> Callable[..., Any] | None:
+    """The function that writes another tool's capture ``source`` (``handeye import <source>``:
+    ``robcalibrator``) as a session of the kind whose registration :attr:`~SensorKind.imports` it; None
+    when no kind does (a camera's sources: :mod:`handeye.io.importers`)."""
+    kind, where = next(((k, w) for k in _KINDS.values() for s, w in k.imports if s == source), (None, ""))
+    return None if kind is None else kind._imported(where)
+
+
+def joins_sensors(calibration: Calibration) -> bool:
+    """Whether ``calibration`` is several sensors' one fit (a rig's): its sensor's kind (a result's
+    ``sensor.kind``, the display name) is registered :attr:`~SensorKind.several`."""
+    kind = None if calibration.sensor is None else kind_of_model(calibration.sensor.sensor)
+    return kind is not None and kind.several
+
+
 def kinds_of_target(target: str | None) -> tuple[SensorKind, ...]:
     """The kinds whose own ``--target`` name ``target`` is (``plane``: a laser's; ``sphere``: a depth
     camera's and a laser's); none for a board."""
@@ -288,7 +328,7 @@ register_kind(SensorKind(
 register_kind(SensorKind(
     section="laser", cli="laser_line", display="laser line profiler", package="handeye.pipelines.laser",
     calibrate="pipeline:calibrate_laser_session", rig_member="pipeline:rig_member",
-    simulate="simulate:simulate_command", plan="plan:plan_command",
+    simulate="simulate:simulate_command", plan="plan:plan_command", imports=(("robcalibrator", "importers:import_robcalibrator"),),
     targets=("sphere", "plane", "edge", "step", "spheres"), frame="laser_profiler_optical_frame",
     simulate_help="a laser line profiler's profiles of a ball, a plate, a block's edge, a step or a fixture of balls "
     "(--target; --poses of them; --arm for joint angles)",
@@ -315,17 +355,27 @@ register_kind(SensorKind(
 register_kind(SensorKind(
     section="silhouette", cli="silhouette", display="colour camera", package="handeye.pipelines.silhouette",
     calibrate="pipeline:calibrate_silhouette_session", extras="session:extras", simulate="simulate:simulate_command",
+    imports=(("easyhec", "importers:import_easyhec"),),
     simulate_help="a fixed colour camera's masks of a Panda (markerless, its joint angles, eye_to_hand; --poses of them)",
 ))
 register_kind(SensorKind(
     section="sensors", cli="rig", display="rig", package="handeye.pipelines.rig",
     calibrate="pipeline:calibrate_rig_session", extras="session:extras", members="pipeline:rig_members",
-    simulate="simulate:simulate_command",
+    simulate="simulate:simulate_command", plan="plan:plan_command", several=True,
     simulate_help="a stereo pair on the flange (eye_in_hand) or three fixed cameras (eye_to_hand)",
+    plan_help="poses in which every camera of a rig sees the whole board (--intrinsics: the first camera's; a "
+    "--rig-camera per other camera), each camera's predicted std",
+    plan_takes=("--intrinsics", "--target-spec", "--standoff"),
+    plan_usage="--intrinsics (the first camera's), a --rig-camera per other camera, the first camera's placement "
+    "(--cam-in-flange or --camera-in-base), the target's, --target or --target-spec and --standoff",
     options=(KindOption("simulate", "--cameras", "the number of cameras (default 2 on the flange, 3 fixed around the cell)",
                         "whole", 2),
              KindOption("simulate", "--laser", "a camera beside a laser profiler (a small board and a 40 mm ball) instead "
                         "of cameras", "flag"),
+             KindOption("plan", "--rig-camera", "another camera of the rig: its name, its intrinsics YAML and its rough "
+                        "pose in the first camera's frame (m, rotation vector in deg); once per camera: poses every "
+                        "camera can use (written with a first column view, as a rig session's poses.csv); without "
+                        "--sensor, it plans for a rig", "texts", metavar="NAME,INTRINSICS,X,Y,Z[,RX,RY,RZ]", chooses=True),
              KindOption("simulate", "--depth", "a camera beside a depth camera (640x480 clouds and intensity images), both "
                         "seeing the board, instead of cameras", "flag")),
 ))

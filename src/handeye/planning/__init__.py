@@ -1,8 +1,8 @@
 """Planning what to capture: robot poses that determine X well for a camera (:mod:`~handeye.planning.poses`,
-``handeye plan``) or a rig of cameras (:mod:`~handeye.planning.rig`), and the joint configurations that
-would determine what a joint fit left undetermined (:mod:`~handeye.planning.joints`). Another kind of
-sensor plans in its own folder (``pipelines/<kind>/plan.py``: a laser line profiler's, a line-scan
-camera's); their old names here still import, with a DeprecationWarning, for one release."""
+``handeye plan``), and the joint configurations that would determine what a joint fit left undetermined
+(:mod:`~handeye.planning.joints`). Another kind of sensor plans in its own folder (``pipelines/<kind>/plan.py``:
+a laser line profiler's, a line-scan camera's, a rig's); their old names here still import, with a
+DeprecationWarning, for one release."""
 
 from __future__ import annotations
 
@@ -23,10 +23,9 @@ from .poses import (
     visible_mask,
     write_plan,
 )
-from .rig import RigPlan, RigPlanCamera, plan_rig
 
 __all__ = ["Plan", "ROBOTS", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
            "visible_mask", "simulate_errors", "write_plan", "order_path", "candidate_views", "choose_next",
-           "JointViews", "suggest_joint_views", "TABLE_DOMINATES", "RigPlan", "RigPlanCamera", "plan_rig", "choose_views"]
+           "JointViews", "suggest_joint_views", "TABLE_DOMINATES", "choose_views"]
 
-__getattr__ = forward_names(__name__)  # the laser's and the line-scan camera's planners, moved to their kinds' folders
+__getattr__ = forward_names(__name__)  # the laser's, the line-scan camera's and the rig's planners, moved to their kinds' folders

@@ -32,14 +32,24 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from ..errors import HandEyeError
-from ..estimation.uncertainty import robot_accuracy_cov
 from ..frames.metrics import rotation_error, std_deg_mm, translation_error
 from ..frames.motions import order_path
-from ..frames.setups import check_setup, flange_poses, predicted_target2cam, robot_world_A_inv, setup_info
-from ..geometry.se3 import invert, make_transform, skew
+from ..frames.setups import check_setup, flange_poses, predicted_target2cam, setup_info
+from ..geometry.se3 import invert, make_transform
 from ..io.session import write_pose_table
 from ..options import ROBOT_ACCURACY, CalibrationOptions
 from ..pipelines.calibration import calibrate_poses
+from ..pipelines.viewpoints import (
+    DISTANCE_FACTORS,
+    candidate_views,
+    choose_next,
+    choose_views,
+    predicted_cov,
+    reported_std,
+    reprojection_information,
+    viewpoints_around,
+    visible_mask,
+)
 from ..sensors.camera.pnp import project_points, solve_pnp
 from ..sensors.camera.targets import Detection
 from ..simulate import look_at
@@ -49,10 +59,6 @@ __all__ = ["Plan", "ROBOTS", "plan_poses", "easy_handeye_poses", "reprojection_i
            "visible_mask", "simulate_errors", "write_plan", "order_path", "candidate_views", "choose_next", "choose_views",
            "reported_std"]
 
-TILTS_DEG = (0.0, 10.0, 20.0, 30.0, 37.5, 45.0, 52.5, 60.0)
-AZIMUTHS = 12
-ROLLS = 8
-DISTANCE_FACTORS = (0.8, 1.0, 1.25)
 
 
 @dataclass
@@ -133,108 +139,6 @@ def _gauge(robot: str, setup: str, scale: float) -> tuple[NDArray[np.float64], l
     for k in axes:
         prior[3 + k, 3 + k] = 1e6 * scale
     return prior, [f"translation of {info.x_name} along the {frame} {'xyz'[k]} axis" for k in axes]
-
-
-def visible_mask(target2cam: NDArray[np.float64], object_points: NDArray[np.float64], K: NDArray[np.float64],
-                 dist: NDArray[np.float64], image_size: tuple[int, int], margin_px: float = 0.0) -> NDArray[np.bool_]:
-    """Per pose, whether every target point is in front of the camera and ``margin_px`` inside the image."""
-    w, h = image_size
-    obj = np.ascontiguousarray(object_points, dtype=np.float64)
-    out = np.zeros(len(target2cam), dtype=bool)
-    for i, T in enumerate(target2cam):
-        depth = obj @ T[:3, :3].T[:, 2] + T[2, 3]
-        if np.any(depth <= 1e-3):
-            continue
-        px = project_points(T, obj, K, dist)
-        out[i] = bool(np.all(px >= margin_px) and np.all(px[:, 0] <= w - 1 - margin_px)
-                      and np.all(px[:, 1] <= h - 1 - margin_px))
-    return out
-
-
-def reprojection_information(flange2base: NDArray[np.float64], X: NDArray[np.float64], Z: NDArray[np.float64],
-                             setup: str, object_points: NDArray[np.float64], K: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Per pose, ``J^T J`` (N, 12, 12) of the pixel residuals of every target point with respect to
-    the 12 unknowns of :func:`handeye.solvers.refine.refine_reprojection` (left rotation-vector
-    increments and translation increments of X, then of Z), for unit pixel noise (pinhole model:
-    distortion changes the information little and is left out)."""
-    robot = robot_world_A_inv(flange2base, setup)  # W: base->flange or flange->base
-    R_X, t_X, R_Z, t_Z = X[:3, :3], X[:3, 3], Z[:3, :3], Z[:3, 3]
-    p = np.asarray(object_points, dtype=float)  # (M, 3)
-    Rp = p @ R_Z.T  # (M, 3)  R_Z p
-    q = Rp + t_Z
-    R_W, t_W = robot[:, :3, :3], robot[:, :3, 3]  # (N, 3, 3), (N, 3)
-    s = np.einsum("nij,mj->nmi", R_W, q) + t_W[:, None, :]  # (N, M, 3) point in the X frame's parent
-    pc = np.einsum("ji,nmj->nmi", R_X, s - t_X)  # R_X^T (s - t_X)
-    fx, fy = K[0, 0], K[1, 1]
-    x, y, z = pc[..., 0], pc[..., 1], pc[..., 2]
-    Jp = np.zeros(pc.shape[:2] + (2, 3))
-    Jp[..., 0, 0] = fx / z
-    Jp[..., 0, 2] = -fx * x / z**2
-    Jp[..., 1, 1] = fy / z
-    Jp[..., 1, 2] = -fy * y / z**2
-    RXt = R_X.T
-    # d pc / d(omega_X) = R_X^T [s - t_X]x ; d pc / d(v_X) = -R_X^T
-    dX_rot = np.einsum("ij,nmjk->nmik", RXt, skew(s - t_X))
-    dX_tra = np.broadcast_to(-RXt, pc.shape[:2] + (3, 3))
-    # d pc / d(omega_Z) = -R_X^T R_W [R_Z p]x ; d pc / d(v_Z) = R_X^T R_W
-    RXW = np.einsum("ij,njk->nik", RXt, R_W)  # (N, 3, 3)
-    dZ_rot = -np.einsum("nij,mjk->nmik", RXW, skew(Rp))
-    dZ_tra = np.broadcast_to(RXW[:, None], pc.shape[:2] + (3, 3))
-    D = np.concatenate([dX_rot, dX_tra, dZ_rot, dZ_tra], axis=3)  # (N, M, 3, 12)
-    J = np.einsum("nmij,nmjk->nmik", Jp, D)  # (N, M, 2, 12)
-    return np.einsum("nmai,nmaj->nij", J, J)
-
-
-def predicted_cov(information: NDArray[np.float64], noise_px: float) -> NDArray[np.float64]:
-    """Covariance (6, 6) of X from the summed information of the poses and the pixel noise."""
-    return noise_px**2 * np.linalg.inv(information)[:6, :6]
-
-
-def _criterion(info_inv: NDArray[np.float64], weight: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.einsum("...ii,i->...", info_inv[..., :6, :6], weight)
-
-
-def choose_views(infos: NDArray[np.float64], n: int, weight: NDArray[np.float64], max_passes: int = 8,
-                 prior: NDArray[np.float64] | None = None) -> list[int]:
-    """A-optimal selection of ``n`` of the candidate informations: greedy, then exchanges; ``prior``
-    (12, 12) holds what no pose can determine (a SCARA's vertical) fixed."""
-    ridge = 1e-9 * float(np.mean(np.trace(infos, axis1=1, axis2=2))) * np.eye(infos.shape[-1])
-    if prior is not None:
-        ridge = ridge + prior
-    chosen: list[int] = []
-    total = ridge.copy()
-    for _ in range(n):
-        scores = _criterion(np.linalg.inv(total + infos), weight)
-        scores[chosen] = np.inf
-        k = int(np.argmin(scores))
-        chosen.append(k)
-        total = total + infos[k]
-    best = float(_criterion(np.linalg.inv(total), weight))
-    for _ in range(max_passes):
-        improved = False
-        for slot in range(n):
-            rest = total - infos[chosen[slot]]
-            scores = _criterion(np.linalg.inv(rest + infos), weight)
-            scores[chosen] = np.inf
-            k = int(np.argmin(scores))
-            if scores[k] < best * (1 - 1e-9):
-                chosen[slot], total, best, improved = k, rest + infos[k], float(scores[k]), True
-        if not improved:
-            break
-    return chosen
-
-
-def _candidates(standoff: float, tilt_max_deg: float, centre: NDArray[np.float64]) -> NDArray[np.float64]:
-    tilts = np.radians([t for t in TILTS_DEG if t <= tilt_max_deg + 1e-9])
-    az = np.linspace(0, 2 * np.pi, AZIMUTHS, endpoint=False)
-    rolls = np.linspace(-np.pi, np.pi, ROLLS, endpoint=False)
-    T, A, Rl, D = np.meshgrid(tilts, az, rolls, DISTANCE_FACTORS, indexing="ij")
-    keep = ~((T == 0) & (A > 0))  # at zero tilt every azimuth is the same view
-    T, A, Rl, D = T[keep], A[keep], Rl[keep], D[keep]
-    # the camera on the printed side of the target (target -z), as the renderer and detectors expect
-    direction = np.stack([np.sin(T) * np.cos(A), np.sin(T) * np.sin(A), -np.cos(T)], axis=1)
-    position = centre + direction * (standoff * D)[:, None]
-    return look_at(position, np.broadcast_to(centre, position.shape), Rl + A)
 
 
 def _reachable(flange2base: NDArray[np.float64], keep: NDArray[np.bool_], n_poses: int, z_range, reach_box) -> NDArray[np.bool_]:
@@ -338,7 +242,7 @@ def plan_poses(
         raise HandEyeError(f"robot {robot!r}; use one of {', '.join(ROBOTS)}")
     centre = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
     if robot == "arm":
-        cam2target = _candidates(standoff, tilt_max_deg, centre)
+        cam2target = viewpoints_around(standoff, tilt_max_deg, centre)
         flange2base, target2cam = flange_poses(cam2target, X, Z, setup), invert(cam2target)
     else:
         flange2base = _low_dof_candidates(robot, setup, X, Z, centre, standoff)
@@ -363,45 +267,6 @@ def plan_poses(
     accuracy = CalibrationOptions(robot_accuracy=robot_accuracy).robot_accuracy
     return Plan(setup, X, Z, flange2base[chosen], target2cam[chosen], cov, std, float(noise_px), int(keep.sum()),
                 robot, unobservable, reported_std(std, cov, X, accuracy), accuracy)
-
-
-def reported_std(std: NDArray[np.float64], cov: NDArray[np.float64], X: NDArray[np.float64],
-                 accuracy: tuple[float, float] | None) -> NDArray[np.float64]:
-    """The std calibrate reports (deg, mm): the pixels' covariance ``cov`` of X (its std ``std``, inf
-    where undetermined) plus the robot's absolute accuracy, which X takes whole."""
-    if accuracy is None:
-        return std
-    return np.where(np.isinf(std), np.inf, std_deg_mm(cov + robot_accuracy_cov(X, accuracy)))
-
-
-def candidate_views(object_points: ArrayLike, K: ArrayLike, image_size: tuple[int, int], dist: ArrayLike | None = None,
-                    standoff: float = 0.5, tilt_max_deg: float = 45.0, margin_px: float = 20.0) -> NDArray[np.float64]:
-    """The candidate viewpoints of :func:`plan_poses` that keep the whole target ``margin_px`` inside
-    the image, as ``cam2target`` (C, 4, 4): they do not depend on X and Z, so a capture that learns
-    X and Z as it goes turns them into robot poses anew (:func:`handeye.frames.setups.flange_poses`)."""
-    obj = np.asarray(object_points, dtype=float).reshape(-1, 3)
-    K = np.asarray(K, dtype=float)
-    dist = np.zeros(5) if dist is None else np.asarray(dist, dtype=float).ravel()
-    centre = 0.5 * (obj.min(axis=0) + obj.max(axis=0))
-    cam2target = _candidates(standoff, tilt_max_deg, centre)
-    keep = visible_mask(invert(cam2target), obj, K, dist, image_size, margin_px)
-    if not keep.any():
-        raise HandEyeError(f"no candidate view keeps the whole target {margin_px:g} px inside the image at a standoff "
-                           f"of {standoff:g} m; increase the standoff or use a smaller target")
-    return cam2target[keep]
-
-
-def choose_next(information: NDArray[np.float64], candidates: NDArray[np.float64], weight: NDArray[np.float64],
-                exclude: NDArray[np.bool_] | None = None) -> int | None:
-    """The candidate (index into ``candidates``, (C, 12, 12) informations) whose view, added to the
-    views of ``information`` (12, 12), leaves the smallest predicted error of X (the A-optimal
-    criterion of :func:`plan_poses`, ``weight`` over X's six parameters); None when all are excluded."""
-    ridge = 1e-9 * max(float(np.mean(np.trace(candidates, axis1=1, axis2=2))), 1e-12) * np.eye(12)
-    scores = _criterion(np.linalg.inv(information + ridge + candidates), weight)
-    if exclude is not None:
-        scores = np.where(exclude, np.inf, scores)
-    k = int(np.argmin(scores))
-    return None if not np.isfinite(scores[k]) else k
 
 
 def easy_handeye_poses(start_flange2base: ArrayLike, angle_deg: float = 25.0, translation: float = 0.1) -> NDArray[np.float64]:

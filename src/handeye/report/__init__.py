@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from .._shared.io import atomic_write, check_output_folder
 from ..estimation.diagnostics import compare_solvers
-from ..pipelines.kinds import kind_of_model
+from ..pipelines.kinds import joins_sensors, kind_of_model
 from ..result import Calibration
 from .files import (
     EXPORTS,
@@ -73,7 +73,7 @@ def write_calibration(cal: Calibration, out_dir: str | Path, *, protect: Iterabl
     protect = list(protect) + list(cal.image_paths or [])
     paths = write_results(cal, out_dir, protect, parent_frame, child_frame, tool2flange)
     paths += write_exports(cal, out_dir, exports, protect, parent_frame, child_frame) if exports else []
-    if cal.sensor is not None and "X_per_sensor" in cal.sensor.figures:  # a rig: every sensor's frame
+    if joins_sensors(cal):  # a rig: every sensor's frame
         frames = {n: np.asarray(f["X"]) for n, f in cal.sensor.figures["X_per_sensor"].items()}
         path = out_dir / "rig_static_tf.launch.py"
         atomic_write(path, ros2_rig_launch_file(frames, parent_frame or default_frames(cal.setup)[0]), protect)

@@ -24,11 +24,6 @@ RIG_FIGURES = ("X_per_sensor", "view_rms_mm_per_sensor", "relative", "alone", "r
                "skipped", "images_per_sensor", "disagreeing_pair")
 
 
-def is_rig(cal: Calibration) -> bool:
-    """Whether ``cal`` is a rig's joint fit (its sensor's figures give every sensor's X)."""
-    return cal.sensor is not None and "X_per_sensor" in cal.sensor.figures
-
-
 def _triad(ax, T: NDArray[np.float64], length: float, lw: float, label: str | None = None) -> None:
     _axis_triad(ax, T, length, lw)
     if label:

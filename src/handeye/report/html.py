@@ -26,14 +26,14 @@ from ..estimation.verdict import headline as verdict_headline
 from ..frames.motions import MotionSet
 from ..frames.setups import camera2base, predicted_target2cam, setup_info, target2base
 from ..geometry.se3 import screw_parameters
+from ..pipelines.kinds import joins_sensors
 from ..result import Calibration
 from ..robot.kinematics import display_unit
 from ..sensors.camera.detect import default_jobs
 from ..sensors.camera.pnp import project_points
-from ..sensors.depth.scene import common_frame
 from ._overlay import jpeg, overlay_thumbnail, zoom_size
 from ._page import _COLOURS, _CSS, _axis_triad, _e, _equal_axes, _figure, _fmt, _img, _png, _transform_table
-from ._rig import RIG_FIGURES, is_rig, rig_sections
+from ._rig import RIG_FIGURES, rig_sections
 from .files import result_dict
 
 cv2 = lazy_module("cv2")
@@ -328,10 +328,14 @@ def _sections_figure(cal: Calibration) -> str:
     return _png(fig)
 
 
+#: What a sensor's clouds are drawn in when its sections do not say (their ``frame``).
+CLOUD_FRAME = "views' common"
+
+
 def _clouds_figure(cal: Calibration) -> str:
-    """The views' clouds registered through X (a scene as the target: ``sections`` with ``cloud_mm``),
-    seen along the common frame's three axes: above, coloured by view (where they overlap they
-    should lie on one surface); below, coloured by each point's residual."""
+    """The views' clouds registered through X (sections of 3D clouds: ``cloud_mm`` in the ``frame``
+    they agree in, a scene's), seen along that frame's three axes: above, coloured by view (where
+    they overlap they should lie on one surface); below, coloured by each point's residual."""
     from matplotlib import colormaps  # matplotlib loads only when a report is drawn
     from matplotlib.patches import Patch
 
@@ -343,7 +347,7 @@ def _clouds_figure(cal: Calibration) -> str:
     r = np.concatenate(res) if res else np.zeros(0)
     order = np.random.default_rng(0).permutation(len(pts))  # no view drawn over all the others
     pts, label, r = pts[order], label[order], r[order]
-    frame = common_frame(cal.setup)
+    frame = sf.sections[0].get("frame", CLOUD_FRAME) if sf.sections else CLOUD_FRAME
     fig = _figure((12.0, 7.0))
     axes = fig.subplots(2, 3)
     cmap = colormaps["tab20" if len(clouds) > 10 else "tab10"]
@@ -372,7 +376,7 @@ def _sensor_residuals_section(cal: Calibration) -> str:
              f"<p>{sf.points} measurements fitted, {sf.rejected} set aside as outliers (beyond 5 of their std); "
              f"{sf.fit_rms_mm:.3f} mm RMS.</p>"]
     shown = _shown_sections(sf) if sf.sections and "cloud_mm" not in sf.sections[0] else []
-    if sf.sections and "cloud_mm" in sf.sections[0]:  # a scene as the target: its registered clouds
+    if sf.sections and "cloud_mm" in sf.sections[0]:  # 3D clouds in one frame (a scene's), not sections in a plane
         parts.append(_img(_clouds_figure(cal), "the views' registered clouds, coloured by view"))
     elif shown:
         parts.append(_img(_sections_figure(cal), "each view with the fitted target's section")
@@ -380,7 +384,7 @@ def _sensor_residuals_section(cal: Calibration) -> str:
                         "others evenly.</p>" if len(shown) < len(sf.sections) else ""))
     if cal.skipped:
         parts.append("<p>Views not used: " + "; ".join(f"{_e(n)} ({_e(r)})" for n, r in cal.skipped) + "</p>")
-    shown = {k: v for k, v in sf.figures.items() if not (is_rig(cal) and k in RIG_FIGURES)}  # a rig's: in its own sections
+    shown = {k: v for k, v in sf.figures.items() if not (joins_sensors(cal) and k in RIG_FIGURES)}  # a rig's: in its own sections
     rows = "".join(f'<tr><td class="l">{_e(_figure_label(k))}</td><td class="l">{_e(_figure_text(v))}</td></tr>'
                    for k, v in shown.items())
     if rows:  # a rig's figures are all in its sections: no empty table
@@ -699,7 +703,7 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
              _verdict_section(cal, verdict, pres),
              _result_section(cal, data)]
     if cal.target2cam is None:  # a sensor's fit (depth, laser, ...): its views' residuals and figures
-        parts += [rig_sections(cal) if is_rig(cal) else "", _sensor_residuals_section(cal), _kinematics_section(cal),
+        parts += [rig_sections(cal) if joins_sensors(cal) else "", _sensor_residuals_section(cal), _kinematics_section(cal),
                   '<section id="scene"><h2>Robot, sensor and target</h2>' + _img(_png(_scene_figure(cal)), "3D view")
                   + "</section>", _advice_section(cal, data), "</body></html>\n"]
         return "".join(parts)

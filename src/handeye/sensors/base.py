@@ -101,8 +101,9 @@ Capabilities (optional, one protocol each)
     sensors see one target fits its pose once).
 :class:`DrawsSections`
     ``sections(X, p, flange2base, views)``: per view of ``views`` what the report draws of it in the
-    sensor's own plane: the measured points, their residuals and the fitted target's section
-    (:class:`~handeye.result.SensorFit`'s ``sections``).
+    sensor's own plane: the measured points, their residuals and the fitted target's section; or
+    its cloud in the frame the views agree in (:class:`~handeye.result.SensorFit`'s ``sections``
+    says the keys of both). The report draws what the sections hold, without knowing the kind.
 :class:`JointFigures`
     ``joint_figures(X, p, cov, flange2base, rows)``: figures that need X's covariance with the
     sensor's unknowns (``cov`` over X's increment and ``p``) or the fit's residuals on its ``rows``: a

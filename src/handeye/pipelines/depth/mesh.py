@@ -18,15 +18,12 @@ named steps:
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..._shared.progress import Progress
-from ..._shared.threads import one_blas_thread
 from ...errors import DegenerateMotionError, HandEyeError, InputMismatchError, UnusableViewError
 from ...estimation.core import estimate, start_from_poses
 from ...estimation.readings import check_readings
@@ -39,7 +36,7 @@ from ...sensors.depth.clouds import MAX_DEPTH_M, read_points
 from ...sensors.depth.mesh import MeshSurface
 from ...sensors.depth.registration import ShapeMatch, find_shape, refine_shape
 from ...sensors.depth.shape import Shape, load_shape
-from .._sensor import held_and_freed, robot_model, session_robot_input
+from .._sensor import held_and_freed, measure_views, robot_model, session_robot_input
 from .session import DepthSession
 
 __all__ = ["MeshViews", "measure_mesh_session", "consistent_views", "mesh_model", "calibrate_mesh_session",
@@ -75,32 +72,17 @@ def read_scene(path: str | Path, unit: str) -> NDArray[np.float64]:
     return q
 
 
-def _found(shape: Shape, path: Path, unit: str, k: int) -> ShapeMatch | str:
-    """The shape found in one cloud, or why not."""
-    try:
-        return find_shape(shape, read_scene(path, unit), where=str(path), rng=k)
-    except (InputMismatchError, UnusableViewError) as exc:
-        return str(exc)
-
-
 def measure_mesh_session(s: DepthSession, shape: Shape, progress: bool = False, jobs: int | None = None) -> MeshViews:
     """The shape found in every cloud of ``s`` (``jobs`` clouds at a time, threads; default 2); a
     cloud where it is not, skipped with why."""
-    out = MeshViews()
-    bar = Progress(len(s.cloud_paths), "finding the shape", progress)
-    with ThreadPoolExecutor(max_workers=max(1, jobs or 2)) as pool, one_blas_thread():
-        found = pool.map(_found, [shape] * len(s.cloud_paths), s.cloud_paths, [s.unit] * len(s.cloud_paths),
-                         range(len(s.cloud_paths)))
-        for k, match in enumerate(found):
-            bar.update()
-            if isinstance(match, str):
-                out.skipped.append((s.names[k], match))
-                continue
-            out.index.append(k)
-            out.matches.append(match)
-            out.distance.append(float(np.median(match.points[:, 2])))
-    bar.close()
-    return out
+    def found(k: int) -> ShapeMatch:
+        path = s.cloud_paths[k]
+        return find_shape(shape, read_scene(path, s.unit), where=str(path), rng=k)
+
+    index, matches, skipped = measure_views(found, s.names, (InputMismatchError, UnusableViewError), "finding the shape",
+                                            progress, jobs)
+    return MeshViews(index=index, matches=matches, distance=[float(np.median(m.points[:, 2])) for m in matches],
+                     skipped=skipped)
 
 
 def _disagreement(X, Z, F, T, setup) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

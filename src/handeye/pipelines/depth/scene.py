@@ -21,14 +21,11 @@ named steps:
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..._shared.progress import Progress
-from ..._shared.threads import one_blas_thread
 from ...errors import DegenerateMotionError, InputMismatchError
 from ...estimation.core import estimate
 from ...frames.metrics import rotation_error, translation_error
@@ -37,7 +34,7 @@ from ...options import CalibrationOptions
 from ...result import Calibration
 from ...sensors.depth.scene import Pairs, SceneSurface, SceneView, pair_spread, prepare_view, register, scene_free, view_overlap
 from ...sensors.depth.scene_start import StartCandidate, agreement, centroid_start, scene_start
-from .._sensor import held_and_freed, robot_model
+from .._sensor import held_and_freed, measure_views, robot_model
 from .mesh import read_scene
 from .session import DepthSession
 
@@ -63,29 +60,14 @@ class SceneViews:
     notes: list[str] = field(default_factory=list)
 
 
-def _prepared(path, unit: str, name: str, k: int) -> SceneView | str:
-    try:
-        return prepare_view(read_scene(path, unit), name, rng=k)
-    except InputMismatchError as exc:
-        return str(exc)
-
-
 def read_scene_views(s: DepthSession, progress: bool = False, jobs: int | None = None) -> SceneViews:
     """Every cloud of ``s`` read and prepared (``jobs`` at a time, threads; default 2); a cloud with
     too few usable points skipped with why."""
-    out = SceneViews()
-    bar = Progress(len(s.cloud_paths), "reading clouds", progress)
-    with ThreadPoolExecutor(max_workers=max(1, jobs or 2)) as pool, one_blas_thread():
-        done = pool.map(_prepared, s.cloud_paths, [s.unit] * len(s.names), s.names, range(len(s.names)))
-        for k, view in enumerate(done):
-            bar.update()
-            if isinstance(view, str):
-                out.skipped.append((s.names[k], view))
-                continue
-            out.index.append(k)
-            out.views.append(view)
-    bar.close()
-    return out
+    def prepared(k: int) -> SceneView:
+        return prepare_view(read_scene(s.cloud_paths[k], s.unit), s.names[k], rng=k)
+
+    index, views, skipped = measure_views(prepared, s.names, (InputMismatchError,), "reading clouds", progress, jobs)
+    return SceneViews(index=index, views=views, skipped=skipped)
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,6 @@ from ...io.session import (
     POSES_KEYS,
     check_session_keys,
     files_of_views,
-    has_section,
     joints_of_views,
     read_camera,
     read_joints,
@@ -40,7 +39,7 @@ from ...robot.kinematics import Chain
 from ...sensors.camera import target_from_spec
 from ...sensors.depth.clouds import CLOUD_SUFFIXES
 
-__all__ = ["DepthSession", "MeshTarget", "ArmTarget", "SceneTarget", "is_depth_session", "load_depth_session", "rig_depth", "arm_hand",
+__all__ = ["DepthSession", "MeshTarget", "ArmTarget", "SceneTarget", "load_depth_session", "rig_depth", "arm_hand",
            "ARM_KEYS", "RIG_DEPTH_KEYS",
            "extras", "rig_extras"]
 
@@ -235,10 +234,6 @@ def _mesh(target: Any, folder: Path, setup: str, where: str) -> MeshTarget | Non
     placement = None if target.get(key) is None else _placement(target[key], unit, f"{where}: target: {key}")
     return MeshTarget(path, unit, placement)
 
-
-def is_depth_session(folder: str | Path) -> bool:
-    """Whether ``folder``'s session.yaml has a ``depth:`` mapping."""
-    return has_section(folder, "depth")
 
 
 def _radii(target: Any, where: str) -> list[float] | None:

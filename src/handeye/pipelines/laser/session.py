@@ -47,7 +47,6 @@ from ...io.session import (
     check_keys,
     check_session_keys,
     files_of_views,
-    has_section,
     joints_of_views,
     read_joints,
     read_robot_poses,
@@ -59,7 +58,7 @@ from ...robot.kinematics import Chain
 from ...sensors.laser.model import LASER_NOISE_M
 from ...sensors.laser.profiles import PROFILE_SUFFIXES
 
-__all__ = ["LaserSession", "is_laser_session", "load_laser_session", "rig_laser", "LASER_KEYS", "TARGET_TYPES",
+__all__ = ["LaserSession", "load_laser_session", "rig_laser", "LASER_KEYS", "TARGET_TYPES",
            "RIG_KEYS"]
 
 #: The keys of ``laser:``, and of session.yaml around it.
@@ -102,10 +101,6 @@ class LaserSession:
         """Every file the session is read from."""
         return [self.folder / SESSION_FILE] + [p for p in self.profile_paths if p.is_file()]
 
-
-def is_laser_session(folder: str | Path) -> bool:
-    """Whether ``folder``'s session.yaml has a ``laser:`` mapping."""
-    return has_section(folder, "laser")
 
 
 def _laser_spec(spec: Any, where: str) -> tuple[str, tuple[float, float] | None, float]:

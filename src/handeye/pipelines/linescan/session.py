@@ -50,7 +50,6 @@ from ...io.session import (
     SESSION_FILE,
     check_session_keys,
     flange_poses_of,
-    has_section,
     pose_table_path,
     read_image_times,
     read_joint_trajectory,
@@ -65,7 +64,7 @@ from ...robot.kinematics import Chain, check_joints_against_poses, joints_at
 from ...sensors.camera.targets import target_from_spec
 from ...sensors.linescan.model import LINESCAN_NOISE_PX
 
-__all__ = ["LineScanSession", "load_linescan_session", "is_linescan_session", "LINESCAN_KEYS"]
+__all__ = ["LineScanSession", "load_linescan_session", "LINESCAN_KEYS"]
 
 #: The keys of a ``linescan:`` block.
 LINESCAN_KEYS = ("width", "line_rate", "focal", "noise")
@@ -105,10 +104,6 @@ class LineScanSession:
         """Every file the session is read from."""
         return [self.folder / SESSION_FILE] + [p for p in self.image_paths if p.is_file()]
 
-
-def is_linescan_session(folder: str | Path) -> bool:
-    """Whether ``folder``'s session.yaml has a ``linescan:`` mapping."""
-    return has_section(folder, "linescan")
 
 
 def _positive(spec: dict, key: str, where: str, what: str) -> float:

@@ -5,9 +5,11 @@ or other kinds that can be a rig's (their registration names a ``rig_member``: a
 * :mod:`~handeye.pipelines.rig.session`: a rig session's ``sensors:`` section, each sensor read by its kind;
 * :mod:`~handeye.pipelines.rig.pipeline`: each sensor alone, then all in one fit, the sensor that disagrees named;
 * :mod:`~handeye.pipelines.rig.simulate`: a stereo pair, cameras around the cell, a camera beside a depth camera or a
-  laser profiler, two profilers.
+  laser profiler, two profilers;
+* :mod:`~handeye.pipelines.rig.plan`: ``handeye plan --sensor rig`` (or ``--rig-camera``): poses every camera of a
+  rig of cameras can use, each camera's predicted std.
 
-A rig of cameras plans with ``handeye plan --rig-camera`` (:mod:`handeye.planning.rig`). ``handeye.pipelines.rig``
+``handeye.pipelines.rig``
 was the pipeline's module: its names still import from here, with a DeprecationWarning, for one release.
 """
 

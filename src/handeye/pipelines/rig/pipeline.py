@@ -30,7 +30,7 @@ from ...frames.setups import pose_name
 from ...options import CalibrationOptions
 from ...result import Calibration
 from ...robot.models import ControllerPoses, PoseErrors, RobotModel
-from ...sensors.base import SensorModel
+from ...sensors.base import HasNuisances, SensorModel, SharesTarget
 from ...sensors.camera.detect import detect_images
 from ...sensors.camera.model import CameraCorners
 from ...sensors.camera.targets import target_from_spec
@@ -91,7 +91,7 @@ def _stated_mm(member: SensorModel) -> float:
 def _named(names: tuple[str, ...], member: SensorModel, sensor: str) -> tuple[str, ...]:
     """Of the unknowns ``names`` (``radius``: every sensor's; ``laser_a.radius``: one sensor's), those of
     ``member`` (sensor ``sensor``), as its own fit names them."""
-    own = {n.name for n in getattr(member, "nuisances", ())}
+    own = {n.name for n in (member.nuisances if isinstance(member, HasNuisances) else ())}
     return tuple(dict.fromkeys(n.split(".", 1)[1] if n.startswith(f"{sensor}.") else n for n in names
                                if (n in own) or (n.startswith(f"{sensor}.") and n.split(".", 1)[1] in own)))
 
@@ -145,8 +145,8 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
     if len(set(sensor_names)) != len(sensor_names):
         twice = sorted({n for n in sensor_names if sensor_names.count(n) > 1})
         raise InputMismatchError(f"sensor name(s) {', '.join(twice)} given twice: each sensor needs its own name")
-    every = {n.name for m, s in zip(members, sensor_names) for n in getattr(m, "nuisances", ())}
-    every |= {f"{s}.{n.name}" for m, s in zip(members, sensor_names) for n in getattr(m, "nuisances", ())}
+    own = [(s, m.nuisances if isinstance(m, HasNuisances) else ()) for m, s in zip(members, sensor_names)]
+    every = {n.name for _, nuisances in own for n in nuisances} | {f"{s}.{n.name}" for s, nuisances in own for n in nuisances}
     unknown = [n for n in (*hold, *free) if n not in every]
     if unknown:
         raise InputMismatchError(f"{', '.join(unknown)}: not an unknown of the rig's sensors that can be held or freed; "
@@ -372,7 +372,7 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     robot = robot_model(s, list(range(len(s.names))), opts)  # joint angles through the arm's table, or poses
     # one target's pose for all, when every model can map it into its unknowns (a depth camera's balls
     # cannot: their centres stay its own)
-    shared = s.shared_target and all(hasattr(m, "target_params") for m in members)
+    shared = s.shared_target and all(isinstance(m, SharesTarget) for m in members)
     if members:  # the poses' reading checked on the first sensor's views before any sensor is fitted
         check_readings(members[0], robot, s.pose_input, s.flange2base)
     hold, free = held_and_freed(s, opts)

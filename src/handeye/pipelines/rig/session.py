@@ -57,7 +57,6 @@ from ...io.session import (
     check_keys,
     check_session_keys,
     files_of_views,
-    has_section,
     joints_of_views,
     read_camera,
     read_joints,
@@ -70,7 +69,7 @@ from ...robot.kinematics import Chain
 from ...sensors.camera.targets import target_from_spec
 from ..kinds import member_kind, sensor_kinds
 
-__all__ = ["RigSession", "RigSensor", "load_rig_session", "is_rig_session", "extras", "SENSOR_KEYS", "IMAGE_SUFFIXES"]
+__all__ = ["RigSession", "RigSensor", "load_rig_session", "extras", "SENSOR_KEYS", "IMAGE_SUFFIXES"]
 
 #: The keys of one camera's block (another kind's block: that kind's ``rig_member`` checks it).
 SENSOR_KEYS = ("camera", "images")
@@ -136,10 +135,6 @@ class RigSession:
         set of unknowns is the sensor models' to say (:func:`handeye.pipelines.rig.pipeline.calibrate_rig_session`)."""
         return len({str(sorted(x.target_spec.items())) for x in self.sensors}) == 1
 
-
-def is_rig_session(folder: str | Path) -> bool:
-    """Whether ``folder``'s session.yaml has a ``sensors:`` mapping."""
-    return has_section(folder, "sensors")
 
 
 def extras(spec: dict[str, Any], folder: Path, needs: dict[str, dict[str, str]]) -> None:

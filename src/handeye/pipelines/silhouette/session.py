@@ -32,7 +32,6 @@ from ...io.session import (
     JOINTS_KEYS,
     check_keys,
     check_session_keys,
-    has_section,
     read_camera,
     read_joints,
     read_session_yaml,
@@ -44,7 +43,7 @@ from ..depth.session import ARM_KEYS, arm_hand
 
 cv2 = lazy_module("cv2")
 
-__all__ = ["SilhouetteSession", "is_silhouette_session", "load_silhouette_session", "read_mask", "read_masks", "SILHOUETTE_KEYS",
+__all__ = ["SilhouetteSession", "load_silhouette_session", "read_mask", "read_masks", "SILHOUETTE_KEYS",
            "ROBOT_TARGET_KEYS", "extras"]
 
 #: The keys of ``silhouette:``.
@@ -80,10 +79,6 @@ class SilhouetteSession:
         """Every file the session is read from."""
         return [self.folder / "session.yaml", self.joints_path] + list(self.mask_paths) + [p for p in self.image_paths if p]
 
-
-def is_silhouette_session(folder: str | Path) -> bool:
-    """Whether ``folder``'s session.yaml has a ``silhouette:`` mapping."""
-    return has_section(folder, "silhouette")
 
 
 def read_mask(path: Path, size: tuple[int, int] | None = None) -> NDArray[np.bool_]:

@@ -534,7 +534,7 @@ class SceneSurface:
     def sections(self, X, p, flange2base, views) -> list[dict[str, NDArray[np.float64]]]:
         """Per view of ``views`` its registered cloud as the report draws it: at most
         :data:`DRAWN` of its matched query points in the common frame (``cloud_mm``, mm, through
-        X and its flange pose) and their residuals (``residual_mm``)."""
+        X and its flange pose; ``frame``: that frame in words) and their residuals (``residual_mm``)."""
         A = robot_world_A(np.asarray(flange2base, float), self.setup)
         out = []
         for v in views:
@@ -542,7 +542,7 @@ class SceneSurface:
             rows = rows[np.linspace(0, len(rows) - 1, min(len(rows), DRAWN)).astype(np.intp)] if len(rows) else rows
             T = A[v] @ X
             x = _corrected(self.g.p[rows], self._depth(p))
-            out.append({"cloud_mm": 1e3 * (x @ T[:3, :3].T + T[:3, 3]),
+            out.append({"cloud_mm": 1e3 * (x @ T[:3, :3].T + T[:3, 3]), "frame": common_frame(self.setup),
                         "residual_mm": 1e3 * self.residuals(X, p, flange2base, rows)[:, 0]})
         return out
 

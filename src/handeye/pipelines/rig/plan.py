@@ -1,7 +1,8 @@
-"""Planning a rig's capture: robot poses in which every camera of the rig sees the whole target.
+"""Planning a rig's capture (``handeye plan --sensor rig``, or ``plan --rig-camera``: the rig's
+registration's ``plan`` hook): robot poses in which every camera of the rig sees the whole target.
 
 A rig's cameras share the robot's poses, so a view only one of them can use is half wasted.
-:func:`plan_rig` draws each camera's candidate viewpoints (as :func:`~handeye.planning.poses.plan_poses`
+:func:`plan_rig` draws each camera's candidate viewpoints (as :func:`handeye.planning.poses.plan_poses`
 does for one camera: around the target, within a tilt of its normal, at 0.8, 1 and 1.25 times the
 standoff), turns them into flange poses through the rough mounting, keeps those in which every
 camera sees the whole target, and chooses the set that determines X best (A-optimal, as for one
@@ -16,15 +17,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
 
-from ..errors import HandEyeError
-from ..frames.metrics import std_deg_mm
-from ..frames.setups import check_setup, flange_poses, predicted_target2cam
-from ..geometry.se3 import skew
-from ..options import ROBOT_ACCURACY, CalibrationOptions
-from .poses import candidate_views, choose_views, order_path, reported_std, reprojection_information, visible_mask
+from ...errors import HandEyeError
+from ...frames.metrics import std_deg_mm
+from ...frames.motions import order_path
+from ...frames.setups import check_setup, flange_poses, predicted_target2cam
+from ...geometry.se3 import make_transform, skew
+from ...io.session import read_intrinsics
+from ...options import ROBOT_ACCURACY, CalibrationOptions
+from ...sensors.camera.targets import target_from_spec
+from ...simulate import DEFAULT_TARGETS
+from ..kinds import PlanRequest, SensorPlan
+from ..viewpoints import candidate_views, choose_views, reported_std, reprojection_information, visible_mask
 
-__all__ = ["RigPlanCamera", "RigPlan", "plan_rig"]
+__all__ = ["RigPlanCamera", "RigPlan", "plan_rig", "plan_command"]
 
 
 @dataclass(frozen=True)
@@ -95,13 +102,13 @@ def plan_rig(setup: str, X: ArrayLike, Z: ArrayLike, object_points: ArrayLike, c
     ----------
     setup : {'eye_in_hand', 'eye_to_hand'}
     X, Z : (4, 4)
-        The first camera's rough X and the target's rough pose, as for :func:`~handeye.planning.poses.plan_poses`.
+        The first camera's rough X and the target's rough pose, as for :func:`handeye.planning.poses.plan_poses`.
     object_points : (M, 3)
         The target's points (metres, target frame).
     cameras : list of RigPlanCamera
         The first is the camera X is; each other one's ``cam2first`` places it.
     n_poses, standoff, tilt_max_deg, margin_px, noise_px, robot_accuracy
-        As for :func:`~handeye.planning.poses.plan_poses`.
+        As for :func:`handeye.planning.poses.plan_poses`.
 
     Raises
     ------
@@ -166,3 +173,78 @@ def _to_rig(X: NDArray[np.float64], cam2first: NDArray[np.float64], k: int, n: i
         M[3:6, c + 3:c + 6] = R
     return M
 
+
+def _intrinsics(path: str, flag: str) -> tuple[NDArray[np.float64], NDArray[np.float64], tuple[int, int]]:
+    """K, dist and image size of a camera's intrinsics YAML, an error naming ``flag``."""
+    try:
+        return read_intrinsics(path)
+    except HandEyeError as exc:
+        raise HandEyeError(f"{flag} {exc}") from None
+
+
+def _pose(text: str, name: str) -> NDArray[np.float64]:
+    """x,y,z[,rx,ry,rz] (metres, a rotation vector in degrees) as a 4x4."""
+    try:
+        v = np.array([float(t) for t in text.replace(" ", "").split(",")])
+    except ValueError:
+        raise HandEyeError(f"{name} {text!r}: give comma-separated numbers") from None
+    if v.size not in (3, 6) or not np.all(np.isfinite(v)):
+        raise HandEyeError(f"{name} {text!r}: give 3 or 6 finite comma-separated numbers")
+    return make_transform(Rotation.from_rotvec(v[3:] if v.size == 6 else np.zeros(3), degrees=True).as_matrix(), v[:3])
+
+
+def rig_cameras(intrinsics: str, others: list[str]) -> list[RigPlanCamera]:
+    """The first camera (its intrinsics YAML, ``--intrinsics``) and each other one, ``--rig-camera``'s
+    NAME,INTRINSICS,X,Y,Z[,RX,RY,RZ] (its pose in the first camera's frame: metres and a rotation vector
+    in degrees)."""
+    K, dist, size = _intrinsics(intrinsics, "--intrinsics")
+    cameras = [RigPlanCamera("cam0", np.eye(4), K, size, dist)]
+    for text in others:
+        parts = text.split(",")
+        if len(parts) not in (5, 8) or not parts[0] or not parts[1]:
+            raise HandEyeError(f"--rig-camera {text!r}: give NAME,INTRINSICS,X,Y,Z[,RX,RY,RZ]: the camera's name, its "
+                               "intrinsics YAML and its pose in the first camera's frame (m; rotation vector, deg)")
+        if parts[0] in [c.name for c in cameras]:
+            raise HandEyeError(f"--rig-camera {text!r}: the name {parts[0]!r} is taken (the first camera is cam0): each "
+                               "camera needs its own name")
+        K_k, dist_k, size_k = _intrinsics(parts[1], "--intrinsics")
+        cameras.append(RigPlanCamera(parts[0], _pose(",".join(parts[2:]), f"--rig-camera {parts[0]}"), K_k, size_k, dist_k))
+    return cameras
+
+
+def plan_command(request: PlanRequest) -> SensorPlan:
+    """``handeye plan --sensor rig`` (or ``plan --rig-camera``; the rig's registration's ``plan`` hook):
+    poses in which every camera of the rig sees the whole board (``target`` or ``target_spec``; default
+    a chessboard), each camera's X's predicted std; ``intrinsics`` is the first camera's, ``options``'
+    ``rig_camera`` the others'.
+
+    Raises
+    ------
+    HandEyeError
+        No ``intrinsics``, ``standoff`` or other camera, a camera badly given, or too few poses every
+        camera can use.
+    """
+    others = list(request.options.get("rig_camera") or [])
+    if request.intrinsics is None or request.standoff is None or not others:
+        raise HandEyeError("plan --sensor rig needs --intrinsics (the first camera's), --standoff and a --rig-camera per "
+                           "other camera")
+    spec = request.target_spec if request.target_spec is not None else DEFAULT_TARGETS[request.target or "chessboard"]
+    obj = target_from_spec(spec).object_points()
+    plan = plan_rig(request.setup, request.X, request.Z, obj, rig_cameras(request.intrinsics, others),
+                    n_poses=request.poses or 15, standoff=request.standoff, tilt_max_deg=request.tilt_max_deg,
+                    margin_px=request.margin_px, noise_px=request.noise_px, robot_accuracy=request.robot_accuracy)
+    acc = plan.robot_accuracy
+    lines = ["", f"predicted std of each camera's X as the rig's calibration would report it ({plan.noise_px:g} px of corner "
+             "noise" + (f", the robot's absolute accuracy {acc[0]:g} deg / {acc[1]:g} mm per axis in it" if acc else "") + "):"]
+    lines += [f"  {name:8s} rotation {_vector(s[:3], 4)} deg, translation {_vector(s[3:], 3)} mm"
+              for name, s in plan.std_per_camera.items()]
+    return SensorPlan(
+        [f"v{k + 1:02d}" for k in range(len(plan.flange2base))], plan.flange2base, "view", plan,
+        f"{len(plan.flange2base)} poses chosen from {plan.n_candidates} in which every camera ({', '.join(plan.names)}) keeps "
+        f"the whole target {request.margin_px:g} px inside its image; in path order:", "view", "", "", "", "", "",
+        "flange2base per view; it is the poses.csv of the rig session to capture (first column view; replace each row "
+        "by the pose the robot reports)", lines=tuple(lines))
+
+
+def _vector(v: NDArray[np.float64], digits: int) -> str:
+    return "[" + ", ".join(f"{x: .{digits}f}" for x in v) + "]"
