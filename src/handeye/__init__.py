@@ -83,6 +83,7 @@ MOVED_NAMES = {
         **dict.fromkeys(("LaserScene", "laser_scene", "write_laser_session"), "handeye.pipelines.laser.simulate")},
     "handeye.planning": {**dict.fromkeys(("LaserPlan", "plan_laser"), "handeye.pipelines.laser.plan"),
                          **dict.fromkeys(("LineScanPlan", "plan_linescan"), "handeye.pipelines.linescan.plan")},
+    "handeye.solvers.refine": {"refine_pose": "handeye.estimation.refinement"},
     "handeye.io.extras": dict.fromkeys(("session_extras", "missing_extras", "check_extras"), "handeye.pipelines.folders"),
     **{f"handeye.pipelines.{kind}": {"*": f"handeye.pipelines.{kind}.pipeline"}
        for kind in ("depth", "laser", "linescan", "rig", "silhouette")},

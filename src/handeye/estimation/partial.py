@@ -25,7 +25,8 @@ from ..frames.setups import constant_transforms, robot_world_A, setup_info
 from ..geometry.se3 import mean_transform
 from ..result import Calibration, Observability, Unobservable
 from ..solvers.low_dof import GAUGE_STD, ONE_AXIS, TRANSLATION_ONLY, gauge_rows, solve_low_dof
-from ..solvers.refine import TranslationPriors, refine_pose
+from ..solvers.refine import TranslationPriors
+from .refinement import refine_pose
 
 __all__ = ["KNOWN_EXACT_STD", "Known", "calibrate_partial", "known_on_complete", "parse_known"]
 
