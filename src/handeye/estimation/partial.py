@@ -5,7 +5,7 @@ only). With every rotation about one axis, ``A X = X B`` determines X except its
 that axis; with pure translations, X's rotation only (:mod:`handeye.solvers.low_dof`). What the
 data cannot see, the user may know: the camera's offset from a drawing (``cam2flange.z``), the
 board's height on the table (``target2base.z``). :func:`calibrate_partial` refines the
-determined part on the poses (the noise-model refinement of :func:`handeye.solvers.refine.refine_pose`),
+determined part on the poses (the noise-model refinement of :func:`handeye.estimation.refinement.refine_pose`),
 with each known value as one more measurement, and names what stays open.
 """
 
