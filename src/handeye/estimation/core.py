@@ -107,7 +107,7 @@ from ..solvers.observability import rotation_spread_absolute
 from ..solvers.refine import VARIANCE_FLOOR, block_whitening, fit_variances, reweighted_fit
 from .uncertainty import widened_uncertainty
 from .validation import default_folds, fold_indices, held_out, jackknife_groups, jackknife_spread
-from .verdict import judged
+from .verdict import FIT_FACTOR, HELDOUT_FACTOR, FitEvidence, fit_verdict, judged
 
 __all__ = ["Fitted", "Problem", "fit", "fit_poses",
            "downdated", "view_rms_mm", "view_rms_px", "estimate", "quick_rms_mm", "start_from_poses",
@@ -119,11 +119,6 @@ REJECT = 5.0
 #: A view whose RMS residual exceeds this many times the median view's (and 3 times the noise the
 #: sensor states) is left out, named.
 OUTLIER_FACTOR = 5.0
-#: A fit whose RMS residual exceeds this many times what the sensor's noise and the robot's accuracy
-#: allow explains nothing: the verdict is inconsistent.
-FIT_FACTOR = 5.0
-#: Held-out views predicted this many times worse than the fit's residual: the verdict is inconsistent.
-HELDOUT_FACTOR = 4.0
 #: How the note on the direction of X the capture determines least well begins.
 WEAKEST_NOTE = "the capture determines X least well in"
 #: A direction of X whose std exceeds this (rad at 1 m, or m), or whose information is this small a
@@ -1568,41 +1563,12 @@ def _allowed_mm(problem: Problem, full: Fitted, accuracy: tuple[float, float] | 
 
 def _verdict(problem: Problem, full: Fitted, fit_mm: float, heldout_mm: float | None, n_out: int, n: int,
              accuracy: tuple[float, float] | None, stepped_mm: float | None = None) -> tuple[str, list[str], float]:
-    """The check's verdict on the fit ('good' to be judged on X's std, 'weak' when only folds fitted
-    from a start of their own predict their views badly, or 'inconsistent'), its advice and the
-    consistency score (the fit's RMS over what is allowed). ``stepped_mm``: the held-out RMS of the
-    steps from the fit on all views."""
-    allowed = _allowed_mm(problem, full, accuracy)
-    score = fit_mm / max(allowed, 1e-9)
-    if fit_mm > FIT_FACTOR * max(allowed, 0.05):
-        return "inconsistent", [
-            f"the views' measurements are {fit_mm:.2f} mm (RMS) from the fit, far beyond the {allowed:.2f} mm the "
-            "sensor's noise and the robot's accuracy allow: the robot poses and the measurements disagree (their "
-            "order, the pose format or unit, the setup, the measurements' unit), or the fit started in another basin and "
-            "stayed there"], score
-    # with each pose's error fitted the fit's residual holds none of it, while held-out views (predicted
-    # from the robot alone) carry it whole: held against what the robot's accuracy allows instead
-    reference = max(fit_mm, allowed) if isinstance(problem.robot, PerViewErrors) else fit_mm
-    limit = HELDOUT_FACTOR * max(reference, 0.1)
-    if heldout_mm is not None and heldout_mm > limit and stepped_mm is not None and stepped_mm <= limit:
-        # the fit on all views fits and predicts its views; only subsets started on their own land
-        # elsewhere: a capture whose X rests on its start (few turns), not data that disagree
-        return "weak", [
-            f"held-out views are predicted {heldout_mm:.2f} mm (RMS) off by folds fitted from a start of their own, "
-            f"{heldout_mm / reference:.1f}x the fit's {reference:.2f} mm, though the fit on all views predicts them "
-            f"{stepped_mm:.2f} mm off: fewer of these views land elsewhere from their own start, so this X rests on "
-            "its start; take more views, with the flange turned 10 deg or more about two or three axes, so that any "
-            "subset finds the same X"], score
-    if heldout_mm is not None and heldout_mm > limit:
-        return "inconsistent", [
-            f"held-out views are predicted {heldout_mm:.2f} mm (RMS) off, {heldout_mm / reference:.1f}x the fit's "
-            f"{reference:.2f} mm: the robot poses and the measurements disagree (the setup, the pose format or unit, a "
-            "target that moved, or the order of the views), or the fit lands elsewhere from another start (folds are fitted "
-            "from a start of their own: more views, turned about more axes, make the fit one)"], score
-    if n_out > n // 3:
-        return "inconsistent", [f"{n_out} of {n} views are not explained by the fit: too many to leave out; check the "
-                                "poses' format and unit, the setup, and that the target did not move"], score
-    return "good", [], score
+    """The fit's evidence measured (what the sensor's noise and the robot's accuracy allow on this
+    capture) and the verdict taken from :func:`~handeye.estimation.verdict.fit_verdict`: ('good' to be
+    judged on X's std, 'weak' or 'inconsistent'), its advice and the consistency score. ``stepped_mm``:
+    the held-out RMS of the steps from the fit on all views."""
+    return fit_verdict(FitEvidence(fit_mm, _allowed_mm(problem, full, accuracy), heldout_mm, stepped_mm, n_out, n,
+                                   isinstance(problem.robot, PerViewErrors)))
 
 
 #: A table entry is determined by the capture when its std is below this share of its prior's.
