@@ -34,11 +34,12 @@ import handeye
 from _timing import best_time
 from handeye._shared.threads import on_one_blas_thread
 from handeye.estimation.estimators import corners_fit
+from handeye.estimation.refinement import refine_pose
 from handeye.estimation.validation import Views
 from handeye.sensors.camera import Detection, solve_pnp, target_from_spec
 from handeye.sensors.camera.render import Renderer, target_texture
 from handeye.simulate import default_camera, perturb_poses, scene_from_viewpoints, visible_viewpoints
-from handeye.solvers.refine import refine_pose, refine_reprojection
+from handeye.solvers.refine import refine_reprojection
 
 
 def main() -> None:

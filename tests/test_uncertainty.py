@@ -15,6 +15,7 @@ import handeye
 import realdata
 from handeye.estimation.diagnostics import closed_form
 from handeye.estimation.estimators import POSE, intrinsics_cov, pose_fit
+from handeye.estimation.refinement import refine_pose
 from handeye.frames.metrics import rotation_error, translation_error
 from handeye.frames.setups import predicted_target2cam
 from handeye.io.session import load_session
@@ -31,7 +32,7 @@ from handeye.simulate import (
     scene_from_viewpoints,
     visible_viewpoints,
 )
-from handeye.solvers.refine import refine_pose, refine_reprojection
+from handeye.solvers.refine import refine_reprojection
 
 
 def _mc_camera():
@@ -226,15 +227,14 @@ def test_pose_refinement_no_worse_than_best_closed_form(pose_monte_carlo):
     assert np.median(ref[:, 0]) <= np.median(cf[best_r][:, 0]) + 2 * diff.std()
 
 
-@pytest.mark.parametrize("weighting", ["noise_model", "strobl"])
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 @pytest.mark.parametrize("n_poses", [3, 5, 40])
-def test_pose_refinement_keeps_noise_free_data_exact(weighting, setup, n_poses):
+def test_pose_refinement_keeps_noise_free_data_exact(setup, n_poses):
     """Started off the truth (0.5 deg / 5 mm on X and Z), noise-free poses: back to < 1e-9."""
     s = random_scene(n_poses, setup, rng=n_poses)
     rng = np.random.default_rng(1)
     X0, Z0 = perturb_poses(s.X, np.radians(0.5), 5e-3, rng), perturb_poses(s.Z, np.radians(0.5), 5e-3, rng)
-    ref = refine_pose(X0, Z0, s.flange2base, s.target2cam, setup, weighting=weighting)
+    ref = refine_pose(X0, Z0, s.flange2base, s.target2cam, setup)
     assert rotation_error(ref.X, s.X) < 1e-9 and translation_error(ref.X, s.X) < 1e-9
     assert rotation_error(ref.Z, s.Z) < 1e-9 and translation_error(ref.Z, s.Z) < 1e-9
     assert ref.success and np.sqrt(np.diag(ref.cov_X)).max() < 1e-9
@@ -282,32 +282,60 @@ def test_pose_jacobian_matches_finite_differences(setup):
     assert np.abs(J.reshape(-1, 12) - J_num).max() < 1e-7
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 @pytest.mark.parametrize("n_poses", [5, 15])
-def test_the_cores_fit_of_whole_poses_is_the_pose_refinement(setup, n_poses):
-    """The pose refinement through the one estimation core (each view's residual whitened by its
-    6x6 covariance, the noise variances fitted by maximum likelihood: PoseDifferences) gives
-    refine_pose's X, Z, covariance and noise; with 5 poses, without the depth term."""
+def test_the_pose_refinement_is_the_cores_fit_of_whole_poses(setup, n_poses):
+    """refine_pose is the estimation core's fit of the camera's whole poses (PoseDifferences): the
+    same X, Z and noise as the estimator choice's poses_fit, no engine of its own; over 20 simulated
+    captures its X lies within 3 of its std of the truth (rotation and translation, per axis) on at
+    least 95% of the axes, and with 5 poses the noise has no depth term."""
     from handeye.estimation.estimators import poses_fit
     from handeye.estimation.validation import Views
+    from handeye.frames.metrics import std_deg_mm
 
-    rng = np.random.default_rng(n_poses)
-    s = random_scene(n_poses, setup, rng)
-    f = perturb_poses(s.flange2base, np.radians(0.05), 0.2e-3, rng)
-    t = perturb_poses(s.target2cam, np.radians(0.02), 0.5e-3, rng)
-    X0, Z0, _ = closed_form(f, t, setup, "daniilidis")
-    ref = refine_pose(X0, Z0, f, t, setup)
-    core = poses_fit(Views(f, t, setup), X0, Z0)
-    assert np.abs(core.X - ref.X).max() < 1e-9 and np.abs(core.Z - ref.Z).max() < 1e-9
-    assert np.abs(core.cov_X - ref.cov_X).max() < 1e-6 * np.abs(ref.cov_X).max()
-    assert core.noise.keys() == ref.noise.keys()
-    assert all(abs(core.noise[k] - ref.noise[k]) <= 1e-6 * ref.noise[k] + 1e-15 for k in ref.noise)
-    assert (core.noise["camera_depth"] == 0.0) == (n_poses < 6)
-    assert core.rounds == ref.rounds and core.converged == ref.converged
-    # a subset refitted with the noise held moves X away from the whole's, towards the subset's own fit
-    X_sub, _ = core.on(np.arange(1, n_poses))
-    own = refine_pose(X0, Z0, f[1:], t[1:], setup).X
-    assert 0 < translation_error(X_sub, core.X) and translation_error(X_sub, own) < 0.5 * translation_error(core.X, own)
+    inside = []
+    for seed in range(20):
+        rng = np.random.default_rng(n_poses if seed == 0 else 100 * n_poses + seed)
+        s = random_scene(n_poses, setup, rng)
+        f = perturb_poses(s.flange2base, np.radians(0.05), 0.2e-3, rng)
+        t = perturb_poses(s.target2cam, np.radians(0.02), 0.5e-3, rng)
+        X0, Z0, _ = closed_form(f, t, setup, "daniilidis")
+        ref = refine_pose(X0, Z0, f, t, setup)
+        if seed == 0:
+            core = poses_fit(Views(f, t, setup), X0, Z0)
+            assert np.array_equal(core.X, ref.X) and np.array_equal(core.Z, ref.Z) and np.array_equal(core.cov_X, ref.cov_X)
+            assert core.noise == ref.noise and (ref.noise["camera_depth"] == 0.0) == (n_poses < 6)
+            # a subset refitted with the noise held moves X away from the whole's, towards the subset's own fit
+            X_sub, _ = core.on(np.arange(1, n_poses))
+            own = refine_pose(X0, Z0, f[1:], t[1:], setup).X
+            assert 0 < translation_error(X_sub, core.X) and translation_error(X_sub, own) < 0.5 * translation_error(core.X, own)
+        err = np.r_[Rotation.from_matrix(ref.X[:3, :3] @ s.X[:3, :3].T).as_rotvec(), ref.X[:3, 3] - s.X[:3, 3]]
+        err = np.r_[np.degrees(err[:3]), 1e3 * err[3:]]
+        inside.append(np.abs(err) <= 3 * std_deg_mm(ref.cov_X))
+    assert np.mean(inside) >= 0.95
+
+
+def test_pose_refinement_priors_fix_what_the_poses_cannot_see():
+    """A SCARA-like capture (every rotation about base z) leaves X's height free: a prior on it
+    (TranslationPriors, rows of the core's fit) puts it at its value within the prior's std, and the
+    rest of X at the truth."""
+    from handeye.solvers.refine import TranslationPriors
+
+    rng = np.random.default_rng(3)
+    s = random_scene(10, "eye_in_hand", rng)
+    axis_turns = Rotation.from_rotvec(np.c_[np.zeros((10, 2)), rng.uniform(-1.5, 1.5, 10)]).as_matrix()
+    f = s.flange2base.copy()
+    f[:, :3, :3] = axis_turns
+    f[:, :3, 3] = np.c_[rng.uniform(0.3, 0.5, (10, 2)), np.full(10, 0.4)]
+    t = np.linalg.inv(s.X) @ np.linalg.inv(f) @ s.Z  # eye-in-hand: target2cam = X^-1 F^-1 Z
+    X0, Z0 = s.X.copy(), s.Z.copy()
+    X0[2, 3] += 0.05  # wrong height: the poses cannot tell
+    Z0[2, 3] += 0.05
+    priors = TranslationPriors(np.array([[0, 0, 1.0, 0, 0, 0]]), np.array([s.X[2, 3]]), np.array([1e-4]))
+    ref = refine_pose(X0, Z0, f, t, "eye_in_hand", priors=priors)
+    assert abs(ref.X[2, 3] - s.X[2, 3]) < 1e-6 and translation_error(ref.X, s.X) < 1e-6
+    assert rotation_error(ref.X, s.X) < 1e-8
 
 
 def test_a_fit_of_correlated_residuals_needs_the_sensors_derivatives():
@@ -339,8 +367,9 @@ def test_a_fit_of_correlated_residuals_needs_the_sensors_derivatives():
 
 def test_pose_refinement_bad_arguments():
     s = random_scene(5, "eye_in_hand", rng=0)
-    with pytest.raises(ValueError, match="weighting"):
-        refine_pose(s.X, s.Z, s.flange2base, s.target2cam, "eye_in_hand", weighting="ml")
+    for weighting in ("ml", "strobl"):
+        with pytest.raises(ValueError, match="weighting"):
+            refine_pose(s.X, s.Z, s.flange2base, s.target2cam, "eye_in_hand", weighting=weighting)
     with pytest.raises(ValueError, match="at least 3 poses"):
         refine_pose(s.X, s.Z, s.flange2base[:2], s.target2cam[:2], "eye_in_hand")
     with pytest.raises(handeye.InputMismatchError, match="use handeye.calibrate on a session"):

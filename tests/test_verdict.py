@@ -297,3 +297,39 @@ def test_held_unknowns_that_make_most_of_the_std_are_named_with_how_to_free_them
     assert "--free NAME" in found.added[0] and "take more (10-20)" not in found.added[0]
     small = judge(Evidence(handeye.Diagnostics(verdict="good", advice=[]), std, {"held_unknowns": 0.2 * held}))
     assert small.verdict == "weak" and "unknowns held" not in small.added[0]
+
+
+def test_the_fits_verdict_is_decided_here_from_its_evidence():
+    """The estimation core measures, verdict.py decides (issue 78): a fit beyond FIT_FACTOR times what
+    the noise allows, held-out views beyond HELDOUT_FACTOR times the fit, or more than a third of the
+    views left out is inconsistent; held-out folds off while the steps from the whole fit predict well
+    is weak; each pose's error fitted, held-out views are held against what is allowed."""
+    from handeye.estimation.verdict import FIT_FACTOR, HELDOUT_FACTOR, FitEvidence, fit_verdict
+
+    def verdict(**kw):
+        base = dict(fit_mm=0.5, allowed_mm=0.5, heldout_mm=0.6, stepped_mm=0.6, n_out=0, n=12)
+        return fit_verdict(FitEvidence(**(base | kw)))[0]
+
+    assert verdict() == "good"
+    assert verdict(fit_mm=1.01 * FIT_FACTOR * 0.5) == "inconsistent"
+    assert verdict(fit_mm=0.99 * FIT_FACTOR * 0.5, heldout_mm=None, stepped_mm=None) == "good"
+    assert verdict(heldout_mm=1.01 * HELDOUT_FACTOR * 0.5, stepped_mm=None) == "inconsistent"
+    assert verdict(heldout_mm=1.01 * HELDOUT_FACTOR * 0.5, stepped_mm=0.6) == "weak"
+    assert verdict(n_out=5) == "inconsistent" and verdict(n_out=4) == "good"
+    # each pose's error fitted: the fit's residual is small, held-out views carry the robot's error
+    assert verdict(fit_mm=0.1, heldout_mm=1.5, stepped_mm=None) == "inconsistent"
+    assert verdict(fit_mm=0.1, heldout_mm=1.5, stepped_mm=None, errors_fitted=True) == "good"
+    assert fit_verdict(FitEvidence(1.0, 0.5, None, None, 0, 12))[2] == 2.0  # the consistency score
+
+
+def test_a_pairing_of_views_with_the_robot_is_judged_here():
+    """At least MISPAIRED of the views (and 2) agreeing better with another view's robot data: inconsistent,
+    the advice first; fewer: the check as it was."""
+    from handeye.estimation.verdict import MISPAIRED, pairing_verdict
+    from handeye.result import Diagnostics
+
+    check = Diagnostics(verdict="good", n_poses=12, advice=["a note"])
+    assert pairing_verdict(check, int(MISPAIRED * 12) - 1, 12, "mispaired") is check
+    judged = pairing_verdict(check, int(MISPAIRED * 12), 12, "mispaired")
+    assert judged.verdict == "inconsistent" and judged.advice == ["mispaired", "a note"]
+    assert pairing_verdict(check, 1, 4, "mispaired") is check  # 2 at least

@@ -19,7 +19,9 @@ Glossary (one meaning each, in the docstrings and the code's names):
   to the others. ``left out``: views the fit does not explain, set aside and named. ``kept``:
   measurement rows not set aside as outliers.
 * ``pins``: directions of X's increment the capture does not determine, held at the start by rows
-  weighted by :data:`PIN`. ``full``: the fit on every view that stays.
+  weighted by :data:`PIN`. ``priors``: linear measurements of X's increment and ``p`` (a SCARA's
+  camera height), rows of their own. ``linear rows``: the pins' and the priors' together, after the
+  robot's prior rows. ``full``: the fit on every view that stays.
 * ``own``: the sensor's own derivatives (its ``jacobian``), as against finite differences.
 * ``table``: the arm's kinematic table. ``accuracy``: the robot's stated absolute accuracy (deg, mm).
 
@@ -98,15 +100,17 @@ from ..sensors.base import (
     SensorModel,
     SpansMotion,
 )
+from ..sensors.camera.poses import PoseDifferences
+from ..solvers import closed_form
 from ..solvers.low_dof import GENERAL, TRANSLATION_ONLY, low_dof_kind, motion_kind, solve_low_dof
 from ..solvers.observability import rotation_spread_absolute
-from ..solvers.refine import VARIANCE_FLOOR, block_whitening, fit_variances, refine_pose, reweighted_fit
-from .diagnostics import closed_form
+from ..solvers.refine import VARIANCE_FLOOR, block_whitening, fit_variances, reweighted_fit
 from .uncertainty import widened_uncertainty
 from .validation import default_folds, fold_indices, held_out, jackknife_groups, jackknife_spread
-from .verdict import judged
+from .verdict import FIT_FACTOR, HELDOUT_FACTOR, FitEvidence, fit_verdict, judged
 
-__all__ = ["Fitted", "Problem", "fit", "downdated", "view_rms_mm", "view_rms_px", "estimate", "quick_rms_mm", "start_from_poses",
+__all__ = ["Fitted", "Problem", "fit", "fit_poses",
+           "downdated", "view_rms_mm", "view_rms_px", "estimate", "quick_rms_mm", "start_from_poses",
            "REJECT", "OUTLIER_FACTOR", "FIT_FACTOR",
            "HELDOUT_FACTOR", "WEAKEST_NOTE", "Held", "Plan", "plan_of", "Strategy"]
 
@@ -115,11 +119,6 @@ REJECT = 5.0
 #: A view whose RMS residual exceeds this many times the median view's (and 3 times the noise the
 #: sensor states) is left out, named.
 OUTLIER_FACTOR = 5.0
-#: A fit whose RMS residual exceeds this many times what the sensor's noise and the robot's accuracy
-#: allow explains nothing: the verdict is inconsistent.
-FIT_FACTOR = 5.0
-#: Held-out views predicted this many times worse than the fit's residual: the verdict is inconsistent.
-HELDOUT_FACTOR = 4.0
 #: How the note on the direction of X the capture determines least well begins.
 WEAKEST_NOTE = "the capture determines X least well in"
 #: A direction of X whose std exceeds this (rad at 1 m, or m), or whose information is this small a
@@ -226,6 +225,10 @@ class Problem:
     #: the sensor's unknowns (positions in ``p``) held at their value in ``p0`` (a nuisance the capture
     #: does not determine, or one the session gives)
     held: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+    #: linear measurements of X's increment and ``p``'s increments (``J @ x + f``, whitened: ``J`` (P,
+    #: 6 + len(p0)), ``f`` (P,) at the start), each a row of its own (what fixes a direction the views
+    #: cannot see, with its std: :func:`handeye.estimation.refinement.refine_pose`'s ``priors``)
+    priors: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
 
     @cached_property
     def plan(self) -> Plan:
@@ -257,15 +260,20 @@ class Problem:
         keep = np.r_[np.arange(6), 6 + self.free, np.arange(6 + len(self.p0), J.shape[-1])]
         return J[..., keep]
 
-    def pin_rows(self) -> NDArray[np.float64]:
-        """The rows (pins, 6 + k) whose product with X's increment and the sensor's fitted unknowns holds
-        the undetermined directions of X at the start (weighted by :data:`PIN`)."""
-        return np.c_[self.pins, np.zeros((len(self.pins), self.sizes[1]))]
+    def linear_rows(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The rows ``(A, b)`` (A: (k, 6 + fitted p), whitened) whose ``A @ g + b`` every fit adds: the
+        pins (weighted by :data:`PIN`, ``b`` zero), which hold the undetermined directions of X at the
+        start, then the priors."""
+        A = np.c_[PIN * self.pins, np.zeros((len(self.pins), self.sizes[1]))]
+        if self.priors is None:
+            return A, np.zeros(len(A))
+        J, f = self.priors
+        return np.vstack([A, self.own_columns(np.asarray(J, float))]), np.r_[np.zeros(len(A)), np.asarray(f, float)]
 
     @property
-    def n_pinned(self) -> int:
-        """The rows :meth:`pin_rows` adds to every fit."""
-        return len(self.pins)
+    def n_linear(self) -> int:
+        """The rows :meth:`linear_rows` adds to every fit."""
+        return len(self.pins) + (0 if self.priors is None else len(self.priors[1]))
 
     def scale(self) -> NDArray[np.float64]:
         """A typical size of each unknown (the solver's scaling)."""
@@ -384,15 +392,15 @@ def _measured(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float6
 
 
 def _function(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.float64], at: NDArray[np.float64] | None = None):
-    """The whitened residuals of ``rows``, the robot's prior and the pins, as a function of ``x``
+    """The whitened residuals of ``rows``, the robot's prior and the linear rows, as a function of ``x``
     (``at``: where a sensor with correlated residuals takes their noise's shapes, :func:`_weight`)."""
     robot = problem.robot
     measured = _measured(problem, rows, sigma, at)
-    pins, n_g = problem.pin_rows(), 6 + problem.sizes[1]
+    (A, b), n_g = problem.linear_rows(), 6 + problem.sizes[1]
 
     def fun(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
-        return np.concatenate([measured(X, p, d), robot.prior(d), PIN * (pins @ x[:n_g])])
+        return np.concatenate([measured(X, p, d), robot.prior(d), A @ x[:n_g] + b])
     return fun
 
 
@@ -432,7 +440,7 @@ def _sensor_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np
     6 + k), X's part for a left increment as ``x``'s), for a robot without unknowns."""
     robot = problem.robot
     weight = _weight(problem, rows, sigma, at)
-    pins = PIN * problem.pin_rows()
+    pins = problem.linear_rows()[0]
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
@@ -489,7 +497,7 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
                 step = x.copy()
                 step[j] += h * max(1.0, abs(x[j]))
                 J[:m, j] = (fun(step)[:m] - f0[:m]) / (h * max(1.0, abs(x[j])))
-        J[m + n_d:, :n_x] = PIN * problem.pin_rows()
+        J[m + n_d:, :n_x] = problem.linear_rows()[0]
         if by_pose is None or not checked:
             differences = np.empty((m, 6))
             for a in range(6):  # every view's flange pose moved along its increment a at once
@@ -540,10 +548,10 @@ def _links_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.
         own = _own_jacobian(problem, x, X, p, robot.flange2base(d), rows, table=robot.corrected(d))
         J = _whiten(np.concatenate([own[..., :n_x], robot.entry_columns(own[..., n_x:])], axis=2), weight)
         m = J.shape[0] * J.shape[1]
-        out = np.zeros((m + n_d + problem.n_pinned, len(x)))
+        out = np.zeros((m + n_d + problem.n_linear, len(x)))
         out[:m] = J.reshape(m, -1)
         out[m:m + n_d, n_x:] = np.eye(n_d)
-        out[m + n_d:, :n_x] = PIN * problem.pin_rows()
+        out[m + n_d:, :n_x] = problem.linear_rows()[0]
         return out
     return jac
 
@@ -555,7 +563,7 @@ def _per_view_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[
     columns, the sensor's by blocks of rows); the prior rows (``d`` itself) by the same steps, the pins
     exact."""
     parts = _Eliminated(problem, rows, sigma, np.zeros(problem.robot.n_params), at=at)
-    n_x, n_d, pins = parts.n_g, problem.robot.n_params, problem.pin_rows()
+    n_x, n_d, pins = parts.n_g, problem.robot.n_params, problem.linear_rows()[0]
     column = parts.index[parts.entry_view]  # (E, n_per): each entry's view's unknowns
     hit = column >= 0
 
@@ -568,7 +576,7 @@ def _per_view_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[
         # the prior's derivative as the steps give it (1 to ~1e-12): exactly 1 moved a line-scan fit's X
         # by 3-5 um of its 0.07-0.28 mm error, which rounding-level changes of its Jacobian do
         J[m + np.arange(n_d), n_x + np.arange(n_d)] = ((parts.d + parts.h) - parts.d) / parts.h
-        J[m + n_d:, :n_x] = PIN * pins
+        J[m + n_d:, :n_x] = pins
         return J
     return jac
 
@@ -695,7 +703,8 @@ class _Eliminated:
 
     def fun(self, g: NDArray[np.float64]) -> NDArray[np.float64]:  # noqa: D102
         self._solve(g)
-        return np.concatenate([self.f, self.d, PIN * (self.problem.pin_rows() @ g)])
+        A, b = self.problem.linear_rows()
+        return np.concatenate([self.f, self.d, A @ g + b])
 
     def by_globals(self, g: NDArray[np.float64]) -> NDArray[np.float64]:
         """The entries' derivatives (E, n_g) by X's increment and ``p``, the errors held: the sensor's
@@ -731,11 +740,11 @@ class _Eliminated:
         w_prior = self._loss_weights(self.d)[self.index].reshape(self.n_views, self.n_per)
         cross = self._view_sums((w[:, None, None] * A[:, :, None] * J_g[:, None, :]).reshape(len(A), -1))
         dd = -np.linalg.solve(self._normal(A, w, w_prior), cross.reshape(self.n_views, self.n_per, self.n_g))
-        out = np.zeros((len(self.f) + len(self.d) + self.problem.n_pinned, self.n_g))
+        out = np.zeros((len(self.f) + len(self.d) + self.problem.n_linear, self.n_g))
         out[:len(self.f)] = J_g + np.einsum("ea,eag->eg", A, dd[self.entry_view])
         seen = self.index >= 0
         out[len(self.f) + self.index[seen]] = dd[seen]
-        out[len(self.f) + len(self.d):] = PIN * self.problem.pin_rows()
+        out[len(self.f) + len(self.d):] = self.problem.linear_rows()[0]
         return out
 
 
@@ -852,7 +861,7 @@ def _plain_method(problem: Problem, rows: NDArray[np.intp]) -> str:
     """The plain (linear loss) rounds' method: 'lm' (MINPACK: a QR of the Jacobian per step, where
     'trf' takes its SVD, 2.5x the time on a laser's 230,000 rows) whenever the residuals outnumber
     the unknowns, as MINPACK needs; else 'trf'."""
-    n_lines = len(rows) * np.asarray(problem.sensor.shape).shape[1] + problem.robot.n_params + problem.n_pinned
+    n_lines = len(rows) * np.asarray(problem.sensor.shape).shape[1] + problem.robot.n_params + problem.n_linear
     return "lm" if n_lines > sum(problem.sizes) else "trf"
 
 
@@ -905,7 +914,7 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
     n_unknowns = len(x)
     # the two rounds before the last only set the noise scales, which do not move with x to first order at the
     # optimum: to ROUND_TOL (but for one scale and nothing weighted against it, whose first round is the last)
-    final = n_groups == 1 and not problem.robot.n_params and not problem.n_pinned
+    final = n_groups == 1 and not problem.robot.n_params and not problem.n_linear
     for _ in range(2):
         res, _ = _solved(problem, rows, sigma, x, tol if final else max(tol, ROUND_TOL))
         x = res.x
@@ -913,7 +922,7 @@ def fit(problem: Problem, views: NDArray[np.intp] | None = None, start: Fitted |
         w = _residuals(problem, X, p, d, rows) / shape[rows]
         share = max(w.size - n_unknowns, 1) / w.size
         new = _group_scales(w, groups[rows], n_groups, robust=False, dof_share=share)
-        if len(new) == 1 and not problem.robot.n_params and not problem.n_pinned:
+        if len(new) == 1 and not problem.robot.n_params and not problem.n_linear:
             # one noise scale and nothing else weighted against it: the scale does not move the solution,
             # only the whitening (the Jacobian and residuals rescaled, not solved again)
             res.jac, res.fun = res.jac * (sigma[0] / new[0]), res.fun * (sigma[0] / new[0])
@@ -1108,7 +1117,7 @@ def _undetermined(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
     one axis leave X's translation along it and the plane's distance free together, at 10 where the
     largest is 1e12."""
     jac = fitted.jac
-    n_pins = problem.n_pinned
+    n_pins = problem.n_linear
     if n_pins:  # the pins' own rows are not information from the data
         jac = jac[:-n_pins]
     info = jac.T @ jac
@@ -1300,8 +1309,23 @@ def start_from_poses(flange2base: NDArray[np.float64], target2cam: NDArray[np.fl
         return X, mean_transform(constant_transforms(X, flange2base, target2cam, setup))
     if not refine:
         return X, Z
-    ref = refine_pose(X, Z, flange2base, target2cam, setup)
-    return ref.X, ref.Z
+    problem, fitted = fit_poses(flange2base, target2cam, setup, X, Z)
+    return fitted.X, problem.sensor.Z(fitted.X, fitted.p)
+
+
+def fit_poses(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str, X0: NDArray[np.float64],
+              Z0: NDArray[np.float64], priors: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+              terms: int | None = None) -> tuple[Problem, Fitted]:
+    """The pose refinement (Strobl and Hirzinger's optimal correction, with its noise model's
+    variances estimated from the data): the fit of the camera's whole poses of the target
+    (:class:`~handeye.sensors.camera.poses.PoseDifferences`) with the robot's poses as the controller
+    gave them, from ``X0``, ``Z0``. ``priors``: :attr:`Problem.priors` over X's increment and the
+    target's (rotation, translation of each); ``terms``: the noise model's terms (default by the
+    number of views)."""
+    sensor = PoseDifferences(setup, [str(i) for i in range(len(target2cam))], target2cam, terms=terms)
+    flange2base = np.asarray(flange2base, float)
+    problem = Problem(sensor, ControllerPoses(flange2base), *sensor.start(flange2base, X0, Z0), priors=priors)
+    return problem, fit(problem)
 
 
 def _outlier_views(problem: Problem, full: Fitted, views: NDArray[np.intp]) -> list[tuple[int, str]]:
@@ -1408,7 +1432,7 @@ def _cross_validation(problem: Problem, full: Fitted, views: NDArray[np.intp], f
     turned = _as_turned(problem)
     base = turned if turned is not None else problem
     info_jac = _jacobian_at(turned, full) if turned is not None else full.jac
-    info_jac = info_jac[:-base.n_pinned] if base.n_pinned else info_jac
+    info_jac = info_jac[:-base.n_linear] if base.n_linear else info_jac
     least = _x_information(base, info_jac)
     alone: list[int] = []  # the views whose fold could not determine X without them
 
@@ -1539,41 +1563,12 @@ def _allowed_mm(problem: Problem, full: Fitted, accuracy: tuple[float, float] | 
 
 def _verdict(problem: Problem, full: Fitted, fit_mm: float, heldout_mm: float | None, n_out: int, n: int,
              accuracy: tuple[float, float] | None, stepped_mm: float | None = None) -> tuple[str, list[str], float]:
-    """The check's verdict on the fit ('good' to be judged on X's std, 'weak' when only folds fitted
-    from a start of their own predict their views badly, or 'inconsistent'), its advice and the
-    consistency score (the fit's RMS over what is allowed). ``stepped_mm``: the held-out RMS of the
-    steps from the fit on all views."""
-    allowed = _allowed_mm(problem, full, accuracy)
-    score = fit_mm / max(allowed, 1e-9)
-    if fit_mm > FIT_FACTOR * max(allowed, 0.05):
-        return "inconsistent", [
-            f"the views' measurements are {fit_mm:.2f} mm (RMS) from the fit, far beyond the {allowed:.2f} mm the "
-            "sensor's noise and the robot's accuracy allow: the robot poses and the measurements disagree (their "
-            "order, the pose format or unit, the setup, the measurements' unit), or the fit started in another basin and "
-            "stayed there"], score
-    # with each pose's error fitted the fit's residual holds none of it, while held-out views (predicted
-    # from the robot alone) carry it whole: held against what the robot's accuracy allows instead
-    reference = max(fit_mm, allowed) if isinstance(problem.robot, PerViewErrors) else fit_mm
-    limit = HELDOUT_FACTOR * max(reference, 0.1)
-    if heldout_mm is not None and heldout_mm > limit and stepped_mm is not None and stepped_mm <= limit:
-        # the fit on all views fits and predicts its views; only subsets started on their own land
-        # elsewhere: a capture whose X rests on its start (few turns), not data that disagree
-        return "weak", [
-            f"held-out views are predicted {heldout_mm:.2f} mm (RMS) off by folds fitted from a start of their own, "
-            f"{heldout_mm / reference:.1f}x the fit's {reference:.2f} mm, though the fit on all views predicts them "
-            f"{stepped_mm:.2f} mm off: fewer of these views land elsewhere from their own start, so this X rests on "
-            "its start; take more views, with the flange turned 10 deg or more about two or three axes, so that any "
-            "subset finds the same X"], score
-    if heldout_mm is not None and heldout_mm > limit:
-        return "inconsistent", [
-            f"held-out views are predicted {heldout_mm:.2f} mm (RMS) off, {heldout_mm / reference:.1f}x the fit's "
-            f"{reference:.2f} mm: the robot poses and the measurements disagree (the setup, the pose format or unit, a "
-            "target that moved, or the order of the views), or the fit lands elsewhere from another start (folds are fitted "
-            "from a start of their own: more views, turned about more axes, make the fit one)"], score
-    if n_out > n // 3:
-        return "inconsistent", [f"{n_out} of {n} views are not explained by the fit: too many to leave out; check the "
-                                "poses' format and unit, the setup, and that the target did not move"], score
-    return "good", [], score
+    """The fit's evidence measured (what the sensor's noise and the robot's accuracy allow on this
+    capture) and the verdict taken from :func:`~handeye.estimation.verdict.fit_verdict`: ('good' to be
+    judged on X's std, 'weak' or 'inconsistent'), its advice and the consistency score. ``stepped_mm``:
+    the held-out RMS of the steps from the fit on all views."""
+    return fit_verdict(FitEvidence(fit_mm, _allowed_mm(problem, full, accuracy), heldout_mm, stepped_mm, n_out, n,
+                                   isinstance(problem.robot, PerViewErrors)))
 
 
 #: A table entry is determined by the capture when its std is below this share of its prior's.
@@ -1743,7 +1738,7 @@ def _held_cov(problem: Problem, full: Fitted, held: list[Nuisance]) -> NDArray[n
     """X's covariance (6, 6) from the held nuisances' tolerances: how X would follow each if it were
     off its held value, ``dX = -(J^T J)^-1 J^T j_h dh`` (``J``: the fit's whitened Jacobian; ``j_h``:
     the whitened residuals' change with the held unknown, by a step of a thousandth of its tolerance)."""
-    jac = full.jac[:-problem.n_pinned] if problem.n_pinned else full.jac
+    jac = full.jac[:-problem.n_linear] if problem.n_linear else full.jac
     measured = _measured(problem, full.rows, full.sigma, full.x)
     F = problem.robot.flange2base(full.d)
     f0 = measured(full.X, full.p, full.d, F)

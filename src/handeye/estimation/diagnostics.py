@@ -41,10 +41,12 @@ from ..frames.setups import SETUPS, check_setup, constant_transforms, robot_worl
 from ..geometry.se3 import invert, mean_transform
 from ..result import Diagnostics
 from ..sensors.camera import resolve_symmetries
+from ..solvers import closed_form
 from ..solvers.daniilidis import motion_groups, singular_values, solve_leave_one_out
 from ..solvers.low_dof import ONE_AXIS, gauge_priors, partial_kind, solve_low_dof
 from ..solvers.observability import check_observability, observable_leave_one_out, rotation_spread
-from ..solvers.refine import pose_mahalanobis, refine_pose
+from ..solvers.refine import pose_mahalanobis
+from .refinement import refine_pose
 from .validation import fold_indices
 
 __all__ = ["Diagnostics", "RobotPoseInput", "diagnose", "find_outliers", "consistency_score", "closed_form",
@@ -787,20 +789,6 @@ def _leave_one_out(flange2base, target2cam, setup, inliers) -> NDArray[np.float6
     moves = np.stack([np.degrees(rotation_error(Xk, X)), 1e3 * translation_error(Xk, X)], axis=1)
     out[idx] = np.where(ok[:, None], moves, np.inf)
     return out
-
-
-def closed_form(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str, method: str,
-                pairs: Pairs = "auto") -> tuple[NDArray[np.float64], NDArray[np.float64], MotionSet]:
-    """``(X, Z, motions)`` of one solver on validated poses, without refinement or checks: an
-    AX = XB solver on the motions of ``pairs`` (Z the mean of the per-pose ``Z_i``), or a
-    robot-world one on the poses."""
-    motions = MotionSet.from_poses(flange2base, target2cam, setup, pairs)
-    if solvers.get(method).kind == "robot_world":
-        X, Z = solvers.solve_robot_world(*robot_world_inputs(flange2base, target2cam, setup), method=method)
-    else:
-        X = solvers.solve_motions(motions, method=method)
-        Z = mean_transform(constant_transforms(X, flange2base, target2cam, setup))
-    return X, Z, motions
 
 
 def compare_solvers(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str,

@@ -34,7 +34,7 @@ from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.pnp import INTRINSICS, intrinsics_covariance, refine_pnp
 from ..sensors.camera.poses import NOISE_TERMS, PoseDifferences
 from ..solvers.refine import ReprojectionResult
-from .core import Fitted, Problem, downdated, view_rms_px
+from .core import Fitted, Problem, downdated, fit_poses, view_rms_px
 from .core import fit as core_fit
 from .diagnostics import SCALE_TOLERANCE, board_scale, closed_form
 from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices, pnp_errors
@@ -156,11 +156,8 @@ def poses_fit(views: Views, X0: NDArray[np.float64], Z0: NDArray[np.float64]) ->
     by the one estimation core (:mod:`handeye.estimation.core`): the camera's poses of the target,
     each view's residual whitened by the pose refinement's noise model, its variances estimated from
     the data (:class:`~handeye.sensors.camera.poses.PoseDifferences`), with the robot's poses as the
-    controller gave them. The same X, Z and noise as :func:`~handeye.solvers.refine.refine_pose`."""
-    sensor = PoseDifferences(views.setup, [str(i) for i in range(len(views))], views.target2cam)
-    flange2base = np.asarray(views.flange2base, float)
-    problem = Problem(sensor, ControllerPoses(flange2base), *sensor.start(flange2base, X0, Z0))
-    return PosesFit(problem, core_fit(problem))
+    controller gave them (:func:`~handeye.estimation.core.fit_poses`, as :func:`~handeye.estimation.refinement.refine_pose`)."""
+    return PosesFit(*fit_poses(views.flange2base, views.target2cam, views.setup, X0, Z0))
 
 
 def pose_fit(method: str, views: Views | None, start: PosesFit | None = None) -> Fit:

@@ -5,7 +5,7 @@ only). With every rotation about one axis, ``A X = X B`` determines X except its
 that axis; with pure translations, X's rotation only (:mod:`handeye.solvers.low_dof`). What the
 data cannot see, the user may know: the camera's offset from a drawing (``cam2flange.z``), the
 board's height on the table (``target2base.z``). :func:`calibrate_partial` refines the
-determined part on the poses (the noise-model refinement of :func:`handeye.solvers.refine.refine_pose`),
+determined part on the poses (the noise-model refinement of :func:`handeye.estimation.refinement.refine_pose`),
 with each known value as one more measurement, and names what stays open.
 """
 
@@ -25,7 +25,8 @@ from ..frames.setups import constant_transforms, robot_world_A, setup_info
 from ..geometry.se3 import mean_transform
 from ..result import Calibration, Observability, Unobservable
 from ..solvers.low_dof import GAUGE_STD, ONE_AXIS, TRANSLATION_ONLY, gauge_rows, solve_low_dof
-from ..solvers.refine import TranslationPriors, refine_pose
+from ..solvers.refine import TranslationPriors
+from .refinement import refine_pose
 
 __all__ = ["KNOWN_EXACT_STD", "Known", "calibrate_partial", "known_on_complete", "parse_known"]
 

@@ -41,8 +41,8 @@ from ..frames.poses import validate_transforms
 from ..frames.setups import constant_transforms, robot_world_A, setup_info
 from ..geometry.se3 import invert, make_transform, perturb, rotation_of_valid, to_rotvec_translation
 from ..options import KEYFRAMES
-from ..solvers.refine import refine_pose
 from .diagnostics import closed_form, diagnose
+from .refinement import refine_pose
 
 __all__ = ["PoseStream", "CoarseOffset", "OffsetFit", "Synchronisation", "check_stream", "interpolate",
            "motion_speeds", "coarse_offset", "refine_offset", "select_keyframes", "search_range", "synchronise",

@@ -3,7 +3,9 @@
 :func:`handeye.diagnose` looks at the poses alone (degenerate motions, inconsistent poses and the
 conventions that explain them, outliers, weak rotation); a calibration adds what only a fit can
 show: the std of X (too wide to promise the thesis's acceptance of 5 mm / 1 deg) and the spread of
-the closed forms about X (wider than the std allows). :func:`judge` combines them; ``calibrate``,
+the closed forms about X (wider than the std allows). The estimation core's fit adds how far the
+fit and its held-out views are from what the noise allows (:func:`fit_verdict`; the core measures,
+this module decides). :func:`judge` combines them; ``calibrate``,
 ``check``, the report, ``fleet`` and ``acquire`` all take the verdict and the exit status from here,
 so the same data get the same verdict whichever command looked at them.
 """
@@ -18,7 +20,8 @@ from numpy.typing import NDArray
 
 from ..result import Calibration, Diagnostics
 
-__all__ = ["ACCEPT_DEG", "ACCEPT_MM", "EXIT_STATUS", "Evidence", "HEADLINES", "Judgement", "exit_status", "headline", "judge",
+__all__ = ["ACCEPT_DEG", "ACCEPT_MM", "EXIT_STATUS", "Evidence", "FIT_FACTOR", "FitEvidence", "HEADLINES", "HELDOUT_FACTOR",
+           "Judgement", "MISPAIRED", "exit_status", "fit_verdict", "headline", "judge", "pairing_verdict",
            "judged",
            "solver_spread"]
 
@@ -250,3 +253,80 @@ def solver_spread(rows: list[dict], methods) -> tuple[float, float] | None:
 def exit_status(verdict: str) -> int:
     """The exit status of a command that reached ``verdict`` (:data:`EXIT_STATUS`)."""
     return EXIT_STATUS[verdict]
+
+
+#: A fit whose RMS residual exceeds this many times what the sensor's noise and the robot's accuracy
+#: allow explains nothing: the verdict is inconsistent.
+FIT_FACTOR = 5.0
+#: Held-out views predicted this many times worse than the fit's residual: the verdict is inconsistent.
+HELDOUT_FACTOR = 4.0
+
+
+@dataclass(frozen=True)
+class FitEvidence:
+    """What a fit shows of the data's agreement (the estimation core measures it, :func:`fit_verdict`
+    decides): ``fit_mm`` the fit's RMS residual, ``allowed_mm`` what the sensor's stated noise and the
+    robot's stated accuracy allow on this capture, ``heldout_mm`` the held-out views' RMS by folds
+    fitted from a start of their own and ``stepped_mm`` by steps from the fit on all views (None: no
+    cross-validation), ``n_out`` of ``n`` views left out, ``errors_fitted``: each pose's error was fitted
+    (the residual then holds none of the robot's error, which held-out views carry whole)."""
+
+    fit_mm: float
+    allowed_mm: float
+    heldout_mm: float | None
+    stepped_mm: float | None
+    n_out: int
+    n: int
+    errors_fitted: bool = False
+
+
+def fit_verdict(e: FitEvidence) -> tuple[str, list[str], float]:
+    """The verdict a fit's evidence gives ('good', to be judged on X's std by :func:`judge`; 'weak' when
+    only folds fitted from a start of their own predict their views badly; or 'inconsistent'), its
+    advice and the consistency score (the fit's RMS over what is allowed)."""
+    fit_mm, allowed, heldout_mm, stepped_mm = e.fit_mm, e.allowed_mm, e.heldout_mm, e.stepped_mm
+    n_out, n = e.n_out, e.n
+    score = fit_mm / max(allowed, 1e-9)
+    if fit_mm > FIT_FACTOR * max(allowed, 0.05):
+        return "inconsistent", [
+            f"the views' measurements are {fit_mm:.2f} mm (RMS) from the fit, far beyond the {allowed:.2f} mm the "
+            "sensor's noise and the robot's accuracy allow: the robot poses and the measurements disagree (their "
+            "order, the pose format or unit, the setup, the measurements' unit), or the fit started in another basin and "
+            "stayed there"], score
+    # with each pose's error fitted the fit's residual holds none of it, while held-out views (predicted
+    # from the robot alone) carry it whole: held against what the robot's accuracy allows instead
+    reference = max(fit_mm, allowed) if e.errors_fitted else fit_mm
+    limit = HELDOUT_FACTOR * max(reference, 0.1)
+    if heldout_mm is not None and heldout_mm > limit and stepped_mm is not None and stepped_mm <= limit:
+        # the fit on all views fits and predicts its views; only subsets started on their own land
+        # elsewhere: a capture whose X rests on its start (few turns), not data that disagree
+        return "weak", [
+            f"held-out views are predicted {heldout_mm:.2f} mm (RMS) off by folds fitted from a start of their own, "
+            f"{heldout_mm / reference:.1f}x the fit's {reference:.2f} mm, though the fit on all views predicts them "
+            f"{stepped_mm:.2f} mm off: fewer of these views land elsewhere from their own start, so this X rests on "
+            "its start; take more views, with the flange turned 10 deg or more about two or three axes, so that any "
+            "subset finds the same X"], score
+    if heldout_mm is not None and heldout_mm > limit:
+        return "inconsistent", [
+            f"held-out views are predicted {heldout_mm:.2f} mm (RMS) off, {heldout_mm / reference:.1f}x the fit's "
+            f"{reference:.2f} mm: the robot poses and the measurements disagree (the setup, the pose format or unit, a "
+            "target that moved, or the order of the views), or the fit lands elsewhere from another start (folds are fitted "
+            "from a start of their own: more views, turned about more axes, make the fit one)"], score
+    if n_out > n // 3:
+        return "inconsistent", [f"{n_out} of {n} views are not explained by the fit: too many to leave out; check the "
+                                "poses' format and unit, the setup, and that the target did not move"], score
+    return "good", [], score
+
+
+#: When this share of the views (and at least 2) agree better with another view's robot data than with
+#: their own, the views and the robot's data are not paired one to one: the data are inconsistent.
+MISPAIRED = 0.25
+
+
+def pairing_verdict(check: Diagnostics, mispaired: int, n: int, advice: str) -> Diagnostics:
+    """``check`` with the verdict 'inconsistent' and ``advice`` first when ``mispaired`` of ``n`` views
+    (at least :data:`MISPAIRED` of them, and 2) agree better with another view's robot data than with
+    their own; else ``check`` as it is."""
+    if mispaired < max(2, MISPAIRED * n):
+        return check
+    return replace(check, verdict="inconsistent", advice=[advice] + list(check.advice))

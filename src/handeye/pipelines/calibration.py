@@ -168,7 +168,7 @@ def calibrate_poses(
         or the pose refinement. 'pose': X and Z refined jointly from the ``method`` solution:
         Strobl-Hirzinger's optimal correction with noise variances estimated from the data
         (``pose_noise``), as the estimation core fits it (:func:`handeye.estimation.estimators.poses_fit`,
-        the same X as :func:`handeye.solvers.refine.refine_pose`). 'none': the closed form as is. Each
+        the same X as :func:`handeye.estimation.refinement.refine_pose`). 'none': the closed form as is. Each
         reports ``cov`` and ``std``: the noise model (none for a closed form), the jackknife spread
         and the robot's accuracy (``std_sources``).
     pairs : {'auto', 'all', 'consecutive'} or (K, 2) array

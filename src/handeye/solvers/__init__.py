@@ -15,14 +15,17 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import DegenerateMotionError, InputMismatchError, PoseFormatError
-from ..frames.motions import MotionSet
+from ..frames.motions import MotionSet, Pairs
 from ..frames.poses import validate_transform_pair, validate_transforms
+from ..frames.setups import constant_transforms, robot_world_inputs
+from ..geometry.se3 import mean_transform
 from . import andreff, certifiable, daniilidis, horaud, park_martin, robot_world, tsai_lenz  # noqa: F401  (register themselves)
 from ._registry import SolverInfo, available, get, register
 from .certifiable import Certificate, certify, certify_robot_world
 from .observability import check_observability, validate_motions
 
-__all__ = ["solve", "solve_batch", "solve_motions", "solve_robot_world", "solve_robot_world_batch", "available", "get", "register",
+__all__ = ["closed_form",
+           "solve", "solve_batch", "solve_motions", "solve_robot_world", "solve_robot_world_batch", "available", "get", "register",
            "SolverInfo",
            "Certificate", "certify", "certify_robot_world"]
 
@@ -200,3 +203,17 @@ def solve_robot_world_batch(
     info = get(method, kind="robot_world")
     A_abs, B_abs = _validate_batch(A_abs, B_abs, minimum=3)
     return info.func(A_abs, B_abs)
+
+
+def closed_form(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str, method: str,
+                pairs: Pairs = "auto") -> tuple[NDArray[np.float64], NDArray[np.float64], MotionSet]:
+    """``(X, Z, motions)`` of one solver on validated poses, without refinement or checks: an
+    AX = XB solver on the motions of ``pairs`` (Z the mean of the per-pose ``Z_i``), or a
+    robot-world one on the poses."""
+    motions = MotionSet.from_poses(flange2base, target2cam, setup, pairs)
+    if get(method).kind == "robot_world":
+        X, Z = solve_robot_world(*robot_world_inputs(flange2base, target2cam, setup), method=method)
+    else:
+        X = solve_motions(motions, method=method)
+        Z = mean_transform(constant_transforms(X, flange2base, target2cam, setup))
+    return X, Z, motions

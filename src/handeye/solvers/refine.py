@@ -1,8 +1,10 @@
-"""Nonlinear refinement of a closed-form hand-eye solution.
+"""What the pose and pixel refinements share, and the pixel refinement's own engine.
 
-``refine_pose``: X and Z refined on the poses alone (robot-world form, one residual per pose), the
-optimal correction of §2.2.4 (Strobl-Hirzinger): residuals weighted by a noise model whose
-variances are estimated from the data and re-estimated until stable. See its docstring.
+``refine_pose`` moved to :mod:`handeye.estimation.refinement`: the estimation core fits it
+(:class:`~handeye.sensors.camera.poses.PoseDifferences`); this module keeps its result and prior
+records, the noise model's variance estimation (:func:`fit_variances`, :func:`reweighted_fit`,
+:func:`block_whitening`: the core's fit of correlated residuals uses them) and
+:func:`pose_mahalanobis`. ``handeye.solvers.refine.refine_pose`` still finds it for one release.
 
 ``refine_reprojection``: the thesis's "future work" (§6.1) and Horaud-Dornaika's lesson (estimate
 everything together): with target detections available, X and Z are refined jointly so that every
@@ -30,16 +32,19 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
 
+from .._shared.moved import forward_names
 from ..errors import InputMismatchError
-from ..frames.setups import check_setup, predicted_target2cam, robot_world_A_inv, setup_info
-from ..geometry.se3 import invert, perturb, rotation_of_valid, skew, so3_left_jacobian
+from ..frames.setups import predicted_target2cam, robot_world_A_inv, setup_info
+from ..geometry.se3 import perturb, rotation_of_valid, skew, so3_left_jacobian
 from ..sensors.camera.pnp import project_points, project_points_many, projection_jacobians, solve_pnp
-from ..sensors.camera.poses import DEPTH_MIN_POSES, NOISE_TERMS, pose_jacobian, pose_noise_shapes, pose_noise_start, pose_residuals
+from ..sensors.camera.poses import NOISE_TERMS, pose_jacobian, pose_noise_shapes, pose_residuals
 from ..sensors.camera.targets import Detection
-from ._common import _normal_inverse, _xz_increment
+from ._common import _xz_increment
 
 __all__ = ["PoseRefinementResult", "ReprojectionResult", "Reweighted", "TranslationPriors", "VARIANCE_FLOOR", "block_whitening",
-           "fit_variances", "pose_mahalanobis", "refine_pose", "refine_reprojection", "reweighted_fit", "predicted_target2cam"]
+           "fit_variances", "pose_mahalanobis", "refine_reprojection", "reweighted_fit", "predicted_target2cam"]
+
+__getattr__ = forward_names(__name__)  # refine_pose: now the estimation core's (handeye.estimation.refinement)
 
 
 @dataclass(frozen=True)
@@ -706,33 +711,6 @@ MAX_LOG_STEP = 2.0
 NEGLIGIBLE_SHARE = 1e-9
 
 
-def _raw_pose_residuals(X, Z, flange2base, target2cam, setup: str, weighting: str) -> NDArray[np.float64]:
-    """Per pose the unweighted residual of :func:`refine_pose`: ``Z^-1 Z_i`` (6), and for 'strobl'
-    also the translation error in the base (flange) frame, ``Z_i Z^-1`` (3 more)."""
-    r, _, Zi = pose_residuals(X, Z, flange2base, target2cam, setup)
-    if weighting == "strobl":
-        t_outer = (Zi @ invert(Z))[:, :3, 3]
-        return np.concatenate([r, t_outer], axis=1)
-    return r
-
-
-def _initial_variances(r: NDArray[np.float64], weighting: str, terms: int) -> NDArray[np.float64]:
-    """Start of the variance estimates from the closed form's residuals: the first ``terms`` of the
-    noise model's (:func:`~handeye.sensors.camera.poses.pose_noise_start`); or rotation and
-    translation ('strobl')."""
-    if weighting == "noise_model":
-        return np.maximum(pose_noise_start(r, terms), VARIANCE_FLOOR)
-    return np.maximum([float(np.mean(r[:, :3] ** 2)), float(np.mean(r[:, 3:] ** 2))], VARIANCE_FLOOR)
-
-
-def _pose_weights(theta, shapes, weighting: str, n: int) -> NDArray[np.float64]:
-    """Per pose, the matrix that whitens its residual under the variances ``theta``."""
-    if weighting == "strobl":
-        w = np.r_[np.full(3, 1 / np.sqrt(theta[0])), np.full(6, 1 / np.sqrt(2 * theta[1]))]
-        return np.broadcast_to(np.diag(w), (n, 9, 9))
-    return block_whitening(theta, shapes)
-
-
 def block_whitening(theta: NDArray[np.float64], shapes: NDArray[np.float64]) -> NDArray[np.float64]:
     """Per residual block the matrix (N, c, c) that whitens it when its covariance is
     ``sum_k theta_k shapes_k`` (``shapes`` (K, N, c, c)): the inverse of its Cholesky factor."""
@@ -784,148 +762,8 @@ def reweighted_fit(functions: Callable, variances: Callable, theta0: NDArray[np.
     return Reweighted(x, theta, rounds, converged, bool(res is not None and res.success), "" if res is None else str(res.message))
 
 
-def _whitened_pose_jacobian(x, W, unpack, flange2base, target2cam, setup: str) -> NDArray[np.float64]:
-    """The analytic Jacobian of the whitened pose residuals over the 12 rotation-vector and
-    translation increments ``x``."""
-    X, Z = unpack(x)
-    r, _, _ = pose_residuals(X, Z, flange2base, target2cam, setup)
-    J = pose_jacobian(X, Z, flange2base, target2cam, setup, r)
-    J[..., 0:3] = J[..., 0:3] @ so3_left_jacobian(x[0:3])  # the parameters are rotation vectors
-    J[..., 6:9] = J[..., 6:9] @ so3_left_jacobian(x[6:9])
-    return (W @ J).reshape(-1, 12)
-
-
-def _pose_covariance(J, f, theta, weighting: str, n: int, dof: int) -> tuple[NDArray[np.float64], dict[str, float]]:
-    """Covariance of the 12 unknowns and the noise variances, from the whitened Jacobian ``J`` and
-    residuals ``f`` at the optimum."""
-    JtJ_inv = _normal_inverse(J)
-    if weighting == "noise_model":
-        # the variances are maximum-likelihood (low by the 12 fitted unknowns): chi-square over the
-        # degrees of freedom restores the scale of both the covariance and the reported noise
-        factor = float(np.sum(f**2)) / max(dof, 1)
-        theta = theta * factor
-        return factor * JtJ_inv, dict(zip(NOISE_TERMS, np.r_[theta, np.zeros(len(NOISE_TERMS) - len(theta))]))
-    # sandwich: per-pose blocks of the (correlated) residuals, small-sample corrected
-    g = np.einsum("nki,nk->ni", J.reshape(n, -1, 12), f.reshape(n, -1))
-    cov = JtJ_inv @ (g.T @ g) @ JtJ_inv * (6 * n / max(dof, 1))
-    return cov, {"rotation": theta[0], "translation": theta[1]}
-
-
 #: Smallest noise variance the pose refinement estimates (rad^2 or m^2): noise-free data stay exact.
 VARIANCE_FLOOR = 1e-24
-
-
-def _refine_pose_inputs(flange2base, target2cam, setup: str, weighting: str, priors) -> tuple:
-    setup = check_setup(setup)
-    if weighting not in ("noise_model", "strobl"):
-        raise InputMismatchError(f"weighting={weighting!r}; use 'noise_model' or 'strobl'")
-    flange2base = np.asarray(flange2base, dtype=float)
-    target2cam = np.asarray(target2cam, dtype=float)
-    if len(flange2base) < 3:
-        raise InputMismatchError(f"pose refinement needs at least 3 poses, got {len(flange2base)}")
-    if priors is not None and weighting != "noise_model":
-        raise InputMismatchError("priors need weighting='noise_model'")
-    return flange2base, target2cam, len(flange2base)
-
-
-def refine_pose(
-    X0: NDArray[np.float64],
-    Z0: NDArray[np.float64],
-    flange2base: NDArray[np.float64],
-    target2cam: NDArray[np.float64],
-    setup: str,
-    weighting: str = "noise_model",
-    max_rounds: int = 20,
-    priors: TranslationPriors | None = None,
-) -> PoseRefinementResult:
-    """Refine X and Z on the poses: the optimal correction of Strobl and Hirzinger (seed §2.2.4).
-
-    Every pose i says where the target is, ``Z_i`` (target2base for eye-in-hand, target2flange for
-    eye-to-hand, through X); the residual is ``Z^-1 Z_i`` as a rotation vector (its norm is
-    Strobl-Hirzinger's rotation metric, the frame-invariant angle) and a translation, in the target
-    frame. Poses, not motions, carry the residuals: each measurement enters once, so residuals are
-    independent and the covariance is honest (all-pairs motions reuse every pose N-1 times).
-
-    Parameters
-    ----------
-    X0, Z0 : (4, 4)
-        Start, e.g. a closed-form solution and the mean of the ``Z_i``.
-    flange2base, target2cam : (N, 4, 4)
-    setup : {'eye_in_hand', 'eye_to_hand'}
-    weighting : {'noise_model', 'strobl'}
-        'noise_model' (default): the residual of pose i has the covariance
-        ``s_rr M_i + s_rc P_rot + s_t P_tra``, with robot rotation noise (``M_i``: through the lever
-        arm between flange and target, which differs from pose to pose), camera rotation noise and
-        translation noise; the three variances are estimated by maximum likelihood from the
-        residuals, the fit is repeated with the new weights, and so on until they are stable (the
-        "automatic weighting" of §2.2.4, extended to the lever arm, which couples rotation and
-        translation errors). 'strobl': Strobl-Hirzinger's metric as written: the rotation vector
-        over sigma_rot and the translation error in both the target and the base (or flange)
-        frame over sqrt(2) sigma_tra, with sigma_rot and sigma_tra re-estimated from the residuals
-        until stable; its covariance is the sandwich estimate (the two translation errors are not
-        independent).
-    max_rounds : int
-        Most weight re-estimation rounds.
-    priors : TranslationPriors, optional
-        Linear measurements of the translations of X and Z (``G @ [t_X, t_Z] = value +- std``),
-        each one more residual: what fixes the directions the poses cannot see (a SCARA's camera
-        height, :mod:`handeye.solvers.low_dof`). 'noise_model' weighting only.
-
-    Returns
-    -------
-    PoseRefinementResult
-        ``cov_X`` is scaled by the residual variance factor (chi-square over degrees of freedom).
-    """
-    flange2base, target2cam, n = _refine_pose_inputs(flange2base, target2cam, setup, weighting, priors)
-
-    def unpack(x):
-        return _xz_increment(x, X0, Z0)
-
-    def raw(x):
-        return _raw_pose_residuals(*unpack(x), flange2base, target2cam, setup, weighting)
-
-    r, _, _ = pose_residuals(X0, Z0, flange2base, target2cam, setup)
-    dof = 6 * n - 12
-    # the priors: rows of their own, linear in the translation increments, whitened by their std
-    prior_J, prior_f = priors.rows(X0, Z0) if priors is not None else (np.zeros((0, 12)), np.zeros(0))
-    dof += len(prior_f)
-    terms = len(NOISE_TERMS) if n >= DEPTH_MIN_POSES else len(NOISE_TERMS) - 1  # few poses: no depth term
-
-    def shapes_at(x):
-        if weighting != "noise_model":
-            return None
-        _, target2flange, _ = pose_residuals(*unpack(x), flange2base, target2cam, setup)
-        return pose_noise_shapes(target2flange, target2cam)[:terms]
-
-    def weighted_jac(x, W):
-        if weighting == "strobl":  # central differences, 12 columns
-            h = 1e-6
-            cols = [np.einsum("nij,nj->ni", W, raw(x + h * e) - raw(x - h * e)).ravel() / (2 * h) for e in np.eye(12)]
-            return np.stack(cols, axis=1)
-        return np.vstack([_whitened_pose_jacobian(x, W, unpack, flange2base, target2cam, setup), prior_J])
-
-    def weighted(x, W):
-        return np.concatenate([np.einsum("nij,nj->ni", W, raw(x)).ravel(), prior_J @ x + prior_f])
-
-    def functions(theta, x):
-        W = _pose_weights(theta, shapes_at(x), weighting, n)
-        return (lambda y: weighted(y, W)), (lambda y: weighted_jac(y, W))
-
-    def variances(x, theta):
-        if weighting == "noise_model":
-            return fit_variances(pose_residuals(*unpack(x), flange2base, target2cam, setup)[0], shapes_at(x), theta)
-        rr = raw(x)
-        return np.maximum([np.mean(rr[:, :3] ** 2), np.mean(rr[:, 3:] ** 2)], VARIANCE_FLOOR)
-
-    out = reweighted_fit(functions, variances, _initial_variances(r, weighting, terms), np.zeros(12),
-                         x_scale=np.full(12, 1e-3), tol=1e-10, max_rounds=max_rounds)
-    x, theta = out.x, out.theta
-    W = _pose_weights(theta, shapes_at(x), weighting, n)
-    cov, noise = _pose_covariance(weighted_jac(x, W), weighted(x, W), theta, weighting, n, dof)
-    X, Z = unpack(x)
-    r, _, _ = pose_residuals(X, Z, flange2base, target2cam, setup)
-    return PoseRefinementResult(X, Z, cov[:6, :6], cov[6:, 6:], cov, {k: float(np.sqrt(v)) for k, v in noise.items()},
-                                r, out.rounds, out.converged, weighting, out.success, out.message)
 
 
 def pose_mahalanobis(

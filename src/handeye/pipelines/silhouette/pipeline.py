@@ -36,6 +36,7 @@ from scipy.optimize import least_squares, linear_sum_assignment
 from ..._shared.threads import on_one_blas_thread
 from ...errors import DegenerateMotionError
 from ...estimation.core import estimate
+from ...estimation.verdict import MISPAIRED, pairing_verdict
 from ...frames.metrics import rotation_error, translation_error
 from ...geometry.se3 import perturb
 from ...options import CalibrationOptions
@@ -62,8 +63,9 @@ GOOD_IOU = 0.75
 F_SCALE_PX = 2.0
 #: A mask whose IoU with another view's joint angles beats its own by this much is named ...
 PAIRING_MARGIN = 0.05
-#: ... and when this share of the masks (and at least 2) are, the data are inconsistent.
-MISPAIRED_SHARE = 0.25
+#: ... and when this share of the masks (and at least 2) are, the data are inconsistent
+#: (:func:`~handeye.estimation.verdict.pairing_verdict` decides).
+MISPAIRED_SHARE = MISPAIRED
 
 
 def arm_views(s: SilhouetteSession, masks: NDArray[np.bool_]) -> ArmViews:
@@ -244,12 +246,13 @@ def calibrate_silhouette_session(folder: str | Path | SilhouetteSession, options
 
 
 def _judged_pairing(cal: Calibration, pairing: list[str], n: int) -> Calibration:
-    """``cal`` judged inconsistent when at least :data:`MISPAIRED_SHARE` of its ``n`` masks (and 2)
-    agree better with another view's joint angles than with their own (``pairing``: the notes)."""
+    """``cal`` with the verdict on its masks' pairing (``pairing``: the notes, one per mask that agrees
+    better with another view's joint angles than with its own, of ``n``): inconsistent when enough
+    are (:func:`~handeye.estimation.verdict.pairing_verdict`)."""
     mispaired = sum(note.startswith("the mask of ") for note in pairing)
-    if mispaired < max(2, MISPAIRED_SHARE * n) or cal.diagnostics is None:
+    if cal.diagnostics is None:
         return cal
-    advice = [f"{mispaired} of {n} masks agree better with another view's joint angles than with their own: the masks and "
+    advice = (f"{mispaired} of {n} masks agree better with another view's joint angles than with their own: the masks and "
               "the joint angles are not paired one to one (their order, or joint angles read at another time than the "
-              "image); X from them is not to be used"] + list(cal.diagnostics.advice)
-    return replace(cal, diagnostics=replace(cal.diagnostics, verdict="inconsistent", advice=advice))
+              "image); X from them is not to be used")
+    return replace(cal, diagnostics=pairing_verdict(cal.diagnostics, mispaired, n, advice))

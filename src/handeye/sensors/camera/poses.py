@@ -121,7 +121,7 @@ class TargetPoses(ChartedTarget):
 
 
 # The pose refinement's residual and noise model (seed §2.2.4, Strobl and Hirzinger, with the lever
-# arm between flange and target): :func:`handeye.solvers.refine.refine_pose` and :class:`PoseDifferences`.
+# arm between flange and target): :func:`handeye.estimation.refinement.refine_pose` and :class:`PoseDifferences`.
 
 def pose_residuals(X, Z, flange2base, target2cam, setup):
     """Per pose ``Z^-1 Z_i`` as [rotation vector, translation] in the target frame, and ``target2flange_i``."""
@@ -213,7 +213,7 @@ LEVER = 0.1
 
 class PoseDifferences(TargetPoses):
     """A camera's poses of the target, one per view, each a whole measurement: the pose
-    refinement's residual and noise model (seed §2.2.4, :func:`~handeye.solvers.refine.refine_pose`)
+    refinement's residual and noise model (seed §2.2.4, :func:`~handeye.estimation.refinement.refine_pose`)
     as a sensor model of the estimation core.
 
     Each view's residual is where its pose puts the target against where the fit puts it, ``Z^-1
