@@ -676,3 +676,23 @@ def test_a_laser_profilers_ros_frame_is_named_for_a_profiler(laser_cal, tmp_path
     cal = handeye.calibrate_poses(*(lambda s: (s.flange2base, s.target2cam))(random_scene(8, "eye_in_hand", rng=0)),
                                   progress=False)
     assert result_dict(cal)["ros"]["child_frame"] == "camera_optical_frame"
+
+
+def test_verification_histogram_is_svg_with_every_view():
+    """verify.html's distribution is an inline SVG chart too (no matplotlib): per unit a histogram whose
+    bars count every view once, the RMS line and the promised error's, and the labels."""
+    from handeye.pipelines.verify import Verification
+    from handeye.report.verification import verification_html
+
+    rng = np.random.default_rng(0)
+    px = np.abs(rng.normal(0.4, 0.1, 23))
+    v = Verification("eye_in_hand", [f"v{k:02d}.png" for k in range(23)], px, 1.3 * px, "good", promised={"px": 0.45, "mm": 0.6})
+    figures = _svg_figures(verification_html(v))
+    assert len(figures) == 1
+    panels = _of_class(figures[0], "panel")
+    for panel in panels:
+        counts = [int(re.search(r": (\d+) views$", b.find("title").text).group(1)) for b in _of_class(panel, "bar", "rect")]
+        assert sum(counts) == 23 and len(counts) == 11  # min(20, max(5, n // 2)) bins
+    words = [t for t, _ in _svg_texts(figures[0])]
+    assert {"RMS", "promised (cross-validated)", "views", "error per view (px)", "error per view (mm at the target)"} <= set(words)
+    assert len([ln for ln in figures[0].iter("line") if ln.get("stroke-dasharray")]) == 2  # the promised error, per unit

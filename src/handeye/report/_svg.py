@@ -49,8 +49,11 @@ def nice_ticks(lo: float, hi: float, n: int = 5) -> NDArray[np.float64]:
 
 
 def tick_labels(ticks: NDArray[np.float64]) -> list[str]:
-    """Tick values as text, with as many decimals as their step needs and a true minus sign."""
+    """Tick values as text, with as many decimals as their step needs (an exponent for very large or small
+    ones) and a true minus sign."""
     ticks = np.asarray(ticks, float)
+    if len(ticks) and (np.abs(ticks).max() >= 1e5 or 0 < np.abs(ticks[ticks != 0]).min(initial=1.0) < 1e-4):
+        return [f"{t:.3g}".replace("-", "−") for t in ticks]  # far from 1: short, with an exponent
     step = float(np.min(np.diff(ticks))) if len(ticks) > 1 else abs(float(ticks[0])) if len(ticks) and ticks[0] else 1.0
     digits = int(max(0, -np.floor(np.log10(step) + 1e-9))) + (1 if round(step / 10.0 ** np.floor(np.log10(step)), 6) == 2.5 else 0)
     return [f"{t:.{digits}f}".replace("-", "−") for t in ticks]
@@ -344,11 +347,11 @@ def legend(canvas: Canvas, x: float, y: float, entries: list[tuple[str, str, str
 
 def legend_row(canvas: Canvas, right: float, y: float, entries: list[tuple[str, str]], size: float = 11) -> None:
     """A legend in one row ending at ``right``, centred on height ``y``: each entry (colour, text) a square and its text."""
-    x = right - sum(22 + text_width(t, size) for _, t in entries)
+    x = right - sum(32 + text_width(t, size) for _, t in entries) + 14
     for colour, text in entries:
         canvas.square(x + 5, y, 5, colour)
-        canvas.text(x + 14, y, text, size)
-        x += 22 + text_width(text, size)
+        canvas.text(x + 15, y, text, size)
+        x += 32 + text_width(text, size)
 
 
 def colour_bar(canvas: Canvas, box: tuple[float, float, float, float], vmin: float, vmax: float, label: str,
