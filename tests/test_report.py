@@ -9,6 +9,7 @@ import re
 import shlex
 import shutil
 import subprocess
+import sys
 import xml.etree.ElementTree as ET
 from dataclasses import replace
 from html.parser import HTMLParser
@@ -196,14 +197,46 @@ def _check_page(text: str) -> _Page:
         assert m, src[:40]
         img = cv2.imdecode(np.frombuffer(base64.b64decode(m.group(2), validate=True), np.uint8), cv2.IMREAD_COLOR)
         assert img is not None and img.shape[0] > 20 and img.shape[1] > 20
+    page.figures = _svg_figures(text)
     return page
+
+
+_SVG = ""  # inline in HTML: no namespace
+
+
+def _svg_figures(text: str) -> list[ET.Element]:
+    """Every inline <svg> figure of a page, parsed as XML (a text not escaped would not parse)."""
+    found = re.findall(r"<svg .*?</svg>", text, re.S)
+    assert text.count("<svg") == len(found)
+    return [ET.fromstring(s) for s in found]
+
+
+def _of_class(root: ET.Element, cls: str, tag: str | None = None) -> list[ET.Element]:
+    return [e for e in root.iter() if cls in (e.get("class") or "").split() and (tag is None or e.tag == _SVG + tag)]
+
+
+def _svg_texts(root: ET.Element) -> list[tuple[str, tuple[float, float, float, float]]]:
+    """(text, box) of every text of a figure: the box (x0, y0, x1, y1) from its position, size, anchor and
+    rotation, a character's width taken as 0.5 of the font size (system sans fonts: 0.45-0.55)."""
+    out = []
+    for t in root.iter(_SVG + "text"):
+        s, size = "".join(t.itertext()), float(t.get("font-size"))
+        x, y = float(t.get("x")), float(t.get("y")) + (0.35 * size if t.get("dy") else 0.0)
+        w = 0.5 * size * len(s)
+        x0 = {"start": x, "middle": x - w / 2, "end": x - w}[t.get("text-anchor", "start")]
+        box = (x0, y - 0.75 * size, x0 + w, y + 0.2 * size)
+        if "rotate(-90" in (t.get("transform") or ""):  # about (x, y): along the height, upwards
+            box = (x - 0.75 * size, y - (box[2] - x), x + 0.2 * size, y - (box[0] - x))
+        out.append((s, box))
+    return out
 
 
 def test_report_structure_from_images(sample_out, sample_cal):
     text = (sample_out / "report.html").read_text(encoding="utf-8")
     page = _check_page(text)
     n_images = len(sample_cal.image_names)
-    assert len(page.images) == n_images + 3  # an overlay per image + residuals, 3D scene, rotation axes
+    assert len(page.images) == n_images  # an overlay per image
+    assert [f.get("aria-label") for f in page.figures] == ["per-pose residuals", "3D view of the robot base frame", "rotation axes"]
     assert "GOOD" in text.upper() and "static_transform_publisher" in text
     for method in handeye.solvers.available(closed_forms=True):  # the comparison lists every closed form
         assert f">{method}<" in text
@@ -223,7 +256,7 @@ def test_report_from_poses_only(tmp_path):
     assert [p.name for p in paths] == ["result.json", "result.yaml", "report.html"]
     assert paths[-1] == tmp_path / "r" / "report.html"
     page = _check_page(paths[-1].read_text(encoding="utf-8"))
-    assert len(page.images) == 3
+    assert len(page.images) == 0 and len(page.figures) == 3  # residuals, 3D scene, rotation axes: SVG
     d = json.loads(paths[0].read_text())
     assert d["ros"]["parent_frame"] == "base_link" and d["X_name"] == "cam2base"
 
@@ -234,7 +267,9 @@ _PROBE = """<script>window.addEventListener('load', function () {
   var imgs = document.images, bad = 0;
   for (var i = 0; i < imgs.length; i++) { if (!(imgs[i].complete && imgs[i].naturalWidth > 0)) bad++; }
   var wide = 0, all = document.querySelectorAll('section, section *');
-  for (var j = 0; j < all.length; j++) { if (all[j].scrollWidth > all[j].clientWidth + 1 && all[j].clientWidth > 0) wide++; }
+  for (var j = 0; j < all.length; j++) {  // a figure's inner SVG shapes: inside its box (a test checks its texts)
+    if (all[j] instanceof SVGElement && !(all[j] instanceof SVGSVGElement)) continue;
+    if (all[j].scrollWidth > all[j].clientWidth + 1 && all[j].clientWidth > 0) wide++; }
   var b = document.body;
   b.setAttribute('data-images', imgs.length); b.setAttribute('data-broken', bad);
   b.setAttribute('data-sections', document.querySelectorAll('section').length);
@@ -244,8 +279,8 @@ _PROBE = """<script>window.addEventListener('load', function () {
   var thumbs = document.querySelectorAll('#overlays figure img.zoom'), narrow = 0;
   for (var k = 0; k < thumbs.length; k++) { if (Math.abs(thumbs[k].clientWidth - 360) > 1) narrow++; }
   b.setAttribute('data-thumbs', thumbs.length); b.setAttribute('data-offsize', narrow);
-  b.setAttribute('data-scene', document.querySelector('#scene img').clientWidth);
-  b.setAttribute('data-axes', document.querySelector('#axes img').clientWidth);
+  b.setAttribute('data-scene', Math.round(document.querySelector('#scene svg').getBoundingClientRect().width));
+  b.setAttribute('data-axes', Math.round(document.querySelector('#axes svg').getBoundingClientRect().width));
 });</script></body>"""
 #: collects script errors and console.error calls from the start of the page
 _ERRORS = """<head><script>window.__errors = [];
@@ -456,43 +491,63 @@ def test_thumbnails_from_the_previews_detection_cut(tmp_path, no_detection_cache
     assert preview.wanted() == 0
 
 
-def _drawn_texts(fig) -> list[tuple[str, object]]:
-    """(text, window extent) of every label a reader sees: titles, axis labels, the tick labels
-    inside each axis's limits, legends and free texts."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    FigureCanvasAgg(fig)
-    fig.canvas.draw()
-    renderer = fig.canvas.get_renderer()
-    items = [fig._suptitle] if fig._suptitle is not None else []
-    for ax in fig.axes:
-        items += [ax.title, *ax.texts] + (list(ax.get_legend().get_texts()) if ax.get_legend() else [])
-        for axis in [a for a in (getattr(ax, n, None) for n in ("xaxis", "yaxis", "zaxis")) if a is not None]:
-            lo, hi = sorted(axis.get_view_interval())
-            items.append(axis.label)
-            items += [t.label1 for t, loc in zip(axis.get_major_ticks(), axis.get_majorticklocs())
-                      if lo - 1e-9 <= loc <= hi + 1e-9 and t.label1.get_visible()]
-    return [(t.get_text(), t.get_window_extent(renderer)) for t in items if t.get_visible() and t.get_text().strip()]
-
-
 def test_scene_and_rotation_axes_use_the_page_and_their_labels_do_not_overlap(sample_cal, sample_out):
     """The 3D view and the rotation-axes figure are drawn at most of the page's width (1,068 px of
     content; they were 634 and 460 px), and no two of their labels overlap (the sphere's tick labels
-    ran into each other at a tick every 0.25)."""
+    ran into each other at a tick every 0.25), nor run off the figure."""
     from handeye.frames.motions import MotionSet
-    from handeye.report.html import _axes_figure, _scene_figure
+    from handeye.report.html import _axes_figure, _residual_figure, _scene_figure
 
     motions = MotionSet.from_poses(sample_cal.flange2base, sample_cal.target2cam, sample_cal.setup, sample_cal.pairs)
-    for fig in (_scene_figure(sample_cal), _axes_figure(sample_cal, motions)):
-        texts = _drawn_texts(fig)
-        assert len(texts) > 10
-        clashes = [(a, b) for i, (a, ba) in enumerate(texts) for b, bb in texts[i + 1:] if ba.overlaps(bb)]
+    for svg in (_scene_figure(sample_cal), _axes_figure(sample_cal, motions), _residual_figure(sample_cal)):
+        root = ET.fromstring(svg)
+        width, height = (float(v) for v in root.get("viewBox").split()[2:])
+        texts = _svg_texts(root)
+        assert len(texts) > 10 and width >= 750
+        clashes = [(a, b) for i, (a, ba) in enumerate(texts) for b, bb in texts[i + 1:]
+                   if ba[0] < bb[2] and bb[0] < ba[2] and ba[1] < bb[3] and bb[1] < ba[3]]
         assert not clashes, clashes
+        outside = [t for t, (x0, y0, x1, y1) in texts if x0 < 0 or y0 < 0 or x1 > width or y1 > height]
+        assert not outside, outside
+
+
+def test_the_camera_reports_figures_are_svg_with_every_pose_and_motion(sample_out, sample_cal):
+    """Issue 81: the --sample report's figures are inline SVG drawn by handeye.report._svg, not PNGs
+    drawn by matplotlib (its import and drawing were half of calibrate --sample's 0.9 s), with what the
+    PNGs showed: a bar per pose in each of the three residual panels (rotation, translation, PnP RMS)
+    with its labels, each pose's flange, camera and target in the 3D view with its legend, and each
+    motion's axis twice on the sphere and once on the disc with the colour bar."""
     text = (sample_out / "report.html").read_text(encoding="utf-8")
-    for section in ("scene", "axes"):
-        src = re.search(r'<img src="data:image/png;base64,([^"]+)"', text.split(f'<section id="{section}">')[1]).group(1)
-        img = cv2.imdecode(np.frombuffer(base64.b64decode(src), np.uint8), cv2.IMREAD_COLOR)
-        assert img.shape[1] >= 750, (section, img.shape)
+    residuals, scene, axes = (_svg_figures(text.split(f'<section id="{s}">')[1].split("</section>")[0])
+                              for s in ("residuals", "scene", "axes"))
+    n = len(sample_cal.flange2base)
+    panels = _of_class(residuals[0], "panel")
+    assert [len(_of_class(p, "bar", "rect")) for p in panels] == [n, n, n]
+    heights = [float(r.get("height")) for r in _of_class(panels[2], "bar")]  # the PnP RMS: tallest bar, largest RMS
+    assert int(np.argmax(heights)) == int(np.argmax(sample_cal.reprojection_rms))
+    words = [t for t, _ in _svg_texts(residuals[0])]
+    assert {"rotation (deg)", "translation (mm)", "PnP RMS (px)", *sample_cal.image_names} <= set(words)
+    assert "per pose: how far its own target2base (through X) is from the common one" in words
+    assert len(_of_class(scene[0], "pt", "circle")) == 2 * n and len(_of_class(scene[0], "pt", "rect")) == n
+    words = [t for t, _ in _svg_texts(scene[0])]
+    assert {"x (m)", "y (m)", "z (m)", "base", "camera", "target", "flange positions (capture order)"} <= set(words)
+    m = len(sample_cal.motions.B)
+    dots = _of_class(axes[0], "pt", "circle")
+    assert len(dots) == 3 * m and len({d.get("fill") for d in dots}) > m // 2  # coloured by angle: mostly distinct
+    words = [t for t, _ in _svg_texts(axes[0])]
+    assert {"camera x", "camera y", "camera z", "30°", "60°", "90°", "rotation angle (deg)"} <= set(words)
+
+
+def test_calibrate_sample_does_not_import_matplotlib(tmp_path):
+    """Issue 81: a camera's report draws its figures without matplotlib (its import alone took ~0.3 s of
+    calibrate --sample's 0.9 s): the whole command, in a new process, never imports it."""
+    code = ("import sys; from handeye.cli import main; rc = main(['calibrate', '--sample', '--no-progress', '--out', "
+            f"{str(tmp_path / 'out')!r}]); print(sorted(m for m in sys.modules if m.split('.')[0] == 'matplotlib')); "
+            "sys.exit(rc)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-500:]
+    assert done.stdout.strip().splitlines()[-1] == "[]"
+    assert "<svg" in (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
 
 
 #: result.json's keys as the sub-records' parts wrote them before they were grouped (issue 36): the
@@ -561,11 +616,13 @@ def test_rotation_axes_figure_draws_a_share_of_many_motions(sample_cal, monkeypa
     monkeypatch.setattr(html, "screw_parameters", lambda B: drawn.append(len(B)) or original(B))
     n = len(sample_cal.motions.B)
     monkeypatch.setattr(html, "MAX_AXES_DRAWN", n - 3)
-    fig = html._axes_figure(sample_cal, sample_cal.motions)
-    assert drawn == [n - 3] and f"({n - 3} of {n} motions drawn)" in fig._suptitle.get_text()
+    svg = html._axes_figure(sample_cal, sample_cal.motions)
+    title = _of_class(ET.fromstring(svg), "title", "text")[0].text
+    assert drawn == [n - 3] and f"({n - 3} of {n} motions drawn)" in title
+    assert len(_of_class(ET.fromstring(svg), "pt")) == 3 * (n - 3)
     monkeypatch.setattr(html, "MAX_AXES_DRAWN", n)
-    fig = html._axes_figure(sample_cal, sample_cal.motions)
-    assert drawn[-1] == n and "drawn" not in fig._suptitle.get_text()
+    svg = html._axes_figure(sample_cal, sample_cal.motions)
+    assert drawn[-1] == n and "drawn" not in svg
 
 
 @pytest.fixture(scope="module")
@@ -619,3 +676,23 @@ def test_a_laser_profilers_ros_frame_is_named_for_a_profiler(laser_cal, tmp_path
     cal = handeye.calibrate_poses(*(lambda s: (s.flange2base, s.target2cam))(random_scene(8, "eye_in_hand", rng=0)),
                                   progress=False)
     assert result_dict(cal)["ros"]["child_frame"] == "camera_optical_frame"
+
+
+def test_verification_histogram_is_svg_with_every_view():
+    """verify.html's distribution is an inline SVG chart too (no matplotlib): per unit a histogram whose
+    bars count every view once, the RMS line and the promised error's, and the labels."""
+    from handeye.pipelines.verify import Verification
+    from handeye.report.verification import verification_html
+
+    rng = np.random.default_rng(0)
+    px = np.abs(rng.normal(0.4, 0.1, 23))
+    v = Verification("eye_in_hand", [f"v{k:02d}.png" for k in range(23)], px, 1.3 * px, "good", promised={"px": 0.45, "mm": 0.6})
+    figures = _svg_figures(verification_html(v))
+    assert len(figures) == 1
+    panels = _of_class(figures[0], "panel")
+    for panel in panels:
+        counts = [int(re.search(r": (\d+) views$", b.find("title").text).group(1)) for b in _of_class(panel, "bar", "rect")]
+        assert sum(counts) == 23 and len(counts) == 11  # min(20, max(5, n // 2)) bins
+    words = [t for t, _ in _svg_texts(figures[0])]
+    assert {"RMS", "promised (cross-validated)", "views", "error per view (px)", "error per view (mm at the target)"} <= set(words)
+    assert len([ln for ln in figures[0].iter("line") if ln.get("stroke-dasharray")]) == 2  # the promised error, per unit

@@ -235,7 +235,7 @@ def test_the_command_line_simulates_and_calibrates_a_scene_and_draws_its_clouds(
     result = json.loads((tmp_path / "out" / "result.json").read_text())
     assert np.abs(np.array(result["X"]["matrix"]) - truth)[:3, 3].max() < 5e-4
     page = (tmp_path / "out" / "report.html").read_text()
-    assert "registered clouds, coloured by view" in page and page.count("data:image/png") >= 3
+    assert "registered clouds, coloured by view" in page and page.count("data:image/png") >= 1 and page.count("<svg") >= 2
 
 
 @pytest.mark.slow

@@ -1,4 +1,5 @@
-"""What the report pages share: the style sheet, the verdict colours, figures as embedded PNGs."""
+"""What the report pages share: the style sheet, the verdict colours, figures as embedded PNGs (matplotlib;
+the camera report's figures are SVG, :mod:`handeye.report._svg`)."""
 
 from __future__ import annotations
 
@@ -29,6 +30,7 @@ figure img.zoom{cursor:zoom-in;width:360px} figure img.zoom:focus{width:min(900p
 figure.flag img{border:3px solid #b00020} figure.flag figcaption{color:#b00020;font-weight:bold}
 figure.rejected img{opacity:.55;border:3px dashed #888}
 img{max-width:100%} .note{color:#555;font-size:.9em} section{overflow-wrap:anywhere}
+svg.fig{display:block;width:100%;height:auto;margin:6px 0}
 """
 
 

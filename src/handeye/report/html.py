@@ -5,8 +5,11 @@ uncertainty, ready-to-paste ROS lines), ``residuals`` (per-pose charts), ``overl
 reprojected target points on every image, when images were used), ``scene`` (3D view of robot,
 camera and target poses), ``axes`` (the motions' rotation axes on the unit sphere), ``solvers``
 (every solver on the same data) and ``advice``; a rig's report also has ``rig`` (its picture and a
-section per sensor, :mod:`handeye.report._rig`). Every picture is embedded as a base64 PNG or JPEG;
-the page loads nothing from anywhere.
+section per sensor, :mod:`handeye.report._rig`). The charts of the residuals, the 3D scene and the
+rotation axes are inline SVG drawn by :mod:`handeye.report._svg` (no matplotlib: its import and PNGs
+were half of ``calibrate --sample --out``'s time); the images, and a sensor's sections, clouds and a
+rig's picture, are embedded base64 JPEGs and PNGs (matplotlib, imported when they are drawn). The page
+loads nothing from anywhere.
 """
 
 from __future__ import annotations
@@ -32,8 +35,9 @@ from ..robot.kinematics import display_unit
 from ..sensors.camera.detect import default_jobs
 from ..sensors.camera.pnp import project_points
 from ._overlay import jpeg, overlay_thumbnail, zoom_size
-from ._page import _COLOURS, _CSS, _axis_triad, _e, _equal_axes, _figure, _fmt, _img, _png, _transform_table
+from ._page import _COLOURS, _CSS, _e, _figure, _fmt, _img, _png, _transform_table
 from ._rig import RIG_FIGURES, rig_sections
+from ._svg import Canvas, Panel, View3D, colour_bar, legend, legend_row, nice_ticks, text_width, triads, viridis
 from .files import result_dict
 
 cv2 = lazy_module("cv2")
@@ -60,42 +64,51 @@ MAX_LABELLED_POSES = 60
 MAX_AXES_DRAWN = 1000
 
 
+#: The width of the report's figures in pixels (the page's content is 1,068 px wide: drawn 1:1).
+FIGURE_WIDTH = 1060
+
+
 def _residual_figure(cal: Calibration) -> str:
+    """Per pose: its own Z's distance from the common one (rotation, translation) and, with images,
+    its PnP RMS: a panel each, one bar per pose (a line per pose beyond MAX_LABELLED_POSES), as SVG."""
     pres = cal.pose_residuals
     labels = list(cal.image_names) if cal.image_names is not None else [str(i) for i in cal.pose_indices]
-    n_plots = 3 if cal.reprojection_rms is not None else 2
-    fig = _figure((10, 2.2 * n_plots))
-    axes = fig.subplots(n_plots, 1, sharex=True)
-    x = np.arange(len(pres))
-    many = len(x) > MAX_LABELLED_POSES
-
-    def bars(ax, values, colour):  # beyond a few dozen poses: one line collection, not a patch per bar
+    rows = [(pres[:, 0], "rotation (deg)", "#4a78b5", "deg"), (pres[:, 1], "translation (mm)", "#d08c30", "mm")]
+    if cal.reprojection_rms is not None:
+        rows.append((np.asarray(cal.reprojection_rms, float), "PnP RMS (px)", "#5c9e5c", "px"))
+    n = len(pres)
+    many = n > MAX_LABELLED_POSES
+    turned = n > 12
+    below = 46 if many else 12 + (text_width(max(labels, key=len, default=""), 11) if turned else 18)
+    left, top, height, gap = 80, 30, 130, 12
+    canvas = Canvas(FIGURE_WIDTH, top + len(rows) * (height + gap) - gap + below + 6, "per-pose residuals")
+    for k, (values, ylabel, colour, unit) in enumerate(rows):
+        finite = values[np.isfinite(values)]
+        hi = float(finite.max()) if len(finite) else 1.0
+        ylim = (min(0.0, float(finite.min()) if len(finite) else 0.0), 1.05 * hi if hi > 0 else 1.0)
+        panel = Panel(canvas, (left, top + k * (height + gap), FIGURE_WIDTH - left - 16, height), (-0.6, n - 0.4), ylim)
+        panel.yticks(nice_ticks(*ylim, 4))
         if many:
-            ax.vlines(x, 0.0, values, color=colour, lw=1.0)
+            panel.stems(np.arange(n), values, colour)
         else:
-            ax.bar(x, values, color=colour)
-
-    bars(axes[0], pres[:, 0], "#4a78b5")
-    axes[0].set_ylabel("rotation (deg)")
-    axes[0].set_title(f"per pose: how far its own {setup_info(cal.setup).z_name} "
-                      "(through X) is from the common one", fontsize=10)
-    bars(axes[1], pres[:, 1], "#d08c30")
-    axes[1].set_ylabel("translation (mm)")
-    if n_plots == 3:
-        bars(axes[2], cal.reprojection_rms, "#5c9e5c")
-        axes[2].set_ylabel("PnP RMS (px)")
-    for ax in axes:
-        ax.grid(axis="y", alpha=0.3)
-    if many:
-        axes[-1].set_xlabel("pose (index in the order given)")
-    else:
-        axes[-1].set_xticks(x)
-        axes[-1].set_xticklabels(labels, rotation=90 if len(labels) > 12 else 0, fontsize=8)
-    return _png(fig)
+            panel.bars(np.arange(n), values, colour, tips=[f"{name}: {v:.3f} {unit}" for name, v in zip(labels, values)])
+        panel.frame()
+        panel.ylabel(ylabel)
+        if k == 0:
+            panel.title(f"per pose: how far its own {setup_info(cal.setup).z_name} (through X) is from the common one")
+        if k == len(rows) - 1:
+            if many:
+                ticks = nice_ticks(0, n - 1, 8)
+                panel.xticks(ticks, [f"{t:.0f}" for t in ticks])
+                panel.xlabel("pose (index in the order given)")
+            else:
+                panel.xticks(np.arange(n), labels, 10 if turned else 11, rotate=turned)
+        panel.end()
+    return canvas.svg()
 
 
-def _scene_figure(cal: Calibration):
-    """The robot base frame in 3D: flange path, camera and target frames (a matplotlib Figure)."""
+def _scene_figure(cal: Calibration) -> str:
+    """The robot base frame in 3D: flange path, camera and target frames, as SVG."""
     cam2base, tgt2base = camera2base(cal.X, cal.flange2base, cal.setup), target2base(cal.Z, cal.flange2base, cal.setup)
     on_flange = setup_info(cal.setup).camera_on_flange
     flange = cal.flange2base[:, :3, 3]
@@ -103,90 +116,77 @@ def _scene_figure(cal: Calibration):
     extent = float(np.ptp(pts, axis=0).max()) or 1.0
     L = 0.08 * extent
     few = np.unique(np.linspace(0, len(cal.flange2base) - 1, min(len(cal.flange2base), 12)).astype(int))  # not crowded
-    fig = _figure((12.0, 9.0))
-    ax = fig.add_axes((0.0, 0.0, 1.0, 0.95), projection="3d")  # the axes fill the page's width, not 2/3 of it
-    _axis_triad(ax, np.eye(4), 1.5 * L, lw=3)
-    ax.text(0, 0, 0, " base", fontsize=8)
-    ax.plot(*flange.T, "-o", color="#777", ms=3, lw=0.8, label="flange positions (capture order)")
-    _axis_triad(ax, cal.flange2base[few], 0.5 * L, lw=0.8)
-    _axis_triad(ax, cam2base[few] if on_flange else cam2base[:1], L)
-    ax.scatter(*cam2base[:, :3, 3].T, color="#000", s=12, label="camera")
+    centre, half = pts.mean(axis=0), 0.55 * extent  # a cube about the points: equal scales on the three axes
+    canvas = Canvas(FIGURE_WIDTH, 760, "3D view of the robot base frame")
+    view = View3D(canvas, (150, 60, FIGURE_WIDTH - 300, 620), centre - half, centre + half)
+    view.axes(("x (m)", "y (m)", "z (m)"), [nice_ticks(c - half, c + half, 5) for c in centre])
+    triads(view, np.eye(4), 1.5 * L, 3)
+    view.text(np.zeros(3), "base")
+    view.lines(flange, "#777", 0.8)
+    view.points(flange, "#777", 2.5)
+    triads(view, cal.flange2base[few], 0.5 * L, 0.8)
+    triads(view, cam2base[few] if on_flange else cam2base[:1], L)
+    view.points(cam2base[:, :3, 3], "#000", 3.0)
     if cal.object_points:
         obj = np.vstack(cal.object_points)
         lo, hi = obj.min(axis=0), obj.max(axis=0)
         corners = np.array([[lo[0], lo[1], 0, 1], [hi[0], lo[1], 0, 1], [hi[0], hi[1], 0, 1], [lo[0], hi[1], 0, 1],
-                            [lo[0], lo[1], 0, 1]])
-        for T in (tgt2base[few] if not on_flange else tgt2base[:1]):
-            c = (T @ corners.T).T
-            ax.plot(*c[:, :3].T, color="#8b4513", lw=1.5)
-    _axis_triad(ax, tgt2base[few] if not on_flange else tgt2base[:1], L, lw=2)
-    ax.scatter(*tgt2base[:, :3, 3].T, color="#8b4513", s=12, marker="s", label="target")
-    _equal_axes(ax, pts, 0.55)
-    ax.set_box_aspect((1, 1, 1), zoom=0.95)
-    ax.set_xlabel("x (m)", labelpad=8)
-    ax.set_ylabel("y (m)", labelpad=8)
-    ax.set_zlabel("z (m)", labelpad=8)
-    ax.locator_params(nbins=5)
-    ax.legend(loc="upper left", fontsize=9)
+                            [lo[0], lo[1], 0, 1], [np.nan] * 4])
+        boards = np.vstack([(T @ corners.T).T for T in (tgt2base[few] if not on_flange else tgt2base[:1])])
+        view.lines(boards[:, :3], "#8b4513", 1.5)
+    triads(view, tgt2base[few] if not on_flange else tgt2base[:1], L, 2)
+    view.points(tgt2base[:, :3, 3], "#8b4513", 3.0, square=True)
+    legend(canvas, 12, 40, [("line", "#777", "flange positions (capture order)"), ("dot", "#000", "camera"),
+                                 ("square", "#8b4513", "target")])
     shown = "" if len(few) == len(cal.flange2base) else f"; frames of {len(few)} of {len(cal.flange2base)} poses"
-    ax.set_title(f"robot base frame: axes x red, y green, z blue{shown}", fontsize=10)
-    return fig
+    canvas.text(FIGURE_WIDTH / 2, 20, f"robot base frame: axes x red, y green, z blue{shown}", 13, "middle", cls="title")
+    return canvas.svg()
 
 
-def _axes_figure(cal: Calibration, motions: MotionSet):
+def _axes_figure(cal: Calibration, motions: MotionSet) -> str:
     """The motions' rotation axes in the camera frame: on the unit sphere (both ends of each), and
     folded onto the half sphere towards camera +z in an equal-area disc, where clusters and gaps read
-    at a glance; coloured by the rotation angle."""
+    at a glance; coloured by the rotation angle; as SVG."""
     B = motions.B
-    if len(B) > MAX_AXES_DRAWN:  # thousands of dots cover each other and cost ~0.3 s: an even share of them
+    if len(B) > MAX_AXES_DRAWN:  # thousands of dots cover each other: an even share of them
         B = B[np.unique(np.linspace(0, len(B) - 1, MAX_AXES_DRAWN).astype(int))]
     axis, _, theta, _ = screw_parameters(B)
     deg = np.degrees(theta)
-    fig = _figure((12.0, 5.6))
-    ax = fig.add_subplot(1, 2, 1, projection="3d")
-    u, v = np.mgrid[0:2 * np.pi:24j, 0:np.pi:12j]
-    ax.plot_wireframe(np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="#ccc", lw=0.4)
-    pts = np.vstack([axis, -axis])  # an axis and its opposite are the same rotation axis
-    norm = {"cmap": "viridis", "vmin": 0, "vmax": max(90.0, float(deg.max()) if len(deg) else 90.0)}
-    ax.scatter(*pts.T, c=np.r_[deg, deg], s=14, **norm)
-    for setter in (ax.set_xticks, ax.set_yticks, ax.set_zticks):
-        setter([-1, 0, 1])  # a tick every quarter crowds the small axes into each other
-    ax.set_xlabel("camera x", labelpad=8)
-    ax.set_ylabel("camera y", labelpad=8)
-    ax.set_zlabel("camera z", labelpad=8)
-    ax.tick_params(pad=0, labelsize=8)
-    ax.set_box_aspect((1, 1, 1), zoom=1.15)
-    ax.set_title("on the unit sphere (both ends of each axis)", fontsize=10)
-    disc = fig.add_subplot(1, 2, 2)
-    up = np.where(axis[:, 2:3] < 0, -axis, axis)
+    vmax = max(90.0, float(deg.max()) if len(deg) else 90.0)
+    colours = viridis(deg, 0.0, vmax)
+    shown = f" ({len(B)} of {len(motions.B)} motions drawn)" if len(B) < len(motions.B) else ""
+    canvas = Canvas(FIGURE_WIDTH, 540, "rotation axes")
+    canvas.text(FIGURE_WIDTH / 2, 20, f"rotation axes of the camera motions: well spread over the sphere is best{shown}", 14,
+                "middle", cls="title")
+    # the unit sphere, seen as the 3D scene is
+    view = View3D(canvas, (70, 90, 380, 360), -1.1 * np.ones(3), 1.1 * np.ones(3))
+    view.axes(("camera x", "camera y", "camera z"), [np.array([-1.0, 0.0, 1.0])] * 3)  # a tick every quarter crowds
+    u, v = np.linspace(0, 2 * np.pi, 25), np.linspace(0, np.pi, 13)
+    meridians = [np.c_[np.cos(a) * np.sin(v), np.sin(a) * np.sin(v), np.cos(v)] for a in u[:-1]]
+    parallels = [np.c_[np.cos(u) * np.sin(b), np.sin(u) * np.sin(b), np.full_like(u, np.cos(b))] for b in v[1:-1]]
+    view.lines(np.vstack([np.vstack([m, [[np.nan] * 3]]) for m in meridians + parallels]), "#cccccc", 0.5)
+    view.points(np.vstack([axis, -axis]), colours + colours, 3.5)  # an axis and its opposite are the same rotation axis
+    canvas.text(260, 58, "on the unit sphere (both ends of each axis)", 13, "middle", cls="title")
     # Lambert azimuthal equal-area about +z: a cluster looks as big as it is on the sphere
+    up = np.where(axis[:, 2:3] < 0, -axis, axis)
     r = np.sqrt(2.0 / (1.0 + np.clip(up[:, 2], -1, 1)))
-    sc = disc.scatter(r * up[:, 0], r * up[:, 1], c=deg, s=22, edgecolors="#333", linewidths=0.3, **norm)
+    lim = 1.05 * np.sqrt(2)
+    disc = Panel(canvas, (560, 70, 400, 400), (-lim, lim), (-lim, lim))
+    disc.c.line(disc.x(-lim), disc.y(0), disc.x(lim), disc.y(0), "#dddddd", 0.6)
+    disc.c.line(disc.x(0), disc.y(-lim), disc.x(0), disc.y(lim), "#dddddd", 0.6)
     for tilt in (30, 60, 90):
         rho = 2 * np.sin(np.radians(tilt) / 2)
-        disc.add_patch(_circle(rho))
-        disc.text(rho * np.cos(np.radians(60)), rho * np.sin(np.radians(60)), f"{tilt}°", fontsize=8, color="#777")
-    disc.axhline(0, color="#ddd", lw=0.6, zorder=0)
-    disc.axvline(0, color="#ddd", lw=0.6, zorder=0)
-    lim = 1.05 * np.sqrt(2)
-    disc.set_xlim(-lim, lim)
-    disc.set_ylim(-lim, lim)
-    disc.set_aspect("equal")
-    disc.set_xticks([])
-    disc.set_yticks([])
-    disc.set_xlabel("← −x     camera x     +x →", fontsize=9)
-    disc.set_ylabel("← −y     camera y     +y →", fontsize=9)
-    disc.set_title("seen from camera +z, equal area (circles: tilt from z)", fontsize=10)
-    fig.colorbar(sc, ax=disc, shrink=0.8, label="rotation angle (deg)")
-    shown = f" ({len(B)} of {len(motions.B)} motions drawn)" if len(B) < len(motions.B) else ""
-    fig.suptitle(f"rotation axes of the camera motions: well spread over the sphere is best{shown}", fontsize=11)
-    return fig
-
-
-def _circle(radius: float):
-    from matplotlib.patches import Circle  # matplotlib loads only when a report is drawn
-
-    return Circle((0, 0), radius, fill=False, color="#bbb", lw=0.7, ls="--")
+        canvas.circle(disc.x(0), disc.y(0), float(disc.x(rho) - disc.x(0)), "none", "#bbbbbb", 0.8, dash="4 3")
+        canvas.text(disc.x(rho * np.cos(np.radians(60))), disc.y(rho * np.sin(np.radians(60))), f"{tilt}°", 11, colour="#777")
+    for k in np.argsort(deg, kind="stable"):  # the largest rotations on top
+        canvas.circle(disc.x(r[k] * up[k, 0]), disc.y(r[k] * up[k, 1]), 4.5, colours[k], "#333333", 0.4, cls="pt")
+    disc.frame()
+    disc.title("seen from camera +z, equal area (circles: tilt from z)")
+    disc.xlabel("← −x     camera x     +x →", 18)
+    disc.c.text(disc.box[0] - 18, disc.box[1] + disc.box[3] / 2, "← −y     camera y     +y →", 12, "middle", rotate=-90)
+    disc.end()
+    colour_bar(canvas, (985, 110, 14, 320), 0.0, vmax, "rotation angle (deg)")
+    return canvas.svg()
 
 
 def _overlay_thumb(cal: Calibration, k: int, T: NDArray[np.float64]) -> tuple[str, str, float] | None:
@@ -229,29 +229,45 @@ def _rejected_thumbs(cal: Calibration) -> list[tuple[str, str]]:
 
 
 def _view_residual_figure(cal: Calibration) -> str:
-    """Per view of a sensor's fit: its RMS residual and, when cross-validated, its held-out error (mm)."""
+    """Per view of a sensor's fit: its RMS residual and, when cross-validated, its held-out error (mm), as SVG."""
     sf = cal.sensor
-    fig = _figure((10, 3.2))
-    ax = fig.subplots(1, 1)
-    x = np.arange(len(sf.views))
+    n = len(sf.views)
     held = sf.heldout_mm is not None
-    if len(x) > MAX_LABELLED_POSES:  # beyond a few dozen views: lines, not a patch per bar
-        ax.plot(x, sf.residual_mm, ".", color="#4a78b5", label="in the fit")
-        if held:
-            ax.plot(x, np.nan_to_num(sf.heldout_mm), ".", color="#d08c30", label="held out (predicted)")
+    fit = np.asarray(sf.residual_mm, float)
+    out = np.nan_to_num(np.asarray(sf.heldout_mm, float)) if held else np.zeros(0)
+    labels = [str(v) for v in sf.views]
+    many, turned = n > MAX_LABELLED_POSES, n > 12
+    below = 46 if many else 12 + (text_width(max(labels, key=len, default=""), 10) if turned else 18)
+    left, top, height = 80, 52, 190
+    canvas = Canvas(FIGURE_WIDTH, top + height + below + 6, "per-view residuals")
+    values = np.r_[fit, out]
+    hi = float(np.nanmax(values)) if np.isfinite(values).any() else 1.0
+    ylim = (0.0, 1.05 * hi if hi > 0 else 1.0)
+    panel = Panel(canvas, (left, top, FIGURE_WIDTH - left - 16, height), (-0.6, n - 0.4), ylim)
+    panel.yticks(nice_ticks(*ylim, 4))
+    x = np.arange(n)
+    if many:  # beyond a few dozen views: dots, not a bar per view
+        for k in range(n):
+            canvas.circle(panel.x(k), panel.y(np.nan_to_num(fit[k])), 2.0, "#4a78b5", cls="pt")
+            if held:
+                canvas.circle(panel.x(k), panel.y(out[k]), 2.0, "#d08c30", cls="pt")
     else:
         width = 0.4 if held else 0.8
-        ax.bar(x - (width / 2 if held else 0), sf.residual_mm, width, color="#4a78b5", label="in the fit")
+        panel.bars(x - (width / 2 if held else 0), fit, "#4a78b5", width, [f"{v}: {r:.3f} mm in the fit" for v, r in zip(labels, fit)])
         if held:
-            ax.bar(x + width / 2, np.nan_to_num(sf.heldout_mm), width, color="#d08c30", label="held out (predicted)")
-    ax.set_ylabel("RMS residual (mm)")
-    ax.set_title(f"per view: how far the {sf.target}'s model through X misses what the {sf.sensor} measured", fontsize=10)
-    ax.grid(axis="y", alpha=0.3)
-    ax.legend(fontsize=8)
-    if len(x) <= MAX_LABELLED_POSES:
-        ax.set_xticks(x)
-        ax.set_xticklabels(sf.views, rotation=90 if len(x) > 12 else 0, fontsize=8)
-    return _png(fig)
+            panel.bars(x + width / 2, out, "#d08c30", width, [f"{v}: {r:.3f} mm held out" for v, r in zip(labels, out)])
+    panel.frame()
+    panel.ylabel("RMS residual (mm)")
+    panel.title(f"per view: how far the {sf.target}'s model through X misses what the {sf.sensor} measured")
+    if many:
+        ticks = nice_ticks(0, n - 1, 8)
+        panel.xticks(ticks, [f"{t:.0f}" for t in ticks])
+        panel.xlabel("view (index in the order given)")
+    else:
+        panel.xticks(x, labels, 10 if turned else 11, rotate=turned)
+    panel.end()
+    legend_row(canvas, FIGURE_WIDTH - 16, 14, [("#4a78b5", "in the fit")] + ([("#d08c30", "held out (predicted)")] if held else []))
+    return canvas.svg()
 
 
 #: The report draws at most this many views' sections (the worst half of them, and the rest evenly).
@@ -372,7 +388,7 @@ def _clouds_figure(cal: Calibration) -> str:
 def _sensor_residuals_section(cal: Calibration) -> str:
     """A sensor's fit: each view's residual, the views left out and the sensor's own figures."""
     sf = cal.sensor
-    parts = ['<section id="residuals"><h2>Per-view residuals</h2>' + _img(_view_residual_figure(cal), "per-view residuals"),
+    parts = ['<section id="residuals"><h2>Per-view residuals</h2>' + _view_residual_figure(cal),
              f"<p>{sf.points} measurements fitted, {sf.rejected} set aside as outliers (beyond 5 of their std); "
              f"{sf.fit_rms_mm:.3f} mm RMS.</p>"]
     shown = _shown_sections(sf) if sf.sections and "cloud_mm" not in sf.sections[0] else []
@@ -538,7 +554,7 @@ def _cross_validation_table(cal: Calibration) -> str:
 
 
 def _residuals_section(cal: Calibration) -> str:
-    parts = ['<section id="residuals"><h2>Per-pose residuals</h2>' + _img(_residual_figure(cal), "per-pose residuals")]
+    parts = ['<section id="residuals"><h2>Per-pose residuals</h2>' + _residual_figure(cal)]
     parts.append(f"<p>Screw congruence per motion (|angle_A − angle_B|; |pitch_A − pitch_B| as a share of the motion's "
                  f"translation; independent of X, both 0 for consistent data): {_e(cal.screw_congruence_text())}.</p>")
     left, kept = cal.outliers_split()
@@ -592,7 +608,7 @@ def _axes_section(cal: Calibration) -> str:
         sh = cal.diagnostics.axis_shares
         obs = (f"<p>Spread of the rotation axes (eigenvalue shares, 1/3 each is ideal): {_fmt(sh, 2)}; rotation angles "
                f"{np.min(cal.diagnostics.rotation_angles_deg):.1f}–{np.max(cal.diagnostics.rotation_angles_deg):.1f} deg.</p>")
-    return ('<section id="axes"><h2>Rotation axes</h2>' + _img(_png(_axes_figure(cal, motions)), "rotation axes") + obs
+    return ('<section id="axes"><h2>Rotation axes</h2>' + _axes_figure(cal, motions) + obs
             + "</section>")
 
 
@@ -704,13 +720,13 @@ def report_html(cal: Calibration, parent_frame: str | None = None, child_frame: 
              _result_section(cal, data)]
     if cal.target2cam is None:  # a sensor's fit (depth, laser, ...): its views' residuals and figures
         parts += [rig_sections(cal) if joins_sensors(cal) else "", _sensor_residuals_section(cal), _kinematics_section(cal),
-                  '<section id="scene"><h2>Robot, sensor and target</h2>' + _img(_png(_scene_figure(cal)), "3D view")
+                  '<section id="scene"><h2>Robot, sensor and target</h2>' + _scene_figure(cal)
                   + "</section>", _advice_section(cal, data), "</body></html>\n"]
         return "".join(parts)
     parts += [_residuals_section(cal),
               _kinematics_section(cal),
               _overlays_section(cal),
-              '<section id="scene"><h2>Robot, camera and target</h2>' + _img(_png(_scene_figure(cal)), "3D view") + "</section>",
+              '<section id="scene"><h2>Robot, camera and target</h2>' + _scene_figure(cal) + "</section>",
               _axes_section(cal),
               _solvers_section(solver_rows),
               _advice_section(cal, data, solver_rows),

@@ -1,6 +1,6 @@
 """Files of a verification (:func:`handeye.pipelines.verify.verify`): ``verify.json`` and a
-self-contained ``verify.html`` with the per-view errors, their distribution and each view's image with
-the detected and the predicted target points."""
+self-contained ``verify.html`` with the per-view errors, their distribution (an inline SVG chart) and each
+view's image with the detected and the predicted target points."""
 
 from __future__ import annotations
 
@@ -16,23 +16,46 @@ from .._version import __version__
 from ..pipelines.verify import NOT_THIS, Verification
 from ..sensors.camera.detect import default_jobs
 from ._overlay import overlay_thumbnail
-from ._page import _COLOURS, _CSS, _e, _figure, _png
+from ._page import _COLOURS, _CSS, _e
+from ._svg import Canvas, Panel, legend_row, nice_ticks, tick_labels
 
 __all__ = ["verification_html", "write_verification"]
 
 
 def _histogram(v: Verification) -> str:
-    fig = _figure((9, 3.2))
-    axes = fig.subplots(1, 2)
-    for ax, values, unit in ((axes[0], v.px, "px"), (axes[1], v.mm, "mm at the target")):
-        ax.hist(values, bins=min(20, max(5, len(values) // 2)), color="#4a78b5")
-        ax.axvline(float(np.sqrt(np.mean(values**2))), color="#b00020", lw=1.5, label="RMS")
-        if v.promised is not None and v.promised.get(unit.split()[0]) is not None:
-            ax.axvline(v.promised[unit.split()[0]], color="#1e7b34", ls="--", lw=1.5, label="promised (cross-validated)")
-        ax.set_xlabel(f"error per view ({unit})")
-        ax.legend(fontsize=8)
-    axes[0].set_ylabel("views")
-    return _png(fig)
+    """The per-view errors' histograms (px, and mm at the target), each with its RMS (red) and the
+    promised cross-validated error (green, dashed) as lines, as SVG."""
+    canvas = Canvas(1060, 300, "errors per view")
+    for k, (values, unit) in enumerate(((v.px, "px"), (v.mm, "mm at the target"))):
+        values = np.asarray(values, float)
+        rms = float(np.sqrt(np.mean(values**2))) if len(values) else 0.0
+        promised = None if v.promised is None else v.promised.get(unit.split()[0])
+        counts, edges = np.histogram(values, bins=min(20, max(5, len(values) // 2)))
+        marks = [rms] + ([float(promised)] if promised is not None else [])
+        lo, hi = min(float(edges[0]), *marks), max(float(edges[-1]), *marks)
+        pad = 0.05 * ((hi - lo) or 1.0)
+        top = max(int(counts.max()) if len(counts) else 1, 1)
+        panel = Panel(canvas, (80 + 510 * k, 40, 440, 200), (lo - pad, hi + pad), (0.0, 1.08 * top))
+        ticks = nice_ticks(0.0, top, 4)
+        panel.yticks(ticks[ticks == np.round(ticks)])  # whole views
+        step = float(edges[1] - edges[0])
+        panel.bars((edges[:-1] + edges[1:]) / 2, counts, "#4a78b5", 0.94 * step,
+                   [f"{a:.3f}-{b:.3f} {unit}: {c} views" for a, b, c in zip(edges[:-1], edges[1:], counts)])
+        entries = [("#b00020", "RMS")]
+        y0, y1 = panel.y(0.0), panel.y(1.08 * top)
+        canvas.line(panel.x(rms), y0, panel.x(rms), y1, "#b00020", 1.5)
+        if promised is not None:
+            canvas.line(panel.x(promised), y0, panel.x(promised), y1, "#1e7b34", 1.5, dash="6 4")
+            entries.append(("#1e7b34", "promised (cross-validated)"))
+        panel.frame()
+        xt = nice_ticks(lo - pad, hi + pad, 6)
+        panel.xticks(xt, tick_labels(xt))
+        panel.xlabel(f"error per view ({unit})")
+        if k == 0:
+            panel.ylabel("views")
+        panel.end()
+        legend_row(canvas, 80 + 510 * k + 440, 22, entries)
+    return canvas.svg()
 
 
 #: Most views drawn as pictures (the page stays a few MB at most).
@@ -77,7 +100,7 @@ def verification_html(v: Verification) -> str:
             f'<section id="verdict"><div class="banner" style="background:{colour}"><b>{_e(v.verdict)}</b> — '
             f"{len(v.names)} views predicted from their robot poses: RMS {v.rms_px:.3f} px, {v.rms_mm:.3f} mm at the "
             f"target</div></section>"
-            f'<section id="distribution"><h2>Distribution</h2><img src="{_histogram(v)}" alt="errors per view"></section>'
+            f'<section id="distribution"><h2>Distribution</h2>{_histogram(v)}</section>'
             f'<section id="views"><h2>Per view</h2><table><tr><th class="l">view</th><th>px</th><th>mm at the target</th>'
             + ('<th class="l">flag</th>' if flags else "") + f"</tr>{rows}</table>"
             + (f"<p>Not used: </p><ul>{skipped}</ul>" if skipped else "") + "</section>"
