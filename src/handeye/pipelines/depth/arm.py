@@ -7,15 +7,17 @@ angles from ``joints: {file: joints.csv, unit: deg, arm: panda}``) is calibrated
    every view's joint angles through the arm's table (:class:`~handeye.sensors.depth.arm.PosedArm`);
 2. :func:`read_arm_clouds`: the clouds read and thinned (a view whose cloud cannot be read is
    skipped, named);
-3. :func:`start_arm`: X without any guess: the posed arm of a few views found in their clouds by
-   the global registration (:func:`~handeye.sensors.depth.registration.find_shape`) among what
-   moved between the views (the camera is fixed: the table, the floor and a box stay where they
-   were; all the cloud's points when that fails), each candidate (and the runners-up) pulled in by
-   ICP over every view's points, the one that puts most points on the arm kept when most views
-   agree with it (step 4); else every view's moving points searched at once (X's rotation from the
-   views' centroids and 60 spread ones, its translation from the centroids, each pulled in by ICP
-   from 30 cm: a close camera that sees a part of the arm only, where one view's search fails),
-   then the next few clouds;
+3. :func:`start_arm`: X without any guess: every view's moving points searched at once (what
+   moved between the views: the camera is fixed, the table, the floor and a box stay where they
+   were; X's rotation from the views' centroids and 60 spread ones, its translation from the
+   centroids, each pulled in by ICP from 30 cm), the one that puts most points on the arm kept
+   when most views agree with it (step 4); else the views' joint angles checked against their
+   clouds (:func:`joints_agreement`: the distances between the views' moving points against those
+   between the links at their angles; refused, named, when they do not agree), then a few views'
+   posed arm found in their clouds by the global registration
+   (:func:`~handeye.sensors.depth.registration.find_shape`) among their moving points (all the
+   cloud's points when that fails), each candidate (and the runners-up) pulled in by ICP over every
+   view's points, then the next few clouds;
 4. :func:`consistent_arm_views`: each view's own X (ICP from the common one) checked against the
    others': a view that disagrees (another arm pose than its joint angles say) or shows too little
    of the arm is skipped, named;
@@ -70,7 +72,8 @@ from .mesh import read_scene
 from .session import DepthSession
 
 __all__ = ["ArmClouds", "arm_of_session", "read_arm_clouds", "start_arm", "pooled_start", "consistent_arm_views", "segment_arm",
-           "calibrate_arm_depth_session", "AGREE_DEG", "AGREE_M", "MAX_POINTS", "GLOBAL_VIEWS"]
+           "calibrate_arm_depth_session", "joints_agreement", "pooled_points", "AGREE_DEG", "AGREE_M", "MAX_POINTS", "GLOBAL_VIEWS",
+           "JOINTS_AGREE"]
 
 #: A view's own X (ICP from the common one) agrees with the others' within this (deg) ...
 AGREE_DEG = 2.0
@@ -95,6 +98,13 @@ SCORE_POINTS = 1500
 #: that threshold, another basin's at most 2,450).
 POOLED_POINTS = 300
 POOLED_KEPT = 8
+#: The views' moving points' centroids (camera frame) and their moving links' centroids (base frame,
+#: at each view's joint angles) are a rigid motion apart when each view's angles are its cloud's: the
+#: distances between views agree, up to what the camera does not see. Their correlation was 0.50-0.75
+#: on the simulated Panda (seeds 1-5), -0.17-0.08 with every view's angles the next view's: below this,
+#: with the search over every view at once failed, the angles are refused as not the clouds' (the
+#: search of every group of clouds took 17-19 s to say the same).
+JOINTS_AGREE = 0.25
 
 
 @dataclass
@@ -232,21 +242,55 @@ def _group_start(s: DepthSession, arm: PosedArm, c: ArmClouds, views: list[int],
     return X, seen, len(candidates)
 
 
-def pooled_start(arm: PosedArm, c: ArmClouds, trees: list[cKDTree], jobs: int | None = None
-                 ) -> tuple[NDArray[np.float64], int, int] | str:
+def pooled_points(c: ArmClouds, trees: list[cKDTree]) -> list[NDArray[np.float64]]:
+    """Each view's first :data:`POOLED_POINTS` moving points (:func:`_moving` of its first 8 times as many)."""
+    return [_moving(c, j, trees, 8 * POOLED_POINTS)[:POOLED_POINTS] for j in range(len(c.index))]
+
+
+def _centroids(arm: PosedArm, c: ArmClouds, moving: list[NDArray[np.float64]]
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per view the centroid of its moving points (camera frame) and of its moving links (base frame,
+    at its joint angles)."""
+    links = np.array([link.frame != BASE for link in arm.meshes.links])[arm.sample_link]
+    cam = np.array([m.mean(axis=0) if len(m) else np.full(3, np.nan) for m in moving])
+    base = np.array([arm.points[k][links].mean(axis=0) for k in c.index])
+    return cam, base
+
+
+def joints_agreement(arm: PosedArm, c: ArmClouds, moving: list[NDArray[np.float64]]) -> float | None:
+    """How well the views' joint angles agree with their clouds, whatever X: the correlation of the
+    distances between views' moving points' centroids (camera frame) with those between their moving
+    links' centroids (base frame, at the angles): near 1 when each view's angles are its cloud's (a
+    rigid motion keeps distances; what the camera does not see of the links lowers it), near 0 when
+    they are another view's (:data:`JOINTS_AGREE`). None with fewer than 4 views that show enough
+    moving points."""
+    cam, base = _centroids(arm, c, moving)
+    seen = np.array([len(m) >= MIN_INLIERS for m in moving])
+    if seen.sum() < 4:
+        return None
+    cam, base = cam[seen], base[seen]
+    upper = np.triu_indices(len(cam), 1)
+    d_cam = np.linalg.norm(cam[:, None] - cam[None], axis=2)[upper]
+    d_base = np.linalg.norm(base[:, None] - base[None], axis=2)[upper]
+    if np.std(d_cam) == 0 or np.std(d_base) == 0:
+        return None
+    return float(np.corrcoef(d_cam, d_base)[0, 1])
+
+
+def pooled_start(arm: PosedArm, c: ArmClouds, trees: list[cKDTree], jobs: int | None = None,
+                 moving: list[NDArray[np.float64]] | None = None) -> tuple[NDArray[np.float64], int, int] | str:
     """The best X from every view at once: the moving points' centroid of each view (camera frame)
     against its moving links' centroid (base frame), X's rotation from those pairs (Kabsch, when the
     centroids spread) and from 60 evenly spread ones (the icosahedral group), its translation
     matching the centroids' means; each candidate pulled in by the ICP's wide rounds over a few moving
     points per view from 30 cm down (``jobs`` at a time, threads; default 2), the :data:`POOLED_KEPT`
     with most points within their last threshold through the fine rounds, the one of those that puts
-    most points on the arm refined: (X, its points on the arm, the candidates); or why none."""
-    moving = [_moving(c, j, trees, 8 * POOLED_POINTS)[:POOLED_POINTS] for j in range(len(c.index))]
+    most points on the arm refined: (X, its points on the arm, the candidates); or why none.
+    ``moving``: each view's moving points (:func:`pooled_points`), when found already."""
+    moving = pooled_points(c, trees) if moving is None else moving
     if sum(len(m) >= MIN_INLIERS for m in moving) < 3:
         return "fewer than 3 clouds in which enough of the arm moved"
-    links = np.array([link.frame != BASE for link in arm.meshes.links])[arm.sample_link]
-    cam = np.array([m.mean(axis=0) for m in moving])
-    base = np.array([arm.points[k][links].mean(axis=0) for k in c.index])
+    cam, base = _centroids(arm, c, moving)
     rotations = list(Rotation.create_group("I").as_matrix())
     if np.linalg.svd(cam - cam.mean(axis=0), compute_uv=False)[1] > 0.02:  # the centroids span a plane
         rotations.insert(0, Rotation.align_vectors(base - base.mean(axis=0), cam - cam.mean(axis=0))[0].as_matrix())
@@ -274,32 +318,46 @@ def pooled_start(arm: PosedArm, c: ArmClouds, trees: list[cKDTree], jobs: int | 
 
 def start_arm(s: DepthSession, arm: PosedArm, c: ArmClouds, jobs: int | None = None
               ) -> tuple[ArmClouds, NDArray[np.float64], list[str]]:
-    """X (cam2base) with no guess (the module's steps 3 and 4): the first :data:`GLOBAL_VIEWS`
-    clouds searched, then every view's moving points at once, then the next clouds, until the
-    best candidate is one most views agree with (:func:`consistent_arm_views`); the views that
-    agree, X refitted on them, notes of what it took.
+    """X (cam2base) with no guess (the module's steps 3 and 4): every view's moving points searched
+    at once, then the clouds :data:`GLOBAL_VIEWS` at a time, until the best candidate is one most
+    views agree with (:func:`consistent_arm_views`); the views that agree, X refitted on them, notes
+    of what it took. (The search over every view first: it costs one group's search, and found the
+    simulated Panda where the first group's did not.)
 
     Raises
     ------
     DegenerateMotionError
-        No candidate from any cloud that most views agree with: the arm is not found.
+        No candidate from any cloud that most views agree with: the arm is not found; or, the search
+        over every view failed, the views' joint angles do not agree with their clouds whatever X
+        (:func:`joints_agreement` below :data:`JOINTS_AGREE`: another view's angles, another arm).
     """
     trees = [search_tree(q[voxel_pick(q, 0.5 * MOVED_M)]) for q in c.points]
+    moving = pooled_points(c, trees)
     why: list[str] = []
     groups = [list(range(first, min(first + GLOBAL_VIEWS, len(c.index)))) for first in range(0, len(c.index), GLOBAL_VIEWS)]
-    for views in groups[:1] + [None] + groups[1:]:  # None: every view's moving points at once
+    for views in [None] + groups:  # None: every view's moving points at once
         searched = "every cloud's moving points" if views is None else ", ".join(s.names[c.index[j]] for j in views)
-        start = pooled_start(arm, c, trees, jobs) if views is None else _group_start(s, arm, c, views, trees, jobs)
+        start = pooled_start(arm, c, trees, jobs, moving) if views is None else _group_start(s, arm, c, views, trees, jobs)
         if isinstance(start, str):
             why.append(f"{searched}: {start}")
-            continue
-        X, seen, n = start
-        agreed, X = consistent_arm_views(s, arm, c, X)
-        if len(agreed.index) >= max(3, (len(c.index) + 1) // 2):
-            return agreed, X, [f"the arm found with no guess of X in {searched} ({n} candidates; the best put {seen} points "
-                               f"on the arm, and {len(agreed.index)} of {len(c.index)} views agree with it)"]
-        why.append(f"{searched}: the best candidate puts {seen} points on the arm, and only {len(agreed.index)} of "
-                   f"{len(c.index)} views agree with it")
+        else:
+            X, seen, n = start
+            agreed, X = consistent_arm_views(s, arm, c, X)
+            if len(agreed.index) >= max(3, (len(c.index) + 1) // 2):
+                return agreed, X, [f"the arm found with no guess of X in {searched} ({n} candidates; the best put {seen} "
+                                   f"points on the arm, and {len(agreed.index)} of {len(c.index)} views agree with it)"]
+            why.append(f"{searched}: the best candidate puts {seen} points on the arm, and only {len(agreed.index)} of "
+                       f"{len(c.index)} views agree with it")
+        agreement = joints_agreement(arm, c, moving) if views is None else None
+        if agreement is not None and agreement < JOINTS_AGREE:
+            # what moved between the views is not where the angles move the arm: no X can explain it, and
+            # searching each group of clouds would only say so in minutes
+            raise DegenerateMotionError(
+                f"the joint angles do not match the clouds ({why[-1]}; the distances between the views' "
+                f"moving points and between the arm's links at their angles correlate {agreement:.2f}, where a view's "
+                f"own angles give {JOINTS_AGREE:g} or more): is each cloud's row of the joints' file its own (the "
+                "rows' order, the cloud named in it), the joint columns in the arm's order, and the arm the one named "
+                "(joints: arm)?")
     raise DegenerateMotionError("the arm is not found in the clouds (" + "; ".join(why[:3]) + "): is it in view, the "
                                 "clouds' unit right (depth: unit), and each cloud's joint angles its own?")
 
