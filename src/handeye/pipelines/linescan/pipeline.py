@@ -167,7 +167,7 @@ def calibrate_linescan_session(folder: str | Path | LineScanSession, options: Ca
     --------
     >>> import tempfile
     >>> from handeye.pipelines.linescan.simulate import linescan_scene, write_linescan_session
-    >>> folder = write_linescan_session(tempfile.mkdtemp() + "/s", linescan_scene(6, "eye_in_hand", rng=1), rng=1)
+    >>> folder = write_linescan_session(tempfile.mkdtemp() + "/s", linescan_scene(8, "eye_in_hand", rng=1), rng=1)
     >>> cal = calibrate_linescan_session(folder)
     >>> cal.verdict, abs(cal.sensor.figures["focal_px"]["value"] / 2400 - 1) < 1e-3
     ('good', True)
