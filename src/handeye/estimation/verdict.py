@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from ..result import Calibration, Diagnostics
 
 __all__ = ["ACCEPT_DEG", "ACCEPT_MM", "EXIT_STATUS", "Evidence", "FIT_FACTOR", "FitEvidence", "HEADLINES", "HELDOUT_FACTOR",
-           "Judgement", "MISPAIRED", "exit_status", "fit_verdict", "headline", "judge", "pairing_verdict",
+           "Judgement", "MISPAIRED", "disagreement_verdict", "exit_status", "fit_verdict", "headline", "judge", "pairing_verdict",
            "judged",
            "solver_spread"]
 
@@ -330,3 +330,9 @@ def pairing_verdict(check: Diagnostics, mispaired: int, n: int, advice: str) -> 
     if mispaired < max(2, MISPAIRED * n):
         return check
     return replace(check, verdict="inconsistent", advice=[advice] + list(check.advice))
+
+
+def disagreement_verdict(check: Diagnostics, advice: str) -> Diagnostics:
+    """``check`` with ``advice`` first and its verdict at most 'weak': two sensors of a rig disagree,
+    and which one is wrong no fit can tell (the answer stands, not as good)."""
+    return replace(check, verdict="weak" if check.verdict == "good" else check.verdict, advice=[advice] + list(check.advice))

@@ -25,6 +25,7 @@ from ...errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from ...estimation.core import WEAKEST_NOTE, estimate
 from ...estimation.readings import check_readings
 from ...estimation.uncertainty import robot_accuracy_cov
+from ...estimation.verdict import disagreement_verdict
 from ...frames.metrics import std_deg_mm
 from ...frames.setups import pose_name
 from ...options import CalibrationOptions
@@ -173,26 +174,25 @@ def calibrate_rig(members: list[SensorModel], sensor_names: list[str], robot: Ro
         # sensors that fit better than they state are held to 1: a camera whose corners are found to 0.02 px
         # where 0.2 px is stated makes no other sensor look worse
         others = max(float(np.median(np.delete(ratio, worst))), 1.0)
-        if ratio[worst] > DISAGREE * others:
-            why = (f"its measurements fit the rig {ratio[worst] / others:.1f}x worse than the other sensors' do (against "
+        worse = float(ratio[worst] / others)
+        if worse > DISAGREE:
+            why = (f"its measurements fit the rig {worse:.1f}x worse than the other sensors' do (against "
                    "each one's stated noise): a wrong intrinsic (focal length, distortion), a sensor that moved during the "
                    "capture, or another sensor's data")
             if len(kept) > 2:
                 disagreeing.append((names[worst], why + "; left out of the joint fit, its own answer kept"))
                 kept.pop(worst)
                 continue
-            # which of two is wrong the data cannot tell, that one is: the answer stands, not as good, and
-            # the advice says so first (the robot's accuracy the fit infers takes the disagreement too)
-            diag = joint.diagnostics
-            figures = dict(joint.sensor.figures, disagreeing_pair={"sensor": names[worst], "other": names[1 - worst],
-                                                                    "ratio": float(ratio[worst] / others)})
+            # which of two is wrong the data cannot tell, that one is (the robot's accuracy the fit infers
+            # takes the disagreement too)
+            bad, other = names[worst], names[1 - worst]
+            figures = dict(joint.sensor.figures, disagreeing_pair={"sensor": bad, "other": other, "ratio": worse})
             joint = replace(joint, sensor=replace(joint.sensor, figures=figures), notes=list(joint.notes) + [
-                f"{names[worst]}: {why}; with two sensors it stays in (the other's data are the only check)"],
-                diagnostics=replace(diag, verdict="weak" if diag.verdict == "good" else diag.verdict, advice=[
-                    f"{names[worst]} fits the rig {ratio[worst] / others:.1f}x worse than {names[1 - worst]} does: check its "
-                    f"intrinsics (focal length, distortion) and that it did not move, then calibrate again (its own answer "
-                    f"is beside the rig's, sensors/{names[worst]}/); the X and the robot accuracy below take the "
-                    "disagreement in"] + list(diag.advice)))
+                f"{bad}: {why}; with two sensors it stays in (the other's data are the only check)"],
+                diagnostics=disagreement_verdict(joint.diagnostics, (
+                    f"{bad} fits the rig {worse:.1f}x worse than {other} does: check its intrinsics (focal length, "
+                    f"distortion) and that it did not move, then calibrate again (its own answer is beside the rig's, "
+                    f"sensors/{bad}/); the X and the robot accuracy below take the disagreement in")))
         break
     if joint is not None and joint.robot_accuracy is not None:
         # each sensor's X takes the robot's error common to all poses whole, as X's std does: the same
