@@ -5,11 +5,11 @@ uncertainty, ready-to-paste ROS lines), ``residuals`` (per-pose charts), ``overl
 reprojected target points on every image, when images were used), ``scene`` (3D view of robot,
 camera and target poses), ``axes`` (the motions' rotation axes on the unit sphere), ``solvers``
 (every solver on the same data) and ``advice``; a rig's report also has ``rig`` (its picture and a
-section per sensor, :mod:`handeye.report._rig`). The charts of the residuals, the 3D scene and the
-rotation axes are inline SVG drawn by :mod:`handeye.report._svg` (no matplotlib: its import and PNGs
-were half of ``calibrate --sample --out``'s time); the images, and a sensor's sections, clouds and a
-rig's picture, are embedded base64 JPEGs and PNGs (matplotlib, imported when they are drawn). The page
-loads nothing from anywhere.
+section per sensor, :mod:`handeye.report._rig`). The charts of the residuals, the 3D scene, the
+rotation axes, a sensor's sections and a rig's picture are inline SVG drawn by :mod:`handeye.report._svg`
+(no matplotlib: its import and PNGs were half of ``calibrate --sample --out``'s time); the images are
+embedded base64 JPEGs, and a scene's registered clouds a PNG (matplotlib, imported when they are drawn).
+The page loads nothing from anywhere.
 """
 
 from __future__ import annotations
@@ -35,9 +35,9 @@ from ..robot.kinematics import display_unit
 from ..sensors.camera.detect import default_jobs
 from ..sensors.camera.pnp import project_points
 from ._overlay import jpeg, overlay_thumbnail, zoom_size
-from ._page import _COLOURS, _CSS, _e, _figure, _fmt, _img, _png, _transform_table
+from ._page import _COLOURS, _CSS, FIGURE_WIDTH, _e, _figure, _fmt, _img, _png, _transform_table
 from ._rig import RIG_FIGURES, rig_sections
-from ._svg import Canvas, Panel, View3D, colour_bar, legend, legend_row, nice_ticks, text_width, triads, viridis
+from ._svg import Canvas, Panel, View3D, colour_bar, coolwarm, legend, legend_row, nice_ticks, text_width, triads, viridis
 from .files import result_dict
 
 cv2 = lazy_module("cv2")
@@ -62,10 +62,6 @@ FLAG_FACTOR = 3.0
 MAX_LABELLED_POSES = 60
 #: The rotation-axes figure draws at most this many motions (evenly chosen, in their order).
 MAX_AXES_DRAWN = 1000
-
-
-#: The width of the report's figures in pixels (the page's content is 1,068 px wide: drawn 1:1).
-FIGURE_WIDTH = 1060
 
 
 def _residual_figure(cal: Calibration) -> str:
@@ -294,54 +290,57 @@ def _shown_sections(sf) -> list[int]:
 
 #: What a section is drawn in when the sensor does not say (``plane``; a result written before each sensor said).
 SECTION_PLANE = "the sensor's own plane"
+#: At most this many of a section's points are drawn (evenly chosen): a profile's or a cloud's thousands
+#: would make the page heavy and look no different.
+MAX_SECTION_POINTS = 400
 
 
 def _sections_figure(cal: Calibration) -> str:
     """Each drawn section (a view, or a rig's sensor in a view) in the sensor's own plane (a profiler's
     laser plane, a camera's image, a line-scan camera's scan, a depth camera's image: its ``plane``),
-    in one grid of cells at one scale (one axes: a figure of two dozen axes took a second to draw):
-    its points coloured by residual (signed: a diverging scale about 0; a size: from 0), and the fitted
-    target through X (a ball's circle or a plate's line, a board's grid, a mesh's edges)."""
+    in one grid of cells at one scale, as SVG: its points coloured by residual (signed: a diverging
+    scale about 0; a size: from 0), and the fitted target through X (a ball's circle or a plate's line,
+    a board's grid, a mesh's edges)."""
     sf = cal.sensor
     shown = _shown_sections(sf)
     rms = _section_rms(sf)
-    cols = min(6, len(shown))
+    cols, rows = min(6, len(shown)), -(-len(shown) // min(6, len(shown)))
     drawn = [np.vstack([sf.sections[k]["points_mm"], np.asarray(sf.sections[k]["curve_mm"], float).reshape(-1, 2)]) for k in shown]
     boxes = [(np.nanmin(d, axis=0), np.nanmax(d, axis=0)) for d in drawn]  # the points and the target drawn
     cell = 1.25 * max(max(float(np.max(hi - lo)) for lo, hi in boxes), 1e-3)  # mm: the largest view's extent, a margin
-    fig = _figure((1.9 * cols + 1.2, 1.9 * (-(-len(shown) // cols)) + 0.6))
-    ax = fig.subplots(1, 1)
-    xs, zs, res = [], [], []
-    for i, (k, (lo, hi)) in enumerate(zip(shown, boxes)):
-        sec = sf.sections[k]
-        offset = np.array([(i % cols) * cell, (i // cols) * cell]) - 0.5 * (lo + hi)  # the view's centre to its cell's
-        curve = np.asarray(sec["curve_mm"], float).reshape(-1, 2) + offset
-        ax.plot(curve[:, 0], curve[:, 1], "-", color="#555", lw=0.8)
-        xs.append(sec["points_mm"][:, 0] + offset[0])
-        zs.append(sec["points_mm"][:, 1] + offset[1])
-        res.append(sec["residual_mm"])
-        label = sec.get("label", sf.views[k] if k < len(sf.views) else "")
-        ax.text((i % cols) * cell, (i // cols) * cell - 0.45 * cell, f"{label}: {rms[k]:.3f} mm",
-                ha="center", va="top", fontsize=6)
-    res_all = np.concatenate(res)
+    left, top, bar_room = 16, 58, 150
+    px = min(160.0, (FIGURE_WIDTH - left - bar_room) / cols)  # a cell's side in pixels
+    scale = px / cell
+    res_all = np.concatenate([np.asarray(sf.sections[k]["residual_mm"], float) for k in shown])
     limit = max(float(np.nanpercentile(np.abs(res_all), 99)), 1e-3)
     signed = bool(np.nanmin(res_all) < 0)  # a signed distance (a profile, a surface) or a size (a corner's error)
-    scale = {"cmap": "coolwarm", "vmin": -limit, "vmax": limit} if signed else {"cmap": "viridis", "vmin": 0.0, "vmax": limit}
+    ramp, vmin = (coolwarm, -limit) if signed else (viridis, 0.0)
     many = len(res_all) > 30 * len(shown)  # profiles and clouds: small dots; a board's corners: larger ones
-    dots = ax.scatter(np.concatenate(xs), np.concatenate(zs), c=res_all, s=2 if many else 9, **scale)
+    canvas = Canvas(FIGURE_WIDTH, top + rows * px + 40, "each view with the fitted target's section")
+    for i, (k, (lo, hi)) in enumerate(zip(shown, boxes)):
+        sec = sf.sections[k]
+        cx, cy = left + (i % cols + 0.5) * px, top + (i // cols + 0.5) * px  # the cell's centre, the view's centre on it
+        mid = 0.5 * (lo + hi)
+        curve = np.asarray(sec["curve_mm"], float).reshape(-1, 2)
+        canvas.path(cx + scale * (curve[:, 0] - mid[0]), cy + scale * (curve[:, 1] - mid[1]), "#555", 0.8)
+        points, res = np.asarray(sec["points_mm"], float), np.asarray(sec["residual_mm"], float)
+        keep = np.unique(np.linspace(0, len(points) - 1, min(len(points), MAX_SECTION_POINTS)).astype(int)) if len(points) else []
+        for (u, v), colour in zip(points[keep], ramp(res[keep], vmin, limit)):
+            if np.isfinite(u) and np.isfinite(v):
+                canvas.circle(cx + scale * (u - mid[0]), cy + scale * (v - mid[1]), 1.2 if many else 2.2, colour, cls="pt")
+        label = sec.get("label", sf.views[k] if k < len(sf.views) else "")
+        canvas.text(cx, cy - 0.45 * px, f"{label}: {rms[k]:.3f} mm", 9, "middle")
     bar = float(10 ** np.floor(np.log10(max(cell / 4, 1e-3))))  # a scale bar: every cell is drawn at this one scale
-    y0 = (-(-len(shown) // cols) - 0.5) * cell
-    ax.plot([-0.4 * cell, -0.4 * cell + bar], [y0, y0], "k-", lw=1.5)
-    ax.text(-0.4 * cell, y0 + 0.04 * cell, f"{bar:g} mm", fontsize=6, va="top")
-    ax.set_aspect("equal")
-    ax.invert_yaxis()  # the sensor looks down its z; an image's rows run down
-    ax.axis("off")
-    fig.colorbar(dots, ax=ax, shrink=0.6, label="residual (mm)" if signed else "residual's size (mm)")
+    y = top + rows * px + 14
+    canvas.line(left + 0.1 * px, y, left + 0.1 * px + scale * bar, y, "#000", 1.5)
+    canvas.text(left + 0.1 * px, y + 12, f"{bar:g} mm", 9)
+    colour_bar(canvas, (left + cols * px + 20, top + 10, 14, min(rows * px - 20, 300)), vmin, limit,
+               "residual (mm)" if signed else "residual's size (mm)", ramp=ramp)
     plane = sf.sections[shown[0]].get("plane", SECTION_PLANE)
     lines = any(np.isfinite(np.asarray(sf.sections[k]["curve_mm"], float)).any() for k in shown)
-    ax.set_title(f"each view in {plane}, one scale: the points coloured by their residual"
-                 + (f", and the fitted {sf.target} through X (lines)" if lines else ""), fontsize=8, pad=14)
-    return _png(fig)
+    canvas.text(FIGURE_WIDTH / 2, 22, f"each view in {plane}, one scale: the points coloured by their residual"
+                + (f", and the fitted {sf.target} through X (lines)" if lines else ""), 13, "middle", cls="title")
+    return canvas.svg()
 
 
 #: What a sensor's clouds are drawn in when its sections do not say (their ``frame``).
@@ -395,7 +394,7 @@ def _sensor_residuals_section(cal: Calibration) -> str:
     if sf.sections and "cloud_mm" in sf.sections[0]:  # 3D clouds in one frame (a scene's), not sections in a plane
         parts.append(_img(_clouds_figure(cal), "the views' registered clouds, coloured by view"))
     elif shown:
-        parts.append(_img(_sections_figure(cal), "each view with the fitted target's section")
+        parts.append(_sections_figure(cal)
                      + (f"<p>{len(shown)} of {len(sf.sections)} views drawn: the {MAX_SECTIONS // 2} that fit worst and "
                         "others evenly.</p>" if len(shown) < len(sf.sections) else ""))
     if cal.skipped:
