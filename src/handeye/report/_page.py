@@ -1,12 +1,9 @@
-"""What the report pages share: the style sheet, the verdict colours, the figures' width, figures as embedded
-PNGs (matplotlib: a scene's clouds; the other figures are SVG, :mod:`handeye.report._svg`)."""
+"""What the report pages share: the style sheet, the verdict colours, the figures' width (the figures are
+inline SVG, :mod:`handeye.report._svg`: no page imports matplotlib)."""
 
 from __future__ import annotations
 
-import base64
 import html
-import io
-import warnings
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,26 +32,6 @@ figure.rejected img{opacity:.55;border:3px dashed #888}
 img{max-width:100%} .note{color:#555;font-size:.9em} section{overflow-wrap:anywhere}
 svg.fig{display:block;width:100%;height:auto;margin:6px 0}
 """
-
-
-def _figure(figsize: tuple[float, float]):
-    """A matplotlib Figure drawn off-screen: no pyplot, so no backend is chosen for the user."""
-    from matplotlib.figure import Figure  # matplotlib loads only when a report is drawn
-
-    return Figure(figsize=figsize)
-
-
-def _png(fig) -> str:
-    buf = io.BytesIO()
-    with warnings.catch_warnings():  # image names in scripts the font lacks: drawn as boxes, not a warning per glyph
-        warnings.filterwarnings("ignore", message="Glyph .* missing from", category=UserWarning)
-        fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
-
-
-def _img(src: str, alt: str, width: int | None = None) -> str:
-    w = f' width="{width}"' if width else ""
-    return f'<img src="{src}" alt="{html.escape(alt)}"{w}>'
 
 
 def _e(s: object) -> str:

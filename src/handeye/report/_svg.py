@@ -28,6 +28,11 @@ _VIRIDIS = np.array([[68, 1, 84], [71, 45, 123], [59, 82, 139], [44, 114, 142], 
 _COOLWARM = np.array([[59, 76, 192], [98, 130, 234], [141, 176, 254], [184, 208, 249], [221, 221, 221], [245, 196, 173],
                       [244, 154, 123], [222, 96, 77], [180, 4, 38]], float)
 
+#: Colours for categories (matplotlib's tab20: pairs of a strong and a light shade; every other one is tab10).
+CATEGORY_COLOURS = ("#1f77b4", "#aec7e8", "#ff7f0e", "#ffbb78", "#2ca02c", "#98df8a", "#d62728", "#ff9896", "#9467bd",
+                    "#c5b0d5", "#8c564b", "#c49c94", "#e377c2", "#f7b6d2", "#7f7f7f", "#c7c7c7", "#bcbd22", "#dbdb8d",
+                    "#17becf", "#9edae5")
+
 #: A character's width as a share of the font size (system sans-serif fonts, for layout and legends).
 CHAR_WIDTH = 0.52
 

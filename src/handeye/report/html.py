@@ -6,10 +6,9 @@ reprojected target points on every image, when images were used), ``scene`` (3D 
 camera and target poses), ``axes`` (the motions' rotation axes on the unit sphere), ``solvers``
 (every solver on the same data) and ``advice``; a rig's report also has ``rig`` (its picture and a
 section per sensor, :mod:`handeye.report._rig`). The charts of the residuals, the 3D scene, the
-rotation axes, a sensor's sections and a rig's picture are inline SVG drawn by :mod:`handeye.report._svg`
+rotation axes, a sensor's sections or clouds and a rig's picture are inline SVG drawn by :mod:`handeye.report._svg`
 (no matplotlib: its import and PNGs were half of ``calibrate --sample --out``'s time); the images are
-embedded base64 JPEGs, and a scene's registered clouds a PNG (matplotlib, imported when they are drawn).
-The page loads nothing from anywhere.
+embedded base64 JPEGs. The page loads nothing from anywhere.
 """
 
 from __future__ import annotations
@@ -35,9 +34,23 @@ from ..robot.kinematics import display_unit
 from ..sensors.camera.detect import default_jobs
 from ..sensors.camera.pnp import project_points
 from ._overlay import jpeg, overlay_thumbnail, zoom_size
-from ._page import _COLOURS, _CSS, FIGURE_WIDTH, _e, _figure, _fmt, _img, _png, _transform_table
+from ._page import _COLOURS, _CSS, FIGURE_WIDTH, _e, _fmt, _transform_table
 from ._rig import RIG_FIGURES, rig_sections
-from ._svg import Canvas, Panel, View3D, colour_bar, coolwarm, legend, legend_row, nice_ticks, text_width, triads, viridis
+from ._svg import (
+    CATEGORY_COLOURS,
+    Canvas,
+    Panel,
+    View3D,
+    colour_bar,
+    coolwarm,
+    legend,
+    legend_row,
+    nice_ticks,
+    text_width,
+    tick_labels,
+    triads,
+    viridis,
+)
 from .files import result_dict
 
 cv2 = lazy_module("cv2")
@@ -345,43 +358,56 @@ def _sections_figure(cal: Calibration) -> str:
 
 #: What a sensor's clouds are drawn in when its sections do not say (their ``frame``).
 CLOUD_FRAME = "views' common"
+#: The clouds' figure draws at most this many points (a random share, the same in every panel).
+MAX_CLOUD_POINTS = 1500
 
 
 def _clouds_figure(cal: Calibration) -> str:
     """The views' clouds registered through X (sections of 3D clouds: ``cloud_mm`` in the ``frame``
-    they agree in, a scene's), seen along that frame's three axes: above, coloured by view (where
-    they overlap they should lie on one surface); below, coloured by each point's residual."""
-    from matplotlib import colormaps  # matplotlib loads only when a report is drawn
-    from matplotlib.patches import Patch
-
+    they agree in, a scene's), seen along that frame's three axes, as SVG: above, coloured by view
+    (where they overlap they should lie on one surface); below, coloured by each point's residual."""
     sf = cal.sensor
     clouds = [np.asarray(sec["cloud_mm"], float).reshape(-1, 3) for sec in sf.sections]
     res = [np.asarray(sec["residual_mm"], float) for sec in sf.sections]
     pts = np.concatenate(clouds) if clouds else np.zeros((0, 3))
-    label = np.concatenate([np.full(len(c), k) for k, c in enumerate(clouds)]) if clouds else np.zeros(0)
+    label = np.concatenate([np.full(len(c), k) for k, c in enumerate(clouds)]) if clouds else np.zeros(0, int)
     r = np.concatenate(res) if res else np.zeros(0)
-    order = np.random.default_rng(0).permutation(len(pts))  # no view drawn over all the others
-    pts, label, r = pts[order], label[order], r[order]
+    order = np.random.default_rng(0).permutation(len(pts))[:MAX_CLOUD_POINTS]  # no view drawn over all the others
+    pts, label, r = pts[order], label[order].astype(int), r[order]
+    ok = np.isfinite(pts).all(axis=1)
+    pts, label, r = pts[ok], label[ok], r[ok]
     frame = sf.sections[0].get("frame", CLOUD_FRAME) if sf.sections else CLOUD_FRAME
-    fig = _figure((12.0, 7.0))
-    axes = fig.subplots(2, 3)
-    cmap = colormaps["tab20" if len(clouds) > 10 else "tab10"]
+    palette = CATEGORY_COLOURS if len(clouds) > 10 else CATEGORY_COLOURS[::2]
+    by_view = [palette[k % len(palette)] for k in label]
     limit = max(float(np.percentile(np.abs(r), 98)), 1e-3) if len(r) else 1.0
+    by_residual = coolwarm(r, -limit, limit)
+    left, top, w, h, gap_x, gap_y = 70, 60, 240, 190, 60, 74
+    canvas = Canvas(FIGURE_WIDTH, top + 2 * h + gap_y + 50, "the views' registered clouds, coloured by view")
+    canvas.text(FIGURE_WIDTH / 2, 22, f"the views' clouds registered through X, in the {frame} frame (along its z, y and x "
+                "axes): coloured by view (above) and by residual (below)", 13, "middle", cls="title")
     for c, (a, b) in enumerate([(0, 1), (0, 2), (1, 2)]):
-        top, bottom = axes[0, c], axes[1, c]
-        top.scatter(pts[:, a], pts[:, b], c=cmap(label % cmap.N), s=1.5, linewidths=0)
-        dots = bottom.scatter(pts[:, a], pts[:, b], c=r, cmap="coolwarm", vmin=-limit, vmax=limit, s=1.5, linewidths=0)
-        for ax in (top, bottom):
-            ax.set_aspect("equal")
-            ax.set_xlabel(f"{'xyz'[a]} (mm)", fontsize=7)
-            ax.set_ylabel(f"{'xyz'[b]} (mm)", fontsize=7)
-            ax.tick_params(labelsize=6)
-    handles = [Patch(color=cmap(k % cmap.N), label=name) for k, name in enumerate(sf.views)]
-    axes[0, 2].legend(handles=handles, fontsize=6, loc="center left", bbox_to_anchor=(1.02, 0.5), frameon=False)
-    fig.colorbar(dots, ax=axes[1, :].tolist(), shrink=0.8, label="residual (mm)")
-    fig.suptitle(f"the views' clouds registered through X, in the {frame} frame (along its z, y and x axes): "
-                 "coloured by view (above) and by residual (below)", fontsize=9)
-    return _png(fig)
+        lo, hi = (pts[:, [a, b]].min(axis=0), pts[:, [a, b]].max(axis=0)) if len(pts) else (np.zeros(2), np.ones(2))
+        mm_per_px = 1.08 * max((hi[0] - lo[0]) / w, (hi[1] - lo[1]) / h, 1e-6)  # one scale on both axes
+        mid = 0.5 * (lo + hi)
+        xlim = (mid[0] - mm_per_px * w / 2, mid[0] + mm_per_px * w / 2)
+        ylim = (mid[1] - mm_per_px * h / 2, mid[1] + mm_per_px * h / 2)
+        for row, colours in enumerate((by_view, by_residual)):
+            panel = Panel(canvas, (left + c * (w + gap_x), top + row * (h + gap_y), w, h), xlim, ylim)
+            for (u, v), colour in zip(pts[:, [a, b]], colours):
+                canvas.circle(float(panel.x(u)), float(panel.y(v)), 1.2, colour, cls="pt")
+            panel.frame()
+            ticks = nice_ticks(*xlim, 4)
+            panel.xticks(ticks, tick_labels(ticks), 10)
+            panel.yticks(nice_ticks(*ylim, 4), grid=False, size=10)
+            panel.xlabel(f"{'xyz'[a]} (mm)", 30, 11)
+            panel.ylabel(f"{'xyz'[b]} (mm)", 11)
+            panel.end()
+    right = left + 3 * w + 2 * gap_x + 16
+    shown = list(sf.views)[:12]  # the legend's room: the first dozen views
+    legend(canvas, right, top, [("dot", palette[k % len(palette)], str(name)) for k, name in enumerate(shown)]
+           + ([("dot", "#ffffff", f"... {len(sf.views) - len(shown)} more")] if len(sf.views) > len(shown) else []), 10)
+    colour_bar(canvas, (right, top + h + gap_y, 14, h), -limit, limit, "residual (mm)", ramp=coolwarm)
+    return canvas.svg()
 
 
 def _sensor_residuals_section(cal: Calibration) -> str:
@@ -392,7 +418,7 @@ def _sensor_residuals_section(cal: Calibration) -> str:
              f"{sf.fit_rms_mm:.3f} mm RMS.</p>"]
     shown = _shown_sections(sf) if sf.sections and "cloud_mm" not in sf.sections[0] else []
     if sf.sections and "cloud_mm" in sf.sections[0]:  # 3D clouds in one frame (a scene's), not sections in a plane
-        parts.append(_img(_clouds_figure(cal), "the views' registered clouds, coloured by view"))
+        parts.append(_clouds_figure(cal))
     elif shown:
         parts.append(_sections_figure(cal)
                      + (f"<p>{len(shown)} of {len(sf.sections)} views drawn: the {MAX_SECTIONS // 2} that fit worst and "
