@@ -583,6 +583,20 @@ def test_a_rigs_report_is_svg_without_matplotlib(tmp_path):
     assert len(labels) == min(24, len(seen)) and set(labels) <= seen
     assert len(_of_class(sections, "pt", "circle")) >= 20 * len(labels)  # each section's corners, a dot each
 
+
+def test_a_sections_figure_keeps_the_points_worth_seeing():
+    """A section of thousands of points is drawn thinned (a profile's dots all but hide one another): its
+    largest residuals always among those drawn, the rest evenly, in the points' order."""
+    from handeye.report.html import MAX_SECTION_POINTS, _thinned
+
+    residual = np.random.default_rng(0).normal(0.0, 0.01, 3000)
+    residual[[17, 1500, 2999]] = [0.5, -0.7, np.nan]
+    kept = _thinned(residual, MAX_SECTION_POINTS)
+    assert len(kept) == MAX_SECTION_POINTS and np.all(np.diff(kept) > 0) and {17, 1500} <= set(kept.tolist())
+    worst = np.argsort(-np.abs(np.nan_to_num(residual)))[:MAX_SECTION_POINTS // 4]
+    assert set(worst.tolist()) <= set(kept.tolist())
+    assert np.array_equal(_thinned(residual[:50], MAX_SECTION_POINTS), np.arange(50))
+
 #: result.json's keys as the sub-records' parts wrote them before they were grouped (issue 36): the
 #: top level shared by every calibration, and the sections of the optional parts
 _TOP = {"X", "X_inverse", "X_inverse_name", "X_name", "Z", "Z_name", "check", "determined", "easy_handeye",

@@ -303,9 +303,20 @@ def _shown_sections(sf) -> list[int]:
 
 #: What a section is drawn in when the sensor does not say (``plane``; a result written before each sensor said).
 SECTION_PLANE = "the sensor's own plane"
-#: At most this many of a section's points are drawn (evenly chosen): a profile's or a cloud's thousands
+#: At most this many of a section's points are drawn (:func:`_thinned`): a profile's or a cloud's thousands
 #: would make the page heavy and look no different.
-MAX_SECTION_POINTS = 400
+MAX_SECTION_POINTS = 200
+
+
+def _thinned(residual: NDArray[np.float64], most: int) -> NDArray[np.intp]:
+    """The indices of at most ``most`` points to draw, in order: the quarter with the largest residuals (the
+    points worth seeing), and the rest evenly."""
+    n = len(residual)
+    if n <= most:
+        return np.arange(n)
+    worst = np.argsort(-np.nan_to_num(np.abs(residual), nan=-1.0), kind="stable")[:most // 4]
+    rest = np.setdiff1d(np.arange(n), worst)
+    return np.sort(np.r_[worst, rest[np.linspace(0, len(rest) - 1, most - len(worst)).astype(int)]])
 
 
 def _sections_figure(cal: Calibration) -> str:
@@ -337,7 +348,7 @@ def _sections_figure(cal: Calibration) -> str:
         curve = np.asarray(sec["curve_mm"], float).reshape(-1, 2)
         canvas.path(cx + scale * (curve[:, 0] - mid[0]), cy + scale * (curve[:, 1] - mid[1]), "#555", 0.8)
         points, res = np.asarray(sec["points_mm"], float), np.asarray(sec["residual_mm"], float)
-        keep = np.unique(np.linspace(0, len(points) - 1, min(len(points), MAX_SECTION_POINTS)).astype(int)) if len(points) else []
+        keep = _thinned(res, MAX_SECTION_POINTS)
         for (u, v), colour in zip(points[keep], ramp(res[keep], vmin, limit)):
             if np.isfinite(u) and np.isfinite(v):
                 canvas.circle(cx + scale * (u - mid[0]), cy + scale * (v - mid[1]), 1.2 if many else 2.2, colour, cls="pt")
