@@ -100,7 +100,7 @@ def test_a_laser_session_through_the_command_line(tmp_path, capsys):
     back = handeye.load_result(tmp_path / "out")
     assert back.sensor.target == "sphere" and back.verdict == "good"
     # the report shows each profile with the ball's fitted section (issue 61); the section runs through the points
-    assert 'alt="each view with the fitted target&#x27;s section"' in (tmp_path / "out" / "report.html").read_text()
+    assert 'aria-label="each view with the fitted target&#x27;s section"' in (tmp_path / "out" / "report.html").read_text()
     cal = calibrate_laser_session(folder)
     for sec in cal.sensor.sections:
         on_curve = np.interp(sec["points_mm"][:, 0], sec["curve_mm"][:, 0], sec["curve_mm"][:, 1])

@@ -268,7 +268,7 @@ def test_the_report_draws_each_scan_with_the_fitted_grid():
         extent = np.ptp(sec["points_mm"], axis=0)
         assert 80 < extent.max() < 250  # the 160 x 100 mm grid, turned: mm at the target along both axes
     page = report_html(cal)
-    assert 'alt="each view with the fitted target&#x27;s section"' in page
+    assert 'aria-label="each view with the fitted target&#x27;s section"' in page
 
 
 def _readings(points):

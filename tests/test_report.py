@@ -550,6 +550,53 @@ def test_calibrate_sample_does_not_import_matplotlib(tmp_path):
     assert "<svg" in (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
 
 
+
+@pytest.mark.slow
+def test_a_rigs_report_is_svg_without_matplotlib(tmp_path):
+    """Issue 78: a rig's report drew its picture, each sensor's residual per view and each view's section as
+    matplotlib PNGs; now as inline SVG (handeye.report._svg), so that calibrating a rig never imports
+    matplotlib. The figures keep what the PNGs showed: every sensor labelled in the picture, the flange and
+    the target; a bar per view for each sensor; each drawn section's label and its corners, one dot each."""
+    assert main(["simulate", "--sensor", "rig", "--seed", "1", "-o", str(tmp_path / "rig")]) == 0
+    code = ("import sys; from handeye.cli import main; rc = main(['calibrate', "
+            f"{str(tmp_path / 'rig')!r}, '--no-progress', '--out', {str(tmp_path / 'out')!r}]); "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'matplotlib')); sys.exit(rc)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-500:]
+    assert done.stdout.strip().splitlines()[-1] == "[]"
+    text = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
+    assert "data:image/png" not in text
+    cal = handeye.load_result(tmp_path / "out")
+    sensors, views = list(cal.sensor.figures["X_per_sensor"]), list(cal.diagnostics.names)
+    rig = text.split('<section id="rig">')[1].split('<section id="residuals">')[0]
+    picture, *bars = _svg_figures(rig)
+    assert len(bars) == len(sensors) == 2
+    words = {t for t, _ in _svg_texts(picture)}
+    assert {*sensors, "flange", "target (first view)", "x (m)", "y (m)", "z (m)"} <= words
+    for name, figure in zip(sensors, bars):
+        assert len(_of_class(figure, "bar", "rect")) == len(views)
+        assert f"sensor {name}: its residual per view in the joint fit (none where it saw nothing)" in {t for t, _ in _svg_texts(figure)}
+    sections = next(f for f in _svg_figures(text) if f.get("aria-label") == "each view with the fitted target's section")
+    seen = {f"{v} {name}" for name, rms in cal.sensor.figures["view_rms_mm_per_sensor"].items()
+            for v, r in zip(views, rms) if r is not None}  # a section per sensor and view it saw: at most 24 drawn
+    labels = [t.split(":")[0] for t, _ in _svg_texts(sections) if ": " in t and t.endswith(" mm")]
+    assert len(labels) == min(24, len(seen)) and set(labels) <= seen
+    assert len(_of_class(sections, "pt", "circle")) >= 20 * len(labels)  # each section's corners, a dot each
+
+
+def test_a_sections_figure_keeps_the_points_worth_seeing():
+    """A section of thousands of points is drawn thinned (a profile's dots all but hide one another): its
+    largest residuals always among those drawn, the rest evenly, in the points' order."""
+    from handeye.report.html import MAX_SECTION_POINTS, _thinned
+
+    residual = np.random.default_rng(0).normal(0.0, 0.01, 3000)
+    residual[[17, 1500, 2999]] = [0.5, -0.7, np.nan]
+    kept = _thinned(residual, MAX_SECTION_POINTS)
+    assert len(kept) == MAX_SECTION_POINTS and np.all(np.diff(kept) > 0) and {17, 1500} <= set(kept.tolist())
+    worst = np.argsort(-np.abs(np.nan_to_num(residual)))[:MAX_SECTION_POINTS // 4]
+    assert set(worst.tolist()) <= set(kept.tolist())
+    assert np.array_equal(_thinned(residual[:50], MAX_SECTION_POINTS), np.arange(50))
+
 #: result.json's keys as the sub-records' parts wrote them before they were grouped (issue 36): the
 #: top level shared by every calibration, and the sections of the optional parts
 _TOP = {"X", "X_inverse", "X_inverse_name", "X_name", "Z", "Z_name", "check", "determined", "easy_handeye",

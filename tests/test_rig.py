@@ -234,7 +234,7 @@ def test_rig_report_has_a_section_per_sensor():
     page = report_html(bad.joint)
     assert re.findall(r'<section class="sensor" id="sensor-([^"]+)">', page) == ["c0", "c2", "c1"]
     rig = page.split('<section id="rig">')[1].split('<section id="residuals">')[0]
-    assert rig.count("<img") == 1 + 2  # the picture, and the residual figure of each sensor in the joint fit
+    assert rig.count("<svg") == 1 + 2 and "<img" not in rig  # the picture, and each joint-fit sensor's residual figure (SVG)
     c1 = rig.split('id="sensor-c1">')[1].split("</section>")[0]
     assert "disagrees with the rest" in c1 and "its own calibration" in c1 and "calibrated alone" in c1
     c2 = rig.split('id="sensor-c2">')[1].split("</section>")[0]
@@ -503,4 +503,4 @@ def test_the_rig_report_draws_every_cameras_views_with_the_fitted_grid(stereo_ri
         assert sec["rms_mm"] == pytest.approx(per_view[name][int(view[1:]) - 1], rel=1e-6)
         curve = sec["curve_mm"][np.isfinite(sec["curve_mm"]).all(axis=1)]
         assert np.median(cKDTree(curve).query(sec["points_mm"])[0]) < 3 * sec["rms_mm"]
-    assert 'alt="each view with the fitted target&#x27;s section"' in report_html(cal)
+    assert 'aria-label="each view with the fitted target&#x27;s section"' in report_html(cal)

@@ -48,12 +48,26 @@ from ..solvers.observability import check_observability, observable_leave_one_ou
 from ..solvers.refine import pose_mahalanobis
 from .refinement import refine_pose
 from .validation import fold_indices
+from .verdict import (
+    CONSISTENT,
+    MANY_OUTLIERS,
+    MIN_POSES,
+    SCALE_TOLERANCE,
+    SMALL_ROTATION_DEG,
+    agreement_verdict,
+    count_verdict,
+    many_outliers,
+    motion_verdict,
+    reading_verdict,
+    scale_is_off,
+    scale_verdict,
+    weak_motions,
+    weakened,
+)
 
 __all__ = ["Diagnostics", "RobotPoseInput", "diagnose", "find_outliers", "consistency_score", "closed_form",
            "compare_solvers", "board_scale", "scale_is_off", "pose_alternatives"]
 
-#: Consistency score (below) up to which data count as consistent.
-CONSISTENT = 3.0
 #: Per-pose median rotation residual (deg) and translation residual relative to the camera's motion
 #: scale that count as one unit of the consistency score.
 ROT_UNIT_DEG = 1.0
@@ -62,11 +76,8 @@ TRANS_UNIT = 0.02
 OUTLIER_P = 1e-4
 #: ... and its residual (rotation or translation) must exceed this many times the median one.
 GROSS = 4.0
-#: Weak-data thresholds: median motion angle (deg), smallest share of the rotation-axis scatter.
-SMALL_ROTATION_DEG = 5.0
-AXIS_SHARE_WEAK = 0.03
-FEW_POSES = 6
-FAR_TARGET_M = 1.2
+# The thresholds that decide (CONSISTENT, SMALL_ROTATION_DEG, AXIS_SHARE_WEAK, FEW_POSES, FAR_TARGET_M,
+# SCALE_TOLERANCE, SCALE_SIGMAS) are handeye.estimation.verdict's: this module measures, that one decides.
 
 
 def _solve(flange2base, target2cam, setup, kind: str | None = None) -> NDArray[np.float64]:
@@ -382,12 +393,13 @@ def _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outlier
     setup = check_setup(setup)
     flange2base, target2cam = validate_poses(flange2base, target2cam)
     n = len(flange2base)
-    if n < 3:  # one motion at most: nothing to observe
-        return Diagnostics(verdict="degenerate", n_poses=n, consistency_limit=CONSISTENT, names=names, advice=[
-            f"only {n} pose(s): hand-eye calibration needs at least 3 (two motions with different rotation axes); "
+    start = count_verdict(n)
+    if start != "good":  # one motion at most: nothing to observe
+        return Diagnostics(verdict=start, n_poses=n, consistency_limit=CONSISTENT, names=names, advice=[
+            f"only {n} pose(s): hand-eye calibration needs at least {MIN_POSES} (two motions with different rotation axes); "
             "take 10-20 from varied viewpoints, turning the flange by 30 deg or more about different axes"])
     motions = MotionSet.from_poses(flange2base, target2cam, setup, "auto")
-    diag = Diagnostics(verdict="good", n_poses=n, consistency_limit=CONSISTENT, names=names, **_observability(motions))
+    diag = Diagnostics(verdict=start, n_poses=n, consistency_limit=CONSISTENT, names=names, **_observability(motions))
     try:
         check_observability(motions)
     except DegenerateMotionError as exc:
@@ -396,20 +408,22 @@ def _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outlier
     given = consistency_score(flange2base, target2cam, setup)
     diag.consistency = given
     unstable = None
-    if given > CONSISTENT:
+    if given > CONSISTENT:  # not consistent as given
         # systematic trouble: try the usual mistakes
         found = _convention(flange2base, target2cam, setup, given, robot_input, camera_input, symmetries,
                             camera_from_images)
         if found is not None:
-            diag.verdict, (diag.convention_hint, advice) = "inconsistent", found
+            diag.convention_hint, advice = found
+            diag.verdict = reading_verdict(diag.convention_hint)
             diag.advice.append(advice)
             return diag
         scale = board_scale(flange2base, target2cam, setup)  # a wrong target size is the other usual mistake
         if scale is not None and scale_is_off(*scale) and _scale_explains(flange2base, target2cam, setup, scale[0]):
             held, _, folds = _scale_subsets(flange2base, target2cam, setup, scale[0], explains=True)
-            if held == folds:
+            found_scale = scale_verdict(True, held, folds)  # off: scale_is_off above
+            if found_scale is not None:
                 diag.scale, diag.scale_std = scale
-                diag.verdict = "inconsistent"
+                diag.verdict = found_scale
                 diag.advice.append(_scale_advice(*scale))
                 return diag
             unstable = _unstable_scale_advice(*scale, held, folds)  # said, not acted on (the size as given)
@@ -423,9 +437,9 @@ def _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outlier
         return diag
     if outliers and not inliers.all():
         _name_outliers(diag, inliers, resid)
-        if len(diag.outliers) > 0.2 * n:
-            diag.verdict = "weak"
-            diag.advice.append(f"{len(diag.outliers)} of {n} poses are outliers (more than 20%): the rest may share "
+        if many_outliers(len(diag.outliers), n):
+            diag.verdict = weakened(diag.verdict, True)
+            diag.advice.append(f"{len(diag.outliers)} of {n} poses are outliers (more than {100 * MANY_OUTLIERS:g}%): the rest may share "
                                "the same fault; check how the robot poses are paired with the images before relying "
                                "on X")
     if leave_one_out:
@@ -434,26 +448,19 @@ def _diagnose(flange2base, target2cam, setup, robot_input, camera_input, outlier
     if scale is not None and unstable is None:
         diag.scale, diag.scale_std = scale
         beyond, significant, folds = _scale_subsets(flange2base[inliers], target2cam[inliers], setup, scale[0], False)
-        if scale_is_off(*scale) and beyond == folds:
-            diag.verdict = "inconsistent"
+        found_scale = scale_verdict(scale_is_off(*scale), beyond, folds)
+        if found_scale is not None:
+            diag.verdict = found_scale
             diag.advice.append(_scale_advice(*scale))
             return diag
         if scale_is_off(*scale) or significant:  # the call turns on which poses are in: said, not acted on
             unstable = _unstable_scale_advice(*scale, beyond if scale_is_off(*scale) else significant, folds)
             diag.advice.append(unstable)
-    if unstable is not None and diag.verdict == "good":  # a possible wrong size not ruled out: not good
-        diag.verdict = "weak"
+    diag.verdict = weakened(diag.verdict, unstable is not None)  # a possible wrong size not ruled out: not good
     weak = _weak_advice(diag, target2cam[inliers], int(inliers.sum()))
-    if weak:
-        diag.verdict = "weak"
-        diag.advice.extend(weak)
+    diag.verdict = weakened(diag.verdict, bool(weak))
+    diag.advice.extend(weak)
     return diag
-
-
-#: A board scale off by more than this fraction, and by more than SCALE_SIGMAS standard deviations,
-#: names the target's size (or the units) as the likely mistake.
-SCALE_TOLERANCE = 0.01
-SCALE_SIGMAS = 4.0
 
 
 def board_scale(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64],
@@ -519,12 +526,6 @@ def _scale_explains(flange2base, target2cam, setup: str, scale: float) -> bool:
     return consistency_score(flange2base, scaled, setup) <= CONSISTENT
 
 
-def scale_is_off(scale: float, std: float) -> bool:
-    """Whether a board scale (:func:`board_scale`) names the target's size as wrong: off by more than
-    :data:`SCALE_TOLERANCE` and by more than :data:`SCALE_SIGMAS` of its std."""
-    return abs(scale - 1.0) > max(SCALE_TOLERANCE, SCALE_SIGMAS * std)
-
-
 #: The board-scale call is made again on subsets of the poses, each without one of this many folds,
 #: and acted on only when every subset puts the scale beyond :data:`SCALE_TOLERANCE` on the same side
 #: (the full set's std says whether it is beyond its noise; a subset of fewer poses has a larger
@@ -573,7 +574,7 @@ def _undetermined(diag: Diagnostics, motions: MotionSet, exc: DegenerateMotionEr
     determines part of X (with its own outlier search), else 'degenerate' with what to capture."""
     reasons: list[str] = []
     kind = partial_kind(flange2base, target2cam, setup, reasons)
-    diag.verdict = "partial" if kind else "degenerate"
+    diag.verdict = motion_verdict(kind)
     diag.advice.extend([_partial_advice(kind, setup)] if kind else _degenerate_advice(motions, exc) + reasons)
     if kind:
         diag.motion_kind = kind
@@ -602,9 +603,10 @@ def _partial_checks(diag: Diagnostics, flange2base, target2cam, setup: str, kind
 def _disagree(diag: Diagnostics, given: float, inliers: NDArray[np.bool_]) -> bool:
     """Whether the poses (the inliers) disagree beyond their noise, or too many are outliers: then
     the verdict 'inconsistent' and what to check, first (``strict`` quotes it)."""
-    if diag.consistency <= CONSISTENT and inliers.sum() >= max(0.6 * len(inliers), 3):
+    found = agreement_verdict(diag.consistency, int(inliers.sum()), len(inliers))
+    if found is None:
         return False
-    diag.verdict = "inconsistent"
+    diag.verdict = found
     diag.advice.insert(0, f"the poses do not agree on one camera mounting (consistency {given:.1f}, up to "
                           f"{CONSISTENT:g} is consistent) and no usual mistake explains it: check that each robot pose "
                           "belongs to its image, that the robot reports the flange (not a tool) pose, the pose format "
@@ -657,18 +659,19 @@ def _weak_advice(diag: Diagnostics, target2cam: NDArray[np.float64], n_used: int
     weak = []
     angles = cast(NDArray[np.float64], diag.rotation_angles_deg)  # the checks measured them before
     shares = cast(NDArray[np.float64], diag.axis_shares)
-    if np.median(angles) < SMALL_ROTATION_DEG:
+    dist = np.median(np.linalg.norm(target2cam[:, :3, 3], axis=1))
+    broken = weak_motions(float(np.median(angles)), float(shares[-1]), n_used, float(dist))
+    if "small_rotations" in broken:
         weak.append(
             f"most motions rotate less than {SMALL_ROTATION_DEG:g} deg (median {np.median(angles):.1f} deg): rotation "
             "errors then dominate; turn the flange by 20-45 deg between poses (thesis §4.1.2: large rotations)")
-    if shares[-1] < AXIS_SHARE_WEAK:
+    if "weak_axis" in broken:
         weak.append(
             f"little rotation about {_axis_name(cast(NDArray[np.float64], diag.weakest_axis))} ({100 * shares[-1]:.1f}% of the "
             "rotation): add rotations of >= 30 deg about it")
-    if n_used < FEW_POSES:
+    if "few_poses" in broken:
         weak.append(f"only {n_used} usable poses: take 10-20 from varied viewpoints")
-    dist = np.median(np.linalg.norm(target2cam[:, :3, 3], axis=1))
-    if dist > FAR_TARGET_M:
+    if "far_target" in broken:
         weak.append(f"the target is {dist:.2f} m from the camera (median): move closer, so that it fills the image "
                     "(camera rotation errors grow with the distance)")
     return weak

@@ -5,7 +5,10 @@ conventions that explain them, outliers, weak rotation); a calibration adds what
 show: the std of X (too wide to promise the thesis's acceptance of 5 mm / 1 deg) and the spread of
 the closed forms about X (wider than the std allows). The estimation core's fit adds how far the
 fit and its held-out views are from what the noise allows (:func:`fit_verdict`; the core measures,
-this module decides). :func:`judge` combines them; ``calibrate``,
+this module decides). The check's own rules are here too (:func:`count_verdict`, :func:`motion_verdict`,
+:func:`reading_verdict`, :func:`agreement_verdict`, :func:`scale_verdict`, :func:`weak_motions`,
+:func:`weakened`): :mod:`handeye.estimation.diagnostics` measures the poses, these decide, and a test
+keeps every verdict assigned here. :func:`judge` combines them; ``calibrate``,
 ``check``, the report, ``fleet`` and ``acquire`` all take the verdict and the exit status from here,
 so the same data get the same verdict whichever command looked at them.
 """
@@ -20,10 +23,11 @@ from numpy.typing import NDArray
 
 from ..result import Calibration, Diagnostics
 
-__all__ = ["ACCEPT_DEG", "ACCEPT_MM", "EXIT_STATUS", "Evidence", "FIT_FACTOR", "FitEvidence", "HEADLINES", "HELDOUT_FACTOR",
-           "Judgement", "MISPAIRED", "disagreement_verdict", "exit_status", "fit_verdict", "headline", "judge", "pairing_verdict",
-           "judged",
-           "solver_spread"]
+__all__ = ["ACCEPT_DEG", "ACCEPT_MM", "AXIS_SHARE_WEAK", "CONSISTENT", "EXIT_STATUS", "Evidence", "FAR_TARGET_M", "FEW_POSES",
+           "FIT_FACTOR", "FitEvidence", "HEADLINES", "HELDOUT_FACTOR", "Judgement", "MANY_OUTLIERS", "MIN_INLIERS", "MIN_POSES",
+           "MISPAIRED", "SCALE_SIGMAS", "SCALE_TOLERANCE", "SMALL_ROTATION_DEG", "agreement_verdict", "count_verdict",
+           "disagreement_verdict", "exit_status", "fit_verdict", "headline", "judge", "judged", "many_outliers", "motion_verdict",
+           "pairing_verdict", "reading_verdict", "scale_is_off", "scale_verdict", "solver_spread", "weak_motions", "weakened"]
 
 #: X is "weak" when 3 std of it exceed the thesis's acceptance (§5: 5 mm and 1 deg).
 ACCEPT_MM, ACCEPT_DEG = 5.0, 1.0
@@ -336,3 +340,84 @@ def disagreement_verdict(check: Diagnostics, advice: str) -> Diagnostics:
     """``check`` with ``advice`` first and its verdict at most 'weak': two sensors of a rig disagree,
     and which one is wrong no fit can tell (the answer stands, not as good)."""
     return replace(check, verdict="weak" if check.verdict == "good" else check.verdict, advice=[advice] + list(check.advice))
+
+
+# The check's rules: handeye.diagnose (handeye.estimation.diagnostics) measures the poses, these decide.
+
+#: Fewer poses give one motion at most, which observes nothing: the verdict 'degenerate'.
+MIN_POSES = 3
+#: Consistency score (:func:`handeye.estimation.diagnostics.consistency_score`) up to which poses agree.
+CONSISTENT = 3.0
+#: The share of the poses (and at least :data:`MIN_POSES`) that must be inliers for the poses to agree.
+MIN_INLIERS = 0.6
+#: More than this share of the poses outliers: the rest may share their fault, the verdict at most 'weak'.
+MANY_OUTLIERS = 0.2
+#: Weak-data thresholds: median motion angle (deg), smallest share of the rotation-axis scatter, usable
+#: poses, median distance of the target from the camera (m).
+SMALL_ROTATION_DEG = 5.0
+AXIS_SHARE_WEAK = 0.03
+FEW_POSES = 6
+FAR_TARGET_M = 1.2
+#: A board scale off by more than this fraction, and by more than SCALE_SIGMAS standard deviations,
+#: names the target's size (or the units) as the likely mistake.
+SCALE_TOLERANCE = 0.01
+SCALE_SIGMAS = 4.0
+
+
+def count_verdict(n_poses: int) -> str:
+    """'degenerate' for fewer than :data:`MIN_POSES` poses, else 'good' (the verdict the checks that
+    follow start from)."""
+    return "degenerate" if n_poses < MIN_POSES else "good"
+
+
+def motion_verdict(partial_kind: str | None) -> str:
+    """The verdict on motions the general solvers cannot use: 'partial' when they determine part of X
+    (``partial_kind``, one axis or translations only), else 'degenerate'."""
+    return "partial" if partial_kind else "degenerate"
+
+
+def reading_verdict(hint: str) -> str:
+    """The verdict when another reading of the inputs (``hint``: a convention, a unit, the setup) makes
+    inconsistent poses consistent: 'inconsistent' (the data as given are wrong; the advice names the fix)."""
+    return "inconsistent"
+
+
+def agreement_verdict(consistency: float, n_inliers: int, n_poses: int) -> str | None:
+    """'inconsistent' when the inliers' ``consistency`` score exceeds :data:`CONSISTENT` or fewer than
+    :data:`MIN_INLIERS` of the poses (or :data:`MIN_POSES`) are inliers; None when the poses agree."""
+    if consistency <= CONSISTENT and n_inliers >= max(MIN_INLIERS * n_poses, MIN_POSES):
+        return None
+    return "inconsistent"
+
+
+def scale_is_off(scale: float, std: float) -> bool:
+    """Whether a board scale (:func:`handeye.estimation.diagnostics.board_scale`) names the target's size
+    as wrong: off by more than :data:`SCALE_TOLERANCE` and by more than :data:`SCALE_SIGMAS` of its std."""
+    return abs(scale - 1.0) > max(SCALE_TOLERANCE, SCALE_SIGMAS * std)
+
+
+def scale_verdict(off: bool, agreeing: int, subsets: int) -> str | None:
+    """'inconsistent' when the board scale names the target's size as wrong (``off``) and all ``subsets``
+    of the poses (each without a fold) agree (``agreeing`` of them); else None (a scale that turns on
+    which poses are in is said, and makes a good verdict weak: :func:`weakened`)."""
+    return "inconsistent" if off and agreeing == subsets else None
+
+
+def many_outliers(n_outliers: int, n_poses: int) -> bool:
+    """Whether more than :data:`MANY_OUTLIERS` of the poses are outliers (the rest may share their fault)."""
+    return n_outliers > MANY_OUTLIERS * n_poses
+
+
+def weak_motions(median_angle_deg: float, weakest_share: float, n_used: int, median_distance_m: float) -> list[str]:
+    """The weak-data rules the capture breaks, in the order the advice gives them: 'small_rotations'
+    (median motion below :data:`SMALL_ROTATION_DEG`), 'weak_axis' (an axis with less than
+    :data:`AXIS_SHARE_WEAK` of the rotation), 'few_poses' (fewer than :data:`FEW_POSES` usable),
+    'far_target' (beyond :data:`FAR_TARGET_M`). Any of them makes a good verdict weak."""
+    rules = {"small_rotations": median_angle_deg < SMALL_ROTATION_DEG, "weak_axis": weakest_share < AXIS_SHARE_WEAK,
+             "few_poses": n_used < FEW_POSES, "far_target": median_distance_m > FAR_TARGET_M}
+    return [name for name, broken in rules.items() if broken]
+
+
+def weakened(verdict: str, weak: bool) -> str:
+    """``verdict`` made 'weak' when ``weak`` and it was 'good'; else as it is (a worse verdict stands)."""
+    return "weak" if weak and verdict == "good" else verdict

@@ -95,7 +95,12 @@ def _sensor(data: dict) -> SensorFit | None:
 
 def _rig_poses_renamed(figures: dict) -> dict:
     """A rig's relative poses keyed as they are now (``cam1_to_cam0``), read from a result that keyed
-    them ``cam12cam0`` (handeye 0.1's; read so for one release)."""
+    them ``cam12cam0`` (handeye 0.1's; read so for one release).
+
+    Told by the figures the renaming needs (``sensors``, whose first names the frame, and ``relative``),
+    not by ``sensor.kind``: io/ sits below the kinds' registry (pipelines/kinds.py), so comparing with
+    the rig's name here would be the switch on a kind's name tests/test_architecture.py forbids, and a
+    0.1 result holds no other mark; figures are the sensor's own record, read by their own keys."""
     sensors, relative = figures.get("sensors"), figures.get("relative")
     if not isinstance(sensors, list) or not sensors or not isinstance(relative, dict):
         return figures

@@ -1,18 +1,18 @@
-"""What the report pages share: the style sheet, the verdict colours, figures as embedded PNGs (matplotlib;
-the camera report's figures are SVG, :mod:`handeye.report._svg`)."""
+"""What the report pages share: the style sheet, the verdict colours, the figures' width (the figures are
+inline SVG, :mod:`handeye.report._svg`: no page imports matplotlib)."""
 
 from __future__ import annotations
 
-import base64
 import html
-import io
-import warnings
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from .files import euler_angles
+
+#: The width of the report's figures in pixels (the page's content is 1,068 px wide: drawn 1:1).
+FIGURE_WIDTH = 1060
 
 _COLOURS = {"good": "#1e7b34", "weak": "#b36b00", "partial": "#b36b00", "degenerate": "#b00020", "inconsistent": "#b00020",
             "not checked": "#555555"}
@@ -32,44 +32,6 @@ figure.rejected img{opacity:.55;border:3px dashed #888}
 img{max-width:100%} .note{color:#555;font-size:.9em} section{overflow-wrap:anywhere}
 svg.fig{display:block;width:100%;height:auto;margin:6px 0}
 """
-
-
-def _axis_triad(ax, T: NDArray[np.float64], length: float, lw: float = 1.5) -> None:
-    """The x, y, z axes (red, green, blue) of one frame ``(4, 4)`` or many ``(N, 4, 4)``: one line
-    per colour, broken by NaN between frames (a line per axis and frame takes minutes for 1,000)."""
-    T = np.asarray(T).reshape(-1, 4, 4)
-    o = T[:, :3, 3]
-    for k, c in enumerate(("#d62728", "#2ca02c", "#1f77b4")):
-        seg = np.stack([o, o + length * T[:, :3, k], np.full_like(o, np.nan)], axis=1).reshape(-1, 3)
-        ax.plot(*seg.T, color=c, lw=lw)
-
-
-def _equal_axes(ax, points: NDArray[np.float64], grow: float) -> None:
-    """A 3D axes' limits: a cube about the ``points`` (n, 3), ``grow`` times their largest extent across."""
-    centre, half = points.mean(axis=0), grow * (float(np.ptp(points, axis=0).max()) or 1.0)
-    ax.set_xlim(centre[0] - half, centre[0] + half)
-    ax.set_ylim(centre[1] - half, centre[1] + half)
-    ax.set_zlim(centre[2] - half, centre[2] + half)
-
-
-def _figure(figsize: tuple[float, float]):
-    """A matplotlib Figure drawn off-screen: no pyplot, so no backend is chosen for the user."""
-    from matplotlib.figure import Figure  # matplotlib loads only when a report is drawn
-
-    return Figure(figsize=figsize)
-
-
-def _png(fig) -> str:
-    buf = io.BytesIO()
-    with warnings.catch_warnings():  # image names in scripts the font lacks: drawn as boxes, not a warning per glyph
-        warnings.filterwarnings("ignore", message="Glyph .* missing from", category=UserWarning)
-        fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
-
-
-def _img(src: str, alt: str, width: int | None = None) -> str:
-    w = f' width="{width}"' if width else ""
-    return f'<img src="{src}" alt="{html.escape(alt)}"{w}>'
 
 
 def _e(s: object) -> str:

@@ -1,4 +1,5 @@
-"""A rig's part of ``report.html``: a picture of the rig, then a section per sensor.
+"""A rig's part of ``report.html``: a picture of the rig, then a section per sensor (figures as inline SVG,
+:mod:`handeye.report._svg`).
 
 The picture: every sensor's frame (its X from the joint fit) in X's parent frame (the flange
 eye-in-hand, the robot base eye-to-hand), with the target where the first view saw it (eye-to-hand,
@@ -11,40 +12,27 @@ its own calibration's verdict and held-out error, and its residual per view in t
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
 from ..frames.metrics import rotation_error, translation_error
 from ..frames.setups import pose_name, setup_info, target2base
 from ..geometry.se3 import invert
 from ..result import Calibration
-from ._page import _axis_triad, _e, _equal_axes, _figure, _img, _png, _transform_table
+from ._page import FIGURE_WIDTH, _e, _transform_table
+from ._svg import Canvas, Panel, View3D, legend, nice_ticks, text_width, triads
 
 #: The sensor figures the rig's sections show (left out of the sensor's table of figures).
 RIG_FIGURES = ("X_per_sensor", "view_rms_mm_per_sensor", "relative", "alone", "rms_mm_per_sensor", "sensors", "disagreeing",
                "skipped", "images_per_sensor", "disagreeing_pair")
 
 
-def _triad(ax, T: NDArray[np.float64], length: float, lw: float, label: str | None = None) -> None:
-    _axis_triad(ax, T, length, lw)
-    if label:
-        ax.text(*T[:3, 3], f" {label}", fontsize=9)
+#: The rig's picture: its height, and each panel's 3D view (x, y, width, height) within its half of the width.
+RIG_HEIGHT, RIG_VIEW = 540, (95, 90, 340, 360)
 
 
-def _panel(ax, points: NDArray[np.float64], title: str) -> None:
-    """Equal axes around ``points`` (n, 3), labelled."""
-    _equal_axes(ax, points, 0.6)
-    ax.set_box_aspect((1, 1, 1))
-    for setter, axis in ((ax.set_xlabel, "x"), (ax.set_ylabel, "y"), (ax.set_zlabel, "z")):
-        setter(f"{axis} (m)", fontsize=8)
-    ax.tick_params(labelsize=7)
-    ax.locator_params(nbins=4)
-    ax.set_title(title, fontsize=9)
-
-
-def rig_figure(cal: Calibration):
-    """The rig in X's parent frame (a matplotlib Figure): on the left the sensors and that frame's
-    origin, each sensor's frame labelled, a line from the first sensor to each other one; on the right
-    the same with the target where the first view saw it (eye-to-hand: its origin in every view too)."""
+def rig_figure(cal: Calibration) -> str:
+    """The rig in X's parent frame (inline SVG): on the left the sensors and that frame's origin, each
+    sensor's frame labelled, a dashed line from the first sensor to each other one; on the right the
+    same with the target where the first view saw it (eye-to-hand: its origin in every view too)."""
     info = setup_info(cal.setup)
     frames = {n: np.asarray(f["X"], float) for n, f in cal.sensor.figures["X_per_sensor"].items()}
     targets = target2base(cal.Z, cal.flange2base, cal.setup)
@@ -53,39 +41,54 @@ def rig_figure(cal: Calibration):
     parent = "flange" if info.camera_on_flange else "robot base"
     sensors = np.vstack([T[:3, 3] for T in frames.values()])
     first = next(iter(frames.values()))
-    fig = _figure((12.0, 5.6))
+    canvas = Canvas(FIGURE_WIDTH, RIG_HEIGHT, "the rig's sensors")
+    canvas.text(FIGURE_WIDTH / 2, 20, f"the rig in the {parent}'s frame: each sensor's axes (x red, y green, z blue: the "
+                "optical axis)", 13, "middle", cls="title")
     for k, with_target in enumerate((False, True)):
-        ax = fig.add_subplot(1, 2, k + 1, projection="3d")
+        left = k * FIGURE_WIDTH / 2
         points = np.vstack([sensors, np.zeros((1, 3))] + ([targets[:, :3, 3]] if with_target else []))
-        L = 0.12 * (float(np.ptp(points, axis=0).max()) or 1.0)
-        _triad(ax, np.eye(4), 1.2 * L, 2.5, parent)
+        extent = float(np.ptp(points, axis=0).max()) or 1.0
+        L, centre, half = 0.12 * extent, points.mean(axis=0), 0.6 * extent  # a cube about the points
+        x, y, w, h = RIG_VIEW
+        view = View3D(canvas, (left + x, y, w, h), centre - half, centre + half)
+        view.axes(("x (m)", "y (m)", "z (m)"), [nice_ticks(c - half, c + half, 4) for c in centre])
+        triads(view, np.eye(4), 1.2 * L, 2.5)
+        view.text(np.zeros(3), parent)
         if with_target:
-            _triad(ax, targets[0], L, 2.0, "target" + (" (first view)" if len(cal.flange2base) > 1 else ""))
+            triads(view, targets[0], L, 2.0)
+            view.text(targets[0][:3, 3], "target" + (" (first view)" if len(cal.flange2base) > 1 else ""))
             if len(targets) > 1:  # the target rides on the flange: where it was in every view
-                ax.scatter(*targets[:, :3, 3].T, color="#8b4513", s=10, marker="s", label="the target's origin in each view")
-                ax.legend(loc="upper left", fontsize=7)
+                view.points(targets[:, :3, 3], "#8b4513", 2.5, square=True)
+                legend(canvas, left + 12, 56, [("square", "#8b4513", "the target's origin in each view")])
         for name, T in frames.items():
-            _triad(ax, T, L, 1.5, name)
-            ax.plot(*np.c_[first[:3, 3], T[:3, 3]], color="#777", lw=0.8, ls="--")
-        _panel(ax, points, "with the target" if with_target else f"the sensors and the {parent}")
-    fig.suptitle(f"the rig in the {parent}'s frame: each sensor's axes (x red, y green, z blue: the optical axis)",
-                 fontsize=10)
-    return fig
+            view.lines(np.vstack([first[:3, 3], T[:3, 3]]), "#777", 0.8, dash="4 3")
+            triads(view, T, L, 1.5)
+            view.text(T[:3, 3], name)
+        canvas.text(left + FIGURE_WIDTH / 4, 44, "with the target" if with_target else f"the sensors and the {parent}", 12,
+                    "middle", cls="title")
+    return canvas.svg()
 
 
 def _sensor_residual_figure(views: list[str], rms: list[float | None], name: str) -> str:
-    fig = _figure((10, 2.0))
-    ax = fig.subplots(1, 1)
+    """A sensor's RMS residual per view in the joint fit (inline SVG): a bar per view, none where it saw nothing."""
     values = np.array([np.nan if v is None else v for v in rms], float)
-    x = np.arange(len(values))
-    ax.bar(x, np.nan_to_num(values), color="#4a78b5")
-    ax.set_ylabel("RMS (mm)")
-    ax.set_title(f"sensor {name}: its residual per view in the joint fit (none where it saw nothing)", fontsize=9)
-    ax.grid(axis="y", alpha=0.3)
-    if len(x) <= 60:
-        ax.set_xticks(x)
-        ax.set_xticklabels(views, rotation=90 if len(x) > 12 else 0, fontsize=7)
-    return _png(fig)
+    n = len(values)
+    labelled, turned = n <= 60, n > 12
+    below = 12 + (text_width(max(views, key=len, default=""), 10) if turned else 18) if labelled else 12
+    left, top, height = 80, 34, 120
+    canvas = Canvas(FIGURE_WIDTH, top + height + below + 6, f"sensor {name}'s residual per view")
+    hi = float(np.nanmax(values)) if np.isfinite(values).any() else 1.0
+    ylim = (0.0, 1.05 * hi if hi > 0 else 1.0)
+    panel = Panel(canvas, (left, top, FIGURE_WIDTH - left - 16, height), (-0.6, n - 0.4), ylim)
+    panel.yticks(nice_ticks(*ylim, 4))
+    panel.bars(np.arange(n), values, "#4a78b5", tips=[f"{v}: {r:.3f} mm" for v, r in zip(views, values)])
+    panel.frame()
+    panel.ylabel("RMS (mm)")
+    panel.title(f"sensor {name}: its residual per view in the joint fit (none where it saw nothing)")
+    if labelled:
+        panel.xticks(np.arange(n), views, 10 if turned else 11, rotate=turned)
+    panel.end()
+    return canvas.svg()
 
 
 def _status(cal: Calibration, name: str) -> str:
@@ -105,7 +108,7 @@ def rig_sections(cal: Calibration) -> str:
     rms = dict(zip(figures.get("sensors", joint), figures.get("rms_mm_per_sensor", [])))
     per_view = figures.get("view_rms_mm_per_sensor", {})
     views = list(cal.diagnostics.names) if cal.diagnostics is not None and cal.diagnostics.names else []
-    parts = ['<section id="rig"><h2>The rig</h2>' + _img(_png(rig_figure(cal)), "the rig's sensors")
+    parts = ['<section id="rig"><h2>The rig</h2>' + rig_figure(cal)
              + f"<p>{len(joint)} sensor(s) in the joint fit ({_e(', '.join(joint))})"
              + (f"; {len(names) - len(joint)} not ({_e(', '.join(n for n in names if n not in joint))})" if len(names) > len(joint)
                 else "") + ". X of the first, " + _e(joint[0]) + ", is the result's X; the others' are below.</p>"]
@@ -138,7 +141,7 @@ def rig_sections(cal: Calibration) -> str:
                          "to every pose cancels in it, each pose's own error where both saw the pose):</p>"
                          + _transform_table(np.asarray(rel["matrix"]), np.asarray(rel["std_deg_mm"])))
         if name in per_view and views:
-            parts.append(_img(_sensor_residual_figure(views, per_view[name], name), f"sensor {name}'s residual per view"))
+            parts.append(_sensor_residual_figure(views, per_view[name], name))
         parts.append("</section>")
     parts.append("</section>")
     return "".join(parts)

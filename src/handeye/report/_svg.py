@@ -7,7 +7,7 @@ need no plotting library (importing matplotlib.figure and drawing PNGs was half 
 * :class:`Panel`: a 2D axes box in a canvas (data to pixels, ticks, grid, labels, bars);
 * :class:`View3D`: an orthographic view of a cube of data at a fixed angle (matplotlib's default
   azimuth -60 deg, elevation 30 deg), with its three back panes, grid, tick and axis labels;
-* :func:`legend`, :func:`legend_row`, :func:`colour_bar`, :func:`viridis`, :func:`nice_ticks`.
+* :func:`legend`, :func:`legend_row`, :func:`colour_bar`, :func:`viridis`, :func:`coolwarm`, :func:`nice_ticks`.
 
 Elements a test counts carry a class: ``bar`` (one rectangle per bar), ``pt`` (one per point),
 ``panel`` (a 2D axes' group), ``title``.
@@ -24,17 +24,36 @@ from numpy.typing import NDArray
 _VIRIDIS = np.array([[68, 1, 84], [71, 45, 123], [59, 82, 139], [44, 114, 142], [33, 145, 140], [40, 174, 128],
                      [94, 201, 98], [173, 220, 48], [253, 231, 37]], float)
 
+#: coolwarm (a diverging ramp about its middle, for signed values) at 0, 1/8, ..., 1 (sRGB).
+_COOLWARM = np.array([[59, 76, 192], [98, 130, 234], [141, 176, 254], [184, 208, 249], [221, 221, 221], [245, 196, 173],
+                      [244, 154, 123], [222, 96, 77], [180, 4, 38]], float)
+
+#: Colours for categories (matplotlib's tab20: pairs of a strong and a light shade; every other one is tab10).
+CATEGORY_COLOURS = ("#1f77b4", "#aec7e8", "#ff7f0e", "#ffbb78", "#2ca02c", "#98df8a", "#d62728", "#ff9896", "#9467bd",
+                    "#c5b0d5", "#8c564b", "#c49c94", "#e377c2", "#f7b6d2", "#7f7f7f", "#c7c7c7", "#bcbd22", "#dbdb8d",
+                    "#17becf", "#9edae5")
+
 #: A character's width as a share of the font size (system sans-serif fonts, for layout and legends).
 CHAR_WIDTH = 0.52
 
 
+def _ramp(table: NDArray[np.float64], values: NDArray[np.float64], vmin: float, vmax: float) -> list[str]:
+    t = np.clip((np.asarray(values, float) - vmin) / max(vmax - vmin, 1e-12), 0.0, 1.0)
+    t = np.nan_to_num(t) * (len(table) - 1)
+    i = np.minimum(t.astype(int), len(table) - 2)
+    rgb = table[i] + (t - i)[:, None] * (table[i + 1] - table[i])
+    return [f"#{r:02x}{g:02x}{b:02x}" for r, g, b in np.rint(rgb).astype(int)]
+
+
 def viridis(values: NDArray[np.float64], vmin: float, vmax: float) -> list[str]:
     """Hex colours of ``values`` on a viridis-like ramp from ``vmin`` to ``vmax`` (clipped)."""
-    t = np.clip((np.asarray(values, float) - vmin) / max(vmax - vmin, 1e-12), 0.0, 1.0)
-    t = np.nan_to_num(t) * (len(_VIRIDIS) - 1)
-    i = np.minimum(t.astype(int), len(_VIRIDIS) - 2)
-    rgb = _VIRIDIS[i] + (t - i)[:, None] * (_VIRIDIS[i + 1] - _VIRIDIS[i])
-    return [f"#{r:02x}{g:02x}{b:02x}" for r, g, b in np.rint(rgb).astype(int)]
+    return _ramp(_VIRIDIS, values, vmin, vmax)
+
+
+def coolwarm(values: NDArray[np.float64], vmin: float, vmax: float) -> list[str]:
+    """Hex colours of ``values`` on a coolwarm-like diverging ramp, blue at ``vmin``, grey halfway, red at
+    ``vmax`` (clipped)."""
+    return _ramp(_COOLWARM, values, vmin, vmax)
 
 
 def nice_ticks(lo: float, hi: float, n: int = 5) -> NDArray[np.float64]:
@@ -355,11 +374,12 @@ def legend_row(canvas: Canvas, right: float, y: float, entries: list[tuple[str, 
 
 
 def colour_bar(canvas: Canvas, box: tuple[float, float, float, float], vmin: float, vmax: float, label: str,
-               size: float = 11) -> None:
-    """A vertical viridis bar from ``vmin`` (bottom) to ``vmax``, with ticks and ``label`` beside it."""
+               size: float = 11, ramp=viridis) -> None:
+    """A vertical bar of ``ramp`` (:func:`viridis`, :func:`coolwarm`) from ``vmin`` (bottom) to ``vmax``, with
+    ticks and ``label`` beside it."""
     x0, y0, w, h = box
     steps = 48
-    colours = viridis(np.linspace(vmin, vmax, steps), vmin, vmax)
+    colours = ramp(np.linspace(vmin, vmax, steps), vmin, vmax)
     for k, colour in enumerate(colours):  # slightly overlapping bands: no seams between them
         canvas.rect(x0, y0 + h - (k + 1) * h / steps, w, h / steps + 0.6, colour)
     canvas.rect(x0, y0, w, h, "none", "#444")

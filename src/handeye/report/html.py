@@ -5,11 +5,10 @@ uncertainty, ready-to-paste ROS lines), ``residuals`` (per-pose charts), ``overl
 reprojected target points on every image, when images were used), ``scene`` (3D view of robot,
 camera and target poses), ``axes`` (the motions' rotation axes on the unit sphere), ``solvers``
 (every solver on the same data) and ``advice``; a rig's report also has ``rig`` (its picture and a
-section per sensor, :mod:`handeye.report._rig`). The charts of the residuals, the 3D scene and the
-rotation axes are inline SVG drawn by :mod:`handeye.report._svg` (no matplotlib: its import and PNGs
-were half of ``calibrate --sample --out``'s time); the images, and a sensor's sections, clouds and a
-rig's picture, are embedded base64 JPEGs and PNGs (matplotlib, imported when they are drawn). The page
-loads nothing from anywhere.
+section per sensor, :mod:`handeye.report._rig`). The charts of the residuals, the 3D scene, the
+rotation axes, a sensor's sections or clouds and a rig's picture are inline SVG drawn by :mod:`handeye.report._svg`
+(no matplotlib: its import and PNGs were half of ``calibrate --sample --out``'s time); the images are
+embedded base64 JPEGs. The page loads nothing from anywhere.
 """
 
 from __future__ import annotations
@@ -35,9 +34,23 @@ from ..robot.kinematics import display_unit
 from ..sensors.camera.detect import default_jobs
 from ..sensors.camera.pnp import project_points
 from ._overlay import jpeg, overlay_thumbnail, zoom_size
-from ._page import _COLOURS, _CSS, _e, _figure, _fmt, _img, _png, _transform_table
+from ._page import _COLOURS, _CSS, FIGURE_WIDTH, _e, _fmt, _transform_table
 from ._rig import RIG_FIGURES, rig_sections
-from ._svg import Canvas, Panel, View3D, colour_bar, legend, legend_row, nice_ticks, text_width, triads, viridis
+from ._svg import (
+    CATEGORY_COLOURS,
+    Canvas,
+    Panel,
+    View3D,
+    colour_bar,
+    coolwarm,
+    legend,
+    legend_row,
+    nice_ticks,
+    text_width,
+    tick_labels,
+    triads,
+    viridis,
+)
 from .files import result_dict
 
 cv2 = lazy_module("cv2")
@@ -62,10 +75,6 @@ FLAG_FACTOR = 3.0
 MAX_LABELLED_POSES = 60
 #: The rotation-axes figure draws at most this many motions (evenly chosen, in their order).
 MAX_AXES_DRAWN = 1000
-
-
-#: The width of the report's figures in pixels (the page's content is 1,068 px wide: drawn 1:1).
-FIGURE_WIDTH = 1060
 
 
 def _residual_figure(cal: Calibration) -> str:
@@ -294,95 +303,122 @@ def _shown_sections(sf) -> list[int]:
 
 #: What a section is drawn in when the sensor does not say (``plane``; a result written before each sensor said).
 SECTION_PLANE = "the sensor's own plane"
+#: At most this many of a section's points are drawn (:func:`_thinned`): a profile's or a cloud's thousands
+#: would make the page heavy and look no different.
+MAX_SECTION_POINTS = 200
+
+
+def _thinned(residual: NDArray[np.float64], most: int) -> NDArray[np.intp]:
+    """The indices of at most ``most`` points to draw, in order: the quarter with the largest residuals (the
+    points worth seeing), and the rest evenly."""
+    n = len(residual)
+    if n <= most:
+        return np.arange(n)
+    worst = np.argsort(-np.nan_to_num(np.abs(residual), nan=-1.0), kind="stable")[:most // 4]
+    rest = np.setdiff1d(np.arange(n), worst)
+    return np.sort(np.r_[worst, rest[np.linspace(0, len(rest) - 1, most - len(worst)).astype(int)]])
 
 
 def _sections_figure(cal: Calibration) -> str:
     """Each drawn section (a view, or a rig's sensor in a view) in the sensor's own plane (a profiler's
     laser plane, a camera's image, a line-scan camera's scan, a depth camera's image: its ``plane``),
-    in one grid of cells at one scale (one axes: a figure of two dozen axes took a second to draw):
-    its points coloured by residual (signed: a diverging scale about 0; a size: from 0), and the fitted
-    target through X (a ball's circle or a plate's line, a board's grid, a mesh's edges)."""
+    in one grid of cells at one scale, as SVG: its points coloured by residual (signed: a diverging
+    scale about 0; a size: from 0), and the fitted target through X (a ball's circle or a plate's line,
+    a board's grid, a mesh's edges)."""
     sf = cal.sensor
     shown = _shown_sections(sf)
     rms = _section_rms(sf)
-    cols = min(6, len(shown))
+    cols, rows = min(6, len(shown)), -(-len(shown) // min(6, len(shown)))
     drawn = [np.vstack([sf.sections[k]["points_mm"], np.asarray(sf.sections[k]["curve_mm"], float).reshape(-1, 2)]) for k in shown]
     boxes = [(np.nanmin(d, axis=0), np.nanmax(d, axis=0)) for d in drawn]  # the points and the target drawn
     cell = 1.25 * max(max(float(np.max(hi - lo)) for lo, hi in boxes), 1e-3)  # mm: the largest view's extent, a margin
-    fig = _figure((1.9 * cols + 1.2, 1.9 * (-(-len(shown) // cols)) + 0.6))
-    ax = fig.subplots(1, 1)
-    xs, zs, res = [], [], []
-    for i, (k, (lo, hi)) in enumerate(zip(shown, boxes)):
-        sec = sf.sections[k]
-        offset = np.array([(i % cols) * cell, (i // cols) * cell]) - 0.5 * (lo + hi)  # the view's centre to its cell's
-        curve = np.asarray(sec["curve_mm"], float).reshape(-1, 2) + offset
-        ax.plot(curve[:, 0], curve[:, 1], "-", color="#555", lw=0.8)
-        xs.append(sec["points_mm"][:, 0] + offset[0])
-        zs.append(sec["points_mm"][:, 1] + offset[1])
-        res.append(sec["residual_mm"])
-        label = sec.get("label", sf.views[k] if k < len(sf.views) else "")
-        ax.text((i % cols) * cell, (i // cols) * cell - 0.45 * cell, f"{label}: {rms[k]:.3f} mm",
-                ha="center", va="top", fontsize=6)
-    res_all = np.concatenate(res)
+    left, top, bar_room = 16, 58, 150
+    px = min(160.0, (FIGURE_WIDTH - left - bar_room) / cols)  # a cell's side in pixels
+    scale = px / cell
+    res_all = np.concatenate([np.asarray(sf.sections[k]["residual_mm"], float) for k in shown])
     limit = max(float(np.nanpercentile(np.abs(res_all), 99)), 1e-3)
     signed = bool(np.nanmin(res_all) < 0)  # a signed distance (a profile, a surface) or a size (a corner's error)
-    scale = {"cmap": "coolwarm", "vmin": -limit, "vmax": limit} if signed else {"cmap": "viridis", "vmin": 0.0, "vmax": limit}
+    ramp, vmin = (coolwarm, -limit) if signed else (viridis, 0.0)
     many = len(res_all) > 30 * len(shown)  # profiles and clouds: small dots; a board's corners: larger ones
-    dots = ax.scatter(np.concatenate(xs), np.concatenate(zs), c=res_all, s=2 if many else 9, **scale)
+    canvas = Canvas(FIGURE_WIDTH, top + rows * px + 40, "each view with the fitted target's section")
+    for i, (k, (lo, hi)) in enumerate(zip(shown, boxes)):
+        sec = sf.sections[k]
+        cx, cy = left + (i % cols + 0.5) * px, top + (i // cols + 0.5) * px  # the cell's centre, the view's centre on it
+        mid = 0.5 * (lo + hi)
+        curve = np.asarray(sec["curve_mm"], float).reshape(-1, 2)
+        canvas.path(cx + scale * (curve[:, 0] - mid[0]), cy + scale * (curve[:, 1] - mid[1]), "#555", 0.8)
+        points, res = np.asarray(sec["points_mm"], float), np.asarray(sec["residual_mm"], float)
+        keep = _thinned(res, MAX_SECTION_POINTS)
+        for (u, v), colour in zip(points[keep], ramp(res[keep], vmin, limit)):
+            if np.isfinite(u) and np.isfinite(v):
+                canvas.circle(cx + scale * (u - mid[0]), cy + scale * (v - mid[1]), 1.2 if many else 2.2, colour, cls="pt")
+        label = sec.get("label", sf.views[k] if k < len(sf.views) else "")
+        canvas.text(cx, cy - 0.45 * px, f"{label}: {rms[k]:.3f} mm", 9, "middle")
     bar = float(10 ** np.floor(np.log10(max(cell / 4, 1e-3))))  # a scale bar: every cell is drawn at this one scale
-    y0 = (-(-len(shown) // cols) - 0.5) * cell
-    ax.plot([-0.4 * cell, -0.4 * cell + bar], [y0, y0], "k-", lw=1.5)
-    ax.text(-0.4 * cell, y0 + 0.04 * cell, f"{bar:g} mm", fontsize=6, va="top")
-    ax.set_aspect("equal")
-    ax.invert_yaxis()  # the sensor looks down its z; an image's rows run down
-    ax.axis("off")
-    fig.colorbar(dots, ax=ax, shrink=0.6, label="residual (mm)" if signed else "residual's size (mm)")
+    y = top + rows * px + 14
+    canvas.line(left + 0.1 * px, y, left + 0.1 * px + scale * bar, y, "#000", 1.5)
+    canvas.text(left + 0.1 * px, y + 12, f"{bar:g} mm", 9)
+    colour_bar(canvas, (left + cols * px + 20, top + 10, 14, min(rows * px - 20, 300)), vmin, limit,
+               "residual (mm)" if signed else "residual's size (mm)", ramp=ramp)
     plane = sf.sections[shown[0]].get("plane", SECTION_PLANE)
     lines = any(np.isfinite(np.asarray(sf.sections[k]["curve_mm"], float)).any() for k in shown)
-    ax.set_title(f"each view in {plane}, one scale: the points coloured by their residual"
-                 + (f", and the fitted {sf.target} through X (lines)" if lines else ""), fontsize=8, pad=14)
-    return _png(fig)
+    canvas.text(FIGURE_WIDTH / 2, 22, f"each view in {plane}, one scale: the points coloured by their residual"
+                + (f", and the fitted {sf.target} through X (lines)" if lines else ""), 13, "middle", cls="title")
+    return canvas.svg()
 
 
 #: What a sensor's clouds are drawn in when its sections do not say (their ``frame``).
 CLOUD_FRAME = "views' common"
+#: The clouds' figure draws at most this many points (a random share, the same in every panel).
+MAX_CLOUD_POINTS = 1500
 
 
 def _clouds_figure(cal: Calibration) -> str:
     """The views' clouds registered through X (sections of 3D clouds: ``cloud_mm`` in the ``frame``
-    they agree in, a scene's), seen along that frame's three axes: above, coloured by view (where
-    they overlap they should lie on one surface); below, coloured by each point's residual."""
-    from matplotlib import colormaps  # matplotlib loads only when a report is drawn
-    from matplotlib.patches import Patch
-
+    they agree in, a scene's), seen along that frame's three axes, as SVG: above, coloured by view
+    (where they overlap they should lie on one surface); below, coloured by each point's residual."""
     sf = cal.sensor
     clouds = [np.asarray(sec["cloud_mm"], float).reshape(-1, 3) for sec in sf.sections]
     res = [np.asarray(sec["residual_mm"], float) for sec in sf.sections]
     pts = np.concatenate(clouds) if clouds else np.zeros((0, 3))
-    label = np.concatenate([np.full(len(c), k) for k, c in enumerate(clouds)]) if clouds else np.zeros(0)
+    label = np.concatenate([np.full(len(c), k) for k, c in enumerate(clouds)]) if clouds else np.zeros(0, int)
     r = np.concatenate(res) if res else np.zeros(0)
-    order = np.random.default_rng(0).permutation(len(pts))  # no view drawn over all the others
-    pts, label, r = pts[order], label[order], r[order]
+    order = np.random.default_rng(0).permutation(len(pts))[:MAX_CLOUD_POINTS]  # no view drawn over all the others
+    pts, label, r = pts[order], label[order].astype(int), r[order]
+    ok = np.isfinite(pts).all(axis=1)
+    pts, label, r = pts[ok], label[ok], r[ok]
     frame = sf.sections[0].get("frame", CLOUD_FRAME) if sf.sections else CLOUD_FRAME
-    fig = _figure((12.0, 7.0))
-    axes = fig.subplots(2, 3)
-    cmap = colormaps["tab20" if len(clouds) > 10 else "tab10"]
+    palette = CATEGORY_COLOURS if len(clouds) > 10 else CATEGORY_COLOURS[::2]
+    by_view = [palette[k % len(palette)] for k in label]
     limit = max(float(np.percentile(np.abs(r), 98)), 1e-3) if len(r) else 1.0
+    by_residual = coolwarm(r, -limit, limit)
+    left, top, w, h, gap_x, gap_y = 70, 60, 240, 190, 60, 74
+    canvas = Canvas(FIGURE_WIDTH, top + 2 * h + gap_y + 50, "the views' registered clouds, coloured by view")
+    canvas.text(FIGURE_WIDTH / 2, 22, f"the views' clouds registered through X, in the {frame} frame (along its z, y and x "
+                "axes): coloured by view (above) and by residual (below)", 13, "middle", cls="title")
     for c, (a, b) in enumerate([(0, 1), (0, 2), (1, 2)]):
-        top, bottom = axes[0, c], axes[1, c]
-        top.scatter(pts[:, a], pts[:, b], c=cmap(label % cmap.N), s=1.5, linewidths=0)
-        dots = bottom.scatter(pts[:, a], pts[:, b], c=r, cmap="coolwarm", vmin=-limit, vmax=limit, s=1.5, linewidths=0)
-        for ax in (top, bottom):
-            ax.set_aspect("equal")
-            ax.set_xlabel(f"{'xyz'[a]} (mm)", fontsize=7)
-            ax.set_ylabel(f"{'xyz'[b]} (mm)", fontsize=7)
-            ax.tick_params(labelsize=6)
-    handles = [Patch(color=cmap(k % cmap.N), label=name) for k, name in enumerate(sf.views)]
-    axes[0, 2].legend(handles=handles, fontsize=6, loc="center left", bbox_to_anchor=(1.02, 0.5), frameon=False)
-    fig.colorbar(dots, ax=axes[1, :].tolist(), shrink=0.8, label="residual (mm)")
-    fig.suptitle(f"the views' clouds registered through X, in the {frame} frame (along its z, y and x axes): "
-                 "coloured by view (above) and by residual (below)", fontsize=9)
-    return _png(fig)
+        lo, hi = (pts[:, [a, b]].min(axis=0), pts[:, [a, b]].max(axis=0)) if len(pts) else (np.zeros(2), np.ones(2))
+        mm_per_px = 1.08 * max((hi[0] - lo[0]) / w, (hi[1] - lo[1]) / h, 1e-6)  # one scale on both axes
+        mid = 0.5 * (lo + hi)
+        xlim = (mid[0] - mm_per_px * w / 2, mid[0] + mm_per_px * w / 2)
+        ylim = (mid[1] - mm_per_px * h / 2, mid[1] + mm_per_px * h / 2)
+        for row, colours in enumerate((by_view, by_residual)):
+            panel = Panel(canvas, (left + c * (w + gap_x), top + row * (h + gap_y), w, h), xlim, ylim)
+            for (u, v), colour in zip(pts[:, [a, b]], colours):
+                canvas.circle(float(panel.x(u)), float(panel.y(v)), 1.2, colour, cls="pt")
+            panel.frame()
+            ticks = nice_ticks(*xlim, 4)
+            panel.xticks(ticks, tick_labels(ticks), 10)
+            panel.yticks(nice_ticks(*ylim, 4), grid=False, size=10)
+            panel.xlabel(f"{'xyz'[a]} (mm)", 30, 11)
+            panel.ylabel(f"{'xyz'[b]} (mm)", 11)
+            panel.end()
+    right = left + 3 * w + 2 * gap_x + 16
+    shown = list(sf.views)[:12]  # the legend's room: the first dozen views
+    legend(canvas, right, top, [("dot", palette[k % len(palette)], str(name)) for k, name in enumerate(shown)]
+           + ([("dot", "#ffffff", f"... {len(sf.views) - len(shown)} more")] if len(sf.views) > len(shown) else []), 10)
+    colour_bar(canvas, (right, top + h + gap_y, 14, h), -limit, limit, "residual (mm)", ramp=coolwarm)
+    return canvas.svg()
 
 
 def _sensor_residuals_section(cal: Calibration) -> str:
@@ -393,9 +429,9 @@ def _sensor_residuals_section(cal: Calibration) -> str:
              f"{sf.fit_rms_mm:.3f} mm RMS.</p>"]
     shown = _shown_sections(sf) if sf.sections and "cloud_mm" not in sf.sections[0] else []
     if sf.sections and "cloud_mm" in sf.sections[0]:  # 3D clouds in one frame (a scene's), not sections in a plane
-        parts.append(_img(_clouds_figure(cal), "the views' registered clouds, coloured by view"))
+        parts.append(_clouds_figure(cal))
     elif shown:
-        parts.append(_img(_sections_figure(cal), "each view with the fitted target's section")
+        parts.append(_sections_figure(cal)
                      + (f"<p>{len(shown)} of {len(sf.sections)} views drawn: the {MAX_SECTIONS // 2} that fit worst and "
                         "others evenly.</p>" if len(shown) < len(sf.sections) else ""))
     if cal.skipped:
