@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import sys
 
-from tqdm import tqdm
+from .lazy import lazy_module
+
+# loaded when a bar is drawn (a terminal): a command in a pipe, or with --no-progress, never needs it (~10 ms)
+_tqdm = lazy_module("tqdm")
 
 
 class Progress:
@@ -15,7 +18,7 @@ class Progress:
         self.total, self.label, self.done = total, label, 0
         self.enabled = enabled and total > 0
         self.tty = sys.stderr.isatty()
-        self._bar = (tqdm(total=total, desc=label, file=sys.stderr, unit="step", dynamic_ncols=True, leave=True)
+        self._bar = (_tqdm.tqdm(total=total, desc=label, file=sys.stderr, unit="step", dynamic_ncols=True, leave=True)
                      if self.enabled and self.tty else None)
 
     def update(self, n: int = 1) -> None:

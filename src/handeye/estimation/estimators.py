@@ -28,16 +28,17 @@ from scipy.spatial.transform import Rotation
 
 from .. import solvers
 from ..errors import HandEyeError
-from ..frames.motions import Pairs
+from ..frames.motions import MotionSet, Pairs
 from ..robot.models import ControllerPoses, PoseErrors
 from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.pnp import INTRINSICS, intrinsics_covariance, refine_pnp
 from ..sensors.camera.poses import NOISE_TERMS, PoseDifferences
 from ..solvers.refine import ReprojectionResult
-from .core import Fitted, Problem, downdated, fit_poses, view_rms_px
+from .core import Fitted, Problem, downdated, view_rms_px
 from .core import fit as core_fit
 from .diagnostics import SCALE_TOLERANCE, board_scale, closed_form
-from .validation import CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices, pnp_errors
+from .refinement import fit_poses_shared
+from .validation import FAILED_FIT, CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices, pnp_errors
 
 __all__ = ["Choice", "PosesFit", "closed_fit", "pose_candidates", "pose_fit", "poses_fit", "pixel_candidates", "choose",
            "intrinsics_cov", "POSE", "PIXEL", "PIXEL_INTRINSICS", "PIXEL_ROBOT", "REFINE_INTRINSICS"]
@@ -58,15 +59,40 @@ PIXEL_ROBOT = "reprojection+robot"
 REFINE_INTRINSICS = (PIXEL_INTRINSICS, PIXEL_ROBOT)
 
 
-def closed_fit(method: str, pairs: Pairs = "auto") -> Fit:
+def closed_fit(method: str, pairs: Pairs = "auto", shared: dict | None = None) -> Fit:
     """The closed form ``method`` on the motions of ``pairs`` (for a subset: its own ``pairs``; an
-    explicit list of index pairs does not survive leaving poses out, so it becomes 'auto')."""
+    explicit list of index pairs does not survive leaving poses out, so it becomes 'auto').
+    ``shared``: the closed forms fitted on the same poses share their motions through it (made and
+    checked once per set of poses, :func:`_motions`)."""
     rule = pairs if isinstance(pairs, str) else "auto"
 
     def fit(flange2base, target2cam, setup, idx):
-        X, Z, _ = closed_form(flange2base, target2cam, setup, method, rule)
+        motions = None  # a robot-world solver solves the poses, not their motions
+        if shared is not None and solvers.get(method).kind != "robot_world":
+            motions = _motions(shared, flange2base, target2cam, setup, rule)
+        X, Z, _ = closed_form(flange2base, target2cam, setup, method, rule, motions)
         return X, Z
     return fit
+
+
+def _motions(shared: dict, flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str,
+             rule: Pairs) -> MotionSet:
+    """The motions of these poses, made and checked (:func:`~handeye.solvers.check_observability`) once
+    for every closed form fitted on them (kept in ``shared`` by the poses' bytes; so is the error of
+    motions that cannot determine X, raised again)."""
+    key = (setup, str(rule), np.shape(flange2base), np.asarray(flange2base, float).tobytes(),
+           np.asarray(target2cam, float).tobytes())
+    if key not in shared:
+        try:
+            motions = MotionSet.from_poses(flange2base, target2cam, setup, rule)
+            solvers.check_observability(motions)
+            shared[key] = motions
+        except FAILED_FIT as exc:
+            shared[key] = exc
+    found = shared[key]
+    if isinstance(found, BaseException):
+        raise found
+    return found
 
 
 class _Kept(Protocol):
@@ -157,7 +183,7 @@ def poses_fit(views: Views, X0: NDArray[np.float64], Z0: NDArray[np.float64]) ->
     each view's residual whitened by the pose refinement's noise model, its variances estimated from
     the data (:class:`~handeye.sensors.camera.poses.PoseDifferences`), with the robot's poses as the
     controller gave them (:func:`~handeye.estimation.core.fit_poses`, as :func:`~handeye.estimation.refinement.refine_pose`)."""
-    return PosesFit(*fit_poses(views.flange2base, views.target2cam, views.setup, X0, Z0))
+    return PosesFit(*fit_poses_shared(views.flange2base, views.target2cam, views.setup, X0, Z0))
 
 
 def pose_fit(method: str, views: Views | None, start: PosesFit | None = None) -> Fit:
@@ -189,7 +215,8 @@ def pose_fit(method: str, views: Views | None, start: PosesFit | None = None) ->
 def pose_candidates(method: str = "daniilidis", views: Views | None = None) -> dict[str, Fit]:
     """Every registered closed form, and the pose refinement started from ``method`` (warm-started
     from the refinement on all of ``views`` when given)."""
-    out = {name: closed_fit(name) for name in solvers.available(closed_forms=True) if name not in SLOW_CLOSED_FORMS}
+    shared: dict = {}  # each training set's motions, for every closed form
+    out = {name: closed_fit(name, shared=shared) for name in solvers.available(closed_forms=True) if name not in SLOW_CLOSED_FORMS}
     out[POSE] = pose_fit(method, views)
     return out
 

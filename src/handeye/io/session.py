@@ -52,10 +52,10 @@ from ..frames.poses import RobotPoseInput, format_poses, matrix_layout, parse_po
 from ..frames.setups import check_setup
 from ..geometry.se3 import invert
 from ..robot.kinematics import Chain, check_joints_against_poses, load_arm
-from ..robot.urdf import chain_from_urdf
 from ..sensors.camera.targets import target_from_spec
 
 cv2 = lazy_module("cv2")  # only to read an image's size
+_urdf = lazy_module("handeye.robot.urdf")  # a session's arm given as a URDF: read when one is
 
 __all__ = ["PosePairs", "Session", "load_pose_pairs", "load_pose_streams", "TIME_UNITS", "TIME_COLUMNS", "POSE_KINDS", "load_session",
            "read_pose_table", "read_joints", "read_joint_trajectory", "SessionError", "load_yaml", "check_keys",
@@ -364,7 +364,7 @@ def _arm_chain(name: str, base: Path, base_link: str | None = None, tip_link: st
     """The chain an arm is named by: a URDF (its chain from ``base_link`` to ``tip_link`` when given)
     or a DH table file, relative to ``base``, or a shipped arm's name."""
     if name.lower().endswith(".urdf"):
-        return chain_from_urdf(base / name, base_link, tip_link)
+        return _urdf.chain_from_urdf(base / name, base_link, tip_link)
     return load_arm(base / name if name.lower().endswith((".yaml", ".yml")) else name)
 
 

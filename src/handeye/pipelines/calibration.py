@@ -42,6 +42,7 @@ from ..estimation.estimators import (
     poses_fit,
 )
 from ..estimation.partial import calibrate_partial, known_on_complete, parse_known
+from ..estimation.refinement import pose_fits_shared
 from ..estimation.uncertainty import UNSEEN_FACTOR, robot_accuracy_cov, robot_accuracy_from_data, widened_uncertainty
 from ..estimation.validation import Views, jackknife_covs, robot_error_seen
 from ..estimation.verdict import judged, solver_spread
@@ -132,6 +133,7 @@ def _checked_poses(flange2base, target2cam, call: _PoseCall, check: bool, strict
     return flange2base, target2cam, pairs, keep, diag, list(diag.advice)
 
 
+@pose_fits_shared()  # the check's refit on all the poses is the pose candidate's fit
 def calibrate_poses(
     flange2base: ArrayLike,
     target2cam: ArrayLike,
@@ -875,6 +877,7 @@ def _with_sync(cal: Calibration, sync: _sync.Synchronisation, robot: _sync.PoseS
                    notes=list(sync.notes) + list(cal.notes))
 
 
+@pose_fits_shared()  # the check's refit on all the poses is the pose candidate's fit
 def calibrate_observed(
     obs: Observations,
     options: CalibrationOptions | None = None,

@@ -206,14 +206,16 @@ def solve_robot_world_batch(
 
 
 def closed_form(flange2base: NDArray[np.float64], target2cam: NDArray[np.float64], setup: str, method: str,
-                pairs: Pairs = "auto") -> tuple[NDArray[np.float64], NDArray[np.float64], MotionSet]:
+                pairs: Pairs = "auto", motions: MotionSet | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64], MotionSet]:
     """``(X, Z, motions)`` of one solver on validated poses, without refinement or checks: an
     AX = XB solver on the motions of ``pairs`` (Z the mean of the per-pose ``Z_i``), or a
-    robot-world one on the poses."""
-    motions = MotionSet.from_poses(flange2base, target2cam, setup, pairs)
+    robot-world one on the poses. ``motions``: those of these poses and ``pairs``, already made and
+    found to determine X (:func:`check_observability`), e.g. one set for every closed form on the same poses."""
+    checked = motions is not None
+    motions = MotionSet.from_poses(flange2base, target2cam, setup, pairs) if motions is None else motions
     if get(method).kind == "robot_world":
         X, Z = solve_robot_world(*robot_world_inputs(flange2base, target2cam, setup), method=method)
     else:
-        X = solve_motions(motions, method=method)
+        X = _solved(get(method, kind="hand_eye"), motions) if checked else solve_motions(motions, method=method)
         Z = mean_transform(constant_transforms(X, flange2base, target2cam, setup))
     return X, Z, motions

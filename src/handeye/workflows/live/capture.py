@@ -24,6 +24,7 @@ fails: the state says so in words and keeps what it has; nothing here raises int
 
 from __future__ import annotations
 
+import gc
 import multiprocessing
 import queue
 import threading
@@ -55,7 +56,7 @@ from ...planning.poses import candidate_views, choose_next, reprojection_informa
 from ...report import write_calibration
 from ...result import Calibration
 from ...sensors.camera import solve_pnp, target_from_spec
-from ...sensors.camera.detect import detect_images, detection_cache_dir
+from ...sensors.camera.detect import detect_images, detection_cache_dir, unchanged_files_remembered
 from ...sensors.camera.pnp import project_points
 from ...sensors.camera.targets import Detection
 from ..acquire import SimCamera
@@ -769,7 +770,11 @@ def _calibration_pool() -> ProcessPoolExecutor:
 
 
 def ready() -> bool:
-    """Nothing: run in the calibration's process at the start, it has the process import what a calibration needs."""
+    """Run in the calibration's process at the start: it has the process import what a calibration needs,
+    then freezes what the imports made (:func:`gc.freeze`: they live as long as the process, and each full
+    collection during a calibration would walk them all). Nothing in any other process."""
+    if multiprocessing.parent_process() is not None:
+        gc.freeze()
     return True
 
 
@@ -780,7 +785,8 @@ def page_calibration(folder: str, robot_accuracy, target_std: tuple[float, float
     Runs in the calibration's own process: a fit holds the interpreter's lock for most of its time,
     which would stall the frames of a thread beside it."""
     try:
-        cal = calibrate_session(folder, CalibrationOptions(robot_accuracy=robot_accuracy), progress=False)
+        with unchanged_files_remembered():  # the views' images are written once: not read and hashed again each time
+            cal = calibrate_session(folder, CalibrationOptions(robot_accuracy=robot_accuracy), progress=False)
     except HandEyeError as exc:  # e.g. motions about one axis: not yet a calibration, said why
         return {"n_views": None, "error": str(exc)}
     out = calibration_summary(cal, target_std, min_views)
