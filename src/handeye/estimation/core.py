@@ -634,6 +634,11 @@ class _Eliminated:
         # sums over each view's entries as one sparse product (a bincount per column took half the fit's time)
         self._by_view = csr_matrix((np.ones(len(self.entry_view)), (self.entry_view, np.arange(len(self.entry_view)))),
                                    shape=(self.n_views, len(self.entry_view)))
+        self._entries_of: list[slice | NDArray[np.intp]] = []  # per view its entries: a slice when contiguous
+        for v in range(self.n_views):
+            at = np.flatnonzero(self.entry_view == v)
+            contiguous = len(at) and at[-1] - at[0] + 1 == len(at)
+            self._entries_of.append(slice(int(at[0]), int(at[-1]) + 1) if contiguous else at)
         self.h = 1.5e-8 / np.asarray(robot.param_size, float)
         self.own = problem.plan.own
         self.n_g = 6 + problem.sizes[1]
@@ -743,10 +748,18 @@ class _Eliminated:
 
     def _normal(self, A: NDArray[np.float64], w: NDArray[np.float64], w_prior: NDArray[np.float64]) -> NDArray[np.float64]:
         """Per view ``A^T W A + W_prior`` (n_views, n_per, n_per)."""
-        outer = ((w[:, None] * A)[:, :, None] * A[:, None, :]).reshape(len(A), -1)
-        N = self._view_sums(outer).reshape(self.n_views, self.n_per, self.n_per)
+        N = self._per_view_products(A, w, A)
         N[:, np.arange(self.n_per), np.arange(self.n_per)] += w_prior
         return N
+
+    def _per_view_products(self, A: NDArray[np.float64], w: NDArray[np.float64], B: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Per view ``A_v^T W_v B_v`` (n_views, A's columns, B's columns): a product per view's entries (a slice
+        when they are contiguous), where the outer products of every entry took ~60 MB a Jacobian at 100 views of
+        522 corners."""
+        out = np.zeros((self.n_views, A.shape[1], B.shape[1]))
+        for v, at in enumerate(self._entries_of):
+            out[v] = A[at].T @ (w[at, None] * B[at])
+        return out
 
     def _view_sums(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """Sums over each view's entries of ``values`` (E, k) -> (n_views, k)."""
@@ -824,8 +837,8 @@ class _Eliminated:
         # the implicit derivative of the errors' optimum: their gradient's derivatives, the loss's curvature
         w = self._curvatures(self.f)
         w_prior = self._curvatures(self.d)[self.index].reshape(self.n_views, self.n_per)
-        cross = self._view_sums((w[:, None, None] * A[:, :, None] * J_g[:, None, :]).reshape(len(A), -1))
-        dd = -np.linalg.solve(self._normal(A, w, w_prior), cross.reshape(self.n_views, self.n_per, self.n_g))
+        cross = self._per_view_products(A, w, J_g)
+        dd = -np.linalg.solve(self._normal(A, w, w_prior), cross)
         out = np.zeros((len(self.f) + len(self.d) + self.problem.n_linear, self.n_g))
         out[:len(self.f)] = J_g + np.einsum("ea,eag->eg", A, dd[self.entry_view])
         seen = self.index >= 0

@@ -174,8 +174,8 @@ class CameraCorners(ChartedTarget):
         a = (d_point.reshape(-1, 3) @ R_t).reshape(m, 2, 3)
         b = np.matmul(d_point, (R_t @ W[:, :3, :3])[owner])
         jac = np.empty((m, 2, 12))
-        jac[:, :, 0:3] = _cross_rows(a, v)
-        jac[:, :, 3:6] = -a
+        _cross_rows(a, v, out=jac[:, :, 0:3])
+        np.negative(a, out=jac[:, :, 3:6])
         jac[:, :, 6:9] = -(_cross_rows(b, u).reshape(-1, 3) @ so3_left_jacobian(p[:3])).reshape(m, 2, 3)
         jac[:, :, 9:12] = b
         if self.refine_intrinsics:
@@ -215,8 +215,12 @@ class CameraCorners(ChartedTarget):
         return out
 
 
-def _cross_rows(a: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``a[m, r] x w[m]`` for rows ``a`` (M, R, 3) and vectors ``w`` (M, 3): ``a^T [w]x`` row by row."""
+def _cross_rows(a: NDArray[np.float64], w: NDArray[np.float64], out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+    """``a[m, r] x w[m]`` for rows ``a`` (M, R, 3) and vectors ``w`` (M, 3): ``a^T [w]x`` row by row (into ``out``)."""
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
     wx, wy, wz = w[:, None, 0], w[:, None, 1], w[:, None, 2]
-    return np.stack([ay * wz - az * wy, az * wx - ax * wz, ax * wy - ay * wx], axis=-1)
+    out = np.empty(a.shape) if out is None else out
+    out[..., 0] = ay * wz - az * wy
+    out[..., 1] = az * wx - ax * wz
+    out[..., 2] = ax * wy - ay * wx
+    return out
