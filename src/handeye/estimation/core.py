@@ -636,9 +636,9 @@ class _Eliminated:
                                    shape=(self.n_views, len(self.entry_view)))
         self._entries_of: list[slice | NDArray[np.intp]] = []  # per view its entries: a slice when contiguous
         for v in range(self.n_views):
-            at = np.flatnonzero(self.entry_view == v)
-            contiguous = len(at) and at[-1] - at[0] + 1 == len(at)
-            self._entries_of.append(slice(int(at[0]), int(at[-1]) + 1) if contiguous else at)
+            entries = np.flatnonzero(self.entry_view == v)
+            contiguous = len(entries) and entries[-1] - entries[0] + 1 == len(entries)
+            self._entries_of.append(slice(int(entries[0]), int(entries[-1]) + 1) if contiguous else entries)
         self.h = 1.5e-8 / np.asarray(robot.param_size, float)
         self.own = problem.plan.own
         self.n_g = 6 + problem.sizes[1]
@@ -757,8 +757,8 @@ class _Eliminated:
         when they are contiguous), where the outer products of every entry took ~60 MB a Jacobian at 100 views of
         522 corners."""
         out = np.zeros((self.n_views, A.shape[1], B.shape[1]))
-        for v, at in enumerate(self._entries_of):
-            out[v] = A[at].T @ (w[at, None] * B[at])
+        for v, entries in enumerate(self._entries_of):
+            out[v] = A[entries].T @ (w[entries, None] * B[entries])
         return out
 
     def _view_sums(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
