@@ -517,6 +517,7 @@ def test_a_kinds_old_modules_import_from_their_old_path_with_a_deprecation_warni
     ("handeye.pipelines.rig", "rig_members", "handeye.pipelines.rig.pipeline"),
     ("handeye.io.extras", "check_extras", "handeye.pipelines.folders"),
     ("handeye.solvers.refine", "refine_pose", "handeye.estimation.refinement"),
+    ("handeye.solvers.refine", "refine_reprojection", "handeye.estimation.refinement"),
 ])
 def test_names_that_left_a_package_still_import_from_it_with_a_deprecation_warning(package, name, new):
     """Issue 78: ``from handeye.simulate import laser_scene`` and ``from handeye.pipelines.laser import

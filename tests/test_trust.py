@@ -20,10 +20,10 @@ import handeye
 import realdata
 from handeye.cli import main
 from handeye.estimation.diagnostics import board_scale
+from handeye.estimation.refinement import refine_reprojection
 from handeye.frames.metrics import rotation_error, translation_error
 from handeye.geometry.se3 import invert, make_transform
 from handeye.simulate import EXACT, REALISTIC, arm_forward_kinematics, random_scene, realistic_scene
-from handeye.solvers.refine import refine_reprojection
 
 SAMPLE = Path(handeye.__file__).parent / "data" / "sample_session"
 

@@ -15,9 +15,8 @@ import handeye
 import realdata
 from handeye.estimation.diagnostics import closed_form
 from handeye.estimation.estimators import POSE, intrinsics_cov, pose_fit
-from handeye.estimation.refinement import refine_pose
+from handeye.estimation.refinement import refine_pose, refine_reprojection
 from handeye.frames.metrics import rotation_error, translation_error
-from handeye.frames.setups import predicted_target2cam
 from handeye.io.session import load_session
 from handeye.pipelines.calibration import observe
 from handeye.sensors.camera import Detection, solve_pnp, target_from_spec
@@ -32,7 +31,6 @@ from handeye.simulate import (
     scene_from_viewpoints,
     visible_viewpoints,
 )
-from handeye.solvers.refine import refine_reprojection
 
 
 def _mc_camera():
@@ -426,57 +424,71 @@ def test_robot_aware_reprojection_refinement_removes_the_robot_bias():
 
 
 @pytest.mark.slow
-def test_robot_aware_sparse_jacobian_matches_dense():
-    """The corrections eliminated (variable projection on X, Z; each image's 6 solved for given X, Z)
-    reach the optimum, covariance and corrected poses of the joint problem with scipy's dense
-    differences, in far fewer evaluations."""
-    scene, f2b, poses, cal, obj, img, K, dist = _robot_noise_scene(np.random.default_rng(5), n_poses=10)
+def test_robot_aware_elimination_matches_the_joint_fit(monkeypatch):
+    """Each pose's error eliminated (variable projection on X and the target; each view's 6 solved for
+    given them, their derivatives by the chain rule through X's) reaches the optimum, covariance and
+    corrected poses of the joint fit over every unknown; with a wrong detection, the robust fit sets
+    the same point aside and lands at the same X."""
+    from handeye.estimation import core as core_module
+
+    scene, f2b, poses, cal, obj, img, K, dist = _robot_noise_scene(np.random.default_rng(5), n_poses=12)
     kw = dict(robot_noise=(np.radians(0.05), 0.2e-3))
-    sp = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", **kw)
-    de = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", sparse=False, **kw)
-    assert translation_error(sp.X, de.X) < 1e-8 and rotation_error(sp.X, de.X) < 1e-8
-    assert np.abs(sp.cov_X - de.cov_X).max() < 1e-3 * np.abs(de.cov_X).max()
-    assert sp.n_evaluations < 0.5 * de.n_evaluations
-    # the corrected robot poses moved towards the truth
-    before = translation_error(f2b, scene.flange2base).mean()
-    after = translation_error(sp.flange2base, scene.flange2base).mean()
-    assert after < before
-    # with a robust loss the corrections are solved under the loss's weights: the same optimum again
     img_out = [im.copy() for im in img]
     img_out[2][4] += 30.0
-    sp = refine_reprojection(cal.X, cal.Z, f2b, obj, img_out, K, dist, "eye_in_hand", robust=True, **kw)
-    de = refine_reprojection(cal.X, cal.Z, f2b, obj, img_out, K, dist, "eye_in_hand", robust=True, sparse=False, **kw)
-    assert sp.n_rejected == de.n_rejected == 1
-    assert translation_error(sp.X, de.X) < 1e-7 and rotation_error(sp.X, de.X) < 1e-7
+    fits = {}
+    for label, threshold in (("eliminated", 0), ("joint", 10**9)):
+        monkeypatch.setattr(core_module, "ELIMINATE_OWN_FROM", threshold)
+        monkeypatch.setattr(core_module, "ELIMINATE_FROM", threshold)
+        fits[label] = (refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", **kw),
+                       refine_reprojection(cal.X, cal.Z, f2b, obj, img_out, K, dist, "eye_in_hand", robust=True, **kw))
+    (sp, sp_robust), (de, de_robust) = fits["eliminated"], fits["joint"]
+    assert translation_error(sp.X, de.X) < 1e-8 and rotation_error(sp.X, de.X) < 1e-8
+    assert np.abs(sp.cov_X - de.cov_X).max() < 1e-4 * np.abs(de.cov_X).max()
+    assert translation_error(sp.flange2base, de.flange2base).max() < 1e-8
+    # the corrected robot poses moved towards the truth
+    assert translation_error(sp.flange2base, scene.flange2base).mean() < translation_error(f2b, scene.flange2base).mean()
+    assert sp_robust.n_rejected == de_robust.n_rejected == 1 and not sp_robust.kept[2][4]
+    assert translation_error(sp_robust.X, de_robust.X) < 1e-8 and rotation_error(sp_robust.X, de_robust.X) < 1e-8
     with pytest.raises(ValueError, match="positive"):
         refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", robot_noise=(0.0, 1e-3))
 
 
-def test_soft_l1_pass_reaches_scipys_robust_optimum():
-    """The robust pass's soft-L1 cost, written as plain least squares for MINPACK's
+def test_soft_l1_round_reaches_scipys_robust_optimum():
+    """The core's robust round, its soft-L1 cost written as plain least squares for MINPACK's
     Levenberg-Marquardt (issue 37), has scipy's own soft-L1 optimum (trf, the loss applied by
-    least_squares, differences), with and without the intrinsics, wrong detections included."""
+    least_squares), with and without the intrinsics, wrong detections included; and each pose's error
+    eliminated, Newton's steps for the errors reach the same optimum as scipy's on the joint problem."""
+    from scipy.optimize import least_squares
+
+    from handeye.estimation import core as core_module
+    from handeye.estimation.refinement import corners_problem
+
     scene, f2b, poses, cal, obj, img, K, dist = _robot_noise_scene(np.random.default_rng(7), n_poses=8)
     img = [im.copy() for im in img]
     img[1][3] += 25.0
     img[5][10] -= 18.0
-
-    def cost(fit):  # the soft-L1 cost at the fit
-        r = np.concatenate([cv2.projectPoints(o, cv2.Rodrigues(T[:3, :3])[0], T[:3, 3], fit.K, fit.dist)[0].reshape(-1, 2)
-                            - im for o, im, T in zip(obj, img, predicted_target2cam(fit.X, fit.Z, f2b, "eye_in_hand"))])
-        return float(np.sum(2.0 * (np.sqrt(1.0 + r.ravel() ** 2) - 1.0)))
-
-    for intrinsics in (False, True):
-        kw = dict(loss="soft_l1", f_scale=1.0, refine_intrinsics=intrinsics)
-        lm = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", **kw)
-        trf = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", sparse=False, **kw)
-        # scipy's differences stop ~3e-8 m, 2e-7 deg short of the optimum with the intrinsics (a
-        # higher cost); MINPACK's steps on the analytic Jacobian get as close or closer
-        assert translation_error(lm.X, trf.X) < 1e-7 and rotation_error(lm.X, trf.X) < 1e-6
-        assert cost(lm) <= cost(trf) * (1.0 + 1e-13)
-        # the RMS of the pixel residuals, as scipy reports them, not of their soft-L1 form
-        assert np.abs(lm.K - trf.K).max() < 1e-3 and abs(lm.rms_px - trf.rms_px) < 1e-7  # px
-        assert lm.n_evaluations < trf.n_evaluations
+    names = [str(i) for i in range(len(img))]
+    for intrinsics, robot in ((False, None), (True, None), (False, (np.radians(0.05), 0.2e-3))):
+        problem = corners_problem("eye_in_hand", names, f2b, obj, img, K, dist, cal.X, cal.Z, intrinsics, robot)
+        rows = np.arange(len(problem.sensor.owner))
+        sigma = np.array([1.5e-4])  # m at the target: ~0.3 px
+        x0 = np.zeros(sum(problem.sizes))
+        fun = core_module._function(problem, rows, sigma)
+        jac = core_module._jacobian(problem, rows, sigma)
+        cost = lambda x: float(np.sum(2.0 * (np.sqrt(1.0 + (fun(x) / 2.0) ** 2) - 1.0)))  # noqa: E731
+        kw = dict(x_scale=problem.scale(), xtol=1e-12, ftol=1e-12, gtol=1e-12)
+        lm = core_module._robust_least_squares(fun, jac, x0, problem.scale(), 1e-12, True)
+        trf = least_squares(fun, x0, jac, method="trf", loss="soft_l1", f_scale=2.0, **kw)
+        X_lm, X_trf = problem.unpack(lm.x)[0], problem.unpack(trf.x)[0]
+        # scipy's trf stops ~1e-7 deg short of the optimum with the intrinsics (a higher cost); MINPACK's steps
+        # get as close or closer
+        assert translation_error(X_lm, X_trf) < 1e-7 and rotation_error(X_lm, X_trf) < 1e-6
+        assert cost(lm.x) <= cost(trf.x) * (1.0 + 1e-11)  # the same minimum, to rounding
+        assert np.array_equal(lm.fun, fun(lm.x))  # the residuals themselves, not their soft-L1 form
+        if robot is not None:  # the errors eliminated: the robust round of the fit itself
+            elim, _ = core_module._fit_eliminated(problem, rows, sigma, x0, 1e-12, "soft_l1")
+            X_elim = problem.unpack(elim.x)[0]
+            assert translation_error(X_elim, X_trf) < 1e-7 and rotation_error(X_elim, X_trf) < 1e-6
 
 
 def test_robot_aware_robust_fit_drops_a_view_its_robot_pose_contradicts():
@@ -492,7 +504,9 @@ def test_robot_aware_robust_fit_drops_a_view_its_robot_pose_contradicts():
     without = refine_reprojection(cal.X, cal.Z, f2b[keep], [o for o, k in zip(obj, keep) if k],
                                   [im for im, k in zip(img, keep) if k], K, dist, "eye_in_hand", **kw)
     assert got.rejected_images == (6,) and got.n_rejected == len(obj[6])
-    assert translation_error(got.X, without.X) < 1e-6 and rotation_error(got.X, without.X) < 1e-8
+    # (the same up to the noise scale each estimates from its own rows in its rounds)
+    assert translation_error(got.X, without.X) < 0.01 * translation_error(without.X, scene.X)
+    assert rotation_error(got.X, without.X) < 0.01 * rotation_error(without.X, scene.X)
     clean = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", **kw)
     assert clean.rejected_images == () and clean.n_rejected == 0
 
@@ -500,11 +514,10 @@ def test_robot_aware_robust_fit_drops_a_view_its_robot_pose_contradicts():
 @pytest.mark.slow
 def test_the_cores_robot_aware_pixel_fit_eliminates_each_poses_error(monkeypatch):
     """The pixel refinement with each robot pose's error fitted, through the one estimation core
-    (CameraCorners x PoseErrors; from 16 views the errors eliminated view by view): X where the
-    solver's own eliminated refinement puts it (within 3% of the distance to the truth) with the same
-    std; the joint and the eliminated fit at the same optimum; a fold's downdate lands where a refit
-    on its views does; and a view 40 px off (a wrong robot pose) is set aside whole, X then what the
-    other views give."""
+    (CameraCorners x PoseErrors; from 10 views the errors eliminated view by view): refine_reprojection
+    is the same fit, X within 3 std of the truth; the joint and the eliminated fit at the same optimum;
+    a fold's downdate lands where a refit on its views does; and a view 40 px off (a wrong robot pose)
+    is set aside whole, X then what the other views give."""
     from handeye.estimation import core as core_module
     from handeye.estimation.core import downdated
     from handeye.estimation.core import fit as core_fit
@@ -517,10 +530,12 @@ def test_the_cores_robot_aware_pixel_fit_eliminates_each_poses_error(monkeypatch
     views = Views(f2b, poses, "eye_in_hand", obj, img, K, dist)
     core = corners_fit(views, np.arange(n), cal.X, cal.Z, robot_sigma=sigma)
     assert core_module._eliminates(core.problem)
+    # refine_reprojection is the same fit (its thin wrapper)
     ref = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", robust=True, robot_noise=sigma)
-    assert translation_error(core.result.X, ref.X) < 0.03 * translation_error(ref.X, scene.X)
-    std_core, std_ref = np.sqrt(np.diag(core.result.cov_X)), np.sqrt(np.diag(ref.cov_X))
-    assert np.all(np.abs(std_core / std_ref - 1) < 0.1)
+    assert translation_error(core.result.X, ref.X) < 1e-12 and np.allclose(core.result.cov_X, ref.cov_X, rtol=1e-9, atol=0)
+    std_core = np.sqrt(np.diag(core.result.cov_X))
+    # X closer to the truth than the robot's own error moves it, and within 3 std of it
+    assert translation_error(core.result.X, scene.X) < 3 * np.linalg.norm(std_core[3:])
     # the corrected poses moved towards the truth
     assert translation_error(core.result.flange2base, scene.flange2base).mean() < translation_error(f2b, scene.flange2base).mean()
     # a fold: the downdate (one step, each view's errors eliminated) against the refit on its views
@@ -540,8 +555,9 @@ def test_the_cores_robot_aware_pixel_fit_eliminates_each_poses_error(monkeypatch
     assert translation_error(got.result.X, without.result.X) < 0.01 * translation_error(without.result.X, scene.X)
     assert rotation_error(got.result.X, without.result.X) < 0.01 * rotation_error(without.result.X, scene.X)
     assert core.result.rejected_images == () and core.result.n_rejected == 0
-    # the joint Jacobian below ELIMINATE_FROM: the same optimum, the same view set aside
+    # the joint Jacobian below ELIMINATE_OWN_FROM: the same optimum, the same view set aside
     monkeypatch.setattr(core_module, "ELIMINATE_FROM", 10**9)
+    monkeypatch.setattr(core_module, "ELIMINATE_OWN_FROM", 10**9)
     joint = corners_fit(views, np.arange(n), cal.X, cal.Z, robot_sigma=sigma)
     assert not core_module._eliminates(joint.problem)
     assert translation_error(joint.result.X, core.result.X) < 1e-3 * translation_error(ref.X, scene.X)
@@ -551,56 +567,57 @@ def test_the_cores_robot_aware_pixel_fit_eliminates_each_poses_error(monkeypatch
 
 
 def test_robot_aware_refinement_with_a_long_distortion_model():
-    """Beyond 8 distortion terms (thin prism, tilt) the analytic path does not apply: the joint
-    problem is differenced image by image (12 + 6 groups of columns); with the extra terms zero it
-    reaches the optimum of the eliminated form on the same camera."""
+    """OpenCV's 14-term model (thin prism, tilt) with those terms zero is the 5-term camera: the same
+    optimum; with any of them nonzero, the refinement says it does not model them (no wrong answer)."""
     scene, f2b, poses, cal, obj, img, K, dist = _robot_noise_scene(np.random.default_rng(6), n_poses=8)
     kw = dict(robot_noise=(np.radians(0.05), 0.2e-3))
     short = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, dist, "eye_in_hand", **kw)
     long = refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, np.r_[np.ravel(dist)[:5], np.zeros(9)], "eye_in_hand", **kw)
-    assert translation_error(short.X, long.X) < 1e-7 and rotation_error(short.X, long.X) < 1e-7
-    assert np.abs(short.cov_X - long.cov_X).max() < 1e-3 * np.abs(short.cov_X).max()
+    assert translation_error(short.X, long.X) < 1e-12 and rotation_error(short.X, long.X) < 1e-12
+    assert np.abs(short.cov_X - long.cov_X).max() < 1e-9 * np.abs(short.cov_X).max()
+    prism = np.r_[np.ravel(dist)[:5], np.zeros(3), 1e-3, np.zeros(5)]
+    with pytest.raises(handeye.InputMismatchError, match="thin-prism or tilt"):
+        refine_reprojection(cal.X, cal.Z, f2b, obj, img, K, prism, "eye_in_hand", **kw)
 
 
 @pytest.mark.parametrize("setup", ["eye_in_hand", "eye_to_hand"])
 def test_reprojection_jacobians_match_central_differences(setup):
-    """The analytic Jacobians of the pixel refinement (X, Z, intrinsics; the robot-correction
-    blocks) against central differences of the residuals, away from the start (the rotation
-    unknowns' left Jacobians matter there), for both setups and 5 or 8 distortion terms."""
-    from handeye.sensors.camera.pnp import project_points_many
-    from handeye.solvers import refine as rf
+    """The pixel refinement's Jacobian in the core (X, the target, the intrinsics; each pose's error
+    by the chain rule through X's derivatives and the robot's poses) against central differences of
+    its residuals, away from the start (the rotation unknowns' left Jacobians matter there), for
+    both setups and 5 or 8 distortion terms, the joint Jacobian and the eliminated one's parts."""
+    from handeye.estimation import core as core_module
+    from handeye.estimation.refinement import corners_problem
 
     rng = np.random.default_rng(3)
     sc = handeye.simulate.random_scene(5, setup, rng=3)
     K = np.array([[1200.0, 0, 640], [0, 1150, 500], [0, 0, 1]])
     P = np.array([[x, y, 0.0] for x in np.linspace(0, 0.2, 4) for y in np.linspace(0, 0.15, 3)])
-    points, owner = np.concatenate([P] * 5), np.repeat(np.arange(5), len(P))
+    T = handeye.frames.setups.predicted_target2cam(sc.X, sc.Z, sc.flange2base, setup)
     for dist in (np.array([-0.2, 0.1, 0.001, -0.002, 0.05]), np.array([-0.2, 0.1, 0.001, -0.002, 0.05, 0.01, 0.02, -0.03])):
-        d0, extra = dist[:5], dist[5:]
-        for n_glob in (12, 21):
-            x = rng.normal(scale=0.05, size=n_glob + 30)
-            glob = rf._reprojection_unpacker(sc.X, sc.Z, K, d0, extra, sc.flange2base, n_glob == 21, False, n_glob)
-
-            def pixels(x):
-                X, Z, Kx, dx, _ = glob(x[:n_glob])
-                c = x[n_glob:].reshape(5, 6)
-                F = handeye.geometry.se3.perturb(sc.flange2base, c[:, :3], c[:, 3:])
-                return project_points_many(handeye.frames.setups.predicted_target2cam(X, Z, F, setup), points, owner, Kx, dx).ravel()
-
-            X, Z, Kx, dx, _ = glob(x[:n_glob])
-            c = x[n_glob:].reshape(5, 6)
-            F = handeye.geometry.se3.perturb(sc.flange2base, c[:, :3], c[:, 3:])
-            px, J_glob, A = rf._pixel_blocks(X, Z, Kx, dx, F, points, owner, setup, n_glob,
-                                             np.stack([x[0:3], x[6:9]]), c[:, :3])
-            assert np.abs(px.ravel() - pixels(x)).max() < 1e-9
+        img = [handeye.sensors.camera.pnp.project_points(t, P, K, dist) for t in T]
+        for intrinsics in (False, True) if len(dist) == 5 else (False,):
+            problem = corners_problem(setup, [str(i) for i in range(5)], sc.flange2base, [P] * 5, img, K, dist, sc.X, sc.Z,
+                                      intrinsics, (np.radians(0.05), 0.2e-3))
+            rows = np.arange(len(problem.sensor.owner))
+            sigma = np.array([1e-4])
+            x = rng.normal(scale=0.05, size=sum(problem.sizes)) * np.r_[np.ones(6), problem.scale()[6:-30] * 50, np.ones(30)]
+            fun = core_module._function(problem, rows, sigma)
             h = 1e-6
-            num = np.stack([(pixels(x + h * e) - pixels(x - h * e)) / (2 * h) for e in np.eye(len(x))], axis=1)
-            J = np.zeros_like(num)
-            J[:, :n_glob] = J_glob.reshape(-1, n_glob)
-            for i in range(5):  # each image's rows against its own correction
-                rows = np.arange(2 * len(P) * i, 2 * len(P) * (i + 1))
-                J[rows, n_glob + 6 * i:n_glob + 6 * i + 6] = A[owner == i].reshape(-1, 6)
-            assert np.abs(J - num).max() < 1e-6 * np.abs(num).max()
+            num = np.stack([(fun(x + h * e) - fun(x - h * e)) / (2 * h) for e in np.eye(len(x))], axis=1)
+            J = core_module._per_view_jacobian(problem, rows, sigma)(x)
+            assert np.abs(J - num).max() < 1e-5 * np.abs(num).max()
+            parts = core_module._Eliminated(problem, rows, sigma, x[-30:])
+            parts.evaluate_at(x)
+            m = len(parts.f)
+            n_g = parts.n_g
+            assert np.abs(parts.by_globals(x[:n_g]) - num[:m, :n_g]).max() < 1e-5 * np.abs(num).max()
+            assert parts._chained  # the chain rule through X's derivatives, checked against differences once
+            by_errors = np.zeros((m, 30))
+            view = parts.entry_view
+            for a in range(6):
+                by_errors[np.arange(m), 6 * view + a] = parts.by_errors()[:, a]
+            assert np.abs(by_errors - num[:m, n_g:]).max() < 1e-5 * np.abs(num).max()
 
 
 def test_robot_noise_is_never_silently_ignored(tmp_path):

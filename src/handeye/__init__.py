@@ -85,7 +85,7 @@ MOVED_NAMES = {
     "handeye.planning": {**dict.fromkeys(("LaserPlan", "plan_laser"), "handeye.pipelines.laser.plan"),
                          **dict.fromkeys(("LineScanPlan", "plan_linescan"), "handeye.pipelines.linescan.plan"),
                          **dict.fromkeys(("RigPlan", "RigPlanCamera", "plan_rig"), "handeye.pipelines.rig.plan")},
-    "handeye.solvers.refine": {"refine_pose": "handeye.estimation.refinement"},
+    "handeye.solvers.refine": dict.fromkeys(("refine_pose", "refine_reprojection"), "handeye.estimation.refinement"),
     "handeye.io.extras": dict.fromkeys(("session_extras", "missing_extras", "check_extras"), "handeye.pipelines.folders"),
     "handeye.io.importers": {"import_robcalibrator": "handeye.pipelines.laser.importers",
                              "import_easyhec": "handeye.pipelines.silhouette.importers"},

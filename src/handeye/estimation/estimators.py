@@ -29,15 +29,15 @@ from scipy.spatial.transform import Rotation
 from .. import solvers
 from ..errors import HandEyeError
 from ..frames.motions import MotionSet, Pairs
-from ..robot.models import ControllerPoses, PoseErrors
+from ..robot.models import ControllerPoses
 from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.pnp import INTRINSICS, intrinsics_covariance, refine_pnp
 from ..sensors.camera.poses import NOISE_TERMS, PoseDifferences
 from ..solvers.refine import ReprojectionResult
-from .core import Fitted, Problem, downdated, view_rms_px
+from .core import Fitted, Problem, downdated
 from .core import fit as core_fit
 from .diagnostics import SCALE_TOLERANCE, board_scale, closed_form
-from .refinement import fit_poses_shared
+from .refinement import corners_problem, fit_poses_shared, reprojection_result
 from .validation import FAILED_FIT, CrossValidation, Fit, Views, cross_validate, default_folds, fold_indices, pnp_errors
 
 __all__ = ["Choice", "PosesFit", "closed_fit", "pose_candidates", "pose_fit", "poses_fit", "pixel_candidates", "choose",
@@ -262,37 +262,10 @@ def corners_fit(views: Views, idx: NDArray[np.intp], X0: NDArray[np.float64], Z0
     robust fit bends far beyond it is set aside whole)."""
     idx = np.asarray(idx)
     object_points, image_points, K, dist = _pixels(views)
-    sensor = CameraCorners(views.setup, [str(i) for i in idx], [image_points[i] for i in idx],
-                           [object_points[i] for i in idx], K, dist, refine_intrinsics=refine_intrinsics)
-    flange2base = views.flange2base[idx]
-    X_start, p_start = sensor.start(flange2base, X0, Z0)
-    robot = ControllerPoses(flange2base) if robot_sigma is None else PoseErrors(
-        flange2base, (float(np.degrees(robot_sigma[0])), 1e3 * float(robot_sigma[1])))
-    problem = Problem(sensor, robot, X_start, p_start)
+    problem = corners_problem(views.setup, [str(i) for i in idx], views.flange2base[idx], [object_points[i] for i in idx],
+                              [image_points[i] for i in idx], K, dist, X0, Z0, refine_intrinsics, robot_sigma)
     fitted = core_fit(problem)
-    return CornersFit(problem, fitted, _as_reprojection(problem, fitted))
-
-
-def _as_reprojection(problem: Problem, fitted: Fitted) -> ReprojectionResult:
-    """The core's fit of a camera's corners as a :class:`~handeye.solvers.refine.ReprojectionResult`."""
-    sensor = cast(CameraCorners, problem.sensor)
-    flange2base = problem.robot.flange2base(fitted.d)
-    everything = np.arange(len(sensor.owner))
-
-    def pixels(X, p, rows):
-        return np.sum((sensor.residuals(X, p, flange2base, rows) / sensor.pixel_size(rows)[:, None]) ** 2, axis=1)
-
-    rows = fitted.rows
-    sq = pixels(fitted.X, fitted.p, rows)
-    n_views = len(sensor.names)
-    per_view = view_rms_px(problem, fitted, np.arange(n_views))
-    before = pixels(problem.X0, problem.p0, everything)
-    kept = tuple(fitted.kept[sensor.owner == v] for v in range(n_views))
-    emptied = tuple(v for v, k in enumerate(kept) if len(k) and not k.any())
-    return ReprojectionResult(
-        fitted.X, sensor.Z(fitted.X, fitted.p), *sensor.intrinsics(fitted.p), float(np.sqrt(np.mean(sq))),
-        float(np.sqrt(np.mean(before))), per_view, len(rows), fitted.success, "the core's fit of the corners",
-        fitted.cov[:6, :6], float(fitted.sigma[0]), int(len(everything) - len(rows)), flange2base, 0, emptied, kept)
+    return CornersFit(problem, fitted, reprojection_result(problem, fitted))
 
 
 def pixel_fit(views: Views, idx: NDArray[np.intp], X0: NDArray[np.float64], Z0: NDArray[np.float64],

@@ -6,6 +6,12 @@ estimation core (:mod:`handeye.estimation.core`): no second engine.
 :class:`~handeye.sensors.camera.poses.PoseDifferences` times
 :class:`~handeye.robot.models.ControllerPoses` (:func:`~handeye.estimation.core.fit_poses`).
 
+``refine_reprojection``: X and Z refined on the pixels, every target point projected onto its
+detection in every image (the thesis's "future work", §6.1, and Horaud-Dornaika's lesson: estimate
+everything together): the core's fit of :class:`~handeye.sensors.camera.model.CameraCorners` times
+:class:`~handeye.robot.models.ControllerPoses`, or :class:`~handeye.robot.models.PoseErrors` with each
+robot pose's error fitted under a prior.
+
 Both once lived in :mod:`handeye.solvers.refine` as engines of their own; that path still finds
 them for one release (with a DeprecationWarning).
 """
@@ -15,17 +21,22 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .._shared.threads import on_one_blas_thread
 from ..errors import InputMismatchError
 from ..frames.setups import check_setup
+from ..robot.models import ControllerPoses, PoseErrors
+from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.poses import NOISE_TERMS, pose_residuals
-from ..solvers.refine import PoseRefinementResult, TranslationPriors
-from .core import Fitted, Problem, fit_poses
+from ..solvers.refine import PoseRefinementResult, ReprojectionResult, TranslationPriors
+from .core import Fitted, Problem, fit, fit_poses
 
-__all__ = ["PoseRefinementResult", "TranslationPriors", "refine_pose", "pose_fits_shared", "fit_poses_shared"]
+__all__ = ["PoseRefinementResult", "ReprojectionResult", "TranslationPriors", "corners_problem", "fit_poses_shared",
+           "pose_fits_shared", "refine_pose", "refine_reprojection", "reprojection_result"]
 
 _POSE_FITS: ContextVar[dict | None] = ContextVar("_POSE_FITS", default=None)
 
@@ -133,3 +144,124 @@ def refine_pose(
     message = "the core's fit of the poses" + ("" if fitted.success else ": the noise estimates did not settle")
     return PoseRefinementResult(X, Z, cov[:6, :6], cov[6:, 6:], cov, noise, residuals, fitted.rounds, fitted.success,
                                 weighting, fitted.success, message)
+
+
+@on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
+def refine_reprojection(
+    X0: NDArray[np.float64],
+    Z0: NDArray[np.float64],
+    flange2base: NDArray[np.float64],
+    object_points: list[NDArray[np.float64]],
+    image_points: list[NDArray[np.float64]],
+    K: NDArray[np.float64],
+    dist: NDArray[np.float64],
+    setup: str,
+    refine_intrinsics: bool = False,
+    robust: bool = False,
+    robot_noise: tuple[float, float] | None = None,
+    tol: float = 1e-10,
+) -> ReprojectionResult:
+    """Refine X and Z by minimising the reprojection error of all target points in all images: the
+    estimation core's fit of the corners (:func:`~handeye.estimation.core.fit`).
+
+    The camera pose of image i is not a free unknown but follows from the robot pose (docs/guide.md,
+    Conventions): eye-in-hand ``target2cam_i = inv(X) @ inv(flange2base_i) @ Z`` (X = cam2flange, Z =
+    target2base); eye-to-hand ``target2cam_i = inv(X) @ flange2base_i @ Z`` (X = cam2base, Z =
+    target2flange). Every corner's pixel error weighs alike; the pixel noise is estimated from the
+    residuals and scales the covariance.
+
+    Parameters
+    ----------
+    X0, Z0 : (4, 4)
+        Start (a closed-form solution).
+    flange2base : (N, 4, 4)
+    object_points, image_points : lists of N arrays (M_i, 3) and (M_i, 2)
+        Target points (target frame, metres) and their detections (pixels), image by image.
+    K, dist
+        Camera intrinsics (OpenCV's model, up to 8 distortion coefficients; held fixed unless refined).
+    setup : {'eye_in_hand', 'eye_to_hand'}
+    refine_intrinsics : bool
+        Also refine fx, fy, cx, cy and five distortion terms (k1 k2 p1 p2 k3). The robot poses tie
+        all views together, so this is far better conditioned than a camera calibration alone:
+        use it when the intrinsics were estimated from the same images.
+    robust : bool
+        Wrong detections: the core's robust fit (a soft-L1 round, every corner beyond 5 of its std
+        set aside, then plain least squares on the rest, so the covariance is that of a least-squares
+        fit; with ``robot_noise``, a view whose pose the robust round bends far beyond its prior is
+        set aside whole). Without: plain least squares on every corner.
+    robot_noise : (rad, m), optional
+        The robot poses are not exact: each gets its own error (rotation vector and translation, 6
+        unknowns per image) with a Gaussian prior of these standard deviations per axis (e.g. the
+        controller's repeatability), weighed against the pixel noise the fit estimates. X and Z then
+        stop absorbing the robot's errors. The corrected robot poses are returned (``flange2base``).
+    tol : float
+        The least squares' tolerance.
+
+    Returns
+    -------
+    ReprojectionResult
+        ``cov_X`` over X's left rotation increment (rad) and translation (m).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from dataclasses import replace
+    >>> from handeye.simulate import EXACT, realistic_scene
+    >>> sc = realistic_scene(10, "eye_in_hand", 2, errors=replace(EXACT, pixel_px=0.2))  # exact robot, 0.2 px
+    >>> obj = [sc.object_points] * len(sc.flange2base)
+    >>> ref = refine_reprojection(sc.X, sc.Z, sc.flange2base, obj, list(sc.image_points), sc.K, sc.dist, "eye_in_hand")
+    >>> bool(np.all(np.abs(ref.X[:3, 3] - sc.X[:3, 3]) < 3 * np.sqrt(np.diag(ref.cov_X))[3:]))
+    True
+    """
+    problem = corners_problem(setup, [str(i) for i in range(len(flange2base))], flange2base, object_points, image_points, K,
+                              dist, X0, Z0, refine_intrinsics, robot_noise)
+    return reprojection_result(problem, fit(problem, tol=tol, robust=robust))
+
+
+def corners_problem(setup: str, names: list[str], flange2base: NDArray[np.float64], object_points: list[NDArray[np.float64]],
+                    image_points: list[NDArray[np.float64]], K: NDArray[np.float64], dist: NDArray[np.float64],
+                    X0: NDArray[np.float64], Z0: NDArray[np.float64], refine_intrinsics: bool = False,
+                    robot_noise: tuple[float, float] | None = None) -> Problem:
+    """The core's problem of a camera's corners (the pixel refinement), started at ``X0``, ``Z0``: the robot's
+    poses exact, or with ``robot_noise`` (rad, m) each pose's error an unknown under that prior."""
+    setup = check_setup(setup)
+    flange2base = np.asarray(flange2base, dtype=float)
+    if not len(flange2base) == len(object_points) == len(image_points):
+        raise InputMismatchError(f"{len(flange2base)} robot poses, {len(object_points)} point sets and {len(image_points)} "
+                                 "detections: give one of each per image")
+    sensor = CameraCorners(setup, names, list(image_points), list(object_points), K, dist, refine_intrinsics=refine_intrinsics)
+    X_start, p_start = sensor.start(flange2base, np.asarray(X0, float), np.asarray(Z0, float))
+    if robot_noise is None:
+        robot: ControllerPoses = ControllerPoses(flange2base)
+    else:
+        sig_rot, sig_t = (float(v) for v in robot_noise)
+        if not (sig_rot > 0 and sig_t > 0 and np.isfinite(sig_rot) and np.isfinite(sig_t)):
+            raise InputMismatchError(f"robot_noise {robot_noise}: give positive standard deviations (rad, m) of each "
+                                     "robot pose's error, e.g. (np.radians(0.05), 0.2e-3)")
+        robot = PoseErrors(flange2base, (float(np.degrees(sig_rot)), 1e3 * sig_t))
+    return Problem(sensor, robot, X_start, p_start)
+
+
+def reprojection_result(problem: Problem, fitted: Fitted) -> ReprojectionResult:
+    """The core's fit of a camera's corners (:class:`~handeye.sensors.camera.model.CameraCorners`) as a
+    :class:`~handeye.solvers.refine.ReprojectionResult`."""
+    sensor = cast(CameraCorners, problem.sensor)
+    flange2base = problem.robot.flange2base(fitted.d)
+    everything = np.arange(len(sensor.owner))
+
+    def pixels(X, p, rows):
+        return np.sum((sensor.residuals(X, p, flange2base, rows) / sensor.pixel_size(rows)[:, None]) ** 2, axis=1)
+
+    rows = fitted.rows
+    sq = pixels(fitted.X, fitted.p, rows)
+    n_views = len(sensor.names)
+    count = np.bincount(sensor.owner[rows], minlength=n_views)
+    with np.errstate(invalid="ignore", divide="ignore"):  # a view without a kept row: NaN (as core.view_rms_px)
+        per_view = np.sqrt(np.bincount(sensor.owner[rows], sq, minlength=n_views) / count)
+    before = pixels(problem.X0, problem.p0, everything)
+    kept = tuple(fitted.kept[sensor.owner == v] for v in range(n_views))
+    emptied = tuple(v for v, k in enumerate(kept) if len(k) and not k.any())
+    return ReprojectionResult(
+        fitted.X, sensor.Z(fitted.X, fitted.p), *sensor.intrinsics(fitted.p), float(np.sqrt(np.mean(sq))),
+        float(np.sqrt(np.mean(before))), per_view, len(rows), fitted.success, "the core's fit of the corners",
+        fitted.cov[:6, :6], float(fitted.sigma[0]), int(len(everything) - len(rows)), flange2base, 0, emptied, kept)

@@ -60,7 +60,7 @@ def visible_mask(target2cam: NDArray[np.float64], object_points: NDArray[np.floa
 def reprojection_information(flange2base: NDArray[np.float64], X: NDArray[np.float64], Z: NDArray[np.float64],
                              setup: str, object_points: NDArray[np.float64], K: NDArray[np.float64]) -> NDArray[np.float64]:
     """Per pose, ``J^T J`` (N, 12, 12) of the pixel residuals of every target point with respect to
-    the 12 unknowns of :func:`handeye.solvers.refine.refine_reprojection` (left rotation-vector
+    the 12 unknowns of :func:`handeye.estimation.refinement.refine_reprojection` (left rotation-vector
     increments and translation increments of X, then of Z), for unit pixel noise (pinhole model:
     distortion changes the information little and is left out)."""
     robot = robot_world_A_inv(flange2base, setup)  # W: base->flange or flange->base

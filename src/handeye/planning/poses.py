@@ -3,7 +3,7 @@
 The thesis asks for "the path the robot should follow to get data that guarantee precision" (§3.1)
 and gives rules of thumb (§4.1.2: large rotations about axes that differ, the target always in
 view). We plan for the estimator handeye actually runs on images, the joint reprojection
-refinement of X and Z (:func:`handeye.solvers.refine.refine_reprojection`): its covariance for
+refinement of X and Z (:func:`handeye.estimation.refinement.refine_reprojection`): its covariance for
 pixel noise sigma is ``sigma^2 (J^T J)^-1`` and J is known before any image is taken. So:
 
 1. Candidate camera viewpoints look at the target centre from the ``standoff`` distance (and
@@ -32,6 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from ..errors import HandEyeError
+from ..estimation.refinement import refine_reprojection
 from ..frames.metrics import rotation_error, std_deg_mm, translation_error
 from ..frames.motions import order_path
 from ..frames.setups import check_setup, flange_poses, predicted_target2cam, setup_info
@@ -53,7 +54,6 @@ from ..pipelines.viewpoints import (
 from ..sensors.camera.pnp import project_points, solve_pnp
 from ..sensors.camera.targets import Detection
 from ..simulate import look_at
-from ..solvers.refine import refine_reprojection
 
 __all__ = ["Plan", "ROBOTS", "plan_poses", "easy_handeye_poses", "reprojection_information", "predicted_cov",
            "visible_mask", "simulate_errors", "write_plan", "order_path", "candidate_views", "choose_next", "choose_views",

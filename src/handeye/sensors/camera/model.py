@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from ...errors import DegenerateMotionError, InputMismatchError
 from ...frames.setups import check_setup, predicted_target2cam, robot_world_A_inv
-from ...geometry.se3 import skew, so3_left_jacobian
+from ...geometry.se3 import so3_left_jacobian
 from ..target_pose import SECTION_PLANE_IMAGE, ChartedTarget, grid_curve
 from .pnp import INTRINSICS, project_camera_points, projection_jacobians, solve_pnp
 from .targets.base import Detection
@@ -59,7 +59,8 @@ class CameraCorners(ChartedTarget):
     object_points : list of (n_i, 3) arrays
         Their points in the target frame (m).
     K, dist : arrays
-        The camera's intrinsics (OpenCV's model, up to 8 distortion coefficients).
+        The camera's intrinsics (OpenCV's model, up to 8 distortion coefficients; a longer model's
+        terms beyond them must be zero).
     noise_px : float
         The corners' noise to state (px).
     refine_intrinsics : bool
@@ -88,6 +89,12 @@ class CameraCorners(ChartedTarget):
         if len(self.points) != len(self.uv):
             raise InputMismatchError("each view needs one target point per corner")
         self.K, self.dist = np.asarray(K, float), np.asarray(dist, float).ravel()
+        if len(self.dist) > 8:  # OpenCV's 12- and 14-term models: their thin prism and tilt terms are not modelled here
+            if np.any(self.dist[8:]):
+                raise InputMismatchError(f"{len(self.dist)} distortion coefficients with thin-prism or tilt terms: the pixel "
+                                         "refinement models OpenCV's first 8 (k1 k2 p1 p2 k3 k4 k5 k6); calibrate the "
+                                         "camera with the rational model (8 terms) or fewer")
+            self.dist = self.dist[:8]
         self.refine_intrinsics = bool(refine_intrinsics)
         self.noise_px = float(noise_px)
         self.shape = np.ones((len(self.uv), 2))
@@ -154,20 +161,27 @@ class CameraCorners(ChartedTarget):
         R_chart P]x J_l(r)`` (SO(3)'s left Jacobian), ``dc/dt = R_X^T R_W``; times the projection's
         derivatives (:func:`~handeye.sensors.camera.pnp.projection_jacobians`) and the pixel's size;
         then the projection's own derivatives by the intrinsics when they are refined."""
-        W = robot_world_A_inv(np.asarray(flange2base, float), self.setup)[self.owner[rows]]
+        owner = self.owner[rows]
+        W = robot_world_A_inv(np.asarray(flange2base, float), self.setup)  # per view, indexed per corner below
         Z = self._target2world(p)
         u = self.points[rows] @ Z[:3, :3].T  # the points turned into the world, before Z's translation
-        q = np.einsum("mij,mj->mi", W[:, :3, :3], u + Z[:3, 3]) + W[:, :3, 3]
+        q = np.einsum("mij,mj->mi", W[owner, :3, :3], u + Z[:3, 3]) + W[owner, :3, 3]
         v = q - X[:3, 3]
         R_t = X[:3, :3].T
-        _, d_point, d_intrinsics = projection_jacobians(v @ X[:3, :3], *self.intrinsics(p))
-        to_c = np.einsum("ij,mjk->mik", R_t, W[:, :3, :3])  # R_X^T R_W
-        d_c = np.concatenate([R_t @ skew(v), np.broadcast_to(-R_t, (len(rows), 3, 3)),
-                              -to_c @ skew(u) @ so3_left_jacobian(p[:3]), to_c], axis=2)
-        jac = np.einsum("mij,mjk->mik", d_point, d_c)
+        _, d_point, d_intrinsics = projection_jacobians(v @ X[:3, :3], *self.intrinsics(p), intrinsics=self.refine_intrinsics)
+        m = len(rows)
+        # rows a^T [w]x = (a x w)^T: the pixel's derivative by the camera point, times R_X^T (a) or R_X^T R_W (b)
+        a = (d_point.reshape(-1, 3) @ R_t).reshape(m, 2, 3)
+        b = np.matmul(d_point, (R_t @ W[:, :3, :3])[owner])
+        jac = np.empty((m, 2, 12))
+        _cross_rows(a, v, out=jac[:, :, 0:3])
+        np.negative(a, out=jac[:, :, 3:6])
+        jac[:, :, 6:9] = -(_cross_rows(b, u).reshape(-1, 3) @ so3_left_jacobian(p[:3])).reshape(m, 2, 3)
+        jac[:, :, 9:12] = b
         if self.refine_intrinsics:
             jac = np.concatenate([jac, d_intrinsics], axis=2)
-        return jac * self._pixel_size(rows)[:, None, None]
+        jac *= self._pixel_size(rows)[:, None, None]
+        return jac
 
     def pixel_size(self, rows: NDArray[np.intp]) -> NDArray[np.float64]:
         """Per corner of ``rows`` its pixel's size (m) at its depth: its residual over it is pixels."""
@@ -199,3 +213,14 @@ class CameraCorners(ChartedTarget):
             out.append({"points_mm": 1e3 * self.uv[rows] * mpp, "residual_mm": 1e3 * np.linalg.norm(r, axis=1),
                         "curve_mm": 1e3 * grid_curve(self.points[rows], fitted), "plane": SECTION_PLANE_IMAGE})
         return out
+
+
+def _cross_rows(a: NDArray[np.float64], w: NDArray[np.float64], out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+    """``a[m, r] x w[m]`` for rows ``a`` (M, R, 3) and vectors ``w`` (M, 3): ``a^T [w]x`` row by row (into ``out``)."""
+    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    wx, wy, wz = w[:, None, 0], w[:, None, 1], w[:, None, 2]
+    out = np.empty(a.shape) if out is None else out
+    out[..., 0] = ay * wz - az * wy
+    out[..., 1] = az * wx - ax * wz
+    out[..., 2] = ax * wy - ay * wx
+    return out

@@ -79,8 +79,8 @@ def project_camera_points(p: NDArray[np.float64], K: NDArray[np.float64], dist: 
     return np.stack([K[0, 0] * xd + K[0, 2], K[1, 1] * yd + K[1, 2]], axis=1)  # OpenCV ignores a skew term
 
 
-def projection_jacobians(points_cam: NDArray[np.float64], K: NDArray[np.float64],
-                         dist: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+def projection_jacobians(points_cam: NDArray[np.float64], K: NDArray[np.float64], dist: NDArray[np.float64],
+                         intrinsics: bool = True) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Pixel positions of camera-frame points ``(M, 3)`` and their derivatives under OpenCV's
     camera model (as :func:`project_camera_points`, up to 8 distortion coefficients).
 
@@ -91,7 +91,7 @@ def projection_jacobians(points_cam: NDArray[np.float64], K: NDArray[np.float64]
     d_point : ndarray (M, 2, 3)
         d(u, v) / d(point in the camera frame).
     d_intrinsics : ndarray (M, 2, 9)
-        d(u, v) / d(fx, fy, cx, cy, k1, k2, p1, p2, k3).
+        d(u, v) / d(fx, fy, cx, cy, k1, k2, p1, p2, k3); (M, 2, 0) when ``intrinsics`` is False (not needed).
     """
     (k1, k2, p1, p2, k3, k4, k5, k6), x, y, r2, num, den, xd, yd = _rational_model(points_cam, dist)
     fx, fy = K[0, 0], K[1, 1]
@@ -112,6 +112,9 @@ def projection_jacobians(points_cam: NDArray[np.float64], K: NDArray[np.float64]
     d_point[:, 1, 0] = fy * dxd_dy * inv_z  # dyd/dx = dxd/dy
     d_point[:, 1, 1] = fy * dyd_dy * inv_z
     d_point[:, 1, 2] = -fy * (dxd_dy * x + dyd_dy * y) * inv_z
+    pixels = np.stack([fx * xd + K[0, 2], fy * yd + K[1, 2]], axis=1)
+    if not intrinsics:
+        return pixels, d_point, np.zeros((m, 2, 0))
     d_intrinsics = np.zeros((m, 2, 9))
     d_intrinsics[:, 0, 0] = xd
     d_intrinsics[:, 1, 1] = yd
@@ -125,7 +128,6 @@ def projection_jacobians(points_cam: NDArray[np.float64], K: NDArray[np.float64]
     d_intrinsics[:, 1, 6] = fy * (r2 + 2 * y * y)
     d_intrinsics[:, 0, 7] = fx * (r2 + 2 * x * x)
     d_intrinsics[:, 1, 7] = fy * 2 * xy
-    pixels = np.stack([fx * xd + K[0, 2], fy * yd + K[1, 2]], axis=1)
     return pixels, d_point, d_intrinsics
 
 
