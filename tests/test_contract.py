@@ -39,7 +39,7 @@ from handeye.pipelines.silhouette.pipeline import arm_views
 from handeye.pipelines.silhouette.simulate import silhouette_scene
 from handeye.robot.kinematics import load_arm
 from handeye.robot.meshes import arm_meshes
-from handeye.robot.models import ControllerPoses, JointAngles, RobotModel
+from handeye.robot.models import ControllerPoses, JointAngles, PoseErrors, RobotModel
 from handeye.sensors.camera.model import CameraCorners
 from handeye.sensors.camera.poses import PoseDifferences, TargetPoses
 from handeye.sensors.camera.targets import target_from_spec
@@ -152,6 +152,13 @@ def _camera_rig():
         m.start(sc.flange2base, c.X, sc.Z)
     rig = Rig(members, ["c0", "c1"], [(c.X, m.target_params(sc.Z)) for m, c in zip(members, sc.cameras)])
     return rig, ControllerPoses(sc.flange2base)
+
+
+def _with_pose_errors(build):
+    """A rig's case with each pose's error fitted (as the rig pipeline's joint fit): the core's Jacobian then
+    from the rig's own (its members', chained) beside finite differences by the poses' errors."""
+    rig, robot = build()
+    return rig, PoseErrors(robot.poses, (0.02, 0.2))
 
 
 def _camera_laser_rig():
@@ -289,6 +296,8 @@ CASES: dict[str, Case] = {
     "line-scan, the board's symmetric orders": Case(lambda: _linescan(orderings=True), anchored=True),
     "rig of two cameras": Case(_camera_rig),
     "rig of a camera and a laser": Case(_camera_laser_rig),
+    "rig of two cameras, each pose's error": Case(lambda: _with_pose_errors(_camera_rig)),
+    "rig of a camera and a laser, each pose's error": Case(lambda: _with_pose_errors(_camera_laser_rig)),
 }
 
 

@@ -172,10 +172,10 @@ class Plan:
     :func:`_per_view_jacobian`, from :data:`ELIMINATE_FROM` of them (:data:`ELIMINATE_OWN_FROM` for a sensor with derivatives of
     its own), or :data:`ELIMINATE_ENTRIES` measurements each, eliminated instead,
     :class:`_Eliminated`); a robot with unknowns and its poses' derivatives (chained:
-    :func:`_chained_jacobian`); a :class:`~handeye.sensors.base.Differentiable` sensor without padded
-    entries and a robot without unknowns (own); else differences.
-    ``own``: the sensor's own derivatives serve for X's and ``p``'s columns (it is differentiable and
-    its entries are not padded). ``per_view``: the robot's unknowns each move one view;
+    :func:`_chained_jacobian`); a :class:`~handeye.sensors.base.Differentiable` sensor and a robot
+    without unknowns (own); else differences.
+    ``own``: the sensor's own derivatives serve for X's and ``p``'s columns (it is differentiable; a
+    rig's padded entries left out of them as of its residuals). ``per_view``: the robot's unknowns each move one view;
     ``eliminates``: they are eliminated view by view (:class:`_Eliminated`).
     """
 
@@ -191,7 +191,7 @@ def plan_of(sensor: SensorModel, robot: RobotModel) -> Plan:
     moving = robot.n_params > 0
     links = isinstance(sensor, SeesLinks) and sensor.sees_links and isinstance(robot, FittedTable) and moving
     takes: Literal["poses", "motion", "table"] = "motion" if isinstance(robot, FollowsMotion) else "table" if links else "poses"
-    own = isinstance(sensor, Differentiable) and Noise.of(sensor).mask is None
+    own = isinstance(sensor, Differentiable)
     per_view = moving and isinstance(robot, PerViewErrors)
     strategy: Strategy
     if moving and isinstance(robot, FollowsMotion):
@@ -454,10 +454,16 @@ def _sensor_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         X, p, d = problem.unpack(x)
-        J = _whiten(_own_jacobian(problem, x, X, p, robot.flange2base(d), rows), weight)
-        J = J.reshape(-1, J.shape[-1])
+        J = _entries(problem, _whiten(_own_jacobian(problem, x, X, p, robot.flange2base(d), rows), weight), rows)
         return np.vstack([J, pins]) if len(pins) else J
     return jac
+
+
+def _entries(problem: Problem, J: NDArray[np.float64], rows: NDArray[np.intp]) -> NDArray[np.float64]:
+    """Derivatives per row and residual column (M, c, n) as the fit's entries (E, n): the measurements only
+    (:func:`_entry_mask`: a rig's padding left out, as :func:`_measured` leaves its residuals out)."""
+    mask = _entry_mask(problem.sensor, rows)
+    return J.reshape(-1, J.shape[-1]) if mask is None else J[mask]
 
 
 def _own_jacobian(problem: Problem, x: NDArray[np.float64], X: NDArray[np.float64], p: NDArray[np.float64],
@@ -498,7 +504,7 @@ def _chained_jacobian(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[n
         J = np.zeros((len(f0), len(x)))
         by_pose = None
         if own:
-            raw = _whiten(problem.own_columns(cast(Differentiable, sensor).jacobian(X, p, F, rows)), weight).reshape(m, n_x)
+            raw = _entries(problem, _whiten(problem.own_columns(cast(Differentiable, sensor).jacobian(X, p, F, rows)), weight), rows)
             J[:m, :n_x] = raw
             J[:m, :3] = raw[:, :3] @ so3_left_jacobian(x[:3])
             if not checked or checked[0]:
@@ -703,7 +709,7 @@ class _Eliminated:
         """The sensor's own derivatives of the entries (E, n_g) by X's left increment and ``p``, whitened."""
         J = _whiten(self.problem.own_columns(cast(Differentiable, self.problem.sensor).jacobian(
             X, p, self.problem.robot.flange2base(d), self.rows)), self.weight)
-        return J.reshape(-1, self.n_g)
+        return _entries(self.problem, J, self.rows)
 
     def _pose_steps(self, d: NDArray[np.float64]) -> NDArray[np.float64]:
         """Per view (n_views, 6, n_per) its flange pose's left increment (:func:`~handeye.geometry.se3.perturb`'s)

@@ -40,30 +40,34 @@ def why_skipped(exc: Exception, path: object) -> str:
 
 
 def measure_views(measure: Callable[[int], Measured], names: Sequence[str], refused: tuple[type[Exception], ...], what: str,
-                  progress: bool = False, jobs: int | None = None) -> tuple[list[int], list[Measured], list[tuple[str, str]]]:
-    """Every view ``k`` of ``names`` measured by ``measure(k)``, ``jobs`` views at a time (threads, default
-    2, each on one BLAS thread), in the views' order, with a progress bar saying ``what``: the views
-    measured (their indices) and what each gave, and the views skipped, each named with why (the
-    message of an error of ``refused`` that its measurement raised; any other error propagates)."""
+                  progress: bool = False, jobs: int | None = None, *, views: Sequence[int] | None = None,
+                  bar: Progress | None = None) -> tuple[list[int], list[Measured], list[tuple[str, str]]]:
+    """Every view ``k`` of ``names`` (or of ``views``, those indices into it) measured by ``measure(k)``, ``jobs``
+    views at a time (threads, default 2, each on one BLAS thread), in that order, with a progress bar saying
+    ``what`` (or ``bar``, a bar of the caller's, updated and left open): the views measured (their indices) and what
+    each gave, and the views skipped, each named with why (the message of an error of ``refused`` that its
+    measurement raised; any other error propagates)."""
     def attempt(k: int) -> Measured | str:
         try:
             return measure(k)
         except refused as exc:
             return str(exc)
 
+    order = list(range(len(names))) if views is None else [int(k) for k in views]
     index: list[int] = []
     measured: list[Measured] = []
     skipped: list[tuple[str, str]] = []
-    bar = Progress(len(names), what, progress)
+    shown = Progress(len(order), what, progress) if bar is None else bar
     with ThreadPoolExecutor(max_workers=max(1, jobs or 2)) as pool, one_blas_thread():
-        for k, result in enumerate(pool.map(attempt, range(len(names)))):
-            bar.update()
+        for k, result in zip(order, pool.map(attempt, order)):
+            shown.update()
             if isinstance(result, str):
                 skipped.append((names[k], result))
             else:
                 index.append(k)
                 measured.append(result)
-    bar.close()
+    if bar is None:
+        shown.close()
     return index, measured, skipped
 
 

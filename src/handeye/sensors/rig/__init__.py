@@ -3,6 +3,6 @@ Everything else of a rig (its session, pipeline, simulator) is :mod:`handeye.pip
 
 from __future__ import annotations
 
-from .model import Rig
+from .model import DifferentiableRig, Rig
 
-__all__ = ["Rig"]
+__all__ = ["Rig", "DifferentiableRig"]

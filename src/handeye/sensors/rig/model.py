@@ -24,10 +24,10 @@ from numpy.typing import NDArray
 from ...errors import InputMismatchError
 from ...frames.metrics import std_deg_mm
 from ...frames.setups import pose_name
-from ...geometry.se3 import invert, perturb, skew
-from ..base import DrawsSections, HasNuisances, Nuisance, SensorModel, SharesTarget
+from ...geometry.se3 import invert, perturb, skew, so3_left_jacobian
+from ..base import Differentiable, DrawsSections, HasNuisances, Nuisance, SensorModel, SharesTarget
 
-__all__ = ["Rig"]
+__all__ = ["Rig", "DifferentiableRig"]
 
 
 class Rig:
@@ -46,6 +46,13 @@ class Rig:
     """
 
     kind = "rig"
+
+    def __new__(cls, members: list[SensorModel] | None = None, *args: Any, **kwargs: Any) -> Rig:
+        """A :class:`DifferentiableRig` when every member has its own derivatives (the core then takes the rig's
+        from theirs), else a rig whose fit takes finite differences."""
+        if cls is Rig and members is not None and all(isinstance(m, Differentiable) for m in members):
+            cls = DifferentiableRig
+        return super().__new__(cls)
 
     def __init__(self, members: list[SensorModel], sensor_names: list[str], starts: list[tuple[NDArray[np.float64],
                  NDArray[np.float64]]], shared_target: bool = True) -> None:
@@ -291,6 +298,59 @@ class Rig:
             # no sensor's target depends on X (the argument of Z is the protocol's): the start's serves
             out += [f"sensor {name}: {n}" for n in m.notes(self.member_params(self._X_start, p, k), self._member_cov(cov_p, k))]
         return out
+
+
+class DifferentiableRig(Rig):
+    """A :class:`Rig` whose members all have their own derivatives (:class:`~handeye.sensors.base.Differentiable`):
+    its Jacobian is theirs, chained through ``X_k = X @ sensor_k2sensor_0`` and the shared target (:meth:`jacobian`)."""
+
+    def jacobian(self, X, p, flange2base, rows) -> NDArray[np.float64]:
+        """The residuals' derivatives (M, width, 6 + k; zero at padded entries) from each member's own
+        (M_k, c_k, 6 + k_k) at its ``X_k`` and unknowns. A left increment ``(a, b)`` of X moves ``X_k`` by
+        ``(a, b - [R_X t_rel]x a)``; one ``(c, e)`` of ``sensor_k2sensor_0`` (its unknowns ``u``: ``c =
+        J_l(u_r) du_r``) moves it by ``(R_X c, R_X e)``; the shared target's unknowns reach sensor ``k``'s
+        through the first sensor's Z and ``target_params`` (their derivatives by central differences of
+        that map alone: no residual is evaluated for them)."""
+        rows = np.asarray(rows)
+        p = np.asarray(p, float)
+        out = np.zeros((len(rows), self.width, 6 + len(p)))
+        R_X = X[:3, :3]
+        for k, m in enumerate(self.members):
+            at = np.flatnonzero(self.member[rows] == k)
+            if not at.size:
+                continue
+            rel = self.relative(p, k)
+            J = cast(Differentiable, m).jacobian(X @ rel, self.member_params(X, p, k), flange2base, self.local[rows[at]])
+            c = J.shape[1]
+            block = np.zeros((len(at), c, 6 + len(p)))
+            block[..., :3] = J[..., :3] - J[..., 3:6] @ skew(R_X @ rel[:3, 3])
+            block[..., 3:6] = J[..., 3:6]
+            if k > 0:
+                u = 6 + 6 * (k - 1)
+                block[..., u:u + 3] = J[..., :3] @ R_X @ so3_left_jacobian(p[u - 6:u - 3])
+                block[..., u + 3:u + 6] = J[..., 3:6] @ R_X
+            s, n = self._slices[k], (self._n_target[k] if self.shared_target and k > 0 else 0)
+            block[..., 6 + s.start:6 + s.stop] = J[..., 6 + n:]
+            if n:
+                t = slice(6 + self._slices[0].start, 6 + self._slices[0].start + self._n_target[0])
+                block[..., t] += J[..., 6:6 + n] @ self._target_map(X, p, k)
+            out[at, :c] = block
+        return out
+
+    def _target_map(self, X, p, k: int, h: float = 1e-4) -> NDArray[np.float64]:
+        """The derivatives (n_k, n_0) of sensor ``k``'s target unknowns (``target_params`` of the first sensor's Z)
+        by the first sensor's, central differences in units of their scales."""
+        first, other = self.members[0], cast(SharesTarget, self.members[k])
+        s = self._slices[0]
+        scale = np.asarray(first.param_scale, float)[:self._n_target[0]]
+        columns = []
+        for j in range(self._n_target[0]):
+            step = np.zeros(len(p))
+            step[s.start + j] = h * max(float(scale[j]), 1e-300)
+            plus = other.target_params(first.Z(X, (p + step)[s]))
+            minus = other.target_params(first.Z(X, (p - step)[s]))
+            columns.append((plus - minus) / (2.0 * step[s.start + j]))
+        return np.stack(columns, axis=1)
 
 
 def _listed(values) -> list | None:
