@@ -948,10 +948,10 @@ def _robust_least_squares(fun: Callable[[NDArray[np.float64]], NDArray[np.float6
     so the same optimum; ``fun`` of the result is the residuals themselves."""
     if callable(jac) and tall:
         plain_fun, plain_jac = _soft_l1_as_plain(fun, jac, f_scale)
-        res = _converged(least_squares(plain_fun, x, plain_jac, method="lm", x_scale=scale, xtol=tol, ftol=tol, gtol=tol,
-                                       max_nfev=MAX_EVALUATIONS))
-        res.fun = fun(res.x)
-        return res
+        res = least_squares(plain_fun, x, plain_jac, method="lm", x_scale=scale, xtol=tol, ftol=tol, gtol=tol,
+                            max_nfev=MAX_EVALUATIONS)
+        res.fun = fun(res.x)  # judged on the residuals themselves, as trf's: soft L1's square roots hide a misfit
+        return _converged(res)
     return _converged(least_squares(fun, x, jac, method="trf", loss="soft_l1", f_scale=f_scale, x_scale=scale, xtol=tol,
                                     ftol=tol, gtol=tol, max_nfev=MAX_EVALUATIONS))
 
