@@ -6,8 +6,11 @@ import os
 import tempfile
 from pathlib import Path
 
+import cv2  # noqa: F401  (loaded before the BLAS limit below: OpenCV brings an OpenBLAS of its own)
 import numpy as np
 import pytest
+import scipy.linalg  # noqa: F401  (SciPy's OpenBLAS, another than NumPy's, loaded before the limit)
+from threadpoolctl import threadpool_limits
 
 #: Real captures made by others live beside the repository (../shared/data/real), never copied in.
 REAL_DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
@@ -33,6 +36,17 @@ def _detection_cache():
         os.environ.pop("HANDEYE_CACHE_DIR", None)
     else:
         os.environ["HANDEYE_CACHE_DIR"] = before
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _one_blas_thread():
+    """BLAS on one thread in every test process, as the pipelines run their estimations
+    (handeye._shared.threads) and as realdata.worker_pool's workers do: with ``-n 2`` two processes
+    each running OpenBLAS's two threads on 2 cores spin more than they work. Measured: a laser
+    start (core._start, called directly by tests/test_captures.py) 2.0 -> 0.25 s CPU, X the same to
+    the last digit. Tests of the thread settings themselves set theirs inside."""
+    with threadpool_limits(1, user_api="blas"):
+        yield
 
 
 @pytest.fixture
