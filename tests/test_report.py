@@ -538,15 +538,19 @@ def test_the_camera_reports_figures_are_svg_with_every_pose_and_motion(sample_ou
     assert {"camera x", "camera y", "camera z", "30°", "60°", "90°", "rotation angle (deg)"} <= set(words)
 
 
+def _matplotlib_modules_of(argv: list[str], timeout: float) -> str:
+    """The matplotlib modules a ``handeye`` command imported, run in a new process (it must succeed)."""
+    code = (f"import sys; from handeye.cli import main; rc = main({argv!r}); "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'matplotlib')); sys.exit(rc)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout)
+    assert done.returncode == 0, done.stderr[-500:]
+    return done.stdout.strip().splitlines()[-1]
+
+
 def test_calibrate_sample_does_not_import_matplotlib(tmp_path):
     """Issue 81: a camera's report draws its figures without matplotlib (its import alone took ~0.3 s of
     calibrate --sample's 0.9 s): the whole command, in a new process, never imports it."""
-    code = ("import sys; from handeye.cli import main; rc = main(['calibrate', '--sample', '--no-progress', '--out', "
-            f"{str(tmp_path / 'out')!r}]); print(sorted(m for m in sys.modules if m.split('.')[0] == 'matplotlib')); "
-            "sys.exit(rc)")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert done.returncode == 0, done.stderr[-500:]
-    assert done.stdout.strip().splitlines()[-1] == "[]"
+    assert _matplotlib_modules_of(["calibrate", "--sample", "--no-progress", "--out", str(tmp_path / "out")], 120) == "[]"
     assert "<svg" in (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
 
 
@@ -558,12 +562,7 @@ def test_a_rigs_report_is_svg_without_matplotlib(tmp_path):
     matplotlib. The figures keep what the PNGs showed: every sensor labelled in the picture, the flange and
     the target; a bar per view for each sensor; each drawn section's label and its corners, one dot each."""
     assert main(["simulate", "--sensor", "rig", "--seed", "1", "-o", str(tmp_path / "rig")]) == 0
-    code = ("import sys; from handeye.cli import main; rc = main(['calibrate', "
-            f"{str(tmp_path / 'rig')!r}, '--no-progress', '--out', {str(tmp_path / 'out')!r}]); "
-            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'matplotlib')); sys.exit(rc)")
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr[-500:]
-    assert done.stdout.strip().splitlines()[-1] == "[]"
+    assert _matplotlib_modules_of(["calibrate", str(tmp_path / "rig"), "--no-progress", "--out", str(tmp_path / "out")], 300) == "[]"
     text = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
     assert "data:image/png" not in text
     cal = handeye.load_result(tmp_path / "out")
