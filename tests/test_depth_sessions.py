@@ -145,6 +145,28 @@ def test_a_board_session_with_rendered_images(tmp_path):
     assert any("clouds in the image's frame" in n for n in cal.notes)
 
 
+def test_a_chessboard_named_from_the_other_end_in_one_view_is_renamed(board_session):
+    """A detector names a chessboard's corners from either end: one view's named from the other end (a pose
+    half a turn away, which no X explains) is renamed against the robot's motion before the fit."""
+    from dataclasses import replace
+
+    from handeye.pipelines.depth.pipeline import measure_depth_session
+    from handeye.sensors.camera import detect_images, target_from_spec
+    from handeye.sensors.camera.pnp import relabel_points
+
+    s = load_depth_session(board_session)
+    target = target_from_spec(s.target_spec)
+    found = detect_images(s.image_paths, target)
+    turned = list(found)
+    det = found[2].detection
+    turned[2] = replace(found[2], detection=replace(det, object_points=relabel_points(det.object_points,
+                                                                                      target.symmetries()[1])))
+    assert not np.allclose(turned[2].detection.object_points, det.object_points)
+    mine, truth = measure_depth_session(s, detected=turned), measure_depth_session(s, detected=found)
+    for a, b in zip(mine.object_points, truth.object_points):
+        assert np.allclose(a, b)
+
+
 def test_clouds_read_from_ply_and_pcd_as_from_npy(tmp_path, spheres):
     """The same organized cloud written as .npy, .ply (plyfile) and .pcd (pypcd4, organized and
     unorganized) reads back the same, missing depth (0, 0, 0 or NaN) as NaN."""

@@ -10,11 +10,13 @@ import pytest
 
 from handeye.errors import InputMismatchError
 from handeye.frames.metrics import rotation_error, translation_error, within_std
-from handeye.pipelines.rig.pipeline import calibrate_rig
-from handeye.pipelines.rig.simulate import rig_scene
+from handeye.pipelines.rig.pipeline import _Labels, calibrate_rig
+from handeye.pipelines.rig.simulate import BOARD, rig_scene
 from handeye.pipelines.verify import verify
 from handeye.robot.models import ControllerPoses, PoseErrors
 from handeye.sensors.camera.model import CameraCorners
+from handeye.sensors.camera.pnp import relabel_points
+from handeye.sensors.camera.targets.chessboard import Chessboard
 from jacobians import jacobian_error
 
 ERROR = (0.01, 0.05)
@@ -67,6 +69,26 @@ def test_two_cameras_one_with_a_focal_length_10_percent_long_is_named_first():
     bad = calibrate_rig(sc.camera_models({1: 0.10}), ["c0", "c1"], ControllerPoses(sc.flange2base, ERROR))
     assert bad.joint.verdict != "good" and bad.joint.sensor.figures["disagreeing_pair"]["sensor"] == "c1"
     assert headline(bad.joint).startswith("check c1 before using X") and bad.joint.diagnostics.advice[0].startswith("c1 fits")
+
+
+def test_a_chessboard_named_from_either_end_is_one_target_in_every_camera():
+    """A detector names a chessboard's corners from either end, view by view and camera by camera: one view
+    of camera 1 and every view of camera 2 named from the other end come back as the scene's labelling
+    (each view against the robot's motion, each camera's whole labelling against the first's), and say so."""
+    sc = rig_scene(12, "eye_to_hand", rng=4001, cameras=3)
+    half_turn = Chessboard(*BOARD).symmetries()[1]
+    flipped = [list(c.object_points) for c in sc.cameras]
+    flipped[1][4] = relabel_points(flipped[1][4], half_turn)
+    flipped[2] = [relabel_points(p, half_turn) for p in flipped[2]]
+    labels = _Labels(Chessboard(*BOARD).symmetries(), sc.flange2base, sc.setup, shared=True)
+    notes: list[str] = []
+    for k, (cam, points) in enumerate(zip(sc.cameras, flipped)):
+        model = CameraCorners(sc.setup, sc.names, cam.image_points, points, cam.K, cam.dist)
+        got = labels.labelled(f"c{k}", model, points, sc.names, notes)
+        for view, (mine, truth) in enumerate(zip(got, cam.object_points)):
+            assert np.allclose(mine, truth), (k, view)
+    assert any(n.startswith("sensor c2:") and "other end" in n for n in notes)
+    assert not any(n.startswith(("sensor c0:", "sensor c1:")) for n in notes)
 
 
 def test_bad_rigs_are_named():

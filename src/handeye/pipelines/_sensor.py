@@ -10,15 +10,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._shared.progress import Progress
+from .._shared.text import summarize
 from .._shared.threads import one_blas_thread
 from ..errors import InputMismatchError
 from ..estimation.core import estimate
 from ..estimation.readings import Reading, check_readings
 from ..frames.poses import RobotPoseInput
+from ..frames.setups import setup_info
 from ..options import CalibrationOptions, options_from
 from ..result import Calibration
 from ..robot.models import ControllerPoses, JointAngles, RobotModel
 from ..sensors.base import SensorModel
+from ..sensors.camera.pnp import LabelledViews
 
 __all__ = ["sensor_options", "robot_model", "session_robot_input", "why_skipped", "held_and_freed", "estimate_checked",
            "measure_views"]
@@ -95,6 +98,30 @@ def sensor_options(options: CalibrationOptions | None, changes: dict, what: str,
         raise InputMismatchError(f"{flags}: options of image and pose sessions; {what}'s fit has no use for them (leave "
                                  "them out)")
     return opts
+
+
+def label_notes(target_type: str, n_symmetries: int, setup: str, names: list[str], labelled: LabelledViews) -> list[str]:
+    """What the labelling of a symmetric target's views (``labelled``, :func:`~handeye.sensors.camera.pnp.labelled_by_robot`)
+    leaves to say: that Z is fixed only up to the board's symmetry, and the views ``names`` whose labelling is
+    in doubt or matches no robot motion."""
+    notes = []
+    if n_symmetries > 1:  # X is fixed by the labelling; Z only up to the board's symmetry (issue 60, item 8)
+        notes.append(f"the {target_type} target looks the same turned a half turn about its centre: its corners are "
+                     "labelled so that the camera's motion agrees with the robot's, which fixes X; Z "
+                     f"({setup_info(setup).z_name}) is the board's frame so labelled, which may be the printed "
+                     "board's turned a half turn about its normal (compare Z with a measured one up to that turn; a board "
+                     "that cannot be read from the wrong end, such as ChArUco, fixes Z too)")
+    if labelled.unmatched.any():  # flagged, not dropped: the check and the robust fits judge them
+        notes.append(f"image(s) {summarize(names[k] for k in np.flatnonzero(labelled.unmatched))}: no "
+                     f"labelling of the symmetric {target_type} target makes the camera's motion agree with the robot's "
+                     "(a misdetected grid, or a wrong robot pose): check them; a board that cannot be read from the wrong "
+                     "end avoids the first")
+    if labelled.unsure.any():  # flagged, not dropped: the check and the robust fits judge them
+        notes.append(f"image(s) {summarize(names[k] for k in np.flatnonzero(labelled.unsure))}: the "
+                     f"symmetric {target_type} target reads almost as well turned about its centre, so which end is which was "
+                     "decided by a thin margin from the robot motion; a board that cannot be read from the wrong end "
+                     "(ChArUco, a marker grid, asymmetric circles: handeye target) removes the doubt")
+    return notes
 
 
 def robot_model(session: Any, index: list[int], options: CalibrationOptions) -> RobotModel:

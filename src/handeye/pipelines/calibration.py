@@ -49,7 +49,7 @@ from ..estimation.verdict import judged, solver_spread
 from ..frames.metrics import std_deg_mm
 from ..frames.motions import MotionSet, Pairs, validate_poses
 from ..frames.poses import RobotPoseInput
-from ..frames.setups import Setup, check_setup, setup_info
+from ..frames.setups import Setup, check_setup
 from ..geometry.se3 import invert, make_transform
 from ..io.session import Session, SessionError, load_session
 from ..options import ROBOT_ACCURACY, CalibrationOptions, options_from
@@ -57,17 +57,15 @@ from ..result import Calibration, Diagnostics, HeldOutErrors, StreamSync
 from ..sensors.camera import (
     calibrate_intrinsics,
     detect_images,
-    label_doubts,
-    resolve_symmetries,
-    settled_symmetry_costs,
     solve_pnp,
     target_from_spec,
     target_origin,
 )
-from ..sensors.camera.pnp import INTRINSICS
+from ..sensors.camera.pnp import INTRINSICS, labelled_by_robot
 from ..solvers.certifiable import certify
 from ..solvers.low_dof import partial_kind
 from ..solvers.refine import ReprojectionResult
+from ._sensor import label_notes
 
 _sync = lazy_module("handeye.estimation.sync")  # two clocks: loaded for a session with a robot stream only
 
@@ -615,34 +613,12 @@ def observe(session: Session, jobs: int | None = None, progress: bool = True,
         raise SessionError(f"only {len(used)} usable images (at least {MIN_POSES} are needed)")
     used_arr = np.array(used)
     flange2base = session.flange2base[used_arr]
-    symmetries, poses = target.symmetries(), np.array(poses)
-    unsure = unmatched = np.zeros(len(poses), bool)
-    costs = None
-    if len(symmetries) > 1 and len(poses) > 1:
-        costs = settled_symmetry_costs(poses, flange2base, session.setup, symmetries)
-        unsure, unmatched = label_doubts(costs)
-    target2cam, choice = resolve_symmetries(poses, flange2base, session.setup, symmetries, costs)
-    if len(symmetries) > 1:  # X is fixed by the labelling; Z only up to the board's symmetry (issue 60, item 8)
-        notes.append(f"the {target.type} target looks the same turned a half turn about its centre: its corners are "
-                     "labelled so that the camera's motion agrees with the robot's, which fixes X; Z "
-                     f"({setup_info(session.setup).z_name}) is the board's frame so labelled, which may be the printed "
-                     "board's turned a half turn about its normal (compare Z with a measured one up to that turn; a board "
-                     "that cannot be read from the wrong end, such as ChArUco, fixes Z too)")
-    if unmatched.any():  # flagged, not dropped: the check and the robust fits judge them
-        notes.append(f"image(s) {summarize(session.image_names[used[k]] for k in np.flatnonzero(unmatched))}: no "
-                     f"labelling of the symmetric {target.type} target makes the camera's motion agree with the robot's "
-                     "(a misdetected grid, or a wrong robot pose): check them; a board that cannot be read from the wrong "
-                     "end avoids the first")
-    if unsure.any():  # flagged, not dropped: the check and the robust fits judge them
-        notes.append(f"image(s) {summarize(session.image_names[used[k]] for k in np.flatnonzero(unsure))}: the "
-                     f"symmetric {target.type} target reads almost as well turned about its centre, so which end is which was "
-                     "decided by a thin margin from the robot motion; a board that cannot be read from the wrong end "
-                     "(ChArUco, a marker grid, asymmetric circles: handeye target) removes the doubt")
-    obj, img = [], []  # per image: target points in the relabelled target frame (new = F^-1 old), detections
-    for k, c in zip(used, choice):
-        det, F_inv = detections[k], invert(symmetries[c])
-        obj.append(det.object_points @ F_inv[:3, :3].T + F_inv[:3, 3])
-        img.append(det.image_points)
+    symmetries = target.symmetries()
+    labelled = labelled_by_robot(np.array(poses), [detections[k].object_points for k in used], flange2base,
+                                 session.setup, symmetries)
+    target2cam, obj = labelled.target2cam, labelled.object_points  # the target frame relabelled (new = F^-1 old)
+    img = [detections[k].image_points for k in used]
+    notes += label_notes(target.type, len(symmetries), session.setup, [session.image_names[k] for k in used], labelled)
     robot_input = session.robot_input
     if robot_input is not None:
         robot_input = replace(robot_input, values=robot_input.values[used_arr])

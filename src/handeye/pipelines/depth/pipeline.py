@@ -43,10 +43,11 @@ from ...options import ROBOT_ACCURACY, CalibrationOptions
 from ...result import Calibration
 from ...robot.models import ControllerPoses
 from ...sensors.camera import detect_images, target_from_spec
-from ...sensors.depth.clouds import check_frame, plane_points, read_cloud
+from ...sensors.camera.pnp import labelled_by_robot
+from ...sensors.depth.clouds import board_pose, check_frame, plane_points, read_cloud
 from ...sensors.depth.model import BoardPoints, SphereCentres
 from ...sensors.depth.spheres import find_spheres
-from .._sensor import estimate_checked, robot_model, sensor_options, session_robot_input, why_skipped
+from .._sensor import estimate_checked, label_notes, robot_model, sensor_options, session_robot_input, why_skipped
 from .arm import calibrate_arm_depth_session
 from .mesh import calibrate_mesh_session
 from .scene import calibrate_scene_session
@@ -106,6 +107,13 @@ def _measure_boards(s: DepthSession, progress: bool, out: DepthViews, jobs: int 
     if frames:
         notes.append(f"clouds in the image's frame: their points project {max(frames):.2f} px (RMS, worst view) from "
                      "their pixels with the given intrinsics")
+    symmetries = target_from_spec(s.target_spec).symmetries()
+    if len(symmetries) > 1 and len(out.index) > 1:  # a chessboard's corners named from either end, view by view
+        poses = np.array([board_pose(o, q)[0] for o, q in zip(out.object_points, out.points)])
+        labelled = labelled_by_robot(poses, out.object_points, s.flange2base[out.index], s.setup, symmetries)
+        out.object_points[:] = labelled.object_points
+        notes += label_notes(str(s.target_spec.get("type", "board")), len(symmetries), s.setup,
+                             [s.names[k] for k in out.index], labelled)
 
 
 def _measure_spheres(s: DepthSession, progress: bool) -> DepthViews:

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..._shared.io import files_digests_soon
 from ..._shared.threads import on_one_blas_thread
@@ -28,15 +29,18 @@ from ...estimation.uncertainty import robot_accuracy_cov
 from ...estimation.verdict import disagreement_verdict
 from ...frames.metrics import std_deg_mm
 from ...frames.setups import pose_name
+from ...geometry.se3 import invert
 from ...options import CalibrationOptions
 from ...result import Calibration
 from ...robot.models import ControllerPoses, PoseErrors, RobotModel
 from ...sensors.base import HasNuisances, SensorModel, SharesTarget
 from ...sensors.camera.detect import detect_images
 from ...sensors.camera.model import CameraCorners
+from ...sensors.camera.pnp import LabelledViews, labelled_by_robot, relabel_points
 from ...sensors.camera.targets import target_from_spec
 from ...sensors.rig import Rig
-from .._sensor import held_and_freed, robot_model, sensor_options, session_robot_input
+from ...solvers import closed_form
+from .._sensor import held_and_freed, label_notes, robot_model, sensor_options, session_robot_input
 from .session import RigSession, load_rig_session
 
 __all__ = ["RigCalibration", "calibrate_rig", "calibrate_rig_session", "rig_members", "DISAGREE"]
@@ -318,6 +322,55 @@ def _per_view(f: dict, name: str, cal: Calibration) -> list:
 
 
 @on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
+class _Labels:
+    """A symmetric board's labelling in a rig's cameras (a chessboard's corners named from either end, view by
+    view and camera by camera): each camera's views against the robot's motion
+    (:func:`~handeye.sensors.camera.pnp.labelled_by_robot`), then, with one target for all, each camera's
+    whole labelling turned to the first's, so that all name one target frame: the target's pose Z from each
+    camera's closed form, the symmetry that brings it nearest the first camera's."""
+
+    def __init__(self, symmetries: list[NDArray[np.float64]], flange2base: NDArray[np.float64], setup: str,
+                 shared: bool) -> None:
+        self.symmetries, self.flange2base, self.setup, self.shared = symmetries, flange2base, setup, shared
+        self.reference: NDArray[np.float64] | None = None  # the first camera's Z
+        self.done = False  # a camera's views were labelled
+        self.none = LabelledViews(np.zeros((0, 4, 4)), [], np.zeros(0, np.intp), np.zeros(0, bool), np.zeros(0, bool))
+
+    def labelled(self, name: str, model: CameraCorners, object_points: list[NDArray[np.float64]], view_names: list[str],
+                 notes: list[str]) -> list[NDArray[np.float64]]:
+        """``object_points`` of camera ``name`` (``model`` over them) relabelled; what is in doubt said in ``notes``."""
+        if len(self.symmetries) < 2:
+            return object_points
+        poses = model.view_poses()
+        views = np.flatnonzero(np.isfinite(poses).all(axis=(1, 2)))
+        if len(views) < 2:
+            return object_points
+        got = labelled_by_robot(poses[views], [object_points[v] for v in views], self.flange2base[views], self.setup,
+                                self.symmetries)
+        self.done = True
+        notes += [f"sensor {name}: {n}" for n in label_notes("board", 1, self.setup, [view_names[v] for v in views], got)]
+        out = list(object_points)
+        for v, points in zip(views, got.object_points):
+            out[v] = points
+        if not self.shared or len(views) < 3:
+            return out
+        try:
+            Z = closed_form(self.flange2base[views], got.target2cam, self.setup, "daniilidis")[1]
+        except HandEyeError:  # its own fit says why
+            return out
+        if self.reference is None:
+            self.reference = Z
+            return out
+        # the symmetry S with Z S nearest the first camera's Z: a half turn moves the board's corners by its size
+        gaps = [np.linalg.norm((invert(self.reference) @ Z @ S)[:3] - np.eye(4)[:3]) for S in self.symmetries]
+        best = int(np.argmin(gaps))
+        if best:
+            notes.append(f"sensor {name}: the symmetric target's corners named from the other end than in the first "
+                         "camera's images: renamed, so that every camera sees one target frame")
+            out = [relabel_points(p, self.symmetries[best]) if len(p) else p for p in out]
+        return out
+
+
 def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationOptions | None = None, *,
                           progress: bool = False, jobs: int | None = None,
                           **changes) -> Calibration:
@@ -355,6 +408,9 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     results = detect_images(image_paths + board_paths, target_from_spec(s.target_spec, where="target"), jobs=jobs,
                             progress=progress) if image_paths or board_paths else []
     found, board_found = iter(results[:len(image_paths)]), iter(results[len(image_paths):])
+    robot = robot_model(s, list(range(len(s.names))), opts)  # joint angles through the arm's table, or poses
+    target = target_from_spec(s.target_spec, where="target")
+    labels = _Labels(target.symmetries(), robot.flange2base(np.zeros(robot.n_params)), s.setup, s.shared_target)
     for sensor in s.sensors:
         if sensor.member is not None:  # another kind's sensor: its model from its own measurements
             mine = [next(board_found) for _ in sensor.member.board_images] if any(sensor is x for x in same) else None
@@ -368,8 +424,11 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
             object_points.append(np.zeros((0, 3)) if det is None else det.object_points)
         seen = sum(len(u) > 0 for u in image_points)
         notes.append(f"sensor {sensor.name}: the target found in {seen} of {len(paths)} images")
+        object_points = labels.labelled(sensor.name, CameraCorners(s.setup, s.names, image_points, object_points, sensor.K,
+                                                                   sensor.dist), object_points, s.names, notes)
         members.append(CameraCorners(s.setup, s.names, image_points, object_points, sensor.K, sensor.dist))
-    robot = robot_model(s, list(range(len(s.names))), opts)  # joint angles through the arm's table, or poses
+    if labels.done:  # X is fixed by the labelling; Z only up to the board's symmetry
+        notes += label_notes(target.type, len(target.symmetries()), s.setup, [], labels.none)
     # one target's pose for all, when every model can map it into its unknowns (a depth camera's balls
     # cannot: their centres stay its own)
     shared = s.shared_target and all(isinstance(m, SharesTarget) for m in members)

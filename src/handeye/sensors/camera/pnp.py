@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,7 +19,7 @@ cv2 = lazy_module("cv2")  # OpenCV loads on first use: `import handeye` stays li
 __all__ = ["symmetry_costs", "settled_symmetry_costs", "label_doubts", "solve_pnp",
            "refine_pnp", "calibrate_intrinsics", "intrinsics_covariance",
            "INTRINSICS", "resolve_symmetries", "reprojection_rms", "project_points", "project_points_many",
-           "project_camera_points", "projection_jacobians"]
+           "project_camera_points", "projection_jacobians", "LabelledViews", "labelled_by_robot", "relabel_points"]
 
 
 def project_points(
@@ -285,6 +286,56 @@ def label_doubts(costs: NDArray[np.float64], thin: float = 3.0, unmatched: float
     off[1:] = ranked[0] > max(unmatched * typical, floor_rad)
     unsure[1:] = (ranked[1] - ranked[0] < thin * max(typical, 1e-3)) & ~off[1:]
     return unsure, off
+
+
+@dataclass(frozen=True)
+class LabelledViews:
+    """A symmetric target's views labelled against the robot (:func:`labelled_by_robot`)."""
+
+    target2cam: NDArray[np.float64]  #: (N, 4, 4) the poses, each in the labelling chosen
+    object_points: list[NDArray[np.float64]]  #: per view its points in that labelling's target frame
+    choice: NDArray[np.intp]  #: per view the symmetry chosen (0: as detected)
+    unsure: NDArray[np.bool_]  #: per view: chosen by a thin margin (:func:`label_doubts`)
+    unmatched: NDArray[np.bool_]  #: per view: no labelling agrees with the robot (:func:`label_doubts`)
+
+
+def relabel_points(points: NDArray[np.float64], F: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Target points (M, 3) in the frame of the labelling ``T @ F`` (new = F^-1 old): the same corners,
+    named from the other end."""
+    F_inv = invert(np.asarray(F, float))
+    return np.asarray(points, float) @ F_inv[:3, :3].T + F_inv[:3, 3]
+
+
+def labelled_by_robot(target2cam: NDArray[np.float64], object_points: Sequence[NDArray[np.float64]],
+                      flange2base: NDArray[np.float64], setup: str, symmetries: list[NDArray[np.float64]]) -> LabelledViews:
+    """Views of a symmetric target (``symmetries``, the target's :meth:`symmetries`) relabelled so that
+    the camera's motion agrees with the robot's (:func:`resolve_symmetries`), with the doubts of
+    :func:`label_doubts`: every path that fits a board's corners takes them so (a detector names a
+    chessboard's corners from either end, view by view: one view named from the other end is a pose
+    half a turn away, which no X explains). An unambiguous target's views come back as given.
+
+    Parameters
+    ----------
+    target2cam : (N, 4, 4) array
+        Per view the target's pose by PnP (or from its points in a cloud).
+    object_points : list of (n_i, 3) arrays
+        Per view its points in the detector's target frame.
+    flange2base : (N, 4, 4) array
+        The robot's poses of the views.
+    setup : str
+    symmetries : list of (4, 4) arrays
+        The identity first.
+    """
+    target2cam = np.asarray(target2cam, float)
+    n = len(target2cam)
+    unsure = unmatched = np.zeros(n, bool)
+    costs = None
+    if len(symmetries) > 1 and n > 1:
+        costs = settled_symmetry_costs(target2cam, flange2base, setup, symmetries)
+        unsure, unmatched = label_doubts(costs)
+    fixed, choice = resolve_symmetries(target2cam, flange2base, setup, symmetries, costs)
+    points = [np.asarray(p, float) if c == 0 else relabel_points(p, symmetries[c]) for p, c in zip(object_points, choice)]
+    return LabelledViews(fixed, points, choice, unsure, unmatched)
 
 
 def resolve_symmetries(
