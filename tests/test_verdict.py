@@ -355,6 +355,13 @@ def test_the_checks_rules_are_decided_here():
     assert v.weak_motions(4.9, 0.02, 5, 1.3) == ["small_rotations", "weak_axis", "few_poses", "far_target"]
     assert v.weakened("good", True) == "weak" and v.weakened("good", False) == "good"
     assert v.weakened("inconsistent", True) == "inconsistent" and v.weakened("partial", True) == "partial"
+    assert v.undetermined_verdict("good", True) == "partial" and v.undetermined_verdict("good", False) == "good"
+    assert v.undetermined_verdict("weak", True) == "weak" and v.undetermined_verdict("inconsistent", True) == "inconsistent"
+    unchecked = v.partial_pose_verdict(None, 8, complete=False)
+    assert unchecked.verdict == "partial" and unchecked.n_poses == 8
+    assert v.partial_pose_verdict(None, 8, complete=True).verdict == "good"
+    bad = v.Diagnostics(verdict="inconsistent", n_poses=8)
+    assert v.partial_pose_verdict(bad, 8, complete=True).verdict == "inconsistent"
 
 
 #: The verdict values a module could assign.
@@ -373,9 +380,6 @@ VERDICT_ALLOWED = {
     # a verification's own verdict on new views ('good' / 'worse than promised' / 'not compared'), not a
     # calibration's: decided with PROMISE_FACTOR where the views are predicted
     ("pipelines/verify.py", "verify"),
-    # TODO(issue 78): to move into verdict.py; the files are being reworked on another branch (one engine)
-    ("estimation/core.py", "estimate"),  # the fit's verdict made 'partial' when the capture leaves a parameter free
-    ("pipelines/calibration.py", "_partial"),  # low-DOF poses: 'partial' when unchecked, 'good' once known= completes X
 }
 
 

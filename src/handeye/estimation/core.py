@@ -108,7 +108,7 @@ from ..solvers.observability import rotation_spread_absolute
 from ..solvers.refine import VARIANCE_FLOOR, block_whitening, fit_variances, reweighted_fit
 from .uncertainty import widened_uncertainty
 from .validation import default_folds, fold_indices, held_out, jackknife_groups, jackknife_spread
-from .verdict import FIT_FACTOR, HELDOUT_FACTOR, FitEvidence, fit_verdict, judged
+from .verdict import FIT_FACTOR, HELDOUT_FACTOR, FitEvidence, fit_verdict, judged, undetermined_verdict
 
 __all__ = ["Fitted", "Problem", "fit", "fit_poses",
            "downdated", "view_rms_mm", "view_rms_px", "estimate", "quick_rms_mm", "start_from_poses",
@@ -942,14 +942,15 @@ def _fit_eliminated(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.
 
 
 def _robust_least_squares(fun: Callable[[NDArray[np.float64]], NDArray[np.float64]], jac: Jacobian, x: NDArray[np.float64],
-                          scale: NDArray[np.float64], tol: float, tall: bool, f_scale: float = ROBUST_SCALE):
+                          scale: NDArray[np.float64], tol: float, lm: bool, f_scale: float = ROBUST_SCALE):
     """The robust round's least squares: the soft-L1 cost of ``fun`` (``least_squares``' ``loss='soft_l1'``,
-    ``f_scale``), from ``x``. With derivatives of its own (``jac`` a function) and no fewer lines than
-    unknowns (``tall``) the cost is written as plain least squares (:func:`_soft_l1_as_plain`) for
+    ``f_scale``), from ``x``. With ``lm`` (the caller's: no fewer lines than unknowns, as MINPACK needs, and
+    a fit where LM's path is known to land where trf's does: the robot's poses as given) and derivatives of its
+    own (``jac`` a function) the cost is written as plain least squares (:func:`_soft_l1_as_plain`) for
     MINPACK's Levenberg-Marquardt, a QR of the Jacobian per step where trf takes its SVD (a camera's 15
-    views with each pose's error: 1.5x the time); finite differences: trf with the loss. The same cost,
-    so the same optimum; ``fun`` of the result is the residuals themselves."""
-    if callable(jac) and tall:
+    views: 1.5x the time); else trf with the loss. The same cost, so the same optimum; ``fun`` of the
+    result is the residuals themselves."""
+    if callable(jac) and lm:
         plain_fun, plain_jac = _soft_l1_as_plain(fun, jac, f_scale)
         res = least_squares(plain_fun, x, plain_jac, method="lm", x_scale=scale, xtol=tol, ftol=tol, gtol=tol,
                             max_nfev=MAX_EVALUATIONS)
@@ -2051,8 +2052,8 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
         "views that turn the flange about that axis, or move it along that direction, between measurements determine it; "
         "or give it (known=)")
     unobs = _unobservable(problem.pins, full.X, sensor.setup, fix)
-    if unobs and verdict == "good":
-        verdict = "partial"
+    if undetermined_verdict(verdict, bool(unobs)) != verdict:  # 'partial', the free parameters said first
+        verdict = undetermined_verdict(verdict, True)
         advice = [f"the capture does not determine {', '.join(u.parameter for u in unobs)}: held at the start's value, "
                   f"its std infinite; {fix}"] + advice
     diag = Diagnostics(verdict=verdict, advice=advice, outliers=[int(v) for v, _ in checked.left_out],

@@ -7,7 +7,8 @@ the closed forms about X (wider than the std allows). The estimation core's fit 
 fit and its held-out views are from what the noise allows (:func:`fit_verdict`; the core measures,
 this module decides). The check's own rules are here too (:func:`count_verdict`, :func:`motion_verdict`,
 :func:`reading_verdict`, :func:`agreement_verdict`, :func:`scale_verdict`, :func:`weak_motions`,
-:func:`weakened`): :mod:`handeye.estimation.diagnostics` measures the poses, these decide, and a test
+:func:`weakened`), and what a capture that determines only part of X gets (:func:`undetermined_verdict`,
+:func:`partial_pose_verdict`): :mod:`handeye.estimation.diagnostics` measures the poses, these decide, and a test
 keeps every verdict assigned here. :func:`judge` combines them; ``calibrate``,
 ``check``, the report, ``fleet`` and ``acquire`` all take the verdict and the exit status from here,
 so the same data get the same verdict whichever command looked at them.
@@ -27,7 +28,8 @@ __all__ = ["ACCEPT_DEG", "ACCEPT_MM", "AXIS_SHARE_WEAK", "CONSISTENT", "EXIT_STA
            "FIT_FACTOR", "FitEvidence", "HEADLINES", "HELDOUT_FACTOR", "Judgement", "MANY_OUTLIERS", "MIN_INLIERS", "MIN_POSES",
            "MISPAIRED", "SCALE_SIGMAS", "SCALE_TOLERANCE", "SMALL_ROTATION_DEG", "agreement_verdict", "count_verdict",
            "disagreement_verdict", "exit_status", "fit_verdict", "headline", "judge", "judged", "many_outliers", "motion_verdict",
-           "pairing_verdict", "reading_verdict", "scale_is_off", "scale_verdict", "solver_spread", "weak_motions", "weakened"]
+           "pairing_verdict", "partial_pose_verdict", "reading_verdict", "scale_is_off", "scale_verdict", "solver_spread",
+           "undetermined_verdict", "weak_motions", "weakened"]
 
 #: X is "weak" when 3 std of it exceed the thesis's acceptance (§5: 5 mm and 1 deg).
 ACCEPT_MM, ACCEPT_DEG = 5.0, 1.0
@@ -421,3 +423,17 @@ def weak_motions(median_angle_deg: float, weakest_share: float, n_used: int, med
 def weakened(verdict: str, weak: bool) -> str:
     """``verdict`` made 'weak' when ``weak`` and it was 'good'; else as it is (a worse verdict stands)."""
     return "weak" if weak and verdict == "good" else verdict
+
+
+def undetermined_verdict(verdict: str, undetermined: bool) -> str:
+    """A fit's ``verdict`` made 'partial' when the capture leaves part of X ``undetermined`` (held at the
+    start's value, its std infinite) and it was 'good'; a worse verdict stands."""
+    return "partial" if undetermined and verdict == "good" else verdict
+
+
+def partial_pose_verdict(check: Diagnostics | None, n_poses: int, complete: bool) -> Diagnostics:
+    """The check of motions that determine part of X (one rotation axis, or translations only):
+    ``check`` (unchecked: a record that says 'partial'), its 'partial' made 'good' when the known values
+    complete X (``complete``: then the std judges it, as any answer's)."""
+    check = check if check is not None else Diagnostics(verdict="partial", n_poses=n_poses)
+    return replace(check, verdict="good") if complete and check.verdict == "partial" else check

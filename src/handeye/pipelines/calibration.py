@@ -45,7 +45,7 @@ from ..estimation.partial import calibrate_partial, known_on_complete, parse_kno
 from ..estimation.refinement import pose_fits_shared
 from ..estimation.uncertainty import UNSEEN_FACTOR, robot_accuracy_cov, robot_accuracy_from_data, widened_uncertainty
 from ..estimation.validation import Views, jackknife_covs, robot_error_seen
-from ..estimation.verdict import judged, solver_spread
+from ..estimation.verdict import judged, partial_pose_verdict, solver_spread
 from ..frames.metrics import std_deg_mm
 from ..frames.motions import MotionSet, Pairs, validate_poses
 from ..frames.poses import RobotPoseInput
@@ -292,10 +292,7 @@ def _partial(flange2base, target2cam, call: _PoseCall, kind: str, pairs: Pairs, 
     """:func:`calibrate_poses` on motions that determine only part of X (:mod:`handeye.estimation.partial`)."""
     accuracy = call.opts.robot_accuracy
     cal = calibrate_partial(flange2base, target2cam, call.setup, kind, pairs, call.given, refine=call.opts.refine != "none")
-    if diag is None:  # unchecked: the verdict still says partial (Calibration.verdict)
-        diag = Diagnostics(verdict="partial", n_poses=len(flange2base))
-    if not cal.unobservable and diag.verdict == "partial":  # complete with the known values: judged by its std
-        diag = replace(diag, verdict="good")
+    diag = partial_pose_verdict(diag, len(flange2base), complete=not cal.unobservable)
     # the check's advice beyond the partial verdict's own sentence (calibrate_partial's note says it): outliers
     cal = replace(cal, diagnostics=diag, pose_indices=keep, robot_input=call.robot_input, inputs_sha256=digest,
                   notes=cal.notes + list(diag.advice[1:]))
