@@ -10,6 +10,7 @@ import pytest
 
 from handeye.errors import InputMismatchError
 from handeye.frames.metrics import rotation_error, translation_error, within_std
+from handeye.frames.setups import predicted_target2cam
 from handeye.pipelines.rig.pipeline import _Labels, calibrate_rig
 from handeye.pipelines.rig.simulate import BOARD, rig_scene
 from handeye.pipelines.verify import verify
@@ -17,6 +18,7 @@ from handeye.robot.models import ControllerPoses, PoseErrors
 from handeye.sensors.camera.model import CameraCorners
 from handeye.sensors.camera.pnp import relabel_points
 from handeye.sensors.camera.targets.chessboard import Chessboard
+from handeye.sensors.depth.model import BoardPoints
 from jacobians import jacobian_error
 
 ERROR = (0.01, 0.05)
@@ -89,6 +91,14 @@ def test_a_chessboard_named_from_either_end_is_one_target_in_every_camera():
             assert np.allclose(mine, truth), (k, view)
     assert any(n.startswith("sensor c2:") and "other end" in n for n in notes)
     assert not any(n.startswith(("sensor c0:", "sensor c1:")) for n in notes)
+    # a depth camera's board (its corners lifted into 3D where camera 0 sees them) named from the other end whole
+    cam = sc.cameras[0]
+    target2cam = predicted_target2cam(cam.X, sc.Z, sc.flange2base_true, sc.setup)
+    lifted = [p @ T[:3, :3].T + T[:3, 3] for p, T in zip(cam.object_points, target2cam)]
+    board = BoardPoints(sc.setup, sc.names, [relabel_points(p, half_turn) for p in cam.object_points], lifted)
+    turned = labels.board("d", board, notes)
+    assert np.allclose(turned.obj, BoardPoints(sc.setup, sc.names, list(cam.object_points), lifted).obj)
+    assert any(n.startswith("sensor d:") and "other end" in n for n in notes)
 
 
 def test_bad_rigs_are_named():

@@ -38,6 +38,7 @@ from ...sensors.camera.detect import detect_images
 from ...sensors.camera.model import CameraCorners
 from ...sensors.camera.pnp import LabelledViews, labelled_by_robot, relabel_points
 from ...sensors.camera.targets import target_from_spec
+from ...sensors.depth.model import BoardPoints
 from ...sensors.rig import Rig
 from ...solvers import closed_form
 from .._sensor import held_and_freed, label_notes, robot_model, sensor_options, session_robot_input
@@ -323,16 +324,17 @@ def _per_view(f: dict, name: str, cal: Calibration) -> list:
 
 @on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
 class _Labels:
-    """A symmetric board's labelling in a rig's cameras (a chessboard's corners named from either end, view by
-    view and camera by camera): each camera's views against the robot's motion
-    (:func:`~handeye.sensors.camera.pnp.labelled_by_robot`), then, with one target for all, each camera's
-    whole labelling turned to the first's, so that all name one target frame: the target's pose Z from each
-    camera's closed form, the symmetry that brings it nearest the first camera's."""
+    """A symmetric board's labelling in a rig (a chessboard's corners named from either end, view by view
+    and sensor by sensor): each camera's views against the robot's motion
+    (:func:`~handeye.sensors.camera.pnp.labelled_by_robot`; a depth camera's when its board is measured),
+    then, with one target for all, each sensor's whole labelling turned to the first's, so that all name
+    one target frame: the target's pose Z from each sensor's closed form, the symmetry that brings it
+    nearest the first sensor's."""
 
     def __init__(self, symmetries: list[NDArray[np.float64]], flange2base: NDArray[np.float64], setup: str,
                  shared: bool) -> None:
         self.symmetries, self.flange2base, self.setup, self.shared = symmetries, flange2base, setup, shared
-        self.reference: NDArray[np.float64] | None = None  # the first camera's Z
+        self.reference: NDArray[np.float64] | None = None  # the first sensor's Z
         self.done = False  # a camera's views were labelled
         self.none = LabelledViews(np.zeros((0, 4, 4)), [], np.zeros(0, np.intp), np.zeros(0, bool), np.zeros(0, bool))
 
@@ -352,23 +354,37 @@ class _Labels:
         out = list(object_points)
         for v, points in zip(views, got.object_points):
             out[v] = points
+        best = self._turn(name, views, got.target2cam, notes)
+        return [relabel_points(p, self.symmetries[best]) if len(p) else p for p in out] if best else out
+
+    def board(self, name: str, model: BoardPoints, notes: list[str]) -> BoardPoints:
+        """A depth camera's board (its views labelled against the robot when measured) turned to the
+        first camera's labelling."""
+        if len(self.symmetries) < 2:
+            return model
+        poses = model.view_poses()
+        views = np.flatnonzero(np.isfinite(poses).all(axis=(1, 2)))
+        best = self._turn(name, views, poses[views], notes)
+        return model.relabelled(self.symmetries[best]) if best else model
+
+    def _turn(self, name: str, views: NDArray[np.intp], target2cam: NDArray[np.float64], notes: list[str]) -> int:
+        """The symmetry that turns sensor ``name``'s labelling (its poses ``target2cam`` of ``views``) to the
+        first's (0: none; the first sets the reference): the one bringing its Z nearest the first's."""
         if not self.shared or len(views) < 3:
-            return out
+            return 0
         try:
-            Z = closed_form(self.flange2base[views], got.target2cam, self.setup, "daniilidis")[1]
+            Z = closed_form(self.flange2base[views], target2cam, self.setup, "daniilidis")[1]
         except HandEyeError:  # its own fit says why
-            return out
+            return 0
         if self.reference is None:
             self.reference = Z
-            return out
-        # the symmetry S with Z S nearest the first camera's Z: a half turn moves the board's corners by its size
-        gaps = [np.linalg.norm((invert(self.reference) @ Z @ S)[:3] - np.eye(4)[:3]) for S in self.symmetries]
-        best = int(np.argmin(gaps))
+            return 0
+        # the symmetry S with Z S nearest the first's Z: a half turn moves the board's corners by its size
+        best = int(np.argmin([np.linalg.norm((invert(self.reference) @ Z @ S)[:3] - np.eye(4)[:3]) for S in self.symmetries]))
         if best:
             notes.append(f"sensor {name}: the symmetric target's corners named from the other end than in the first "
-                         "camera's images: renamed, so that every camera sees one target frame")
-            out = [relabel_points(p, self.symmetries[best]) if len(p) else p for p in out]
-        return out
+                         "sensor's views: renamed, so that every sensor sees one target frame")
+        return best
 
 
 def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationOptions | None = None, *,
@@ -414,7 +430,9 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     for sensor in s.sensors:
         if sensor.member is not None:  # another kind's sensor: its model from its own measurements
             mine = [next(board_found) for _ in sensor.member.board_images] if any(sensor is x for x in same) else None
-            members.append(sensor.member.model(sensor.name, s.names, notes, progress, mine))
+            model = sensor.member.model(sensor.name, s.names, notes, progress, mine)
+            members.append(labels.board(sensor.name, model, notes) if isinstance(model, BoardPoints) and mine is not None
+                           else model)
             continue
         paths = [p for p in sensor.images if p is not None]
         image_points, object_points = [], []

@@ -26,6 +26,7 @@ Examples
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable
 from typing import Any
 
@@ -33,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from ...errors import DegenerateMotionError, InputMismatchError
+from ...errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from ...frames.setups import check_setup, predicted_target2cam, robot_world_A
 from ...geometry.se3 import make_transform, perturb
 from ..base import Nuisance
@@ -199,6 +200,17 @@ class BoardPoints(DepthRows):
     def view_poses(self) -> NDArray[np.float64]:
         """The board's pose in each view, a rigid fit to its lifted corners."""
         return self.poses
+
+    def relabelled(self, F: NDArray[np.float64]) -> "BoardPoints":
+        """The same views with the board's corners named in the frame of the labelling ``T @ F`` (a
+        symmetric board read from the other end: its points ``F^-1 p``, its poses ``T F``), before any start."""
+        if self._Zref is not None:
+            raise HandEyeError("a board's labelling is turned before its first start, not after (its unknowns are anchored)")
+        out = copy.copy(self)
+        F_inv = np.linalg.inv(np.asarray(F, float))
+        out.obj = self.obj @ F_inv[:3, :3].T + F_inv[:3, 3]
+        out.poses = self.poses @ F
+        return out
 
     def start(self, flange2base, X, Z, rows=None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """The closed form's X and Z; the depth exact. The first start's Z is the reference the
