@@ -16,6 +16,7 @@ import pytest
 import handeye
 from handeye.cli import main
 from handeye.errors import SessionError
+from handeye.pipelines.depth.pipeline import calibrate_depth_session
 from handeye.pipelines.depth.simulate_board import sphere_scene, write_depth_session
 from handeye.report import write_calibration, write_exports
 from handeye.simulate import simulate_kinematic_session, simulate_session
@@ -61,7 +62,7 @@ def test_an_image_session_and_a_pose_pair_folder_read_back(tmp_path):
 @pytest.mark.slow
 def test_a_depth_session_writes_the_same_keys_and_reads_back(tmp_path):
     folder = write_depth_session(tmp_path / "s", sphere_scene(8, "eye_to_hand", 6))
-    cal = handeye.pipelines.depth.pipeline.calibrate_depth_session(folder)
+    cal = calibrate_depth_session(folder)
     data, back = _round_trip(cal, tmp_path / "out")
     assert COMMON <= set(data) and "sensor" in data and "images" not in data
     assert back.sensor.figures == json.loads(json.dumps(cal.sensor.figures))

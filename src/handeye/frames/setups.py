@@ -74,7 +74,8 @@ class Setup(str):
         return check_setup, (str(self),)
 
 
-yaml.SafeDumper.add_representer(Setup, lambda dumper, setup: dumper.represent_str(str(setup)))  # a session.yaml's setup: eye_in_hand
+for _dumper in (yaml.SafeDumper, getattr(yaml, "CSafeDumper", yaml.SafeDumper)):  # libyaml's too (_shared.io.dump_yaml)
+    _dumper.add_representer(Setup, lambda dumper, setup: dumper.represent_str(str(setup)))  # a session.yaml's setup: eye_in_hand
 
 
 def check_setup(setup: str) -> Setup:

@@ -21,7 +21,7 @@ import yaml
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from .._shared.io import atomic_write
+from .._shared.io import atomic_write, dump_yaml
 from .._version import __version__
 from ..errors import HandEyeError
 from ..frames.poses import format_poses, pose_columns
@@ -466,7 +466,7 @@ def write_results(cal: Calibration, out_dir: str | Path, protect: Iterable[Path]
     protect = list(protect)
     paths = [out_dir / "result.json", out_dir / "result.yaml"]
     atomic_write(paths[0], json.dumps(data, indent=2) + "\n", protect)
-    atomic_write(paths[1], yaml.safe_dump(data, sort_keys=False, width=1000), protect)
+    atomic_write(paths[1], dump_yaml(data, sort_keys=False, width=1000), protect)
     if cal.kinematic is not None:  # the corrected table, as handeye.robot.kinematics.load_arm (and --arm) read it
         k = cal.kinematic
         paths.append(out_dir / "arm_corrected.yaml")
