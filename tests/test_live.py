@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 import pytest
 
+import browsers
 from handeye.cli import main
 from handeye.errors import HandEyeError
 from handeye.frames.poses import format_poses
@@ -328,7 +329,7 @@ def test_a_ur_moves_on_the_click_at_capped_speed_and_a_lost_connection_is_said(t
 
 
 # -- the server -------------------------------------------------------------------------------------------------
-aiohttp = pytest.importorskip("aiohttp", reason="handeye live's server needs aiohttp (pip install 'handeye[live]')")
+aiohttp = browsers.importorskip("aiohttp", reason="handeye live's server needs aiohttp (pip install 'handeye[live]')")
 
 
 @contextmanager
@@ -510,7 +511,7 @@ def _running_in_group(stat: Path, pgid: int) -> bool:
 
 
 def _browser(tmp_path, width=1400, height=1300):
-    webdriver = pytest.importorskip("selenium.webdriver", reason="the browser test needs selenium (the test extra)")
+    webdriver = browsers.importorskip("selenium.webdriver", reason="the browser test needs selenium (the test extra)")
     from selenium.webdriver.chrome.service import Service
 
     opts = webdriver.ChromeOptions()
@@ -548,8 +549,8 @@ def _take_by_clicks(driver, n_before):
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(CHROMIUM is None or CHROMEDRIVER is None,
-                    reason="no chromium and chromium-driver on this machine (apt-get install chromium chromium-driver)")
+@browsers.skip_unless(CHROMIUM is not None and CHROMEDRIVER is not None,
+                        reason="no chromium and chromium-driver on this machine (apt-get install chromium chromium-driver)")
 def test_the_page_in_chromium_takes_12_views_removes_one_and_writes_what_calibrate_gives(tmp_path):
     """The simulated cell driven from the page by clicks: 12 views, one removed, Finish; the result
     written equals ``handeye calibrate`` of the session on disk. On the way: a reload while a view is
@@ -632,8 +633,8 @@ def test_the_page_in_chromium_takes_12_views_removes_one_and_writes_what_calibra
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(CHROMIUM is None or CHROMEDRIVER is None,
-                    reason="no chromium and chromium-driver on this machine (apt-get install chromium chromium-driver)")
+@browsers.skip_unless(CHROMIUM is not None and CHROMEDRIVER is not None,
+                        reason="no chromium and chromium-driver on this machine (apt-get install chromium chromium-driver)")
 def test_the_page_says_when_the_camera_stops_the_robot_is_lost_or_a_view_has_no_target(tmp_path):
     with _served(tmp_path / "cell", flaky=True) as (base, live):
         driver = _browser(tmp_path)

@@ -21,6 +21,7 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
+import browsers
 import handeye
 from handeye._shared.io import file_digest, files_digest
 from handeye.cli import SAMPLE_SESSION, main
@@ -289,7 +290,7 @@ window.addEventListener('error', function (e) { window.__errors.push(String(e.me
   ce.apply(console, arguments); }; })();</script>"""
 
 
-@pytest.mark.skipif(_CHROMIUM is None, reason="no chromium binary on this machine")
+@browsers.skip_unless(_CHROMIUM is not None, reason="no chromium binary on this machine")
 def test_report_renders_in_headless_chromium(sample_out, tmp_path):
     """The page renders at 1200 px, the browser decodes every embedded image, nothing overflows
     its box sideways (the ROS line was cut off) and no script error or console error is logged
