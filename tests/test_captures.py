@@ -72,6 +72,7 @@ class _BadStart:
         return X0 @ np.diag([-1.0, -1.0, 1.0, 1.0]), p0
 
 
+@pytest.mark.slow  # over 3.5 s: the fast tier keeps a margin under its 2 minutes
 def test_a_fit_far_beyond_what_the_sensor_and_robot_allow_is_inconsistent_not_weak(tmp_path):
     """Started half a turn off, the laser's fit lands in another basin, 0.3 m from X, its residual
     far beyond what the profiler's noise and the robot's accuracy move these profiles by: the verdict
@@ -265,6 +266,7 @@ def test_pure_translations_without_a_placement_name_the_free_translation(tmp_pat
     assert "placement" in cal.observability.unobservable[0].fix
 
 
+@pytest.mark.slow  # over 3.5 s: the fast tier keeps a margin under its 2 minutes
 def test_a_sensors_unknowns_are_held_or_freed_by_name(tmp_path, capsys):
     """session.yaml's unknowns: and --hold/--free name a sensor's unknowns beside X; a name that is not
     one of them is refused, naming those that are; a camera's images take none."""

@@ -179,6 +179,7 @@ def test_a_plate_with_few_profiles_or_turns_about_one_axis_is_searched_for_and_j
     assert outcomes == ["refused", "partial"]
 
 
+@pytest.mark.slow  # over 3.5 s: the fast tier keeps a margin under its 2 minutes
 def test_a_plate_session_through_the_command_line(tmp_path, capsys):
     """simulate --sensor laser_line --target plane, then calibrate: the plane's session, X right,
     the result read back; a plane given a diameter, or a board as a laser target, is a clear error."""

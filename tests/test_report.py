@@ -685,6 +685,7 @@ def laser_cal():
                     ControllerPoses(sc.flange2base))
 
 
+@pytest.mark.slow  # over 3.5 s: the fast tier keeps a margin under its 2 minutes
 def test_a_sensors_report_says_what_its_fit_is(laser_cal):
     """Issue 77: a sensor's report said '10 views, 0 motions' (a sensor's fit pairs none), Z's std '—'
     where the terminal prints it, a held-out paragraph about the camera's refinements, and its figures
@@ -708,6 +709,7 @@ def test_a_sensors_report_says_what_its_fit_is(laser_cal):
         "1200", "yes", "no", "18000", "none", "[0.5, 2]", "—"]
 
 
+@pytest.mark.slow  # shares the laser fixture (5 s) with test_a_sensors_report_says_what_its_fit_is
 def test_a_laser_profilers_ros_frame_is_named_for_a_profiler(laser_cal, tmp_path):
     """Issue 77: a laser profiler's ROS snippets and launch files published X as camera_optical_frame;
     its frame is laser_profiler_optical_frame (x along the line, z along the measuring axis), a
