@@ -421,12 +421,13 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
     # images), in one parallel detection (no worker idle at the end of each sensor's)
     same = [x for x in s.sensors if x.member is not None and x.member.target_spec == s.target_spec and x.member.board_images]
     board_paths = [p for x in same for p in x.member.board_images]
-    results = detect_images(image_paths + board_paths, target_from_spec(s.target_spec, where="target"), jobs=jobs,
-                            progress=progress) if image_paths or board_paths else []
+    # a board seen in images (not a ball or a plate of profilers and depth cameras alone)
+    target = target_from_spec(s.target_spec, where="target") if image_paths or board_paths else None
+    results = detect_images(image_paths + board_paths, target, jobs=jobs, progress=progress) if target is not None else []
     found, board_found = iter(results[:len(image_paths)]), iter(results[len(image_paths):])
     robot = robot_model(s, list(range(len(s.names))), opts)  # joint angles through the arm's table, or poses
-    target = target_from_spec(s.target_spec, where="target")
-    labels = _Labels(target.symmetries(), robot.flange2base(np.zeros(robot.n_params)), s.setup, s.shared_target)
+    labels = _Labels(target.symmetries() if target is not None else [np.eye(4)], robot.flange2base(np.zeros(robot.n_params)),
+                     s.setup, s.shared_target)
     for sensor in s.sensors:
         if sensor.member is not None:  # another kind's sensor: its model from its own measurements
             mine = [next(board_found) for _ in sensor.member.board_images] if any(sensor is x for x in same) else None
@@ -445,8 +446,8 @@ def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationO
         object_points = labels.labelled(sensor.name, CameraCorners(s.setup, s.names, image_points, object_points, sensor.K,
                                                                    sensor.dist), object_points, s.names, notes)
         members.append(CameraCorners(s.setup, s.names, image_points, object_points, sensor.K, sensor.dist))
-    if labels.done:  # X is fixed by the labelling; Z only up to the board's symmetry
-        notes += label_notes(target.type, len(target.symmetries()), s.setup, [], labels.none)
+    if labels.done and target is not None:  # X is fixed by the labelling; Z only up to the board's symmetry
+        notes += label_notes(target.type, len(labels.symmetries), s.setup, [], labels.none)
     # one target's pose for all, when every model can map it into its unknowns (a depth camera's balls
     # cannot: their centres stay its own)
     shared = s.shared_target and all(isinstance(m, SharesTarget) for m in members)

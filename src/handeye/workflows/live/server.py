@@ -202,7 +202,10 @@ class LiveServer:
 
     async def _socket(self, request):
         web = self.web
-        ws = web.WebSocketResponse(heartbeat=10.0, max_msg_size=64 * 1024)
+        # no per-message deflate: the frames are JPEG (nothing to gain), and aiohttp sends a compressed frame
+        # from a task of its own whose "Cannot write to closing transport", when the page goes away mid-frame,
+        # nobody retrieves ("Task exception was never retrieved" and a traceback in the server's log)
+        ws = web.WebSocketResponse(heartbeat=10.0, max_msg_size=64 * 1024, compress=False)
         await ws.prepare(request)
         wake = asyncio.Event()
         self.clients[ws] = wake
