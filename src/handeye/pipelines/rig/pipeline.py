@@ -322,7 +322,6 @@ def _per_view(f: dict, name: str, cal: Calibration) -> list:
     return f.get("view_rms_mm_per_sensor", {}).get(name) or [None] * len(_view_names(cal))
 
 
-@on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
 class _Labels:
     """A symmetric board's labelling in a rig (a chessboard's corners named from either end, view by view
     and sensor by sensor): each camera's views against the robot's motion
@@ -359,7 +358,7 @@ class _Labels:
 
     def board(self, name: str, model: BoardPoints, notes: list[str]) -> BoardPoints:
         """A depth camera's board (its views labelled against the robot when measured) turned to the
-        first camera's labelling."""
+        first sensor's labelling."""
         if len(self.symmetries) < 2:
             return model
         poses = model.view_poses()
@@ -387,6 +386,7 @@ class _Labels:
         return best
 
 
+@on_one_blas_thread  # narrow matrices throughout: a second BLAS thread spins more than it works
 def calibrate_rig_session(folder: str | Path | RigSession, options: CalibrationOptions | None = None, *,
                           progress: bool = False, jobs: int | None = None,
                           **changes) -> Calibration:
