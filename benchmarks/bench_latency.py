@@ -240,6 +240,12 @@ def main() -> None:
             verdict = next((line.split(": ", 1)[1] for line in done.stdout.splitlines() if line.startswith("check: ")), "?")
             note = f"(exit {done.returncode}, {verdict.split(' (')[0]})" if done.returncode in (0, 1) else \
                 f"(FAILED, exit {done.returncode}: {(done.stderr.strip().splitlines() or ['?'])[-1][:80]})"
+            # the simulator's default capture has no bad sensor: one left out of a rig is a bug, whatever the verdict
+            # (a camera whose chessboard was read from the other end was, with the verdict good)
+            out_of_rig = [line.split()[2] for line in done.stdout.splitlines()
+                          if line.startswith("note: sensor ") and ("disagrees with the rest" in line or " skipped: " in line)]
+            if out_of_rig:
+                note += f" SENSOR LEFT OUT: {', '.join(out_of_rig)}"
             _row(name, wall, cpu, KIND_BAR, note)
         for name, kind, spoil in REFUSALS:
             if not wanted(f"refused: {name}"):
