@@ -27,6 +27,7 @@ Sessions are written by ``handeye simulate`` (not timed) into a temporary folder
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import resource
 import shutil
@@ -189,6 +190,36 @@ def _simulated(root: Path, name: str, args: list[str], env: dict) -> Path:
     return folder
 
 
+def _x_off(result: Path, truth: Path) -> str:
+    """How far the X that ``result`` (a result.json) gives is from the simulator's ``truth`` (its ground_truth.yaml):
+    every sensor of a rig, else X; the largest error in degrees and millimetres, and whether each lies within 3 of
+    its std (per axis, :func:`handeye.frames.metrics.within_std`)."""
+    from handeye.frames.metrics import rotation_error, translation_error, within_std
+
+    r, g = json.loads(result.read_text()), yaml.safe_load(truth.read_text())
+    per = (r.get("sensor") or {}).get("figures", {}).get("X_per_sensor")
+    if per:  # a rig: every sensor's X and std against its own truth
+        sensors = g.get("cameras") or g.get("sensors") or {}
+        pairs = [(n, np.array(f["X"]), np.array(f["std_deg_mm"]), sensors.get(n, {})) for n, f in per.items()]
+    else:
+        std = np.r_[r["uncertainty"]["std_rotation_deg"], r["uncertainty"]["std_translation_mm"]]
+        pairs = [("X", np.array(r["X"]["matrix"]), std, g)]
+    worst_deg = worst_mm = 0.0
+    beyond = []
+    for name, X, std, mine in pairs:
+        true = mine.get("cam2flange", mine.get("cam2base"))
+        if true is None:
+            return "X not compared (no truth)"
+        true = np.array(true)
+        worst_deg = max(worst_deg, float(np.degrees(rotation_error(X, true))))
+        worst_mm = max(worst_mm, 1e3 * float(translation_error(X, true)))
+        if not np.all(np.isfinite(std)) or not within_std(X, true, std):
+            beyond.append(name)
+    where = f"{len(pairs)} sensors' " if len(pairs) > 1 else ""
+    return (f"{where}X off <= {worst_mm:.2f} mm / {worst_deg:.3f} deg, "
+            + (f"BEYOND 3 std: {', '.join(beyond)}" if beyond else "within 3 std"))
+
+
 def _row(name: str, wall: float, cpu: float, bar: float, note: str) -> None:
     met = "" if not np.isfinite(bar) else "met" if wall <= bar else "NOT met"
     print(f"  {name:<44} {wall:7.2f} s {cpu:7.2f} s   {met:<7} {note}", flush=True)
@@ -236,9 +267,10 @@ def main() -> None:
             out = Path(tmp) / "out"
             wall, cpu, done = _median(handeye + ["calibrate", str(folders[name]), "--out", str(out), "--no-progress"], env,
                                       args.repeat, args.timeout)
+            x_off = _x_off(out / "result.json", folders[name] / "ground_truth.yaml") if (out / "result.json").is_file() else ""
             shutil.rmtree(out, ignore_errors=True)
             verdict = next((line.split(": ", 1)[1] for line in done.stdout.splitlines() if line.startswith("check: ")), "?")
-            note = f"(exit {done.returncode}, {verdict.split(' (')[0]})" if done.returncode in (0, 1) else \
+            note = f"(exit {done.returncode}, {verdict.split(' (')[0]}; {x_off})" if done.returncode in (0, 1) else \
                 f"(FAILED, exit {done.returncode}: {(done.stderr.strip().splitlines() or ['?'])[-1][:80]})"
             # the simulator's default capture has no bad sensor: one left out of a rig is a bug, whatever the verdict
             # (a camera whose chessboard was read from the other end was, with the verdict good)
@@ -261,7 +293,7 @@ def main() -> None:
                 f"(NOT REFUSED CLEANLY: exit {done.returncode}, {(said or ['no message'])[-1][:70]})"
             _row(f"refused: {name}", wall, cpu, REFUSAL_BAR, note)
     print(f"bars (2 cores, quiet machine): a kind <= {KIND_BAR:g} s, a refusal <= {REFUSAL_BAR:g} s, --sample <= "
-          f"{SAMPLE_BAR:g} s; X is not checked here (bench_arm_depth.py, bench_silhouette.py, ... do)")
+          f"{SAMPLE_BAR:g} s; each kind's X against the simulator's truth (one seed: the statistics are bench_*.py's)")
 
 
 if __name__ == "__main__":
