@@ -13,7 +13,9 @@ run is stopped after ``--timeout`` seconds and said so). Bars (issue 81): every 
 every refusal at most 5 s, ``--sample`` at most 0.6 s, on 2 cores of a quiet machine; the line
 above the table gives the cores and the load
 average, so that a reader can tell a shared machine's figures from a quiet one's. A kind must
-answer (exit 0 or 1), a refusal must exit 2 with one line ``handeye: error: ...`` naming the cause
+answer (exit 0 or 1), its X is compared with the session's ground_truth.yaml (every sensor's for a rig: the
+largest error, and whether each lies within 3 of its std) and a sensor left out of a rig is said (the default
+capture has no bad sensor), a refusal must exit 2 with one line ``handeye: error: ...`` naming the cause
 (no traceback); the ``--sample`` rows are timed with the detection cache filled by a first run (as
 a user's second run; ``calibrate --sample``'s goal: <= 0.3x the script's time), and once with
 ``--no-cache`` (every image detected), beside a plain OpenCV script that detects the sample's 12 boards on 2
