@@ -934,8 +934,9 @@ def _fit_eliminated(problem: Problem, rows: NDArray[np.intp], sigma: NDArray[np.
                                        ftol=tol, gtol=tol, max_nfev=MAX_EVALUATIONS))
     else:
         # trf's soft L1 (not LM's plain rewrite, :func:`_robust_least_squares`): with LM a rig of 3 fixed cameras
-        # (15 views, each pose's error eliminated) landed at a fit leaving a view out at 2 m RMS (0.634 mm RMS
-        # against trf's 0.132, good -> weak)
+        # (15 views, each pose's error eliminated) set one view aside at 2 m RMS where trf kept it (0.634 against
+        # 0.132 mm RMS, good -> weak). That view was one camera's chessboard read from the other end, since
+        # labelled against the robot (pipelines/rig); LM was not measured here again after that
         res = _robust_least_squares(elim.fun, elim.jac, x[:n_g], problem.scale()[:n_g], 1e-12, False, elim.f_scale)
     fun, jac = elim.fun(res.x), elim.jac(res.x)
     return _Solved(np.r_[res.x, elim.d], jac, fun, bool(res.success)), elim
@@ -2052,8 +2053,9 @@ def estimate(sensor: SensorModel, robot: RobotModel, folds: int | None = None, *
         "views that turn the flange about that axis, or move it along that direction, between measurements determine it; "
         "or give it (known=)")
     unobs = _unobservable(problem.pins, full.X, sensor.setup, fix)
-    if undetermined_verdict(verdict, bool(unobs)) != verdict:  # 'partial', the free parameters said first
-        verdict = undetermined_verdict(verdict, True)
+    partial = undetermined_verdict(verdict, bool(unobs))
+    if partial != verdict:  # the free parameters said first
+        verdict = partial
         advice = [f"the capture does not determine {', '.join(u.parameter for u in unobs)}: held at the start's value, "
                   f"its std infinite; {fix}"] + advice
     diag = Diagnostics(verdict=verdict, advice=advice, outliers=[int(v) for v, _ in checked.left_out],

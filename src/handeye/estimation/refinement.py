@@ -33,7 +33,7 @@ from ..robot.models import ControllerPoses, PoseErrors
 from ..sensors.camera.model import CameraCorners
 from ..sensors.camera.poses import NOISE_TERMS, pose_residuals
 from ..solvers.refine import PoseRefinementResult, ReprojectionResult, TranslationPriors
-from .core import Fitted, Problem, fit, fit_poses
+from .core import Fitted, Problem, fit, fit_poses, view_rms_px
 
 __all__ = ["PoseRefinementResult", "ReprojectionResult", "TranslationPriors", "corners_problem", "fit_poses_shared",
            "pose_fits_shared", "refine_pose", "refine_reprojection", "reprojection_result"]
@@ -255,9 +255,7 @@ def reprojection_result(problem: Problem, fitted: Fitted) -> ReprojectionResult:
     rows = fitted.rows
     sq = pixels(fitted.X, fitted.p, rows)
     n_views = len(sensor.names)
-    count = np.bincount(sensor.owner[rows], minlength=n_views)
-    with np.errstate(invalid="ignore", divide="ignore"):  # a view without a kept row: NaN (as core.view_rms_px)
-        per_view = np.sqrt(np.bincount(sensor.owner[rows], sq, minlength=n_views) / count)
+    per_view = view_rms_px(problem, fitted, np.arange(n_views))
     before = pixels(problem.X0, problem.p0, everything)
     kept = tuple(fitted.kept[sensor.owner == v] for v in range(n_views))
     emptied = tuple(v for v, k in enumerate(kept) if len(k) and not k.any())

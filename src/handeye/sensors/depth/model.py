@@ -38,6 +38,7 @@ from ...errors import DegenerateMotionError, HandEyeError, InputMismatchError
 from ...frames.setups import check_setup, predicted_target2cam, robot_world_A
 from ...geometry.se3 import make_transform, perturb
 from ..base import Nuisance
+from ..camera.pnp import relabel_points
 from ..target_pose import grid_curve
 from .clouds import board_pose, depth_sigma
 
@@ -207,8 +208,7 @@ class BoardPoints(DepthRows):
         if self._Zref is not None:
             raise HandEyeError("a board's labelling is turned before its first start, not after (its unknowns are anchored)")
         out = copy.copy(self)
-        F_inv = np.linalg.inv(np.asarray(F, float))
-        out.obj = self.obj @ F_inv[:3, :3].T + F_inv[:3, 3]
+        out.obj = relabel_points(self.obj, F)
         out.poses = self.poses @ F
         return out
 
